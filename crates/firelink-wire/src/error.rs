@@ -1,0 +1,122 @@
+//! The one error type of the wire layer.
+//!
+//! Every variant carries the structured facts of what was wrong, so callers can
+//! match on it and `Display` can name the problem in one line. The type is
+//! `Copy` and allocation-free, so it can travel through a servo cycle.
+
+/// What went wrong while checking, parsing or emitting wire bytes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum Error {
+    /// The buffer ends before the structure does.
+    #[error("truncated {what}: need {needed} bytes, have {available}")]
+    Truncated {
+        /// The structure being read.
+        what: &'static str,
+        /// Bytes the structure needs.
+        needed: usize,
+        /// Bytes present.
+        available: usize,
+    },
+    /// A length field claims more bytes than the buffer holds.
+    #[error("{what} length field says {declared} bytes but only {available} follow")]
+    LengthExceedsBuffer {
+        /// The structure whose length field is wrong.
+        what: &'static str,
+        /// Bytes the length field declares.
+        declared: usize,
+        /// Bytes actually present.
+        available: usize,
+    },
+    /// Bytes remain after a complete structure where none may.
+    #[error("{extra} unexpected trailing bytes after the {what}")]
+    TrailingBytes {
+        /// The structure that ended.
+        what: &'static str,
+        /// How many bytes are left over.
+        extra: usize,
+    },
+    /// A transaction code this layer cannot give meaning to.
+    #[error("unknown tcode {0:#x}")]
+    UnknownTcode(u8),
+    /// A tcode that is valid but not allowed where it was found.
+    #[error("tcode {tcode:#x} is not allowed here: expected {expected}")]
+    UnexpectedTcode {
+        /// The tcode found.
+        tcode: u8,
+        /// What was expected instead.
+        expected: &'static str,
+    },
+    /// A value does not fit in its wire field.
+    #[error("{field} = {value:#x} does not fit (maximum {max:#x})")]
+    FieldRange {
+        /// The field name.
+        field: &'static str,
+        /// The offending value.
+        value: u64,
+        /// The largest value the field holds.
+        max: u64,
+    },
+    /// An output buffer is too small for what must be written into it.
+    #[error("output buffer too small for {what}: need {needed} bytes, have {available}")]
+    BufferTooSmall {
+        /// What was being emitted.
+        what: &'static str,
+        /// Bytes needed.
+        needed: usize,
+        /// Bytes available.
+        available: usize,
+    },
+    /// A header CRC did not match the header.
+    #[error("header CRC mismatch: packet carries {carried:#010x}, computed {computed:#010x}")]
+    HeaderCrc {
+        /// CRC carried in the packet.
+        carried: u32,
+        /// CRC computed over the header.
+        computed: u32,
+    },
+    /// A data CRC did not match the data block.
+    #[error("data CRC mismatch: packet carries {carried:#010x}, computed {computed:#010x}")]
+    DataCrc {
+        /// CRC carried in the packet.
+        carried: u32,
+        /// CRC computed over the data block.
+        computed: u32,
+    },
+    /// A self-checking encoding (ack byte, PHY packet) failed its check.
+    #[error("{what} fails its check: {value:#x}")]
+    Malformed {
+        /// The structure that failed.
+        what: &'static str,
+        /// The raw value found.
+        value: u32,
+    },
+    /// A block's size does not match the layout it should have.
+    #[error("{what} has {found} quadlets, expected {expected}")]
+    BlockSize {
+        /// The block.
+        what: &'static str,
+        /// Quadlets expected.
+        expected: usize,
+        /// Quadlets found.
+        found: usize,
+    },
+    /// A byte count that must be a whole number of quadlets is not.
+    #[error("{what} is {len} bytes, not a whole number of quadlets")]
+    NotQuadletAligned {
+        /// The structure.
+        what: &'static str,
+        /// Its length in bytes.
+        len: usize,
+    },
+    /// A board protocol field holds a value with no meaning.
+    #[error("invalid {what}: {value:#x}")]
+    InvalidValue {
+        /// The field.
+        what: &'static str,
+        /// The value found.
+        value: u32,
+    },
+}
+
+/// Result alias of the wire layer.
+pub type Result<T> = core::result::Result<T, Error>;
