@@ -1584,8 +1584,25 @@ impl Bus {
         }
         if matches!(sub.kind, PacketKind::Request | PacketKind::ConcatResponse) {
             sub.notified = true;
+            // A valid ack is known when it arrives; a lost or corrupt one
+            // only when the bus falls idle for a subaction gap (after any
+            // concatenated response).
+            let at = if seen.is_some() {
+                arrival
+            } else {
+                let last_end = match &response {
+                    Some((bytes, speed)) => {
+                        bits_end + t.concat_prefix + t.payload_time(bytes.len(), *speed) + t.data_end
+                    }
+                    None => end,
+                };
+                let gap = self.slots[sub.sender].regs.gap_count();
+                last_end
+                    + t.hop_delay * u64::from(self.tree.eccentricity(dest_phy))
+                    + t.subaction_gap(gap)
+            };
             self.push(
-                arrival,
+                at,
                 None,
                 Ev::Notify {
                     node: sub.sender,

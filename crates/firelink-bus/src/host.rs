@@ -173,9 +173,9 @@ impl HostLink {
     }
 
     /// Send a complete request packet (with CRCs) at `speed`; returns the
-    /// token its [`Completion`] will carry. Broadcast requests complete when
-    /// they have gone out; unicast ones when acked (and answered, after an
-    /// ack_pending).
+    /// token its [`Completion`] will carry. Broadcast requests and PHY
+    /// packets (link-internal form) complete when they have gone out;
+    /// unicast ones when acked (and answered, after an ack_pending).
     pub fn submit(&mut self, ctx: &mut NodeCtx<'_>, packet: Vec<u8>, speed: Speed) -> u64 {
         let token = self.next_token;
         self.next_token += 1;
@@ -379,7 +379,8 @@ impl Node for HostLink {
         };
         p.ack = ack;
         p.acked_at = Some(now);
-        let broadcast = p.destination.is_broadcast();
+        // Broadcasts and PHY packets are never acked.
+        let broadcast = p.destination.is_broadcast() || p.tcode == Tcode::LinkInternal;
         match ack {
             None if broadcast => self.finish(token, now, Outcome::Complete, ctx),
             None => {
