@@ -244,20 +244,23 @@ enum Ev {
     CycleTick,
     Timed(usize),
     Reconnect {
-        links: Vec<(usize, u8, usize, u8)>,
+        links: Box<[(usize, u8, usize, u8)]>,
         fault: FaultId,
     },
     Unmute {
         node: usize,
     },
     PacketEnd(PacketId),
-    NoAck {
-        packet: PacketId,
-        node: usize,
-        token: Option<u64>,
-        kind: PacketKind,
-        faults: Vec<FaultId>,
-    },
+    NoAck(Box<NoAckInfo>),
+}
+
+#[derive(Debug)]
+struct NoAckInfo {
+    packet: PacketId,
+    node: usize,
+    token: Option<u64>,
+    kind: PacketKind,
+    faults: Vec<FaultId>,
 }
 
 #[derive(Debug)]
@@ -829,15 +832,16 @@ impl Bus {
             Ev::ResetDone => self.reset_done(),
             Ev::CycleTick => self.cycle_tick(),
             Ev::Timed(i) => self.timed_fault(i),
-            Ev::Reconnect { links, fault } => self.reconnect(links, fault),
+            Ev::Reconnect { links, fault } => self.reconnect(&links, fault),
             Ev::PacketEnd(id) => self.log_event(TraceEvent::PacketEnd(id)),
-            Ev::NoAck {
-                packet,
-                node,
-                token,
-                kind,
-                faults,
-            } => {
+            Ev::NoAck(info) => {
+                let NoAckInfo {
+                    packet,
+                    node,
+                    token,
+                    kind,
+                    faults,
+                } = *info;
                 self.log_event(TraceEvent::NoAck { packet });
                 for f in faults {
                     self.log.add_evidence(
@@ -1346,8 +1350,8 @@ impl Bus {
         if let Some(d) = dest_phy.filter(|_| unicast) {
             dest_node = self.tree.by_phy.get(usize::from(d)).copied();
         }
-        let by_phy = self.tree.by_phy.clone();
-        for (phy, &node) in by_phy.iter().enumerate() {
+        for phy in 0..self.tree.by_phy.len() {
+            let node = self.tree.by_phy[phy];
             let phy = phy as u8;
             if node == sender {
                 continue;
@@ -1416,13 +1420,13 @@ impl Bus {
         }
         let gap = self.slots[sub.sender].regs.gap_count();
         let at = idle_at + self.cfg.timing.subaction_gap(gap);
-        let ev = Ev::NoAck {
+        let ev = Ev::NoAck(Box::new(NoAckInfo {
             packet: sub.id,
             node: sub.sender,
             token: sub.token,
             kind: sub.kind,
             faults: sub.faults.clone(),
-        };
+        }));
         self.push(at, None, ev);
     }
 
@@ -1592,7 +1596,10 @@ impl Bus {
             } else {
                 let last_end = match &response {
                     Some((bytes, speed)) => {
-                        bits_end + t.concat_prefix + t.payload_time(bytes.len(), *speed) + t.data_end
+                        bits_end
+                            + t.concat_prefix
+                            + t.payload_time(bytes.len(), *speed)
+                            + t.data_end
                     }
                     None => end,
                 };
@@ -1982,6 +1989,7 @@ impl Bus {
                 self.reset_faults.push(id);
                 self.start_reset(false, "cable unplugged (fault)".to_string());
                 if let Some(d) = reconnect_after {
+                    let links = links.into_boxed_slice();
                     self.push(now + d, None, Ev::Reconnect { links, fault: id });
                 }
             }
@@ -2037,8 +2045,8 @@ impl Bus {
         }
     }
 
-    fn reconnect(&mut self, links: Vec<(usize, u8, usize, u8)>, fault: FaultId) {
-        for (a, pa, b, pb) in links {
+    fn reconnect(&mut self, links: &[(usize, u8, usize, u8)], fault: FaultId) {
+        for &(a, pa, b, pb) in links {
             if let Err(e) = self.topo.connect_ports(a, pa, b, pb) {
                 self.note(format!("could not plug the cable back: {e}"));
             }

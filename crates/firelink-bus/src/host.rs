@@ -108,6 +108,7 @@ pub struct HostLink {
     completions: VecDeque<Completion>,
     received: VecDeque<Received>,
     received_limit: usize,
+    received_total: u64,
     split_timeout: SimDuration,
     phy_id: u8,
     generation: u32,
@@ -127,6 +128,7 @@ impl HostLink {
             completions: VecDeque::new(),
             received: VecDeque::new(),
             received_limit: 4096,
+            received_total: 0,
             split_timeout: SimDuration::from_millis(100),
             phy_id: NodeId::BROADCAST_PHY,
             generation: 0,
@@ -229,8 +231,14 @@ impl HostLink {
     }
 
     /// Packets received that were not responses to our requests.
-    pub fn received(&self) -> impl Iterator<Item = &Received> {
+    pub fn received(&self) -> impl DoubleEndedIterator<Item = &Received> + ExactSizeIterator {
         self.received.iter()
+    }
+
+    /// Packets received so far (taken or not, dropped over the limit or
+    /// not).
+    pub fn received_total(&self) -> u64 {
+        self.received_total
     }
 
     /// Take every received packet.
@@ -263,6 +271,7 @@ impl HostLink {
             self.received.pop_front();
         }
         self.received.push_back(received);
+        self.received_total += 1;
     }
 }
 

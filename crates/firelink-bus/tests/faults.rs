@@ -3,11 +3,15 @@
 mod common;
 
 use common::{Recorder, Reply, bwrite, qwrite, rec, send};
-use firelink_bus::fault::{EvidenceKind, FaultPlan, FaultRule, PacketFault, PacketMatch, TimedFault};
+use firelink_bus::fault::{
+    EvidenceKind, FaultPlan, FaultRule, PacketFault, PacketMatch, TimedFault,
+};
 use firelink_bus::host::{HostLink, Outcome};
 use firelink_bus::scenario::{CycleConfig, MinimalBoard, Profile, Protocol, run_cycle};
 use firelink_bus::trace::PacketKind;
-use firelink_bus::{ArbitrationClass, Bus, BusConfig, NodeConfig, NodeHandle, SimDuration, SimTime};
+use firelink_bus::{
+    ArbitrationClass, Bus, BusConfig, NodeConfig, NodeHandle, SimDuration, SimTime,
+};
 use firelink_wire::packet::{Speed, Tcode};
 
 /// PC (HostLink) and `n` minimal seed-profile boards in a chain.
@@ -20,7 +24,12 @@ fn boards(n: usize, seed: u64) -> (Bus, NodeHandle, Vec<NodeHandle>) {
     let mut nodes = Vec::new();
     for id in 0..n {
         nodes.push(bus.add(
-            MinimalBoard::new(id as u8, Profile::Seed, ArbitrationClass::Isochronous, Speed::S400),
+            MinimalBoard::new(
+                id as u8,
+                Profile::Seed,
+                ArbitrationClass::Isochronous,
+                Speed::S400,
+            ),
             NodeConfig::board(),
         ));
     }
@@ -72,15 +81,24 @@ fn drop_unicast_is_detected_by_the_missing_ack() {
 fn drop_broadcast_is_detected_by_the_host_hub_check() {
     let mut cfg = CycleConfig::new(4, Profile::Seed, Protocol::Broadcast);
     cfg.faults = FaultPlan::new().once(
-        PacketMatch::any().tcode(Tcode::WriteBlockRequest).to_phy(63).skip(1),
+        PacketMatch::any()
+            .tcode(Tcode::WriteBlockRequest)
+            .to_phy(63)
+            .skip(1),
         PacketFault::Drop,
     );
     let mut run = run_cycle(&cfg);
     assert_eq!(run.report.boards_ok, 3);
-    assert!(run.report.errors.iter().any(|e| e.contains("no fresh data")));
+    assert!(
+        run.report
+            .errors
+            .iter()
+            .any(|e| e.contains("no fresh data"))
+    );
     // Broadcasts have no ack: the host library records what it detected.
     let id = run.report.faults[0].id;
-    run.bus.record_detection(id, run.pc, "hub data missing a board");
+    run.bus
+        .record_detection(id, run.pc, "hub data missing a board");
     assert!(run.bus.fault_log().undetected().is_empty());
 }
 
@@ -90,15 +108,19 @@ fn flipped_bits_fail_the_crc_downstream() {
     // ack_data_error, whichever bits were hit.
     for seed in 0..20 {
         let (mut bus, pc, nodes) = boards(2, seed);
-        bus.set_fault_plan(
-            FaultPlan::new().once(PacketMatch::any().from(pc), PacketFault::FlipBits { count: 1 }),
-        );
+        bus.set_fault_plan(FaultPlan::new().once(
+            PacketMatch::any().from(pc),
+            PacketFault::FlipBits { count: 1 },
+        ));
         let me = bus.phy_id(pc).unwrap();
         let dst = bus.phy_id(nodes[1]).unwrap();
         let t = host_send(&mut bus, pc, bwrite(me, dst, 0, &[1, 2, 3, 4, 5, 6, 7, 8]));
         bus.run_for(SimDuration::from_micros(100));
         let o = outcome(&mut bus, pc, t);
-        assert!(matches!(o, Outcome::NoAck | Outcome::AckError), "seed {seed}: {o:?}");
+        assert!(
+            matches!(o, Outcome::NoAck | Outcome::AckError),
+            "seed {seed}: {o:?}"
+        );
         let f = only_fault(&bus);
         assert!(f.what.starts_with("flip bits"));
         assert!(f.detected(), "seed {seed}: {f:?}");
@@ -126,7 +148,10 @@ fn corrupt_data_quadlet_gets_ack_data_error() {
     let (mut bus, pc, nodes) = boards(1, 0);
     bus.set_fault_plan(FaultPlan::new().once(
         PacketMatch::any().from(pc).tcode(Tcode::WriteBlockRequest),
-        PacketFault::CorruptQuadlet { index: 5, xor: 0x0100_0000 },
+        PacketFault::CorruptQuadlet {
+            index: 5,
+            xor: 0x0100_0000,
+        },
     ));
     let me = bus.phy_id(pc).unwrap();
     let dst = bus.phy_id(nodes[0]).unwrap();
@@ -134,22 +159,36 @@ fn corrupt_data_quadlet_gets_ack_data_error() {
     bus.run_for(SimDuration::from_micros(50));
     assert_eq!(outcome(&mut bus, pc, t), Outcome::AckError);
     let f = only_fault(&bus);
-    assert!(f.evidence.iter().any(|e| e.kind == EvidenceKind::ErrorAck(0xD)));
-    assert_eq!(bus.node::<MinimalBoard>(nodes[0]).unwrap().stats.crc_errors, 1);
+    assert!(
+        f.evidence
+            .iter()
+            .any(|e| e.kind == EvidenceKind::ErrorAck(0xD))
+    );
+    assert_eq!(
+        bus.node::<MinimalBoard>(nodes[0]).unwrap().stats.crc_errors,
+        1
+    );
 }
 
 #[test]
 fn delayed_status_broadcast_arrives_late_and_boards_notice() {
     let mut cfg = CycleConfig::new(4, Profile::Seed, Protocol::Broadcast);
     cfg.faults = FaultPlan::new().once(
-        PacketMatch::any().tcode(Tcode::WriteBlockRequest).to_phy(63).skip(1),
+        PacketMatch::any()
+            .tcode(Tcode::WriteBlockRequest)
+            .to_phy(63)
+            .skip(1),
         PacketFault::Delay(SimDuration::from_micros(8)),
     );
     let base = run_cycle(&CycleConfig::new(4, Profile::Seed, Protocol::Broadcast)).report;
     let run = run_cycle(&cfg);
     let f = &run.report.faults[0];
     assert!(f.what.starts_with("delay"));
-    assert!(f.evidence.iter().any(|e| matches!(&e.kind, EvidenceKind::Report(t) if t.contains("after its slot"))));
+    assert!(
+        f.evidence
+            .iter()
+            .any(|e| matches!(&e.kind, EvidenceKind::Report(t) if t.contains("after its slot")))
+    );
     // The delayed packet really started later.
     let delayed = run
         .bus
@@ -175,13 +214,24 @@ fn duplicates_are_noticed() {
     let board = bus.node::<MinimalBoard>(nodes[0]).unwrap();
     assert_eq!((board.stats.writes, board.stats.duplicates), (2, 1));
     let f = only_fault(&bus);
-    assert!(f.evidence.iter().any(|e| matches!(&e.kind, EvidenceKind::Report(t) if t.contains("duplicate"))));
-    let dups = bus.trace().packets().iter().filter(|p| p.kind == PacketKind::Duplicate).count();
+    assert!(
+        f.evidence
+            .iter()
+            .any(|e| matches!(&e.kind, EvidenceKind::Report(t) if t.contains("duplicate")))
+    );
+    let dups = bus
+        .trace()
+        .packets()
+        .iter()
+        .filter(|p| p.kind == PacketKind::Duplicate)
+        .count();
     assert_eq!(dups, 1);
     // A duplicated status broadcast: every board caches it once.
     let mut cfg = CycleConfig::new(3, Profile::Seed, Protocol::Broadcast);
     cfg.faults = FaultPlan::new().once(
-        PacketMatch::any().tcode(Tcode::WriteBlockRequest).to_phy(63),
+        PacketMatch::any()
+            .tcode(Tcode::WriteBlockRequest)
+            .to_phy(63),
         PacketFault::Duplicate,
     );
     let report = run_cycle(&cfg).report;
@@ -203,7 +253,12 @@ fn lost_or_corrupt_ack_is_a_missing_ack_for_the_sender() {
         assert_eq!(bus.node::<MinimalBoard>(nodes[0]).unwrap().stats.writes, 1);
         let f = only_fault(&bus);
         assert!(f.evidence.iter().any(|e| e.kind == EvidenceKind::NoAck));
-        let ack = bus.trace().packets().iter().find(|p| p.kind == PacketKind::Ack).unwrap();
+        let ack = bus
+            .trace()
+            .packets()
+            .iter()
+            .find(|p| p.kind == PacketKind::Ack)
+            .unwrap();
         assert_eq!(ack.ack().is_none(), fault == PacketFault::CorruptAck);
     }
     // A concatenated read whose ack is lost still delivers its response.
@@ -213,7 +268,11 @@ fn lost_or_corrupt_ack_is_a_missing_ack_for_the_sender() {
     let dst = bus.phy_id(nodes[0]).unwrap();
     let t = host_send(&mut bus, pc, common::qread(me, dst, 4));
     bus.run_for(SimDuration::from_micros(50));
-    let c = bus.node_mut::<HostLink>(pc).unwrap().take_completion(t).unwrap();
+    let c = bus
+        .node_mut::<HostLink>(pc)
+        .unwrap()
+        .take_completion(t)
+        .unwrap();
     assert!(c.response.is_some());
     assert_eq!(c.ack, None);
 }
@@ -285,7 +344,10 @@ fn a_babbling_node_starves_the_bus_and_receivers_reject_its_garbage() {
     });
     let pc = bus.add(Recorder::new("pc", Reply::Complete), NodeConfig::pc());
     let a = bus.add(Recorder::new("a", Reply::Complete), NodeConfig::board());
-    let babbler = bus.add(Recorder::new("babbler", Reply::Complete), NodeConfig::board());
+    let babbler = bus.add(
+        Recorder::new("babbler", Reply::Complete),
+        NodeConfig::board(),
+    );
     bus.daisy_chain(&[pc, a, babbler]).unwrap();
     bus.reset();
     let t0 = bus.now();
@@ -300,9 +362,20 @@ fn a_babbling_node_starves_the_bus_and_receivers_reject_its_garbage() {
     bus.run_for(SimDuration::from_nanos(1));
     let me = bus.phy_id(pc).unwrap();
     let dst = bus.phy_id(a).unwrap();
-    send(&mut bus, pc, qwrite(me, dst, 0, 1), ArbitrationClass::Fair, 1);
+    send(
+        &mut bus,
+        pc,
+        qwrite(me, dst, 0, 1),
+        ArbitrationClass::Fair,
+        1,
+    );
     bus.run_for(SimDuration::from_micros(100));
-    let babble = bus.trace().packets().iter().filter(|p| p.kind == PacketKind::Babble).count();
+    let babble = bus
+        .trace()
+        .packets()
+        .iter()
+        .filter(|p| p.kind == PacketKind::Babble)
+        .count();
     assert!(babble >= 12, "{babble}");
     let req = bus
         .trace()
@@ -310,11 +383,17 @@ fn a_babbling_node_starves_the_bus_and_receivers_reject_its_garbage() {
         .iter()
         .find(|p| p.kind == PacketKind::Request && p.sender == pc.0)
         .unwrap();
-    assert!(req.start >= t0 + SimDuration::from_micros(40), "the PC waited for the babble to end");
+    assert!(
+        req.start >= t0 + SimDuration::from_micros(40),
+        "the PC waited for the babble to end"
+    );
     assert!(rec(&bus, a).crc_errors >= 12);
     let f = only_fault(&bus);
     assert!(f.detected());
-    assert_eq!(rec(&bus, pc).transmitted[0].2, Some(firelink_wire::packet::Ack::Complete));
+    assert_eq!(
+        rec(&bus, pc).transmitted[0].2,
+        Some(firelink_wire::packet::Ack::Complete)
+    );
 }
 
 #[test]

@@ -16,7 +16,12 @@ fn bus_with(n: usize, reply: Reply) -> (Bus, NodeHandle, Vec<NodeHandle>) {
     let mut bus = Bus::new(BusConfig::default());
     let pc = bus.add(Recorder::new("pc", Reply::Complete), NodeConfig::pc());
     let nodes: Vec<NodeHandle> = (0..n)
-        .map(|i| bus.add(Recorder::new(&format!("n{i}"), reply.clone()), NodeConfig::board()))
+        .map(|i| {
+            bus.add(
+                Recorder::new(&format!("n{i}"), reply.clone()),
+                NodeConfig::board(),
+            )
+        })
         .collect();
     let mut chain = vec![pc];
     chain.extend(&nodes);
@@ -34,15 +39,36 @@ fn pc_phy(bus: &Bus, pc: NodeHandle) -> u8 {
 fn broadcast_reaches_every_node_and_is_never_acked() {
     let (mut bus, pc, nodes) = bus_with(5, Reply::Fixed(Ack::Complete));
     let me = pc_phy(&bus, pc);
-    send(&mut bus, pc, qwrite(me, 63, 0x1800, 0x0001_00FF), ArbitrationClass::Fair, 11);
+    send(
+        &mut bus,
+        pc,
+        qwrite(me, 63, 0x1800, 0x0001_00FF),
+        ArbitrationClass::Fair,
+        11,
+    );
     bus.run_for(SimDuration::from_micros(30));
     for &n in &nodes {
-        assert_eq!(rec(&bus, n).received.len(), 1, "every node receives the broadcast");
+        assert_eq!(
+            rec(&bus, n).received.len(),
+            1,
+            "every node receives the broadcast"
+        );
     }
-    assert!(rec(&bus, pc).received.is_empty(), "the sender does not receive itself");
+    assert!(
+        rec(&bus, pc).received.is_empty(),
+        "the sender does not receive itself"
+    );
     // Nodes replied with an ack to a broadcast: the bus ignores it.
-    assert!(bus.trace().packets().iter().all(|p| p.kind != PacketKind::Ack));
-    assert_eq!(rec(&bus, pc).transmitted, vec![(rec(&bus, pc).transmitted[0].0, 11, None)]);
+    assert!(
+        bus.trace()
+            .packets()
+            .iter()
+            .all(|p| p.kind != PacketKind::Ack)
+    );
+    assert_eq!(
+        rec(&bus, pc).transmitted,
+        vec![(rec(&bus, pc).transmitted[0].0, 11, None)]
+    );
     // Farther nodes receive later, by the repeat delay per hop.
     let t: Vec<SimTime> = nodes.iter().map(|&n| rec(&bus, n).received[0].0).collect();
     for w in t.windows(2) {
@@ -56,7 +82,13 @@ fn unicast_acks_follow_after_the_ack_gap() {
         let (mut bus, pc, nodes) = bus_with(2, Reply::Fixed(ack));
         let me = pc_phy(&bus, pc);
         let dst = bus.phy_id(nodes[0]).unwrap();
-        send(&mut bus, pc, qwrite(me, dst, 0, 1), ArbitrationClass::Fair, 3);
+        send(
+            &mut bus,
+            pc,
+            qwrite(me, dst, 0, 1),
+            ArbitrationClass::Fair,
+            3,
+        );
         bus.run_for(SimDuration::from_micros(30));
         let packets = bus.trace().packets();
         assert_eq!(packets.len(), 2);
@@ -80,13 +112,33 @@ fn no_ack_from_an_absent_or_silent_node() {
     let me = pc_phy(&bus, pc);
     // To a silent node.
     let dst = bus.phy_id(nodes[1]).unwrap();
-    send(&mut bus, pc, qwrite(me, dst, 0, 1), ArbitrationClass::Fair, 1);
+    send(
+        &mut bus,
+        pc,
+        qwrite(me, dst, 0, 1),
+        ArbitrationClass::Fair,
+        1,
+    );
     // To an ID nobody has.
-    send(&mut bus, pc, qwrite(me, 40, 0, 1), ArbitrationClass::Fair, 2);
+    send(
+        &mut bus,
+        pc,
+        qwrite(me, 40, 0, 1),
+        ArbitrationClass::Fair,
+        2,
+    );
     bus.run_for(SimDuration::from_micros(200));
     let t = &rec(&bus, pc).transmitted;
-    assert_eq!(t.iter().map(|x| (x.1, x.2)).collect::<Vec<_>>(), vec![(1, None), (2, None)]);
-    assert!(bus.trace().packets().iter().all(|p| p.kind != PacketKind::Ack));
+    assert_eq!(
+        t.iter().map(|x| (x.1, x.2)).collect::<Vec<_>>(),
+        vec![(1, None), (2, None)]
+    );
+    assert!(
+        bus.trace()
+            .packets()
+            .iter()
+            .all(|p| p.kind != PacketKind::Ack)
+    );
     assert_eq!(
         bus.trace()
             .entries()
@@ -115,19 +167,32 @@ fn concatenated_response_needs_no_arbitration_split_does() {
         // The PC acks the response with ack_complete.
         let last = packets.last().unwrap();
         assert_eq!(last.ack(), Some(Ack::Complete));
-        assert_eq!(rec(&bus, nodes[0]).response_acks.len(), usize::from(resp.kind == PacketKind::ConcatResponse));
+        assert_eq!(
+            rec(&bus, nodes[0]).response_acks.len(),
+            usize::from(resp.kind == PacketKind::ConcatResponse)
+        );
         (kinds, (last.end - packets[0].start).as_micros_f64(), resp)
     };
     let (kinds, concat_us, resp) = span(Reply::Concatenated);
     assert_eq!(
         kinds,
-        vec![PacketKind::Request, PacketKind::Ack, PacketKind::ConcatResponse, PacketKind::Ack]
+        vec![
+            PacketKind::Request,
+            PacketKind::Ack,
+            PacketKind::ConcatResponse,
+            PacketKind::Ack
+        ]
     );
     assert!(resp.arb_start.is_none());
     let (kinds, split_us, resp) = span(Reply::Split { delay_us: 0.0 });
     assert_eq!(
         kinds,
-        vec![PacketKind::Request, PacketKind::Ack, PacketKind::Request, PacketKind::Ack]
+        vec![
+            PacketKind::Request,
+            PacketKind::Ack,
+            PacketKind::Request,
+            PacketKind::Ack
+        ]
     );
     assert!(resp.arb_start.is_some());
     // The split response waits a subaction gap (10.5 us at gap count 63).
@@ -142,7 +207,13 @@ fn isochronous_style_requests_wait_only_the_iso_gap() {
         let (mut bus, _pc, nodes) = bus_with(2, Reply::Silent);
         let a = bus.phy_id(nodes[0]).unwrap();
         let b = bus.phy_id(nodes[1]).unwrap();
-        send(&mut bus, nodes[0], qwrite(a, 63, 0, 1), ArbitrationClass::Isochronous, 1);
+        send(
+            &mut bus,
+            nodes[0],
+            qwrite(a, 63, 0, 1),
+            ArbitrationClass::Isochronous,
+            1,
+        );
         send(&mut bus, nodes[1], qwrite(b, 63, 0, 2), class, 2);
         bus.run_for(SimDuration::from_micros(100));
         let p = bus.trace().packets();
@@ -157,7 +228,10 @@ fn isochronous_style_requests_wait_only_the_iso_gap() {
     // the gap.
     assert!((iso - (0.144 + 0.04)).abs() < 0.01, "{iso}");
     assert!((pri - (0.144 + 10.53)).abs() < 0.02, "{pri}");
-    assert!((fair - pri).abs() < 1e-9, "first fair request of the interval");
+    assert!(
+        (fair - pri).abs() < 1e-9,
+        "first fair request of the interval"
+    );
 }
 
 #[test]
@@ -165,9 +239,27 @@ fn fairness_interval_makes_a_second_fair_request_wait_the_arb_reset_gap() {
     let (mut bus, pc, nodes) = bus_with(1, Reply::Complete);
     let me = pc_phy(&bus, pc);
     let dst = bus.phy_id(nodes[0]).unwrap();
-    send(&mut bus, pc, qwrite(me, dst, 0, 1), ArbitrationClass::Fair, 1);
-    send(&mut bus, pc, qwrite(me, dst, 0, 2), ArbitrationClass::Fair, 2);
-    send(&mut bus, pc, qwrite(me, dst, 0, 3), ArbitrationClass::Priority, 3);
+    send(
+        &mut bus,
+        pc,
+        qwrite(me, dst, 0, 1),
+        ArbitrationClass::Fair,
+        1,
+    );
+    send(
+        &mut bus,
+        pc,
+        qwrite(me, dst, 0, 2),
+        ArbitrationClass::Fair,
+        2,
+    );
+    send(
+        &mut bus,
+        pc,
+        qwrite(me, dst, 0, 3),
+        ArbitrationClass::Priority,
+        3,
+    );
     bus.run_for(SimDuration::from_micros(200));
     let req: Vec<_> = bus
         .trace()
@@ -184,13 +276,25 @@ fn fairness_interval_makes_a_second_fair_request_wait_the_arb_reset_gap() {
         .cloned()
         .collect();
     let idle = |i: usize| (req[i + 1].arb_start.unwrap() - acks[i].end).as_micros_f64() - 0.144;
-    assert!((idle(0) - 21.03).abs() < 0.05, "second fair waits the arbitration reset gap: {}", idle(0));
-    assert!((idle(1) - 10.53).abs() < 0.05, "priority waits only a subaction gap: {}", idle(1));
+    assert!(
+        (idle(0) - 21.03).abs() < 0.05,
+        "second fair waits the arbitration reset gap: {}",
+        idle(0)
+    );
+    assert!(
+        (idle(1) - 10.53).abs() < 0.05,
+        "priority waits only a subaction gap: {}",
+        idle(1)
+    );
 }
 
 #[test]
 fn transmission_time_follows_length_and_speed() {
-    for (speed, bits_per_us) in [(Speed::S100, 98.304), (Speed::S200, 196.608), (Speed::S400, 393.216)] {
+    for (speed, bits_per_us) in [
+        (Speed::S100, 98.304),
+        (Speed::S200, 196.608),
+        (Speed::S400, 393.216),
+    ] {
         let (mut bus, pc, _nodes) = bus_with(1, Reply::Silent);
         let me = pc_phy(&bus, pc);
         let data = vec![0xA5; 1000];
@@ -223,10 +327,19 @@ fn slow_phy_on_the_path_blocks_faster_packets() {
     bus.daisy_chain(&[pc, slow, far]).unwrap();
     bus.reset();
     let me = bus.phy_id(pc).unwrap();
-    send(&mut bus, pc, qwrite(me, 63, 0, 1), ArbitrationClass::Fair, 1);
+    send(
+        &mut bus,
+        pc,
+        qwrite(me, 63, 0, 1),
+        ArbitrationClass::Fair,
+        1,
+    );
     bus.run_for(SimDuration::from_micros(50));
     assert!(rec(&bus, slow).received.is_empty());
-    assert!(rec(&bus, far).received.is_empty(), "repeated through an S200 PHY");
+    assert!(
+        rec(&bus, far).received.is_empty(),
+        "repeated through an S200 PHY"
+    );
 }
 
 #[test]
@@ -269,7 +382,13 @@ fn cycle_master_sends_cycle_starts_every_125_us_and_delays_async() {
     bus.run_until(tick - SimDuration::from_nanos(5));
     let me = bus.phy_id(pc).unwrap();
     let dst = bus.phy_id(n).unwrap();
-    send(&mut bus, n, qwrite(dst, me, 0, 1), ArbitrationClass::Fair, 9);
+    send(
+        &mut bus,
+        n,
+        qwrite(dst, me, 0, 1),
+        ArbitrationClass::Fair,
+        9,
+    );
     bus.run_for(SimDuration::from_micros(50));
     let after: Vec<PacketKind> = bus
         .trace()
@@ -284,7 +403,13 @@ fn cycle_master_sends_cycle_starts_every_125_us_and_delays_async() {
 #[test]
 fn garbage_from_nodes_never_crashes_the_bus() {
     // A node answering with garbage "responses" of every odd shape.
-    for garbage in [vec![], vec![0xFF], vec![0; 3], vec![0xAB; 5000], vec![0x12; 100_000]] {
+    for garbage in [
+        vec![],
+        vec![0xFF],
+        vec![0; 3],
+        vec![0xAB; 5000],
+        vec![0x12; 100_000],
+    ] {
         let (mut bus, pc, nodes) = bus_with(2, Reply::Garbage(garbage));
         let me = pc_phy(&bus, pc);
         let dst = bus.phy_id(nodes[0]).unwrap();
@@ -294,11 +419,23 @@ fn garbage_from_nodes_never_crashes_the_bus() {
     }
     // Nodes transmitting garbage: empty, short, unknown tcodes, huge.
     let (mut bus, pc, nodes) = bus_with(2, Reply::Complete);
-    for (i, junk) in [vec![], vec![1u8, 2, 3], vec![0xFF; 64], vec![0x30; 17], vec![0; 9000]]
-        .into_iter()
-        .enumerate()
+    for (i, junk) in [
+        vec![],
+        vec![1u8, 2, 3],
+        vec![0xFF; 64],
+        vec![0x30; 17],
+        vec![0; 9000],
+    ]
+    .into_iter()
+    .enumerate()
     {
-        send(&mut bus, nodes[1], junk, ArbitrationClass::Isochronous, i as u64);
+        send(
+            &mut bus,
+            nodes[1],
+            junk,
+            ArbitrationClass::Isochronous,
+            i as u64,
+        );
     }
     bus.run_for(SimDuration::from_micros(500));
     assert_eq!(rec(&bus, nodes[1]).transmitted.len(), 5);
@@ -326,17 +463,35 @@ fn garbage_from_nodes_never_crashes_the_bus() {
 fn host_link_matches_responses_and_reports_outcomes() {
     let mut bus = Bus::new(BusConfig::default());
     let pc = bus.add(HostLink::new("pc"), NodeConfig::pc());
-    let good = bus.add(Recorder::new("good", Reply::Concatenated), NodeConfig::board());
-    let split = bus.add(Recorder::new("split", Reply::Split { delay_us: 3.0 }), NodeConfig::board());
-    let busy = bus.add(Recorder::new("busy", Reply::Fixed(Ack::BusyX)), NodeConfig::board());
+    let good = bus.add(
+        Recorder::new("good", Reply::Concatenated),
+        NodeConfig::board(),
+    );
+    let split = bus.add(
+        Recorder::new("split", Reply::Split { delay_us: 3.0 }),
+        NodeConfig::board(),
+    );
+    let busy = bus.add(
+        Recorder::new("busy", Reply::Fixed(Ack::BusyX)),
+        NodeConfig::board(),
+    );
     bus.daisy_chain(&[pc, good, split, busy]).unwrap();
     bus.reset();
     let me = bus.phy_id(pc).unwrap();
     let mut tokens = Vec::new();
     for (dst, tl_packet) in [
-        (bus.phy_id(good).unwrap(), qread(me, bus.phy_id(good).unwrap(), 0)),
-        (bus.phy_id(split).unwrap(), qread(me, bus.phy_id(split).unwrap(), 0)),
-        (bus.phy_id(busy).unwrap(), qwrite(me, bus.phy_id(busy).unwrap(), 0, 5)),
+        (
+            bus.phy_id(good).unwrap(),
+            qread(me, bus.phy_id(good).unwrap(), 0),
+        ),
+        (
+            bus.phy_id(split).unwrap(),
+            qread(me, bus.phy_id(split).unwrap(), 0),
+        ),
+        (
+            bus.phy_id(busy).unwrap(),
+            qwrite(me, bus.phy_id(busy).unwrap(), 0, 5),
+        ),
         (63, qwrite(me, 63, 0, 5)),
         (50, qwrite(me, 50, 0, 5)),
     ] {
@@ -375,7 +530,10 @@ fn host_link_split_timeout_and_bus_reset_flush() {
         HostLink::new("pc").with_split_timeout(SimDuration::from_micros(50)),
         NodeConfig::pc(),
     );
-    let n = bus.add(Recorder::new("pending", Reply::Fixed(Ack::Pending)), NodeConfig::board());
+    let n = bus.add(
+        Recorder::new("pending", Reply::Fixed(Ack::Pending)),
+        NodeConfig::board(),
+    );
     bus.connect(pc, n).unwrap();
     bus.reset();
     let me = bus.phy_id(pc).unwrap();
@@ -384,7 +542,11 @@ fn host_link_split_timeout_and_bus_reset_flush() {
         .with_node::<HostLink, _>(pc, |l, ctx| l.submit(ctx, qread(me, dst, 0), Speed::S400))
         .unwrap();
     bus.run_for(SimDuration::from_micros(100));
-    let c = bus.node_mut::<HostLink>(pc).unwrap().take_completion(t1).unwrap();
+    let c = bus
+        .node_mut::<HostLink>(pc)
+        .unwrap()
+        .take_completion(t1)
+        .unwrap();
     assert_eq!(c.outcome, Outcome::ResponseTimeout);
     // A request still queued when the bus resets is flushed.
     let t2 = bus
@@ -392,7 +554,11 @@ fn host_link_split_timeout_and_bus_reset_flush() {
         .unwrap();
     bus.initiate_reset(false);
     bus.run_for(SimDuration::from_micros(300));
-    let c = bus.node_mut::<HostLink>(pc).unwrap().take_completion(t2).unwrap();
+    let c = bus
+        .node_mut::<HostLink>(pc)
+        .unwrap()
+        .take_completion(t2)
+        .unwrap();
     assert!(matches!(c.outcome, Outcome::NoAck | Outcome::BusReset));
     assert_eq!(bus.node::<HostLink>(pc).unwrap().resets(), 2);
 }

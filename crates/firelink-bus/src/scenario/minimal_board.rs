@@ -386,8 +386,18 @@ impl Node for MinimalBoard {
         let to_me = dest.phy() == self.phy_id && !bcast;
         let is_query =
             tcode == Tcode::WriteQuadletRequest && lo == QUERY_OFFSET && (bcast || dest.phy() == 0);
-        let status = view.crc_status();
-        if status.header_ok == Some(false) {
+        let header_ok = view.header_crc_ok() != Some(false);
+        let relevant = to_me
+            || bcast
+            || is_query
+            || (tcode == Tcode::WriteBlockRequest
+                && dest.phy() == 0
+                && offset == COMMAND_SNOOP_OFFSET);
+        if header_ok && !relevant {
+            // Another node's unicast traffic: the link ignores it.
+            return RxReply::Silent;
+        }
+        if !header_ok {
             self.stats.crc_errors += 1;
             if is_query {
                 // Seed 000: answer a corrupt query with sequence 0xFFFF.
@@ -399,7 +409,7 @@ impl Node for MinimalBoard {
             }
             return RxReply::Silent;
         }
-        if status.data_ok == Some(false) {
+        if view.data_crc_ok() == Some(false) {
             self.stats.crc_errors += 1;
             ctx.report_error(format!("{}: data CRC error", self.name));
             return if to_me {
@@ -503,14 +513,12 @@ impl Node for MinimalBoard {
     fn on_timer(&mut self, now: SimTime, token: u64, ctx: &mut NodeCtx<'_>) {
         match token {
             TOKEN_SEND => self.send_status(now, ctx),
-            TOKEN_CHAIN_TIMEOUT => {
-                if self.cycle.is_some_and(|c| !c.sent) {
-                    ctx.report_error(format!(
-                        "{}: chain stalled, a lower board never broadcast",
-                        self.name
-                    ));
-                    self.send_status(now, ctx);
-                }
+            TOKEN_CHAIN_TIMEOUT if self.cycle.is_some_and(|c| !c.sent) => {
+                ctx.report_error(format!(
+                    "{}: chain stalled, a lower board never broadcast",
+                    self.name
+                ));
+                self.send_status(now, ctx);
             }
             _ => {}
         }

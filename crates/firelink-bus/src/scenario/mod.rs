@@ -419,6 +419,7 @@ pub fn simulate_cycle(cfg: &CycleConfig) -> CycleReport {
     run_cycle(cfg).report
 }
 
+#[derive(Debug)]
 struct Driver {
     bus: Bus,
     pc: NodeHandle,
@@ -521,8 +522,25 @@ fn us(d: SimDuration) -> f64 {
     d.as_micros_f64()
 }
 
+/// A bus built and reset for a cycle, ready to [`run`](Self::run). Splitting
+/// preparation from the cycle lets a benchmark time the cycle alone.
+#[derive(Debug)]
+pub struct PreparedCycle {
+    cfg: CycleConfig,
+    boards: usize,
+    d: Driver,
+    board_nodes: Vec<NodeHandle>,
+    gap_count: u8,
+}
+
 /// Simulate one cycle and keep the bus for inspection.
 pub fn run_cycle(cfg: &CycleConfig) -> CycleRun {
+    prepare_cycle(cfg).run()
+}
+
+/// Build the bus, reset it and set the gap count, without running the
+/// cycle.
+pub fn prepare_cycle(cfg: &CycleConfig) -> PreparedCycle {
     let boards = cfg.boards.clamp(1, 16);
     let bus_cfg = BusConfig {
         seed: cfg.seed,
@@ -579,68 +597,92 @@ pub fn run_cycle(cfg: &CycleConfig) -> CycleRun {
     let gap_count = d.bus.gap_count(pc).unwrap_or(63);
     // Start from a quiet bus (longer than an arbitration reset gap).
     d.bus.run_for(SimDuration::from_micros(50));
-    let t0 = d.bus.now();
-    let first_packet = next_packet_id(&d.bus);
-    let mut plan = cfg.faults.clone();
-    for (at, _) in &mut plan.timed {
-        *at = t0 + SimDuration(at.0);
-    }
-    for rule in &mut plan.rules {
-        rule.matcher.after = rule.matcher.after.map(|a| t0 + SimDuration(a.0));
-        rule.matcher.before = rule.matcher.before.map(|b| t0 + SimDuration(b.0));
-    }
-    d.bus.set_fault_plan(plan);
-    let hub_quadlets = cfg
-        .hub_read_quadlets
-        .unwrap_or_else(|| cfg.profile.hub_read_quadlets(boards))
-        .clamp(1, cfg.speed.max_async_payload() / 4);
-    let sizes = Sizes {
-        status_quadlets: cfg.profile.status_broadcast_quadlets(),
-        hub_read_quadlets: hub_quadlets,
-        command_bytes: boards * cfg.profile.command_quadlets_per_board() * 4,
-        read_bytes: cfg.profile.read_bytes(),
-        write_bytes: cfg.profile.write_bytes(),
-    };
-    let (phases, per_board, total_us, boards_ok) = match cfg.protocol {
-        Protocol::Broadcast => broadcast_cycle(&mut d, cfg, boards, hub_quadlets, t0, first_packet),
-        Protocol::Sequential => sequential_cycle(&mut d, cfg, boards, t0, first_packet),
-    };
-    d.settle();
-    let packets = d
-        .bus
-        .trace()
-        .packets()
-        .iter()
-        .filter(|p| p.id >= first_packet && p.kind != PacketKind::SelfId)
-        .count();
-    let report = CycleReport {
+    PreparedCycle {
+        cfg: cfg.clone(),
         boards,
-        profile: cfg.profile,
-        protocol: cfg.protocol,
-        speed: match cfg.speed {
-            Speed::S100 => 100,
-            Speed::S200 => 200,
-            Speed::S400 => 400,
-        },
+        d,
+        board_nodes,
         gap_count,
-        arbitration: cfg.arbitration,
-        host_overhead: cfg.host_overhead,
-        seed: cfg.seed,
-        phases_us: phases,
-        per_board,
-        total_us,
-        packets,
-        sizes,
-        boards_ok,
-        errors: d.errors,
-        faults: d.bus.fault_log().records().to_vec(),
-    };
-    CycleRun {
-        report,
-        bus: d.bus,
-        pc,
-        boards: board_nodes,
-        first_packet,
+    }
+}
+
+impl PreparedCycle {
+    /// Run the cycle.
+    pub fn run(self) -> CycleRun {
+        let PreparedCycle {
+            cfg,
+            boards,
+            mut d,
+            board_nodes,
+            gap_count,
+        } = self;
+        let cfg = &cfg;
+        let pc = d.pc;
+        let t0 = d.bus.now();
+        let first_packet = next_packet_id(&d.bus);
+        let mut plan = cfg.faults.clone();
+        for (at, _) in &mut plan.timed {
+            *at = t0 + SimDuration(at.0);
+        }
+        for rule in &mut plan.rules {
+            rule.matcher.after = rule.matcher.after.map(|a| t0 + SimDuration(a.0));
+            rule.matcher.before = rule.matcher.before.map(|b| t0 + SimDuration(b.0));
+        }
+        d.bus.set_fault_plan(plan);
+        let hub_quadlets = cfg
+            .hub_read_quadlets
+            .unwrap_or_else(|| cfg.profile.hub_read_quadlets(boards))
+            .clamp(1, cfg.speed.max_async_payload() / 4);
+        let sizes = Sizes {
+            status_quadlets: cfg.profile.status_broadcast_quadlets(),
+            hub_read_quadlets: hub_quadlets,
+            command_bytes: boards * cfg.profile.command_quadlets_per_board() * 4,
+            read_bytes: cfg.profile.read_bytes(),
+            write_bytes: cfg.profile.write_bytes(),
+        };
+        let (phases, per_board, total_us, boards_ok) = match cfg.protocol {
+            Protocol::Broadcast => {
+                broadcast_cycle(&mut d, cfg, boards, hub_quadlets, t0, first_packet)
+            }
+            Protocol::Sequential => sequential_cycle(&mut d, cfg, boards, t0, first_packet),
+        };
+        d.settle();
+        let packets = d
+            .bus
+            .trace()
+            .packets()
+            .iter()
+            .filter(|p| p.id >= first_packet && p.kind != PacketKind::SelfId)
+            .count();
+        let report = CycleReport {
+            boards,
+            profile: cfg.profile,
+            protocol: cfg.protocol,
+            speed: match cfg.speed {
+                Speed::S100 => 100,
+                Speed::S200 => 200,
+                Speed::S400 => 400,
+            },
+            gap_count,
+            arbitration: cfg.arbitration,
+            host_overhead: cfg.host_overhead,
+            seed: cfg.seed,
+            phases_us: phases,
+            per_board,
+            total_us,
+            packets,
+            sizes,
+            boards_ok,
+            errors: d.errors,
+            faults: d.bus.fault_log().records().to_vec(),
+        };
+        CycleRun {
+            report,
+            bus: d.bus,
+            pc,
+            boards: board_nodes,
+            first_packet,
+        }
     }
 }
 
@@ -687,13 +729,23 @@ fn broadcast_cycle(
     } else {
         let pc = d.pc;
         let deadline = d.bus.now() + SimDuration::from_micros(5 * boards as u64 + 200);
+        // Look at each received packet once.
+        let (mut seen, mut heard_from) = (0, 0);
         let heard = d.bus.run_until_with(deadline, |bus| {
-            bus.node::<HostLink>(pc).is_some_and(|l| {
-                l.received()
-                    .filter(|r| r.at >= t0 && is_status_broadcast(&r.bytes))
-                    .count()
-                    >= boards
-            })
+            if let Some(l) = bus.node::<HostLink>(pc) {
+                let total = l.received_total();
+                if total > seen {
+                    let new = (total - seen) as usize;
+                    heard_from += l
+                        .received()
+                        .rev()
+                        .take(new)
+                        .filter(|r| r.at >= t0 && is_status_broadcast(&r.bytes))
+                        .count();
+                    seen = total;
+                }
+            }
+            heard_from >= boards
         });
         if !heard {
             d.errors
