@@ -776,8 +776,9 @@ impl<'a> HubPacker<'a> {
     /// by [`HubHeader::rewrite`]; returns the header stored.
     ///
     /// # Errors
-    /// [`Error::Truncated`] without a header; [`Error::BlockSize`] when the
-    /// header's size is not the payload's; the errors of
+    /// [`Error::Truncated`] without a header; [`Error::NotQuadletAligned`];
+    /// [`Error::BlockSize`] when the header's size is not the payload's
+    /// (the packet is then not stored); the errors of
     /// [`push`](Self::push).
     pub fn store_broadcast(
         &mut self,
@@ -793,8 +794,14 @@ impl<'a> HubPacker<'a> {
                 available: payload.len(),
             });
         };
+        if payload.len() % 4 != 0 {
+            return Err(Error::NotQuadletAligned {
+                what: "status broadcast",
+                len: payload.len(),
+            });
+        }
         let broadcast = BroadcastHeader::from_word(read_quadlet(head, 0));
-        if payload.len() % 4 != 0 || usize::from(broadcast.quadlets) * 4 != payload.len() {
+        if usize::from(broadcast.quadlets) * 4 != payload.len() {
             return Err(Error::BlockSize {
                 what: "status broadcast (header size)",
                 expected: payload.len() / 4,
