@@ -906,7 +906,7 @@ mod tests {
 
     #[test]
     fn status_read_every_field() {
-        // Built field by field over a 0xA5 pattern-free base, then checked.
+        // Every field set through its builder, then read back.
         let s = StatusRead::default()
             .with_axes(4)
             .with_board_id(0xB)
