@@ -54,7 +54,7 @@ impl BoardIo {
     /// Buffers for a board; inputs start invalid, outputs at zero current.
     pub fn new(info: BoardInfo) -> BoardIo {
         let mut output = WriteBlockRepr::new(info.layout, info.board_id);
-        for m in 0..usize::from(info.layout.motors()) {
+        for m in 0..info.layout.motors() {
             if let Some(d) = output.dac.get_mut(m) {
                 *d = DacWord::valid_command(DAC_ZERO);
             }
@@ -80,7 +80,7 @@ impl BoardIo {
 
     /// Number of motor axes.
     pub fn axes(&self) -> usize {
-        usize::from(self.info.layout.motors())
+        self.info.layout.motors()
     }
 
     /// Store a freshly latched read block.
