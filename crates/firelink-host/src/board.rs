@@ -10,8 +10,8 @@
 use firelink_wire::board::MAX_AXES;
 use firelink_wire::board::realtime::{BlockFormat, BoardLayout, ReadBlockRepr, WriteBlockRepr};
 use firelink_wire::board::registers::{
-    AmpCommand, DAC_ZERO, DacWord, DigitalIn, FpgaVersion, GitDesc, HardwareVersion, StatusCommand,
-    StatusRead, SYSTEM_CLOCK_HZ,
+    AmpCommand, DAC_ZERO, DacWord, DigitalIn, FpgaVersion, GitDesc, HardwareVersion,
+    SYSTEM_CLOCK_HZ, StatusCommand, StatusRead,
 };
 
 use crate::error::{HostError, Result};

@@ -276,9 +276,10 @@ impl<P: Port> IoSystem<P> {
                 .map(|b| SeqRule::for_firmware(b.info().layout.firmware()))
                 .unwrap_or(SeqRule::Rev8LowByte)
         });
-        self.wait = self.config.broadcast_wait.unwrap_or(Duration::from_micros(
-            10 + 5 * self.boards.len() as u64,
-        ));
+        self.wait = self
+            .config
+            .broadcast_wait
+            .unwrap_or(Duration::from_micros(10 + 5 * self.boards.len() as u64));
         let read_max = self
             .boards
             .iter()
@@ -402,7 +403,8 @@ impl<P: Port> IoSystem<P> {
         let offset = Register::board(BoardRegister::Watchdog).offset()?;
         for i in 0..self.boards.len() {
             let node = self.boards.get(i).map_or(0, |b| b.info().node);
-            self.port.write_quadlet(Dest::node(node), offset, word.raw())?;
+            self.port
+                .write_quadlet(Dest::node(node), offset, word.raw())?;
         }
         Ok(())
     }
@@ -455,9 +457,7 @@ impl<P: Port> IoSystem<P> {
         self.report.started = started;
         match self.protocol {
             Protocol::Broadcast => self.read_broadcast(),
-            Protocol::Sequential | Protocol::SequentialReadBroadcastWrite => {
-                self.read_sequential()
-            }
+            Protocol::Sequential | Protocol::SequentialReadBroadcastWrite => self.read_sequential(),
         }
         self.report.read_time = self.port.now().saturating_sub(started);
         if self.report.all_ok() {

@@ -90,7 +90,10 @@ fn reg(r: BoardRegister) -> u64 {
 }
 
 /// Read a board's identity registers at `dest`.
-fn identify<P: Port + ?Sized>(port: &mut P, dest: Dest) -> Result<(HardwareVersion, u32, u32, u32, u32)> {
+fn identify<P: Port + ?Sized>(
+    port: &mut P,
+    dest: Dest,
+) -> Result<(HardwareVersion, u32, u32, u32, u32)> {
     let hw = port.read_quadlet(dest, reg(BoardRegister::HwVersion))?;
     let fw = port.read_quadlet(dest, reg(BoardRegister::FwVersion))?;
     let eth = port.read_quadlet(dest, reg(BoardRegister::EthStatus))?;
@@ -120,7 +123,10 @@ pub fn best_protocol(boards: &[BoardInfo]) -> (Protocol, &'static str) {
     let max_payload_quadlets = Speed::S400.max_async_payload() / 4;
     let command_quadlets: usize = boards.iter().map(|b| b.layout.write_block_quadlets()).sum();
     if command_quadlets > max_payload_quadlets {
-        return (Protocol::Sequential, "the command block exceeds one S400 payload");
+        return (
+            Protocol::Sequential,
+            "the command block exceeds one S400 payload",
+        );
     }
     let hub = hub_block_quadlets(boards.iter().map(|b| b.layout));
     if hub > HUB_MEMORY_QUADLETS || hub > max_payload_quadlets {
@@ -129,7 +135,10 @@ pub fn best_protocol(boards: &[BoardInfo]) -> (Protocol, &'static str) {
             "the hub block would exceed the 512-quadlet hub memory",
         );
     }
-    (Protocol::Broadcast, "every board supports the broadcast protocol")
+    (
+        Protocol::Broadcast,
+        "every board supports the broadcast protocol",
+    )
 }
 
 /// Find every board behind `port`.
@@ -140,7 +149,13 @@ pub fn best_protocol(boards: &[BoardInfo]) -> (Protocol, &'static str) {
 /// as silent).
 pub fn scan<P: Port + ?Sized>(port: &mut P) -> Result<ScanReport> {
     // The Ethernet board itself, if this port is a bridge.
-    let bridge_board = match identify(port, Dest { node: 63, no_forward: true }) {
+    let bridge_board = match identify(
+        port,
+        Dest {
+            node: 63,
+            no_forward: true,
+        },
+    ) {
         Ok((_, _, _, status, _)) => Some(StatusRead(status).board_id()),
         Err(HostError::BusReset { .. }) => return scan(port),
         Err(_) => None,
