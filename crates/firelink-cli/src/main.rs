@@ -6,6 +6,7 @@
 
 mod board_cmd;
 mod hex;
+mod monitor;
 mod packet_cmd;
 mod ports;
 mod tour;
@@ -45,6 +46,8 @@ enum Command {
     Read(board_cmd::ReadArgs),
     /// Write board registers.
     Write(board_cmd::WriteArgs),
+    /// Live view of every axis of every board (keys toggle power and amps).
+    Monitor(monitor::MonitorArgs),
 }
 
 #[derive(Subcommand)]
@@ -215,6 +218,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Info(args) => board_cmd::run_info(&args, &mut out)?,
         Command::Read(args) => board_cmd::run_read(&args, &mut out)?,
         Command::Write(args) => board_cmd::run_write(&args, &mut out)?,
+        Command::Monitor(args) => monitor::run(&args, &mut out)?,
     }
     Ok(())
 }
