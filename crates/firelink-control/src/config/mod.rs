@@ -644,3 +644,28 @@ impl IoConfig {
         self.robots.iter().find(|r| r.name == name)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plant_names_match_serde() {
+        for p in PlantPreset::ALL {
+            assert_eq!(PlantPreset::from_name(p.name()), Some(p));
+            let json = serde_json::to_string(&p).unwrap();
+            assert_eq!(json, format!("\"{}\"", p.name()));
+        }
+        assert_eq!(PlantPreset::from_name("mtm_j8"), None);
+    }
+
+    #[test]
+    fn hardware_versions() {
+        assert_eq!(HardwareVersion::default(), HardwareVersion::Qla1);
+        assert_eq!(HardwareVersion::Dqla.axes(), 8);
+        assert_eq!(HardwareVersion::Dra1.name(), "dRA1");
+        assert_eq!(HardwareVersion::Qla1.hw_version_register(), 0x514C_4131);
+        let v: HardwareVersion = serde_json::from_str("\"DQLA\"").unwrap();
+        assert_eq!(v, HardwareVersion::Dqla);
+    }
+}
