@@ -32,7 +32,8 @@ pub enum ArbitrationClass {
     /// by the fairness interval.
     Priority,
     /// Isochronous-style request: waits only for the isochronous gap (the
-    /// "bus arbitration acceleration" of seed 000).
+    /// "bus arbitration acceleration" of seed 000). Serialized as `iso`.
+    #[serde(rename = "iso")]
     Isochronous,
 }
 

@@ -377,10 +377,11 @@ impl CycleReport {
             let _ = writeln!(out, "  {name:<20} {us:>10.3}");
         }
         if let Some(per_board) = &self.per_board {
+            let _ = writeln!(out, "  {:<20} {:>10} {:>10}", "board", "read", "write");
             for b in per_board {
                 let _ = writeln!(
                     out,
-                    "  board {:<14} {:>10.3} {:>10.3}",
+                    "  {:<20} {:>10.3} {:>10.3}",
                     b.board, b.read_us, b.write_us
                 );
             }
