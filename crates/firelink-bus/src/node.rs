@@ -12,6 +12,45 @@
 //!
 //! The bus applies what a node asked for after the callback returns, in the
 //! order asked.
+//!
+//! ```
+//! use firelink_bus::{Bus, BusConfig, NodeConfig, Node, NodeCtx, ResetInfo, RxReply, SimTime};
+//! use firelink_wire::packet::{Ack, Packet, Speed};
+//!
+//! /// Acks every unicast write addressed to it; counts broadcasts.
+//! struct Counter { phy_id: u8, broadcasts: u32 }
+//!
+//! impl Node for Counter {
+//!     fn name(&self) -> &str { "counter" }
+//!     fn on_bus_reset(&mut self, _now: SimTime, info: &ResetInfo, _ctx: &mut NodeCtx<'_>) {
+//!         self.phy_id = info.phy_id;
+//!     }
+//!     fn on_receive(&mut self, _now: SimTime, bytes: &[u8], _speed: Speed,
+//!                   ctx: &mut NodeCtx<'_>) -> RxReply {
+//!         let Ok(p) = Packet::new_checked(bytes) else { return RxReply::Silent };
+//!         if p.verify().is_err() {
+//!             ctx.report_error("CRC error");
+//!             return RxReply::Silent;
+//!         }
+//!         if p.destination_id().is_broadcast() {
+//!             self.broadcasts += 1;
+//!             RxReply::Silent
+//!         } else if p.destination_id().phy() == self.phy_id {
+//!             RxReply::Ack(Ack::Complete)
+//!         } else {
+//!             RxReply::Silent
+//!         }
+//!     }
+//! }
+//!
+//! let mut bus = Bus::new(BusConfig::default());
+//! let a = bus.add(Counter { phy_id: 63, broadcasts: 0 }, NodeConfig::pc());
+//! let b = bus.add(Counter { phy_id: 63, broadcasts: 0 }, NodeConfig::board());
+//! bus.connect(a, b).unwrap();
+//! bus.reset();
+//! assert_eq!(bus.node::<Counter>(b).unwrap().phy_id, 0);
+//! assert_eq!(bus.node::<Counter>(a).unwrap().phy_id, 1);
+//! ```
 
 use std::any::Any;
 use std::fmt;
