@@ -69,6 +69,8 @@ fn broadcast_reaches_every_node_and_is_never_acked() {
         rec(&bus, pc).transmitted,
         vec![(rec(&bus, pc).transmitted[0].0, 11, None)]
     );
+    assert!(bus.run_until_idle());
+    assert!(bus.is_idle() && !bus.has_pending_traffic());
     // Farther nodes receive later, by the repeat delay per hop.
     let t: Vec<SimTime> = nodes.iter().map(|&n| rec(&bus, n).received[0].0).collect();
     for w in t.windows(2) {
