@@ -234,7 +234,12 @@ impl SimPort {
         AsyncHeader::new(NodeId::local(dest.node), pc_node(self.host_phy()), tl)
     }
 
-    fn check_response(response: &[u8], tcode: Tcode, len: usize, node: u8) -> Result<Packet<&[u8]>> {
+    fn check_response(
+        response: &[u8],
+        tcode: Tcode,
+        len: usize,
+        node: u8,
+    ) -> Result<Packet<&[u8]>> {
         let packet = Packet::new_checked(response)?;
         packet.verify()?;
         if packet.tcode() != tcode {
