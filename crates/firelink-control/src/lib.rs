@@ -72,6 +72,7 @@ pub mod homing;
 mod label;
 pub mod lifecycle;
 pub mod pid;
+pub mod runner;
 pub mod safety;
 pub mod trajectory;
 

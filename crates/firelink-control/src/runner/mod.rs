@@ -1,0 +1,900 @@
+//! The runner: one robot program's servo loop over a host [`Port`].
+//!
+//! [`Robot`] ties a configuration ([`IoConfig`]) to an [`IoSystem`]: each
+//! actuator `(board_id, axis_id)` is mapped at setup to its board buffers,
+//! and every [`Robot::cycle`] is
+//!
+//! 1. `io.read_all()`, then the checks: every expected board answered
+//!    ([`Lifecycle::check_cycle`] with the miss reason turned into a
+//!    [`FaultKind`]), no watchdog expired, power and amplifiers still on
+//!    while Active;
+//! 2. compute: encoder and pot to SI, a per-joint trajectory sample and PID
+//!    to a current, the [`SafetyMonitor`], current to DAC bits;
+//! 3. `io.write_all()`.
+//!
+//! Any fault moves the lifecycle to Fault and from then on every cycle
+//! commands zero current with every amplifier off; the report says what
+//! happened ([`Robot::fault`]).
+//!
+//! The cycle allocates nothing: every buffer is sized at setup and the
+//! statistics go into preallocated vectors (the port may allocate: the
+//! simulated bus builds packets).
+//!
+//! Time: the runner reads the port's clock ([`Port::now`], virtual on the
+//! simulated bus); [`Pacing::WallClock`] and the compute-time measurement
+//! also read the machine's monotonic clock. This is the one place below the
+//! CLI that does.
+
+pub mod loopback;
+
+use std::time::{Duration, Instant};
+
+use firelink_host::io::{CycleReport, IoStats, IoSystem};
+use firelink_host::{HostError, MissReason, Port};
+
+use crate::config::{DriveConfig, EncoderConfig, IoConfig, JointType, PotentiometerConfig};
+use crate::fault::{FaultKind, FaultReport};
+use crate::homing::{Homing, HomingError, HomingSettings, HomingStep};
+use crate::label::{BoardSet, Label};
+use crate::lifecycle::{Lifecycle, LifecycleError, PowerStatus, State};
+use crate::pid::{Measurement, Pid, PidError, PidGains, Setpoint};
+use crate::safety::{JointSample, SafetyMonitor};
+use crate::trajectory::Motion;
+
+/// How cycles are paced.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pacing {
+    /// As fast as the port allows; after each cycle the port waits out the
+    /// rest of the period (virtual time on the simulated bus).
+    Virtual,
+    /// Paced by the machine's monotonic clock at the robot's rate: sleep
+    /// until shortly before the deadline, then spin.
+    WallClock,
+}
+
+/// Runner settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RobotSettings {
+    /// Control rate, Hz.
+    pub rate_hz: f64,
+    /// Board watchdog period (zero disables it).
+    pub watchdog: Duration,
+    /// Homing sample counts.
+    pub homing: HomingSettings,
+    /// Cycles to wait for power and amplifiers before giving up.
+    pub power_timeout_cycles: u32,
+    /// Capacity of the per-cycle timing record (cycles beyond it are
+    /// counted but not recorded).
+    pub max_samples: usize,
+}
+
+impl Default for RobotSettings {
+    fn default() -> Self {
+        RobotSettings {
+            rate_hz: 1000.0,
+            watchdog: Duration::from_millis(20),
+            homing: HomingSettings {
+                averaging_samples: 20,
+                verify_samples: 20,
+            },
+            power_timeout_cycles: 2000,
+            max_samples: 1 << 20,
+        }
+    }
+}
+
+/// What can stop the runner outside the cycle.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RunnerError {
+    /// The configuration does not fit the boards found.
+    #[error("configuration: {0}")]
+    Config(String),
+    /// A port or I/O error outside the cycle.
+    #[error("host: {0}")]
+    Host(#[from] HostError),
+    /// A refused lifecycle transition.
+    #[error("lifecycle: {0:?}")]
+    Lifecycle(#[from] LifecycleError),
+    /// Homing failed.
+    #[error("homing: {0:?}")]
+    Homing(HomingError),
+    /// Invalid PID gains in the configuration.
+    #[error("PID gains: {0:?}")]
+    Pid(PidError),
+    /// A fault while running.
+    #[error("{0}")]
+    Fault(FaultReport),
+    /// Something did not happen in time.
+    #[error("timed out waiting for {0}")]
+    Timeout(&'static str),
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Joint {
+    label: Label,
+    arm: usize,
+    board: usize,
+    axis: usize,
+    drive: DriveConfig,
+    encoder: EncoderConfig,
+    pot: Option<PotentiometerConfig>,
+    prismatic: bool,
+    motion: Motion,
+    motion_start: f64,
+    offset: f64,
+    position: f64,
+    velocity: f64,
+    setpoint: f64,
+    current: f64,
+    primed: bool,
+}
+
+/// Tracking error of one arm, over the cycles it was Active with a motion.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArmTracking {
+    /// Robot name from the configuration.
+    pub name: String,
+    /// Revolute joints: RMS error, radians.
+    pub rms_rad: f64,
+    /// Revolute joints: largest |error|, radians.
+    pub max_rad: f64,
+    /// Prismatic joints: RMS error, millimetres (0 without any).
+    pub rms_mm: f64,
+    /// Prismatic joints: largest |error|, millimetres.
+    pub max_mm: f64,
+    /// Joint samples taken.
+    pub samples: u64,
+}
+
+#[derive(Debug, Clone, Default)]
+struct ArmAcc {
+    sum_rad: f64,
+    n_rad: u64,
+    max_rad: f64,
+    sum_m: f64,
+    n_m: u64,
+    max_m: f64,
+}
+
+/// Median, p99 and max of a set of durations, microseconds.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Percentiles {
+    /// Median.
+    pub median: f64,
+    /// 99th percentile.
+    pub p99: f64,
+    /// Maximum.
+    pub max: f64,
+    /// Mean.
+    pub mean: f64,
+}
+
+impl Percentiles {
+    /// From samples (sorted in place).
+    pub fn of(samples: &mut [f32]) -> Percentiles {
+        if samples.is_empty() {
+            return Percentiles::default();
+        }
+        samples.sort_by(f32::total_cmp);
+        let at = |q: f64| {
+            let i = ((samples.len() - 1) as f64 * q).round() as usize;
+            f64::from(samples.get(i).copied().unwrap_or(0.0))
+        };
+        let mean = samples.iter().map(|&x| f64::from(x)).sum::<f64>() / samples.len() as f64;
+        Percentiles {
+            median: at(0.5),
+            p99: at(0.99),
+            max: at(1.0),
+            mean,
+        }
+    }
+}
+
+/// Timing record of the cycles run.
+#[derive(Debug, Clone, Default)]
+pub struct CycleTimes {
+    /// I/O time per cycle (read + write phases on the port's clock), us.
+    pub io_us: Vec<f32>,
+    /// Compute time per cycle (machine clock), us.
+    pub compute_us: Vec<f32>,
+    /// Cycle time = I/O + compute, us.
+    pub cycle_us: Vec<f32>,
+    /// Cycles not recorded (record full).
+    pub dropped: u64,
+    /// Wall-clock pacing: cycles that started after their deadline.
+    pub overruns: u64,
+}
+
+/// One robot program: configuration, I/O, lifecycle, controllers.
+pub struct Robot<P: Port> {
+    io: IoSystem<P>,
+    settings: RobotSettings,
+    joints: Vec<Joint>,
+    pids: Vec<Pid>,
+    arm_names: Vec<String>,
+    arm_acc: Vec<ArmAcc>,
+    /// Per board index: axes used (bit mask), board ID.
+    used_axes: Vec<(u8, u8)>,
+    expected: BoardSet,
+    life: Lifecycle,
+    safety: SafetyMonitor,
+    homing: Homing,
+    samples: Vec<JointSample>,
+    pot: Vec<f64>,
+    enc: Vec<f64>,
+    times: CycleTimes,
+    cycle: u64,
+    last_start: Option<Duration>,
+    last_report: Option<CycleReport>,
+    fault: Option<FaultReport>,
+    next_deadline: Option<Instant>,
+}
+
+
+impl<P: Port> Robot<P> {
+    /// A robot for `config` over the boards of `io`.
+    ///
+    /// # Errors
+    /// [`RunnerError::Config`] when an actuator's board is not among the
+    /// boards found or has no such axis; [`RunnerError::Pid`] for invalid
+    /// gains. (A missing board is also what [`configure`](Self::configure)
+    /// refuses, with the robot named.)
+    pub fn new(
+        io: IoSystem<P>,
+        config: &IoConfig,
+        settings: RobotSettings,
+    ) -> Result<Robot<P>, RunnerError> {
+        if !(settings.rate_hz.is_finite() && settings.rate_hz > 0.0) {
+            return Err(RunnerError::Config(format!(
+                "rate must be > 0 Hz, not {}",
+                settings.rate_hz
+            )));
+        }
+        let mut joints = Vec::new();
+        let mut pids = Vec::new();
+        let arm_names: Vec<String> = config.robots.iter().map(|r| r.name.clone()).collect();
+        let mut used_axes: Vec<(u8, u8)> =
+            io.boards().iter().map(|b| (0u8, b.board_id())).collect();
+        for j in config.joints() {
+            let a = j.actuator;
+            let Some(board) = io.boards().iter().position(|b| b.board_id() == a.board_id) else {
+                return Err(RunnerError::Config(format!(
+                    "{}: board {} is not on the bus",
+                    j.label.as_str(),
+                    a.board_id
+                )));
+            };
+            let axes = io.boards().get(board).map_or(0, |b| b.axes());
+            if usize::from(a.axis_id) >= axes {
+                return Err(RunnerError::Config(format!(
+                    "{}: board {} has {} axes, no axis {}",
+                    j.label.as_str(),
+                    a.board_id,
+                    axes,
+                    a.axis_id
+                )));
+            }
+            if let Some(u) = used_axes.get_mut(board) {
+                u.0 |= 1 << a.axis_id;
+            }
+            let gains = a
+                .simulation
+                .and_then(|s| s.pid)
+                .unwrap_or_else(|| PidGains::pd(1.0, 0.05));
+            pids.push(Pid::new(gains, a.drive.maximum_current).map_err(RunnerError::Pid)?);
+            joints.push(Joint {
+                label: j.label,
+                arm: j.robot_index,
+                board,
+                axis: usize::from(a.axis_id),
+                drive: a.drive,
+                encoder: a.encoder,
+                pot: a.potentiometer,
+                prismatic: a.joint_type == Some(JointType::Prismatic),
+                motion: Motion::Hold(0.0),
+                motion_start: 0.0,
+                offset: 0.0,
+                position: 0.0,
+                velocity: 0.0,
+                setpoint: 0.0,
+                current: 0.0,
+                primed: false,
+            });
+        }
+        let n = joints.len();
+        let cap = settings.max_samples;
+        Ok(Robot {
+            io,
+            settings,
+            joints,
+            pids,
+            arm_acc: vec![ArmAcc::default(); arm_names.len()],
+            arm_names,
+            used_axes,
+            expected: config.board_set(),
+            life: Lifecycle::from_config(config),
+            safety: SafetyMonitor::from_config(config),
+            homing: Homing::from_config(config, settings.homing),
+            samples: vec![JointSample::default(); n],
+            pot: vec![0.0; n],
+            enc: vec![0.0; n],
+            times: CycleTimes {
+                io_us: Vec::with_capacity(cap),
+                compute_us: Vec::with_capacity(cap),
+                cycle_us: Vec::with_capacity(cap),
+                dropped: 0,
+                overruns: 0,
+            },
+            cycle: 0,
+            last_start: None,
+            last_report: None,
+            fault: None,
+            next_deadline: None,
+        })
+    }
+
+    /// The I/O system.
+    pub fn io(&self) -> &IoSystem<P> {
+        &self.io
+    }
+
+    /// The I/O system, mutable (fault injection, register access).
+    pub fn io_mut(&mut self) -> &mut IoSystem<P> {
+        &mut self.io
+    }
+
+    /// The lifecycle state.
+    pub fn state(&self) -> State {
+        self.life.state()
+    }
+
+    /// The first fault, if one happened.
+    pub fn fault(&self) -> Option<&FaultReport> {
+        self.fault.as_ref()
+    }
+
+    /// The last cycle's I/O report.
+    pub fn last_report(&self) -> Option<&CycleReport> {
+        self.last_report.as_ref()
+    }
+
+    /// I/O error counters.
+    pub fn io_stats(&self) -> &IoStats {
+        self.io.stats()
+    }
+
+    /// Cycles run.
+    pub fn cycles(&self) -> u64 {
+        self.cycle
+    }
+
+    /// Number of joints.
+    pub fn joint_count(&self) -> usize {
+        self.joints.len()
+    }
+
+    /// Joint `i`'s measured position (homed), rad or m.
+    pub fn position(&self, i: usize) -> Option<f64> {
+        self.joints.get(i).map(|j| j.position)
+    }
+
+    /// Joint `i`'s setpoint, rad or m.
+    pub fn setpoint(&self, i: usize) -> Option<f64> {
+        self.joints.get(i).map(|j| j.setpoint)
+    }
+
+    /// Timing record.
+    pub fn times(&self) -> &CycleTimes {
+        &self.times
+    }
+
+    /// The period, seconds.
+    pub fn period(&self) -> f64 {
+        1.0 / self.settings.rate_hz
+    }
+
+    /// Seconds on the port's clock.
+    pub fn now(&self) -> f64 {
+        self.io.port().now().as_secs_f64()
+    }
+
+    /// Per-arm tracking errors so far.
+    pub fn tracking(&self) -> Vec<ArmTracking> {
+        self.arm_names
+            .iter()
+            .zip(&self.arm_acc)
+            .map(|(name, a)| ArmTracking {
+                name: name.clone(),
+                rms_rad: if a.n_rad > 0 {
+                    (a.sum_rad / a.n_rad as f64).sqrt()
+                } else {
+                    0.0
+                },
+                max_rad: a.max_rad,
+                rms_mm: if a.n_m > 0 {
+                    1e3 * (a.sum_m / a.n_m as f64).sqrt()
+                } else {
+                    0.0
+                },
+                max_mm: 1e3 * a.max_m,
+                samples: a.n_rad + a.n_m,
+            })
+            .collect()
+    }
+
+    /// Forget the tracking statistics (e.g. after homing).
+    pub fn reset_tracking(&mut self) {
+        self.arm_acc.fill(ArmAcc::default());
+    }
+
+    /// Boards found, as a set.
+    pub fn found(&self) -> BoardSet {
+        self.io.boards().iter().map(|b| b.board_id()).collect()
+    }
+
+    /// Power and amplifier state of the expected boards from the last read.
+    pub fn power_status(&self) -> PowerStatus {
+        let mut s = PowerStatus {
+            powered: BoardSet::EMPTY,
+            amplifiers_enabled: BoardSet::EMPTY,
+        };
+        for (b, &(mask, id)) in self.io.boards().iter().zip(&self.used_axes) {
+            if b.is_valid() && b.power_enabled() {
+                s.powered.insert(id);
+            }
+            let all = (0..4usize)
+                .filter(|a| mask & (1 << a) != 0)
+                .all(|a| b.amp_enabled(a));
+            if b.is_valid() && all {
+                s.amplifiers_enabled.insert(id);
+            }
+        }
+        s
+    }
+
+    /// Unconfigured -> Configured: every expected board was found; sets the
+    /// board watchdogs.
+    ///
+    /// # Errors
+    /// The lifecycle's refusal (the first missing board, with its robot);
+    /// port errors setting the watchdog.
+    pub fn configure(&mut self) -> Result<(), RunnerError> {
+        self.life.configure(self.found())?;
+        self.io.set_watchdog(self.settings.watchdog)?;
+        Ok(())
+    }
+
+    /// Motor power and relay on, then every used amplifier, waiting (cycling)
+    /// until the boards report them.
+    ///
+    /// # Errors
+    /// Not Configured; a fault while waiting; [`RunnerError::Timeout`].
+    pub fn power_on(&mut self) -> Result<(), RunnerError> {
+        if self.life.state() != State::Configured {
+            return Err(RunnerError::Lifecycle(LifecycleError::NotActive {
+                state: self.life.state(),
+            }));
+        }
+        let expected = self.expected;
+        for b in self.io.boards_mut() {
+            if expected.contains(b.board_id()) {
+                b.set_power(true);
+                b.set_relay(true);
+            }
+        }
+        self.wait_for("motor power", |s| expected.minus(s.powered).is_empty())?;
+        let used = self.used_axes.clone();
+        for (b, &(mask, _)) in self.io.boards_mut().iter_mut().zip(&used) {
+            for a in 0..4usize {
+                if mask & (1 << a) != 0 {
+                    let _ = b.set_amp_enable(a, true);
+                }
+            }
+        }
+        self.wait_for("amplifiers", |s| {
+            expected.minus(s.amplifiers_enabled).is_empty()
+        })
+    }
+
+    fn wait_for(
+        &mut self,
+        what: &'static str,
+        done: impl Fn(&PowerStatus) -> bool,
+    ) -> Result<(), RunnerError> {
+        for _ in 0..self.settings.power_timeout_cycles {
+            self.step(Pacing::Virtual)?;
+            if done(&self.power_status()) {
+                return Ok(());
+            }
+        }
+        Err(RunnerError::Timeout(what))
+    }
+
+    /// Home against the potentiometers (software offsets), cycling.
+    ///
+    /// # Errors
+    /// Homing failed; a fault; a time-out.
+    pub fn home(&mut self) -> Result<(), RunnerError> {
+        self.homing.start();
+        let limit = 10 * (self.settings.homing.averaging_samples
+            + self.settings.homing.verify_samples)
+            + 10;
+        for _ in 0..limit {
+            self.step(Pacing::Virtual)?;
+            match self.homing.step(&self.pot, &self.enc) {
+                HomingStep::PreloadReady => self
+                    .homing
+                    .use_software_offsets()
+                    .map_err(RunnerError::Homing)?,
+                HomingStep::Done => {
+                    let offsets = self.homing.applied_offsets();
+                    for ((j, off), raw) in self.joints.iter_mut().zip(offsets).zip(&self.enc) {
+                        j.offset = *off;
+                        j.position = raw + off;
+                        j.primed = false;
+                    }
+                    return Ok(());
+                }
+                HomingStep::Failed(e) => return Err(RunnerError::Homing(e)),
+                _ => {}
+            }
+        }
+        Err(RunnerError::Timeout("homing"))
+    }
+
+    /// Configured -> Active: every joint holds where it is.
+    ///
+    /// # Errors
+    /// The lifecycle's refusal (no power, amplifiers off, wrong state).
+    pub fn activate(&mut self) -> Result<(), RunnerError> {
+        self.life.activate(self.power_status())?;
+        let now = self.now();
+        for (j, pid) in self.joints.iter_mut().zip(self.pids.iter_mut()) {
+            j.motion = Motion::Hold(j.position);
+            j.motion_start = now;
+            pid.reset();
+        }
+        self.safety.restart_timers();
+        Ok(())
+    }
+
+    /// Start `motion` on joint `i` now (positions are absolute, homed).
+    ///
+    /// # Errors
+    /// [`LifecycleError::NotActive`] unless Active;
+    /// [`RunnerError::Config`] for a joint that does not exist.
+    pub fn set_motion(&mut self, i: usize, motion: Motion) -> Result<(), RunnerError> {
+        self.life.require_motion()?;
+        let now = self.now();
+        let j = self
+            .joints
+            .get_mut(i)
+            .ok_or_else(|| RunnerError::Config(format!("no joint {i}")))?;
+        j.motion = motion;
+        j.motion_start = now;
+        self.safety.restart_timers();
+        Ok(())
+    }
+
+    /// Active -> Configured (if Active), then amplifiers, power and relay
+    /// off; a few cycles to apply it. Also the way out after a fault.
+    ///
+    /// # Errors
+    /// Port errors are in the cycle reports; this only fails if cycling
+    /// cannot go on (never today).
+    pub fn shutdown(&mut self) -> Result<(), RunnerError> {
+        if self.life.state() == State::Active {
+            self.life.deactivate()?;
+        }
+        for b in self.io.boards_mut() {
+            b.safe_outputs();
+            b.set_power(false);
+            b.set_relay(false);
+        }
+        for _ in 0..3 {
+            // Faults during shutdown are expected (power going off).
+            let _ = self.step(Pacing::Virtual);
+        }
+        Ok(())
+    }
+
+    /// Run `cycles` cycles with `pacing`, calling `progress` every
+    /// `progress_every` cycles (0: never).
+    ///
+    /// # Errors
+    /// The first fault ([`RunnerError::Fault`]).
+    pub fn run(
+        &mut self,
+        cycles: u64,
+        pacing: Pacing,
+        progress_every: u64,
+        mut progress: impl FnMut(&Robot<P>),
+    ) -> Result<(), RunnerError> {
+        self.next_deadline = None;
+        for k in 0..cycles {
+            self.step(pacing)?;
+            if progress_every > 0 && (k + 1) % progress_every == 0 {
+                progress(self);
+            }
+        }
+        Ok(())
+    }
+
+    /// One paced cycle.
+    ///
+    /// # Errors
+    /// A fault detected in this cycle (or latched before).
+    pub fn step(&mut self, pacing: Pacing) -> Result<(), RunnerError> {
+        let period = Duration::from_secs_f64(self.period());
+        if pacing == Pacing::WallClock {
+            let deadline = self.next_deadline.unwrap_or_else(Instant::now);
+            let now = Instant::now();
+            if now > deadline + period / 2 {
+                self.times.overruns += 1;
+                self.next_deadline = Some(now + period);
+            } else {
+                sleep_until(deadline);
+                self.next_deadline = Some(deadline + period);
+            }
+        }
+        let started = self.io.port().now();
+        let r = self.cycle();
+        if pacing == Pacing::Virtual {
+            let spent = self.io.port().now().saturating_sub(started);
+            if let Some(rest) = period.checked_sub(spent).filter(|d| !d.is_zero()) {
+                self.io.port_mut().wait(rest);
+            }
+        }
+        r.map_err(RunnerError::Fault)
+    }
+
+    /// One cycle: read, check, compute, write. Allocation-free.
+    ///
+    /// # Errors
+    /// The fault detected (or latched earlier): outputs are then safe.
+    pub fn cycle(&mut self) -> Result<(), FaultReport> {
+        self.cycle += 1;
+        let report = *self.io.read_all();
+        let compute_start = Instant::now();
+        let now = report.started.as_secs_f64();
+        let dt = match self.last_start {
+            Some(t) => (report.started.saturating_sub(t)).as_secs_f64(),
+            None => self.period(),
+        }
+        .clamp(0.1 * self.period(), 10.0 * self.period());
+        self.last_start = Some(report.started);
+        self.check(&report, now);
+        self.compute(now, dt);
+        if self.life.state() == State::Fault {
+            for b in self.io.boards_mut() {
+                b.safe_outputs();
+            }
+        }
+        let compute = compute_start.elapsed();
+        let report = *self.io.write_all();
+        self.last_report = Some(report);
+        self.record(report.io_time(), compute);
+        match self.fault {
+            Some(f) => Err(f),
+            None => Ok(()),
+        }
+    }
+
+    fn record(&mut self, io: Duration, compute: Duration) {
+        let t = &mut self.times;
+        if t.io_us.len() < t.io_us.capacity() {
+            let io_us = io.as_secs_f64() * 1e6;
+            let c_us = compute.as_secs_f64() * 1e6;
+            t.io_us.push(io_us as f32);
+            t.compute_us.push(c_us as f32);
+            t.cycle_us.push((io_us + c_us) as f32);
+        } else {
+            t.dropped += 1;
+        }
+    }
+
+    fn raise(&mut self, kind: FaultKind, now: f64) {
+        let r = self.life.fault(FaultReport::new(now, self.cycle, kind));
+        if self.fault.is_none() {
+            self.fault = Some(r);
+        }
+    }
+
+    fn check(&mut self, report: &CycleReport, now: f64) {
+        if !self.life.reads_inputs() {
+            return;
+        }
+        // Missed boards, with the reason turned into a fault kind.
+        let mut answered = self.expected;
+        for (id, _) in report.missed_boards() {
+            answered = answered.minus(BoardSet::EMPTY.with(id));
+        }
+        if let Some(id) = self.expected.minus(answered).first() {
+            let reason = report.reasons.get(usize::from(id)).copied().flatten();
+            let kind = match reason {
+                Some(MissReason::CorruptQuery) => FaultKind::Sequence {
+                    board_id: id,
+                    expected: report.seq,
+                    received: 0xFFFF,
+                },
+                _ => FaultKind::MissedBoard {
+                    board_id: id,
+                    robot: self.life.board_owner(id),
+                },
+            };
+            self.raise(kind, now);
+            return;
+        }
+        // Lifecycle's own working-counter check (records nothing new here).
+        if let Err(r) = self.life.check_cycle(answered, now, self.cycle) {
+            if self.fault.is_none() {
+                self.fault = Some(r);
+            }
+            return;
+        }
+        let active = self.life.state() == State::Active;
+        let mut found = None;
+        for (b, &(mask, id)) in self.io.boards().iter().zip(&self.used_axes) {
+            if !self.expected.contains(id) {
+                continue;
+            }
+            if b.watchdog_expired() {
+                found = Some(FaultKind::Watchdog { board_id: id });
+                break;
+            }
+            if active && !b.power_enabled() {
+                found = Some(FaultKind::Power { board_id: id });
+                break;
+            }
+            if active {
+                if let Some(axis) = (0..4u8).find(|&a| mask & (1 << a) != 0 && !b.amp_enabled(usize::from(a))) {
+                    found = Some(FaultKind::Amplifier { board_id: id, axis_id: axis });
+                    break;
+                }
+            }
+        }
+        if let Some(kind) = found {
+            self.raise(kind, now);
+        }
+    }
+
+    fn compute(&mut self, now: f64, dt: f64) {
+        let active = self.life.state() == State::Active;
+        for (i, j) in self.joints.iter_mut().enumerate() {
+            let Some(b) = self.io.boards().get(j.board) else {
+                continue;
+            };
+            let counts = b.encoder_counts(j.axis).unwrap_or(0);
+            let raw = j.encoder.counts_to_position(i64::from(counts));
+            let pos = raw + j.offset;
+            let pot = match (j.pot, b.pot_bits(j.axis)) {
+                (Some(p), Some(bits)) => p.bits_to_position(bits),
+                _ => f64::NAN,
+            };
+            if j.primed {
+                let v = (pos - j.position) / dt;
+                j.velocity += 0.3 * (v - j.velocity);
+            } else {
+                j.velocity = 0.0;
+                j.primed = true;
+            }
+            j.position = pos;
+            if let Some(e) = self.enc.get_mut(i) {
+                *e = raw;
+            }
+            if let Some(p) = self.pot.get_mut(i) {
+                *p = pot;
+            }
+            let mut amps = 0.0;
+            if active {
+                let sp = j.motion.sample(now - j.motion_start);
+                j.setpoint = sp.position;
+                if let Some(pid) = self.pids.get_mut(i) {
+                    amps = pid.update(
+                        Setpoint {
+                            position: sp.position,
+                            velocity: sp.velocity,
+                            feedforward: 0.0,
+                        },
+                        Measurement {
+                            position: pos,
+                            velocity: j.velocity,
+                        },
+                        dt,
+                    );
+                }
+                let err = (sp.position - pos).abs();
+                if let Some(acc) = self.arm_acc.get_mut(j.arm) {
+                    if j.prismatic {
+                        acc.sum_m += err * err;
+                        acc.n_m += 1;
+                        acc.max_m = acc.max_m.max(err);
+                    } else {
+                        acc.sum_rad += err * err;
+                        acc.n_rad += 1;
+                        acc.max_rad = acc.max_rad.max(err);
+                    }
+                }
+            } else {
+                j.setpoint = pos;
+            }
+            j.current = amps;
+            if let Some(s) = self.samples.get_mut(i) {
+                *s = JointSample {
+                    setpoint: j.setpoint,
+                    position: pos,
+                    velocity: j.velocity,
+                    current: amps,
+                    potentiometer: if j.pot.is_some() && active && pot.is_finite() {
+                        Some(pot)
+                    } else {
+                        None
+                    },
+                };
+            }
+        }
+        if active {
+            if let Some(r) = self.safety.check(now, self.cycle, &self.samples) {
+                let r = self.life.fault(r);
+                if self.fault.is_none() {
+                    self.fault = Some(r);
+                }
+            }
+        }
+        let active = self.life.state() == State::Active;
+        let boards = self.io.boards_mut();
+        for j in &self.joints {
+            let bits = if active {
+                j.drive.current_to_bits(j.current)
+            } else {
+                j.drive.zero_current_bits()
+            };
+            if let Some(b) = boards.get_mut(j.board) {
+                let _ = b.set_dac(j.axis, bits);
+            }
+        }
+    }
+
+    /// Add `delta` (rad or m) to joint `i`'s setpoint offset: its motion is
+    /// replaced by a hold at the current setpoint plus `delta` (fault
+    /// injection: a following-error step).
+    ///
+    /// # Errors
+    /// As [`set_motion`](Self::set_motion).
+    pub fn step_setpoint(&mut self, i: usize, delta: f64) -> Result<(), RunnerError> {
+        let sp = self.setpoint(i).unwrap_or(0.0);
+        self.set_motion(i, Motion::Hold(sp + delta))
+    }
+
+    /// The label of joint `i`.
+    pub fn joint_label(&self, i: usize) -> Option<Label> {
+        self.joints.get(i).map(|j| j.label)
+    }
+
+    /// The arm names, in configuration order.
+    pub fn arm_names(&self) -> &[String] {
+        &self.arm_names
+    }
+
+    /// Whether any used amplifier is on (from the last read).
+    pub fn any_amp_on(&self) -> bool {
+        self.io
+            .boards()
+            .iter()
+            .zip(&self.used_axes)
+            .any(|(b, &(mask, _))| (0..4).any(|a| mask & (1 << a) != 0 && b.amp_enabled(a)))
+    }
+}
+
+/// Sleep until shortly before `deadline`, then spin.
+fn sleep_until(deadline: Instant) {
+    const SPIN: Duration = Duration::from_micros(150);
+    let now = Instant::now();
+    if deadline > now + SPIN {
+        std::thread::sleep(deadline - now - SPIN);
+    }
+    while Instant::now() < deadline {
+        std::hint::spin_loop();
+    }
+}
+

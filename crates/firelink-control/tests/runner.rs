@@ -1,0 +1,217 @@
+//! The runner over port-level emulated boards ([`LoopbackPort`]), in
+//! virtual time: lifecycle, tracking, and every safety path.
+
+use std::time::Duration;
+
+use firelink_control::config::presets;
+use firelink_control::runner::loopback::LoopbackPort;
+use firelink_control::runner::{Pacing, Robot, RobotSettings, RunnerError};
+use firelink_control::trajectory::{Motion, Sinusoid};
+use firelink_control::{FaultKind, LifecycleError, State};
+use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
+use firelink_host::scan::Protocol;
+
+/// Joints start inside their soft limits and away from the encoders'
+/// zero, so homing matters.
+fn start(i: usize) -> f64 {
+    let config = presets::dvrk_seed000();
+    let j = config.joints().nth(i).unwrap();
+    let l = j.actuator.encoder.position_limits_soft;
+    0.5 * (l.lower + l.upper) + 0.1 * l.span() * ((i % 5) as f64 - 2.0) / 2.0
+}
+
+fn robot(protocol: Protocol, rate: f64) -> Robot<LoopbackPort> {
+    let config = presets::dvrk_seed000();
+    let port = LoopbackPort::from_config(&config, start);
+    let (io, scan) = IoSystem::open(
+        port,
+        HostIoConfig {
+            protocol: Some(protocol),
+            ..HostIoConfig::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(scan.boards.len(), 8);
+    Robot::new(
+        io,
+        &config,
+        RobotSettings {
+            rate_hz: rate,
+            ..RobotSettings::default()
+        },
+    )
+    .unwrap()
+}
+
+fn active(protocol: Protocol) -> Robot<LoopbackPort> {
+    let mut r = robot(protocol, 2000.0);
+    r.configure().unwrap();
+    r.power_on().unwrap();
+    r.home().unwrap();
+    r.activate().unwrap();
+    assert_eq!(r.state(), State::Active);
+    r
+}
+
+#[test]
+fn motion_is_refused_unless_active() {
+    let mut r = robot(Protocol::Broadcast, 1000.0);
+    let refused = |r: &mut Robot<LoopbackPort>| {
+        matches!(
+            r.set_motion(0, Motion::Hold(0.1)),
+            Err(RunnerError::Lifecycle(LifecycleError::NotActive { .. }))
+        )
+    };
+    assert!(refused(&mut r));
+    r.configure().unwrap();
+    assert!(refused(&mut r));
+    // Activation without power is refused too.
+    assert!(matches!(
+        r.activate(),
+        Err(RunnerError::Lifecycle(LifecycleError::NotPowered { .. }))
+    ));
+    r.power_on().unwrap();
+    assert!(refused(&mut r));
+    r.home().unwrap();
+    r.activate().unwrap();
+    assert!(r.set_motion(0, Motion::Hold(0.0)).is_ok());
+    r.shutdown().unwrap();
+    assert_eq!(r.state(), State::Configured);
+    assert!(refused(&mut r));
+    assert!(!r.any_amp_on());
+}
+
+#[test]
+fn homing_finds_the_joint_positions() {
+    let r = active(Protocol::Broadcast);
+    for i in 0..r.joint_count() {
+        let p = r.position(i).unwrap();
+        // Pots are 16-bit over twice the range: a few mrad (or um).
+        assert!((p - start(i)).abs() < 5e-3, "joint {i}: {p} vs {}", start(i));
+    }
+}
+
+/// Tolerance: RMS tracking error below 0.01 rad (revolute) and 1 mm
+/// (prismatic) for 0.1 rad / 10 mm, 0.5 Hz sinusoids at 2 kHz.
+#[test]
+fn pid_tracks_sinusoids_in_virtual_time() {
+    for protocol in [Protocol::Broadcast, Protocol::Sequential] {
+        let mut r = active(protocol);
+        let n = r.joint_count();
+        for i in 0..n {
+            let p = r.position(i).unwrap();
+            let prismatic = i >= 14 && i % 7 == 2;
+            let amp = if prismatic { 0.01 } else { 0.1 };
+            let s = Sinusoid::new(amp, 0.5, 0.0, p, 0.5).unwrap();
+            r.set_motion(i, Motion::Sinusoid(s)).unwrap();
+        }
+        r.reset_tracking();
+        r.run(4000, Pacing::Virtual, 0, |_| {}).unwrap();
+        assert!((r.now() - 2.0).abs() < 0.3, "virtual time {}", r.now());
+        for arm in r.tracking() {
+            assert!(arm.samples > 0);
+            assert!(arm.rms_rad < 0.01, "{protocol:?} {}: {arm:?}", arm.name);
+            assert!(arm.rms_mm < 1.0, "{protocol:?} {}: {arm:?}", arm.name);
+        }
+        assert_eq!(r.io_stats().total_errors(), 0);
+        assert!(r.fault().is_none());
+    }
+}
+
+#[test]
+fn stopped_host_trips_the_watchdog() {
+    let mut r = active(Protocol::Broadcast);
+    r.run(100, Pacing::Virtual, 0, |_| {}).unwrap();
+    // The host stops for 50 ms (watchdog 20 ms).
+    r.io_mut().port_mut().advance(Duration::from_millis(50));
+    for id in 0..8 {
+        assert!(r.io().port().watchdog_expired(id));
+        assert!(!r.io().port().any_amp_on(id));
+    }
+    let e = r.step(Pacing::Virtual).unwrap_err();
+    let RunnerError::Fault(f) = e else {
+        panic!("{e:?}")
+    };
+    assert!(matches!(f.kind, FaultKind::Watchdog { .. }), "{f}");
+    assert_eq!(r.state(), State::Fault);
+    assert!(!r.any_amp_on());
+}
+
+#[test]
+fn corrupt_query_is_detected_and_amps_go_off() {
+    let mut r = active(Protocol::Broadcast);
+    r.run(50, Pacing::Virtual, 0, |_| {}).unwrap();
+    r.io_mut().port_mut().corrupt_next_queries(1);
+    let RunnerError::Fault(f) = r.step(Pacing::Virtual).unwrap_err() else {
+        panic!()
+    };
+    assert!(
+        matches!(f.kind, FaultKind::Sequence { received: 0xFFFF, .. }),
+        "{f}"
+    );
+    assert!(r.io_stats().corrupt_queries > 0);
+    // The faulting cycle already wrote amplifiers off.
+    for id in 0..8 {
+        assert!(!r.io().port().any_amp_on(id), "board {id}");
+    }
+    let _ = r.step(Pacing::Virtual);
+    assert!(!r.any_amp_on());
+}
+
+#[test]
+fn board_loss_stops_safely_naming_the_board() {
+    for protocol in [Protocol::Broadcast, Protocol::Sequential] {
+        let mut r = active(protocol);
+        r.run(50, Pacing::Virtual, 0, |_| {}).unwrap();
+        r.io_mut().port_mut().set_board_lost(5, true);
+        let RunnerError::Fault(f) = r.step(Pacing::Virtual).unwrap_err() else {
+            panic!()
+        };
+        match f.kind {
+            FaultKind::MissedBoard { board_id, robot } => {
+                assert_eq!(board_id, 5);
+                assert_eq!(robot.as_str(), "PSM1");
+            }
+            k => panic!("{protocol:?}: {k:?}"),
+        }
+        for id in [0, 1, 2, 3, 4, 6, 7] {
+            assert!(!r.io().port().any_amp_on(id), "board {id}");
+        }
+    }
+}
+
+#[test]
+fn following_error_excess_trips() {
+    let mut r = active(Protocol::Broadcast);
+    r.run(20, Pacing::Virtual, 0, |_| {}).unwrap();
+    // MTML joint 1 is blocked, then asked to move by 0.5 rad (limit
+    // 0.35 rad, 50 ms grace).
+    r.io_mut().port_mut().set_axis_blocked(0, 0, true);
+    r.step_setpoint(0, 0.5).unwrap();
+    let e = r.run(2000, Pacing::Virtual, 0, |_| {}).unwrap_err();
+    let RunnerError::Fault(f) = e else { panic!() };
+    assert!(matches!(f.kind, FaultKind::FollowingError { .. }), "{f}");
+    assert!(!r.any_amp_on() || r.step(Pacing::Virtual).is_err());
+    let _ = r.step(Pacing::Virtual);
+    assert!(!r.any_amp_on());
+}
+
+#[test]
+fn configuration_errors() {
+    // The dVRK configuration against a single bench board.
+    let bench = presets::bench_1board();
+    let port = LoopbackPort::from_config(&bench, |_| 0.0);
+    let (io, _) = IoSystem::open(port, HostIoConfig::default()).unwrap();
+    let e = Robot::new(io, &presets::dvrk_seed000(), RobotSettings::default())
+        .err()
+        .unwrap();
+    assert!(matches!(e, RunnerError::Config(ref m) if m.contains("not on the bus")), "{e}");
+    // A zero rate.
+    let port = LoopbackPort::from_config(&bench, |_| 0.0);
+    let (io, _) = IoSystem::open(port, HostIoConfig::default()).unwrap();
+    let settings = RobotSettings {
+        rate_hz: 0.0,
+        ..RobotSettings::default()
+    };
+    assert!(Robot::new(io, &bench, settings).is_err());
+}
