@@ -5,5 +5,7 @@
 //! broadcast firmware, with a deterministic physical plant behind them.
 #![cfg_attr(not(test), warn(clippy::indexing_slicing))]
 
+pub mod config;
+pub mod firmware;
 pub mod plant;
 pub mod time;
