@@ -210,7 +210,7 @@ mod tests {
         assert_eq!(c.to_u16(), 0x012A);
         assert_eq!(c.to_bytes(), [0x01, 0x2A]);
         assert_eq!(ControlWord::from_u16(0x012A), c);
-        assert_eq!(ControlWord::from_u16(0x0005).no_forward, false);
+        assert!(!ControlWord::from_u16(0x0005).no_forward);
     }
 
     #[test]

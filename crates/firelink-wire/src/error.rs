@@ -116,6 +116,63 @@ pub enum Error {
         /// The value found.
         value: u32,
     },
+    /// A signed value lies outside the range its field can represent.
+    #[error("{what} = {value} is outside {min}..={max}")]
+    OutOfRange {
+        /// The quantity.
+        what: &'static str,
+        /// The offending value.
+        value: i64,
+        /// The smallest value allowed.
+        min: i64,
+        /// The largest value allowed.
+        max: i64,
+    },
+    /// An index (axis, motor, encoder, board) beyond the items present.
+    #[error("{what} index {index} out of range: {count} present")]
+    Index {
+        /// What is indexed.
+        what: &'static str,
+        /// The index asked for.
+        index: usize,
+        /// How many items there are.
+        count: usize,
+    },
+    /// A board answered a broadcast query with the wrong sequence number
+    /// (a stale or foreign answer): `fpga-board.md` section 6.
+    #[error("board {board} answered sequence {received:#06x}, expected {expected:#06x}")]
+    Sequence {
+        /// The board ID.
+        board: u8,
+        /// The sequence expected (the low byte only for Rev 8 hub headers).
+        expected: u16,
+        /// The sequence received.
+        received: u16,
+    },
+    /// A Rev 8 hub header carries the sequence-error bit: the board's full
+    /// 16-bit sequence did not match the query's.
+    #[error("board {board} flagged a sequence mismatch (low byte {seq_low:#04x})")]
+    SequenceFlagged {
+        /// The board ID.
+        board: u8,
+        /// The sequence low byte the board reported.
+        seq_low: u8,
+    },
+    /// A board answered with sequence `0xFFFF`: it received a corrupt query
+    /// (seed 000 profile).
+    #[error("board {board} received a corrupt query (answered sequence 0xffff)")]
+    CorruptQuery {
+        /// The board ID.
+        board: u8,
+    },
+    /// Board blocks are not in strictly ascending board-ID order.
+    #[error("board {next} follows board {previous}: boards must be in strictly ascending ID order")]
+    BoardOrder {
+        /// The board ID before.
+        previous: u8,
+        /// The board ID that does not ascend.
+        next: u8,
+    },
 }
 
 /// Result alias of the wire layer.

@@ -10,6 +10,10 @@
 //!   [`PacketRepr`](packet::PacketRepr) meaning type.
 //! - [`phy`]: PHY packets (self-ID, PHY configuration, link-on).
 //! - [`bridge`]: the Ethernet/UDP bridge framing (control word, extra data).
+//! - [`board`]: the FPGA1394/QLA board protocol: address spaces and the
+//!   register map, register quadlet codecs, the real-time read and write
+//!   blocks, and the broadcast protocol (query, status broadcasts, hub
+//!   block, command block).
 //!
 //! Every parser checks lengths before reading; untrusted bytes never panic
 //! and failures are [`Error`] values naming what was wrong.
@@ -32,6 +36,7 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod board;
 pub mod bridge;
 pub mod crc;
 mod error;

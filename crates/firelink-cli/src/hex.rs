@@ -1,0 +1,88 @@
+//! Hex text <-> bytes for the command line.
+
+/// Why a hex argument could not be read.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum HexError {
+    /// No digits at all.
+    #[error("no hex digits given")]
+    Empty,
+    /// An odd number of digits cannot form whole bytes.
+    #[error("odd number of hex digits ({0}): bytes need two digits each")]
+    OddLength(usize),
+    /// A character that is not a hex digit.
+    #[error("invalid hex digit {ch:?} at position {position}")]
+    InvalidDigit {
+        /// The character.
+        ch: char,
+        /// Its 0-based index among the non-whitespace characters.
+        position: usize,
+    },
+}
+
+/// Parse hex digits, ignoring whitespace, `_`, `:` separators and `0x`
+/// prefixes on each whitespace-separated word.
+pub fn parse_hex(text: &str) -> Result<Vec<u8>, HexError> {
+    let mut digits = Vec::new();
+    for word in text.split_whitespace() {
+        let word = word
+            .strip_prefix("0x")
+            .or_else(|| word.strip_prefix("0X"))
+            .unwrap_or(word);
+        digits.extend(word.chars().filter(|c| *c != '_' && *c != ':'));
+    }
+    if digits.is_empty() {
+        return Err(HexError::Empty);
+    }
+    let mut values = Vec::with_capacity(digits.len());
+    for (position, ch) in digits.iter().enumerate() {
+        let v = ch
+            .to_digit(16)
+            .ok_or(HexError::InvalidDigit { ch: *ch, position })?;
+        values.push(v as u8);
+    }
+    if values.len() % 2 != 0 {
+        return Err(HexError::OddLength(values.len()));
+    }
+    Ok(values.chunks(2).map(|p| (p[0] << 4) | p[1]).collect())
+}
+
+/// Lower-case hex without separators.
+pub fn to_hex(bytes: &[u8]) -> String {
+    use std::fmt::Write;
+    let mut s = String::with_capacity(bytes.len() * 2);
+    for b in bytes {
+        let _ = write!(s, "{b:02x}");
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn accepts_separators_and_prefixes() {
+        assert_eq!(
+            parse_hex("0xffc1 1540").unwrap(),
+            vec![0xff, 0xc1, 0x15, 0x40]
+        );
+        assert_eq!(
+            parse_hex("ff:c1_15 40\n").unwrap(),
+            vec![0xff, 0xc1, 0x15, 0x40]
+        );
+        assert_eq!(to_hex(&[0, 0xab]), "00ab");
+    }
+
+    #[test]
+    fn names_the_problem() {
+        assert_eq!(parse_hex("abc"), Err(HexError::OddLength(3)));
+        assert_eq!(
+            parse_hex("ab zz"),
+            Err(HexError::InvalidDigit {
+                ch: 'z',
+                position: 2
+            })
+        );
+        assert_eq!(parse_hex("  "), Err(HexError::Empty));
+    }
+}

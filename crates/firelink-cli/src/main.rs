@@ -1,0 +1,214 @@
+//! The `firelink` command line.
+//!
+//! Each subcommand is a thin layer over the library crates; this file only
+//! parses arguments, prints results and maps errors to one line on stderr
+//! with a non-zero exit status.
+
+mod hex;
+mod packet_cmd;
+mod tour;
+
+use std::io::Write;
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+
+/// Firelink: real-time robot control over IEEE 1394 and its Ethernet bridge,
+/// with the bus and the boards emulated in software.
+#[derive(Parser)]
+#[command(name = "firelink", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Decode or build single 1394 packets.
+    #[command(subcommand)]
+    Packet(PacketCommand),
+    /// Print the IEEE 1394 CRC-32 of hex bytes.
+    Crc {
+        /// Bytes as hex (whitespace allowed).
+        #[arg(required = true, num_args = 1..)]
+        hex: Vec<String>,
+    },
+    /// Build and decode every packet of one broadcast I/O cycle (the default).
+    Tour(tour::TourArgs),
+}
+
+#[derive(Subcommand)]
+enum PacketCommand {
+    /// Decode one complete packet given as hex; print one JSON object.
+    Decode {
+        /// The input is a host->board UDP payload: control word, then the packet.
+        #[arg(long)]
+        bridge: bool,
+        /// Packet bytes as hex (whitespace allowed).
+        #[arg(required = true, num_args = 1..)]
+        hex: Vec<String>,
+    },
+    /// Build a packet from flags or JSON; print its hex with correct CRCs.
+    Encode(Box<EncodeArgs>),
+}
+
+#[derive(Args)]
+struct EncodeArgs {
+    /// The packet as a JSON object with the keys `packet decode` prints.
+    #[arg(long, conflicts_with_all = ["tcode", "destination_id"])]
+    json: Option<String>,
+    /// Transaction code: a number or a name such as read_request_block.
+    #[arg(long)]
+    tcode: Option<String>,
+    /// Destination node ID (e.g. 0xffc0).
+    #[arg(long = "destination-id", value_parser = parse_number)]
+    destination_id: Option<u64>,
+    /// Source node ID (default 0xffd0).
+    #[arg(long = "source-id", value_parser = parse_number)]
+    source_id: Option<u64>,
+    /// Transaction label 0..63.
+    #[arg(long, value_parser = parse_number)]
+    tl: Option<u64>,
+    /// Retry code 0..3.
+    #[arg(long, value_parser = parse_number)]
+    rt: Option<u64>,
+    /// Priority 0..15.
+    #[arg(long, value_parser = parse_number)]
+    pri: Option<u64>,
+    /// 48-bit destination offset.
+    #[arg(long, value_parser = parse_number)]
+    offset: Option<u64>,
+    /// Data quadlet of quadlet writes / quadlet read responses.
+    #[arg(long = "quadlet-data", value_parser = parse_number)]
+    quadlet_data: Option<u64>,
+    /// Response code.
+    #[arg(long, value_parser = parse_number)]
+    rcode: Option<u64>,
+    /// Bytes requested by a block read.
+    #[arg(long = "data-length", value_parser = parse_number)]
+    data_length: Option<u64>,
+    /// Extended tcode.
+    #[arg(long = "extended-tcode", value_parser = parse_number)]
+    extended_tcode: Option<u64>,
+    /// Payload of block writes / block read responses, as hex.
+    #[arg(long)]
+    data: Option<String>,
+    /// Prepend the Ethernet bridge control word.
+    #[arg(long)]
+    bridge: bool,
+    /// Bus generation for the bridge control word.
+    #[arg(long, value_parser = parse_number, requires = "bridge")]
+    generation: Option<u64>,
+    /// Set the bridge no-forward bit.
+    #[arg(long = "no-forward", requires = "bridge")]
+    no_forward: bool,
+}
+
+fn parse_number(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+        Some(h) => u64::from_str_radix(&h.replace('_', ""), 16),
+        None => t.replace('_', "").parse(),
+    };
+    parsed.map_err(|_| format!("not a number: {s:?}"))
+}
+
+/// Everything the command line reports as a one-line error.
+#[derive(Debug, thiserror::Error)]
+pub enum CliError {
+    /// Bad hex text.
+    #[error(transparent)]
+    Hex(#[from] hex::HexError),
+    /// The wire layer rejected the bytes or fields.
+    #[error(transparent)]
+    Wire(#[from] firelink_wire::Error),
+    /// Bad JSON.
+    #[error("invalid JSON: {0}")]
+    Json(#[from] serde_json::Error),
+    /// A required field is absent.
+    #[error("missing field {0}")]
+    Missing(&'static str),
+    /// A field is too large.
+    #[error("{name} = {value:#x} is out of range (maximum {max:#x})")]
+    Range {
+        /// Field.
+        name: &'static str,
+        /// Value given.
+        value: u64,
+        /// Largest allowed.
+        max: u64,
+    },
+    /// No tcode has that name.
+    #[error("unknown tcode name {0:?}")]
+    UnknownTcodeName(String),
+    /// Two inputs disagree.
+    #[error("{0}")]
+    Conflict(String),
+    /// The tcode is recognised but not built by `encode`.
+    #[error("cannot encode {0} packets: only quadlet/block read/write requests and responses")]
+    CannotEncode(&'static str),
+    /// Writing output failed.
+    #[error("output: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+fn run(cli: Cli) -> Result<(), CliError> {
+    let mut out = std::io::stdout().lock();
+    match cli
+        .command
+        .unwrap_or(Command::Tour(tour::TourArgs::default()))
+    {
+        Command::Packet(PacketCommand::Decode { bridge, hex }) => {
+            let json = packet_cmd::decode(&hex.join(" "), bridge)?;
+            writeln!(out, "{}", serde_json::to_string(&json)?)?;
+        }
+        Command::Packet(PacketCommand::Encode(args)) => {
+            let json = match &args.json {
+                Some(text) => serde_json::from_str(text)?,
+                None => {
+                    let tcode = args.tcode.as_deref().ok_or(CliError::Missing("--tcode"))?;
+                    let (tcode, tcode_name) = match parse_number(tcode) {
+                        Ok(n) => (Some(n), None),
+                        Err(_) => (None, Some(tcode.to_string())),
+                    };
+                    packet_cmd::PacketJson {
+                        tcode,
+                        tcode_name,
+                        destination_id: args.destination_id,
+                        source_id: args.source_id,
+                        tl: args.tl,
+                        rt: args.rt,
+                        pri: args.pri,
+                        offset: args.offset,
+                        quadlet_data: args.quadlet_data,
+                        rcode: args.rcode,
+                        data_length: args.data_length,
+                        extended_tcode: args.extended_tcode,
+                        data: args.data.clone(),
+                        no_forward: Some(args.no_forward),
+                        generation: args.generation,
+                        ..Default::default()
+                    }
+                }
+            };
+            let bytes = packet_cmd::encode(&json, args.bridge)?;
+            writeln!(out, "{}", hex::to_hex(&bytes))?;
+        }
+        Command::Crc { hex } => {
+            writeln!(out, "{:08x}", packet_cmd::crc(&hex.join(" "))?)?;
+        }
+        Command::Tour(args) => tour::run(&args, &mut out)?,
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("firelink: {err}");
+            ExitCode::FAILURE
+        }
+    }
+}

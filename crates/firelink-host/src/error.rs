@@ -1,0 +1,128 @@
+//! Host-side failures, kept apart from the wire code space.
+
+use firelink_wire::packet::{Ack, Rcode};
+
+/// Why a host operation failed. `Copy` and allocation-free so the servo
+/// cycle can pass it around.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum HostError {
+    /// No matching response arrived in time.
+    #[error("no response from node {node} (tl {tl}) within {waited_us} us")]
+    Timeout {
+        /// Destination node.
+        node: u8,
+        /// Transaction label of the request.
+        tl: u8,
+        /// How long the host waited.
+        waited_us: u32,
+    },
+    /// The responder acknowledged with something other than complete/pending.
+    #[error("node {node} answered ack {ack:?}")]
+    Ack {
+        /// Destination node.
+        node: u8,
+        /// The ack received.
+        ack: Ack,
+    },
+    /// The response carried an error rcode.
+    #[error("node {node} answered rcode {rcode:?}")]
+    Rcode {
+        /// Responding node.
+        node: u8,
+        /// The rcode received.
+        rcode: Rcode,
+    },
+    /// The bus was reset: node numbers may have changed. In-flight requests
+    /// fail with this error once; rescan the bus, then go on.
+    #[error("bus reset: generation {old} -> {new}; rescan needed")]
+    BusReset {
+        /// Generation the host was using.
+        old: u32,
+        /// Generation now on the bus.
+        new: u32,
+    },
+    /// Bytes from the port did not decode.
+    #[error("bad packet from the port: {0}")]
+    Wire(#[from] firelink_wire::Error),
+    /// The operating system refused a socket operation.
+    #[error("socket error: {0:?}")]
+    Io(std::io::ErrorKind),
+    /// A request that cannot be expressed (size, destination).
+    #[error("invalid request: {what} (value {value})")]
+    InvalidRequest {
+        /// What is wrong.
+        what: &'static str,
+        /// The offending value.
+        value: u32,
+    },
+    /// A board did not take part in a cycle it was expected in.
+    #[error("board {board} missed the cycle: {reason}")]
+    BoardMissed {
+        /// Board ID (rotary switch).
+        board: u8,
+        /// What was wrong with its data.
+        reason: MissReason,
+    },
+    /// No board answered a scan.
+    #[error("no boards found on {0}")]
+    NoBoards(&'static str),
+    /// A board ID is not present in the current configuration.
+    #[error("board {0} is not on the bus")]
+    UnknownBoard(u8),
+}
+
+impl From<std::io::Error> for HostError {
+    fn from(e: std::io::Error) -> Self {
+        HostError::Io(e.kind())
+    }
+}
+
+/// Why a board's data for a cycle was not used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum MissReason {
+    /// The board's block was absent or not updated this cycle.
+    NotUpdated,
+    /// The sequence number did not match the query.
+    Sequence {
+        /// Sequence (or its low byte) the host sent.
+        expected: u16,
+        /// Sequence the board reported.
+        received: u16,
+    },
+    /// The board flagged a corrupt query (seed-000 0xFFFF rule, Rev 8 error bit).
+    CorruptQuery,
+    /// The block's STATUS names another board.
+    WrongBoardId {
+        /// Board found in the data.
+        found: u8,
+    },
+    /// The block size does not match the board's layout.
+    BlockSize {
+        /// Quadlets expected.
+        expected: u16,
+        /// Quadlets found.
+        found: u16,
+    },
+    /// The board's own read or write transaction failed.
+    Transaction,
+}
+
+impl core::fmt::Display for MissReason {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            MissReason::NotUpdated => write!(f, "no data this cycle"),
+            MissReason::Sequence { expected, received } => {
+                write!(f, "sequence {received:#x}, expected {expected:#x}")
+            }
+            MissReason::CorruptQuery => write!(f, "board reported a corrupt query"),
+            MissReason::WrongBoardId { found } => write!(f, "data is from board {found}"),
+            MissReason::BlockSize { expected, found } => {
+                write!(f, "block of {found} quadlets, expected {expected}")
+            }
+            MissReason::Transaction => write!(f, "transaction failed"),
+        }
+    }
+}
+
+/// Result alias of the host layer.
+pub type Result<T> = core::result::Result<T, HostError>;

@@ -1,0 +1,21 @@
+//! # firelink-host: what a robot program links against
+//!
+//! The PC side of the seed papers: ports that carry 1394 transactions (the
+//! in-process simulated bus, or UDP to an Ethernet-bridge board), discovery
+//! of boards, a typed board API, and the I/O protocols that move one servo
+//! cycle's inputs and outputs: sequential per-board read/write, sequential
+//! read with a broadcast write, and seed 000's broadcast query / hub read /
+//! broadcast command protocol.
+//!
+//! - [`port`]: the one narrow [`Port`](port::Port) trait.
+//! - [`udp`]: the Ethernet bridge port.
+//!
+//! Protocols never know which port they use, so the same program drives
+//! emulated boards today and real boards over Ethernet tomorrow.
+
+pub mod error;
+pub mod port;
+pub mod udp;
+
+pub use error::{HostError, MissReason, Result};
+pub use port::{Dest, Port};

@@ -1,0 +1,75 @@
+//! The one narrow transport trait every protocol talks through.
+//!
+//! A [`Port`] moves 1394 asynchronous transactions to nodes and back; it
+//! never knows what the bytes mean. The simulated bus and the UDP bridge
+//! implement it, so the same protocol code drives emulated boards in-process
+//! and real boards over Ethernet.
+
+use std::time::Duration;
+
+use crate::error::Result;
+
+/// Where a request goes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Dest {
+    /// Physical node ID 0..=62, or 63 for broadcast.
+    pub node: u8,
+    /// UDP bridge only: handle on the Ethernet-connected board itself and
+    /// match `node` against its board ID (control word bit 8). Ignored by
+    /// other ports.
+    pub no_forward: bool,
+}
+
+impl Dest {
+    /// Broadcast to every node.
+    pub const BROADCAST: Dest = Dest {
+        node: 63,
+        no_forward: false,
+    };
+
+    /// One node by physical ID.
+    pub const fn node(node: u8) -> Dest {
+        Dest {
+            node,
+            no_forward: false,
+        }
+    }
+
+    /// Whether this is the broadcast node.
+    pub const fn is_broadcast(&self) -> bool {
+        self.node == 63
+    }
+}
+
+/// A transport for 1394 asynchronous transactions.
+///
+/// Reads block until the matching response arrives or the port's time-out
+/// expires. Writes to the bridge complete when sent (the bridge sends no
+/// write response); on the simulated bus they complete with the ack.
+///
+/// # Errors
+/// Every method reports [`HostError`](crate::HostError) values: time-outs,
+/// bad acks or rcodes, bus resets (once per reset), socket failures.
+pub trait Port {
+    /// A short human name ("sim", "udp:127.0.0.1:1394").
+    fn name(&self) -> &str;
+    /// Read one quadlet.
+    fn read_quadlet(&mut self, dest: Dest, offset: u64) -> Result<u32>;
+    /// Write one quadlet.
+    fn write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> Result<()>;
+    /// Read `out.len()` bytes (a whole number of quadlets).
+    fn read_block(&mut self, dest: Dest, offset: u64, out: &mut [u8]) -> Result<()>;
+    /// Write a block (a whole number of quadlets).
+    fn write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()>;
+    /// Let `duration` pass (virtual time on the simulated bus).
+    fn wait(&mut self, duration: Duration);
+    /// Time since the port was opened (virtual on the simulated bus).
+    fn now(&self) -> Duration;
+    /// The bus generation the host currently uses.
+    fn generation(&self) -> u32;
+    /// Physical node IDs that may hold boards (the bridge: 0..=15; the
+    /// simulated bus: every node but the PC).
+    fn candidate_nodes(&self) -> core::ops::Range<u8> {
+        0..16
+    }
+}

@@ -1,0 +1,167 @@
+//! The FPGA1394/QLA motor-controller board protocol: addresses, register
+//! quadlets, the real-time blocks and the broadcast (hub) protocol.
+//!
+//! Facts: `fpga-board.md` sections 1 to 7. Raw bits only: conversions to
+//! amps, volts or radians belong to the host layer.
+//!
+//! - [`address`]: address spaces, the main-space register map
+//!   ([`BoardRegister`](address::BoardRegister),
+//!   [`AxisRegister`](address::AxisRegister)), hub and broadcast offsets.
+//! - [`registers`]: typed codecs for every register quadlet (STATUS read and
+//!   write, DAC, ADC, encoder words, versions, watchdog, ...).
+//! - [`realtime`]: firmware revisions, board layouts and the real-time read
+//!   and write blocks (checked views and meaning types).
+//! - [`broadcast`]: the query word, status broadcasts, the hub block and the
+//!   concatenated command block.
+//!
+//! ```
+//! use firelink_wire::board::realtime::{BoardLayout, FirmwareRev};
+//! use firelink_wire::board::broadcast::hub_block_quadlets;
+//! let qla1 = BoardLayout::qla1(FirmwareRev::Rev8);
+//! assert_eq!(qla1.read_block_quadlets(), 32);
+//! assert_eq!(qla1.write_block_quadlets(), 6);
+//! // Two QLA1 Rev 8 boards: 67 quadlets in the hub block (fpga-board.md §6.4).
+//! assert_eq!(hub_block_quadlets([qla1; 2]), 67);
+//! ```
+
+pub mod address;
+pub mod broadcast;
+pub mod realtime;
+pub mod registers;
+
+/// The largest number of motors or encoders one board carries (DQLA: 8).
+pub const MAX_AXES: usize = 8;
+/// Board IDs are 0..=15 (a 4-bit rotary switch), `fpga-board.md` §2.
+pub const MAX_BOARD_ID: u8 = 15;
+/// Number of distinct board IDs.
+pub const MAX_BOARDS: usize = 16;
+
+/// Conversion between a field's raw bits and the Rust type its accessors use.
+pub(crate) trait Bits: Copy {
+    /// From the extracted (right-aligned) field bits.
+    fn from_bits(bits: u32) -> Self;
+    /// To the raw bits (inserting truncates to the field width).
+    fn to_bits(self) -> u32;
+}
+
+impl Bits for bool {
+    fn from_bits(bits: u32) -> Self {
+        bits != 0
+    }
+    fn to_bits(self) -> u32 {
+        u32::from(self)
+    }
+}
+
+impl Bits for u8 {
+    fn from_bits(bits: u32) -> Self {
+        bits as u8
+    }
+    fn to_bits(self) -> u32 {
+        u32::from(self)
+    }
+}
+
+impl Bits for u16 {
+    fn from_bits(bits: u32) -> Self {
+        bits as u16
+    }
+    fn to_bits(self) -> u32 {
+        u32::from(self)
+    }
+}
+
+impl Bits for u32 {
+    fn from_bits(bits: u32) -> Self {
+        bits
+    }
+    fn to_bits(self) -> u32 {
+        self
+    }
+}
+
+/// Define a register quadlet as a `u32` newtype whose bit fields each get a
+/// getter, a setter and a builder, all from one [`Field`](crate::field::Field)
+/// constant.
+macro_rules! quadlet_register {
+    (
+        $(#[$attr:meta])*
+        pub struct $name:ident {
+            $(
+                $(#[$fattr:meta])*
+                $get:ident, $set:ident, $with:ident: $ty:ty = $field:path;
+            )*
+        }
+    ) => {
+        $(#[$attr])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+        pub struct $name(pub u32);
+
+        impl $name {
+            /// The raw quadlet.
+            pub const fn raw(self) -> u32 {
+                self.0
+            }
+
+            $(
+                $(#[$fattr])*
+                pub fn $get(self) -> $ty {
+                    <$ty as $crate::board::Bits>::from_bits($field.extract(self.0))
+                }
+
+                #[doc = concat!("Set [`", stringify!($get), "`](Self::", stringify!($get),
+                    ") (truncated to the field width).")]
+                pub fn $set(&mut self, value: $ty) {
+                    self.0 = $field.insert(self.0, $crate::board::Bits::to_bits(value));
+                }
+
+                #[doc = concat!("This quadlet with [`", stringify!($get), "`](Self::",
+                    stringify!($get), ") replaced (builder form of [`", stringify!($set),
+                    "`](Self::", stringify!($set), ")).")]
+                #[must_use]
+                pub fn $with(mut self, value: $ty) -> Self {
+                    self.$set(value);
+                    self
+                }
+            )*
+        }
+
+        impl From<u32> for $name {
+            fn from(raw: u32) -> Self {
+                $name(raw)
+            }
+        }
+
+        impl From<$name> for u32 {
+            fn from(value: $name) -> u32 {
+                value.0
+            }
+        }
+    };
+}
+
+pub(crate) use quadlet_register;
+
+/// Check that the buffer is exactly `quadlets` quadlets long.
+pub(crate) fn check_exact(what: &'static str, len: usize, quadlets: usize) -> crate::Result<()> {
+    if len % 4 != 0 {
+        return Err(crate::Error::NotQuadletAligned { what, len });
+    }
+    if len / 4 != quadlets {
+        return Err(crate::Error::BlockSize {
+            what,
+            expected: quadlets,
+            found: len / 4,
+        });
+    }
+    Ok(())
+}
+
+/// Check a value against the largest one its field holds.
+pub(crate) fn check_max(field: &'static str, value: u64, max: u64) -> crate::Result<()> {
+    if value > max {
+        Err(crate::Error::FieldRange { field, value, max })
+    } else {
+        Ok(())
+    }
+}
