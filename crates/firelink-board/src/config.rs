@@ -11,6 +11,10 @@
 //! assert_eq!(cfg.read_block_quadlets(), 32);
 //! ```
 
+use firelink_wire::board::realtime::{BoardLayout, FirmwareRev};
+pub use firelink_wire::board::registers::FpgaVersion;
+use firelink_wire::board::registers::HardwareVersion;
+
 use crate::plant::{AxisParams, DEFAULT_STEP, presets};
 use crate::time::TimeDelta;
 
@@ -31,11 +35,12 @@ pub enum Profile {
 }
 
 impl Profile {
-    /// The value of the FW_VERSION register.
-    pub fn firmware_version(self) -> u32 {
+    /// The firmware revision reported in FW_VERSION, which also selects
+    /// the block layouts.
+    pub fn firmware_rev(self) -> FirmwareRev {
         match self {
-            Profile::Seed | Profile::Rev7 => 7,
-            Profile::Rev8 => 8,
+            Profile::Seed | Profile::Rev7 => FirmwareRev::Rev7,
+            Profile::Rev8 => FirmwareRev::Rev8,
         }
     }
 
@@ -64,38 +69,11 @@ impl Hardware {
     }
 
     /// The HW_VERSION register (`fpga-board.md` section 2).
-    pub fn hw_version(self) -> u32 {
+    pub fn hardware_version(self) -> HardwareVersion {
         match self {
-            Hardware::Qla1 => 0x514C_4131,
-            Hardware::Dqla => 0x4451_4C41,
+            Hardware::Qla1 => HardwareVersion::Qla1,
+            Hardware::Dqla => HardwareVersion::Dqla,
         }
-    }
-}
-
-/// The FPGA board generation, visible in ETH_STATUS.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum FpgaVersion {
-    /// FireWire only; ETH_STATUS reads 0.
-    V1,
-    /// FireWire and Ethernet; ETH_STATUS bit 31.
-    V2,
-    /// FireWire and Ethernet; ETH_STATUS bits 31:30 = 01.
-    V3,
-}
-
-impl FpgaVersion {
-    /// The ETH_STATUS register.
-    pub fn eth_status(self) -> u32 {
-        match self {
-            FpgaVersion::V1 => 0,
-            FpgaVersion::V2 => 0x8000_0000,
-            FpgaVersion::V3 => 0x4000_0000,
-        }
-    }
-
-    /// Whether the board has Ethernet (and so an IP_ADDR register).
-    pub fn has_ethernet(self) -> bool {
-        self != FpgaVersion::V1
     }
 }
 
@@ -187,21 +165,24 @@ impl BoardConfig {
             .collect()
     }
 
+    /// The real-time block layout: firmware revision, motors, encoders.
+    pub fn layout(&self) -> BoardLayout {
+        let rev = self.profile.firmware_rev();
+        match self.hardware {
+            Hardware::Qla1 => BoardLayout::qla1(rev),
+            Hardware::Dqla => BoardLayout::dqla(rev),
+        }
+    }
+
     /// Quadlets of the real-time read block (`fpga-board.md` section 4):
     /// Rev 7 `4 + M + 5E`, Rev 8 `4 + 2M + 5E`.
     pub fn read_block_quadlets(&self) -> usize {
-        let n = self.hardware.axes();
-        if self.profile.is_rev8() {
-            4 + 2 * n + 5 * n
-        } else {
-            4 + n + 5 * n
-        }
+        self.layout().read_block_quadlets()
     }
 
     /// Quadlets of the real-time write block (`fpga-board.md` section 5):
     /// Rev 8 header + M DACs + control, Rev 7 M DACs + control.
     pub fn write_block_quadlets(&self) -> usize {
-        let n = self.hardware.axes();
-        if self.profile.is_rev8() { n + 2 } else { n + 1 }
+        self.layout().write_block_quadlets()
     }
 }

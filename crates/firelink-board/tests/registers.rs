@@ -7,6 +7,7 @@ use common::*;
 use firelink_board::config::{BoardConfig, FpgaVersion, Hardware, Profile};
 use firelink_board::firmware::Reply;
 use firelink_board::time::TimeDelta;
+use firelink_wire::board::registers::DigitalOutWrite;
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, PacketRepr, Rcode};
 
 fn rig(profile: Profile) -> Rig {
@@ -49,11 +50,13 @@ fn board_registers() {
     // TEMPERATURE: both sensors at ambient (25 C) at power-up.
     assert_eq!(r.read(5), 0x1919);
     // DIGITAL_OUT: mask<<8 | (~bits & mask); read back in DIGITAL_IN 15:12.
-    r.write(6, 0x0F00 | (!0b1010u32 & 0xF));
+    let dout = |mask, outputs| DigitalOutWrite { mask, outputs }.to_word();
+    assert_eq!(dout(0xF, 0b1010), 0x0F05);
+    r.write(6, dout(0xF, 0b1010));
     assert_eq!((r.read(10) >> 12) & 0xF, 0b1010);
-    r.write(6, 0x0100 | (!0u32 & 0x1)); // output 0 to 0, others kept
+    r.write(6, dout(0x1, 0)); // output 0 to 0, others kept
     assert_eq!((r.read(10) >> 12) & 0xF, 0b1010);
-    r.write(6, 0x0200 | (!0u32 & 0x2)); // output 1 to 0
+    r.write(6, dout(0x2, 0)); // output 1 to 0
     assert_eq!((r.read(10) >> 12) & 0xF, 0b1000);
     // DIGITAL_IN at rest: encoder lines at count 0 (A = B = 0, index 1).
     let din = r.read(10);

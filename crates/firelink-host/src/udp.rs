@@ -190,8 +190,7 @@ impl UdpPort {
         let started = Instant::now();
         loop {
             let elapsed = started.elapsed();
-            let Some(remaining) = self.timeout.checked_sub(elapsed).filter(|d| !d.is_zero())
-            else {
+            let Some(remaining) = self.timeout.checked_sub(elapsed).filter(|d| !d.is_zero()) else {
                 self.stats.timeouts += 1;
                 return Err(HostError::Timeout {
                     node: dest.node,

@@ -48,19 +48,25 @@
 //! assert_eq!(resp.quadlet_data(), 8);
 //! ```
 
-pub(crate) mod bits;
 mod hub;
 mod phy;
 mod power;
 mod registers;
 
-pub use hub::{CHAIN_TIMEOUT_PER_BOARD, FIRST_SLOT_CLOCKS, HUB_QUADLETS, SEED_OFFSET, SEED_SLOT};
+pub use hub::{CHAIN_TIMEOUT_PER_BOARD, FIRST_SLOT_CLOCKS, SEED_OFFSET, SEED_SLOT};
 pub use phy::{PhyAccess, PhyRegisters};
 pub use power::{
     DEFAULT_ENABLE_DELAY, ENABLE_DELAY_UNIT_CLOCKS, MISMATCH_AMPS, MISMATCH_TIME, SAFETY_TICK,
     SUPPLY_HOLD, WATCHDOG_POWER_UP_TICKS,
 };
 
+use firelink_wire::board::address::{
+    COMMAND_SNOOP_OFFSET, HUB_QUERY_OFFSET, STATUS_BROADCAST_OFFSET, STATUS_BROADCAST_PRIORITY,
+};
+use firelink_wire::board::broadcast::{
+    BroadcastHeader, CORRUPT_QUERY_SEQ, Query, status_broadcast_offset,
+};
+use firelink_wire::board::registers::PhyData;
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Rcode, Tcode};
 
 use crate::config::{BoardConfig, Profile};
@@ -69,20 +75,6 @@ use crate::time::{Time, TimeDelta};
 use hub::{Hub, Pending};
 use power::{AxisState, Power, Watchdog};
 
-/// Hub register taking the broadcast query (section 6.1).
-pub const QUERY_ADDRESS: u16 = 0x1800;
-/// Hub register counting the quadlets written to hub memory (section 6).
-pub const HUB_COUNT_ADDRESS: u16 = 0x1802;
-/// Start of hub memory (section 6.3).
-pub const HUB_ADDRESS: u16 = 0x1000;
-/// Offset of the command block written to node 0 for the boards to snoop
-/// (section 6.5).
-pub const COMMAND_SNOOP_OFFSET: u64 = 0xFFFF_FFFF_0000;
-/// Offset of the status broadcasts (section 6.2); Rev 4-7 add
-/// `0x20 x board ID`.
-pub const STATUS_BROADCAST_OFFSET: u64 = 0xFFFF_FF00_1000;
-/// Priority field of the status broadcasts (section 6.2).
-pub const STATUS_BROADCAST_PRIORITY: u8 = 0xA;
 /// Largest block read served, bytes (one S400 payload).
 pub const MAX_BLOCK_READ: usize = 2048;
 
@@ -115,7 +107,7 @@ pub struct Firmware {
     generation: u32,
     // Board registers.
     phy_ctrl: u32,
-    phy_data: u32,
+    phy_data: PhyData,
     dout: u8,
     ip_addr: u32,
     power: Power,
@@ -145,7 +137,7 @@ impl Firmware {
             phy_id: None,
             generation: 0,
             phy_ctrl: 0,
-            phy_data: 0,
+            phy_data: PhyData::default(),
             dout: 0,
             ip_addr: 0,
             watchdog: Watchdog::new(Time::ZERO),
@@ -327,7 +319,7 @@ impl Firmware {
         if packet.header_crc_ok() != Some(true) {
             if self.cfg.profile == Profile::Seed
                 && tcode == Tcode::WriteQuadletRequest
-                && offset & 0xFFFF == u64::from(QUERY_ADDRESS)
+                && offset & 0xFFFF == HUB_QUERY_OFFSET
             {
                 self.query(now, None);
             }
@@ -336,7 +328,7 @@ impl Firmware {
         let ack = |a: Ack| if to_me { Reply::Ack(a) } else { Reply::Silent };
         match tcode {
             Tcode::WriteQuadletRequest => {
-                if to_node0 && offset & 0xFFFF != u64::from(QUERY_ADDRESS) {
+                if to_node0 && offset & 0xFFFF != HUB_QUERY_OFFSET {
                     return Reply::Silent;
                 }
                 self.write_quadlet(now, offset, packet.quadlet_data(), phy);
@@ -349,8 +341,7 @@ impl Firmware {
                 if packet.data_crc_ok() == Some(false) {
                     return ack(Ack::DataError);
                 }
-                let quads = registers::quadlets(packet.data());
-                self.write_block_from(now, offset, &quads, to_me && !broadcast, phy);
+                self.write_block_from(now, offset, packet.data(), to_me && !broadcast, phy);
                 ack(Ack::Complete)
             }
             Tcode::ReadQuadletRequest | Tcode::ReadBlockRequest if to_me => {
@@ -409,8 +400,11 @@ impl Firmware {
                 data: &[],
             });
         }
-        let quads = self.read_block(now, offset, length / 4);
-        let data: Vec<u8> = quads.iter().flat_map(|q| q.to_be_bytes()).collect();
+        let data: Vec<u8> = self
+            .read_block(now, offset, length / 4)
+            .iter()
+            .flat_map(|q| q.to_be_bytes())
+            .collect();
         emit(&PacketRepr::ReadBlockResponse {
             header,
             rcode: Rcode::Complete,
@@ -435,22 +429,14 @@ impl Firmware {
         }
         let pending = self.hub.pending.take()?;
         let phy = self.phy_id?;
-        let offset = if self.cfg.profile.is_rev8() {
-            STATUS_BROADCAST_OFFSET
-        } else {
-            STATUS_BROADCAST_OFFSET + 0x20 * u64::from(self.cfg.board_id)
-        };
-        let data: Vec<u8> = pending
-            .payload
-            .iter()
-            .flat_map(|q| q.to_be_bytes())
-            .collect();
+        let offset = status_broadcast_offset(self.cfg.profile.firmware_rev(), self.cfg.board_id)
+            .unwrap_or(STATUS_BROADCAST_OFFSET);
         let packet = emit(&PacketRepr::WriteBlockRequest {
             header: AsyncHeader::new(NodeId::BROADCAST, NodeId::local(phy), 0)
                 .with_pri(STATUS_BROADCAST_PRIORITY),
             offset,
             extended_tcode: 0,
-            data: &data,
+            data: &pending.payload,
         });
         self.hub.in_flight = Some(pending.payload);
         Some(packet)
@@ -462,7 +448,7 @@ impl Firmware {
     pub fn transmitted(&mut self, now: Time) {
         self.advance(now);
         if let Some(payload) = self.hub.in_flight.take() {
-            self.hub.store(now, &payload, self.cfg.profile);
+            self.hub.store(now, &payload, self.cfg.layout().format());
         }
     }
 
@@ -475,22 +461,27 @@ impl Firmware {
     }
 
     /// A broadcast query at `now`: `Some(word)`, or `None` for a query
-    /// known only to be corrupt (seed profile).
+    /// known only to be corrupt (seed profile). A word with sequence 0 is
+    /// not a query (hosts never send one) and is ignored.
     fn query(&mut self, now: Time, word: Option<u32>) {
         let seq = match word {
             Some(w) => {
-                let (seq, mask) = bits::query(w);
-                self.hub.seq = seq;
-                self.hub.mask = mask;
-                seq
+                let Ok(query) = Query::parse(w) else {
+                    return;
+                };
+                self.hub.query = Some(query);
+                query.seq
             }
-            None => 0xFFFF,
+            None => CORRUPT_QUERY_SEQ,
         };
         self.hub.start_cycle(now);
         let block = self.sample_block(now);
-        let size = u16::try_from(block.len() + 1).unwrap_or(u16::MAX);
-        let mut payload = Vec::with_capacity(block.len() + 1);
-        payload.push(bits::broadcast_header(seq, size));
+        let header = BroadcastHeader {
+            seq,
+            quadlets: u16::try_from(block.len() / 4 + 1).unwrap_or(u16::MAX),
+        };
+        let mut payload = Vec::with_capacity(block.len() + 4);
+        payload.extend(header.to_word().to_be_bytes());
         payload.extend(block);
         let id = self.cfg.board_id;
         let pending = match self.cfg.profile {
@@ -507,10 +498,11 @@ impl Firmware {
                 }
             }
             Profile::Rev7 | Profile::Rev8 => {
-                if self.hub.mask & (1 << id) == 0 {
+                let mask = self.hub.mask();
+                if mask & (1 << id) == 0 {
                     return;
                 }
-                let before = self.hub.mask & ((1u16 << id) - 1);
+                let before = mask & ((1u16 << id) - 1);
                 let earliest = now + TimeDelta::from_clocks(FIRST_SLOT_CLOCKS);
                 Pending {
                     payload,

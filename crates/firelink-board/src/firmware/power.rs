@@ -6,11 +6,13 @@
 //! watchdog expires at `last write + period * 256 clocks`, the current check
 //! runs every [`SAFETY_TICK`] while an amplifier is on.
 
+use firelink_wire::board::registers::{ENC_NEUTRAL, Watchdog as WatchdogWord};
+
 use crate::plant::QLA_AMPS_PER_BIT;
-use crate::time::{Time, TimeDelta, WATCHDOG_TICK_CLOCKS};
+use crate::time::{Time, TimeDelta};
 
 /// Watchdog period after power-up: 0x1680 ticks, 30 ms (section 2).
-pub const WATCHDOG_POWER_UP_TICKS: u16 = 0x1680;
+pub const WATCHDOG_POWER_UP_TICKS: u16 = WatchdogWord::POWER_UP.0 as u16;
 
 /// Amplifiers stay off this long after the motor supply becomes good
 /// (section 7).
@@ -115,9 +117,9 @@ impl Watchdog {
     pub fn expiry(&self) -> Option<Time> {
         (self.ticks != 0 && !self.timed_out).then(|| {
             Time::from_clocks(
-                self.last_write
-                    .clocks()
-                    .saturating_add(u64::from(self.ticks) * WATCHDOG_TICK_CLOCKS),
+                self.last_write.clocks().saturating_add(
+                    u64::from(self.ticks) * u64::from(WatchdogWord::CLOCKS_PER_TICK),
+                ),
             )
         })
     }
@@ -153,8 +155,8 @@ impl AxisState {
     pub fn new(raw_count: i64) -> AxisState {
         AxisState {
             command: crate::plant::DAC_ZERO,
-            preload: 0x80_0000,
-            count_offset: 0x80_0000 - raw_count,
+            preload: ENC_NEUTRAL,
+            count_offset: i64::from(ENC_NEUTRAL) - raw_count,
             overflow: false,
             enable_delay: DEFAULT_ENABLE_DELAY,
             current_limit: 0xFFFF,

@@ -1,79 +1,76 @@
 //! The register file: what each address reads and what each write does
 //! (`fpga-board.md` sections 1-5), and the real-time blocks.
 
-use super::bits::{self, DigitalInBits, MotorStatusBits, PhyRequest, StatusBits};
-use super::hub::HUB_QUADLETS;
+use firelink_wire::board::address::{
+    Address, AxisRegister, BoardRegister, HubAddress, REALTIME_BLOCK_OFFSET, Register,
+};
+use firelink_wire::board::broadcast::find_command_block;
+use firelink_wire::board::realtime::{BlockFormat, ReadBlock, WriteBlock};
+use firelink_wire::board::registers::{
+    AdcWord, DacWord, DigitalIn, DigitalOutWrite, ENC_NEUTRAL, EncPeriod, EncPosition, EncQuarter,
+    EncRun, MotorConfig, MotorStatus, PhyData, PhyRequest, StatusCommand, StatusRead, StatusWrite,
+    Temperature,
+};
+
 use super::power::{AxisState, Watchdog};
-use super::{Firmware, HUB_ADDRESS, HUB_COUNT_ADDRESS, PhyAccess, QUERY_ADDRESS};
-use crate::config::Profile;
+use super::{Firmware, PhyAccess};
+use crate::plant::encoder::{PeriodField, QuarterField, RunField, VelocityFields};
 use crate::plant::{POT_FULL_SCALE_VOLTS, QLA_AMPS_PER_BIT, QLA_FULL_SCALE_AMPS};
 use crate::time::Time;
 
-/// Address spaces, bits 15:12 of the offset (section 1).
-const SPACE_MAIN: u16 = 0;
-const SPACE_HUB: u16 = 1;
-
-/// Board registers, channel 0 (section 2).
-mod reg {
-    pub const STATUS: u8 = 0;
-    pub const PHY_CTRL: u8 = 1;
-    pub const PHY_DATA: u8 = 2;
-    pub const WATCHDOG: u8 = 3;
-    pub const HW_VERSION: u8 = 4;
-    pub const TEMPERATURE: u8 = 5;
-    pub const DIGITAL_OUT: u8 = 6;
-    pub const FW_VERSION: u8 = 7;
-    pub const DIGITAL_IN: u8 = 10;
-    pub const IP_ADDR: u8 = 11;
-    pub const ETH_STATUS: u8 = 12;
-    pub const GIT_DESC: u8 = 15;
-}
-
-/// Axis registers, channel 1..N (section 3).
-mod axis_reg {
-    pub const ADC: u8 = 0;
-    pub const DAC: u8 = 1;
-    pub const ENC_PRELOAD: u8 = 4;
-    pub const ENC_POSITION: u8 = 5;
-    pub const ENC_PERIOD: u8 = 6;
-    pub const ENC_QTR1: u8 = 7;
-    pub const ENC_QTR5: u8 = 9;
-    pub const ENC_RUN: u8 = 10;
-    pub const MOTOR_CONFIG: u8 = 11;
-    pub const MOTOR_STATUS: u8 = 12;
-}
+/// Mask of the 24-bit encoder count.
+const ENC_COUNT_MASK: i64 = 0x00FF_FFFF;
 
 /// A decoded address.
 enum Target {
-    Board(u8),
-    Axis(usize, u8),
-    HubMemory(usize),
-    Hub(u16),
+    Board(BoardRegister),
+    /// 0-based axis.
+    Axis(usize, AxisRegister),
+    Hub(HubAddress),
     Unmapped,
 }
 
 fn decode(offset: u64) -> Target {
-    let addr = (offset & 0xFFFF) as u16;
-    match addr >> 12 {
-        SPACE_MAIN if addr & 0x0F00 == 0 => {
-            let channel = ((addr >> 4) & 0xF) as usize;
-            let register = (addr & 0xF) as u8;
-            if channel == 0 {
-                Target::Board(register)
-            } else {
-                Target::Axis(channel - 1, register)
+    let address = Address::from_offset(offset);
+    if let Some(register) = address.register() {
+        return match register {
+            Register::Board(r) => Target::Board(r),
+            Register::Axis { axis, register } => {
+                Target::Axis(usize::from(axis).saturating_sub(1), register)
             }
-        }
-        SPACE_HUB => {
-            let index = usize::from(addr - HUB_ADDRESS);
-            if index < HUB_QUADLETS {
-                Target::HubMemory(index)
-            } else {
-                Target::Hub(addr)
-            }
-        }
-        _ => Target::Unmapped,
+        };
     }
+    match address.hub() {
+        Some(hub) => Target::Hub(hub),
+        None => Target::Unmapped,
+    }
+}
+
+fn period_word(p: PeriodField) -> u32 {
+    EncPeriod::default()
+        .with_period(p.clocks)
+        .with_overflow(p.overflow)
+        .with_direction(p.up)
+        .with_direction_changed(p.direction_changed)
+        .with_error(p.error)
+        .with_partial(p.partial)
+        .raw()
+}
+
+fn quarter_word(q: QuarterField) -> u32 {
+    EncQuarter::default()
+        .with_period(q.clocks)
+        .with_overflow(q.overflow)
+        .with_direction(q.up)
+        .with_edges(q.edge_mask)
+        .raw()
+}
+
+fn run_word(r: RunField) -> u32 {
+    EncRun::default()
+        .with_clocks(r.clocks)
+        .with_overflow(r.overflow)
+        .raw()
 }
 
 /// The current-sense ADC code of a current (section 3: amps =
@@ -96,7 +93,7 @@ fn temperature_byte(celsius: f64) -> u8 {
 
 /// Big-endian quadlets of a byte block (a trailing partial quadlet is
 /// dropped).
-pub(crate) fn quadlets(bytes: &[u8]) -> Vec<u32> {
+pub(crate) fn quadlets_of(bytes: &[u8]) -> Vec<u32> {
     bytes
         .chunks_exact(4)
         .map(|c| u32::from_be_bytes(c.try_into().unwrap_or([0; 4])))
@@ -104,10 +101,6 @@ pub(crate) fn quadlets(bytes: &[u8]) -> Vec<u32> {
 }
 
 impl Firmware {
-    fn profile(&self) -> Profile {
-        self.cfg.profile
-    }
-
     fn n_axes(&self) -> usize {
         self.axes.len()
     }
@@ -119,10 +112,10 @@ impl Firmware {
         match decode(offset) {
             Target::Board(r) => self.read_board_register(r),
             Target::Axis(i, r) => self.read_axis_register(i, r),
-            Target::HubMemory(i) => self.hub.read(i, now),
-            Target::Hub(QUERY_ADDRESS) => bits::query_word(self.hub.seq, self.hub.mask),
-            Target::Hub(HUB_COUNT_ADDRESS) => self.hub.count as u32,
-            Target::Hub(_) | Target::Unmapped => 0,
+            Target::Hub(HubAddress::Memory(i)) => self.hub.read(usize::from(i), now),
+            Target::Hub(HubAddress::Query) => self.hub.query_word(),
+            Target::Hub(HubAddress::QuadletsWritten) => self.hub.count as u32,
+            Target::Hub(HubAddress::Unmapped(_)) | Target::Unmapped => 0,
         }
     }
 
@@ -133,19 +126,13 @@ impl Firmware {
     pub fn read_block(&mut self, now: Time, offset: u64, quadlets: usize) -> Vec<u32> {
         self.advance(now);
         let addr = (offset & 0xFFFF) as u16;
-        if addr == 0 {
-            let mut block = self.sample_block(now);
+        if u64::from(addr) == REALTIME_BLOCK_OFFSET {
+            let mut block = quadlets_of(&self.sample_block(now));
             block.resize(quadlets, 0);
             return block;
         }
         (0..quadlets)
-            .map(|k| {
-                let a = u64::from(addr.wrapping_add(k as u16));
-                match decode(a) {
-                    Target::HubMemory(i) => self.hub.read(i, now),
-                    _ => self.read_quadlet(now, a),
-                }
-            })
+            .map(|k| self.read_quadlet(now, u64::from(addr.wrapping_add(k as u16))))
             .collect()
     }
 
@@ -157,20 +144,20 @@ impl Firmware {
         match decode(offset) {
             Target::Board(r) => self.write_board_register(now, r, value, phy),
             Target::Axis(i, r) => self.write_axis_register(now, i, r, value),
-            Target::Hub(QUERY_ADDRESS) => self.query(now, Some(value)),
-            Target::HubMemory(_) | Target::Hub(_) | Target::Unmapped => {}
+            Target::Hub(HubAddress::Query) => self.query(now, Some(value)),
+            Target::Hub(_) | Target::Unmapped => {}
         }
         self.sync_plant();
     }
 
-    /// Write a block of quadlets at `offset` at `now`, as a block write
-    /// addressed to this board would: address 0 takes a real-time write
-    /// block (or this board's slice of a command block), hub memory takes
-    /// a status broadcast, other addresses are written register by
-    /// register.
-    pub fn write_block(&mut self, now: Time, offset: u64, quads: &[u32], phy: &mut dyn PhyAccess) {
+    /// Write a block at `offset` at `now` (wire-order bytes, whole
+    /// quadlets), as a block write addressed to this board would:
+    /// address 0 takes a real-time write block (or this board's slice of
+    /// a command block), hub memory takes a status broadcast, other
+    /// addresses are written register by register.
+    pub fn write_block(&mut self, now: Time, offset: u64, data: &[u8], phy: &mut dyn PhyAccess) {
         self.advance(now);
-        self.write_block_from(now, offset, quads, true, phy);
+        self.write_block_from(now, offset, data, true, phy);
         self.sync_plant();
     }
 
@@ -179,27 +166,28 @@ impl Firmware {
         &mut self,
         now: Time,
         offset: u64,
-        quads: &[u32],
+        data: &[u8],
         unicast: bool,
         phy: &mut dyn PhyAccess,
     ) {
         self.watchdog.last_write = now;
         let addr = (offset & 0xFFFF) as u16;
-        if addr == 0 {
-            self.realtime_write(now, quads, unicast);
+        if u64::from(addr) == REALTIME_BLOCK_OFFSET {
+            self.realtime_write(now, data, unicast);
             return;
         }
         match decode(u64::from(addr)) {
-            Target::HubMemory(_) => self.hub.store(now, quads, self.cfg.profile),
-            Target::Hub(QUERY_ADDRESS) => {
-                if let Some(&w) = quads.first() {
+            Target::Hub(HubAddress::Memory(_)) => {
+                self.hub.store(now, data, self.cfg.layout().format());
+            }
+            Target::Hub(HubAddress::Query) => {
+                if let Some(&w) = quadlets_of(data).first() {
                     self.query(now, Some(w));
                 }
             }
             Target::Board(_) | Target::Axis(..) => {
-                for (k, &q) in quads.iter().enumerate() {
-                    let a = u64::from(addr.wrapping_add(k as u16));
-                    match decode(a) {
+                for (k, q) in quadlets_of(data).into_iter().enumerate() {
+                    match decode(u64::from(addr.wrapping_add(k as u16))) {
                         Target::Board(r) => self.write_board_register(now, r, q, phy),
                         Target::Axis(i, r) => self.write_axis_register(now, i, r, q),
                         _ => {}
@@ -212,145 +200,122 @@ impl Firmware {
 
     /// A block write to address 0: a real-time write block, or a command
     /// block of concatenated write blocks from which this board takes the
-    /// slice naming it (sections 5 and 6.5).
-    fn realtime_write(&mut self, now: Time, quads: &[u32], unicast: bool) {
-        let own = self.cfg.write_block_quadlets();
-        let id = self.cfg.board_id;
-        if self.profile().is_rev8() {
-            let mut pos = 0;
-            while let Some(&header) = quads.get(pos) {
-                let (board, len) = bits::write_header(header);
-                if len == 0 {
-                    break;
-                }
-                if board == id {
-                    if let Some(slice) = quads.get(pos..pos + len) {
-                        self.apply_write_block(now, slice);
-                    }
-                    return;
-                }
-                pos += len;
-            }
-        } else if unicast && quads.len() == own {
-            self.apply_write_block(now, quads);
+    /// slice naming it (sections 5 and 6.5). A unicast Rev 7 block of
+    /// exactly one board's size is taken whatever board ID it carries.
+    fn realtime_write(&mut self, now: Time, data: &[u8], unicast: bool) {
+        let layout = self.cfg.layout();
+        let own = unicast
+            && layout.format() == BlockFormat::Rev7
+            && data.len() == layout.write_block_len();
+        let block = if own {
+            WriteBlock::new_checked(data, layout).ok()
         } else {
-            // Rev 7 blocks carry no header: the board ID sits in bits
-            // 27:24 of the DAC quadlets.
-            if let Some(slice) = quads
-                .chunks_exact(own)
-                .find(|b| b.first().is_some_and(|&d| bits::dac(d).board_id == id))
-            {
-                self.apply_write_block(now, slice);
-            }
-        }
-    }
-
-    /// Apply one board's write block (header included on Rev 8).
-    fn apply_write_block(&mut self, now: Time, block: &[u32]) {
-        let body = if self.profile().is_rev8() {
-            block.get(1..).unwrap_or(&[])
-        } else {
-            block
+            find_command_block(data, self.cfg.board_id, layout)
+                .ok()
+                .flatten()
         };
-        let m = self.n_axes();
-        for (i, &word) in body.iter().take(m).enumerate() {
-            self.dac_write(now, i, word);
-        }
-        if let Some(&control) = body.get(m) {
-            let control = control & bits::BLOCK_CONTROL_BITS;
-            if control != 0 {
-                self.status_write(now, control);
+        let Some(block) = block else {
+            return;
+        };
+        for i in 0..self.n_axes() {
+            if let Some(dac) = block.dac(i) {
+                self.dac_write(now, i, dac);
             }
         }
+        self.status_command(now, block.control().block_command());
     }
 
-    fn read_board_register(&self, r: u8) -> u32 {
+    fn read_board_register(&self, r: BoardRegister) -> u32 {
         match r {
-            reg::STATUS => self.status_word(),
-            reg::PHY_CTRL => self.phy_ctrl,
-            reg::PHY_DATA => self.phy_data,
-            reg::WATCHDOG => u32::from(self.watchdog.ticks),
-            reg::HW_VERSION => self.cfg.hardware.hw_version(),
-            reg::TEMPERATURE => self.temperature_word(),
-            reg::DIGITAL_OUT => u32::from(self.dout),
-            reg::FW_VERSION => self.profile().firmware_version(),
-            reg::DIGITAL_IN => self.digital_in_word(),
-            reg::IP_ADDR if self.cfg.fpga.has_ethernet() => self.ip_addr,
-            reg::ETH_STATUS => self.cfg.fpga.eth_status(),
-            reg::GIT_DESC => self.cfg.git_desc,
+            BoardRegister::Status => self.status_word().raw(),
+            BoardRegister::PhyCtrl => self.phy_ctrl,
+            BoardRegister::PhyData => self.phy_data.raw(),
+            BoardRegister::Watchdog => u32::from(self.watchdog.ticks),
+            BoardRegister::HwVersion => u32::from(self.cfg.hardware.hardware_version()),
+            BoardRegister::Temperature => self.temperature_word(),
+            BoardRegister::DigitalOut => u32::from(self.dout),
+            BoardRegister::FwVersion => self.cfg.profile.firmware_rev().number(),
+            BoardRegister::DigitalIn => self.digital_in().raw(),
+            BoardRegister::IpAddr if self.cfg.fpga.has_ethernet() => self.ip_addr,
+            BoardRegister::EthStatus => self.cfg.fpga.eth_status_bits(),
+            BoardRegister::GitDesc => self.cfg.git_desc,
             _ => 0,
         }
     }
 
-    fn write_board_register(&mut self, now: Time, r: u8, value: u32, phy: &mut dyn PhyAccess) {
+    fn write_board_register(
+        &mut self,
+        now: Time,
+        r: BoardRegister,
+        value: u32,
+        phy: &mut dyn PhyAccess,
+    ) {
         match r {
-            reg::STATUS => self.status_write(now, value),
-            reg::PHY_CTRL => {
+            BoardRegister::Status => self.status_command(now, StatusWrite(value).command()),
+            BoardRegister::PhyCtrl => {
                 self.phy_ctrl = value;
-                match bits::phy_ctrl(value) {
-                    PhyRequest::Read(register) => {
+                match PhyRequest::parse(value) {
+                    Ok(PhyRequest::Read { register }) => {
                         let data = phy.read_phy_register(register);
-                        self.phy_data = bits::phy_data(register, data);
+                        self.phy_data = PhyData::default().with_register(register).with_data(data);
                     }
-                    PhyRequest::Write(register, data) => phy.write_phy_register(register, data),
+                    Ok(PhyRequest::Write { register, data }) => {
+                        phy.write_phy_register(register, data);
+                    }
+                    Err(_) => {}
                 }
             }
-            reg::WATCHDOG => self.watchdog.ticks = value as u16,
-            reg::DIGITAL_OUT => {
-                let (mask, levels) = bits::digital_out(value);
-                self.dout = (self.dout & !mask) | levels;
+            BoardRegister::Watchdog => self.watchdog.ticks = value as u16,
+            BoardRegister::DigitalOut => {
+                let w = DigitalOutWrite::parse(value);
+                self.dout = (self.dout & !w.mask) | w.outputs;
             }
-            reg::IP_ADDR if self.cfg.fpga.has_ethernet() => self.ip_addr = value,
+            BoardRegister::IpAddr if self.cfg.fpga.has_ethernet() => self.ip_addr = value,
             _ => {}
         }
     }
 
-    fn read_axis_register(&mut self, i: usize, r: u8) -> u32 {
-        let Some(a) = self.axes.get(i) else {
+    fn read_axis_register(&mut self, i: usize, r: AxisRegister) -> u32 {
+        if i >= self.n_axes() {
             return 0;
-        };
-        let rev8 = self.profile().is_rev8();
+        }
+        let rev8 = self.cfg.profile.is_rev8();
+        let fields = || self.velocity(i);
         match r {
-            axis_reg::ADC => self.adc_word(i),
-            axis_reg::DAC => u32::from(a.command),
-            axis_reg::ENC_PRELOAD => a.preload,
-            axis_reg::ENC_POSITION => self.position_word(i),
-            axis_reg::ENC_PERIOD => self.velocity(i).map_or(0, |f| bits::enc_period(f.period)),
-            axis_reg::ENC_QTR1 => self.velocity(i).map_or(0, |f| bits::enc_quarter(f.qtr1)),
-            axis_reg::ENC_QTR5 => self.velocity(i).map_or(0, |f| bits::enc_quarter(f.qtr5)),
-            axis_reg::ENC_RUN => self.velocity(i).map_or(0, |f| bits::enc_run(f.run)),
-            axis_reg::MOTOR_CONFIG if rev8 => bits::motor_config_read(
-                bits::MotorConfig {
-                    enable_delay: a.enable_delay,
-                    current_limit: a.current_limit,
-                },
-                true,
-            ),
-            axis_reg::MOTOR_STATUS if rev8 => self.motor_status_word(i),
+            AxisRegister::Adc => self.adc_word(i).raw(),
+            AxisRegister::Dac => self.axes.get(i).map_or(0, |a| u32::from(a.command)),
+            AxisRegister::EncPreload => self.axes.get(i).map_or(0, |a| a.preload),
+            AxisRegister::EncPosition => self.position_word(i).raw(),
+            AxisRegister::EncPeriod => period_word(fields().period),
+            AxisRegister::EncQtr1 => quarter_word(fields().qtr1),
+            AxisRegister::EncQtr5 => quarter_word(fields().qtr5),
+            AxisRegister::EncRun => run_word(fields().run),
+            AxisRegister::MotorConfig if rev8 => self.motor_config_word(i).raw(),
+            AxisRegister::MotorStatus if rev8 => self.motor_status_word(i).raw(),
             _ => 0,
         }
     }
 
-    fn write_axis_register(&mut self, now: Time, i: usize, r: u8, value: u32) {
+    fn write_axis_register(&mut self, now: Time, i: usize, r: AxisRegister, value: u32) {
         if i >= self.n_axes() {
             return;
         }
         let raw = self.raw_count(i);
-        let rev8 = self.profile().is_rev8();
+        let rev8 = self.cfg.profile.is_rev8();
         match r {
-            axis_reg::DAC => self.dac_write(now, i, value),
-            axis_reg::ENC_PRELOAD => {
+            AxisRegister::Dac => self.dac_write(now, i, DacWord(value)),
+            AxisRegister::EncPreload => {
                 if let Some(a) = self.axes.get_mut(i) {
-                    a.preload = value & bits::ENC_COUNT_MASK;
+                    a.preload = value & ENC_COUNT_MASK as u32;
                     a.count_offset = i64::from(a.preload) - raw;
                     a.overflow = false;
                 }
             }
-            axis_reg::MOTOR_CONFIG if rev8 => {
-                let c = bits::motor_config_write(value);
+            AxisRegister::MotorConfig if rev8 => {
+                let c = MotorConfig(value);
                 if let Some(a) = self.axes.get_mut(i) {
-                    a.enable_delay = c.enable_delay;
-                    a.current_limit = c.current_limit;
+                    a.enable_delay = c.enable_delay();
+                    a.current_limit = c.current_limit();
                 }
             }
             _ => {}
@@ -359,15 +324,14 @@ impl Firmware {
 
     /// A DAC word (register or write block): command if valid, and on
     /// Rev 8 the amplifier request of bits 29:28.
-    fn dac_write(&mut self, now: Time, i: usize, word: u32) {
-        let d = bits::dac(word);
+    fn dac_write(&mut self, now: Time, i: usize, word: DacWord) {
         if let Some(a) = self.axes.get_mut(i)
-            && d.valid
+            && word.valid()
         {
-            a.command = d.command;
+            a.command = word.command();
         }
-        if self.profile().is_rev8()
-            && let Some(enable) = d.amp_request
+        if self.cfg.profile.is_rev8()
+            && let Some(enable) = word.amp_request()
         {
             self.request_amplifier(now, i, enable);
         }
@@ -397,8 +361,9 @@ impl Firmware {
     }
 
     /// A STATUS write (section 2): power, relay, amplifiers, reboot.
-    fn status_write(&mut self, now: Time, word: u32) {
-        let cmd = bits::status_write(word);
+    /// Power is applied first, so one word may enable power and
+    /// amplifiers.
+    fn status_command(&mut self, now: Time, cmd: StatusCommand) {
         if cmd.reboot {
             self.reboot(now);
             return;
@@ -425,8 +390,8 @@ impl Firmware {
             self.power.relay = relay;
         }
         for i in 0..4 {
-            if cmd.amp_mask & (1 << i) != 0 {
-                self.request_amplifier(now, i, cmd.amp_enable & (1 << i) != 0);
+            if let Some(enable) = cmd.amps.axis(i) {
+                self.request_amplifier(now, i, enable);
             }
         }
     }
@@ -443,7 +408,7 @@ impl Firmware {
             .map(|a| AxisState::new(a.encoder().count()))
             .collect();
         self.phy_ctrl = 0;
-        self.phy_data = 0;
+        self.phy_data = PhyData::default();
         self.dout = 0;
         self.ip_addr = 0;
         self.last_sample = now;
@@ -454,11 +419,14 @@ impl Firmware {
         self.plant.axis(i).map_or(0, |a| a.encoder().count())
     }
 
-    fn velocity(&self, i: usize) -> Option<crate::plant::encoder::VelocityFields> {
-        self.plant.axis(i).map(|a| a.encoder().fields(self.now))
+    fn velocity(&self, i: usize) -> VelocityFields {
+        self.plant
+            .axis(i)
+            .map(|a| a.encoder().fields(self.now))
+            .unwrap_or_default()
     }
 
-    fn status_word(&self) -> u32 {
+    fn status_word(&self) -> StatusRead {
         let now = self.now;
         let mut amp_enabled = 0u8;
         let mut amp_on = 0u8;
@@ -468,22 +436,25 @@ impl Firmware {
             amp_on |= u8::from(a.is_on(&self.power, now)) << i;
             safety |= u8::from(a.safety_disabled) << i;
         }
-        bits::status_read(StatusBits {
-            axes: self.n_axes() as u8,
-            board_id: self.cfg.board_id,
-            watchdog_timeout: self.watchdog.timed_out,
-            quad_dac: true,
-            supply_good: self.power.supply_good(now),
-            power_enabled: self.power.enabled,
-            relay_state: self.power.relay,
-            relay_on: self.power.relay,
-            supply_fault: self.power.supply_fault(),
-            safety_feedback: self.power.relay,
-            io_expander: true,
-            amp_status: if self.profile().is_rev8() { 0 } else { amp_on },
-            safety_amp_disable: safety,
-            amp_enabled,
-        })
+        StatusRead::default()
+            .with_axes(self.n_axes() as u8)
+            .with_board_id(self.cfg.board_id)
+            .with_watchdog_timeout(self.watchdog.timed_out)
+            .with_quad_dac(true)
+            .with_motor_supply_good(self.power.supply_good(now))
+            .with_motor_power_enabled(self.power.enabled)
+            .with_relay_state(self.power.relay)
+            .with_relay_on(self.power.relay)
+            .with_motor_supply_fault(self.power.supply_fault())
+            .with_safety_feedback(self.power.relay)
+            .with_io_expander(true)
+            .with_amp_fault(if self.cfg.profile.is_rev8() {
+                0
+            } else {
+                amp_on
+            })
+            .with_safety_amp_disable(safety)
+            .with_amp_enabled(amp_enabled)
     }
 
     fn temperature_word(&self) -> u32 {
@@ -499,98 +470,120 @@ impl Firmware {
                 .fold(f64::MIN, f64::max);
             temperature_byte(if t == f64::MIN { 0.0 } else { t })
         };
-        let low = bits::temperature(pair(0), pair(1));
+        let word = |a: usize, b: usize| {
+            Temperature::default()
+                .with_upper(pair(a))
+                .with_lower(pair(b))
+                .raw()
+        };
+        // A DQLA reports its second QLA's sensors in bits 31:16.
         if self.n_axes() > 4 {
-            low | (bits::temperature(pair(2), pair(3)) << 16)
+            word(0, 1) | (word(2, 3) << 16)
         } else {
-            low
+            word(0, 1)
         }
     }
 
-    fn digital_in_word(&self) -> u32 {
-        let mut d = DigitalInBits {
-            v_fault: self.power.supply_fault(),
-            outputs: self.dout,
-            ..DigitalInBits::default()
-        };
+    fn digital_in(&self) -> DigitalIn {
+        let mut lines = [0u8; 6];
         for (i, axis) in self.plant.axes().iter().take(4).enumerate() {
             let enc = axis.encoder();
             let (neg, pos, home) = axis.switches();
-            d.enc_a |= u8::from(enc.a()) << i;
-            d.enc_b |= u8::from(enc.b()) << i;
-            d.index |= u8::from(enc.index()) << i;
-            d.neg_limits |= u8::from(neg) << i;
-            d.pos_limits |= u8::from(pos) << i;
-            d.home |= u8::from(home) << i;
+            for (bits, on) in lines
+                .iter_mut()
+                .zip([enc.a(), enc.b(), enc.index(), neg, pos, home])
+            {
+                *bits |= u8::from(on) << i;
+            }
         }
-        bits::digital_in(d)
+        let [a, b, index, neg, pos, home] = lines;
+        DigitalIn::default()
+            .with_v_fault(self.power.supply_fault())
+            .with_enc_a(a)
+            .with_enc_b(b)
+            .with_index(index)
+            .with_outputs(self.dout)
+            .with_neg_limits(neg)
+            .with_pos_limits(pos)
+            .with_home(home)
     }
 
-    fn adc_word(&self, i: usize) -> u32 {
-        bits::adc(
-            pot_to_counts(self.plant.measured_pot(i)),
-            current_to_counts(self.plant.measured_current(i)),
-        )
+    fn adc_word(&self, i: usize) -> AdcWord {
+        AdcWord::default()
+            .with_pot(pot_to_counts(self.plant.measured_pot(i)))
+            .with_current(current_to_counts(self.plant.measured_current(i)))
     }
 
-    fn position_word(&mut self, i: usize) -> u32 {
+    fn position_word(&mut self, i: usize) -> EncPosition {
         let raw = self.raw_count(i);
-        let lines = self
-            .plant
-            .axis(i)
-            .map(|a| (a.encoder().index(), a.encoder().b(), a.encoder().a()));
-        let rev8 = self.profile().is_rev8();
+        let enc = self.plant.axis(i).map(|a| a.encoder());
+        let lines = enc.map_or((false, false, false), |e| (e.index(), e.b(), e.a()));
+        let rev8 = self.cfg.profile.is_rev8();
         let Some(a) = self.axes.get_mut(i) else {
-            return 0;
+            return EncPosition::default();
         };
         let count = raw + a.count_offset;
-        if !(0..=i64::from(bits::ENC_COUNT_MASK)).contains(&count) {
+        if !(0..=ENC_COUNT_MASK).contains(&count) {
             a.overflow = true;
         }
-        bits::enc_position(
-            (count & i64::from(bits::ENC_COUNT_MASK)) as u32,
-            a.overflow,
-            if rev8 { lines } else { None },
-        )
+        let word = EncPosition::default()
+            .with_counts_wrapping(count - i64::from(ENC_NEUTRAL))
+            .with_overflow(a.overflow);
+        if rev8 {
+            word.with_index(lines.0).with_b(lines.1).with_a(lines.2)
+        } else {
+            word
+        }
     }
 
-    fn motor_status_word(&self, i: usize) -> u32 {
+    fn motor_config_word(&self, i: usize) -> MotorConfig {
+        let a = self.axes.get(i);
+        MotorConfig::default()
+            .with_voltage_mode(true)
+            .with_current_mode(true)
+            .with_enable_delay(a.map_or(0, |a| a.enable_delay))
+            .with_current_limit(a.map_or(0, |a| a.current_limit))
+    }
+
+    fn motor_status_word(&self, i: usize) -> MotorStatus {
         let Some(a) = self.axes.get(i) else {
-            return 0;
+            return MotorStatus::default();
         };
-        bits::motor_status(MotorStatusBits {
-            amp_on: a.is_on(&self.power, self.now),
-            amp_requested: a.requested,
-            safety_disable: a.safety_disabled,
-            amp_fault: false,
-            command: a.command,
-        })
+        MotorStatus::default()
+            .with_amp_on(a.is_on(&self.power, self.now))
+            .with_amp_requested(a.requested)
+            .with_safety_disable(a.safety_disabled)
+            .with_amp_fault(false)
+            .with_current_command(a.command)
     }
 
-    /// Sample the real-time read block at `now` (section 4) and restart
-    /// the timestamp.
-    pub(crate) fn sample_block(&mut self, now: Time) -> Vec<u32> {
+    /// Sample the real-time read block at `now` (section 4), wire order,
+    /// and restart the timestamp.
+    pub(crate) fn sample_block(&mut self, now: Time) -> Vec<u8> {
         let timestamp = now.clocks().wrapping_sub(self.last_sample.clocks()) as u32;
         self.last_sample = now;
-        let n = self.n_axes();
-        let mut block = Vec::with_capacity(self.cfg.read_block_quadlets());
-        block.push(timestamp);
-        block.push(self.status_word());
-        block.push(self.digital_in_word());
-        block.push(self.temperature_word());
-        block.extend((0..n).map(|i| self.adc_word(i)));
-        let positions: Vec<u32> = (0..n).map(|i| self.position_word(i)).collect();
-        block.extend(positions);
-        let fields: Vec<_> = (0..n)
-            .map(|i| self.velocity(i).unwrap_or_default())
-            .collect();
-        block.extend(fields.iter().map(|f| bits::enc_period(f.period)));
-        block.extend(fields.iter().map(|f| bits::enc_quarter(f.qtr1)));
-        block.extend(fields.iter().map(|f| bits::enc_quarter(f.qtr5)));
-        block.extend(fields.iter().map(|f| bits::enc_run(f.run)));
-        if self.profile().is_rev8() {
-            block.extend((0..n).map(|i| self.motor_status_word(i)));
+        let layout = self.cfg.layout();
+        let n = self.n_axes().min(layout.motors()).min(layout.encoders());
+        let positions: Vec<EncPosition> = (0..n).map(|i| self.position_word(i)).collect();
+        let mut buf = vec![0u8; layout.read_block_len()];
+        let mut block = ReadBlock::new_unchecked(&mut buf[..], layout);
+        block.set_timestamp(timestamp);
+        block.set_status(self.status_word());
+        block.set_digital_in(self.digital_in());
+        block.set_temperature(Temperature(self.temperature_word()));
+        for (i, position) in positions.into_iter().enumerate() {
+            let f = self.velocity(i);
+            // Indices are within the layout: these cannot fail.
+            let _ = block.set_adc(i, self.adc_word(i));
+            let _ = block.set_enc_position(i, position);
+            let _ = block.set_enc_period(i, EncPeriod(period_word(f.period)));
+            let _ = block.set_enc_qtr1(i, EncQuarter(quarter_word(f.qtr1)));
+            let _ = block.set_enc_qtr5(i, EncQuarter(quarter_word(f.qtr5)));
+            let _ = block.set_enc_run(i, EncRun(run_word(f.run)));
+            if self.cfg.profile.is_rev8() {
+                let _ = block.set_motor_status(i, self.motor_status_word(i));
+            }
         }
-        block
+        buf
     }
 }
