@@ -72,7 +72,7 @@ impl Wire {
                     let p = Packet::new_checked(&packet[..]).unwrap();
                     assert!(p.destination_id().is_broadcast());
                     assert_eq!(p.pri(), 0xA);
-                    assert_eq!(p.crc_status().all_ok(), true);
+                    assert!(p.crc_status().all_ok());
                     self.log.push((self.boards[k].node, now));
                     let replies = self.send(&packet, Some(k));
                     assert!(replies.iter().all(|r| *r == Reply::Silent));
