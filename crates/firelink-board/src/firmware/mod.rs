@@ -24,6 +24,30 @@
 //! - Unmapped addresses read 0; writes to them are acknowledged and
 //!   ignored (they still refresh the watchdog).
 //!
+//! Modelling choices where the spec leaves room (each is deliberate):
+//! - The watchdog runs from power-up: with no write for 30 ms STATUS bit 23
+//!   is set even though no amplifier was on.
+//! - One STATUS word may switch power and amplifiers on together (power is
+//!   applied first). Amplifiers drive `max(request, supply good + 40 ms)
+//!   + enable delay` later; the supply is good 5 ms (configurable) after
+//!   power is enabled. The relay's sensed state follows its command.
+//! - STATUS's 4-bit amplifier fields cover axes 1-4; on a DQLA, axes 5-8
+//!   are enabled and reported through the Rev 8 DAC word and MOTOR_STATUS.
+//!   A DQLA reports its second pair of temperature sensors in bits 31:16.
+//! - MOTOR_CONFIG's current limit caps `|command - 0x8000|` in DAC counts
+//!   (power-up `0xFFFF`: no cap); its delay unit is 1024 clocks (20.83 us).
+//! - Rev 7+ chain: a board whose predecessors stay silent transmits anyway
+//!   [`CHAIN_TIMEOUT_PER_BOARD`] per missing predecessor after its first
+//!   slot. The seed profile answers every query in its TDMA slot whatever
+//!   the mask.
+//! - Hub memory holds 512 quadlets: entries that do not fit are dropped
+//!   (16 QLA1 Rev 8 boards need 529). A board that missed the query keeps
+//!   appending to the previous cycle. The timing quadlet reads
+//!   `read_start` = clocks from the query to the hub read, `now` = clocks
+//!   from the query to the moment that quadlet goes out (4 clocks per
+//!   quadlet at S400).
+//! - A query with sequence 0 is ignored.
+//!
 //! ```
 //! use firelink_board::config::{BoardConfig, Hardware, Profile};
 //! use firelink_board::firmware::{Firmware, PhyRegisters, Reply};
