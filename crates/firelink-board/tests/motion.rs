@@ -413,3 +413,47 @@ fn same_seed_same_trace() {
     // Something moved.
     assert_ne!(a.first().unwrap().0, a.last().unwrap().0);
 }
+
+#[test]
+fn dqla_axes_5_to_8_through_the_dac_word() {
+    let cfg = BoardConfig::new(4, Hardware::Dqla, Profile::Rev8);
+    let mut r = Rig::new(cfg, 0);
+    r.write(STATUS, POWER_ON);
+    let cmd = amps_to_dac(0.2);
+    r.write(0x81, 0xB000_0000 | u32::from(cmd));
+    for _ in 0..60 {
+        r.write(0x81, 0x8000_0000 | u32::from(cmd));
+        r.wait(TimeDelta::from_millis(1));
+    }
+    assert!(r.fw.amplifier_on(7));
+    assert_eq!(r.read(0x8C) >> 28 & 3, 3);
+    let i = adc_to_amps(r.read(0x80));
+    assert!((i - 0.2).abs() < 0.02, "{i}");
+    // Rev 8 DQLA block: 4 + 2*8 + 5*8 = 60 quadlets, MOTOR_STATUS of axis 8 last.
+    let block = r.read_block(0, 60);
+    assert_eq!(block[59] >> 28 & 3, 3);
+}
+
+#[test]
+fn amplifier_temperature_rises_under_load() {
+    let mut axis = presets::generic_motor();
+    axis.motor.coulomb_friction = 10.0; // stalled
+    axis.thermal.time_constant = 0.05;
+    axis.thermal.thermal_resistance = 10.0;
+    let cfg = BoardConfig::new(0, Hardware::Qla1, Profile::Rev8).with_axis(2, axis);
+    let mut r = Rig::new(cfg, 0);
+    assert_eq!(r.read(5), 0x1919);
+    r.write(STATUS, POWER_ON);
+    r.write(STATUS, 0x0000_0404);
+    let cmd = amps_to_dac(2.0);
+    servo_until(
+        &mut r,
+        Time::from_millis(400),
+        TimeDelta::from_millis(1),
+        [0x8000, 0x8000, cmd, 0x8000],
+    );
+    let t = r.read(5);
+    // Axes 3-4 share the sensor in bits 7:0: 25 + (4 W x 2 ohm ... ) > 25.
+    assert!((t & 0xFF) > 0x19 + 10, "{t:#x}");
+    assert_eq!(t >> 8, 0x19, "axes 1-2 stay at ambient");
+}

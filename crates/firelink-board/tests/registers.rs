@@ -384,3 +384,45 @@ fn garbage_never_panics() {
         }
     }
 }
+
+#[test]
+fn reboot_restores_power_up_state() {
+    let mut r = rig(Profile::Rev8);
+    r.write(0, 0x000C_0000 | 0x0003_0000);
+    r.write(3, 0x0200);
+    r.write(0x11, 0x8000_9000);
+    r.write(0x14, 0x12_3456);
+    assert_ne!(r.read(0) & 0x0007_0000, 0);
+    assert_eq!(r.write(0, 0x0030_0000), Some(Ack::Complete));
+    assert_eq!(
+        r.read(0) & 0x008F_CFFF,
+        0,
+        "power, relay, amps, flags cleared"
+    );
+    assert_eq!(r.read(3), 0x1680);
+    assert_eq!(r.read(0x11), 0x8000);
+    assert_eq!(r.read(0x14), 0x80_0000);
+    assert_eq!(r.read(0x15) & 0x00FF_FFFF, 0x80_0000);
+}
+
+#[test]
+fn switches_and_pot_follow_the_joint() {
+    use firelink_board::plant::{SwitchParams, presets};
+    let mut axis = presets::generic_motor();
+    axis.load.initial_position = 0.5;
+    axis.switches = SwitchParams {
+        negative_limit: Some(-1.0),
+        positive_limit: Some(0.4),
+        home: Some(0.0),
+    };
+    let cfg = BoardConfig::new(1, Hardware::Qla1, Profile::Rev7).with_axis(2, axis.clone());
+    let mut r = Rig::new(cfg, 0);
+    let din = r.read(10);
+    assert_eq!((din >> 4) & 0xF, 0b0100, "positive limit on axis 3");
+    assert_eq!(din & 0xF, 0b0100, "home on axis 3");
+    assert_eq!((din >> 8) & 0xF, 0, "no negative limit");
+    // Pot: offset + gain * q, 16 bits over 4.5 V.
+    let volts = axis.pot.offset_volts + axis.pot.volts_per_unit * 0.5;
+    let pot = f64::from(r.read(0x30) >> 16) * 4.5 / 65535.0;
+    assert!((pot - volts).abs() < 0.005, "{pot} vs {volts}");
+}
