@@ -28,9 +28,9 @@
 //! - The watchdog runs from power-up: with no write for 30 ms STATUS bit 23
 //!   is set even though no amplifier was on.
 //! - One STATUS word may switch power and amplifiers on together (power is
-//!   applied first). Amplifiers drive `max(request, supply good + 40 ms)
-//!   + enable delay` later; the supply is good 5 ms (configurable) after
-//!   power is enabled. The relay's sensed state follows its command.
+//!   applied first). Amplifiers drive from
+//!   `max(request, supply good + 40 ms) + enable delay`; the supply is
+//!   good 5 ms (configurable) after power is enabled. The relay's sensed state follows its command.
 //! - STATUS's 4-bit amplifier fields cover axes 1-4; on a DQLA, axes 5-8
 //!   are enabled and reported through the Rev 8 DAC word and MOTOR_STATUS.
 //!   A DQLA reports its second pair of temperature sensors in bits 31:16.
