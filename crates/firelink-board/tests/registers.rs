@@ -5,7 +5,7 @@ mod common;
 
 use common::*;
 use firelink_board::config::{BoardConfig, FpgaVersion, Hardware, Profile};
-use firelink_board::firmware::Reply;
+use firelink_board::firmware::{Reply, RxError};
 use firelink_board::time::TimeDelta;
 use firelink_wire::board::registers::DigitalOutWrite;
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, PacketRepr, Rcode};
@@ -290,11 +290,14 @@ fn corrupted_packets_are_not_committed() {
     // Flip one data bit: the data CRC fails.
     p[20 + 6] ^= 0x01;
     assert_eq!(r.deliver(&p), Reply::Ack(Ack::DataError));
+    assert_eq!(r.fw.take_rx_error(), Some(RxError::DataCrc));
+    assert_eq!(r.fw.take_rx_error(), None);
     assert_eq!(r.read(0x11), 0x8000, "nothing committed");
     // Flip a header bit of a quadlet write: silently dropped.
     let mut p = quadlet_write(r.dest(), 2, 0x11, 0x8000_9000);
     p[15] ^= 0x10;
     assert_eq!(r.deliver(&p), Reply::Silent);
+    assert_eq!(r.fw.take_rx_error(), Some(RxError::HeaderCrc));
     assert_eq!(r.read(0x11), 0x8000);
     // Corrupt the CRC itself.
     let mut p = quadlet_write(r.dest(), 3, 0x11, 0x8000_9000);

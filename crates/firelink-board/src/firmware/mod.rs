@@ -120,6 +120,29 @@ pub enum Reply {
     },
 }
 
+/// A damaged packet the board noticed (for traces and fault-injection
+/// evidence); see [`Firmware::take_rx_error`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum RxError {
+    /// A header CRC failed: the packet was dropped.
+    HeaderCrc,
+    /// A data CRC failed: `ack_data_error`, nothing committed.
+    DataCrc,
+    /// A query with a failed header CRC, answered with sequence `0xFFFF`
+    /// (seed profile).
+    CorruptQuery,
+}
+
+impl core::fmt::Display for RxError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            RxError::HeaderCrc => "header CRC error: packet dropped",
+            RxError::DataCrc => "data CRC error: ack_data_error, not committed",
+            RxError::CorruptQuery => "corrupt query: answered with sequence 0xFFFF",
+        })
+    }
+}
+
 /// One emulated board: firmware state, registers, hub and plant.
 #[derive(Debug, Clone)]
 pub struct Firmware {
@@ -140,6 +163,7 @@ pub struct Firmware {
     /// Last real-time sample (block read or query): the timestamp base.
     last_sample: Time,
     hub: Hub,
+    rx_error: Option<RxError>,
 }
 
 impl Firmware {
@@ -168,6 +192,7 @@ impl Firmware {
             axes,
             last_sample: Time::ZERO,
             hub: Hub::new(),
+            rx_error: None,
         }
     }
 
@@ -312,10 +337,17 @@ impl Firmware {
         }
     }
 
+    /// The damage noticed in the last packet received, if any (cleared by
+    /// this call and by every [`receive`](Self::receive)).
+    pub fn take_rx_error(&mut self) -> Option<RxError> {
+        self.rx_error.take()
+    }
+
     /// Handle one packet as it arrived at `now` (CRCs are checked here).
     /// `phy` is this node's PHY, reached through PHY_CTRL.
     pub fn receive(&mut self, now: Time, bytes: &[u8], phy: &mut dyn PhyAccess) -> Reply {
         self.advance(now);
+        self.rx_error = None;
         let reply = self.receive_inner(now, bytes, phy);
         self.sync_plant();
         reply
@@ -341,10 +373,12 @@ impl Firmware {
         }
         let offset = packet.offset();
         if packet.header_crc_ok() != Some(true) {
+            self.rx_error = Some(RxError::HeaderCrc);
             if self.cfg.profile == Profile::Seed
                 && tcode == Tcode::WriteQuadletRequest
                 && offset & 0xFFFF == HUB_QUERY_OFFSET
             {
+                self.rx_error = Some(RxError::CorruptQuery);
                 self.query(now, None);
             }
             return Reply::Silent;
@@ -363,6 +397,7 @@ impl Firmware {
                     return Reply::Silent;
                 }
                 if packet.data_crc_ok() == Some(false) {
+                    self.rx_error = Some(RxError::DataCrc);
                     return ack(Ack::DataError);
                 }
                 self.write_block_from(now, offset, packet.data(), to_me && !broadcast, phy);
