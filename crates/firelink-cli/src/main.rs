@@ -4,8 +4,11 @@
 //! parses arguments, prints results and maps errors to one line on stderr
 //! with a non-zero exit status.
 
+mod board_cmd;
 mod hex;
+mod monitor;
 mod packet_cmd;
+mod ports;
 mod tour;
 
 use std::io::Write;
@@ -35,6 +38,16 @@ enum Command {
     },
     /// Build and decode every packet of one broadcast I/O cycle (the default).
     Tour(tour::TourArgs),
+    /// Find the boards behind a port and pick the protocol.
+    Scan(board_cmd::ScanArgs),
+    /// Identity and live state of every board.
+    Info(board_cmd::ScanArgs),
+    /// Read board registers (hex output).
+    Read(board_cmd::ReadArgs),
+    /// Write board registers.
+    Write(board_cmd::WriteArgs),
+    /// Live view of every axis of every board (keys toggle power and amps).
+    Monitor(monitor::MonitorArgs),
 }
 
 #[derive(Subcommand)]
@@ -104,7 +117,7 @@ struct EncodeArgs {
     no_forward: bool,
 }
 
-fn parse_number(s: &str) -> Result<u64, String> {
+pub(crate) fn parse_number(s: &str) -> Result<u64, String> {
     let t = s.trim();
     let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
         Some(h) => u64::from_str_radix(&h.replace('_', ""), 16),
@@ -147,6 +160,9 @@ pub enum CliError {
     /// The tcode is recognised but not built by `encode`.
     #[error("cannot encode {0} packets: only quadlet/block read/write requests and responses")]
     CannotEncode(&'static str),
+    /// The host library failed.
+    #[error(transparent)]
+    Host(#[from] firelink_host::HostError),
     /// Writing output failed.
     #[error("output: {0}")]
     Io(#[from] std::io::Error),
@@ -198,6 +214,11 @@ fn run(cli: Cli) -> Result<(), CliError> {
             writeln!(out, "{:08x}", packet_cmd::crc(&hex.join(" "))?)?;
         }
         Command::Tour(args) => tour::run(&args, &mut out)?,
+        Command::Scan(args) => board_cmd::run_scan(&args, &mut out)?,
+        Command::Info(args) => board_cmd::run_info(&args, &mut out)?,
+        Command::Read(args) => board_cmd::run_read(&args, &mut out)?,
+        Command::Write(args) => board_cmd::run_write(&args, &mut out)?,
+        Command::Monitor(args) => monitor::run(&args, &mut out)?,
     }
     Ok(())
 }

@@ -13,8 +13,11 @@
 //! Protocols never know which port they use, so the same program drives
 //! emulated boards today and real boards over Ethernet tomorrow.
 
+pub mod board;
 pub mod error;
+pub mod io;
 pub mod port;
+pub mod scan;
 pub mod udp;
 
 pub use error::{HostError, MissReason, Result};

@@ -73,3 +73,33 @@ pub trait Port {
         0..16
     }
 }
+
+impl<P: Port + ?Sized> Port for Box<P> {
+    fn name(&self) -> &str {
+        (**self).name()
+    }
+    fn read_quadlet(&mut self, dest: Dest, offset: u64) -> Result<u32> {
+        (**self).read_quadlet(dest, offset)
+    }
+    fn write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> Result<()> {
+        (**self).write_quadlet(dest, offset, value)
+    }
+    fn read_block(&mut self, dest: Dest, offset: u64, out: &mut [u8]) -> Result<()> {
+        (**self).read_block(dest, offset, out)
+    }
+    fn write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
+        (**self).write_block(dest, offset, data)
+    }
+    fn wait(&mut self, duration: Duration) {
+        (**self).wait(duration)
+    }
+    fn now(&self) -> Duration {
+        (**self).now()
+    }
+    fn generation(&self) -> u32 {
+        (**self).generation()
+    }
+    fn candidate_nodes(&self) -> core::ops::Range<u8> {
+        (**self).candidate_nodes()
+    }
+}

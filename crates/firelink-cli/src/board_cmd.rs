@@ -1,0 +1,328 @@
+//! `firelink scan`, `info`, `read` and `write`: discovery and register access.
+
+use std::io::Write;
+
+use clap::Args;
+use serde::Serialize;
+
+use firelink_host::board::BoardInfo;
+use firelink_host::scan::{ScanReport, scan};
+use firelink_host::{Dest, Port};
+use firelink_wire::board::address::{AxisRegister, BoardRegister, Register};
+use firelink_wire::board::registers::{FpgaVersion, StatusRead, Temperature, Watchdog};
+
+use crate::CliError;
+use crate::ports::{PortArgs, open_port};
+
+/// Options of `firelink scan` and `firelink info`.
+#[derive(Args, Debug)]
+pub struct ScanArgs {
+    #[command(flatten)]
+    pub port: PortArgs,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Serialize)]
+struct BoardJson {
+    board_id: u8,
+    node: u8,
+    hardware: String,
+    firmware: u32,
+    fpga: u8,
+    git: String,
+}
+
+#[derive(Serialize)]
+struct ScanJson {
+    port: String,
+    boards: Vec<BoardJson>,
+    protocol: &'static str,
+    protocol_reason: &'static str,
+    silent_nodes: Vec<u8>,
+    unsupported_nodes: Vec<u8>,
+    bridge_board: Option<u8>,
+    generation: u32,
+}
+
+fn fpga_number(f: FpgaVersion) -> u8 {
+    match f {
+        FpgaVersion::V1 => 1,
+        FpgaVersion::V2 => 2,
+        FpgaVersion::V3 => 3,
+    }
+}
+
+fn board_json(b: &BoardInfo) -> BoardJson {
+    BoardJson {
+        board_id: b.board_id,
+        node: b.node,
+        hardware: b.hardware.name().to_string(),
+        firmware: b.firmware,
+        fpga: fpga_number(b.fpga),
+        git: format!(
+            "{:07x}{}",
+            b.git.commit(),
+            if b.git.dirty() { "-dirty" } else { "" }
+        ),
+    }
+}
+
+fn scan_json(port: &str, r: &ScanReport) -> ScanJson {
+    ScanJson {
+        port: port.to_string(),
+        boards: r.boards.iter().map(board_json).collect(),
+        protocol: r.protocol.name(),
+        protocol_reason: r.protocol_reason,
+        silent_nodes: r.silent_nodes.clone(),
+        unsupported_nodes: r.unsupported.iter().map(|u| u.node).collect(),
+        bridge_board: r.bridge_board,
+        generation: r.generation,
+    }
+}
+
+/// `firelink scan`.
+pub fn run_scan(args: &ScanArgs, out: &mut impl Write) -> Result<(), CliError> {
+    let mut port = open_port(&args.port)?;
+    let report = scan(port.as_mut())?;
+    if args.json {
+        writeln!(
+            out,
+            "{}",
+            serde_json::to_string(&scan_json(port.name(), &report))?
+        )?;
+        return Ok(());
+    }
+    writeln!(out, "{} board(s) on {}:", report.boards.len(), port.name())?;
+    writeln!(out, "  board  node  hardware  firmware  fpga  git")?;
+    for b in &report.boards {
+        let j = board_json(b);
+        writeln!(
+            out,
+            "  {:>5}  {:>4}  {:<8}  {:>8}  V{}    {}",
+            j.board_id, j.node, j.hardware, j.firmware, j.fpga, j.git
+        )?;
+    }
+    if let Some(bridge) = report.bridge_board {
+        writeln!(out, "Ethernet bridge: board {bridge}")?;
+    }
+    if !report.unsupported.is_empty() {
+        for u in &report.unsupported {
+            writeln!(
+                out,
+                "node {}: unsupported hardware {} firmware {}",
+                u.node,
+                u.hardware.name(),
+                u.firmware
+            )?;
+        }
+    }
+    writeln!(
+        out,
+        "protocol: {} ({})",
+        report.protocol.name(),
+        report.protocol_reason
+    )?;
+    Ok(())
+}
+
+/// `firelink info`: identity and live state of every board.
+pub fn run_info(args: &ScanArgs, out: &mut impl Write) -> Result<(), CliError> {
+    let mut port = open_port(&args.port)?;
+    let report = scan(port.as_mut())?;
+    let mut all = Vec::new();
+    for b in &report.boards {
+        let dest = Dest::node(b.node);
+        let read = |port: &mut dyn Port, r: BoardRegister| -> Result<u32, CliError> {
+            Ok(port.read_quadlet(dest, Register::board(r).offset()?)?)
+        };
+        let status = StatusRead(read(port.as_mut(), BoardRegister::Status)?);
+        let watchdog = Watchdog(read(port.as_mut(), BoardRegister::Watchdog)?);
+        let temperature = Temperature(read(port.as_mut(), BoardRegister::Temperature)?);
+        let mut axes = Vec::new();
+        for axis in 1..=b.layout.motors() as u8 {
+            let enc = port.read_quadlet(
+                dest,
+                Register::axis(axis, AxisRegister::EncPosition).offset()?,
+            )?;
+            let adc = port.read_quadlet(dest, Register::axis(axis, AxisRegister::Adc).offset()?)?;
+            axes.push(serde_json::json!({
+                "axis": axis,
+                "encoder_counts": firelink_wire::board::registers::counts_from_offset_binary(enc),
+                "pot_bits": adc >> 16,
+                "current_bits": adc & 0xFFFF,
+            }));
+        }
+        let entry = serde_json::json!({
+            "board": board_json(b),
+            "status": format!("{:#010x}", status.raw()),
+            "power": status.motor_power_enabled(),
+            "relay": status.relay_on(),
+            "supply_good": status.motor_supply_good(),
+            "watchdog_expired": status.watchdog_timeout(),
+            "amp_enabled_mask": status.amp_enabled(),
+            "watchdog_period_ms": watchdog.period().as_secs_f64() * 1e3,
+            "temperature_c": [temperature.upper(), temperature.lower()],
+            "axes": axes,
+        });
+        all.push(entry);
+    }
+    if args.json {
+        writeln!(
+            out,
+            "{}",
+            serde_json::json!({"port": port.name(), "boards": all})
+        )?;
+    } else {
+        for e in &all {
+            writeln!(out, "{}", serde_json::to_string_pretty(e)?)?;
+        }
+    }
+    Ok(())
+}
+
+/// Options of `firelink read`.
+#[derive(Args, Debug)]
+pub struct ReadArgs {
+    #[command(flatten)]
+    pub port: PortArgs,
+    /// Board ID (rotary switch); mapped to its node by a scan.
+    #[arg(long, default_value_t = 0, conflicts_with = "node")]
+    pub board: u8,
+    /// Physical node ID (skips the scan).
+    #[arg(long)]
+    pub node: Option<u8>,
+    /// Register address: a number (0x10 = axis 1 ADC) or a name such as
+    /// status, hw_version, axis2.enc_position.
+    pub address: String,
+    /// Quadlets to read (more than 1 uses one block read).
+    #[arg(long, default_value_t = 1)]
+    pub count: usize,
+}
+
+/// Options of `firelink write`.
+#[derive(Args, Debug)]
+pub struct WriteArgs {
+    #[command(flatten)]
+    pub port: PortArgs,
+    /// Board ID (rotary switch); mapped to its node by a scan.
+    #[arg(long, default_value_t = 0, conflicts_with = "node")]
+    pub board: u8,
+    /// Physical node ID (skips the scan).
+    #[arg(long)]
+    pub node: Option<u8>,
+    /// Register address (number or name, as for `read`).
+    pub address: String,
+    /// Quadlets to write (more than one uses one block write).
+    #[arg(required = true, num_args = 1.., value_parser = crate::parse_number)]
+    pub values: Vec<u64>,
+}
+
+/// Parse a register address: a number or `name` / `axisN.name`.
+pub fn parse_address(text: &str) -> Result<u64, CliError> {
+    if let Ok(n) = crate::parse_number(text) {
+        return Ok(n);
+    }
+    let lower = text.to_ascii_lowercase().replace('-', "_");
+    let board = |name: &str| -> Option<BoardRegister> {
+        (0u8..16).map(BoardRegister::from).find(|r| {
+            r.is_known() && format!("{r:?}").to_ascii_lowercase() == name.replace('_', "")
+        })
+    };
+    let axis_reg = |name: &str| -> Option<AxisRegister> {
+        (0u8..16).map(AxisRegister::from).find(|r| {
+            r.is_known() && format!("{r:?}").to_ascii_lowercase() == name.replace('_', "")
+        })
+    };
+    let register = if let Some(rest) = lower.strip_prefix("axis") {
+        let (n, name) = rest.split_once('.').ok_or_else(|| {
+            CliError::Conflict(format!("register name {text:?}: expected axisN.name"))
+        })?;
+        let n: u8 = n
+            .parse()
+            .map_err(|_| CliError::Conflict(format!("register name {text:?}: bad axis number")))?;
+        let r = axis_reg(name)
+            .ok_or_else(|| CliError::Conflict(format!("unknown axis register {name:?}")))?;
+        Register::axis(n, r)
+    } else {
+        Register::board(
+            board(&lower)
+                .ok_or_else(|| CliError::Conflict(format!("unknown register {text:?}")))?,
+        )
+    };
+    Ok(register.offset()?)
+}
+
+fn resolve(port: &mut dyn Port, board: u8, node: Option<u8>) -> Result<Dest, CliError> {
+    if let Some(node) = node {
+        return Ok(Dest::node(node));
+    }
+    let report = scan(port)?;
+    report
+        .boards
+        .iter()
+        .find(|b| b.board_id == board)
+        .map(|b| Dest::node(b.node))
+        .ok_or(CliError::Host(firelink_host::HostError::UnknownBoard(
+            board,
+        )))
+}
+
+/// `firelink read`.
+pub fn run_read(args: &ReadArgs, out: &mut impl Write) -> Result<(), CliError> {
+    let address = parse_address(&args.address)?;
+    let mut port = open_port(&args.port)?;
+    let dest = resolve(port.as_mut(), args.board, args.node)?;
+    if args.count <= 1 {
+        let v = port.read_quadlet(dest, address)?;
+        writeln!(out, "{address:#06x}: {v:08x}")?;
+    } else {
+        let mut buf = vec![0u8; args.count * 4];
+        port.read_block(dest, address, &mut buf)?;
+        for (i, q) in buf.chunks_exact(4).enumerate() {
+            let v = u32::from_be_bytes([q[0], q[1], q[2], q[3]]);
+            writeln!(out, "{:#06x}: {v:08x}", address + i as u64)?;
+        }
+    }
+    Ok(())
+}
+
+/// `firelink write`.
+pub fn run_write(args: &WriteArgs, out: &mut impl Write) -> Result<(), CliError> {
+    let address = parse_address(&args.address)?;
+    let mut values = Vec::with_capacity(args.values.len());
+    for v in &args.values {
+        values.push(u32::try_from(*v).map_err(|_| CliError::Range {
+            name: "value",
+            value: *v,
+            max: u64::from(u32::MAX),
+        })?);
+    }
+    let mut port = open_port(&args.port)?;
+    let dest = resolve(port.as_mut(), args.board, args.node)?;
+    match values.as_slice() {
+        [one] => port.write_quadlet(dest, address, *one)?,
+        many => {
+            let bytes: Vec<u8> = many.iter().flat_map(|v| v.to_be_bytes()).collect();
+            port.write_block(dest, address, &bytes)?;
+        }
+    }
+    writeln!(out, "wrote {} quadlet(s) at {address:#06x}", values.len())?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn register_names() {
+        assert_eq!(parse_address("status").unwrap(), 0);
+        assert_eq!(parse_address("hw_version").unwrap(), 4);
+        assert_eq!(parse_address("axis2.enc_position").unwrap(), 0x25);
+        assert_eq!(parse_address("0x1000").unwrap(), 0x1000);
+        assert!(parse_address("bogus").is_err());
+        assert!(parse_address("axis2.bogus").is_err());
+    }
+}

@@ -1,0 +1,276 @@
+//! `firelink monitor`: a live terminal view of every axis of every board,
+//! like the dVRK's qladisp. The I/O loop runs at full rate; the screen is
+//! redrawn at a human rate (10 Hz). Keys toggle power, relay, amplifiers and
+//! the watchdog.
+
+use std::io::Write;
+use std::time::{Duration, Instant};
+
+use clap::Args;
+
+use firelink_host::Port;
+use firelink_host::io::{IoConfig, IoSystem};
+use firelink_host::scan::Protocol;
+
+use crate::CliError;
+use crate::ports::{PortArgs, open_port};
+
+/// Options of `firelink monitor`.
+#[derive(Args, Debug)]
+pub struct MonitorArgs {
+    #[command(flatten)]
+    pub port: PortArgs,
+    /// I/O protocol (default: the best the boards support).
+    #[arg(long, value_parser = parse_protocol)]
+    pub protocol: Option<Protocol>,
+    /// Target I/O rate in Hz (0 = as fast as possible).
+    #[arg(long, default_value_t = 1000.0)]
+    pub rate: f64,
+    /// Print one frame after this many cycles and exit (no terminal control).
+    #[arg(long)]
+    pub once: Option<u64>,
+    /// Watchdog period in milliseconds set at start (0 leaves it as is).
+    #[arg(long = "watchdog-ms", default_value_t = 0.0)]
+    pub watchdog_ms: f64,
+}
+
+/// Parse a protocol name for clap.
+pub fn parse_protocol(s: &str) -> Result<Protocol, String> {
+    Protocol::from_name(s).ok_or_else(|| {
+        format!("unknown protocol {s:?}: sequential, sequential-read-broadcast-write or broadcast")
+    })
+}
+
+/// Running figures the monitor shows.
+#[derive(Debug, Default, Clone)]
+pub struct MonitorFigures {
+    /// Cycles run.
+    pub cycles: u64,
+    /// Achieved cycle rate over the last display period, Hz.
+    pub rate_hz: f64,
+    /// I/O time of the last cycle, us.
+    pub last_io_us: f64,
+    /// Largest I/O time over the last display period, us.
+    pub max_io_us: f64,
+    /// A one-line message from the last key action.
+    pub message: String,
+}
+
+/// Render one frame as text.
+pub fn render<P: Port>(io: &IoSystem<P>, f: &MonitorFigures) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let stats = io.stats();
+    let _ = writeln!(
+        s,
+        "firelink monitor  port {}  protocol {}  hub board {}",
+        io.port().name(),
+        io.protocol().name(),
+        io.hub_board()
+    );
+    let _ = writeln!(
+        s,
+        "cycles {}  rate {:.0} Hz  I/O last {:.1} us  max {:.1} us  errors {} (timeouts {}, sequence {}, bad packets {}, bus resets {})",
+        f.cycles,
+        f.rate_hz,
+        f.last_io_us,
+        f.max_io_us,
+        stats.total_errors(),
+        stats.timeouts,
+        stats.sequence_errors,
+        stats.bad_packets,
+        stats.bus_resets
+    );
+    let report = io.report();
+    for (id, reason) in report.missed_boards() {
+        let _ = writeln!(s, "  board {id} missed the last cycle: {reason}");
+    }
+    for b in io.boards() {
+        let st = b.status();
+        let _ = writeln!(
+            s,
+            "\nboard {} (node {}, {} fw {})  {}  power {}  relay {}  supply {}  watchdog {}  status {:08x}",
+            b.board_id(),
+            b.info().node,
+            b.info().hardware.name(),
+            b.info().firmware,
+            if b.is_valid() { "ok   " } else { "STALE" },
+            on_off(st.motor_power_enabled()),
+            on_off(st.relay_on()),
+            if st.motor_supply_good() {
+                "good"
+            } else {
+                "BAD "
+            },
+            if st.watchdog_timeout() {
+                "EXPIRED"
+            } else {
+                "ok"
+            },
+            st.raw()
+        );
+        let _ = writeln!(
+            s,
+            "  axis  encoder      vel c/s   pot    current A   amp  dac"
+        );
+        for axis in 0..b.axes() {
+            let _ = writeln!(
+                s,
+                "  {:>4}  {:>9}  {:>10.0}  {:>5}  {:>10.3}   {}  {:04x}",
+                axis + 1,
+                b.encoder_counts(axis).unwrap_or(0),
+                b.encoder_velocity(axis).unwrap_or(0.0),
+                b.pot_bits(axis).unwrap_or(0),
+                b.current_amps(axis).unwrap_or(0.0),
+                if b.amp_enabled(axis) { "on " } else { "off" },
+                b.dac(axis).unwrap_or(0)
+            );
+        }
+    }
+    let _ = writeln!(
+        s,
+        "\nkeys: p power  r relay  a amplifiers  z zero DACs  w watchdog 50 ms/off  q quit   {}",
+        f.message
+    );
+    s
+}
+
+fn on_off(b: bool) -> &'static str {
+    if b { "on " } else { "off" }
+}
+
+/// `firelink monitor`.
+pub fn run(args: &MonitorArgs, out: &mut impl Write) -> Result<(), CliError> {
+    let port = open_port(&args.port)?;
+    let config = IoConfig {
+        protocol: args.protocol,
+        ..IoConfig::default()
+    };
+    let (mut io, _scan) = IoSystem::open(port, config)?;
+    if args.watchdog_ms > 0.0 {
+        io.set_watchdog(Duration::from_secs_f64(args.watchdog_ms / 1e3))?;
+    }
+    let period = if args.rate > 0.0 {
+        Duration::from_secs_f64(1.0 / args.rate)
+    } else {
+        Duration::ZERO
+    };
+    if let Some(cycles) = args.once {
+        let mut f = MonitorFigures::default();
+        let start = Instant::now();
+        for _ in 0..cycles.max(1) {
+            let r = *io.cycle();
+            f.cycles += 1;
+            f.last_io_us = r.io_time().as_secs_f64() * 1e6;
+            f.max_io_us = f.max_io_us.max(f.last_io_us);
+            pace(start, f.cycles, period);
+        }
+        f.rate_hz = f.cycles as f64 / start.elapsed().as_secs_f64().max(1e-9);
+        write!(out, "{}", render(&io, &f))?;
+        return Ok(());
+    }
+    interactive(&mut io, period, out)
+}
+
+fn pace(start: Instant, cycles: u64, period: Duration) {
+    if period.is_zero() {
+        return;
+    }
+    let due = start + period.mul_f64(cycles as f64);
+    let now = Instant::now();
+    if due > now {
+        firelink_host::udp::precise_sleep(due - now);
+    }
+}
+
+fn interactive<P: Port>(
+    io: &mut IoSystem<P>,
+    period: Duration,
+    out: &mut impl Write,
+) -> Result<(), CliError> {
+    use crossterm::event::{self, Event, KeyCode};
+    use crossterm::{cursor, execute, terminal};
+
+    terminal::enable_raw_mode()?;
+    execute!(out, terminal::EnterAlternateScreen, cursor::Hide)?;
+    let result = (|| -> Result<(), CliError> {
+        let mut f = MonitorFigures::default();
+        let start = Instant::now();
+        let mut last_draw = Instant::now();
+        let mut window_cycles = 0u64;
+        let mut power = false;
+        let mut relay = false;
+        let mut amps = false;
+        let mut watchdog = false;
+        loop {
+            let r = *io.cycle();
+            f.cycles += 1;
+            window_cycles += 1;
+            f.last_io_us = r.io_time().as_secs_f64() * 1e6;
+            f.max_io_us = f.max_io_us.max(f.last_io_us);
+            pace(start, f.cycles, period);
+            if last_draw.elapsed() < Duration::from_millis(100) {
+                continue;
+            }
+            f.rate_hz = window_cycles as f64 / last_draw.elapsed().as_secs_f64();
+            window_cycles = 0;
+            last_draw = Instant::now();
+            let frame = render(io, &f).replace('\n', "\r\n");
+            execute!(
+                out,
+                cursor::MoveTo(0, 0),
+                terminal::Clear(terminal::ClearType::All)
+            )?;
+            write!(out, "{frame}")?;
+            out.flush()?;
+            f.max_io_us = 0.0;
+            while event::poll(Duration::ZERO)? {
+                if let Event::Key(key) = event::read()? {
+                    match key.code {
+                        KeyCode::Char('q') | KeyCode::Esc => return Ok(()),
+                        KeyCode::Char('p') => {
+                            power = !power;
+                            io.boards_mut().iter_mut().for_each(|b| b.set_power(power));
+                            f.message = format!("power {}", on_off(power));
+                        }
+                        KeyCode::Char('r') => {
+                            relay = !relay;
+                            io.boards_mut().iter_mut().for_each(|b| b.set_relay(relay));
+                            f.message = format!("relay {}", on_off(relay));
+                        }
+                        KeyCode::Char('a') => {
+                            amps = !amps;
+                            io.boards_mut()
+                                .iter_mut()
+                                .for_each(|b| b.set_all_amps(amps));
+                            f.message = format!("amplifiers {}", on_off(amps));
+                        }
+                        KeyCode::Char('z') => {
+                            io.boards_mut().iter_mut().for_each(|b| b.safe_outputs());
+                            amps = false;
+                            f.message = "DACs zeroed, amplifiers off".into();
+                        }
+                        KeyCode::Char('w') => {
+                            watchdog = !watchdog;
+                            let p = if watchdog {
+                                Duration::from_millis(50)
+                            } else {
+                                Duration::ZERO
+                            };
+                            f.message = match io.set_watchdog(p) {
+                                Ok(()) => {
+                                    format!("watchdog {}", if watchdog { "50 ms" } else { "off" })
+                                }
+                                Err(e) => format!("watchdog: {e}"),
+                            };
+                        }
+                        _ => {}
+                    }
+                }
+            }
+        }
+    })();
+    let _ = execute!(out, cursor::Show, terminal::LeaveAlternateScreen);
+    let _ = terminal::disable_raw_mode();
+    result
+}

@@ -1,0 +1,204 @@
+//! Configuration errors: file, JSON path, problem.
+
+use core::fmt;
+
+/// One problem in a configuration file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConfigError {
+    /// The file, as given to the loader.
+    pub file: String,
+    /// JSON path inside it, e.g. `robots[1].actuators[3].drive.current_to_bits.scale`;
+    /// empty for the whole document.
+    pub path: String,
+    /// What is wrong.
+    pub problem: Problem,
+}
+
+impl ConfigError {
+    /// A problem at `path` in `file`.
+    pub fn new(file: &str, path: impl Into<String>, problem: Problem) -> ConfigError {
+        ConfigError {
+            file: file.to_string(),
+            path: path.into(),
+            problem,
+        }
+    }
+
+    pub(crate) fn from_serde(file: &str, e: serde_path_to_error::Error<serde_json::Error>) -> Self {
+        let path = e.path().to_string();
+        // serde_path_to_error prints the root as ".".
+        let path = if path == "." { String::new() } else { path };
+        let inner = e.into_inner();
+        let problem = match inner.classify() {
+            serde_json::error::Category::Data => Problem::Type(inner.to_string()),
+            serde_json::error::Category::Io => Problem::Io(inner.to_string()),
+            serde_json::error::Category::Syntax | serde_json::error::Category::Eof => {
+                Problem::Syntax(inner.to_string())
+            }
+        };
+        ConfigError::new(file, path, problem)
+    }
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.path.is_empty() {
+            write!(f, "{}: {}", self.file, self.problem)
+        } else {
+            write!(f, "{}: {}: {}", self.file, self.path, self.problem)
+        }
+    }
+}
+
+impl std::error::Error for ConfigError {}
+
+/// What is wrong at a path.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Problem {
+    /// The file could not be read.
+    Io(String),
+    /// The text is not JSON (serde_json's message, with line and column).
+    Syntax(String),
+    /// Wrong type, missing or unknown field, unknown enum value (serde's
+    /// message, with line and column).
+    Type(String),
+    /// `$id` or `$version` is not the supported one.
+    Unsupported {
+        /// What was found.
+        found: String,
+        /// What is supported.
+        expected: &'static str,
+    },
+    /// A number is NaN or infinite.
+    NotFinite,
+    /// A conversion scale is zero: the conversion could not be inverted.
+    ZeroScale,
+    /// A number is outside its allowed range.
+    OutOfRange {
+        /// The value found.
+        value: f64,
+        /// The allowed range, in words.
+        expected: String,
+    },
+    /// `lower >= upper`.
+    EmptyRange {
+        /// Lower bound found.
+        lower: f64,
+        /// Upper bound found.
+        upper: f64,
+    },
+    /// A (board_id, axis_id) pair, robot name or tolerance entry used twice.
+    Duplicate {
+        /// What is duplicated, in words.
+        what: String,
+        /// Path of the first use.
+        first: String,
+    },
+    /// `axis_id` is not below the number of axes of the board.
+    AxisBeyondBoard {
+        /// The axis.
+        axis_id: u8,
+        /// The board.
+        board_id: u8,
+        /// Axes on that board.
+        axes: u8,
+        /// Board type.
+        hardware: &'static str,
+    },
+    /// Two values that must agree do not.
+    Mismatch(String),
+    /// A list or name that must not be empty is.
+    Empty,
+}
+
+impl fmt::Display for Problem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Problem::Io(m) => write!(f, "cannot read: {m}"),
+            Problem::Syntax(m) => write!(f, "not valid JSON: {m}"),
+            Problem::Type(m) => write!(f, "{m}"),
+            Problem::Unsupported { found, expected } => {
+                write!(f, "unsupported value {found:?}, expected {expected:?}")
+            }
+            Problem::NotFinite => write!(f, "not a finite number"),
+            Problem::ZeroScale => write!(f, "zero scale (the conversion cannot be inverted)"),
+            Problem::OutOfRange { value, expected } => {
+                write!(f, "out of range: {value} (expected {expected})")
+            }
+            Problem::EmptyRange { lower, upper } => {
+                write!(f, "empty range: lower {lower} is not below upper {upper}")
+            }
+            Problem::Duplicate { what, first } => {
+                write!(f, "duplicate {what} (first used at {first})")
+            }
+            Problem::AxisBeyondBoard {
+                axis_id,
+                board_id,
+                axes,
+                hardware,
+            } => write!(
+                f,
+                "axis_id {axis_id} is beyond board {board_id}'s axes ({hardware} has {axes}: 0..={})",
+                axes.saturating_sub(1)
+            ),
+            Problem::Mismatch(m) => write!(f, "{m}"),
+            Problem::Empty => write!(f, "must not be empty"),
+        }
+    }
+}
+
+/// One or more configuration errors (never zero).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConfigErrors(Vec<ConfigError>);
+
+impl ConfigErrors {
+    pub(crate) fn one(e: ConfigError) -> Self {
+        ConfigErrors(vec![e])
+    }
+
+    pub(crate) fn from_vec(v: Vec<ConfigError>) -> Option<Self> {
+        if v.is_empty() {
+            None
+        } else {
+            Some(ConfigErrors(v))
+        }
+    }
+
+    /// The errors, in file order.
+    pub fn errors(&self) -> &[ConfigError] {
+        &self.0
+    }
+
+    /// The first error.
+    pub fn first(&self) -> &ConfigError {
+        // Never empty by construction.
+        &self.0[0]
+    }
+
+    /// Whether some error is at exactly `path`.
+    pub fn has_path(&self, path: &str) -> bool {
+        self.0.iter().any(|e| e.path == path)
+    }
+}
+
+impl fmt::Display for ConfigErrors {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, e) in self.0.iter().enumerate() {
+            if i > 0 {
+                writeln!(f)?;
+            }
+            write!(f, "{e}")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for ConfigErrors {}
+
+impl IntoIterator for ConfigErrors {
+    type Item = ConfigError;
+    type IntoIter = std::vec::IntoIter<ConfigError>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.0.into_iter()
+    }
+}

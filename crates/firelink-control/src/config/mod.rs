@@ -1,0 +1,671 @@
+//! Robot I/O configuration in the dVRK's `saw-robot-io` version 6 layout.
+//!
+//! A dVRK user should recognise these files: the top level carries
+//! `"$id": "saw-robot-io.schema.json"` and `"$version": "6"`, then `robots`,
+//! each with `actuators` that name a `board_id` and `axis_id` and carry the
+//! `drive`, `encoder` and `potentiometer` conversions under the same keys as
+//! sawRobotIO1394's generated files. Firelink adds three optional,
+//! per-actuator sections that v6 does not have: `limits` (velocity,
+//! following error, current saturation time), `simulation` (the plant preset,
+//! PID gains and homing defaults) and, on the encoder, `counts_per_turn`.
+//! A file may also carry v6's `digital_inputs`, `digital_outputs`,
+//! `dallas_chips` and a robot's `brakes`: they are accepted and kept as JSON
+//! but not used yet.
+//!
+//! Older sawRobotIO1394 names are accepted as aliases: `amps_to_bits` for
+//! `current_to_bits`, `bits_to_feedback_amps` for `bits_to_current`,
+//! `nm_to_amps` for `effort_to_current`, `max_current` for
+//! `maximum_current`, `sensor_to_position` for `voltage_to_position`.
+//!
+//! ```json
+//! {
+//!   "actuator_id": 0, "board_id": 0, "axis_id": 0, "joint_type": "REVOLUTE",
+//!   "drive": {
+//!     "current_to_bits":   { "scale": -5242.88, "offset": 32768.0 },
+//!     "bits_to_current":   { "scale": -0.000190734863, "offset": 6.25 },
+//!     "effort_to_current": { "scale": 0.36006 },
+//!     "maximum_current": 0.67
+//!   },
+//!   "encoder": {
+//!     "bits_to_position": { "scale": -2.4773e-05 },
+//!     "position_limits_soft": { "lower": -0.698, "upper": 1.134 },
+//!     "velocity_source": "FIRMWARE", "counts_per_turn": 4000
+//!   },
+//!   "potentiometer": {
+//!     "bits_to_voltage":     { "scale": 6.866455e-05 },
+//!     "voltage_to_position": { "scale": 0.9, "offset": -2.025 }
+//!   },
+//!   "limits": { "velocity": 3.0, "following_error": 0.2,
+//!               "following_error_grace": 0.05, "saturation_time": 1.0 },
+//!   "simulation": { "plant": "mtm_j1",
+//!                   "pid": { "kp": 8.0, "ki": 4.0, "kd": 0.4 },
+//!                   "homing": { "position": 0.0, "velocity": 0.5, "acceleration": 2.0 } }
+//! }
+//! ```
+//!
+//! # Units
+//!
+//! SI everywhere above the configuration: radians or metres, seconds,
+//! amperes, newton-metres or newtons. Raw board values (`fpga-board.md`
+//! §3): the 16-bit DAC command and current feedback (`0x8000` ~ 0 A), the
+//! 16-bit potentiometer ADC and the 24-bit offset-binary encoder count.
+//! The conversion methods on [`DriveConfig`], [`EncoderConfig`] and
+//! [`PotentiometerConfig`] are the only place in Firelink where one becomes
+//! the other.
+//!
+//! # Loading
+//!
+//! [`IoConfig::load`] and [`IoConfig::from_json_str`] parse with serde,
+//! report type errors with their JSON path (`robots[1].actuators[3].drive`),
+//! then [`IoConfig::validate`] checks every rule and reports *all* broken
+//! ones, each naming the file, the path and the problem.
+
+mod convert;
+mod error;
+pub mod presets;
+mod validate;
+
+pub use error::{ConfigError, ConfigErrors, Problem};
+
+use crate::label::{BoardSet, Label};
+use crate::pid::PidGains;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// The value `$id` must have.
+pub const SCHEMA_ID: &str = "saw-robot-io.schema.json";
+/// The value `$version` must have.
+pub const SCHEMA_VERSION: &str = "6";
+/// Board IDs are set by a 4-bit rotary switch.
+pub const MAX_BOARD_ID: u8 = 15;
+
+/// A whole configuration file: one or more robots sharing one bus.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IoConfig {
+    /// Must be [`SCHEMA_ID`].
+    #[serde(rename = "$id")]
+    pub id: String,
+    /// Must be [`SCHEMA_VERSION`] (a string, as in the dVRK files).
+    #[serde(rename = "$version")]
+    pub version: String,
+    /// Free text (Firelink extension): where the numbers came from.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub description: Option<String>,
+    /// The robots (arms) on this bus.
+    pub robots: Vec<RobotConfig>,
+    /// v6 digital inputs (accepted, not used yet).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub digital_inputs: Option<serde_json::Value>,
+    /// v6 digital outputs (accepted, not used yet).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub digital_outputs: Option<serde_json::Value>,
+    /// v6 Dallas (1-wire) chips (accepted, not used yet).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dallas_chips: Option<serde_json::Value>,
+}
+
+/// One robot (arm): a named list of actuators.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotConfig {
+    /// Robot name, unique in the file (`MTML`, `PSM1`, ...).
+    pub name: String,
+    /// Controller board type of every board this robot uses; decides how many
+    /// axes a board has. Defaults to `QLA1`.
+    #[serde(default)]
+    pub hardware_version: HardwareVersion,
+    /// Serial number of the arm (a string in v6).
+    pub serial_number: String,
+    /// Must equal the number of entries in `actuators`.
+    pub number_of_actuators: usize,
+    /// The actuators, in joint order.
+    pub actuators: Vec<ActuatorConfig>,
+    /// v6 robot type marker, e.g. `"io-only"` for an MTM gripper file.
+    #[serde(default, rename = "type", skip_serializing_if = "Option::is_none")]
+    pub robot_type: Option<String>,
+    /// v6: the robot only does I/O (no servo loop).
+    #[serde(default, rename = "only_IO", skip_serializing_if = "Option::is_none")]
+    pub only_io: Option<bool>,
+    /// v6: whether encoders are preloaded from the potentiometers.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub has_encoder_preload: Option<bool>,
+    /// v6 number of brakes (accepted, not used yet).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub number_of_brakes: Option<usize>,
+    /// v6 brakes (accepted, not used yet).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub brakes: Option<serde_json::Value>,
+    /// v6 potentiometer settings shared by the robot (tolerances used by
+    /// homing and the safety monitor).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub potentiometers: Option<PotentiometersConfig>,
+}
+
+/// Controller board types, as v6 names them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+pub enum HardwareVersion {
+    /// Quad Linear Amplifier: 4 axes per FPGA board.
+    #[default]
+    #[serde(rename = "QLA1")]
+    Qla1,
+    /// Dual QLA: 8 axes per FPGA board.
+    #[serde(rename = "DQLA")]
+    Dqla,
+    /// dVRK-Si controller: 10 axes per board.
+    #[serde(rename = "dRA1")]
+    Dra1,
+}
+
+impl HardwareVersion {
+    /// Motor axes per board.
+    pub fn axes(self) -> u8 {
+        match self {
+            HardwareVersion::Qla1 => 4,
+            HardwareVersion::Dqla => 8,
+            HardwareVersion::Dra1 => 10,
+        }
+    }
+
+    /// The name used in the files.
+    pub fn name(self) -> &'static str {
+        match self {
+            HardwareVersion::Qla1 => "QLA1",
+            HardwareVersion::Dqla => "DQLA",
+            HardwareVersion::Dra1 => "dRA1",
+        }
+    }
+
+    /// The board's HW_VERSION register value (`fpga-board.md` §2).
+    pub fn hw_version_register(self) -> u32 {
+        match self {
+            HardwareVersion::Qla1 => 0x514C_4131,
+            HardwareVersion::Dqla => 0x4451_4C41,
+            HardwareVersion::Dra1 => 0x6452_4131,
+        }
+    }
+}
+
+/// One actuator: where it is wired and how its raw values convert.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ActuatorConfig {
+    /// Index of the actuator in its robot; if present it must equal its
+    /// position in the list.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub actuator_id: Option<usize>,
+    /// Board ID (rotary switch, 0..=15).
+    pub board_id: u8,
+    /// Axis on the board, 0-based, below the board's axis count.
+    pub axis_id: u8,
+    /// Kind of joint (v6).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_type: Option<JointType>,
+    /// Current command and feedback conversions.
+    pub drive: DriveConfig,
+    /// Encoder conversion and soft limits.
+    pub encoder: EncoderConfig,
+    /// Analog potentiometer conversion, if the joint has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub potentiometer: Option<PotentiometerConfig>,
+    /// Safety limits (Firelink extension).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub limits: Option<LimitsConfig>,
+    /// Simulation plant and control defaults (Firelink extension).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub simulation: Option<SimulationConfig>,
+}
+
+/// Joint kinds of v6.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "SCREAMING_SNAKE_CASE")]
+pub enum JointType {
+    /// Rotation with limits (radians).
+    Revolute,
+    /// Translation (metres).
+    Prismatic,
+    /// Rotation without limits.
+    Continuous,
+    /// Does not move.
+    Fixed,
+    /// Not said.
+    Undefined,
+}
+
+/// `y = scale * x + offset`, the v6 `linear_function`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinearFunction {
+    /// Slope; must be finite and non-zero.
+    pub scale: f64,
+    /// Intercept; 0 when omitted.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub offset: f64,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+
+/// The amplifier: current command and feedback conversions.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DriveConfig {
+    /// Amperes to the 16-bit DAC command (`offset` ~ 0 A, e.g. 32768).
+    #[serde(alias = "amps_to_bits")]
+    pub current_to_bits: LinearFunction,
+    /// 16-bit ADC current feedback to amperes.
+    #[serde(alias = "bits_to_feedback_amps")]
+    pub bits_to_current: LinearFunction,
+    /// Joint effort (N m or N) to motor current (A): 1 / (gear ratio x torque
+    /// constant).
+    #[serde(alias = "nm_to_amps")]
+    pub effort_to_current: LinearFunction,
+    /// Largest current ever commanded, amperes (> 0).
+    #[serde(alias = "max_current")]
+    pub maximum_current: f64,
+}
+
+/// Where joint velocity comes from (v6).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "SCREAMING_SNAKE_CASE")]
+pub enum VelocitySource {
+    /// From the FPGA's encoder period measurement.
+    Firmware,
+    /// From position differences on the host.
+    Software,
+}
+
+/// The quadrature encoder.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EncoderConfig {
+    /// Signed counts (around the `0x800000` midpoint) to position (rad or m).
+    pub bits_to_position: LinearFunction,
+    /// Soft position limits (`lower < upper`); commands are kept inside them.
+    pub position_limits_soft: Limits,
+    /// v6 velocity source.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity_source: Option<VelocitySource>,
+    /// Encoder counts per motor turn (quadrature, x4), for documentation and
+    /// checks (Firelink extension, from the older XML `CountsPerTurn`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub counts_per_turn: Option<u32>,
+}
+
+/// A closed interval `[lower, upper]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Limits {
+    /// Smallest allowed value.
+    pub lower: f64,
+    /// Largest allowed value.
+    pub upper: f64,
+}
+
+/// The analog potentiometer of one joint.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PotentiometerConfig {
+    /// 16-bit ADC bits to volts (QLA: 4.5 V / 65536).
+    pub bits_to_voltage: LinearFunction,
+    /// Volts to joint position.
+    #[serde(alias = "sensor_to_position")]
+    pub voltage_to_position: LinearFunction,
+}
+
+/// v6 robot-level potentiometer settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PotentiometersConfig {
+    /// `ANALOG`, `DIGITAL`, ...
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub potentiometers_type: Option<PotentiometersType>,
+    /// Allowed pot/encoder disagreement per actuator.
+    #[serde(default)]
+    pub tolerances: Vec<PotentiometerTolerance>,
+    /// v6 coupling matrix (accepted, not used yet).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coupling: Option<serde_json::Value>,
+    /// v6 lookup table file for digital pots (accepted, not used yet).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lookup_table_file: Option<String>,
+}
+
+/// v6 potentiometer kinds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "SCREAMING_SNAKE_CASE")]
+pub enum PotentiometersType {
+    /// No potentiometers.
+    None,
+    /// Analog pots read by the QLA ADC.
+    Analog,
+    /// Digital (Si) pots.
+    Digital,
+    /// Not said.
+    Undefined,
+}
+
+/// How far pot and encoder may disagree, and for how long (v6).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PotentiometerTolerance {
+    /// Actuator index in the robot (v6 calls it `axis_id`).
+    pub axis_id: usize,
+    /// Allowed difference (rad or m); 0 disables the check.
+    pub distance: f64,
+    /// How long the difference may last, seconds.
+    pub latency: f64,
+}
+
+/// Per-actuator safety limits (Firelink extension). The position limits are
+/// `encoder.position_limits_soft` and the current limit is
+/// `drive.maximum_current`; this section adds what v6 lacks.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LimitsConfig {
+    /// Largest allowed speed (rad/s or m/s); also the default trajectory
+    /// velocity limit.
+    pub velocity: f64,
+    /// Largest allowed acceleration for trajectories (rad/s² or m/s²).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub acceleration: Option<f64>,
+    /// Largest allowed |setpoint - position|.
+    pub following_error: f64,
+    /// How long the following error may exceed its limit, seconds.
+    #[serde(default = "default_following_error_grace")]
+    pub following_error_grace: f64,
+    /// How long the current command may sit at `maximum_current`, seconds.
+    #[serde(default = "default_saturation_time")]
+    pub saturation_time: f64,
+    /// How far past the soft limits the joint may be before a fault; absent
+    /// means no position fault (soft limits still clamp commands).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position_margin: Option<f64>,
+}
+
+fn default_following_error_grace() -> f64 {
+    0.05
+}
+
+fn default_saturation_time() -> f64 {
+    0.5
+}
+
+/// Simulation and control defaults for one actuator (Firelink extension).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulationConfig {
+    /// Which emulated plant drives this axis.
+    pub plant: PlantPreset,
+    /// Default PID gains (current out, SI in).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pid: Option<PidGains>,
+    /// Homing defaults.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub homing: Option<HomingDefaults>,
+}
+
+/// After the encoders agree with the pots, move here.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HomingDefaults {
+    /// Home position (rad or m), inside the soft limits.
+    #[serde(default)]
+    pub position: f64,
+    /// Speed of the homing move (> 0).
+    pub velocity: f64,
+    /// Acceleration of the homing move (> 0).
+    pub acceleration: f64,
+}
+
+/// Named plant models for the board emulator. The parameters live with the
+/// emulator; the configuration only names one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+#[allow(missing_docs)]
+pub enum PlantPreset {
+    MtmJ1,
+    MtmJ2,
+    MtmJ3,
+    MtmJ4,
+    MtmJ5,
+    MtmJ6,
+    MtmJ7,
+    PsmJ1,
+    PsmJ2,
+    PsmJ3,
+    PsmJ4,
+    PsmJ5,
+    PsmJ6,
+    PsmJ7,
+    /// A generic motor + load (benches, the Snake robot).
+    Generic,
+}
+
+impl PlantPreset {
+    /// Every preset, in file order.
+    pub const ALL: [PlantPreset; 15] = [
+        PlantPreset::MtmJ1,
+        PlantPreset::MtmJ2,
+        PlantPreset::MtmJ3,
+        PlantPreset::MtmJ4,
+        PlantPreset::MtmJ5,
+        PlantPreset::MtmJ6,
+        PlantPreset::MtmJ7,
+        PlantPreset::PsmJ1,
+        PlantPreset::PsmJ2,
+        PlantPreset::PsmJ3,
+        PlantPreset::PsmJ4,
+        PlantPreset::PsmJ5,
+        PlantPreset::PsmJ6,
+        PlantPreset::PsmJ7,
+        PlantPreset::Generic,
+    ];
+
+    /// The name used in the files (`"mtm_j1"`, ..., `"generic"`).
+    pub fn name(self) -> &'static str {
+        const NAMES: [&str; 15] = [
+            "mtm_j1", "mtm_j2", "mtm_j3", "mtm_j4", "mtm_j5", "mtm_j6", "mtm_j7", "psm_j1",
+            "psm_j2", "psm_j3", "psm_j4", "psm_j5", "psm_j6", "psm_j7", "generic",
+        ];
+        NAMES[self as usize]
+    }
+
+    /// The preset named `name`, if any.
+    pub fn from_name(name: &str) -> Option<PlantPreset> {
+        Self::ALL.into_iter().find(|p| p.name() == name)
+    }
+}
+
+/// One actuator seen from the whole file: where it is and what it is called.
+#[derive(Debug, Clone, Copy)]
+pub struct JointRef<'a> {
+    /// Position in the flat joint list (robots in order, actuators in order).
+    pub index: usize,
+    /// Index of the robot in `robots`.
+    pub robot_index: usize,
+    /// Index of the actuator in its robot.
+    pub actuator_index: usize,
+    /// The robot.
+    pub robot: &'a RobotConfig,
+    /// The actuator.
+    pub actuator: &'a ActuatorConfig,
+    /// `robot[actuator_index]`, e.g. `MTML[3]`.
+    pub label: Label,
+}
+
+impl<'a> JointRef<'a> {
+    /// The v6 pot tolerance of this actuator, if the robot lists one.
+    pub fn potentiometer_tolerance(&self) -> Option<&'a PotentiometerTolerance> {
+        self.robot
+            .potentiometers
+            .as_ref()?
+            .tolerances
+            .iter()
+            .find(|t| t.axis_id == self.actuator_index)
+    }
+}
+
+/// One board used by the configuration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BoardUse {
+    /// Board ID.
+    pub board_id: u8,
+    /// Board type.
+    pub hardware: HardwareVersion,
+    /// Bit *i* set: axis *i* drives an actuator.
+    pub axes_used: u16,
+    /// Name of the (first) robot using it.
+    pub robot: Label,
+}
+
+impl IoConfig {
+    /// Reads, parses and validates the file at `path`.
+    ///
+    /// # Errors
+    /// Every problem found, each naming the file, the JSON path and what is
+    /// wrong: the file cannot be read, bad JSON syntax, a wrong type or
+    /// missing field (only the first such error: parsing stops there), or
+    /// any number of validation failures.
+    pub fn load(path: impl AsRef<Path>) -> Result<IoConfig, ConfigErrors> {
+        let path = path.as_ref();
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            ConfigErrors::one(ConfigError::new(&file, "", Problem::Io(e.to_string())))
+        })?;
+        Self::from_json_str(&text, &file)
+    }
+
+    /// Parses and validates `text`; `file` names it in errors.
+    ///
+    /// # Errors
+    /// As [`IoConfig::load`], without the read error.
+    pub fn from_json_str(text: &str, file: &str) -> Result<IoConfig, ConfigErrors> {
+        let config = Self::parse_unvalidated(text, file)?;
+        config.validate(file)?;
+        Ok(config)
+    }
+
+    /// Parses `text` without the validation rules (for tools that want to
+    /// repair a file).
+    ///
+    /// # Errors
+    /// The first syntax or type error, with its JSON path.
+    pub fn parse_unvalidated(text: &str, file: &str) -> Result<IoConfig, ConfigErrors> {
+        let mut de = serde_json::Deserializer::from_str(text);
+        let config: IoConfig = serde_path_to_error::deserialize(&mut de)
+            .map_err(|e| ConfigErrors::one(ConfigError::from_serde(file, e)))?;
+        de.end().map_err(|e| {
+            ConfigErrors::one(ConfigError::new(file, "", Problem::Syntax(e.to_string())))
+        })?;
+        Ok(config)
+    }
+
+    /// Checks every rule; see [`Problem`] for the list.
+    ///
+    /// # Errors
+    /// All broken rules, in file order.
+    pub fn validate(&self, file: &str) -> Result<(), ConfigErrors> {
+        validate::validate(self, file)
+    }
+
+    /// This configuration as pretty-printed JSON (4-space indent, a final
+    /// newline), the format of the shipped files.
+    pub fn to_json_pretty(&self) -> String {
+        let mut out = Vec::new();
+        let fmt = serde_json::ser::PrettyFormatter::with_indent(b"    ");
+        let mut ser = serde_json::Serializer::with_formatter(&mut out, fmt);
+        // Serialising plain data into memory cannot fail.
+        let _ = self.serialize(&mut ser);
+        let mut s = String::from_utf8(out).unwrap_or_default();
+        s.push('\n');
+        s
+    }
+
+    /// Every actuator in joint order (robots in order, actuators in order).
+    pub fn joints(&self) -> impl Iterator<Item = JointRef<'_>> {
+        self.robots
+            .iter()
+            .enumerate()
+            .flat_map(|(ri, robot)| {
+                robot
+                    .actuators
+                    .iter()
+                    .enumerate()
+                    .map(move |(ai, actuator)| (ri, robot, ai, actuator))
+            })
+            .enumerate()
+            .map(
+                |(index, (robot_index, robot, actuator_index, actuator))| JointRef {
+                    index,
+                    robot_index,
+                    actuator_index,
+                    robot,
+                    actuator,
+                    label: Label::joint(&robot.name, actuator_index),
+                },
+            )
+    }
+
+    /// Number of actuators over all robots.
+    pub fn actuator_count(&self) -> usize {
+        self.robots.iter().map(|r| r.actuators.len()).sum()
+    }
+
+    /// The boards in use, by ascending ID.
+    pub fn boards(&self) -> Vec<BoardUse> {
+        let mut boards: Vec<BoardUse> = Vec::new();
+        for robot in &self.robots {
+            for a in &robot.actuators {
+                let bit = if a.axis_id < 16 { 1u16 << a.axis_id } else { 0 };
+                match boards.iter_mut().find(|b| b.board_id == a.board_id) {
+                    Some(b) => b.axes_used |= bit,
+                    None => boards.push(BoardUse {
+                        board_id: a.board_id,
+                        hardware: robot.hardware_version,
+                        axes_used: bit,
+                        robot: Label::new(&robot.name),
+                    }),
+                }
+            }
+        }
+        boards.sort_by_key(|b| b.board_id);
+        boards
+    }
+
+    /// The boards in use as a mask (the broadcast query's board mask).
+    pub fn board_set(&self) -> BoardSet {
+        self.joints().map(|j| j.actuator.board_id).collect()
+    }
+
+    /// The robot named `name`.
+    pub fn robot(&self, name: &str) -> Option<&RobotConfig> {
+        self.robots.iter().find(|r| r.name == name)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plant_names_match_serde() {
+        for p in PlantPreset::ALL {
+            assert_eq!(PlantPreset::from_name(p.name()), Some(p));
+            let json = serde_json::to_string(&p).unwrap();
+            assert_eq!(json, format!("\"{}\"", p.name()));
+        }
+        assert_eq!(PlantPreset::from_name("mtm_j8"), None);
+    }
+
+    #[test]
+    fn hardware_versions() {
+        assert_eq!(HardwareVersion::default(), HardwareVersion::Qla1);
+        assert_eq!(HardwareVersion::Dqla.axes(), 8);
+        assert_eq!(HardwareVersion::Dra1.name(), "dRA1");
+        assert_eq!(HardwareVersion::Qla1.hw_version_register(), 0x514C_4131);
+        let v: HardwareVersion = serde_json::from_str("\"DQLA\"").unwrap();
+        assert_eq!(v, HardwareVersion::Dqla);
+    }
+}

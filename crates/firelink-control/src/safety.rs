@@ -1,0 +1,493 @@
+//! The per-cycle safety monitor.
+//!
+//! Each cycle, after the controllers ran and before the outputs are
+//! written, the runner hands the monitor one [`JointSample`] per joint. The
+//! monitor checks, joint by joint in configuration order and in this order
+//! per joint:
+//!
+//! 1. every value is finite ([`FaultKind::InvalidValue`]);
+//! 2. position within the soft limits widened by `position_margin`, if set
+//!    ([`FaultKind::PositionLimit`]);
+//! 3. |velocity| <= the velocity limit ([`FaultKind::Velocity`]);
+//! 4. |setpoint - position| <= the following-error limit, or over it for no
+//!    longer than the grace period ([`FaultKind::FollowingError`]);
+//! 5. |current command| below `maximum_current`, or at it for no longer than
+//!    the saturation time ([`FaultKind::CurrentSaturation`]);
+//! 6. pot and encoder within the v6 tolerance `distance`, or apart for no
+//!    longer than its `latency` ([`FaultKind::PotentiometerMismatch`]).
+//!
+//! and returns the first fault found, so the report is deterministic. Once
+//! tripped the monitor latches: it returns the same report until
+//! [`SafetyMonitor::reset`]. Buffers are allocated at construction;
+//! [`SafetyMonitor::check`] never allocates.
+
+use crate::config::IoConfig;
+use crate::fault::{FaultKind, FaultReport};
+use crate::label::Label;
+
+/// Limits of one joint. `None` disables a check.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JointLimits {
+    /// Name for reports.
+    pub label: Label,
+    /// Largest |velocity|.
+    pub velocity: Option<f64>,
+    /// Largest |setpoint - position|.
+    pub following_error: Option<f64>,
+    /// How long the following error may be over its limit, seconds.
+    pub following_error_grace: f64,
+    /// The drive's maximum current, A (a command at or above it counts as
+    /// saturated).
+    pub maximum_current: f64,
+    /// How long the current may stay saturated, seconds.
+    pub saturation_time: Option<f64>,
+    /// Soft position limits and the margin past them that trips a fault.
+    pub position: Option<(f64, f64, f64)>,
+    /// Pot/encoder tolerance (distance, latency).
+    pub potentiometer: Option<(f64, f64)>,
+}
+
+impl JointLimits {
+    /// Only the finiteness check.
+    pub fn unchecked(label: Label) -> JointLimits {
+        JointLimits {
+            label,
+            velocity: None,
+            following_error: None,
+            following_error_grace: 0.0,
+            maximum_current: f64::INFINITY,
+            saturation_time: None,
+            position: None,
+            potentiometer: None,
+        }
+    }
+}
+
+/// One joint's values this cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct JointSample {
+    /// Commanded position.
+    pub setpoint: f64,
+    /// Measured (encoder) position.
+    pub position: f64,
+    /// Measured velocity.
+    pub velocity: f64,
+    /// Current command about to be written, A.
+    pub current: f64,
+    /// Pot-derived position, if the joint has a pot and it was read
+    /// (NaN here is reported as an invalid value).
+    pub potentiometer: Option<f64>,
+}
+
+/// Running timers of one joint: when each condition started.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct Timers {
+    following_since: Option<f64>,
+    saturated_since: Option<f64>,
+    pot_since: Option<f64>,
+}
+
+/// The safety monitor for a set of joints.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SafetyMonitor {
+    limits: Vec<JointLimits>,
+    timers: Vec<Timers>,
+    latched: Option<FaultReport>,
+}
+
+/// Tolerance for "at the maximum current" (commands are clamped to exactly
+/// the maximum, so compare with a tiny slack).
+const SATURATION_SLACK: f64 = 1e-9;
+
+impl SafetyMonitor {
+    /// A monitor for joints with `limits`, in the order samples will come.
+    pub fn new(limits: Vec<JointLimits>) -> SafetyMonitor {
+        let timers = vec![Timers::default(); limits.len()];
+        SafetyMonitor {
+            limits,
+            timers,
+            latched: None,
+        }
+    }
+
+    /// A monitor for every actuator of `config`, in joint order: limits
+    /// from the actuator's `limits` section, `drive.maximum_current`,
+    /// `encoder.position_limits_soft` and the robot's v6 pot tolerances
+    /// (a `distance` of 0 disables that check, as in sawRobotIO1394).
+    pub fn from_config(config: &IoConfig) -> SafetyMonitor {
+        let limits = config
+            .joints()
+            .map(|j| {
+                let a = j.actuator;
+                let l = a.limits;
+                let soft = a.encoder.position_limits_soft;
+                JointLimits {
+                    label: j.label,
+                    velocity: l.map(|l| l.velocity),
+                    following_error: l.map(|l| l.following_error),
+                    following_error_grace: l.map_or(0.0, |l| l.following_error_grace),
+                    maximum_current: a.drive.maximum_current,
+                    saturation_time: l.map(|l| l.saturation_time),
+                    position: l
+                        .and_then(|l| l.position_margin)
+                        .map(|m| (soft.lower, soft.upper, m)),
+                    potentiometer: match (a.potentiometer, j.potentiometer_tolerance()) {
+                        (Some(_), Some(t)) if t.distance > 0.0 => Some((t.distance, t.latency)),
+                        _ => None,
+                    },
+                }
+            })
+            .collect();
+        SafetyMonitor::new(limits)
+    }
+
+    /// The joints' limits.
+    pub fn limits(&self) -> &[JointLimits] {
+        &self.limits
+    }
+
+    /// The latched fault, if tripped.
+    pub fn tripped(&self) -> Option<&FaultReport> {
+        self.latched.as_ref()
+    }
+
+    /// Clears the latch and every timer (after the fault was handled).
+    pub fn reset(&mut self) {
+        self.latched = None;
+        self.timers.fill(Timers::default());
+    }
+
+    /// Restarts the grace timers without clearing a latched fault (call when
+    /// a new motion starts or the robot is activated).
+    pub fn restart_timers(&mut self) {
+        self.timers.fill(Timers::default());
+    }
+
+    /// Checks one cycle at time `now` (seconds) and cycle number `cycle`;
+    /// `samples[i]` is joint *i*. Returns the first fault, or the latched one.
+    /// A sample list of the wrong length is checked as far as it goes and the
+    /// missing joints are reported as invalid.
+    pub fn check(&mut self, now: f64, cycle: u64, samples: &[JointSample]) -> Option<FaultReport> {
+        if let Some(r) = self.latched {
+            return Some(r);
+        }
+        let found = self.first_fault(now, samples);
+        self.latched = found.map(|kind| FaultReport::new(now, cycle, kind));
+        self.latched
+    }
+
+    fn first_fault(&mut self, now: f64, samples: &[JointSample]) -> Option<FaultKind> {
+        // Time must be usable for the duration checks.
+        let now_ok = now.is_finite();
+        for (i, (lim, timers)) in self.limits.iter().zip(self.timers.iter_mut()).enumerate() {
+            let joint = lim.label;
+            let Some(s) = samples.get(i) else {
+                return Some(FaultKind::InvalidValue {
+                    joint,
+                    what: "sample (missing)",
+                });
+            };
+            let invalid = |what| Some(FaultKind::InvalidValue { joint, what });
+            for (what, v) in [
+                ("setpoint", s.setpoint),
+                ("position", s.position),
+                ("velocity", s.velocity),
+                ("current command", s.current),
+                ("potentiometer", s.potentiometer.unwrap_or(0.0)),
+            ] {
+                if !v.is_finite() {
+                    return invalid(what);
+                }
+            }
+            if !now_ok {
+                return invalid("time");
+            }
+            if let Some((lower, upper, margin)) = lim.position {
+                if !(lower - margin <= s.position && s.position <= upper + margin) {
+                    return Some(FaultKind::PositionLimit {
+                        joint,
+                        position: s.position,
+                        lower,
+                        upper,
+                    });
+                }
+            }
+            if let Some(limit) = lim.velocity.filter(|&l| s.velocity.abs() > l) {
+                return Some(FaultKind::Velocity {
+                    joint,
+                    velocity: s.velocity,
+                    limit,
+                });
+            }
+            if let Some(limit) = lim.following_error {
+                let error = s.setpoint - s.position;
+                if lasting(
+                    &mut timers.following_since,
+                    error.abs() > limit,
+                    now,
+                    lim.following_error_grace,
+                )
+                .is_some()
+                {
+                    return Some(FaultKind::FollowingError {
+                        joint,
+                        error,
+                        limit,
+                    });
+                }
+            }
+            if let Some(limit) = lim.saturation_time {
+                let saturated = s.current.abs() >= lim.maximum_current - SATURATION_SLACK;
+                if let Some(duration) = lasting(&mut timers.saturated_since, saturated, now, limit)
+                {
+                    return Some(FaultKind::CurrentSaturation {
+                        joint,
+                        duration,
+                        limit,
+                    });
+                }
+            }
+            if let (Some((tolerance, latency)), Some(pot)) = (lim.potentiometer, s.potentiometer) {
+                let difference = pot - s.position;
+                if lasting(
+                    &mut timers.pot_since,
+                    difference.abs() > tolerance,
+                    now,
+                    latency,
+                )
+                .is_some()
+                {
+                    return Some(FaultKind::PotentiometerMismatch {
+                        joint,
+                        difference,
+                        tolerance,
+                    });
+                }
+            }
+        }
+        if samples.len() > self.limits.len() {
+            // More samples than joints: a wiring mistake in the runner.
+            let joint = Label::new("(extra joint)");
+            return Some(FaultKind::InvalidValue {
+                joint,
+                what: "sample (unexpected)",
+            });
+        }
+        None
+    }
+}
+
+/// Tracks how long `condition` has held. Returns how long it has lasted when
+/// that exceeds `allowed` seconds (so a 0 s allowance trips on the first
+/// cycle the condition is seen).
+fn lasting(since: &mut Option<f64>, condition: bool, now: f64, allowed: f64) -> Option<f64> {
+    if !condition {
+        *since = None;
+        return None;
+    }
+    let start = *since.get_or_insert(now);
+    let duration = now - start;
+    if duration > allowed || (allowed <= 0.0 && duration >= 0.0) {
+        Some(duration)
+    } else {
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn limits() -> JointLimits {
+        JointLimits {
+            label: Label::new("PSM2[4]"),
+            velocity: Some(2.0),
+            following_error: Some(0.1),
+            // Durations end in 0.5 ms so that 1 ms cycles never tie with them.
+            following_error_grace: 0.0505,
+            maximum_current: 1.0,
+            saturation_time: Some(0.2005),
+            position: Some((-1.0, 1.0, 0.1)),
+            potentiometer: Some((0.05, 0.0105)),
+        }
+    }
+
+    fn ok() -> JointSample {
+        JointSample {
+            setpoint: 0.1,
+            position: 0.1,
+            velocity: 0.0,
+            current: 0.0,
+            potentiometer: Some(0.1),
+        }
+    }
+
+    fn run(m: &mut SafetyMonitor, from: u64, to: u64, s: JointSample) -> Option<FaultReport> {
+        for k in from..to {
+            if let Some(r) = m.check(k as f64 * 1e-3, k, &[s]) {
+                return Some(r);
+            }
+        }
+        None
+    }
+
+    #[test]
+    fn quiet_joint_never_trips() {
+        let mut m = SafetyMonitor::new(vec![limits()]);
+        assert_eq!(run(&mut m, 0, 1000, ok()), None);
+    }
+
+    #[test]
+    fn following_error_after_grace() {
+        let mut m = SafetyMonitor::new(vec![limits()]);
+        let bad = JointSample {
+            setpoint: 0.3,
+            potentiometer: None,
+            ..ok()
+        };
+        // A short excursion (40 ms) is forgiven and resets the timer.
+        assert_eq!(run(&mut m, 0, 40, bad), None);
+        assert_eq!(run(&mut m, 40, 41, ok()), None);
+        let r = run(&mut m, 41, 200, bad).unwrap();
+        // Trips on the first cycle more than 50.5 ms after it started (cycle 41).
+        assert_eq!(r.cycle, 92);
+        assert_eq!(
+            r.kind,
+            FaultKind::FollowingError {
+                joint: Label::new("PSM2[4]"),
+                error: 0.3 - 0.1,
+                limit: 0.1
+            }
+        );
+        // Latched until reset.
+        assert_eq!(m.check(1.0, 1000, &[ok()]), Some(r));
+        m.reset();
+        assert_eq!(m.check(1.0, 1000, &[ok()]), None);
+    }
+
+    #[test]
+    fn velocity_trips_at_once() {
+        let mut m = SafetyMonitor::new(vec![limits()]);
+        let r = m
+            .check(
+                0.0,
+                0,
+                &[JointSample {
+                    velocity: -2.5,
+                    ..ok()
+                }],
+            )
+            .unwrap();
+        assert!(matches!(r.kind, FaultKind::Velocity { velocity, .. } if velocity == -2.5));
+    }
+
+    #[test]
+    fn saturation_duration() {
+        let mut m = SafetyMonitor::new(vec![limits()]);
+        let sat = JointSample {
+            current: -1.0,
+            ..ok()
+        };
+        let r = run(&mut m, 0, 1000, sat).unwrap();
+        assert_eq!(r.cycle, 201);
+        assert!(matches!(
+            r.kind,
+            FaultKind::CurrentSaturation { duration, limit, .. } if duration > 0.2 && limit == 0.2005
+        ));
+    }
+
+    #[test]
+    fn position_and_pot() {
+        let mut m = SafetyMonitor::new(vec![limits()]);
+        let out = JointSample {
+            setpoint: 1.15,
+            position: 1.15,
+            potentiometer: Some(1.15),
+            ..ok()
+        };
+        assert!(matches!(
+            m.check(0.0, 0, &[out]).unwrap().kind,
+            FaultKind::PositionLimit { .. }
+        ));
+        let mut m = SafetyMonitor::new(vec![limits()]);
+        let pot_off = JointSample {
+            potentiometer: Some(0.2),
+            ..ok()
+        };
+        let r = run(&mut m, 0, 100, pot_off).unwrap();
+        assert_eq!(r.cycle, 11);
+        assert!(matches!(r.kind, FaultKind::PotentiometerMismatch { .. }));
+    }
+
+    #[test]
+    fn invalid_values_and_first_fault_order() {
+        let mut second = limits();
+        second.label = Label::new("PSM2[5]");
+        let mut m = SafetyMonitor::new(vec![limits(), second]);
+        // Joint 1 has a NaN, joint 0 an over-speed: joint 0 is reported.
+        let r = m
+            .check(
+                0.0,
+                0,
+                &[
+                    JointSample {
+                        velocity: 9.0,
+                        ..ok()
+                    },
+                    JointSample {
+                        position: f64::NAN,
+                        ..ok()
+                    },
+                ],
+            )
+            .unwrap();
+        assert!(matches!(r.kind, FaultKind::Velocity { joint, .. } if joint.as_str() == "PSM2[4]"));
+        let mut m = SafetyMonitor::new(vec![limits(), second]);
+        let r = m
+            .check(
+                0.0,
+                0,
+                &[
+                    ok(),
+                    JointSample {
+                        current: f64::INFINITY,
+                        ..ok()
+                    },
+                ],
+            )
+            .unwrap();
+        assert_eq!(
+            r.kind,
+            FaultKind::InvalidValue {
+                joint: Label::new("PSM2[5]"),
+                what: "current command"
+            }
+        );
+        let mut m = SafetyMonitor::new(vec![limits(), second]);
+        assert!(matches!(
+            m.check(0.0, 0, &[ok()]).unwrap().kind,
+            FaultKind::InvalidValue {
+                what: "sample (missing)",
+                ..
+            }
+        ));
+        let mut m = SafetyMonitor::new(vec![limits()]);
+        assert!(matches!(
+            m.check(f64::NAN, 0, &[ok()]).unwrap().kind,
+            FaultKind::InvalidValue { what: "time", .. }
+        ));
+        let mut m = SafetyMonitor::new(vec![JointLimits::unchecked(Label::new("x"))]);
+        assert_eq!(
+            m.check(
+                0.0,
+                0,
+                &[JointSample {
+                    velocity: 1e9,
+                    current: 1e9,
+                    ..ok()
+                }]
+            ),
+            None
+        );
+    }
+}

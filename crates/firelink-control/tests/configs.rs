@@ -1,0 +1,494 @@
+//! The shipped configurations load and validate; malformed ones produce
+//! errors that name the file, the JSON path and the problem.
+
+use firelink_control::config::{
+    ConfigErrors, HardwareVersion, IoConfig, PlantPreset, Problem, presets,
+};
+use serde_json::{Value, json};
+use std::path::PathBuf;
+
+fn configs_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs")
+}
+
+fn load(name: &str) -> IoConfig {
+    IoConfig::load(configs_dir().join(name)).unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn dvrk_seed000_loads() {
+    let c = load("dvrk-seed000.json");
+    assert_eq!(c.robots.len(), 4);
+    let names: Vec<&str> = c.robots.iter().map(|r| r.name.as_str()).collect();
+    assert_eq!(names, ["MTML", "MTMR", "PSM1", "PSM2"]);
+    assert_eq!(c.actuator_count(), 28);
+    let boards = c.boards();
+    assert_eq!(boards.len(), 8);
+    assert_eq!(c.board_set().0, 0x00FF);
+    for b in &boards {
+        assert_eq!(b.hardware, HardwareVersion::Qla1);
+    }
+    // Each arm on two boards: 4 axes on the first, 3 on the second.
+    assert_eq!(boards[0].axes_used, 0b1111);
+    assert_eq!(boards[1].axes_used, 0b0111);
+    assert_eq!(boards[4].robot.as_str(), "PSM1");
+    // PSM joint 3 is the prismatic one, with a psm_j3 plant.
+    let psm1 = c.robot("PSM1").unwrap();
+    let j3 = &psm1.actuators[2];
+    assert_eq!(j3.simulation.unwrap().plant, PlantPreset::PsmJ3);
+    assert_eq!((j3.board_id, j3.axis_id), (4, 2));
+    let j5 = &psm1.actuators[4];
+    assert_eq!((j5.board_id, j5.axis_id), (5, 0));
+    // Joint labels follow the file's indexing.
+    let last = c.joints().last().unwrap();
+    assert_eq!(last.label.as_str(), "PSM2[6]");
+    assert_eq!(last.index, 27);
+}
+
+#[test]
+fn bench_and_snake_load() {
+    let b = load("bench-1board.json");
+    assert_eq!((b.robots.len(), b.actuator_count()), (1, 4));
+    assert_eq!(b.board_set().0, 1);
+    let s = load("snake-36axes.json");
+    assert_eq!(s.actuator_count(), 36);
+    assert_eq!(s.robots.len(), 4);
+    assert_eq!(s.robot("SNAKE1").unwrap().actuators.len(), 11);
+    assert_eq!(s.robot("MASTER2").unwrap().actuators.len(), 7);
+    let hw: Vec<HardwareVersion> = s.boards().iter().map(|b| b.hardware).collect();
+    assert_eq!(
+        hw,
+        [
+            HardwareVersion::Dqla,
+            HardwareVersion::Dqla,
+            HardwareVersion::Dqla,
+            HardwareVersion::Dqla,
+            HardwareVersion::Qla1,
+            HardwareVersion::Qla1,
+            HardwareVersion::Qla1,
+            HardwareVersion::Qla1
+        ]
+    );
+    assert!(s.description.as_deref().unwrap().contains("7-channel"));
+}
+
+#[test]
+fn shipped_files_match_the_presets() {
+    for (name, preset) in presets::shipped() {
+        let text = std::fs::read_to_string(configs_dir().join(name)).unwrap();
+        assert_eq!(
+            text,
+            preset.to_json_pretty(),
+            "configs/{name} is stale: run `cargo run -p firelink-control --example write_configs`"
+        );
+        // And it round-trips through the parser.
+        let parsed = IoConfig::from_json_str(&text, name).unwrap();
+        assert_eq!(parsed.to_json_pretty(), text);
+    }
+}
+
+/// A small valid file: robot A with two actuators on board 0, robot B with
+/// one on board 1.
+fn base() -> Value {
+    let actuator = |board: u8, axis: u8| {
+        json!({
+            "board_id": board, "axis_id": axis,
+            "drive": {
+                "current_to_bits": { "scale": 5242.88, "offset": 32768 },
+                "bits_to_current": { "scale": 0.000190735, "offset": -6.25 },
+                "effort_to_current": { "scale": 0.36 },
+                "maximum_current": 0.67
+            },
+            "encoder": {
+                "bits_to_position": { "scale": 2.5e-5 },
+                "position_limits_soft": { "lower": -1.0, "upper": 1.0 }
+            },
+            "potentiometer": {
+                "bits_to_voltage": { "scale": 6.866455078125e-05 },
+                "voltage_to_position": { "scale": 0.9, "offset": -2.0 }
+            }
+        })
+    };
+    json!({
+        "$id": "saw-robot-io.schema.json",
+        "$version": "6",
+        "robots": [
+            { "name": "A", "serial_number": "1", "number_of_actuators": 2,
+              "actuators": [actuator(0, 0), actuator(0, 1)] },
+            { "name": "B", "serial_number": "2", "number_of_actuators": 1,
+              "actuators": [actuator(1, 0)] }
+        ]
+    })
+}
+
+/// The base with the value at a JSON pointer set (an object key is added
+/// if missing).
+fn with(pointer: &str, value: Value) -> String {
+    let mut v = base();
+    let (parent, key) = pointer.rsplit_once('/').unwrap();
+    match v.pointer_mut(parent) {
+        Some(Value::Object(map)) => {
+            map.insert(key.to_string(), value);
+        }
+        Some(Value::Array(items)) => items[key.parse::<usize>().unwrap()] = value,
+        _ => panic!("no {parent}"),
+    }
+    v.to_string()
+}
+
+fn without(parent: &str, key: &str) -> String {
+    let mut v = base();
+    v.pointer_mut(parent)
+        .and_then(Value::as_object_mut)
+        .unwrap()
+        .remove(key)
+        .unwrap();
+    v.to_string()
+}
+
+fn errors(text: &str) -> ConfigErrors {
+    match IoConfig::from_json_str(text, "bad.json") {
+        Ok(_) => panic!("accepted: {text}"),
+        Err(e) => e,
+    }
+}
+
+/// Asserts exactly one error, at `path`, and returns it as text.
+fn single(text: &str, path: &str) -> (Problem, String) {
+    let e = errors(text);
+    assert_eq!(e.errors().len(), 1, "{e}");
+    let first = e.first();
+    assert_eq!(first.file, "bad.json");
+    assert_eq!(first.path, path, "{e}");
+    let shown = first.to_string();
+    assert!(shown.starts_with(&format!("bad.json: {path}: ")), "{shown}");
+    (first.problem.clone(), shown)
+}
+
+#[test]
+fn the_base_is_valid() {
+    IoConfig::from_json_str(&base().to_string(), "base.json").unwrap();
+}
+
+#[test]
+fn wrong_type_names_the_path() {
+    let (p, shown) = single(
+        &with(
+            "/robots/1/actuators/0/drive/current_to_bits/scale",
+            json!("big"),
+        ),
+        "robots[1].actuators[0].drive.current_to_bits.scale",
+    );
+    assert!(matches!(p, Problem::Type(_)));
+    assert!(
+        shown.contains("invalid type: string \"big\", expected f64"),
+        "{shown}"
+    );
+}
+
+#[test]
+fn missing_field_names_the_object() {
+    let (_, shown) = single(
+        &without("/robots/0/actuators/1/drive", "maximum_current"),
+        "robots[0].actuators[1].drive",
+    );
+    assert!(shown.contains("missing field `maximum_current`"), "{shown}");
+    let (_, shown) = single(&without("/robots/0", "name"), "robots[0]");
+    assert!(shown.contains("missing field `name`"), "{shown}");
+}
+
+#[test]
+fn unknown_fields_and_values_are_refused() {
+    let text = base()
+        .to_string()
+        .replacen("\"maximum_current\"", "\"maximum_curent\"", 1);
+    let (_, shown) = single(&text, "robots[0].actuators[0].drive.maximum_curent");
+    assert!(shown.contains("unknown field `maximum_curent`"), "{shown}");
+    let (_, shown) = single(
+        &with(
+            "/robots/0/actuators/0/encoder/velocity_source",
+            json!("MAGIC"),
+        ),
+        "robots[0].actuators[0].encoder.velocity_source",
+    );
+    assert!(shown.contains("unknown variant `MAGIC`"), "{shown}");
+    let mut v = base();
+    v["robots"][0]["actuators"][0]["simulation"] = json!({ "plant": "mtm_j8" });
+    let (_, shown) = single(&v.to_string(), "robots[0].actuators[0].simulation.plant");
+    assert!(shown.contains("unknown variant `mtm_j8`"), "{shown}");
+    // A board ID that does not fit in a byte is a type error.
+    let (_, shown) = single(
+        &with("/robots/0/actuators/0/board_id", json!(300)),
+        "robots[0].actuators[0].board_id",
+    );
+    assert!(shown.contains("300"), "{shown}");
+}
+
+#[test]
+fn syntax_errors_give_line_and_column() {
+    let e = errors("{\n  \"$id\": \"saw-robot-io.schema.json\",\n  \"robots\": [ , ]\n}");
+    let shown = e.to_string();
+    assert!(matches!(e.first().problem, Problem::Syntax(_)), "{shown}");
+    assert!(shown.contains("line 3"), "{shown}");
+    let e = errors(&format!("{} trailing", base()));
+    assert!(matches!(e.first().problem, Problem::Syntax(_)), "{e}");
+}
+
+#[test]
+fn zero_scale() {
+    let (p, _) = single(
+        &with(
+            "/robots/1/actuators/0/drive/current_to_bits/scale",
+            json!(0.0),
+        ),
+        "robots[1].actuators[0].drive.current_to_bits.scale",
+    );
+    assert_eq!(p, Problem::ZeroScale);
+    let (p, _) = single(
+        &with(
+            "/robots/0/actuators/0/encoder/bits_to_position/scale",
+            json!(0),
+        ),
+        "robots[0].actuators[0].encoder.bits_to_position.scale",
+    );
+    assert_eq!(p, Problem::ZeroScale);
+}
+
+#[test]
+fn duplicate_board_axis() {
+    let (p, shown) = single(
+        &with("/robots/1/actuators/0/board_id", json!(0)),
+        "robots[1].actuators[0]",
+    );
+    assert_eq!(
+        p,
+        Problem::Duplicate {
+            what: "(board_id 0, axis_id 0)".into(),
+            first: "robots[0].actuators[0]".into()
+        }
+    );
+    assert!(
+        shown.contains("duplicate (board_id 0, axis_id 0)"),
+        "{shown}"
+    );
+}
+
+#[test]
+fn axis_beyond_the_board() {
+    let (p, shown) = single(
+        &with("/robots/0/actuators/1/axis_id", json!(4)),
+        "robots[0].actuators[1].axis_id",
+    );
+    assert!(matches!(
+        p,
+        Problem::AxisBeyondBoard {
+            axis_id: 4,
+            board_id: 0,
+            axes: 4,
+            hardware: "QLA1"
+        }
+    ));
+    assert!(shown.contains("QLA1 has 4"), "{shown}");
+    // The same axis is fine on a DQLA (8 axes).
+    let mut v = base();
+    v["robots"][0]["hardware_version"] = json!("DQLA");
+    v["robots"][0]["actuators"][1]["axis_id"] = json!(4);
+    IoConfig::from_json_str(&v.to_string(), "dqla.json").unwrap();
+}
+
+#[test]
+fn board_out_of_range_and_type_conflict() {
+    let (p, _) = single(
+        &with("/robots/1/actuators/0/board_id", json!(16)),
+        "robots[1].actuators[0].board_id",
+    );
+    assert!(matches!(p, Problem::OutOfRange { value, .. } if value == 16.0));
+    // Board 0 declared QLA1 by robot A and DQLA by robot B.
+    let mut v = base();
+    v["robots"][1]["hardware_version"] = json!("DQLA");
+    v["robots"][1]["actuators"][0]["board_id"] = json!(0);
+    v["robots"][1]["actuators"][0]["axis_id"] = json!(5);
+    let (p, _) = single(&v.to_string(), "robots[1].actuators[0].board_id");
+    assert!(matches!(p, Problem::Mismatch(m) if m.contains("DQLA here but QLA1")));
+}
+
+#[test]
+fn empty_position_range() {
+    let mut v = base();
+    v["robots"][0]["actuators"][0]["encoder"]["position_limits_soft"] =
+        json!({ "lower": 1.0, "upper": 1.0 });
+    let (p, shown) = single(
+        &v.to_string(),
+        "robots[0].actuators[0].encoder.position_limits_soft",
+    );
+    assert_eq!(
+        p,
+        Problem::EmptyRange {
+            lower: 1.0,
+            upper: 1.0
+        }
+    );
+    assert!(shown.contains("lower 1 is not below upper 1"), "{shown}");
+}
+
+#[test]
+fn counts_ranges_and_signs() {
+    let (p, _) = single(
+        &with("/robots/0/number_of_actuators", json!(3)),
+        "robots[0].number_of_actuators",
+    );
+    assert!(matches!(p, Problem::Mismatch(m) if m.contains("is 3 but 2")));
+    let (p, shown) = single(
+        &with("/robots/0/actuators/0/drive/maximum_current", json!(10.0)),
+        "robots[0].actuators[0].drive.maximum_current",
+    );
+    assert!(matches!(p, Problem::OutOfRange { .. }), "{shown}");
+    // 32767 codes / 5242.88 codes per A.
+    assert!(shown.contains("at most 6.2498 A"), "{shown}");
+    let (p, _) = single(
+        &with("/robots/0/actuators/0/drive/maximum_current", json!(-1)),
+        "robots[0].actuators[0].drive.maximum_current",
+    );
+    assert!(matches!(p, Problem::OutOfRange { .. }));
+    let (p, _) = single(
+        &with(
+            "/robots/0/actuators/0/drive/bits_to_current/scale",
+            json!(-0.000190735),
+        ),
+        "robots[0].actuators[0].drive.bits_to_current.scale",
+    );
+    assert!(matches!(p, Problem::Mismatch(m) if m.contains("sign")));
+    let (p, _) = single(
+        &with(
+            "/robots/0/actuators/0/drive/current_to_bits/offset",
+            json!(70000),
+        ),
+        "robots[0].actuators[0].drive.current_to_bits.offset",
+    );
+    assert!(matches!(p, Problem::OutOfRange { .. }));
+    let (p, _) = single(
+        &with(
+            "/robots/0/actuators/0/encoder/position_limits_soft/upper",
+            json!(1000.0),
+        ),
+        "robots[0].actuators[0].encoder.position_limits_soft.upper",
+    );
+    assert!(matches!(p, Problem::OutOfRange { expected, .. } if expected.contains("24-bit")));
+}
+
+#[test]
+fn schema_id_and_version() {
+    let (p, _) = single(&with("/$version", json!("5")), "$version");
+    assert_eq!(
+        p,
+        Problem::Unsupported {
+            found: "5".into(),
+            expected: "6"
+        }
+    );
+    let (_, shown) = single(&with("/$version", json!(6)), "$version");
+    assert!(shown.contains("expected a string"), "{shown}");
+    let (p, _) = single(&with("/$id", json!("x.json")), "$id");
+    assert!(matches!(p, Problem::Unsupported { .. }));
+    let (p, _) = single(&with("/robots", json!([])), "robots");
+    assert_eq!(p, Problem::Empty);
+    let (p, _) = single(&with("/robots/1/name", json!("A")), "robots[1].name");
+    assert!(matches!(p, Problem::Duplicate { first, .. } if first == "robots[0].name"));
+}
+
+#[test]
+fn extension_sections_are_checked() {
+    let mut v = base();
+    v["robots"][0]["actuators"][0]["limits"] =
+        json!({ "velocity": 0.0, "following_error": 0.1, "saturation_time": -1 });
+    v["robots"][0]["actuators"][1]["simulation"] = json!({
+        "plant": "generic",
+        "pid": { "kp": -1.0, "ki": 0.0, "kd": 0.1 },
+        "homing": { "position": 3.0, "velocity": 0.1, "acceleration": 0.5 }
+    });
+    v["robots"][0]["potentiometers"] = json!({
+        "potentiometers_type": "ANALOG",
+        "tolerances": [
+            { "axis_id": 0, "distance": 0.1, "latency": 0.01 },
+            { "axis_id": 0, "distance": 0.1, "latency": 0.01 },
+            { "axis_id": 7, "distance": -0.1, "latency": 0.01 }
+        ]
+    });
+    let e = errors(&v.to_string());
+    let paths: Vec<&str> = e.errors().iter().map(|e| e.path.as_str()).collect();
+    assert_eq!(
+        paths,
+        [
+            "robots[0].potentiometers.tolerances[1].axis_id",
+            "robots[0].potentiometers.tolerances[2].axis_id",
+            "robots[0].potentiometers.tolerances[2].distance",
+            "robots[0].actuators[0].limits.velocity",
+            "robots[0].actuators[0].limits.saturation_time",
+            "robots[0].actuators[1].simulation.pid.kp",
+            "robots[0].actuators[1].simulation.homing.position",
+        ],
+        "{e}"
+    );
+    // Every error is printed, one per line.
+    assert_eq!(e.to_string().lines().count(), 7);
+}
+
+#[test]
+fn all_errors_are_reported_at_once() {
+    let mut v = base();
+    v["robots"][0]["actuators"][0]["drive"]["effort_to_current"]["scale"] = json!(0.0);
+    v["robots"][1]["actuators"][0]["axis_id"] = json!(9);
+    v["robots"][1]["actuators"][0]["encoder"]["position_limits_soft"]["lower"] = json!(2.0);
+    let e = errors(&v.to_string());
+    assert_eq!(e.errors().len(), 3, "{e}");
+    assert!(e.has_path("robots[0].actuators[0].drive.effort_to_current.scale"));
+    assert!(e.has_path("robots[1].actuators[0].axis_id"));
+    assert!(e.has_path("robots[1].actuators[0].encoder.position_limits_soft"));
+}
+
+#[test]
+fn older_names_are_accepted() {
+    let text = base()
+        .to_string()
+        .replace("\"current_to_bits\"", "\"amps_to_bits\"")
+        .replace("\"bits_to_current\"", "\"bits_to_feedback_amps\"")
+        .replace("\"effort_to_current\"", "\"nm_to_amps\"")
+        .replace("\"voltage_to_position\"", "\"sensor_to_position\"");
+    let c = IoConfig::from_json_str(&text, "old.json").unwrap();
+    assert_eq!(
+        c.robots[0].actuators[0].drive.current_to_bits.scale,
+        5242.88
+    );
+    // Validation errors name the v6 key, whatever alias the file used.
+    let bad = text.replacen("\"scale\":5242.88", "\"scale\":0", 1);
+    let (_, shown) = single(&bad, "robots[0].actuators[0].drive.current_to_bits.scale");
+    assert!(shown.contains("zero scale"), "{shown}");
+}
+
+#[test]
+fn v6_extras_are_accepted() {
+    let mut v = base();
+    v["digital_inputs"] = json!([{ "name": "clutch", "board_id": 0, "bit_id": 0 }]);
+    v["dallas_chips"] = json!([{ "name": "PSM1_dallas", "board_id": 1 }]);
+    v["robots"][0]["brakes"] = json!([]);
+    v["robots"][0]["number_of_brakes"] = json!(0);
+    v["robots"][0]["only_IO"] = json!(false);
+    v["robots"][0]["actuators"][0]["joint_type"] = json!("PRISMATIC");
+    v["robots"][0]["actuators"][0]["actuator_id"] = json!(0);
+    IoConfig::from_json_str(&v.to_string(), "extras.json").unwrap();
+    let (p, _) = single(
+        &with("/robots/0/actuators/1/actuator_id", json!(0)),
+        "robots[0].actuators[1].actuator_id",
+    );
+    assert!(matches!(p, Problem::Mismatch(_)));
+}
+
+#[test]
+fn missing_file_is_named() {
+    let e = IoConfig::load("/nonexistent/robot.json").unwrap_err();
+    assert!(matches!(e.first().problem, Problem::Io(_)));
+    assert!(
+        e.to_string()
+            .starts_with("/nonexistent/robot.json: cannot read")
+    );
+}

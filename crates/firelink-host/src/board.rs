@@ -1,0 +1,336 @@
+//! The board API in the spirit of seed 001: inputs are latched for all
+//! boards at once, read per axis from local buffers; outputs are set per axis
+//! into local buffers and applied for all boards at once.
+//!
+//! A [`BoardIo`] holds one board's identity, its last real-time read block
+//! (parsed) and its next real-time write block. Getters return raw board
+//! units (counts, ADC bits) plus the few physical conversions that are fixed
+//! by the QLA hardware; robot-specific scaling lives in the control layer.
+
+use firelink_wire::board::MAX_AXES;
+use firelink_wire::board::realtime::{BlockFormat, BoardLayout, ReadBlockRepr, WriteBlockRepr};
+use firelink_wire::board::registers::{
+    AmpCommand, DAC_ZERO, DacWord, DigitalIn, FpgaVersion, GitDesc, HardwareVersion,
+    SYSTEM_CLOCK_HZ, StatusCommand, StatusRead,
+};
+
+use crate::error::{HostError, Result};
+
+/// What discovery learned about one board.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BoardInfo {
+    /// Board ID from the rotary switch, 0..=15.
+    pub board_id: u8,
+    /// Physical node ID on the bus (bus generation dependent).
+    pub node: u8,
+    /// Companion board (QLA1, DQLA, ...).
+    pub hardware: HardwareVersion,
+    /// FW_VERSION register.
+    pub firmware: u32,
+    /// FPGA board version (from ETH_STATUS).
+    pub fpga: FpgaVersion,
+    /// GIT_DESC register.
+    pub git: GitDesc,
+    /// Real-time block layout for this hardware and firmware.
+    pub layout: BoardLayout,
+}
+
+/// One board's I/O buffers.
+#[derive(Debug, Clone)]
+pub struct BoardIo {
+    info: BoardInfo,
+    input: ReadBlockRepr,
+    input_valid: bool,
+    output: WriteBlockRepr,
+    control: StatusCommand,
+}
+
+/// QLA motor current: amps = bits * 12.5 / 65536 - 6.25 (`fpga-board.md` §3).
+pub fn qla_current_amps(bits: u16) -> f64 {
+    f64::from(bits) * 12.5 / 65536.0 - 6.25
+}
+
+impl BoardIo {
+    /// Buffers for a board; inputs start invalid, outputs at zero current.
+    pub fn new(info: BoardInfo) -> BoardIo {
+        let mut output = WriteBlockRepr::new(info.layout, info.board_id);
+        for m in 0..info.layout.motors() {
+            if let Some(d) = output.dac.get_mut(m) {
+                *d = DacWord::valid_command(DAC_ZERO);
+            }
+        }
+        BoardIo {
+            info,
+            input: ReadBlockRepr::new(info.layout),
+            input_valid: false,
+            output,
+            control: StatusCommand::NONE,
+        }
+    }
+
+    /// Identity of the board.
+    pub fn info(&self) -> &BoardInfo {
+        &self.info
+    }
+
+    /// Board ID.
+    pub fn board_id(&self) -> u8 {
+        self.info.board_id
+    }
+
+    /// Number of motor axes.
+    pub fn axes(&self) -> usize {
+        self.info.layout.motors()
+    }
+
+    /// Store a freshly latched read block.
+    pub(crate) fn latch(&mut self, input: ReadBlockRepr) {
+        self.input = input;
+        self.input_valid = true;
+    }
+
+    /// Mark this cycle's inputs as missing: the old values are kept for
+    /// display but [`is_valid`](Self::is_valid) turns false.
+    pub(crate) fn invalidate(&mut self) {
+        self.input_valid = false;
+    }
+
+    /// Whether the inputs were latched in the last cycle.
+    pub fn is_valid(&self) -> bool {
+        self.input_valid
+    }
+
+    /// The whole last read block.
+    pub fn input(&self) -> &ReadBlockRepr {
+        &self.input
+    }
+
+    /// STATUS from the last read.
+    pub fn status(&self) -> StatusRead {
+        self.input.status
+    }
+
+    /// 49.152 MHz clocks between the last two real-time reads.
+    pub fn timestamp(&self) -> u32 {
+        self.input.timestamp
+    }
+
+    /// DIGITAL_IN from the last read.
+    pub fn digital_in(&self) -> DigitalIn {
+        self.input.digital_in
+    }
+
+    /// Whether motor power is enabled.
+    pub fn power_enabled(&self) -> bool {
+        self.input.status.motor_power_enabled()
+    }
+
+    /// Whether the safety relay is on.
+    pub fn relay_on(&self) -> bool {
+        self.input.status.relay_on()
+    }
+
+    /// Whether the board's watchdog has expired.
+    pub fn watchdog_expired(&self) -> bool {
+        self.input.status.watchdog_timeout()
+    }
+
+    /// Whether the amplifier of `axis` (0-based) is on.
+    pub fn amp_enabled(&self, axis: usize) -> bool {
+        match self.info.layout.format() {
+            BlockFormat::Rev8 => self
+                .input
+                .motors()
+                .get(axis)
+                .is_some_and(|m| m.status.amp_on()),
+            BlockFormat::Rev7 => axis < 4 && (self.input.status.amp_enabled() >> axis) & 1 == 1,
+        }
+    }
+
+    /// Signed encoder counts of `axis`.
+    pub fn encoder_counts(&self, axis: usize) -> Option<i32> {
+        self.input.encoders().get(axis).map(|e| e.position.counts())
+    }
+
+    /// Encoder velocity of `axis` in counts per second, from the period
+    /// between the last two edges (0 when the period overflowed).
+    pub fn encoder_velocity(&self, axis: usize) -> Option<f64> {
+        let e = self.input.encoders().get(axis)?;
+        let p = e.period;
+        if p.overflow() || p.period() == 0 {
+            return Some(0.0);
+        }
+        let speed = f64::from(SYSTEM_CLOCK_HZ) / f64::from(p.period());
+        Some(if p.direction() { speed } else { -speed })
+    }
+
+    /// Potentiometer ADC bits of `axis`.
+    pub fn pot_bits(&self, axis: usize) -> Option<u16> {
+        self.input.motors().get(axis).map(|m| m.adc.pot())
+    }
+
+    /// Motor current ADC bits of `axis`.
+    pub fn current_bits(&self, axis: usize) -> Option<u16> {
+        self.input.motors().get(axis).map(|m| m.adc.current())
+    }
+
+    /// Measured motor current of `axis` in amps (QLA scaling).
+    pub fn current_amps(&self, axis: usize) -> Option<f64> {
+        self.current_bits(axis).map(qla_current_amps)
+    }
+
+    /// Set the DAC command of `axis` (marked valid).
+    ///
+    /// # Errors
+    /// [`HostError::InvalidRequest`] for an axis the board does not have.
+    pub fn set_dac(&mut self, axis: usize, bits: u16) -> Result<()> {
+        let axes = self.axes();
+        let word = self
+            .output
+            .dac
+            .get_mut(axis)
+            .filter(|_| axis < axes)
+            .ok_or(HostError::InvalidRequest {
+                what: "axis",
+                value: axis as u32,
+            })?;
+        *word = DacWord::valid_command(bits).with_amp_request(word.amp_request());
+        Ok(())
+    }
+
+    /// The DAC command that will be applied to `axis`.
+    pub fn dac(&self, axis: usize) -> Option<u16> {
+        self.output.dacs().get(axis).map(|d| d.command())
+    }
+
+    /// Request the amplifier of `axis` on or off with the next write.
+    ///
+    /// # Errors
+    /// [`HostError::InvalidRequest`] for an axis the board does not have (or,
+    /// at Rev 7, an axis beyond the 4 STATUS bits).
+    pub fn set_amp_enable(&mut self, axis: usize, on: bool) -> Result<()> {
+        let bad = HostError::InvalidRequest {
+            what: "axis",
+            value: axis as u32,
+        };
+        if axis >= self.axes() || axis >= MAX_AXES {
+            return Err(bad);
+        }
+        match self.info.layout.format() {
+            BlockFormat::Rev8 => {
+                let word = self.output.dac.get_mut(axis).ok_or(bad)?;
+                *word = word.with_amp_request(Some(on));
+            }
+            BlockFormat::Rev7 => {
+                if axis >= 4 {
+                    return Err(bad);
+                }
+                let bit = 1u8 << axis;
+                let amps = self.control.amps;
+                let enable = if on {
+                    amps.enable() | bit
+                } else {
+                    amps.enable() & !bit
+                };
+                self.control.amps = AmpCommand::new(amps.mask() | bit, enable);
+            }
+        }
+        Ok(())
+    }
+
+    /// Request every amplifier on or off with the next write.
+    pub fn set_all_amps(&mut self, on: bool) {
+        for axis in 0..self.axes().min(MAX_AXES) {
+            // Only fails for axes the board lacks, which this range excludes
+            // except at Rev 7 beyond axis 3.
+            let _ = self.set_amp_enable(axis, on);
+        }
+    }
+
+    /// Request motor power on or off with the next write.
+    pub fn set_power(&mut self, on: bool) {
+        self.control.power = Some(on);
+    }
+
+    /// Request the safety relay on or off with the next write.
+    pub fn set_relay(&mut self, on: bool) {
+        self.control.relay = Some(on);
+    }
+
+    /// The write block as it will be sent (control quadlet included).
+    pub fn output(&self) -> WriteBlockRepr {
+        let mut out = self.output;
+        out.control = self.control.to_word();
+        out
+    }
+
+    /// After a write: one-shot requests (power, relay, amplifier changes)
+    /// are cleared; DAC commands stay.
+    pub(crate) fn outputs_applied(&mut self) {
+        self.control = StatusCommand::NONE;
+        for d in self.output.dac.iter_mut() {
+            *d = d.with_amp_request(None);
+        }
+    }
+
+    /// Command zero current on every axis and request amplifiers off.
+    pub fn safe_outputs(&mut self) {
+        for axis in 0..self.axes() {
+            let _ = self.set_dac(axis, DAC_ZERO);
+        }
+        self.set_all_amps(false);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firelink_wire::board::realtime::FirmwareRev;
+
+    fn info(fw: FirmwareRev) -> BoardInfo {
+        BoardInfo {
+            board_id: 3,
+            node: 1,
+            hardware: HardwareVersion::Qla1,
+            firmware: fw.number(),
+            fpga: FpgaVersion::V2,
+            git: GitDesc::default(),
+            layout: BoardLayout::qla1(fw),
+        }
+    }
+
+    #[test]
+    fn outputs_rev8_use_dac_amp_bits() {
+        let mut b = BoardIo::new(info(FirmwareRev::Rev8));
+        b.set_dac(2, 0x9000).unwrap();
+        b.set_amp_enable(2, true).unwrap();
+        b.set_power(true);
+        let out = b.output();
+        assert_eq!(out.dac[2].command(), 0x9000);
+        assert!(out.dac[2].valid());
+        assert_eq!(out.dac[2].amp_request(), Some(true));
+        assert_eq!(out.dac[0].command(), DAC_ZERO);
+        assert_eq!(out.control.raw() & 0x000C_0000, 0x000C_0000);
+        b.outputs_applied();
+        let out = b.output();
+        assert_eq!(out.dac[2].amp_request(), None);
+        assert_eq!(out.dac[2].command(), 0x9000);
+        assert_eq!(out.control.raw(), 0);
+        assert!(b.set_dac(4, 0).is_err());
+    }
+
+    #[test]
+    fn outputs_rev7_use_status_amp_mask() {
+        let mut b = BoardIo::new(info(FirmwareRev::Rev7));
+        b.set_amp_enable(1, true).unwrap();
+        b.set_amp_enable(3, false).unwrap();
+        let out = b.output();
+        assert_eq!(out.control.raw() & 0xF0F, (0b1010 << 8) | 0b0010);
+    }
+
+    #[test]
+    fn qla_current_scale() {
+        assert!((qla_current_amps(0x8000) - 0.0).abs() < 1e-9);
+        assert!((qla_current_amps(0) + 6.25).abs() < 1e-9);
+    }
+}

@@ -1,0 +1,672 @@
+//! The I/O system: latch all inputs, apply all outputs, with one of three
+//! protocols, and per-cycle statistics without allocation.
+//!
+//! - [`Protocol::Sequential`]: per board one block read of the real-time
+//!   block and one block write of the command block (`T = (Tr + Tw) x N`).
+//! - [`Protocol::SequentialReadBroadcastWrite`]: per-board reads, then all
+//!   commands in one broadcast block write.
+//! - [`Protocol::Broadcast`] (seed 000): a broadcast query, a wait while the
+//!   boards broadcast their status, one block read of the hub memory from one
+//!   board, one broadcast write of all commands (`T = TQ + wait + TR + TW`).
+//!
+//! Every cycle checks that each expected board answered: its block size,
+//! its board ID and (broadcast) the sequence number. A board that misses a
+//! cycle is reported by ID with the reason and counted; its inputs are
+//! marked invalid, never silently reused.
+
+use std::time::Duration;
+
+use firelink_wire::board::MAX_BOARDS;
+use firelink_wire::board::address::{
+    BoardRegister, COMMAND_BLOCK_OFFSET, HUB_MEMORY_OFFSET, HUB_QUERY_OFFSET,
+    REALTIME_BLOCK_OFFSET, Register,
+};
+use firelink_wire::board::broadcast::{
+    BoardSlot, CommandBlockWriter, HubBlock, HubHeader, Query, SeqRule, hub_block_quadlets,
+};
+use firelink_wire::board::realtime::{ReadBlock, ReadBlockRepr};
+use firelink_wire::board::registers::{SYSTEM_CLOCK_HZ, Watchdog};
+
+use crate::board::BoardIo;
+use crate::error::{HostError, MissReason, Result};
+use crate::port::{Dest, Port};
+use crate::scan::{Protocol, ScanReport, scan};
+
+/// How to run the I/O system.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct IoConfig {
+    /// Protocol to use; `None` takes the best the boards support.
+    pub protocol: Option<Protocol>,
+    /// Board to read the hub from; `None`: the bridge board, else the lowest ID.
+    pub hub_board: Option<u8>,
+    /// Wait between the query and the hub read; `None`: 10 + 5 x boards us,
+    /// as the reference host waits.
+    pub broadcast_wait: Option<Duration>,
+    /// Sequence rule; `None`: the rule of the boards' firmware.
+    pub seq_rule: Option<SeqRule>,
+}
+
+/// What happened in the last cycle. `Copy`, fixed size.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CycleReport {
+    /// Cycle number (from 1).
+    pub cycle: u64,
+    /// Query sequence number (broadcast protocol), 0 otherwise.
+    pub seq: u16,
+    /// Port time when the read phase started.
+    pub started: Duration,
+    /// Duration of the read phase (query + wait + hub read, or all reads).
+    pub read_time: Duration,
+    /// Duration of the write phase.
+    pub write_time: Duration,
+    /// Bit i set: board ID i missed this cycle.
+    pub missed: u16,
+    /// Why each missed board missed, by board ID.
+    pub reasons: [Option<MissReason>; MAX_BOARDS],
+    /// Broadcast protocol: when each board's block reached the hub, in us
+    /// after the query (from the hub headers), by board ID.
+    pub update_time_us: [f32; MAX_BOARDS],
+    /// The first port error of the cycle, if any.
+    pub error: Option<HostError>,
+}
+
+impl CycleReport {
+    const EMPTY: CycleReport = CycleReport {
+        cycle: 0,
+        seq: 0,
+        started: Duration::ZERO,
+        read_time: Duration::ZERO,
+        write_time: Duration::ZERO,
+        missed: 0,
+        reasons: [None; MAX_BOARDS],
+        update_time_us: [0.0; MAX_BOARDS],
+        error: None,
+    };
+
+    /// Whether every board took part and no error happened.
+    pub fn all_ok(&self) -> bool {
+        self.missed == 0 && self.error.is_none()
+    }
+
+    /// I/O time of the cycle (read + write phases).
+    pub fn io_time(&self) -> Duration {
+        self.read_time + self.write_time
+    }
+
+    /// Board IDs that missed the cycle, with the reason.
+    pub fn missed_boards(&self) -> impl Iterator<Item = (u8, MissReason)> + '_ {
+        self.reasons
+            .iter()
+            .enumerate()
+            .filter_map(|(id, r)| r.map(|r| (id as u8, r)))
+    }
+}
+
+/// Counters over all cycles, by kind.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct IoStats {
+    /// Cycles run (read phases).
+    pub cycles: u64,
+    /// Cycles in which every board answered.
+    pub clean_cycles: u64,
+    /// Misses per board ID.
+    pub missed_by_board: [u64; MAX_BOARDS],
+    /// Time-outs.
+    pub timeouts: u64,
+    /// Bus resets seen.
+    pub bus_resets: u64,
+    /// Bad packets (CRC, length) from the port.
+    pub bad_packets: u64,
+    /// Error acks or rcodes.
+    pub nacks: u64,
+    /// Sequence mismatches.
+    pub sequence_errors: u64,
+    /// Corrupt queries reported by boards.
+    pub corrupt_queries: u64,
+    /// Blocks naming the wrong board.
+    pub wrong_board: u64,
+    /// Blocks of the wrong size.
+    pub block_size: u64,
+    /// Other failures (socket errors, invalid requests).
+    pub other: u64,
+}
+
+impl IoStats {
+    /// Total errors of every kind.
+    pub fn total_errors(&self) -> u64 {
+        self.timeouts
+            + self.bus_resets
+            + self.bad_packets
+            + self.nacks
+            + self.sequence_errors
+            + self.corrupt_queries
+            + self.wrong_board
+            + self.block_size
+            + self.other
+    }
+
+    fn count_error(&mut self, e: &HostError) {
+        match e {
+            HostError::Timeout { .. } => self.timeouts += 1,
+            HostError::BusReset { .. } => self.bus_resets += 1,
+            HostError::Wire(_) => self.bad_packets += 1,
+            HostError::Ack { .. } | HostError::Rcode { .. } => self.nacks += 1,
+            _ => self.other += 1,
+        }
+    }
+
+    fn count_miss(&mut self, reason: MissReason) {
+        match reason {
+            MissReason::Sequence { .. } | MissReason::NotUpdated => self.sequence_errors += 1,
+            MissReason::CorruptQuery => self.corrupt_queries += 1,
+            MissReason::WrongBoardId { .. } => self.wrong_board += 1,
+            MissReason::BlockSize { .. } => self.block_size += 1,
+            MissReason::Transaction => {}
+        }
+    }
+}
+
+fn miss_from_wire(e: firelink_wire::Error) -> MissReason {
+    use firelink_wire::Error as W;
+    match e {
+        W::Sequence {
+            expected, received, ..
+        } => MissReason::Sequence { expected, received },
+        W::SequenceFlagged { .. } | W::CorruptQuery { .. } => MissReason::CorruptQuery,
+        W::BlockSize {
+            expected, found, ..
+        } => MissReason::BlockSize {
+            expected: expected as u16,
+            found: found as u16,
+        },
+        _ => MissReason::NotUpdated,
+    }
+}
+
+/// Boards behind a port, driven with one protocol.
+pub struct IoSystem<P: Port> {
+    port: P,
+    boards: Vec<BoardIo>,
+    slots: Vec<BoardSlot>,
+    protocol: Protocol,
+    hub: usize,
+    seq: u16,
+    rule: SeqRule,
+    wait: Duration,
+    config: IoConfig,
+    board_mask: u16,
+    buf: Vec<u8>,
+    cmd: Vec<u8>,
+    report: CycleReport,
+    stats: IoStats,
+    bridge_board: Option<u8>,
+}
+
+impl<P: Port> IoSystem<P> {
+    /// Scan the port and set up every board found.
+    ///
+    /// # Errors
+    /// Errors of [`scan`], or [`HostError::InvalidRequest`] when the asked
+    /// protocol cannot be used with these boards.
+    pub fn open(mut port: P, config: IoConfig) -> Result<(IoSystem<P>, ScanReport)> {
+        let report = scan(&mut port)?;
+        let system = IoSystem::with_scan(port, &report, config)?;
+        Ok((system, report))
+    }
+
+    /// Set up the boards of an earlier scan.
+    ///
+    /// # Errors
+    /// [`HostError::InvalidRequest`] when the asked protocol is better than
+    /// what the boards support, or the hub board is unknown.
+    pub fn with_scan(port: P, scan: &ScanReport, config: IoConfig) -> Result<IoSystem<P>> {
+        let protocol = config.protocol.unwrap_or(scan.protocol);
+        if protocol > scan.protocol {
+            return Err(HostError::InvalidRequest {
+                what: "protocol not supported by every board (see the scan's reason)",
+                value: protocol as u32,
+            });
+        }
+        let mut system = IoSystem {
+            port,
+            boards: Vec::new(),
+            slots: Vec::new(),
+            protocol,
+            hub: 0,
+            seq: 0,
+            rule: SeqRule::Rev8LowByte,
+            wait: Duration::ZERO,
+            config,
+            board_mask: 0,
+            buf: Vec::new(),
+            cmd: Vec::new(),
+            report: CycleReport::EMPTY,
+            stats: IoStats::default(),
+            bridge_board: scan.bridge_board,
+        };
+        system.adopt(scan)?;
+        Ok(system)
+    }
+
+    fn adopt(&mut self, scan: &ScanReport) -> Result<()> {
+        self.boards = scan.boards.iter().map(|b| BoardIo::new(*b)).collect();
+        self.slots = scan
+            .boards
+            .iter()
+            .map(|b| BoardSlot {
+                id: b.board_id,
+                layout: b.layout,
+            })
+            .collect();
+        self.board_mask = scan.boards.iter().fold(0, |m, b| m | (1 << b.board_id));
+        let hub_id = self
+            .config
+            .hub_board
+            .or(self.bridge_board)
+            .filter(|id| scan.boards.iter().any(|b| b.board_id == *id))
+            .or_else(|| scan.boards.first().map(|b| b.board_id));
+        self.hub = self
+            .boards
+            .iter()
+            .position(|b| Some(b.board_id()) == hub_id)
+            .ok_or(HostError::NoBoards("the scan"))?;
+        self.rule = self.config.seq_rule.unwrap_or_else(|| {
+            self.boards
+                .first()
+                .map(|b| SeqRule::for_firmware(b.info().layout.firmware()))
+                .unwrap_or(SeqRule::Rev8LowByte)
+        });
+        self.wait = self
+            .config
+            .broadcast_wait
+            .unwrap_or(Duration::from_micros(10 + 5 * self.boards.len() as u64));
+        let read_max = self
+            .boards
+            .iter()
+            .map(|b| b.info().layout.read_block_len())
+            .max()
+            .unwrap_or(0);
+        let hub = hub_block_quadlets(self.slots.iter().map(|s| s.layout)) * 4;
+        self.buf = vec![0; read_max.max(hub)];
+        let cmd: usize = self
+            .boards
+            .iter()
+            .map(|b| b.info().layout.write_block_len())
+            .sum();
+        self.cmd = vec![0; cmd];
+        Ok(())
+    }
+
+    /// Scan again (after a bus reset) keeping the protocol; boards that
+    /// vanished are dropped, new ones added.
+    ///
+    /// # Errors
+    /// Errors of [`scan`].
+    pub fn rescan(&mut self) -> Result<ScanReport> {
+        let report = scan(&mut self.port)?;
+        self.protocol = self.protocol.min(report.protocol);
+        self.bridge_board = report.bridge_board;
+        self.adopt(&report)?;
+        Ok(report)
+    }
+
+    /// The port.
+    pub fn port(&self) -> &P {
+        &self.port
+    }
+
+    /// The port, mutable (for register access outside the cycle).
+    pub fn port_mut(&mut self) -> &mut P {
+        &mut self.port
+    }
+
+    /// The protocol in use.
+    pub fn protocol(&self) -> Protocol {
+        self.protocol
+    }
+
+    /// The sequence rule in use.
+    pub fn seq_rule(&self) -> SeqRule {
+        self.rule
+    }
+
+    /// Board ID of the hub board.
+    pub fn hub_board(&self) -> u8 {
+        self.boards.get(self.hub).map_or(0, |b| b.board_id())
+    }
+
+    /// All boards, by ascending board ID.
+    pub fn boards(&self) -> &[BoardIo] {
+        &self.boards
+    }
+
+    /// All boards, mutable (to set outputs).
+    pub fn boards_mut(&mut self) -> &mut [BoardIo] {
+        &mut self.boards
+    }
+
+    /// One board by ID.
+    pub fn board(&self, id: u8) -> Option<&BoardIo> {
+        self.boards.iter().find(|b| b.board_id() == id)
+    }
+
+    /// One board by ID, mutable.
+    pub fn board_mut(&mut self, id: u8) -> Option<&mut BoardIo> {
+        self.boards.iter_mut().find(|b| b.board_id() == id)
+    }
+
+    /// The last cycle's report.
+    pub fn report(&self) -> &CycleReport {
+        &self.report
+    }
+
+    /// Counters over all cycles.
+    pub fn stats(&self) -> &IoStats {
+        &self.stats
+    }
+
+    fn dest_of(&self, id: u8) -> Result<Dest> {
+        self.board(id)
+            .map(|b| Dest::node(b.info().node))
+            .ok_or(HostError::UnknownBoard(id))
+    }
+
+    /// Read a quadlet register of one board.
+    ///
+    /// # Errors
+    /// Port errors; [`HostError::UnknownBoard`].
+    pub fn read_register(&mut self, id: u8, offset: u64) -> Result<u32> {
+        let dest = self.dest_of(id)?;
+        self.port.read_quadlet(dest, offset)
+    }
+
+    /// Write a quadlet register of one board.
+    ///
+    /// # Errors
+    /// Port errors; [`HostError::UnknownBoard`].
+    pub fn write_register(&mut self, id: u8, offset: u64, value: u32) -> Result<()> {
+        let dest = self.dest_of(id)?;
+        self.port.write_quadlet(dest, offset, value)
+    }
+
+    /// Set the watchdog period of every board (0 disables it).
+    ///
+    /// # Errors
+    /// Port errors; [`HostError::InvalidRequest`] for a period too long for
+    /// the 16-bit counter.
+    pub fn set_watchdog(&mut self, period: Duration) -> Result<()> {
+        let word = if period.is_zero() {
+            Watchdog::DISABLED
+        } else {
+            Watchdog::from_period(period).map_err(HostError::Wire)?
+        };
+        let offset = Register::board(BoardRegister::Watchdog).offset()?;
+        for i in 0..self.boards.len() {
+            let node = self.boards.get(i).map_or(0, |b| b.info().node);
+            self.port
+                .write_quadlet(Dest::node(node), offset, word.raw())?;
+        }
+        Ok(())
+    }
+
+    fn note_error(&mut self, e: HostError) {
+        self.stats.count_error(&e);
+        if self.report.error.is_none() {
+            self.report.error = Some(e);
+        }
+        if matches!(e, HostError::BusReset { .. }) {
+            // Node numbers may have changed: learn them again now; if the
+            // scan fails the next cycle reports it again.
+            if let Err(e2) = self.rescan() {
+                self.stats.count_error(&e2);
+            }
+        }
+    }
+
+    fn miss(&mut self, index: usize, reason: MissReason) {
+        let Some(board) = self.boards.get_mut(index) else {
+            return;
+        };
+        board.invalidate();
+        let id = board.board_id();
+        self.report.missed |= 1 << id;
+        if let Some(r) = self.report.reasons.get_mut(usize::from(id)) {
+            *r = Some(reason);
+        }
+        if let Some(c) = self.stats.missed_by_board.get_mut(usize::from(id)) {
+            *c += 1;
+        }
+        self.stats.count_miss(reason);
+    }
+
+    fn miss_all(&mut self, reason: MissReason) {
+        for i in 0..self.boards.len() {
+            self.miss(i, reason);
+        }
+    }
+
+    /// Latch every board's inputs with the protocol in use; returns the
+    /// cycle's report. Never fails as a whole: misses and errors are in the
+    /// report (and the stats).
+    pub fn read_all(&mut self) -> &CycleReport {
+        let cycle = self.report.cycle + 1;
+        self.report = CycleReport::EMPTY;
+        self.report.cycle = cycle;
+        self.stats.cycles += 1;
+        let started = self.port.now();
+        self.report.started = started;
+        match self.protocol {
+            Protocol::Broadcast => self.read_broadcast(),
+            Protocol::Sequential | Protocol::SequentialReadBroadcastWrite => self.read_sequential(),
+        }
+        self.report.read_time = self.port.now().saturating_sub(started);
+        if self.report.all_ok() {
+            self.stats.clean_cycles += 1;
+        }
+        &self.report
+    }
+
+    fn read_sequential(&mut self) {
+        for i in 0..self.boards.len() {
+            let Some(board) = self.boards.get(i) else {
+                break;
+            };
+            let info = *board.info();
+            let len = info.layout.read_block_len();
+            let Some(buf) = self.buf.get_mut(..len) else {
+                self.miss(i, MissReason::Transaction);
+                continue;
+            };
+            if let Err(e) = self
+                .port
+                .read_block(Dest::node(info.node), REALTIME_BLOCK_OFFSET, buf)
+            {
+                self.miss(i, MissReason::Transaction);
+                self.note_error(e);
+                if matches!(e, HostError::BusReset { .. }) {
+                    return;
+                }
+                continue;
+            }
+            let parsed = ReadBlock::new_checked(&buf[..], info.layout)
+                .and_then(|b| ReadBlockRepr::parse(&b));
+            match parsed {
+                Ok(repr) if repr.status.board_id() != info.board_id => self.miss(
+                    i,
+                    MissReason::WrongBoardId {
+                        found: repr.status.board_id(),
+                    },
+                ),
+                Ok(repr) => {
+                    if let Some(b) = self.boards.get_mut(i) {
+                        b.latch(repr);
+                    }
+                }
+                Err(e) => self.miss(i, miss_from_wire(e)),
+            }
+        }
+    }
+
+    fn read_broadcast(&mut self) {
+        self.seq = self.rule.next_seq(self.seq);
+        self.report.seq = self.seq;
+        let query = Query {
+            seq: self.seq,
+            board_mask: self.board_mask,
+        };
+        let word = match query.to_word() {
+            Ok(w) => w,
+            Err(e) => {
+                self.note_error(e.into());
+                self.miss_all(MissReason::Transaction);
+                return;
+            }
+        };
+        if let Err(e) = self
+            .port
+            .write_quadlet(Dest::BROADCAST, HUB_QUERY_OFFSET, word)
+        {
+            self.note_error(e);
+            self.miss_all(MissReason::Transaction);
+            return;
+        }
+        self.port.wait(self.wait);
+        let hub_len = hub_block_quadlets(self.slots.iter().map(|s| s.layout)) * 4;
+        let hub_node = self.boards.get(self.hub).map_or(0, |b| b.info().node);
+        let Some(buf) = self.buf.get_mut(..hub_len) else {
+            self.miss_all(MissReason::Transaction);
+            return;
+        };
+        if let Err(e) = self
+            .port
+            .read_block(Dest::node(hub_node), HUB_MEMORY_OFFSET, buf)
+        {
+            self.note_error(e);
+            self.miss_all(MissReason::Transaction);
+            return;
+        }
+        let hub = match HubBlock::new_checked(&self.buf[..hub_len], &self.slots) {
+            Ok(h) => h,
+            Err(e) => {
+                let reason = miss_from_wire(e);
+                self.stats.count_error(&HostError::Wire(e));
+                self.miss_all(reason);
+                return;
+            }
+        };
+        let clock_us = 1e6 / f64::from(SYSTEM_CLOCK_HZ);
+        // Collect per-board outcomes first (the hub view borrows the buffer).
+        let mut outcomes: [Option<core::result::Result<ReadBlockRepr, MissReason>>; MAX_BOARDS] =
+            [None; MAX_BOARDS];
+        for (i, entry) in hub.entries().enumerate() {
+            let outcome = match entry.validate(self.rule, self.seq) {
+                Err(e) => Err(miss_from_wire(e)),
+                Ok(()) => match ReadBlockRepr::parse(&entry.block) {
+                    Ok(repr) if repr.status.board_id() != entry.slot.id => {
+                        Err(MissReason::WrongBoardId {
+                            found: repr.status.board_id(),
+                        })
+                    }
+                    Ok(repr) => Ok(repr),
+                    Err(e) => Err(miss_from_wire(e)),
+                },
+            };
+            let time = match entry.header {
+                HubHeader::Rev7 { time, .. } => u32::from(time & 0x7FFF),
+                HubHeader::Rev8 { update_time, .. } => u32::from(update_time),
+            };
+            if let Some(t) = self
+                .report
+                .update_time_us
+                .get_mut(usize::from(entry.slot.id))
+            {
+                *t = (f64::from(time) * clock_us) as f32;
+            }
+            if let Some(o) = outcomes.get_mut(i) {
+                *o = Some(outcome);
+            }
+        }
+        for (i, outcome) in outcomes.into_iter().enumerate() {
+            match outcome {
+                Some(Ok(repr)) => {
+                    if let Some(b) = self.boards.get_mut(i) {
+                        b.latch(repr);
+                    }
+                }
+                Some(Err(reason)) => self.miss(i, reason),
+                None if i < self.boards.len() => self.miss(i, MissReason::NotUpdated),
+                None => {}
+            }
+        }
+    }
+
+    /// Apply every board's outputs with the protocol in use.
+    pub fn write_all(&mut self) -> &CycleReport {
+        let started = self.port.now();
+        match self.protocol {
+            Protocol::Sequential => self.write_sequential(),
+            Protocol::SequentialReadBroadcastWrite | Protocol::Broadcast => self.write_broadcast(),
+        }
+        for b in self.boards.iter_mut() {
+            b.outputs_applied();
+        }
+        self.report.write_time = self.port.now().saturating_sub(started);
+        &self.report
+    }
+
+    fn write_sequential(&mut self) {
+        for i in 0..self.boards.len() {
+            let Some(board) = self.boards.get(i) else {
+                break;
+            };
+            let info = *board.info();
+            let out = board.output();
+            let len = info.layout.write_block_len();
+            let Some(buf) = self.cmd.get_mut(..len) else {
+                continue;
+            };
+            if let Err(e) = out.emit(buf) {
+                self.note_error(e.into());
+                continue;
+            }
+            if let Err(e) = self
+                .port
+                .write_block(Dest::node(info.node), REALTIME_BLOCK_OFFSET, buf)
+            {
+                self.note_error(e);
+                if matches!(e, HostError::BusReset { .. }) {
+                    return;
+                }
+            }
+        }
+    }
+
+    fn write_broadcast(&mut self) {
+        let mut writer = CommandBlockWriter::new(&mut self.cmd);
+        for board in &self.boards {
+            if let Err(e) = writer.push(&board.output()) {
+                self.stats.count_error(&HostError::Wire(e));
+                if self.report.error.is_none() {
+                    self.report.error = Some(HostError::Wire(e));
+                }
+                return;
+            }
+        }
+        let len = writer.len();
+        let Some(block) = self.cmd.get(..len) else {
+            return;
+        };
+        if let Err(e) = self
+            .port
+            .write_block(Dest::BROADCAST, COMMAND_BLOCK_OFFSET, block)
+        {
+            self.note_error(e);
+        }
+    }
+
+    /// One full cycle: read all, then write all.
+    pub fn cycle(&mut self) -> &CycleReport {
+        self.read_all();
+        self.write_all()
+    }
+}
