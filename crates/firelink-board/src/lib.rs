@@ -18,6 +18,8 @@
 //!   packets: link rules, registers, real-time blocks, broadcast/hub,
 //!   watchdog and safety. Bit packing comes from
 //!   [`firelink_wire::board`].
+//! - [`node`]: [`BoardNode`](node::BoardNode), the firmware as a
+//!   [`firelink_bus::Node`] on the simulated bus.
 //!
 //! Everything takes `now`; nothing reads a clock. The same configuration,
 //! seed and packet sequence give the same run, bit for bit.
@@ -48,5 +50,6 @@
 
 pub mod config;
 pub mod firmware;
+pub mod node;
 pub mod plant;
 pub mod time;

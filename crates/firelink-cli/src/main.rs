@@ -9,6 +9,7 @@ mod hex;
 mod monitor;
 mod packet_cmd;
 mod ports;
+mod sim;
 mod tour;
 
 use std::io::Write;
@@ -48,6 +49,8 @@ enum Command {
     Write(board_cmd::WriteArgs),
     /// Live view of every axis of every board (keys toggle power and amps).
     Monitor(monitor::MonitorArgs),
+    /// Simulate one I/O cycle on the simulated 1394a bus; print phase times.
+    Sim(sim::SimArgs),
 }
 
 #[derive(Subcommand)]
@@ -219,6 +222,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Read(args) => board_cmd::run_read(&args, &mut out)?,
         Command::Write(args) => board_cmd::run_write(&args, &mut out)?,
         Command::Monitor(args) => monitor::run(&args, &mut out)?,
+        Command::Sim(args) => sim::run(&args, &mut out)?,
     }
     Ok(())
 }

@@ -9,6 +9,10 @@
 //!
 //! - [`port`]: the one narrow [`Port`](port::Port) trait.
 //! - [`udp`]: the Ethernet bridge port.
+//! - [`sim`]: the simulated-bus port.
+//! - [`scan`]: discovery and protocol choice.
+//! - [`board`]: the per-board I/O buffers and accessors.
+//! - [`io`]: the I/O system running the three protocols.
 //!
 //! Protocols never know which port they use, so the same program drives
 //! emulated boards today and real boards over Ethernet tomorrow.
@@ -18,6 +22,7 @@ pub mod error;
 pub mod io;
 pub mod port;
 pub mod scan;
+pub mod sim;
 pub mod udp;
 
 pub use error::{HostError, MissReason, Result};

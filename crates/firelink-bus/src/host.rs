@@ -1,0 +1,610 @@
+//! The PC side: its link layer on the bus, and its software overhead.
+//!
+//! - [`HostLink`] is the PC's link (what an OHCI controller does): a
+//!   [`Node`] that sends the request packets a host library hands it
+//!   (arbitrating fair, like a PC), collects each transaction's ack and
+//!   response (matched by the responder's node ID and the transaction
+//!   label), acks the responses it receives, and keeps the broadcasts it
+//!   hears. A host library drives it through
+//!   [`Bus::with_node`](crate::bus::Bus::with_node).
+//! - [`HostModel`] is the PC's software overhead per library call (the OS
+//!   latency around each transaction), calibrated to seed 000's PC: a
+//!   blocking block read costs 32 us and a block write 34 us in total, a
+//!   broadcast write call 2.51 us. It is a separate piece: a host port adds
+//!   its costs around the bus transactions. With jitter on, the costs are
+//!   drawn from a seeded distribution with seed 000's standard deviations.
+
+use std::collections::{BTreeMap, VecDeque};
+
+use firelink_wire::packet::{Ack, NodeId, Packet, Speed, Tcode};
+use rand_chacha::ChaCha8Rng;
+use rand_chacha::rand_core::{RngCore, SeedableRng};
+
+use crate::node::{ArbitrationClass, Node, NodeCtx, ResetInfo, RxReply, TransmitRequest};
+use crate::time::{SimDuration, SimTime};
+use crate::timing::BusTiming;
+
+/// How a transaction ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// Done: ack_complete for a write, a response for a read, or a broadcast
+    /// that went out.
+    Complete,
+    /// No ack came (nobody there, corrupt packet, lost ack).
+    NoAck,
+    /// The responder was busy.
+    Busy,
+    /// The responder answered with an error ack (data or type error).
+    AckError,
+    /// An ack_pending came but no response within the split timeout.
+    ResponseTimeout,
+    /// The response arrived with a bad data CRC.
+    ResponseCorrupt,
+    /// A bus reset flushed the request.
+    BusReset,
+}
+
+/// One finished transaction.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Completion {
+    /// The token [`HostLink::submit`] returned.
+    pub token: u64,
+    /// Destination of the request.
+    pub destination: NodeId,
+    /// Transaction label of the request.
+    pub tl: u8,
+    /// Tcode of the request.
+    pub tcode: Tcode,
+    /// The ack received (`None` for broadcasts or when none came).
+    pub ack: Option<Ack>,
+    /// The response packet, if one came (bytes as received).
+    pub response: Option<Vec<u8>>,
+    /// When the request was handed to the link.
+    pub submitted_at: SimTime,
+    /// When the ack arrived (or the request finished, for broadcasts).
+    pub acked_at: Option<SimTime>,
+    /// When the transaction finished.
+    pub completed_at: SimTime,
+    /// How it ended.
+    pub outcome: Outcome,
+    /// Bus generation when it finished.
+    pub generation: u32,
+}
+
+/// A packet the PC received that was not a response to one of its requests
+/// (broadcasts, snooped traffic, requests addressed to the PC).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Received {
+    /// When it arrived.
+    pub at: SimTime,
+    /// Its bytes as received.
+    pub bytes: Vec<u8>,
+    /// Its speed.
+    pub speed: Speed,
+    /// Whether every CRC in it checked out.
+    pub crc_ok: bool,
+}
+
+#[derive(Clone, Debug)]
+struct Pending {
+    destination: NodeId,
+    tl: u8,
+    tcode: Tcode,
+    submitted_at: SimTime,
+    acked_at: Option<SimTime>,
+    ack: Option<Ack>,
+    awaiting_response: bool,
+    response: Option<(Vec<u8>, bool)>,
+}
+
+/// The PC's link layer. See the module docs.
+#[derive(Debug)]
+pub struct HostLink {
+    name: String,
+    class: ArbitrationClass,
+    next_token: u64,
+    pending: BTreeMap<u64, Pending>,
+    completions: VecDeque<Completion>,
+    received: VecDeque<Received>,
+    received_limit: usize,
+    received_total: u64,
+    split_timeout: SimDuration,
+    phy_id: u8,
+    generation: u32,
+    resets: u32,
+}
+
+/// Timer tokens of [`HostLink`] are the transaction tokens (split timeouts).
+impl HostLink {
+    /// A link named `name` that arbitrates fair and waits 100 ms for split
+    /// responses.
+    pub fn new(name: impl Into<String>) -> HostLink {
+        HostLink {
+            name: name.into(),
+            class: ArbitrationClass::Fair,
+            next_token: 1,
+            pending: BTreeMap::new(),
+            completions: VecDeque::new(),
+            received: VecDeque::new(),
+            received_limit: 4096,
+            received_total: 0,
+            split_timeout: SimDuration::from_millis(100),
+            phy_id: NodeId::BROADCAST_PHY,
+            generation: 0,
+            resets: 0,
+        }
+    }
+
+    /// Use `class` for every request (a PC uses fair).
+    pub fn with_class(mut self, class: ArbitrationClass) -> HostLink {
+        self.class = class;
+        self
+    }
+
+    /// Wait `timeout` for split responses after an ack_pending.
+    pub fn with_split_timeout(mut self, timeout: SimDuration) -> HostLink {
+        self.split_timeout = timeout;
+        self
+    }
+
+    /// Keep at most `limit` received packets (older ones are dropped).
+    pub fn with_received_limit(mut self, limit: usize) -> HostLink {
+        self.received_limit = limit;
+        self
+    }
+
+    /// The PC's physical ID (63 before the first reset).
+    pub fn phy_id(&self) -> u8 {
+        self.phy_id
+    }
+
+    /// The PC's node ID on the local bus.
+    pub fn node_id(&self) -> NodeId {
+        NodeId::local(self.phy_id)
+    }
+
+    /// The bus generation the link last saw.
+    pub fn generation(&self) -> u32 {
+        self.generation
+    }
+
+    /// Bus resets seen.
+    pub fn resets(&self) -> u32 {
+        self.resets
+    }
+
+    /// Send a complete request packet (with CRCs) at `speed`; returns the
+    /// token its [`Completion`] will carry. Broadcast requests and PHY
+    /// packets (link-internal form) complete when they have gone out;
+    /// unicast ones when acked (and answered, after an ack_pending).
+    pub fn submit(&mut self, ctx: &mut NodeCtx<'_>, packet: Vec<u8>, speed: Speed) -> u64 {
+        let token = self.next_token;
+        self.next_token += 1;
+        let view = Packet::new_unchecked(&packet[..]);
+        self.pending.insert(
+            token,
+            Pending {
+                destination: view.destination_id(),
+                tl: view.tl(),
+                tcode: view.tcode(),
+                submitted_at: ctx.now(),
+                acked_at: None,
+                ack: None,
+                awaiting_response: false,
+                response: None,
+            },
+        );
+        ctx.transmit(TransmitRequest {
+            packet,
+            speed,
+            class: self.class,
+            token,
+        });
+        token
+    }
+
+    /// Whether the transaction with `token` is still open.
+    pub fn is_pending(&self, token: u64) -> bool {
+        self.pending.contains_key(&token)
+    }
+
+    /// Open transactions.
+    pub fn pending_count(&self) -> usize {
+        self.pending.len()
+    }
+
+    /// Finished transactions not yet taken.
+    pub fn completions(&self) -> impl Iterator<Item = &Completion> {
+        self.completions.iter()
+    }
+
+    /// Take the completion of `token`, if it finished.
+    pub fn take_completion(&mut self, token: u64) -> Option<Completion> {
+        let i = self.completions.iter().position(|c| c.token == token)?;
+        self.completions.remove(i)
+    }
+
+    /// Take every finished transaction.
+    pub fn take_completions(&mut self) -> Vec<Completion> {
+        self.completions.drain(..).collect()
+    }
+
+    /// Packets received that were not responses to our requests.
+    pub fn received(&self) -> impl DoubleEndedIterator<Item = &Received> + ExactSizeIterator {
+        self.received.iter()
+    }
+
+    /// Packets received so far (taken or not, dropped over the limit or
+    /// not).
+    pub fn received_total(&self) -> u64 {
+        self.received_total
+    }
+
+    /// Take every received packet.
+    pub fn take_received(&mut self) -> Vec<Received> {
+        self.received.drain(..).collect()
+    }
+
+    fn finish(&mut self, token: u64, now: SimTime, outcome: Outcome, ctx: &mut NodeCtx<'_>) {
+        let Some(p) = self.pending.remove(&token) else {
+            return;
+        };
+        ctx.cancel_timer(token);
+        self.completions.push_back(Completion {
+            token,
+            destination: p.destination,
+            tl: p.tl,
+            tcode: p.tcode,
+            ack: p.ack,
+            response: p.response.map(|(b, _)| b),
+            submitted_at: p.submitted_at,
+            acked_at: p.acked_at,
+            completed_at: now,
+            outcome,
+            generation: self.generation,
+        });
+    }
+
+    fn keep(&mut self, received: Received) {
+        if self.received.len() >= self.received_limit {
+            self.received.pop_front();
+        }
+        self.received.push_back(received);
+        self.received_total += 1;
+    }
+}
+
+/// The response tcode that answers a request tcode.
+fn response_tcode(request: Tcode) -> Option<Tcode> {
+    match request {
+        Tcode::WriteQuadletRequest | Tcode::WriteBlockRequest => Some(Tcode::WriteResponse),
+        Tcode::ReadQuadletRequest => Some(Tcode::ReadQuadletResponse),
+        Tcode::ReadBlockRequest => Some(Tcode::ReadBlockResponse),
+        Tcode::LockRequest => Some(Tcode::LockResponse),
+        _ => None,
+    }
+}
+
+impl Node for HostLink {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn on_bus_reset(&mut self, now: SimTime, info: &ResetInfo, ctx: &mut NodeCtx<'_>) {
+        self.phy_id = info.phy_id;
+        self.generation = info.generation;
+        self.resets += 1;
+        let open: Vec<u64> = self.pending.keys().copied().collect();
+        for token in open {
+            self.finish(token, now, Outcome::BusReset, ctx);
+        }
+    }
+
+    fn on_receive(
+        &mut self,
+        now: SimTime,
+        packet: &[u8],
+        speed: Speed,
+        ctx: &mut NodeCtx<'_>,
+    ) -> RxReply {
+        let Ok(view) = Packet::new_checked(packet) else {
+            ctx.report_error("host: malformed packet");
+            return RxReply::Silent;
+        };
+        let status = view.crc_status();
+        if status.header_ok == Some(false) {
+            ctx.report_error("host: header CRC error");
+            return RxReply::Silent;
+        }
+        let tcode = view.tcode();
+        let to_us = view.destination_id().phy() == self.phy_id;
+        if to_us && tcode.is_response() {
+            let source = view.source_id();
+            let tl = view.tl();
+            let found = self.pending.iter().find_map(|(&token, p)| {
+                (p.destination.phy() == source.phy()
+                    && p.tl == tl
+                    && response_tcode(p.tcode) == Some(tcode)
+                    && p.response.is_none())
+                .then_some(token)
+            });
+            let data_ok = status.data_ok != Some(false);
+            if !data_ok {
+                ctx.report_error("host: response data CRC error");
+            }
+            let Some(token) = found else {
+                ctx.report_error("host: response matches no open transaction");
+                return RxReply::Ack(if data_ok {
+                    Ack::Complete
+                } else {
+                    Ack::DataError
+                });
+            };
+            if let Some(p) = self.pending.get_mut(&token) {
+                p.response = Some((packet.to_vec(), data_ok));
+                if p.awaiting_response {
+                    let outcome = if data_ok {
+                        Outcome::Complete
+                    } else {
+                        Outcome::ResponseCorrupt
+                    };
+                    self.finish(token, now, outcome, ctx);
+                }
+            }
+            return RxReply::Ack(if data_ok {
+                Ack::Complete
+            } else {
+                Ack::DataError
+            });
+        }
+        self.keep(Received {
+            at: now,
+            bytes: packet.to_vec(),
+            speed,
+            crc_ok: status.all_ok(),
+        });
+        if !to_us || view.destination_id().is_broadcast() {
+            return RxReply::Silent;
+        }
+        if status.data_ok == Some(false) {
+            return RxReply::Ack(Ack::DataError);
+        }
+        match tcode {
+            Tcode::WriteQuadletRequest | Tcode::WriteBlockRequest => RxReply::Ack(Ack::Complete),
+            _ => RxReply::Ack(Ack::TypeError),
+        }
+    }
+
+    fn on_transmitted(
+        &mut self,
+        now: SimTime,
+        token: u64,
+        ack: Option<Ack>,
+        ctx: &mut NodeCtx<'_>,
+    ) {
+        let Some(p) = self.pending.get_mut(&token) else {
+            return;
+        };
+        p.ack = ack;
+        p.acked_at = Some(now);
+        // Broadcasts and PHY packets are never acked.
+        let broadcast = p.destination.is_broadcast() || p.tcode == Tcode::LinkInternal;
+        match ack {
+            None if broadcast => self.finish(token, now, Outcome::Complete, ctx),
+            None => {
+                // A lost ack may still be followed by the response.
+                if let Some((_, ok)) = p.response {
+                    let outcome = if ok {
+                        Outcome::Complete
+                    } else {
+                        Outcome::ResponseCorrupt
+                    };
+                    self.finish(token, now, outcome, ctx);
+                } else {
+                    self.finish(token, now, Outcome::NoAck, ctx);
+                }
+            }
+            Some(Ack::Complete) => self.finish(token, now, Outcome::Complete, ctx),
+            Some(Ack::Pending) => {
+                if let Some((_, ok)) = p.response {
+                    let outcome = if ok {
+                        Outcome::Complete
+                    } else {
+                        Outcome::ResponseCorrupt
+                    };
+                    self.finish(token, now, outcome, ctx);
+                } else {
+                    p.awaiting_response = true;
+                    ctx.set_timer(now + self.split_timeout, token);
+                }
+            }
+            Some(Ack::BusyX | Ack::BusyA | Ack::BusyB) => {
+                self.finish(token, now, Outcome::Busy, ctx)
+            }
+            Some(_) => self.finish(token, now, Outcome::AckError, ctx),
+        }
+    }
+
+    fn on_timer(&mut self, now: SimTime, token: u64, ctx: &mut NodeCtx<'_>) {
+        if self
+            .pending
+            .get(&token)
+            .is_some_and(|p| p.awaiting_response)
+        {
+            ctx.report_error("host: split response timeout");
+            self.finish(token, now, Outcome::ResponseTimeout, ctx);
+        }
+    }
+}
+
+/// Which library call a cost is for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HostCall {
+    /// A blocking read (`raw1394_read`).
+    Read,
+    /// A blocking write (`raw1394_write`).
+    Write,
+    /// A non-blocking broadcast write (`raw1394_start_write`).
+    BroadcastWrite,
+}
+
+/// The cost of one call around its bus transaction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CallCost {
+    /// From the call to the request reaching the link.
+    pub before: SimDuration,
+    /// From the transaction finishing at the link to the call returning
+    /// (0 for non-blocking calls, which return after `before`).
+    pub after: SimDuration,
+}
+
+/// Mean costs and spread of one kind of call.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CallModel {
+    /// Mean time before the request reaches the link.
+    pub before: SimDuration,
+    /// Mean time after the transaction until the call returns.
+    pub after: SimDuration,
+    /// Standard deviation of the total (used when jitter is on).
+    pub sd: SimDuration,
+}
+
+/// The PC's per-call software overhead. See the module docs.
+#[derive(Clone, Debug)]
+pub struct HostModel {
+    /// Blocking block read.
+    pub read: CallModel,
+    /// Blocking block write.
+    pub write: CallModel,
+    /// Non-blocking broadcast write.
+    pub broadcast_write: CallModel,
+    rng: Option<ChaCha8Rng>,
+}
+
+/// Seed 000's PC: mean blocking read and write transaction times (Fig. 6).
+pub const SEED000_READ_US: f64 = 32.0;
+/// See [`SEED000_READ_US`].
+pub const SEED000_WRITE_US: f64 = 34.0;
+/// Seed 000's broadcast write call (Fig. 10a).
+pub const SEED000_BROADCAST_CALL_US: f64 = 2.51;
+/// Standard deviations measured in seed 000 (read, write, broadcast call).
+pub const SEED000_SD_US: [f64; 3] = [12.02, 8.56, 2.71];
+
+impl HostModel {
+    /// Seed 000's PC, calibrated for `timing`: the OS part of a call is the
+    /// measured total minus the nominal wire time of the transaction the
+    /// paper measured (a 48-byte block read, a 16-byte block write, at S400
+    /// to the adjacent board), split evenly before and after. No jitter.
+    pub fn seed000(timing: &BusTiming) -> HostModel {
+        let wire_read = timing.nominal_block_read(48, Speed::S400, 1);
+        let wire_write = timing.nominal_block_write(16, Speed::S400, 1);
+        let split = |total_us: f64, wire: SimDuration, sd: f64| {
+            let os = SimDuration::from_micros_f64(total_us) - wire;
+            CallModel {
+                before: SimDuration(os.0 / 2),
+                after: SimDuration(os.0 - os.0 / 2),
+                sd: SimDuration::from_micros_f64(sd),
+            }
+        };
+        HostModel {
+            read: split(SEED000_READ_US, wire_read, SEED000_SD_US[0]),
+            write: split(SEED000_WRITE_US, wire_write, SEED000_SD_US[1]),
+            broadcast_write: CallModel {
+                before: SimDuration::from_micros_f64(SEED000_BROADCAST_CALL_US),
+                after: SimDuration::ZERO,
+                sd: SimDuration::from_micros_f64(SEED000_SD_US[2]),
+            },
+            rng: None,
+        }
+    }
+
+    /// Draw each cost from a seeded distribution: the mean plus a normal
+    /// deviate with the call's standard deviation, never below a quarter of
+    /// the mean.
+    pub fn with_jitter(mut self, seed: u64) -> HostModel {
+        self.rng = Some(ChaCha8Rng::seed_from_u64(seed ^ 0x05_0000_1394));
+        self
+    }
+
+    /// Whether jitter is on.
+    pub fn has_jitter(&self) -> bool {
+        self.rng.is_some()
+    }
+
+    /// The model of one kind of call.
+    pub fn model(&self, call: HostCall) -> CallModel {
+        match call {
+            HostCall::Read => self.read,
+            HostCall::Write => self.write,
+            HostCall::BroadcastWrite => self.broadcast_write,
+        }
+    }
+
+    /// The cost of one call (a fresh draw when jitter is on).
+    pub fn cost(&mut self, call: HostCall) -> CallCost {
+        let m = self.model(call);
+        let Some(rng) = self.rng.as_mut() else {
+            return CallCost {
+                before: m.before,
+                after: m.after,
+            };
+        };
+        let z = standard_normal(rng);
+        let mean = (m.before + m.after).as_micros_f64();
+        let total = (mean + z * m.sd.as_micros_f64()).max(mean / 4.0);
+        let scale = if mean > 0.0 { total / mean } else { 1.0 };
+        CallCost {
+            before: SimDuration::from_micros_f64(m.before.as_micros_f64() * scale),
+            after: SimDuration::from_micros_f64(m.after.as_micros_f64() * scale),
+        }
+    }
+}
+
+/// A standard normal deviate (Box-Muller) from a seeded RNG.
+fn standard_normal(rng: &mut ChaCha8Rng) -> f64 {
+    let unit = |rng: &mut ChaCha8Rng| ((rng.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
+    let u1 = unit(rng);
+    let u2 = unit(rng);
+    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seed000_calibration_adds_up() {
+        let t = BusTiming::default();
+        let mut m = HostModel::seed000(&t);
+        let c = m.cost(HostCall::Read);
+        let total = c.before + c.after + t.nominal_block_read(48, Speed::S400, 1);
+        assert!((total.as_micros_f64() - 32.0).abs() < 1e-6);
+        let c = m.cost(HostCall::Write);
+        let total = c.before + c.after + t.nominal_block_write(16, Speed::S400, 1);
+        assert!((total.as_micros_f64() - 34.0).abs() < 1e-6);
+        assert_eq!(
+            m.cost(HostCall::BroadcastWrite).before,
+            SimDuration::from_micros_f64(2.51)
+        );
+    }
+
+    #[test]
+    fn jitter_is_seeded() {
+        let t = BusTiming::default();
+        let draw = |seed| {
+            let mut m = HostModel::seed000(&t).with_jitter(seed);
+            (0..50).map(|_| m.cost(HostCall::Read)).collect::<Vec<_>>()
+        };
+        assert_eq!(draw(7), draw(7));
+        assert_ne!(draw(7), draw(8));
+        let costs = draw(3);
+        let mean = costs
+            .iter()
+            .map(|c| (c.before + c.after).as_micros_f64())
+            .sum::<f64>()
+            / costs.len() as f64;
+        assert!((mean - 29.0).abs() < 6.0, "{mean}");
+    }
+}

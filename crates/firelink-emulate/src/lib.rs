@@ -1,0 +1,354 @@
+//! # firelink-emulate: emulated boards behind an Ethernet bridge
+//!
+//! The FPGA V2 boards of firmware Rev 7/8 can bridge UDP onto FireWire: the
+//! host sends each 1394 request in a datagram to port 1394 of one board (the
+//! Ethernet-connected one), which handles it itself or forwards it onto the
+//! FireWire bus, and returns read responses with 8 bytes of extra data
+//! (`fpga-board.md` §8). This crate puts that bridge in front of a simulated
+//! bus of emulated boards so that host software, ours or the reference dVRK
+//! tools, can drive them over loopback UDP.
+//!
+//! - [`Bridge`]: the protocol, over a [`Bus`] in virtual time: one datagram
+//!   in, at most one datagram out. No sockets, no clock.
+//! - [`serve`]: the server loop: sockets bound to loopback (and the loopback
+//!   broadcast address, for the reference host's discovery), virtual time
+//!   paced to the wall clock, clean stop on a flag.
+//!
+//! ## Model
+//! The bridge board's link onto FireWire is a [`HostLink`] node at the root
+//! of the bus (the place the PC takes when it is on FireWire). A request for
+//! the bridge board itself (no-forward bit, or broadcast no-forward) is sent
+//! to that board's node over the bus; the reply is the same as the real
+//! board's local answer, with the no-forward flag set in the extra data.
+//! Forwarded requests whose bus generation does not match the board's are
+//! dropped, as the firmware does (broadcasts excepted).
+
+use std::net::{IpAddr, Ipv4Addr, SocketAddr, UdpSocket};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use firelink_bus::host::Outcome;
+use firelink_bus::{Bus, HostLink, NodeHandle, SimDuration, SimTime};
+use firelink_wire::bridge::{ExtraData, ExtraFlags, split_host_datagram};
+use firelink_wire::packet::{NodeId, Packet, Speed, Tcode};
+
+/// What the bridge did with one datagram.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Handled {
+    /// A read: the reply datagram has this many bytes.
+    Reply(usize),
+    /// A write went out; writes get no reply.
+    Written,
+    /// Dropped: the reason, for the event log.
+    Dropped(DropReason),
+}
+
+/// Why a datagram got no reply.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DropReason {
+    /// Not a control word plus a complete 1394 packet.
+    Malformed,
+    /// Header or data CRC wrong.
+    BadCrc,
+    /// Forwarded request with a stale bus generation.
+    StaleGeneration,
+    /// The transaction failed on the bus (no ack, error ack, time-out).
+    BusFailure,
+    /// A tcode the bridge does not forward.
+    Unsupported,
+}
+
+/// Counters of the bridge.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct BridgeStats {
+    /// Datagrams received.
+    pub datagrams: u64,
+    /// Requests handled by the bridge board itself.
+    pub local: u64,
+    /// Requests forwarded onto the bus.
+    pub forwarded: u64,
+    /// Replies sent.
+    pub replies: u64,
+    /// Datagrams that did not decode.
+    pub malformed: u64,
+    /// Datagrams with a bad CRC.
+    pub bad_crc: u64,
+    /// Requests dropped for a stale generation.
+    pub stale_generation: u64,
+    /// Transactions that failed on the bus.
+    pub bus_failures: u64,
+}
+
+/// The bridge protocol over a simulated bus.
+pub struct Bridge {
+    bus: Bus,
+    link: NodeHandle,
+    bridge_board: NodeHandle,
+    stats: BridgeStats,
+    timeout: SimDuration,
+}
+
+/// 49.152 MHz ticks in a virtual duration, saturating at 16 bits.
+fn ticks16(d: SimDuration) -> u16 {
+    let ticks = d.as_micros_f64() * 49.152;
+    ticks.clamp(0.0, f64::from(u16::MAX)) as u16
+}
+
+impl Bridge {
+    /// A bridge whose FireWire link is the [`HostLink`] node `link` of `bus`
+    /// and whose own registers are those of the board node `bridge_board`.
+    pub fn new(bus: Bus, link: NodeHandle, bridge_board: NodeHandle) -> Bridge {
+        Bridge {
+            bus,
+            link,
+            bridge_board,
+            stats: BridgeStats::default(),
+            timeout: SimDuration::from_micros(10_000),
+        }
+    }
+
+    /// The bus.
+    pub fn bus(&self) -> &Bus {
+        &self.bus
+    }
+
+    /// The bus, mutable (faults, running it forward).
+    pub fn bus_mut(&mut self) -> &mut Bus {
+        &mut self.bus
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> BridgeStats {
+        self.stats
+    }
+
+    /// The board generation as the extra data reports it.
+    pub fn generation(&self) -> u8 {
+        self.bus.generation() as u8
+    }
+
+    /// Let virtual time run up to `t` (nothing happens if it is already later).
+    pub fn advance_to(&mut self, t: SimTime) {
+        if t > self.bus.now() {
+            self.bus.run_until(t);
+        }
+    }
+
+    /// Handle one host datagram; a reply, if any, is written to `reply`.
+    pub fn handle(&mut self, datagram: &[u8], reply: &mut Vec<u8>) -> Handled {
+        self.stats.datagrams += 1;
+        let Ok((control, packet)) = split_host_datagram(datagram) else {
+            self.stats.malformed += 1;
+            return Handled::Dropped(DropReason::Malformed);
+        };
+        if packet.verify().is_err() {
+            self.stats.bad_crc += 1;
+            return Handled::Dropped(DropReason::BadCrc);
+        }
+        let tcode = packet.tcode();
+        let is_read = matches!(tcode, Tcode::ReadQuadletRequest | Tcode::ReadBlockRequest);
+        let is_write = matches!(tcode, Tcode::WriteQuadletRequest | Tcode::WriteBlockRequest);
+        if !is_read && !is_write {
+            return Handled::Dropped(DropReason::Unsupported);
+        }
+        let destination = packet.destination_id();
+        let local = control.no_forward;
+        if !local && !destination.is_broadcast() && control.generation != self.generation() {
+            self.stats.stale_generation += 1;
+            return Handled::Dropped(DropReason::StaleGeneration);
+        }
+        // Address the request: local requests go to the bridge board's node.
+        let mut bytes = packet.as_bytes()[..packet.total_len()].to_vec();
+        if local {
+            let phy = self.bus.phy_id(self.bridge_board).unwrap_or(0);
+            let mut p = Packet::new_unchecked(&mut bytes[..]);
+            p.set_destination_id(NodeId::local(phy));
+            p.fill_header_crc();
+            self.stats.local += 1;
+        } else {
+            self.stats.forwarded += 1;
+        }
+        if is_read && destination.is_broadcast() && !local {
+            // A 1394 read cannot be broadcast.
+            return Handled::Dropped(DropReason::Unsupported);
+        }
+        let received_at = self.bus.now();
+        let link = self.link;
+        let Ok(token) = self
+            .bus
+            .with_node::<HostLink, _>(link, |l, ctx| l.submit(ctx, bytes, Speed::S400))
+        else {
+            return Handled::Dropped(DropReason::BusFailure);
+        };
+        if is_write && (destination.is_broadcast() && !local) {
+            // Broadcasts complete when they have gone out; do not wait.
+            return Handled::Written;
+        }
+        let deadline = self.bus.now() + self.timeout;
+        self.bus.run_until_with(deadline, |bus| {
+            bus.node::<HostLink>(link)
+                .is_some_and(|l| !l.is_pending(token))
+        });
+        let done = self
+            .bus
+            .node_mut::<HostLink>(link)
+            .and_then(|l| l.take_completion(token));
+        let Some(done) = done.filter(|d| d.outcome == Outcome::Complete) else {
+            self.stats.bus_failures += 1;
+            return Handled::Dropped(DropReason::BusFailure);
+        };
+        if is_write {
+            return Handled::Written;
+        }
+        let Some(response) = done.response else {
+            self.stats.bus_failures += 1;
+            return Handled::Dropped(DropReason::BusFailure);
+        };
+        let extra = ExtraData {
+            flags: ExtraFlags {
+                no_forward: local,
+                ..ExtraFlags::default()
+            },
+            generation: self.generation(),
+            invalid_states: 0,
+            packet_errors: self.stats.bad_crc.min(255) as u8,
+            receive_time: ticks16(done.submitted_at - received_at),
+            total_time: ticks16(done.completed_at - received_at),
+        };
+        reply.clear();
+        reply.extend_from_slice(&response);
+        reply.extend_from_slice(&extra.to_bytes());
+        self.stats.replies += 1;
+        Handled::Reply(reply.len())
+    }
+}
+
+/// Where and how the server listens.
+#[derive(Debug, Clone)]
+pub struct ServeConfig {
+    /// Unicast address (default 127.0.0.1:1394).
+    pub listen: SocketAddr,
+    /// Also receive on the loopback broadcast address 127.255.255.255 (same
+    /// port) when listening on loopback, as the reference host's discovery
+    /// sends its first requests there.
+    pub loopback_broadcast: bool,
+}
+
+impl Default for ServeConfig {
+    fn default() -> Self {
+        ServeConfig {
+            listen: SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 1394),
+            loopback_broadcast: true,
+        }
+    }
+}
+
+/// Something worth one line to the user.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Event {
+    /// Sockets are bound.
+    Listening {
+        /// The unicast address actually bound.
+        addr: SocketAddr,
+        /// Whether the loopback broadcast address is bound too.
+        broadcast: bool,
+    },
+    /// The first datagram from a new host address.
+    HostSeen(SocketAddr),
+    /// The bus generation changed (bus reset).
+    BusReset(u8),
+    /// Virtual time fell behind the wall clock by more than 10 ms (the
+    /// machine is too busy to run the emulation in real time).
+    Lagging(Duration),
+    /// The server stopped.
+    Stopped(BridgeStats),
+}
+
+/// Bind the sockets of `config`: the unicast socket, and when asked and
+/// possible the loopback broadcast socket.
+///
+/// # Errors
+/// I/O errors of binding the unicast socket (the broadcast one is optional).
+pub fn bind(config: &ServeConfig) -> std::io::Result<(UdpSocket, Option<UdpSocket>)> {
+    let unicast = UdpSocket::bind(config.listen)?;
+    let port = unicast.local_addr()?.port();
+    let broadcast = match config.listen.ip() {
+        IpAddr::V4(ip) if config.loopback_broadcast && ip.is_loopback() => UdpSocket::bind(
+            SocketAddr::new(IpAddr::V4(Ipv4Addr::new(127, 255, 255, 255)), port),
+        )
+        .ok(),
+        _ => None,
+    };
+    Ok((unicast, broadcast))
+}
+
+/// Run the bridge until `stop` is set: receive datagrams, keep virtual time
+/// in step with the wall clock, answer reads from the unicast socket.
+///
+/// # Errors
+/// Socket errors other than time-outs.
+pub fn serve(
+    bridge: &mut Bridge,
+    unicast: &UdpSocket,
+    broadcast: Option<&UdpSocket>,
+    stop: &Arc<AtomicBool>,
+    mut on_event: impl FnMut(Event),
+) -> std::io::Result<()> {
+    on_event(Event::Listening {
+        addr: unicast.local_addr()?,
+        broadcast: broadcast.is_some(),
+    });
+    unicast.set_nonblocking(true)?;
+    if let Some(b) = broadcast {
+        b.set_nonblocking(true)?;
+    }
+    let wall_origin = Instant::now();
+    let virtual_origin = bridge.bus().now();
+    let mut buf = vec![0u8; 4096];
+    let mut reply = Vec::with_capacity(4096);
+    let mut hosts: Vec<SocketAddr> = Vec::new();
+    let mut generation = bridge.generation();
+    let mut lag_reported = Instant::now() - Duration::from_secs(10);
+    while !stop.load(Ordering::Relaxed) {
+        // Keep virtual time in step with the wall clock.
+        let wall = wall_origin.elapsed();
+        let target = virtual_origin + SimDuration::from_micros_f64(wall.as_secs_f64() * 1e6);
+        bridge.advance_to(target);
+        let behind = wall.as_secs_f64()
+            - (bridge.bus().now().as_micros_f64() - virtual_origin.as_micros_f64()) / 1e6;
+        if behind > 0.010 && lag_reported.elapsed() > Duration::from_secs(5) {
+            on_event(Event::Lagging(Duration::from_secs_f64(behind)));
+            lag_reported = Instant::now();
+        }
+        if bridge.generation() != generation {
+            generation = bridge.generation();
+            on_event(Event::BusReset(generation));
+        }
+        let mut got_any = false;
+        for socket in std::iter::once(unicast).chain(broadcast) {
+            match socket.recv_from(&mut buf) {
+                Ok((len, from)) => {
+                    got_any = true;
+                    if !hosts.contains(&from) {
+                        hosts.push(from);
+                        on_event(Event::HostSeen(from));
+                    }
+                    let datagram = &buf[..len];
+                    if let Handled::Reply(n) = bridge.handle(datagram, &mut reply) {
+                        unicast.send_to(&reply[..n], from)?;
+                    }
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+                Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => {}
+                Err(e) => return Err(e),
+            }
+        }
+        if !got_any {
+            // Nothing to do: yield briefly (timer slack keeps this short).
+            std::thread::sleep(Duration::from_micros(20));
+        }
+    }
+    on_event(Event::Stopped(bridge.stats()));
+    Ok(())
+}
