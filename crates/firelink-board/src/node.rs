@@ -135,9 +135,7 @@ impl Node for BoardNode {
         speed: Speed,
         ctx: &mut NodeCtx<'_>,
     ) -> RxReply {
-        let reply = self
-            .firmware
-            .receive(time(now), packet, &mut CtxPhy(ctx));
+        let reply = self.firmware.receive(time(now), packet, &mut CtxPhy(ctx));
         if let Some(error) = self.firmware.take_rx_error() {
             ctx.report_error(format!("{}: {error}", self.name));
         }
