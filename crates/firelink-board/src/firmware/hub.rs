@@ -1,0 +1,179 @@
+//! The broadcast protocol on the board side (`fpga-board.md` section 6):
+//! the query registers, the schedule of this board's status broadcast and
+//! the hub memory every board fills with every board's broadcast.
+
+use firelink_wire::board::address::HUB_MEMORY_QUADLETS;
+use firelink_wire::board::broadcast::{HubPacker, HubTiming, Query};
+use firelink_wire::board::realtime::BlockFormat;
+use firelink_wire::board::registers::StatusRead;
+use firelink_wire::field::read_quadlet;
+
+use crate::time::{Time, TimeDelta};
+
+/// Rev 7+: the lowest selected board waits this many clocks after the
+/// query (about 3 us).
+pub const FIRST_SLOT_CLOCKS: u64 = 150;
+
+/// Seed profile: fixed slot width per node ID (about 5.2 us) ...
+pub const SEED_SLOT: TimeDelta = TimeDelta::from_nanos(5_200);
+
+/// ... after this offset from the query (about 3 us).
+pub const SEED_OFFSET: TimeDelta = TimeDelta::from_nanos(3_000);
+
+/// Rev 7+: a board whose predecessors have not all been heard transmits
+/// anyway this long per predecessor after its first possible slot, so one
+/// silent board does not silence the chain behind it.
+pub const CHAIN_TIMEOUT_PER_BOARD: TimeDelta = TimeDelta::from_micros(50);
+
+/// This board's status broadcast, waiting for its slot.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct Pending {
+    /// Header and real-time block, wire order.
+    pub payload: Vec<u8>,
+    /// Not before.
+    pub earliest: Time,
+    /// Board IDs (mask) whose broadcasts must have arrived first.
+    pub wait_for: u16,
+    /// Transmit at this time even if some have not.
+    pub deadline: Time,
+}
+
+impl Pending {
+    /// Whether it may go at `now`, given the boards heard (`seen`).
+    pub fn ready(&self, now: Time, seen: u16) -> bool {
+        now >= self.earliest && (self.wait_for & !seen == 0 || now >= self.deadline)
+    }
+
+    /// When it becomes ready if nothing more is heard.
+    pub fn due(&self, seen: u16) -> Time {
+        if self.wait_for & !seen == 0 {
+            self.earliest
+        } else {
+            self.deadline.max(self.earliest)
+        }
+    }
+}
+
+/// Hub registers and memory.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct Hub {
+    /// Hub memory, packed in arrival order (512 quadlets, wire order).
+    pub memory: Vec<u8>,
+    /// Quadlets written since the query (register 0x1802).
+    pub count: usize,
+    /// The last query taken.
+    pub query: Option<Query>,
+    /// When it arrived.
+    pub query_at: Option<Time>,
+    /// Boards heard since (bit = board ID).
+    pub seen: u16,
+    /// When every selected board had been heard.
+    pub complete_at: Option<Time>,
+    /// Where the timing quadlet sits.
+    pub timing_index: Option<usize>,
+    /// This board's broadcast waiting for its slot.
+    pub pending: Option<Pending>,
+    /// This board's broadcast handed to the bus, stored once sent.
+    pub in_flight: Option<Vec<u8>>,
+}
+
+impl Hub {
+    pub fn new() -> Hub {
+        Hub {
+            memory: vec![0; HUB_MEMORY_QUADLETS * 4],
+            count: 0,
+            query: None,
+            query_at: None,
+            seen: 0,
+            complete_at: None,
+            timing_index: None,
+            pending: None,
+            in_flight: None,
+        }
+    }
+
+    /// The selected boards of the last query.
+    pub fn mask(&self) -> u16 {
+        self.query.map_or(0, |q| q.board_mask)
+    }
+
+    /// The register at 0x1800.
+    pub fn query_word(&self) -> u32 {
+        self.query.and_then(|q| q.to_word().ok()).unwrap_or(0)
+    }
+
+    /// Start a new cycle at `now`.
+    pub fn start_cycle(&mut self, now: Time) {
+        self.query_at = Some(now);
+        self.count = 0;
+        self.seen = 0;
+        self.complete_at = None;
+        self.timing_index = None;
+        self.pending = None;
+        self.in_flight = None;
+    }
+
+    /// Store one status broadcast payload (header + real-time block)
+    /// arriving at `now`, its header rewritten as the format says
+    /// (`HubHeader::rewrite`). A payload whose header size does not match
+    /// its length, or that does not fit, is not stored.
+    pub fn store(&mut self, now: Time, payload: &[u8], format: BlockFormat) {
+        let update = self.query_at.map_or(0, |q| now.clocks_since(q));
+        let update = match format {
+            BlockFormat::Rev7 => update.min(0xFFFF),
+            BlockFormat::Rev8 => update.min(0x7FFF),
+        } as u16;
+        let seq = self.query.map_or(0, |q| q.seq);
+        let Some(free) = self.memory.get_mut(self.count * 4..) else {
+            return;
+        };
+        let mut packer = HubPacker::new(free);
+        if packer
+            .store_broadcast(payload, seq, update, format)
+            .is_err()
+        {
+            return;
+        }
+        self.count += packer.quadlets();
+        // The block's STATUS quadlet (after header and timestamp) names the
+        // board.
+        let board = StatusRead(read_quadlet(payload, 2)).board_id();
+        self.seen |= 1u16.checked_shl(u32::from(board)).unwrap_or(0);
+        let mask = self.mask();
+        if self.complete_at.is_none() && mask != 0 && mask & !self.seen == 0 {
+            self.complete_at = Some(now);
+            let Some(free) = self.memory.get_mut(self.count * 4..) else {
+                return;
+            };
+            let done = self.query_at.map_or(0, |q| now.clocks_since(q));
+            let timing = HubTiming {
+                read_start: 0,
+                now: done.min(0xFFFF) as u16,
+            };
+            if HubPacker::new(free).finish(timing).is_ok() {
+                self.timing_index = Some(self.count);
+                self.count += 1;
+            }
+        }
+    }
+
+    /// Hub memory quadlet `index` as read by a read that started at
+    /// `read_start`. The timing quadlet is latched as it is read: the
+    /// clocks from the query to the start of the read, and to the moment
+    /// the quadlet goes out (4 clocks per quadlet at S400 after a 5-quadlet
+    /// response header).
+    pub fn read(&self, index: usize, read_start: Time) -> u32 {
+        if Some(index) == self.timing_index
+            && let Some(q) = self.query_at
+        {
+            let start = read_start.clocks_since(q);
+            let now = start + 4 * (5 + index as u64);
+            return HubTiming {
+                read_start: start.min(0xFFFF) as u16,
+                now: now.min(0xFFFF) as u16,
+            }
+            .to_word();
+        }
+        read_quadlet(&self.memory, index)
+    }
+}

@@ -1,0 +1,228 @@
+//! Motor power, safety relay, amplifier enables, the watchdog and the
+//! safety checks (`fpga-board.md` sections 2 and 7).
+//!
+//! Every state change is computed at its exact virtual time: an amplifier
+//! turns on at `max(request, supply good + 40 ms hold) + enable delay`, the
+//! watchdog expires at `last write + period * 256 clocks`, the current check
+//! runs every [`SAFETY_TICK`] while an amplifier is on.
+
+use firelink_wire::board::registers::{ENC_NEUTRAL, Watchdog as WatchdogWord};
+
+use crate::plant::QLA_AMPS_PER_BIT;
+use crate::time::{Time, TimeDelta};
+
+/// Watchdog period after power-up: 0x1680 ticks, 30 ms (section 2).
+pub const WATCHDOG_POWER_UP_TICKS: u16 = WatchdogWord::POWER_UP.0 as u16;
+
+/// Amplifiers stay off this long after the motor supply becomes good
+/// (section 7).
+pub const SUPPLY_HOLD: TimeDelta = TimeDelta::from_millis(40);
+
+/// Measured and commanded current may differ by this much (A) ...
+pub const MISMATCH_AMPS: f64 = 0.44;
+
+/// ... for this long before the amplifier is disabled (section 7).
+pub const MISMATCH_TIME: TimeDelta = TimeDelta::from_millis(50);
+
+/// How often the current check runs while an amplifier is on.
+pub const SAFETY_TICK: TimeDelta = TimeDelta::from_micros(100);
+
+/// One unit of the amplifier enable delay: a 48 kHz clock (1024 system
+/// clocks, 20.83 us).
+pub const ENABLE_DELAY_UNIT_CLOCKS: u64 = 1024;
+
+/// Default enable delay: 120 units, 2.5 ms (section 7).
+pub const DEFAULT_ENABLE_DELAY: u8 = 120;
+
+/// The mismatch threshold in ADC/DAC counts.
+pub(crate) fn mismatch_counts() -> f64 {
+    MISMATCH_AMPS / QLA_AMPS_PER_BIT
+}
+
+/// Board-wide power state.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct Power {
+    /// Motor power enable requested (STATUS bit 18).
+    pub enabled: bool,
+    /// Safety relay switched on (STATUS bit 16).
+    pub relay: bool,
+    /// The motor supply is connected.
+    pub supply_present: bool,
+    /// Since when power has been enabled with a supply present.
+    pub supply_on_since: Option<Time>,
+    /// Time from that to motor supply good.
+    pub supply_rise: TimeDelta,
+}
+
+impl Power {
+    pub fn new(supply_present: bool, supply_rise: TimeDelta) -> Power {
+        Power {
+            enabled: false,
+            relay: false,
+            supply_present,
+            supply_on_since: None,
+            supply_rise,
+        }
+    }
+
+    /// Follow a change of `enabled` or `supply_present` made at `now`.
+    pub fn update_supply(&mut self, now: Time) {
+        let on = self.enabled && self.supply_present;
+        match (on, self.supply_on_since) {
+            (true, None) => self.supply_on_since = Some(now),
+            (false, _) => self.supply_on_since = None,
+            (true, Some(_)) => {}
+        }
+    }
+
+    /// Motor supply good (STATUS bit 19) at `t`.
+    pub fn supply_good(&self, t: Time) -> bool {
+        self.supply_on_since
+            .is_some_and(|s| t >= s + self.supply_rise)
+    }
+
+    /// Earliest time amplifiers may drive, if the supply is on.
+    pub fn drive_allowed_from(&self) -> Option<Time> {
+        self.supply_on_since
+            .map(|s| s + self.supply_rise + SUPPLY_HOLD)
+    }
+
+    /// Motor supply fault (STATUS bit 15): power requested, no supply.
+    pub fn supply_fault(&self) -> bool {
+        self.enabled && !self.supply_present
+    }
+}
+
+/// The watchdog (section 7).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct Watchdog {
+    /// Period in ticks of 256 clocks; 0 disables.
+    pub ticks: u16,
+    /// The last write to the board.
+    pub last_write: Time,
+    /// STATUS bit 23.
+    pub timed_out: bool,
+}
+
+impl Watchdog {
+    pub fn new(now: Time) -> Watchdog {
+        Watchdog {
+            ticks: WATCHDOG_POWER_UP_TICKS,
+            last_write: now,
+            timed_out: false,
+        }
+    }
+
+    /// When the watchdog fires if nothing is written before.
+    pub fn expiry(&self) -> Option<Time> {
+        (self.ticks != 0 && !self.timed_out).then(|| {
+            Time::from_clocks(
+                self.last_write.clocks().saturating_add(
+                    u64::from(self.ticks) * u64::from(WatchdogWord::CLOCKS_PER_TICK),
+                ),
+            )
+        })
+    }
+}
+
+/// Firmware state of one axis.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct AxisState {
+    /// Current command, DAC code (MOTOR_STATUS 15:0).
+    pub command: u16,
+    /// Last ENC_PRELOAD value written.
+    pub preload: u32,
+    /// Reported count = raw plant count + offset (before the 24-bit wrap).
+    pub count_offset: i64,
+    /// Encoder counter overflow (ENC_POSITION bit 24), sticky until a
+    /// preload.
+    pub overflow: bool,
+    /// Enable delay, 48 kHz units.
+    pub enable_delay: u8,
+    /// Largest |command - 0x8000| passed to the amplifier, DAC counts.
+    pub current_limit: u16,
+    /// The host's amplifier request (cleared by safety events).
+    pub requested: bool,
+    /// When the request was made.
+    pub requested_since: Time,
+    /// Disabled by the current check (STATUS 7:4, MOTOR_STATUS 17).
+    pub safety_disabled: bool,
+    /// Since when measured and commanded current disagree.
+    pub mismatch_since: Option<Time>,
+}
+
+impl AxisState {
+    pub fn new(raw_count: i64) -> AxisState {
+        AxisState {
+            command: crate::plant::DAC_ZERO,
+            preload: ENC_NEUTRAL,
+            count_offset: i64::from(ENC_NEUTRAL) - raw_count,
+            overflow: false,
+            enable_delay: DEFAULT_ENABLE_DELAY,
+            current_limit: 0xFFFF,
+            requested: false,
+            requested_since: Time::ZERO,
+            safety_disabled: false,
+            mismatch_since: None,
+        }
+    }
+
+    /// When this axis's amplifier turns (or turned) on, given the power
+    /// state; `None` while it is not requested or the supply is off.
+    pub fn on_at(&self, power: &Power) -> Option<Time> {
+        if !self.requested {
+            return None;
+        }
+        let allowed = power.drive_allowed_from()?;
+        let delay = TimeDelta::from_clocks(u64::from(self.enable_delay) * ENABLE_DELAY_UNIT_CLOCKS);
+        Some(self.requested_since.max(allowed) + delay)
+    }
+
+    /// Whether the amplifier drives the motor at `t`.
+    pub fn is_on(&self, power: &Power, t: Time) -> bool {
+        self.on_at(power).is_some_and(|on| t >= on)
+    }
+
+    /// The DAC code reaching the amplifier: the command within the
+    /// configured current limit.
+    pub fn effective_command(&self) -> u16 {
+        let zero = i32::from(crate::plant::DAC_ZERO);
+        let limit = i32::from(self.current_limit);
+        (i32::from(self.command).clamp(zero - limit, zero + limit)).clamp(0, 0xFFFF) as u16
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn watchdog_power_up_is_30_ms() {
+        let w = Watchdog::new(Time::ZERO);
+        let e = w.expiry().unwrap();
+        assert!((e.as_secs_f64() - 0.030).abs() < 1e-5, "{e:?}");
+        let off = Watchdog {
+            ticks: 0,
+            ..Watchdog::new(Time::ZERO)
+        };
+        assert_eq!(off.expiry(), None);
+    }
+
+    #[test]
+    fn amplifier_waits_for_supply_hold_and_delay() {
+        let mut p = Power::new(true, TimeDelta::from_millis(5));
+        p.enabled = true;
+        p.update_supply(Time::from_millis(1));
+        let mut a = AxisState::new(0);
+        a.requested = true;
+        a.requested_since = Time::from_millis(1);
+        let on = a.on_at(&p).unwrap();
+        // 1 + 5 + 40 ms, then 2.5 ms delay.
+        assert!((on.as_secs_f64() - 0.0485).abs() < 1e-6, "{on:?}");
+        assert!(!a.is_on(&p, Time::from_millis(48)));
+        assert!(a.is_on(&p, Time::from_millis(49)));
+        p.enabled = false;
+        p.update_supply(Time::from_millis(50));
+        assert!(!a.is_on(&p, Time::from_millis(51)));
+    }
+}

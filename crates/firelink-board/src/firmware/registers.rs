@@ -1,0 +1,589 @@
+//! The register file: what each address reads and what each write does
+//! (`fpga-board.md` sections 1-5), and the real-time blocks.
+
+use firelink_wire::board::address::{
+    Address, AxisRegister, BoardRegister, HubAddress, REALTIME_BLOCK_OFFSET, Register,
+};
+use firelink_wire::board::broadcast::find_command_block;
+use firelink_wire::board::realtime::{BlockFormat, ReadBlock, WriteBlock};
+use firelink_wire::board::registers::{
+    AdcWord, DacWord, DigitalIn, DigitalOutWrite, ENC_NEUTRAL, EncPeriod, EncPosition, EncQuarter,
+    EncRun, MotorConfig, MotorStatus, PhyData, PhyRequest, StatusCommand, StatusRead, StatusWrite,
+    Temperature,
+};
+
+use super::power::{AxisState, Watchdog};
+use super::{Firmware, PhyAccess};
+use crate::plant::encoder::{PeriodField, QuarterField, RunField, VelocityFields};
+use crate::plant::{POT_FULL_SCALE_VOLTS, QLA_AMPS_PER_BIT, QLA_FULL_SCALE_AMPS};
+use crate::time::Time;
+
+/// Mask of the 24-bit encoder count.
+const ENC_COUNT_MASK: i64 = 0x00FF_FFFF;
+
+/// A decoded address.
+enum Target {
+    Board(BoardRegister),
+    /// 0-based axis.
+    Axis(usize, AxisRegister),
+    Hub(HubAddress),
+    Unmapped,
+}
+
+fn decode(offset: u64) -> Target {
+    let address = Address::from_offset(offset);
+    if let Some(register) = address.register() {
+        return match register {
+            Register::Board(r) => Target::Board(r),
+            Register::Axis { axis, register } => {
+                Target::Axis(usize::from(axis).saturating_sub(1), register)
+            }
+        };
+    }
+    match address.hub() {
+        Some(hub) => Target::Hub(hub),
+        None => Target::Unmapped,
+    }
+}
+
+fn period_word(p: PeriodField) -> u32 {
+    EncPeriod::default()
+        .with_period(p.clocks)
+        .with_overflow(p.overflow)
+        .with_direction(p.up)
+        .with_direction_changed(p.direction_changed)
+        .with_error(p.error)
+        .with_partial(p.partial)
+        .raw()
+}
+
+fn quarter_word(q: QuarterField) -> u32 {
+    EncQuarter::default()
+        .with_period(q.clocks)
+        .with_overflow(q.overflow)
+        .with_direction(q.up)
+        .with_edges(q.edge_mask)
+        .raw()
+}
+
+fn run_word(r: RunField) -> u32 {
+    EncRun::default()
+        .with_clocks(r.clocks)
+        .with_overflow(r.overflow)
+        .raw()
+}
+
+/// The current-sense ADC code of a current (section 3: amps =
+/// bits * 12.5 / 65536 - 6.25).
+pub(crate) fn current_to_counts(amps: f64) -> u16 {
+    ((amps + QLA_FULL_SCALE_AMPS) / QLA_AMPS_PER_BIT)
+        .round()
+        .clamp(0.0, 65535.0) as u16
+}
+
+fn pot_to_counts(volts: f64) -> u16 {
+    (volts / POT_FULL_SCALE_VOLTS * 65535.0)
+        .round()
+        .clamp(0.0, 65535.0) as u16
+}
+
+fn temperature_byte(celsius: f64) -> u8 {
+    celsius.round().clamp(0.0, 255.0) as u8
+}
+
+/// Big-endian quadlets of a byte block (a trailing partial quadlet is
+/// dropped).
+pub(crate) fn quadlets_of(bytes: &[u8]) -> Vec<u32> {
+    bytes
+        .chunks_exact(4)
+        .map(|c| u32::from_be_bytes(c.try_into().unwrap_or([0; 4])))
+        .collect()
+}
+
+impl Firmware {
+    fn n_axes(&self) -> usize {
+        self.axes.len()
+    }
+
+    /// Read one quadlet at `offset` (only its low 16 bits are decoded) at
+    /// `now`, as a quadlet read request would. Unmapped addresses read 0.
+    pub fn read_quadlet(&mut self, now: Time, offset: u64) -> u32 {
+        self.advance(now);
+        match decode(offset) {
+            Target::Board(r) => self.read_board_register(r),
+            Target::Axis(i, r) => self.read_axis_register(i, r),
+            Target::Hub(HubAddress::Memory(i)) => self.hub.read(usize::from(i), now),
+            Target::Hub(HubAddress::Query) => self.hub.query_word(),
+            Target::Hub(HubAddress::QuadletsWritten) => self.hub.count as u32,
+            Target::Hub(HubAddress::Unmapped(_)) | Target::Unmapped => 0,
+        }
+    }
+
+    /// Read `quadlets` quadlets from `offset` at `now`, as a block read
+    /// would: address 0 is the real-time block (and restarts its
+    /// timestamp), hub memory reads in arrival order, other addresses
+    /// read register by register.
+    pub fn read_block(&mut self, now: Time, offset: u64, quadlets: usize) -> Vec<u32> {
+        self.advance(now);
+        let addr = (offset & 0xFFFF) as u16;
+        if u64::from(addr) == REALTIME_BLOCK_OFFSET {
+            let mut block = quadlets_of(&self.sample_block(now));
+            block.resize(quadlets, 0);
+            return block;
+        }
+        (0..quadlets)
+            .map(|k| self.read_quadlet(now, u64::from(addr.wrapping_add(k as u16))))
+            .collect()
+    }
+
+    /// Write one quadlet at `offset` at `now`, as a quadlet write request
+    /// addressed to this board would (refreshes the watchdog).
+    pub fn write_quadlet(&mut self, now: Time, offset: u64, value: u32, phy: &mut dyn PhyAccess) {
+        self.advance(now);
+        self.watchdog.last_write = now;
+        match decode(offset) {
+            Target::Board(r) => self.write_board_register(now, r, value, phy),
+            Target::Axis(i, r) => self.write_axis_register(now, i, r, value),
+            Target::Hub(HubAddress::Query) => self.query(now, Some(value)),
+            Target::Hub(_) | Target::Unmapped => {}
+        }
+        self.sync_plant();
+    }
+
+    /// Write a block at `offset` at `now` (wire-order bytes, whole
+    /// quadlets), as a block write addressed to this board would:
+    /// address 0 takes a real-time write block (or this board's slice of
+    /// a command block), hub memory takes a status broadcast, other
+    /// addresses are written register by register.
+    pub fn write_block(&mut self, now: Time, offset: u64, data: &[u8], phy: &mut dyn PhyAccess) {
+        self.advance(now);
+        self.write_block_from(now, offset, data, true, phy);
+        self.sync_plant();
+    }
+
+    /// Block write; `unicast` when addressed to this node alone.
+    pub(crate) fn write_block_from(
+        &mut self,
+        now: Time,
+        offset: u64,
+        data: &[u8],
+        unicast: bool,
+        phy: &mut dyn PhyAccess,
+    ) {
+        self.watchdog.last_write = now;
+        let addr = (offset & 0xFFFF) as u16;
+        if u64::from(addr) == REALTIME_BLOCK_OFFSET {
+            self.realtime_write(now, data, unicast);
+            return;
+        }
+        match decode(u64::from(addr)) {
+            Target::Hub(HubAddress::Memory(_)) => {
+                self.hub.store(now, data, self.cfg.layout().format());
+            }
+            Target::Hub(HubAddress::Query) => {
+                if let Some(&w) = quadlets_of(data).first() {
+                    self.query(now, Some(w));
+                }
+            }
+            Target::Board(_) | Target::Axis(..) => {
+                for (k, q) in quadlets_of(data).into_iter().enumerate() {
+                    match decode(u64::from(addr.wrapping_add(k as u16))) {
+                        Target::Board(r) => self.write_board_register(now, r, q, phy),
+                        Target::Axis(i, r) => self.write_axis_register(now, i, r, q),
+                        _ => {}
+                    }
+                }
+            }
+            Target::Hub(_) | Target::Unmapped => {}
+        }
+    }
+
+    /// A block write to address 0: a real-time write block, or a command
+    /// block of concatenated write blocks from which this board takes the
+    /// slice naming it (sections 5 and 6.5). A unicast Rev 7 block of
+    /// exactly one board's size is taken whatever board ID it carries.
+    fn realtime_write(&mut self, now: Time, data: &[u8], unicast: bool) {
+        let layout = self.cfg.layout();
+        let own = unicast
+            && layout.format() == BlockFormat::Rev7
+            && data.len() == layout.write_block_len();
+        let block = if own {
+            WriteBlock::new_checked(data, layout).ok()
+        } else {
+            find_command_block(data, self.cfg.board_id, layout)
+                .ok()
+                .flatten()
+        };
+        let Some(block) = block else {
+            return;
+        };
+        for i in 0..self.n_axes() {
+            if let Some(dac) = block.dac(i) {
+                self.dac_write(now, i, dac);
+            }
+        }
+        self.status_command(now, block.control().block_command());
+    }
+
+    fn read_board_register(&self, r: BoardRegister) -> u32 {
+        match r {
+            BoardRegister::Status => self.status_word().raw(),
+            BoardRegister::PhyCtrl => self.phy_ctrl,
+            BoardRegister::PhyData => self.phy_data.raw(),
+            BoardRegister::Watchdog => u32::from(self.watchdog.ticks),
+            BoardRegister::HwVersion => u32::from(self.cfg.hardware.hardware_version()),
+            BoardRegister::Temperature => self.temperature_word(),
+            BoardRegister::DigitalOut => u32::from(self.dout),
+            BoardRegister::FwVersion => self.cfg.profile.firmware_rev().number(),
+            BoardRegister::DigitalIn => self.digital_in().raw(),
+            BoardRegister::IpAddr if self.cfg.fpga.has_ethernet() => self.ip_addr,
+            BoardRegister::EthStatus => self.cfg.fpga.eth_status_bits(),
+            BoardRegister::GitDesc => self.cfg.git_desc,
+            _ => 0,
+        }
+    }
+
+    fn write_board_register(
+        &mut self,
+        now: Time,
+        r: BoardRegister,
+        value: u32,
+        phy: &mut dyn PhyAccess,
+    ) {
+        match r {
+            BoardRegister::Status => self.status_command(now, StatusWrite(value).command()),
+            BoardRegister::PhyCtrl => {
+                self.phy_ctrl = value;
+                match PhyRequest::parse(value) {
+                    Ok(PhyRequest::Read { register }) => {
+                        let data = phy.read_phy_register(register);
+                        self.phy_data = PhyData::default().with_register(register).with_data(data);
+                    }
+                    Ok(PhyRequest::Write { register, data }) => {
+                        phy.write_phy_register(register, data);
+                    }
+                    Err(_) => {}
+                }
+            }
+            BoardRegister::Watchdog => self.watchdog.ticks = value as u16,
+            BoardRegister::DigitalOut => {
+                let w = DigitalOutWrite::parse(value);
+                self.dout = (self.dout & !w.mask) | w.outputs;
+            }
+            BoardRegister::IpAddr if self.cfg.fpga.has_ethernet() => self.ip_addr = value,
+            _ => {}
+        }
+    }
+
+    fn read_axis_register(&mut self, i: usize, r: AxisRegister) -> u32 {
+        if i >= self.n_axes() {
+            return 0;
+        }
+        let rev8 = self.cfg.profile.is_rev8();
+        let fields = || self.velocity(i);
+        match r {
+            AxisRegister::Adc => self.adc_word(i).raw(),
+            AxisRegister::Dac => self.axes.get(i).map_or(0, |a| u32::from(a.command)),
+            AxisRegister::EncPreload => self.axes.get(i).map_or(0, |a| a.preload),
+            AxisRegister::EncPosition => self.position_word(i).raw(),
+            AxisRegister::EncPeriod => period_word(fields().period),
+            AxisRegister::EncQtr1 => quarter_word(fields().qtr1),
+            AxisRegister::EncQtr5 => quarter_word(fields().qtr5),
+            AxisRegister::EncRun => run_word(fields().run),
+            AxisRegister::MotorConfig if rev8 => self.motor_config_word(i).raw(),
+            AxisRegister::MotorStatus if rev8 => self.motor_status_word(i).raw(),
+            _ => 0,
+        }
+    }
+
+    fn write_axis_register(&mut self, now: Time, i: usize, r: AxisRegister, value: u32) {
+        if i >= self.n_axes() {
+            return;
+        }
+        let raw = self.raw_count(i);
+        let rev8 = self.cfg.profile.is_rev8();
+        match r {
+            AxisRegister::Dac => self.dac_write(now, i, DacWord(value)),
+            AxisRegister::EncPreload => {
+                if let Some(a) = self.axes.get_mut(i) {
+                    a.preload = value & ENC_COUNT_MASK as u32;
+                    a.count_offset = i64::from(a.preload) - raw;
+                    a.overflow = false;
+                }
+            }
+            AxisRegister::MotorConfig if rev8 => {
+                let c = MotorConfig(value);
+                if let Some(a) = self.axes.get_mut(i) {
+                    a.enable_delay = c.enable_delay();
+                    a.current_limit = c.current_limit();
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// A DAC word (register or write block): command if valid, and on
+    /// Rev 8 the amplifier request of bits 29:28.
+    fn dac_write(&mut self, now: Time, i: usize, word: DacWord) {
+        if let Some(a) = self.axes.get_mut(i)
+            && word.valid()
+        {
+            a.command = word.command();
+        }
+        if self.cfg.profile.is_rev8()
+            && let Some(enable) = word.amp_request()
+        {
+            self.request_amplifier(now, i, enable);
+        }
+    }
+
+    /// The host asks for amplifier `i` on or off. Asking for on clears the
+    /// watchdog flag and the axis's safety disable; it takes effect only
+    /// with motor power enabled.
+    fn request_amplifier(&mut self, now: Time, i: usize, enable: bool) {
+        if enable {
+            self.watchdog.timed_out = false;
+        }
+        let power_on = self.power.enabled;
+        let Some(a) = self.axes.get_mut(i) else {
+            return;
+        };
+        if enable {
+            a.safety_disabled = false;
+            a.mismatch_since = None;
+            if power_on && !a.requested {
+                a.requested = true;
+                a.requested_since = now;
+            }
+        } else {
+            a.requested = false;
+        }
+    }
+
+    /// A STATUS write (section 2): power, relay, amplifiers, reboot.
+    /// Power is applied first, so one word may enable power and
+    /// amplifiers.
+    fn status_command(&mut self, now: Time, cmd: StatusCommand) {
+        if cmd.reboot {
+            self.reboot(now);
+            return;
+        }
+        match cmd.power {
+            Some(true) => {
+                self.watchdog.timed_out = false;
+                for a in &mut self.axes {
+                    a.safety_disabled = false;
+                    a.mismatch_since = None;
+                }
+                self.power.enabled = true;
+            }
+            Some(false) => {
+                self.power.enabled = false;
+                for a in &mut self.axes {
+                    a.requested = false;
+                }
+            }
+            None => {}
+        }
+        self.power.update_supply(now);
+        if let Some(relay) = cmd.relay {
+            self.power.relay = relay;
+        }
+        for i in 0..4 {
+            if let Some(enable) = cmd.amps.axis(i) {
+                self.request_amplifier(now, i, enable);
+            }
+        }
+    }
+
+    /// Reboot (STATUS `0x00300000`): every register back to its power-up
+    /// value; the plant keeps moving.
+    fn reboot(&mut self, now: Time) {
+        self.power = super::Power::new(self.power.supply_present, self.cfg.supply_rise);
+        self.watchdog = Watchdog::new(now);
+        self.axes = self
+            .plant
+            .axes()
+            .iter()
+            .map(|a| AxisState::new(a.encoder().count()))
+            .collect();
+        self.phy_ctrl = 0;
+        self.phy_data = PhyData::default();
+        self.dout = 0;
+        self.ip_addr = 0;
+        self.last_sample = now;
+        self.hub = super::Hub::new();
+    }
+
+    fn raw_count(&self, i: usize) -> i64 {
+        self.plant.axis(i).map_or(0, |a| a.encoder().count())
+    }
+
+    fn velocity(&self, i: usize) -> VelocityFields {
+        self.plant
+            .axis(i)
+            .map(|a| a.encoder().fields(self.now))
+            .unwrap_or_default()
+    }
+
+    fn status_word(&self) -> StatusRead {
+        let now = self.now;
+        let mut amp_enabled = 0u8;
+        let mut amp_on = 0u8;
+        let mut safety = 0u8;
+        for (i, a) in self.axes.iter().take(4).enumerate() {
+            amp_enabled |= u8::from(a.requested) << i;
+            amp_on |= u8::from(a.is_on(&self.power, now)) << i;
+            safety |= u8::from(a.safety_disabled) << i;
+        }
+        StatusRead::default()
+            .with_axes(self.n_axes() as u8)
+            .with_board_id(self.cfg.board_id)
+            .with_watchdog_timeout(self.watchdog.timed_out)
+            .with_quad_dac(true)
+            .with_motor_supply_good(self.power.supply_good(now))
+            .with_motor_power_enabled(self.power.enabled)
+            .with_relay_state(self.power.relay)
+            .with_relay_on(self.power.relay)
+            .with_motor_supply_fault(self.power.supply_fault())
+            .with_safety_feedback(self.power.relay)
+            .with_io_expander(true)
+            .with_amp_fault(if self.cfg.profile.is_rev8() {
+                0
+            } else {
+                amp_on
+            })
+            .with_safety_amp_disable(safety)
+            .with_amp_enabled(amp_enabled)
+    }
+
+    fn temperature_word(&self) -> u32 {
+        // One sensor per pair of amplifiers: the hotter of the two.
+        let pair = |k: usize| {
+            let t = self
+                .plant
+                .axes()
+                .iter()
+                .skip(2 * k)
+                .take(2)
+                .map(|a| a.temperature())
+                .fold(f64::MIN, f64::max);
+            temperature_byte(if t == f64::MIN { 0.0 } else { t })
+        };
+        let word = |a: usize, b: usize| {
+            Temperature::default()
+                .with_upper(pair(a))
+                .with_lower(pair(b))
+                .raw()
+        };
+        // A DQLA reports its second QLA's sensors in bits 31:16.
+        if self.n_axes() > 4 {
+            word(0, 1) | (word(2, 3) << 16)
+        } else {
+            word(0, 1)
+        }
+    }
+
+    fn digital_in(&self) -> DigitalIn {
+        let mut lines = [0u8; 6];
+        for (i, axis) in self.plant.axes().iter().take(4).enumerate() {
+            let enc = axis.encoder();
+            let (neg, pos, home) = axis.switches();
+            for (bits, on) in lines
+                .iter_mut()
+                .zip([enc.a(), enc.b(), enc.index(), neg, pos, home])
+            {
+                *bits |= u8::from(on) << i;
+            }
+        }
+        let [a, b, index, neg, pos, home] = lines;
+        DigitalIn::default()
+            .with_v_fault(self.power.supply_fault())
+            .with_enc_a(a)
+            .with_enc_b(b)
+            .with_index(index)
+            .with_outputs(self.dout)
+            .with_neg_limits(neg)
+            .with_pos_limits(pos)
+            .with_home(home)
+    }
+
+    fn adc_word(&self, i: usize) -> AdcWord {
+        AdcWord::default()
+            .with_pot(pot_to_counts(self.plant.measured_pot(i)))
+            .with_current(current_to_counts(self.plant.measured_current(i)))
+    }
+
+    fn position_word(&mut self, i: usize) -> EncPosition {
+        let raw = self.raw_count(i);
+        let enc = self.plant.axis(i).map(|a| a.encoder());
+        let lines = enc.map_or((false, false, false), |e| (e.index(), e.b(), e.a()));
+        let rev8 = self.cfg.profile.is_rev8();
+        let Some(a) = self.axes.get_mut(i) else {
+            return EncPosition::default();
+        };
+        let count = raw + a.count_offset;
+        if !(0..=ENC_COUNT_MASK).contains(&count) {
+            a.overflow = true;
+        }
+        let word = EncPosition::default()
+            .with_counts_wrapping(count - i64::from(ENC_NEUTRAL))
+            .with_overflow(a.overflow);
+        if rev8 {
+            word.with_index(lines.0).with_b(lines.1).with_a(lines.2)
+        } else {
+            word
+        }
+    }
+
+    fn motor_config_word(&self, i: usize) -> MotorConfig {
+        let a = self.axes.get(i);
+        MotorConfig::default()
+            .with_voltage_mode(true)
+            .with_current_mode(true)
+            .with_enable_delay(a.map_or(0, |a| a.enable_delay))
+            .with_current_limit(a.map_or(0, |a| a.current_limit))
+    }
+
+    fn motor_status_word(&self, i: usize) -> MotorStatus {
+        let Some(a) = self.axes.get(i) else {
+            return MotorStatus::default();
+        };
+        MotorStatus::default()
+            .with_amp_on(a.is_on(&self.power, self.now))
+            .with_amp_requested(a.requested)
+            .with_safety_disable(a.safety_disabled)
+            .with_amp_fault(false)
+            .with_current_command(a.command)
+    }
+
+    /// Sample the real-time read block at `now` (section 4), wire order,
+    /// and restart the timestamp.
+    pub(crate) fn sample_block(&mut self, now: Time) -> Vec<u8> {
+        let timestamp = now.clocks().wrapping_sub(self.last_sample.clocks()) as u32;
+        self.last_sample = now;
+        let layout = self.cfg.layout();
+        let n = self.n_axes().min(layout.motors()).min(layout.encoders());
+        let positions: Vec<EncPosition> = (0..n).map(|i| self.position_word(i)).collect();
+        let mut buf = vec![0u8; layout.read_block_len()];
+        let mut block = ReadBlock::new_unchecked(&mut buf[..], layout);
+        block.set_timestamp(timestamp);
+        block.set_status(self.status_word());
+        block.set_digital_in(self.digital_in());
+        block.set_temperature(Temperature(self.temperature_word()));
+        for (i, position) in positions.into_iter().enumerate() {
+            let f = self.velocity(i);
+            // Indices are within the layout: these cannot fail.
+            let _ = block.set_adc(i, self.adc_word(i));
+            let _ = block.set_enc_position(i, position);
+            let _ = block.set_enc_period(i, EncPeriod(period_word(f.period)));
+            let _ = block.set_enc_qtr1(i, EncQuarter(quarter_word(f.qtr1)));
+            let _ = block.set_enc_qtr5(i, EncQuarter(quarter_word(f.qtr5)));
+            let _ = block.set_enc_run(i, EncRun(run_word(f.run)));
+            if self.cfg.profile.is_rev8() {
+                let _ = block.set_motor_status(i, self.motor_status_word(i));
+            }
+        }
+        buf
+    }
+}

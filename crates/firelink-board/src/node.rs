@@ -1,0 +1,171 @@
+//! The board as a node on the simulated bus: a thin adapter from
+//! [`firelink_bus::Node`] to [`Firmware`].
+//!
+//! Received packets go to [`Firmware::receive`] (its reply becomes the
+//! node's ack, or ack and concatenated response at the request's speed);
+//! status broadcasts are requested as soon as the firmware has one ready,
+//! with a timer at [`Firmware::next_wakeup`] for the ones waiting for
+//! their slot; PHY_CTRL reaches the node's PHY registers through the
+//! context. Damage the firmware notices is reported to the bus trace.
+//!
+//! ```
+//! use firelink_board::config::{BoardConfig, Hardware, Profile};
+//! use firelink_board::node::BoardNode;
+//! use firelink_bus::{Bus, BusConfig, NodeConfig};
+//! let mut bus = Bus::new(BusConfig::default());
+//! let a = bus.add(BoardNode::new(BoardConfig::new(0, Hardware::Qla1, Profile::Rev8)), NodeConfig::board());
+//! let b = bus.add(BoardNode::new(BoardConfig::new(1, Hardware::Qla1, Profile::Rev8)), NodeConfig::board());
+//! bus.daisy_chain(&[a, b]).unwrap();
+//! bus.reset();
+//! bus.run_until_idle();
+//! assert!(bus.node::<BoardNode>(a).unwrap().firmware().phy_id().is_some());
+//! ```
+
+use firelink_bus::{ArbitrationClass, Node, NodeCtx, ResetInfo, RxReply, SimTime, TransmitRequest};
+use firelink_wire::packet::{Ack, Speed};
+
+use crate::config::BoardConfig;
+use crate::firmware::{Firmware, PhyAccess, Reply};
+use crate::time::Time;
+
+/// Timer token of the broadcast slot.
+const SLOT_TIMER: u64 = 1;
+
+/// An emulated board on the simulated bus.
+#[derive(Debug, Clone)]
+pub struct BoardNode {
+    name: String,
+    firmware: Firmware,
+    speed: Speed,
+    class: ArbitrationClass,
+    next_token: u64,
+    in_flight: Option<u64>,
+}
+
+/// The node's PHY registers, reached through the callback context.
+struct CtxPhy<'c, 'a>(&'c mut NodeCtx<'a>);
+
+impl PhyAccess for CtxPhy<'_, '_> {
+    fn read_phy_register(&mut self, register: u8) -> u8 {
+        self.0.read_phy_register(register)
+    }
+
+    fn write_phy_register(&mut self, register: u8, value: u8) {
+        self.0.write_phy_register(register, value);
+    }
+}
+
+fn time(now: SimTime) -> Time {
+    Time(now.0)
+}
+
+impl BoardNode {
+    /// A board named `board <id>` whose status broadcasts go out at S400
+    /// with isochronous-style arbitration (seed 000's bus arbitration
+    /// acceleration).
+    pub fn new(config: BoardConfig) -> BoardNode {
+        BoardNode {
+            name: format!("board {}", config.board_id),
+            firmware: Firmware::new(config),
+            speed: Speed::S400,
+            class: ArbitrationClass::Isochronous,
+            next_token: 0,
+            in_flight: None,
+        }
+    }
+
+    /// The same node with another name.
+    pub fn with_name(mut self, name: impl Into<String>) -> BoardNode {
+        self.name = name.into();
+        self
+    }
+
+    /// The same node broadcasting at `speed` with `class` arbitration.
+    pub fn with_broadcast(mut self, speed: Speed, class: ArbitrationClass) -> BoardNode {
+        self.speed = speed;
+        self.class = class;
+        self
+    }
+
+    /// The firmware (registers, plant).
+    pub fn firmware(&self) -> &Firmware {
+        &self.firmware
+    }
+
+    /// The firmware, e.g. to inject a supply fault or push an axis.
+    pub fn firmware_mut(&mut self) -> &mut Firmware {
+        &mut self.firmware
+    }
+
+    /// Hand ready broadcasts to the bus and re-arm the slot timer.
+    fn pump(&mut self, now: SimTime, ctx: &mut NodeCtx<'_>) {
+        while let Some(packet) = self.firmware.poll_transmit(time(now)) {
+            self.next_token += 1;
+            self.in_flight = Some(self.next_token);
+            ctx.transmit(TransmitRequest {
+                packet,
+                speed: self.speed,
+                class: self.class,
+                token: self.next_token,
+            });
+        }
+        match self.firmware.next_wakeup() {
+            Some(at) => ctx.set_timer(SimTime(at.0.max(now.0)), SLOT_TIMER),
+            None => ctx.cancel_timer(SLOT_TIMER),
+        }
+    }
+}
+
+impl Node for BoardNode {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn on_bus_reset(&mut self, now: SimTime, info: &ResetInfo, ctx: &mut NodeCtx<'_>) {
+        self.firmware
+            .bus_reset(time(now), info.phy_id, info.generation);
+        self.in_flight = None;
+        self.pump(now, ctx);
+    }
+
+    fn on_receive(
+        &mut self,
+        now: SimTime,
+        packet: &[u8],
+        speed: Speed,
+        ctx: &mut NodeCtx<'_>,
+    ) -> RxReply {
+        let reply = self.firmware.receive(time(now), packet, &mut CtxPhy(ctx));
+        if let Some(error) = self.firmware.take_rx_error() {
+            ctx.report_error(format!("{}: {error}", self.name));
+        }
+        self.pump(now, ctx);
+        match reply {
+            Reply::Silent => RxReply::Silent,
+            Reply::Ack(ack) => RxReply::Ack(ack),
+            Reply::AckThenResponse { ack, response } => RxReply::AckThenResponse {
+                ack,
+                response,
+                speed,
+            },
+        }
+    }
+
+    fn on_transmitted(
+        &mut self,
+        now: SimTime,
+        token: u64,
+        _ack: Option<Ack>,
+        ctx: &mut NodeCtx<'_>,
+    ) {
+        if self.in_flight == Some(token) {
+            self.in_flight = None;
+            self.firmware.transmitted(time(now));
+        }
+        self.pump(now, ctx);
+    }
+
+    fn on_timer(&mut self, now: SimTime, _token: u64, ctx: &mut NodeCtx<'_>) {
+        self.pump(now, ctx);
+    }
+}

@@ -1,0 +1,437 @@
+//! A quadrature encoder and the FPGA's edge-timing velocity measurement.
+//!
+//! The encoder turns a continuous shaft position (in counts, fractional)
+//! into a count and A/B levels; every count change is one quadrature edge,
+//! timestamped by interpolation inside the integration sub-step, so the
+//! edge timing is exact to the picosecond for motion that is linear over a
+//! sub-step.
+//!
+//! The velocity fields are what firmware Rev 7+ latches
+//! (`fpga-board.md` section 3, and the public host library's reading of
+//! them): all in 49.152 MHz clocks.
+//! - *period*: the time of one full quadrature cycle (4 counts), between
+//!   the latest edge and the previous edge of the same type. While no new
+//!   edge arrives the free-running counter for the next expected edge is
+//!   reported once it exceeds the latched value, so a stopping motor shows
+//!   a growing period (a velocity decaying to zero) rather than the last
+//!   speed forever. Fewer than four same-direction intervals (after
+//!   power-up or a reversal) are extrapolated to a full cycle and flagged
+//!   *partial*; a reversal within the cycle sets *direction changed*.
+//! - *QTR1*: the latest quarter cycle (between the last two edges);
+//!   *QTR5*: the quarter cycle that ended four edges earlier, i.e. the same
+//!   edge type one cycle before, for acceleration estimates. Both carry
+//!   their direction and which edge ended them.
+//! - *RUN*: clocks since the latest edge.
+//!
+//! Each value has 26 bits; beyond that it saturates and sets its overflow
+//! flag.
+
+use crate::time::Time;
+
+/// Largest period value, 26 bits.
+pub const PERIOD_MAX: u32 = (1 << 26) - 1;
+
+/// Edges remembered: enough for QTR5 (edges 0, 4 and 5).
+const HISTORY: usize = 6;
+
+/// Which edge a quadrature transition is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum EdgeKind {
+    /// A rising.
+    ARise = 0,
+    /// A falling.
+    AFall = 1,
+    /// B rising.
+    BRise = 2,
+    /// B falling.
+    BFall = 3,
+}
+
+impl EdgeKind {
+    /// One-hot mask of this edge (bit 0 = A rising .. bit 3 = B falling).
+    pub fn mask(self) -> u8 {
+        1 << (self as u8)
+    }
+
+    /// The edge crossed when the count moves from `from` to `from + 1`
+    /// (`up`) or `from - 1`. Forward order: A rises, B rises, A falls,
+    /// B falls (A leads B).
+    fn of_transition(from: i64, up: bool) -> EdgeKind {
+        let state = from.rem_euclid(4);
+        match (state, up) {
+            (0, true) | (3, false) => EdgeKind::ARise,
+            (1, true) | (0, false) => EdgeKind::BRise,
+            (2, true) | (1, false) => EdgeKind::AFall,
+            _ => EdgeKind::BFall,
+        }
+    }
+}
+
+/// One remembered edge.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Edge {
+    /// System clock counter at the edge.
+    clock: u64,
+    /// The count went up.
+    up: bool,
+    kind: EdgeKind,
+}
+
+/// The full-cycle period measurement (register ENC_PERIOD).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PeriodField {
+    /// Clocks per full quadrature cycle (26 bits).
+    pub clocks: u32,
+    /// The value saturated (too slow, or no edges yet).
+    pub overflow: bool,
+    /// The latest edge counted up.
+    pub up: bool,
+    /// The direction changed within the cycle measured.
+    pub direction_changed: bool,
+    /// Two edges in the same clock: the FPGA could not follow.
+    pub error: bool,
+    /// Fewer than four same-direction intervals were available.
+    pub partial: bool,
+}
+
+/// A quarter-cycle measurement (registers ENC_QTR1, ENC_QTR5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct QuarterField {
+    /// Clocks of the quarter cycle (26 bits).
+    pub clocks: u32,
+    /// The value saturated, or no such quarter yet.
+    pub overflow: bool,
+    /// The edge ending the quarter counted up.
+    pub up: bool,
+    /// One-hot edge ending the quarter ([`EdgeKind::mask`]); 0 if none.
+    pub edge_mask: u8,
+}
+
+/// The running counter (register ENC_RUN).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct RunField {
+    /// Clocks since the latest edge (26 bits).
+    pub clocks: u32,
+    /// The value saturated.
+    pub overflow: bool,
+}
+
+/// All velocity fields at one instant.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct VelocityFields {
+    /// Full-cycle period.
+    pub period: PeriodField,
+    /// Latest quarter cycle.
+    pub qtr1: QuarterField,
+    /// The quarter cycle four edges earlier.
+    pub qtr5: QuarterField,
+    /// Clocks since the latest edge.
+    pub run: RunField,
+}
+
+fn saturate(clocks: u64) -> (u32, bool) {
+    if clocks > u64::from(PERIOD_MAX) {
+        (PERIOD_MAX, true)
+    } else {
+        (clocks as u32, false)
+    }
+}
+
+/// Encoder state: count, levels and the edge history.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Encoder {
+    counts_per_rev: u32,
+    count: i64,
+    /// Most recent first.
+    edges: [Option<Edge>; HISTORY],
+    edge_count: u64,
+}
+
+impl Encoder {
+    /// An encoder whose shaft sits at `position` counts (fractional).
+    pub fn new(counts_per_rev: u32, position: f64) -> Encoder {
+        Encoder {
+            counts_per_rev: counts_per_rev.max(1),
+            count: floor_count(position),
+            edges: [None; HISTORY],
+            edge_count: 0,
+        }
+    }
+
+    /// The raw count since power-up (no wrap, no preload).
+    pub fn count(&self) -> i64 {
+        self.count
+    }
+
+    /// Total edges seen since power-up.
+    pub fn edge_count(&self) -> u64 {
+        self.edge_count
+    }
+
+    /// Channel A level.
+    pub fn a(&self) -> bool {
+        matches!(self.count.rem_euclid(4), 1 | 2)
+    }
+
+    /// Channel B level.
+    pub fn b(&self) -> bool {
+        matches!(self.count.rem_euclid(4), 2 | 3)
+    }
+
+    /// The index pulse: high for one count per revolution.
+    pub fn index(&self) -> bool {
+        self.count.rem_euclid(i64::from(self.counts_per_rev)) == 0
+    }
+
+    /// Move the shaft linearly from `from` to `to` counts during the span
+    /// that starts at `start` and lasts `span_ps` picoseconds, recording
+    /// every edge crossed with its interpolated time.
+    pub fn track(&mut self, from: f64, to: f64, start: Time, span_ps: u64) {
+        let target = floor_count(to);
+        if target == self.count {
+            return;
+        }
+        let up = target > self.count;
+        let crossings = self.count.abs_diff(target);
+        // Only the last HISTORY edges can be observed; skip the others.
+        let skip = crossings.saturating_sub(HISTORY as u64);
+        self.edge_count = self.edge_count.saturating_add(skip);
+        if up {
+            self.count += skip as i64;
+        } else {
+            self.count -= skip as i64;
+        }
+        let dx = to - from;
+        while self.count != target {
+            // The boundary crossed: count+1 going up, count going down.
+            let boundary = if up { self.count + 1 } else { self.count };
+            let frac = if dx != 0.0 {
+                ((boundary as f64 - from) / dx).clamp(0.0, 1.0)
+            } else {
+                1.0
+            };
+            let at = Time(start.0.saturating_add((span_ps as f64 * frac) as u64));
+            let kind = EdgeKind::of_transition(self.count, up);
+            self.count += if up { 1 } else { -1 };
+            self.push(Edge {
+                clock: at.clocks(),
+                up,
+                kind,
+            });
+        }
+    }
+
+    fn push(&mut self, edge: Edge) {
+        self.edges.rotate_right(1);
+        self.edges[0] = Some(edge);
+        self.edge_count = self.edge_count.saturating_add(1);
+    }
+
+    /// The velocity fields the FPGA would latch at `now`.
+    pub fn fields(&self, now: Time) -> VelocityFields {
+        let now_clk = now.clocks();
+        let Some(e0) = self.edges[0] else {
+            let (run, run_over) = saturate(now_clk);
+            return VelocityFields {
+                period: PeriodField {
+                    clocks: PERIOD_MAX,
+                    overflow: true,
+                    partial: true,
+                    ..PeriodField::default()
+                },
+                qtr1: QuarterField {
+                    clocks: PERIOD_MAX,
+                    overflow: true,
+                    ..QuarterField::default()
+                },
+                qtr5: QuarterField {
+                    clocks: PERIOD_MAX,
+                    overflow: true,
+                    ..QuarterField::default()
+                },
+                run: RunField {
+                    clocks: run,
+                    overflow: run_over,
+                },
+            };
+        };
+        // Consecutive edges, newest first, in the direction of the newest.
+        let same = self
+            .edges
+            .iter()
+            .take_while(|e| e.is_some_and(|e| e.up == e0.up))
+            .count();
+        let reversed = self.edges.get(same).is_some_and(|e| e.is_some());
+        let clock = |i: usize| self.edges.get(i).copied().flatten().map(|e| e.clock);
+
+        // Latched full-cycle period (or its extrapolation).
+        let intervals = (same.min(5) - 1) as u64;
+        let (latched, partial) = if intervals >= 4 {
+            (clock(0).zip(clock(4)).map(|(a, b)| a - b), false)
+        } else if intervals > 0 {
+            let oldest = clock(intervals as usize).unwrap_or(e0.clock);
+            (Some((e0.clock - oldest) * 4 / intervals), true)
+        } else {
+            (None, true)
+        };
+        // Free-running counter of the next expected edge: it completes a
+        // cycle with edge 3 (or an extrapolated one with fewer edges).
+        let j = same.min(4) - 1;
+        let running = clock(j).map(|c| now_clk.saturating_sub(c) * 4 / (j as u64 + 1));
+        let period_clocks = match (latched, running) {
+            (Some(l), Some(r)) => l.max(r),
+            (None, Some(r)) => r.max(u64::from(PERIOD_MAX) + 1),
+            (l, None) => l.unwrap_or(u64::from(PERIOD_MAX) + 1),
+        };
+        let (period, period_over) = saturate(period_clocks);
+        let error = clock(1).is_some_and(|c1| c1 == e0.clock);
+
+        let quarter = |newer: usize| -> QuarterField {
+            match (self.edges.get(newer).copied().flatten(), clock(newer + 1)) {
+                (Some(e), Some(older)) => {
+                    let (clocks, overflow) = saturate(e.clock - older);
+                    QuarterField {
+                        clocks,
+                        overflow,
+                        up: e.up,
+                        edge_mask: e.kind.mask(),
+                    }
+                }
+                (Some(e), None) => QuarterField {
+                    clocks: PERIOD_MAX,
+                    overflow: true,
+                    up: e.up,
+                    edge_mask: e.kind.mask(),
+                },
+                _ => QuarterField {
+                    clocks: PERIOD_MAX,
+                    overflow: true,
+                    ..QuarterField::default()
+                },
+            }
+        };
+        let (run, run_over) = saturate(now_clk.saturating_sub(e0.clock));
+        VelocityFields {
+            period: PeriodField {
+                clocks: period,
+                overflow: period_over,
+                up: e0.up,
+                direction_changed: reversed && same < 5,
+                error,
+                partial,
+            },
+            qtr1: quarter(0),
+            qtr5: quarter(4),
+            run: RunField {
+                clocks: run,
+                overflow: run_over,
+            },
+        }
+    }
+}
+
+fn floor_count(position: f64) -> i64 {
+    if position.is_finite() {
+        position
+            .floor()
+            .clamp(i64::MIN as f64 / 2.0, i64::MAX as f64 / 2.0) as i64
+    } else {
+        0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::time::{PS_PER_SECOND, SYSCLK_HZ};
+
+    /// Constant speed: `counts_per_s` for `seconds`, in 10 us sub-steps.
+    fn run(enc: &mut Encoder, start_pos: f64, counts_per_s: f64, seconds: f64) -> (f64, Time) {
+        let step_ps = 10_000_000u64;
+        let steps = (seconds * PS_PER_SECOND as f64 / step_ps as f64) as u64;
+        let mut pos = start_pos;
+        let mut t = Time::ZERO;
+        for _ in 0..steps {
+            let next = pos + counts_per_s * step_ps as f64 / PS_PER_SECOND as f64;
+            enc.track(pos, next, t, step_ps);
+            pos = next;
+            t = Time(t.0 + step_ps);
+        }
+        (pos, t)
+    }
+
+    #[test]
+    fn levels_follow_gray_code() {
+        let mut enc = Encoder::new(4000, 0.5);
+        let mut seen = std::vec::Vec::new();
+        for c in 0..8 {
+            let from = c as f64 + 0.5;
+            enc.track(from, from + 1.0, Time::ZERO, 1);
+            seen.push((enc.a(), enc.b()));
+        }
+        // Counts 1..=8: states 1,2,3,0,...: A leads B.
+        assert_eq!(
+            &seen[..4],
+            &[(true, false), (true, true), (false, true), (false, false)]
+        );
+        assert_eq!(enc.count(), 8);
+    }
+
+    #[test]
+    fn constant_speed_period_matches() {
+        let mut enc = Encoder::new(4000, 0.0);
+        // 10_000 counts/s: one quarter = 100 us = 4915.2 clocks.
+        let (_, t) = run(&mut enc, 0.5, 10_000.0, 0.01);
+        let f = enc.fields(t);
+        let cycle = 4.0 * SYSCLK_HZ as f64 / 10_000.0;
+        assert!(!f.period.overflow && !f.period.partial && !f.period.direction_changed);
+        assert!(f.period.up);
+        assert!((f64::from(f.period.clocks) - cycle).abs() <= 2.0, "{f:?}");
+        assert!((f64::from(f.qtr1.clocks) - cycle / 4.0).abs() <= 2.0);
+        assert!((f64::from(f.qtr5.clocks) - cycle / 4.0).abs() <= 2.0);
+        assert_eq!(f.qtr1.edge_mask, f.qtr5.edge_mask);
+        assert!(f.run.clocks <= (cycle / 4.0) as u32 + 1);
+    }
+
+    #[test]
+    fn stopping_grows_period_then_overflows() {
+        let mut enc = Encoder::new(4000, 0.0);
+        let (pos, t) = run(&mut enc, 0.5, 10_000.0, 0.01);
+        let _ = pos;
+        let moving = enc.fields(t).period.clocks;
+        let later = enc.fields(Time(t.0 + PS_PER_SECOND / 100));
+        assert!(later.period.clocks > moving);
+        let much_later = enc.fields(Time(t.0 + 2 * PS_PER_SECOND));
+        assert!(much_later.period.overflow && much_later.run.overflow);
+        assert_eq!(much_later.run.clocks, PERIOD_MAX);
+    }
+
+    #[test]
+    fn reversal_sets_direction_changed() {
+        let mut enc = Encoder::new(4000, 0.0);
+        let (pos, t) = run(&mut enc, 0.5, 10_000.0, 0.01);
+        enc.track(pos, pos - 1.0, t, 1_000_000);
+        let f = enc.fields(Time(t.0 + 1_000_000));
+        assert!(!f.period.up && f.period.direction_changed && f.period.partial);
+        assert!(!f.qtr1.up);
+    }
+
+    #[test]
+    fn backwards_counts_down() {
+        let mut enc = Encoder::new(4000, 0.0);
+        let (_, t) = run(&mut enc, 0.5, -20_000.0, 0.005);
+        assert_eq!(enc.count(), -100);
+        let f = enc.fields(t);
+        assert!(!f.period.up && !f.period.direction_changed);
+        let cycle = 4.0 * SYSCLK_HZ as f64 / 20_000.0;
+        assert!((f64::from(f.period.clocks) - cycle).abs() <= 2.0);
+    }
+
+    #[test]
+    fn no_edges_is_overflow() {
+        let enc = Encoder::new(4000, 0.0);
+        let f = enc.fields(Time::from_millis(1));
+        assert!(f.period.overflow && f.qtr1.overflow && f.qtr5.overflow);
+        assert!(!f.run.overflow);
+    }
+}

@@ -1,0 +1,265 @@
+//! The physical plant behind a board: per axis a linear current amplifier,
+//! a DC motor with friction, a gear train and a load, a quadrature encoder,
+//! a potentiometer, current sense with seeded noise and the amplifier
+//! temperature.
+//!
+//! Deterministic and driven by time passed in: [`Plant::advance_to`]
+//! integrates whole fixed sub-steps on the grid `k * step` up to `now`, so
+//! how the caller splits time into calls never changes the result. Inputs
+//! (DAC code, amplifier enable) take effect from the next sub-step.
+//! Measurement noise is a pure function of (seed, axis, sub-step index),
+//! see [`noise`].
+//!
+//! ```
+//! use firelink_board::plant::{Plant, presets};
+//! use firelink_board::time::{Time, TimeDelta};
+//! let mut plant = Plant::new(vec![presets::generic_motor()], 1, TimeDelta::from_micros(5));
+//! // 0.5 A into the motor for 50 ms.
+//! let dac = 0x8000 + (0.5 / firelink_board::plant::QLA_AMPS_PER_BIT) as u16;
+//! plant.axis_mut(0).unwrap().set_drive(dac, true);
+//! plant.advance_to(Time::from_millis(50));
+//! assert!(plant.axis(0).unwrap().joint_velocity() > 0.0);
+//! assert!(plant.axis(0).unwrap().encoder().count() > 0);
+//! ```
+
+mod axis;
+pub mod encoder;
+pub mod noise;
+mod params;
+pub mod presets;
+
+pub use axis::Axis;
+pub use params::{
+    AmplifierParams, AxisParams, CurrentSenseParams, DAC_ZERO, EncoderParams, GravityParams,
+    LoadParams, MotorParams, POT_FULL_SCALE_VOLTS, PotParams, QLA_AMPS_PER_BIT,
+    QLA_FULL_SCALE_AMPS, SpringParams, SwitchParams, ThermalParams,
+};
+
+use crate::time::{Time, TimeDelta};
+use noise::{Noise, NoiseChannel};
+
+/// The default integration sub-step: 5 us, twenty per 10 kHz control
+/// period.
+pub const DEFAULT_STEP: TimeDelta = TimeDelta(5_000_000);
+
+/// All axes of one board, integrated together.
+#[derive(Debug, Clone)]
+pub struct Plant {
+    axes: Vec<Axis>,
+    step_ps: u64,
+    steps_done: u64,
+    noise: Noise,
+}
+
+impl Plant {
+    /// A plant with one axis per parameter set, seeded noise and a fixed
+    /// integration step (at least 1 ns; [`DEFAULT_STEP`] is a good choice).
+    pub fn new(axes: Vec<AxisParams>, seed: u64, step: TimeDelta) -> Plant {
+        let step_ps = step.0.max(1_000);
+        let step_s = step_ps as f64 * 1e-12;
+        Plant {
+            axes: axes.iter().map(|p| Axis::new(p, step_s)).collect(),
+            step_ps,
+            steps_done: 0,
+            noise: Noise::new(seed),
+        }
+    }
+
+    /// The integration step.
+    pub fn step(&self) -> TimeDelta {
+        TimeDelta(self.step_ps)
+    }
+
+    /// Grid time the state corresponds to (the last whole step <= the
+    /// latest `advance_to`).
+    pub fn time(&self) -> Time {
+        Time(self.steps_done.saturating_mul(self.step_ps))
+    }
+
+    /// Number of axes.
+    pub fn len(&self) -> usize {
+        self.axes.len()
+    }
+
+    /// Whether the plant has no axis.
+    pub fn is_empty(&self) -> bool {
+        self.axes.is_empty()
+    }
+
+    /// One axis.
+    pub fn axis(&self, index: usize) -> Option<&Axis> {
+        self.axes.get(index)
+    }
+
+    /// One axis, to set its inputs.
+    pub fn axis_mut(&mut self, index: usize) -> Option<&mut Axis> {
+        self.axes.get_mut(index)
+    }
+
+    /// All axes.
+    pub fn axes(&self) -> &[Axis] {
+        &self.axes
+    }
+
+    /// Integrate every whole step up to `now`. Going back in time is a
+    /// no-op.
+    pub fn advance_to(&mut self, now: Time) {
+        let target = now.0 / self.step_ps;
+        if target <= self.steps_done {
+            return;
+        }
+        let start = self.time();
+        let steps = target - self.steps_done;
+        for axis in &mut self.axes {
+            axis.advance(start, self.step_ps, steps);
+        }
+        self.steps_done = target;
+    }
+
+    /// The measured motor current of an axis: true current plus offset
+    /// and seeded noise, A (0 for a missing axis).
+    pub fn measured_current(&self, index: usize) -> f64 {
+        self.axes.get(index).map_or(0.0, |a| {
+            let cs = &a.params().current_sense;
+            let n = self
+                .noise
+                .gaussian(index, NoiseChannel::Current, self.steps_done);
+            a.current() + cs.offset_amps + cs.noise_amps * n
+        })
+    }
+
+    /// The measured potentiometer voltage of an axis, with seeded noise,
+    /// clamped to the ADC range, V.
+    pub fn measured_pot(&self, index: usize) -> f64 {
+        self.axes.get(index).map_or(0.0, |a| {
+            let n = self
+                .noise
+                .gaussian(index, NoiseChannel::Pot, self.steps_done);
+            (a.pot_voltage() + a.params().pot.noise_volts * n).clamp(0.0, POT_FULL_SCALE_VOLTS)
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A motor that cannot turn (huge dry friction): no back-EMF.
+    fn locked() -> AxisParams {
+        let mut p = presets::generic_motor();
+        p.motor.coulomb_friction = 1.0e3;
+        p
+    }
+
+    fn amps_to_dac(amps: f64) -> u16 {
+        (f64::from(DAC_ZERO) + amps / QLA_AMPS_PER_BIT)
+            .round()
+            .clamp(0.0, 65535.0) as u16
+    }
+
+    #[test]
+    fn split_calls_do_not_change_the_result() {
+        let mut a = Plant::new(vec![presets::generic_motor()], 3, DEFAULT_STEP);
+        let mut b = a.clone();
+        a.axis_mut(0).unwrap().set_drive(amps_to_dac(0.3), true);
+        b.axis_mut(0).unwrap().set_drive(amps_to_dac(0.3), true);
+        a.advance_to(Time::from_millis(20));
+        for us in (0..=20_000).step_by(37) {
+            b.advance_to(Time::from_micros(us));
+        }
+        b.advance_to(Time::from_millis(20));
+        assert_eq!(
+            a.axis(0).unwrap().motor_angle(),
+            b.axis(0).unwrap().motor_angle()
+        );
+        assert_eq!(a.measured_current(0), b.measured_current(0));
+        assert_eq!(
+            a.axis(0).unwrap().encoder().fields(Time::from_millis(20)),
+            b.axis(0).unwrap().encoder().fields(Time::from_millis(20))
+        );
+    }
+
+    #[test]
+    fn current_follows_command_with_bandwidth() {
+        let mut p = Plant::new(vec![locked()], 0, DEFAULT_STEP);
+        p.axis_mut(0).unwrap().set_drive(amps_to_dac(1.0), true);
+        let bw = p.axis(0).unwrap().params().amplifier.bandwidth_hz;
+        let tau = 1.0 / (2.0 * core::f64::consts::PI * bw);
+        p.advance_to(Time((tau * 1e12) as u64));
+        let i = p.axis(0).unwrap().current();
+        // One time constant: 63 %.
+        assert!((i - 0.632).abs() < 0.05, "{i}");
+        p.advance_to(Time::from_millis(5));
+        assert!((p.axis(0).unwrap().current() - 1.0).abs() < 1e-3);
+        // Disabled: decays to zero.
+        p.axis_mut(0).unwrap().set_drive(amps_to_dac(1.0), false);
+        p.advance_to(Time::from_millis(10));
+        assert_eq!(p.axis(0).unwrap().current(), 0.0);
+    }
+
+    #[test]
+    fn constant_torque_accelerates_as_expected() {
+        let mut params = presets::generic_motor();
+        params.motor.viscous_friction = 0.0;
+        params.motor.coulomb_friction = 0.0;
+        let mut p = Plant::new(vec![params.clone()], 0, DEFAULT_STEP);
+        p.axis_mut(0).unwrap().set_drive(amps_to_dac(0.2), true);
+        p.advance_to(Time::from_millis(20));
+        let axis = p.axis(0).unwrap();
+        let j = params.motor_side_inertia();
+        let i = axis.current();
+        assert!((i - 0.2).abs() < 0.01, "{i}");
+        // w ~ kt i t / J (ignoring the 80 us current rise).
+        let expected = params.motor.torque_constant * 0.2 * 0.02 / j;
+        let w = axis.motor_velocity();
+        assert!((w - expected).abs() / expected < 0.02, "{w} vs {expected}");
+        // The encoder count agrees with the shaft angle.
+        let counts = axis.motor_angle() * axis.counts_per_rad();
+        assert_eq!(axis.encoder().count(), counts.floor() as i64);
+    }
+
+    #[test]
+    fn stiction_holds_small_torques() {
+        let mut p = Plant::new(vec![presets::generic_motor()], 0, DEFAULT_STEP);
+        let tc = p.axis(0).unwrap().params().motor.coulomb_friction;
+        let kt = p.axis(0).unwrap().params().motor.torque_constant;
+        p.axis_mut(0)
+            .unwrap()
+            .set_drive(amps_to_dac(0.5 * tc / kt), true);
+        p.advance_to(Time::from_millis(50));
+        assert_eq!(p.axis(0).unwrap().motor_velocity(), 0.0);
+        assert_eq!(p.axis(0).unwrap().encoder().count(), 0);
+    }
+
+    #[test]
+    fn gravity_pulls_an_unpowered_joint_down() {
+        let mut params = presets::generic_motor();
+        params.load.gravity = Some(GravityParams {
+            amplitude: 2.0,
+            phase: 0.0,
+        });
+        params.load.initial_position = 0.5;
+        let mut p = Plant::new(vec![params], 0, DEFAULT_STEP);
+        p.advance_to(Time::from_millis(100));
+        assert!(p.axis(0).unwrap().joint_position() < 0.5);
+    }
+
+    #[test]
+    fn temperature_rises_with_current() {
+        let mut p = Plant::new(vec![locked()], 0, DEFAULT_STEP);
+        p.axis_mut(0).unwrap().set_drive(amps_to_dac(3.0), true);
+        let t0 = p.axis(0).unwrap().temperature();
+        p.advance_to(Time::from_millis(2000));
+        assert!(p.axis(0).unwrap().temperature() > t0 + 0.5);
+    }
+
+    #[test]
+    fn noise_is_seeded() {
+        let a = Plant::new(vec![presets::generic_motor()], 11, DEFAULT_STEP);
+        let b = Plant::new(vec![presets::generic_motor()], 11, DEFAULT_STEP);
+        let c = Plant::new(vec![presets::generic_motor()], 12, DEFAULT_STEP);
+        assert_eq!(a.measured_current(0), b.measured_current(0));
+        assert_ne!(a.measured_current(0), c.measured_current(0));
+        assert_eq!(a.measured_current(5), 0.0);
+    }
+}

@@ -1,0 +1,369 @@
+//! Axis presets: a generic motor and the da Vinci Research Kit arm joints.
+//!
+//! The values are *plausible*, not calibrated: motor data in the range of
+//! the public Maxon catalogue for the motor classes the dVRK arms use
+//! (RE 40 for the large PSM joints, RE 25 for the MTM arm joints and the
+//! PSM tool actuators, RE 13-class for the MTM wrist), transmission ratios
+//! and encoder resolutions of the order given in the public dVRK
+//! configuration files (sawIntuitiveResearchKit), and loads estimated from
+//! the arms' size. They make an emulated arm move and sound like one on
+//! the bus; they do not reproduce a particular arm.
+//!
+//! Catalogue figures used (approximate, per motor class):
+//!
+//! | motor | kt (mNm/A) | R (ohm) | rotor inertia (g cm^2) |
+//! |---|---|---|---|
+//! | RE 40, 48 V winding | 60.3 | 1.16 | 134 |
+//! | RE 25, 24 V winding | 23.4 | 2.3 | 10.5 |
+//! | RE 13-class, 12 V winding | 9.0 | 10.0 | 0.6 |
+
+use super::params::*;
+
+/// Which motor class an axis uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum MotorClass {
+    Re40,
+    Re25,
+    Re13,
+}
+
+fn motor(class: MotorClass) -> MotorParams {
+    match class {
+        MotorClass::Re40 => MotorParams {
+            torque_constant: 0.0603,
+            resistance: 1.16,
+            rotor_inertia: 134e-7,
+            viscous_friction: 4e-6,
+            coulomb_friction: 4e-3,
+        },
+        MotorClass::Re25 => MotorParams {
+            torque_constant: 0.0234,
+            resistance: 2.3,
+            rotor_inertia: 10.5e-7,
+            viscous_friction: 1e-6,
+            coulomb_friction: 1e-3,
+        },
+        MotorClass::Re13 => MotorParams {
+            torque_constant: 0.009,
+            resistance: 10.0,
+            rotor_inertia: 0.6e-7,
+            viscous_friction: 2e-7,
+            coulomb_friction: 3e-4,
+        },
+    }
+}
+
+/// Common shape of a preset joint.
+struct Joint {
+    name: &'static str,
+    class: MotorClass,
+    supply: f64,
+    current_limit: f64,
+    gear_ratio: f64,
+    counts_per_rev: u32,
+    inertia: f64,
+    gravity: f64,
+    /// Joint range, used to centre the potentiometer.
+    range: (f64, f64),
+}
+
+fn build(j: Joint) -> AxisParams {
+    let span = (j.range.1 - j.range.0).abs().max(1e-6);
+    // The range covers 80 % of the pot's 0..4.5 V, centred.
+    let volts_per_unit = 0.8 * POT_FULL_SCALE_VOLTS / span;
+    let middle = 0.5 * (j.range.0 + j.range.1);
+    AxisParams {
+        name: j.name.into(),
+        has_motor: true,
+        amplifier: AmplifierParams {
+            current_limit: j.current_limit,
+            supply_voltage: j.supply,
+            ..AmplifierParams::default()
+        },
+        motor: motor(j.class),
+        load: LoadParams {
+            gear_ratio: j.gear_ratio,
+            inertia: j.inertia,
+            gravity: (j.gravity != 0.0).then_some(GravityParams {
+                amplitude: j.gravity,
+                phase: 0.0,
+            }),
+            spring: None,
+            bias: 0.0,
+            initial_position: 0.0,
+        },
+        encoder: EncoderParams {
+            counts_per_rev: j.counts_per_rev,
+            reversed: false,
+        },
+        pot: PotParams {
+            volts_per_unit,
+            offset_volts: POT_FULL_SCALE_VOLTS / 2.0 - volts_per_unit * middle,
+            ..PotParams::default()
+        },
+        current_sense: CurrentSenseParams::default(),
+        thermal: ThermalParams::default(),
+        switches: SwitchParams::default(),
+    }
+}
+
+/// A generic geared DC motor (RE 25 class, 24 V, 4000 counts per motor
+/// revolution, 1:50 to a light load): the default for every axis.
+pub fn generic_motor() -> AxisParams {
+    build(Joint {
+        name: "generic",
+        class: MotorClass::Re25,
+        supply: 24.0,
+        current_limit: QLA_FULL_SCALE_AMPS,
+        gear_ratio: 50.0,
+        counts_per_rev: 4000,
+        inertia: 0.005,
+        gravity: 0.0,
+        range: (-2.0, 2.0),
+    })
+}
+
+/// A channel with no motor attached: the amplifier drives no current and
+/// nothing moves (unused QLA channels).
+pub fn unused_channel() -> AxisParams {
+    let mut p = generic_motor();
+    p.name = "unused".into();
+    p.has_motor = false;
+    p
+}
+
+/// A da Vinci Research Kit master tool manipulator (MTM) joint, 1..=7; 8
+/// is the gripper (a Hall-effect sensor on the analog input, no motor).
+/// `None` for other numbers.
+pub fn mtm_joint(joint: u8) -> Option<AxisParams> {
+    use MotorClass::*;
+    let (name, class, gear, cpr, inertia, gravity, range) = match joint {
+        1 => (
+            "MTM J1 outer yaw",
+            Re25,
+            63.41,
+            4000,
+            0.02,
+            0.0,
+            (-0.7, 1.2),
+        ),
+        2 => (
+            "MTM J2 shoulder pitch",
+            Re25,
+            49.88,
+            4000,
+            0.03,
+            0.4,
+            (-0.3, 0.9),
+        ),
+        3 => (
+            "MTM J3 elbow pitch",
+            Re25,
+            59.73,
+            4000,
+            0.01,
+            0.25,
+            (-0.25, 0.8),
+        ),
+        4 => (
+            "MTM J4 platform",
+            Re13,
+            10.53,
+            4000,
+            0.001,
+            0.0,
+            (-4.0, 1.7),
+        ),
+        5 => (
+            "MTM J5 wrist pitch",
+            Re13,
+            33.16,
+            256,
+            0.0005,
+            0.0,
+            (-1.6, 3.1),
+        ),
+        6 => (
+            "MTM J6 wrist yaw",
+            Re13,
+            33.16,
+            256,
+            0.0003,
+            0.0,
+            (-0.8, 0.8),
+        ),
+        7 => (
+            "MTM J7 wrist roll",
+            Re13,
+            16.58,
+            256,
+            0.0002,
+            0.0,
+            (-7.7, 7.7),
+        ),
+        8 => {
+            let mut p = unused_channel();
+            p.name = "MTM gripper".into();
+            p.pot.volts_per_unit = 2.0;
+            p.pot.offset_volts = 1.0;
+            return Some(p);
+        }
+        _ => return None,
+    };
+    let current_limit = if class == Re25 { 0.8 } else { 0.4 };
+    Some(build(Joint {
+        name,
+        class,
+        supply: 24.0,
+        current_limit,
+        gear_ratio: gear,
+        counts_per_rev: cpr,
+        inertia,
+        gravity,
+        range,
+    }))
+}
+
+/// A da Vinci Research Kit patient side manipulator (PSM) joint, 1..=7:
+/// outer yaw, outer pitch, insertion (prismatic: metres, gear ratio in
+/// motor radians per metre), and the four tool actuators. `None` for other
+/// numbers.
+pub fn psm_joint(joint: u8) -> Option<AxisParams> {
+    use MotorClass::*;
+    let (name, class, gear, cpr, inertia, gravity, range, limit) = match joint {
+        1 => (
+            "PSM J1 outer yaw",
+            Re40,
+            56.50,
+            4000,
+            0.15,
+            0.0,
+            (-1.6, 1.6),
+            2.2,
+        ),
+        2 => (
+            "PSM J2 outer pitch",
+            Re40,
+            56.50,
+            4000,
+            0.15,
+            2.0,
+            (-0.8, 0.8),
+            2.2,
+        ),
+        3 => (
+            "PSM J3 insertion",
+            Re40,
+            336.6,
+            4000,
+            0.8,
+            0.0,
+            (0.0, 0.24),
+            2.2,
+        ),
+        4 => (
+            "PSM J4 tool roll",
+            Re25,
+            11.71,
+            4000,
+            0.0002,
+            0.0,
+            (-4.5, 4.5),
+            1.0,
+        ),
+        5 => (
+            "PSM J5 tool pitch",
+            Re25,
+            11.71,
+            4000,
+            0.0002,
+            0.0,
+            (-1.5, 1.5),
+            1.0,
+        ),
+        6 => (
+            "PSM J6 tool yaw 1",
+            Re25,
+            11.71,
+            4000,
+            0.0001,
+            0.0,
+            (-1.5, 1.5),
+            1.0,
+        ),
+        7 => (
+            "PSM J7 tool yaw 2",
+            Re25,
+            11.71,
+            4000,
+            0.0001,
+            0.0,
+            (-1.5, 1.5),
+            1.0,
+        ),
+        _ => return None,
+    };
+    Some(build(Joint {
+        name,
+        class,
+        supply: if class == Re40 { 48.0 } else { 24.0 },
+        current_limit: limit,
+        gear_ratio: gear,
+        counts_per_rev: cpr,
+        inertia,
+        gravity,
+        range,
+    }))
+}
+
+/// A dVRK arm.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Arm {
+    /// Master tool manipulator: joints 1..=7 and the gripper (8).
+    Mtm,
+    /// Patient side manipulator: joints 1..=7.
+    Psm,
+}
+
+/// The axes of board `index` (0-based) of an arm, `per_board` axes each,
+/// as the dVRK wires them: joints in order, unused channels after the
+/// last joint. For QLA1 boards (4 axes) an arm takes two boards; for a
+/// DQLA (8 axes), one.
+pub fn arm_axes(arm: Arm, index: usize, per_board: usize) -> Vec<AxisParams> {
+    (0..per_board)
+        .map(|k| {
+            let joint = index * per_board + k + 1;
+            let joint = u8::try_from(joint).unwrap_or(u8::MAX);
+            match arm {
+                Arm::Mtm => mtm_joint(joint),
+                Arm::Psm => psm_joint(joint),
+            }
+            .unwrap_or_else(unused_channel)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_are_complete_and_sane() {
+        for j in 1..=8 {
+            let p = mtm_joint(j).unwrap();
+            assert_eq!(p.sanitized(), p, "{}", p.name);
+        }
+        for j in 1..=7 {
+            let p = psm_joint(j).unwrap();
+            assert_eq!(p.sanitized(), p, "{}", p.name);
+            // The joint range stays inside the pot range.
+            assert!(p.pot.offset_volts > 0.0 && p.pot.offset_volts < POT_FULL_SCALE_VOLTS);
+        }
+        assert!(mtm_joint(0).is_none() && mtm_joint(9).is_none() && psm_joint(8).is_none());
+        let board2 = arm_axes(Arm::Psm, 1, 4);
+        assert_eq!(board2.len(), 4);
+        assert_eq!(board2[0].name, "PSM J5 tool pitch");
+        assert!(!board2[3].has_motor);
+        assert_eq!(arm_axes(Arm::Mtm, 0, 8)[7].name, "MTM gripper");
+    }
+}
