@@ -4,11 +4,14 @@
 //! parses arguments, prints results and maps errors to one line on stderr
 //! with a non-zero exit status.
 
+mod bench;
 mod board_cmd;
+mod demo;
 mod hex;
 mod monitor;
 mod packet_cmd;
 mod ports;
+mod rig;
 mod sim;
 mod tour;
 
@@ -51,6 +54,10 @@ enum Command {
     Monitor(monitor::MonitorArgs),
     /// Simulate one I/O cycle on the simulated 1394a bus; print phase times.
     Sim(sim::SimArgs),
+    /// The main job: the 28-axis dVRK of seed 000 on emulated boards (the default).
+    Demo(demo::DemoArgs),
+    /// I/O time per cycle vs boards and protocol: simulated bus and loopback UDP.
+    Bench(bench::BenchArgs),
 }
 
 #[derive(Subcommand)]
@@ -175,7 +182,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
     let mut out = std::io::stdout().lock();
     match cli
         .command
-        .unwrap_or(Command::Tour(tour::TourArgs::default()))
+        .unwrap_or(Command::Demo(demo::DemoArgs::default()))
     {
         Command::Packet(PacketCommand::Decode { bridge, hex }) => {
             let json = packet_cmd::decode(&hex.join(" "), bridge)?;
@@ -223,6 +230,8 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Write(args) => board_cmd::run_write(&args, &mut out)?,
         Command::Monitor(args) => monitor::run(&args, &mut out)?,
         Command::Sim(args) => sim::run(&args, &mut out)?,
+        Command::Demo(args) => demo::run(&args, &mut out)?,
+        Command::Bench(args) => bench::run(&args, &mut out)?,
     }
     Ok(())
 }

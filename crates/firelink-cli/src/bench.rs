@@ -1,0 +1,439 @@
+//! `firelink bench`: I/O time per cycle against the number of boards, for
+//! the sequential and broadcast protocols, on the simulated bus with the
+//! seed-000 PC model (seed 000, Fig. 11) and measured for real over
+//! loopback UDP against an in-process `firelink emulate`, side by side.
+//! Plus the maximum sustainable control rate and seed 002's time budget.
+
+use std::io::Write;
+use std::time::Duration;
+
+use clap::Args;
+use serde_json::{Value, json};
+
+use firelink_control::budget::CycleBudget;
+use firelink_control::config::presets;
+use firelink_control::runner::loopback::LoopbackPort;
+use firelink_control::runner::{Pacing, Percentiles, Robot, RobotSettings};
+use firelink_host::Port;
+use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
+use firelink_host::scan::Protocol;
+
+use crate::CliError;
+use crate::rig;
+
+/// Options of `firelink bench`.
+#[derive(Args, Debug, Clone)]
+pub struct BenchArgs {
+    /// Transports: sim, udp (comma-separated).
+    #[arg(long, default_value = "sim,udp")]
+    pub transport: String,
+    /// Board counts (comma-separated); above 16 (the board-ID space) the
+    /// figures come from the cost model fitted to the 16-board run.
+    #[arg(long, default_value = "2,4,8,16,32,62")]
+    pub boards: String,
+    /// Protocols: sequential, broadcast (comma-separated).
+    #[arg(long, default_value = "sequential,broadcast")]
+    pub protocol: String,
+    /// Measured cycles per point (after 20 warm-up cycles).
+    #[arg(long, default_value_t = 1000)]
+    pub cycles: u64,
+    /// Firmware of the emulated boards: 7, 8 or seed.
+    #[arg(long, default_value = "8")]
+    pub firmware: String,
+    /// Control period for the seed-002 budget check, us (default: 6 kHz).
+    #[arg(long = "period-us", default_value_t = 166.67)]
+    pub period_us: f64,
+    /// Write a PNG plot of I/O time against boards here.
+    #[arg(long)]
+    pub plot: Option<String>,
+    /// Print JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// One measured point.
+#[derive(Debug, Clone)]
+struct Point {
+    transport: String,
+    protocol: Protocol,
+    asked: Protocol,
+    boards: usize,
+    io: Percentiles,
+    read: f64,
+    write: f64,
+    cycles: u64,
+    errors: u64,
+    note: Option<String>,
+}
+
+fn list<T>(s: &str, f: impl Fn(&str) -> Option<T>, what: &str) -> Result<Vec<T>, CliError> {
+    s.split(',')
+        .filter(|x| !x.trim().is_empty())
+        .map(|x| f(x.trim()).ok_or_else(|| CliError::Conflict(format!("bad {what}: {x:?}"))))
+        .collect()
+}
+
+/// Run `cycles` I/O cycles on an open system; percentiles of the I/O time.
+fn measure<P: Port>(
+    mut io: IoSystem<P>,
+    cycles: u64,
+) -> (Percentiles, f64, f64, u64) {
+    for _ in 0..20 {
+        io.cycle();
+    }
+    let mut t = Vec::with_capacity(cycles as usize);
+    let (mut r, mut w) = (0.0, 0.0);
+    for _ in 0..cycles {
+        let rep = *io.cycle();
+        t.push((rep.io_time().as_secs_f64() * 1e6) as f32);
+        r += rep.read_time.as_secs_f64() * 1e6;
+        w += rep.write_time.as_secs_f64() * 1e6;
+    }
+    let n = cycles.max(1) as f64;
+    (Percentiles::of(&mut t), r / n, w / n, io.stats().total_errors())
+}
+
+fn point<P: Port>(
+    port: P,
+    transport: &str,
+    protocol: Protocol,
+    boards: usize,
+    cycles: u64,
+) -> Result<Point, CliError> {
+    let mut port = port;
+    let scan = firelink_host::scan::scan(&mut port)?;
+    let used = protocol.min(scan.protocol);
+    let note = (used != protocol).then(|| scan.protocol_reason.to_string());
+    let io = IoSystem::with_scan(
+        port,
+        &scan,
+        HostIoConfig {
+            protocol: Some(used),
+            ..HostIoConfig::default()
+        },
+    )?;
+    let (p, r, w, errors) = measure(io, cycles);
+    Ok(Point {
+        transport: transport.into(),
+        protocol: used,
+        asked: protocol,
+        boards,
+        io: p,
+        read: r,
+        write: w,
+        cycles,
+        errors,
+        note,
+    })
+}
+
+/// The compute time of the 28-axis dVRK cycle (median, us), measured with
+/// the runner on the port-level board model.
+fn compute_time_us() -> f64 {
+    let config = presets::dvrk_seed000();
+    let port = LoopbackPort::from_config(&config, |i| rig::start_position(&config, i));
+    let Ok((io, _)) = IoSystem::open(port, HostIoConfig::default()) else {
+        return 0.0;
+    };
+    let settings = RobotSettings {
+        rate_hz: 6000.0,
+        ..RobotSettings::default()
+    };
+    let Ok(mut robot) = Robot::new(io, &config, settings) else {
+        return 0.0;
+    };
+    let ok = robot.configure().is_ok() && robot.power_on().is_ok() && robot.home().is_ok();
+    if !ok || robot.activate().is_err() {
+        return 0.0;
+    }
+    let _ = robot.run(3000, Pacing::Virtual, 0, |_| {});
+    let mut c = robot.times().compute_us.clone();
+    let n = c.len().min(3000);
+    let start = c.len() - n;
+    Percentiles::of(&mut c[start..]).median
+}
+
+/// Extrapolate beyond 16 boards from the per-transaction costs of the
+/// largest measured point of the same transport and protocol.
+fn model(base: &Point, boards: usize) -> Point {
+    let n = base.boards.max(1) as f64;
+    let m = boards as f64;
+    let io = match base.protocol {
+        // Per board: one read and one write.
+        Protocol::Sequential => base.io.median / n * m,
+        // Per board: one read; one broadcast write.
+        Protocol::SequentialReadBroadcastWrite => base.read / n * m + base.write,
+        // One bus holds 16 board IDs (15 per hub at Rev 8): groups of 15,
+        // each with its own query, wait, hub read and command broadcast.
+        Protocol::Broadcast => base.io.median * (m / 15.0).ceil(),
+    };
+    Point {
+        transport: base.transport.clone(),
+        protocol: base.protocol,
+        asked: base.asked,
+        boards,
+        io: Percentiles {
+            median: io,
+            p99: io * base.io.p99 / base.io.median.max(1e-9),
+            max: f64::NAN,
+            mean: io,
+        },
+        read: f64::NAN,
+        write: f64::NAN,
+        cycles: 0,
+        errors: 0,
+        note: Some(format!(
+            "model: extrapolated from the {}-board measurement (a 1394 bus addresses 16 boards)",
+            base.boards
+        )),
+    }
+}
+
+/// Run `firelink bench`.
+pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
+    let transports = list(&args.transport, |s| (s == "sim" || s == "udp").then(|| s.to_string()), "transport")?;
+    let boards = list(&args.boards, |s| s.parse::<usize>().ok().filter(|&n| n >= 1), "board count")?;
+    let protocols = list(&args.protocol, Protocol::from_name, "protocol")?;
+    let profile = rig::profile(&args.firmware)?;
+    let generic = presets::bench_1board();
+    let quiet = rig::quiet();
+    let mut points: Vec<Point> = Vec::new();
+    for t in &transports {
+        for &proto in &protocols {
+            let mut last: Option<Point> = None;
+            for &n in &boards {
+                if n > 16 {
+                    if let Some(b) = &last {
+                        points.push(model(b, n));
+                    }
+                    continue;
+                }
+                if !quiet {
+                    eprintln!("bench: {t} {} {n} boards", proto.name());
+                }
+                let cfgs = rig::board_configs(&generic, profile, n);
+                let p = if t == "sim" {
+                    let (port, _) = rig::sim_port(cfgs, true)?;
+                    point(port, t, proto, n, args.cycles)?
+                } else {
+                    let emu = rig::Emulator::start(cfgs)?;
+                    point(emu.port()?, t, proto, n, args.cycles)?
+                };
+                last = Some(p.clone());
+                points.push(p);
+            }
+        }
+    }
+    let compute = compute_time_us();
+    let period = Duration::from_secs_f64(args.period_us.max(0.0) / 1e6);
+    let results: Vec<Value> = points
+        .iter()
+        .map(|p| {
+            let rate = 1e6 / (p.io.median + compute);
+            let (te, tg) = if p.read.is_finite() {
+                (p.read, p.write)
+            } else {
+                (p.io.median, 0.0)
+            };
+            let budget = CycleBudget {
+                t_e: Duration::from_secs_f64(te.max(0.0) / 1e6),
+                t_f: Duration::from_secs_f64(compute / 1e6),
+                t_g: Duration::from_secs_f64(tg.max(0.0) / 1e6),
+                t_s: Duration::ZERO,
+            }
+            .check(period);
+            let r2 = |x: f64| if x.is_finite() { json!((x * 100.0).round() / 100.0) } else { Value::Null };
+            json!({
+                "transport": p.transport,
+                "protocol": p.protocol.name(),
+                "protocol_asked": p.asked.name(),
+                "boards": p.boards,
+                "io_time_us": {"median": r2(p.io.median), "p99": r2(p.io.p99), "max": r2(p.io.max), "mean": r2(p.io.mean)},
+                "read_us": r2(p.read),
+                "write_us": r2(p.write),
+                "cycles": p.cycles,
+                "errors": p.errors,
+                "max_rate_hz": r2(rate),
+                "budget": {"period_us": args.period_us, "total_us": r2(budget.total.as_secs_f64() * 1e6), "fits": budget.total < budget.period},
+                "note": p.note,
+            })
+        })
+        .collect();
+    let paper = json!({"sequential_8_us": 496.0, "broadcast_8_us": 115.77, "source": "seed 000, Fig. 11 and section IV"});
+    let report = json!({
+        "results": results,
+        "compute_us": (compute * 100.0).round() / 100.0,
+        "paper": paper,
+        "firmware": args.firmware,
+        "cycles": args.cycles,
+    });
+    if let Some(path) = &args.plot {
+        plot(&points, path)?;
+    }
+    if args.json {
+        writeln!(out, "{}", serde_json::to_string(&report)?)?;
+        return Ok(());
+    }
+    writeln!(out, "I/O time per cycle (us), seed-000 PC model on the simulated bus (sim) and measured over loopback UDP (udp)")?;
+    writeln!(out, "{:<5} {:<32} {:>6} {:>9} {:>9} {:>9} {:>11} {:>10}  note", "trans", "protocol", "boards", "median", "p99", "max", "max rate", "budget")?;
+    for r in report["results"].as_array().into_iter().flatten() {
+        let f = |v: &Value| v.as_f64().map_or("-".to_string(), |x| format!("{x:.1}"));
+        writeln!(
+            out,
+            "{:<5} {:<32} {:>6} {:>9} {:>9} {:>9} {:>8} Hz {:>10}  {}",
+            r["transport"].as_str().unwrap_or(""),
+            r["protocol"].as_str().unwrap_or(""),
+            r["boards"],
+            f(&r["io_time_us"]["median"]),
+            f(&r["io_time_us"]["p99"]),
+            f(&r["io_time_us"]["max"]),
+            f(&r["max_rate_hz"]),
+            if r["budget"]["fits"] == json!(true) { "fits" } else { "over" },
+            r["note"].as_str().unwrap_or("")
+        )?;
+    }
+    writeln!(out, "compute (28-axis dVRK cycle, median): {compute:.1} us; budget = seed 002's t(Te)+t(Tf)+t(Tg) < {:.1} us", args.period_us)?;
+    writeln!(out, "paper (seed 000, 8 boards): sequential 496 us measured, broadcast 115.77 us")?;
+    Ok(())
+}
+
+// ------------------------------------------------------------------ plot ---
+
+const W: usize = 640;
+const H: usize = 400;
+
+/// A PNG of I/O time (median) against boards, one line per transport and
+/// protocol, log-free linear axes; a legend of colour swatches in the top
+/// left in the order sim-sequential, sim-broadcast, udp-sequential,
+/// udp-broadcast. No text (no font dependency).
+fn plot(points: &[Point], path: &str) -> Result<(), CliError> {
+    let mut img = vec![[255u8; 3]; W * H];
+    let (x0, y0, x1, y1) = (50.0, 30.0, (W - 20) as f64, (H - 40) as f64);
+    let max_b = points.iter().map(|p| p.boards).max().unwrap_or(1) as f64;
+    let max_t = points
+        .iter()
+        .map(|p| p.io.median)
+        .filter(|x| x.is_finite())
+        .fold(1.0f64, f64::max);
+    let sx = |b: f64| x0 + (x1 - x0) * b / max_b;
+    let sy = |t: f64| y1 - (y1 - y0) * t / (max_t * 1.05);
+    let black = [0, 0, 0];
+    line(&mut img, x0, y1, x1, y1, black);
+    line(&mut img, x0, y0, x0, y1, black);
+    // Ticks: every 100 us and every 8 boards.
+    let mut t = 100.0;
+    while t < max_t * 1.05 {
+        line(&mut img, x0 - 5.0, sy(t), x0, sy(t), black);
+        line(&mut img, x0, sy(t), x1, sy(t), [225, 225, 225]);
+        t += 100.0;
+    }
+    let mut b = 8.0;
+    while b <= max_b {
+        line(&mut img, sx(b), y1, sx(b), y1 + 5.0, black);
+        b += 8.0;
+    }
+    let series = [
+        ("sim", Protocol::Sequential, [200, 30, 30]),
+        ("sim", Protocol::Broadcast, [30, 30, 200]),
+        ("udp", Protocol::Sequential, [240, 140, 20]),
+        ("udp", Protocol::Broadcast, [20, 160, 60]),
+    ];
+    for (k, (tr, proto, colour)) in series.iter().enumerate() {
+        let pts: Vec<(f64, f64)> = points
+            .iter()
+            .filter(|p| p.transport == *tr && p.asked == *proto && p.io.median.is_finite())
+            .map(|p| (sx(p.boards as f64), sy(p.io.median)))
+            .collect();
+        for w in pts.windows(2) {
+            if let [a, b] = w {
+                line(&mut img, a.0, a.1, b.0, b.1, *colour);
+                line(&mut img, a.0, a.1 + 1.0, b.0, b.1 + 1.0, *colour);
+            }
+        }
+        for &(x, y) in &pts {
+            rect(&mut img, x - 3.0, y - 3.0, 7, 7, *colour);
+        }
+        rect(&mut img, x0 + 10.0 + 30.0 * k as f64, y0 - 20.0, 20, 10, *colour);
+    }
+    std::fs::write(path, png(&img, W, H))?;
+    Ok(())
+}
+
+fn put(img: &mut [[u8; 3]], x: i64, y: i64, c: [u8; 3]) {
+    if x >= 0 && y >= 0 && (x as usize) < W && (y as usize) < H {
+        if let Some(p) = img.get_mut(y as usize * W + x as usize) {
+            *p = c;
+        }
+    }
+}
+
+fn rect(img: &mut [[u8; 3]], x: f64, y: f64, w: i64, h: i64, c: [u8; 3]) {
+    for dy in 0..h {
+        for dx in 0..w {
+            put(img, x as i64 + dx, y as i64 + dy, c);
+        }
+    }
+}
+
+fn line(img: &mut [[u8; 3]], xa: f64, ya: f64, xb: f64, yb: f64, c: [u8; 3]) {
+    let steps = (xb - xa).abs().max((yb - ya).abs()).ceil().max(1.0) as i64;
+    for i in 0..=steps {
+        let f = i as f64 / steps as f64;
+        put(img, (xa + (xb - xa) * f).round() as i64, (ya + (yb - ya) * f).round() as i64, c);
+    }
+}
+
+fn crc32(data: &[u8]) -> u32 {
+    let mut crc = 0xFFFF_FFFFu32;
+    for &b in data {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
+        }
+    }
+    !crc
+}
+
+fn chunk(out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
+    out.extend_from_slice(&(data.len() as u32).to_be_bytes());
+    let start = out.len();
+    out.extend_from_slice(kind);
+    out.extend_from_slice(data);
+    let crc = crc32(out.get(start..).unwrap_or(&[]));
+    out.extend_from_slice(&crc.to_be_bytes());
+}
+
+/// An 8-bit RGB PNG with uncompressed (stored) deflate blocks.
+fn png(img: &[[u8; 3]], w: usize, h: usize) -> Vec<u8> {
+    let mut raw = Vec::with_capacity(h * (1 + 3 * w));
+    for row in img.chunks(w) {
+        raw.push(0);
+        for p in row {
+            raw.extend_from_slice(p);
+        }
+    }
+    let mut z = vec![0x78, 0x01];
+    let blocks: Vec<&[u8]> = raw.chunks(65535).collect();
+    for (i, b) in blocks.iter().enumerate() {
+        z.push(u8::from(i + 1 == blocks.len()));
+        let len = b.len() as u16;
+        z.extend_from_slice(&len.to_le_bytes());
+        z.extend_from_slice(&(!len).to_le_bytes());
+        z.extend_from_slice(b);
+    }
+    let (mut a, mut bsum) = (1u32, 0u32);
+    for &x in &raw {
+        a = (a + u32::from(x)) % 65521;
+        bsum = (bsum + a) % 65521;
+    }
+    z.extend_from_slice(&((bsum << 16) | a).to_be_bytes());
+    let mut out = vec![0x89, b'P', b'N', b'G', 0x0D, 0x0A, 0x1A, 0x0A];
+    let mut ihdr = Vec::new();
+    ihdr.extend_from_slice(&(w as u32).to_be_bytes());
+    ihdr.extend_from_slice(&(h as u32).to_be_bytes());
+    ihdr.extend_from_slice(&[8, 2, 0, 0, 0]);
+    chunk(&mut out, b"IHDR", &ihdr);
+    chunk(&mut out, b"IDAT", &z);
+    chunk(&mut out, b"IEND", &[]);
+    out
+}

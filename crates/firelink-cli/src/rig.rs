@@ -1,0 +1,221 @@
+//! Building the emulated robots the demo and the bench run against: a
+//! simulated bus with N emulated boards and the PC's link ([`SimPort`]),
+//! the same boards behind an in-process `firelink emulate` bridge on
+//! loopback UDP, or the port-level loopback model.
+
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+
+use firelink_board::config::{BoardConfig, Hardware, Profile};
+use firelink_board::node::BoardNode;
+use firelink_board::plant::AxisParams;
+use firelink_board::plant::presets::{self, Arm};
+use firelink_bus::{Bus, BusConfig, HostLink, HostModel, NodeConfig, NodeHandle};
+use firelink_control::config::IoConfig;
+use firelink_emulate::{Bridge, ServeConfig};
+use firelink_host::sim::SimPort;
+use firelink_host::udp::UdpPort;
+
+use crate::CliError;
+
+/// Where a joint starts, inside its soft limits (a little off centre, so
+/// homing has something to do).
+pub fn start_position(config: &IoConfig, joint: usize) -> f64 {
+    config.joints().nth(joint).map_or(0.0, |j| {
+        let l = j.actuator.encoder.position_limits_soft;
+        0.5 * (l.lower + l.upper) + 0.05 * l.span() * ((joint % 5) as f64 - 2.0) / 2.0
+    })
+}
+
+/// The plant of one configured actuator: the board crate's dVRK preset
+/// for the joint (motor, inertia, gravity), with the transmission,
+/// encoder, pot and drive direction made to agree with the configuration,
+/// as a calibrated robot's configuration agrees with the robot.
+fn axis_for(config: &IoConfig, joint: usize) -> Option<AxisParams> {
+    let j = config.joints().nth(joint)?;
+    let a = j.actuator;
+    let arm = if j.robot.name.starts_with("PSM") {
+        Arm::Psm
+    } else {
+        Arm::Mtm
+    };
+    let k = u8::try_from(j.actuator_index + 1).ok()?;
+    let mut p = match arm {
+        Arm::Mtm => presets::mtm_joint(k),
+        Arm::Psm => presets::psm_joint(k),
+    }
+    .unwrap_or_else(presets::generic_motor);
+    let scale = a.encoder.bits_to_position.scale;
+    let cpt = a
+        .encoder
+        .counts_per_turn
+        .unwrap_or(p.encoder.counts_per_rev);
+    let gear = 2.0 * std::f64::consts::PI / (f64::from(cpt) * scale.abs());
+    // A negative transmission ratio turns both the drive and the encoder
+    // around, as the configuration's direction -1 says.
+    p.load.gear_ratio = gear * scale.signum();
+    p.encoder.counts_per_rev = cpt;
+    p.encoder.reversed = false;
+    // Motor torque constant as the configuration models it.
+    let e2c = a.drive.effort_to_current.scale.abs();
+    if e2c > 0.0 {
+        p.motor.torque_constant = 1.0 / (gear * e2c);
+    }
+    p.amplifier.current_limit = p.amplifier.current_limit.max(a.drive.maximum_current);
+    if let Some(pot) = a.potentiometer {
+        let vs = pot.voltage_to_position.scale;
+        if vs != 0.0 {
+            p.pot.volts_per_unit = 1.0 / vs;
+            p.pot.offset_volts = -pot.voltage_to_position.offset / vs;
+        }
+    }
+    p.load.initial_position = start_position(config, joint);
+    Some(p)
+}
+
+/// Board configurations for every board `config` uses, plus `extra`
+/// generic boards after them (for the bench beyond 8 boards).
+pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<BoardConfig> {
+    let mut out: Vec<BoardConfig> = Vec::new();
+    for id in 0..boards.min(16) as u8 {
+        let mut b = BoardConfig::new(id, Hardware::Qla1, profile).with_seed(u64::from(id) + 1);
+        let mut axes: Vec<AxisParams> = vec![presets::unused_channel(); 4];
+        let mut any = false;
+        for (i, j) in config.joints().enumerate() {
+            if j.actuator.board_id == id {
+                if let (Some(slot), Some(p)) =
+                    (axes.get_mut(usize::from(j.actuator.axis_id)), axis_for(config, i))
+                {
+                    *slot = p;
+                    any = true;
+                }
+            }
+        }
+        if any {
+            b = b.with_axes(axes);
+        }
+        out.push(b);
+    }
+    out
+}
+
+/// A bus: the link `pc` at the root, then the boards daisy-chained.
+pub fn build_bus(link: HostLink, boards: Vec<BoardConfig>) -> Result<(Bus, NodeHandle, Vec<NodeHandle>), CliError> {
+    let mut bus = Bus::new(BusConfig::default());
+    let pc = bus.add(link, NodeConfig::pc());
+    let handles: Vec<NodeHandle> = boards
+        .into_iter()
+        .map(|b| bus.add(BoardNode::new(b), NodeConfig::board()))
+        .collect();
+    let mut chain = vec![pc];
+    chain.extend(&handles);
+    bus.daisy_chain(&chain)
+        .map_err(|e| CliError::Conflict(format!("bus: {e}")))?;
+    bus.set_root(pc)
+        .map_err(|e| CliError::Conflict(format!("bus: {e}")))?;
+    bus.reset();
+    bus.run_until_idle();
+    Ok((bus, pc, handles))
+}
+
+/// The simulated port: the PC's link with the seed-000 PC model (optional)
+/// and the boards.
+pub fn sim_port(
+    boards: Vec<BoardConfig>,
+    pc_model: bool,
+) -> Result<(SimPort, Vec<NodeHandle>), CliError> {
+    let (bus, pc, handles) = build_bus(HostLink::new("pc"), boards)?;
+    let model = HostModel::seed000(bus.timing());
+    let mut port = SimPort::new(bus, pc);
+    if pc_model {
+        port = port.with_host_model(model);
+    }
+    Ok((port, handles))
+}
+
+/// An in-process `firelink emulate`: the boards behind the UDP bridge on
+/// 127.0.0.1 (an ephemeral port), served by a thread until dropped.
+pub struct Emulator {
+    /// Where it listens.
+    pub addr: SocketAddr,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Emulator {
+    /// Start serving `boards`.
+    pub fn start(boards: Vec<BoardConfig>) -> Result<Emulator, CliError> {
+        if boards.is_empty() {
+            return Err(CliError::Conflict("no boards to emulate".into()));
+        }
+        let (unicast, _) = firelink_emulate::bind(&ServeConfig {
+            listen: SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0),
+            loopback_broadcast: false,
+        })?;
+        let addr = unicast.local_addr()?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = stop.clone();
+        let (tx, rx) = std::sync::mpsc::channel();
+        // The bus is not Send: it is built on the server thread.
+        let thread = std::thread::spawn(move || {
+            let (bus, link, handles) = match build_bus(HostLink::new("bridge"), boards) {
+                Ok(b) => b,
+                Err(e) => {
+                    let _ = tx.send(Err(e.to_string()));
+                    return;
+                }
+            };
+            let Some(&first) = handles.first() else {
+                return;
+            };
+            let mut bridge = Bridge::new(bus, link, first);
+            let _ = tx.send(Ok(()));
+            let _ = firelink_emulate::serve(&mut bridge, &unicast, None, &flag, |_| {});
+        });
+        match rx.recv() {
+            Ok(Ok(())) => {}
+            Ok(Err(e)) => return Err(CliError::Conflict(e)),
+            Err(_) => return Err(CliError::Conflict("emulator thread failed".into())),
+        }
+        Ok(Emulator {
+            addr,
+            stop,
+            thread: Some(thread),
+        })
+    }
+
+    /// A UDP port to it.
+    pub fn port(&self) -> Result<UdpPort, CliError> {
+        let mut p = UdpPort::open(self.addr)?;
+        p.set_timeout(std::time::Duration::from_millis(20));
+        Ok(p)
+    }
+}
+
+impl Drop for Emulator {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// Parse `7`, `8` or `seed` into a firmware profile.
+pub fn profile(name: &str) -> Result<Profile, CliError> {
+    match name {
+        "7" | "rev7" => Ok(Profile::Rev7),
+        "8" | "rev8" => Ok(Profile::Rev8),
+        "seed" => Ok(Profile::Seed),
+        _ => Err(CliError::Conflict(format!(
+            "unknown firmware {name:?}: expected 7, 8 or seed"
+        ))),
+    }
+}
+
+/// Whether the default run should be quiet about progress (tests).
+pub fn quiet() -> bool {
+    std::env::var_os("FIRELINK_QUIET").is_some()
+}
