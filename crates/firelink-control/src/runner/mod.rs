@@ -127,7 +127,15 @@ struct Joint {
     setpoint: f64,
     current: f64,
     primed: bool,
+    /// The last [`VELOCITY_WINDOW`] positions (ring), for the velocity
+    /// estimate, and the index of the oldest.
+    history: [f64; VELOCITY_WINDOW],
+    history_at: usize,
 }
+
+/// Velocity is estimated over this many cycles: one encoder count over a
+/// single 6 kHz period would read as metres per second on coarse axes.
+const VELOCITY_WINDOW: usize = 8;
 
 /// Tracking error of one arm, over the cycles it was Active with a motion.
 #[derive(Debug, Clone, PartialEq)]
@@ -299,6 +307,8 @@ impl<P: Port> Robot<P> {
                 setpoint: 0.0,
                 current: 0.0,
                 primed: false,
+                history: [0.0; VELOCITY_WINDOW],
+                history_at: 0,
             });
         }
         let n = joints.len();
@@ -772,12 +782,18 @@ impl<P: Port> Robot<P> {
                 _ => f64::NAN,
             };
             if j.primed {
-                let v = (pos - j.position) / dt;
-                j.velocity += 0.3 * (v - j.velocity);
+                let oldest = j.history.get(j.history_at).copied().unwrap_or(pos);
+                let v = (pos - oldest) / (dt * VELOCITY_WINDOW as f64);
+                j.velocity += 0.5 * (v - j.velocity);
             } else {
                 j.velocity = 0.0;
+                j.history.fill(pos);
                 j.primed = true;
             }
+            if let Some(h) = j.history.get_mut(j.history_at) {
+                *h = pos;
+            }
+            j.history_at = (j.history_at + 1) % VELOCITY_WINDOW;
             j.position = pos;
             if let Some(e) = self.enc.get_mut(i) {
                 *e = raw;
