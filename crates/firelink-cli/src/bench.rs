@@ -43,6 +43,15 @@ pub struct BenchArgs {
     /// Control period for the seed-002 budget check, us (default: 6 kHz).
     #[arg(long = "period-us", default_value_t = 166.67)]
     pub period_us: f64,
+    /// Broadcast protocol: the host's wait between the query and the hub
+    /// read, us per board (seed 000's PC sleeps 5 us x N).
+    #[arg(long = "wait-us", default_value_t = 5.0)]
+    pub wait_us: f64,
+    /// Idle time between cycles, us: a paced control loop leaves the bus
+    /// idle between cycles (longer than the 21 us arbitration reset gap, so
+    /// the PC's fairness interval restarts), as at seed 000's 6 kHz.
+    #[arg(long = "idle-us", default_value_t = 50.0)]
+    pub idle_us: f64,
     /// Write a PNG plot of I/O time against boards here.
     #[arg(long)]
     pub plot: Option<String>,
@@ -77,9 +86,11 @@ fn list<T>(s: &str, f: impl Fn(&str) -> Option<T>, what: &str) -> Result<Vec<T>,
 fn measure<P: Port>(
     mut io: IoSystem<P>,
     cycles: u64,
+    idle: Duration,
 ) -> (Percentiles, f64, f64, u64) {
     for _ in 0..20 {
         io.cycle();
+        io.port_mut().wait(idle);
     }
     let mut t = Vec::with_capacity(cycles as usize);
     let (mut r, mut w) = (0.0, 0.0);
@@ -88,6 +99,7 @@ fn measure<P: Port>(
         t.push((rep.io_time().as_secs_f64() * 1e6) as f32);
         r += rep.read_time.as_secs_f64() * 1e6;
         w += rep.write_time.as_secs_f64() * 1e6;
+        io.port_mut().wait(idle);
     }
     let n = cycles.max(1) as f64;
     (Percentiles::of(&mut t), r / n, w / n, io.stats().total_errors())
@@ -99,6 +111,8 @@ fn point<P: Port>(
     protocol: Protocol,
     boards: usize,
     cycles: u64,
+    wait_us_per_board: f64,
+    idle: Duration,
 ) -> Result<Point, CliError> {
     let mut port = port;
     let scan = firelink_host::scan::scan(&mut port)?;
@@ -109,10 +123,11 @@ fn point<P: Port>(
         &scan,
         HostIoConfig {
             protocol: Some(used),
+            broadcast_wait: Some(Duration::from_secs_f64(wait_us_per_board * boards as f64 / 1e6)),
             ..HostIoConfig::default()
         },
     )?;
-    let (p, r, w, errors) = measure(io, cycles);
+    let (p, r, w, errors) = measure(io, cycles, idle);
     Ok(Point {
         transport: transport.into(),
         protocol: used,
@@ -214,10 +229,10 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
                 let cfgs = rig::board_configs(&generic, profile, n);
                 let p = if t == "sim" {
                     let (port, _) = rig::sim_port(cfgs, true)?;
-                    point(port, t, proto, n, args.cycles)?
+                    point(port, t, proto, n, args.cycles, args.wait_us, Duration::from_secs_f64(args.idle_us.max(0.0) / 1e6))?
                 } else {
                     let emu = rig::Emulator::start(cfgs)?;
-                    point(emu.port()?, t, proto, n, args.cycles)?
+                    point(emu.port()?, t, proto, n, args.cycles, args.wait_us, Duration::from_secs_f64(args.idle_us.max(0.0) / 1e6))?
                 };
                 last = Some(p.clone());
                 points.push(p);
