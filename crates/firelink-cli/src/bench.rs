@@ -226,7 +226,13 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
                 if !quiet {
                     eprintln!("bench: {t} {} {n} boards", proto.name());
                 }
-                let cfgs = rig::board_configs(&generic, profile, n);
+                // I/O timing needs no motors: idle channels keep the
+                // emulator's plant cheap (it must keep up with the wall
+                // clock over UDP).
+                let cfgs: Vec<_> = rig::board_configs(&generic, profile, n)
+                    .into_iter()
+                    .map(|b| b.with_axes(vec![firelink_board::plant::presets::unused_channel(); 4]))
+                    .collect();
                 let p = if t == "sim" {
                     let (port, _) = rig::sim_port(cfgs, true)?;
                     point(port, t, proto, n, args.cycles, args.wait_us, Duration::from_secs_f64(args.idle_us.max(0.0) / 1e6))?

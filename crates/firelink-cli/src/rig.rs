@@ -172,7 +172,15 @@ impl Emulator {
             };
             let mut bridge = Bridge::new(bus, link, first);
             let _ = tx.send(Ok(()));
-            let _ = firelink_emulate::serve(&mut bridge, &unicast, None, &flag, |_| {});
+            let debug = std::env::var_os("FIRELINK_DEBUG").is_some();
+            let r = firelink_emulate::serve(&mut bridge, &unicast, None, &flag, |e| {
+                if debug {
+                    eprintln!("emulate: {e:?}");
+                }
+            });
+            if debug {
+                eprintln!("emulate: stopped {r:?}");
+            }
         });
         match rx.recv() {
             Ok(Ok(())) => {}

@@ -160,14 +160,25 @@ impl Bridge {
         }
         // Address the request: local requests go to the bridge board's node.
         let mut bytes = packet.as_bytes()[..packet.total_len()].to_vec();
-        if local {
-            let phy = self.bus.phy_id(self.bridge_board).unwrap_or(0);
+        // On the bus the request comes from the bridge's link: responses
+        // must find their way back to it, whatever source the host wrote.
+        let link_id = self
+            .bus
+            .node::<HostLink>(self.link)
+            .map(|l| l.node_id());
+        {
             let mut p = Packet::new_unchecked(&mut bytes[..]);
-            p.set_destination_id(NodeId::local(phy));
+            if local {
+                let phy = self.bus.phy_id(self.bridge_board).unwrap_or(0);
+                p.set_destination_id(NodeId::local(phy));
+                self.stats.local += 1;
+            } else {
+                self.stats.forwarded += 1;
+            }
+            if let Some(id) = link_id {
+                p.set_source_id(id);
+            }
             p.fill_header_crc();
-            self.stats.local += 1;
-        } else {
-            self.stats.forwarded += 1;
         }
         if is_read && destination.is_broadcast() && !local {
             // A 1394 read cannot be broadcast.
