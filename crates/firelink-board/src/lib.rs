@@ -52,4 +52,5 @@ pub mod config;
 pub mod firmware;
 pub mod node;
 pub mod plant;
+pub mod rig;
 pub mod time;

@@ -152,15 +152,16 @@ impl BoardIo {
         self.input.encoders().get(axis).map(|e| e.position.counts())
     }
 
-    /// Encoder velocity of `axis` in counts per second, from the period
-    /// between the last two edges (0 when the period overflowed).
+    /// Encoder velocity of `axis` in counts per second, from ENC_PERIOD:
+    /// the clocks of the last full quadrature cycle, i.e. 4 counts (0 when
+    /// the period overflowed: the motor is stopped).
     pub fn encoder_velocity(&self, axis: usize) -> Option<f64> {
         let e = self.input.encoders().get(axis)?;
         let p = e.period;
         if p.overflow() || p.period() == 0 {
             return Some(0.0);
         }
-        let speed = f64::from(SYSTEM_CLOCK_HZ) / f64::from(p.period());
+        let speed = 4.0 * f64::from(SYSTEM_CLOCK_HZ) / f64::from(p.period());
         Some(if p.direction() { speed } else { -speed })
     }
 

@@ -1,0 +1,151 @@
+//! Ready-made buses of emulated boards: the PC's link at the root and the
+//! boards on a daisy chain, as in the dVRK.
+//!
+//! The chain is wired PC - board[N-1] - ... - board[0], so after the bus
+//! reset the board given first gets physical ID 0, the next 1, and so on,
+//! and the PC (the root) gets the highest ID.
+
+use firelink_bus::phy::phy_config_packet;
+use firelink_bus::{Bus, BusConfig, HostLink, NodeConfig, NodeHandle, SimDuration, TraceLevel};
+use firelink_wire::packet::Speed;
+
+use crate::config::BoardConfig;
+use crate::node::BoardNode;
+
+/// A bus with the PC's link and emulated boards, reset and numbered.
+pub struct BoardRig {
+    /// The bus.
+    pub bus: Bus,
+    /// The PC's link node (a [`HostLink`]).
+    pub host: NodeHandle,
+    /// The board nodes, in the order their configurations were given.
+    pub boards: Vec<NodeHandle>,
+}
+
+/// Options of a rig.
+#[derive(Debug, Clone)]
+pub struct RigOptions {
+    /// Seed of the bus (fault injector).
+    pub seed: u64,
+    /// What the bus records (long runs want [`TraceLevel::Off`]).
+    pub trace: TraceLevel,
+    /// Cycle master on (off, as in seed 000).
+    pub cycle_master: bool,
+    /// Gap count the PC sets after the first reset with a PHY configuration
+    /// packet (and a second reset), as the Linux FireWire stack does when it
+    /// is bus manager: `Some(GapCount::ForHops)` picks the value of Linux's
+    /// table for the chain's hop count, `None` leaves the power-up 63.
+    pub gap_count: Option<GapCount>,
+}
+
+/// How the rig sets the gap count.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GapCount {
+    /// The Linux firewire-core table for the bus's hop count.
+    ForHops,
+    /// This value (0..=63).
+    Fixed(u8),
+}
+
+/// Gap count the Linux FireWire stack uses for a bus with `hops` hops
+/// (`ieee1394.md`, "Gaps").
+pub fn linux_gap_count(hops: usize) -> u8 {
+    const TABLE: [u8; 16] = [63, 5, 7, 8, 10, 13, 16, 18, 21, 24, 26, 29, 32, 35, 37, 40];
+    TABLE.get(hops).copied().unwrap_or(63)
+}
+
+impl Default for RigOptions {
+    fn default() -> Self {
+        RigOptions {
+            seed: 0,
+            trace: TraceLevel::Off,
+            cycle_master: false,
+            gap_count: Some(GapCount::ForHops),
+        }
+    }
+}
+
+impl BoardRig {
+    /// Build the bus, add the PC link and the boards, wire the chain and
+    /// run the first bus reset.
+    pub fn daisy_chain(boards: Vec<BoardConfig>, options: &RigOptions) -> BoardRig {
+        let mut bus = Bus::new(BusConfig {
+            seed: options.seed,
+            trace: options.trace,
+            cycle_master: options.cycle_master,
+            ..BusConfig::default()
+        });
+        let host = bus.add(HostLink::new("pc"), NodeConfig::pc());
+        let handles: Vec<NodeHandle> = boards
+            .into_iter()
+            .map(|cfg| {
+                let name = format!("board{}", cfg.board_id);
+                bus.add(BoardNode::new(cfg).with_name(name), NodeConfig::board())
+            })
+            .collect();
+        let mut chain = vec![host];
+        chain.extend(handles.iter().rev().copied());
+        // Fresh nodes in a simple chain: connecting cannot fail.
+        let _ = bus.daisy_chain(&chain);
+        bus.reset();
+        let hops = handles.len();
+        let gap = match options.gap_count {
+            Some(GapCount::ForHops) => Some(linux_gap_count(hops)),
+            Some(GapCount::Fixed(g)) => Some(g.min(63)),
+            None => None,
+        };
+        if let Some(g) = gap.filter(|g| bus.gap_count(host) != Some(*g)) {
+            let packet = phy_config_packet(Some(g), None);
+            let sent = bus
+                .with_node::<HostLink, _>(host, |l, ctx| l.submit(ctx, packet, Speed::S100))
+                .ok();
+            if let Some(token) = sent {
+                let deadline = bus.now() + SimDuration::from_micros(1_000);
+                bus.run_until_with(deadline, |b| {
+                    b.node::<HostLink>(host)
+                        .is_some_and(|l| !l.is_pending(token))
+                });
+                if let Some(l) = bus.node_mut::<HostLink>(host) {
+                    let _ = l.take_completion(token);
+                }
+                // The PHYs take the configuration when the subaction ends.
+                bus.run_until_with(deadline, |b| !b.has_pending_traffic());
+            }
+            bus.reset();
+        }
+        BoardRig {
+            bus,
+            host,
+            boards: handles,
+        }
+    }
+
+    /// The board node behind `handle`.
+    pub fn board(&self, index: usize) -> Option<&BoardNode> {
+        self.boards
+            .get(index)
+            .and_then(|h| self.bus.node::<BoardNode>(*h))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{Hardware, Profile};
+
+    #[test]
+    fn boards_are_numbered_in_order_and_pc_is_root() {
+        let boards = (0..4)
+            .map(|id| BoardConfig::new(id, Hardware::Qla1, Profile::Rev8))
+            .collect();
+        let rig = BoardRig::daisy_chain(boards, &RigOptions::default());
+        for (i, h) in rig.boards.iter().enumerate() {
+            assert_eq!(rig.bus.phy_id(*h), Some(i as u8));
+        }
+        assert_eq!(rig.bus.phy_id(rig.host), Some(4));
+        assert_eq!(rig.board(2).map(|b| b.firmware().board_id()), Some(2));
+        // 4 hops: Linux's gap count 10 on every PHY.
+        assert_eq!(rig.bus.gap_count(rig.host), Some(10));
+        assert_eq!(rig.bus.gap_count(rig.boards[0]), Some(10));
+    }
+}

@@ -1,0 +1,292 @@
+//! The host library against emulated boards on the simulated bus: scan,
+//! every protocol, board loss, bus reset recovery, sequence errors.
+
+use std::time::Duration;
+
+use firelink_board::config::{BoardConfig, Hardware, Profile};
+use firelink_board::node::BoardNode;
+use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_bus::{FaultRule, HostModel, PacketFault, PacketMatch, SimDuration, TimedFault};
+use firelink_host::io::{IoConfig, IoSystem};
+use firelink_host::scan::{Protocol, scan};
+use firelink_host::sim::SimPort;
+use firelink_host::{HostError, MissReason, Port};
+use firelink_wire::board::address::HUB_QUERY_OFFSET;
+use firelink_wire::packet::Tcode;
+
+fn rig(n: u8, hardware: Hardware, profile: Profile) -> BoardRig {
+    let boards = (0..n)
+        .map(|id| BoardConfig::new(id, hardware, profile))
+        .collect();
+    BoardRig::daisy_chain(boards, &RigOptions::default())
+}
+
+fn port(n: u8, profile: Profile) -> SimPort {
+    let r = rig(n, Hardware::Qla1, profile);
+    SimPort::new(r.bus, r.host)
+}
+
+#[test]
+fn scan_finds_1_8_and_16_boards() {
+    for (n, profile, protocol) in [
+        (1, Profile::Rev8, Protocol::Broadcast),
+        (8, Profile::Rev8, Protocol::Broadcast),
+        (8, Profile::Rev7, Protocol::Broadcast),
+        // 16 QLA1 Rev 8 blocks (529 quadlets) do not fit the 512-quadlet hub.
+        (16, Profile::Rev8, Protocol::SequentialReadBroadcastWrite),
+        (16, Profile::Rev7, Protocol::Broadcast),
+    ] {
+        let mut p = port(n, profile);
+        let report = scan(&mut p).unwrap();
+        assert_eq!(
+            report.boards.len(),
+            usize::from(n),
+            "{n} boards {profile:?}"
+        );
+        for (i, b) in report.boards.iter().enumerate() {
+            assert_eq!(b.board_id, i as u8);
+            assert_eq!(b.node, i as u8);
+            assert_eq!(b.hardware.name(), "QLA1");
+            assert_eq!(b.firmware, if profile == Profile::Rev8 { 8 } else { 7 });
+        }
+        assert_eq!(report.protocol, protocol, "{n} boards {profile:?}");
+        assert!(report.silent_nodes.is_empty());
+    }
+}
+
+#[test]
+fn dqla_boards_use_their_layout() {
+    let r = rig(2, Hardware::Dqla, Profile::Rev8);
+    let mut p = SimPort::new(r.bus, r.host);
+    let report = scan(&mut p).unwrap();
+    assert_eq!(report.boards[0].hardware.name(), "DQLA");
+    assert_eq!(report.boards[0].layout.read_block_quadlets(), 60);
+    let (mut io, _) = IoSystem::open(p, IoConfig::default()).unwrap();
+    assert!(io.cycle().all_ok());
+    assert_eq!(io.boards()[1].axes(), 8);
+}
+
+/// Every protocol on Rev 7 and Rev 8: all boards answer, inputs are valid,
+/// and commands reach the plant (power on, amplifiers on, current -> motion).
+#[test]
+fn every_protocol_moves_motors() {
+    for profile in [Profile::Rev7, Profile::Rev8] {
+        for protocol in [
+            Protocol::Sequential,
+            Protocol::SequentialReadBroadcastWrite,
+            Protocol::Broadcast,
+        ] {
+            let p = port(4, profile);
+            let config = IoConfig {
+                protocol: Some(protocol),
+                ..IoConfig::default()
+            };
+            let (mut io, _) = IoSystem::open(p, config).unwrap();
+            assert_eq!(io.protocol(), protocol);
+            for _ in 0..3 {
+                let r = *io.cycle();
+                assert!(r.all_ok(), "{profile:?} {protocol:?}: {r:?}");
+            }
+            assert!(io.boards().iter().all(|b| b.is_valid()));
+            // Power on, wait for the supply, then amplifiers and current.
+            for b in io.boards_mut() {
+                b.set_power(true);
+            }
+            io.cycle();
+            io.port_mut().wait(Duration::from_millis(60));
+            for b in io.boards_mut() {
+                b.set_all_amps(true);
+                b.set_dac(0, 0x8000 + 0x1800).unwrap();
+            }
+            io.cycle();
+            let start = io.board(2).unwrap().encoder_counts(0).unwrap();
+            for _ in 0..40 {
+                io.cycle();
+                io.port_mut().wait(Duration::from_millis(1));
+            }
+            let board = io.board(2).unwrap();
+            assert!(board.power_enabled(), "{profile:?} {protocol:?}");
+            assert!(board.amp_enabled(0), "{profile:?} {protocol:?}");
+            let moved = board.encoder_counts(0).unwrap() - start;
+            assert!(moved.abs() > 10, "{profile:?} {protocol:?}: moved {moved}");
+            assert!(board.encoder_velocity(0).unwrap().abs() > 0.0);
+            assert_eq!(io.stats().total_errors(), 0, "{profile:?} {protocol:?}");
+        }
+    }
+}
+
+#[test]
+fn seed_model_reproduces_pc_side_cycle_times() {
+    // With the PC model, the broadcast protocol's I/O time for 8 boards is
+    // far below the sequential one (seed 000: 116 us vs 496 us).
+    let mut times = Vec::new();
+    for protocol in [Protocol::Sequential, Protocol::Broadcast] {
+        let r = rig(8, Hardware::Qla1, Profile::Seed);
+        let model = HostModel::seed000(r.bus.timing());
+        let p = SimPort::new(r.bus, r.host).with_host_model(model);
+        // Seed 000's PC sleeps 5 us x boards after the query.
+        let config = IoConfig {
+            protocol: Some(protocol),
+            broadcast_wait: Some(Duration::from_micros(40)),
+            seq_rule: Some(firelink_wire::board::broadcast::SeqRule::Seed000),
+            ..IoConfig::default()
+        };
+        let (mut io, _) = IoSystem::open(p, config).unwrap();
+        let mut total = Duration::ZERO;
+        for _ in 0..10 {
+            total += io.cycle().io_time();
+        }
+        assert_eq!(io.stats().total_errors(), 0);
+        times.push(total.as_secs_f64() * 1e6 / 10.0);
+    }
+    let (seq, bc) = (times[0], times[1]);
+    eprintln!("sequential {seq:.1} us, broadcast {bc:.1} us");
+    assert!(seq > 400.0 && seq < 650.0, "sequential {seq} us");
+    assert!(bc > 80.0 && bc < 160.0, "broadcast {bc} us");
+    assert!(seq / bc >= 4.0, "ratio {}", seq / bc);
+}
+
+#[test]
+fn board_removed_mid_run_is_reported_and_the_loop_goes_on() {
+    let mut r = rig(4, Hardware::Qla1, Profile::Rev8);
+    // The board at the far end of the chain (board 0, node 0): the others
+    // are renumbered by the reset.
+    let victim = r.boards[0];
+    let when = r.bus.now() + SimDuration::from_micros(2_000);
+    r.bus.schedule_fault(
+        when,
+        TimedFault::Disconnect {
+            node: victim,
+            reconnect_after: None,
+        },
+    );
+    let p = SimPort::new(r.bus, r.host);
+    let (mut io, _) = IoSystem::open(p, IoConfig::default()).unwrap();
+    let mut saw_reset = false;
+    for _ in 0..40 {
+        let rep = *io.cycle();
+        if matches!(rep.error, Some(HostError::BusReset { .. })) {
+            saw_reset = true;
+        }
+        io.port_mut().wait(Duration::from_micros(200));
+    }
+    assert!(saw_reset, "the disconnect reset the bus");
+    assert!(io.stats().bus_resets >= 1);
+    // After the rescan the remaining boards run cleanly without board 0,
+    // at their new node numbers.
+    assert_eq!(io.boards().len(), 3);
+    let rep = *io.cycle();
+    assert!(rep.all_ok(), "{rep:?}");
+    assert!(io.board(0).is_none());
+    assert_eq!(io.board(1).unwrap().info().node, 0);
+}
+
+#[test]
+fn board_that_stops_answering_is_named_every_cycle() {
+    let mut r = rig(3, Hardware::Qla1, Profile::Rev8);
+    let victim = r.boards[1];
+    let p_bus = &mut r.bus;
+    let when = p_bus.now() + SimDuration::from_micros(3_000);
+    p_bus.schedule_fault(
+        when,
+        TimedFault::StopAnswering {
+            node: victim,
+            duration: None,
+        },
+    );
+    let p = SimPort::new(r.bus, r.host);
+    let config = IoConfig {
+        protocol: Some(Protocol::Sequential),
+        ..IoConfig::default()
+    };
+    let (mut io, _) = IoSystem::open(p, config).unwrap();
+    io.port_mut().wait(Duration::from_millis(4));
+    let rep = *io.cycle();
+    assert_eq!(rep.missed, 0b010, "{rep:?}");
+    assert_eq!(rep.reasons[1], Some(MissReason::Transaction));
+    assert!(!io.board(1).unwrap().is_valid());
+    assert!(io.board(0).unwrap().is_valid() && io.board(2).unwrap().is_valid());
+    assert!(io.stats().timeouts >= 1);
+}
+
+#[test]
+fn corrupt_query_is_detected_as_a_sequence_error() {
+    let mut r = rig(4, Hardware::Qla1, Profile::Rev8);
+    // Flip a bit in the third query: no board takes it (CRC), nobody
+    // broadcasts, and the hub still holds the previous cycle's blocks.
+    r.bus.add_fault_rule(FaultRule::once(
+        PacketMatch::any()
+            .tcode(Tcode::WriteQuadletRequest)
+            .offset(HUB_QUERY_OFFSET as u16)
+            .skip(2),
+        PacketFault::FlipBits { count: 1 },
+    ));
+    let p = SimPort::new(r.bus, r.host);
+    let (mut io, _) = IoSystem::open(p, IoConfig::default()).unwrap();
+    let mut first_bad = None;
+    for cycle in 0..5 {
+        let rep = *io.cycle();
+        if !rep.all_ok() && first_bad.is_none() {
+            first_bad = Some((cycle, rep));
+        }
+    }
+    let (cycle, rep) = first_bad.expect("the corrupt query was detected");
+    assert_eq!(cycle, 2);
+    assert_eq!(rep.missed, 0b1111, "{rep:?}");
+    assert!(
+        rep.missed_boards()
+            .all(|(_, r)| matches!(r, MissReason::Sequence { .. }))
+    );
+    assert!(io.stats().sequence_errors >= 4);
+    // The next cycle is clean again.
+    assert!(io.cycle().all_ok());
+    let log = io.port().bus().fault_log();
+    assert_eq!(log.records().len(), 1);
+}
+
+#[test]
+fn watchdog_expires_when_the_host_stops() {
+    let p = port(2, Profile::Rev8);
+    let (mut io, _) = IoSystem::open(p, IoConfig::default()).unwrap();
+    io.set_watchdog(Duration::from_millis(10)).unwrap();
+    for b in io.boards_mut() {
+        b.set_power(true);
+    }
+    io.cycle();
+    io.port_mut().wait(Duration::from_millis(60));
+    for b in io.boards_mut() {
+        b.set_all_amps(true);
+    }
+    for _ in 0..5 {
+        io.cycle();
+        io.port_mut().wait(Duration::from_millis(1));
+    }
+    assert!(io.board(0).unwrap().amp_enabled(0));
+    // The host goes silent for 30 ms; the firmware applies the expiry at
+    // its exact time (10 ms after the last write).
+    io.port_mut().wait(Duration::from_millis(30));
+    let now = firelink_board::time::Time(io.port().bus().now().0);
+    let node = io.port().bus().node_by_phy(0).unwrap();
+    let fw = io
+        .port_mut()
+        .bus_mut()
+        .node_mut::<BoardNode>(node)
+        .unwrap()
+        .firmware_mut();
+    fw.advance(now);
+    assert!(fw.watchdog_timed_out());
+    assert!(!fw.amplifier_on(0));
+    io.read_all();
+    let b = io.board(0).unwrap();
+    assert!(b.watchdog_expired());
+    assert!(!b.amp_enabled(0));
+}
+
+#[test]
+fn broadcast_reads_are_refused_on_the_bus() {
+    let mut p = port(1, Profile::Rev8);
+    let err = p
+        .read_quadlet(firelink_host::Dest::BROADCAST, 0)
+        .unwrap_err();
+    assert!(matches!(err, HostError::InvalidRequest { .. }));
+}
