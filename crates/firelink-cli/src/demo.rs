@@ -330,8 +330,11 @@ fn run_robot<P: Injector>(
         Err(RunnerError::Fault(f)) => {
             fault = Some(f);
             progress(quiet, &format!("FAULT: {f}"));
-            // A few more cycles in Fault: outputs stay safe.
-            for _ in 0..3 {
+            // Cycles in Fault for twice the watchdog period: outputs stay
+            // safe, and a board that stopped answering has time to turn
+            // its own amplifiers off.
+            let n = ((2.0 * watchdog.as_secs_f64() * rate).ceil() as u64).max(3);
+            for _ in 0..n {
                 let _ = robot.step(Pacing::Virtual);
             }
             progress(
@@ -346,6 +349,13 @@ fn run_robot<P: Injector>(
         Err(e) => return Err(runner_err(e)),
     }
     let amps_after_fault = robot.any_amp_on();
+    let silent: Vec<u8> = robot
+        .io()
+        .boards()
+        .iter()
+        .filter(|b| !b.is_valid())
+        .map(|b| b.board_id())
+        .collect();
     let state_after = robot.state();
     let motion_cycles = robot.cycles() - setup_cycles;
     let expired: Vec<u8> = robot
@@ -408,6 +418,7 @@ fn run_robot<P: Injector>(
         "fault": fault.as_ref().map(fault_json),
         "state_after_run": state_after.to_string(),
         "amplifiers_on_after_fault": fault.map(|_| amps_after_fault),
+        "boards_not_answering": silent,
         "state": robot.state().to_string(),
     }))
 }

@@ -892,12 +892,15 @@ impl<P: Port> Robot<P> {
         &self.arm_names
     }
 
-    /// Whether any used amplifier is on (from the last read).
+    /// Whether any used amplifier is on, on the boards that answered the
+    /// last read (a board that does not answer cannot say; its own
+    /// watchdog turns its amplifiers off).
     pub fn any_amp_on(&self) -> bool {
         self.io
             .boards()
             .iter()
             .zip(&self.used_axes)
+            .filter(|(b, _)| b.is_valid())
             .any(|(b, &(mask, _))| (0..4).any(|a| mask & (1 << a) != 0 && b.amp_enabled(a)))
     }
 }

@@ -1,0 +1,163 @@
+//! `firelink demo` and `firelink bench` end to end, in short virtual-time
+//! runs, parsing their JSON.
+
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn firelink(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_firelink"))
+        .args(args)
+        .env("FIRELINK_QUIET", "1")
+        .output()
+        .expect("run firelink")
+}
+
+fn json(args: &[&str]) -> Value {
+    let out = firelink(args);
+    assert!(
+        out.status.success(),
+        "{args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("one JSON object")
+}
+
+#[test]
+fn demo_runs_the_dvrk_and_reports() {
+    let r = json(&["demo", "--duration", "0.2", "--json"]);
+    assert_eq!(r["boards"], 8);
+    assert_eq!(r["axes"], 28);
+    assert_eq!(r["rate_hz"], 6000.0);
+    assert_eq!(r["protocol"], "broadcast");
+    assert!(r["cycles"].as_u64().unwrap() >= 1200);
+    for key in ["cycle_time_us", "io_time_us"] {
+        for stat in ["median", "p99", "max"] {
+            assert!(r[key][stat].as_f64().unwrap() > 0.0, "{key}.{stat}");
+        }
+    }
+    for arm in ["MTML", "MTMR", "PSM1", "PSM2"] {
+        let e = r["tracking_error"][arm].as_f64().unwrap();
+        // Stated tolerance: under 0.02 rad RMS on every arm.
+        assert!(e > 0.0 && e < 0.02, "{arm}: {e}");
+    }
+    assert!(r["tracking_error_unit"].as_str().unwrap().contains("rad"));
+    assert_eq!(r["errors"]["total"], 0);
+    assert!(r["fault"].is_null());
+    assert_eq!(r["state"], "configured");
+}
+
+#[test]
+fn demo_sequential_and_loopback() {
+    let r = json(&[
+        "demo", "--duration", "0.1", "--rate", "2000", "--protocol", "sequential", "--json",
+    ]);
+    assert_eq!(r["protocol"], "sequential");
+    assert_eq!(r["errors"]["total"], 0);
+    let r = json(&["demo", "--duration", "0.1", "--port", "loopback", "--json"]);
+    assert_eq!(r["axes"], 28);
+    assert!(r["fault"].is_null());
+}
+
+#[test]
+fn demo_fault_injection_shows_the_safety_chain() {
+    for (fault, kinds) in [
+        ("stop-host", &["Watchdog", "MissedBoard", "Amplifier", "Power"][..]),
+        ("corrupt-query", &["Sequence", "MissedBoard"][..]),
+        ("board-loss", &["MissedBoard"][..]),
+        ("following-error", &["FollowingError", "Velocity", "CurrentSaturation"][..]),
+    ] {
+        let r = json(&[
+            "demo", "--duration", "0.2", "--rate", "2000", "--fault", fault, "--json",
+        ]);
+        let kind = r["fault"]["kind"].as_str().unwrap_or("none");
+        assert!(kinds.contains(&kind), "{fault}: {}", r["fault"]);
+        assert_eq!(r["amplifiers_on_after_fault"], false, "{fault}");
+        assert_eq!(r["state_after_run"], "fault", "{fault}");
+        if fault == "board-loss" {
+            assert_eq!(r["fault"]["board"], 4);
+        }
+    }
+}
+
+#[test]
+fn demo_rejects_bad_options() {
+    for args in [
+        &["demo", "--port", "nowhere"][..],
+        &["demo", "--fault", "meteor"][..],
+        &["demo", "--protocol", "carrier-pigeon"][..],
+        &["demo", "--rate", "0"][..],
+    ] {
+        let out = firelink(args);
+        assert!(!out.status.success(), "{args:?}");
+        assert!(!out.stderr.is_empty());
+    }
+}
+
+#[test]
+fn bench_sim_reproduces_the_shape_of_fig_11() {
+    let r = json(&[
+        "bench", "--cycles", "50", "--boards", "2,4", "--transport", "sim", "--json",
+    ]);
+    let results = r["results"].as_array().unwrap();
+    assert_eq!(results.len(), 4);
+    let get = |proto: &str, n: u64| {
+        results
+            .iter()
+            .find(|x| x["protocol"] == proto && x["boards"] == n)
+            .unwrap()["io_time_us"]["median"]
+            .as_f64()
+            .unwrap()
+    };
+    for n in [2, 4] {
+        assert!(get("sequential", n) > get("broadcast", n));
+        assert_eq!(results[0]["transport"], "sim");
+    }
+    assert!(get("sequential", 4) > 1.8 * get("sequential", 2));
+}
+
+#[test]
+fn bench_sim_8_boards_within_20_percent_of_the_paper() {
+    let dir = std::env::temp_dir().join(format!("firelink-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let plot = dir.join("bench.png");
+    let r = json(&[
+        "bench",
+        "--cycles",
+        "30",
+        "--boards",
+        "8",
+        "--transport",
+        "sim",
+        "--json",
+        "--plot",
+        plot.to_str().unwrap(),
+    ]);
+    let results = r["results"].as_array().unwrap();
+    let get = |proto: &str| {
+        results.iter().find(|x| x["protocol"] == proto).unwrap()["io_time_us"]["median"]
+            .as_f64()
+            .unwrap()
+    };
+    let (seq, bc) = (get("sequential"), get("broadcast"));
+    assert!((seq - 496.0).abs() / 496.0 <= 0.2, "sequential {seq}");
+    assert!((bc - 115.77).abs() / 115.77 <= 0.2, "broadcast {bc}");
+    assert!(seq / bc >= 4.0, "ratio {}", seq / bc);
+    let png = std::fs::read(&plot).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bench_udp_short_run() {
+    let r = json(&[
+        "bench", "--cycles", "20", "--boards", "2", "--transport", "udp", "--json",
+    ]);
+    let results = r["results"].as_array().unwrap();
+    assert_eq!(results.len(), 2);
+    for x in results {
+        assert_eq!(x["transport"], "udp");
+        assert!(x["io_time_us"]["median"].as_f64().unwrap() > 0.0);
+        assert!(x["io_time_us"]["p99"].as_f64().is_some());
+    }
+}
