@@ -102,7 +102,12 @@ fn measure<P: Port>(
         io.port_mut().wait(idle);
     }
     let n = cycles.max(1) as f64;
-    (Percentiles::of(&mut t), r / n, w / n, io.stats().total_errors())
+    (
+        Percentiles::of(&mut t),
+        r / n,
+        w / n,
+        io.stats().total_errors(),
+    )
 }
 
 fn point<P: Port>(
@@ -123,7 +128,9 @@ fn point<P: Port>(
         &scan,
         HostIoConfig {
             protocol: Some(used),
-            broadcast_wait: Some(Duration::from_secs_f64(wait_us_per_board * boards as f64 / 1e6)),
+            broadcast_wait: Some(Duration::from_secs_f64(
+                wait_us_per_board * boards as f64 / 1e6,
+            )),
             ..HostIoConfig::default()
         },
     )?;
@@ -206,8 +213,16 @@ fn model(base: &Point, boards: usize) -> Point {
 
 /// Run `firelink bench`.
 pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
-    let transports = list(&args.transport, |s| (s == "sim" || s == "udp").then(|| s.to_string()), "transport")?;
-    let boards = list(&args.boards, |s| s.parse::<usize>().ok().filter(|&n| n >= 1), "board count")?;
+    let transports = list(
+        &args.transport,
+        |s| (s == "sim" || s == "udp").then(|| s.to_string()),
+        "transport",
+    )?;
+    let boards = list(
+        &args.boards,
+        |s| s.parse::<usize>().ok().filter(|&n| n >= 1),
+        "board count",
+    )?;
     let protocols = list(&args.protocol, Protocol::from_name, "protocol")?;
     let profile = rig::profile(&args.firmware)?;
     let generic = presets::bench_1board();
@@ -235,10 +250,26 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
                     .collect();
                 let p = if t == "sim" {
                     let (port, _) = rig::sim_port(cfgs, true)?;
-                    point(port, t, proto, n, args.cycles, args.wait_us, Duration::from_secs_f64(args.idle_us.max(0.0) / 1e6))?
+                    point(
+                        port,
+                        t,
+                        proto,
+                        n,
+                        args.cycles,
+                        args.wait_us,
+                        Duration::from_secs_f64(args.idle_us.max(0.0) / 1e6),
+                    )?
                 } else {
                     let emu = rig::Emulator::start(cfgs)?;
-                    point(emu.port()?, t, proto, n, args.cycles, args.wait_us, Duration::from_secs_f64(args.idle_us.max(0.0) / 1e6))?
+                    point(
+                        emu.port()?,
+                        t,
+                        proto,
+                        n,
+                        args.cycles,
+                        args.wait_us,
+                        Duration::from_secs_f64(args.idle_us.max(0.0) / 1e6),
+                    )?
                 };
                 last = Some(p.clone());
                 points.push(p);
@@ -295,8 +326,15 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
         writeln!(out, "{}", serde_json::to_string(&report)?)?;
         return Ok(());
     }
-    writeln!(out, "I/O time per cycle (us), seed-000 PC model on the simulated bus (sim) and measured over loopback UDP (udp)")?;
-    writeln!(out, "{:<5} {:<32} {:>6} {:>9} {:>9} {:>9} {:>11} {:>10}  note", "trans", "protocol", "boards", "median", "p99", "max", "max rate", "budget")?;
+    writeln!(
+        out,
+        "I/O time per cycle (us), seed-000 PC model on the simulated bus (sim) and measured over loopback UDP (udp)"
+    )?;
+    writeln!(
+        out,
+        "{:<5} {:<32} {:>6} {:>9} {:>9} {:>9} {:>11} {:>10}  note",
+        "trans", "protocol", "boards", "median", "p99", "max", "max rate", "budget"
+    )?;
     for r in report["results"].as_array().into_iter().flatten() {
         let f = |v: &Value| v.as_f64().map_or("-".to_string(), |x| format!("{x:.1}"));
         writeln!(
@@ -309,12 +347,23 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
             f(&r["io_time_us"]["p99"]),
             f(&r["io_time_us"]["max"]),
             f(&r["max_rate_hz"]),
-            if r["budget"]["fits"] == json!(true) { "fits" } else { "over" },
+            if r["budget"]["fits"] == json!(true) {
+                "fits"
+            } else {
+                "over"
+            },
             r["note"].as_str().unwrap_or("")
         )?;
     }
-    writeln!(out, "compute (28-axis dVRK cycle, median): {compute:.1} us; budget = seed 002's t(Te)+t(Tf)+t(Tg) < {:.1} us", args.period_us)?;
-    writeln!(out, "paper (seed 000, 8 boards): sequential 496 us measured, broadcast 115.77 us")?;
+    writeln!(
+        out,
+        "compute (28-axis dVRK cycle, median): {compute:.1} us; budget = seed 002's t(Te)+t(Tf)+t(Tg) < {:.1} us",
+        args.period_us
+    )?;
+    writeln!(
+        out,
+        "paper (seed 000, 8 boards): sequential 496 us measured, broadcast 115.77 us"
+    )?;
     Ok(())
 }
 
@@ -374,7 +423,14 @@ fn plot(points: &[Point], path: &str) -> Result<(), CliError> {
         for &(x, y) in &pts {
             rect(&mut img, x - 3.0, y - 3.0, 7, 7, *colour);
         }
-        rect(&mut img, x0 + 10.0 + 30.0 * k as f64, y0 - 20.0, 20, 10, *colour);
+        rect(
+            &mut img,
+            x0 + 10.0 + 30.0 * k as f64,
+            y0 - 20.0,
+            20,
+            10,
+            *colour,
+        );
     }
     std::fs::write(path, png(&img, W, H))?;
     Ok(())
@@ -400,7 +456,12 @@ fn line(img: &mut [[u8; 3]], xa: f64, ya: f64, xb: f64, yb: f64, c: [u8; 3]) {
     let steps = (xb - xa).abs().max((yb - ya).abs()).ceil().max(1.0) as i64;
     for i in 0..=steps {
         let f = i as f64 / steps as f64;
-        put(img, (xa + (xb - xa) * f).round() as i64, (ya + (yb - ya) * f).round() as i64, c);
+        put(
+            img,
+            (xa + (xb - xa) * f).round() as i64,
+            (ya + (yb - ya) * f).round() as i64,
+            c,
+        );
     }
 }
 
@@ -409,7 +470,11 @@ fn crc32(data: &[u8]) -> u32 {
     for &b in data {
         crc ^= u32::from(b);
         for _ in 0..8 {
-            crc = if crc & 1 != 0 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
         }
     }
     !crc

@@ -135,9 +135,13 @@ impl Injector for SimPort {
                 let m = PacketMatch::any()
                     .tcode(Tcode::WriteQuadletRequest)
                     .offset(0x1800);
-                self.bus_mut().set_fault_plan(
-                    FaultPlan::new().once(m, PacketFault::CorruptQuadlet { index: 3, xor: 0x0100_0000 }),
-                );
+                self.bus_mut().set_fault_plan(FaultPlan::new().once(
+                    m,
+                    PacketFault::CorruptQuadlet {
+                        index: 3,
+                        xor: 0x0100_0000,
+                    },
+                ));
             }
             Inject::BoardLoss => {
                 let now = self.bus().now();
@@ -200,9 +204,9 @@ fn motion_for(config: &IoConfig, i: usize, here: f64) -> Motion {
     };
     let a = j.actuator;
     let span = a.encoder.position_limits_soft.span();
-    let (v, acc) = a
-        .limits
-        .map_or((0.5, 2.0), |l| (0.3 * l.velocity, l.acceleration.unwrap_or(1.0) * 0.3));
+    let (v, acc) = a.limits.map_or((0.5, 2.0), |l| {
+        (0.3 * l.velocity, l.acceleration.unwrap_or(1.0) * 0.3)
+    });
     if i % 2 == 0 {
         let f = 0.4 + 0.1 * (i % 4) as f64;
         Sinusoid::new(0.05 * span, f, 0.0, here, 0.5)
@@ -276,10 +280,19 @@ fn run_robot<P: Injector>(
     robot.configure().map_err(runner_err)?;
     progress(quiet, "configured; powering on");
     robot.power_on().map_err(runner_err)?;
-    progress(quiet, &format!("powered at t = {:.3} s; homing", robot.now()));
+    progress(
+        quiet,
+        &format!("powered at t = {:.3} s; homing", robot.now()),
+    );
     robot.home().map_err(runner_err)?;
     robot.activate().map_err(runner_err)?;
-    progress(quiet, &format!("homed and active at t = {:.3} s; moving all four arms", robot.now()));
+    progress(
+        quiet,
+        &format!(
+            "homed and active at t = {:.3} s; moving all four arms",
+            robot.now()
+        ),
+    );
     for i in 0..robot.joint_count() {
         let here = robot.position(i).unwrap_or(0.0);
         robot
@@ -366,7 +379,13 @@ fn run_robot<P: Injector>(
         .map(|b| b.board_id())
         .collect();
     robot.shutdown().map_err(runner_err)?;
-    progress(quiet, &format!("powered off; wall time {:.2} s", wall.elapsed().as_secs_f64()));
+    progress(
+        quiet,
+        &format!(
+            "powered off; wall time {:.2} s",
+            wall.elapsed().as_secs_f64()
+        ),
+    );
     let times = robot.times().clone();
     let (mut c, mut io, mut comp) = (times.cycle_us, times.io_us, times.compute_us);
     let s = *robot.io_stats();
@@ -484,7 +503,9 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
         return Err(CliError::Conflict("the run ended in a fault".into()));
     }
     if injected && report["amplifiers_on_after_fault"] == json!(true) {
-        return Err(CliError::Conflict("amplifiers still on after the fault".into()));
+        return Err(CliError::Conflict(
+            "amplifiers still on after the fault".into(),
+        ));
     }
     let _ = State::Active;
     Ok(())
@@ -492,7 +513,10 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
 
 fn print_text(r: &Value, out: &mut impl Write) -> Result<(), CliError> {
     let f = |v: &Value| v.as_f64().unwrap_or(0.0);
-    writeln!(out, "Firelink demo: seed 000's dVRK (MTML, MTMR, PSM1, PSM2)")?;
+    writeln!(
+        out,
+        "Firelink demo: seed 000's dVRK (MTML, MTMR, PSM1, PSM2)"
+    )?;
     writeln!(
         out,
         "  port {}  boards {}  axes {}  firmware {}  protocol {}  rate {} Hz  pacing {}",
@@ -543,7 +567,13 @@ fn print_text(r: &Value, out: &mut impl Write) -> Result<(), CliError> {
     writeln!(
         out,
         "  errors: total {}  timeouts {}  sequence {}  corrupt queries {}  bus resets {}  bad packets {}  nacks {}",
-        e["total"], e["timeouts"], e["sequence_errors"], e["corrupt_queries"], e["bus_resets"], e["bad_packets"], e["nacks"]
+        e["total"],
+        e["timeouts"],
+        e["sequence_errors"],
+        e["corrupt_queries"],
+        e["bus_resets"],
+        e["bad_packets"],
+        e["nacks"]
     )?;
     writeln!(
         out,
@@ -551,13 +581,21 @@ fn print_text(r: &Value, out: &mut impl Write) -> Result<(), CliError> {
         r["watchdog"]["period_ms"], r["watchdog"]["expired_boards"]
     )?;
     match r["fault"].as_object() {
-        None => writeln!(out, "  faults: none; final state {}", r["state"].as_str().unwrap_or(""))?,
+        None => writeln!(
+            out,
+            "  faults: none; final state {}",
+            r["state"].as_str().unwrap_or("")
+        )?,
         Some(fl) => writeln!(
             out,
             "  FAULT ({} injected): {}\n  safety chain: left active, amplifiers {}",
             r["fault_injected"].as_str().unwrap_or(""),
             fl.get("text").and_then(Value::as_str).unwrap_or(""),
-            if r["amplifiers_on_after_fault"] == json!(true) { "STILL ON" } else { "off" }
+            if r["amplifiers_on_after_fault"] == json!(true) {
+                "STILL ON"
+            } else {
+                "off"
+            }
         )?,
     }
     Ok(())

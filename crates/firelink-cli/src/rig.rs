@@ -85,9 +85,10 @@ pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<
         let mut any = false;
         for (i, j) in config.joints().enumerate() {
             if j.actuator.board_id == id {
-                if let (Some(slot), Some(p)) =
-                    (axes.get_mut(usize::from(j.actuator.axis_id)), axis_for(config, i))
-                {
+                if let (Some(slot), Some(p)) = (
+                    axes.get_mut(usize::from(j.actuator.axis_id)),
+                    axis_for(config, i),
+                ) {
                     *slot = p;
                     any = true;
                 }
@@ -102,7 +103,10 @@ pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<
 }
 
 /// A bus: the link `pc` at the root, then the boards daisy-chained.
-pub fn build_bus(link: HostLink, boards: Vec<BoardConfig>) -> Result<(Bus, NodeHandle, Vec<NodeHandle>), CliError> {
+pub fn build_bus(
+    link: HostLink,
+    boards: Vec<BoardConfig>,
+) -> Result<(Bus, NodeHandle, Vec<NodeHandle>), CliError> {
     let mut bus = Bus::new(BusConfig::default());
     let pc = bus.add(link, NodeConfig::pc());
     let handles: Vec<NodeHandle> = boards

@@ -50,7 +50,14 @@ fn demo_runs_the_dvrk_and_reports() {
 #[test]
 fn demo_sequential_and_loopback() {
     let r = json(&[
-        "demo", "--duration", "0.1", "--rate", "2000", "--protocol", "sequential", "--json",
+        "demo",
+        "--duration",
+        "0.1",
+        "--rate",
+        "2000",
+        "--protocol",
+        "sequential",
+        "--json",
     ]);
     assert_eq!(r["protocol"], "sequential");
     assert_eq!(r["errors"]["total"], 0);
@@ -62,13 +69,26 @@ fn demo_sequential_and_loopback() {
 #[test]
 fn demo_fault_injection_shows_the_safety_chain() {
     for (fault, kinds) in [
-        ("stop-host", &["Watchdog", "MissedBoard", "Amplifier", "Power"][..]),
+        (
+            "stop-host",
+            &["Watchdog", "MissedBoard", "Amplifier", "Power"][..],
+        ),
         ("corrupt-query", &["Sequence", "MissedBoard"][..]),
         ("board-loss", &["MissedBoard"][..]),
-        ("following-error", &["FollowingError", "Velocity", "CurrentSaturation"][..]),
+        (
+            "following-error",
+            &["FollowingError", "Velocity", "CurrentSaturation"][..],
+        ),
     ] {
         let r = json(&[
-            "demo", "--duration", "0.2", "--rate", "2000", "--fault", fault, "--json",
+            "demo",
+            "--duration",
+            "0.2",
+            "--rate",
+            "2000",
+            "--fault",
+            fault,
+            "--json",
         ]);
         let kind = r["fault"]["kind"].as_str().unwrap_or("none");
         assert!(kinds.contains(&kind), "{fault}: {}", r["fault"]);
@@ -97,7 +117,14 @@ fn demo_rejects_bad_options() {
 #[test]
 fn bench_sim_reproduces_the_shape_of_fig_11() {
     let r = json(&[
-        "bench", "--cycles", "50", "--boards", "2,4", "--transport", "sim", "--json",
+        "bench",
+        "--cycles",
+        "50",
+        "--boards",
+        "2,4",
+        "--transport",
+        "sim",
+        "--json",
     ]);
     let results = r["results"].as_array().unwrap();
     assert_eq!(results.len(), 4);
@@ -151,7 +178,14 @@ fn bench_sim_8_boards_within_20_percent_of_the_paper() {
 #[test]
 fn bench_udp_short_run() {
     let r = json(&[
-        "bench", "--cycles", "20", "--boards", "2", "--transport", "udp", "--json",
+        "bench",
+        "--cycles",
+        "20",
+        "--boards",
+        "2",
+        "--transport",
+        "udp",
+        "--json",
     ]);
     let results = r["results"].as_array().unwrap();
     assert_eq!(results.len(), 2);

@@ -87,7 +87,11 @@ fn homing_finds_the_joint_positions() {
     for i in 0..r.joint_count() {
         let p = r.position(i).unwrap();
         // Pots are 16-bit over twice the range: a few mrad (or um).
-        assert!((p - start(i)).abs() < 5e-3, "joint {i}: {p} vs {}", start(i));
+        assert!(
+            (p - start(i)).abs() < 5e-3,
+            "joint {i}: {p} vs {}",
+            start(i)
+        );
     }
 }
 
@@ -146,7 +150,13 @@ fn corrupt_query_is_detected_and_amps_go_off() {
         panic!()
     };
     assert!(
-        matches!(f.kind, FaultKind::Sequence { received: 0xFFFF, .. }),
+        matches!(
+            f.kind,
+            FaultKind::Sequence {
+                received: 0xFFFF,
+                ..
+            }
+        ),
         "{f}"
     );
     assert!(r.io_stats().corrupt_queries > 0);
@@ -205,7 +215,10 @@ fn configuration_errors() {
     let e = Robot::new(io, &presets::dvrk_seed000(), RobotSettings::default())
         .err()
         .unwrap();
-    assert!(matches!(e, RunnerError::Config(ref m) if m.contains("not on the bus")), "{e}");
+    assert!(
+        matches!(e, RunnerError::Config(ref m) if m.contains("not on the bus")),
+        "{e}"
+    );
     // A zero rate.
     let port = LoopbackPort::from_config(&bench, |_| 0.0);
     let (io, _) = IoSystem::open(port, HostIoConfig::default()).unwrap();

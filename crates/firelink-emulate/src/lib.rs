@@ -162,10 +162,7 @@ impl Bridge {
         let mut bytes = packet.as_bytes()[..packet.total_len()].to_vec();
         // On the bus the request comes from the bridge's link: responses
         // must find their way back to it, whatever source the host wrote.
-        let link_id = self
-            .bus
-            .node::<HostLink>(self.link)
-            .map(|l| l.node_id());
+        let link_id = self.bus.node::<HostLink>(self.link).map(|l| l.node_id());
         {
             let mut p = Packet::new_unchecked(&mut bytes[..]);
             if local {

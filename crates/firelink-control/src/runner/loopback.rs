@@ -258,9 +258,7 @@ impl LoopbackPort {
 
     /// Whether board `id`'s watchdog has expired.
     pub fn watchdog_expired(&self, id: u8) -> bool {
-        self.boards
-            .iter()
-            .any(|b| b.id == id && b.watchdog_expired)
+        self.boards.iter().any(|b| b.id == id && b.watchdog_expired)
     }
 
     /// Whether any amplifier of board `id` is on.

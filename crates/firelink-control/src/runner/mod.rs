@@ -238,7 +238,6 @@ pub struct Robot<P: Port> {
     next_deadline: Option<Instant>,
 }
 
-
 impl<P: Port> Robot<P> {
     /// A robot for `config` over the boards of `io`.
     ///
@@ -526,8 +525,8 @@ impl<P: Port> Robot<P> {
     /// Homing failed; a fault; a time-out.
     pub fn home(&mut self) -> Result<(), RunnerError> {
         self.homing.start();
-        let limit = 10 * (self.settings.homing.averaging_samples
-            + self.settings.homing.verify_samples)
+        let limit = 10
+            * (self.settings.homing.averaging_samples + self.settings.homing.verify_samples)
             + 10;
         for _ in 0..limit {
             self.step(Pacing::Virtual)?;
@@ -757,8 +756,13 @@ impl<P: Port> Robot<P> {
                 break;
             }
             if active {
-                if let Some(axis) = (0..4u8).find(|&a| mask & (1 << a) != 0 && !b.amp_enabled(usize::from(a))) {
-                    found = Some(FaultKind::Amplifier { board_id: id, axis_id: axis });
+                if let Some(axis) =
+                    (0..4u8).find(|&a| mask & (1 << a) != 0 && !b.amp_enabled(usize::from(a)))
+                {
+                    found = Some(FaultKind::Amplifier {
+                        board_id: id,
+                        axis_id: axis,
+                    });
                     break;
                 }
             }
@@ -916,4 +920,3 @@ fn sleep_until(deadline: Instant) {
         std::hint::spin_loop();
     }
 }
-
