@@ -229,9 +229,11 @@ fn malformed_input_names_the_problem() {
     );
 }
 
+/// `firelink` with no arguments runs the demo (tested in `demo_bench.rs`
+/// with a short duration); the packet tour is `firelink tour`.
 #[test]
-fn default_command_tours_one_cycle() {
-    let out = firelink(&[]);
+fn tour_shows_one_cycle() {
+    let out = firelink(&["tour"]);
     assert!(out.status.success());
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("status broadcast (board 7)"));
