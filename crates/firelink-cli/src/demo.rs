@@ -24,6 +24,7 @@ use firelink_wire::packet::Tcode;
 
 use crate::CliError;
 use crate::rig;
+use crate::rt;
 
 /// Options of `firelink demo`.
 #[derive(Args, Debug, Clone)]
@@ -58,6 +59,10 @@ pub struct DemoArgs {
     /// Board watchdog period, ms.
     #[arg(long = "watchdog-ms", default_value_t = 20.0)]
     pub watchdog_ms: f64,
+    /// Do not try SCHED_FIFO, mlockall and a 1 ns timer slack with
+    /// realtime pacing.
+    #[arg(long = "no-rt")]
+    pub no_rt: bool,
     /// Print the report as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -77,6 +82,7 @@ impl Default for DemoArgs {
             fault: "none".into(),
             pacing: None,
             watchdog_ms: 20.0,
+            no_rt: false,
             json: false,
             quiet: false,
         }
@@ -249,6 +255,23 @@ fn run_robot<P: Injector>(
     pacing: Pacing,
 ) -> Result<Value, CliError> {
     let quiet = args.quiet || rig::quiet();
+    let rt = (pacing == Pacing::WallClock && !args.no_rt).then(|| rt::setup(80));
+    if let Some(s) = &rt {
+        progress(
+            quiet,
+            &format!(
+                "real time: SCHED_FIFO {}, memory locked {}, timer slack 1 ns {}{}",
+                s.sched_fifo.is_some(),
+                s.memory_locked,
+                s.timer_slack_1ns,
+                if s.errors.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", s.errors.join("; "))
+                }
+            ),
+        );
+    }
     let config = presets::dvrk_seed000();
     let protocol = Protocol::from_name(&args.protocol)
         .ok_or_else(|| CliError::Conflict(format!("unknown protocol {:?}", args.protocol)))?;
@@ -416,6 +439,7 @@ fn run_robot<P: Injector>(
         "io_time_us": pct(Percentiles::of(&mut io)),
         "compute_time_us": pct(Percentiles::of(&mut comp)),
         "overruns": times.overruns,
+        "realtime": rt.as_ref().map_or(json!({"requested": false}), rt::RtStatus::to_json),
         "tracking_error": Value::Object(te),
         "tracking_error_unit": "rad RMS over each arm's revolute joints (prismatic: tracking_error_detail, mm)",
         "tracking_error_detail": Value::Object(detail),

@@ -12,6 +12,7 @@ mod monitor;
 mod packet_cmd;
 mod ports;
 mod rig;
+mod rt;
 mod sim;
 mod tour;
 

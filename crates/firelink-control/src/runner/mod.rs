@@ -747,7 +747,9 @@ impl<P: Port> Robot<P> {
             if !self.expected.contains(id) {
                 continue;
             }
-            if b.watchdog_expired() {
+            // Before power is on a timed-out watchdog is harmless (nothing
+            // to turn off); from power on, it is a fault.
+            if b.watchdog_expired() && (active || b.power_enabled()) {
                 found = Some(FaultKind::Watchdog { board_id: id });
                 break;
             }
