@@ -5,10 +5,12 @@
 //! with a non-zero exit status.
 
 mod board_cmd;
+mod emulate_cmd;
 mod hex;
 mod monitor;
 mod packet_cmd;
 mod ports;
+mod rigs;
 mod sim;
 mod tour;
 
@@ -51,6 +53,8 @@ enum Command {
     Monitor(monitor::MonitorArgs),
     /// Simulate one I/O cycle on the simulated 1394a bus; print phase times.
     Sim(sim::SimArgs),
+    /// Emulated boards behind an Ethernet bridge on UDP (127.0.0.1:1394).
+    Emulate(Box<emulate_cmd::EmulateArgs>),
 }
 
 #[derive(Subcommand)]
@@ -222,6 +226,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Read(args) => board_cmd::run_read(&args, &mut out)?,
         Command::Write(args) => board_cmd::run_write(&args, &mut out)?,
         Command::Monitor(args) => monitor::run(&args, &mut out)?,
+        Command::Emulate(args) => emulate_cmd::run(&args, &mut out)?,
         Command::Sim(args) => sim::run(&args, &mut out)?,
     }
     Ok(())
