@@ -188,3 +188,139 @@ fn bridge_rules_without_sockets() {
     assert_eq!(b.stats().malformed, 1);
     assert_eq!(b.stats().bad_crc, 1);
 }
+
+/// The discovery sequence of the reference host library (`fpga-board.md`
+/// §8), as raw datagrams (unicast here: tests never send to broadcast
+/// addresses): IP_ADDR broadcast write; broadcast no-forward reads of
+/// HW_VERSION, STATUS, FW_VERSION, ETH_STATUS; broadcast write PHY_CTRL=0;
+/// per node HW_VERSION, FW_VERSION, ETH_STATUS, STATUS, GIT_DESC; then the
+/// gap count through PHY_CTRL=1 / PHY_DATA. Requests use source 0xFFD0.
+#[test]
+fn reference_host_discovery_sequence() {
+    let mut b = bridge(3, Profile::Rev8);
+    let mut reply = Vec::new();
+    let mut tl = 0u8;
+    let mut generation = 0u8;
+    let datagram = |_node: u8, no_forward: bool, generation: u8, repr: PacketRepr<'_>| {
+        let mut d = ControlWord {
+            no_forward,
+            generation,
+        }
+        .to_bytes()
+        .to_vec();
+        let mut pkt = vec![0u8; repr.buffer_len()];
+        repr.emit(&mut pkt).unwrap();
+        d.extend_from_slice(&pkt);
+        d
+    };
+    let mut header = |node: u8| {
+        tl = (tl + 1) & 0x3F;
+        AsyncHeader::new(NodeId(0xFFC0 | u16::from(node)), NodeId(0xFFD0), tl)
+    };
+    // IP_ADDR (169.254.0.100, little-endian) to every board: no reply.
+    let d = datagram(
+        63,
+        false,
+        generation,
+        PacketRepr::WriteQuadletRequest {
+            header: header(63),
+            offset: 11,
+            data: 0x6400_FEA9,
+        },
+    );
+    assert_eq!(b.handle(&d, &mut reply), Handled::Written);
+    // Broadcast no-forward reads answered by the Ethernet board itself.
+    let mut local = Vec::new();
+    for offset in [4u64, 0, 7, 12] {
+        let d = datagram(
+            63,
+            true,
+            generation,
+            PacketRepr::ReadQuadletRequest {
+                header: header(63),
+                offset,
+            },
+        );
+        let Handled::Reply(n) = b.handle(&d, &mut reply) else {
+            panic!("no reply to local read {offset}");
+        };
+        let (p, extra) = split_board_datagram(&reply[..n]).unwrap();
+        generation = extra.generation;
+        local.push(p.quadlet_data());
+    }
+    assert_eq!(local[0], 0x514C_4131, "HW_VERSION QLA1");
+    assert_eq!((local[1] >> 24) & 0xF, 0, "hub = board 0");
+    assert_eq!(local[2], 8, "FW_VERSION");
+    assert_eq!(local[3] >> 31, 1, "ETH_STATUS: FPGA V2");
+    // PHY_CTRL = 0 to everybody.
+    let d = datagram(
+        63,
+        false,
+        generation,
+        PacketRepr::WriteQuadletRequest {
+            header: header(63),
+            offset: 1,
+            data: 0,
+        },
+    );
+    assert_eq!(b.handle(&d, &mut reply), Handled::Written);
+    // Per node 0..15: present nodes answer, absent ones do not.
+    let mut found = Vec::new();
+    for node in 0..16u8 {
+        let mut answers = Vec::new();
+        for offset in [4u64, 7, 12, 0, 15] {
+            let d = datagram(
+                node,
+                false,
+                generation,
+                PacketRepr::ReadQuadletRequest {
+                    header: header(node),
+                    offset,
+                },
+            );
+            match b.handle(&d, &mut reply) {
+                Handled::Reply(n) => {
+                    let (p, _) = split_board_datagram(&reply[..n]).unwrap();
+                    p.verify().unwrap();
+                    assert_eq!(p.source_id(), NodeId(0xFFC0 | u16::from(node)));
+                    answers.push(p.quadlet_data());
+                }
+                Handled::Dropped(_) => break,
+                Handled::Written => unreachable!(),
+            }
+        }
+        if answers.len() == 5 {
+            found.push(((answers[3] >> 24) & 0xF) as u8);
+        }
+    }
+    assert_eq!(found, vec![0, 1, 2]);
+    // Gap count: write PHY_CTRL = 1 (read register 1), read PHY_DATA.
+    let d = datagram(
+        0,
+        false,
+        generation,
+        PacketRepr::WriteQuadletRequest {
+            header: header(0),
+            offset: 1,
+            data: 1,
+        },
+    );
+    assert_eq!(b.handle(&d, &mut reply), Handled::Written);
+    let d = datagram(
+        0,
+        false,
+        generation,
+        PacketRepr::ReadQuadletRequest {
+            header: header(0),
+            offset: 2,
+        },
+    );
+    let Handled::Reply(n) = b.handle(&d, &mut reply) else {
+        panic!("no PHY_DATA");
+    };
+    let (p, _) = split_board_datagram(&reply[..n]).unwrap();
+    let phy_data = p.quadlet_data();
+    assert_eq!((phy_data >> 8) & 0xF, 1, "register 1");
+    // 3 boards + the bridge link: 3 hops, Linux gap count 8.
+    assert_eq!(phy_data & 0x3F, 8, "gap count");
+}
