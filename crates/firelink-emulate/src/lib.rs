@@ -365,6 +365,7 @@ pub fn serve(
                         e.kind(),
                         std::io::ErrorKind::WouldBlock
                             | std::io::ErrorKind::TimedOut
+                            | std::io::ErrorKind::Interrupted
                             | std::io::ErrorKind::ConnectionRefused
                     ) =>
                 {
