@@ -7,11 +7,13 @@
 mod bench;
 mod board_cmd;
 mod demo;
+mod emulate_cmd;
 mod hex;
 mod monitor;
 mod packet_cmd;
 mod ports;
 mod rig;
+mod rigs;
 mod rt;
 mod sim;
 mod tour;
@@ -59,6 +61,8 @@ enum Command {
     Demo(demo::DemoArgs),
     /// I/O time per cycle vs boards and protocol: simulated bus and loopback UDP.
     Bench(bench::BenchArgs),
+    /// Emulated boards behind an Ethernet bridge on UDP (127.0.0.1:1394).
+    Emulate(Box<emulate_cmd::EmulateArgs>),
 }
 
 #[derive(Subcommand)]
@@ -230,6 +234,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Read(args) => board_cmd::run_read(&args, &mut out)?,
         Command::Write(args) => board_cmd::run_write(&args, &mut out)?,
         Command::Monitor(args) => monitor::run(&args, &mut out)?,
+        Command::Emulate(args) => emulate_cmd::run(&args, &mut out)?,
         Command::Sim(args) => sim::run(&args, &mut out)?,
         Command::Demo(args) => demo::run(&args, &mut out)?,
         Command::Bench(args) => bench::run(&args, &mut out)?,

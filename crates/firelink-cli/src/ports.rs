@@ -10,8 +10,9 @@ use crate::CliError;
 /// The `--port` option shared by every command that talks to boards.
 #[derive(Args, Debug, Clone)]
 pub struct PortArgs {
-    /// Where the boards are: `udp:HOST` (bridge board on UDP port 1394) or
-    /// `udp:HOST:PORT`.
+    /// Where the boards are: `udp:HOST` (bridge board on UDP port 1394),
+    /// `udp:HOST:PORT`, or `sim[:N[:7|8|seed]]` (N emulated QLA1 boards on
+    /// an in-process simulated bus; default 8 at firmware Rev 8).
     #[arg(long, default_value = "udp:127.0.0.1")]
     pub port: String,
     /// Read time-out in milliseconds.
@@ -21,6 +22,26 @@ pub struct PortArgs {
 
 /// Open the port named by `args`.
 pub fn open_port(args: &PortArgs) -> Result<Box<dyn Port>, CliError> {
+    if let Some(rest) = args.port.strip_prefix("sim") {
+        let mut parts = rest.split(':').filter(|p| !p.is_empty());
+        let boards = match parts.next() {
+            Some(n) => n
+                .parse::<u8>()
+                .ok()
+                .filter(|n| (1..=16).contains(n))
+                .ok_or_else(|| {
+                    CliError::Conflict(format!("sim port: {n:?} is not 1..=16 boards"))
+                })?,
+            None => 8,
+        };
+        let profile = match parts.next() {
+            Some(f) => crate::rigs::parse_profile(f).map_err(CliError::Conflict)?,
+            None => firelink_board::config::Profile::Rev8,
+        };
+        let boards =
+            crate::rigs::generic_boards(boards, firelink_board::config::Hardware::Qla1, profile, 0);
+        return Ok(Box::new(crate::rigs::sim_port(boards, 0, false)?));
+    }
     if args.port.starts_with("udp") {
         let addr = UdpPort::parse_address(&args.port)?;
         let mut port = UdpPort::open(addr)?;
@@ -28,7 +49,7 @@ pub fn open_port(args: &PortArgs) -> Result<Box<dyn Port>, CliError> {
         return Ok(Box::new(port));
     }
     Err(CliError::Conflict(format!(
-        "unknown port {:?}: expected udp:HOST or udp:HOST:PORT",
+        "unknown port {:?}: expected sim[:N[:FIRMWARE]], udp:HOST or udp:HOST:PORT",
         args.port
     )))
 }

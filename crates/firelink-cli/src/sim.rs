@@ -11,7 +11,7 @@ use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
 use firelink_bus::ArbitrationClass;
-use firelink_bus::scenario::{CycleConfig, Profile, Protocol, run_cycle};
+use firelink_bus::scenario::{CycleConfig, Profile, Protocol, prepare_cycle_with, run_cycle};
 use firelink_wire::packet::Speed;
 
 use crate::CliError;
@@ -91,6 +91,12 @@ pub struct SimArgs {
     /// Print one JSON object instead of a table.
     #[arg(long)]
     json: bool,
+    /// Which boards answer: `emulated` (the full FPGA1394/QLA emulation) or
+    /// `minimal` (a small responder with seed-000-era payload sizes).
+    /// Default: minimal for the seed profile (its payloads are those of
+    /// the paper's era, not Rev 7's), emulated for rev7 and rev8.
+    #[arg(long = "board-model", value_parser = ["emulated", "minimal"])]
+    board_model: Option<String>,
 }
 
 fn parse_speed(s: &str) -> Result<u32, String> {
@@ -138,7 +144,34 @@ impl SimArgs {
 /// # Errors
 /// Writing the output or the pcap file failed.
 pub fn run(args: &SimArgs, out: &mut impl Write) -> Result<(), CliError> {
-    let run = run_cycle(&args.config());
+    let cfg = args.config();
+    let emulated = match args.board_model.as_deref() {
+        Some(m) => m == "emulated",
+        None => cfg.profile != Profile::Seed,
+    };
+    let run = if emulated {
+        let board_profile = match cfg.profile {
+            Profile::Seed => firelink_board::config::Profile::Seed,
+            Profile::Rev7 => firelink_board::config::Profile::Rev7,
+            Profile::Rev8 => firelink_board::config::Profile::Rev8,
+        };
+        prepare_cycle_with(&cfg, &mut |id, cfg| {
+            let board = firelink_board::config::BoardConfig::new(
+                id,
+                firelink_board::config::Hardware::Qla1,
+                board_profile,
+            )
+            .with_seed(cfg.seed);
+            Box::new(
+                firelink_board::node::BoardNode::new(board)
+                    .with_name(format!("board{id}"))
+                    .with_broadcast(cfg.speed, cfg.arbitration),
+            )
+        })
+        .run()
+    } else {
+        run_cycle(&cfg)
+    };
     if let Some(path) = &args.pcap {
         let mut file = std::io::BufWriter::new(std::fs::File::create(path)?);
         run.bus.write_pcap(&mut file)?;

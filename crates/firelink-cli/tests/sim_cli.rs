@@ -119,3 +119,38 @@ fn table_pcap_and_errors() {
         assert!(!firelink(bad).status.success(), "{bad:?} should fail");
     }
 }
+
+/// With the full emulated boards (the default for rev7/rev8) every board
+/// answers and the wire times equal the minimal responder's: the stand-in
+/// the bus was validated with times exactly like the real emulation.
+#[test]
+fn emulated_boards_time_like_the_minimal_responder() {
+    for profile in ["rev7", "rev8"] {
+        let run = |model: &str| -> serde_json::Value {
+            let out = std::process::Command::new(env!("CARGO_BIN_EXE_firelink"))
+                .args([
+                    "sim",
+                    "--boards",
+                    "8",
+                    "--profile",
+                    profile,
+                    "--board-model",
+                    model,
+                    "--json",
+                ])
+                .output()
+                .unwrap();
+            assert!(
+                out.status.success(),
+                "{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            serde_json::from_slice(&out.stdout).unwrap()
+        };
+        let emulated = run("emulated");
+        let minimal = run("minimal");
+        assert_eq!(emulated["boards_ok"], 8, "{profile}: {emulated}");
+        assert_eq!(emulated["errors"].as_array().unwrap().len(), 0);
+        assert_eq!(emulated["phases_us"], minimal["phases_us"], "{profile}");
+    }
+}

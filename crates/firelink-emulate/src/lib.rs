@@ -158,24 +158,25 @@ impl Bridge {
             self.stats.stale_generation += 1;
             return Handled::Dropped(DropReason::StaleGeneration);
         }
-        // Address the request: local requests go to the bridge board's node.
+        // The bridge transmits on FireWire with its own node ID as source
+        // (responses must come back to it); local requests go to the bridge
+        // board's node.
+        let host_source = packet.source_id();
         let mut bytes = packet.as_bytes()[..packet.total_len()].to_vec();
-        // On the bus the request comes from the bridge's link: responses
-        // must find their way back to it, whatever source the host wrote.
-        let link_id = self.bus.node::<HostLink>(self.link).map(|l| l.node_id());
         {
+            let link_phy = self.bus.phy_id(self.link).unwrap_or(0);
             let mut p = Packet::new_unchecked(&mut bytes[..]);
+            p.set_source_id(NodeId::local(link_phy));
             if local {
                 let phy = self.bus.phy_id(self.bridge_board).unwrap_or(0);
                 p.set_destination_id(NodeId::local(phy));
-                self.stats.local += 1;
-            } else {
-                self.stats.forwarded += 1;
-            }
-            if let Some(id) = link_id {
-                p.set_source_id(id);
             }
             p.fill_header_crc();
+        }
+        if local {
+            self.stats.local += 1;
+        } else {
+            self.stats.forwarded += 1;
         }
         if is_read && destination.is_broadcast() && !local {
             // A 1394 read cannot be broadcast.
@@ -226,6 +227,12 @@ impl Bridge {
         };
         reply.clear();
         reply.extend_from_slice(&response);
+        // Hand the response back addressed to the host, as the bridge does.
+        if Packet::new_checked(&reply[..]).is_ok() {
+            let mut p = Packet::new_unchecked(&mut reply[..]);
+            p.set_destination_id(host_source);
+            p.fill_header_crc();
+        }
         reply.extend_from_slice(&extra.to_bytes());
         self.stats.replies += 1;
         Handled::Reply(reply.len())
@@ -307,7 +314,10 @@ pub fn serve(
         addr: unicast.local_addr()?,
         broadcast: broadcast.is_some(),
     });
-    unicast.set_nonblocking(true)?;
+    // The unicast socket blocks briefly (a datagram wakes it at once); the
+    // broadcast socket is polled between.
+    unicast.set_nonblocking(false)?;
+    unicast.set_read_timeout(Some(Duration::from_micros(500)))?;
     if let Some(b) = broadcast {
         b.set_nonblocking(true)?;
     }
@@ -323,8 +333,8 @@ pub fn serve(
         let wall = wall_origin.elapsed();
         let target = virtual_origin + SimDuration::from_micros_f64(wall.as_secs_f64() * 1e6);
         bridge.advance_to(target);
-        let behind = wall.as_secs_f64()
-            - (bridge.bus().now().as_micros_f64() - virtual_origin.as_micros_f64()) / 1e6;
+        let ahead_us = bridge.bus().now().as_micros_f64() - virtual_origin.as_micros_f64();
+        let behind = wall.as_secs_f64() - ahead_us / 1e6;
         if behind > 0.010 && lag_reported.elapsed() > Duration::from_secs(5) {
             on_event(Event::Lagging(Duration::from_secs_f64(behind)));
             lag_reported = Instant::now();
@@ -333,29 +343,41 @@ pub fn serve(
             generation = bridge.generation();
             on_event(Event::BusReset(generation));
         }
-        let mut got_any = false;
-        for socket in std::iter::once(unicast).chain(broadcast) {
+        let mut received = |socket: &UdpSocket, bridge: &mut Bridge| -> std::io::Result<()> {
             match socket.recv_from(&mut buf) {
                 Ok((len, from)) => {
-                    got_any = true;
                     if !hosts.contains(&from) {
                         hosts.push(from);
                         on_event(Event::HostSeen(from));
                     }
-                    let datagram = &buf[..len];
-                    if let Handled::Reply(n) = bridge.handle(datagram, &mut reply) {
+                    // Virtual time catches up with the wall clock first.
+                    let wall = wall_origin.elapsed();
+                    bridge.advance_to(
+                        virtual_origin + SimDuration::from_micros_f64(wall.as_secs_f64() * 1e6),
+                    );
+                    if let Handled::Reply(n) = bridge.handle(&buf[..len], &mut reply) {
                         unicast.send_to(&reply[..n], from)?;
                     }
+                    Ok(())
                 }
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
-                Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => {}
-                Err(e) => return Err(e),
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock
+                            | std::io::ErrorKind::TimedOut
+                            | std::io::ErrorKind::Interrupted
+                            | std::io::ErrorKind::ConnectionRefused
+                    ) =>
+                {
+                    Ok(())
+                }
+                Err(e) => Err(e),
             }
+        };
+        if let Some(b) = broadcast {
+            received(b, bridge)?;
         }
-        if !got_any {
-            // Nothing to do: yield briefly (timer slack keeps this short).
-            std::thread::sleep(Duration::from_micros(20));
-        }
+        received(unicast, bridge)?;
     }
     on_event(Event::Stopped(bridge.stats()));
     Ok(())

@@ -29,6 +29,8 @@ mod minimal_board;
 
 pub use minimal_board::{BoardStats, MinimalBoard, clocks};
 
+use firelink_wire::board::broadcast::HubHeader;
+use firelink_wire::board::realtime::BlockFormat;
 use firelink_wire::packet::{AsyncHeader, NodeId, Packet, PacketRepr, Speed, Tcode};
 
 use crate::bus::{Bus, BusConfig, NodeConfig, NodeHandle, TraceLevel};
@@ -542,6 +544,22 @@ pub fn run_cycle(cfg: &CycleConfig) -> CycleRun {
 /// Build the bus, reset it and set the gap count, without running the
 /// cycle.
 pub fn prepare_cycle(cfg: &CycleConfig) -> PreparedCycle {
+    prepare_cycle_with(cfg, &mut |id, cfg| {
+        Box::new(MinimalBoard::new(
+            id,
+            cfg.profile,
+            cfg.arbitration,
+            cfg.speed,
+        ))
+    })
+}
+
+/// Build the node of board `id` for a cycle (e.g. a full emulated board
+/// from another crate instead of the [`MinimalBoard`]).
+pub type BoardFactory<'a> = dyn FnMut(u8, &CycleConfig) -> Box<dyn crate::node::Node> + 'a;
+
+/// [`prepare_cycle`] with the boards built by `factory`.
+pub fn prepare_cycle_with(cfg: &CycleConfig, factory: &mut BoardFactory<'_>) -> PreparedCycle {
     let boards = cfg.boards.clamp(1, 16);
     let bus_cfg = BusConfig {
         seed: cfg.seed,
@@ -554,10 +572,7 @@ pub fn prepare_cycle(cfg: &CycleConfig) -> PreparedCycle {
     let mut board_nodes = vec![NodeHandle(0); boards];
     let mut chain = vec![pc];
     for id in (0..boards).rev() {
-        let h = bus.add(
-            MinimalBoard::new(id as u8, cfg.profile, cfg.arbitration, cfg.speed),
-            NodeConfig::board(),
-        );
+        let h = bus.add_node(factory(id as u8, cfg), NodeConfig::board());
         board_nodes[id] = h;
         chain.push(h);
     }
@@ -981,7 +996,14 @@ fn check_hub(
             continue;
         };
         let board = ((status >> 24) & 0xF) as u16;
-        if header >> 16 == u32::from(seq) {
+        // A Rev 8 hub keeps the rewritten header (size, sequence low byte,
+        // error bit, update time); the minimal responder keeps `seq<<16`.
+        let rev8_fresh = profile == Profile::Rev8
+            && matches!(
+                HubHeader::from_word(header, BlockFormat::Rev8),
+                HubHeader::Rev8 { seq_low, seq_error: false, .. } if u16::from(seq_low) == seq & 0xFF
+            );
+        if header >> 16 == u32::from(seq) || rev8_fresh {
             fresh |= 1 << board;
         } else if header >> 16 == 0xFFFF {
             errors.push(format!(

@@ -1,0 +1,216 @@
+//! `firelink emulate`: emulated boards behind an Ethernet bridge on UDP,
+//! paced to wall-clock time, until SIGINT or SIGTERM.
+
+use std::io::Write;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+use clap::Args;
+
+use firelink_board::config::{Hardware, Profile};
+use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_bus::{FaultRule, PacketFault, PacketMatch, SimDuration, TimedFault};
+use firelink_control::config::IoConfig;
+use firelink_emulate::{Bridge, Event, ServeConfig};
+
+use crate::CliError;
+use crate::rigs::{boards_for, generic_boards, parse_hardware, parse_profile};
+
+/// Options of `firelink emulate`.
+#[derive(Args, Debug)]
+pub struct EmulateArgs {
+    /// Number of boards (IDs 0..N) with generic motors.
+    #[arg(long, default_value_t = 8, conflicts_with = "config")]
+    pub boards: u8,
+    /// A robot configuration (saw-robot-io v6 JSON): emulate its boards
+    /// with matching plants.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Firmware: 7, 8 or seed (seed 000's TDMA and 0xFFFF rule).
+    #[arg(long, default_value = "8", value_parser = parse_profile)]
+    pub firmware: Profile,
+    /// Companion board of every board: QLA1 or DQLA.
+    #[arg(long, default_value = "QLA1", value_parser = parse_hardware)]
+    pub hardware: Hardware,
+    /// Seed of the measurement noise and the fault injector.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Address to listen on (loopback unless you ask otherwise).
+    #[arg(long, default_value = "127.0.0.1:1394")]
+    pub listen: SocketAddr,
+    /// Do not also listen on the loopback broadcast address.
+    #[arg(long = "no-broadcast")]
+    pub no_broadcast: bool,
+    /// Board ID of the Ethernet-connected board (default: the lowest).
+    #[arg(long = "bridge-board")]
+    pub bridge_board: Option<u8>,
+    /// Fault: drop each packet on the bus with this probability.
+    #[arg(long = "drop-rate", default_value_t = 0.0)]
+    pub drop_rate: f64,
+    /// Fault: flip a bit in each packet on the bus with this probability.
+    #[arg(long = "corrupt-rate", default_value_t = 0.0)]
+    pub corrupt_rate: f64,
+    /// Fault: unplug this board's cable (bus reset) after `--fault-at-ms`.
+    #[arg(long = "unplug-board")]
+    pub unplug_board: Option<u8>,
+    /// Fault: this board stops answering after `--fault-at-ms`.
+    #[arg(long = "mute-board")]
+    pub mute_board: Option<u8>,
+    /// When the timed faults happen, in ms of emulated time.
+    #[arg(long = "fault-at-ms", default_value_t = 5000)]
+    pub fault_at_ms: u64,
+    /// Stop by itself after this many seconds (0: run until a signal).
+    #[arg(long = "duration-s", default_value_t = 0.0)]
+    pub duration_s: f64,
+}
+
+/// Build the bridge of `args` (also used by tests and benchmarks).
+pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
+    let boards = match &args.config {
+        Some(path) => {
+            let config = IoConfig::load(path).map_err(|e| CliError::Conflict(e.to_string()))?;
+            boards_for(&config, args.firmware, args.seed)
+        }
+        None => {
+            if !(1..=16).contains(&args.boards) {
+                return Err(CliError::Conflict(format!(
+                    "--boards {}: between 1 and 16 boards (board IDs are 4 bits)",
+                    args.boards
+                )));
+            }
+            generic_boards(args.boards, args.hardware, args.firmware, args.seed)
+        }
+    };
+    let ids: Vec<u8> = boards.iter().map(|b| b.board_id).collect();
+    let bridge_index = match args.bridge_board {
+        Some(id) => ids
+            .iter()
+            .position(|b| *b == id)
+            .ok_or_else(|| CliError::Conflict(format!("--bridge-board {id}: no such board")))?,
+        None => 0,
+    };
+    let mut rig = BoardRig::daisy_chain(
+        boards,
+        &RigOptions {
+            seed: args.seed,
+            ..RigOptions::default()
+        },
+    );
+    if args.drop_rate > 0.0 {
+        rig.bus.add_fault_rule(FaultRule::random(
+            PacketMatch::any(),
+            PacketFault::Drop,
+            args.drop_rate.min(1.0),
+        ));
+    }
+    if args.corrupt_rate > 0.0 {
+        rig.bus.add_fault_rule(FaultRule::random(
+            PacketMatch::any(),
+            PacketFault::FlipBits { count: 1 },
+            args.corrupt_rate.min(1.0),
+        ));
+    }
+    let at = rig.bus.now() + SimDuration::from_micros(args.fault_at_ms.saturating_mul(1000));
+    let handle_of = |id: u8| -> Result<_, CliError> {
+        ids.iter()
+            .position(|b| *b == id)
+            .and_then(|i| rig.boards.get(i).copied())
+            .ok_or_else(|| CliError::Conflict(format!("no board {id} to fault")))
+    };
+    if let Some(id) = args.unplug_board {
+        let node = handle_of(id)?;
+        rig.bus.schedule_fault(
+            at,
+            TimedFault::Disconnect {
+                node,
+                reconnect_after: None,
+            },
+        );
+    }
+    if let Some(id) = args.mute_board {
+        let node = handle_of(id)?;
+        rig.bus.schedule_fault(
+            at,
+            TimedFault::StopAnswering {
+                node,
+                duration: None,
+            },
+        );
+    }
+    let bridge_node = rig
+        .boards
+        .get(bridge_index)
+        .copied()
+        .ok_or_else(|| CliError::Conflict("no bridge board".into()))?;
+    Ok((Bridge::new(rig.bus, rig.host, bridge_node), ids))
+}
+
+/// `firelink emulate`.
+pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
+    let (mut bridge, ids) = build_bridge(args)?;
+    let config = ServeConfig {
+        listen: args.listen,
+        loopback_broadcast: !args.no_broadcast,
+    };
+    let (unicast, broadcast) = firelink_emulate::bind(&config)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))?;
+    signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))?;
+    if args.duration_s > 0.0 {
+        let stop = Arc::clone(&stop);
+        let d = Duration::from_secs_f64(args.duration_s);
+        std::thread::spawn(move || {
+            std::thread::sleep(d);
+            stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        });
+    }
+    let firmware = match args.firmware {
+        Profile::Rev7 => "Rev 7",
+        Profile::Rev8 => "Rev 8",
+        Profile::Seed => "seed 000",
+    };
+    writeln!(
+        out,
+        "emulating {} board(s) {:?} at firmware {firmware}; bus generation {}",
+        ids.len(),
+        ids,
+        bridge.generation()
+    )?;
+    out.flush()?;
+    let mut log = |e: Event| {
+        let line = match e {
+            Event::Listening { addr, broadcast } => format!(
+                "listening on udp {addr}{}",
+                if broadcast {
+                    " (and the loopback broadcast address)"
+                } else {
+                    ""
+                }
+            ),
+            Event::HostSeen(from) => format!("host {from} connected"),
+            Event::BusReset(g) => format!("bus reset: generation {g}"),
+            Event::Lagging(d) => format!(
+                "emulation is {:.1} ms behind real time (machine busy)",
+                d.as_secs_f64() * 1e3
+            ),
+            Event::Stopped(s) => format!(
+                "stopped: {} datagrams, {} replies, {} forwarded, {} local, {} malformed, {} bad CRC, {} stale generation, {} bus failures",
+                s.datagrams,
+                s.replies,
+                s.forwarded,
+                s.local,
+                s.malformed,
+                s.bad_crc,
+                s.stale_generation,
+                s.bus_failures
+            ),
+        };
+        let _ = writeln!(out, "{line}");
+        let _ = out.flush();
+    };
+    firelink_emulate::serve(&mut bridge, &unicast, broadcast.as_ref(), &stop, &mut log)?;
+    Ok(())
+}

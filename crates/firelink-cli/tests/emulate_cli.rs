@@ -1,0 +1,144 @@
+//! `firelink emulate` as a user runs it: start it, scan it over loopback
+//! UDP with `firelink scan --json`, read a register, stop it with SIGTERM.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+
+use serde_json::Value;
+
+fn firelink() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_firelink"))
+}
+
+#[test]
+fn emulate_scan_read_and_clean_shutdown() {
+    let mut server = firelink()
+        .args([
+            "emulate",
+            "--boards",
+            "3",
+            "--listen",
+            "127.0.0.1:0",
+            "--no-broadcast",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("start emulate");
+    let stdout = server.stdout.take().unwrap();
+    let mut lines = BufReader::new(stdout).lines();
+    let mut addr = None;
+    for line in lines.by_ref() {
+        let line = line.unwrap();
+        if let Some(rest) = line.strip_prefix("listening on udp ") {
+            addr = rest.split_whitespace().next().map(str::to_string);
+            break;
+        }
+    }
+    let addr = addr.expect("emulate prints its address");
+    let port = format!("udp:{addr}");
+
+    let out = firelink()
+        .args(["scan", "--port", &port, "--json", "--timeout-ms", "100"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let boards = v["boards"].as_array().unwrap();
+    assert_eq!(boards.len(), 3);
+    for (i, b) in boards.iter().enumerate() {
+        assert_eq!(b["board_id"], i);
+        assert_eq!(b["node"], i);
+        assert_eq!(b["hardware"], "QLA1");
+        assert_eq!(b["firmware"], 8);
+        assert_eq!(b["fpga"], 2);
+    }
+    assert_eq!(v["protocol"], "broadcast");
+
+    let out = firelink()
+        .args([
+            "read",
+            "--port",
+            &port,
+            "--board",
+            "2",
+            "hw_version",
+            "--timeout-ms",
+            "100",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        String::from_utf8(out.stdout).unwrap().trim(),
+        "0x0004: 514c4131"
+    );
+
+    // SIGTERM: the server says it stopped, with its counters, and exits 0.
+    let status = Command::new("kill")
+        .args(["-TERM", &server.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let rest: Vec<String> = lines.map_while(Result::ok).collect();
+    let exit = server.wait().unwrap();
+    assert!(exit.success(), "{exit:?}");
+    assert!(rest.iter().any(|l| l.starts_with("stopped:")), "{rest:?}");
+    assert!(rest.iter().any(|l| l.starts_with("host 127.0.0.1")));
+}
+
+#[test]
+fn emulate_refuses_bad_options() {
+    let out = firelink()
+        .args(["emulate", "--boards", "17", "--listen", "127.0.0.1:0"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("between 1 and 16 boards"));
+    let out = firelink()
+        .args(["emulate", "--firmware", "9"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+}
+
+#[test]
+fn sim_port_strings_work_everywhere() {
+    let out = firelink()
+        .args(["scan", "--port", "sim:5:7", "--json"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["boards"].as_array().unwrap().len(), 5);
+    assert_eq!(v["boards"][0]["firmware"], 7);
+    let out = firelink()
+        .args(["monitor", "--port", "sim:2", "--once", "20"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("cycles 20"), "{text}");
+    assert!(text.contains("errors 0"), "{text}");
+    let out = firelink()
+        .args(["scan", "--port", "sim:99"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+}

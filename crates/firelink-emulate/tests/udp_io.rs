@@ -1,0 +1,326 @@
+//! The host library over loopback UDP against the emulator: scan, every
+//! protocol, register access, and the bridge's own rules.
+
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use firelink_board::config::{BoardConfig, Hardware, Profile};
+use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_emulate::{Bridge, Handled, ServeConfig, bind, serve};
+use firelink_host::io::{IoConfig, IoSystem};
+use firelink_host::scan::{Protocol, scan};
+use firelink_host::udp::UdpPort;
+use firelink_host::{Dest, Port};
+use firelink_wire::bridge::{ControlWord, split_board_datagram};
+use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
+
+struct Server {
+    addr: SocketAddr,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn bridge(n: u8, profile: Profile) -> Bridge {
+    let boards = (0..n)
+        .map(|id| BoardConfig::new(id, Hardware::Qla1, profile))
+        .collect();
+    let rig = BoardRig::daisy_chain(boards, &RigOptions::default());
+    let first = rig.boards[0];
+    Bridge::new(rig.bus, rig.host, first)
+}
+
+fn start(n: u8, profile: Profile) -> Server {
+    let config = ServeConfig {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        loopback_broadcast: false,
+    };
+    let (unicast, _) = bind(&config).unwrap();
+    let addr = unicast.local_addr().unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let stop2 = Arc::clone(&stop);
+    let thread = std::thread::spawn(move || {
+        let mut b = bridge(n, profile);
+        serve(&mut b, &unicast, None, &stop2, |_| {}).unwrap();
+    });
+    Server {
+        addr,
+        stop,
+        thread: Some(thread),
+    }
+}
+
+fn port(server: &Server) -> UdpPort {
+    let mut p = UdpPort::open(server.addr).unwrap();
+    // Generous: test builds are unoptimised and share two cores.
+    p.set_timeout(Duration::from_millis(100));
+    p
+}
+
+#[test]
+fn scan_over_udp_finds_1_8_and_16_boards() {
+    for n in [1u8, 8, 16] {
+        let server = start(n, Profile::Rev7);
+        let mut p = port(&server);
+        let report = scan(&mut p).unwrap();
+        assert_eq!(report.boards.len(), usize::from(n));
+        assert_eq!(report.bridge_board, Some(0));
+        assert_eq!(report.protocol, Protocol::Broadcast);
+        assert_eq!(report.silent_nodes.len(), 16 - usize::from(n));
+        // The host adopted the boards' bus generation from the extra data
+        // (it starts at 0; the rig's resets made it at least 1).
+        assert!(p.generation() >= 1);
+    }
+}
+
+#[test]
+fn every_protocol_runs_over_udp() {
+    let server = start(4, Profile::Rev8);
+    for protocol in [
+        Protocol::Sequential,
+        Protocol::SequentialReadBroadcastWrite,
+        Protocol::Broadcast,
+    ] {
+        let p = port(&server);
+        let config = IoConfig {
+            protocol: Some(protocol),
+            ..IoConfig::default()
+        };
+        let (mut io, _) = IoSystem::open(p, config).unwrap();
+        for _ in 0..20 {
+            io.cycle();
+        }
+        let stats = *io.stats();
+        assert_eq!(stats.total_errors(), 0, "{protocol:?}: {stats:?}");
+        assert_eq!(stats.clean_cycles, 20, "{protocol:?}");
+        assert!(io.boards().iter().all(|b| b.is_valid()));
+        // Commands arrive: switch power on and read it back.
+        for b in io.boards_mut() {
+            b.set_power(true);
+        }
+        io.cycle();
+        std::thread::sleep(Duration::from_millis(20));
+        io.cycle();
+        assert!(
+            io.boards().iter().all(|b| b.power_enabled()),
+            "{protocol:?}"
+        );
+        for b in io.boards_mut() {
+            b.set_power(false);
+        }
+        io.cycle();
+    }
+}
+
+#[test]
+fn register_writes_and_block_reads_over_udp() {
+    let server = start(2, Profile::Rev8);
+    let mut p = port(&server);
+    scan(&mut p).unwrap();
+    // Watchdog register of board 1: write, read back.
+    p.write_quadlet(Dest::node(1), 3, 0x0100).unwrap();
+    assert_eq!(p.read_quadlet(Dest::node(1), 3).unwrap() & 0xFFFF, 0x0100);
+    let mut block = [0u8; 32 * 4];
+    p.read_block(Dest::node(1), 0, &mut block).unwrap();
+    // STATUS (quadlet 1) names board 1.
+    assert_eq!((block[4] & 0x0F), 1);
+}
+
+#[test]
+fn bridge_rules_without_sockets() {
+    let mut b = bridge(2, Profile::Rev8);
+    let mut reply = Vec::new();
+    let read = |node: u8, generation: u8, no_forward: bool| {
+        let repr = PacketRepr::ReadQuadletRequest {
+            header: AsyncHeader::new(NodeId::local(node), NodeId(0xFFD0), 1),
+            offset: 4,
+        };
+        let mut d = ControlWord {
+            no_forward,
+            generation,
+        }
+        .to_bytes()
+        .to_vec();
+        let mut pkt = vec![0u8; repr.buffer_len()];
+        repr.emit(&mut pkt).unwrap();
+        d.extend_from_slice(&pkt);
+        d
+    };
+    // Stale generation: forwarded requests are dropped.
+    assert_eq!(
+        b.handle(&read(1, 0, false), &mut reply),
+        Handled::Dropped(firelink_emulate::DropReason::StaleGeneration)
+    );
+    // Local (no-forward) requests answer whatever the generation, with the
+    // no-forward flag and the board's generation in the extra data, and the
+    // response addressed back to the host.
+    let Handled::Reply(n) = b.handle(&read(63, 0, true), &mut reply) else {
+        panic!("no reply");
+    };
+    let (packet, extra) = split_board_datagram(&reply[..n]).unwrap();
+    packet.verify().unwrap();
+    assert_eq!(packet.destination_id(), NodeId(0xFFD0));
+    assert_eq!(packet.quadlet_data(), 0x514C_4131);
+    assert!(extra.flags.no_forward);
+    assert_eq!(extra.generation, b.generation());
+    // Garbage and bad CRCs are counted and dropped.
+    assert!(matches!(
+        b.handle(&[1, 2, 3], &mut reply),
+        Handled::Dropped(_)
+    ));
+    let mut bad = read(1, b.generation(), false);
+    bad[5] ^= 1;
+    assert_eq!(
+        b.handle(&bad, &mut reply),
+        Handled::Dropped(firelink_emulate::DropReason::BadCrc)
+    );
+    assert_eq!(b.stats().malformed, 1);
+    assert_eq!(b.stats().bad_crc, 1);
+}
+
+/// The discovery sequence of the reference host library (`fpga-board.md`
+/// §8), as raw datagrams (unicast here: tests never send to broadcast
+/// addresses): IP_ADDR broadcast write; broadcast no-forward reads of
+/// HW_VERSION, STATUS, FW_VERSION, ETH_STATUS; broadcast write PHY_CTRL=0;
+/// per node HW_VERSION, FW_VERSION, ETH_STATUS, STATUS, GIT_DESC; then the
+/// gap count through PHY_CTRL=1 / PHY_DATA. Requests use source 0xFFD0.
+#[test]
+fn reference_host_discovery_sequence() {
+    let mut b = bridge(3, Profile::Rev8);
+    let mut reply = Vec::new();
+    let mut tl = 0u8;
+    let mut generation = 0u8;
+    let datagram = |_node: u8, no_forward: bool, generation: u8, repr: PacketRepr<'_>| {
+        let mut d = ControlWord {
+            no_forward,
+            generation,
+        }
+        .to_bytes()
+        .to_vec();
+        let mut pkt = vec![0u8; repr.buffer_len()];
+        repr.emit(&mut pkt).unwrap();
+        d.extend_from_slice(&pkt);
+        d
+    };
+    let mut header = |node: u8| {
+        tl = (tl + 1) & 0x3F;
+        AsyncHeader::new(NodeId(0xFFC0 | u16::from(node)), NodeId(0xFFD0), tl)
+    };
+    // IP_ADDR (169.254.0.100, little-endian) to every board: no reply.
+    let d = datagram(
+        63,
+        false,
+        generation,
+        PacketRepr::WriteQuadletRequest {
+            header: header(63),
+            offset: 11,
+            data: 0x6400_FEA9,
+        },
+    );
+    assert_eq!(b.handle(&d, &mut reply), Handled::Written);
+    // Broadcast no-forward reads answered by the Ethernet board itself.
+    let mut local = Vec::new();
+    for offset in [4u64, 0, 7, 12] {
+        let d = datagram(
+            63,
+            true,
+            generation,
+            PacketRepr::ReadQuadletRequest {
+                header: header(63),
+                offset,
+            },
+        );
+        let Handled::Reply(n) = b.handle(&d, &mut reply) else {
+            panic!("no reply to local read {offset}");
+        };
+        let (p, extra) = split_board_datagram(&reply[..n]).unwrap();
+        generation = extra.generation;
+        local.push(p.quadlet_data());
+    }
+    assert_eq!(local[0], 0x514C_4131, "HW_VERSION QLA1");
+    assert_eq!((local[1] >> 24) & 0xF, 0, "hub = board 0");
+    assert_eq!(local[2], 8, "FW_VERSION");
+    assert_eq!(local[3] >> 31, 1, "ETH_STATUS: FPGA V2");
+    // PHY_CTRL = 0 to everybody.
+    let d = datagram(
+        63,
+        false,
+        generation,
+        PacketRepr::WriteQuadletRequest {
+            header: header(63),
+            offset: 1,
+            data: 0,
+        },
+    );
+    assert_eq!(b.handle(&d, &mut reply), Handled::Written);
+    // Per node 0..15: present nodes answer, absent ones do not.
+    let mut found = Vec::new();
+    for node in 0..16u8 {
+        let mut answers = Vec::new();
+        for offset in [4u64, 7, 12, 0, 15] {
+            let d = datagram(
+                node,
+                false,
+                generation,
+                PacketRepr::ReadQuadletRequest {
+                    header: header(node),
+                    offset,
+                },
+            );
+            match b.handle(&d, &mut reply) {
+                Handled::Reply(n) => {
+                    let (p, _) = split_board_datagram(&reply[..n]).unwrap();
+                    p.verify().unwrap();
+                    assert_eq!(p.source_id(), NodeId(0xFFC0 | u16::from(node)));
+                    answers.push(p.quadlet_data());
+                }
+                Handled::Dropped(_) => break,
+                Handled::Written => unreachable!(),
+            }
+        }
+        if answers.len() == 5 {
+            found.push(((answers[3] >> 24) & 0xF) as u8);
+        }
+    }
+    assert_eq!(found, vec![0, 1, 2]);
+    // Gap count: write PHY_CTRL = 1 (read register 1), read PHY_DATA.
+    let d = datagram(
+        0,
+        false,
+        generation,
+        PacketRepr::WriteQuadletRequest {
+            header: header(0),
+            offset: 1,
+            data: 1,
+        },
+    );
+    assert_eq!(b.handle(&d, &mut reply), Handled::Written);
+    let d = datagram(
+        0,
+        false,
+        generation,
+        PacketRepr::ReadQuadletRequest {
+            header: header(0),
+            offset: 2,
+        },
+    );
+    let Handled::Reply(n) = b.handle(&d, &mut reply) else {
+        panic!("no PHY_DATA");
+    };
+    let (p, _) = split_board_datagram(&reply[..n]).unwrap();
+    let phy_data = p.quadlet_data();
+    assert_eq!((phy_data >> 8) & 0xF, 1, "register 1");
+    // 3 boards + the bridge link: 3 hops, Linux gap count 8.
+    assert_eq!(phy_data & 0x3F, 8, "gap count");
+}
