@@ -17,7 +17,7 @@ use firelink_control::config::IoConfig;
 use firelink_emulate::{Bridge, Event, ServeConfig};
 
 use crate::CliError;
-use crate::rigs::{boards_for, generic_boards, parse_hardware, parse_profile};
+use crate::rig::{board_configs, generic_boards, parse_hardware, parse_profile};
 
 /// Options of `firelink emulate`.
 #[derive(Args, Debug)]
@@ -72,7 +72,13 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
     let boards = match &args.config {
         Some(path) => {
             let config = IoConfig::load(path).map_err(|e| CliError::Conflict(e.to_string()))?;
-            boards_for(&config, args.firmware, args.seed)
+            let count = config
+                .boards()
+                .iter()
+                .map(|b| usize::from(b.board_id) + 1)
+                .max()
+                .unwrap_or(0);
+            board_configs(&config, args.firmware, count)
         }
         None => {
             if !(1..=16).contains(&args.boards) {

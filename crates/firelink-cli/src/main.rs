@@ -13,7 +13,6 @@ mod monitor;
 mod packet_cmd;
 mod ports;
 mod rig;
-mod rigs;
 mod rt;
 mod sim;
 mod tour;

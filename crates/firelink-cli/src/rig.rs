@@ -9,10 +9,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 
 use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::node::BoardNode;
 use firelink_board::plant::AxisParams;
 use firelink_board::plant::presets::{self, Arm};
-use firelink_bus::{Bus, BusConfig, HostLink, HostModel, NodeConfig, NodeHandle};
+use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_bus::{Bus, HostModel, NodeHandle};
 use firelink_control::config::IoConfig;
 use firelink_emulate::{Bridge, ServeConfig};
 use firelink_host::sim::SimPort;
@@ -102,26 +102,23 @@ pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<
     out
 }
 
-/// A bus: the link `pc` at the root, then the boards daisy-chained.
-pub fn build_bus(
-    link: HostLink,
-    boards: Vec<BoardConfig>,
-) -> Result<(Bus, NodeHandle, Vec<NodeHandle>), CliError> {
-    let mut bus = Bus::new(BusConfig::default());
-    let pc = bus.add(link, NodeConfig::pc());
-    let handles: Vec<NodeHandle> = boards
-        .into_iter()
-        .map(|b| bus.add(BoardNode::new(b), NodeConfig::board()))
-        .collect();
-    let mut chain = vec![pc];
-    chain.extend(&handles);
-    bus.daisy_chain(&chain)
-        .map_err(|e| CliError::Conflict(format!("bus: {e}")))?;
-    bus.set_root(pc)
-        .map_err(|e| CliError::Conflict(format!("bus: {e}")))?;
-    bus.reset();
-    bus.run_until_idle();
-    Ok((bus, pc, handles))
+/// A bus: the PC's (or the bridge's) link at the root, then the boards
+/// daisy-chained, reset, with the gap count Linux would set for its hops.
+pub fn build_bus(boards: Vec<BoardConfig>) -> Result<(Bus, NodeHandle, Vec<NodeHandle>), CliError> {
+    if boards.is_empty() {
+        return Err(CliError::Conflict("no boards to emulate".into()));
+    }
+    let rig = BoardRig::daisy_chain(boards, &RigOptions::default());
+    Ok((rig.bus, rig.host, rig.boards))
+}
+
+/// `n` boards with generic motors, IDs 0..n.
+pub fn generic_boards(n: u8, hardware: Hardware, profile: Profile, seed: u64) -> Vec<BoardConfig> {
+    (0..n)
+        .map(|id| {
+            BoardConfig::new(id, hardware, profile).with_seed(seed.wrapping_add(u64::from(id)))
+        })
+        .collect()
 }
 
 /// The simulated port: the PC's link with the seed-000 PC model (optional)
@@ -130,7 +127,7 @@ pub fn sim_port(
     boards: Vec<BoardConfig>,
     pc_model: bool,
 ) -> Result<(SimPort, Vec<NodeHandle>), CliError> {
-    let (bus, pc, handles) = build_bus(HostLink::new("pc"), boards)?;
+    let (bus, pc, handles) = build_bus(boards)?;
     let model = HostModel::seed000(bus.timing());
     let mut port = SimPort::new(bus, pc);
     if pc_model {
@@ -164,7 +161,7 @@ impl Emulator {
         let (tx, rx) = std::sync::mpsc::channel();
         // The bus is not Send: it is built on the server thread.
         let thread = std::thread::spawn(move || {
-            let (bus, link, handles) = match build_bus(HostLink::new("bridge"), boards) {
+            let (bus, link, handles) = match build_bus(boards) {
                 Ok(b) => b,
                 Err(e) => {
                     let _ = tx.send(Err(e.to_string()));
@@ -217,13 +214,25 @@ impl Drop for Emulator {
 
 /// Parse `7`, `8` or `seed` into a firmware profile.
 pub fn profile(name: &str) -> Result<Profile, CliError> {
-    match name {
+    parse_profile(name).map_err(CliError::Conflict)
+}
+
+/// Firmware profile from the command line's `--firmware 7|8|seed` (clap).
+pub fn parse_profile(text: &str) -> Result<Profile, String> {
+    match text {
         "7" | "rev7" => Ok(Profile::Rev7),
         "8" | "rev8" => Ok(Profile::Rev8),
         "seed" => Ok(Profile::Seed),
-        _ => Err(CliError::Conflict(format!(
-            "unknown firmware {name:?}: expected 7, 8 or seed"
-        ))),
+        _ => Err(format!("unknown firmware {text:?}: expected 7, 8 or seed")),
+    }
+}
+
+/// Hardware from `--hardware QLA1|DQLA` (clap).
+pub fn parse_hardware(text: &str) -> Result<Hardware, String> {
+    match text.to_ascii_uppercase().as_str() {
+        "QLA1" | "QLA" => Ok(Hardware::Qla1),
+        "DQLA" => Ok(Hardware::Dqla),
+        _ => Err(format!("unknown hardware {text:?}: QLA1 or DQLA")),
     }
 }
 
