@@ -96,18 +96,9 @@ impl BoardRig {
         };
         if let Some(g) = gap.filter(|g| bus.gap_count(host) != Some(*g)) {
             let packet = phy_config_packet(Some(g), None);
-            let sent = bus
-                .with_node::<HostLink, _>(host, |l, ctx| l.submit(ctx, packet, Speed::S100))
-                .ok();
-            if let Some(token) = sent {
+            if let Ok(token) = HostLink::submit_on(&mut bus, host, packet, Speed::S100) {
                 let deadline = bus.now() + SimDuration::from_micros(1_000);
-                bus.run_until_with(deadline, |b| {
-                    b.node::<HostLink>(host)
-                        .is_some_and(|l| !l.is_pending(token))
-                });
-                if let Some(l) = bus.node_mut::<HostLink>(host) {
-                    let _ = l.take_completion(token);
-                }
+                let _ = HostLink::wait_on(&mut bus, host, token, deadline);
                 // The PHYs take the configuration when the subaction ends.
                 bus.run_until_with(deadline, |b| !b.has_pending_traffic());
             }

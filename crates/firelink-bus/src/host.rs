@@ -246,6 +246,35 @@ impl HostLink {
         self.received.drain(..).collect()
     }
 
+    /// Submit `packet` through the link node `link` of `bus` (how a host
+    /// port or a bridge drives its link from outside the simulation).
+    ///
+    /// # Errors
+    /// [`BusError`](crate::BusError) if `link` is not a [`HostLink`].
+    pub fn submit_on(
+        bus: &mut crate::Bus,
+        link: crate::NodeHandle,
+        packet: Vec<u8>,
+        speed: Speed,
+    ) -> Result<u64, crate::BusError> {
+        bus.with_node::<HostLink, _>(link, |l, ctx| l.submit(ctx, packet, speed))
+    }
+
+    /// Run `bus` until the transaction `token` of the link `link` finishes
+    /// or the next event is after `deadline`, and take its completion.
+    pub fn wait_on(
+        bus: &mut crate::Bus,
+        link: crate::NodeHandle,
+        token: u64,
+        deadline: SimTime,
+    ) -> Option<Completion> {
+        bus.run_until_with(deadline, |b| {
+            b.node::<HostLink>(link)
+                .is_some_and(|l| !l.is_pending(token))
+        });
+        bus.node_mut::<HostLink>(link)?.take_completion(token)
+    }
+
     fn finish(&mut self, token: u64, now: SimTime, outcome: Outcome, ctx: &mut NodeCtx<'_>) {
         let Some(p) = self.pending.remove(&token) else {
             return;

@@ -146,27 +146,19 @@ impl SimPort {
             self.speed
         };
         let host = self.host;
-        let token = self
-            .bus
-            .with_node::<HostLink, _>(host, |link, ctx| link.submit(ctx, packet, speed))
-            .map_err(|_| HostError::InvalidRequest {
+        let token = HostLink::submit_on(&mut self.bus, host, packet, speed).map_err(|_| {
+            HostError::InvalidRequest {
                 what: "the simulated bus has no host link",
                 value: host.0 as u32,
-            })?;
+            }
+        })?;
         self.stats.transactions += 1;
         if call == HostCall::BroadcastWrite {
             // Non-blocking: the packet goes out while the caller goes on.
             return Ok(Vec::new());
         }
         let deadline = self.bus.now() + self.timeout;
-        self.bus.run_until_with(deadline, |bus| {
-            bus.node::<HostLink>(host)
-                .is_some_and(|l| !l.is_pending(token))
-        });
-        let completion = self
-            .bus
-            .node_mut::<HostLink>(host)
-            .and_then(|l| l.take_completion(token));
+        let completion = HostLink::wait_on(&mut self.bus, host, token, deadline);
         if let Some(c) = cost {
             self.bus.run_for(c.after);
         }
