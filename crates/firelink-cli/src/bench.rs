@@ -369,71 +369,228 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
 
 // ------------------------------------------------------------------ plot ---
 
-const W: usize = 640;
-const H: usize = 400;
+#[path = "bitmap_font.rs"]
+mod bitmap_font;
+
+const W: usize = 900;
+const H: usize = 560;
+
+const BLACK: [u8; 3] = [0, 0, 0];
+const GREY: [u8; 3] = [225, 225, 225];
+const WHITE: [u8; 3] = [255, 255, 255];
+const COLOURS: [[u8; 3]; 6] = [
+    [200, 30, 30],
+    [30, 30, 200],
+    [240, 140, 20],
+    [20, 160, 60],
+    [150, 40, 170],
+    [90, 90, 90],
+];
+
+/// Is this point from the cost model rather than measured?
+fn extrapolated(p: &Point) -> bool {
+    p.cycles == 0 && p.note.as_deref().is_some_and(|n| n.starts_with("model"))
+}
+
+/// A round gridline step giving at most about eight lines up to `max`.
+fn nice_step(max: f64) -> f64 {
+    let raw = (max / 8.0).max(1e-9);
+    let mag = 10f64.powf(raw.log10().floor());
+    [1.0, 2.0, 2.5, 5.0, 10.0]
+        .iter()
+        .map(|m| m * mag)
+        .find(|&s| s >= raw)
+        .unwrap_or(10.0 * mag)
+}
+
+/// Draw `s` with its top left corner at (x, y).
+fn text(img: &mut [[u8; 3]], x: f64, y: f64, s: &str, scale: usize, c: [u8; 3]) {
+    let (x, y) = (x.round() as i64, y.round() as i64);
+    bitmap_font::render(s, scale, |dx, dy| put(img, x + dx as i64, y + dy as i64, c));
+}
+
+fn text_w(s: &str, scale: usize) -> f64 {
+    bitmap_font::text_width(s, scale) as f64
+}
+
+/// A square marker centred on (x, y): filled, or hollow (white inside).
+fn marker(img: &mut [[u8; 3]], x: f64, y: f64, hollow: bool, c: [u8; 3]) {
+    rect(img, x - 4.0, y - 4.0, 9, 9, c);
+    if hollow {
+        rect(img, x - 2.0, y - 2.0, 5, 5, WHITE);
+    }
+}
 
 /// A PNG of I/O time (median) against boards, one line per transport and
-/// protocol, log-free linear axes; a legend of colour swatches in the top
-/// left in the order sim-sequential, sim-broadcast, udp-sequential,
-/// udp-broadcast. No text (no font dependency).
+/// protocol, linear axes, with a title, axis names, tick labels and a
+/// legend (5x7 bitmap font at 2x). Points from the cost model (beyond 16
+/// boards) are hollow markers joined by dashed segments.
 fn plot(points: &[Point], path: &str) -> Result<(), CliError> {
-    let mut img = vec![[255u8; 3]; W * H];
-    let (x0, y0, x1, y1) = (50.0, 30.0, (W - 20) as f64, (H - 40) as f64);
+    let mut img = vec![WHITE; W * H];
+    let (x0, y0, x1, y1) = (90.0, 70.0, (W - 270) as f64, (H - 70) as f64);
     let max_b = points.iter().map(|p| p.boards).max().unwrap_or(1) as f64;
     let max_t = points
         .iter()
         .map(|p| p.io.median)
         .filter(|x| x.is_finite())
         .fold(1.0f64, f64::max);
+    let step = nice_step(max_t);
+    let top = (max_t / step).ceil() * step;
     let sx = |b: f64| x0 + (x1 - x0) * b / max_b;
-    let sy = |t: f64| y1 - (y1 - y0) * t / (max_t * 1.05);
-    let black = [0, 0, 0];
-    line(&mut img, x0, y1, x1, y1, black);
-    line(&mut img, x0, y0, x0, y1, black);
-    // Ticks: every 100 us and every 8 boards.
-    let mut t = 100.0;
-    while t < max_t * 1.05 {
-        line(&mut img, x0 - 5.0, sy(t), x0, sy(t), black);
-        line(&mut img, x0, sy(t), x1, sy(t), [225, 225, 225]);
-        t += 100.0;
+    let sy = |t: f64| y1 - (y1 - y0) * t / top;
+
+    let title = "I/O time per cycle vs boards (seed 000 Fig. 11 and beyond)";
+    text(
+        &mut img,
+        (W as f64 - text_w(title, 2)) / 2.0,
+        16.0,
+        title,
+        2,
+        BLACK,
+    );
+
+    // Y gridlines and labels (us).
+    let mut k = 0.0;
+    while k * step <= top + step * 1e-6 {
+        let t = k * step;
+        let y = sy(t);
+        if k > 0.0 {
+            line(&mut img, x0, y, x1, y, GREY);
+        }
+        line(&mut img, x0 - 5.0, y, x0, y, BLACK);
+        let label = format!("{t}");
+        text(
+            &mut img,
+            x0 - 10.0 - text_w(&label, 2),
+            y - 7.0,
+            &label,
+            2,
+            BLACK,
+        );
+        k += 1.0;
     }
-    let mut b = 8.0;
-    while b <= max_b {
-        line(&mut img, sx(b), y1, sx(b), y1 + 5.0, black);
-        b += 8.0;
+    text(
+        &mut img,
+        x0 - 10.0 - text_w("us", 2),
+        y0 - 36.0,
+        "us",
+        2,
+        BLACK,
+    );
+
+    // X ticks at the board counts present.
+    let mut counts: Vec<usize> = points.iter().map(|p| p.boards).collect();
+    counts.sort_unstable();
+    counts.dedup();
+    let mut right_edge = f64::NEG_INFINITY;
+    for &n in &counts {
+        let x = sx(n as f64);
+        line(&mut img, x, y1, x, y1 + 5.0, BLACK);
+        let label = n.to_string();
+        let lx = x - text_w(&label, 2) / 2.0;
+        // Skip a label that would run into the previous one.
+        if lx > right_edge + 4.0 {
+            text(&mut img, lx, y1 + 10.0, &label, 2, BLACK);
+            right_edge = lx + text_w(&label, 2);
+        }
     }
-    let series = [
-        ("sim", Protocol::Sequential, [200, 30, 30]),
-        ("sim", Protocol::Broadcast, [30, 30, 200]),
-        ("udp", Protocol::Sequential, [240, 140, 20]),
-        ("udp", Protocol::Broadcast, [20, 160, 60]),
-    ];
-    for (k, (tr, proto, colour)) in series.iter().enumerate() {
-        let pts: Vec<(f64, f64)> = points
+    let name = "boards";
+    text(
+        &mut img,
+        (x0 + x1 - text_w(name, 2)) / 2.0,
+        y1 + 36.0,
+        name,
+        2,
+        BLACK,
+    );
+    line(&mut img, x0, y1, x1, y1, BLACK);
+    line(&mut img, x0, y0, x0, y1, BLACK);
+
+    // Series: one per (transport, asked protocol), in order of appearance.
+    let mut series: Vec<(String, Protocol)> = Vec::new();
+    for p in points {
+        if !series
+            .iter()
+            .any(|(t, q)| *t == p.transport && *q == p.asked)
+        {
+            series.push((p.transport.clone(), p.asked));
+        }
+    }
+    let lx = x1 + 20.0;
+    let mut ly = y0;
+    for (k, (tr, proto)) in series.iter().enumerate() {
+        let colour = COLOURS[k % COLOURS.len()];
+        let pts: Vec<(f64, f64, bool)> = points
             .iter()
             .filter(|p| p.transport == *tr && p.asked == *proto && p.io.median.is_finite())
-            .map(|p| (sx(p.boards as f64), sy(p.io.median)))
+            .map(|p| (sx(p.boards as f64), sy(p.io.median), extrapolated(p)))
             .collect();
         for w in pts.windows(2) {
             if let [a, b] = w {
-                line(&mut img, a.0, a.1, b.0, b.1, *colour);
-                line(&mut img, a.0, a.1 + 1.0, b.0, b.1 + 1.0, *colour);
+                let dashed = a.2 || b.2;
+                dline(&mut img, a.0, a.1, b.0, b.1, colour, dashed);
+                dline(&mut img, a.0, a.1 + 1.0, b.0, b.1 + 1.0, colour, dashed);
             }
         }
-        for &(x, y) in &pts {
-            rect(&mut img, x - 3.0, y - 3.0, 7, 7, *colour);
+        for &(x, y, model) in &pts {
+            marker(&mut img, x, y, model, colour);
         }
-        rect(
+        // Legend entry: swatch line with marker, then the name.
+        line(&mut img, lx, ly + 7.0, lx + 24.0, ly + 7.0, colour);
+        line(&mut img, lx, ly + 8.0, lx + 24.0, ly + 8.0, colour);
+        marker(&mut img, lx + 12.0, ly + 7.0, false, colour);
+        let label = format!("{tr} {}", proto.name());
+        let room = W as f64 - 10.0 - (lx + 32.0);
+        let scale = if text_w(&label, 2) <= room { 2 } else { 1 };
+        text(
             &mut img,
-            x0 + 10.0 + 30.0 * k as f64,
-            y0 - 20.0,
-            20,
-            10,
-            *colour,
+            lx + 32.0,
+            ly + if scale == 2 { 0.0 } else { 4.0 },
+            &label,
+            scale,
+            BLACK,
         );
+        ly += 26.0;
     }
+    // Legend note on the extrapolated points.
+    ly += 10.0;
+    dline(&mut img, lx, ly + 7.0, lx + 24.0, ly + 7.0, BLACK, true);
+    marker(&mut img, lx + 12.0, ly + 7.0, true, BLACK);
+    text(&mut img, lx + 32.0, ly, "hollow, dashed =", 2, BLACK);
+    text(&mut img, lx + 32.0, ly + 20.0, "extrapolated", 2, BLACK);
+    text(&mut img, lx + 32.0, ly + 40.0, "model", 2, BLACK);
+    ly += 70.0;
+    dline(&mut img, lx, ly + 7.0, lx + 24.0, ly + 7.0, BLACK, false);
+    marker(&mut img, lx + 12.0, ly + 7.0, false, BLACK);
+    text(&mut img, lx + 32.0, ly, "filled = measured", 2, BLACK);
+    text(
+        &mut img,
+        lx,
+        ly + 30.0,
+        "each point: median I/O time per cycle",
+        1,
+        BLACK,
+    );
+
     std::fs::write(path, png(&img, W, H))?;
     Ok(())
+}
+
+/// A line, dashed (8 on, 6 off) when `dashed`.
+fn dline(img: &mut [[u8; 3]], xa: f64, ya: f64, xb: f64, yb: f64, c: [u8; 3], dashed: bool) {
+    let steps = (xb - xa).abs().max((yb - ya).abs()).ceil().max(1.0) as i64;
+    for i in 0..=steps {
+        if dashed && i % 14 >= 8 {
+            continue;
+        }
+        let f = i as f64 / steps as f64;
+        put(
+            img,
+            (xa + (xb - xa) * f).round() as i64,
+            (ya + (yb - ya) * f).round() as i64,
+            c,
+        );
+    }
 }
 
 fn put(img: &mut [[u8; 3]], x: i64, y: i64, c: [u8; 3]) {
@@ -453,16 +610,7 @@ fn rect(img: &mut [[u8; 3]], x: f64, y: f64, w: i64, h: i64, c: [u8; 3]) {
 }
 
 fn line(img: &mut [[u8; 3]], xa: f64, ya: f64, xb: f64, yb: f64, c: [u8; 3]) {
-    let steps = (xb - xa).abs().max((yb - ya).abs()).ceil().max(1.0) as i64;
-    for i in 0..=steps {
-        let f = i as f64 / steps as f64;
-        put(
-            img,
-            (xa + (xb - xa) * f).round() as i64,
-            (ya + (yb - ya) * f).round() as i64,
-            c,
-        );
-    }
+    dline(img, xa, ya, xb, yb, c, false);
 }
 
 fn crc32(data: &[u8]) -> u32 {
