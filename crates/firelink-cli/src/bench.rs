@@ -369,8 +369,7 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
 
 // ------------------------------------------------------------------ plot ---
 
-#[path = "bitmap_font.rs"]
-mod bitmap_font;
+use crate::bitmap_font;
 
 const W: usize = 900;
 const H: usize = 560;

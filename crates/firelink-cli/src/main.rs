@@ -5,6 +5,7 @@
 //! with a non-zero exit status.
 
 mod bench;
+mod bitmap_font;
 mod board_cmd;
 mod demo;
 mod emulate_cmd;
