@@ -9,7 +9,7 @@ use firelink_host::board::BoardInfo;
 use firelink_host::scan::{ScanReport, scan};
 use firelink_host::{Dest, Port};
 use firelink_wire::board::address::{AxisRegister, BoardRegister, Register};
-use firelink_wire::board::registers::{FpgaVersion, StatusRead, Temperature, Watchdog};
+use firelink_wire::board::registers::{StatusRead, Temperature, Watchdog};
 
 use crate::CliError;
 use crate::ports::{PortArgs, open_port};
@@ -46,21 +46,13 @@ struct ScanJson {
     generation: u32,
 }
 
-fn fpga_number(f: FpgaVersion) -> u8 {
-    match f {
-        FpgaVersion::V1 => 1,
-        FpgaVersion::V2 => 2,
-        FpgaVersion::V3 => 3,
-    }
-}
-
 fn board_json(b: &BoardInfo) -> BoardJson {
     BoardJson {
         board_id: b.board_id,
         node: b.node,
         hardware: b.hardware.name().to_string(),
         firmware: b.firmware,
-        fpga: fpga_number(b.fpga),
+        fpga: b.fpga.number(),
         git: format!(
             "{:07x}{}",
             b.git.commit(),

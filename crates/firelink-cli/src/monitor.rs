@@ -176,11 +176,7 @@ fn pace(start: Instant, cycles: u64, period: Duration) {
     if period.is_zero() {
         return;
     }
-    let due = start + period.mul_f64(cycles as f64);
-    let now = Instant::now();
-    if due > now {
-        firelink_host::udp::precise_sleep(due - now);
-    }
+    firelink_host::pacing::sleep_until(start + period.mul_f64(cycles as f64));
 }
 
 fn interactive<P: Port>(

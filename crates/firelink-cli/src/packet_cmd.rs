@@ -94,16 +94,9 @@ fn num_or_hex<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u64>, D::Error> 
     match Option::<NumOrText>::deserialize(d)? {
         None => Ok(None),
         Some(NumOrText::Num(n)) => Ok(Some(n)),
-        Some(NumOrText::Text(t)) => {
-            let t = t.trim();
-            let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
-                Some(h) => u64::from_str_radix(h, 16),
-                None => t.parse(),
-            };
-            parsed
-                .map(Some)
-                .map_err(|_| serde::de::Error::custom(format!("not a number: {t:?}")))
-        }
+        Some(NumOrText::Text(t)) => crate::parse_number(&t)
+            .map(Some)
+            .map_err(serde::de::Error::custom),
     }
 }
 

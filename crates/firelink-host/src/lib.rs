@@ -20,6 +20,7 @@
 pub mod board;
 pub mod error;
 pub mod io;
+pub mod pacing;
 pub mod port;
 pub mod scan;
 pub mod sim;

@@ -41,6 +41,22 @@ impl Dest {
     }
 }
 
+/// Check a block transfer size: 4..=2048 bytes (the S400 maximum payload)
+/// in whole quadlets. Ports call this before sending anything.
+///
+/// # Errors
+/// [`HostError::InvalidRequest`](crate::HostError::InvalidRequest).
+pub(crate) fn check_block(len: usize) -> Result<()> {
+    let max = firelink_wire::packet::Speed::S400.max_async_payload();
+    if len == 0 || len % 4 != 0 || len > max {
+        return Err(crate::HostError::InvalidRequest {
+            what: "block size must be 4..=2048 bytes in whole quadlets",
+            value: len as u32,
+        });
+    }
+    Ok(())
+}
+
 /// A transport for 1394 asynchronous transactions.
 ///
 /// Reads block until the matching response arrives or the port's time-out

@@ -257,16 +257,6 @@ impl SimPort {
     }
 }
 
-fn check_block(len: usize) -> Result<()> {
-    if len == 0 || len % 4 != 0 || len > Speed::S400.max_async_payload() {
-        return Err(HostError::InvalidRequest {
-            what: "block size must be 4..=2048 bytes in whole quadlets",
-            value: len as u32,
-        });
-    }
-    Ok(())
-}
-
 fn no_broadcast_reads(dest: Dest) -> Result<()> {
     if dest.is_broadcast() {
         return Err(HostError::InvalidRequest {
@@ -314,7 +304,7 @@ impl Port for SimPort {
     }
 
     fn read_block(&mut self, dest: Dest, offset: u64, out: &mut [u8]) -> Result<()> {
-        check_block(out.len())?;
+        crate::port::check_block(out.len())?;
         no_broadcast_reads(dest)?;
         let header = self.header(dest);
         let response = self.transact(
@@ -334,7 +324,7 @@ impl Port for SimPort {
     }
 
     fn write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
-        check_block(data.len())?;
+        crate::port::check_block(data.len())?;
         let header = self.header(dest);
         let call = if dest.is_broadcast() {
             HostCall::BroadcastWrite

@@ -277,16 +277,6 @@ impl UdpPort {
     }
 }
 
-fn check_block(len: usize) -> Result<()> {
-    if len == 0 || len % 4 != 0 || len > 2048 {
-        return Err(HostError::InvalidRequest {
-            what: "block size must be 4..=2048 bytes in whole quadlets",
-            value: len as u32,
-        });
-    }
-    Ok(())
-}
-
 impl Port for UdpPort {
     fn name(&self) -> &str {
         &self.name
@@ -316,7 +306,7 @@ impl Port for UdpPort {
     }
 
     fn read_block(&mut self, dest: Dest, offset: u64, out: &mut [u8]) -> Result<()> {
-        check_block(out.len())?;
+        crate::port::check_block(out.len())?;
         self.check_generation(dest)?;
         self.flush()?;
         let header = self.header(dest);
@@ -333,7 +323,7 @@ impl Port for UdpPort {
     }
 
     fn write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
-        check_block(data.len())?;
+        crate::port::check_block(data.len())?;
         self.check_generation(dest)?;
         let header = self.header(dest);
         self.send(
@@ -348,7 +338,7 @@ impl Port for UdpPort {
     }
 
     fn wait(&mut self, duration: Duration) {
-        precise_sleep(duration);
+        crate::pacing::precise_sleep(duration);
     }
 
     fn now(&self) -> Duration {
@@ -357,19 +347,6 @@ impl Port for UdpPort {
 
     fn generation(&self) -> u32 {
         u32::from(self.generation)
-    }
-}
-
-/// Sleep, then spin for the last stretch: `thread::sleep` alone overshoots
-/// by tens of microseconds, too coarse for the broadcast protocol's wait.
-pub fn precise_sleep(duration: Duration) {
-    let deadline = Instant::now() + duration;
-    const SPIN: Duration = Duration::from_micros(80);
-    if duration > SPIN {
-        std::thread::sleep(duration - SPIN);
-    }
-    while Instant::now() < deadline {
-        std::hint::spin_loop();
     }
 }
 

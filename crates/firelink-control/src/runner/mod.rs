@@ -642,7 +642,7 @@ impl<P: Port> Robot<P> {
                 self.times.overruns += 1;
                 self.next_deadline = Some(now + period);
             } else {
-                sleep_until(deadline);
+                firelink_host::pacing::sleep_until(deadline);
                 self.next_deadline = Some(deadline + period);
             }
         }
@@ -908,17 +908,5 @@ impl<P: Port> Robot<P> {
             .zip(&self.used_axes)
             .filter(|(b, _)| b.is_valid())
             .any(|(b, &(mask, _))| (0..4).any(|a| mask & (1 << a) != 0 && b.amp_enabled(a)))
-    }
-}
-
-/// Sleep until shortly before `deadline`, then spin.
-fn sleep_until(deadline: Instant) {
-    const SPIN: Duration = Duration::from_micros(150);
-    let now = Instant::now();
-    if deadline > now + SPIN {
-        std::thread::sleep(deadline - now - SPIN);
-    }
-    while Instant::now() < deadline {
-        std::hint::spin_loop();
     }
 }

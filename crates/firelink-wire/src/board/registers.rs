@@ -547,6 +547,15 @@ pub enum FpgaVersion {
 }
 
 impl FpgaVersion {
+    /// The version number: 1, 2 or 3.
+    pub fn number(self) -> u8 {
+        match self {
+            FpgaVersion::V1 => 1,
+            FpgaVersion::V2 => 2,
+            FpgaVersion::V3 => 3,
+        }
+    }
+
     /// Tell the version from an ETH_STATUS value.
     ///
     /// # Errors
