@@ -8,6 +8,7 @@ use firelink_control::runner::loopback::LoopbackPort;
 use firelink_control::runner::{Pacing, Robot, RobotSettings, RunnerError};
 use firelink_control::trajectory::{Motion, Sinusoid};
 use firelink_control::{FaultKind, LifecycleError, State};
+use firelink_host::Port;
 use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
 use firelink_host::scan::Protocol;
 
@@ -227,4 +228,50 @@ fn configuration_errors() {
         ..RobotSettings::default()
     };
     assert!(Robot::new(io, &bench, settings).is_err());
+}
+
+/// A late cycle (the host stalled for several periods, in virtual time)
+/// does not distort the velocity estimate: the runner divides by the
+/// measured span of its window, not by a nominal period. The estimate is a
+/// filtered average of window averages, so it can never exceed the fastest
+/// step the joint actually made; dividing by the last period times the
+/// window (what the runner did) broke that bound by 11/8 after a 4-period
+/// stall.
+#[test]
+fn late_cycles_do_not_inflate_the_velocity_estimate() {
+    let mut robot = active(Protocol::Broadcast);
+    let period = robot.period();
+    let n = robot.joint_count();
+    for i in 0..n {
+        let p = robot.position(i).unwrap();
+        let s = Sinusoid::new(0.01, 1.0, 0.0, p, 0.0).unwrap();
+        robot.set_motion(i, Motion::Sinusoid(s)).unwrap();
+    }
+    let mut fastest = vec![0.0f64; n];
+    let mut last: Vec<(f64, f64)> = (0..n)
+        .map(|i| (robot.now(), robot.position(i).unwrap()))
+        .collect();
+    for k in 0..1500 {
+        // After warm-up, every fifth cycle starts 4 periods late.
+        if k >= 1200 && k % 5 == 0 {
+            let stall = Duration::from_secs_f64(4.0 * period);
+            robot.io_mut().port_mut().wait(stall);
+        }
+        robot.step(Pacing::Virtual).unwrap();
+        let now = robot.now();
+        for i in 0..n {
+            let p = robot.position(i).unwrap();
+            let (t0, p0) = last[i];
+            if now > t0 {
+                fastest[i] = fastest[i].max(((p - p0) / (now - t0)).abs());
+            }
+            last[i] = (now, p);
+            let v = robot.velocity(i).unwrap();
+            assert!(
+                v.abs() <= 1.02 * fastest[i] + 1e-9,
+                "cycle {k} joint {i}: estimate {v} beyond the fastest step {}",
+                fastest[i]
+            );
+        }
+    }
 }

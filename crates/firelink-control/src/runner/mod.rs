@@ -26,6 +26,9 @@
 //! CLI that does.
 
 pub mod loopback;
+mod velocity;
+
+use velocity::VelocityEstimator;
 
 use std::time::{Duration, Instant};
 
@@ -123,19 +126,10 @@ struct Joint {
     motion_start: f64,
     offset: f64,
     position: f64,
-    velocity: f64,
+    velocity: VelocityEstimator,
     setpoint: f64,
     current: f64,
-    primed: bool,
-    /// The last [`VELOCITY_WINDOW`] positions (ring), for the velocity
-    /// estimate, and the index of the oldest.
-    history: [f64; VELOCITY_WINDOW],
-    history_at: usize,
 }
-
-/// Velocity is estimated over this many cycles: one encoder count over a
-/// single 6 kHz period would read as metres per second on coarse axes.
-const VELOCITY_WINDOW: usize = 8;
 
 /// Tracking error of one arm, over the cycles it was Active with a motion.
 #[derive(Debug, Clone, PartialEq)]
@@ -302,12 +296,9 @@ impl<P: Port> Robot<P> {
                 motion_start: 0.0,
                 offset: 0.0,
                 position: 0.0,
-                velocity: 0.0,
+                velocity: VelocityEstimator::default(),
                 setpoint: 0.0,
                 current: 0.0,
-                primed: false,
-                history: [0.0; VELOCITY_WINDOW],
-                history_at: 0,
             });
         }
         let n = joints.len();
@@ -385,6 +376,12 @@ impl<P: Port> Robot<P> {
     /// Joint `i`'s measured position (homed), rad or m.
     pub fn position(&self, i: usize) -> Option<f64> {
         self.joints.get(i).map(|j| j.position)
+    }
+
+    /// Joint `i`'s estimated velocity, rad/s or m/s (see [`velocity`]: the
+    /// measured time span of the last few cycles, late ones included).
+    pub fn velocity(&self, i: usize) -> Option<f64> {
+        self.joints.get(i).map(|j| j.velocity.velocity())
     }
 
     /// Joint `i`'s setpoint, rad or m.
@@ -540,7 +537,7 @@ impl<P: Port> Robot<P> {
                     for ((j, off), raw) in self.joints.iter_mut().zip(offsets).zip(&self.enc) {
                         j.offset = *off;
                         j.position = raw + off;
-                        j.primed = false;
+                        j.velocity.reset();
                     }
                     return Ok(());
                 }
@@ -787,19 +784,7 @@ impl<P: Port> Robot<P> {
                 (Some(p), Some(bits)) => p.bits_to_position(bits),
                 _ => f64::NAN,
             };
-            if j.primed {
-                let oldest = j.history.get(j.history_at).copied().unwrap_or(pos);
-                let v = (pos - oldest) / (dt * VELOCITY_WINDOW as f64);
-                j.velocity += 0.5 * (v - j.velocity);
-            } else {
-                j.velocity = 0.0;
-                j.history.fill(pos);
-                j.primed = true;
-            }
-            if let Some(h) = j.history.get_mut(j.history_at) {
-                *h = pos;
-            }
-            j.history_at = (j.history_at + 1) % VELOCITY_WINDOW;
+            let velocity = j.velocity.update(now, pos);
             j.position = pos;
             if let Some(e) = self.enc.get_mut(i) {
                 *e = raw;
@@ -820,7 +805,7 @@ impl<P: Port> Robot<P> {
                         },
                         Measurement {
                             position: pos,
-                            velocity: j.velocity,
+                            velocity,
                         },
                         dt,
                     );
@@ -845,7 +830,7 @@ impl<P: Port> Robot<P> {
                 *s = JointSample {
                     setpoint: j.setpoint,
                     position: pos,
-                    velocity: j.velocity,
+                    velocity,
                     current: amps,
                     potentiometer: if j.pot.is_some() && active && pot.is_finite() {
                         Some(pot)
