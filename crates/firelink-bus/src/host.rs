@@ -225,6 +225,24 @@ impl HostLink {
         self.completions.remove(i)
     }
 
+    /// Give up on the transaction `token`: it is forgotten whether it is
+    /// still open or already finished, and a late answer to it is dropped
+    /// like any unmatched packet. A caller that stops waiting must call
+    /// this, or finished transactions pile up.
+    pub fn abandon(&mut self, token: u64) {
+        if self.pending.remove(&token).is_none() {
+            if let Some(i) = self.completions.iter().position(|c| c.token == token) {
+                self.completions.remove(i);
+            }
+        }
+    }
+
+    /// Forget every packet received that was not a response (a bridge has
+    /// no use for other nodes' broadcasts).
+    pub fn clear_received(&mut self) {
+        self.received.clear();
+    }
+
     /// Take every finished transaction.
     pub fn take_completions(&mut self) -> Vec<Completion> {
         self.completions.drain(..).collect()
@@ -261,7 +279,9 @@ impl HostLink {
     }
 
     /// Run `bus` until the transaction `token` of the link `link` finishes
-    /// or the next event is after `deadline`, and take its completion.
+    /// or the next event is after `deadline`, and take its completion. On a
+    /// time-out the transaction is [abandoned](Self::abandon): `None`, and
+    /// nothing of it stays behind.
     pub fn wait_on(
         bus: &mut crate::Bus,
         link: crate::NodeHandle,
@@ -272,7 +292,13 @@ impl HostLink {
             b.node::<HostLink>(link)
                 .is_some_and(|l| !l.is_pending(token))
         });
-        bus.node_mut::<HostLink>(link)?.take_completion(token)
+        let l = bus.node_mut::<HostLink>(link)?;
+        let done = l.take_completion(token);
+        if done.is_none() {
+            // Timed out: nobody will take it later.
+            l.abandon(token);
+        }
+        done
     }
 
     fn finish(&mut self, token: u64, now: SimTime, outcome: Outcome, ctx: &mut NodeCtx<'_>) {

@@ -202,17 +202,7 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
                 "emulation is {:.1} ms behind real time (machine busy)",
                 d.as_secs_f64() * 1e3
             ),
-            Event::Stopped(s) => format!(
-                "stopped: {} datagrams, {} replies, {} forwarded, {} local, {} malformed, {} bad CRC, {} stale generation, {} bus failures",
-                s.datagrams,
-                s.replies,
-                s.forwarded,
-                s.local,
-                s.malformed,
-                s.bad_crc,
-                s.stale_generation,
-                s.bus_failures
-            ),
+            Event::Stopped(s) => format!("stopped: {s}"),
         };
         let _ = writeln!(out, "{line}");
         let _ = out.flush();

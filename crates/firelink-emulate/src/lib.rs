@@ -55,7 +55,8 @@ pub enum DropReason {
     StaleGeneration,
     /// The transaction failed on the bus (no ack, error ack, time-out).
     BusFailure,
-    /// A tcode the bridge does not forward.
+    /// A tcode the bridge does not handle (only quadlet and block reads
+    /// and writes are bridged).
     Unsupported,
 }
 
@@ -76,8 +77,44 @@ pub struct BridgeStats {
     pub bad_crc: u64,
     /// Requests dropped for a stale generation.
     pub stale_generation: u64,
+    /// Well-formed packets of a tcode the bridge does not handle.
+    pub unsupported: u64,
     /// Transactions that failed on the bus.
     pub bus_failures: u64,
+}
+
+impl BridgeStats {
+    /// Datagrams accounted for by exactly one outcome: every datagram is
+    /// malformed, has a bad CRC, is unsupported, stale, forwarded or local.
+    /// Equal to [`datagrams`](Self::datagrams) at all times.
+    pub fn accounted(&self) -> u64 {
+        self.malformed
+            + self.bad_crc
+            + self.unsupported
+            + self.stale_generation
+            + self.forwarded
+            + self.local
+    }
+}
+
+/// One line: every counter, drop reasons included.
+impl core::fmt::Display for BridgeStats {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(
+            f,
+            "{} datagrams, {} replies, {} forwarded, {} local, {} malformed, {} bad CRC, \
+             {} unsupported tcode, {} stale generation, {} bus failures",
+            self.datagrams,
+            self.replies,
+            self.forwarded,
+            self.local,
+            self.malformed,
+            self.bad_crc,
+            self.unsupported,
+            self.stale_generation,
+            self.bus_failures
+        )
+    }
 }
 
 /// The bridge protocol over a simulated bus.
@@ -132,7 +169,25 @@ impl Bridge {
     pub fn advance_to(&mut self, t: SimTime) {
         if t > self.bus.now() {
             self.bus.run_until(t);
+            self.forget_received();
         }
+    }
+
+    /// Other nodes' broadcasts reach the bridge's link too; the bridge has
+    /// no use for them, so they are not kept.
+    fn forget_received(&mut self) {
+        if let Some(l) = self.bus.node_mut::<HostLink>(self.link) {
+            l.clear_received();
+        }
+    }
+
+    /// Transactions the bridge's link holds open or finished and untaken
+    /// plus packets it keeps: 0 between datagrams (nothing accumulates,
+    /// whatever the traffic).
+    pub fn link_backlog(&self) -> usize {
+        self.bus.node::<HostLink>(self.link).map_or(0, |l| {
+            l.pending_count() + l.completions().count() + l.received().len()
+        })
     }
 
     /// Handle one host datagram; a reply, if any, is written to `reply`.
@@ -150,10 +205,15 @@ impl Bridge {
         let is_read = matches!(tcode, Tcode::ReadQuadletRequest | Tcode::ReadBlockRequest);
         let is_write = matches!(tcode, Tcode::WriteQuadletRequest | Tcode::WriteBlockRequest);
         if !is_read && !is_write {
+            self.stats.unsupported += 1;
             return Handled::Dropped(DropReason::Unsupported);
         }
         let destination = packet.destination_id();
-        let local = control.no_forward;
+        // A read of node 63 cannot be a 1394 broadcast (boards take only
+        // broadcast writes): the bridge answers it from its own registers,
+        // as the firmware does (fpga-board-extras.md section 9).
+        let broadcast_read = is_read && destination.is_broadcast();
+        let local = control.no_forward || broadcast_read;
         if !local && !destination.is_broadcast() && control.generation != self.generation() {
             self.stats.stale_generation += 1;
             return Handled::Dropped(DropReason::StaleGeneration);
@@ -178,10 +238,6 @@ impl Bridge {
         } else {
             self.stats.forwarded += 1;
         }
-        if is_read && destination.is_broadcast() && !local {
-            // A 1394 read cannot be broadcast.
-            return Handled::Dropped(DropReason::Unsupported);
-        }
         let received_at = self.bus.now();
         let link = self.link;
         let Ok(token) = self
@@ -191,18 +247,16 @@ impl Bridge {
             return Handled::Dropped(DropReason::BusFailure);
         };
         if is_write && (destination.is_broadcast() && !local) {
-            // Broadcasts complete when they have gone out; do not wait.
+            // Broadcasts complete when they have gone out; nobody waits for
+            // them, so nothing of them is kept.
+            if let Some(l) = self.bus.node_mut::<HostLink>(link) {
+                l.abandon(token);
+            }
             return Handled::Written;
         }
         let deadline = self.bus.now() + self.timeout;
-        self.bus.run_until_with(deadline, |bus| {
-            bus.node::<HostLink>(link)
-                .is_some_and(|l| !l.is_pending(token))
-        });
-        let done = self
-            .bus
-            .node_mut::<HostLink>(link)
-            .and_then(|l| l.take_completion(token));
+        let done = HostLink::wait_on(&mut self.bus, link, token, deadline);
+        self.forget_received();
         let Some(done) = done.filter(|d| d.outcome == Outcome::Complete) else {
             self.stats.bus_failures += 1;
             return Handled::Dropped(DropReason::BusFailure);
@@ -325,7 +379,10 @@ pub fn serve(
     let virtual_origin = bridge.bus().now();
     let mut buf = vec![0u8; 4096];
     let mut reply = Vec::with_capacity(4096);
-    let mut hosts: Vec<SocketAddr> = Vec::new();
+    // Hosts announced so far; a flood from many source ports must not
+    // grow this, so only the first few are remembered (and announced).
+    const HOSTS_REMEMBERED: usize = 16;
+    let mut hosts: Vec<SocketAddr> = Vec::with_capacity(HOSTS_REMEMBERED);
     let mut generation = bridge.generation();
     let mut lag_reported = Instant::now() - Duration::from_secs(10);
     while !stop.load(Ordering::Relaxed) {
@@ -346,7 +403,7 @@ pub fn serve(
         let mut received = |socket: &UdpSocket, bridge: &mut Bridge| -> std::io::Result<()> {
             match socket.recv_from(&mut buf) {
                 Ok((len, from)) => {
-                    if !hosts.contains(&from) {
+                    if hosts.len() < HOSTS_REMEMBERED && !hosts.contains(&from) {
                         hosts.push(from);
                         on_event(Event::HostSeen(from));
                     }

@@ -94,6 +94,11 @@ impl SimPort {
         &mut self.bus
     }
 
+    /// The PC's link node (open and finished transactions, packets kept).
+    pub fn host_link(&self) -> Option<&HostLink> {
+        self.bus.node::<HostLink>(self.host)
+    }
+
     /// Counters so far.
     pub fn stats(&self) -> SimPortStats {
         self.stats
@@ -154,7 +159,11 @@ impl SimPort {
         })?;
         self.stats.transactions += 1;
         if call == HostCall::BroadcastWrite {
-            // Non-blocking: the packet goes out while the caller goes on.
+            // Non-blocking: the packet goes out while the caller goes on,
+            // and nobody will take its completion.
+            if let Some(l) = self.bus.node_mut::<HostLink>(host) {
+                l.abandon(token);
+            }
             return Ok(Vec::new());
         }
         let deadline = self.bus.now() + self.timeout;

@@ -290,3 +290,28 @@ fn broadcast_reads_are_refused_on_the_bus() {
         .unwrap_err();
     assert!(matches!(err, HostError::InvalidRequest { .. }));
 }
+
+/// Thousands of broadcast cycles leave nothing behind in the PC's link:
+/// the non-blocking broadcast writes (query, commands) are not waited for,
+/// so nothing of them may be kept (they used to pile up, one completion per
+/// write, for the whole run).
+#[test]
+fn broadcast_cycles_leave_nothing_in_the_link() {
+    let p = port(8, Profile::Rev8);
+    let (mut io, _) = IoSystem::open(
+        p,
+        IoConfig {
+            protocol: Some(Protocol::Broadcast),
+            ..IoConfig::default()
+        },
+    )
+    .unwrap();
+    for _ in 0..2_000 {
+        io.read_all();
+        io.write_all();
+        io.port_mut().wait(Duration::from_micros(100));
+    }
+    let link = io.port().host_link().unwrap();
+    assert_eq!(link.pending_count(), 0);
+    assert_eq!(link.completions().count(), 0);
+}

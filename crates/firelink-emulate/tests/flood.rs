@@ -1,0 +1,240 @@
+//! The bridge under a flood of garbage mixed with valid requests (in
+//! process, seeded, no sockets): it keeps answering every valid request
+//! correctly, every datagram is counted under exactly one outcome
+//! (malformed + bad CRC + unsupported + stale + forwarded + local =
+//! received, and each equals what was sent of its kind), and nothing
+//! accumulates between datagrams, however many arrive.
+
+use firelink_board::config::{BoardConfig, Hardware, Profile};
+use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_emulate::{Bridge, BridgeStats, DropReason, Handled};
+use firelink_wire::bridge::{ControlWord, split_board_datagram};
+use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+const BOARDS: u8 = 8;
+
+fn bridge() -> Bridge {
+    let boards = (0..BOARDS)
+        .map(|id| BoardConfig::new(id, Hardware::Qla1, Profile::Rev8))
+        .collect();
+    let rig = BoardRig::daisy_chain(boards, &RigOptions::default());
+    let first = rig.boards[0];
+    Bridge::new(rig.bus, rig.host, first)
+}
+
+fn datagram(no_forward: bool, generation: u8, repr: &PacketRepr<'_>) -> Vec<u8> {
+    let mut d = ControlWord {
+        no_forward,
+        generation,
+    }
+    .to_bytes()
+    .to_vec();
+    let mut packet = vec![0u8; repr.buffer_len()];
+    repr.emit(&mut packet).unwrap();
+    d.extend_from_slice(&packet);
+    d
+}
+
+fn header(rng: &mut ChaCha8Rng, node: u16) -> AsyncHeader {
+    AsyncHeader::new(
+        NodeId(0xFFC0 | node),
+        NodeId(0xFFD0),
+        rng.random_range(0..64),
+    )
+}
+
+/// What the flood sent, by the outcome each datagram must have.
+#[derive(Default, Debug, PartialEq, Eq)]
+struct Sent {
+    malformed: u64,
+    bad_crc: u64,
+    unsupported: u64,
+    stale: u64,
+    forwarded: u64,
+    local: u64,
+}
+
+#[test]
+fn flood_of_garbage_and_valid_requests() {
+    let mut b = bridge();
+    let generation = b.generation();
+    let mut rng = ChaCha8Rng::seed_from_u64(0x00F1_00D5);
+    let mut reply = Vec::with_capacity(4096);
+    let mut sent = Sent::default();
+    let mut status_reads = 0u64;
+    for i in 0..30_000u32 {
+        let kind = rng.random_range(0..100u32);
+        let node = rng.random_range(0..u16::from(BOARDS));
+        match kind {
+            // Garbage of every length (a control word and a few bytes, or
+            // nothing at all): malformed.
+            0..=34 => {
+                let len = rng.random_range(0..40usize);
+                let mut d: Vec<u8> = (0..len).map(|_| rng.random()).collect();
+                // Keep the outcome certain: a 1394 header needs 12 bytes.
+                d.truncate(13);
+                sent.malformed += 1;
+                let h = b.handle(&d, &mut reply);
+                assert_eq!(h, Handled::Dropped(DropReason::Malformed), "datagram {i}");
+            }
+            // A valid read with one bit flipped in its header: bad CRC.
+            35..=44 => {
+                let repr = PacketRepr::ReadQuadletRequest {
+                    header: header(&mut rng, node),
+                    offset: rng.random_range(0..0x1_0000u64),
+                };
+                let mut d = datagram(false, generation, &repr);
+                // Source ID, offset or the CRC itself (a flipped tcode or
+                // length would make another, malformed, packet).
+                let bit = rng.random_range(32..128usize);
+                d[2 + bit / 8] ^= 1 << (bit % 8);
+                sent.bad_crc += 1;
+                let h = b.handle(&d, &mut reply);
+                assert_eq!(h, Handled::Dropped(DropReason::BadCrc), "datagram {i}");
+            }
+            // A well-formed response packet sent to the bridge: not a
+            // request it handles.
+            45..=49 => {
+                let repr = PacketRepr::WriteResponse {
+                    header: header(&mut rng, node),
+                    rcode: firelink_wire::packet::Rcode::Complete,
+                };
+                sent.unsupported += 1;
+                let h = b.handle(&datagram(false, generation, &repr), &mut reply);
+                assert_eq!(h, Handled::Dropped(DropReason::Unsupported), "datagram {i}");
+            }
+            // Forwarded with a stale generation.
+            50..=59 => {
+                let repr = PacketRepr::ReadQuadletRequest {
+                    header: header(&mut rng, node),
+                    offset: 0,
+                };
+                sent.stale += 1;
+                let h = b.handle(
+                    &datagram(false, generation.wrapping_add(1), &repr),
+                    &mut reply,
+                );
+                assert_eq!(
+                    h,
+                    Handled::Dropped(DropReason::StaleGeneration),
+                    "datagram {i}"
+                );
+            }
+            // Valid forwarded STATUS reads: answered, naming the board.
+            60..=79 => {
+                let repr = PacketRepr::ReadQuadletRequest {
+                    header: header(&mut rng, node),
+                    offset: 0,
+                };
+                sent.forwarded += 1;
+                let Handled::Reply(n) = b.handle(&datagram(false, generation, &repr), &mut reply)
+                else {
+                    panic!("datagram {i}: valid STATUS read of node {node} got no reply");
+                };
+                let (packet, _) = split_board_datagram(&reply[..n]).unwrap();
+                packet.verify().unwrap();
+                assert_eq!(
+                    (packet.quadlet_data() >> 24) & 0xF,
+                    u32::from(node),
+                    "datagram {i}"
+                );
+                status_reads += 1;
+            }
+            // Valid block reads at random offsets and lengths: forwarded,
+            // answered or failed on the bus, never half-handled.
+            80..=89 => {
+                let repr = PacketRepr::ReadBlockRequest {
+                    header: header(&mut rng, node),
+                    offset: u64::from(rng.random_range(0..0x1_0000u32)) * 4,
+                    data_length: rng.random_range(1..=512u16) * 4,
+                    extended_tcode: 0,
+                };
+                sent.forwarded += 1;
+                let h = b.handle(&datagram(false, generation, &repr), &mut reply);
+                assert!(
+                    matches!(
+                        h,
+                        Handled::Reply(_) | Handled::Dropped(DropReason::BusFailure)
+                    ),
+                    "datagram {i}: {h:?}"
+                );
+            }
+            // Local reads of the bridge board, any generation.
+            _ => {
+                let repr = PacketRepr::ReadQuadletRequest {
+                    header: header(&mut rng, 0x3F),
+                    offset: 4,
+                };
+                sent.local += 1;
+                let d = datagram(true, rng.random(), &repr);
+                let Handled::Reply(n) = b.handle(&d, &mut reply) else {
+                    panic!("datagram {i}: local read got no reply");
+                };
+                let (packet, _) = split_board_datagram(&reply[..n]).unwrap();
+                assert_eq!(packet.quadlet_data(), 0x514C_4131, "HW_VERSION");
+            }
+        }
+        // Nothing stays behind in the bridge's link between datagrams.
+        assert_eq!(b.link_backlog(), 0, "after datagram {i}");
+    }
+    let s: BridgeStats = b.stats();
+    assert_eq!(s.datagrams, 30_000);
+    assert_eq!(s.accounted(), s.datagrams, "{s}");
+    let counted = Sent {
+        malformed: s.malformed,
+        bad_crc: s.bad_crc,
+        unsupported: s.unsupported,
+        stale: s.stale_generation,
+        forwarded: s.forwarded,
+        local: s.local,
+    };
+    assert_eq!(counted, sent, "{s}");
+    assert!(status_reads > 5_000);
+}
+
+/// Broadcast writes (every I/O cycle has two) complete when sent; the
+/// bridge keeps nothing of them either.
+#[test]
+fn broadcast_writes_leave_nothing_behind() {
+    let mut b = bridge();
+    let mut reply = Vec::new();
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    for k in 0..2_000u32 {
+        let repr = PacketRepr::WriteQuadletRequest {
+            header: header(&mut rng, 0x3F),
+            offset: 3,
+            data: 0x1680 + k % 16,
+        };
+        assert_eq!(
+            b.handle(&datagram(false, 0, &repr), &mut reply),
+            Handled::Written
+        );
+        let t = b.bus().now() + firelink_bus::SimDuration::from_micros(50);
+        b.advance_to(t);
+        assert_eq!(b.link_backlog(), 0, "after broadcast {k}");
+    }
+}
+
+/// A quadlet read of node 63 (fpgatest `8`) is answered by the bridge
+/// board from its own registers, whatever the generation, and counted.
+#[test]
+fn broadcast_quadlet_read_is_answered_by_the_bridge() {
+    let mut b = bridge();
+    let mut reply = Vec::new();
+    let repr = PacketRepr::ReadQuadletRequest {
+        header: AsyncHeader::new(NodeId::BROADCAST, NodeId(0xFFD0), 9),
+        offset: 0,
+    };
+    let Handled::Reply(n) = b.handle(&datagram(false, 0xEE, &repr), &mut reply) else {
+        panic!("no reply to a node-63 read");
+    };
+    let (packet, _) = split_board_datagram(&reply[..n]).unwrap();
+    packet.verify().unwrap();
+    // STATUS of board 0 (the bridge), from the bridge's own node.
+    assert_eq!((packet.quadlet_data() >> 24) & 0xF, 0);
+    assert_eq!(packet.source_id().0 & 0xFFC0, 0xFFC0);
+    assert_eq!(b.stats().local, 1);
+    assert_eq!(b.stats().accounted(), b.stats().datagrams);
+}
