@@ -34,23 +34,23 @@ pub struct BenchArgs {
     /// Protocols: sequential, broadcast (comma-separated).
     #[arg(long, default_value = "sequential,broadcast")]
     pub protocol: String,
-    /// Measured cycles per point (after 20 warm-up cycles).
-    #[arg(long, default_value_t = 1000)]
+    /// Measured cycles per point (after 20 warm-up cycles), at least 1.
+    #[arg(long, default_value_t = 1000, value_parser = crate::args::cycles)]
     pub cycles: u64,
     /// Firmware of the emulated boards: 7, 8 or seed.
     #[arg(long, default_value = "8")]
     pub firmware: String,
     /// Control period for the seed-002 budget check, us (default: 6 kHz).
-    #[arg(long = "period-us", default_value_t = 166.67)]
+    #[arg(long = "period-us", default_value_t = 166.67, value_parser = crate::args::period_us)]
     pub period_us: f64,
     /// Broadcast protocol: the host's wait between the query and the hub
     /// read, us per board (seed 000's PC sleeps 5 us x N).
-    #[arg(long = "wait-us", default_value_t = 5.0)]
+    #[arg(long = "wait-us", default_value_t = 5.0, value_parser = crate::args::wait_us)]
     pub wait_us: f64,
     /// Idle time between cycles, us: a paced control loop leaves the bus
     /// idle between cycles (longer than the 21 us arbitration reset gap, so
     /// the PC's fairness interval restarts), as at seed 000's 6 kHz.
-    #[arg(long = "idle-us", default_value_t = 50.0)]
+    #[arg(long = "idle-us", default_value_t = 50.0, value_parser = crate::args::wait_us)]
     pub idle_us: f64,
     /// Write a PNG plot of I/O time against boards here.
     #[arg(long)]
@@ -80,6 +80,32 @@ fn list<T>(s: &str, f: impl Fn(&str) -> Option<T>, what: &str) -> Result<Vec<T>,
         .filter(|x| !x.trim().is_empty())
         .map(|x| f(x.trim()).ok_or_else(|| CliError::Conflict(format!("bad {what}: {x:?}"))))
         .collect()
+}
+
+/// The `--boards` list: each count 1..=62; counts above 16 (the board-ID
+/// space of one bus) are extrapolated from the largest measured count
+/// before them, so one must come first.
+fn board_counts(text: &str) -> Result<Vec<usize>, CliError> {
+    let counts = list(
+        text,
+        |s| s.parse::<usize>().ok().filter(|n| (1..=62).contains(n)),
+        "board count (1..=62)",
+    )?;
+    if counts.is_empty() {
+        return Err(CliError::Conflict("--boards: no board count given".into()));
+    }
+    let mut measured = false;
+    for &n in &counts {
+        if n <= 16 {
+            measured = true;
+        } else if !measured {
+            return Err(CliError::Conflict(format!(
+                "--boards: {n} boards is extrapolated from a measured count (1..=16) that \
+                 must come before it in the list"
+            )));
+        }
+    }
+    Ok(counts)
 }
 
 /// Run `cycles` I/O cycles on an open system; percentiles of the I/O time.
@@ -218,11 +244,7 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
         |s| (s == "sim" || s == "udp").then(|| s.to_string()),
         "transport",
     )?;
-    let boards = list(
-        &args.boards,
-        |s| s.parse::<usize>().ok().filter(|&n| n >= 1),
-        "board count",
-    )?;
+    let boards = board_counts(&args.boards)?;
     let protocols = list(&args.protocol, Protocol::from_name, "protocol")?;
     let profile = rig::profile(&args.firmware)?;
     let generic = presets::bench_1board();

@@ -179,17 +179,17 @@ pub fn run_info(args: &ScanArgs, out: &mut impl Write) -> Result<(), CliError> {
 pub struct ReadArgs {
     #[command(flatten)]
     pub port: PortArgs,
-    /// Board ID (rotary switch); mapped to its node by a scan.
-    #[arg(long, default_value_t = 0, conflicts_with = "node")]
+    /// Board ID (rotary switch, 0..=15); mapped to its node by a scan.
+    #[arg(long, default_value_t = 0, conflicts_with = "node", value_parser = crate::args::board_id)]
     pub board: u8,
-    /// Physical node ID (skips the scan).
-    #[arg(long)]
+    /// Physical node ID (0..=62, 63 = broadcast), without a scan.
+    #[arg(long, value_parser = crate::args::node_id)]
     pub node: Option<u8>,
     /// Register address: a number (0x10 = axis 1 ADC) or a name such as
     /// status, hw_version, axis2.enc_position.
     pub address: String,
-    /// Quadlets to read (more than 1 uses one block read).
-    #[arg(long, default_value_t = 1)]
+    /// Quadlets to read, 1..=512 (more than 1 uses one block read).
+    #[arg(long, default_value_t = 1, value_parser = crate::args::quadlets)]
     pub count: usize,
 }
 
@@ -198,11 +198,11 @@ pub struct ReadArgs {
 pub struct WriteArgs {
     #[command(flatten)]
     pub port: PortArgs,
-    /// Board ID (rotary switch); mapped to its node by a scan.
-    #[arg(long, default_value_t = 0, conflicts_with = "node")]
+    /// Board ID (rotary switch, 0..=15); mapped to its node by a scan.
+    #[arg(long, default_value_t = 0, conflicts_with = "node", value_parser = crate::args::board_id)]
     pub board: u8,
-    /// Physical node ID (skips the scan).
-    #[arg(long)]
+    /// Physical node ID (0..=62, 63 = broadcast), without a scan.
+    #[arg(long, value_parser = crate::args::node_id)]
     pub node: Option<u8>,
     /// Register address (number or name, as for `read`).
     pub address: String,
@@ -300,7 +300,33 @@ pub fn run_write(args: &WriteArgs, out: &mut impl Write) -> Result<(), CliError>
             port.write_block(dest, address, &bytes)?;
         }
     }
-    writeln!(out, "wrote {} quadlet(s) at {address:#06x}", values.len())?;
+    let n = values.len();
+    if port.acknowledges_writes() {
+        writeln!(out, "wrote {n} quadlet(s) at {address:#06x} (acknowledged)")?;
+        return Ok(());
+    }
+    if dest.is_broadcast() {
+        writeln!(
+            out,
+            "sent {n} quadlet(s) to every board at {address:#06x} (broadcast writes are never acknowledged)"
+        )?;
+        return Ok(());
+    }
+    // The bridge answers no write. A read of the same address proves the
+    // node is there and takes requests of this bus generation (the bridge
+    // drops stale ones silently); what it reads back is shown, not judged:
+    // many registers do not read back what is written.
+    let back = port.read_quadlet(dest, address).map_err(|e| {
+        CliError::Conflict(format!(
+            "write to {address:#06x} not confirmed: the bridge acknowledges no write, \
+             and a read-back failed: {e}"
+        ))
+    })?;
+    writeln!(
+        out,
+        "sent {n} quadlet(s) at {address:#06x} (not acknowledged over UDP; the node answers, \
+         reading back {back:08x})"
+    )?;
     Ok(())
 }
 

@@ -29,14 +29,14 @@ use crate::rt;
 /// Options of `firelink demo`.
 #[derive(Args, Debug, Clone)]
 pub struct DemoArgs {
-    /// Control rate, Hz.
-    #[arg(long, default_value_t = 6000.0)]
+    /// Control rate, Hz (1 to 100000).
+    #[arg(long, default_value_t = 6000.0, value_parser = crate::args::rate_hz)]
     pub rate: f64,
     /// I/O protocol: broadcast, sequential or seq-bc.
     #[arg(long, default_value = "broadcast")]
     pub protocol: String,
-    /// Seconds of motion (after homing).
-    #[arg(long, default_value_t = 3.0)]
+    /// Seconds of motion after homing (above 0, at most a day).
+    #[arg(long, default_value_t = 3.0, value_parser = crate::args::run_seconds)]
     pub duration: f64,
     /// Where the boards are: `sim` (emulated boards on the simulated bus,
     /// in-process), `emulate` (the same boards behind an in-process
@@ -56,9 +56,10 @@ pub struct DemoArgs {
     /// (wall clock); default: virtual for sim and loopback, realtime over UDP.
     #[arg(long)]
     pub pacing: Option<String>,
-    /// Board watchdog period, ms.
-    #[arg(long = "watchdog-ms", default_value_t = 20.0)]
-    pub watchdog_ms: f64,
+    /// Board watchdog period in ms (above 0, at most 341), or `off`
+    /// (a stopped host then leaves the amplifiers on: say so explicitly).
+    #[arg(long = "watchdog-ms", default_value = "20", value_parser = crate::args::watchdog)]
+    pub watchdog: crate::args::WatchdogSetting,
     /// Do not try SCHED_FIFO, mlockall and a 1 ns timer slack with
     /// realtime pacing.
     #[arg(long = "no-rt")]
@@ -81,7 +82,7 @@ impl Default for DemoArgs {
             firmware: "8".into(),
             fault: "none".into(),
             pacing: None,
-            watchdog_ms: 20.0,
+            watchdog: crate::args::WatchdogSetting::Period(Duration::from_millis(20)),
             no_rt: false,
             json: false,
             quiet: false,
@@ -293,7 +294,10 @@ fn run_robot<P: Injector>(
             io.protocol().name()
         ),
     );
-    let watchdog = Duration::from_secs_f64(args.watchdog_ms.max(0.0) / 1e3);
+    if let Some(w) = args.watchdog.warning() {
+        eprintln!("demo: {w}");
+    }
+    let watchdog = args.watchdog.period();
     let settings = RobotSettings {
         rate_hz: args.rate,
         watchdog,
@@ -456,7 +460,7 @@ fn run_robot<P: Injector>(
             "other": s.other,
             "missed_by_board": s.missed_by_board,
         },
-        "watchdog": {"period_ms": args.watchdog_ms, "expired_boards": expired},
+        "watchdog": {"period_ms": args.watchdog.millis(), "expired_boards": expired},
         "fault_injected": inject.name(),
         "fault": fault.as_ref().map(fault_json),
         "state_after_run": state_after.to_string(),
@@ -559,6 +563,11 @@ fn print_text(r: &Value, out: &mut impl Write) -> Result<(), CliError> {
         r["motion_cycles"],
         f(&r["port_time_s"]),
         f(&r["wall_time_s"])
+    )?;
+    writeln!(
+        out,
+        "  late cycles (started over half a period late, wall-clock pacing): {}",
+        r["overruns"]
     )?;
     for (name, key) in [
         ("cycle time", "cycle_time_us"),

@@ -22,8 +22,8 @@ use crate::rig::{board_configs, generic_boards, parse_hardware, parse_profile};
 /// Options of `firelink emulate`.
 #[derive(Args, Debug)]
 pub struct EmulateArgs {
-    /// Number of boards (IDs 0..N) with generic motors.
-    #[arg(long, default_value_t = 8, conflicts_with = "config")]
+    /// Number of boards (IDs 0..N, 1..=16) with generic motors.
+    #[arg(long, default_value_t = 8, conflicts_with = "config", value_parser = crate::args::board_count)]
     pub boards: u8,
     /// A robot configuration (saw-robot-io v6 JSON): emulate its boards
     /// with matching plants.
@@ -45,25 +45,25 @@ pub struct EmulateArgs {
     #[arg(long = "no-broadcast")]
     pub no_broadcast: bool,
     /// Board ID of the Ethernet-connected board (default: the lowest).
-    #[arg(long = "bridge-board")]
+    #[arg(long = "bridge-board", value_parser = crate::args::board_id)]
     pub bridge_board: Option<u8>,
-    /// Fault: drop each packet on the bus with this probability.
-    #[arg(long = "drop-rate", default_value_t = 0.0)]
+    /// Fault: drop each packet on the bus with this probability (0..=1).
+    #[arg(long = "drop-rate", default_value_t = 0.0, value_parser = crate::args::probability)]
     pub drop_rate: f64,
-    /// Fault: flip a bit in each packet on the bus with this probability.
-    #[arg(long = "corrupt-rate", default_value_t = 0.0)]
+    /// Fault: flip a bit in each packet on the bus with this probability (0..=1).
+    #[arg(long = "corrupt-rate", default_value_t = 0.0, value_parser = crate::args::probability)]
     pub corrupt_rate: f64,
     /// Fault: unplug this board's cable (bus reset) after `--fault-at-ms`.
-    #[arg(long = "unplug-board")]
+    #[arg(long = "unplug-board", value_parser = crate::args::board_id)]
     pub unplug_board: Option<u8>,
     /// Fault: this board stops answering after `--fault-at-ms`.
-    #[arg(long = "mute-board")]
+    #[arg(long = "mute-board", value_parser = crate::args::board_id)]
     pub mute_board: Option<u8>,
     /// When the timed faults happen, in ms of emulated time.
     #[arg(long = "fault-at-ms", default_value_t = 5000)]
     pub fault_at_ms: u64,
     /// Stop by itself after this many seconds (0: run until a signal).
-    #[arg(long = "duration-s", default_value_t = 0.0)]
+    #[arg(long = "duration-s", default_value_t = 0.0, value_parser = crate::args::seconds_or_forever)]
     pub duration_s: f64,
 }
 

@@ -4,6 +4,7 @@
 //! parses arguments, prints results and maps errors to one line on stderr
 //! with a non-zero exit status.
 
+mod args;
 mod bench;
 mod bitmap_font;
 mod board_cmd;

@@ -23,15 +23,16 @@ pub struct MonitorArgs {
     /// I/O protocol (default: the best the boards support).
     #[arg(long, value_parser = parse_protocol)]
     pub protocol: Option<Protocol>,
-    /// Target I/O rate in Hz (0 = as fast as possible).
-    #[arg(long, default_value_t = 1000.0)]
+    /// Target I/O rate in Hz (0 = as fast as possible, else 1 to 100000).
+    #[arg(long, default_value_t = 1000.0, value_parser = crate::args::rate_hz_or_max)]
     pub rate: f64,
     /// Print one frame after this many cycles and exit (no terminal control).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::cycles)]
     pub once: Option<u64>,
-    /// Watchdog period in milliseconds set at start (0 leaves it as is).
-    #[arg(long = "watchdog-ms", default_value_t = 0.0)]
-    pub watchdog_ms: f64,
+    /// Watchdog period set at start, in ms (above 0, at most 341), or
+    /// `off`; absent: left as the boards have it.
+    #[arg(long = "watchdog-ms", value_parser = crate::args::watchdog)]
+    pub watchdog: Option<crate::args::WatchdogSetting>,
 }
 
 /// Parse a protocol name for clap.
@@ -80,6 +81,18 @@ pub fn render<P: Port>(io: &IoSystem<P>, f: &MonitorFigures) -> String {
         stats.sequence_errors,
         stats.bad_packets,
         stats.bus_resets
+    );
+    let link = io.port().link_stats();
+    let _ = writeln!(
+        s,
+        "link: {} requests, {} answered, {} timed out; refused {} garbage, {} bad CRC, {} late, {} answering no request",
+        link.sent,
+        link.matched,
+        link.timeouts,
+        link.garbage,
+        link.bad_crc,
+        link.late,
+        link.unmatched
     );
     let report = io.report();
     for (id, reason) in report.missed_boards() {
@@ -147,8 +160,11 @@ pub fn run(args: &MonitorArgs, out: &mut impl Write) -> Result<(), CliError> {
         ..IoConfig::default()
     };
     let (mut io, _scan) = IoSystem::open(port, config)?;
-    if args.watchdog_ms > 0.0 {
-        io.set_watchdog(Duration::from_secs_f64(args.watchdog_ms / 1e3))?;
+    if let Some(w) = args.watchdog {
+        if let Some(warning) = w.warning() {
+            eprintln!("monitor: {warning}");
+        }
+        io.set_watchdog(w.period())?;
     }
     let period = if args.rate > 0.0 {
         Duration::from_secs_f64(1.0 / args.rate)

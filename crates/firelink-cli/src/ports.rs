@@ -15,8 +15,8 @@ pub struct PortArgs {
     /// an in-process simulated bus; default 8 at firmware Rev 8).
     #[arg(long, default_value = "udp:127.0.0.1")]
     pub port: String,
-    /// Read time-out in milliseconds.
-    #[arg(long = "timeout-ms", default_value_t = 20)]
+    /// Read time-out in milliseconds (1..=60000).
+    #[arg(long = "timeout-ms", default_value_t = 20, value_parser = crate::args::timeout_ms)]
     pub timeout_ms: u64,
 }
 

@@ -324,3 +324,18 @@ fn reference_host_discovery_sequence() {
     // 3 boards + the bridge link: 3 hops, Linux gap count 8.
     assert_eq!(phy_data & 0x3F, 8, "gap count");
 }
+
+/// A fresh port (no scan) reads and writes a node straight away: it learns
+/// the bus generation from the bridge first, instead of having every
+/// forwarded request dropped as stale (the bridge's generation is not 0).
+#[test]
+fn a_fresh_port_learns_the_generation_before_forwarding() {
+    let server = start(4, Profile::Rev8);
+    let mut p = port(&server);
+    let status = p.read_quadlet(Dest::node(2), 0).unwrap();
+    assert_eq!((status >> 24) & 0xF, 2, "STATUS names board 2");
+    assert_ne!(p.generation(), 0);
+    p.write_quadlet(Dest::node(3), 3, 0x0123).unwrap();
+    assert_eq!(p.read_quadlet(Dest::node(3), 3).unwrap(), 0x0123);
+    assert_eq!(p.stats().timeouts, 0);
+}

@@ -63,9 +63,13 @@ pub enum HostError {
         /// What was wrong with its data.
         reason: MissReason,
     },
-    /// No board answered a scan.
-    #[error("no boards found on {0}")]
-    NoBoards(&'static str),
+    /// No board answered a scan; what the port saw says why (silence,
+    /// garbage, bad CRCs, late or foreign answers).
+    #[error("no boards found: {seen}")]
+    NoBoards {
+        /// The port's counters over the scan.
+        seen: crate::transaction::LinkStats,
+    },
     /// A board ID is not present in the current configuration.
     #[error("board {0} is not on the bus")]
     UnknownBoard(u8),

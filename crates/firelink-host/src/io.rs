@@ -269,7 +269,9 @@ impl<P: Port> IoSystem<P> {
             .boards
             .iter()
             .position(|b| Some(b.board_id()) == hub_id)
-            .ok_or(HostError::NoBoards("the scan"))?;
+            .ok_or(HostError::NoBoards {
+                seen: self.port.link_stats(),
+            })?;
         self.rule = self.config.seq_rule.unwrap_or_else(|| {
             self.boards
                 .first()

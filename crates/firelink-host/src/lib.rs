@@ -8,6 +8,8 @@
 //! broadcast command protocol.
 //!
 //! - [`port`]: the one narrow [`Port`](port::Port) trait.
+//! - [`transaction`]: labels, generation and response matching, once for
+//!   every link.
 //! - [`udp`]: the Ethernet bridge port.
 //! - [`sim`]: the simulated-bus port.
 //! - [`scan`]: discovery and protocol choice.
@@ -24,6 +26,7 @@ pub mod pacing;
 pub mod port;
 pub mod scan;
 pub mod sim;
+pub mod transaction;
 pub mod udp;
 
 pub use error::{HostError, MissReason, Result};

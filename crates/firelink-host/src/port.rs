@@ -83,6 +83,16 @@ pub trait Port {
     fn now(&self) -> Duration;
     /// The bus generation the host currently uses.
     fn generation(&self) -> u32;
+    /// Whether a completed write means the node took it (the simulated
+    /// bus: acked). The Ethernet bridge sends nothing back for a write, so
+    /// over UDP a write returns once it is sent.
+    fn acknowledges_writes(&self) -> bool {
+        true
+    }
+    /// What the port's link sent and received, refusals by reason.
+    fn link_stats(&self) -> crate::transaction::LinkStats {
+        crate::transaction::LinkStats::default()
+    }
     /// Physical node IDs that may hold boards (the bridge: 0..=15; the
     /// simulated bus: every node but the PC).
     fn candidate_nodes(&self) -> core::ops::Range<u8> {
@@ -114,6 +124,12 @@ impl<P: Port + ?Sized> Port for Box<P> {
     }
     fn generation(&self) -> u32 {
         (**self).generation()
+    }
+    fn acknowledges_writes(&self) -> bool {
+        (**self).acknowledges_writes()
+    }
+    fn link_stats(&self) -> crate::transaction::LinkStats {
+        (**self).link_stats()
     }
     fn candidate_nodes(&self) -> core::ops::Range<u8> {
         (**self).candidate_nodes()

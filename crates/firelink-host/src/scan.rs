@@ -144,10 +144,28 @@ pub fn best_protocol(boards: &[BoardInfo]) -> (Protocol, &'static str) {
 /// Find every board behind `port`.
 ///
 /// # Errors
-/// [`HostError::NoBoards`] when nothing answered; port errors other than
+/// [`HostError::NoBoards`] when nothing answered (with what the port saw
+/// instead: silence, garbage, bad CRCs, late or foreign answers);
+/// [`HostError::BusReset`] when the bus kept resetting; port errors other than
 /// time-outs and bad rcodes of individual nodes (those nodes are reported
 /// as silent).
 pub fn scan<P: Port + ?Sized>(port: &mut P) -> Result<ScanReport> {
+    // A bus reset during the scan renumbers nodes: start again, a few
+    // times at most (a bus that keeps resetting is reported as such).
+    let mut last = HostError::NoBoards {
+        seen: port.link_stats(),
+    };
+    for _ in 0..4 {
+        match scan_once(port) {
+            Err(e @ HostError::BusReset { .. }) => last = e,
+            other => return other,
+        }
+    }
+    Err(last)
+}
+
+fn scan_once<P: Port + ?Sized>(port: &mut P) -> Result<ScanReport> {
+    let before = port.link_stats();
     // The Ethernet board itself, if this port is a bridge.
     let bridge_board = match identify(
         port,
@@ -157,7 +175,7 @@ pub fn scan<P: Port + ?Sized>(port: &mut P) -> Result<ScanReport> {
         },
     ) {
         Ok((_, _, _, status, _)) => Some(StatusRead(status).board_id()),
-        Err(HostError::BusReset { .. }) => return scan(port),
+        Err(e @ HostError::BusReset { .. }) => return Err(e),
         Err(_) => None,
     };
     let mut boards: Vec<BoardInfo> = Vec::new();
@@ -168,7 +186,7 @@ pub fn scan<P: Port + ?Sized>(port: &mut P) -> Result<ScanReport> {
         let dest = Dest::node(node);
         let (hardware, firmware, eth, status, git) = match identify(port, dest) {
             Ok(id) => id,
-            Err(HostError::BusReset { .. }) => return scan(port),
+            Err(e @ HostError::BusReset { .. }) => return Err(e),
             Err(HostError::Io(kind)) => return Err(HostError::Io(kind)),
             Err(_) => {
                 silent_nodes.push(node);
@@ -201,7 +219,9 @@ pub fn scan<P: Port + ?Sized>(port: &mut P) -> Result<ScanReport> {
         });
     }
     if boards.is_empty() {
-        return Err(HostError::NoBoards("the bus"));
+        return Err(HostError::NoBoards {
+            seen: port.link_stats().since(&before),
+        });
     }
     boards.sort_by_key(|b| b.board_id);
     let (protocol, protocol_reason) = best_protocol(&boards);

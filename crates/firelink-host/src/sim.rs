@@ -17,25 +17,15 @@ use std::time::Duration;
 
 use firelink_bus::host::{HostCall, Outcome};
 use firelink_bus::{Bus, HostLink, HostModel, NodeHandle, SimDuration, SimTime};
-use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Rcode, Speed, Tcode};
+use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Speed};
 
 use crate::error::{HostError, Result};
 use crate::port::{Dest, Port};
+use crate::transaction::{CrcCheck, Expect, LinkStats, Refusal, Transactions};
 
 /// Source node ID is the PC's own node (whatever its physical ID).
 fn pc_node(phy: u8) -> NodeId {
     NodeId::local(phy)
-}
-
-/// Counters of the simulated port.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct SimPortStats {
-    /// Transactions submitted.
-    pub transactions: u64,
-    /// Transactions that did not complete.
-    pub failed: u64,
-    /// Bus resets noticed.
-    pub bus_resets: u64,
 }
 
 /// A [`Port`] on a simulated bus.
@@ -43,12 +33,10 @@ pub struct SimPort {
     bus: Bus,
     host: NodeHandle,
     model: Option<HostModel>,
-    tl: u8,
+    transactions: Transactions,
     speed: Speed,
     broadcast_speed: Speed,
     timeout: SimDuration,
-    generation: u32,
-    stats: SimPortStats,
     out: Vec<u8>,
 }
 
@@ -56,17 +44,15 @@ impl SimPort {
     /// A port using the [`HostLink`] node `host` of `bus`. The bus should
     /// have been reset (nodes numbered) already.
     pub fn new(bus: Bus, host: NodeHandle) -> SimPort {
-        let generation = bus.generation();
+        let transactions = Transactions::with_generation(bus.generation());
         SimPort {
             bus,
             host,
             model: None,
-            tl: 0,
+            transactions,
             speed: Speed::S400,
             broadcast_speed: Speed::S400,
             timeout: SimDuration::from_micros(20_000),
-            generation,
-            stats: SimPortStats::default(),
             out: vec![0; 4096],
         }
     }
@@ -99,36 +85,25 @@ impl SimPort {
         self.bus.node::<HostLink>(self.host)
     }
 
-    /// Counters so far.
-    pub fn stats(&self) -> SimPortStats {
-        self.stats
+    /// What the PC's link sent and received, refusals by reason.
+    pub fn stats(&self) -> LinkStats {
+        self.transactions.stats()
     }
 
     fn host_phy(&self) -> u8 {
         self.bus.phy_id(self.host).unwrap_or(0)
     }
 
-    fn next_tl(&mut self) -> u8 {
-        self.tl = (self.tl + 1) & 0x3F;
-        self.tl
-    }
-
-    fn check_generation(&mut self, dest: Dest) -> Result<()> {
-        let now = self.bus.generation();
-        if now != self.generation {
-            let old = self.generation;
-            self.generation = now;
-            self.stats.bus_resets += 1;
-            if !dest.is_broadcast() {
-                return Err(HostError::BusReset { old, new: now });
-            }
-        }
-        Ok(())
-    }
-
-    /// Run one transaction; returns the response packet bytes of reads.
-    fn transact(&mut self, dest: Dest, repr: PacketRepr<'_>, call: HostCall) -> Result<Vec<u8>> {
-        self.check_generation(dest)?;
+    /// Run one transaction: the request goes through the PC's link and the
+    /// engine judges what came back. Returns the response packet of reads.
+    fn transact(
+        &mut self,
+        expect: Expect,
+        repr: PacketRepr<'_>,
+        call: HostCall,
+    ) -> Result<Option<Vec<u8>>> {
+        self.transactions.observe_generation(self.bus.generation());
+        self.transactions.check_generation(expect.dest)?;
         let len = repr.buffer_len();
         if self.out.len() < len {
             self.out.resize(len, 0);
@@ -140,12 +115,13 @@ impl SimPort {
             });
         };
         repr.emit(buf)?;
+        // The bus owns the packets it carries (as a link owns its FIFO).
         let packet = buf.to_vec();
         let cost = self.model.as_mut().map(|m| m.cost(call));
         if let Some(c) = cost {
             self.bus.run_for(c.before);
         }
-        let speed = if dest.is_broadcast() {
+        let speed = if expect.dest.is_broadcast() {
             self.broadcast_speed
         } else {
             self.speed
@@ -157,112 +133,83 @@ impl SimPort {
                 value: host.0 as u32,
             }
         })?;
-        self.stats.transactions += 1;
+        self.transactions.sent();
         if call == HostCall::BroadcastWrite {
             // Non-blocking: the packet goes out while the caller goes on,
             // and nobody will take its completion.
             if let Some(l) = self.bus.node_mut::<HostLink>(host) {
                 l.abandon(token);
             }
-            return Ok(Vec::new());
+            return Ok(None);
         }
-        let deadline = self.bus.now() + self.timeout;
+        let submitted = self.bus.now();
+        let deadline = submitted + self.timeout;
         let completion = HostLink::wait_on(&mut self.bus, host, token, deadline);
         if let Some(c) = cost {
             self.bus.run_for(c.after);
         }
-        let node = dest.node;
+        let node = expect.dest.node;
         let Some(done) = completion else {
-            self.stats.failed += 1;
-            return Err(HostError::Timeout {
-                node,
-                tl: 0,
-                waited_us: self.timeout.as_micros_f64() as u32,
-            });
-        };
-        let failed = |s: &mut Self, e: HostError| {
-            s.stats.failed += 1;
-            Err(e)
+            let waited = (self.bus.now() - submitted).as_micros_f64() as u32;
+            return Err(self.transactions.timed_out(&expect, waited));
         };
         match done.outcome {
-            Outcome::Complete => {}
+            Outcome::Complete | Outcome::ResponseCorrupt => {}
             Outcome::NoAck | Outcome::ResponseTimeout => {
-                return failed(
-                    self,
-                    HostError::Timeout {
-                        node,
-                        tl: done.tl,
-                        waited_us: (done.completed_at - done.submitted_at).as_micros_f64() as u32,
-                    },
-                );
+                let waited = (done.completed_at - done.submitted_at).as_micros_f64() as u32;
+                return Err(self.transactions.timed_out(&expect, waited));
             }
             Outcome::Busy | Outcome::AckError => {
-                return failed(
-                    self,
-                    HostError::Ack {
-                        node,
-                        ack: done.ack.unwrap_or(Ack::Unknown(0)),
-                    },
-                );
-            }
-            Outcome::ResponseCorrupt => {
-                return failed(
-                    self,
-                    HostError::Wire(firelink_wire::Error::DataCrc {
-                        carried: 0,
-                        computed: 0,
-                    }),
-                );
+                return Err(HostError::Ack {
+                    node,
+                    ack: done.ack.unwrap_or(Ack::Unknown(0)),
+                });
             }
             Outcome::BusReset => {
-                let old = self.generation;
-                self.generation = self.bus.generation();
-                self.stats.bus_resets += 1;
-                return failed(
-                    self,
-                    HostError::BusReset {
-                        old,
-                        new: self.generation,
-                    },
-                );
+                self.transactions.observe_generation(done.generation);
+                self.transactions.check_generation(expect.dest)?;
+                return Err(HostError::BusReset {
+                    old: done.generation,
+                    new: done.generation,
+                });
             }
         }
-        Ok(done.response.unwrap_or_default())
+        let Some(response) = done.response else {
+            // A unicast write: ack_complete is its answer.
+            return Ok(None);
+        };
+        // The engine checks what the link matched: CRCs (a damaged
+        // response fails with the CRCs it carries and should carry), tcode,
+        // size and rcode.
+        match self
+            .transactions
+            .accept(&response, &expect, CrcCheck::Always)?
+        {
+            Ok(_) => Ok(Some(response)),
+            Err(refusal) => Err(refusal_error(refusal, &expect)),
+        }
     }
 
     fn header(&mut self, dest: Dest) -> AsyncHeader {
-        let tl = self.next_tl();
+        let tl = self.transactions.next_label();
         AsyncHeader::new(NodeId::local(dest.node), pc_node(self.host_phy()), tl)
     }
+}
 
-    fn check_response(
-        response: &[u8],
-        tcode: Tcode,
-        len: usize,
-        node: u8,
-    ) -> Result<Packet<&[u8]>> {
-        let packet = Packet::new_checked(response)?;
-        packet.verify()?;
-        if packet.tcode() != tcode {
-            return Err(HostError::Wire(firelink_wire::Error::UnexpectedTcode {
-                tcode: u8::from(packet.tcode()),
-                expected: tcode.name(),
-            }));
+/// The link matched a response the engine refuses: say what was wrong.
+fn refusal_error(refusal: Refusal, expect: &Expect) -> HostError {
+    match refusal {
+        Refusal::Garbage(e) | Refusal::BadCrc(e) => HostError::Wire(e),
+        Refusal::Late { tl } | Refusal::Unmatched { tl } => {
+            HostError::Wire(firelink_wire::Error::Malformed {
+                what: if tl == expect.tl {
+                    "response (tcode or size does not answer the request)"
+                } else {
+                    "response (another transaction label)"
+                },
+                value: u32::from(tl),
+            })
         }
-        if packet.rcode() != Rcode::Complete {
-            return Err(HostError::Rcode {
-                node,
-                rcode: packet.rcode(),
-            });
-        }
-        if tcode == Tcode::ReadBlockResponse && usize::from(packet.data_length()) != len {
-            return Err(HostError::Wire(firelink_wire::Error::BlockSize {
-                what: "read response",
-                expected: len / 4,
-                found: usize::from(packet.data_length()) / 4,
-            }));
-        }
-        Ok(packet)
     }
 }
 
@@ -285,12 +232,15 @@ impl Port for SimPort {
         no_broadcast_reads(dest)?;
         let header = self.header(dest);
         let response = self.transact(
-            dest,
+            Expect::quadlet(dest, header.tl),
             PacketRepr::ReadQuadletRequest { header, offset },
             HostCall::Read,
         )?;
-        let packet = Self::check_response(&response, Tcode::ReadQuadletResponse, 4, dest.node)?;
-        Ok(packet.quadlet_data())
+        let response = response.ok_or(HostError::Wire(firelink_wire::Error::Malformed {
+            what: "read completed without a response",
+            value: u32::from(header.tl),
+        }))?;
+        Ok(Packet::new_unchecked(&response[..]).quadlet_data())
     }
 
     fn write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> Result<()> {
@@ -301,7 +251,7 @@ impl Port for SimPort {
             HostCall::Write
         };
         self.transact(
-            dest,
+            Expect::write(dest, header.tl),
             PacketRepr::WriteQuadletRequest {
                 header,
                 offset,
@@ -317,7 +267,7 @@ impl Port for SimPort {
         no_broadcast_reads(dest)?;
         let header = self.header(dest);
         let response = self.transact(
-            dest,
+            Expect::block(dest, header.tl, out.len()),
             PacketRepr::ReadBlockRequest {
                 header,
                 offset,
@@ -326,9 +276,19 @@ impl Port for SimPort {
             },
             HostCall::Read,
         )?;
-        let packet =
-            Self::check_response(&response, Tcode::ReadBlockResponse, out.len(), dest.node)?;
-        out.copy_from_slice(packet.payload());
+        let response = response.ok_or(HostError::Wire(firelink_wire::Error::Malformed {
+            what: "read completed without a response",
+            value: u32::from(header.tl),
+        }))?;
+        let payload = Packet::new_unchecked(&response[..]).payload();
+        if payload.len() != out.len() {
+            return Err(HostError::Wire(firelink_wire::Error::BlockSize {
+                what: "read response",
+                expected: out.len() / 4,
+                found: payload.len() / 4,
+            }));
+        }
+        out.copy_from_slice(payload);
         Ok(())
     }
 
@@ -341,7 +301,7 @@ impl Port for SimPort {
             HostCall::Write
         };
         self.transact(
-            dest,
+            Expect::write(dest, header.tl),
             PacketRepr::WriteBlockRequest {
                 header,
                 offset,
@@ -364,7 +324,11 @@ impl Port for SimPort {
     }
 
     fn generation(&self) -> u32 {
-        self.generation
+        self.transactions.generation()
+    }
+
+    fn link_stats(&self) -> LinkStats {
+        self.transactions.stats()
     }
 
     fn candidate_nodes(&self) -> core::ops::Range<u8> {

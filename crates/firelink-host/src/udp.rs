@@ -6,19 +6,22 @@
 //! response packet followed by 8 bytes of extra data; writes get no reply.
 //! Facts: `fpga-board.md` §8.
 //!
-//! Responses are matched to their request by source node, transaction label,
-//! tcode and length; anything else (a late answer to an earlier request, a
-//! stray datagram) is counted and dropped. Buffers are allocated once, so a
-//! transaction allocates nothing.
+//! Responses are matched to their request by the [transaction
+//! engine](crate::transaction): source node, transaction label, tcode and
+//! length; anything else (garbage, a bad CRC, a late answer to an earlier
+//! request, a stray datagram) is counted under its reason and dropped.
+//! Buffers are allocated once, so a transaction allocates nothing.
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
-use firelink_wire::bridge::{ControlWord, ExtraData, split_board_datagram};
-use firelink_wire::packet::{AsyncHeader, NodeId, Packet, PacketRepr, Rcode, Tcode};
+use firelink_wire::board::address::{BoardRegister, Register};
+use firelink_wire::bridge::{ControlWord, EXTRA_DATA_LEN, ExtraData};
+use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr, Tcode};
 
 use crate::error::{HostError, Result};
 use crate::port::{Dest, Port};
+use crate::transaction::{CrcCheck, Expect, LinkStats, Transactions};
 
 /// Source node ID the reference host uses (`fpga-board.md` §8).
 pub const HOST_SOURCE_ID: NodeId = NodeId(0xFFD0);
@@ -27,40 +30,15 @@ pub const HOST_SOURCE_ID: NodeId = NodeId(0xFFD0);
 /// payload, data CRC.
 const MAX_DATAGRAM: usize = 2 + 20 + 2048 + 4 + 16;
 
-/// Counters of what the port saw.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct UdpStats {
-    /// Datagrams sent.
-    pub sent: u64,
-    /// Responses matched to a request.
-    pub matched: u64,
-    /// Well-formed datagrams that answered no current request (stale tl,
-    /// wrong node, tcode or length), dropped.
-    pub stale: u64,
-    /// Datagrams that did not decode, dropped.
-    pub garbage: u64,
-    /// Responses whose CRC failed.
-    pub crc_errors: u64,
-    /// Reads that timed out.
-    pub timeouts: u64,
-    /// Bus generation changes seen in the extra data.
-    pub bus_resets: u64,
-}
-
 /// A port speaking the Ethernet bridge protocol over UDP.
 pub struct UdpPort {
     name: String,
     socket: UdpSocket,
     target: SocketAddr,
     timeout: Duration,
-    tl: u8,
-    generation: u8,
-    /// A generation seen in a board's extra data that the host has not
-    /// adopted yet.
-    pending_generation: Option<u8>,
+    transactions: Transactions,
     tx: Vec<u8>,
     rx: Vec<u8>,
-    stats: UdpStats,
     opened: Instant,
     last_extra: Option<ExtraData>,
 }
@@ -86,12 +64,9 @@ impl UdpPort {
             socket,
             target,
             timeout: Self::DEFAULT_TIMEOUT,
-            tl: 0,
-            generation: 0,
-            pending_generation: None,
+            transactions: Transactions::new(),
             tx: vec![0; MAX_DATAGRAM],
             rx: vec![0; MAX_DATAGRAM + 64],
-            stats: UdpStats::default(),
             opened: Instant::now(),
             last_extra: None,
         })
@@ -118,9 +93,10 @@ impl UdpPort {
         self.timeout = timeout;
     }
 
-    /// What the port has counted so far.
-    pub fn stats(&self) -> UdpStats {
-        self.stats
+    /// What the port has counted so far: requests, answers, time-outs and
+    /// every refused datagram by reason.
+    pub fn stats(&self) -> LinkStats {
+        self.transactions.stats()
     }
 
     /// The extra data of the last matched response.
@@ -128,30 +104,36 @@ impl UdpPort {
         self.last_extra
     }
 
-    fn next_tl(&mut self) -> u8 {
-        self.tl = (self.tl + 1) & 0x3F;
-        self.tl
+    /// Before a request: learn the bus generation if it is not known yet
+    /// (the bridge drops forwarded requests of another generation without
+    /// a word), then fail once whenever the boards reported a new one.
+    fn check_generation(&mut self, dest: Dest) -> Result<()> {
+        if !self.transactions.generation_known() && !dest.no_forward && !dest.is_broadcast() {
+            self.learn_generation()?;
+        }
+        self.transactions.check_generation(dest)
     }
 
-    /// Fail once if the boards reported a new bus generation, adopting it.
-    fn check_generation(&mut self, dest: Dest) -> Result<()> {
-        if let Some(new) = self.pending_generation.take() {
-            let old = self.generation;
-            self.generation = new;
-            if !dest.is_broadcast() {
-                return Err(HostError::BusReset {
-                    old: u32::from(old),
-                    new: u32::from(new),
-                });
-            }
-        }
-        Ok(())
+    /// Ask the bridge board itself (a no-forward read of HW_VERSION, which
+    /// it answers whatever the generation, as the reference host's
+    /// discovery does first) and adopt the generation its reply carries.
+    ///
+    /// # Errors
+    /// The read's failure (no bridge answering).
+    pub fn learn_generation(&mut self) -> Result<u32> {
+        let dest = Dest {
+            node: 63,
+            no_forward: true,
+        };
+        let offset = Register::board(BoardRegister::HwVersion).offset()?;
+        self.read_quadlet_now(dest, offset)?;
+        Ok(self.generation())
     }
 
     fn send(&mut self, dest: Dest, repr: &PacketRepr<'_>) -> Result<()> {
         let control = ControlWord {
             no_forward: dest.no_forward,
-            generation: self.generation,
+            generation: self.transactions.generation() as u8,
         };
         let len = 2 + repr.buffer_len();
         let Some(buf) = self.tx.get_mut(..len) else {
@@ -163,7 +145,7 @@ impl UdpPort {
         buf[..2].copy_from_slice(&control.to_bytes());
         repr.emit(&mut buf[2..])?;
         self.socket.send_to(buf, self.target)?;
-        self.stats.sent += 1;
+        self.transactions.sent();
         Ok(())
     }
 
@@ -172,7 +154,15 @@ impl UdpPort {
         self.socket.set_nonblocking(true)?;
         loop {
             match self.socket.recv_from(&mut self.rx) {
-                Ok(_) => self.stats.stale += 1,
+                Ok((len, from)) => {
+                    let packet = self.rx.get(..len.saturating_sub(EXTRA_DATA_LEN));
+                    match packet {
+                        Some(bytes) if from == self.target => {
+                            self.transactions.refuse_unsolicited(bytes);
+                        }
+                        _ => self.transactions.refused_unmatched(),
+                    }
+                }
                 Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => break,
                 Err(e) => {
                     self.socket.set_nonblocking(false)?;
@@ -184,25 +174,22 @@ impl UdpPort {
         Ok(())
     }
 
-    /// Wait for the response matching (node, tl, tcode, length) and copy its
-    /// payload (or quadlet) into `out`.
-    fn receive(&mut self, dest: Dest, tl: u8, tcode: Tcode, out: &mut [u8]) -> Result<()> {
+    /// Wait for the answer to `expect` and copy its payload (or quadlet)
+    /// into `out`; every other datagram is counted by the engine under the
+    /// reason it was refused.
+    fn receive(&mut self, expect: Expect, out: &mut [u8]) -> Result<()> {
         let started = Instant::now();
         loop {
             let elapsed = started.elapsed();
             let Some(remaining) = self.timeout.checked_sub(elapsed).filter(|d| !d.is_zero()) else {
-                self.stats.timeouts += 1;
-                return Err(HostError::Timeout {
-                    node: dest.node,
-                    tl,
-                    waited_us: elapsed.as_micros().min(u128::from(u32::MAX)) as u32,
-                });
+                let waited = elapsed.as_micros().min(u128::from(u32::MAX)) as u32;
+                return Err(self.transactions.timed_out(&expect, waited));
             };
             self.socket.set_read_timeout(Some(remaining))?;
             let len = match self.socket.recv_from(&mut self.rx) {
                 Ok((len, from)) if from == self.target => len,
                 Ok(_) => {
-                    self.stats.garbage += 1;
+                    self.transactions.refused_unmatched();
                     continue;
                 }
                 Err(e)
@@ -217,63 +204,57 @@ impl UdpPort {
                 }
                 Err(e) => return Err(e.into()),
             };
-            let datagram = &self.rx[..len];
-            let Ok((packet, extra)) = split_board_datagram(datagram) else {
-                self.stats.garbage += 1;
+            let datagram = self.rx.get(..len).unwrap_or(&[]);
+            // A board's reply: the response packet, then 8 bytes of extra
+            // data (which carry the bus generation).
+            let Some(split) = len.checked_sub(EXTRA_DATA_LEN) else {
+                self.transactions
+                    .accept(datagram, &expect, CrcCheck::Always)?
+                    .ok();
                 continue;
             };
-            if extra.generation != self.generation {
-                if self.pending_generation != Some(extra.generation) {
-                    self.stats.bus_resets += 1;
-                }
-                self.pending_generation = Some(extra.generation);
-            }
-            if !Self::matches(&packet, dest, tl, tcode, out.len()) {
-                self.stats.stale += 1;
+            let (packet_bytes, extra_bytes) = datagram.split_at(split);
+            let Ok(extra) = ExtraData::parse(extra_bytes) else {
+                self.transactions
+                    .accept(&[], &expect, CrcCheck::Always)?
+                    .ok();
                 continue;
-            }
+            };
             // Locally generated responses may carry 0 in their CRC fields.
-            let local_zero_crc = extra.flags.no_forward && packet.header_crc() == Some(0);
-            if !local_zero_crc {
-                if let Err(e) = packet.verify() {
-                    self.stats.crc_errors += 1;
-                    return Err(e.into());
-                }
-            }
-            self.stats.matched += 1;
-            self.last_extra = Some(extra);
-            let rcode = packet.rcode();
-            if rcode != Rcode::Complete {
-                return Err(HostError::Rcode {
-                    node: packet.source_id().phy(),
-                    rcode,
-                });
-            }
-            if tcode == Tcode::ReadQuadletResponse {
+            let crc = if extra.flags.no_forward {
+                CrcCheck::ZeroMeansUnset
+            } else {
+                CrcCheck::Always
+            };
+            let accepted = self.transactions.accept(packet_bytes, &expect, crc)?;
+            let Ok(packet) = accepted else {
+                continue;
+            };
+            if expect.tcode == Tcode::ReadQuadletResponse {
                 out.copy_from_slice(&packet.quadlet_data().to_be_bytes());
             } else {
                 out.copy_from_slice(packet.payload());
             }
+            self.last_extra = Some(extra);
+            self.transactions
+                .observe_generation(u32::from(extra.generation));
             return Ok(());
         }
     }
 
-    fn matches(packet: &Packet<&[u8]>, dest: Dest, tl: u8, tcode: Tcode, len: usize) -> bool {
-        if packet.tcode() != tcode || packet.tl() != tl {
-            return false;
-        }
-        if !dest.is_broadcast() && !dest.no_forward && packet.source_id().phy() != dest.node {
-            return false;
-        }
-        match tcode {
-            Tcode::ReadQuadletResponse => len == 4,
-            _ => usize::from(packet.data_length()) == len,
-        }
+    fn header(&mut self, dest: Dest) -> AsyncHeader {
+        let tl = self.transactions.next_label();
+        AsyncHeader::new(NodeId::local(dest.node), HOST_SOURCE_ID, tl)
     }
 
-    fn header(&mut self, dest: Dest) -> AsyncHeader {
-        let tl = self.next_tl();
-        AsyncHeader::new(NodeId::local(dest.node), HOST_SOURCE_ID, tl)
+    /// A quadlet read without the generation check (used to learn it).
+    fn read_quadlet_now(&mut self, dest: Dest, offset: u64) -> Result<u32> {
+        self.flush()?;
+        let header = self.header(dest);
+        self.send(dest, &PacketRepr::ReadQuadletRequest { header, offset })?;
+        let mut out = [0u8; 4];
+        self.receive(Expect::quadlet(dest, header.tl), &mut out)?;
+        Ok(u32::from_be_bytes(out))
     }
 }
 
@@ -284,12 +265,7 @@ impl Port for UdpPort {
 
     fn read_quadlet(&mut self, dest: Dest, offset: u64) -> Result<u32> {
         self.check_generation(dest)?;
-        self.flush()?;
-        let header = self.header(dest);
-        self.send(dest, &PacketRepr::ReadQuadletRequest { header, offset })?;
-        let mut out = [0u8; 4];
-        self.receive(dest, header.tl, Tcode::ReadQuadletResponse, &mut out)?;
-        Ok(u32::from_be_bytes(out))
+        self.read_quadlet_now(dest, offset)
     }
 
     fn write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> Result<()> {
@@ -319,7 +295,7 @@ impl Port for UdpPort {
                 extended_tcode: 0,
             },
         )?;
-        self.receive(dest, header.tl, Tcode::ReadBlockResponse, out)
+        self.receive(Expect::block(dest, header.tl, out.len()), out)
     }
 
     fn write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
@@ -346,7 +322,15 @@ impl Port for UdpPort {
     }
 
     fn generation(&self) -> u32 {
-        u32::from(self.generation)
+        self.transactions.generation()
+    }
+
+    fn link_stats(&self) -> LinkStats {
+        self.transactions.stats()
+    }
+
+    fn acknowledges_writes(&self) -> bool {
+        false
     }
 }
 

@@ -7,6 +7,7 @@ use std::net::UdpSocket;
 use std::thread;
 use std::time::Duration;
 
+use firelink_host::transaction::LinkStats;
 use firelink_host::udp::UdpPort;
 use firelink_host::{Dest, HostError, Port};
 use firelink_wire::bridge::{ExtraData, split_host_datagram};
@@ -107,71 +108,85 @@ fn responder(script: Vec<Vec<Answer>>) -> std::net::SocketAddr {
     addr
 }
 
-fn port(addr: std::net::SocketAddr) -> UdpPort {
+/// A port that has learnt the bus generation (the responder's first script
+/// entry answers that), with its counters from then on in `since`.
+fn port(addr: std::net::SocketAddr) -> (UdpPort, LinkStats) {
     let mut p = UdpPort::open(addr).unwrap();
     p.set_timeout(Duration::from_millis(200));
-    p
+    p.learn_generation().unwrap();
+    let since = p.stats();
+    (p, since)
+}
+
+/// The answer to the port's first request: its generation query.
+fn learn() -> Vec<Answer> {
+    vec![Answer::Good { generation: 0 }]
 }
 
 #[test]
 fn good_response_is_returned() {
-    let addr = responder(vec![vec![Answer::Good { generation: 0 }]]);
-    let mut p = port(addr);
+    let addr = responder(vec![learn(), vec![Answer::Good { generation: 0 }]]);
+    let (mut p, since) = port(addr);
     assert_eq!(p.read_quadlet(Dest::node(2), 4).unwrap(), 0x5151_4131);
-    assert_eq!(p.stats().matched, 1);
+    assert_eq!(p.stats().since(&since).matched, 1);
 }
 
 #[test]
 fn stale_and_foreign_datagrams_are_dropped_before_the_match() {
-    let addr = responder(vec![vec![
-        Answer::WrongTl,
-        Answer::WrongLength,
-        Answer::Garbage,
-        Answer::Truncated,
-        Answer::Good { generation: 0 },
-    ]]);
-    let mut p = port(addr);
+    let addr = responder(vec![
+        learn(),
+        vec![
+            Answer::WrongTl,
+            Answer::WrongLength,
+            Answer::Garbage,
+            Answer::Truncated,
+            Answer::Good { generation: 0 },
+        ],
+    ]);
+    let (mut p, since) = port(addr);
     let mut out = [0u8; 8];
     p.read_block(Dest::node(1), 0, &mut out).unwrap();
     assert_eq!(out, [0x11, 0x22, 0x33, 0x44, 0x55, 0x66, 0x77, 0x88]);
-    let s = p.stats();
-    assert_eq!(s.stale, 2, "{s:?}");
+    let s = p.stats().since(&since);
+    assert_eq!(s.unmatched, 2, "{s:?}");
     assert_eq!(s.garbage, 2, "{s:?}");
     assert_eq!(s.matched, 1);
 }
 
 #[test]
 fn bad_crc_is_an_error() {
-    let addr = responder(vec![vec![Answer::BadCrc]]);
-    let mut p = port(addr);
+    let addr = responder(vec![learn(), vec![Answer::BadCrc]]);
+    let (mut p, since) = port(addr);
     let err = p.read_quadlet(Dest::node(0), 4).unwrap_err();
     assert!(
         matches!(err, HostError::Wire(firelink_wire::Error::HeaderCrc { .. })),
         "{err}"
     );
-    assert_eq!(p.stats().crc_errors, 1);
+    assert_eq!(p.stats().since(&since).bad_crc, 1);
 }
 
 #[test]
 fn no_answer_is_a_timeout_naming_node_and_label() {
-    let addr = responder(vec![vec![Answer::Silence]]);
-    let mut p = port(addr);
+    let addr = responder(vec![learn(), vec![Answer::Silence]]);
+    let (mut p, since) = port(addr);
     p.set_timeout(Duration::from_millis(30));
     let err = p.read_quadlet(Dest::node(5), 4).unwrap_err();
+    // Label 1 went to the generation query; this read is label 2.
     assert!(
-        matches!(err, HostError::Timeout { node: 5, tl: 1, .. }),
+        matches!(err, HostError::Timeout { node: 5, tl: 2, .. }),
         "{err}"
     );
-    assert_eq!(p.stats().timeouts, 1);
+    assert_eq!(p.stats().since(&since).timeouts, 1);
 }
 
 #[test]
 fn a_new_generation_fails_the_next_request_once() {
     let addr = responder(vec![
+        learn(),
         vec![Answer::Good { generation: 3 }],
         vec![Answer::Good { generation: 3 }],
     ]);
-    let mut p = port(addr);
+    let (mut p, _) = port(addr);
     // The data of this read is good; the extra data reports a bus reset.
     assert!(p.read_quadlet(Dest::node(0), 4).is_ok());
     let err = p.read_quadlet(Dest::node(0), 4).unwrap_err();
@@ -184,8 +199,8 @@ fn a_new_generation_fails_the_next_request_once() {
 
 #[test]
 fn invalid_block_sizes_are_refused_before_sending() {
-    let addr = responder(vec![]);
-    let mut p = port(addr);
+    let addr = responder(vec![learn()]);
+    let (mut p, since) = port(addr);
     let mut odd = [0u8; 6];
     assert!(matches!(
         p.read_block(Dest::node(0), 0, &mut odd),
@@ -195,5 +210,107 @@ fn invalid_block_sizes_are_refused_before_sending() {
         p.write_block(Dest::node(0), 0, &[0u8; 4096]),
         Err(HostError::InvalidRequest { .. })
     ));
-    assert_eq!(p.stats().sent, 0);
+    assert_eq!(p.stats().since(&since).sent, 0);
+}
+
+/// A bridge that answers every request the same bad way, for as long as
+/// requests come (it stops after a quiet second).
+fn misbehaving(answer: Answer) -> std::net::SocketAddr {
+    let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+    socket
+        .set_read_timeout(Some(Duration::from_secs(1)))
+        .unwrap();
+    let addr = socket.local_addr().unwrap();
+    thread::spawn(move || {
+        let mut buf = [0u8; 4096];
+        while let Ok((len, from)) = socket.recv_from(&mut buf) {
+            if let Some(reply) = response(&buf[..len], answer) {
+                let _ = socket.send_to(&reply, from);
+            }
+        }
+    });
+    addr
+}
+
+/// A scan against a bridge that never answers properly fails with "no
+/// boards found" and says what came instead, by reason.
+#[test]
+fn no_boards_found_says_what_came_instead() {
+    for (answer, what) in [
+        (Answer::Garbage, "garbage"),
+        (Answer::Truncated, "garbage"),
+        (Answer::BadCrc, "bad CRC"),
+        (Answer::WrongTl, "answering no request"),
+        (Answer::Silence, "timed out"),
+    ] {
+        let mut p = UdpPort::open(misbehaving(answer)).unwrap();
+        p.set_timeout(Duration::from_millis(20));
+        let err = firelink_host::scan::scan(&mut p).unwrap_err();
+        let HostError::NoBoards { seen } = err else {
+            panic!("{answer:?}: {err}");
+        };
+        assert_eq!(seen.matched, 0, "{answer:?}: {seen}");
+        let count = match answer {
+            Answer::Garbage | Answer::Truncated => seen.garbage,
+            Answer::BadCrc => seen.bad_crc,
+            Answer::WrongTl => seen.unmatched,
+            _ => seen.timeouts,
+        };
+        assert!(count > 0, "{answer:?}: {seen}");
+        assert!(err.to_string().contains(what), "{answer:?}: {err}");
+    }
+}
+
+/// A bridge one answer behind (each answer comes after its request timed
+/// out) and one that answers twice: every read fails or succeeds cleanly,
+/// and the late and the duplicated answers are counted as such.
+#[test]
+fn late_and_duplicated_answers_are_told_apart() {
+    // Late: the answer to request k is sent when request k+1 arrives.
+    let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let addr = socket.local_addr().unwrap();
+    thread::spawn(move || {
+        let mut buf = [0u8; 4096];
+        let mut previous: Option<Vec<u8>> = None;
+        for _ in 0..4 {
+            let Ok((len, from)) = socket.recv_from(&mut buf) else {
+                return;
+            };
+            if let Some(reply) = previous.take() {
+                let _ = socket.send_to(&reply, from);
+            }
+            previous = response(&buf[..len], Answer::Good { generation: 0 });
+        }
+    });
+    let mut p = UdpPort::open(addr).unwrap();
+    // Each late answer is counted whether it comes during the next wait or
+    // is drained before the next request.
+    p.set_timeout(Duration::from_millis(300));
+    for _ in 0..3 {
+        let err = p.read_quadlet(Dest::BROADCAST, 4).unwrap_err();
+        assert!(matches!(err, HostError::Timeout { .. }), "{err}");
+    }
+    let s = p.stats();
+    assert_eq!(s.timeouts, 3, "{s}");
+    assert_eq!(s.late, 2, "{s}");
+    assert_eq!(s.matched, 0, "{s}");
+
+    // Duplicated: every answer comes twice; the copy answers no request.
+    let addr = responder(vec![
+        vec![
+            Answer::Good { generation: 0 },
+            Answer::Good { generation: 0 },
+        ],
+        vec![
+            Answer::Good { generation: 0 },
+            Answer::Good { generation: 0 },
+        ],
+    ]);
+    let mut p = UdpPort::open(addr).unwrap();
+    p.set_timeout(Duration::from_millis(200));
+    assert_eq!(p.read_quadlet(Dest::BROADCAST, 4).unwrap(), 0x5151_4131);
+    assert_eq!(p.read_quadlet(Dest::BROADCAST, 4).unwrap(), 0x5151_4131);
+    let s = p.stats();
+    assert_eq!(s.matched, 2, "{s}");
+    assert!(s.unmatched >= 1, "{s}");
 }

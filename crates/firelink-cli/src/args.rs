@@ -1,0 +1,202 @@
+//! Every number the command line accepts, checked at the boundary.
+//!
+//! A value that later becomes a duration, a rate, a count, an ID or a
+//! probability is range-checked here, by clap, before anything runs: out
+//! of range, not finite or not a number is a usage error (exit status 2)
+//! with one line naming the option, the value and the range. Nothing
+//! downstream can then panic building a `Duration` from `1e300`, wrap a node
+//! ID modulo 64 into a broadcast, or turn a watchdog off by accident.
+
+use std::time::Duration;
+
+use firelink_wire::board::registers::Watchdog;
+
+/// A finite number in `lo..=hi` (or `lo < x` when `open_low`).
+fn bounded(s: &str, lo: f64, hi: f64, open_low: bool, unit: &str) -> Result<f64, String> {
+    let x: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?} is not a number"))?;
+    let low_ok = if open_low { x > lo } else { x >= lo };
+    if !x.is_finite() || !low_ok || x > hi {
+        let low = if open_low { "above" } else { "from" };
+        return Err(format!("{s} is out of range: {low} {lo} to {hi}{unit}"));
+    }
+    Ok(x)
+}
+
+/// A control or I/O rate: 1 Hz to 100 kHz.
+pub fn rate_hz(s: &str) -> Result<f64, String> {
+    bounded(s, 1.0, 100_000.0, false, " Hz")
+}
+
+/// An I/O rate where 0 means "as fast as possible": 0, or 1 Hz to 100 kHz.
+pub fn rate_hz_or_max(s: &str) -> Result<f64, String> {
+    if s.trim().parse::<f64>().is_ok_and(|x| x == 0.0) {
+        return Ok(0.0);
+    }
+    rate_hz(s)
+}
+
+/// A run length in seconds: above 0 and at most one day.
+pub fn run_seconds(s: &str) -> Result<f64, String> {
+    bounded(s, 0.0, 86_400.0, true, " s")
+}
+
+/// A run length in seconds where 0 means "until stopped": 0 to one year.
+pub fn seconds_or_forever(s: &str) -> Result<f64, String> {
+    bounded(s, 0.0, 31_536_000.0, false, " s")
+}
+
+/// A wait or idle time in microseconds: 0 to 1 s.
+pub fn wait_us(s: &str) -> Result<f64, String> {
+    bounded(s, 0.0, 1e6, false, " us")
+}
+
+/// A control period in microseconds: above 0, at most 1 s.
+pub fn period_us(s: &str) -> Result<f64, String> {
+    bounded(s, 0.0, 1e6, true, " us")
+}
+
+/// A probability: 0 to 1.
+pub fn probability(s: &str) -> Result<f64, String> {
+    bounded(s, 0.0, 1.0, false, "")
+}
+
+/// An unsigned integer in `lo..=hi` (decimal or 0x hex).
+fn integer(s: &str, lo: u64, hi: u64, what: &str) -> Result<u64, String> {
+    let n = crate::parse_number(s)?;
+    if !(lo..=hi).contains(&n) {
+        return Err(format!("{what} {n} is out of range: {lo} to {hi}"));
+    }
+    Ok(n)
+}
+
+/// A physical node ID: 0..=62, or 63 for broadcast. Larger values are
+/// rejected (they used to wrap modulo 64, so 127 became a broadcast).
+pub fn node_id(s: &str) -> Result<u8, String> {
+    integer(s, 0, 63, "node ID (0..=62, 63 = broadcast)").map(|n| n as u8)
+}
+
+/// A board ID (rotary switch): 0..=15.
+pub fn board_id(s: &str) -> Result<u8, String> {
+    integer(s, 0, 15, "board ID").map(|n| n as u8)
+}
+
+/// A number of emulated boards on one bus: 1..=16 (the board-ID space).
+pub fn board_count(s: &str) -> Result<u8, String> {
+    integer(s, 1, 16, "number of boards").map(|n| n as u8)
+}
+
+/// Cycles to run or measure: 1 to 10^9.
+pub fn cycles(s: &str) -> Result<u64, String> {
+    integer(s, 1, 1_000_000_000, "number of cycles")
+}
+
+/// Quadlets of one register access: 1..=512 (a block of 2048 bytes).
+pub fn quadlets(s: &str) -> Result<usize, String> {
+    integer(s, 1, 512, "number of quadlets").map(|n| n as usize)
+}
+
+/// A time-out in milliseconds: 1 ms to 60 s.
+pub fn timeout_ms(s: &str) -> Result<u64, String> {
+    integer(s, 1, 60_000, "time-out (ms)")
+}
+
+/// The boards' watchdog: a period, or off (which must be asked for by
+/// name: it means a lost host leaves the amplifiers running).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum WatchdogSetting {
+    /// Off: boards keep their outputs when the host stops.
+    Off,
+    /// This period (a whole number of 5.2 us ticks, at most ~341 ms).
+    Period(Duration),
+}
+
+impl WatchdogSetting {
+    /// The period to program (zero when off).
+    pub fn period(self) -> Duration {
+        match self {
+            WatchdogSetting::Off => Duration::ZERO,
+            WatchdogSetting::Period(d) => d,
+        }
+    }
+
+    /// Milliseconds, 0 when off (for reports).
+    pub fn millis(self) -> f64 {
+        self.period().as_secs_f64() * 1e3
+    }
+
+    /// The warning to print when the watchdog is off, or `None`.
+    pub fn warning(self) -> Option<&'static str> {
+        (self == WatchdogSetting::Off).then_some(
+            "WARNING: board watchdogs are OFF: if this host stops, the amplifiers stay \
+             enabled with the last command",
+        )
+    }
+}
+
+/// `off`, or a period in milliseconds above 0 that the WATCHDOG register
+/// can hold. 0 and negative values are rejected: they used to turn the
+/// watchdog off silently.
+pub fn watchdog(s: &str) -> Result<WatchdogSetting, String> {
+    if s.trim().eq_ignore_ascii_case("off") {
+        return Ok(WatchdogSetting::Off);
+    }
+    let max_ms = Watchdog(0xFFFF).period().as_secs_f64() * 1e3;
+    let ms = bounded(s, 0.0, max_ms, true, " ms (or `off`)")?;
+    Ok(WatchdogSetting::Period(Duration::from_secs_f64(ms / 1e3)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_out_of_range_are_rejected_with_the_range() {
+        for bad in ["-5", "0", "NaN", "inf", "1e300", "1e-300", "x", ""] {
+            assert!(rate_hz(bad).is_err(), "{bad}");
+        }
+        assert_eq!(rate_hz("6000").unwrap(), 6000.0);
+        assert_eq!(rate_hz_or_max("0").unwrap(), 0.0);
+        assert!(rate_hz_or_max("1e-300").is_err());
+        assert!(run_seconds("NaN").is_err());
+        assert!(run_seconds("-1").is_err());
+        assert!(seconds_or_forever("0").is_ok());
+        assert!(seconds_or_forever("-1").is_err());
+        assert!(seconds_or_forever("1e300").is_err());
+        assert!(wait_us("-5").unwrap_err().contains("out of range"));
+        assert!(wait_us("NaN").is_err());
+        assert!(period_us("1e300").is_err());
+        assert!(probability("2").is_err());
+        assert!(probability("0.01").is_ok());
+        assert!(cycles("0").is_err());
+        assert!(quadlets("513").is_err());
+        assert!(timeout_ms("0").is_err());
+    }
+
+    #[test]
+    fn ids_do_not_wrap() {
+        assert_eq!(node_id("63").unwrap(), 63);
+        assert!(node_id("64").is_err());
+        assert!(node_id("127").is_err());
+        assert!(node_id("0x40").is_err());
+        assert_eq!(board_id("15").unwrap(), 15);
+        assert!(board_id("16").is_err());
+        assert!(board_count("0").is_err());
+        assert!(board_count("17").is_err());
+    }
+
+    #[test]
+    fn watchdog_off_is_explicit() {
+        assert_eq!(watchdog("off").unwrap(), WatchdogSetting::Off);
+        assert!(WatchdogSetting::Off.warning().is_some());
+        for bad in ["0", "-5", "NaN", "1e300", "342"] {
+            assert!(watchdog(bad).is_err(), "{bad}");
+        }
+        let w = watchdog("20").unwrap();
+        assert_eq!(w.period(), Duration::from_millis(20));
+        assert!(w.warning().is_none());
+        assert!(watchdog("341").is_ok());
+    }
+}

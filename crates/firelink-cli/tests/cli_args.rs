@@ -1,0 +1,108 @@
+//! Every number the command line takes is checked before anything runs:
+//! out-of-range, non-finite and non-numeric values are usage errors (exit
+//! status 2, one line naming the option and the range), never a panic
+//! (101) and never silently accepted (0). Node IDs do not wrap into a
+//! broadcast, and the watchdog cannot be turned off by a number.
+
+use std::process::Command;
+
+fn firelink(args: &[&str]) -> (i32, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_firelink"))
+        .args(args)
+        .env("FIRELINK_QUIET", "1")
+        .output()
+        .expect("run firelink");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn out_of_range_numbers_are_usage_errors() {
+    let cases: &[&[&str]] = &[
+        &["bench", "--wait-us=-5"],
+        &["bench", "--wait-us", "NaN"],
+        &["bench", "--idle-us", "1e300"],
+        &["bench", "--period-us", "1e300"],
+        &["bench", "--cycles", "0"],
+        &["emulate", "--duration-s", "1e300"],
+        &["emulate", "--duration-s=-1"],
+        &["emulate", "--drop-rate", "2"],
+        &["emulate", "--boards", "17"],
+        &["emulate", "--mute-board", "16"],
+        &["demo", "--rate", "1e-300"],
+        &["demo", "--rate", "0"],
+        &["demo", "--watchdog-ms", "1e300"],
+        &["demo", "--watchdog-ms=-5"],
+        &["demo", "--watchdog-ms", "0"],
+        &["demo", "--duration", "NaN"],
+        &["demo", "--duration", "0"],
+        &["monitor", "--rate", "1e-300"],
+        &["monitor", "--watchdog-ms", "0"],
+        &["read", "--node", "64", "status"],
+        &["read", "--board", "16", "status"],
+        &["read", "--count", "513", "status"],
+        &["write", "--node", "127", "status", "1"],
+        &["scan", "--timeout-ms", "0"],
+    ];
+    for args in cases {
+        let (code, err) = firelink(args);
+        assert_eq!(code, 2, "{args:?} exited {code}: {err}");
+        assert!(
+            err.contains("out of range") || err.contains("not a number"),
+            "{args:?}: {err}"
+        );
+        assert_eq!(
+            err.lines().filter(|l| l.starts_with("error:")).count(),
+            1,
+            "{args:?}: {err}"
+        );
+    }
+}
+
+#[test]
+fn bench_board_lists_are_checked() {
+    for list in ["17", "0", "63", "2,x"] {
+        let (code, err) = firelink(&["bench", "--boards", list]);
+        assert_eq!(code, 1, "--boards {list}: {err}");
+        assert!(err.starts_with("firelink: "), "--boards {list}: {err}");
+        assert!(
+            err.contains("board count") || err.contains("extrapolated"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn watchdog_off_must_be_asked_for_and_is_announced() {
+    let (code, err) = firelink(&[
+        "demo",
+        "--watchdog-ms",
+        "off",
+        "--duration",
+        "0.01",
+        "--rate",
+        "500",
+        "--port",
+        "loopback",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("watchdogs are OFF"), "{err}");
+}
+
+#[test]
+fn a_write_over_udp_to_nobody_is_not_reported_as_done() {
+    // A port on loopback where nothing listens: the generation query gets
+    // no answer, so nothing claims a write happened.
+    let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let port = format!("udp:{}", socket.local_addr().unwrap());
+    drop(socket);
+    let out = Command::new(env!("CARGO_BIN_EXE_firelink"))
+        .args(["write", "--port", &port, "--node", "2", "watchdog", "0x100"])
+        .output()
+        .unwrap();
+    assert_ne!(out.status.code(), Some(0));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(!stdout.contains("wrote"), "{stdout}");
+}
