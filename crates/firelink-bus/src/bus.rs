@@ -42,8 +42,8 @@ use rand_chacha::rand_core::RngCore;
 
 use crate::error::BusError;
 use crate::fault::{
-    Evidence, EvidenceKind, FaultId, FaultInjector, FaultLog, FaultPlan, FaultRule, TimedFault,
-    corrupt_ack_byte,
+    Evidence, EvidenceKind, FaultId, FaultInjector, FaultLog, FaultPlan, FaultRule, FaultSource,
+    TimedFault, corrupt_ack_byte,
 };
 use crate::node::{
     ArbitrationClass, Commands, Node, NodeCtx, ResetInfo, RxReply, TimerCommand, TransmitRequest,
@@ -651,6 +651,13 @@ impl Bus {
         .ok_or(BusError::WrongNodeType(node.0))
     }
 
+    /// Packets put on the wire so far (requests, responses, acks,
+    /// duplicates, babble; self-ID and PHY packets included), whether or
+    /// not a trace is kept.
+    pub fn packets_sent(&self) -> u64 {
+        self.next_id
+    }
+
     /// The trace recorded so far.
     pub fn trace(&self) -> &Trace {
         &self.trace
@@ -1180,8 +1187,9 @@ impl Bus {
                 let d = self
                     .injector
                     .decide_delay(handle, pending.kind, &pending.bytes, now);
-                if let Some((delay, what)) = d {
-                    let id = self.log.add(now, what.clone(), None, Some(idx));
+                if let Some((delay, what, rule)) = d {
+                    let source = rule.map(FaultSource::Rule);
+                    let id = self.log.add(now, what.clone(), None, Some(idx), source);
                     self.log_event(TraceEvent::Fault { id, what });
                     pending.delayed = true;
                     pending.ready_at = now + delay;
@@ -1263,17 +1271,24 @@ impl Bus {
         if d.fired.is_empty() {
             return false;
         }
-        if !d.mutations.is_empty() {
+        if !d.mutations.is_empty() || d.truncate.is_some() {
             let mut bytes = sub.bytes.to_vec();
             for m in &d.mutations {
                 m.apply(&mut bytes);
             }
+            if let Some(keep) = d.truncate {
+                bytes.truncate(keep.max(4));
+            }
             sub.bytes = Rc::from(bytes);
         }
-        for (what, _) in d.fired {
-            let id = self
-                .log
-                .add(now, what.clone(), Some(sub.id), Some(sub.sender));
+        for (what, _, rule) in d.fired {
+            let id = self.log.add(
+                now,
+                what.clone(),
+                Some(sub.id),
+                Some(sub.sender),
+                Some(FaultSource::Rule(rule)),
+            );
             self.log_event(TraceEvent::Fault { id, what });
             sub.faults.push(id);
         }
@@ -1643,13 +1658,16 @@ impl Bus {
                 };
                 let mut start = bits_end;
                 if !self.injector.is_empty() {
-                    if let Some((delay, what)) = self.injector.decide_delay(
+                    if let Some((delay, what, rule)) = self.injector.decide_delay(
                         NodeHandle(dest),
                         PacketKind::ConcatResponse,
                         &rsub.bytes,
                         now,
                     ) {
-                        let fid = self.log.add(now, what.clone(), Some(rid), Some(dest));
+                        let source = rule.map(FaultSource::Rule);
+                        let fid = self
+                            .log
+                            .add(now, what.clone(), Some(rid), Some(dest), source);
                         self.log_event(TraceEvent::Fault { id: fid, what });
                         rsub.faults.push(fid);
                         start += delay;
@@ -1984,7 +2002,13 @@ impl Bus {
                         .map(|d| format!(", plug back after {d}"))
                         .unwrap_or_default()
                 );
-                let id = self.log.add(now, what.clone(), None, Some(n));
+                let id = self.log.add(
+                    now,
+                    what.clone(),
+                    None,
+                    Some(n),
+                    Some(FaultSource::Timed(index)),
+                );
                 self.log_event(TraceEvent::Fault { id, what });
                 self.reset_faults.push(id);
                 self.start_reset(false, "cable unplugged (fault)".to_string());
@@ -1992,6 +2016,19 @@ impl Bus {
                     let links = links.into_boxed_slice();
                     self.push(now + d, None, Ev::Reconnect { links, fault: id });
                 }
+            }
+            TimedFault::BusReset => {
+                let what = "bus reset".to_string();
+                let id = self.log.add(
+                    now,
+                    what.clone(),
+                    None,
+                    None,
+                    Some(FaultSource::Timed(index)),
+                );
+                self.log_event(TraceEvent::Fault { id, what });
+                self.reset_faults.push(id);
+                self.start_reset(false, "bus reset (fault)".to_string());
             }
             TimedFault::StopAnswering { node, duration } => {
                 let n = node.0;
@@ -2005,7 +2042,13 @@ impl Bus {
                         .map(|d| format!(" for {d}"))
                         .unwrap_or_else(|| " for ever".to_string())
                 );
-                let id = self.log.add(now, what.clone(), None, Some(n));
+                let id = self.log.add(
+                    now,
+                    what.clone(),
+                    None,
+                    Some(n),
+                    Some(FaultSource::Timed(index)),
+                );
                 self.log_event(TraceEvent::Fault { id, what });
                 let slot = &mut self.slots[n];
                 slot.muted = true;
@@ -2030,7 +2073,13 @@ impl Bus {
                     "{} babbles {len}-byte garbage for {duration}",
                     self.slots[n].name
                 );
-                let id = self.log.add(now, what.clone(), None, Some(n));
+                let id = self.log.add(
+                    now,
+                    what.clone(),
+                    None,
+                    Some(n),
+                    Some(FaultSource::Timed(index)),
+                );
                 self.log_event(TraceEvent::Fault { id, what });
                 self.slots[n].babble = Some(BabbleState {
                     until: now + duration,

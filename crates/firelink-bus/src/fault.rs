@@ -159,6 +159,12 @@ pub enum PacketFault {
     DropAck,
     /// The packet arrives but its ack is corrupted (fails its check).
     CorruptAck,
+    /// The packet ends early: only its first `quadlets` quadlets reach the
+    /// receivers (a PHY that stopped mid-packet).
+    Truncate {
+        /// Quadlets kept.
+        quadlets: usize,
+    },
 }
 
 /// A packet fault and when it applies.
@@ -217,6 +223,9 @@ pub enum TimedFault {
         /// For how long (`None`: for ever).
         duration: Option<SimDuration>,
     },
+    /// A bus reset with no change of topology (a PHY initiated it): every
+    /// node learns a new generation, open transactions are flushed.
+    BusReset,
     /// The node babbles: for `duration` it sends random garbage packets of
     /// `packet_len` bytes back to back with isochronous-style arbitration,
     /// starving everybody else.
@@ -304,6 +313,10 @@ pub struct FaultRecord {
     pub packet: Option<PacketId>,
     /// The node concerned (sender for packet faults).
     pub node: Option<usize>,
+    /// Which entry of the plan fired: the index in
+    /// [`FaultPlan::rules`] for a packet fault, in [`FaultPlan::timed`]
+    /// for a timed one (as added, in order).
+    pub source: Option<FaultSource>,
     /// What noticed it downstream.
     pub evidence: Vec<Evidence>,
 }
@@ -313,6 +326,16 @@ impl FaultRecord {
     pub fn detected(&self) -> bool {
         !self.evidence.is_empty()
     }
+}
+
+/// The plan entry behind a fault record.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FaultSource {
+    /// A packet rule, by index (rules added later count on from the plan's).
+    Rule(usize),
+    /// A timed fault, by index in the order scheduled.
+    Timed(usize),
 }
 
 /// Every fault injected in a run.
@@ -343,6 +366,7 @@ impl FaultLog {
         what: String,
         packet: Option<PacketId>,
         node: Option<usize>,
+        source: Option<FaultSource>,
     ) -> FaultId {
         let id = self.records.len() as FaultId;
         self.records.push(FaultRecord {
@@ -351,6 +375,7 @@ impl FaultLog {
             what,
             packet,
             node,
+            source,
             evidence: Vec::new(),
         });
         id
@@ -373,9 +398,12 @@ pub(crate) struct Decision {
     pub duplicate: bool,
     pub drop_ack: bool,
     pub corrupt_ack: bool,
+    /// Keep only this many bytes (the smallest truncation wins).
+    pub truncate: Option<usize>,
     /// (fault description, mutation) pairs, applied in order.
     pub mutations: Vec<Mutation>,
-    pub fired: Vec<(String, PacketFault)>,
+    /// What fired: description, fault, index of the rule.
+    pub fired: Vec<(String, PacketFault, usize)>,
 }
 
 #[derive(Clone, Debug)]
@@ -420,16 +448,17 @@ impl FaultInjector {
         kind: PacketKind,
         bytes: &[u8],
         now: SimTime,
-    ) -> Option<(SimDuration, String)> {
+    ) -> Option<(SimDuration, String, Option<usize>)> {
         let d = self.decide_inner(source, kind, bytes, now, true);
         d.delay.map(|delay| {
             let what = d
                 .fired
                 .iter()
-                .map(|(w, _)| w.as_str())
+                .map(|(w, _, _)| w.as_str())
                 .collect::<Vec<_>>()
                 .join(", ");
-            (delay, what)
+            let rule = d.fired.first().map(|(_, _, r)| *r);
+            (delay, what, rule)
         })
     }
 
@@ -457,7 +486,7 @@ impl FaultInjector {
             return d;
         }
         let mut rules = std::mem::take(&mut self.rules);
-        for (rule, seen, fired) in rules.iter_mut() {
+        for (index, (rule, seen, fired)) in rules.iter_mut().enumerate() {
             if rule.count.is_some_and(|c| *fired >= c) {
                 continue;
             }
@@ -512,8 +541,13 @@ impl FaultInjector {
                     d.corrupt_ack = true;
                     "corrupt ack".to_string()
                 }
+                PacketFault::Truncate { quadlets } => {
+                    let keep = quadlets.saturating_mul(4);
+                    d.truncate = Some(d.truncate.map_or(keep, |k| k.min(keep)));
+                    format!("truncate to {quadlets} quadlets")
+                }
             };
-            d.fired.push((what, rule.fault.clone()));
+            d.fired.push((what, rule.fault.clone(), index));
         }
         self.rules = rules;
         d
@@ -584,7 +618,8 @@ mod tests {
             PacketFault::Delay(SimDuration::from_micros(2)),
         ));
         assert!(inj.decide(h, PacketKind::Request, &uni, t).fired.is_empty());
-        let (d, _) = inj.decide_delay(h, PacketKind::Request, &uni, t).unwrap();
+        let (d, _, rule) = inj.decide_delay(h, PacketKind::Request, &uni, t).unwrap();
+        assert_eq!(rule, Some(0));
         assert_eq!(d, SimDuration::from_micros(2));
         assert!(inj.decide_delay(h, PacketKind::Request, &uni, t).is_none());
     }

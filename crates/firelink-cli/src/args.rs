@@ -9,7 +9,10 @@
 
 use std::time::Duration;
 
+use firelink_board::config::{Hardware, Profile};
 use firelink_wire::board::registers::Watchdog;
+
+use crate::CliError;
 
 /// A finite number in `lo..=hi` (or `lo < x` when `open_low`).
 fn bounded(s: &str, lo: f64, hi: f64, open_low: bool, unit: &str) -> Result<f64, String> {
@@ -85,7 +88,11 @@ pub fn board_id(s: &str) -> Result<u8, String> {
 
 /// A number of emulated boards on one bus: 1..=16 (the board-ID space).
 pub fn board_count(s: &str) -> Result<u8, String> {
-    integer(s, 1, 16, "number of boards").map(|n| n as u8)
+    let n = crate::parse_number(s)?;
+    if !(1..=16).contains(&n) {
+        return Err(format!("{n} is out of range: between 1 and 16 boards"));
+    }
+    Ok(n as u8)
 }
 
 /// Cycles to run or measure: 1 to 10^9.
@@ -146,6 +153,35 @@ pub fn watchdog(s: &str) -> Result<WatchdogSetting, String> {
     let max_ms = Watchdog(0xFFFF).period().as_secs_f64() * 1e3;
     let ms = bounded(s, 0.0, max_ms, true, " ms (or `off`)")?;
     Ok(WatchdogSetting::Period(Duration::from_secs_f64(ms / 1e3)))
+}
+
+/// Parse `7`, `8` or `seed` into a firmware profile.
+pub fn profile(name: &str) -> Result<Profile, CliError> {
+    parse_profile(name).map_err(CliError::Conflict)
+}
+
+/// Firmware profile from the command line's `--firmware 7|8|seed` (clap).
+pub fn parse_profile(text: &str) -> Result<Profile, String> {
+    match text {
+        "7" | "rev7" => Ok(Profile::Rev7),
+        "8" | "rev8" => Ok(Profile::Rev8),
+        "seed" => Ok(Profile::Seed),
+        _ => Err(format!("unknown firmware {text:?}: expected 7, 8 or seed")),
+    }
+}
+
+/// Hardware from `--hardware QLA1|DQLA` (clap).
+pub fn parse_hardware(text: &str) -> Result<Hardware, String> {
+    match text.to_ascii_uppercase().as_str() {
+        "QLA1" | "QLA" => Ok(Hardware::Qla1),
+        "DQLA" => Ok(Hardware::Dqla),
+        _ => Err(format!("unknown hardware {text:?}: QLA1 or DQLA")),
+    }
+}
+
+/// Whether the default run should be quiet about progress (tests).
+pub fn quiet() -> bool {
+    std::env::var_os("FIRELINK_QUIET").is_some()
 }
 
 #[cfg(test)]

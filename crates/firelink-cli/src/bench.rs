@@ -19,7 +19,7 @@ use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
 use firelink_host::scan::Protocol;
 
 use crate::CliError;
-use crate::rig;
+use firelink_testbed::rig;
 
 /// Options of `firelink bench`.
 #[derive(Args, Debug, Clone)]
@@ -122,6 +122,7 @@ fn measure<P: Port>(
     let (mut r, mut w) = (0.0, 0.0);
     for _ in 0..cycles {
         let rep = *io.cycle();
+        let _ = io.recover();
         t.push((rep.io_time().as_secs_f64() * 1e6) as f32);
         r += rep.read_time.as_secs_f64() * 1e6;
         w += rep.write_time.as_secs_f64() * 1e6;
@@ -246,9 +247,9 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
     )?;
     let boards = board_counts(&args.boards)?;
     let protocols = list(&args.protocol, Protocol::from_name, "protocol")?;
-    let profile = rig::profile(&args.firmware)?;
+    let profile = crate::args::profile(&args.firmware)?;
     let generic = presets::bench_1board();
-    let quiet = rig::quiet();
+    let quiet = crate::args::quiet();
     let mut points: Vec<Point> = Vec::new();
     for t in &transports {
         for &proto in &protocols {

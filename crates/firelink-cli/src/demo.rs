@@ -23,8 +23,8 @@ use firelink_host::udp::UdpPort;
 use firelink_wire::packet::Tcode;
 
 use crate::CliError;
-use crate::rig;
 use crate::rt;
+use firelink_testbed::rig;
 
 /// Options of `firelink demo`.
 #[derive(Args, Debug, Clone)]
@@ -255,7 +255,7 @@ fn run_robot<P: Injector>(
     port_name: &str,
     pacing: Pacing,
 ) -> Result<Value, CliError> {
-    let quiet = args.quiet || rig::quiet();
+    let quiet = args.quiet || crate::args::quiet();
     let rt = (pacing == Pacing::WallClock && !args.no_rt).then(|| rt::setup(80));
     if let Some(s) = &rt {
         progress(
@@ -476,7 +476,7 @@ fn runner_err(e: RunnerError) -> CliError {
 
 /// Run `firelink demo`.
 pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
-    let profile = rig::profile(&args.firmware)?;
+    let profile = crate::args::profile(&args.firmware)?;
     let config = presets::dvrk_seed000();
     let pacing_for = |default: Pacing| -> Result<Pacing, CliError> {
         match args.pacing.as_deref() {

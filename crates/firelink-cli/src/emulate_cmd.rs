@@ -17,7 +17,8 @@ use firelink_control::config::IoConfig;
 use firelink_emulate::{Bridge, Event, ServeConfig};
 
 use crate::CliError;
-use crate::rig::{board_configs, generic_boards, parse_hardware, parse_profile};
+use crate::args::{parse_hardware, parse_profile};
+use firelink_testbed::rig::{board_configs, generic_boards};
 
 /// Options of `firelink emulate`.
 #[derive(Args, Debug)]

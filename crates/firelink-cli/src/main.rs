@@ -14,7 +14,6 @@ mod hex;
 mod monitor;
 mod packet_cmd;
 mod ports;
-mod rig;
 mod rt;
 mod sim;
 mod tour;
@@ -179,6 +178,9 @@ pub enum CliError {
     /// The host library failed.
     #[error(transparent)]
     Host(#[from] firelink_host::HostError),
+    /// Assembling or running an emulated robot failed.
+    #[error(transparent)]
+    Testbed(#[from] firelink_testbed::TestbedError),
     /// Writing output failed.
     #[error("output: {0}")]
     Io(#[from] std::io::Error),

@@ -176,6 +176,7 @@ pub fn run(args: &MonitorArgs, out: &mut impl Write) -> Result<(), CliError> {
         let start = Instant::now();
         for _ in 0..cycles.max(1) {
             let r = *io.cycle();
+            let _ = io.recover();
             f.cycles += 1;
             f.last_io_us = r.io_time().as_secs_f64() * 1e6;
             f.max_io_us = f.max_io_us.max(f.last_io_us);
@@ -216,6 +217,7 @@ fn interactive<P: Port>(
         let mut watchdog = false;
         loop {
             let r = *io.cycle();
+            let _ = io.recover();
             f.cycles += 1;
             window_cycles += 1;
             f.last_io_us = r.io_time().as_secs_f64() * 1e6;

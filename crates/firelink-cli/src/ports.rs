@@ -35,12 +35,16 @@ pub fn open_port(args: &PortArgs) -> Result<Box<dyn Port>, CliError> {
             None => 8,
         };
         let profile = match parts.next() {
-            Some(f) => crate::rig::parse_profile(f).map_err(CliError::Conflict)?,
+            Some(f) => crate::args::parse_profile(f).map_err(CliError::Conflict)?,
             None => firelink_board::config::Profile::Rev8,
         };
-        let boards =
-            crate::rig::generic_boards(boards, firelink_board::config::Hardware::Qla1, profile, 0);
-        return Ok(Box::new(crate::rig::sim_port(boards, false)?.0));
+        let boards = firelink_testbed::rig::generic_boards(
+            boards,
+            firelink_board::config::Hardware::Qla1,
+            profile,
+            0,
+        );
+        return Ok(Box::new(firelink_testbed::rig::sim_port(boards, false)?.0));
     }
     if args.port.starts_with("udp") {
         let addr = UdpPort::parse_address(&args.port)?;

@@ -198,9 +198,18 @@ pub struct IoSystem<P: Port> {
     buf: Vec<u8>,
     cmd: Vec<u8>,
     report: CycleReport,
+    /// The last [`HISTORY`] finished cycles' reports (a ring), for
+    /// monitors and fault accounting that look back.
+    history: Box<[CycleReport]>,
     stats: IoStats,
     bridge_board: Option<u8>,
+    /// A bus reset was seen: node numbers may have moved; the caller
+    /// rescans between cycles ([`IoSystem::recover`]).
+    needs_rescan: bool,
 }
+
+/// Finished cycles whose reports an [`IoSystem`] keeps.
+pub const HISTORY: usize = 1024;
 
 impl<P: Port> IoSystem<P> {
     /// Scan the port and set up every board found.
@@ -241,8 +250,10 @@ impl<P: Port> IoSystem<P> {
             buf: Vec::new(),
             cmd: Vec::new(),
             report: CycleReport::EMPTY,
+            history: vec![CycleReport::EMPTY; HISTORY].into_boxed_slice(),
             stats: IoStats::default(),
             bridge_board: scan.bridge_board,
+            needs_rescan: false,
         };
         system.adopt(scan)?;
         Ok(system)
@@ -309,7 +320,26 @@ impl<P: Port> IoSystem<P> {
         self.protocol = self.protocol.min(report.protocol);
         self.bridge_board = report.bridge_board;
         self.adopt(&report)?;
+        self.needs_rescan = false;
         Ok(report)
+    }
+
+    /// Whether a bus reset was seen since the last scan (node numbers may
+    /// have moved: cycles go on failing until [`recover`](Self::recover)).
+    pub fn needs_rescan(&self) -> bool {
+        self.needs_rescan
+    }
+
+    /// Between cycles, never inside one: after a bus reset, scan again.
+    /// Returns the new scan when one ran.
+    ///
+    /// # Errors
+    /// Errors of [`scan`] (the next call tries again).
+    pub fn recover(&mut self) -> Result<Option<ScanReport>> {
+        if !self.needs_rescan {
+            return Ok(None);
+        }
+        self.rescan().map(Some)
     }
 
     /// The port.
@@ -360,6 +390,21 @@ impl<P: Port> IoSystem<P> {
     /// The last cycle's report.
     pub fn report(&self) -> &CycleReport {
         &self.report
+    }
+
+    /// Reports of the finished cycles numbered after `cycle` that are still
+    /// kept (the last [`HISTORY`]), oldest first.
+    pub fn reports_since(&self, cycle: u64) -> impl Iterator<Item = &CycleReport> {
+        let last = self.report.cycle;
+        let first = cycle
+            .saturating_add(1)
+            .max(last.saturating_sub(HISTORY as u64 - 1))
+            .max(1);
+        (first..=last).filter_map(move |c| {
+            self.history
+                .get((c % HISTORY as u64) as usize)
+                .filter(|r| r.cycle == c)
+        })
     }
 
     /// Counters over all cycles.
@@ -417,11 +462,9 @@ impl<P: Port> IoSystem<P> {
             self.report.error = Some(e);
         }
         if matches!(e, HostError::BusReset { .. }) {
-            // Node numbers may have changed: learn them again now; if the
-            // scan fails the next cycle reports it again.
-            if let Err(e2) = self.rescan() {
-                self.stats.count_error(&e2);
-            }
+            // Node numbers may have changed: the caller rescans between
+            // cycles (`recover`), not inside this one.
+            self.needs_rescan = true;
         }
     }
 
@@ -457,9 +500,21 @@ impl<P: Port> IoSystem<P> {
         self.stats.cycles += 1;
         let started = self.port.now();
         self.report.started = started;
-        match self.protocol {
-            Protocol::Broadcast => self.read_broadcast(),
-            Protocol::Sequential | Protocol::SequentialReadBroadcastWrite => self.read_sequential(),
+        if self.needs_rescan {
+            // Node numbers may have moved since the bus reset: no request
+            // goes to a node that may now be another board.
+            self.report.error = Some(HostError::BusReset {
+                old: self.port.generation(),
+                new: self.port.generation(),
+            });
+            self.miss_all(MissReason::Transaction);
+        } else {
+            match self.protocol {
+                Protocol::Broadcast => self.read_broadcast(),
+                Protocol::Sequential | Protocol::SequentialReadBroadcastWrite => {
+                    self.read_sequential()
+                }
+            }
         }
         self.report.read_time = self.port.now().saturating_sub(started);
         if self.report.all_ok() {
@@ -606,6 +661,9 @@ impl<P: Port> IoSystem<P> {
     pub fn write_all(&mut self) -> &CycleReport {
         let started = self.port.now();
         match self.protocol {
+            // Until the rescan, no command goes to a node that may now be
+            // another board; the boards' watchdogs are the backstop.
+            _ if self.needs_rescan => {}
             Protocol::Sequential => self.write_sequential(),
             Protocol::SequentialReadBroadcastWrite | Protocol::Broadcast => self.write_broadcast(),
         }
@@ -613,6 +671,10 @@ impl<P: Port> IoSystem<P> {
             b.outputs_applied();
         }
         self.report.write_time = self.port.now().saturating_sub(started);
+        let slot = (self.report.cycle % HISTORY as u64) as usize;
+        if let Some(h) = self.history.get_mut(slot) {
+            *h = self.report;
+        }
         &self.report
     }
 

@@ -168,6 +168,8 @@ fn board_removed_mid_run_is_reported_and_the_loop_goes_on() {
         if matches!(rep.error, Some(HostError::BusReset { .. })) {
             saw_reset = true;
         }
+        // The loop, not the cycle, rescans after a reset.
+        io.recover().unwrap();
         io.port_mut().wait(Duration::from_micros(200));
     }
     assert!(saw_reset, "the disconnect reset the bus");

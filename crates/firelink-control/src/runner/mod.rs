@@ -645,6 +645,11 @@ impl<P: Port> Robot<P> {
         }
         let started = self.io.port().now();
         let r = self.cycle();
+        // A bus reset renumbers nodes: scan again between cycles, never
+        // inside one (a failed scan is retried after the next cycle).
+        if self.io.needs_rescan() {
+            let _ = self.io.recover();
+        }
         if pacing == Pacing::Virtual {
             let spent = self.io.port().now().saturating_sub(started);
             if let Some(rest) = period.checked_sub(spent).filter(|d| !d.is_zero()) {

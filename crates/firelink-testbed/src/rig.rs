@@ -1,7 +1,7 @@
-//! Building the emulated robots the demo and the bench run against: a
-//! simulated bus with N emulated boards and the PC's link ([`SimPort`]),
-//! the same boards behind an in-process `firelink emulate` bridge on
-//! loopback UDP, or the port-level loopback model.
+//! Rigs: a robot configuration's boards, each actuator driving the plant its
+//! configuration names (`simulation.plant`), on a simulated bus with the
+//! PC's link ([`SimPort`]), or behind an in-process `firelink emulate`
+//! bridge on loopback UDP ([`Emulator`]).
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::sync::Arc;
@@ -10,15 +10,15 @@ use std::thread::JoinHandle;
 
 use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::plant::AxisParams;
-use firelink_board::plant::presets::{self, Arm};
+use firelink_board::plant::presets;
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::{Bus, HostModel, NodeHandle};
-use firelink_control::config::IoConfig;
-use firelink_emulate::{Bridge, ServeConfig};
+use firelink_control::config::{IoConfig, PlantPreset};
+use firelink_emulate::{Bridge, BridgeStats, ServeConfig};
 use firelink_host::sim::SimPort;
 use firelink_host::udp::UdpPort;
 
-use crate::CliError;
+use crate::TestbedError;
 
 /// Where a joint starts, inside its soft limits (a little off centre, so
 /// homing has something to do).
@@ -29,24 +29,16 @@ pub fn start_position(config: &IoConfig, joint: usize) -> f64 {
     })
 }
 
-/// The plant of one configured actuator: the board crate's dVRK preset
-/// for the joint (motor, inertia, gravity), with the transmission,
-/// encoder, pot and drive direction made to agree with the configuration,
-/// as a calibrated robot's configuration agrees with the robot.
-fn axis_for(config: &IoConfig, joint: usize) -> Option<AxisParams> {
+/// The plant model a configuration's actuator names, with its
+/// transmission, encoder, pot and drive direction made to agree with the
+/// configuration, as a calibrated robot's configuration agrees with the
+/// robot. An actuator without a `simulation` section drives a generic
+/// motor.
+pub fn plant_for(config: &IoConfig, joint: usize) -> Option<AxisParams> {
     let j = config.joints().nth(joint)?;
     let a = j.actuator;
-    let arm = if j.robot.name.starts_with("PSM") {
-        Arm::Psm
-    } else {
-        Arm::Mtm
-    };
-    let k = u8::try_from(j.actuator_index + 1).ok()?;
-    let mut p = match arm {
-        Arm::Mtm => presets::mtm_joint(k),
-        Arm::Psm => presets::psm_joint(k),
-    }
-    .unwrap_or_else(presets::generic_motor);
+    let preset = a.simulation.map_or(PlantPreset::Generic, |s| s.plant);
+    let mut p = preset_params(preset);
     let scale = a.encoder.bits_to_position.scale;
     let cpt = a
         .encoder
@@ -75,6 +67,31 @@ fn axis_for(config: &IoConfig, joint: usize) -> Option<AxisParams> {
     Some(p)
 }
 
+/// The emulator's parameters of a named plant.
+pub fn preset_params(preset: PlantPreset) -> AxisParams {
+    use PlantPreset::*;
+    let (mtm, psm) = match preset {
+        MtmJ1 => (Some(1), None),
+        MtmJ2 => (Some(2), None),
+        MtmJ3 => (Some(3), None),
+        MtmJ4 => (Some(4), None),
+        MtmJ5 => (Some(5), None),
+        MtmJ6 => (Some(6), None),
+        MtmJ7 => (Some(7), None),
+        PsmJ1 => (None, Some(1)),
+        PsmJ2 => (None, Some(2)),
+        PsmJ3 => (None, Some(3)),
+        PsmJ4 => (None, Some(4)),
+        PsmJ5 => (None, Some(5)),
+        PsmJ6 => (None, Some(6)),
+        PsmJ7 => (None, Some(7)),
+        Generic => (None, None),
+    };
+    mtm.and_then(presets::mtm_joint)
+        .or_else(|| psm.and_then(presets::psm_joint))
+        .unwrap_or_else(presets::generic_motor)
+}
+
 /// Board configurations for every board `config` uses, plus `extra`
 /// generic boards after them (for the bench beyond 8 boards).
 pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<BoardConfig> {
@@ -87,7 +104,7 @@ pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<
             if j.actuator.board_id == id {
                 if let (Some(slot), Some(p)) = (
                     axes.get_mut(usize::from(j.actuator.axis_id)),
-                    axis_for(config, i),
+                    plant_for(config, i),
                 ) {
                     *slot = p;
                     any = true;
@@ -104,9 +121,11 @@ pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<
 
 /// A bus: the PC's (or the bridge's) link at the root, then the boards
 /// daisy-chained, reset, with the gap count Linux would set for its hops.
-pub fn build_bus(boards: Vec<BoardConfig>) -> Result<(Bus, NodeHandle, Vec<NodeHandle>), CliError> {
+pub fn build_bus(
+    boards: Vec<BoardConfig>,
+) -> Result<(Bus, NodeHandle, Vec<NodeHandle>), TestbedError> {
     if boards.is_empty() {
-        return Err(CliError::Conflict("no boards to emulate".into()));
+        return Err(TestbedError::NoBoards);
     }
     let rig = BoardRig::daisy_chain(boards, &RigOptions::default());
     Ok((rig.bus, rig.host, rig.boards))
@@ -126,7 +145,7 @@ pub fn generic_boards(n: u8, hardware: Hardware, profile: Profile, seed: u64) ->
 pub fn sim_port(
     boards: Vec<BoardConfig>,
     pc_model: bool,
-) -> Result<(SimPort, Vec<NodeHandle>), CliError> {
+) -> Result<(SimPort, Vec<NodeHandle>), TestbedError> {
     let (bus, pc, handles) = build_bus(boards)?;
     let model = HostModel::seed000(bus.timing());
     let mut port = SimPort::new(bus, pc);
@@ -137,19 +156,23 @@ pub fn sim_port(
 }
 
 /// An in-process `firelink emulate`: the boards behind the UDP bridge on
-/// 127.0.0.1 (an ephemeral port), served by a thread until dropped.
+/// 127.0.0.1 (an ephemeral port), served by a thread until stopped or
+/// dropped.
 pub struct Emulator {
     /// Where it listens.
     pub addr: SocketAddr,
     stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
+    thread: Option<JoinHandle<std::io::Result<BridgeStats>>>,
 }
 
 impl Emulator {
     /// Start serving `boards`.
-    pub fn start(boards: Vec<BoardConfig>) -> Result<Emulator, CliError> {
+    ///
+    /// # Errors
+    /// [`TestbedError::NoBoards`]; socket errors binding loopback.
+    pub fn start(boards: Vec<BoardConfig>) -> Result<Emulator, TestbedError> {
         if boards.is_empty() {
-            return Err(CliError::Conflict("no boards to emulate".into()));
+            return Err(TestbedError::NoBoards);
         }
         let (unicast, _) = firelink_emulate::bind(&ServeConfig {
             listen: SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0),
@@ -158,35 +181,29 @@ impl Emulator {
         let addr = unicast.local_addr()?;
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
-        let (tx, rx) = std::sync::mpsc::channel();
+        let (ready, started) = std::sync::mpsc::channel();
         // The bus is not Send: it is built on the server thread.
         let thread = std::thread::spawn(move || {
             let (bus, link, handles) = match build_bus(boards) {
                 Ok(b) => b,
                 Err(e) => {
-                    let _ = tx.send(Err(e.to_string()));
-                    return;
+                    let _ = ready.send(Err(e.to_string()));
+                    return Ok(BridgeStats::default());
                 }
             };
             let Some(&first) = handles.first() else {
-                return;
+                let _ = ready.send(Err("no boards".into()));
+                return Ok(BridgeStats::default());
             };
             let mut bridge = Bridge::new(bus, link, first);
-            let _ = tx.send(Ok(()));
-            let debug = std::env::var_os("FIRELINK_DEBUG").is_some();
-            let r = firelink_emulate::serve(&mut bridge, &unicast, None, &flag, |e| {
-                if debug {
-                    eprintln!("emulate: {e:?}");
-                }
-            });
-            if debug {
-                eprintln!("emulate: stopped {r:?}");
-            }
+            let _ = ready.send(Ok(()));
+            firelink_emulate::serve(&mut bridge, &unicast, None, &flag, |_| {})?;
+            Ok(bridge.stats())
         });
-        match rx.recv() {
+        match started.recv() {
             Ok(Ok(())) => {}
-            Ok(Err(e)) => return Err(CliError::Conflict(e)),
-            Err(_) => return Err(CliError::Conflict("emulator thread failed".into())),
+            Ok(Err(e)) => return Err(TestbedError::Emulator(e)),
+            Err(_) => return Err(TestbedError::Emulator("the server thread failed".into())),
         }
         Ok(Emulator {
             addr,
@@ -195,8 +212,21 @@ impl Emulator {
         })
     }
 
+    /// Stop the server and return its counters.
+    ///
+    /// # Errors
+    /// The server's socket error, or a panic of its thread.
+    pub fn stop(mut self) -> Result<BridgeStats, TestbedError> {
+        self.stop.store(true, Ordering::Relaxed);
+        match self.thread.take().map(JoinHandle::join) {
+            Some(Ok(r)) => Ok(r?),
+            Some(Err(_)) => Err(TestbedError::Emulator("the server thread panicked".into())),
+            None => Ok(BridgeStats::default()),
+        }
+    }
+
     /// A UDP port to it.
-    pub fn port(&self) -> Result<UdpPort, CliError> {
+    pub fn port(&self) -> Result<UdpPort, TestbedError> {
         let mut p = UdpPort::open(self.addr)?;
         p.set_timeout(std::time::Duration::from_millis(20));
         Ok(p)
@@ -210,33 +240,4 @@ impl Drop for Emulator {
             let _ = t.join();
         }
     }
-}
-
-/// Parse `7`, `8` or `seed` into a firmware profile.
-pub fn profile(name: &str) -> Result<Profile, CliError> {
-    parse_profile(name).map_err(CliError::Conflict)
-}
-
-/// Firmware profile from the command line's `--firmware 7|8|seed` (clap).
-pub fn parse_profile(text: &str) -> Result<Profile, String> {
-    match text {
-        "7" | "rev7" => Ok(Profile::Rev7),
-        "8" | "rev8" => Ok(Profile::Rev8),
-        "seed" => Ok(Profile::Seed),
-        _ => Err(format!("unknown firmware {text:?}: expected 7, 8 or seed")),
-    }
-}
-
-/// Hardware from `--hardware QLA1|DQLA` (clap).
-pub fn parse_hardware(text: &str) -> Result<Hardware, String> {
-    match text.to_ascii_uppercase().as_str() {
-        "QLA1" | "QLA" => Ok(Hardware::Qla1),
-        "DQLA" => Ok(Hardware::Dqla),
-        _ => Err(format!("unknown hardware {text:?}: QLA1 or DQLA")),
-    }
-}
-
-/// Whether the default run should be quiet about progress (tests).
-pub fn quiet() -> bool {
-    std::env::var_os("FIRELINK_QUIET").is_some()
 }

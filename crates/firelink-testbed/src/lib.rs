@@ -1,0 +1,29 @@
+//! # firelink-testbed: whole emulated robots to run, measure and break
+//!
+//! The layers below give the parts: packets ([`firelink_wire`]), a bus in
+//! virtual time ([`firelink_bus`]), emulated boards with their motors
+//! ([`firelink_board`]), the host library ([`firelink_host`]) and servo
+//! control ([`firelink_control`]). This crate assembles them into robots
+//! that programs (the CLI, the Python package, the web console, tests)
+//! can run without hardware:
+//!
+//! - [`rig`]: a robot configuration's boards, with the plant each actuator's
+//!   configuration names, on the simulated bus behind a
+//!   [`SimPort`](firelink_host::sim::SimPort), or behind an in-process
+//!   Ethernet-bridge emulator on loopback UDP ([`rig::Emulator`]);
+//! - [`soak`]: the fault soak: a million servo cycles with one packet in a
+//!   hundred faulted, every fault accounted for, amplifiers proven off
+//!   whenever the safety chain says so;
+//! - [`watchdog`]: the watchdog proof: the host stopped at random moments,
+//!   every board's amplifiers off within the watchdog period plus one tick.
+//!
+//! Everything here runs in virtual time and is seeded: the same inputs give
+//! the same report, bit for bit. Only [`rig::Emulator`] touches sockets and
+//! the wall clock (its server paces virtual time to it).
+
+pub mod error;
+pub mod rig;
+pub mod soak;
+pub mod watchdog;
+
+pub use error::TestbedError;
