@@ -30,6 +30,10 @@ use crate::time::Time;
 
 /// Timer token of the broadcast slot.
 const SLOT_TIMER: u64 = 1;
+/// Timer token of the watchdog: the board acts on its own when the host
+/// goes quiet (amplifiers off at the exact instant), not when the next
+/// packet happens to arrive.
+const WATCHDOG_TIMER: u64 = 2;
 
 /// An emulated board on the simulated bus.
 #[derive(Debug, Clone)]
@@ -40,6 +44,10 @@ pub struct BoardNode {
     class: ArbitrationClass,
     next_token: u64,
     in_flight: Option<u64>,
+    /// When the watchdog timer is set for (re-armed lazily: a refreshed
+    /// watchdog moves its expiry later, and the timer, when it fires,
+    /// just sets itself again).
+    watchdog_timer: Option<SimTime>,
 }
 
 /// The node's PHY registers, reached through the callback context.
@@ -71,6 +79,7 @@ impl BoardNode {
             class: ArbitrationClass::Isochronous,
             next_token: 0,
             in_flight: None,
+            watchdog_timer: None,
         }
     }
 
@@ -112,6 +121,24 @@ impl BoardNode {
         match self.firmware.next_wakeup() {
             Some(at) => ctx.set_timer(SimTime(at.0.max(now.0)), SLOT_TIMER),
             None => ctx.cancel_timer(SLOT_TIMER),
+        }
+        // One watchdog timer at a time, never later than the expiry.
+        let expiry = self
+            .firmware
+            .watchdog_expiry()
+            .map(|t| SimTime(t.0.max(now.0)));
+        let armed = self.watchdog_timer.filter(|t| *t > now);
+        match (expiry, armed) {
+            (Some(e), Some(t)) if t <= e => {}
+            (Some(e), _) => {
+                ctx.set_timer(e, WATCHDOG_TIMER);
+                self.watchdog_timer = Some(e);
+            }
+            (None, Some(_)) => {
+                ctx.cancel_timer(WATCHDOG_TIMER);
+                self.watchdog_timer = None;
+            }
+            (None, None) => self.watchdog_timer = None,
         }
     }
 }
@@ -165,7 +192,12 @@ impl Node for BoardNode {
         self.pump(now, ctx);
     }
 
-    fn on_timer(&mut self, now: SimTime, _token: u64, ctx: &mut NodeCtx<'_>) {
+    fn on_timer(&mut self, now: SimTime, token: u64, ctx: &mut NodeCtx<'_>) {
+        if token == WATCHDOG_TIMER {
+            self.watchdog_timer = None;
+            // Apply whatever is due now (the watchdog, if not refreshed).
+            self.firmware.advance(time(now));
+        }
         self.pump(now, ctx);
     }
 }

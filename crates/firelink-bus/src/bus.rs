@@ -504,6 +504,13 @@ impl Bus {
         self.injector.add_rule(rule);
     }
 
+    /// Change the chance of every packet fault rule by `factor` (clamped
+    /// to 0..=1): a soak keeps the faulted share of packets where it wants
+    /// it as the traffic mix changes.
+    pub fn scale_fault_probabilities(&mut self, factor: f64) {
+        self.injector.scale_probabilities(factor);
+    }
+
     /// Schedule a timed fault.
     pub fn schedule_fault(&mut self, at: SimTime, fault: TimedFault) {
         self.timed.push(fault);

@@ -431,6 +431,15 @@ impl FaultInjector {
         self.rules.push((rule, 0, 0));
     }
 
+    pub fn scale_probabilities(&mut self, factor: f64) {
+        if !factor.is_finite() || factor < 0.0 {
+            return;
+        }
+        for (rule, _, _) in &mut self.rules {
+            rule.probability = (rule.probability * factor).clamp(0.0, 1.0);
+        }
+    }
+
     pub fn is_empty(&self) -> bool {
         self.rules.is_empty()
     }
@@ -510,13 +519,16 @@ impl FaultInjector {
                     "drop".to_string()
                 }
                 PacketFault::FlipBits { count } => {
+                    // Distinct bits: flipping one bit twice would leave
+                    // the packet as it was and log a fault that is none.
                     let bits = bytes.len() as u64 * 8;
-                    let mut flipped = Vec::new();
-                    if bits > 0 {
-                        for _ in 0..*count {
-                            let bit = (self.rng.next_u64() % bits) as u32;
-                            d.mutations.push(Mutation::Flip(bit));
+                    let mut flipped: Vec<u32> = Vec::new();
+                    let wanted = u64::from(*count).min(bits) as usize;
+                    while flipped.len() < wanted {
+                        let bit = (self.rng.next_u64() % bits) as u32;
+                        if !flipped.contains(&bit) {
                             flipped.push(bit);
+                            d.mutations.push(Mutation::Flip(bit));
                         }
                     }
                     format!("flip bits {flipped:?}")

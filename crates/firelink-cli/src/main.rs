@@ -16,6 +16,7 @@ mod packet_cmd;
 mod ports;
 mod rt;
 mod sim;
+mod soak_cmd;
 mod tour;
 
 use std::io::Write;
@@ -63,6 +64,9 @@ enum Command {
     Bench(bench::BenchArgs),
     /// Emulated boards behind an Ethernet bridge on UDP (127.0.0.1:1394).
     Emulate(Box<emulate_cmd::EmulateArgs>),
+    /// Fault soak: millions of servo cycles with faulted packets, every
+    /// fault accounted for; then the watchdog proof.
+    Soak(soak_cmd::SoakArgs),
 }
 
 #[derive(Subcommand)]
@@ -178,6 +182,9 @@ pub enum CliError {
     /// The host library failed.
     #[error(transparent)]
     Host(#[from] firelink_host::HostError),
+    /// A run finished and its verdict is "failed" (the report says why).
+    #[error("{0}")]
+    Failed(String),
     /// Assembling or running an emulated robot failed.
     #[error(transparent)]
     Testbed(#[from] firelink_testbed::TestbedError),
@@ -241,6 +248,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Sim(args) => sim::run(&args, &mut out)?,
         Command::Demo(args) => demo::run(&args, &mut out)?,
         Command::Bench(args) => bench::run(&args, &mut out)?,
+        Command::Soak(args) => soak_cmd::run(&args, &mut out)?,
     }
     Ok(())
 }

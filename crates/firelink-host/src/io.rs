@@ -25,7 +25,7 @@ use firelink_wire::board::broadcast::{
     BoardSlot, CommandBlockWriter, HubBlock, HubHeader, Query, SeqRule, hub_block_quadlets,
 };
 use firelink_wire::board::realtime::{ReadBlock, ReadBlockRepr};
-use firelink_wire::board::registers::{SYSTEM_CLOCK_HZ, Watchdog};
+use firelink_wire::board::registers::{AmpCommand, SYSTEM_CLOCK_HZ, StatusCommand, Watchdog};
 
 use crate::board::BoardIo;
 use crate::error::{HostError, MissReason, Result};
@@ -68,6 +68,9 @@ pub struct CycleReport {
     pub update_time_us: [f32; MAX_BOARDS],
     /// The first port error of the cycle, if any.
     pub error: Option<HostError>,
+    /// A bus reset was seen in this cycle (whatever the first error was):
+    /// node numbers may have moved.
+    pub bus_reset: bool,
 }
 
 impl CycleReport {
@@ -81,6 +84,7 @@ impl CycleReport {
         reasons: [None; MAX_BOARDS],
         update_time_us: [0.0; MAX_BOARDS],
         error: None,
+        bus_reset: false,
     };
 
     /// Whether every board took part and no error happened.
@@ -347,7 +351,9 @@ impl<P: Port> IoSystem<P> {
         &self.port
     }
 
-    /// The port, mutable (for register access outside the cycle).
+    /// The port, mutable. Prefer [`read_register`](Self::read_register)
+    /// and [`write_register`](Self::write_register): a bus reset reported
+    /// to a call made directly on the port is not seen by the system.
     pub fn port_mut(&mut self) -> &mut P {
         &mut self.port
     }
@@ -413,6 +419,13 @@ impl<P: Port> IoSystem<P> {
     }
 
     fn dest_of(&self, id: u8) -> Result<Dest> {
+        if self.needs_rescan {
+            // The node this board had may now be another board's.
+            return Err(HostError::BusReset {
+                old: self.port.generation(),
+                new: self.port.generation(),
+            });
+        }
         self.board(id)
             .map(|b| Dest::node(b.info().node))
             .ok_or(HostError::UnknownBoard(id))
@@ -424,7 +437,18 @@ impl<P: Port> IoSystem<P> {
     /// Port errors; [`HostError::UnknownBoard`].
     pub fn read_register(&mut self, id: u8, offset: u64) -> Result<u32> {
         let dest = self.dest_of(id)?;
-        self.port.read_quadlet(dest, offset)
+        let r = self.port.read_quadlet(dest, offset);
+        self.outside_cycle(r)
+    }
+
+    /// A port result outside the cycle: a bus reset reported here must not
+    /// be lost (the port reports each reset once), so the system learns
+    /// that nodes may have moved and rescans before the next cycle.
+    fn outside_cycle<T>(&mut self, r: Result<T>) -> Result<T> {
+        if let Err(HostError::BusReset { .. }) = r {
+            self.needs_rescan = true;
+        }
+        r
     }
 
     /// Write a quadlet register of one board.
@@ -433,7 +457,8 @@ impl<P: Port> IoSystem<P> {
     /// Port errors; [`HostError::UnknownBoard`].
     pub fn write_register(&mut self, id: u8, offset: u64, value: u32) -> Result<()> {
         let dest = self.dest_of(id)?;
-        self.port.write_quadlet(dest, offset, value)
+        let r = self.port.write_quadlet(dest, offset, value);
+        self.outside_cycle(r)
     }
 
     /// Set the watchdog period of every board (0 disables it).
@@ -448,12 +473,55 @@ impl<P: Port> IoSystem<P> {
             Watchdog::from_period(period).map_err(HostError::Wire)?
         };
         let offset = Register::board(BoardRegister::Watchdog).offset()?;
+        if self.needs_rescan {
+            return Err(HostError::BusReset {
+                old: self.port.generation(),
+                new: self.port.generation(),
+            });
+        }
         for i in 0..self.boards.len() {
             let node = self.boards.get(i).map_or(0, |b| b.info().node);
-            self.port
-                .write_quadlet(Dest::node(node), offset, word.raw())?;
+            let r = self
+                .port
+                .write_quadlet(Dest::node(node), offset, word.raw());
+            self.outside_cycle(r)?;
         }
         Ok(())
+    }
+
+    /// The fault path's backstop: tell each board in `boards` (bit i =
+    /// board ID i) directly, with one STATUS write per board, to turn every
+    /// amplifier off, and return the boards that acknowledged it (none over
+    /// a port whose writes are not acknowledged: the next cycle's command
+    /// and the boards' watchdogs are then the backstop). The cycle's
+    /// broadcast command says the same; this makes it certain on a bus that
+    /// loses packets. Allocation-free.
+    pub fn disable_amplifiers_acknowledged(&mut self, boards: u16) -> u16 {
+        let Ok(offset) = Register::board(BoardRegister::Status).offset() else {
+            return 0;
+        };
+        let word = StatusCommand {
+            amps: AmpCommand::new(0xF, 0),
+            ..StatusCommand::NONE
+        }
+        .to_word()
+        .raw();
+        let acknowledged = self.port.acknowledges_writes();
+        let mut confirmed = 0u16;
+        for i in 0..self.boards.len() {
+            let Some(info) = self.boards.get(i).map(|b| *b.info()) else {
+                break;
+            };
+            if boards & (1 << info.board_id) == 0 || self.needs_rescan {
+                continue;
+            }
+            match self.port.write_quadlet(Dest::node(info.node), offset, word) {
+                Ok(()) if acknowledged => confirmed |= 1 << info.board_id,
+                Ok(()) => {}
+                Err(e) => self.note_error(e),
+            }
+        }
+        confirmed
     }
 
     fn note_error(&mut self, e: HostError) {
@@ -465,6 +533,7 @@ impl<P: Port> IoSystem<P> {
             // Node numbers may have changed: the caller rescans between
             // cycles (`recover`), not inside this one.
             self.needs_rescan = true;
+            self.report.bus_reset = true;
         }
     }
 

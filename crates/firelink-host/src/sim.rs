@@ -80,6 +80,11 @@ impl SimPort {
         &mut self.bus
     }
 
+    /// The PC's node on the bus.
+    pub fn host(&self) -> NodeHandle {
+        self.host
+    }
+
     /// The PC's link node (open and finished transactions, packets kept).
     pub fn host_link(&self) -> Option<&HostLink> {
         self.bus.node::<HostLink>(self.host)
@@ -143,12 +148,23 @@ impl SimPort {
             return Ok(None);
         }
         let submitted = self.bus.now();
+        let submitted_generation = self.bus.generation();
         let deadline = submitted + self.timeout;
         let completion = HostLink::wait_on(&mut self.bus, host, token, deadline);
         if let Some(c) = cost {
             self.bus.run_for(c.after);
         }
         let node = expect.dest.node;
+        // A request lost in a bus reset failed because of the reset: say
+        // so (node numbers may have moved), not "no answer".
+        if self.bus.generation() != submitted_generation
+            && !completion
+                .as_ref()
+                .is_some_and(|c| c.outcome == Outcome::Complete)
+        {
+            self.transactions.observe_generation(self.bus.generation());
+            self.transactions.check_generation(expect.dest)?;
+        }
         let Some(done) = completion else {
             let waited = (self.bus.now() - submitted).as_micros_f64() as u32;
             return Err(self.transactions.timed_out(&expect, waited));

@@ -273,12 +273,18 @@ impl Transactions {
     /// # Errors
     /// [`HostError::BusReset`] once per change.
     pub fn check_generation(&mut self, dest: Dest) -> Result<()> {
+        if dest.is_broadcast() {
+            // A broadcast reaches every node whatever their numbers (and
+            // a bridge does not check its generation): it goes on, and the
+            // reset stays to be reported by the next unicast request. A
+            // cycle that starts with its broadcast query must still learn
+            // that node numbers may have moved.
+            return Ok(());
+        }
         if let Some(new) = self.pending_generation.take() {
             let old = self.generation;
             self.generation = new;
-            if !dest.is_broadcast() {
-                return Err(HostError::BusReset { old, new });
-            }
+            return Err(HostError::BusReset { old, new });
         }
         Ok(())
     }
@@ -494,8 +500,14 @@ mod tests {
             Err(HostError::BusReset { old: 5, new: 6 })
         );
         assert!(t.check_generation(Dest::node(1)).is_ok());
+        // A broadcast first does not swallow the reset: the next unicast
+        // request still reports it.
         t.observe_generation(7);
         assert!(t.check_generation(Dest::BROADCAST).is_ok());
+        assert_eq!(
+            t.check_generation(Dest::node(1)),
+            Err(HostError::BusReset { old: 6, new: 7 })
+        );
         assert_eq!(t.generation(), 7);
     }
 

@@ -238,6 +238,24 @@ impl Firmware {
             .is_some_and(|a| a.is_on(&self.power, self.now))
     }
 
+    /// The current command of `axis` as applied (DAC code, MOTOR_STATUS
+    /// 15:0), or `None` for an axis the board does not have.
+    pub fn axis_command(&self, axis: usize) -> Option<u16> {
+        self.axes.get(axis).map(|a| a.command)
+    }
+
+    /// When the host last wrote to this board (what refreshes the
+    /// watchdog).
+    pub fn last_host_write(&self) -> Time {
+        self.watchdog.last_write
+    }
+
+    /// When the watchdog will fire if nothing is written before (`None`:
+    /// disabled, or already fired).
+    pub fn watchdog_expiry(&self) -> Option<Time> {
+        self.watchdog.expiry()
+    }
+
     /// Whether the watchdog has fired (STATUS bit 23).
     pub fn watchdog_timed_out(&self) -> bool {
         self.watchdog.timed_out

@@ -228,6 +228,9 @@ pub struct Robot<P: Port> {
     cycle: u64,
     last_start: Option<Duration>,
     last_report: Option<CycleReport>,
+    /// Boards that acknowledged the fault path's direct "amplifiers off"
+    /// (bit i = board ID i), since the fault.
+    disabled_acknowledged: u16,
     fault: Option<FaultReport>,
     next_deadline: Option<Instant>,
 }
@@ -328,6 +331,7 @@ impl<P: Port> Robot<P> {
             cycle: 0,
             last_start: None,
             last_report: None,
+            disabled_acknowledged: 0,
             fault: None,
             next_deadline: None,
         })
@@ -476,6 +480,15 @@ impl<P: Port> Robot<P> {
     /// # Errors
     /// Not Configured; a fault while waiting; [`RunnerError::Timeout`].
     pub fn power_on(&mut self) -> Result<(), RunnerError> {
+        self.power_on_observed(&mut |_| {})
+    }
+
+    /// [`power_on`](Self::power_on), calling `each` after every cycle it
+    /// runs (a soak or a monitor keeps watching while it waits).
+    ///
+    /// # Errors
+    /// As [`power_on`](Self::power_on).
+    pub fn power_on_observed(&mut self, each: &mut dyn FnMut(&Self)) -> Result<(), RunnerError> {
         if self.life.state() != State::Configured {
             return Err(RunnerError::Lifecycle(LifecycleError::NotActive {
                 state: self.life.state(),
@@ -488,7 +501,9 @@ impl<P: Port> Robot<P> {
                 b.set_relay(true);
             }
         }
-        self.wait_for("motor power", |s| expected.minus(s.powered).is_empty())?;
+        self.wait_for("motor power", each, |s| {
+            expected.minus(s.powered).is_empty()
+        })?;
         let used = self.used_axes.clone();
         for (b, &(mask, _)) in self.io.boards_mut().iter_mut().zip(&used) {
             for a in 0..4usize {
@@ -497,7 +512,7 @@ impl<P: Port> Robot<P> {
                 }
             }
         }
-        self.wait_for("amplifiers", |s| {
+        self.wait_for("amplifiers", each, |s| {
             expected.minus(s.amplifiers_enabled).is_empty()
         })
     }
@@ -505,10 +520,13 @@ impl<P: Port> Robot<P> {
     fn wait_for(
         &mut self,
         what: &'static str,
+        each: &mut dyn FnMut(&Self),
         done: impl Fn(&PowerStatus) -> bool,
     ) -> Result<(), RunnerError> {
         for _ in 0..self.settings.power_timeout_cycles {
-            self.step(Pacing::Virtual)?;
+            let r = self.step(Pacing::Virtual);
+            each(self);
+            r?;
             if done(&self.power_status()) {
                 return Ok(());
             }
@@ -546,6 +564,29 @@ impl<P: Port> Robot<P> {
             }
         }
         Err(RunnerError::Timeout("homing"))
+    }
+
+    /// Fault -> Unconfigured: the fault is acknowledged; from here the
+    /// robot is configured and powered again as at start-up (homing
+    /// offsets are kept). Returns the cleared report.
+    ///
+    /// # Errors
+    /// Not in Fault.
+    pub fn clear_fault(&mut self) -> Result<FaultReport, RunnerError> {
+        let report = self.life.clear_fault()?;
+        self.fault = None;
+        self.disabled_acknowledged = 0;
+        for (j, pid) in self.joints.iter_mut().zip(self.pids.iter_mut()) {
+            j.motion = Motion::Hold(j.position);
+            pid.reset();
+        }
+        Ok(report)
+    }
+
+    /// Boards that acknowledged the fault path's direct "amplifiers off"
+    /// since the fault (bit i = board ID i).
+    pub fn disable_acknowledged(&self) -> u16 {
+        self.disabled_acknowledged
     }
 
     /// Configured -> Active: every joint holds where it is.
@@ -682,6 +723,16 @@ impl<P: Port> Robot<P> {
             }
         }
         let compute = compute_start.elapsed();
+        if self.life.state() == State::Fault {
+            // The broadcast command below says "amplifiers off"; a packet
+            // lost on the bus must not leave them on: tell each board that
+            // has not acknowledged it yet, directly (inside the cycle, so
+            // its errors are in the cycle's report).
+            let expected = self.expected.0 & !self.disabled_acknowledged;
+            if expected != 0 {
+                self.disabled_acknowledged |= self.io.disable_amplifiers_acknowledged(expected);
+            }
+        }
         let report = *self.io.write_all();
         self.last_report = Some(report);
         self.record(report.io_time(), compute);
