@@ -445,8 +445,9 @@ impl<P: Port> IoSystem<P> {
     /// be lost (the port reports each reset once), so the system learns
     /// that nodes may have moved and rescans before the next cycle.
     fn outside_cycle<T>(&mut self, r: Result<T>) -> Result<T> {
-        if let Err(HostError::BusReset { .. }) = r {
+        if let Err(e @ HostError::BusReset { .. }) = r {
             self.needs_rescan = true;
+            self.stats.count_error(&e);
         }
         r
     }

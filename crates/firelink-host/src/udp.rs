@@ -205,40 +205,10 @@ impl UdpPort {
                 Err(e) => return Err(e.into()),
             };
             let datagram = self.rx.get(..len).unwrap_or(&[]);
-            // A board's reply: the response packet, then 8 bytes of extra
-            // data (which carry the bus generation).
-            let Some(split) = len.checked_sub(EXTRA_DATA_LEN) else {
-                self.transactions
-                    .accept(datagram, &expect, CrcCheck::Always)?
-                    .ok();
-                continue;
-            };
-            let (packet_bytes, extra_bytes) = datagram.split_at(split);
-            let Ok(extra) = ExtraData::parse(extra_bytes) else {
-                self.transactions
-                    .accept(&[], &expect, CrcCheck::Always)?
-                    .ok();
-                continue;
-            };
-            // Locally generated responses may carry 0 in their CRC fields.
-            let crc = if extra.flags.no_forward {
-                CrcCheck::ZeroMeansUnset
-            } else {
-                CrcCheck::Always
-            };
-            let accepted = self.transactions.accept(packet_bytes, &expect, crc)?;
-            let Ok(packet) = accepted else {
-                continue;
-            };
-            if expect.tcode == Tcode::ReadQuadletResponse {
-                out.copy_from_slice(&packet.quadlet_data().to_be_bytes());
-            } else {
-                out.copy_from_slice(packet.payload());
+            if let Some(extra) = judge_reply(&mut self.transactions, datagram, &expect, out)? {
+                self.last_extra = Some(extra);
+                return Ok(());
             }
-            self.last_extra = Some(extra);
-            self.transactions
-                .observe_generation(u32::from(extra.generation));
-            return Ok(());
         }
     }
 
@@ -256,6 +226,61 @@ impl UdpPort {
         self.receive(Expect::quadlet(dest, header.tl), &mut out)?;
         Ok(u32::from_be_bytes(out))
     }
+}
+
+/// One datagram from a bridge board, judged against the open request
+/// `expect`: the response packet, then 8 bytes of extra data (which carry
+/// the bus generation, adopted through the engine). The UDP port's whole
+/// reply path, without the socket (fuzzed).
+///
+/// Returns `Ok(Some(extra))` for the answer (its payload, or its quadlet,
+/// copied into `out`, which must be `expect.len` bytes), `Ok(None)` for a
+/// datagram refused and counted by the engine.
+///
+/// # Errors
+/// The answer itself damaged, or carrying an error rcode.
+pub fn judge_reply(
+    transactions: &mut Transactions,
+    datagram: &[u8],
+    expect: &Expect,
+    out: &mut [u8],
+) -> Result<Option<ExtraData>> {
+    let Some(split) = datagram.len().checked_sub(EXTRA_DATA_LEN) else {
+        // Too short for the extra data: not a bridge reply.
+        let _ = transactions.accept(datagram, expect, CrcCheck::Always)?;
+        return Ok(None);
+    };
+    let (packet_bytes, extra_bytes) = datagram.split_at(split);
+    let Ok(extra) = ExtraData::parse(extra_bytes) else {
+        let _ = transactions.accept(&[], expect, CrcCheck::Always)?;
+        return Ok(None);
+    };
+    // Responses the bridge board makes itself may carry 0 in their CRC
+    // fields.
+    let crc = if extra.flags.no_forward {
+        CrcCheck::ZeroMeansUnset
+    } else {
+        CrcCheck::Always
+    };
+    let Ok(packet) = transactions.accept(packet_bytes, expect, crc)? else {
+        return Ok(None);
+    };
+    let quadlet = packet.quadlet_data().to_be_bytes();
+    let data: &[u8] = if expect.tcode == Tcode::ReadQuadletResponse {
+        &quadlet
+    } else {
+        packet.payload()
+    };
+    if data.len() != out.len() {
+        return Err(HostError::Wire(firelink_wire::Error::BlockSize {
+            what: "response payload",
+            expected: out.len() / 4,
+            found: data.len() / 4,
+        }));
+    }
+    out.copy_from_slice(data);
+    transactions.observe_generation(u32::from(extra.generation));
+    Ok(Some(extra))
 }
 
 impl Port for UdpPort {

@@ -220,6 +220,9 @@ pub struct SoakReport {
     /// Of those: a lost or late command, held by every board a period
     /// later.
     pub harmless_command_held: u64,
+    /// Of those: a spare hub response (answering a duplicated request)
+    /// while the host's own hub read completed.
+    pub harmless_spare: u64,
     /// Faults neither detected nor harmless (must be 0).
     pub undetected: u64,
     /// Commands a board applied that the host never sent (must be 0).
@@ -278,6 +281,10 @@ enum Harmless {
     /// A command lost or late: every board held the host's command again
     /// one or two periods later (broadcasts are never acknowledged).
     CommandHeld,
+    /// A hub response the host did not need: its hub read completed with
+    /// another, valid response (the faulted one answered a duplicated
+    /// request).
+    Spare,
 }
 
 /// A logged fault waiting for the cycles that show its effect.
@@ -299,6 +306,8 @@ struct Seen {
     commands_converged: bool,
     /// The bus generation after this cycle.
     generation: u32,
+    /// Bus resets the host has noticed so far (in cycles or between them).
+    resets_noticed: u64,
 }
 
 /// Commands sent to one axis recently (the DAC codes), newest last.
@@ -609,6 +618,7 @@ impl Soak {
                 harmless_fresh: 0,
                 harmless_masked: 0,
                 harmless_command_held: 0,
+                harmless_spare: 0,
                 undetected: 0,
                 bad_commands_applied: 0,
                 amplifier_on_after_off: 0,
@@ -708,6 +718,7 @@ impl Soak {
             report,
             commands_converged: converged,
             generation: bus.generation(),
+            resets_noticed: robot.io().stats().bus_resets,
         });
         // New faults from the bus's log.
         let records = bus.fault_log().records();
@@ -812,13 +823,21 @@ impl Soak {
             .filter(|s| s.report.cycle >= hit && s.report.cycle <= hit + 3)
             .copied()
             .collect();
+        // Resets the host had noticed before the hit cycle.
+        let resets_before = self
+            .cycles
+            .iter()
+            .rev()
+            .find(|s| s.report.cycle < hit)
+            .or(window.first())
+            .map_or(0, |s| s.resets_noticed);
         let verdict = if rejected_by_host && p.entry.target == Target::HubResponse {
             // A response the host's link itself refused (its CRC failed,
             // or it answered nothing the host had asked, e.g. the second
             // answer to a duplicated request): the host never used it.
             Verdict::Detected
         } else {
-            verdict(&p.entry, &window)
+            verdict(&p.entry, &window, resets_before)
         };
         let key = p.entry.kind.name().to_string();
         self.report
@@ -848,6 +867,7 @@ impl Soak {
                     Harmless::Fresh => self.report.harmless_fresh += 1,
                     Harmless::Masked => self.report.harmless_masked += 1,
                     Harmless::CommandHeld => self.report.harmless_command_held += 1,
+                    Harmless::Spare => self.report.harmless_spare += 1,
                 }
             }
             Verdict::Undetected => {
@@ -957,7 +977,17 @@ fn shows(entry: &Entry, report: &CycleReport) -> bool {
         }
 }
 
-fn verdict(entry: &Entry, window: &[Seen]) -> Verdict {
+fn verdict(entry: &Entry, window: &[Seen], resets_before: u64) -> Verdict {
+    // A bus reset the host noticed between cycles (a register write outside
+    // the cycle got it first) was detected all the same: it rescanned.
+    if matches!(entry.kind, Kind::BusReset | Kind::Unplug)
+        && window
+            .iter()
+            .take(3)
+            .any(|s| s.resets_noticed > resets_before)
+    {
+        return Verdict::Detected;
+    }
     if entry.target == Target::Command {
         // Invisible to the host by design (broadcasts are not
         // acknowledged): harmless if every board holds the host's command
@@ -982,6 +1012,14 @@ fn verdict(entry: &Entry, window: &[Seen]) -> Verdict {
     let first_two = || window.iter().take(if spill { 2 } else { 1 });
     if first_two().any(|s| shows(entry, &s.report)) {
         return Verdict::Detected;
+    }
+    // A damaged or lost hub response the host needed fails its hub read
+    // (a time-out or a bad packet); the read completing means the host got
+    // another, valid one: the faulted packet was a spare.
+    if entry.target == Target::HubResponse
+        && window.first().is_some_and(|s| s.report.error.is_none())
+    {
+        return Verdict::Harmless(Harmless::Spare);
     }
     // Otherwise each of those cycles must have been either clean (every
     // block the host used proven this cycle's) or thrown away whole for
