@@ -34,6 +34,8 @@ use std::time::{Duration, Instant};
 
 use firelink_host::io::{CycleReport, IoStats, IoSystem};
 use firelink_host::{HostError, MissReason, Port};
+use firelink_wire::board::MAX_BOARDS;
+use firelink_wire::board::registers::SYSTEM_CLOCK_HZ;
 
 use crate::config::{DriveConfig, EncoderConfig, IoConfig, JointType, PotentiometerConfig};
 use crate::fault::{FaultKind, FaultReport};
@@ -222,6 +224,12 @@ pub struct Robot<P: Port> {
     safety: SafetyMonitor,
     homing: Homing,
     samples: Vec<JointSample>,
+    /// Per board (index in the I/O system): the boards' own clock at its
+    /// last fresh sample, seconds (the read block's timestamp counts the
+    /// 49.152 MHz clocks between samples). Velocities are differenced on
+    /// this clock: it is when the encoders were sampled, whatever the
+    /// host's or the network's jitter.
+    sample_clock: Vec<f64>,
     pot: Vec<f64>,
     enc: Vec<f64>,
     times: CycleTimes,
@@ -319,6 +327,7 @@ impl<P: Port> Robot<P> {
             safety: SafetyMonitor::from_config(config),
             homing: Homing::from_config(config, settings.homing),
             samples: vec![JointSample::default(); n],
+            sample_clock: vec![0.0; MAX_BOARDS],
             pot: vec![0.0; n],
             enc: vec![0.0; n],
             times: CycleTimes {
@@ -715,6 +724,17 @@ impl<P: Port> Robot<P> {
         }
         .clamp(0.1 * self.period(), 10.0 * self.period());
         self.last_start = Some(report.started);
+        for (clock, b) in self.sample_clock.iter_mut().zip(self.io.boards()) {
+            if b.is_valid() {
+                let ts = b.timestamp();
+                // A board that reports no timestamp: the host's interval.
+                *clock += if ts == 0 {
+                    dt
+                } else {
+                    f64::from(ts) / f64::from(SYSTEM_CLOCK_HZ)
+                };
+            }
+        }
         self.check(&report, now);
         self.compute(now, dt);
         if self.life.state() == State::Fault {
@@ -840,7 +860,8 @@ impl<P: Port> Robot<P> {
                 (Some(p), Some(bits)) => p.bits_to_position(bits),
                 _ => f64::NAN,
             };
-            let velocity = j.velocity.update(now, pos);
+            let sampled = self.sample_clock.get(j.board).copied().unwrap_or(now);
+            let velocity = j.velocity.update(sampled, pos);
             j.position = pos;
             if let Some(e) = self.enc.get_mut(i) {
                 *e = raw;
