@@ -129,11 +129,6 @@ impl WatchdogSetting {
         }
     }
 
-    /// Milliseconds, 0 when off (for reports).
-    pub fn millis(self) -> f64 {
-        self.period().as_secs_f64() * 1e3
-    }
-
     /// The warning to print when the watchdog is off, or `None`.
     pub fn warning(self) -> Option<&'static str> {
         (self == WatchdogSetting::Off).then_some(

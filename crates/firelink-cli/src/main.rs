@@ -6,7 +6,6 @@
 
 mod args;
 mod bench;
-mod bitmap_font;
 mod board_cmd;
 mod demo;
 mod emulate_cmd;

@@ -5,8 +5,6 @@
 //! The only unsafe code of the workspace: three libc calls with plain
 //! integer arguments and a pointer to a local struct.
 
-use serde_json::{Value, json};
-
 /// What took effect.
 #[derive(Debug, Clone, Default)]
 pub struct RtStatus {
@@ -18,19 +16,6 @@ pub struct RtStatus {
     pub timer_slack_1ns: bool,
     /// Why the others did not.
     pub errors: Vec<String>,
-}
-
-impl RtStatus {
-    /// As JSON for the reports.
-    pub fn to_json(&self) -> Value {
-        json!({
-            "requested": true,
-            "sched_fifo_priority": self.sched_fifo,
-            "memory_locked": self.memory_locked,
-            "timer_slack_1ns": self.timer_slack_1ns,
-            "errors": self.errors,
-        })
-    }
 }
 
 /// Try every setting for the calling thread.

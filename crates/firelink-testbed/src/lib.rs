@@ -21,6 +21,8 @@
 //! the same report, bit for bit. Only [`rig::Emulator`] touches sockets and
 //! the wall clock (its server paces virtual time to it).
 
+pub mod bench;
+pub mod demo;
 pub mod error;
 pub mod rig;
 pub mod soak;

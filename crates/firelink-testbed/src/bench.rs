@@ -1,0 +1,500 @@
+//! The I/O benchmark of seed 000's Fig. 11: I/O time per cycle against the
+//! number of boards, for each protocol, on the simulated bus with the
+//! seed-000 PC model and measured for real over loopback UDP against an
+//! in-process bridge emulator; the maximum control rate each point allows
+//! and seed 002's time budget at a chosen period. Counts above 16 (the
+//! board-ID space of one bus) come from a cost model fitted to the largest
+//! measured count, and say so.
+//!
+//! The library behind `firelink bench` and the Python package's
+//! `run_bench`; [`BenchReport`] serialises to `firelink bench --json`.
+
+use std::fmt;
+use std::time::Duration;
+
+use serde::Serialize;
+
+use firelink_board::config::Profile;
+use firelink_control::budget::CycleBudget;
+use firelink_control::config::presets;
+use firelink_control::runner::loopback::LoopbackPort;
+use firelink_control::runner::{Pacing, Percentiles, Robot, RobotSettings};
+use firelink_host::Port;
+use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
+use firelink_host::scan::Protocol;
+
+use crate::TestbedError;
+use crate::rig;
+
+/// Where a benchmark point runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BenchTransport {
+    /// The simulated bus with the seed-000 PC model (virtual time).
+    Sim,
+    /// Loopback UDP to an in-process bridge emulator (wall clock).
+    Udp,
+}
+
+impl BenchTransport {
+    /// The name in reports and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            BenchTransport::Sim => "sim",
+            BenchTransport::Udp => "udp",
+        }
+    }
+
+    /// Parse `sim` or `udp`.
+    pub fn from_name(name: &str) -> Option<BenchTransport> {
+        match name {
+            "sim" => Some(BenchTransport::Sim),
+            "udp" => Some(BenchTransport::Udp),
+            _ => None,
+        }
+    }
+}
+
+/// What to measure.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchOptions {
+    /// Transports, in order.
+    pub transports: Vec<BenchTransport>,
+    /// Board counts, 1..=62; counts above 16 are modelled (see
+    /// [`check_board_counts`]).
+    pub boards: Vec<usize>,
+    /// Protocols, in order.
+    pub protocols: Vec<Protocol>,
+    /// Measured cycles per point (after 20 warm-up cycles), at least 1.
+    pub cycles: u64,
+    /// Firmware of the emulated boards.
+    pub firmware: Profile,
+    /// Control period for the budget check, us.
+    pub period_us: f64,
+    /// Broadcast protocol: the host's wait between query and hub read, us
+    /// per board (seed 000's PC sleeps 5 us x N).
+    pub wait_us_per_board: f64,
+    /// Idle bus time between cycles, us (a paced loop leaves the bus idle).
+    pub idle_us: f64,
+}
+
+impl Default for BenchOptions {
+    fn default() -> Self {
+        BenchOptions {
+            transports: vec![BenchTransport::Sim, BenchTransport::Udp],
+            boards: vec![2, 4, 8, 16, 32, 62],
+            protocols: vec![Protocol::Sequential, Protocol::Broadcast],
+            cycles: 1000,
+            firmware: Profile::Rev8,
+            period_us: 1e6 / 6000.0,
+            wait_us_per_board: 5.0,
+            idle_us: 50.0,
+        }
+    }
+}
+
+/// Check a board-count list: each 1..=62, not empty, and every count
+/// above 16 preceded by a measured one (1..=16) it is modelled from.
+pub fn check_board_counts(counts: &[usize]) -> Result<(), String> {
+    if counts.is_empty() {
+        return Err("no board count given".into());
+    }
+    let mut measured = false;
+    for &n in counts {
+        if !(1..=62).contains(&n) {
+            return Err(format!("{n} boards: a board count is 1..=62"));
+        }
+        if n <= 16 {
+            measured = true;
+        } else if !measured {
+            return Err(format!(
+                "{n} boards is extrapolated from a measured count (1..=16) that must come \
+                 before it in the list"
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// I/O time statistics of a point, us; `max` is absent for modelled points.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct IoTime {
+    /// Median.
+    pub median: f64,
+    /// 99th percentile.
+    pub p99: f64,
+    /// Maximum (measured points only).
+    pub max: Option<f64>,
+    /// Mean.
+    pub mean: f64,
+}
+
+/// Seed 002's budget `t(Te) + t(Tf) + t(Tg)` against the period.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct BudgetFit {
+    /// The period, us.
+    pub period_us: f64,
+    /// The budget's total, us.
+    pub total_us: f64,
+    /// Whether it fits in the period.
+    pub fits: bool,
+}
+
+/// One point of the benchmark.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BenchPoint {
+    /// `sim` or `udp`.
+    pub transport: &'static str,
+    /// The protocol used.
+    pub protocol: &'static str,
+    /// The protocol asked for (the scan may refuse it: see `note`).
+    pub protocol_asked: &'static str,
+    /// Boards.
+    pub boards: usize,
+    /// I/O time per cycle.
+    pub io_time_us: IoTime,
+    /// Mean read phase, us (measured points only).
+    pub read_us: Option<f64>,
+    /// Mean write phase, us (measured points only).
+    pub write_us: Option<f64>,
+    /// Cycles measured (0: modelled).
+    pub cycles: u64,
+    /// I/O errors while measuring.
+    pub errors: u64,
+    /// Whether the point comes from the cost model rather than a run.
+    pub model: bool,
+    /// The highest control rate: 1 / (I/O median + compute median), Hz.
+    pub max_rate_hz: f64,
+    /// Seed 002's budget at the chosen period.
+    pub budget: BudgetFit,
+    /// Why the protocol differs, or where a modelled point comes from.
+    pub note: Option<String>,
+}
+
+/// The paper's figures the benchmark is compared with.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PaperFigures {
+    /// Sequential protocol, 8 boards, us.
+    pub sequential_8_us: f64,
+    /// Broadcast protocol, 8 boards, us.
+    pub broadcast_8_us: f64,
+    /// Where they come from.
+    pub source: &'static str,
+}
+
+/// The whole benchmark.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BenchReport {
+    /// Every point, in the order measured.
+    pub results: Vec<BenchPoint>,
+    /// Compute time of the 28-axis dVRK cycle (median), us.
+    pub compute_us: f64,
+    /// The paper's figures.
+    pub paper: PaperFigures,
+    /// Firmware of the emulated boards.
+    pub firmware: &'static str,
+    /// Measured cycles per point.
+    pub cycles: u64,
+}
+
+/// A raw measurement, before rounding and the budget.
+#[derive(Debug, Clone)]
+struct Raw {
+    transport: BenchTransport,
+    protocol: Protocol,
+    asked: Protocol,
+    boards: usize,
+    io: Percentiles,
+    read: f64,
+    write: f64,
+    cycles: u64,
+    errors: u64,
+    note: Option<String>,
+}
+
+/// Run `cycles` I/O cycles on an open system: I/O-time percentiles, mean
+/// read and write phases, errors.
+fn measure<P: Port>(
+    mut io: IoSystem<P>,
+    cycles: u64,
+    idle: Duration,
+) -> (Percentiles, f64, f64, u64) {
+    for _ in 0..20 {
+        io.cycle();
+        io.port_mut().wait(idle);
+    }
+    let mut t = Vec::with_capacity(cycles as usize);
+    let (mut r, mut w) = (0.0, 0.0);
+    for _ in 0..cycles {
+        let rep = *io.cycle();
+        let _ = io.recover();
+        t.push((rep.io_time().as_secs_f64() * 1e6) as f32);
+        r += rep.read_time.as_secs_f64() * 1e6;
+        w += rep.write_time.as_secs_f64() * 1e6;
+        io.port_mut().wait(idle);
+    }
+    let n = cycles.max(1) as f64;
+    (
+        Percentiles::of(&mut t),
+        r / n,
+        w / n,
+        io.stats().total_errors(),
+    )
+}
+
+fn point<P: Port>(
+    mut port: P,
+    transport: BenchTransport,
+    protocol: Protocol,
+    boards: usize,
+    options: &BenchOptions,
+) -> Result<Raw, TestbedError> {
+    let scan = firelink_host::scan::scan(&mut port)?;
+    let used = protocol.min(scan.protocol);
+    let note = (used != protocol).then(|| scan.protocol_reason.to_string());
+    let io = IoSystem::with_scan(
+        port,
+        &scan,
+        HostIoConfig {
+            protocol: Some(used),
+            broadcast_wait: Some(Duration::from_secs_f64(
+                options.wait_us_per_board.max(0.0) * boards as f64 / 1e6,
+            )),
+            ..HostIoConfig::default()
+        },
+    )?;
+    let idle = Duration::from_secs_f64(options.idle_us.max(0.0) / 1e6);
+    let (io, read, write, errors) = measure(io, options.cycles.max(1), idle);
+    Ok(Raw {
+        transport,
+        protocol: used,
+        asked: protocol,
+        boards,
+        io,
+        read,
+        write,
+        cycles: options.cycles.max(1),
+        errors,
+        note,
+    })
+}
+
+/// The compute time of the 28-axis dVRK cycle (median, us), measured with
+/// the runner on the port-level board model.
+pub fn compute_time_us() -> f64 {
+    let config = presets::dvrk_seed000();
+    let port = LoopbackPort::from_config(&config, |i| rig::start_position(&config, i));
+    let Ok((io, _)) = IoSystem::open(port, HostIoConfig::default()) else {
+        return 0.0;
+    };
+    let settings = RobotSettings {
+        rate_hz: 6000.0,
+        ..RobotSettings::default()
+    };
+    let Ok(mut robot) = Robot::new(io, &config, settings) else {
+        return 0.0;
+    };
+    let ok = robot.configure().is_ok() && robot.power_on().is_ok() && robot.home().is_ok();
+    if !ok || robot.activate().is_err() {
+        return 0.0;
+    }
+    let _ = robot.run(3000, Pacing::Virtual, 0, |_| {});
+    let mut c = robot.times().compute_us.clone();
+    let n = c.len().min(3000);
+    let start = c.len() - n;
+    Percentiles::of(&mut c[start..]).median
+}
+
+/// Extrapolate beyond 16 boards from the per-transaction costs of the
+/// largest measured point of the same transport and protocol.
+fn model(base: &Raw, boards: usize) -> Raw {
+    let n = base.boards.max(1) as f64;
+    let m = boards as f64;
+    let io = match base.protocol {
+        // Per board: one read and one write.
+        Protocol::Sequential => base.io.median / n * m,
+        // Per board: one read; one broadcast write.
+        Protocol::SequentialReadBroadcastWrite => base.read / n * m + base.write,
+        // One bus holds 16 board IDs (15 per hub at Rev 8): groups of 15,
+        // each with its own query, wait, hub read and command broadcast.
+        Protocol::Broadcast => base.io.median * (m / 15.0).ceil(),
+    };
+    Raw {
+        boards,
+        io: Percentiles {
+            median: io,
+            p99: io * base.io.p99 / base.io.median.max(1e-9),
+            max: f64::NAN,
+            mean: io,
+        },
+        read: f64::NAN,
+        write: f64::NAN,
+        cycles: 0,
+        errors: 0,
+        note: Some(format!(
+            "model: extrapolated from the {}-board measurement (a 1394 bus addresses 16 boards)",
+            base.boards
+        )),
+        ..base.clone()
+    }
+}
+
+fn round2(x: f64) -> f64 {
+    (x * 100.0).round() / 100.0
+}
+
+fn finite(x: f64) -> Option<f64> {
+    x.is_finite().then(|| round2(x))
+}
+
+fn finish(raw: &Raw, compute: f64, period_us: f64) -> BenchPoint {
+    let (te, tg) = if raw.read.is_finite() {
+        (raw.read, raw.write)
+    } else {
+        (raw.io.median, 0.0)
+    };
+    let budget = CycleBudget {
+        t_e: Duration::from_secs_f64(te.max(0.0) / 1e6),
+        t_f: Duration::from_secs_f64(compute.max(0.0) / 1e6),
+        t_g: Duration::from_secs_f64(tg.max(0.0) / 1e6),
+        t_s: Duration::ZERO,
+    }
+    .check(Duration::from_secs_f64(period_us.max(0.0) / 1e6));
+    BenchPoint {
+        transport: raw.transport.name(),
+        protocol: raw.protocol.name(),
+        protocol_asked: raw.asked.name(),
+        boards: raw.boards,
+        io_time_us: IoTime {
+            median: round2(raw.io.median),
+            p99: round2(raw.io.p99),
+            max: finite(raw.io.max),
+            mean: round2(raw.io.mean),
+        },
+        read_us: finite(raw.read),
+        write_us: finite(raw.write),
+        cycles: raw.cycles,
+        errors: raw.errors,
+        model: raw.cycles == 0,
+        max_rate_hz: round2(1e6 / (raw.io.median + compute)),
+        budget: BudgetFit {
+            period_us,
+            total_us: round2(budget.total.as_secs_f64() * 1e6),
+            fits: budget.total < budget.period,
+        },
+        note: raw.note.clone(),
+    }
+}
+
+fn profile_name(p: Profile) -> &'static str {
+    match p {
+        Profile::Seed => "seed",
+        Profile::Rev7 => "7",
+        _ => "8",
+    }
+}
+
+/// Run the benchmark; `progress` hears of each point before it runs.
+pub fn run_bench(
+    options: &BenchOptions,
+    mut progress: impl FnMut(BenchTransport, Protocol, usize),
+) -> Result<BenchReport, TestbedError> {
+    check_board_counts(&options.boards).map_err(TestbedError::Config)?;
+    if options.transports.is_empty() || options.protocols.is_empty() {
+        return Err(TestbedError::Config(
+            "bench: at least one transport and one protocol".into(),
+        ));
+    }
+    let generic = presets::bench_1board();
+    let mut raws: Vec<Raw> = Vec::new();
+    for &t in &options.transports {
+        for &proto in &options.protocols {
+            let mut last: Option<Raw> = None;
+            for &n in &options.boards {
+                if n > 16 {
+                    if let Some(b) = &last {
+                        raws.push(model(b, n));
+                    }
+                    continue;
+                }
+                progress(t, proto, n);
+                // I/O timing needs no motors: idle channels keep the
+                // emulator's plant cheap (it must keep up with the wall
+                // clock over UDP).
+                let cfgs: Vec<_> = rig::board_configs(&generic, options.firmware, n)
+                    .into_iter()
+                    .map(|b| b.with_axes(vec![firelink_board::plant::presets::unused_channel(); 4]))
+                    .collect();
+                let p = match t {
+                    BenchTransport::Sim => {
+                        let (port, _) = rig::sim_port(cfgs, true)?;
+                        point(port, t, proto, n, options)?
+                    }
+                    BenchTransport::Udp => {
+                        let emu = rig::Emulator::start(cfgs)?;
+                        let p = point(emu.port()?, t, proto, n, options);
+                        emu.stop()?;
+                        p?
+                    }
+                };
+                last = Some(p.clone());
+                raws.push(p);
+            }
+        }
+    }
+    let compute = compute_time_us();
+    Ok(BenchReport {
+        results: raws
+            .iter()
+            .map(|r| finish(r, compute, options.period_us))
+            .collect(),
+        compute_us: round2(compute),
+        paper: PaperFigures {
+            sequential_8_us: 496.0,
+            broadcast_8_us: 115.77,
+            source: "seed 000, Fig. 11 and section IV",
+        },
+        firmware: profile_name(options.firmware),
+        cycles: options.cycles,
+    })
+}
+
+impl fmt::Display for BenchReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "I/O time per cycle (us), seed-000 PC model on the simulated bus (sim) and measured over loopback UDP (udp)"
+        )?;
+        writeln!(
+            f,
+            "{:<5} {:<32} {:>6} {:>9} {:>9} {:>9} {:>11} {:>10}  note",
+            "trans", "protocol", "boards", "median", "p99", "max", "max rate", "budget"
+        )?;
+        let num = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.1}"));
+        for r in &self.results {
+            writeln!(
+                f,
+                "{:<5} {:<32} {:>6} {:>9} {:>9} {:>9} {:>8} Hz {:>10}  {}",
+                r.transport,
+                r.protocol,
+                r.boards,
+                num(Some(r.io_time_us.median)),
+                num(Some(r.io_time_us.p99)),
+                num(r.io_time_us.max),
+                num(Some(r.max_rate_hz)),
+                if r.budget.fits { "fits" } else { "over" },
+                r.note.as_deref().unwrap_or("")
+            )?;
+        }
+        let period = self.results.first().map_or(0.0, |r| r.budget.period_us);
+        writeln!(
+            f,
+            "compute (28-axis dVRK cycle, median): {:.1} us; budget = seed 002's t(Te)+t(Tf)+t(Tg) < {period:.1} us",
+            self.compute_us
+        )?;
+        writeln!(
+            f,
+            "paper (seed 000, 8 boards): sequential {} us measured, broadcast {} us",
+            self.paper.sequential_8_us, self.paper.broadcast_8_us
+        )
+    }
+}

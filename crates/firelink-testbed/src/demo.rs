@@ -1,0 +1,883 @@
+//! The demo: seed 000's 28-axis dVRK (or any robot configuration whose
+//! boards are QLA-family boards) on emulated boards: configure, power on,
+//! home, follow trajectories on every arm, optionally inject a fault half
+//! way, power off, and return a typed [`DemoReport`].
+//!
+//! This is the library behind `firelink demo` and the Python package's
+//! `run_demo`: callers choose the port ([`DemoPort`]), the options
+//! ([`DemoOptions`]) and what to do with progress ([`DemoProgress`]); the
+//! report serialises to the JSON `firelink demo --json` prints, and
+//! [`DemoReport::verdict`] says whether the run did what it was asked.
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::net::SocketAddr;
+use std::str::FromStr;
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+
+use firelink_board::config::Profile;
+use firelink_bus::NodeHandle;
+use firelink_bus::fault::{FaultPlan, PacketFault, PacketMatch, TimedFault};
+use firelink_control::config::{IoConfig, presets};
+use firelink_control::runner::loopback::LoopbackPort;
+use firelink_control::runner::{Pacing, Percentiles, Robot, RobotSettings, RunnerError};
+use firelink_control::trajectory::{Motion, PointToPoint, Sinusoid};
+use firelink_control::{FaultKind, FaultReport};
+use firelink_host::Port;
+use firelink_host::io::{IoConfig as HostIoConfig, IoStats, IoSystem};
+use firelink_host::scan::Protocol;
+use firelink_host::sim::SimPort;
+use firelink_host::udp::UdpPort;
+use firelink_wire::packet::Tcode;
+
+use crate::TestbedError;
+use crate::rig;
+
+/// The fault the demo injects half way through its motion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DemoFault {
+    /// No fault: the run must end without one.
+    #[default]
+    None,
+    /// The host stops sending for three watchdog periods.
+    StopHost,
+    /// The next broadcast query is corrupted on the wire.
+    CorruptQuery,
+    /// PSM1's first board (board 4) stops answering for good.
+    BoardLoss,
+    /// Joint 0's setpoint jumps further than it can follow.
+    FollowingError,
+}
+
+impl DemoFault {
+    /// Every fault, in the order the CLI lists them.
+    pub const ALL: [DemoFault; 5] = [
+        DemoFault::None,
+        DemoFault::StopHost,
+        DemoFault::CorruptQuery,
+        DemoFault::BoardLoss,
+        DemoFault::FollowingError,
+    ];
+
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            DemoFault::None => "none",
+            DemoFault::StopHost => "stop-host",
+            DemoFault::CorruptQuery => "corrupt-query",
+            DemoFault::BoardLoss => "board-loss",
+            DemoFault::FollowingError => "following-error",
+        }
+    }
+}
+
+impl fmt::Display for DemoFault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for DemoFault {
+    type Err = TestbedError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        DemoFault::ALL
+            .into_iter()
+            .find(|f| f.name() == s)
+            .ok_or_else(|| {
+                TestbedError::Config(format!(
+                    "unknown fault {s:?}: none, stop-host, corrupt-query, board-loss, following-error"
+                ))
+            })
+    }
+}
+
+/// Where the demo's boards are.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum DemoPort {
+    /// Emulated boards on the simulated bus, in process, virtual time.
+    #[default]
+    Sim,
+    /// The same boards behind an in-process Ethernet-bridge emulator, over
+    /// loopback UDP, wall-clock time.
+    Emulate,
+    /// A running `firelink emulate` or a real bridge board.
+    Udp(SocketAddr),
+    /// The port-level board model (no bus), virtual time.
+    Loopback,
+}
+
+impl DemoPort {
+    /// The pacing that suits the port when the caller does not choose.
+    pub fn default_pacing(&self) -> Pacing {
+        match self {
+            DemoPort::Sim | DemoPort::Loopback => Pacing::Virtual,
+            DemoPort::Emulate | DemoPort::Udp(_) => Pacing::WallClock,
+        }
+    }
+}
+
+impl FromStr for DemoPort {
+    type Err = TestbedError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "sim" => Ok(DemoPort::Sim),
+            "emulate" => Ok(DemoPort::Emulate),
+            "loopback" => Ok(DemoPort::Loopback),
+            p if p.starts_with("udp") => Ok(DemoPort::Udp(UdpPort::parse_address(p)?)),
+            p => Err(TestbedError::Config(format!(
+                "unknown port {p:?}: sim, emulate, loopback or udp:HOST[:PORT]"
+            ))),
+        }
+    }
+}
+
+/// What the real-time setup of the calling thread achieved (the CLI does
+/// it; the library only reports it).
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct RealtimeStatus {
+    /// Whether real-time settings were asked for at all.
+    pub requested: bool,
+    /// SCHED_FIFO at this priority, if it was granted.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sched_fifo_priority: Option<i32>,
+    /// mlockall succeeded.
+    pub memory_locked: bool,
+    /// The timer slack is 1 ns.
+    pub timer_slack_1ns: bool,
+    /// Why the others did not happen.
+    pub errors: Vec<String>,
+}
+
+/// Options of a demo run.
+#[derive(Debug, Clone)]
+pub struct DemoOptions {
+    /// The robot (default: seed 000's dVRK, 28 axes on 8 QLA1 boards).
+    pub config: IoConfig,
+    /// Control rate, Hz.
+    pub rate_hz: f64,
+    /// I/O protocol.
+    pub protocol: Protocol,
+    /// Seconds of motion after homing.
+    pub duration_s: f64,
+    /// Where the boards are.
+    pub port: DemoPort,
+    /// Firmware of the emulated boards (sim, emulate, loopback).
+    pub firmware: Profile,
+    /// The fault to inject half way.
+    pub fault: DemoFault,
+    /// Pacing; `None`: the port's default.
+    pub pacing: Option<Pacing>,
+    /// Board watchdog period; `None` turns the watchdogs off.
+    pub watchdog: Option<Duration>,
+}
+
+impl Default for DemoOptions {
+    fn default() -> Self {
+        DemoOptions {
+            config: presets::dvrk_seed000(),
+            rate_hz: 6000.0,
+            protocol: Protocol::Broadcast,
+            duration_s: 3.0,
+            port: DemoPort::Sim,
+            firmware: Profile::Rev8,
+            fault: DemoFault::None,
+            pacing: None,
+            watchdog: Some(Duration::from_millis(20)),
+        }
+    }
+}
+
+/// What the demo is doing, for a progress display.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DemoProgress {
+    /// Boards found.
+    Found {
+        /// Boards.
+        boards: usize,
+        /// The port's name.
+        port: String,
+        /// Why this protocol.
+        reason: String,
+        /// The protocol in use.
+        protocol: &'static str,
+    },
+    /// The watchdog is off: the caller should say so loudly.
+    WatchdogOff,
+    /// Boards configured.
+    Configured,
+    /// Power is on, at this port time (s).
+    Powered(f64),
+    /// Every joint homed and the robot active, at this port time (s).
+    Homed(f64),
+    /// A periodic tick while moving.
+    Tick {
+        /// Port time, s.
+        t: f64,
+        /// Cycles so far.
+        cycles: u64,
+        /// Median I/O time over the last 2000 cycles, us.
+        io_median_us: f64,
+        /// Errors so far.
+        errors: u64,
+    },
+    /// The fault is being injected.
+    Injecting(DemoFault),
+    /// The robot faulted.
+    Fault(String),
+    /// After the fault: the state and whether any amplifier is on.
+    SafetyChain {
+        /// Robot state.
+        state: String,
+        /// Any amplifier still on.
+        amplifiers_on: bool,
+    },
+    /// Powered off, after this much wall time (s).
+    PoweredOff(f64),
+}
+
+/// Median, p99, max and mean of a time series, microseconds (two decimals).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct TimeStats {
+    /// Median.
+    pub median: f64,
+    /// 99th percentile.
+    pub p99: f64,
+    /// Maximum.
+    pub max: f64,
+    /// Mean.
+    pub mean: f64,
+}
+
+impl TimeStats {
+    fn of(samples: &mut [f32]) -> TimeStats {
+        let p = Percentiles::of(samples);
+        TimeStats {
+            median: round2(p.median),
+            p99: round2(p.p99),
+            max: round2(p.max),
+            mean: round2(p.mean),
+        }
+    }
+}
+
+fn round2(x: f64) -> f64 {
+    (x * 100.0).round() / 100.0
+}
+
+/// One arm's tracking error.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TrackingDetail {
+    /// Revolute joints: RMS error, rad.
+    pub rms_rad: f64,
+    /// Revolute joints: largest error, rad.
+    pub max_rad: f64,
+    /// Prismatic joints: RMS error, mm.
+    pub prismatic_rms_mm: f64,
+    /// Prismatic joints: largest error, mm.
+    pub prismatic_max_mm: f64,
+    /// Joint samples.
+    pub samples: u64,
+}
+
+/// Errors by kind over the run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ErrorCounts {
+    /// All errors.
+    pub total: u64,
+    /// Time-outs.
+    pub timeouts: u64,
+    /// Bus resets.
+    pub bus_resets: u64,
+    /// Bad packets.
+    pub bad_packets: u64,
+    /// Error acks or rcodes.
+    pub nacks: u64,
+    /// Sequence errors.
+    pub sequence_errors: u64,
+    /// Corrupt queries reported by boards.
+    pub corrupt_queries: u64,
+    /// Blocks naming the wrong board.
+    pub wrong_board: u64,
+    /// Blocks of the wrong size.
+    pub block_size: u64,
+    /// Other failures.
+    pub other: u64,
+    /// Misses per board ID.
+    pub missed_by_board: Vec<u64>,
+}
+
+impl From<&IoStats> for ErrorCounts {
+    fn from(s: &IoStats) -> Self {
+        ErrorCounts {
+            total: s.total_errors(),
+            timeouts: s.timeouts,
+            bus_resets: s.bus_resets,
+            bad_packets: s.bad_packets,
+            nacks: s.nacks,
+            sequence_errors: s.sequence_errors,
+            corrupt_queries: s.corrupt_queries,
+            wrong_board: s.wrong_board,
+            block_size: s.block_size,
+            other: s.other,
+            missed_by_board: s.missed_by_board.to_vec(),
+        }
+    }
+}
+
+/// The watchdog setting and which boards' watchdogs expired.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct WatchdogReport {
+    /// Period, ms (0: off).
+    pub period_ms: f64,
+    /// Boards whose watchdog had expired at the end of the motion.
+    pub expired_boards: Vec<u8>,
+}
+
+/// The fault the robot raised.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FaultSummary {
+    /// The fault's kind, e.g. `MissedBoard`.
+    pub kind: String,
+    /// The board it names, if any.
+    pub board: Option<u8>,
+    /// Port time, s.
+    pub time_s: f64,
+    /// Cycle.
+    pub cycle: u64,
+    /// One line for people.
+    pub text: String,
+}
+
+impl From<&FaultReport> for FaultSummary {
+    fn from(f: &FaultReport) -> Self {
+        let kind = format!("{:?}", f.kind);
+        let name = kind.split([' ', '{', '(']).next().unwrap_or("").to_string();
+        let board = match f.kind {
+            FaultKind::MissedBoard { board_id, .. }
+            | FaultKind::Sequence { board_id, .. }
+            | FaultKind::Watchdog { board_id }
+            | FaultKind::Power { board_id }
+            | FaultKind::Amplifier { board_id, .. } => Some(board_id),
+            _ => None,
+        };
+        FaultSummary {
+            kind: name,
+            board,
+            time_s: f.time,
+            cycle: f.cycle,
+            text: f.to_string(),
+        }
+    }
+}
+
+/// What a demo run did; serialises to `firelink demo --json`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DemoReport {
+    /// The port's name.
+    pub port: String,
+    /// Boards found.
+    pub boards: usize,
+    /// Axes driven.
+    pub axes: usize,
+    /// Firmware of the first board.
+    pub firmware: Option<u32>,
+    /// I/O protocol used.
+    pub protocol: String,
+    /// Control rate, Hz.
+    pub rate_hz: f64,
+    /// `virtual` or `realtime`.
+    pub pacing: String,
+    /// Servo cycles run.
+    pub cycles: u64,
+    /// Cycles after homing.
+    pub motion_cycles: u64,
+    /// Time on the port's clock at the end, s.
+    pub port_time_s: f64,
+    /// Wall time of the run, s.
+    pub wall_time_s: f64,
+    /// Virtual seconds per wall second.
+    pub speed_vs_real_time: f64,
+    /// Whole cycle time, us.
+    pub cycle_time_us: TimeStats,
+    /// I/O part of the cycle, us.
+    pub io_time_us: TimeStats,
+    /// Computation part of the cycle, us.
+    pub compute_time_us: TimeStats,
+    /// Late cycles (wall-clock pacing).
+    pub overruns: u64,
+    /// The calling thread's real-time settings.
+    pub realtime: RealtimeStatus,
+    /// RMS tracking error per arm over its revolute joints, rad.
+    pub tracking_error: BTreeMap<String, f64>,
+    /// What `tracking_error` measures.
+    pub tracking_error_unit: &'static str,
+    /// Tracking error per arm, every figure.
+    pub tracking_error_detail: BTreeMap<String, TrackingDetail>,
+    /// I/O errors by kind.
+    pub errors: ErrorCounts,
+    /// Watchdog.
+    pub watchdog: WatchdogReport,
+    /// The fault injected.
+    pub fault_injected: &'static str,
+    /// The fault the robot raised, if any.
+    pub fault: Option<FaultSummary>,
+    /// State at the end of the motion.
+    pub state_after_run: String,
+    /// After a fault: whether any amplifier was still on.
+    pub amplifiers_on_after_fault: Option<bool>,
+    /// Boards not answering at the end of the motion.
+    pub boards_not_answering: Vec<u8>,
+    /// Final state (after power-off).
+    pub state: String,
+}
+
+impl DemoReport {
+    /// Whether the run did what it was asked: no fault when none was
+    /// injected; with one injected, the fault detected and every amplifier
+    /// off afterwards. The error says what went wrong.
+    pub fn verdict(&self) -> Result<(), String> {
+        let injected = self.fault_injected != DemoFault::None.name();
+        match (&self.fault, injected) {
+            (None, true) => Err(format!(
+                "the injected fault {} was not detected",
+                self.fault_injected
+            )),
+            (Some(_), false) => Err("the run ended in a fault".into()),
+            (Some(_), true) if self.amplifiers_on_after_fault == Some(true) => {
+                Err("amplifiers still on after the fault".into())
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+impl fmt::Display for DemoReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let arms: Vec<&str> = self.tracking_error.keys().map(String::as_str).collect();
+        writeln!(f, "Firelink demo: {} axes ({})", self.axes, arms.join(", "))?;
+        writeln!(
+            f,
+            "  port {}  boards {}  axes {}  firmware {}  protocol {}  rate {} Hz  pacing {}",
+            self.port,
+            self.boards,
+            self.axes,
+            self.firmware.map_or("?".to_string(), |v| v.to_string()),
+            self.protocol,
+            self.rate_hz,
+            self.pacing
+        )?;
+        writeln!(
+            f,
+            "  cycles {} ({} with motion), {:.3} s on the port's clock, {:.2} s wall ({:.2}x real time)",
+            self.cycles,
+            self.motion_cycles,
+            self.port_time_s,
+            self.wall_time_s,
+            self.speed_vs_real_time
+        )?;
+        writeln!(
+            f,
+            "  late cycles (started over half a period late, wall-clock pacing): {}",
+            self.overruns
+        )?;
+        for (name, p) in [
+            ("cycle time", &self.cycle_time_us),
+            ("I/O time", &self.io_time_us),
+            ("compute", &self.compute_time_us),
+        ] {
+            writeln!(
+                f,
+                "  {name:<10} median {:8.2} us  p99 {:8.2} us  max {:8.2} us",
+                p.median, p.p99, p.max
+            )?;
+        }
+        writeln!(f, "  tracking error (RMS; revolute rad, prismatic mm):")?;
+        for (arm, t) in &self.tracking_error_detail {
+            writeln!(
+                f,
+                "    {arm:<5} {:.5} rad (max {:.5})  prismatic {:.3} mm (max {:.3})",
+                t.rms_rad, t.max_rad, t.prismatic_rms_mm, t.prismatic_max_mm
+            )?;
+        }
+        let e = &self.errors;
+        writeln!(
+            f,
+            "  errors: total {}  timeouts {}  sequence {}  corrupt queries {}  bus resets {}  bad packets {}  nacks {}",
+            e.total,
+            e.timeouts,
+            e.sequence_errors,
+            e.corrupt_queries,
+            e.bus_resets,
+            e.bad_packets,
+            e.nacks
+        )?;
+        writeln!(
+            f,
+            "  watchdog: {} ms, expired on boards {:?}",
+            self.watchdog.period_ms, self.watchdog.expired_boards
+        )?;
+        match &self.fault {
+            None => writeln!(f, "  faults: none; final state {}", self.state),
+            Some(fl) => writeln!(
+                f,
+                "  FAULT ({} injected): {}\n  safety chain: left active, amplifiers {}",
+                self.fault_injected,
+                fl.text,
+                if self.amplifiers_on_after_fault == Some(true) {
+                    "STILL ON"
+                } else {
+                    "off"
+                }
+            ),
+        }
+    }
+}
+
+/// The board whose loss the demo simulates (PSM1's first board).
+const LOST_BOARD: u8 = 4;
+
+/// Port-specific fault injection.
+trait Injector: Port {
+    fn inject(&mut self, fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError>;
+}
+
+impl Injector for SimPort {
+    fn inject(&mut self, fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError> {
+        match fault {
+            DemoFault::StopHost => self.wait(watchdog * 3),
+            DemoFault::CorruptQuery => {
+                let m = PacketMatch::any()
+                    .tcode(Tcode::WriteQuadletRequest)
+                    .offset(0x1800);
+                self.bus_mut().set_fault_plan(FaultPlan::new().once(
+                    m,
+                    PacketFault::CorruptQuadlet {
+                        index: 3,
+                        xor: 0x0100_0000,
+                    },
+                ));
+            }
+            DemoFault::BoardLoss => {
+                let now = self.bus().now();
+                // Handles are in order of addition: the PC, then boards 0...
+                let node = NodeHandle(usize::from(LOST_BOARD) + 1);
+                self.bus_mut().set_fault_plan(FaultPlan::new().at(
+                    now,
+                    TimedFault::StopAnswering {
+                        node,
+                        duration: None,
+                    },
+                ));
+            }
+            DemoFault::None | DemoFault::FollowingError => {}
+        }
+        Ok(())
+    }
+}
+
+impl Injector for LoopbackPort {
+    fn inject(&mut self, fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError> {
+        match fault {
+            DemoFault::StopHost => self.advance(watchdog * 3),
+            DemoFault::CorruptQuery => self.corrupt_next_queries(1),
+            DemoFault::BoardLoss => self.set_board_lost(LOST_BOARD, true),
+            DemoFault::FollowingError => self.set_axis_blocked(0, 0, true),
+            DemoFault::None => {}
+        }
+        Ok(())
+    }
+}
+
+impl Injector for UdpPort {
+    fn inject(&mut self, fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError> {
+        match fault {
+            DemoFault::StopHost => std::thread::sleep(watchdog * 3),
+            DemoFault::CorruptQuery | DemoFault::BoardLoss => {
+                return Err(TestbedError::Config(format!(
+                    "fault {} needs the sim or loopback port (the bus is in another process)",
+                    fault.name()
+                )));
+            }
+            DemoFault::None | DemoFault::FollowingError => {}
+        }
+        Ok(())
+    }
+}
+
+/// The motions: on every arm, even joints follow a sinusoid (10 % of the
+/// joint's range, 0.4 to 0.7 Hz), odd joints move point to point by 5 %.
+fn motion_for(config: &IoConfig, i: usize, here: f64) -> Motion {
+    let Some(j) = config.joints().nth(i) else {
+        return Motion::Hold(here);
+    };
+    let a = j.actuator;
+    let span = a.encoder.position_limits_soft.span();
+    let (v, acc) = a.limits.map_or((0.5, 2.0), |l| {
+        (0.3 * l.velocity, l.acceleration.unwrap_or(1.0) * 0.3)
+    });
+    if i % 2 == 0 {
+        let f = 0.4 + 0.1 * (i % 4) as f64;
+        Sinusoid::new(0.05 * span, f, 0.0, here, 0.5)
+            .map(Motion::Sinusoid)
+            .unwrap_or(Motion::Hold(here))
+    } else {
+        PointToPoint::new(here, here + 0.05 * span, v, acc)
+            .map(Motion::PointToPoint)
+            .unwrap_or(Motion::Hold(here))
+    }
+}
+
+/// Run the demo. `realtime` is called once the port is open, on the
+/// calling thread, when the pacing is wall-clock (the CLI passes its
+/// SCHED_FIFO/mlockall setup; `None`: no real-time settings).
+pub fn run_demo(
+    options: &DemoOptions,
+    realtime: Option<&dyn Fn() -> RealtimeStatus>,
+    mut progress: impl FnMut(DemoProgress),
+) -> Result<DemoReport, TestbedError> {
+    if !(options.rate_hz.is_finite() && options.rate_hz > 0.0) {
+        return Err(TestbedError::Config(format!(
+            "rate {} Hz: must be above 0",
+            options.rate_hz
+        )));
+    }
+    if !(options.duration_s.is_finite() && options.duration_s > 0.0) {
+        return Err(TestbedError::Config(format!(
+            "duration {} s: must be above 0",
+            options.duration_s
+        )));
+    }
+    let config = &options.config;
+    // Boards 0..=the highest board ID the configuration uses.
+    let boards = config
+        .boards()
+        .iter()
+        .map(|b| usize::from(b.board_id) + 1)
+        .max()
+        .unwrap_or(0);
+    let pacing = options
+        .pacing
+        .unwrap_or_else(|| options.port.default_pacing());
+    match &options.port {
+        DemoPort::Sim => {
+            let (port, _) =
+                rig::sim_port(rig::board_configs(config, options.firmware, boards), false)?;
+            run_robot(port, options, "sim".into(), pacing, realtime, &mut progress)
+        }
+        DemoPort::Loopback => {
+            let port = LoopbackPort::from_config(config, |i| rig::start_position(config, i));
+            run_robot(
+                port,
+                options,
+                "loopback".into(),
+                pacing,
+                realtime,
+                &mut progress,
+            )
+        }
+        DemoPort::Emulate => {
+            let emu = rig::Emulator::start(rig::board_configs(config, options.firmware, boards))?;
+            let name = format!("udp:{} (in-process firelink emulate)", emu.addr);
+            let report = run_robot(emu.port()?, options, name, pacing, realtime, &mut progress);
+            emu.stop()?;
+            report
+        }
+        DemoPort::Udp(addr) => {
+            let mut port = UdpPort::open(*addr)?;
+            port.set_timeout(Duration::from_millis(20));
+            run_robot(
+                port,
+                options,
+                format!("udp:{addr}"),
+                pacing,
+                realtime,
+                &mut progress,
+            )
+        }
+    }
+}
+
+/// The periodic progress event: the median I/O time of the last 2000 cycles.
+fn tick<P: Port>(r: &Robot<P>) -> DemoProgress {
+    let mut io = r.times().io_us.clone();
+    let n = io.len().min(2000);
+    let start = io.len() - n;
+    let p = Percentiles::of(&mut io[start..]);
+    DemoProgress::Tick {
+        t: r.now(),
+        cycles: r.cycles(),
+        io_median_us: p.median,
+        errors: r.io_stats().total_errors(),
+    }
+}
+
+/// Run the demo on any injectable port.
+fn run_robot<P: Injector>(
+    port: P,
+    options: &DemoOptions,
+    port_name: String,
+    pacing: Pacing,
+    realtime: Option<&dyn Fn() -> RealtimeStatus>,
+    progress: &mut dyn FnMut(DemoProgress),
+) -> Result<DemoReport, TestbedError> {
+    let rt = match (pacing, realtime) {
+        (Pacing::WallClock, Some(setup)) => setup(),
+        _ => RealtimeStatus::default(),
+    };
+    let config = &options.config;
+    let wall = Instant::now();
+    let (io, scan) = IoSystem::open(
+        port,
+        HostIoConfig {
+            protocol: Some(options.protocol),
+            ..HostIoConfig::default()
+        },
+    )?;
+    progress(DemoProgress::Found {
+        boards: scan.boards.len(),
+        port: port_name.clone(),
+        reason: scan.protocol_reason.to_string(),
+        protocol: io.protocol().name(),
+    });
+    if options.watchdog.is_none() {
+        progress(DemoProgress::WatchdogOff);
+    }
+    let watchdog = options.watchdog.unwrap_or(Duration::ZERO);
+    let settings = RobotSettings {
+        rate_hz: options.rate_hz,
+        watchdog,
+        ..RobotSettings::default()
+    };
+    let mut robot = Robot::new(io, config, settings)?;
+    robot.configure()?;
+    progress(DemoProgress::Configured);
+    robot.power_on()?;
+    progress(DemoProgress::Powered(robot.now()));
+    robot.home()?;
+    robot.activate()?;
+    progress(DemoProgress::Homed(robot.now()));
+    for i in 0..robot.joint_count() {
+        let here = robot.position(i).unwrap_or(0.0);
+        robot.set_motion(i, motion_for(config, i, here))?;
+    }
+    robot.reset_tracking();
+    let setup_cycles = robot.cycles();
+    let rate = options.rate_hz;
+    let total = (options.duration_s * rate).round() as u64;
+    let every = (rate / 4.0).max(1.0) as u64;
+    let half = total / 2;
+    let inject = options.fault;
+    let first = if inject == DemoFault::None {
+        total
+    } else {
+        half
+    };
+    let mut outcome = robot.run(first, pacing, every, |r| progress(tick(r)));
+    if outcome.is_ok() && inject != DemoFault::None {
+        progress(DemoProgress::Injecting(inject));
+        robot.io_mut().port_mut().inject(inject, watchdog)?;
+        if inject == DemoFault::FollowingError {
+            // A setpoint jump the joint cannot follow within the grace time.
+            let _ = robot.step_setpoint(0, 0.5);
+        }
+        outcome = robot.run(total - half, pacing, every, |r| progress(tick(r)));
+    }
+    let mut fault: Option<FaultReport> = None;
+    match outcome {
+        Ok(()) => {}
+        Err(RunnerError::Fault(f)) => {
+            fault = Some(f);
+            progress(DemoProgress::Fault(f.to_string()));
+            // Cycles in Fault for twice the watchdog period: outputs stay
+            // safe, and a board that stopped answering has time to turn
+            // its own amplifiers off.
+            let n = ((2.0 * watchdog.as_secs_f64() * rate).ceil() as u64).max(3);
+            for _ in 0..n {
+                let _ = robot.step(Pacing::Virtual);
+            }
+            progress(DemoProgress::SafetyChain {
+                state: robot.state().to_string(),
+                amplifiers_on: robot.any_amp_on(),
+            });
+        }
+        Err(e) => return Err(e.into()),
+    }
+    let amps_after_fault = robot.any_amp_on();
+    let boards = robot.io().boards();
+    let silent: Vec<u8> = boards
+        .iter()
+        .filter(|b| !b.is_valid())
+        .map(|b| b.board_id())
+        .collect();
+    let expired: Vec<u8> = boards
+        .iter()
+        .filter(|b| b.watchdog_expired())
+        .map(|b| b.board_id())
+        .collect();
+    let state_after = robot.state().to_string();
+    let motion_cycles = robot.cycles() - setup_cycles;
+    robot.shutdown()?;
+    let wall_s = wall.elapsed().as_secs_f64();
+    progress(DemoProgress::PoweredOff(wall_s));
+    let times = robot.times().clone();
+    let (mut c, mut io, mut comp) = (times.cycle_us, times.io_us, times.compute_us);
+    let mut tracking_error = BTreeMap::new();
+    let mut tracking_error_detail = BTreeMap::new();
+    for t in robot.tracking() {
+        tracking_error.insert(t.name.clone(), t.rms_rad);
+        tracking_error_detail.insert(
+            t.name.clone(),
+            TrackingDetail {
+                rms_rad: t.rms_rad,
+                max_rad: t.max_rad,
+                prismatic_rms_mm: t.rms_mm,
+                prismatic_max_mm: t.max_mm,
+                samples: t.samples,
+            },
+        );
+    }
+    let port_time_s = robot.now();
+    Ok(DemoReport {
+        port: port_name,
+        boards: robot.io().boards().len(),
+        axes: robot.joint_count(),
+        firmware: robot.io().boards().first().map(|b| b.info().firmware),
+        protocol: robot.io().protocol().name().to_string(),
+        rate_hz: rate,
+        pacing: match pacing {
+            Pacing::Virtual => "virtual",
+            Pacing::WallClock => "realtime",
+        }
+        .to_string(),
+        cycles: robot.cycles(),
+        motion_cycles,
+        port_time_s,
+        wall_time_s: wall_s,
+        speed_vs_real_time: if wall_s > 0.0 {
+            port_time_s / wall_s
+        } else {
+            0.0
+        },
+        cycle_time_us: TimeStats::of(&mut c),
+        io_time_us: TimeStats::of(&mut io),
+        compute_time_us: TimeStats::of(&mut comp),
+        overruns: times.overruns,
+        realtime: rt,
+        tracking_error,
+        tracking_error_unit: "rad RMS over each arm's revolute joints (prismatic: tracking_error_detail, mm)",
+        tracking_error_detail,
+        errors: ErrorCounts::from(robot.io_stats()),
+        watchdog: WatchdogReport {
+            period_ms: watchdog.as_secs_f64() * 1e3,
+            expired_boards: expired,
+        },
+        fault_injected: inject.name(),
+        fault: fault.as_ref().map(FaultSummary::from),
+        state_after_run: state_after,
+        amplifiers_on_after_fault: fault.map(|_| amps_after_fault),
+        boards_not_answering: silent,
+        state: robot.state().to_string(),
+    })
+}
