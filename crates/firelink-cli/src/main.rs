@@ -181,6 +181,9 @@ pub enum CliError {
     /// The host library failed.
     #[error(transparent)]
     Host(#[from] firelink_host::HostError),
+    /// A packet record could not be decoded or encoded.
+    #[error(transparent)]
+    Packet(#[from] firelink_host::packet_json::PacketJsonError),
     /// A run finished and its verdict is "failed" (the report says why).
     #[error("{0}")]
     Failed(String),

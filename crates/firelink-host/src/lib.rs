@@ -23,6 +23,7 @@ pub mod board;
 pub mod error;
 pub mod io;
 pub mod pacing;
+pub mod packet_json;
 pub mod port;
 pub mod scan;
 pub mod sim;
