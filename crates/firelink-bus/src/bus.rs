@@ -33,7 +33,7 @@
 
 use std::cmp::Reverse;
 use std::collections::{BTreeMap, BinaryHeap, VecDeque};
-use std::rc::Rc;
+use std::sync::Arc;
 
 use firelink_wire::crc::crc1394;
 use firelink_wire::packet::{Ack, NodeId, Speed, Tcode};
@@ -160,7 +160,7 @@ enum Medium {
 
 #[derive(Debug)]
 struct Pending {
-    bytes: Rc<[u8]>,
+    bytes: Arc<[u8]>,
     speed: Speed,
     class: ArbitrationClass,
     token: Option<u64>,
@@ -197,7 +197,7 @@ struct Sub {
     kind: PacketKind,
     sender: usize,
     sender_phy: u8,
-    bytes: Rc<[u8]>,
+    bytes: Arc<[u8]>,
     speed: Speed,
     token: Option<u64>,
     dest: Option<usize>,
@@ -1041,7 +1041,7 @@ impl Bus {
                 continue;
             }
             self.slots[idx].queue.push_back(Pending {
-                bytes: Rc::from(packet),
+                bytes: Arc::from(packet),
                 speed,
                 class,
                 token: Some(token),
@@ -1131,7 +1131,7 @@ impl Bus {
             self.injector.rng.fill_bytes(&mut bytes);
             let speed = self.slots[i].cfg.max_speed;
             self.slots[i].queue.push_front(Pending {
-                bytes: Rc::from(bytes),
+                bytes: Arc::from(bytes),
                 speed,
                 class: ArbitrationClass::Isochronous,
                 token: None,
@@ -1207,7 +1207,7 @@ impl Bus {
             }
             let start = now + hop * u64::from(depth) + self.cfg.timing.arbitration_base;
             if pending.kind == PacketKind::CycleStart {
-                pending.bytes = Rc::from(cycle_start_packet(phy, start));
+                pending.bytes = Arc::from(cycle_start_packet(phy, start));
             }
             if pending.class == ArbitrationClass::Fair && pending.kind != PacketKind::CycleStart {
                 self.slots[idx].arb_enable = false;
@@ -1286,7 +1286,7 @@ impl Bus {
             if let Some(keep) = d.truncate {
                 bytes.truncate(keep.max(4));
             }
-            sub.bytes = Rc::from(bytes);
+            sub.bytes = Arc::from(bytes);
         }
         for (what, _, rule) in d.fired {
             let id = self.log.add(
@@ -1563,7 +1563,7 @@ impl Bus {
                 bits_end,
                 end,
                 speed: sub.speed,
-                bytes: Rc::from(&[byte][..]),
+                bytes: Arc::from(&[byte][..]),
                 answers: Some(sub.id),
                 generation: self.generation,
                 faults,
@@ -1650,7 +1650,7 @@ impl Bus {
                     kind: PacketKind::ConcatResponse,
                     sender: dest,
                     sender_phy: dest_phy,
-                    bytes: Rc::from(bytes),
+                    bytes: Arc::from(bytes),
                     speed,
                     token: None,
                     dest: None,
@@ -1880,7 +1880,7 @@ impl Bus {
                     bits_end,
                     end,
                     speed: Speed::S100,
-                    bytes: Rc::from(phy_packet_bytes(&packet)),
+                    bytes: Arc::from(phy_packet_bytes(&packet)),
                     answers: None,
                     generation: self.generation,
                     faults: Vec::new(),
@@ -1951,7 +1951,7 @@ impl Bus {
             .is_some_and(|p| p.kind == PacketKind::CycleStart)
         {
             slot.queue.push_front(Pending {
-                bytes: Rc::from(Vec::new()),
+                bytes: Arc::from(Vec::new()),
                 speed: Speed::S100,
                 class: ArbitrationClass::Priority,
                 token: None,

@@ -167,8 +167,9 @@ impl<T: Any> AsAny for T {
 
 /// A device on the bus. Behaviour is pluggable: the emulated boards, the
 /// PC's link ([`HostLink`](crate::host::HostLink)) and test responders all
-/// implement this one trait.
-pub trait Node: Any + AsAny {
+/// implement this one trait. Nodes are `Send` so that a whole bus can move
+/// to another thread (the Python package releases the GIL while it runs).
+pub trait Node: Any + AsAny + Send {
     /// A short name for traces.
     fn name(&self) -> &str;
 

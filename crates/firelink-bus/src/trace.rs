@@ -14,7 +14,7 @@
 //! and every picosecond).
 
 use std::fmt::Write as _;
-use std::rc::Rc;
+use std::sync::Arc;
 
 use firelink_wire::packet::{Ack, Packet, Speed, Tcode};
 
@@ -86,7 +86,7 @@ pub struct PacketRecord {
     pub speed: Speed,
     /// The bytes as transmitted (after injected corruption). An ack is its
     /// one ack byte; a PHY packet its link-internal form.
-    pub bytes: Rc<[u8]>,
+    pub bytes: Arc<[u8]>,
     /// For acks and concatenated responses: the packet answered.
     pub answers: Option<PacketId>,
     /// Bus generation at transmission.
@@ -398,7 +398,7 @@ mod tests {
             bits_end: SimTime(10),
             end: SimTime(20),
             speed: Speed::S400,
-            bytes: Rc::from(&[Ack::Pending.to_byte()][..]),
+            bytes: Arc::from(&[Ack::Pending.to_byte()][..]),
             answers: Some(2),
             generation: 1,
             faults: vec![],

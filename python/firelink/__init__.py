@@ -1,0 +1,196 @@
+"""Firelink from Python: real-time robot control over IEEE 1394 / UDP.
+
+The package sits on the Rust library: the host library (ports, discovery,
+the I/O protocols, register access), the testbed (emulated boards on the
+simulated bus, the in-process emulator, the demo and the benchmark) and the
+configuration loader. Calls that do I/O or simulation release the GIL.
+
+Quick start::
+
+    import firelink
+    io = firelink.IoSystem("sim")          # 8 emulated QLA boards, simulated bus
+    io.read_all(); print(io.encoder_counts())
+    with firelink.Emulator(boards=4) as emu:
+        port = firelink.open(emu.address)
+        print(port.scan())
+
+Port descriptions: ``"sim"`` (8 boards, firmware Rev 8), ``"sim:N"`` or
+``"sim:N:FW"`` (N boards 1..16, FW 7, 8 or seed), ``"loopback"`` (the
+port-level board model, no bus), ``"udp:HOST[:PORT]"`` (a running
+``firelink emulate`` or a real bridge board).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Iterator, Mapping
+from os import PathLike
+from typing import Any, Optional, Union
+
+from . import _firelink
+from ._errors import (
+    BusError,
+    BusTimeout,
+    ConfigError,
+    EmulatorClosed,
+    FirelinkError,
+    InvalidRequest,
+    NoBoardsError,
+    PacketError,
+    PortError,
+)
+from ._firelink import Board, Config, Emulator, IoSystem, Port, crc1394, load_config, parse_config
+
+__all__ = [
+    "Board",
+    "BusError",
+    "BusTimeout",
+    "Config",
+    "ConfigError",
+    "Emulator",
+    "EmulatorClosed",
+    "FirelinkError",
+    "InvalidRequest",
+    "IoSystem",
+    "NoBoardsError",
+    "PacketError",
+    "Port",
+    "PortError",
+    "Report",
+    "crc1394",
+    "decode_packet",
+    "encode_packet",
+    "load_config",
+    "open",
+    "parse_config",
+    "run_bench",
+    "run_demo",
+]
+
+
+def open(port: str) -> Port:  # noqa: A001 - the natural name, as in io.open
+    """Open a port from its description (see the module docstring)."""
+    if not isinstance(port, str):
+        raise PortError(f"a port description is a string, not {type(port).__name__}")
+    return Port(port)
+
+
+class Report(Mapping[str, Any]):
+    """A typed report (demo or benchmark): read-only, attribute access
+    (``report.errors.total``) and mapping access (``report["errors"]``);
+    ``to_dict()`` gives plain dicts and lists, ``to_json()`` the same JSON
+    as the command line's ``--json``."""
+
+    __slots__ = ("_data",)
+
+    def __init__(self, data: Mapping[str, Any]) -> None:
+        object.__setattr__(self, "_data", dict(data))
+
+    @staticmethod
+    def _wrap(value: Any) -> Any:
+        if isinstance(value, dict):
+            return Report(value)
+        if isinstance(value, list):
+            return [Report._wrap(v) for v in value]
+        return value
+
+    def __getattr__(self, name: str) -> Any:
+        try:
+            return Report._wrap(self._data[name])
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError("a Report is read-only")
+
+    def __getitem__(self, key: str) -> Any:
+        return Report._wrap(self._data[key])
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def __repr__(self) -> str:
+        keys = ", ".join(list(self._data)[:6])
+        return f"Report({keys}{', ...' if len(self._data) > 6 else ''})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The report as plain dicts and lists."""
+        return json.loads(json.dumps(self._data))
+
+    def to_json(self) -> str:
+        """The report as JSON text."""
+        return json.dumps(self._data)
+
+
+def run_demo(
+    port: str = "sim",
+    *,
+    duration: float = 3.0,
+    rate: float = 6000.0,
+    protocol: str = "broadcast",
+    firmware: str = "8",
+    fault: str = "none",
+    pacing: Optional[str] = None,
+    watchdog_ms: Optional[float] = 20.0,
+    config: Optional[Union[Config, str, PathLike[str]]] = None,
+) -> Report:
+    """Run the demo (``firelink demo``) and return its report.
+
+    ``port``: ``sim``, ``emulate``, ``loopback`` or ``udp:HOST[:PORT]``;
+    ``fault``: ``none``, ``stop-host``, ``corrupt-query``, ``board-loss`` or
+    ``following-error``; ``watchdog_ms=None`` turns the boards' watchdogs
+    off; ``config``: a ``Config`` or a configuration file (default: seed
+    000's dVRK). ``report.verdict`` is ``"ok"`` or says what went wrong.
+    """
+    if config is not None and not isinstance(config, Config):
+        config = load_config(config)
+    text = _firelink.run_demo_json(
+        port, float(duration), float(rate), protocol, firmware, fault, pacing,
+        None if watchdog_ms is None else float(watchdog_ms), config,
+    )
+    return Report(json.loads(text))
+
+
+def run_bench(
+    *,
+    transports: Iterable[str] = ("sim", "udp"),
+    boards: Iterable[int] = (2, 4, 8, 16, 32, 62),
+    protocols: Iterable[str] = ("sequential", "broadcast"),
+    cycles: int = 1000,
+    firmware: str = "8",
+    plot: Optional[Union[str, PathLike[str]]] = None,
+) -> Report:
+    """Run the benchmark of seed 000's Fig. 11 (``firelink bench``); with
+    ``plot``, also draw the figure into that PNG file."""
+    text = _firelink.run_bench_json(
+        [str(t) for t in transports], [int(b) for b in boards],
+        [str(p) for p in protocols], int(cycles), firmware,
+        None if plot is None else str(plot),
+    )
+    return Report(json.loads(text))
+
+
+def decode_packet(data: bytes, *, bridge: bool = False) -> dict[str, Any]:
+    """Decode one IEEE 1394 packet (with ``bridge``, a host-to-bridge
+    datagram) into its fields; raises ``PacketError`` naming what is wrong."""
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise PacketError(f"decode_packet takes bytes, not {type(data).__name__}")
+    return json.loads(_firelink.decode_packet_json(bytes(data), bridge))
+
+
+def encode_packet(fields: Optional[Mapping[str, Any]] = None, *, bridge: bool = False, **kw: Any) -> bytes:
+    """Build a packet from its fields (the keys ``decode_packet`` gives, as a
+    mapping and/or keywords); raises ``PacketError`` naming a missing or
+    out-of-range field."""
+    merged = dict(fields or {})
+    merged.update(kw)
+    for key in ("header_crc_ok", "data_crc_ok", "packet_length"):
+        merged.pop(key, None)
+    try:
+        text = json.dumps(merged)
+    except TypeError as e:
+        raise PacketError(f"packet fields must be numbers and strings: {e}") from None
+    return _firelink.encode_packet_json(text, bridge)

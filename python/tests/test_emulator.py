@@ -1,0 +1,43 @@
+"""The in-process emulator as a context manager."""
+
+import threading
+
+import pytest
+
+import firelink
+
+
+def test_the_context_manager_always_stops_the_server():
+    threads_before = threading.active_count()
+    with firelink.Emulator(boards=2) as emu:
+        assert emu.running
+        assert emu.address.startswith("udp:127.0.0.1:")
+        assert len(firelink.IoSystem(emu.port()).boards) == 2
+    assert not emu.running
+    with pytest.raises(firelink.EmulatorClosed):
+        emu.port()
+    assert emu.stop() is None  # stopping twice is harmless
+    assert threading.active_count() == threads_before
+
+
+def test_an_exception_inside_the_block_still_stops_it():
+    with pytest.raises(RuntimeError, match="inside"):
+        with firelink.Emulator(boards=1) as emu:
+            raise RuntimeError("inside")
+    assert not emu.running
+
+
+def test_stop_reports_the_counters():
+    emu = firelink.Emulator(boards=1, firmware="7")
+    port = emu.port()
+    assert [b.firmware for b in port.scan()] == [7]
+    stats = emu.stop()
+    assert stats is not None
+    assert stats["datagrams"] > 0 and stats["replies"] > 0
+    assert stats["malformed"] == 0
+
+
+@pytest.mark.parametrize("kwargs", [{"boards": 0}, {"boards": 17}, {"firmware": "9"}])
+def test_bad_emulator_options(kwargs):
+    with pytest.raises(firelink.FirelinkError):
+        firelink.Emulator(**kwargs)
