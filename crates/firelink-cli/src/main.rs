@@ -17,6 +17,7 @@ mod rt;
 mod sim;
 mod soak_cmd;
 mod tour;
+mod web_cmd;
 
 use std::io::Write;
 use std::process::ExitCode;
@@ -66,6 +67,14 @@ enum Command {
     /// Fault soak: millions of servo cycles with faulted packets, every
     /// fault accounted for; then the watchdog proof.
     Soak(soak_cmd::SoakArgs),
+    /// The web console (runs `firelink-web`, built by `cargo build -p
+    /// firelink-web`; its options: `firelink web --help`).
+    #[command(disable_help_flag = true)]
+    Web {
+        /// Options for firelink-web (--port, --config, --listen, --rate, --watchdog-ms, --help).
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
 }
 
 #[derive(Subcommand)]
@@ -251,6 +260,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Demo(args) => demo::run(&args, &mut out)?,
         Command::Bench(args) => bench::run(&args, &mut out)?,
         Command::Soak(args) => soak_cmd::run(&args, &mut out)?,
+        Command::Web { args } => web_cmd::run(&args)?,
     }
     Ok(())
 }

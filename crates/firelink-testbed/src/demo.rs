@@ -538,8 +538,16 @@ impl fmt::Display for DemoReport {
 /// The board whose loss the demo simulates (PSM1's first board).
 const LOST_BOARD: u8 = 4;
 
-/// Port-specific fault injection.
-trait Injector: Port {
+/// Fault injection on a port: what each [`DemoFault`] does there (the
+/// simulated bus and the loopback model can do all of them; over UDP the
+/// bus is in another process, so only a stopped host and a following
+/// error).
+pub trait Injector: Port {
+    /// Inject `fault`; `watchdog` is the boards' period (a stopped host
+    /// stays silent for three of them).
+    ///
+    /// # Errors
+    /// [`TestbedError::Config`] when this port cannot inject `fault`.
     fn inject(&mut self, fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError>;
 }
 
@@ -606,9 +614,10 @@ impl Injector for UdpPort {
     }
 }
 
-/// The motions: on every arm, even joints follow a sinusoid (10 % of the
-/// joint's range, 0.4 to 0.7 Hz), odd joints move point to point by 5 %.
-fn motion_for(config: &IoConfig, i: usize, here: f64) -> Motion {
+/// The demo's motions: on every arm, even joints follow a sinusoid (10 %
+/// of the joint's range, 0.4 to 0.7 Hz), odd joints move point to point by
+/// 5 %, from `here`.
+pub fn motion_for(config: &IoConfig, i: usize, here: f64) -> Motion {
     let Some(j) = config.joints().nth(i) else {
         return Motion::Hold(here);
     };

@@ -402,6 +402,11 @@ impl<P: Port> Robot<P> {
         self.joints.get(i).map(|j| j.setpoint)
     }
 
+    /// Joint `i`'s commanded motor current, amps (0 unless Active).
+    pub fn commanded_current(&self, i: usize) -> Option<f64> {
+        self.joints.get(i).map(|j| j.current)
+    }
+
     /// Timing record.
     pub fn times(&self) -> &CycleTimes {
         &self.times

@@ -1,0 +1,92 @@
+//! `firelink-web` (also run as `firelink web`): the web console.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use clap::Parser;
+
+use firelink_web::{WebOptions, serve, start};
+
+/// Watch and drive the boards and the robot in a browser.
+#[derive(Parser, Debug)]
+#[command(name = "firelink web", version)]
+struct Args {
+    /// Where the boards are: sim (emulated boards on the simulated bus,
+    /// paced to the wall clock), emulate (the same behind an in-process
+    /// `firelink emulate`, over UDP) or udp:HOST[:PORT].
+    #[arg(long, default_value = "sim")]
+    port: String,
+    /// Robot configuration (default: seed 000's dVRK, 28 axes).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Address to listen on. Anything but a loopback address must be asked
+    /// for explicitly and prints a warning: the page can enable motor power.
+    #[arg(long, default_value = "127.0.0.1:8080")]
+    listen: SocketAddr,
+    /// Control rate, Hz.
+    #[arg(long, default_value_t = 1000.0)]
+    rate: f64,
+    /// Board watchdog period, ms (0 < ms <= 341).
+    #[arg(long = "watchdog-ms", default_value_t = 20.0)]
+    watchdog_ms: f64,
+}
+
+fn main() {
+    let args = Args::parse();
+    if let Err(e) = run(args) {
+        eprintln!("firelink web: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
+    if !(args.watchdog_ms.is_finite() && args.watchdog_ms > 0.0 && args.watchdog_ms <= 341.0) {
+        return Err(format!("--watchdog-ms {}: must be 0 < ms <= 341", args.watchdog_ms).into());
+    }
+    if !args.listen.ip().is_loopback() {
+        eprintln!(
+            "firelink web: WARNING: listening on {}: anyone who can reach it and has the \
+             token can drive the robot",
+            args.listen
+        );
+    }
+    let options = WebOptions {
+        port: args.port.parse()?,
+        config: args.config,
+        rate_hz: args.rate,
+        watchdog: Duration::from_secs_f64(args.watchdog_ms / 1e3),
+        listen: args.listen,
+    };
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()?;
+    runtime.block_on(async {
+        let (running, listener, faults) = start(&options).await?;
+        println!("firelink web: {}", running.url);
+        eprintln!(
+            "firelink web: open the URL above; Ctrl-C stops the robot (power off) and the server"
+        );
+        let shutdown = async {
+            let _ = tokio::signal::ctrl_c().await;
+        };
+        let terminate = async {
+            if let Ok(mut s) =
+                tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+            {
+                s.recv().await;
+            }
+        };
+        let both = async move {
+            tokio::select! {
+                () = shutdown => {},
+                () = terminate => {},
+            }
+        };
+        let served = serve(&running, listener, faults, both).await;
+        running.stop();
+        eprintln!("firelink web: stopped; amplifiers and power off");
+        served.map_err(|e| Box::new(e) as Box<dyn std::error::Error>)
+    })
+}
