@@ -455,6 +455,52 @@ pub enum Motion {
     Quintic(Quintic),
     /// Endless sinusoid.
     Sinusoid(Sinusoid),
+    /// A streamed servo point (CRTK `servo_jp`): the position moves on at
+    /// `velocity` (fed forward to the controller) for at most `horizon`
+    /// seconds, then holds, so a stream that stops leaves the joint still.
+    Servo(ServoPoint),
+}
+
+/// One point of a servo stream: where the joint should be now, and how
+/// fast it is moving there.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ServoPoint {
+    position: f64,
+    velocity: f64,
+    horizon: f64,
+}
+
+impl ServoPoint {
+    /// A point at `position` moving at `velocity`, extrapolated for at most
+    /// `horizon` seconds (> 0).
+    ///
+    /// # Errors
+    /// A parameter that is not finite, or a horizon not above 0.
+    pub fn new(position: f64, velocity: f64, horizon: f64) -> Result<ServoPoint, TrajectoryError> {
+        finite("position", position)?;
+        finite("velocity", velocity)?;
+        if !(horizon.is_finite() && horizon > 0.0) {
+            return Err(TrajectoryError::OutOfRange("horizon"));
+        }
+        Ok(ServoPoint {
+            position,
+            velocity,
+            horizon,
+        })
+    }
+
+    /// The setpoint `t` seconds after the point arrived.
+    pub fn sample(&self, t: f64) -> Sample {
+        if t < self.horizon {
+            Sample {
+                position: self.position + self.velocity * t.max(0.0),
+                velocity: self.velocity,
+                acceleration: 0.0,
+            }
+        } else {
+            Sample::at_rest(self.position + self.velocity * self.horizon)
+        }
+    }
 }
 
 impl Motion {
@@ -465,6 +511,7 @@ impl Motion {
             Motion::PointToPoint(m) => m.sample(t),
             Motion::Quintic(m) => m.sample(t),
             Motion::Sinusoid(m) => m.sample(t),
+            Motion::Servo(m) => m.sample(t),
         }
     }
 
@@ -476,6 +523,7 @@ impl Motion {
             Motion::PointToPoint(m) => m.is_done(t),
             Motion::Quintic(m) => m.is_done(t),
             Motion::Sinusoid(_) => false,
+            Motion::Servo(m) => t >= m.horizon,
         }
     }
 }
@@ -484,6 +532,20 @@ impl Motion {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn a_servo_point_moves_on_then_holds() {
+        let p = ServoPoint::new(1.0, 2.0, 0.05).unwrap();
+        assert_eq!(p.sample(0.0).position, 1.0);
+        assert!((p.sample(0.01).position - 1.02).abs() < 1e-12);
+        assert_eq!(p.sample(0.01).velocity, 2.0);
+        let after = Motion::Servo(p).sample(1.0);
+        assert!((after.position - 1.1).abs() < 1e-12);
+        assert_eq!(after.velocity, 0.0);
+        assert!(Motion::Servo(p).is_done(0.05) && !Motion::Servo(p).is_done(0.04));
+        assert!(ServoPoint::new(f64::NAN, 0.0, 0.05).is_err());
+        assert!(ServoPoint::new(0.0, 0.0, 0.0).is_err());
+    }
 
     fn check_profile(
         samples: impl Fn(f64) -> Sample,

@@ -25,6 +25,7 @@ pub mod bench;
 pub mod demo;
 pub mod error;
 pub mod rig;
+pub mod service;
 pub mod soak;
 pub mod watchdog;
 

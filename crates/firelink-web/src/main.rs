@@ -63,7 +63,7 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
         .enable_all()
         .build()?;
     runtime.block_on(async {
-        let (running, listener, faults) = start(&options).await?;
+        let (running, listener) = start(&options).await?;
         println!("firelink web: {}", running.url);
         eprintln!(
             "firelink web: open the URL above; Ctrl-C stops the robot (power off) and the server"
@@ -84,7 +84,7 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
                 () = terminate => {},
             }
         };
-        let served = serve(&running, listener, faults, both).await;
+        let served = serve(&running, listener, both).await;
         running.stop();
         eprintln!("firelink web: stopped; amplifiers and power off");
         served.map_err(|e| Box::new(e) as Box<dyn std::error::Error>)

@@ -25,7 +25,7 @@ use tokio::sync::broadcast;
 
 use firelink_testbed::demo::DemoFault;
 
-use crate::robot_loop::{Command, CommandOutcome, Frame, Shared};
+use firelink_testbed::service::{Command, CommandOutcome, Frame, Shared};
 
 const INDEX_HTML: &str = include_str!("../assets/index.html");
 const APP_JS: &str = include_str!("../assets/app.js");

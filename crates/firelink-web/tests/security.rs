@@ -63,12 +63,12 @@ async fn only_the_token_and_this_origin_can_change_the_robot() {
         watchdog: Duration::from_millis(20),
         listen: "127.0.0.1:0".parse().unwrap(),
     };
-    let (running, listener, faults) = start(&options).await.unwrap();
+    let (running, listener) = start(&options).await.unwrap();
     let addr = running.addr;
     let token = running.url.split("token=").nth(1).unwrap().to_string();
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
     let server = tokio::spawn(async move {
-        serve(&running, listener, faults, async {
+        serve(&running, listener, async {
             let _ = stop_rx.await;
         })
         .await

@@ -207,6 +207,8 @@ pub struct CycleTimes {
     pub dropped: u64,
     /// Wall-clock pacing: cycles that started after their deadline.
     pub overruns: u64,
+    /// Compute time of the last cycle, us (kept when the record is full).
+    pub last_compute_us: f32,
 }
 
 /// One robot program: configuration, I/O, lifecycle, controllers.
@@ -336,6 +338,7 @@ impl<P: Port> Robot<P> {
                 cycle_us: Vec::with_capacity(cap),
                 dropped: 0,
                 overruns: 0,
+                last_compute_us: 0.0,
             },
             cycle: 0,
             last_start: None,
@@ -769,9 +772,10 @@ impl<P: Port> Robot<P> {
 
     fn record(&mut self, io: Duration, compute: Duration) {
         let t = &mut self.times;
+        let io_us = io.as_secs_f64() * 1e6;
+        let c_us = compute.as_secs_f64() * 1e6;
+        t.last_compute_us = c_us as f32;
         if t.io_us.len() < t.io_us.capacity() {
-            let io_us = io.as_secs_f64() * 1e6;
-            let c_us = compute.as_secs_f64() * 1e6;
             t.io_us.push(io_us as f32);
             t.compute_us.push(c_us as f32);
             t.cycle_us.push((io_us + c_us) as f32);

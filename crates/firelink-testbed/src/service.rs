@@ -1,11 +1,12 @@
-//! The real-time side: one thread owns the robot (configuration, I/O
-//! system, port) and runs its servo cycles; it never waits on the server.
+//! A robot as a service for programs that are not real-time (the web
+//! console, the ROS 2 node): one thread owns the robot (configuration, I/O
+//! system, port) and runs its servo cycles; it never waits on them.
 //!
 //! Hand-off is lock-free and allocation-free once running: a fixed pool of
 //! [`Frame`]s travels between two bounded queues. After each cycle the loop
-//! takes a free frame (if none is free the server is behind and this
+//! takes a free frame (if none is free the consumer is behind and this
 //! cycle's frame is skipped, counted), fills it in place and queues it as
-//! full; the server drains full frames and gives them back. Commands from
+//! full; the consumer drains full frames and gives them back. Commands from
 //! the browser arrive on a third queue the loop polls once per cycle and
 //! carries out between cycles.
 
@@ -19,8 +20,15 @@ use firelink_control::FaultReport;
 use firelink_control::config::IoConfig;
 use firelink_control::lifecycle::State;
 use firelink_control::runner::{Pacing, Robot, RobotSettings};
+use firelink_control::trajectory::{Motion, PointToPoint, ServoPoint};
 use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
-use firelink_testbed::demo::{DemoFault, Injector, motion_for};
+use std::thread::JoinHandle;
+
+use firelink_board::config::Profile;
+use firelink_host::udp::UdpPort;
+
+use crate::demo::{DemoFault, DemoPort, Injector, motion_for};
+use crate::rig;
 
 /// One axis of one board, as read this cycle.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
@@ -87,6 +95,8 @@ pub struct Frame {
     pub fault: Option<FaultReport>,
     /// I/O time of this cycle, us.
     pub io_us: f64,
+    /// Compute time of this cycle (the host's CPU), us.
+    pub compute_us: f64,
     /// I/O errors so far.
     pub errors: u64,
     /// Per joint, in configuration order.
@@ -105,6 +115,7 @@ impl Frame {
             state: State::Unconfigured,
             fault: None,
             io_us: 0.0,
+            compute_us: 0.0,
             errors: 0,
             joints: vec![JointSample::default(); joints],
             axes: vec![AxisSample::default(); axes],
@@ -122,6 +133,7 @@ impl Frame {
             .last_report()
             .map_or(0.0, |r| r.io_time().as_secs_f64() * 1e6);
         self.errors = robot.io_stats().total_errors();
+        self.compute_us = f64::from(robot.times().last_compute_us);
         for (i, j) in self.joints.iter_mut().enumerate() {
             *j = JointSample {
                 setpoint: robot.setpoint(i).unwrap_or(0.0),
@@ -183,9 +195,45 @@ pub enum Command {
     Amplifiers(bool),
     /// Set every board's watchdog period.
     Watchdog(Duration),
+    /// Configured -> Active, every joint holding where it is.
+    Activate,
     /// Inject a fault on the port.
     Inject(DemoFault),
+    /// Joint positions to hold from now on (CRTK `servo_jp`) for joints
+    /// `first .. first + count`; refused unless Active and homed.
+    ServoJoints {
+        /// First joint (configuration order).
+        first: u16,
+        /// How many.
+        count: u8,
+        /// Positions, rad or m (the first `count` are used).
+        positions: [f64; MAX_ARM_JOINTS],
+        /// Velocities fed forward until the next point (at most
+        /// [`SERVO_HORIZON`]), rad/s or m/s.
+        velocities: [f64; MAX_ARM_JOINTS],
+        /// When the sender stamped it, ns since the Unix epoch (0: not
+        /// stamped); the loop records stamp-to-applied latency.
+        stamp_ns: u64,
+    },
+    /// Move joints `first .. first + count` to these positions with the
+    /// configuration's velocity and acceleration limits (CRTK `move_jp`);
+    /// refused unless Active and homed.
+    MoveJoints {
+        /// First joint (configuration order).
+        first: u16,
+        /// How many.
+        count: u8,
+        /// Goals, rad or m (the first `count` are used).
+        positions: [f64; MAX_ARM_JOINTS],
+    },
 }
+
+/// The most joints one servo or move command carries (one arm).
+pub const MAX_ARM_JOINTS: usize = 16;
+
+/// How long a servo point is extrapolated at its velocity before the
+/// joint holds (a stream that stops leaves the joint still), seconds.
+pub const SERVO_HORIZON: f64 = 0.05;
 
 /// What happened to the last command.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -196,19 +244,19 @@ pub struct CommandOutcome {
     pub result: String,
 }
 
-/// The queues and flags shared by the loop and the server.
+/// The queues and flags shared by the loop and the consumer.
 pub struct Shared {
-    /// Frames ready for the server.
+    /// Frames ready for the consumer.
     pub full: ArrayQueue<Box<Frame>>,
     /// Frames the loop may fill.
     pub free: ArrayQueue<Box<Frame>>,
     /// Commands for the loop.
     pub commands: ArrayQueue<Command>,
-    /// Outcomes of commands (the server reads them).
+    /// Outcomes of commands (the consumer reads them).
     pub outcomes: ArrayQueue<CommandOutcome>,
     /// Frames skipped because none was free.
     pub skipped: AtomicU64,
-    /// Commands the server accepted and queued.
+    /// Commands the consumer accepted and queued.
     pub queued: AtomicU64,
     /// Set to stop the loop (it powers off first).
     pub stop: AtomicBool,
@@ -220,9 +268,17 @@ pub struct Shared {
     pub port_name: String,
     /// Boards found: (board ID, firmware, hardware name).
     pub board_infos: Vec<(u8, u32, &'static str)>,
+    /// Every joint homed since the last configure.
+    pub homed: AtomicBool,
+    /// Port time (s, as f64 bits) at which the last move ends.
+    pub move_ends: AtomicU64,
+    /// Servo commands applied so far.
+    pub servo_applied: AtomicU64,
+    /// The last applied servo command's stamp-to-applied latency, ns.
+    pub servo_latency_ns: AtomicU64,
 }
 
-/// Frames in the pool: a second of cycles at 1 kHz lets the server be late
+/// Frames in the pool: a second of cycles at 1 kHz lets the consumer be late
 /// by that much without a skipped frame.
 pub const POOL: usize = 1024;
 
@@ -249,7 +305,7 @@ pub fn prepare<P: Injector>(
     port: P,
     port_name: String,
     options: &LoopOptions,
-) -> Result<(Robot<P>, Arc<Shared>), firelink_testbed::TestbedError> {
+) -> Result<(Robot<P>, Arc<Shared>), crate::TestbedError> {
     let (io, _) = IoSystem::open(port, HostIoConfig::default())?;
     let settings = RobotSettings {
         rate_hz: options.rate_hz,
@@ -283,6 +339,10 @@ pub fn prepare<P: Injector>(
         rate_hz: options.rate_hz,
         port_name,
         board_infos,
+        homed: AtomicBool::new(false),
+        move_ends: AtomicU64::new(0f64.to_bits()),
+        servo_applied: AtomicU64::new(0),
+        servo_latency_ns: AtomicU64::new(0),
     };
     for _ in 0..POOL {
         let _ = shared.free.push(Box::new(Frame::sized(
@@ -329,11 +389,18 @@ fn execute<P: Injector>(
 ) -> Result<(), String> {
     let text = |e: &dyn std::fmt::Display| e.to_string();
     match command {
-        Command::Configure => robot.configure().map_err(|e| text(&e)),
+        Command::Configure => {
+            shared.homed.store(false, Ordering::Relaxed);
+            robot.configure().map_err(|e| text(&e))
+        }
         Command::PowerOn => robot
             .power_on_observed(&mut |r| publish(shared, r))
             .map_err(|e| text(&e)),
-        Command::Home => robot.home().map_err(|e| text(&e)),
+        Command::Home => {
+            robot.home().map_err(|e| text(&e))?;
+            shared.homed.store(true, Ordering::Relaxed);
+            Ok(())
+        }
         Command::Enable => {
             robot.activate().map_err(|e| text(&e))?;
             for i in 0..robot.joint_count() {
@@ -344,6 +411,7 @@ fn execute<P: Injector>(
             }
             Ok(())
         }
+        Command::Activate => robot.activate().map_err(|e| text(&e)),
         Command::Disable => robot.shutdown().map_err(|e| text(&e)),
         Command::ClearFault => robot.clear_fault().map(|_| ()).map_err(|e| text(&e)),
         Command::Relay(on) => {
@@ -359,6 +427,62 @@ fn execute<P: Injector>(
             Ok(())
         }
         Command::Watchdog(period) => robot.io_mut().set_watchdog(period).map_err(|e| text(&e)),
+        Command::ServoJoints {
+            first,
+            count,
+            positions,
+            velocities,
+            stamp_ns,
+        } => {
+            ready_for_motion(robot, shared)?;
+            for (n, (k, &p)) in joints(robot, first, count, &positions)?.enumerate() {
+                let v = velocities
+                    .get(n)
+                    .copied()
+                    .filter(|v| v.is_finite())
+                    .unwrap_or(0.0);
+                let point = ServoPoint::new(p, v, SERVO_HORIZON).map_err(|e| text(&e))?;
+                robot
+                    .set_motion(k, Motion::Servo(point))
+                    .map_err(|e| text(&e))?;
+            }
+            // Applied: the next write block carries it.
+            if stamp_ns > 0 {
+                let now = std::time::SystemTime::now()
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .map_or(0, |d| d.as_nanos() as u64);
+                shared
+                    .servo_latency_ns
+                    .store(now.saturating_sub(stamp_ns), Ordering::Relaxed);
+            }
+            shared.servo_applied.fetch_add(1, Ordering::Relaxed);
+            Ok(())
+        }
+        Command::MoveJoints {
+            first,
+            count,
+            positions,
+        } => {
+            ready_for_motion(robot, shared)?;
+            let mut ends = robot.now();
+            let targets = joints(robot, first, count, &positions)?;
+            for (k, &goal) in targets {
+                let here = robot.setpoint(k).unwrap_or(goal);
+                let (v, a) = options
+                    .config
+                    .joints()
+                    .nth(k)
+                    .and_then(|j| j.actuator.limits)
+                    .map_or((0.5, 2.0), |l| (l.velocity, l.acceleration.unwrap_or(2.0)));
+                let p2p = PointToPoint::new(here, goal, v, a).map_err(|e| text(&e))?;
+                ends = ends.max(robot.now() + p2p.duration());
+                robot
+                    .set_motion(k, Motion::PointToPoint(p2p))
+                    .map_err(|e| text(&e))?;
+            }
+            shared.move_ends.store(ends.to_bits(), Ordering::Relaxed);
+            Ok(())
+        }
         Command::Inject(fault) => {
             let watchdog = options.watchdog;
             robot
@@ -374,6 +498,45 @@ fn execute<P: Injector>(
     }
 }
 
+/// Motion commands need an Active robot whose joints are homed.
+fn ready_for_motion<P: Injector>(robot: &Robot<P>, shared: &Shared) -> Result<(), String> {
+    if robot.state() != State::Active {
+        return Err(format!(
+            "refused: the robot is {}, not active",
+            robot.state()
+        ));
+    }
+    if !shared.homed.load(Ordering::Relaxed) {
+        return Err("refused: not homed".into());
+    }
+    Ok(())
+}
+
+/// Joint indices and positions of a servo or move command, checked.
+fn joints<'a, P: Injector>(
+    robot: &Robot<P>,
+    first: u16,
+    count: u8,
+    positions: &'a [f64; MAX_ARM_JOINTS],
+) -> Result<impl Iterator<Item = (usize, &'a f64)> + 'a, String> {
+    let first = usize::from(first);
+    let count = usize::from(count);
+    if count > MAX_ARM_JOINTS || first + count > robot.joint_count() {
+        return Err(format!(
+            "joints {first}..{} do not exist ({} joints)",
+            first + count,
+            robot.joint_count()
+        ));
+    }
+    if let Some(p) = positions[..count].iter().find(|p| !p.is_finite()) {
+        return Err(format!("position {p} is not a number"));
+    }
+    Ok(positions[..count]
+        .iter()
+        .enumerate()
+        .map(move |(i, p)| (first + i, p)))
+}
+
 /// Run the robot until `shared.stop`; then power off. Call on the thread
 /// that owns the robot.
 pub fn run<P: Injector>(mut robot: Robot<P>, shared: Arc<Shared>, options: LoopOptions) {
@@ -383,7 +546,11 @@ pub fn run<P: Injector>(mut robot: Robot<P>, shared: Arc<Shared>, options: LoopO
     while !shared.stop.load(Ordering::Relaxed) {
         if let Some(command) = shared.commands.pop() {
             let r = execute(&mut robot, &shared, command, &options);
-            outcome(&shared, command, r);
+            // Servo commands stream at the publisher's rate: only their
+            // refusals are reported (the success path allocates nothing).
+            if r.is_err() || !matches!(command, Command::ServoJoints { .. }) {
+                outcome(&shared, command, r);
+            }
         }
         // A fault is latched in the robot and shown in the frames; the
         // loop keeps cycling (outputs safe) until it is cleared.
@@ -400,4 +567,115 @@ pub fn run<P: Injector>(mut robot: Robot<P>, shared: Arc<Shared>, options: LoopO
     }
     let _ = robot.shutdown();
     publish(&shared, &robot);
+}
+
+/// A robot service running in its own thread.
+pub struct Service {
+    /// What the loop and its consumers share.
+    pub shared: Arc<Shared>,
+    /// The faults this port can inject.
+    pub faults: Vec<DemoFault>,
+    thread: Option<JoinHandle<()>>,
+    emulator: Option<rig::Emulator>,
+}
+
+impl Service {
+    /// Start the robot of `config` on `port` (emulated boards at firmware
+    /// Rev 8 for `sim` and `emulate`) at `rate_hz`; the loop runs until
+    /// [`stop`](Self::stop).
+    ///
+    /// # Errors
+    /// A bad rate, a failed scan or configuration, sockets, the thread.
+    pub fn start(
+        port: &DemoPort,
+        config: IoConfig,
+        rate_hz: f64,
+        watchdog: Duration,
+    ) -> Result<Service, crate::TestbedError> {
+        if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 20_000.0) {
+            return Err(crate::TestbedError::Config(format!(
+                "rate {rate_hz} Hz: must be 0 < rate <= 20000"
+            )));
+        }
+        let boards = config
+            .boards()
+            .iter()
+            .map(|b| usize::from(b.board_id) + 1)
+            .max()
+            .unwrap_or(0);
+        let options = |pacing| LoopOptions {
+            config: config.clone(),
+            rate_hz,
+            watchdog,
+            pacing,
+        };
+        let all: Vec<DemoFault> = DemoFault::ALL
+            .iter()
+            .copied()
+            .filter(|f| *f != DemoFault::None)
+            .collect();
+        let remote = vec![DemoFault::StopHost, DemoFault::FollowingError];
+        let configs = || rig::board_configs(&config, Profile::Rev8, boards);
+        let (shared, thread, emulator, faults) = match port {
+            DemoPort::Sim | DemoPort::Loopback => {
+                let (port, _) = rig::sim_port(configs(), false)?;
+                let (s, h) = spawn(port, "sim".into(), options(Pacing::Virtual))?;
+                (s, h, None, all)
+            }
+            DemoPort::Emulate => {
+                let emu = rig::Emulator::start(configs())?;
+                let name = format!("udp:{} (in-process emulator)", emu.addr);
+                let mut port = emu.port()?;
+                port.set_timeout(Duration::from_millis(20));
+                let (s, h) = spawn(port, name, options(Pacing::WallClock))?;
+                (s, h, Some(emu), remote)
+            }
+            DemoPort::Udp(addr) => {
+                let mut port = UdpPort::open(*addr)?;
+                port.set_timeout(Duration::from_millis(20));
+                let (s, h) = spawn(port, format!("udp:{addr}"), options(Pacing::WallClock))?;
+                (s, h, None, remote)
+            }
+        };
+        Ok(Service {
+            shared,
+            faults,
+            thread: Some(thread),
+            emulator,
+        })
+    }
+
+    /// Stop the loop (it powers the robot off first) and the emulator.
+    pub fn stop(mut self) {
+        self.shutdown();
+    }
+
+    fn shutdown(&mut self) {
+        self.shared.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+        if let Some(e) = self.emulator.take() {
+            let _ = e.stop();
+        }
+    }
+}
+
+impl Drop for Service {
+    fn drop(&mut self) {
+        self.shutdown();
+    }
+}
+
+fn spawn<P: Injector + Send + 'static>(
+    port: P,
+    name: String,
+    options: LoopOptions,
+) -> Result<(Arc<Shared>, JoinHandle<()>), crate::TestbedError> {
+    let (robot, shared) = prepare(port, name, &options)?;
+    let loop_shared = Arc::clone(&shared);
+    let handle = std::thread::Builder::new()
+        .name("firelink-robot".into())
+        .spawn(move || run(robot, loop_shared, options))?;
+    Ok((shared, handle))
 }

@@ -1,0 +1,111 @@
+//! `firelink-ros2` (also run as `firelink ros2`): the robot as a ROS 2 node.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use clap::Parser;
+
+use firelink_control::config::{IoConfig, presets};
+use firelink_ros2::{NodeSettings, domain_from_env, run_node, run_without_dds};
+use firelink_testbed::demo::DemoPort;
+use firelink_testbed::service::Service;
+
+/// Run the robot and speak ROS 2 (CRTK topics per arm) over DDS.
+#[derive(Parser, Debug)]
+#[command(name = "firelink ros2", version)]
+struct Args {
+    /// Where the boards are: sim, emulate or udp:HOST[:PORT].
+    #[arg(long, default_value = "sim")]
+    port: String,
+    /// Robot configuration (default: seed 000's dVRK: MTML, MTMR, PSM1, PSM2).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Control rate, Hz.
+    #[arg(long, default_value_t = 1000.0)]
+    rate: f64,
+    /// Publications per second (measured_js, setpoint_js), decimated from
+    /// the control rate.
+    #[arg(long = "publish-hz", default_value_t = 1000.0)]
+    publish_hz: f64,
+    /// DDS domain (default: ROS_DOMAIN_ID, else 0).
+    #[arg(long)]
+    domain: Option<u16>,
+    /// Board watchdog period, ms (0 < ms <= 341).
+    #[arg(long = "watchdog-ms", default_value_t = 20.0)]
+    watchdog_ms: f64,
+    /// Stop after this many seconds (default: at Ctrl-C or SIGTERM).
+    #[arg(long)]
+    seconds: Option<f64>,
+    /// Run the robot without DDS for `--seconds` and report its compute
+    /// time (the comparison for "with ROS 2 attached").
+    #[arg(long = "no-dds")]
+    no_dds: bool,
+}
+
+fn main() {
+    if let Err(e) = run(Args::parse()) {
+        eprintln!("firelink ros2: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
+    if !(args.watchdog_ms.is_finite() && args.watchdog_ms > 0.0 && args.watchdog_ms <= 341.0) {
+        return Err(format!("--watchdog-ms {}: must be 0 < ms <= 341", args.watchdog_ms).into());
+    }
+    if !(args.publish_hz.is_finite() && args.publish_hz >= 1.0 && args.publish_hz <= 10_000.0) {
+        return Err(format!("--publish-hz {}: must be 1..=10000", args.publish_hz).into());
+    }
+    let duration = match args.seconds {
+        Some(s) if s.is_finite() && s > 0.0 && s <= 86_400.0 => Some(Duration::from_secs_f64(s)),
+        Some(s) => return Err(format!("--seconds {s}: must be 0 < s <= 86400").into()),
+        None => None,
+    };
+    let config = match &args.config {
+        Some(p) => IoConfig::load(p)?,
+        None => presets::dvrk_seed000(),
+    };
+    let port: DemoPort = args.port.parse()?;
+    let service = Service::start(
+        &port,
+        config.clone(),
+        args.rate,
+        Duration::from_secs_f64(args.watchdog_ms / 1e3),
+    )?;
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(signal, Arc::clone(&stop))?;
+    }
+    let report = if args.no_dds {
+        let d = duration.ok_or("--no-dds needs --seconds")?;
+        run_without_dds(&service, d)
+    } else {
+        let domain = args.domain.unwrap_or_else(domain_from_env);
+        eprintln!(
+            "firelink ros2: node /firelink on domain {domain}, arms {}",
+            config
+                .robots
+                .iter()
+                .map(|r| r.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        println!("firelink ros2: ready");
+        run_node(
+            &service,
+            &config,
+            &NodeSettings {
+                publish_hz: args.publish_hz,
+                domain_id: domain,
+                duration,
+            },
+            &stop,
+        )?
+    };
+    stop.store(true, Ordering::Relaxed);
+    service.stop();
+    println!("{}", serde_json::to_string(&report)?);
+    Ok(())
+}

@@ -1,0 +1,167 @@
+"""An independent ROS 2 participant (Eclipse Cyclone DDS's Python binding,
+nobody here wrote it) that talks to `firelink ros2` with the ROS 2 IDL types
+and topic name mangling: it watches `/<ARM>/measured_js` and
+`/<ARM>/operating_state`, checks that motion is refused before homing, sends
+`enable` and `home`, streams `servo_jp` (a sinusoid on the arm's first
+joint) for a few seconds and reports how well the arm tracked it, as one
+JSON object on stdout.
+
+Runs inside a network namespace the test made (DDS discovery multicasts).
+"""
+
+
+import argparse
+import json
+import math
+import time
+from dataclasses import dataclass
+
+from cyclonedds.core import Qos, Policy
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.idl import IdlStruct
+from cyclonedds.idl.types import float64, int32, sequence, uint32
+from cyclonedds.pub import DataWriter
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
+
+
+@dataclass
+class Time(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
+    sec: int32
+    nanosec: uint32
+
+
+@dataclass
+class Header(IdlStruct, typename="std_msgs::msg::dds_::Header_"):
+    stamp: Time
+    frame_id: str
+
+
+@dataclass
+class JointState(IdlStruct, typename="sensor_msgs::msg::dds_::JointState_"):
+    header: Header
+    name: sequence[str]
+    position: sequence[float64]
+    velocity: sequence[float64]
+    effort: sequence[float64]
+
+
+@dataclass
+class OperatingState(IdlStruct, typename="crtk_msgs::msg::dds_::OperatingState_"):
+    header: Header
+    state: str
+    is_homed: bool
+    is_busy: bool
+
+
+@dataclass
+class StringStamped(IdlStruct, typename="crtk_msgs::msg::dds_::StringStamped_"):
+    header: Header
+    string: str
+
+
+@dataclass
+class String(IdlStruct, typename="std_msgs::msg::dds_::String_"):
+    data: str
+
+
+def stamp() -> Header:
+    t = time.time()
+    return Header(stamp=Time(sec=int(t), nanosec=int((t - int(t)) * 1e9)), frame_id="")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--arm", default="PSM1")
+    parser.add_argument("--seconds", type=float, default=5.0)
+    parser.add_argument("--timeout", type=float, default=120.0)
+    args = parser.parse_args()
+    arm = args.arm
+    dp = DomainParticipant()
+    best_effort = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(5))
+    reliable = Qos(Policy.Reliability.Reliable(max_blocking_time=duration(seconds=1)), Policy.History.KeepLast(10))
+    measured = DataReader(dp, Topic(dp, f"rt/{arm}/measured_js", JointState), qos=best_effort)
+    setpoints = DataReader(dp, Topic(dp, f"rt/{arm}/setpoint_js", JointState), qos=best_effort)
+    op_state = DataReader(dp, Topic(dp, f"rt/{arm}/operating_state", OperatingState), qos=reliable)
+    errors = DataReader(dp, Topic(dp, f"rt/{arm}/error", String), qos=reliable)
+    servo = DataWriter(dp, Topic(dp, f"rt/{arm}/servo_jp", JointState), qos=reliable)
+    command = DataWriter(dp, Topic(dp, f"rt/{arm}/state_command", StringStamped), qos=reliable)
+    out = {"arm": arm}
+    deadline = time.time() + args.timeout
+    latest = {"js": None, "state": None, "sp": None}
+    error_texts = []
+
+    def poll() -> None:
+        for s in measured.take(N=100):
+            latest["js"] = s
+        for s in setpoints.take(N=100):
+            latest["sp"] = s
+        for s in op_state.take(N=100):
+            latest["state"] = s
+        for s in errors.take(N=100):
+            error_texts.append(s.data)
+
+    def wait_for(what: str, cond) -> None:
+        while time.time() < deadline:
+            poll()
+            if cond():
+                return
+            time.sleep(0.01)
+        raise SystemExit(json.dumps({**out, "failed": f"timed out waiting for {what}", "errors": error_texts}))
+
+    wait_for("measured_js", lambda: latest["js"] is not None)
+    js = latest["js"]
+    out["joint_names"] = list(js.name)
+    out["joints"] = len(js.position)
+    # Discovery of our writers by the node: send until the refusal arrives.
+    refused_sent = time.time()
+    while time.time() < deadline and not error_texts:
+        servo.write(JointState(header=stamp(), name=[], position=list(js.position), velocity=[], effort=[]))
+        poll()
+        time.sleep(0.05)
+    out["refused_before_enable"] = list(error_texts)
+    out["refusal_wait_s"] = time.time() - refused_sent
+    wait_for("operating_state", lambda: latest["state"] is not None)
+    out["state_before"] = latest["state"].state
+    command.write(StringStamped(header=stamp(), string="enable"))
+    time.sleep(0.5)
+    command.write(StringStamped(header=stamp(), string="home"))
+    wait_for("ENABLED and homed", lambda: latest["state"] and latest["state"].state == "ENABLED" and latest["state"].is_homed)
+    out["state_after_home"] = {"state": latest["state"].state, "is_homed": latest["state"].is_homed}
+    poll()
+    start_pos = list(latest["js"].position)
+    amplitude, freq, rate = 0.05, 0.5, 200.0
+    t0 = time.time()
+    errors_rad = []
+    sent = 0
+    k = 0
+    while time.time() - t0 < args.seconds:
+        t = time.time() - t0
+        target = list(start_pos)
+        target[0] = start_pos[0] + amplitude * math.sin(2 * math.pi * freq * t)
+        servo.write(JointState(header=stamp(), name=[], position=target, velocity=[], effort=[]))
+        sent += 1
+        poll()
+        js = latest["js"]
+        if k % 100 == 0 and js is not None and latest["sp"] is not None:
+            out.setdefault("trace", []).append([round(t, 3), round(target[0], 4), round(latest["sp"].position[0], 4), round(js.position[0], 4)])
+        if t > 0.5 and js is not None:
+            # Compare with where the setpoint was a moment ago (the arm lags a little).
+            errors_rad.append(abs(js.position[0] - (start_pos[0] + amplitude * math.sin(2 * math.pi * freq * (t - 0.02)))))
+        k += 1
+        next_t = t0 + k / rate
+        time.sleep(max(0.0, next_t - time.time()))
+    poll()
+    out["servo_sent"] = sent
+    out["samples"] = len(errors_rad)
+    out["tracking_max_rad"] = max(errors_rad) if errors_rad else None
+    out["tracking_rms_rad"] = math.sqrt(sum(e * e for e in errors_rad) / len(errors_rad)) if errors_rad else None
+    out["errors_after"] = error_texts[len(out["refused_before_enable"]):]
+    command.write(StringStamped(header=stamp(), string="disable"))
+    time.sleep(0.3)
+    print(json.dumps(out))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,126 @@
+"""`firelink ros2` against an independent ROS 2 participant (Cyclone DDS).
+
+DDS discovery multicasts, so everything runs inside network namespaces this
+test creates and deletes (`ip netns`, root): one namespace with multicast on
+its loopback for robot and client together, and two namespaces joined by a
+veth pair for "across machines". The test process itself sends nothing.
+
+Needs FIRELINK_ROS2_BIN (the firelink-ros2 binary).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import uuid
+from pathlib import Path
+
+import pytest
+
+BIN = os.environ.get("FIRELINK_ROS2_BIN", "target/debug/firelink-ros2")
+CLIENT = str(Path(__file__).with_name("crtk_client.py"))
+
+pytestmark = pytest.mark.skipif(os.geteuid() != 0, reason="network namespaces need root")
+
+
+def sh(*cmd: str) -> None:
+    subprocess.run(cmd, check=True)
+
+
+class Netns:
+    def __init__(self) -> None:
+        self.name = "fl-" + uuid.uuid4().hex[:8]
+        sh("ip", "netns", "add", self.name)
+
+    def run(self, *cmd: str) -> None:
+        sh("ip", "netns", "exec", self.name, *cmd)
+
+    def popen(self, *cmd: str, **kw) -> subprocess.Popen:
+        return subprocess.Popen(["ip", "netns", "exec", self.name, *cmd], **kw)
+
+    def multicast_on(self, dev: str) -> None:
+        self.run("ip", "link", "set", dev, "multicast", "on")
+        self.run("ip", "route", "add", "224.0.0.0/4", "dev", dev)
+
+    def delete(self) -> None:
+        subprocess.run(["ip", "netns", "delete", self.name], check=False)
+
+
+def robot(ns: Netns) -> subprocess.Popen:
+    env = {**os.environ, "ROS_DOMAIN_ID": "7"}
+    proc = ns.popen(BIN, "--port", "sim", "--rate", "1000", "--publish-hz", "500",
+                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    line = proc.stdout.readline()
+    assert line.strip() == "firelink ros2: ready", line + proc.stderr.read()
+    return proc
+
+
+def client(ns: Netns, arm: str) -> dict:
+    env = {**os.environ, "ROS_DOMAIN_ID": "7", "CYCLONEDDS_URI":
+           "<CycloneDDS><Domain><Id>7</Id></Domain></CycloneDDS>"}
+    out = subprocess.run(["ip", "netns", "exec", ns.name, sys.executable, CLIENT, "--arm", arm, "--seconds", "5"],
+                         capture_output=True, text=True, env=env, timeout=300)
+    assert out.returncode == 0, out.stdout + out.stderr
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def stop(proc: subprocess.Popen) -> dict:
+    proc.terminate()
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def check(result: dict, arm_joints: int) -> None:
+    assert result["joints"] == arm_joints, result
+    assert result["refused_before_enable"], result
+    assert "not ENABLED" in result["refused_before_enable"][0], result
+    assert result["state_before"] == "DISABLED", result
+    assert result["state_after_home"] == {"state": "ENABLED", "is_homed": True}, result
+    assert result["samples"] > 100, result
+    assert result["tracking_rms_rad"] < 0.01, result
+    assert result["errors_after"] == [], result
+
+
+def test_a_cyclone_client_enables_homes_and_servos_an_arm():
+    ns = Netns()
+    try:
+        ns.run("ip", "link", "set", "lo", "up")
+        ns.multicast_on("lo")
+        node = robot(ns)
+        try:
+            result = client(ns, "PSM1")
+        finally:
+            report = stop(node)
+        check(result, 7)
+        assert report["servo_jp_applied"] > 500, report
+        assert report["refused"] >= 1, report
+        assert report["measured_js_hz"] > 100, report
+        Path(os.environ.get("ROS2_REPORT", "target/ros2-report.json")).write_text(json.dumps({"client": result, "node": report}, indent=1))
+    finally:
+        ns.delete()
+
+
+def test_across_machines_robot_and_client_in_two_namespaces():
+    robot_ns, client_ns = Netns(), Netns()
+    veth = "flv" + uuid.uuid4().hex[:6]
+    try:
+        sh("ip", "link", "add", veth + "a", "type", "veth", "peer", "name", veth + "b")
+        sh("ip", "link", "set", veth + "a", "netns", robot_ns.name)
+        sh("ip", "link", "set", veth + "b", "netns", client_ns.name)
+        for ns, dev, addr in [(robot_ns, veth + "a", "10.231.7.1/24"), (client_ns, veth + "b", "10.231.7.2/24")]:
+            ns.run("ip", "link", "set", "lo", "up")
+            ns.run("ip", "addr", "add", addr, "dev", dev)
+            ns.run("ip", "link", "set", dev, "up")
+            ns.multicast_on(dev)
+        node = robot(robot_ns)
+        try:
+            result = client(client_ns, "MTMR")
+        finally:
+            stop(node)
+        check(result, 7)
+    finally:
+        robot_ns.delete()
+        client_ns.delete()
