@@ -7,6 +7,7 @@
 mod args;
 mod bench;
 mod board_cmd;
+mod companion;
 mod demo;
 mod emulate_cmd;
 mod hex;
@@ -17,7 +18,6 @@ mod rt;
 mod sim;
 mod soak_cmd;
 mod tour;
-mod web_cmd;
 
 use std::io::Write;
 use std::process::ExitCode;
@@ -72,6 +72,15 @@ enum Command {
     #[command(disable_help_flag = true)]
     Web {
         /// Options for firelink-web (--port, --config, --listen, --rate, --watchdog-ms, --help).
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
+    /// The robot as a ROS 2 node with the dVRK's CRTK topics (runs
+    /// `firelink-ros2`, built by `cargo build -p firelink-ros2`; its options:
+    /// `firelink ros2 --help`).
+    #[command(disable_help_flag = true)]
+    Ros2 {
+        /// Options for firelink-ros2 (--port, --config, --rate, --publish-hz, --domain, --seconds, --help).
         #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
         args: Vec<String>,
     },
@@ -260,7 +269,8 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Demo(args) => demo::run(&args, &mut out)?,
         Command::Bench(args) => bench::run(&args, &mut out)?,
         Command::Soak(args) => soak_cmd::run(&args, &mut out)?,
-        Command::Web { args } => web_cmd::run(&args)?,
+        Command::Web { args } => companion::run("firelink-web", &args)?,
+        Command::Ros2 { args } => companion::run("firelink-ros2", &args)?,
     }
     Ok(())
 }

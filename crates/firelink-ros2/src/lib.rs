@@ -217,6 +217,9 @@ pub struct NodeSettings {
     pub domain_id: u16,
     /// Stop after this long (None: until `stop`).
     pub duration: Option<Duration>,
+    /// Stamp messages with the robot's own clock (the simulated bus's
+    /// virtual time, as ROS's `use_sim_time`) instead of the wall clock.
+    pub sim_time: bool,
 }
 
 /// What the node measured, printed as JSON when it stops.
@@ -236,6 +239,9 @@ pub struct NodeReport {
     pub servo_latency_us: [f64; 3],
     /// Control loop compute time per cycle (host CPU), us: median, p99.
     pub control_compute_us: [f64; 2],
+    /// Control loop cycle time (I/O on the port's clock + compute), us:
+    /// median, p99.
+    pub control_cycle_us: [f64; 2],
 }
 
 fn percentile(sorted: &[f64], q: f64) -> f64 {
@@ -371,6 +377,7 @@ pub fn run_node(
     let mut published = 0u64;
     let mut latencies: Vec<f64> = Vec::new();
     let mut compute: Vec<f64> = Vec::new();
+    let mut cycle: Vec<f64> = Vec::new();
     let mut last_state_publish = start;
     let mut applied_seen = 0u64;
     while !stop.load(Ordering::Relaxed) && settings.duration.is_none_or(|d| start.elapsed() < d) {
@@ -379,6 +386,7 @@ pub fn run_node(
         while let Some(frame) = shared.full.pop() {
             if compute.len() < 1 << 20 {
                 compute.push(frame.compute_us);
+                cycle.push(frame.io_us + frame.compute_us);
             }
             if let Some(old) = newest.replace(frame) {
                 let _ = shared.free.push(old);
@@ -386,7 +394,11 @@ pub fn run_node(
             fresh = true;
         }
         let homed = shared.homed.load(Ordering::Relaxed);
-        let now = Time::now();
+        let now = match (settings.sim_time, newest.as_deref()) {
+            (true, Some(f)) => Time::from_secs_f64(f.t),
+            (true, None) => Time::default(),
+            (false, _) => Time::now(),
+        };
         if let (true, Some(frame)) = (fresh, newest.as_deref()) {
             for arm in &arms {
                 let _ = arm.measured.publish(arm.joint_state(frame, false, now));
@@ -435,7 +447,7 @@ pub fn run_node(
                 }
             }
             for (servo, sub) in [(true, &arm.servo), (false, &arm.move_jp)] {
-                while let Ok(Some((msg, _))) = sub.take() {
+                while let Ok(Some((msg, info))) = sub.take() {
                     if servo {
                         report.servo_jp_received += 1;
                     }
@@ -452,7 +464,11 @@ pub fn run_node(
                         }
                     };
                     let (first, count) = (arm.first as u16, arm.count as u8);
-                    let stamp_ns = (msg.header.stamp.as_secs_f64() * 1e9) as u64;
+                    // Latency from the DDS source timestamp (the sender's
+                    // wall clock), whatever clock the header uses.
+                    let stamp_ns = info
+                        .source_timestamp()
+                        .map_or(0, |t| u64::try_from(t.to_nanos()).unwrap_or(0));
                     let command = if servo {
                         let t = msg.header.stamp.as_secs_f64();
                         let velocities = servo_velocities(arm, &msg, t, &positions);
@@ -501,6 +517,8 @@ pub fn run_node(
     let seconds = start.elapsed().as_secs_f64();
     latencies.sort_by(f64::total_cmp);
     compute.sort_by(f64::total_cmp);
+    cycle.sort_by(f64::total_cmp);
+    report.control_cycle_us = [percentile(&cycle, 0.5), percentile(&cycle, 0.99)];
     report.seconds = seconds;
     report.measured_js_hz = published as f64 / seconds.max(1e-9);
     report.servo_jp_applied = shared.servo_applied.load(Ordering::Relaxed);
@@ -521,17 +539,76 @@ pub fn run_node(
 pub fn run_without_dds(service: &Service, duration: Duration) -> NodeReport {
     let start = Instant::now();
     let mut compute = Vec::new();
+    let mut cycle = Vec::new();
     while start.elapsed() < duration {
         while let Some(frame) = service.shared.full.pop() {
             compute.push(frame.compute_us);
+            cycle.push(frame.io_us + frame.compute_us);
             let _ = service.shared.free.push(frame);
         }
         std::thread::sleep(Duration::from_millis(1));
     }
     compute.sort_by(f64::total_cmp);
+    cycle.sort_by(f64::total_cmp);
     NodeReport {
         seconds: start.elapsed().as_secs_f64(),
         control_compute_us: [percentile(&compute, 0.5), percentile(&compute, 0.99)],
+        control_cycle_us: [percentile(&cycle, 0.5), percentile(&cycle, 0.99)],
         ..NodeReport::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firelink_control::config::presets;
+
+    #[test]
+    fn state_commands_map_onto_the_lifecycle() {
+        assert_eq!(
+            lifecycle("enable", State::Unconfigured).unwrap(),
+            vec![Command::Configure, Command::PowerOn]
+        );
+        assert_eq!(
+            lifecycle(" HOME ", State::Configured).unwrap(),
+            vec![Command::Home, Command::Activate]
+        );
+        assert_eq!(
+            lifecycle("disable", State::Fault).unwrap(),
+            vec![Command::Disable, Command::ClearFault]
+        );
+        assert!(lifecycle("enable", State::Fault).is_err());
+        assert!(
+            lifecycle("fly", State::Active)
+                .unwrap_err()
+                .contains("unknown")
+        );
+    }
+
+    #[test]
+    fn motion_is_refused_with_the_reason() {
+        assert!(motion_refusal(None, true).unwrap().contains("DISABLED"));
+        assert_eq!(crtk_state(State::Active), "ENABLED");
+        assert_eq!(crtk_state(State::Fault), "FAULT");
+    }
+
+    #[test]
+    fn the_arms_of_the_dvrk() {
+        let config = presets::dvrk_seed000();
+        let labels: Vec<String> = (0..28).map(|i| format!("j{i}")).collect();
+        let arms = arms_of(&config, &labels);
+        let names: Vec<&str> = arms.iter().map(|a| a.0.as_str()).collect();
+        assert_eq!(names, ["MTML", "MTMR", "PSM1", "PSM2"]);
+        assert_eq!(arms[2].1, 14);
+        assert_eq!(arms[2].2.len(), 7);
+        assert_eq!(arms[3].2[0], "j21");
+    }
+
+    #[test]
+    fn stamps_round_trip() {
+        let t = Time::from_secs_f64(12.25);
+        assert_eq!((t.sec, t.nanosec), (12, 250_000_000));
+        assert!((t.as_secs_f64() - 12.25).abs() < 1e-9);
+        assert_eq!(Time::from_secs_f64(-3.0), Time::default());
     }
 }

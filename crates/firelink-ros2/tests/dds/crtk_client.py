@@ -74,7 +74,7 @@ def stamp() -> Header:
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--arm", default="PSM1")
-    parser.add_argument("--seconds", type=float, default=5.0)
+    parser.add_argument("--seconds", type=float, default=5.0, help="robot-clock seconds of servo stream")
     parser.add_argument("--timeout", type=float, default=120.0)
     args = parser.parse_args()
     arm = args.arm
@@ -129,35 +129,44 @@ def main() -> None:
     command.write(StringStamped(header=stamp(), string="home"))
     wait_for("ENABLED and homed", lambda: latest["state"] and latest["state"].state == "ENABLED" and latest["state"].is_homed)
     out["state_after_home"] = {"state": latest["state"].state, "is_homed": latest["state"].is_homed}
+    errors_before_servo = len(error_texts)
     poll()
     start_pos = list(latest["js"].position)
-    amplitude, freq, rate = 0.05, 0.5, 200.0
-    t0 = time.time()
+    # The trajectory runs on the robot's clock (the header stamps of
+    # measured_js: virtual time on the simulated bus, like use_sim_time), so
+    # how fast this machine runs the simulation does not matter.
+    amplitude, freq, rate, lead = 0.05, 0.5, 200.0, 0.01
+    t_start = latest["js"].header.stamp.sec + latest["js"].header.stamp.nanosec * 1e-9
+    clock = lambda h: h.stamp.sec + h.stamp.nanosec * 1e-9 - t_start  # noqa: E731
+    target_at = lambda t: start_pos[0] + amplitude * math.sin(2 * math.pi * freq * t)  # noqa: E731
     errors_rad = []
     sent = 0
     k = 0
-    while time.time() - t0 < args.seconds:
-        t = time.time() - t0
-        target = list(start_pos)
-        target[0] = start_pos[0] + amplitude * math.sin(2 * math.pi * freq * t)
-        servo.write(JointState(header=stamp(), name=[], position=target, velocity=[], effort=[]))
-        sent += 1
+    t0 = time.time()
+    while time.time() < deadline:
         poll()
         js = latest["js"]
-        if k % 100 == 0 and js is not None and latest["sp"] is not None:
-            out.setdefault("trace", []).append([round(t, 3), round(target[0], 4), round(latest["sp"].position[0], 4), round(js.position[0], 4)])
-        if t > 0.5 and js is not None:
-            # Compare with where the setpoint was a moment ago (the arm lags a little).
-            errors_rad.append(abs(js.position[0] - (start_pos[0] + amplitude * math.sin(2 * math.pi * freq * (t - 0.02)))))
+        t_robot = clock(js.header)
+        if t_robot >= args.seconds:
+            break
+        t_cmd = t_robot + lead
+        target = list(start_pos)
+        target[0] = target_at(t_cmd)
+        h = Header(stamp=Time(sec=int(t_start + t_cmd), nanosec=int(((t_start + t_cmd) % 1) * 1e9)), frame_id="")
+        servo.write(JointState(header=h, name=[], position=target, velocity=[], effort=[]))
+        sent += 1
+        if t_robot > 0.5:
+            errors_rad.append(abs(js.position[0] - target_at(t_robot)))
+        if k % 100 == 0:
+            out.setdefault("trace", []).append([round(t_robot, 3), round(target_at(t_robot), 4), round(js.position[0], 4)])
         k += 1
-        next_t = t0 + k / rate
-        time.sleep(max(0.0, next_t - time.time()))
+        time.sleep(max(0.0, t0 + k / rate - time.time()))
     poll()
     out["servo_sent"] = sent
     out["samples"] = len(errors_rad)
     out["tracking_max_rad"] = max(errors_rad) if errors_rad else None
     out["tracking_rms_rad"] = math.sqrt(sum(e * e for e in errors_rad) / len(errors_rad)) if errors_rad else None
-    out["errors_after"] = error_texts[len(out["refused_before_enable"]):]
+    out["errors_after"] = error_texts[errors_before_servo:]
     command.write(StringStamped(header=stamp(), string="disable"))
     time.sleep(0.3)
     print(json.dumps(out))
