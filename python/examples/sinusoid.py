@@ -42,17 +42,22 @@ def run(io: firelink.IoSystem, seconds: float, virtual: bool):
     period = 1.0 / RATE_HZ
     deadline = time.perf_counter()
 
-    def step() -> None:
+    def pace() -> None:
+        """Wait out the rest of the period: virtual time on the simulated
+        bus, the wall clock against the emulator."""
         nonlocal deadline
-        io.read_all()
-        io.write_all()
         if virtual:
             io.wait(period)
-        else:
-            deadline += period
-            delay = deadline - time.perf_counter()
-            if delay > 0:
-                time.sleep(delay)
+            return
+        deadline += period
+        delay = deadline - time.perf_counter()
+        if delay > 0:
+            time.sleep(delay)
+
+    def step() -> None:
+        io.read_all()
+        io.write_all()
+        pace()
 
     power_up(io, step)
     command = np.zeros(io.axes)
@@ -72,13 +77,7 @@ def run(io: firelink.IoSystem, seconds: float, virtual: bool):
         command[0] = np.clip(KP * (setpoint[k] - here) + KD * (setpoint_velocity[k] - velocity), -LIMIT, LIMIT)
         io.set_current(command)
         io.write_all()
-        if virtual:
-            io.wait(period)
-        else:
-            deadline += period
-            delay = deadline - time.perf_counter()
-            if delay > 0:
-                time.sleep(delay)
+        pace()
     io.set_amplifiers(False)
     io.set_power(False)
     io.cycle()

@@ -122,8 +122,7 @@ fn open_port(py: Python<'_>, spec: &str) -> PyResult<(AnyPort, String)> {
     if spec.starts_with("udp") {
         let addr =
             UdpPort::parse_address(spec).map_err(|e| error(py, "PortError", e.to_string()))?;
-        let mut port = UdpPort::open(addr).map_err(|e| host_error(py, e))?;
-        port.set_timeout(Duration::from_millis(20));
+        let port = rig::udp_port(addr).map_err(|e| testbed_error(py, e))?;
         return Ok((Box::new(port), format!("udp:{addr}")));
     }
     let mut parts = spec.split(':');
@@ -772,8 +771,7 @@ impl Emulator {
             .inner
             .as_ref()
             .ok_or_else(|| error(py, "EmulatorClosed", "the emulator is stopped".to_string()))?;
-        let mut port = emu.port().map_err(|e| testbed_error(py, e))?;
-        port.set_timeout(Duration::from_millis(20));
+        let port = emu.port().map_err(|e| testbed_error(py, e))?;
         Ok(Port {
             inner: Mutex::new(Some(Box::new(port))),
             name: self.address.clone(),

@@ -73,12 +73,7 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
     let boards = match &args.config {
         Some(path) => {
             let config = IoConfig::load(path).map_err(|e| CliError::Conflict(e.to_string()))?;
-            let count = config
-                .boards()
-                .iter()
-                .map(|b| usize::from(b.board_id) + 1)
-                .max()
-                .unwrap_or(0);
+            let count = config.board_slots();
             board_configs(&config, args.firmware, count)
         }
         None => {

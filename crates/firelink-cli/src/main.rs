@@ -187,15 +187,9 @@ pub enum CliError {
         /// Largest allowed.
         max: u64,
     },
-    /// No tcode has that name.
-    #[error("unknown tcode name {0:?}")]
-    UnknownTcodeName(String),
     /// Two inputs disagree.
     #[error("{0}")]
     Conflict(String),
-    /// The tcode is recognised but not built by `encode`.
-    #[error("cannot encode {0} packets: only quadlet/block read/write requests and responses")]
-    CannotEncode(&'static str),
     /// The host library failed.
     #[error(transparent)]
     Host(#[from] firelink_host::HostError),

@@ -107,7 +107,7 @@ impl CycleReport {
 }
 
 /// Counters over all cycles, by kind.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct IoStats {
     /// Cycles run (read phases).
     pub cycles: u64,

@@ -281,47 +281,21 @@ pub struct TrackingDetail {
     pub samples: u64,
 }
 
-/// Errors by kind over the run.
+/// Errors by kind over the run: the host library's counters and their total.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ErrorCounts {
     /// All errors.
     pub total: u64,
-    /// Time-outs.
-    pub timeouts: u64,
-    /// Bus resets.
-    pub bus_resets: u64,
-    /// Bad packets.
-    pub bad_packets: u64,
-    /// Error acks or rcodes.
-    pub nacks: u64,
-    /// Sequence errors.
-    pub sequence_errors: u64,
-    /// Corrupt queries reported by boards.
-    pub corrupt_queries: u64,
-    /// Blocks naming the wrong board.
-    pub wrong_board: u64,
-    /// Blocks of the wrong size.
-    pub block_size: u64,
-    /// Other failures.
-    pub other: u64,
-    /// Misses per board ID.
-    pub missed_by_board: Vec<u64>,
+    /// By kind.
+    #[serde(flatten)]
+    pub by_kind: IoStats,
 }
 
 impl From<&IoStats> for ErrorCounts {
     fn from(s: &IoStats) -> Self {
         ErrorCounts {
             total: s.total_errors(),
-            timeouts: s.timeouts,
-            bus_resets: s.bus_resets,
-            bad_packets: s.bad_packets,
-            nacks: s.nacks,
-            sequence_errors: s.sequence_errors,
-            corrupt_queries: s.corrupt_queries,
-            wrong_board: s.wrong_board,
-            block_size: s.block_size,
-            other: s.other,
-            missed_by_board: s.missed_by_board.to_vec(),
+            by_kind: *s,
         }
     }
 }
@@ -501,11 +475,11 @@ impl fmt::Display for DemoReport {
                 t.rms_rad, t.max_rad, t.prismatic_rms_mm, t.prismatic_max_mm
             )?;
         }
-        let e = &self.errors;
+        let (total, e) = (self.errors.total, &self.errors.by_kind);
         writeln!(
             f,
             "  errors: total {}  timeouts {}  sequence {}  corrupt queries {}  bus resets {}  bad packets {}  nacks {}",
-            e.total,
+            total,
             e.timeouts,
             e.sequence_errors,
             e.corrupt_queries,
@@ -660,12 +634,7 @@ pub fn run_demo(
     }
     let config = &options.config;
     // Boards 0..=the highest board ID the configuration uses.
-    let boards = config
-        .boards()
-        .iter()
-        .map(|b| usize::from(b.board_id) + 1)
-        .max()
-        .unwrap_or(0);
+    let boards = config.board_slots();
     let pacing = options
         .pacing
         .unwrap_or_else(|| options.port.default_pacing());
@@ -694,8 +663,7 @@ pub fn run_demo(
             report
         }
         DemoPort::Udp(addr) => {
-            let mut port = UdpPort::open(*addr)?;
-            port.set_timeout(Duration::from_millis(20));
+            let port = rig::udp_port(*addr)?;
             run_robot(
                 port,
                 options,

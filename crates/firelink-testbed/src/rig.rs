@@ -227,9 +227,7 @@ impl Emulator {
 
     /// A UDP port to it.
     pub fn port(&self) -> Result<UdpPort, TestbedError> {
-        let mut p = UdpPort::open(self.addr)?;
-        p.set_timeout(std::time::Duration::from_millis(20));
-        Ok(p)
+        udp_port(self.addr)
     }
 }
 
@@ -240,4 +238,18 @@ impl Drop for Emulator {
             let _ = t.join();
         }
     }
+}
+
+/// The time-out the testbed's programs give a UDP port: a servo cycle that
+/// waits longer has failed anyway.
+pub const UDP_TIMEOUT: std::time::Duration = std::time::Duration::from_millis(20);
+
+/// A UDP port to the bridge at `addr` with [`UDP_TIMEOUT`].
+///
+/// # Errors
+/// The socket could not be opened.
+pub fn udp_port(addr: std::net::SocketAddr) -> Result<UdpPort, TestbedError> {
+    let mut p = UdpPort::open(addr)?;
+    p.set_timeout(UDP_TIMEOUT);
+    Ok(p)
 }

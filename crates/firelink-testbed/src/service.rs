@@ -25,7 +25,6 @@ use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
 use std::thread::JoinHandle;
 
 use firelink_board::config::Profile;
-use firelink_host::udp::UdpPort;
 
 use crate::demo::{DemoFault, DemoPort, Injector, motion_for};
 use crate::rig;
@@ -597,12 +596,7 @@ impl Service {
                 "rate {rate_hz} Hz: must be 0 < rate <= 20000"
             )));
         }
-        let boards = config
-            .boards()
-            .iter()
-            .map(|b| usize::from(b.board_id) + 1)
-            .max()
-            .unwrap_or(0);
+        let boards = config.board_slots();
         let options = |pacing| LoopOptions {
             config: config.clone(),
             rate_hz,
@@ -625,14 +619,12 @@ impl Service {
             DemoPort::Emulate => {
                 let emu = rig::Emulator::start(configs())?;
                 let name = format!("udp:{} (in-process emulator)", emu.addr);
-                let mut port = emu.port()?;
-                port.set_timeout(Duration::from_millis(20));
+                let port = emu.port()?;
                 let (s, h) = spawn(port, name, options(Pacing::WallClock))?;
                 (s, h, Some(emu), remote)
             }
             DemoPort::Udp(addr) => {
-                let mut port = UdpPort::open(*addr)?;
-                port.set_timeout(Duration::from_millis(20));
+                let port = rig::udp_port(*addr)?;
                 let (s, h) = spawn(port, format!("udp:{addr}"), options(Pacing::WallClock))?;
                 (s, h, None, remote)
             }

@@ -613,6 +613,16 @@ impl IoConfig {
         self.robots.iter().map(|r| r.actuators.len()).sum()
     }
 
+    /// How many boards a rig must emulate for this configuration: board
+    /// IDs 0 up to the highest one used.
+    pub fn board_slots(&self) -> usize {
+        self.boards()
+            .iter()
+            .map(|b| usize::from(b.board_id) + 1)
+            .max()
+            .unwrap_or(0)
+    }
+
     /// The boards in use, by ascending ID.
     pub fn boards(&self) -> Vec<BoardUse> {
         let mut boards: Vec<BoardUse> = Vec::new();
