@@ -542,21 +542,34 @@ impl ReadBlockRepr {
     /// Length errors of [`ReadBlock::check_len`].
     pub fn parse<T: AsRef<[u8]>>(block: &ReadBlock<T>) -> Result<ReadBlockRepr> {
         block.check_len()?;
-        let mut repr = ReadBlockRepr::new(block.layout);
+        let layout = block.layout;
+        let mut repr = ReadBlockRepr::new(layout);
         repr.timestamp = block.timestamp();
         repr.status = block.status();
         repr.digital_in = block.digital_in();
         repr.temperature = block.temperature();
-        for (i, m) in repr.motor.iter_mut().enumerate() {
-            m.adc = block.adc(i).unwrap_or_default();
-            m.status = block.motor_status(i).unwrap_or_default();
+        // Section starts once, then straight reads: the length check above
+        // guarantees every quadlet of the layout is in the buffer. Slots
+        // beyond the layout's axes keep their defaults.
+        let bytes = block.as_bytes();
+        let (adc, _) = layout.section(Section::Adc);
+        let (status, with_status) = layout.section(Section::MotorStatus);
+        for (i, m) in repr.motor.iter_mut().take(layout.motors()).enumerate() {
+            m.adc = AdcWord(read_quadlet(bytes, adc + i));
+            if i < with_status {
+                m.status = MotorStatus(read_quadlet(bytes, status + i));
+            }
         }
-        for (i, e) in repr.encoder.iter_mut().enumerate() {
-            e.position = block.enc_position(i).unwrap_or_default();
-            e.period = block.enc_period(i).unwrap_or_default();
-            e.qtr1 = block.enc_qtr1(i).unwrap_or_default();
-            e.qtr5 = block.enc_qtr5(i).unwrap_or_default();
-            e.run = block.enc_run(i).unwrap_or_default();
+        let (position, _) = layout.section(Section::EncPosition);
+        let e_count = layout.encoders();
+        for (i, e) in repr.encoder.iter_mut().take(e_count).enumerate() {
+            // The five encoder sections follow each other, `e_count` apart.
+            let q = |k: usize| read_quadlet(bytes, position + k * e_count + i);
+            e.position = EncPosition(q(0));
+            e.period = EncPeriod(q(1));
+            e.qtr1 = EncQuarter(q(2));
+            e.qtr5 = EncQuarter(q(3));
+            e.run = EncRun(q(4));
         }
         Ok(repr)
     }
