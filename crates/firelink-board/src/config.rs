@@ -24,7 +24,9 @@ pub enum Profile {
     /// The seed-000 era broadcast firmware: fixed TDMA slots of about
     /// 5.2 us x node ID (+ ~3 us) after the query, every board answering;
     /// a corrupt query is answered with sequence `0xFFFF`. Register and
-    /// block layouts are those of Rev 7 (FW_VERSION reads 7).
+    /// block layouts are those of Rev 7 (FW_VERSION reads 7), or with
+    /// [`BoardConfig::with_firmware`]`(FirmwareRev::Rev4)` those of seed
+    /// 000's own firmware (48-byte blocks, slots counted in FPGA clocks).
     Seed,
     /// Firmware Rev 7: Rev 7 block layouts, chained broadcasts, the hub
     /// header keeps the full sequence.
@@ -84,8 +86,13 @@ pub struct BoardConfig {
     pub board_id: u8,
     /// Companion board.
     pub hardware: Hardware,
-    /// Firmware profile.
+    /// Firmware profile: the behaviour (slot timing, sequence rule,
+    /// Rev 8 registers).
     pub profile: Profile,
+    /// The firmware revision FW_VERSION reports, which selects the block
+    /// layouts: the profile's ([`Profile::firmware_rev`]) unless changed
+    /// with [`with_firmware`](Self::with_firmware).
+    pub firmware: FirmwareRev,
     /// FPGA generation.
     pub fpga: FpgaVersion,
     /// GIT_DESC register: short commit id in bits 31:4, dirty in bit 3.
@@ -111,6 +118,7 @@ impl BoardConfig {
             board_id: board_id & 0xF,
             hardware,
             profile,
+            firmware: profile.firmware_rev(),
             fpga: FpgaVersion::V2,
             git_desc: 0x0F1E_1140,
             axes: vec![presets::generic_motor(); hardware.axes()],
@@ -132,6 +140,14 @@ impl BoardConfig {
         if let Some(slot) = self.axes.get_mut(index) {
             *slot = params;
         }
+        self
+    }
+
+    /// The same board reporting firmware `firmware` and using its block
+    /// layouts, e.g. the seed profile with [`FirmwareRev::Rev4`]: seed
+    /// 000's own firmware, fixed TDMA slots and its 48-byte blocks.
+    pub fn with_firmware(mut self, firmware: FirmwareRev) -> BoardConfig {
+        self.firmware = firmware;
         self
     }
 
@@ -167,7 +183,7 @@ impl BoardConfig {
 
     /// The real-time block layout: firmware revision, motors, encoders.
     pub fn layout(&self) -> BoardLayout {
-        let rev = self.profile.firmware_rev();
+        let rev = self.firmware;
         match self.hardware {
             Hardware::Qla1 => BoardLayout::qla1(rev),
             Hardware::Dqla => BoardLayout::dqla(rev),
@@ -175,13 +191,14 @@ impl BoardConfig {
     }
 
     /// Quadlets of the real-time read block (`fpga-board.md` section 4):
-    /// Rev 7 `4 + M + 5E`, Rev 8 `4 + 2M + 5E`.
+    /// Rev 7 `4 + M + 5E`, Rev 8 `4 + 2M + 5E`, Rev 4 `4 + M + E`.
     pub fn read_block_quadlets(&self) -> usize {
         self.layout().read_block_quadlets()
     }
 
     /// Quadlets of the real-time write block (`fpga-board.md` section 5):
-    /// Rev 8 header + M DACs + control, Rev 7 M DACs + control.
+    /// Rev 8 header + M DACs + control, Rev 7 M DACs + control, Rev 4 M
+    /// DACs.
     pub fn write_block_quadlets(&self) -> usize {
         self.layout().write_block_quadlets()
     }

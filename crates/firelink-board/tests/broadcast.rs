@@ -438,3 +438,49 @@ fn status_broadcast_offsets() {
         assert_eq!(header, (1 << 16) | size);
     }
 }
+
+/// Seed 000's own firmware (seed profile, Rev 4): FW_VERSION 4, 13-quadlet
+/// status broadcasts in slots of 150 + 256 x node FPGA clocks, hub entries
+/// with the full sequence and no timing quadlet after them.
+#[test]
+fn rev4_boards_use_seed_000_sizes_and_clock_exact_slots() {
+    use firelink_wire::board::realtime::FirmwareRev;
+    let n = 5;
+    let boards = (0..n)
+        .map(|id| {
+            Rig::new(
+                BoardConfig::new(id, Hardware::Qla1, Profile::Seed)
+                    .with_firmware(FirmwareRev::Rev4),
+                id,
+            )
+        })
+        .collect();
+    let mut wire = Wire {
+        boards,
+        now: Time::from_micros(100),
+        log: Vec::new(),
+    };
+    wire.query(NodeId::BROADCAST, 0x0042, 0x001F);
+    let t_query = wire.now;
+    wire.run();
+    assert_eq!(wire.log.len(), usize::from(n));
+    for (node, at) in &wire.log {
+        let clocks = 150 + 256 * u64::from(*node);
+        assert_eq!(*at - t_query, TimeDelta::from_clocks(clocks), "node {node}");
+    }
+    let slots = wire.slots();
+    assert_eq!(slots[0].layout.read_block_quadlets(), 12);
+    assert_eq!(hub_block_quadlets(slots.iter().map(|s| s.layout)), 13 * 5);
+    for b in &mut wire.boards {
+        b.now = wire.now + TimeDelta::from_micros(5);
+        assert_eq!(b.read(7), 4, "FW_VERSION");
+        assert_eq!(b.read(0x1802), 13 * 5, "no timing quadlet");
+        let hub = bytes(&b.read_block(0x1000, 13 * 5));
+        let block = HubBlock::new_checked(&hub[..], &slots).unwrap();
+        block.check_sequences(SeqRule::Seed000, 0x0042).unwrap();
+        for (k, e) in block.entries().enumerate() {
+            assert_eq!(e.block.status().board_id(), k as u8);
+            assert!(matches!(e.header, HubHeader::Rev7 { seq: 0x0042, .. }));
+        }
+    }
+}

@@ -3,8 +3,8 @@
 //! the hub memory every board fills with every board's broadcast.
 
 use firelink_wire::board::address::HUB_MEMORY_QUADLETS;
-use firelink_wire::board::broadcast::{HubPacker, HubTiming, Query};
-use firelink_wire::board::realtime::BlockFormat;
+use firelink_wire::board::broadcast::{HubPacker, HubTiming, Query, has_hub_timing};
+use firelink_wire::board::realtime::{BlockFormat, FirmwareRev};
 use firelink_wire::board::registers::StatusRead;
 use firelink_wire::field::read_quadlet;
 
@@ -19,6 +19,23 @@ pub const SEED_SLOT: TimeDelta = TimeDelta::from_nanos(5_200);
 
 /// ... after this offset from the query (about 3 us).
 pub const SEED_OFFSET: TimeDelta = TimeDelta::from_nanos(3_000);
+
+/// Seed 000's own firmware (Rev 4) counts its TDMA slots in FPGA clocks:
+/// 256 per node ID (5.21 us), after [`FIRST_SLOT_CLOCKS`].
+pub const SEED_SLOT_CLOCKS: u64 = 256;
+
+/// Seed profile: when node `node`'s status broadcast is due after the
+/// query. Rev 4 boards count `150 + 256 x node` clocks (3.05 + 5.21 us x
+/// node, the figures calibrated against seed 000's Fig. 9); over later
+/// firmware's layouts the profile keeps the spec's round figures
+/// ([`SEED_OFFSET`] + [`SEED_SLOT`] x node).
+pub fn seed_slot(firmware: FirmwareRev, node: u8) -> TimeDelta {
+    if firmware.block_format() == BlockFormat::Rev4 {
+        TimeDelta::from_clocks(FIRST_SLOT_CLOCKS + SEED_SLOT_CLOCKS * u64::from(node))
+    } else {
+        SEED_OFFSET + TimeDelta(SEED_SLOT.0 * u64::from(node))
+    }
+}
 
 /// Rev 7+: a board whose predecessors have not all been heard transmits
 /// anyway this long per predecessor after its first possible slot, so one
@@ -120,7 +137,7 @@ impl Hub {
     pub fn store(&mut self, now: Time, payload: &[u8], format: BlockFormat) {
         let update = self.query_at.map_or(0, |q| now.clocks_since(q));
         let update = match format {
-            BlockFormat::Rev7 => update.min(0xFFFF),
+            BlockFormat::Rev4 | BlockFormat::Rev7 => update.min(0xFFFF),
             BlockFormat::Rev8 => update.min(0x7FFF),
         } as u16;
         let seq = self.query.map_or(0, |q| q.seq);
@@ -142,6 +159,9 @@ impl Hub {
         let mask = self.mask();
         if self.complete_at.is_none() && mask != 0 && mask & !self.seen == 0 {
             self.complete_at = Some(now);
+            if !has_hub_timing(format) {
+                return;
+            }
             let Some(free) = self.memory.get_mut(self.count * 4..) else {
                 return;
             };

@@ -39,7 +39,7 @@
 //! - Rev 7+ chain: a board whose predecessors stay silent transmits anyway
 //!   [`CHAIN_TIMEOUT_PER_BOARD`] per missing predecessor after its first
 //!   slot. The seed profile answers every query in its TDMA slot whatever
-//!   the mask.
+//!   the mask ([`seed_slot`]: clock-exact on Rev 4, seed 000's firmware).
 //! - Hub memory holds 512 quadlets: entries that do not fit are dropped
 //!   (16 QLA1 Rev 8 boards need 529). A board that missed the query keeps
 //!   appending to the previous cycle. The timing quadlet reads
@@ -77,7 +77,9 @@ mod phy;
 mod power;
 mod registers;
 
-pub use hub::{CHAIN_TIMEOUT_PER_BOARD, FIRST_SLOT_CLOCKS, SEED_OFFSET, SEED_SLOT};
+pub use hub::{
+    CHAIN_TIMEOUT_PER_BOARD, FIRST_SLOT_CLOCKS, SEED_OFFSET, SEED_SLOT, SEED_SLOT_CLOCKS, seed_slot,
+};
 pub use phy::{PhyAccess, PhyRegisters};
 pub use power::{
     DEFAULT_ENABLE_DELAY, ENABLE_DELAY_UNIT_CLOCKS, MISMATCH_AMPS, MISMATCH_TIME, SAFETY_TICK,
@@ -506,7 +508,7 @@ impl Firmware {
         }
         let pending = self.hub.pending.take()?;
         let phy = self.phy_id?;
-        let offset = status_broadcast_offset(self.cfg.profile.firmware_rev(), self.cfg.board_id)
+        let offset = status_broadcast_offset(self.cfg.firmware, self.cfg.board_id)
             .unwrap_or(STATUS_BROADCAST_OFFSET);
         let packet = emit(&PacketRepr::WriteBlockRequest {
             header: AsyncHeader::new(NodeId::BROADCAST, NodeId::local(phy), 0)
@@ -566,7 +568,7 @@ impl Firmware {
                 let Some(node) = self.phy_id else {
                     return;
                 };
-                let at = now + SEED_OFFSET + TimeDelta(SEED_SLOT.0 * u64::from(node));
+                let at = now + seed_slot(self.cfg.firmware, node);
                 Pending {
                     payload,
                     earliest: at,

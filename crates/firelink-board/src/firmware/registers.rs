@@ -200,12 +200,12 @@ impl Firmware {
 
     /// A block write to address 0: a real-time write block, or a command
     /// block of concatenated write blocks from which this board takes the
-    /// slice naming it (sections 5 and 6.5). A unicast Rev 7 block of
+    /// slice naming it (sections 5 and 6.5). A unicast Rev 4 or Rev 7 block of
     /// exactly one board's size is taken whatever board ID it carries.
     fn realtime_write(&mut self, now: Time, data: &[u8], unicast: bool) {
         let layout = self.cfg.layout();
         let own = unicast
-            && layout.format() == BlockFormat::Rev7
+            && layout.format() != BlockFormat::Rev8
             && data.len() == layout.write_block_len();
         let block = if own {
             WriteBlock::new_checked(data, layout).ok()
@@ -234,7 +234,7 @@ impl Firmware {
             BoardRegister::HwVersion => u32::from(self.cfg.hardware.hardware_version()),
             BoardRegister::Temperature => self.temperature_word(),
             BoardRegister::DigitalOut => u32::from(self.dout),
-            BoardRegister::FwVersion => self.cfg.profile.firmware_rev().number(),
+            BoardRegister::FwVersion => self.cfg.firmware.number(),
             BoardRegister::DigitalIn => self.digital_in().raw(),
             BoardRegister::IpAddr if self.cfg.fpga.has_ethernet() => self.ip_addr,
             BoardRegister::EthStatus => self.cfg.fpga.eth_status_bits(),

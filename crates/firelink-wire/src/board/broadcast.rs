@@ -346,7 +346,7 @@ impl HubHeader {
     /// Decode a hub header quadlet in the given format.
     pub fn from_word(word: u32, format: BlockFormat) -> HubHeader {
         match format {
-            BlockFormat::Rev7 => HubHeader::Rev7 {
+            BlockFormat::Rev4 | BlockFormat::Rev7 => HubHeader::Rev7 {
                 seq: field::HUB7_SEQ.extract(word) as u16,
                 time: field::HUB7_TIME.extract(word) as u16,
             },
@@ -400,7 +400,8 @@ impl HubHeader {
     /// The hub's rewrite of a received broadcast header (`fpga-board.md`
     /// §6.3): Rev 8 keeps the size and the sequence's low byte, flags a
     /// full-sequence mismatch with `query_seq` and keeps the low 15 bits of
-    /// `update_time`; Rev 7 keeps the sequence and stores `update_time`.
+    /// `update_time`; Rev 4 and Rev 7 keep the sequence and store
+    /// `update_time`.
     pub fn rewrite(
         broadcast: BroadcastHeader,
         query_seq: u16,
@@ -408,7 +409,7 @@ impl HubHeader {
         format: BlockFormat,
     ) -> HubHeader {
         match format {
-            BlockFormat::Rev7 => HubHeader::Rev7 {
+            BlockFormat::Rev4 | BlockFormat::Rev7 => HubHeader::Rev7 {
                 seq: broadcast.seq,
                 time: update_time,
             },
@@ -465,6 +466,7 @@ impl SeqRule {
     /// The rule of a firmware revision's real boards.
     pub fn for_firmware(firmware: FirmwareRev) -> SeqRule {
         match firmware.block_format() {
+            BlockFormat::Rev4 => SeqRule::Seed000,
             BlockFormat::Rev7 => SeqRule::Rev7Echo,
             BlockFormat::Rev8 => SeqRule::Rev8LowByte,
         }
@@ -543,13 +545,22 @@ pub struct BoardSlot {
 
 /// Quadlets of the hub block of these boards: the sum of (read block + 1)
 /// plus the timing quadlet (`fpga-board.md` §6.4: two QLA1 Rev 8 boards 67,
-/// Rev 7 `29 * boards + 1`).
+/// Rev 7 `29 * boards + 1`). Rev 4 hubs have no timing quadlet: boards
+/// that are all Rev 4 give the sum alone (`13 * boards` for QLA1); no
+/// boards at all give the timing quadlet alone.
 pub fn hub_block_quadlets<I: IntoIterator<Item = BoardLayout>>(layouts: I) -> usize {
-    layouts
-        .into_iter()
-        .map(BoardLayout::broadcast_quadlets)
-        .sum::<usize>()
-        + 1
+    let (mut sum, mut all_rev4) = (0, true);
+    for layout in layouts {
+        sum += layout.broadcast_quadlets();
+        all_rev4 &= !has_hub_timing(layout.format());
+    }
+    sum + usize::from(sum == 0 || !all_rev4)
+}
+
+/// Whether a hub of this format appends the timing quadlet after the last
+/// entry (Rev 7 and later).
+pub fn has_hub_timing(format: BlockFormat) -> bool {
+    format != BlockFormat::Rev4
 }
 
 /// A checked view of the hub block read from `0x1000`, walked with the
@@ -624,9 +635,14 @@ impl<'b, T: AsRef<[u8]>> HubBlock<'b, T> {
         self.entries().find(|e| e.slot.id == board_id)
     }
 
-    /// The timing quadlet after the last entry.
+    /// The timing quadlet after the last entry (all zero for Rev 4 boards,
+    /// whose hub has none).
     pub fn timing(&self) -> HubTiming {
-        let q = hub_block_quadlets(self.boards.iter().map(|b| b.layout)) - 1;
+        let layouts = self.boards.iter().map(|b| b.layout);
+        if !self.boards.is_empty() && !layouts.clone().any(|l| has_hub_timing(l.format())) {
+            return HubTiming::default();
+        }
+        let q = hub_block_quadlets(layouts).saturating_sub(1);
         HubTiming::from_word(read_quadlet(self.buffer.as_ref(), q))
     }
 
@@ -929,9 +945,10 @@ pub struct CommandSlices<'a> {
 
 /// Walk a command block (`fpga-board.md` §6.5). Rev 8 follows the headers:
 /// the low byte counts the slice's quadlets including the header, bits 15:8
-/// name the board. Rev 7 cuts fixed slices of `layout`'s write block
-/// (5 quadlets for a QLA1), the board ID in bits 27:24 of the first DAC
-/// quadlet. Only `layout`'s format (and, for Rev 7, its size) is used.
+/// name the board. Rev 4 and Rev 7 cut fixed slices of `layout`'s write
+/// block (5 quadlets for a Rev 7 QLA1, 4 on Rev 4), the board ID in bits
+/// 27:24 of the first DAC quadlet. Only `layout`'s format (and, before
+/// Rev 8, its size) is used.
 pub fn command_slices(payload: &[u8], layout: BoardLayout) -> CommandSlices<'_> {
     CommandSlices {
         payload,
@@ -965,7 +982,7 @@ impl<'a> CommandSlices<'a> {
                 }
                 (header.board_id, usize::from(header.quadlets))
             }
-            BlockFormat::Rev7 => (
+            BlockFormat::Rev4 | BlockFormat::Rev7 => (
                 DacWord(first).board_id(),
                 self.layout.write_block_quadlets(),
             ),
@@ -1226,6 +1243,10 @@ mod tests {
         assert_eq!(hub_block_quadlets([REV8; 2]), 67);
         assert_eq!(hub_block_quadlets([REV7; 3]), 29 * 3 + 1);
         assert_eq!(hub_block_quadlets([]), 1);
+        // Rev 4 (seed 000's era): no timing quadlet after the entries.
+        let rev4 = BoardLayout::qla1(FirmwareRev::Rev4);
+        assert_eq!(hub_block_quadlets([rev4; 8]), 13 * 8);
+        assert_eq!(SeqRule::for_firmware(FirmwareRev::Rev4), SeqRule::Seed000);
         assert_eq!(
             hub_block_quadlets([BoardLayout::dqla(FirmwareRev::Rev8)]),
             62

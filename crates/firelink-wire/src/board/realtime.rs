@@ -63,6 +63,12 @@ open_enum! {
     /// Firmware revision, as FW_VERSION reads (`fpga-board.md` §2). Open:
     /// later revisions are data and use the newest known block format.
     pub enum FirmwareRev(u32) {
+        /// Rev 4, the firmware of seed 000's era: the first broadcast
+        /// firmware (fixed TDMA slots). Seed 000 states only its block
+        /// sizes (48 bytes read and 16 bytes written per QLA board); the
+        /// layout assumed here is the first sections of Rev 7's
+        /// ([`BlockFormat::Rev4`]).
+        Rev4 = 4,
         /// Rev 7: no MOTOR_STATUS block, write block without header.
         Rev7 = 7,
         /// Rev 8: MOTOR_STATUS block, write block with a header.
@@ -73,6 +79,15 @@ open_enum! {
 /// The layout family of the real-time blocks and hub headers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum BlockFormat {
+    /// Rev 4, seed 000's era (an assumption: seed 000 gives the sizes,
+    /// not the layout): the read block is Rev 7's fixed quadlets, one ADC
+    /// quadlet per motor and one ENC_POSITION per encoder (`4 + M + E`, 12
+    /// for a QLA: the 48 bytes of seed 000's sequential read); the write
+    /// block is one DAC quadlet per motor, board ID in bits 27:24 as on
+    /// Rev 7, with no control quadlet (16 bytes for a QLA, seed 000
+    /// Fig. 10a); hub entries carry Rev 7 headers and no timing quadlet
+    /// follows them.
+    Rev4,
     /// Rev 7 (`fpga-board.md` §4, §5, §6.3).
     Rev7,
     /// Rev 8 (`fpga-board.md` §4, §5, §6.3).
@@ -86,13 +101,13 @@ impl FirmwareRev {
     }
 
     /// The block format of this revision: Rev 8 and later use the Rev 8
-    /// format; earlier revisions (which the spec does not describe) the
-    /// Rev 7 format.
+    /// format, Rev 4 its own; other earlier revisions (which the spec does
+    /// not describe) the Rev 7 format.
     pub fn block_format(self) -> BlockFormat {
-        if self.number() >= 8 {
-            BlockFormat::Rev8
-        } else {
-            BlockFormat::Rev7
+        match self.number() {
+            n if n >= 8 => BlockFormat::Rev8,
+            4 => BlockFormat::Rev4,
+            _ => BlockFormat::Rev7,
         }
     }
 }
@@ -202,20 +217,39 @@ impl BoardLayout {
         self.encoders as usize
     }
 
+    /// Encoder sections of the read block: ENC_POSITION only on Rev 4,
+    /// all five (position, period, QTR1, QTR5, run) later.
+    fn encoder_sections(self) -> usize {
+        match self.format() {
+            BlockFormat::Rev4 => 1,
+            BlockFormat::Rev7 | BlockFormat::Rev8 => 5,
+        }
+    }
+
+    /// Start quadlet and entry count of a section (0 entries: the layout
+    /// has no such section).
     fn section(self, section: Section) -> (usize, usize) {
         let m = self.motors();
         let e = self.encoders();
         let encoder_start = field::READ_FIXED_QUADLETS + m;
+        let sections = self.encoder_sections();
+        let encoder = |k: usize| {
+            if k < sections {
+                (encoder_start + k * e, e)
+            } else {
+                (encoder_start + sections * e, 0)
+            }
+        };
         match section {
             Section::Adc => (field::READ_FIXED_QUADLETS, m),
-            Section::EncPosition => (encoder_start, e),
-            Section::EncPeriod => (encoder_start + e, e),
-            Section::EncQtr1 => (encoder_start + 2 * e, e),
-            Section::EncQtr5 => (encoder_start + 3 * e, e),
-            Section::EncRun => (encoder_start + 4 * e, e),
+            Section::EncPosition => encoder(0),
+            Section::EncPeriod => encoder(1),
+            Section::EncQtr1 => encoder(2),
+            Section::EncQtr5 => encoder(3),
+            Section::EncRun => encoder(4),
             Section::MotorStatus => match self.format() {
-                BlockFormat::Rev7 => (encoder_start + 5 * e, 0),
-                BlockFormat::Rev8 => (encoder_start + 5 * e, m),
+                BlockFormat::Rev4 | BlockFormat::Rev7 => (encoder_start + sections * e, 0),
+                BlockFormat::Rev8 => (encoder_start + sections * e, m),
             },
         }
     }
@@ -235,7 +269,8 @@ impl BoardLayout {
     }
 
     /// Quadlets of the real-time read block: Rev 7 `4 + M + 5E` (QLA1 28),
-    /// Rev 8 `4 + 2M + 5E` (QLA1 32, DQLA 60), `fpga-board.md` §4.
+    /// Rev 8 `4 + 2M + 5E` (QLA1 32, DQLA 60), `fpga-board.md` §4; Rev 4
+    /// `4 + M + E` (QLA1 12).
     pub fn read_block_quadlets(self) -> usize {
         let (start, count) = self.section(Section::MotorStatus);
         start + count
@@ -247,9 +282,10 @@ impl BoardLayout {
     }
 
     /// Quadlets of the real-time write block: Rev 8 `1 + M + 1` (QLA1 6),
-    /// Rev 7 `M + 1` (QLA1 5), `fpga-board.md` §5.
+    /// Rev 7 `M + 1` (QLA1 5), `fpga-board.md` §5; Rev 4 `M` (QLA1 4).
     pub fn write_block_quadlets(self) -> usize {
         match self.format() {
+            BlockFormat::Rev4 => self.motors(),
             BlockFormat::Rev7 => self.motors() + 1,
             BlockFormat::Rev8 => self.motors() + 2,
         }
@@ -374,7 +410,7 @@ impl<T: AsRef<[u8]>> ReadBlock<T> {
         self.entry(Section::EncRun, encoder).map(EncRun)
     }
 
-    /// MOTOR_STATUS of 0-based `motor` (Rev 8; always `None` on Rev 7).
+    /// MOTOR_STATUS of 0-based `motor` (Rev 8; always `None` before Rev 8).
     pub fn motor_status(&self, motor: usize) -> Option<MotorStatus> {
         self.entry(Section::MotorStatus, motor).map(MotorStatus)
     }
@@ -470,7 +506,7 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> ReadBlock<T> {
 pub struct MotorReading {
     /// ADC: potentiometer and motor current.
     pub adc: AdcWord,
-    /// MOTOR_STATUS (Rev 8; zero on Rev 7).
+    /// MOTOR_STATUS (Rev 8; zero before Rev 8).
     pub status: MotorStatus,
 }
 
@@ -493,7 +529,7 @@ pub struct EncoderReading {
 ///
 /// Entries beyond the layout's motors and encoders are not on the wire:
 /// [`parse`](Self::parse) leaves them zero and [`emit`](Self::emit) ignores
-/// them, as it ignores `status` of motors on Rev 7.
+/// them, as it ignores `status` of motors before Rev 8.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct ReadBlockRepr {
     /// The layout.
@@ -562,9 +598,17 @@ impl ReadBlockRepr {
         }
         let (position, _) = layout.section(Section::EncPosition);
         let e_count = layout.encoders();
+        let sections = layout.encoder_sections();
         for (i, e) in repr.encoder.iter_mut().take(e_count).enumerate() {
-            // The five encoder sections follow each other, `e_count` apart.
-            let q = |k: usize| read_quadlet(bytes, position + k * e_count + i);
+            // The encoder sections follow each other, `e_count` apart;
+            // those the layout lacks read 0.
+            let q = |k: usize| {
+                if k < sections {
+                    read_quadlet(bytes, position + k * e_count + i)
+                } else {
+                    0
+                }
+            };
             e.position = EncPosition(q(0));
             e.period = EncPeriod(q(1));
             e.qtr1 = EncQuarter(q(2));
@@ -604,12 +648,15 @@ impl ReadBlockRepr {
                 block.set_motor_status(i, m.status)?;
             }
         }
+        let all_sections = self.layout.encoder_sections() == 5;
         for (i, e) in self.encoders().iter().enumerate() {
             block.set_enc_position(i, e.position)?;
-            block.set_enc_period(i, e.period)?;
-            block.set_enc_qtr1(i, e.qtr1)?;
-            block.set_enc_qtr5(i, e.qtr5)?;
-            block.set_enc_run(i, e.run)?;
+            if all_sections {
+                block.set_enc_period(i, e.period)?;
+                block.set_enc_qtr1(i, e.qtr1)?;
+                block.set_enc_qtr5(i, e.qtr5)?;
+                block.set_enc_run(i, e.run)?;
+            }
         }
         Ok(len)
     }
@@ -695,15 +742,15 @@ impl<T: AsRef<[u8]>> WriteBlock<T> {
 
     fn dac_quadlet(&self) -> usize {
         match self.layout.format() {
-            BlockFormat::Rev7 => 0,
+            BlockFormat::Rev4 | BlockFormat::Rev7 => 0,
             BlockFormat::Rev8 => 1,
         }
     }
 
-    /// The Rev 8 header; `None` on Rev 7 (no header).
+    /// The Rev 8 header; `None` on Rev 4 and Rev 7 (no header).
     pub fn header(&self) -> Option<WriteHeader> {
         match self.layout.format() {
-            BlockFormat::Rev7 => None,
+            BlockFormat::Rev4 | BlockFormat::Rev7 => None,
             BlockFormat::Rev8 => Some(WriteHeader::from_word(read_quadlet(
                 self.buffer.as_ref(),
                 0,
@@ -712,7 +759,7 @@ impl<T: AsRef<[u8]>> WriteBlock<T> {
     }
 
     /// The board the block is for: header bits 15:8 on Rev 8, the first DAC
-    /// quadlet's bits 27:24 on Rev 7.
+    /// quadlet's bits 27:24 on Rev 4 and Rev 7.
     pub fn board_id(&self) -> u8 {
         match self.header() {
             Some(h) => h.board_id,
@@ -731,10 +778,16 @@ impl<T: AsRef<[u8]>> WriteBlock<T> {
     }
 
     /// The control quadlet, written to STATUS (only bits 19:0 take effect:
-    /// see [`StatusWrite::block_command`]).
+    /// see [`StatusWrite::block_command`]); Rev 4 blocks have none and read
+    /// the zero word, which changes nothing.
     pub fn control(&self) -> StatusWrite {
-        let q = self.layout.write_block_quadlets().saturating_sub(1);
-        StatusWrite(read_quadlet(self.buffer.as_ref(), q))
+        match self.layout.format() {
+            BlockFormat::Rev4 => StatusWrite::default(),
+            BlockFormat::Rev7 | BlockFormat::Rev8 => {
+                let q = self.layout.write_block_quadlets().saturating_sub(1);
+                StatusWrite(read_quadlet(self.buffer.as_ref(), q))
+            }
+        }
     }
 }
 
@@ -742,11 +795,12 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> WriteBlock<T> {
     /// Set the Rev 8 header.
     ///
     /// # Errors
-    /// [`Error::InvalidValue`] on Rev 7, whose blocks have no header.
+    /// [`Error::InvalidValue`] on Rev 4 and Rev 7, whose blocks have no
+    /// header.
     pub fn set_header(&mut self, header: WriteHeader) -> Result<()> {
         match self.layout.format() {
-            BlockFormat::Rev7 => Err(Error::InvalidValue {
-                what: "firmware revision for a write block header (Rev 7 blocks have none)",
+            BlockFormat::Rev4 | BlockFormat::Rev7 => Err(Error::InvalidValue {
+                what: "firmware revision for a write block header (Rev 4 and 7 blocks have none)",
                 value: self.layout.firmware().number(),
             }),
             BlockFormat::Rev8 => {
@@ -774,8 +828,11 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> WriteBlock<T> {
         Ok(())
     }
 
-    /// Set the control quadlet.
+    /// Set the control quadlet (Rev 4 blocks have none: nothing is written).
     pub fn set_control(&mut self, control: StatusWrite) {
+        if self.layout.format() == BlockFormat::Rev4 {
+            return;
+        }
         let q = self.layout.write_block_quadlets().saturating_sub(1);
         write_quadlet(self.buffer.as_mut(), q, control.0);
     }
@@ -783,7 +840,8 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> WriteBlock<T> {
 
 /// The meaning of a real-time write block (`fpga-board.md` §5).
 ///
-/// On Rev 7 the board ID travels in bits 27:24 of every DAC quadlet:
+/// On Rev 4 and Rev 7 the board ID travels in bits 27:24 of every DAC
+/// quadlet (and Rev 4 has no control quadlet: `control` is not on the wire):
 /// [`emit`](Self::emit) writes it there, [`parse`](Self::parse) keeps the DAC
 /// quadlets raw (so they carry it) and checks they agree.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -821,7 +879,7 @@ impl WriteBlockRepr {
     /// Length errors of [`WriteBlock::check_len`]; on Rev 8
     /// [`Error::Malformed`] for a header with bits 31:16 set or a board ID
     /// above 15 and [`Error::BlockSize`] when its length is not the
-    /// layout's; on Rev 7 [`Error::Malformed`] when the DAC quadlets
+    /// layout's; on Rev 4 and Rev 7 [`Error::Malformed`] when the DAC quadlets
     /// disagree on the board ID.
     pub fn parse<T: AsRef<[u8]>>(block: &WriteBlock<T>) -> Result<WriteBlockRepr> {
         block.check_len()?;
@@ -847,9 +905,9 @@ impl WriteBlockRepr {
         let mut repr = WriteBlockRepr::new(layout, board_id);
         for (i, d) in repr.dac.iter_mut().enumerate() {
             let Some(dac) = block.dac(i) else { break };
-            if layout.format() == BlockFormat::Rev7 && dac.board_id() != board_id {
+            if layout.format() != BlockFormat::Rev8 && dac.board_id() != board_id {
                 return Err(Error::Malformed {
-                    what: "Rev 7 write block DAC quadlet with another board ID",
+                    what: "Rev 4/7 write block DAC quadlet with another board ID",
                     value: dac.0,
                 });
             }
@@ -890,7 +948,7 @@ impl WriteBlockRepr {
         }
         for (i, &dac) in self.dacs().iter().enumerate() {
             let dac = match format {
-                BlockFormat::Rev7 => dac.with_board_id(self.board_id),
+                BlockFormat::Rev4 | BlockFormat::Rev7 => dac.with_board_id(self.board_id),
                 BlockFormat::Rev8 => dac,
             };
             block.set_dac(i, dac)?;
@@ -905,6 +963,7 @@ mod tests {
     use super::*;
     use crate::board::registers::{DAC_ZERO, STATUS_POWER_ON, StatusCommand};
 
+    const REV4: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev4);
     const REV7: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev7);
     const REV8: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev8);
     const DQLA8: BoardLayout = BoardLayout::dqla(FirmwareRev::Rev8);
@@ -995,7 +1054,7 @@ mod tests {
 
     #[test]
     fn read_block_round_trip_over_a5() {
-        for layout in [REV7, REV8, DQLA8] {
+        for layout in [REV4, REV7, REV8, DQLA8] {
             let buf = numbered(layout);
             let len = layout.read_block_len();
             let block = ReadBlock::new_checked(&buf[..len], layout).unwrap();
@@ -1122,5 +1181,41 @@ mod tests {
         let mut view = WriteBlock::new_unchecked(&mut rev7[..], REV7);
         assert!(view.set_header(WriteHeader::from_word(0)).is_err());
         assert!(view.set_dac(4, DacWord(0)).is_err());
+    }
+
+    /// Seed 000's sizes: 48 bytes read, 16 written, 13-quadlet broadcasts.
+    #[test]
+    fn rev4_blocks_have_seed_000_sizes_and_sections() {
+        assert_eq!(FirmwareRev::from(4).block_format(), BlockFormat::Rev4);
+        assert_eq!(REV4.read_block_len(), 48);
+        assert_eq!(REV4.write_block_len(), 16);
+        assert_eq!(REV4.broadcast_quadlets(), 13);
+        let buf = numbered(REV4);
+        let block = ReadBlock::new_checked(&buf[..48], REV4).unwrap();
+        let q = |i: u32| 0x0100_0000 * i + i;
+        assert_eq!(block.adc(3).unwrap().raw(), q(7));
+        assert_eq!(block.enc_position(0).unwrap().raw(), q(8));
+        assert_eq!(block.enc_position(3).unwrap().raw(), q(11));
+        assert_eq!(block.enc_period(0), None);
+        assert_eq!(block.enc_run(3), None);
+        assert_eq!(block.motor_status(0), None);
+        let repr = ReadBlockRepr::parse(&block).unwrap();
+        assert_eq!(repr.encoder[1].position.raw(), q(9));
+        assert_eq!(repr.encoder[1].period.raw(), 0);
+        // Write block: four DAC quadlets naming the board, no control.
+        let mut w = WriteBlockRepr::new(REV4, 5);
+        w.dac[2] = DacWord::valid_command(0x1234);
+        w.control = StatusWrite(0x0000_0F0F);
+        let mut out = [0xA5u8; 20];
+        assert_eq!(w.emit(&mut out), Ok(16));
+        assert_eq!(read_quadlet(&out, 0), 0x0500_0000);
+        assert_eq!(read_quadlet(&out, 2), 0x8500_1234);
+        assert!(out[16..].iter().all(|&b| b == 0xA5));
+        let view = WriteBlock::new_checked(&out[..16], REV4).unwrap();
+        assert_eq!((view.board_id(), view.header()), (5, None));
+        assert_eq!(view.control(), StatusWrite::default());
+        let parsed = WriteBlockRepr::parse(&view).unwrap();
+        assert_eq!(parsed.dac[2].command(), 0x1234);
+        assert_eq!(parsed.control, StatusWrite::default());
     }
 }
