@@ -37,6 +37,18 @@ pub enum Profile {
 }
 
 impl Profile {
+    /// Every profile, oldest first.
+    pub const ALL: [Profile; 3] = [Profile::Seed, Profile::Rev7, Profile::Rev8];
+
+    /// `seed`, `rev7` or `rev8`: the name on command lines and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Profile::Seed => "seed",
+            Profile::Rev7 => "rev7",
+            Profile::Rev8 => "rev8",
+        }
+    }
+
     /// The firmware revision reported in FW_VERSION, which also selects
     /// the block layouts.
     pub fn firmware_rev(self) -> FirmwareRev {

@@ -1,12 +1,14 @@
 //! Ready-made buses of emulated boards: the PC's link at the root and the
 //! boards on a daisy chain, as in the dVRK.
 //!
-//! The chain is wired PC - board[N-1] - ... - board[0], so after the bus
+//! The chain is wired PC - board N-1 - ... - board 0, so after the bus
 //! reset the board given first gets physical ID 0, the next 1, and so on,
 //! and the PC (the root) gets the highest ID.
 
 use firelink_bus::phy::phy_config_packet;
-use firelink_bus::{Bus, BusConfig, HostLink, NodeConfig, NodeHandle, SimDuration, TraceLevel};
+use firelink_bus::{
+    ArbitrationClass, Bus, BusConfig, HostLink, NodeConfig, NodeHandle, SimDuration, TraceLevel,
+};
 use firelink_wire::packet::Speed;
 
 use crate::config::BoardConfig;
@@ -36,6 +38,11 @@ pub struct RigOptions {
     /// is bus manager: `Some(GapCount::ForHops)` picks the value of Linux's
     /// table for the chain's hop count, `None` leaves the power-up 63.
     pub gap_count: Option<GapCount>,
+    /// Speed of the boards' status broadcasts.
+    pub broadcast_speed: Speed,
+    /// How the boards arbitrate for their status broadcasts
+    /// (isochronous-style: seed 000's bus arbitration acceleration).
+    pub broadcast_class: ArbitrationClass,
 }
 
 /// How the rig sets the gap count.
@@ -61,6 +68,8 @@ impl Default for RigOptions {
             trace: TraceLevel::Off,
             cycle_master: false,
             gap_count: Some(GapCount::ForHops),
+            broadcast_speed: Speed::S400,
+            broadcast_class: ArbitrationClass::Isochronous,
         }
     }
 }
@@ -80,7 +89,10 @@ impl BoardRig {
             .into_iter()
             .map(|cfg| {
                 let name = format!("board{}", cfg.board_id);
-                bus.add(BoardNode::new(cfg).with_name(name), NodeConfig::board())
+                let node = BoardNode::new(cfg)
+                    .with_name(name)
+                    .with_broadcast(options.broadcast_speed, options.broadcast_class);
+                bus.add(node, NodeConfig::board())
             })
             .collect();
         let mut chain = vec![host];

@@ -1,17 +1,20 @@
 //! `firelink sim`: one I/O cycle of N boards on the simulated 1394a bus.
 //!
-//! A thin wrapper over [`firelink_bus::scenario`]: it turns the flags into a
-//! [`CycleConfig`], runs [`run_cycle`], and prints the report as one JSON
-//! object (`--json`) or a table, optionally writing the cycle's packets as a
-//! pcap file (`--pcap FILE`, 1394 packets as UDP payloads to port 1394) and
-//! the bus timeline (`--timeline`).
+//! A thin wrapper over [`firelink_testbed::sim`]: it turns the flags into
+//! [`SimOptions`], runs the cycle on emulated boards through the host
+//! library, and prints the report as one JSON object (`--json`) or a table,
+//! optionally writing the bus's packets as a pcap file (`--pcap FILE`, 1394
+//! packets as UDP payloads to port 1394) and the bus timeline
+//! (`--timeline`).
 
 use std::io::Write;
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
+use firelink_board::config::Profile;
 use firelink_bus::ArbitrationClass;
-use firelink_bus::scenario::{CycleConfig, Profile, Protocol, prepare_cycle_with, run_cycle};
+use firelink_host::scan::Protocol;
+use firelink_testbed::sim::SimOptions;
 use firelink_wire::packet::Speed;
 
 use crate::CliError;
@@ -19,7 +22,7 @@ use crate::CliError;
 /// Firmware profile.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum ProfileArg {
-    /// Seed 000's firmware: fixed TDMA slots.
+    /// Seed 000's firmware: fixed TDMA slots, 48-byte blocks.
     Seed,
     /// Firmware Rev 7: chained broadcasts.
     Rev7,
@@ -47,6 +50,20 @@ pub enum ArbitrationArg {
     Fair,
 }
 
+/// Bus speed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SpeedArg {
+    /// S100.
+    #[value(name = "100")]
+    S100,
+    /// S200.
+    #[value(name = "200")]
+    S200,
+    /// S400.
+    #[value(name = "400")]
+    S400,
+}
+
 /// Arguments of `firelink sim`.
 #[derive(Args, Debug)]
 pub struct SimArgs {
@@ -66,9 +83,9 @@ pub struct SimArgs {
     /// Arbitration of the boards' status broadcasts.
     #[arg(long, value_enum, default_value_t = ArbitrationArg::Iso)]
     arbitration: ArbitrationArg,
-    /// Speed of every packet in Mb/s: 100, 200 or 400.
-    #[arg(long, default_value_t = 400, value_parser = parse_speed)]
-    speed: u32,
+    /// Speed of every packet in Mb/s.
+    #[arg(long, value_enum, default_value_t = SpeedArg::S400)]
+    speed: SpeedArg,
     /// Seed of the fault injector and the host jitter.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -91,25 +108,10 @@ pub struct SimArgs {
     /// Print one JSON object instead of a table.
     #[arg(long)]
     json: bool,
-    /// Which boards answer: `emulated` (the full FPGA1394/QLA emulation) or
-    /// `minimal` (a small responder with seed-000-era payload sizes).
-    /// Default: minimal for the seed profile (its payloads are those of
-    /// the paper's era, not Rev 7's), emulated for rev7 and rev8.
-    #[arg(long = "board-model", value_parser = ["emulated", "minimal"])]
-    board_model: Option<String>,
-}
-
-fn parse_speed(s: &str) -> Result<u32, String> {
-    match s.trim() {
-        "100" => Ok(100),
-        "200" => Ok(200),
-        "400" => Ok(400),
-        other => Err(format!("speed must be 100, 200 or 400, not {other:?}")),
-    }
 }
 
 impl SimArgs {
-    fn config(&self) -> CycleConfig {
+    fn options(&self) -> SimOptions {
         let profile = match self.profile {
             ProfileArg::Seed => Profile::Seed,
             ProfileArg::Rev7 => Profile::Rev7,
@@ -119,71 +121,46 @@ impl SimArgs {
             ProtocolArg::Broadcast => Protocol::Broadcast,
             ProtocolArg::Sequential => Protocol::Sequential,
         };
-        let mut cfg = CycleConfig::new(usize::from(self.boards), profile, protocol);
-        cfg.gap_count = self.gap_count;
-        cfg.arbitration = match self.arbitration {
+        let mut options = SimOptions::new(usize::from(self.boards), profile, protocol);
+        options.gap_count = self.gap_count;
+        options.arbitration = match self.arbitration {
             ArbitrationArg::Iso => ArbitrationClass::Isochronous,
             ArbitrationArg::Priority => ArbitrationClass::Priority,
             ArbitrationArg::Fair => ArbitrationClass::Fair,
         };
-        cfg.speed = match self.speed {
-            100 => Speed::S100,
-            200 => Speed::S200,
-            _ => Speed::S400,
+        options.speed = match self.speed {
+            SpeedArg::S100 => Speed::S100,
+            SpeedArg::S200 => Speed::S200,
+            SpeedArg::S400 => Speed::S400,
         };
-        cfg.seed = self.seed;
-        cfg.host_overhead = self.host_overhead;
-        cfg.host_jitter = self.jitter;
-        cfg.cycle_master = self.cycle_master;
-        cfg
+        options.seed = self.seed;
+        options.host_overhead = self.host_overhead;
+        options.host_jitter = self.jitter;
+        options.cycle_master = self.cycle_master;
+        options
     }
 }
 
 /// Run `firelink sim`.
 ///
 /// # Errors
-/// Writing the output or the pcap file failed.
+/// The protocol cannot run on these boards (e.g. 16 Rev 8 boards overflow
+/// the hub memory); writing the output or the pcap file failed.
 pub fn run(args: &SimArgs, out: &mut impl Write) -> Result<(), CliError> {
-    let cfg = args.config();
-    let emulated = match args.board_model.as_deref() {
-        Some(m) => m == "emulated",
-        None => cfg.profile != Profile::Seed,
-    };
-    let run = if emulated {
-        let board_profile = match cfg.profile {
-            Profile::Seed => firelink_board::config::Profile::Seed,
-            Profile::Rev7 => firelink_board::config::Profile::Rev7,
-            Profile::Rev8 => firelink_board::config::Profile::Rev8,
-        };
-        prepare_cycle_with(&cfg, &mut |id, cfg| {
-            let board = firelink_board::config::BoardConfig::new(
-                id,
-                firelink_board::config::Hardware::Qla1,
-                board_profile,
-            )
-            .with_seed(cfg.seed);
-            Box::new(
-                firelink_board::node::BoardNode::new(board)
-                    .with_name(format!("board{id}"))
-                    .with_broadcast(cfg.speed, cfg.arbitration),
-            )
-        })
-        .run()
-    } else {
-        run_cycle(&cfg)
-    };
+    let run = firelink_testbed::sim::run(&args.options())?;
+    let bus = run.port().bus();
     if let Some(path) = &args.pcap {
         let mut file = std::io::BufWriter::new(std::fs::File::create(path)?);
-        run.bus.write_pcap(&mut file)?;
+        bus.write_pcap(&mut file)?;
         file.flush()?;
     }
     if args.json {
         writeln!(out, "{}", serde_json::to_string(&run.report)?)?;
     } else {
-        write!(out, "{}", run.report.table())?;
+        write!(out, "{}", run.report)?;
     }
     if args.timeline {
-        write!(out, "{}", run.bus.timeline())?;
+        write!(out, "{}", bus.timeline())?;
     }
     Ok(())
 }

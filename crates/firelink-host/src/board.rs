@@ -143,7 +143,9 @@ impl BoardIo {
                 .motors()
                 .get(axis)
                 .is_some_and(|m| m.status.amp_on()),
-            BlockFormat::Rev7 => axis < 4 && (self.input.status.amp_enabled() >> axis) & 1 == 1,
+            BlockFormat::Rev4 | BlockFormat::Rev7 => {
+                axis < 4 && (self.input.status.amp_enabled() >> axis) & 1 == 1
+            }
         }
     }
 
@@ -222,7 +224,7 @@ impl BoardIo {
                 let word = self.output.dac.get_mut(axis).ok_or(bad)?;
                 *word = word.with_amp_request(Some(on));
             }
-            BlockFormat::Rev7 => {
+            BlockFormat::Rev4 | BlockFormat::Rev7 => {
                 if axis >= 4 {
                     return Err(bad);
                 }
@@ -267,6 +269,14 @@ impl BoardIo {
 
     /// After a write: one-shot requests (power, relay, amplifier changes)
     /// are cleared; DAC commands stay.
+    /// The power, relay and amplifier changes asked for since the last
+    /// write, when the board's write block cannot carry them (Rev 4 has
+    /// no control quadlet): the STATUS word to write by register, once.
+    pub(crate) fn pending_status_write(&self) -> Option<u32> {
+        (self.info.layout.format() == BlockFormat::Rev4 && self.control != StatusCommand::NONE)
+            .then(|| self.control.to_word().raw())
+    }
+
     pub(crate) fn outputs_applied(&mut self) {
         self.control = StatusCommand::NONE;
         for d in self.output.dac.iter_mut() {

@@ -18,14 +18,16 @@ use std::time::Duration;
 
 use firelink_wire::board::MAX_BOARDS;
 use firelink_wire::board::address::{
-    BoardRegister, COMMAND_BLOCK_OFFSET, HUB_MEMORY_OFFSET, HUB_QUERY_OFFSET,
-    REALTIME_BLOCK_OFFSET, Register,
+    BoardRegister, COMMAND_BLOCK_OFFSET, COMMAND_SNOOP_NODE, COMMAND_SNOOP_OFFSET,
+    HUB_MEMORY_OFFSET, HUB_QUERY_OFFSET, REALTIME_BLOCK_OFFSET, Register,
 };
 use firelink_wire::board::broadcast::{
     BoardSlot, CommandBlockWriter, HubBlock, HubHeader, Query, SeqRule, hub_block_quadlets,
+    status_broadcast_board,
 };
-use firelink_wire::board::realtime::{ReadBlock, ReadBlockRepr};
+use firelink_wire::board::realtime::{BlockFormat, ReadBlock, ReadBlockRepr};
 use firelink_wire::board::registers::{AmpCommand, SYSTEM_CLOCK_HZ, StatusCommand, Watchdog};
+use firelink_wire::packet::Packet;
 
 use crate::board::BoardIo;
 use crate::error::{HostError, MissReason, Result};
@@ -44,6 +46,46 @@ pub struct IoConfig {
     pub broadcast_wait: Option<Duration>,
     /// Sequence rule; `None`: the rule of the boards' firmware.
     pub seq_rule: Option<SeqRule>,
+    /// Quadlets the hub read asks for (at least the hub block's); `None`:
+    /// the hub block, or for Rev 4 boards the fixed 16-board block the
+    /// hosts of seed 000's era read.
+    pub hub_read_quadlets: Option<usize>,
+    /// Where the broadcast protocol's query and commands go.
+    pub broadcast_route: BroadcastRoute,
+    /// Between the query and the hub read, stop waiting as soon as every
+    /// board's status broadcast has been overheard (the wait then only
+    /// bounds it). Ports that cannot overhear the bus wait the whole time.
+    pub listen_for_broadcasts: bool,
+}
+
+/// Where the broadcast protocol sends its query and its commands
+/// (`fpga-board.md` §6.1, §6.5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum BroadcastRoute {
+    /// To broadcast node 63 (the Ethernet bridge; seed 000's patched
+    /// FireWire driver): one unacknowledged packet each.
+    #[default]
+    Node63,
+    /// To node 0, which every board snoops (what stock FireWire stacks
+    /// allow, as they reject true broadcast writes): the commands at
+    /// `0xFFFF_FFFF_0000`; node 0 acknowledges both.
+    SnoopedNode0,
+}
+
+impl BroadcastRoute {
+    fn query(self) -> Dest {
+        match self {
+            BroadcastRoute::Node63 => Dest::BROADCAST,
+            BroadcastRoute::SnoopedNode0 => Dest::node(COMMAND_SNOOP_NODE),
+        }
+    }
+
+    fn command(self) -> (Dest, u64) {
+        match self {
+            BroadcastRoute::Node63 => (Dest::BROADCAST, COMMAND_BLOCK_OFFSET),
+            BroadcastRoute::SnoopedNode0 => (Dest::node(COMMAND_SNOOP_NODE), COMMAND_SNOOP_OFFSET),
+        }
+    }
 }
 
 /// What happened in the last cycle. `Copy`, fixed size.
@@ -199,6 +241,10 @@ pub struct IoSystem<P: Port> {
     wait: Duration,
     config: IoConfig,
     board_mask: u16,
+    /// Quadlets of the hub block the boards fill, and of the hub read
+    /// (more for Rev 4 boards: a fixed 16-board block).
+    hub_quadlets: usize,
+    hub_read_quadlets: usize,
     buf: Vec<u8>,
     cmd: Vec<u8>,
     report: CycleReport,
@@ -251,6 +297,8 @@ impl<P: Port> IoSystem<P> {
             wait: Duration::ZERO,
             config,
             board_mask: 0,
+            hub_quadlets: 0,
+            hub_read_quadlets: 0,
             buf: Vec::new(),
             cmd: Vec::new(),
             report: CycleReport::EMPTY,
@@ -303,8 +351,31 @@ impl<P: Port> IoSystem<P> {
             .map(|b| b.info().layout.read_block_len())
             .max()
             .unwrap_or(0);
-        let hub = hub_block_quadlets(self.slots.iter().map(|s| s.layout)) * 4;
-        self.buf = vec![0; read_max.max(hub)];
+        self.hub_quadlets = hub_block_quadlets(self.slots.iter().map(|s| s.layout));
+        // Hosts of seed 000's era read a fixed 16-board hub block.
+        let rev4 = !self.slots.is_empty()
+            && self
+                .slots
+                .iter()
+                .all(|s| s.layout.format() == BlockFormat::Rev4);
+        let per_board = self
+            .slots
+            .iter()
+            .map(|s| s.layout.broadcast_quadlets())
+            .max()
+            .unwrap_or(0);
+        self.hub_read_quadlets = match self.config.hub_read_quadlets {
+            Some(q) if q < self.hub_quadlets => {
+                return Err(HostError::InvalidRequest {
+                    what: "hub read shorter than the hub block",
+                    value: q as u32,
+                });
+            }
+            Some(q) => q,
+            None if rev4 => self.hub_quadlets.max(MAX_BOARDS * per_board),
+            None => self.hub_quadlets,
+        };
+        self.buf = vec![0; read_max.max(self.hub_read_quadlets * 4)];
         let cmd: usize = self
             .boards
             .iter()
@@ -649,18 +720,34 @@ impl<P: Port> IoSystem<P> {
                 return;
             }
         };
+        let route = self.config.broadcast_route;
         if let Err(e) = self
             .port
-            .write_quadlet(Dest::BROADCAST, HUB_QUERY_OFFSET, word)
+            .start_write_quadlet(route.query(), HUB_QUERY_OFFSET, word)
         {
             self.note_error(e);
             self.miss_all(MissReason::Transaction);
             return;
         }
-        self.port.wait(self.wait);
-        let hub_len = hub_block_quadlets(self.slots.iter().map(|s| s.layout)) * 4;
+        if self.config.listen_for_broadcasts {
+            let (seq, expected) = (self.seq, self.board_mask);
+            let mut heard = 0u16;
+            self.port.wait_until_heard(self.wait, &mut |bytes| {
+                if let Ok(packet) = Packet::new_checked(bytes)
+                    && let Some((header, board)) = status_broadcast_board(&packet)
+                    && header.seq == seq
+                {
+                    heard |= 1u16.checked_shl(u32::from(board)).unwrap_or(0);
+                }
+                heard & expected == expected
+            });
+        } else {
+            self.port.wait(self.wait);
+        }
+        let hub_len = self.hub_quadlets * 4;
+        let read_len = self.hub_read_quadlets * 4;
         let hub_node = self.boards.get(self.hub).map_or(0, |b| b.info().node);
-        let Some(buf) = self.buf.get_mut(..hub_len) else {
+        let Some(buf) = self.buf.get_mut(..read_len) else {
             self.miss_all(MissReason::Transaction);
             return;
         };
@@ -682,14 +769,32 @@ impl<P: Port> IoSystem<P> {
             }
         };
         let clock_us = 1e6 / f64::from(SYSTEM_CLOCK_HZ);
+        // The hub packs blocks in arrival order, which is board order for
+        // the Rev 7+ chain but not always for TDMA slots (a late slot, fair
+        // arbitration): when every block has the same size, each one is
+        // taken for the board its STATUS names.
+        let uniform = self.slots.windows(2).all(|w| w[0].layout == w[1].layout);
         // Collect per-board outcomes first (the hub view borrows the buffer).
         let mut outcomes: [Option<core::result::Result<ReadBlockRepr, MissReason>>; MAX_BOARDS] =
             [None; MAX_BOARDS];
         for (i, entry) in hub.entries().enumerate() {
+            let named = entry.block.status().board_id();
+            let index = if uniform {
+                match self.slots.iter().position(|s| s.id == named) {
+                    Some(k) => k,
+                    // A block of a board not in use: no one's data.
+                    None => continue,
+                }
+            } else {
+                i
+            };
+            let Some(slot) = self.slots.get(index) else {
+                continue;
+            };
             let outcome = match entry.validate(self.rule, self.seq) {
                 Err(e) => Err(miss_from_wire(e)),
                 Ok(()) => match ReadBlockRepr::parse(&entry.block) {
-                    Ok(repr) if repr.status.board_id() != entry.slot.id => {
+                    Ok(repr) if repr.status.board_id() != slot.id => {
                         Err(MissReason::WrongBoardId {
                             found: repr.status.board_id(),
                         })
@@ -702,14 +807,11 @@ impl<P: Port> IoSystem<P> {
                 HubHeader::Rev7 { time, .. } => u32::from(time & 0x7FFF),
                 HubHeader::Rev8 { update_time, .. } => u32::from(update_time),
             };
-            if let Some(t) = self
-                .report
-                .update_time_us
-                .get_mut(usize::from(entry.slot.id))
-            {
+            if let Some(t) = self.report.update_time_us.get_mut(usize::from(slot.id)) {
                 *t = (f64::from(time) * clock_us) as f32;
             }
-            if let Some(o) = outcomes.get_mut(i) {
+            // A board's first block counts; a repeat does not replace it.
+            if let Some(o) = outcomes.get_mut(index).filter(|o| o.is_none()) {
                 *o = Some(outcome);
             }
         }
@@ -736,6 +838,9 @@ impl<P: Port> IoSystem<P> {
             _ if self.needs_rescan => {}
             Protocol::Sequential => self.write_sequential(),
             Protocol::SequentialReadBroadcastWrite | Protocol::Broadcast => self.write_broadcast(),
+        }
+        if !self.needs_rescan {
+            self.write_status_registers();
         }
         for b in self.boards.iter_mut() {
             b.outputs_applied();
@@ -790,11 +895,32 @@ impl<P: Port> IoSystem<P> {
         let Some(block) = self.cmd.get(..len) else {
             return;
         };
-        if let Err(e) = self
-            .port
-            .write_block(Dest::BROADCAST, COMMAND_BLOCK_OFFSET, block)
-        {
+        let (dest, offset) = self.config.broadcast_route.command();
+        if let Err(e) = self.port.start_write_block(dest, offset, block) {
             self.note_error(e);
+        }
+    }
+
+    /// Power, relay and amplifier changes of boards whose write block has
+    /// no control quadlet (Rev 4): one STATUS write each, when asked.
+    fn write_status_registers(&mut self) {
+        let Ok(offset) = Register::board(BoardRegister::Status).offset() else {
+            return;
+        };
+        for i in 0..self.boards.len() {
+            let Some((node, word)) = self
+                .boards
+                .get(i)
+                .and_then(|b| Some((b.info().node, b.pending_status_write()?)))
+            else {
+                continue;
+            };
+            if let Err(e) = self.port.write_quadlet(Dest::node(node), offset, word) {
+                self.note_error(e);
+                if matches!(e, HostError::BusReset { .. }) {
+                    return;
+                }
+            }
         }
     }
 

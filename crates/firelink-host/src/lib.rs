@@ -12,6 +12,7 @@
 //!   every link.
 //! - [`udp`]: the Ethernet bridge port.
 //! - [`sim`]: the simulated-bus port.
+//! - [`trace`]: a port wrapper recording every call.
 //! - [`scan`]: discovery and protocol choice.
 //! - [`board`]: the per-board I/O buffers and accessors.
 //! - [`io`]: the I/O system running the three protocols.
@@ -27,6 +28,7 @@ pub mod packet_json;
 pub mod port;
 pub mod scan;
 pub mod sim;
+pub mod trace;
 pub mod transaction;
 pub mod udp;
 

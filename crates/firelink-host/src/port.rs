@@ -77,10 +77,40 @@ pub trait Port {
     fn read_block(&mut self, dest: Dest, offset: u64, out: &mut [u8]) -> Result<()>;
     /// Write a block (a whole number of quadlets).
     fn write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()>;
+    /// Start a quadlet write and return without waiting for its
+    /// acknowledgement, as the reference host's non-blocking
+    /// `raw1394_start_write` does for the broadcast protocol's query and
+    /// commands (which may go to node 0 for the boards to snoop). Ports
+    /// whose writes are never acknowledged just write.
+    fn start_write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> Result<()> {
+        self.write_quadlet(dest, offset, value)
+    }
+    /// Start a block write without waiting for its acknowledgement (see
+    /// [`start_write_quadlet`](Self::start_write_quadlet)).
+    fn start_write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
+        self.write_block(dest, offset, data)
+    }
     /// Let `duration` pass (virtual time on the simulated bus).
     fn wait(&mut self, duration: Duration);
+    /// Let time pass until `heard` accepts a packet the host's link
+    /// received unasked (a broadcast it overheard), at most `limit`;
+    /// returns whether `heard` accepted one. Ports that cannot overhear the
+    /// bus (the Ethernet bridge delivers only answers) wait the whole
+    /// `limit` and return `false`.
+    fn wait_until_heard(&mut self, limit: Duration, heard: &mut dyn FnMut(&[u8]) -> bool) -> bool {
+        let _ = heard;
+        self.wait(limit);
+        false
+    }
     /// Time since the port was opened (virtual on the simulated bus).
     fn now(&self) -> Duration;
+    /// [`now`](Self::now) in picoseconds, as finely as the port's clock
+    /// goes (the simulated bus: exactly; others: whole nanoseconds).
+    fn now_ps(&self) -> u64 {
+        u64::try_from(self.now().as_nanos())
+            .unwrap_or(u64::MAX)
+            .saturating_mul(1000)
+    }
     /// The bus generation the host currently uses.
     fn generation(&self) -> u32;
     /// Whether a completed write means the node took it (the simulated
@@ -116,11 +146,23 @@ impl<P: Port + ?Sized> Port for Box<P> {
     fn write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
         (**self).write_block(dest, offset, data)
     }
+    fn start_write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> Result<()> {
+        (**self).start_write_quadlet(dest, offset, value)
+    }
+    fn start_write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
+        (**self).start_write_block(dest, offset, data)
+    }
     fn wait(&mut self, duration: Duration) {
         (**self).wait(duration)
     }
+    fn wait_until_heard(&mut self, limit: Duration, heard: &mut dyn FnMut(&[u8]) -> bool) -> bool {
+        (**self).wait_until_heard(limit, heard)
+    }
     fn now(&self) -> Duration {
         (**self).now()
+    }
+    fn now_ps(&self) -> u64 {
+        (**self).now_ps()
     }
     fn generation(&self) -> u32 {
         (**self).generation()

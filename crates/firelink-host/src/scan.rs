@@ -9,7 +9,7 @@
 
 use firelink_wire::board::address::{BoardRegister, HUB_MEMORY_QUADLETS, Register};
 use firelink_wire::board::broadcast::hub_block_quadlets;
-use firelink_wire::board::realtime::{BoardLayout, FirmwareRev};
+use firelink_wire::board::realtime::{BlockFormat, BoardLayout, FirmwareRev};
 use firelink_wire::board::registers::{FpgaVersion, GitDesc, HardwareVersion, StatusRead};
 use firelink_wire::packet::Speed;
 
@@ -18,7 +18,8 @@ use crate::error::{HostError, Result};
 use crate::port::{Dest, Port};
 
 /// The three I/O protocols, in increasing efficiency.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum Protocol {
     /// One block read and one block write per board per cycle (seed 000's
     /// baseline).
@@ -110,7 +111,12 @@ pub fn best_protocol(boards: &[BoardInfo]) -> (Protocol, &'static str) {
     let Some(first) = boards.first() else {
         return (Protocol::Sequential, "no boards");
     };
-    if boards.iter().any(|b| b.firmware < 7) {
+    // Rev 4 (seed 000's firmware) introduced the broadcast protocol; the
+    // revisions between it and Rev 7 are not described.
+    if boards
+        .iter()
+        .any(|b| b.firmware < 7 && b.layout.format() != BlockFormat::Rev4)
+    {
         return (Protocol::Sequential, "a board runs firmware before Rev 7");
     }
     let format = first.layout.format();

@@ -70,6 +70,14 @@ impl SimPort {
         self
     }
 
+    /// Speed of every packet the PC sends, broadcasts included (S400 by
+    /// default).
+    pub fn with_speed(mut self, speed: Speed) -> SimPort {
+        self.speed = speed;
+        self.broadcast_speed = speed;
+        self
+    }
+
     /// The bus, for inspection (trace, fault log, nodes).
     pub fn bus(&self) -> &Bus {
         &self.bus
@@ -140,8 +148,9 @@ impl SimPort {
         })?;
         self.transactions.sent();
         if call == HostCall::BroadcastWrite {
-            // Non-blocking: the packet goes out while the caller goes on,
-            // and nobody will take its completion.
+            // Non-blocking (a broadcast, or a write started without
+            // waiting): the packet goes out while the caller goes on, and
+            // nobody will take its completion.
             if let Some(l) = self.bus.node_mut::<HostLink>(host) {
                 l.abandon(token);
             }
@@ -206,6 +215,36 @@ impl SimPort {
         }
     }
 
+    fn quadlet_write(&mut self, dest: Dest, offset: u64, value: u32, call: HostCall) -> Result<()> {
+        let header = self.header(dest);
+        self.transact(
+            Expect::write(dest, header.tl),
+            PacketRepr::WriteQuadletRequest {
+                header,
+                offset,
+                data: value,
+            },
+            call,
+        )?;
+        Ok(())
+    }
+
+    fn block_write(&mut self, dest: Dest, offset: u64, data: &[u8], call: HostCall) -> Result<()> {
+        crate::port::check_block(data.len())?;
+        let header = self.header(dest);
+        self.transact(
+            Expect::write(dest, header.tl),
+            PacketRepr::WriteBlockRequest {
+                header,
+                offset,
+                extended_tcode: 0,
+                data,
+            },
+            call,
+        )?;
+        Ok(())
+    }
+
     fn header(&mut self, dest: Dest) -> AsyncHeader {
         let tl = self.transactions.next_label();
         AsyncHeader::new(NodeId::local(dest.node), pc_node(self.host_phy()), tl)
@@ -227,6 +266,20 @@ fn refusal_error(refusal: Refusal, expect: &Expect) -> HostError {
             })
         }
     }
+}
+
+/// The library call a write to `dest` is: a broadcast cannot be
+/// acknowledged, so it returns once sent (`raw1394_start_write`).
+fn write_call(dest: Dest) -> HostCall {
+    if dest.is_broadcast() {
+        HostCall::BroadcastWrite
+    } else {
+        HostCall::Write
+    }
+}
+
+fn sim_duration(d: Duration) -> SimDuration {
+    SimDuration::from_micros_f64(d.as_secs_f64() * 1e6)
 }
 
 fn no_broadcast_reads(dest: Dest) -> Result<()> {
@@ -260,22 +313,11 @@ impl Port for SimPort {
     }
 
     fn write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> Result<()> {
-        let header = self.header(dest);
-        let call = if dest.is_broadcast() {
-            HostCall::BroadcastWrite
-        } else {
-            HostCall::Write
-        };
-        self.transact(
-            Expect::write(dest, header.tl),
-            PacketRepr::WriteQuadletRequest {
-                header,
-                offset,
-                data: value,
-            },
-            call,
-        )?;
-        Ok(())
+        self.quadlet_write(dest, offset, value, write_call(dest))
+    }
+
+    fn start_write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> Result<()> {
+        self.quadlet_write(dest, offset, value, HostCall::BroadcastWrite)
     }
 
     fn read_block(&mut self, dest: Dest, offset: u64, out: &mut [u8]) -> Result<()> {
@@ -309,34 +351,49 @@ impl Port for SimPort {
     }
 
     fn write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
-        crate::port::check_block(data.len())?;
-        let header = self.header(dest);
-        let call = if dest.is_broadcast() {
-            HostCall::BroadcastWrite
-        } else {
-            HostCall::Write
-        };
-        self.transact(
-            Expect::write(dest, header.tl),
-            PacketRepr::WriteBlockRequest {
-                header,
-                offset,
-                extended_tcode: 0,
-                data,
-            },
-            call,
-        )?;
-        Ok(())
+        self.block_write(dest, offset, data, write_call(dest))
+    }
+
+    fn start_write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
+        self.block_write(dest, offset, data, HostCall::BroadcastWrite)
     }
 
     fn wait(&mut self, duration: Duration) {
-        self.bus
-            .run_for(SimDuration::from_micros_f64(duration.as_secs_f64() * 1e6));
+        self.bus.run_for(sim_duration(duration));
+    }
+
+    fn wait_until_heard(&mut self, limit: Duration, heard: &mut dyn FnMut(&[u8]) -> bool) -> bool {
+        let deadline = self.bus.now() + sim_duration(limit);
+        let host = self.host;
+        let mut seen = self.host_link().map_or(0, HostLink::received_total);
+        let mut done = false;
+        self.bus.run_until_with(deadline, |bus| {
+            let Some(link) = bus.node::<HostLink>(host) else {
+                return true;
+            };
+            let total = link.received_total();
+            let new = usize::try_from(total.saturating_sub(seen)).unwrap_or(usize::MAX);
+            seen = total;
+            // Oldest first; the link keeps the most recent packets only.
+            let kept = link.received().len();
+            for r in link.received().skip(kept.saturating_sub(new)) {
+                done = done || heard(&r.bytes);
+            }
+            done
+        });
+        if !done {
+            self.bus.run_until(deadline);
+        }
+        done
     }
 
     fn now(&self) -> Duration {
         let SimTime(ps) = self.bus.now();
         Duration::from_nanos(ps / 1000)
+    }
+
+    fn now_ps(&self) -> u64 {
+        self.bus.now().0
     }
 
     fn generation(&self) -> u32 {

@@ -11,6 +11,8 @@
 //!   configuration names, on the simulated bus behind a
 //!   [`SimPort`](firelink_host::sim::SimPort), or behind an in-process
 //!   Ethernet-bridge emulator on loopback UDP ([`rig::Emulator`]);
+//! - [`sim`]: one I/O cycle of N boards on the simulated bus, measured
+//!   phase by phase (the wire times of the seed papers; `firelink sim`);
 //! - [`soak`]: the fault soak: a million servo cycles with one packet in a
 //!   hundred faulted, every fault accounted for, amplifiers proven off
 //!   whenever the safety chain says so;
@@ -26,6 +28,7 @@ pub mod demo;
 pub mod error;
 pub mod rig;
 pub mod service;
+pub mod sim;
 pub mod soak;
 pub mod watchdog;
 

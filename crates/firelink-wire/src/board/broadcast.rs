@@ -162,6 +162,31 @@ pub fn status_broadcast_offset(firmware: FirmwareRev, board_id: u8) -> Result<u6
 
 // ------------------------------------------------------ Status broadcast ---
 
+/// What a host that overhears the bus learns from one packet: `Some((header,
+/// board ID))` when it is a status broadcast (a block write to broadcast
+/// node 63 in the status broadcast range, `fpga-board.md` §6.2, carrying at
+/// least the header and the block's first quadlets), `None` for anything
+/// else. The board ID is the one in the block's STATUS quadlet; nothing
+/// else is checked (the hub read does that).
+pub fn status_broadcast_board(
+    packet: &crate::packet::Packet<&[u8]>,
+) -> Option<(BroadcastHeader, u8)> {
+    let range = STATUS_BROADCAST_OFFSET
+        ..STATUS_BROADCAST_OFFSET + STATUS_BROADCAST_BOARD_STRIDE * MAX_BOARDS as u64;
+    if packet.tcode() != crate::packet::Tcode::WriteBlockRequest
+        || !packet.destination_id().is_broadcast()
+        || !range.contains(&packet.offset())
+    {
+        return None;
+    }
+    let data = packet.data();
+    // Header, timestamp, STATUS.
+    let (head, status) = (data.get(..4)?, data.get(8..12)?);
+    let header = BroadcastHeader::from_word(read_quadlet(head, 0));
+    let board = crate::board::registers::StatusRead(read_quadlet(status, 0)).board_id();
+    Some((header, board))
+}
+
 /// The header of a status broadcast: `seq<<16 | size_in_quadlets`, the size
 /// counting the header too (`fpga-board.md` §6.2: 33 for QLA1 Rev 8).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
