@@ -18,18 +18,25 @@
 //! - [`trace`] and [`pcap`]: what happened, as records, text and pcap.
 //! - [`host`]: the PC's link ([`HostLink`]) and the PC software overhead
 //!   model ([`HostModel`]).
-//! - [`scenario`]: a minimal board responder and the one-cycle simulation
-//!   behind `firelink sim`.
+//!
+//! The nodes on it live in the crates above: emulated boards
+//! (`firelink-board`), the host library's port (`firelink-host`'s
+//! `SimPort`), the one-cycle simulation behind `firelink sim`
+//! (`firelink-testbed`).
 //!
 //! Nothing here reads a clock or an unseeded RNG: the same nodes, topology,
 //! configuration and seed give the same trace, bit for bit.
 //!
 //! ```
-//! use firelink_bus::scenario::{simulate_cycle, CycleConfig, Profile, Protocol};
-//! let report = simulate_cycle(&CycleConfig::new(8, Profile::Seed, Protocol::Broadcast));
-//! // The command broadcast of seed 000 takes about 3.26 us at S400.
-//! let command = report.phase_us("command").unwrap();
-//! assert!((command - 3.26).abs() / 3.26 < 0.10);
+//! use firelink_bus::{Bus, BusConfig, HostLink, NodeConfig, SimDuration};
+//! let mut bus = Bus::new(BusConfig::default());
+//! let pc = bus.add(HostLink::new("pc"), NodeConfig::pc());
+//! let other = bus.add(HostLink::new("other"), NodeConfig::board());
+//! bus.daisy_chain(&[pc, other]).unwrap();
+//! bus.reset();
+//! bus.run_for(SimDuration::from_micros(100));
+//! // Self-ID numbers the PC, the root, last.
+//! assert_eq!(bus.phy_id(pc), Some(1));
 //! ```
 
 pub mod bus;
@@ -39,7 +46,6 @@ pub mod host;
 pub mod node;
 pub mod pcap;
 pub mod phy;
-pub mod scenario;
 pub mod time;
 pub mod timing;
 pub mod topology;

@@ -5,7 +5,7 @@
 //!   concatenated responses, cycle starts, PHY and self-ID packets, babble),
 //!   with its bytes as transmitted (after any injected corruption), its
 //!   arbitration start, data-prefix start, last bit and data-end end. This
-//!   is what [`pcap`](crate::pcap) exports and what scenario reports measure.
+//!   is what [`pcap`](crate::pcap) exports and what phase measurements read.
 //! - [`TraceEntry`]s: a time-ordered log of bus events (arbitration wins,
 //!   packet start and end, acks, missing acks, resets, faults, errors that
 //!   nodes reported). [`Trace::timeline`] renders it as compact text.

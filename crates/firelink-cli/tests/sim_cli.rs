@@ -129,7 +129,14 @@ fn emulated_boards_time_like_the_minimal_responder() {
     let pinned: serde_json::Value =
         serde_json::from_str(include_str!("data/sim_phases.json")).unwrap();
     for profile in ["rev7", "rev8"] {
-        let args = ["--profile", profile, "--protocol", "broadcast", "--boards", "8"];
+        let args = [
+            "--profile",
+            profile,
+            "--protocol",
+            "broadcast",
+            "--boards",
+            "8",
+        ];
         let minimal = pinned["cases"]
             .as_array()
             .unwrap()

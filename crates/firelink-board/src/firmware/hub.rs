@@ -3,7 +3,9 @@
 //! the hub memory every board fills with every board's broadcast.
 
 use firelink_wire::board::address::HUB_MEMORY_QUADLETS;
-use firelink_wire::board::broadcast::{HubPacker, HubTiming, Query, has_hub_timing};
+use firelink_wire::board::broadcast::{
+    BroadcastHeader, HubPacker, HubTiming, Query, has_hub_timing,
+};
 use firelink_wire::board::realtime::{BlockFormat, FirmwareRev};
 use firelink_wire::board::registers::StatusRead;
 use firelink_wire::field::read_quadlet;
@@ -133,8 +135,18 @@ impl Hub {
     /// Store one status broadcast payload (header + real-time block)
     /// arriving at `now`, its header rewritten as the format says
     /// (`HubHeader::rewrite`). A payload whose header size does not match
-    /// its length, or that does not fit, is not stored.
-    pub fn store(&mut self, now: Time, payload: &[u8], format: BlockFormat) {
+    /// its length, or that does not fit, is not stored; nor is a second
+    /// block answering this board's query from a board already heard (a
+    /// packet the bus delivered twice): that returns `false`.
+    pub fn store(&mut self, now: Time, payload: &[u8], format: BlockFormat) -> bool {
+        // The block's STATUS quadlet (after header and timestamp) names the
+        // board.
+        let board = StatusRead(read_quadlet(payload, 2)).board_id();
+        let bit = 1u16.checked_shl(u32::from(board)).unwrap_or(0);
+        let seq = BroadcastHeader::from_word(read_quadlet(payload, 0)).seq;
+        if self.seen & bit != 0 && self.query.is_some_and(|q| q.seq == seq) {
+            return false;
+        }
         let update = self.query_at.map_or(0, |q| now.clocks_since(q));
         let update = match format {
             BlockFormat::Rev4 | BlockFormat::Rev7 => update.min(0xFFFF),
@@ -142,28 +154,25 @@ impl Hub {
         } as u16;
         let seq = self.query.map_or(0, |q| q.seq);
         let Some(free) = self.memory.get_mut(self.count * 4..) else {
-            return;
+            return true;
         };
         let mut packer = HubPacker::new(free);
         if packer
             .store_broadcast(payload, seq, update, format)
             .is_err()
         {
-            return;
+            return true;
         }
         self.count += packer.quadlets();
-        // The block's STATUS quadlet (after header and timestamp) names the
-        // board.
-        let board = StatusRead(read_quadlet(payload, 2)).board_id();
-        self.seen |= 1u16.checked_shl(u32::from(board)).unwrap_or(0);
+        self.seen |= bit;
         let mask = self.mask();
         if self.complete_at.is_none() && mask != 0 && mask & !self.seen == 0 {
             self.complete_at = Some(now);
             if !has_hub_timing(format) {
-                return;
+                return true;
             }
             let Some(free) = self.memory.get_mut(self.count * 4..) else {
-                return;
+                return true;
             };
             let done = self.query_at.map_or(0, |q| now.clocks_since(q));
             let timing = HubTiming {
@@ -175,6 +184,7 @@ impl Hub {
                 self.count += 1;
             }
         }
+        true
     }
 
     /// Hub memory quadlet `index` as read by a read that started at

@@ -87,7 +87,8 @@ pub use power::{
 };
 
 use firelink_wire::board::address::{
-    COMMAND_SNOOP_OFFSET, HUB_QUERY_OFFSET, STATUS_BROADCAST_OFFSET, STATUS_BROADCAST_PRIORITY,
+    COMMAND_SNOOP_OFFSET, HUB_MEMORY_QUADLETS, HUB_QUERY_OFFSET, STATUS_BROADCAST_OFFSET,
+    STATUS_BROADCAST_PRIORITY,
 };
 use firelink_wire::board::broadcast::{
     BroadcastHeader, CORRUPT_QUERY_SEQ, Query, status_broadcast_offset,
@@ -103,6 +104,10 @@ use power::{AxisState, Power, Watchdog};
 
 /// Largest block read served, bytes (one S400 payload).
 pub const MAX_BLOCK_READ: usize = 2048;
+
+/// Seed profile: how long after the end of its TDMA slot a status
+/// broadcast may still arrive before it counts as late.
+pub const SLOT_GRACE: TimeDelta = TimeDelta::from_micros(2);
 
 /// How the board's link answers a packet.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -133,6 +138,12 @@ pub enum RxError {
     /// A query with a failed header CRC, answered with sequence `0xFFFF`
     /// (seed profile).
     CorruptQuery,
+    /// A second status broadcast from a board already heard since the
+    /// query (the bus delivered one twice): not stored again.
+    DuplicateBroadcast,
+    /// Seed profile: a status broadcast that arrived after its sender's
+    /// TDMA slot had ended (stored all the same).
+    LateBroadcast,
 }
 
 impl core::fmt::Display for RxError {
@@ -141,6 +152,8 @@ impl core::fmt::Display for RxError {
             RxError::HeaderCrc => "header CRC error: packet dropped",
             RxError::DataCrc => "data CRC error: ack_data_error, not committed",
             RxError::CorruptQuery => "corrupt query: answered with sequence 0xFFFF",
+            RxError::DuplicateBroadcast => "duplicate status broadcast: stored once",
+            RxError::LateBroadcast => "status broadcast arrived after its slot",
         })
     }
 }
@@ -420,6 +433,9 @@ impl Firmware {
                     self.rx_error = Some(RxError::DataCrc);
                     return ack(Ack::DataError);
                 }
+                if broadcast && self.late_for_its_slot(now, packet.source_id().phy(), offset) {
+                    self.rx_error = Some(RxError::LateBroadcast);
+                }
                 self.write_block_from(now, offset, packet.data(), to_me && !broadcast, phy);
                 ack(Ack::Complete)
             }
@@ -527,7 +543,7 @@ impl Firmware {
     pub fn transmitted(&mut self, now: Time) {
         self.advance(now);
         if let Some(payload) = self.hub.in_flight.take() {
-            self.hub.store(now, &payload, self.cfg.layout().format());
+            let _ = self.hub.store(now, &payload, self.cfg.layout().format());
         }
     }
 
@@ -537,6 +553,21 @@ impl Firmware {
     /// received packet too).
     pub fn next_wakeup(&self) -> Option<Time> {
         self.hub.pending.as_ref().map(|p| p.due(self.hub.seen))
+    }
+
+    /// Seed profile: whether a status broadcast from node `sender`
+    /// arriving at `now` (at `offset`) is later than its TDMA slot allows:
+    /// the end of the slot plus 2 us.
+    fn late_for_its_slot(&self, now: Time, sender: u8, offset: u64) -> bool {
+        let in_hub = (STATUS_BROADCAST_OFFSET
+            ..STATUS_BROADCAST_OFFSET + u64::from(HUB_MEMORY_QUADLETS as u32) * 4)
+            .contains(&offset);
+        let Some(query_at) = self.hub.query_at else {
+            return false;
+        };
+        self.cfg.profile == Profile::Seed
+            && in_hub
+            && now > query_at + seed_slot(self.cfg.firmware, sender.saturating_add(1)) + SLOT_GRACE
     }
 
     /// A broadcast query at `now`: `Some(word)`, or `None` for a query

@@ -13,7 +13,7 @@ use firelink_wire::board::registers::{
 };
 
 use super::power::{AxisState, Watchdog};
-use super::{Firmware, PhyAccess};
+use super::{Firmware, PhyAccess, RxError};
 use crate::plant::encoder::{PeriodField, QuarterField, RunField, VelocityFields};
 use crate::plant::{POT_FULL_SCALE_VOLTS, QLA_AMPS_PER_BIT, QLA_FULL_SCALE_AMPS};
 use crate::time::Time;
@@ -178,7 +178,9 @@ impl Firmware {
         }
         match decode(u64::from(addr)) {
             Target::Hub(HubAddress::Memory(_)) => {
-                self.hub.store(now, data, self.cfg.layout().format());
+                if !self.hub.store(now, data, self.cfg.layout().format()) {
+                    self.rx_error = Some(RxError::DuplicateBroadcast);
+                }
             }
             Target::Hub(HubAddress::Query) => {
                 if let Some(&w) = quadlets_of(data).first() {

@@ -14,6 +14,9 @@ pub enum Reply {
     Fixed(Ack),
     /// ack_pending + a concatenated quadlet read response.
     Concatenated,
+    /// As a board's link: reads answered like `Concatenated`, writes
+    /// `Complete` (ack_data_error on a bad data CRC).
+    Board,
     /// ack_pending, then a split response after `delay_us`.
     Split { delay_us: f64 },
     /// These exact reply bytes as a concatenated response (garbage test).
@@ -34,6 +37,8 @@ pub struct Recorder {
     pub response_acks: Vec<Option<Ack>>,
     pub timers: Vec<(SimTime, u64)>,
     pub crc_errors: u32,
+    /// Requests to this node received twice in a row, byte for byte.
+    pub duplicates: u32,
     pending_split: Option<Vec<u8>>,
 }
 
@@ -49,6 +54,7 @@ impl Recorder {
             response_acks: Vec::new(),
             timers: Vec::new(),
             crc_errors: 0,
+            duplicates: 0,
             pending_split: None,
         }
     }
@@ -105,11 +111,28 @@ impl Node for Recorder {
         if view.header_crc_ok() == Some(false) {
             return RxReply::Silent;
         }
+        let before = self.received.len().checked_sub(2);
+        if before
+            .and_then(|i| self.received.get(i))
+            .is_some_and(|(_, p)| p == packet)
+        {
+            self.duplicates += 1;
+            ctx.report_error("duplicate request (same label)");
+        }
         match &self.reply {
             Reply::Complete if ok => RxReply::Ack(Ack::Complete),
             Reply::Complete => RxReply::Ack(Ack::DataError),
             Reply::Fixed(a) => RxReply::Ack(*a),
-            Reply::Concatenated => RxReply::AckThenResponse {
+            Reply::Board
+                if !matches!(
+                    view.tcode(),
+                    firelink_wire::packet::Tcode::ReadQuadletRequest
+                        | firelink_wire::packet::Tcode::ReadBlockRequest
+                ) =>
+            {
+                RxReply::Ack(if ok { Ack::Complete } else { Ack::DataError })
+            }
+            Reply::Concatenated | Reply::Board => RxReply::AckThenResponse {
                 ack: Ack::Pending,
                 response: quadlet_response(&view),
                 speed,
@@ -207,4 +230,24 @@ pub fn send(bus: &mut Bus, node: NodeHandle, packet: Vec<u8>, class: Arbitration
 /// The recorder at `node`.
 pub fn rec(bus: &Bus, node: NodeHandle) -> &Recorder {
     bus.node::<Recorder>(node).unwrap()
+}
+
+impl Recorder {
+    /// Write requests addressed to this node that arrived intact.
+    pub fn writes(&self) -> usize {
+        self.received
+            .iter()
+            .filter(|(_, p)| {
+                Packet::new_checked(&p[..]).is_ok_and(|v| {
+                    v.verify().is_ok()
+                        && v.destination_id().phy() == self.phy_id
+                        && matches!(
+                            v.tcode(),
+                            firelink_wire::packet::Tcode::WriteQuadletRequest
+                                | firelink_wire::packet::Tcode::WriteBlockRequest
+                        )
+                })
+            })
+            .count()
+    }
 }
