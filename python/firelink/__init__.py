@@ -15,9 +15,8 @@ Quick start::
         print(port.scan())
 
 Port descriptions: ``"sim"`` (8 boards, firmware Rev 8), ``"sim:N"`` or
-``"sim:N:FW"`` (N boards 1..16, FW 7, 8 or seed), ``"loopback"`` (the
-port-level board model, no bus), ``"udp:HOST[:PORT]"`` (a running
-``firelink emulate`` or a real bridge board).
+``"sim:N:FW"`` (N boards 1..16, FW 7, 8 or seed), ``"udp:HOST[:PORT]"``
+(a running ``firelink emulate`` or a real bridge board).
 """
 
 from __future__ import annotations
@@ -139,7 +138,7 @@ def run_demo(
 ) -> Report:
     """Run the demo (``firelink demo``) and return its report.
 
-    ``port``: ``sim``, ``emulate``, ``loopback`` or ``udp:HOST[:PORT]``;
+    ``port``: ``sim``, ``emulate`` or ``udp:HOST[:PORT]``;
     ``fault``: ``none``, ``stop-host``, ``corrupt-query``, ``board-loss`` or
     ``following-error``; ``watchdog_ms=None`` turns the boards' watchdogs
     off; ``config``: a ``Config`` or a configuration file (default: seed

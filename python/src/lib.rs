@@ -20,7 +20,6 @@ use pyo3::types::{PyBytes, PyDict};
 use firelink_board::config::Profile;
 use firelink_control::config::{ConfigErrors, IoConfig, presets};
 use firelink_control::runner::Pacing;
-use firelink_control::runner::loopback::LoopbackPort;
 use firelink_host::io::{IoConfig as HostIoConfig, IoSystem as HostIoSystem};
 use firelink_host::packet_json::{self, PacketJson};
 use firelink_host::port::Dest;
@@ -115,10 +114,6 @@ fn profile(py: Python<'_>, name: &str) -> PyResult<Profile> {
 fn open_port(py: Python<'_>, spec: &str) -> PyResult<(AnyPort, String)> {
     let spec = spec.trim();
     let dvrk = presets::dvrk_seed000();
-    if spec == "loopback" {
-        let port = LoopbackPort::from_config(&dvrk, |i| rig::start_position(&dvrk, i));
-        return Ok((Box::new(port), "loopback".into()));
-    }
     if spec.starts_with("udp") {
         let addr =
             UdpPort::parse_address(spec).map_err(|e| error(py, "PortError", e.to_string()))?;
@@ -130,7 +125,7 @@ fn open_port(py: Python<'_>, spec: &str) -> PyResult<(AnyPort, String)> {
         return Err(error(
             py,
             "PortError",
-            format!("unknown port {spec:?}: sim[:BOARDS[:FIRMWARE]], loopback or udp:HOST[:PORT]"),
+            format!("unknown port {spec:?}: sim[:BOARDS[:FIRMWARE]] or udp:HOST[:PORT]"),
         ));
     }
     let boards = match parts.next() {
@@ -218,7 +213,7 @@ impl From<&firelink_host::board::BoardInfo> for Board {
     }
 }
 
-/// A port to the boards: the simulated bus, the loopback model or UDP.
+/// A port to the boards: the simulated bus or UDP.
 #[pyclass(module = "firelink._firelink")]
 struct Port {
     /// The mutex is never contended (PyO3 hands out `&mut self` one at a

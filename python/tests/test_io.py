@@ -110,7 +110,7 @@ def test_a_thousand_cycles_against_the_in_process_emulator_without_error():
 
 
 def test_the_rust_loop_runs_the_same_cycles():
-    io = firelink.IoSystem("loopback")
+    io = firelink.IoSystem("sim")
     seconds = io.run_cycles(100)
     assert seconds > 0
     assert io.stats()["cycles"] >= 100

@@ -32,9 +32,8 @@ pub struct DemoArgs {
     pub duration: f64,
     /// Where the boards are: `sim` (emulated boards on the simulated bus,
     /// in-process), `emulate` (the same boards behind an in-process
-    /// `firelink emulate`, over loopback UDP), `udp:HOST[:PORT]` (a running
-    /// `firelink emulate` or a real bridge board) or `loopback` (the
-    /// port-level board model, no bus).
+    /// `firelink emulate`, over loopback UDP) or `udp:HOST[:PORT]` (a
+    /// running `firelink emulate` or a real bridge board).
     #[arg(long, default_value = "sim")]
     pub port: String,
     /// Board firmware of the emulated boards: 7, 8 or seed.
@@ -45,7 +44,7 @@ pub struct DemoArgs {
     #[arg(long, default_value = "none")]
     pub fault: String,
     /// virtual (as fast as the simulation goes, virtual time) or realtime
-    /// (wall clock); default: virtual for sim and loopback, realtime over UDP.
+    /// (wall clock); default: virtual for sim, realtime over UDP.
     #[arg(long)]
     pub pacing: Option<String>,
     /// Board watchdog period in ms (above 0, at most 341), or `off`

@@ -85,7 +85,7 @@ fn watchdog_off_must_be_asked_for_and_is_announced() {
         "--rate",
         "500",
         "--port",
-        "loopback",
+        "sim",
     ]);
     assert_eq!(code, 0, "{err}");
     assert!(err.contains("watchdogs are OFF"), "{err}");

@@ -48,7 +48,7 @@ fn demo_runs_the_dvrk_and_reports() {
 }
 
 #[test]
-fn demo_sequential_and_loopback() {
+fn demo_sequential_and_default() {
     let r = json(&[
         "demo",
         "--duration",
@@ -61,7 +61,7 @@ fn demo_sequential_and_loopback() {
     ]);
     assert_eq!(r["protocol"], "sequential");
     assert_eq!(r["errors"]["total"], 0);
-    let r = json(&["demo", "--duration", "0.1", "--port", "loopback", "--json"]);
+    let r = json(&["demo", "--duration", "0.1", "--port", "sim", "--json"]);
     assert_eq!(r["axes"], 28);
     assert!(r["fault"].is_null());
 }

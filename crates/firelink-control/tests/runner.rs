@@ -1,16 +1,18 @@
-//! The runner over port-level emulated boards ([`LoopbackPort`]), in
-//! virtual time: lifecycle, tracking, and every safety path.
+//! The runner over emulated boards on the simulated bus (`common::port`),
+//! in virtual time: lifecycle, tracking, and every safety path.
+
+mod common;
 
 use std::time::Duration;
 
 use firelink_control::config::presets;
-use firelink_control::runner::loopback::LoopbackPort;
 use firelink_control::runner::{Pacing, Robot, RobotSettings, RunnerError};
 use firelink_control::trajectory::{Motion, Sinusoid};
 use firelink_control::{FaultKind, LifecycleError, State};
 use firelink_host::Port;
 use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
 use firelink_host::scan::Protocol;
+use firelink_host::sim::SimPort;
 
 /// Joints start inside their soft limits and away from the encoders'
 /// zero, so homing matters.
@@ -21,9 +23,15 @@ fn start(i: usize) -> f64 {
     0.5 * (l.lower + l.upper) + 0.1 * l.span() * ((i % 5) as f64 - 2.0) / 2.0
 }
 
-fn robot(protocol: Protocol, rate: f64) -> Robot<LoopbackPort> {
+fn robot(protocol: Protocol, rate: f64) -> Robot<SimPort> {
+    robot_on(protocol, rate, false)
+}
+
+/// `seed_000`: seed 000's own boards (they answer a corrupt query with
+/// sequence 0xFFFF); otherwise Rev 8 boards.
+fn robot_on(protocol: Protocol, rate: f64, seed_000: bool) -> Robot<SimPort> {
     let config = presets::dvrk_seed000();
-    let port = LoopbackPort::from_config(&config, start);
+    let port = common::port(&config, seed_000, start);
     let (io, scan) = IoSystem::open(
         port,
         HostIoConfig {
@@ -44,8 +52,12 @@ fn robot(protocol: Protocol, rate: f64) -> Robot<LoopbackPort> {
     .unwrap()
 }
 
-fn active(protocol: Protocol) -> Robot<LoopbackPort> {
-    let mut r = robot(protocol, 2000.0);
+fn active(protocol: Protocol) -> Robot<SimPort> {
+    active_on(protocol, false)
+}
+
+fn active_on(protocol: Protocol, seed_000: bool) -> Robot<SimPort> {
+    let mut r = robot_on(protocol, 2000.0, seed_000);
     r.configure().unwrap();
     r.power_on().unwrap();
     r.home().unwrap();
@@ -57,7 +69,7 @@ fn active(protocol: Protocol) -> Robot<LoopbackPort> {
 #[test]
 fn motion_is_refused_unless_active() {
     let mut r = robot(Protocol::Broadcast, 1000.0);
-    let refused = |r: &mut Robot<LoopbackPort>| {
+    let refused = |r: &mut Robot<SimPort>| {
         matches!(
             r.set_motion(0, Motion::Hold(0.1)),
             Err(RunnerError::Lifecycle(LifecycleError::NotActive { .. }))
@@ -85,14 +97,19 @@ fn motion_is_refused_unless_active() {
 #[test]
 fn homing_finds_the_joint_positions() {
     let r = active(Protocol::Broadcast);
-    for i in 0..r.joint_count() {
+    let config = presets::dvrk_seed000();
+    for (i, j) in config.joints().enumerate() {
         let p = r.position(i).unwrap();
+        // Where the joint really is: it started at `start(i)`, and a
+        // joint its load pulls on may have moved before the amplifiers
+        // held it.
+        let truth = common::board(r.io().port(), j.actuator.board_id)
+            .plant()
+            .axis(usize::from(j.actuator.axis_id))
+            .unwrap()
+            .joint_position();
         // Pots are 16-bit over twice the range: a few mrad (or um).
-        assert!(
-            (p - start(i)).abs() < 5e-3,
-            "joint {i}: {p} vs {}",
-            start(i)
-        );
+        assert!((p - truth).abs() < 5e-3, "joint {i}: {p} vs {truth}");
     }
 }
 
@@ -128,10 +145,10 @@ fn stopped_host_trips_the_watchdog() {
     let mut r = active(Protocol::Broadcast);
     r.run(100, Pacing::Virtual, 0, |_| {}).unwrap();
     // The host stops for 50 ms (watchdog 20 ms).
-    r.io_mut().port_mut().advance(Duration::from_millis(50));
+    common::stop_host(r.io_mut().port_mut(), Duration::from_millis(50));
     for id in 0..8 {
-        assert!(r.io().port().watchdog_expired(id));
-        assert!(!r.io().port().any_amp_on(id));
+        assert!(common::watchdog_expired(r.io().port(), id));
+        assert!(!common::any_amp_on(r.io().port(), id));
     }
     let e = r.step(Pacing::Virtual).unwrap_err();
     let RunnerError::Fault(f) = e else {
@@ -144,9 +161,9 @@ fn stopped_host_trips_the_watchdog() {
 
 #[test]
 fn corrupt_query_is_detected_and_amps_go_off() {
-    let mut r = active(Protocol::Broadcast);
+    let mut r = active_on(Protocol::Broadcast, true);
     r.run(50, Pacing::Virtual, 0, |_| {}).unwrap();
-    r.io_mut().port_mut().corrupt_next_queries(1);
+    common::corrupt_next_query(r.io_mut().port_mut());
     let RunnerError::Fault(f) = r.step(Pacing::Virtual).unwrap_err() else {
         panic!()
     };
@@ -163,7 +180,7 @@ fn corrupt_query_is_detected_and_amps_go_off() {
     assert!(r.io_stats().corrupt_queries > 0);
     // The faulting cycle already wrote amplifiers off.
     for id in 0..8 {
-        assert!(!r.io().port().any_amp_on(id), "board {id}");
+        assert!(!common::any_amp_on(r.io().port(), id), "board {id}");
     }
     let _ = r.step(Pacing::Virtual);
     assert!(!r.any_amp_on());
@@ -174,7 +191,7 @@ fn board_loss_stops_safely_naming_the_board() {
     for protocol in [Protocol::Broadcast, Protocol::Sequential] {
         let mut r = active(protocol);
         r.run(50, Pacing::Virtual, 0, |_| {}).unwrap();
-        r.io_mut().port_mut().set_board_lost(5, true);
+        common::lose_board(r.io_mut().port_mut(), 5);
         let RunnerError::Fault(f) = r.step(Pacing::Virtual).unwrap_err() else {
             panic!()
         };
@@ -186,7 +203,7 @@ fn board_loss_stops_safely_naming_the_board() {
             k => panic!("{protocol:?}: {k:?}"),
         }
         for id in [0, 1, 2, 3, 4, 6, 7] {
-            assert!(!r.io().port().any_amp_on(id), "board {id}");
+            assert!(!common::any_amp_on(r.io().port(), id), "board {id}");
         }
     }
 }
@@ -197,7 +214,7 @@ fn following_error_excess_trips() {
     r.run(20, Pacing::Virtual, 0, |_| {}).unwrap();
     // MTML joint 1 is blocked, then asked to move by 0.5 rad (limit
     // 0.35 rad, 50 ms grace).
-    r.io_mut().port_mut().set_axis_blocked(0, 0, true);
+    common::block_axis(r.io_mut().port_mut(), 0, 0);
     r.step_setpoint(0, 0.5).unwrap();
     let e = r.run(2000, Pacing::Virtual, 0, |_| {}).unwrap_err();
     let RunnerError::Fault(f) = e else { panic!() };
@@ -211,7 +228,7 @@ fn following_error_excess_trips() {
 fn configuration_errors() {
     // The dVRK configuration against a single bench board.
     let bench = presets::bench_1board();
-    let port = LoopbackPort::from_config(&bench, |_| 0.0);
+    let port = common::port(&bench, false, |_| 0.0);
     let (io, _) = IoSystem::open(port, HostIoConfig::default()).unwrap();
     let e = Robot::new(io, &presets::dvrk_seed000(), RobotSettings::default())
         .err()
@@ -221,7 +238,7 @@ fn configuration_errors() {
         "{e}"
     );
     // A zero rate.
-    let port = LoopbackPort::from_config(&bench, |_| 0.0);
+    let port = common::port(&bench, false, |_| 0.0);
     let (io, _) = IoSystem::open(port, HostIoConfig::default()).unwrap();
     let settings = RobotSettings {
         rate_hz: 0.0,

@@ -100,7 +100,7 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
                 publish_hz: args.publish_hz,
                 domain_id: domain,
                 duration,
-                sim_time: matches!(port, DemoPort::Sim | DemoPort::Loopback),
+                sim_time: matches!(port, DemoPort::Sim),
             },
             &stop,
         )?

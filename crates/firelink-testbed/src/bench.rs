@@ -17,7 +17,6 @@ use serde::Serialize;
 use firelink_board::config::Profile;
 use firelink_control::budget::CycleBudget;
 use firelink_control::config::presets;
-use firelink_control::runner::loopback::LoopbackPort;
 use firelink_control::runner::{Pacing, Percentiles, Robot, RobotSettings};
 use firelink_host::Port;
 use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
@@ -279,10 +278,14 @@ fn point<P: Port>(
 }
 
 /// The compute time of the 28-axis dVRK cycle (median, us), measured with
-/// the runner on the port-level board model.
+/// the runner on emulated boards on the simulated bus (the bus's own time is
+/// not in it: compute is timed between the read and the write).
 pub fn compute_time_us() -> f64 {
     let config = presets::dvrk_seed000();
-    let port = LoopbackPort::from_config(&config, |i| rig::start_position(&config, i));
+    let boards = rig::board_configs(&config, Profile::Rev8, config.board_slots());
+    let Ok((port, _)) = rig::sim_port(boards, false) else {
+        return 0.0;
+    };
     let Ok((io, _)) = IoSystem::open(port, HostIoConfig::default()) else {
         return 0.0;
     };

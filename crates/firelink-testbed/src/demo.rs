@@ -21,7 +21,6 @@ use firelink_board::config::Profile;
 use firelink_bus::NodeHandle;
 use firelink_bus::fault::{FaultPlan, PacketFault, PacketMatch, TimedFault};
 use firelink_control::config::{IoConfig, presets};
-use firelink_control::runner::loopback::LoopbackPort;
 use firelink_control::runner::{Pacing, Percentiles, Robot, RobotSettings, RunnerError};
 use firelink_control::trajectory::{Motion, PointToPoint, Sinusoid};
 use firelink_control::{FaultKind, FaultReport};
@@ -104,15 +103,13 @@ pub enum DemoPort {
     Emulate,
     /// A running `firelink emulate` or a real bridge board.
     Udp(SocketAddr),
-    /// The port-level board model (no bus), virtual time.
-    Loopback,
 }
 
 impl DemoPort {
     /// The pacing that suits the port when the caller does not choose.
     pub fn default_pacing(&self) -> Pacing {
         match self {
-            DemoPort::Sim | DemoPort::Loopback => Pacing::Virtual,
+            DemoPort::Sim => Pacing::Virtual,
             DemoPort::Emulate | DemoPort::Udp(_) => Pacing::WallClock,
         }
     }
@@ -124,10 +121,9 @@ impl FromStr for DemoPort {
         match s {
             "sim" => Ok(DemoPort::Sim),
             "emulate" => Ok(DemoPort::Emulate),
-            "loopback" => Ok(DemoPort::Loopback),
             p if p.starts_with("udp") => Ok(DemoPort::Udp(UdpPort::parse_address(p)?)),
             p => Err(TestbedError::Config(format!(
-                "unknown port {p:?}: sim, emulate, loopback or udp:HOST[:PORT]"
+                "unknown port {p:?}: sim, emulate or udp:HOST[:PORT]"
             ))),
         }
     }
@@ -163,7 +159,7 @@ pub struct DemoOptions {
     pub duration_s: f64,
     /// Where the boards are.
     pub port: DemoPort,
-    /// Firmware of the emulated boards (sim, emulate, loopback).
+    /// Firmware of the emulated boards (sim, emulate).
     pub firmware: Profile,
     /// The fault to inject half way.
     pub fault: DemoFault,
@@ -513,7 +509,7 @@ impl fmt::Display for DemoReport {
 const LOST_BOARD: u8 = 4;
 
 /// Fault injection on a port: what each [`DemoFault`] does there (the
-/// simulated bus and the loopback model can do all of them; over UDP the
+/// simulated bus can do all of them; over UDP the
 /// bus is in another process, so only a stopped host and a following
 /// error).
 pub trait Injector: Port {
@@ -559,26 +555,13 @@ impl Injector for SimPort {
     }
 }
 
-impl Injector for LoopbackPort {
-    fn inject(&mut self, fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError> {
-        match fault {
-            DemoFault::StopHost => self.advance(watchdog * 3),
-            DemoFault::CorruptQuery => self.corrupt_next_queries(1),
-            DemoFault::BoardLoss => self.set_board_lost(LOST_BOARD, true),
-            DemoFault::FollowingError => self.set_axis_blocked(0, 0, true),
-            DemoFault::None => {}
-        }
-        Ok(())
-    }
-}
-
 impl Injector for UdpPort {
     fn inject(&mut self, fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError> {
         match fault {
             DemoFault::StopHost => std::thread::sleep(watchdog * 3),
             DemoFault::CorruptQuery | DemoFault::BoardLoss => {
                 return Err(TestbedError::Config(format!(
-                    "fault {} needs the sim or loopback port (the bus is in another process)",
+                    "fault {} needs the sim port (the bus is in another process)",
                     fault.name()
                 )));
             }
@@ -643,17 +626,6 @@ pub fn run_demo(
             let (port, _) =
                 rig::sim_port(rig::board_configs(config, options.firmware, boards), false)?;
             run_robot(port, options, "sim".into(), pacing, realtime, &mut progress)
-        }
-        DemoPort::Loopback => {
-            let port = LoopbackPort::from_config(config, |i| rig::start_position(config, i));
-            run_robot(
-                port,
-                options,
-                "loopback".into(),
-                pacing,
-                realtime,
-                &mut progress,
-            )
         }
         DemoPort::Emulate => {
             let emu = rig::Emulator::start(rig::board_configs(config, options.firmware, boards))?;

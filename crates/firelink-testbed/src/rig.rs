@@ -32,9 +32,14 @@ pub fn start_position(config: &IoConfig, joint: usize) -> f64 {
 /// The plant model a configuration's actuator names, with its
 /// transmission, encoder, pot and drive direction made to agree with the
 /// configuration, as a calibrated robot's configuration agrees with the
-/// robot. An actuator without a `simulation` section drives a generic
-/// motor.
+/// robot, starting at [`start_position`]. An actuator without a
+/// `simulation` section drives a generic motor.
 pub fn plant_for(config: &IoConfig, joint: usize) -> Option<AxisParams> {
+    plant_starting_at(config, joint, start_position(config, joint))
+}
+
+/// [`plant_for`], the joint starting at `start` (joint units).
+pub fn plant_starting_at(config: &IoConfig, joint: usize, start: f64) -> Option<AxisParams> {
     let j = config.joints().nth(joint)?;
     let a = j.actuator;
     let preset = a.simulation.map_or(PlantPreset::Generic, |s| s.plant);
@@ -63,7 +68,7 @@ pub fn plant_for(config: &IoConfig, joint: usize) -> Option<AxisParams> {
             p.pot.offset_volts = -pot.voltage_to_position.offset / vs;
         }
     }
-    p.load.initial_position = start_position(config, joint);
+    p.load.initial_position = start;
     Some(p)
 }
 
@@ -92,9 +97,21 @@ pub fn preset_params(preset: PlantPreset) -> AxisParams {
         .unwrap_or_else(presets::generic_motor)
 }
 
-/// Board configurations for every board `config` uses, plus `extra`
-/// generic boards after them (for the bench beyond 8 boards).
+/// Board configurations for boards 0..`boards` (at most 16): each axis a
+/// configuration's actuator drives gets the plant [`plant_for`] gives it,
+/// boards and axes the configuration does not use get generic motors or
+/// unused channels.
 pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<BoardConfig> {
+    board_configs_starting_at(config, profile, boards, |j| start_position(config, j))
+}
+
+/// [`board_configs`], joint `j` starting at `start(j)`.
+pub fn board_configs_starting_at(
+    config: &IoConfig,
+    profile: Profile,
+    boards: usize,
+    start: impl Fn(usize) -> f64,
+) -> Vec<BoardConfig> {
     let mut out: Vec<BoardConfig> = Vec::new();
     for id in 0..boards.min(16) as u8 {
         let mut b = BoardConfig::new(id, Hardware::Qla1, profile).with_seed(u64::from(id) + 1);
@@ -104,7 +121,7 @@ pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<
             if j.actuator.board_id == id {
                 if let (Some(slot), Some(p)) = (
                     axes.get_mut(usize::from(j.actuator.axis_id)),
-                    plant_for(config, i),
+                    plant_starting_at(config, i, start(i)),
                 ) {
                     *slot = p;
                     any = true;

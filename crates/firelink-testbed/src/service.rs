@@ -611,7 +611,7 @@ impl Service {
         let remote = vec![DemoFault::StopHost, DemoFault::FollowingError];
         let configs = || rig::board_configs(&config, Profile::Rev8, boards);
         let (shared, thread, emulator, faults) = match port {
-            DemoPort::Sim | DemoPort::Loopback => {
+            DemoPort::Sim => {
                 let (port, _) = rig::sim_port(configs(), false)?;
                 let (s, h) = spawn(port, "sim".into(), options(Pacing::Virtual))?;
                 (s, h, None, all)

@@ -55,7 +55,7 @@ fn a_lost_board_is_named_and_every_amplifier_ends_off() {
 fn a_verdict_fails_when_an_injected_fault_goes_unseen() {
     let mut r = run_demo(
         &DemoOptions {
-            port: DemoPort::Loopback,
+            port: DemoPort::Sim,
             ..short(DemoFault::None)
         },
         None,

@@ -25,7 +25,6 @@
 //! also read the machine's monotonic clock. This is the one place below the
 //! CLI that does.
 
-pub mod loopback;
 mod velocity;
 
 use velocity::VelocityEstimator;
