@@ -26,12 +26,13 @@ use firelink_wire::packet::{Ack, Tcode};
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{RngCore, SeedableRng};
 
-use crate::bus::NodeHandle;
+use crate::id::PacketId;
+use crate::node::NodeHandle;
 use crate::time::{SimDuration, SimTime};
-use crate::trace::{PacketId, PacketKind};
+use crate::trace::PacketKind;
 
 /// Index of a fault record in the [`FaultLog`].
-pub type FaultId = u32;
+pub use crate::id::FaultId;
 
 /// Which packets a [`FaultRule`] applies to. Every field left `None` matches
 /// anything.

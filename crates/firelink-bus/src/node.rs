@@ -60,6 +60,11 @@ use firelink_wire::packet::{Ack, Speed};
 use crate::phy::PhyRegisters;
 use crate::time::SimTime;
 
+/// Names a node added to a [`Bus`](crate::Bus) (its index, in order of
+/// addition).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
+pub struct NodeHandle(pub usize);
+
 /// How a transmit request arbitrates for the bus.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
 #[serde(rename_all = "snake_case")]

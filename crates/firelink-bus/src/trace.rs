@@ -18,12 +18,12 @@ use std::sync::Arc;
 
 use firelink_wire::packet::{Ack, Packet, Speed, Tcode};
 
-use crate::fault::FaultId;
+use crate::id::FaultId;
 use crate::node::ArbitrationClass;
 use crate::time::SimTime;
 
 /// Identifies one packet on the wire (sequential from 0 in one run).
-pub type PacketId = u64;
+pub use crate::id::PacketId;
 
 /// What role a packet played.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]

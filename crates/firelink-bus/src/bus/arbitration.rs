@@ -1,0 +1,194 @@
+//! Arbitration: when the bus has been idle for the gap a queued request's
+//! class needs (isochronous, subaction, or the arbitration reset gap for a
+//! fair request whose node already won in this fairness interval), its
+//! request travels to the root; the first to arrive wins (ties: the node
+//! nearer the root, then the lower physical ID) and the grant comes back.
+
+use super::cycle::cycle_start_packet;
+use super::*;
+
+impl Bus {
+    pub(super) fn schedule_arbitration(&mut self, at: SimTime) {
+        let at = at.max(self.now);
+        if self.arb_at.is_none_or(|t| at < t) {
+            self.arb_at = Some(at);
+            self.push(at, None, Ev::Arbitrate);
+        }
+    }
+
+    // ----- node callbacks -------------------------------------------------------
+
+    pub(super) fn needed_gap(&self, slot: &Slot, pending: &Pending) -> SimDuration {
+        let t = &self.cfg.timing;
+        let g = slot.regs.gap_count();
+        if pending.kind == PacketKind::CycleStart {
+            return t.subaction_gap(g);
+        }
+        match pending.class {
+            ArbitrationClass::Isochronous => t.iso_gap,
+            ArbitrationClass::Priority => t.subaction_gap(g),
+            ArbitrationClass::Fair => {
+                if self.cfg.fairness && !slot.arb_enable {
+                    t.arb_reset_gap(g)
+                } else {
+                    t.subaction_gap(g)
+                }
+            }
+        }
+    }
+
+    pub(super) fn refill_babblers(&mut self) {
+        let now = self.now;
+        for i in 0..self.slots.len() {
+            let Some(b) = self.slots[i].babble else {
+                continue;
+            };
+            if now >= b.until {
+                self.slots[i].babble = None;
+                self.slots[i].queue.retain(|p| p.kind != PacketKind::Babble);
+                continue;
+            }
+            if self.slots[i]
+                .queue
+                .iter()
+                .any(|p| p.kind == PacketKind::Babble)
+            {
+                continue;
+            }
+            let mut bytes = vec![0u8; b.len];
+            self.injector.rng.fill_bytes(&mut bytes);
+            let speed = self.slots[i].cfg.max_speed;
+            self.slots[i].queue.push_front(Pending {
+                bytes: Arc::from(bytes),
+                speed,
+                class: ArbitrationClass::Isochronous,
+                token: None,
+                kind: PacketKind::Babble,
+                ready_at: now,
+                delayed: true,
+                faults: vec![b.fault],
+            });
+        }
+    }
+
+    pub(super) fn arbitrate(&mut self) {
+        loop {
+            let Medium::Idle { since } = self.medium else {
+                return;
+            };
+            let now = self.now;
+            self.refill_babblers();
+            let hop = self.cfg.timing.hop_delay;
+            // (arrival at root, not-urgent, depth, phy, index, eligible)
+            let mut best: Option<(SimTime, u8, u32, u8, usize, SimTime)> = None;
+            for (i, slot) in self.slots.iter().enumerate() {
+                let (Some(phy), Some(p)) = (slot.phy, slot.queue.front()) else {
+                    continue;
+                };
+                if slot.muted {
+                    continue;
+                }
+                let eligible = p.ready_at.max(since + self.needed_gap(slot, p));
+                let depth = self.tree.depth.get(i).copied().unwrap_or(0);
+                let at_root = eligible + hop * u64::from(depth);
+                let urgent = u8::from(p.kind != PacketKind::CycleStart);
+                let key = (at_root, urgent, depth, phy, i, eligible);
+                if best.is_none_or(|b| key < b) {
+                    best = Some(key);
+                }
+            }
+            let Some((at_root, _, depth, phy, idx, eligible)) = best else {
+                return;
+            };
+            if at_root > now {
+                self.schedule_arbitration(at_root);
+                return;
+            }
+            // A new fairness interval for every PHY that saw an arbitration
+            // reset gap.
+            let idle = now - since;
+            for slot in &mut self.slots {
+                if idle >= self.cfg.timing.arb_reset_gap(slot.regs.gap_count()) {
+                    slot.arb_enable = true;
+                }
+            }
+            let Some(mut pending) = self.slots[idx].queue.pop_front() else {
+                return;
+            };
+            let handle = NodeHandle(idx);
+            // Delay faults first: the packet goes back to wait.
+            if !self.injector.is_empty() && !pending.delayed && pending.kind == PacketKind::Request
+            {
+                let d = self
+                    .injector
+                    .decide_delay(handle, pending.kind, &pending.bytes, now);
+                if let Some((delay, what, rule)) = d {
+                    let source = rule.map(FaultSource::Rule);
+                    let id = self.log.add(now, what.clone(), None, Some(idx), source);
+                    self.log_event(TraceEvent::Fault { id, what });
+                    pending.delayed = true;
+                    pending.ready_at = now + delay;
+                    pending.faults.push(id);
+                    self.slots[idx].queue.push_front(pending);
+                    continue;
+                }
+            }
+            let start = now + hop * u64::from(depth) + self.cfg.timing.arbitration_base;
+            if pending.kind == PacketKind::CycleStart {
+                pending.bytes = Arc::from(cycle_start_packet(phy, start));
+            }
+            if pending.class == ArbitrationClass::Fair && pending.kind != PacketKind::CycleStart {
+                self.slots[idx].arb_enable = false;
+            }
+            self.medium = Medium::Busy;
+            self.log_event(TraceEvent::Arbitration {
+                node: idx,
+                class: pending.class,
+                requested: eligible,
+            });
+            let id = self.next_id;
+            self.next_id += 1;
+            let mut sub = Sub {
+                id,
+                kind: pending.kind,
+                sender: idx,
+                sender_phy: phy,
+                bytes: pending.bytes.clone(),
+                speed: pending.speed,
+                token: pending.token,
+                dest: None,
+                reply: None,
+                end: start,
+                faults: pending.faults.clone(),
+                drop_ack: false,
+                corrupt_ack: false,
+                dropped: false,
+                notified: false,
+                answers: None,
+            };
+            let duplicate = self.decide_faults(&mut sub, now);
+            if duplicate {
+                self.slots[idx].queue.push_front(Pending {
+                    bytes: pending.bytes.clone(),
+                    speed: pending.speed,
+                    class: pending.class,
+                    token: None,
+                    kind: PacketKind::Duplicate,
+                    ready_at: now,
+                    delayed: true,
+                    faults: sub.faults.clone(),
+                });
+            }
+            self.subs.insert(id, sub);
+            self.push_epoch(
+                start,
+                Ev::TxStart {
+                    sub: id,
+                    arb_start: Some(eligible),
+                    class: Some(pending.class),
+                },
+            );
+            return;
+        }
+    }
+}

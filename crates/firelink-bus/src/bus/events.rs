@@ -1,0 +1,319 @@
+//! The event loop: events in a queue ordered by (virtual time, insertion
+//! order), each one handled in turn, and the calls into nodes with the
+//! commands they give back (transmit requests, timers, PHY register writes,
+//! error reports) applied afterwards.
+
+use super::*;
+
+impl Bus {
+    /// Time of the next event, if any.
+    pub fn next_event_time(&self) -> Option<SimTime> {
+        self.events.peek().map(|Reverse(q)| q.time)
+    }
+
+    /// Process the next event. Returns false if there was none.
+    pub fn step(&mut self) -> bool {
+        let Some(Reverse(q)) = self.events.pop() else {
+            return false;
+        };
+        self.now = self.now.max(q.time);
+        if q.epoch.is_some_and(|e| e != self.epoch) {
+            return true;
+        }
+        self.handle(q.ev);
+        true
+    }
+
+    pub(super) fn push(&mut self, time: SimTime, epoch: Option<u64>, ev: Ev) {
+        self.seq += 1;
+        self.events.push(Reverse(Queued {
+            time,
+            seq: self.seq,
+            epoch,
+            ev,
+        }));
+    }
+
+    pub(super) fn push_epoch(&mut self, time: SimTime, ev: Ev) {
+        self.push(time, Some(self.epoch), ev);
+    }
+
+    pub(super) fn log_event(&mut self, event: TraceEvent) {
+        if self.cfg.trace >= TraceLevel::Normal {
+            self.trace.entries.push(TraceEntry {
+                time: self.now,
+                event,
+            });
+        }
+    }
+
+    pub(super) fn note(&mut self, text: String) {
+        self.log_event(TraceEvent::Note(text));
+    }
+
+    pub(super) fn handle(&mut self, ev: Ev) {
+        match ev {
+            Ev::Timer { node, token, stamp } => self.fire_timer(node, token, stamp),
+            Ev::Arbitrate => {
+                if self.arb_at == Some(self.now) {
+                    self.arb_at = None;
+                }
+                self.arbitrate();
+            }
+            Ev::TxStart {
+                sub,
+                arb_start,
+                class,
+            } => self.tx_start(sub, arb_start, class),
+            Ev::Deliver { sub, node } => self.deliver(sub, node),
+            Ev::AckStart { sub } => self.ack_start(sub),
+            Ev::Notify {
+                node,
+                token,
+                kind,
+                ack,
+            } => self.notify(node, token, kind, ack),
+            Ev::SubEnd { sub } => self.sub_end(sub),
+            Ev::ResetDone => self.reset_done(),
+            Ev::CycleTick => self.cycle_tick(),
+            Ev::Timed(i) => self.timed_fault(i),
+            Ev::Reconnect { links, fault } => self.reconnect(&links, fault),
+            Ev::PacketEnd(id) => self.log_event(TraceEvent::PacketEnd(id)),
+            Ev::NoAck(info) => {
+                let NoAckInfo {
+                    packet,
+                    node,
+                    token,
+                    kind,
+                    faults,
+                } = *info;
+                self.log_event(TraceEvent::NoAck { packet });
+                for f in faults {
+                    self.log.add_evidence(
+                        f,
+                        Evidence {
+                            time: self.now,
+                            node,
+                            kind: EvidenceKind::NoAck,
+                        },
+                    );
+                }
+                self.notify(node, token, kind, None);
+            }
+            Ev::Unmute { node } => {
+                if let Some(s) = self.slots.get_mut(node) {
+                    s.muted = false;
+                }
+                self.note(format!("{} answers again", self.trace.name_of(node)));
+            }
+        }
+    }
+
+    pub(super) fn dispatch_any<R>(
+        &mut self,
+        idx: usize,
+        f: impl FnOnce(&mut dyn Node, &mut NodeCtx<'_>) -> R,
+    ) -> Option<R> {
+        let now = self.now;
+        let generation = self.generation;
+        let node_count = self.tree.node_count().min(63) as u8;
+        let bus_idle = matches!(self.medium, Medium::Idle { .. });
+        let slot = self.slots.get_mut(idx)?;
+        let mut node = slot.node.take()?;
+        let mut regs = slot.regs;
+        let phy_id = slot.phy.unwrap_or(NodeId::BROADCAST_PHY);
+        let mut cmds = std::mem::take(&mut self.scratch);
+        let result = {
+            let mut ctx = NodeCtx {
+                now,
+                phy_id,
+                generation,
+                node_count,
+                bus_idle,
+                regs: &mut regs,
+                cmds: &mut cmds,
+            };
+            f(node.as_mut(), &mut ctx)
+        };
+        if let Some(slot) = self.slots.get_mut(idx) {
+            slot.node = Some(node);
+        }
+        if !cmds.is_empty() || regs != self.slots[idx].regs {
+            self.apply(idx, regs, &mut cmds);
+        }
+        cmds.transmits.clear();
+        cmds.timers.clear();
+        cmds.phy_writes.clear();
+        cmds.reports.clear();
+        self.scratch = cmds;
+        Some(result)
+    }
+
+    /// Dispatch to a node unless it stopped answering.
+    pub(super) fn dispatch<R>(
+        &mut self,
+        idx: usize,
+        f: impl FnOnce(&mut dyn Node, &mut NodeCtx<'_>) -> R,
+    ) -> Option<R> {
+        if self.slots.get(idx).is_none_or(|s| s.muted) {
+            return None;
+        }
+        self.dispatch_any(idx, f)
+    }
+
+    pub(super) fn apply(&mut self, idx: usize, regs: PhyRegisters, cmds: &mut Commands) {
+        let now = self.now;
+        let mut reset: Option<bool> = None;
+        {
+            let slot = &mut self.slots[idx];
+            let old_gap = slot.regs.gap_count();
+            slot.regs = regs;
+            if slot.regs.take_ibr() {
+                reset = Some(false);
+            }
+            if slot.regs.take_isbr() {
+                reset = reset.or(Some(true));
+            }
+            if slot.regs.gap_count() != old_gap {
+                let text = format!(
+                    "{} gap count {} -> {} (register write)",
+                    slot.name,
+                    old_gap,
+                    slot.regs.gap_count()
+                );
+                self.note(text);
+            }
+        }
+        for report in cmds.reports.drain(..) {
+            let packet = self.current_rx.as_ref().map(|(p, _)| *p);
+            if let Some((_, faults)) = &self.current_rx {
+                for &f in faults {
+                    self.log.add_evidence(
+                        f,
+                        Evidence {
+                            time: now,
+                            node: idx,
+                            kind: EvidenceKind::Report(report.clone()),
+                        },
+                    );
+                }
+            }
+            self.log_event(TraceEvent::Report {
+                node: idx,
+                text: report,
+                packet,
+            });
+        }
+        for cmd in cmds.timers.drain(..) {
+            match cmd {
+                TimerCommand::Set { at, token } => {
+                    self.timer_stamp += 1;
+                    let stamp = self.timer_stamp;
+                    self.slots[idx].timers.insert(token, stamp);
+                    self.push(
+                        at.max(now),
+                        None,
+                        Ev::Timer {
+                            node: idx,
+                            token,
+                            stamp,
+                        },
+                    );
+                }
+                TimerCommand::Cancel { token } => {
+                    self.slots[idx].timers.remove(&token);
+                }
+            }
+        }
+        let mut want_arb = false;
+        for req in cmds.transmits.drain(..) {
+            let TransmitRequest {
+                packet,
+                speed,
+                class,
+                token,
+            } = req;
+            let slot = &self.slots[idx];
+            let refuse = if packet.len() > self.cfg.max_packet_len {
+                Some(format!(
+                    "{} bytes is longer than the bus accepts",
+                    packet.len()
+                ))
+            } else if slot.muted {
+                Some("node stopped answering".to_string())
+            } else if slot.phy.is_none() && self.medium != Medium::Resetting {
+                Some("node is not on the bus".to_string())
+            } else {
+                None
+            };
+            if let Some(why) = refuse {
+                let text = format!("{}: transmit refused: {why}", slot.name);
+                self.note(text);
+                self.push(
+                    now,
+                    None,
+                    Ev::Notify {
+                        node: idx,
+                        token: Some(token),
+                        kind: PacketKind::Request,
+                        ack: None,
+                    },
+                );
+                continue;
+            }
+            self.slots[idx].queue.push_back(Pending {
+                bytes: Arc::from(packet),
+                speed,
+                class,
+                token: Some(token),
+                kind: PacketKind::Request,
+                ready_at: now,
+                delayed: false,
+                faults: Vec::new(),
+            });
+            want_arb = true;
+        }
+        if !cmds.phy_writes.is_empty() {
+            cmds.phy_writes.clear();
+        }
+        if want_arb && self.is_idle() {
+            self.schedule_arbitration(now);
+        }
+        if let Some(short) = reset {
+            self.start_reset(short, format!("{} set IBR/ISBR", self.slots[idx].name));
+        }
+    }
+
+    pub(super) fn fire_timer(&mut self, node: usize, token: u64, stamp: u64) {
+        let Some(slot) = self.slots.get_mut(node) else {
+            return;
+        };
+        if slot.timers.get(&token) != Some(&stamp) {
+            return;
+        }
+        slot.timers.remove(&token);
+        let now = self.now;
+        self.dispatch(node, |n, ctx| n.on_timer(now, token, ctx));
+    }
+
+    pub(super) fn notify(
+        &mut self,
+        node: usize,
+        token: Option<u64>,
+        kind: PacketKind,
+        ack: Option<Ack>,
+    ) {
+        let now = self.now;
+        match (kind, token) {
+            (PacketKind::Request, Some(token)) => {
+                self.dispatch(node, |n, ctx| n.on_transmitted(now, token, ack, ctx));
+            }
+            (PacketKind::ConcatResponse, _) => {
+                self.dispatch(node, |n, ctx| n.on_response_acked(now, ack, ctx));
+            }
+            _ => {}
+        }
+    }
+
+    // ----- arbitration ----------------------------------------------------------
+}

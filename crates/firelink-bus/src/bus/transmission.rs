@@ -1,0 +1,474 @@
+//! One subaction on the wire: the faults decided for the packet, its bits
+//! at its speed, delivery to every node its path reaches, the addressee's
+//! ack after the ack gap (and a concatenated response right after it), and
+//! the end of the subaction when the last bit has reached every node.
+
+use super::*;
+
+impl Bus {
+    /// Decide and apply packet faults (other than delay) to a packet about
+    /// to start. Returns whether a duplicate must follow.
+    pub(super) fn decide_faults(&mut self, sub: &mut Sub, now: SimTime) -> bool {
+        if self.injector.is_empty()
+            || matches!(sub.kind, PacketKind::Duplicate | PacketKind::Babble)
+        {
+            return false;
+        }
+        let d = self
+            .injector
+            .decide(NodeHandle(sub.sender), sub.kind, &sub.bytes, now);
+        if d.fired.is_empty() {
+            return false;
+        }
+        if !d.mutations.is_empty() || d.truncate.is_some() {
+            let mut bytes = sub.bytes.to_vec();
+            for m in &d.mutations {
+                m.apply(&mut bytes);
+            }
+            if let Some(keep) = d.truncate {
+                bytes.truncate(keep.max(4));
+            }
+            sub.bytes = Arc::from(bytes);
+        }
+        for (what, _, rule) in d.fired {
+            let id = self.log.add(
+                now,
+                what.clone(),
+                Some(sub.id),
+                Some(sub.sender),
+                Some(FaultSource::Rule(rule)),
+            );
+            self.log_event(TraceEvent::Fault { id, what });
+            sub.faults.push(id);
+        }
+        sub.drop_ack |= d.drop_ack;
+        sub.corrupt_ack |= d.corrupt_ack;
+        sub.dropped |= d.drop;
+        d.duplicate
+    }
+
+    // ----- transmission ---------------------------------------------------------
+
+    pub(super) fn tx_start(
+        &mut self,
+        id: PacketId,
+        arb_start: Option<SimTime>,
+        class: Option<ArbitrationClass>,
+    ) {
+        let now = self.now;
+        let t = self.cfg.timing;
+        let Some(sub) = self.subs.get_mut(&id) else {
+            return;
+        };
+        let dropped = sub.dropped;
+        let is_phy_packet = sub.bytes.len() >= 12
+            && sub
+                .bytes
+                .get(3)
+                .is_some_and(|b| b >> 4 == u8::from(Tcode::LinkInternal));
+        let bits = if is_phy_packet {
+            t.bits(PHY_PACKET_BITS, sub.speed)
+        } else {
+            t.payload_time(sub.bytes.len(), sub.speed)
+        };
+        let prefix = if sub.kind == PacketKind::ConcatResponse {
+            t.concat_prefix
+        } else {
+            t.data_prefix
+        };
+        let bits_end = now + prefix + bits;
+        let end = bits_end + t.data_end;
+        sub.end = end;
+        let sender = sub.sender;
+        let sender_phy = sub.sender_phy;
+        let speed = sub.speed;
+        let kind = sub.kind;
+        let token = sub.token;
+        let dest_phy = sub.bytes.get(1).map(|b| b & 0x3F);
+        let unicast = !is_phy_packet
+            && !matches!(kind, PacketKind::CycleStart | PacketKind::Ack)
+            && dest_phy.is_some_and(|d| d != NodeId::BROADCAST_PHY);
+        if self.cfg.trace >= TraceLevel::Packets {
+            self.trace.packets.push(PacketRecord {
+                id,
+                kind,
+                sender,
+                sender_phy,
+                arb_start,
+                class,
+                start: now,
+                bits_end,
+                end,
+                speed,
+                bytes: sub.bytes.clone(),
+                answers: sub.answers,
+                generation: self.generation,
+                faults: sub.faults.clone(),
+            });
+        }
+        self.log_event(TraceEvent::PacketStart(id));
+        // Deliveries.
+        let mut dest_receives = false;
+        let mut dest_node = None;
+        let mut mute_fault = None;
+        if let Some(d) = dest_phy.filter(|_| unicast) {
+            dest_node = self.tree.by_phy.get(usize::from(d)).copied();
+        }
+        for phy in 0..self.tree.by_phy.len() {
+            let node = self.tree.by_phy[phy];
+            let phy = phy as u8;
+            if node == sender {
+                continue;
+            }
+            let slot = &self.slots[node];
+            if slot.muted {
+                if Some(node) == dest_node {
+                    mute_fault = slot.mute_fault;
+                }
+                continue;
+            }
+            if dropped || speed > self.tree.path_speed(sender_phy, phy) {
+                continue;
+            }
+            if Some(node) == dest_node {
+                dest_receives = true;
+            }
+            let at = bits_end + t.hop_delay * u64::from(self.tree.hops(sender_phy, phy));
+            self.push_epoch(at, Ev::Deliver { sub: id, node });
+        }
+        let Some(sub) = self.subs.get_mut(&id) else {
+            return;
+        };
+        if let Some(f) = mute_fault {
+            sub.faults.push(f);
+        }
+        let idle_at = end + t.hop_delay * u64::from(self.tree.eccentricity(sender_phy));
+        if unicast && dest_receives {
+            let dest = dest_node.unwrap_or(0);
+            sub.dest = Some(dest);
+            let dest_phy = self.slots[dest].phy.unwrap_or(0);
+            let at =
+                end + t.hop_delay * u64::from(self.tree.hops(sender_phy, dest_phy)) + t.ack_gap;
+            self.push_epoch(at, Ev::AckStart { sub: id });
+        } else {
+            if !unicast && kind == PacketKind::Request {
+                sub.notified = true;
+                self.push(
+                    end,
+                    None,
+                    Ev::Notify {
+                        node: sender,
+                        token,
+                        kind,
+                        ack: None,
+                    },
+                );
+            }
+            if unicast {
+                self.no_ack(id, idle_at);
+            }
+            self.push_epoch(idle_at, Ev::SubEnd { sub: id });
+        }
+        if self.cfg.trace >= TraceLevel::Normal {
+            self.push_epoch(end, Ev::PacketEnd(id));
+        }
+    }
+
+    pub(super) fn no_ack(&mut self, id: PacketId, idle_at: SimTime) {
+        let Some(sub) = self.subs.get_mut(&id) else {
+            return;
+        };
+        sub.notified = true;
+        if sub.kind == PacketKind::Babble {
+            return;
+        }
+        let gap = self.slots[sub.sender].regs.gap_count();
+        let at = idle_at + self.cfg.timing.subaction_gap(gap);
+        let ev = Ev::NoAck(Box::new(NoAckInfo {
+            packet: sub.id,
+            node: sub.sender,
+            token: sub.token,
+            kind: sub.kind,
+            faults: sub.faults.clone(),
+        }));
+        self.push(at, None, ev);
+    }
+
+    pub(super) fn deliver(&mut self, id: PacketId, node: usize) {
+        let Some(sub) = self.subs.get(&id) else {
+            return;
+        };
+        let bytes = sub.bytes.clone();
+        let speed = sub.speed;
+        let is_dest = sub.dest == Some(node);
+        let faults = sub.faults.clone();
+        if self.cfg.trace >= TraceLevel::Verbose {
+            self.log_event(TraceEvent::Deliver { packet: id, node });
+        }
+        let now = self.now;
+        self.current_rx = Some((id, faults));
+        let reply = self.dispatch(node, |n, ctx| n.on_receive(now, &bytes, speed, ctx));
+        self.current_rx = None;
+        let Some(reply) = reply else {
+            return;
+        };
+        if is_dest {
+            if let Some(sub) = self.subs.get_mut(&id) {
+                sub.reply = Some(reply);
+            }
+        } else if reply != RxReply::Silent {
+            let text = format!(
+                "{} answered #{id}, which is not addressed to it (ignored)",
+                self.slots[node].name
+            );
+            self.note(text);
+        }
+    }
+
+    pub(super) fn ack_start(&mut self, id: PacketId) {
+        let Some(mut sub) = self.subs.remove(&id) else {
+            return;
+        };
+        let reply = sub.reply.take().unwrap_or(RxReply::Silent);
+        match reply {
+            RxReply::Silent => {
+                let hop = self.cfg.timing.hop_delay;
+                let idle_at = self
+                    .now
+                    .max(sub.end + hop * u64::from(self.tree.eccentricity(sub.sender_phy)));
+                self.subs.insert(id, sub);
+                self.no_ack(id, idle_at);
+                self.push_epoch(idle_at, Ev::SubEnd { sub: id });
+            }
+            RxReply::Ack(ack) => self.send_ack(sub, ack, None),
+            RxReply::AckThenResponse {
+                ack,
+                response,
+                speed,
+            } => self.send_ack(sub, ack, Some((response, speed))),
+        }
+    }
+
+    pub(super) fn send_ack(&mut self, mut sub: Sub, ack: Ack, response: Option<(Vec<u8>, Speed)>) {
+        let t = self.cfg.timing;
+        let now = self.now;
+        let Some(dest) = sub.dest else {
+            return;
+        };
+        let dest_phy = self.slots[dest].phy.unwrap_or(0);
+        let hops = self.tree.hops(sub.sender_phy, dest_phy);
+        let response = match response {
+            Some(_) if sub.kind == PacketKind::ConcatResponse => {
+                self.note(format!(
+                    "{} tried to concatenate a response to a response (ignored)",
+                    self.slots[dest].name
+                ));
+                None
+            }
+            Some((bytes, _)) if bytes.len() > self.cfg.max_packet_len => {
+                self.note(format!(
+                    "{} response of {} bytes is longer than the bus accepts (dropped)",
+                    self.slots[dest].name,
+                    bytes.len()
+                ));
+                None
+            }
+            other => other,
+        };
+        let byte = if sub.corrupt_ack {
+            corrupt_ack_byte(ack)
+        } else {
+            ack.to_byte()
+        };
+        let ack_id = self.next_id;
+        self.next_id += 1;
+        let bits_end = now + t.data_prefix + t.bits(crate::timing::ACK_BITS, sub.speed);
+        let end = if response.is_some() {
+            bits_end
+        } else {
+            bits_end + t.data_end
+        };
+        if self.cfg.trace >= TraceLevel::Packets {
+            let faults = if sub.drop_ack || sub.corrupt_ack {
+                sub.faults.clone()
+            } else {
+                Vec::new()
+            };
+            self.trace.packets.push(PacketRecord {
+                id: ack_id,
+                kind: PacketKind::Ack,
+                sender: dest,
+                sender_phy: dest_phy,
+                arb_start: None,
+                class: None,
+                start: now,
+                bits_end,
+                end,
+                speed: sub.speed,
+                bytes: Arc::from(&[byte][..]),
+                answers: Some(sub.id),
+                generation: self.generation,
+                faults,
+            });
+        }
+        self.log_event(TraceEvent::PacketStart(ack_id));
+        if self.cfg.trace >= TraceLevel::Normal {
+            self.push_epoch(end, Ev::PacketEnd(ack_id));
+        }
+        let seen = if sub.drop_ack {
+            None
+        } else {
+            Ack::from_byte(byte).ok()
+        };
+        let arrival = bits_end + t.hop_delay * u64::from(hops);
+        if !sub.faults.is_empty() {
+            if !matches!(ack, Ack::Complete | Ack::Pending) {
+                for &f in &sub.faults {
+                    self.log.add_evidence(
+                        f,
+                        Evidence {
+                            time: now,
+                            node: dest,
+                            kind: EvidenceKind::ErrorAck(u8::from(ack)),
+                        },
+                    );
+                }
+            }
+            if seen.is_none() {
+                for &f in &sub.faults {
+                    self.log.add_evidence(
+                        f,
+                        Evidence {
+                            time: arrival,
+                            node: sub.sender,
+                            kind: EvidenceKind::NoAck,
+                        },
+                    );
+                }
+            }
+        }
+        if seen.is_none() {
+            self.log_event(TraceEvent::NoAck { packet: sub.id });
+        }
+        if matches!(sub.kind, PacketKind::Request | PacketKind::ConcatResponse) {
+            sub.notified = true;
+            // A valid ack is known when it arrives; a lost or corrupt one
+            // only when the bus falls idle for a subaction gap (after any
+            // concatenated response).
+            let at = if seen.is_some() {
+                arrival
+            } else {
+                let last_end = match &response {
+                    Some((bytes, speed)) => {
+                        bits_end
+                            + t.concat_prefix
+                            + t.payload_time(bytes.len(), *speed)
+                            + t.data_end
+                    }
+                    None => end,
+                };
+                let gap = self.slots[sub.sender].regs.gap_count();
+                last_end
+                    + t.hop_delay * u64::from(self.tree.eccentricity(dest_phy))
+                    + t.subaction_gap(gap)
+            };
+            self.push(
+                at,
+                None,
+                Ev::Notify {
+                    node: sub.sender,
+                    token: sub.token,
+                    kind: sub.kind,
+                    ack: seen,
+                },
+            );
+        }
+        match response {
+            Some((bytes, speed)) => {
+                let rid = self.next_id;
+                self.next_id += 1;
+                let mut rsub = Sub {
+                    id: rid,
+                    kind: PacketKind::ConcatResponse,
+                    sender: dest,
+                    sender_phy: dest_phy,
+                    bytes: Arc::from(bytes),
+                    speed,
+                    token: None,
+                    dest: None,
+                    reply: None,
+                    end: bits_end,
+                    faults: Vec::new(),
+                    drop_ack: false,
+                    corrupt_ack: false,
+                    dropped: false,
+                    notified: false,
+                    answers: Some(sub.id),
+                };
+                let mut start = bits_end;
+                if !self.injector.is_empty() {
+                    if let Some((delay, what, rule)) = self.injector.decide_delay(
+                        NodeHandle(dest),
+                        PacketKind::ConcatResponse,
+                        &rsub.bytes,
+                        now,
+                    ) {
+                        let source = rule.map(FaultSource::Rule);
+                        let fid = self
+                            .log
+                            .add(now, what.clone(), Some(rid), Some(dest), source);
+                        self.log_event(TraceEvent::Fault { id: fid, what });
+                        rsub.faults.push(fid);
+                        start += delay;
+                    }
+                }
+                if self.decide_faults(&mut rsub, now) {
+                    self.slots[dest].queue.push_back(Pending {
+                        bytes: rsub.bytes.clone(),
+                        speed,
+                        class: ArbitrationClass::Fair,
+                        token: None,
+                        kind: PacketKind::Duplicate,
+                        ready_at: now,
+                        delayed: true,
+                        faults: rsub.faults.clone(),
+                    });
+                }
+                self.subs.insert(rid, rsub);
+                self.push_epoch(
+                    start,
+                    Ev::TxStart {
+                        sub: rid,
+                        arb_start: None,
+                        class: None,
+                    },
+                );
+            }
+            None => {
+                let idle_at = end + t.hop_delay * u64::from(self.tree.eccentricity(dest_phy));
+                let id = sub.id;
+                self.subs.insert(id, sub);
+                self.push_epoch(idle_at, Ev::SubEnd { sub: id });
+            }
+        }
+    }
+
+    pub(super) fn sub_end(&mut self, id: PacketId) {
+        if let Some(sub) = self.subs.remove(&id) {
+            if !sub.dropped {
+                if let Some(PhyPacket::Config {
+                    force_root,
+                    gap_count,
+                }) = parse_phy_packet(&sub.bytes)
+                {
+                    self.apply_phy_config(force_root, gap_count);
+                }
+            }
+        }
+        self.medium = Medium::Idle { since: self.now };
+        if self.cfg.trace >= TraceLevel::Verbose {
+            self.log_event(TraceEvent::Idle);
+        }
+        self.arbitrate();
+    }
+}
