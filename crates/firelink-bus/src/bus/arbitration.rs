@@ -16,8 +16,6 @@ impl Bus {
         }
     }
 
-    // ----- node callbacks -------------------------------------------------------
-
     pub(super) fn needed_gap(&self, slot: &Slot, pending: &Pending) -> SimDuration {
         let t = &self.cfg.timing;
         let g = slot.regs.gap_count();
@@ -190,5 +188,71 @@ impl Bus {
             );
             return;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::probe::{chain, qwrite, send};
+    use super::*;
+
+    /// Node 0 (the root) and node 1 both ask for the bus at once with
+    /// broadcasts: the records of the two packets, in wire order.
+    fn contest(class1: ArbitrationClass) -> (Bus, Vec<PacketRecord>) {
+        let (mut bus, nodes) = chain(2, BusConfig::default());
+        bus.run_for(SimDuration::from_micros(100));
+        bus.trace_mut().clear();
+        let (p0, p1) = (bus.phy_id(nodes[0]).unwrap(), bus.phy_id(nodes[1]).unwrap());
+        send(&mut bus, nodes[0], qwrite(p0, 63), ArbitrationClass::Fair);
+        send(&mut bus, nodes[1], qwrite(p1, 63), class1);
+        bus.run_for(SimDuration::from_micros(100));
+        let packets = bus.trace().packets().to_vec();
+        (bus, packets)
+    }
+
+    #[test]
+    fn at_a_tie_the_node_nearer_the_root_wins() {
+        let (bus, packets) = contest(ArbitrationClass::Fair);
+        assert_eq!(packets.len(), 2);
+        assert_eq!(packets[0].sender, 0, "the root first");
+        assert!(packets[1].start > packets[0].end);
+        assert_eq!(bus.generation(), 1);
+    }
+
+    #[test]
+    fn each_class_waits_its_gap_after_the_bus_goes_idle() {
+        let t = BusTiming::default();
+        for (class, gap) in [
+            (ArbitrationClass::Isochronous, t.iso_gap),
+            (ArbitrationClass::Priority, t.subaction_gap(63)),
+            (ArbitrationClass::Fair, t.subaction_gap(63)),
+        ] {
+            let (_, packets) = contest(class);
+            // The bus is idle once the data end has reached every node,
+            // one hop from the sender here.
+            let idle = packets[0].end + t.hop_delay;
+            assert_eq!(packets[1].arb_start.unwrap() - idle, gap, "{class:?}");
+            // The request then travels up one hop and the grant back.
+            assert_eq!(
+                packets[1].start - packets[1].arb_start.unwrap(),
+                t.arbitration(1)
+            );
+        }
+    }
+
+    #[test]
+    fn a_second_fair_request_waits_for_the_arbitration_reset_gap() {
+        let (mut bus, nodes) = chain(2, BusConfig::default());
+        bus.run_for(SimDuration::from_micros(100));
+        bus.trace_mut().clear();
+        let p0 = bus.phy_id(nodes[0]).unwrap();
+        send(&mut bus, nodes[0], qwrite(p0, 63), ArbitrationClass::Fair);
+        send(&mut bus, nodes[0], qwrite(p0, 63), ArbitrationClass::Fair);
+        bus.run_for(SimDuration::from_micros(100));
+        let p = bus.trace().packets();
+        assert_eq!(p.len(), 2);
+        let t = BusTiming::default();
+        let idle = p[0].end + t.hop_delay;
+        assert_eq!(p[1].arb_start.unwrap() - idle, t.arb_reset_gap(63));
     }
 }

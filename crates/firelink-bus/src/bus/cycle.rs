@@ -40,8 +40,6 @@ impl Bus {
             self.schedule_arbitration(now);
         }
     }
-
-    // ----- timed faults -------------------------------------------------------------
 }
 
 /// A cycle start packet from `source_phy` carrying the cycle time at `at`.
@@ -63,4 +61,64 @@ pub(super) fn cycle_start_packet(source_phy: u8, at: SimTime) -> Vec<u8> {
     let crc = crc1394(&out);
     out.extend_from_slice(&crc.to_be_bytes());
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::probe::{chain, probe};
+    use super::*;
+    use firelink_wire::packet::Packet;
+
+    #[test]
+    fn the_root_sends_a_cycle_start_every_125_us_when_on() {
+        let cfg = BusConfig {
+            cycle_master: true,
+            ..BusConfig::default()
+        };
+        let (mut bus, nodes) = chain(2, cfg);
+        bus.trace_mut().clear();
+        bus.run_for(SimDuration::from_micros(1000));
+        let starts: Vec<&PacketRecord> = bus
+            .trace()
+            .packets()
+            .iter()
+            .filter(|p| p.kind == PacketKind::CycleStart)
+            .collect();
+        assert!(starts.len() >= 7, "{}", starts.len());
+        assert!(starts.iter().all(|p| p.sender == nodes[0].0), "the root");
+        for pair in starts.windows(2) {
+            let period = pair[1].arb_start.unwrap_or(pair[1].start)
+                - pair[0].arb_start.unwrap_or(pair[0].start);
+            assert_eq!(period, SimDuration::from_micros(125));
+        }
+        // The other node receives them.
+        assert!(probe(&bus, nodes[1]).received.len() >= 7);
+    }
+
+    #[test]
+    fn no_cycle_starts_when_off() {
+        let (mut bus, _) = chain(2, BusConfig::default());
+        bus.run_for(SimDuration::from_micros(1000));
+        assert!(
+            bus.trace()
+                .packets()
+                .iter()
+                .all(|p| p.kind != PacketKind::CycleStart)
+        );
+    }
+
+    #[test]
+    fn a_cycle_start_packet_carries_the_cycle_time() {
+        // 1.5 cycles after the start: cycle 1, offset half a cycle (1536
+        // ticks of 24.576 MHz).
+        let bytes = cycle_start_packet(5, SimTime(187_500_000));
+        let p = Packet::new_checked(&bytes[..]).unwrap();
+        assert_eq!(p.tcode(), Tcode::CycleStart);
+        assert!(p.destination_id().is_broadcast());
+        assert_eq!(p.source_id(), NodeId::local(5));
+        assert!(p.verify().is_ok());
+        let cycle_time = u32::from_be_bytes(bytes[12..16].try_into().unwrap());
+        assert_eq!((cycle_time >> 12) & 0x1FFF, 1, "cycle count");
+        assert_eq!(cycle_time & 0xFFF, 1536, "cycle offset");
+    }
 }

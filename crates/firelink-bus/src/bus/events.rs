@@ -314,6 +314,73 @@ impl Bus {
             _ => {}
         }
     }
+}
 
-    // ----- arbitration ----------------------------------------------------------
+#[cfg(test)]
+mod tests {
+    use super::super::probe::{Probe, chain, probe, qwrite};
+    use super::*;
+
+    #[test]
+    fn an_empty_queue_has_nothing_to_step() {
+        let mut bus = Bus::new(BusConfig::default());
+        assert_eq!(bus.next_event_time(), None);
+        assert!(!bus.step());
+        assert!(bus.run_until_idle());
+    }
+
+    #[test]
+    fn timers_fire_in_time_then_in_the_order_they_were_set() {
+        let (mut bus, nodes) = chain(1, BusConfig::default());
+        let at = bus.now() + SimDuration::from_micros(10);
+        bus.with_node::<Probe, _>(nodes[0], |_, ctx| {
+            ctx.set_timer(at + SimDuration::from_micros(1), 3);
+            ctx.set_timer(at, 2);
+            ctx.set_timer(at, 1);
+            ctx.set_timer(at, 9);
+            ctx.cancel_timer(9);
+        })
+        .unwrap();
+        bus.run_for(SimDuration::from_micros(20));
+        let fired: Vec<(SimTime, u64)> = probe(&bus, nodes[0]).timers.clone();
+        assert_eq!(
+            fired,
+            vec![(at, 2), (at, 1), (at + SimDuration::from_micros(1), 3)]
+        );
+    }
+
+    #[test]
+    fn a_timer_set_again_fires_once_at_its_new_time() {
+        let (mut bus, nodes) = chain(1, BusConfig::default());
+        let t0 = bus.now();
+        bus.with_node::<Probe, _>(nodes[0], |_, ctx| {
+            ctx.set_timer(t0 + SimDuration::from_micros(5), 4);
+            ctx.set_timer(t0 + SimDuration::from_micros(8), 4);
+        })
+        .unwrap();
+        bus.run_for(SimDuration::from_micros(20));
+        assert_eq!(
+            probe(&bus, nodes[0]).timers,
+            vec![(t0 + SimDuration::from_micros(8), 4)]
+        );
+    }
+
+    #[test]
+    fn what_a_node_asks_for_in_a_callback_happens_after_it() {
+        // A timer callback transmits: the packet goes out and is received.
+        let (mut bus, nodes) = chain(2, BusConfig::default());
+        let dst = bus.phy_id(nodes[1]).unwrap();
+        let src = bus.phy_id(nodes[0]).unwrap();
+        let at = bus.now() + SimDuration::from_micros(3);
+        bus.with_node::<Probe, _>(nodes[0], |p, ctx| {
+            p.on_timer_send.push((5, qwrite(src, dst)));
+            ctx.set_timer(at, 5);
+        })
+        .unwrap();
+        bus.run_for(SimDuration::from_micros(50));
+        let received = &probe(&bus, nodes[1]).received;
+        assert_eq!(received.len(), 1);
+        assert!(received[0].0 > at);
+        assert_eq!(probe(&bus, nodes[0]).transmitted[0].2, Some(Ack::Complete));
+    }
 }

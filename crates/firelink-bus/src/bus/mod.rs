@@ -34,6 +34,8 @@
 mod arbitration;
 mod cycle;
 mod events;
+#[cfg(test)]
+mod probe;
 mod reset;
 mod timed_fault;
 mod transmission;
@@ -368,8 +370,6 @@ impl Bus {
         }
     }
 
-    // ----- building -------------------------------------------------------
-
     /// Add a node with its PHY configuration. The first node added is the
     /// root unless [`set_root`](Self::set_root) says otherwise.
     pub fn add_node(&mut self, node: Box<dyn Node>, cfg: NodeConfig) -> NodeHandle {
@@ -408,7 +408,7 @@ impl Bus {
         Ok(())
     }
 
-    pub(super) fn check(&self, node: NodeHandle) -> Result<(), BusError> {
+    fn check(&self, node: NodeHandle) -> Result<(), BusError> {
         if node.0 < self.slots.len() {
             Ok(())
         } else {
@@ -485,13 +485,11 @@ impl Bus {
         Ok(())
     }
 
-    pub(super) fn topology_changed(&mut self, cause: &str) {
+    fn topology_changed(&mut self, cause: &str) {
         if self.started && self.cfg.auto_reset {
             self.start_reset(false, cause.to_string());
         }
     }
-
-    // ----- faults -----------------------------------------------------------
 
     /// The current virtual time.
     pub fn now(&self) -> SimTime {
@@ -655,8 +653,6 @@ impl Bus {
             || self.slots.iter().any(|s| !s.queue.is_empty())
     }
 
-    // ----- running ------------------------------------------------------------
-
     /// Reset the bus now (a long reset, as after a cable change) and run the
     /// simulation until self-ID is done and every node knows its new ID.
     pub fn reset(&mut self) {
@@ -727,6 +723,45 @@ impl Bus {
             }
         }
     }
+}
 
-    // ----- internals: events --------------------------------------------------
+#[cfg(test)]
+mod tests {
+    use super::probe::{Probe, chain};
+    use super::*;
+    use crate::host::HostLink;
+
+    #[test]
+    fn nodes_are_reached_by_handle_and_type() {
+        let (mut bus, nodes) = chain(2, BusConfig::default());
+        assert_eq!(bus.node_count(), 2);
+        assert!(bus.node::<Probe>(nodes[1]).is_some());
+        assert!(bus.node::<HostLink>(nodes[1]).is_none(), "another type");
+        assert!(bus.node::<Probe>(NodeHandle(9)).is_none());
+        assert!(bus.with_node::<HostLink, _>(nodes[0], |_, _| ()).is_err());
+        assert_eq!(bus.name(nodes[0]), Some("probe"));
+        assert_eq!(bus.root(), Some(nodes[0]));
+        assert_eq!(bus.hops(nodes[0], nodes[1]), 1);
+    }
+
+    #[test]
+    fn wiring_a_node_that_does_not_exist_is_an_error() {
+        let mut bus = Bus::new(BusConfig::default());
+        let a = bus.add(Probe::default(), NodeConfig::board());
+        assert_eq!(bus.connect(a, NodeHandle(5)), Err(BusError::NoSuchNode(5)));
+        assert!(bus.set_root(NodeHandle(5)).is_err());
+    }
+
+    #[test]
+    fn run_until_with_stops_when_the_condition_holds() {
+        let (mut bus, _) = chain(2, BusConfig::default());
+        let start = bus.now();
+        let deadline = start + SimDuration::from_micros(500);
+        // Nothing happens on a quiet bus: the deadline is not reached by
+        // events, and the condition never held.
+        assert!(!bus.run_until_with(deadline, |b| b.generation() > 1));
+        assert!(bus.run_until_with(deadline, |b| b.generation() == 1));
+        bus.run_until(deadline);
+        assert_eq!(bus.now(), deadline);
+    }
 }

@@ -27,8 +27,6 @@ impl Bus {
         ));
     }
 
-    // ----- reset ------------------------------------------------------------------
-
     pub(super) fn start_reset(&mut self, short: bool, cause: String) {
         let now = self.now;
         self.epoch += 1;
@@ -203,6 +201,65 @@ impl Bus {
         }
         self.arbitrate();
     }
+}
 
-    // ----- cycle master -----------------------------------------------------------
+#[cfg(test)]
+mod tests {
+    use super::super::probe::{chain, probe, qwrite, send};
+    use super::*;
+    use crate::phy::phy_config_packet;
+
+    #[test]
+    fn self_id_numbers_the_chain_from_the_far_end_root_highest() {
+        let (bus, nodes) = chain(4, BusConfig::default());
+        // Node 0 is the root at one end of the chain: the far end is 0.
+        let ids: Vec<u8> = nodes.iter().map(|&n| bus.phy_id(n).unwrap()).collect();
+        assert_eq!(ids, vec![3, 2, 1, 0]);
+        let info = probe(&bus, nodes[2]).resets[0];
+        assert_eq!(
+            (info.generation, info.node_count, info.root_phy_id),
+            (1, 4, 3)
+        );
+    }
+
+    #[test]
+    fn each_reset_increments_the_generation_and_flushes_the_queues() {
+        let (mut bus, nodes) = chain(2, BusConfig::default());
+        let p0 = bus.phy_id(nodes[0]).unwrap();
+        // Queued, then a reset before it could go out.
+        send(&mut bus, nodes[0], qwrite(p0, 63), ArbitrationClass::Fair);
+        bus.initiate_reset(false);
+        bus.run_until_idle();
+        assert_eq!(bus.generation(), 2);
+        assert_eq!(probe(&bus, nodes[1]).resets.len(), 2);
+        let sent = &probe(&bus, nodes[0]).transmitted;
+        assert_eq!(sent.len(), 1);
+        assert_eq!(sent[0].2, None, "flushed: told, no ack");
+        assert!(probe(&bus, nodes[1]).received.is_empty());
+    }
+
+    #[test]
+    fn a_gap_count_set_by_phy_configuration_survives_one_reset_only() {
+        let (mut bus, nodes) = chain(3, BusConfig::default());
+        assert_eq!(bus.gap_count(nodes[1]), Some(DEFAULT_GAP_COUNT));
+        send(
+            &mut bus,
+            nodes[0],
+            phy_config_packet(Some(5), None),
+            ArbitrationClass::Fair,
+        );
+        bus.run_until_idle();
+        // Every PHY took it at the end of the subaction.
+        assert!(nodes.iter().all(|&n| bus.gap_count(n) == Some(5)));
+        bus.reset();
+        bus.run_until_idle();
+        assert_eq!(bus.gap_count(nodes[2]), Some(5), "kept over the reset");
+        bus.reset();
+        bus.run_until_idle();
+        assert_eq!(
+            bus.gap_count(nodes[2]),
+            Some(DEFAULT_GAP_COUNT),
+            "a reset without a new configuration returns to 63"
+        );
+    }
 }

@@ -54,138 +54,129 @@ impl Bus {
         );
     }
 
-    // ----- inspection ---------------------------------------------------------
-
     pub(super) fn timed_fault(&mut self, index: usize) {
         let Some(fault) = self.timed.get(index).cloned() else {
             return;
         };
-        let now = self.now;
         match fault {
             TimedFault::Disconnect {
                 node,
                 reconnect_after,
-            } => {
-                let n = node.0;
-                if n >= self.slots.len() {
-                    return;
-                }
-                let parent = self
-                    .tree
-                    .parent
-                    .get(n)
-                    .copied()
-                    .flatten()
-                    .filter(|_| self.slots[n].phy.is_some());
-                let peers: Vec<usize> = match parent {
-                    Some(p) => vec![p],
-                    None => self.topo.neighbours(n).collect(),
-                };
-                let mut links = Vec::new();
-                for p in peers {
-                    if let Some((pa, pb)) = self.topo.link_between(n, p) {
-                        if self.topo.disconnect(n, p).is_ok() {
-                            links.push((n, pa, p, pb));
-                        }
-                    }
-                }
-                let what = format!(
-                    "unplug {} ({} cable(s)){}",
-                    self.slots[n].name,
-                    links.len(),
-                    reconnect_after
-                        .map(|d| format!(", plug back after {d}"))
-                        .unwrap_or_default()
-                );
-                let id = self.log.add(
-                    now,
-                    what.clone(),
-                    None,
-                    Some(n),
-                    Some(FaultSource::Timed(index)),
-                );
-                self.log_event(TraceEvent::Fault { id, what });
-                self.reset_faults.push(id);
-                self.start_reset(false, "cable unplugged (fault)".to_string());
-                if let Some(d) = reconnect_after {
-                    let links = links.into_boxed_slice();
-                    self.push(now + d, None, Ev::Reconnect { links, fault: id });
-                }
-            }
+            } => self.unplug(index, node.0, reconnect_after),
             TimedFault::BusReset => {
-                let what = "bus reset".to_string();
-                let id = self.log.add(
-                    now,
-                    what.clone(),
-                    None,
-                    None,
-                    Some(FaultSource::Timed(index)),
-                );
-                self.log_event(TraceEvent::Fault { id, what });
+                let id = self.log_timed_fault(index, "bus reset".to_string(), None);
                 self.reset_faults.push(id);
                 self.start_reset(false, "bus reset (fault)".to_string());
             }
-            TimedFault::StopAnswering { node, duration } => {
-                let n = node.0;
-                if n >= self.slots.len() {
-                    return;
-                }
-                let what = format!(
-                    "{} stops answering{}",
-                    self.slots[n].name,
-                    duration
-                        .map(|d| format!(" for {d}"))
-                        .unwrap_or_else(|| " for ever".to_string())
-                );
-                let id = self.log.add(
-                    now,
-                    what.clone(),
-                    None,
-                    Some(n),
-                    Some(FaultSource::Timed(index)),
-                );
-                self.log_event(TraceEvent::Fault { id, what });
-                let slot = &mut self.slots[n];
-                slot.muted = true;
-                slot.mute_fault = Some(id);
-                slot.queue.clear();
-                slot.timers.clear();
-                if let Some(d) = duration {
-                    self.push(now + d, None, Ev::Unmute { node: n });
-                }
-            }
+            TimedFault::StopAnswering { node, duration } => self.mute(index, node.0, duration),
             TimedFault::Babble {
                 node,
                 duration,
                 packet_len,
-            } => {
-                let n = node.0;
-                if n >= self.slots.len() {
-                    return;
-                }
-                let len = packet_len.min(self.cfg.max_packet_len);
-                let what = format!(
-                    "{} babbles {len}-byte garbage for {duration}",
-                    self.slots[n].name
-                );
-                let id = self.log.add(
-                    now,
-                    what.clone(),
-                    None,
-                    Some(n),
-                    Some(FaultSource::Timed(index)),
-                );
-                self.log_event(TraceEvent::Fault { id, what });
-                self.slots[n].babble = Some(BabbleState {
-                    until: now + duration,
-                    len,
-                    fault: id,
-                });
-                self.push(now + duration, None, Ev::Arbitrate);
-                if self.is_idle() {
-                    self.schedule_arbitration(now);
+            } => self.babble(index, node.0, duration, packet_len),
+        }
+    }
+
+    /// Record timed fault `index` (at node `node`) in the log and the trace.
+    fn log_timed_fault(&mut self, index: usize, what: String, node: Option<usize>) -> FaultId {
+        let id = self.log.add(
+            self.now,
+            what.clone(),
+            None,
+            node,
+            Some(FaultSource::Timed(index)),
+        );
+        self.log_event(TraceEvent::Fault { id, what });
+        id
+    }
+
+    /// Unplug the cable between node `n` and its parent (the root: all its
+    /// cables), reset, and plug it back after `reconnect_after`.
+    fn unplug(&mut self, index: usize, n: usize, reconnect_after: Option<SimDuration>) {
+        if n >= self.slots.len() {
+            return;
+        }
+        let parent = self
+            .tree
+            .parent
+            .get(n)
+            .copied()
+            .flatten()
+            .filter(|_| self.slots[n].phy.is_some());
+        let peers: Vec<usize> = match parent {
+            Some(p) => vec![p],
+            None => self.topo.neighbours(n).collect(),
+        };
+        let mut links = Vec::new();
+        for p in peers {
+            if let Some((pa, pb)) = self.topo.link_between(n, p) {
+                if self.topo.disconnect(n, p).is_ok() {
+                    links.push((n, pa, p, pb));
                 }
             }
+        }
+        let what = format!(
+            "unplug {} ({} cable(s)){}",
+            self.slots[n].name,
+            links.len(),
+            reconnect_after
+                .map(|d| format!(", plug back after {d}"))
+                .unwrap_or_default()
+        );
+        let id = self.log_timed_fault(index, what, Some(n));
+        self.reset_faults.push(id);
+        self.start_reset(false, "cable unplugged (fault)".to_string());
+        if let Some(d) = reconnect_after {
+            let links = links.into_boxed_slice();
+            self.push(self.now + d, None, Ev::Reconnect { links, fault: id });
+        }
+    }
+
+    /// Node `n` stops answering: it hears nothing and sends nothing, for
+    /// `duration` or for ever.
+    fn mute(&mut self, index: usize, n: usize, duration: Option<SimDuration>) {
+        if n >= self.slots.len() {
+            return;
+        }
+        let what = format!(
+            "{} stops answering{}",
+            self.slots[n].name,
+            duration
+                .map(|d| format!(" for {d}"))
+                .unwrap_or_else(|| " for ever".to_string())
+        );
+        let id = self.log_timed_fault(index, what, Some(n));
+        let slot = &mut self.slots[n];
+        slot.muted = true;
+        slot.mute_fault = Some(id);
+        slot.queue.clear();
+        slot.timers.clear();
+        if let Some(d) = duration {
+            self.push(self.now + d, None, Ev::Unmute { node: n });
+        }
+    }
+
+    /// Node `n` sends garbage packets of `packet_len` bytes back to back
+    /// for `duration`.
+    fn babble(&mut self, index: usize, n: usize, duration: SimDuration, packet_len: usize) {
+        if n >= self.slots.len() {
+            return;
+        }
+        let now = self.now;
+        let len = packet_len.min(self.cfg.max_packet_len);
+        let what = format!(
+            "{} babbles {len}-byte garbage for {duration}",
+            self.slots[n].name
+        );
+        let id = self.log_timed_fault(index, what, Some(n));
+        self.slots[n].babble = Some(BabbleState {
+            until: now + duration,
+            len,
+            fault: id,
+        });
+        self.push(now + duration, None, Ev::Arbitrate);
+        if self.is_idle() {
+            self.schedule_arbitration(now);
         }
     }
 
@@ -197,5 +188,70 @@ impl Bus {
         }
         self.reset_faults.push(fault);
         self.start_reset(false, "cable plugged back (fault)".to_string());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::probe::{chain, probe, qwrite, send};
+    use super::*;
+
+    #[test]
+    fn a_node_that_stops_answering_is_silent_for_the_outage_only() {
+        let (mut bus, nodes) = chain(2, BusConfig::default());
+        let now = bus.now();
+        bus.schedule_fault(
+            now,
+            TimedFault::StopAnswering {
+                node: nodes[1],
+                duration: Some(SimDuration::from_micros(100)),
+            },
+        );
+        let (p0, p1) = (bus.phy_id(nodes[0]).unwrap(), bus.phy_id(nodes[1]).unwrap());
+        bus.run_for(SimDuration::from_nanos(1));
+        send(&mut bus, nodes[0], qwrite(p0, p1), ArbitrationClass::Fair);
+        bus.run_for(SimDuration::from_micros(50));
+        assert_eq!(probe(&bus, nodes[0]).transmitted[0].2, None, "no ack");
+        assert!(probe(&bus, nodes[1]).received.is_empty());
+        bus.run_for(SimDuration::from_micros(100));
+        send(&mut bus, nodes[0], qwrite(p0, p1), ArbitrationClass::Fair);
+        bus.run_for(SimDuration::from_micros(50));
+        assert_eq!(probe(&bus, nodes[0]).transmitted[1].2, Some(Ack::Complete));
+        let f = &bus.fault_log().records()[0];
+        assert!(f.detected(), "the missing ack is the evidence: {f:?}");
+    }
+
+    #[test]
+    fn a_cable_unplugged_and_back_resets_the_bus_twice() {
+        let (mut bus, nodes) = chain(3, BusConfig::default());
+        let g = bus.generation();
+        let now = bus.now();
+        bus.schedule_fault(
+            now,
+            TimedFault::Disconnect {
+                node: nodes[2],
+                reconnect_after: Some(SimDuration::from_micros(400)),
+            },
+        );
+        bus.run_for(SimDuration::from_micros(300));
+        assert_eq!(bus.generation(), g + 1);
+        assert_eq!(bus.phy_id(nodes[2]), None, "off the bus");
+        bus.run_until_idle();
+        assert_eq!(bus.generation(), g + 2);
+        assert!(bus.phy_id(nodes[2]).is_some(), "back");
+        assert_eq!(probe(&bus, nodes[1]).resets.len(), 3);
+    }
+
+    #[test]
+    fn a_detection_recorded_by_hand_completes_the_fault_record() {
+        let (mut bus, nodes) = chain(2, BusConfig::default());
+        let now = bus.now();
+        bus.schedule_fault(now, TimedFault::BusReset);
+        bus.run_until_idle();
+        let id = bus.fault_log().records()[0].id;
+        bus.record_detection(id, nodes[0], "the host saw the new generation");
+        let f = &bus.fault_log().records()[0];
+        assert!(f.detected());
+        assert!(bus.fault_log().undetected().is_empty());
     }
 }

@@ -47,8 +47,6 @@ impl Bus {
         d.duplicate
     }
 
-    // ----- transmission ---------------------------------------------------------
-
     pub(super) fn tx_start(
         &mut self,
         id: PacketId,
@@ -257,99 +255,26 @@ impl Bus {
         };
         let dest_phy = self.slots[dest].phy.unwrap_or(0);
         let hops = self.tree.hops(sub.sender_phy, dest_phy);
-        let response = match response {
-            Some(_) if sub.kind == PacketKind::ConcatResponse => {
-                self.note(format!(
-                    "{} tried to concatenate a response to a response (ignored)",
-                    self.slots[dest].name
-                ));
-                None
-            }
-            Some((bytes, _)) if bytes.len() > self.cfg.max_packet_len => {
-                self.note(format!(
-                    "{} response of {} bytes is longer than the bus accepts (dropped)",
-                    self.slots[dest].name,
-                    bytes.len()
-                ));
-                None
-            }
-            other => other,
-        };
+        let response = self.acceptable_response(&sub, dest, response);
         let byte = if sub.corrupt_ack {
             corrupt_ack_byte(ack)
         } else {
             ack.to_byte()
         };
-        let ack_id = self.next_id;
-        self.next_id += 1;
         let bits_end = now + t.data_prefix + t.bits(crate::timing::ACK_BITS, sub.speed);
         let end = if response.is_some() {
             bits_end
         } else {
             bits_end + t.data_end
         };
-        if self.cfg.trace >= TraceLevel::Packets {
-            let faults = if sub.drop_ack || sub.corrupt_ack {
-                sub.faults.clone()
-            } else {
-                Vec::new()
-            };
-            self.trace.packets.push(PacketRecord {
-                id: ack_id,
-                kind: PacketKind::Ack,
-                sender: dest,
-                sender_phy: dest_phy,
-                arb_start: None,
-                class: None,
-                start: now,
-                bits_end,
-                end,
-                speed: sub.speed,
-                bytes: Arc::from(&[byte][..]),
-                answers: Some(sub.id),
-                generation: self.generation,
-                faults,
-            });
-        }
-        self.log_event(TraceEvent::PacketStart(ack_id));
-        if self.cfg.trace >= TraceLevel::Normal {
-            self.push_epoch(end, Ev::PacketEnd(ack_id));
-        }
+        self.record_ack(&sub, dest, dest_phy, byte, bits_end, end);
         let seen = if sub.drop_ack {
             None
         } else {
             Ack::from_byte(byte).ok()
         };
         let arrival = bits_end + t.hop_delay * u64::from(hops);
-        if !sub.faults.is_empty() {
-            if !matches!(ack, Ack::Complete | Ack::Pending) {
-                for &f in &sub.faults {
-                    self.log.add_evidence(
-                        f,
-                        Evidence {
-                            time: now,
-                            node: dest,
-                            kind: EvidenceKind::ErrorAck(u8::from(ack)),
-                        },
-                    );
-                }
-            }
-            if seen.is_none() {
-                for &f in &sub.faults {
-                    self.log.add_evidence(
-                        f,
-                        Evidence {
-                            time: arrival,
-                            node: sub.sender,
-                            kind: EvidenceKind::NoAck,
-                        },
-                    );
-                }
-            }
-        }
-        if seen.is_none() {
-            self.log_event(TraceEvent::NoAck { packet: sub.id });
-        }
+        self.ack_evidence(&sub, dest, ack, seen, arrival);
         if matches!(sub.kind, PacketKind::Request | PacketKind::ConcatResponse) {
             sub.notified = true;
             // A valid ack is known when it arrives; a lost or corrupt one
@@ -385,64 +310,7 @@ impl Bus {
         }
         match response {
             Some((bytes, speed)) => {
-                let rid = self.next_id;
-                self.next_id += 1;
-                let mut rsub = Sub {
-                    id: rid,
-                    kind: PacketKind::ConcatResponse,
-                    sender: dest,
-                    sender_phy: dest_phy,
-                    bytes: Arc::from(bytes),
-                    speed,
-                    token: None,
-                    dest: None,
-                    reply: None,
-                    end: bits_end,
-                    faults: Vec::new(),
-                    drop_ack: false,
-                    corrupt_ack: false,
-                    dropped: false,
-                    notified: false,
-                    answers: Some(sub.id),
-                };
-                let mut start = bits_end;
-                if !self.injector.is_empty() {
-                    if let Some((delay, what, rule)) = self.injector.decide_delay(
-                        NodeHandle(dest),
-                        PacketKind::ConcatResponse,
-                        &rsub.bytes,
-                        now,
-                    ) {
-                        let source = rule.map(FaultSource::Rule);
-                        let fid = self
-                            .log
-                            .add(now, what.clone(), Some(rid), Some(dest), source);
-                        self.log_event(TraceEvent::Fault { id: fid, what });
-                        rsub.faults.push(fid);
-                        start += delay;
-                    }
-                }
-                if self.decide_faults(&mut rsub, now) {
-                    self.slots[dest].queue.push_back(Pending {
-                        bytes: rsub.bytes.clone(),
-                        speed,
-                        class: ArbitrationClass::Fair,
-                        token: None,
-                        kind: PacketKind::Duplicate,
-                        ready_at: now,
-                        delayed: true,
-                        faults: rsub.faults.clone(),
-                    });
-                }
-                self.subs.insert(rid, rsub);
-                self.push_epoch(
-                    start,
-                    Ev::TxStart {
-                        sub: rid,
-                        arb_start: None,
-                        class: None,
-                    },
-                );
+                self.start_concat_response(&sub, dest, dest_phy, bytes, speed, bits_end)
             }
             None => {
                 let idle_at = end + t.hop_delay * u64::from(self.tree.eccentricity(dest_phy));
@@ -451,6 +319,190 @@ impl Bus {
                 self.push_epoch(idle_at, Ev::SubEnd { sub: id });
             }
         }
+    }
+
+    /// The response a node asked to concatenate to its ack, unless it may
+    /// not: a response to a response, or one longer than the bus accepts.
+    fn acceptable_response(
+        &mut self,
+        sub: &Sub,
+        dest: usize,
+        response: Option<(Vec<u8>, Speed)>,
+    ) -> Option<(Vec<u8>, Speed)> {
+        match response {
+            Some(_) if sub.kind == PacketKind::ConcatResponse => {
+                self.note(format!(
+                    "{} tried to concatenate a response to a response (ignored)",
+                    self.slots[dest].name
+                ));
+                None
+            }
+            Some((bytes, _)) if bytes.len() > self.cfg.max_packet_len => {
+                self.note(format!(
+                    "{} response of {} bytes is longer than the bus accepts (dropped)",
+                    self.slots[dest].name,
+                    bytes.len()
+                ));
+                None
+            }
+            other => other,
+        }
+    }
+
+    /// The ack `byte` from node `dest` on the wire from now to `end`: its
+    /// trace record and events.
+    fn record_ack(
+        &mut self,
+        sub: &Sub,
+        dest: usize,
+        dest_phy: u8,
+        byte: u8,
+        bits_end: SimTime,
+        end: SimTime,
+    ) {
+        let ack_id = self.next_id;
+        self.next_id += 1;
+        if self.cfg.trace >= TraceLevel::Packets {
+            let faults = if sub.drop_ack || sub.corrupt_ack {
+                sub.faults.clone()
+            } else {
+                Vec::new()
+            };
+            self.trace.packets.push(PacketRecord {
+                id: ack_id,
+                kind: PacketKind::Ack,
+                sender: dest,
+                sender_phy: dest_phy,
+                arb_start: None,
+                class: None,
+                start: self.now,
+                bits_end,
+                end,
+                speed: sub.speed,
+                bytes: Arc::from(&[byte][..]),
+                answers: Some(sub.id),
+                generation: self.generation,
+                faults,
+            });
+        }
+        self.log_event(TraceEvent::PacketStart(ack_id));
+        if self.cfg.trace >= TraceLevel::Normal {
+            self.push_epoch(end, Ev::PacketEnd(ack_id));
+        }
+    }
+
+    /// What the faults on `sub` left as evidence: an error ack from the
+    /// addressee, or no valid ack at the sender when it was due (`arrival`).
+    fn ack_evidence(
+        &mut self,
+        sub: &Sub,
+        dest: usize,
+        ack: Ack,
+        seen: Option<Ack>,
+        arrival: SimTime,
+    ) {
+        let now = self.now;
+        if !sub.faults.is_empty() {
+            if !matches!(ack, Ack::Complete | Ack::Pending) {
+                for &f in &sub.faults {
+                    self.log.add_evidence(
+                        f,
+                        Evidence {
+                            time: now,
+                            node: dest,
+                            kind: EvidenceKind::ErrorAck(u8::from(ack)),
+                        },
+                    );
+                }
+            }
+            if seen.is_none() {
+                for &f in &sub.faults {
+                    self.log.add_evidence(
+                        f,
+                        Evidence {
+                            time: arrival,
+                            node: sub.sender,
+                            kind: EvidenceKind::NoAck,
+                        },
+                    );
+                }
+            }
+        }
+        if seen.is_none() {
+            self.log_event(TraceEvent::NoAck { packet: sub.id });
+        }
+    }
+
+    /// The response `dest` concatenates to its ack: on the wire right
+    /// after the ack's bits (`bits_end`), no gap, no arbitration.
+    fn start_concat_response(
+        &mut self,
+        sub: &Sub,
+        dest: usize,
+        dest_phy: u8,
+        bytes: Vec<u8>,
+        speed: Speed,
+        bits_end: SimTime,
+    ) {
+        let now = self.now;
+        let rid = self.next_id;
+        self.next_id += 1;
+        let mut rsub = Sub {
+            id: rid,
+            kind: PacketKind::ConcatResponse,
+            sender: dest,
+            sender_phy: dest_phy,
+            bytes: Arc::from(bytes),
+            speed,
+            token: None,
+            dest: None,
+            reply: None,
+            end: bits_end,
+            faults: Vec::new(),
+            drop_ack: false,
+            corrupt_ack: false,
+            dropped: false,
+            notified: false,
+            answers: Some(sub.id),
+        };
+        let mut start = bits_end;
+        if !self.injector.is_empty() {
+            if let Some((delay, what, rule)) = self.injector.decide_delay(
+                NodeHandle(dest),
+                PacketKind::ConcatResponse,
+                &rsub.bytes,
+                now,
+            ) {
+                let source = rule.map(FaultSource::Rule);
+                let fid = self
+                    .log
+                    .add(now, what.clone(), Some(rid), Some(dest), source);
+                self.log_event(TraceEvent::Fault { id: fid, what });
+                rsub.faults.push(fid);
+                start += delay;
+            }
+        }
+        if self.decide_faults(&mut rsub, now) {
+            self.slots[dest].queue.push_back(Pending {
+                bytes: rsub.bytes.clone(),
+                speed,
+                class: ArbitrationClass::Fair,
+                token: None,
+                kind: PacketKind::Duplicate,
+                ready_at: now,
+                delayed: true,
+                faults: rsub.faults.clone(),
+            });
+        }
+        self.subs.insert(rid, rsub);
+        self.push_epoch(
+            start,
+            Ev::TxStart {
+                sub: rid,
+                arb_start: None,
+                class: None,
+            },
+        );
     }
 
     pub(super) fn sub_end(&mut self, id: PacketId) {
@@ -470,5 +522,99 @@ impl Bus {
             self.log_event(TraceEvent::Idle);
         }
         self.arbitrate();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::probe::{chain, probe, qread, qwrite, send};
+    use super::*;
+
+    /// A 3-node chain, quiet, trace cleared.
+    fn quiet(n: usize) -> (Bus, Vec<NodeHandle>) {
+        let (mut bus, nodes) = chain(n, BusConfig::default());
+        bus.run_for(SimDuration::from_micros(100));
+        bus.trace_mut().clear();
+        (bus, nodes)
+    }
+
+    #[test]
+    fn a_packet_takes_its_prefix_bits_and_end_at_its_speed() {
+        let (mut bus, nodes) = quiet(2);
+        let p0 = bus.phy_id(nodes[0]).unwrap();
+        let packet = qwrite(p0, 63);
+        let len = packet.len();
+        send(&mut bus, nodes[0], packet, ArbitrationClass::Fair);
+        bus.run_for(SimDuration::from_micros(50));
+        let p = &bus.trace().packets()[0];
+        let t = BusTiming::default();
+        assert_eq!(p.end - p.start, t.packet_time(len, Speed::S400));
+        assert_eq!(
+            p.bits_end - p.start,
+            t.data_prefix + t.payload_time(len, Speed::S400)
+        );
+    }
+
+    #[test]
+    fn a_broadcast_reaches_everyone_else_and_is_not_acked() {
+        let (mut bus, nodes) = quiet(3);
+        let p0 = bus.phy_id(nodes[0]).unwrap();
+        send(&mut bus, nodes[0], qwrite(p0, 63), ArbitrationClass::Fair);
+        bus.run_for(SimDuration::from_micros(50));
+        assert!(probe(&bus, nodes[0]).received.is_empty());
+        for &n in &nodes[1..] {
+            assert_eq!(probe(&bus, n).received.len(), 1);
+        }
+        // Sent, no ack: the sender hears `None`.
+        assert_eq!(probe(&bus, nodes[0]).transmitted[0].2, None);
+        assert_eq!(bus.trace().packets().len(), 1);
+    }
+
+    #[test]
+    fn the_addressee_acks_after_the_ack_gap() {
+        let (mut bus, nodes) = quiet(2);
+        let (p0, p1) = (bus.phy_id(nodes[0]).unwrap(), bus.phy_id(nodes[1]).unwrap());
+        send(&mut bus, nodes[0], qwrite(p0, p1), ArbitrationClass::Fair);
+        bus.run_for(SimDuration::from_micros(50));
+        let p = bus.trace().packets();
+        assert_eq!(p.len(), 2);
+        let (request, ack) = (&p[0], &p[1]);
+        assert_eq!(ack.kind, PacketKind::Ack);
+        assert_eq!(ack.answers, Some(request.id));
+        assert_eq!(ack.ack(), Some(Ack::Complete));
+        let t = BusTiming::default();
+        // The request's data end reaches the addressee one hop later.
+        assert_eq!(ack.start, request.end + t.hop_delay + t.ack_gap);
+        assert_eq!(probe(&bus, nodes[0]).transmitted[0].2, Some(Ack::Complete));
+    }
+
+    #[test]
+    fn a_concatenated_response_follows_its_ack_at_once() {
+        let (mut bus, nodes) = quiet(2);
+        let (p0, p1) = (bus.phy_id(nodes[0]).unwrap(), bus.phy_id(nodes[1]).unwrap());
+        send(&mut bus, nodes[0], qread(p0, p1), ArbitrationClass::Fair);
+        bus.run_for(SimDuration::from_micros(50));
+        let p = bus.trace().packets();
+        let kinds: Vec<PacketKind> = p.iter().map(|r| r.kind).collect();
+        assert_eq!(
+            kinds,
+            vec![
+                PacketKind::Request,
+                PacketKind::Ack,
+                PacketKind::ConcatResponse,
+                PacketKind::Ack
+            ]
+        );
+        let (ack, response) = (&p[1], &p[2]);
+        assert_eq!(response.answers, Some(p[0].id));
+        // No data end, no gap: the response's prefix follows the ack.
+        let t = BusTiming::default();
+        assert_eq!(
+            response.start,
+            ack.bits_end + t.concat_prefix - t.data_prefix
+        );
+        // The requester received the response and acked it.
+        assert_eq!(probe(&bus, nodes[0]).received.len(), 1);
+        assert_eq!(p[3].answers, Some(response.id));
     }
 }
