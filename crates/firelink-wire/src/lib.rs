@@ -43,6 +43,7 @@ mod error;
 pub mod field;
 mod open_enum;
 pub mod packet;
+pub mod pcap;
 pub mod phy;
 
 pub use error::{Error, Result};
