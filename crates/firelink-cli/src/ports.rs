@@ -3,6 +3,7 @@
 use clap::Args;
 
 use firelink_host::Port;
+use firelink_host::trace::PcapWriter;
 use firelink_host::udp::UdpPort;
 
 use crate::CliError;
@@ -18,10 +19,24 @@ pub struct PortArgs {
     /// Read time-out in milliseconds (1..=60000).
     #[arg(long = "timeout-ms", default_value_t = 20, value_parser = crate::args::timeout_ms)]
     pub timeout_ms: u64,
+    /// Record every 1394 packet the host sends and receives to this pcap
+    /// file (Wireshark opens it; the host library's replay tests play such
+    /// files back).
+    #[arg(long)]
+    pub pcap: Option<std::path::PathBuf>,
 }
 
-/// Open the port named by `args`.
+/// Open the port named by `args`, recording its packets when asked.
 pub fn open_port(args: &PortArgs) -> Result<Box<dyn Port>, CliError> {
+    let mut port = open_unrecorded(args)?;
+    if let Some(path) = &args.pcap {
+        let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+        port.add_link_filter(Box::new(PcapWriter::new(file)?))?;
+    }
+    Ok(port)
+}
+
+fn open_unrecorded(args: &PortArgs) -> Result<Box<dyn Port>, CliError> {
     if let Some(rest) = args.port.strip_prefix("sim") {
         let mut parts = rest.split(':').filter(|p| !p.is_empty());
         let boards = match parts.next() {

@@ -12,7 +12,9 @@
 //!   every link.
 //! - [`udp`]: the Ethernet bridge port.
 //! - [`sim`]: the simulated-bus port.
-//! - [`trace`]: a port wrapper recording every call.
+//! - [`trace`] and [`fault`]: port wrappers that record every call and
+//!   packet (pcap of any port), and that lose and damage packets;
+//!   [`replay`]: a port answering from such a recording.
 //! - [`scan`]: discovery and protocol choice.
 //! - [`board`]: the per-board I/O buffers and accessors.
 //! - [`io`]: the I/O system running the three protocols.
@@ -22,10 +24,12 @@
 
 pub mod board;
 pub mod error;
+pub mod fault;
 pub mod io;
 pub mod pacing;
 pub mod packet_json;
 pub mod port;
+pub mod replay;
 pub mod scan;
 pub mod sim;
 pub mod trace;
@@ -33,4 +37,4 @@ pub mod transaction;
 pub mod udp;
 
 pub use error::{HostError, MissReason, Result};
-pub use port::{Dest, Port};
+pub use port::{Dest, LinkFilter, Port};

@@ -128,52 +128,173 @@ pub trait Port {
     fn candidate_nodes(&self) -> core::ops::Range<u8> {
         0..16
     }
+    /// Let `filter` see (and perhaps change or drop) every packet this port
+    /// sends and receives from now on.
+    ///
+    /// # Errors
+    /// [`HostError::InvalidRequest`](crate::HostError::InvalidRequest) for a
+    /// port that does not show its packets.
+    fn add_link_filter(&mut self, filter: Box<dyn LinkFilter>) -> Result<()> {
+        let _ = filter;
+        Err(crate::HostError::InvalidRequest {
+            what: "this port does not show its packets to filters",
+            value: 0,
+        })
+    }
 }
 
+/// Forward every [`Port`] method to another port: `forward_port!(s =>
+/// (**s))` for a box, `forward_port!(s => s.inner)` for a wrapper whose
+/// `inner` field is the port. Wrappers that change a few methods write
+/// those and forward the rest by hand.
+macro_rules! forward_port {
+    ($s:ident => $e:expr) => {
+        fn name(&self) -> &str {
+            let $s = self;
+            $e.name()
+        }
+        fn read_quadlet(&mut self, dest: Dest, offset: u64) -> Result<u32> {
+            let $s = self;
+            $e.read_quadlet(dest, offset)
+        }
+        fn write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> Result<()> {
+            let $s = self;
+            $e.write_quadlet(dest, offset, value)
+        }
+        fn read_block(&mut self, dest: Dest, offset: u64, out: &mut [u8]) -> Result<()> {
+            let $s = self;
+            $e.read_block(dest, offset, out)
+        }
+        fn write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
+            let $s = self;
+            $e.write_block(dest, offset, data)
+        }
+        fn start_write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> Result<()> {
+            let $s = self;
+            $e.start_write_quadlet(dest, offset, value)
+        }
+        fn start_write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
+            let $s = self;
+            $e.start_write_block(dest, offset, data)
+        }
+        fn wait(&mut self, duration: Duration) {
+            let $s = self;
+            $e.wait(duration)
+        }
+        fn wait_until_heard(
+            &mut self,
+            limit: Duration,
+            heard: &mut dyn FnMut(&[u8]) -> bool,
+        ) -> bool {
+            let $s = self;
+            $e.wait_until_heard(limit, heard)
+        }
+        fn now(&self) -> Duration {
+            let $s = self;
+            $e.now()
+        }
+        fn now_ps(&self) -> u64 {
+            let $s = self;
+            $e.now_ps()
+        }
+        fn generation(&self) -> u32 {
+            let $s = self;
+            $e.generation()
+        }
+        fn acknowledges_writes(&self) -> bool {
+            let $s = self;
+            $e.acknowledges_writes()
+        }
+        fn link_stats(&self) -> crate::transaction::LinkStats {
+            let $s = self;
+            $e.link_stats()
+        }
+        fn candidate_nodes(&self) -> core::ops::Range<u8> {
+            let $s = self;
+            $e.candidate_nodes()
+        }
+        fn add_link_filter(&mut self, filter: Box<dyn LinkFilter>) -> Result<()> {
+            let $s = self;
+            $e.add_link_filter(filter)
+        }
+    };
+}
+pub(crate) use forward_port;
+
 impl<P: Port + ?Sized> Port for Box<P> {
-    fn name(&self) -> &str {
-        (**self).name()
+    forward_port!(s => (**s));
+}
+
+/// Which way a packet went through a port (never
+/// [`Direction::OnBus`]: a port sees only its own side).
+pub use firelink_wire::pcap::Direction;
+
+/// What a [`LinkFilter`] does with a packet.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Verdict {
+    /// Let it through (perhaps changed).
+    Pass,
+    /// It is lost: a request never reaches the bus, an answer never the
+    /// host library.
+    Drop,
+}
+
+/// Something that watches, or breaks, the 1394 packets a port sends and
+/// receives: the port's middleware, as smoltcp's `Tracer` and
+/// `FaultInjector` are around its devices. The [`Port`] trait works in
+/// transactions, so wrappers reach the packets through the port's filters
+/// ([`Port::add_link_filter`]); [`TracingPort`](crate::trace::TracingPort)
+/// and [`FaultyPort`](crate::fault::FaultyPort) are built on them.
+pub trait LinkFilter: Send {
+    /// `packet` (the whole 1394 packet: header, CRCs, payload; no bridge
+    /// framing) is leaving (`Sent`) or has arrived (`Received`) at `at_ps`
+    /// on the port's clock ([`Port::now_ps`]). The filter may change its
+    /// bytes in place, or drop it.
+    fn packet(&mut self, at_ps: u64, direction: Direction, packet: &mut [u8]) -> Verdict;
+}
+
+/// The filters of one port, in the order they were added: the last added
+/// (the outermost wrapper) sees an outgoing packet first and an incoming
+/// one last.
+#[derive(Default)]
+pub struct LinkFilters {
+    filters: Vec<Box<dyn LinkFilter>>,
+}
+
+impl core::fmt::Debug for LinkFilters {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "LinkFilters({})", self.filters.len())
     }
-    fn read_quadlet(&mut self, dest: Dest, offset: u64) -> Result<u32> {
-        (**self).read_quadlet(dest, offset)
+}
+
+impl LinkFilters {
+    /// Add one.
+    pub fn add(&mut self, filter: Box<dyn LinkFilter>) {
+        self.filters.push(filter);
     }
-    fn write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> Result<()> {
-        (**self).write_quadlet(dest, offset, value)
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.filters.is_empty()
     }
-    fn read_block(&mut self, dest: Dest, offset: u64, out: &mut [u8]) -> Result<()> {
-        (**self).read_block(dest, offset, out)
+
+    /// A packet leaving at `at_ps`.
+    pub fn outgoing(&mut self, at_ps: u64, packet: &mut [u8]) -> Verdict {
+        for f in self.filters.iter_mut().rev() {
+            if f.packet(at_ps, Direction::Sent, packet) == Verdict::Drop {
+                return Verdict::Drop;
+            }
+        }
+        Verdict::Pass
     }
-    fn write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
-        (**self).write_block(dest, offset, data)
-    }
-    fn start_write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> Result<()> {
-        (**self).start_write_quadlet(dest, offset, value)
-    }
-    fn start_write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
-        (**self).start_write_block(dest, offset, data)
-    }
-    fn wait(&mut self, duration: Duration) {
-        (**self).wait(duration)
-    }
-    fn wait_until_heard(&mut self, limit: Duration, heard: &mut dyn FnMut(&[u8]) -> bool) -> bool {
-        (**self).wait_until_heard(limit, heard)
-    }
-    fn now(&self) -> Duration {
-        (**self).now()
-    }
-    fn now_ps(&self) -> u64 {
-        (**self).now_ps()
-    }
-    fn generation(&self) -> u32 {
-        (**self).generation()
-    }
-    fn acknowledges_writes(&self) -> bool {
-        (**self).acknowledges_writes()
-    }
-    fn link_stats(&self) -> crate::transaction::LinkStats {
-        (**self).link_stats()
-    }
-    fn candidate_nodes(&self) -> core::ops::Range<u8> {
-        (**self).candidate_nodes()
+
+    /// A packet arriving at `at_ps`.
+    pub fn incoming(&mut self, at_ps: u64, packet: &mut [u8]) -> Verdict {
+        for f in self.filters.iter_mut() {
+            if f.packet(at_ps, Direction::Received, packet) == Verdict::Drop {
+                return Verdict::Drop;
+            }
+        }
+        Verdict::Pass
     }
 }

@@ -20,7 +20,7 @@ use firelink_bus::{Bus, HostLink, HostModel, NodeHandle, SimDuration, SimTime};
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Speed};
 
 use crate::error::{HostError, Result};
-use crate::port::{Dest, Port};
+use crate::port::{Dest, LinkFilter, LinkFilters, Port, Verdict};
 use crate::transaction::{CrcCheck, Expect, LinkStats, Refusal, Transactions};
 
 /// Source node ID is the PC's own node (whatever its physical ID).
@@ -38,6 +38,9 @@ pub struct SimPort {
     broadcast_speed: Speed,
     timeout: SimDuration,
     out: Vec<u8>,
+    filters: LinkFilters,
+    /// A copy of each packet overheard, for the filters.
+    overheard: Vec<u8>,
 }
 
 impl SimPort {
@@ -54,6 +57,8 @@ impl SimPort {
             broadcast_speed: Speed::S400,
             timeout: SimDuration::from_micros(20_000),
             out: vec![0; 4096],
+            filters: LinkFilters::default(),
+            overheard: Vec::with_capacity(4096),
         }
     }
 
@@ -128,12 +133,27 @@ impl SimPort {
             });
         };
         repr.emit(buf)?;
-        // The bus owns the packets it carries (as a link owns its FIFO).
-        let packet = buf.to_vec();
         let cost = self.model.as_mut().map(|m| m.cost(call));
         if let Some(c) = cost {
             self.bus.run_for(c.before);
         }
+        let now_ps = self.bus.now().0;
+        let Some(buf) = self.out.get_mut(..len) else {
+            return Err(HostError::InvalidRequest {
+                what: "packet size",
+                value: len as u32,
+            });
+        };
+        if self.filters.outgoing(now_ps, buf) == Verdict::Drop {
+            // Lost on the way: nobody answers.
+            self.transactions.sent();
+            if call == HostCall::BroadcastWrite {
+                return Ok(None);
+            }
+            return Err(self.wait_out(&expect, self.bus.now()));
+        }
+        // The bus owns the packets it carries (as a link owns its FIFO).
+        let packet = buf.to_vec();
         let speed = if expect.dest.is_broadcast() {
             self.broadcast_speed
         } else {
@@ -199,10 +219,13 @@ impl SimPort {
                 });
             }
         }
-        let Some(response) = done.response else {
+        let Some(mut response) = done.response else {
             // A unicast write: ack_complete is its answer.
             return Ok(None);
         };
+        if self.filters.incoming(self.bus.now().0, &mut response) == Verdict::Drop {
+            return Err(self.wait_out(&expect, submitted));
+        }
         // The engine checks what the link matched: CRCs (a damaged
         // response fails with the CRCs it carries and should carry), tcode,
         // size and rcode.
@@ -243,6 +266,15 @@ impl SimPort {
             call,
         )?;
         Ok(())
+    }
+
+    /// The answer to `expect`, asked at `since`, is lost: the host waits
+    /// out its time-out and says so.
+    fn wait_out(&mut self, expect: &Expect, since: SimTime) -> HostError {
+        let deadline = since + self.timeout;
+        self.bus.run_until(deadline);
+        let waited = (self.bus.now() - since).as_micros_f64() as u32;
+        self.transactions.timed_out(expect, waited)
     }
 
     fn header(&mut self, dest: Dest) -> AsyncHeader {
@@ -367,7 +399,13 @@ impl Port for SimPort {
         let host = self.host;
         let mut seen = self.host_link().map_or(0, HostLink::received_total);
         let mut done = false;
-        self.bus.run_until_with(deadline, |bus| {
+        let SimPort {
+            bus,
+            filters,
+            overheard,
+            ..
+        } = self;
+        bus.run_until_with(deadline, |bus| {
             let Some(link) = bus.node::<HostLink>(host) else {
                 return true;
             };
@@ -377,7 +415,15 @@ impl Port for SimPort {
             // Oldest first; the link keeps the most recent packets only.
             let kept = link.received().len();
             for r in link.received().skip(kept.saturating_sub(new)) {
-                done = done || heard(&r.bytes);
+                if filters.is_empty() {
+                    done = done || heard(&r.bytes);
+                    continue;
+                }
+                overheard.clear();
+                overheard.extend_from_slice(&r.bytes);
+                if filters.incoming(r.at.0, overheard) == Verdict::Pass {
+                    done = done || heard(overheard);
+                }
             }
             done
         });
@@ -407,5 +453,10 @@ impl Port for SimPort {
     fn candidate_nodes(&self) -> core::ops::Range<u8> {
         // The PC is the root with the highest physical ID; boards are below.
         0..self.host_phy()
+    }
+
+    fn add_link_filter(&mut self, filter: Box<dyn LinkFilter>) -> Result<()> {
+        self.filters.add(filter);
+        Ok(())
     }
 }

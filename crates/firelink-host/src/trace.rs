@@ -1,6 +1,14 @@
 //! A port that records what goes through it: [`TracingPort`] wraps any
 //! [`Port`] (the simulated bus, the UDP bridge, another wrapper) and keeps
-//! one [`CallRecord`] per call, with the port's clock before and after it.
+//! one [`CallRecord`] per call, with the port's clock before and after it,
+//! and every 1394 packet the port sent and received
+//! ([`CapturedPacket`], through the port's [link filters](LinkFilter)),
+//! which [`TracingPort::write_pcap`] saves for Wireshark or for a replay
+//! test ([`crate::replay`]). [`PcapWriter`] streams the packets of a long
+//! run straight to a file instead.
+//!
+//! Recording is for understanding and testing, not for the real-time path:
+//! the capture takes a lock and allocates per packet.
 //!
 //! ```
 //! # #[cfg(feature = "sim")] {
@@ -18,13 +26,20 @@
 //! assert_eq!(calls[1].kind, CallKind::ReadQuadlet);
 //! assert!(calls[1].error.is_some());
 //! assert!(calls[1].finished_ps > calls[1].started_ps);
+//! // The request went out; no answer came.
+//! assert_eq!(port.packets().len(), 1);
 //! # }
 //! ```
 
+use std::io::{self, Write};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
+use firelink_wire::packet::Packet;
+use firelink_wire::pcap::{self, Direction, RECORD_OVERHEAD};
+
 use crate::error::{HostError, Result};
-use crate::port::{Dest, Port};
+use crate::port::{Dest, LinkFilter, Port, Verdict};
 use crate::transaction::LinkStats;
 
 /// Which port call a record is.
@@ -70,11 +85,126 @@ pub struct CallRecord {
     pub heard: Option<bool>,
 }
 
-/// A [`Port`] that records every call of the port it wraps. See the module
-/// docs.
+/// One packet a port sent or received.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CapturedPacket {
+    /// When, on the port's clock, picoseconds.
+    pub at_ps: u64,
+    /// Which way.
+    pub direction: Direction,
+    /// The 1394 packet as it left or arrived (after any filter added
+    /// before the capture changed it).
+    pub bytes: Vec<u8>,
+}
+
+/// Write `packets` as a pcap file (the format of [`firelink_wire::pcap`]:
+/// the host's side marked, so a replay knows which way each went).
+///
+/// # Errors
+/// I/O errors of `out`.
+pub fn write_pcap<'a>(
+    packets: impl IntoIterator<Item = &'a CapturedPacket>,
+    out: &mut impl Write,
+) -> io::Result<()> {
+    let mut header = [0u8; pcap::FILE_HEADER_LEN];
+    let n = pcap::write_file_header(&mut header).map_err(io::Error::other)?;
+    out.write_all(&header[..n])?;
+    let mut record = Vec::new();
+    for p in packets {
+        write_record(&mut record, p.at_ps, p.direction, &p.bytes)?;
+        out.write_all(&record)?;
+    }
+    Ok(())
+}
+
+/// One packet's pcap record into `record` (resized): addressed from its
+/// header's source to its destination (255 where it has none).
+fn write_record(
+    record: &mut Vec<u8>,
+    at_ps: u64,
+    direction: Direction,
+    bytes: &[u8],
+) -> io::Result<()> {
+    let (src, dst) = Packet::new_checked(bytes).map_or((255, 255), |p| {
+        (p.source_id().phy(), p.destination_id().phy())
+    });
+    record.resize(RECORD_OVERHEAD + bytes.len(), 0);
+    pcap::write_record(record, at_ps / 1000, direction, src, dst, bytes)
+        .map_err(io::Error::other)?;
+    Ok(())
+}
+
+/// The packets a [`TracingPort`] captured so far, shared with its filter.
+type Capture = Arc<Mutex<Vec<CapturedPacket>>>;
+
+/// The link filter of a [`TracingPort`]: copies every packet.
+struct CaptureFilter(Capture);
+
+impl LinkFilter for CaptureFilter {
+    fn packet(&mut self, at_ps: u64, direction: Direction, packet: &mut [u8]) -> Verdict {
+        self.0
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .push(CapturedPacket {
+                at_ps,
+                direction,
+                bytes: packet.to_vec(),
+            });
+        Verdict::Pass
+    }
+}
+
+/// A link filter that writes every packet as a pcap record to a writer as
+/// it passes (long runs: nothing is kept in memory). The first write error
+/// stops it and is kept ([`PcapWriter::error`]).
+pub struct PcapWriter<W: Write + Send> {
+    out: W,
+    record: Vec<u8>,
+    error: Arc<Mutex<Option<io::Error>>>,
+}
+
+impl<W: Write + Send> PcapWriter<W> {
+    /// Write the pcap file header to `out` and go on with a record per
+    /// packet.
+    ///
+    /// # Errors
+    /// Writing the header failed.
+    pub fn new(mut out: W) -> io::Result<PcapWriter<W>> {
+        write_pcap(&[], &mut out)?;
+        Ok(PcapWriter {
+            out,
+            record: Vec::with_capacity(RECORD_OVERHEAD + 2048),
+            error: Arc::new(Mutex::new(None)),
+        })
+    }
+
+    /// Where the first write error will be kept (check it after the run).
+    pub fn error(&self) -> Arc<Mutex<Option<io::Error>>> {
+        self.error.clone()
+    }
+}
+
+impl<W: Write + Send> LinkFilter for PcapWriter<W> {
+    fn packet(&mut self, at_ps: u64, direction: Direction, packet: &mut [u8]) -> Verdict {
+        let mut error = self.error.lock().unwrap_or_else(PoisonError::into_inner);
+        if error.is_none() {
+            let written = write_record(&mut self.record, at_ps, direction, packet)
+                .and_then(|()| self.out.write_all(&self.record))
+                .and_then(|()| self.out.flush());
+            if let Err(e) = written {
+                *error = Some(e);
+            }
+        }
+        Verdict::Pass
+    }
+}
+
+/// A [`Port`] that records every call of the port it wraps, and every
+/// packet when that port shows them. See the module docs.
 pub struct TracingPort<P: Port> {
     inner: P,
     calls: Vec<CallRecord>,
+    packets: Option<Capture>,
 }
 
 impl CallRecord {
@@ -85,12 +215,24 @@ impl CallRecord {
 }
 
 impl<P: Port> TracingPort<P> {
-    /// Wrap `inner`.
-    pub fn new(inner: P) -> TracingPort<P> {
+    /// Wrap `inner`: its calls are recorded, and its packets when it
+    /// takes link filters ([`captures_packets`](Self::captures_packets)).
+    pub fn new(mut inner: P) -> TracingPort<P> {
+        let capture = Capture::default();
+        let packets = inner
+            .add_link_filter(Box::new(CaptureFilter(capture.clone())))
+            .ok()
+            .map(|()| capture);
         TracingPort {
             inner,
             calls: Vec::new(),
+            packets,
         }
+    }
+
+    /// Whether packets are captured (the wrapped port shows them).
+    pub fn captures_packets(&self) -> bool {
+        self.packets.is_some()
     }
 
     /// Every call so far, oldest first.
@@ -98,9 +240,27 @@ impl<P: Port> TracingPort<P> {
         &self.calls
     }
 
-    /// Forget the calls recorded so far.
+    /// Every packet so far, oldest first (a copy).
+    pub fn packets(&self) -> Vec<CapturedPacket> {
+        self.packets.as_ref().map_or_else(Vec::new, |c| {
+            c.lock().unwrap_or_else(PoisonError::into_inner).clone()
+        })
+    }
+
+    /// Write the packets so far as a pcap file.
+    ///
+    /// # Errors
+    /// I/O errors of `out`.
+    pub fn write_pcap(&self, out: &mut impl Write) -> io::Result<()> {
+        write_pcap(&self.packets(), out)
+    }
+
+    /// Forget the calls and packets recorded so far.
     pub fn clear(&mut self) {
         self.calls.clear();
+        if let Some(c) = &self.packets {
+            c.lock().unwrap_or_else(PoisonError::into_inner).clear();
+        }
     }
 
     /// The wrapped port.
@@ -226,5 +386,9 @@ impl<P: Port> Port for TracingPort<P> {
 
     fn candidate_nodes(&self) -> core::ops::Range<u8> {
         self.inner.candidate_nodes()
+    }
+
+    fn add_link_filter(&mut self, filter: Box<dyn LinkFilter>) -> Result<()> {
+        self.inner.add_link_filter(filter)
     }
 }

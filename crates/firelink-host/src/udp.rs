@@ -20,7 +20,7 @@ use firelink_wire::bridge::{ControlWord, EXTRA_DATA_LEN, ExtraData};
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr, Tcode};
 
 use crate::error::{HostError, Result};
-use crate::port::{Dest, Port};
+use crate::port::{Dest, LinkFilter, LinkFilters, Port, Verdict};
 use crate::transaction::{CrcCheck, Expect, LinkStats, Transactions};
 
 /// Source node ID the reference host uses (`fpga-board.md` §8).
@@ -41,6 +41,7 @@ pub struct UdpPort {
     rx: Vec<u8>,
     opened: Instant,
     last_extra: Option<ExtraData>,
+    filters: LinkFilters,
 }
 
 impl UdpPort {
@@ -69,6 +70,7 @@ impl UdpPort {
             rx: vec![0; MAX_DATAGRAM + 64],
             opened: Instant::now(),
             last_extra: None,
+            filters: LinkFilters::default(),
         })
     }
 
@@ -144,7 +146,14 @@ impl UdpPort {
         };
         buf[..2].copy_from_slice(&control.to_bytes());
         repr.emit(&mut buf[2..])?;
-        self.socket.send_to(buf, self.target)?;
+        let now_ps = self.now_ps();
+        let Some(buf) = self.tx.get_mut(..len) else {
+            return Ok(());
+        };
+        let lost = self.filters.outgoing(now_ps, &mut buf[2..]) == Verdict::Drop;
+        if !lost {
+            self.socket.send_to(buf, self.target)?;
+        }
         self.transactions.sent();
         Ok(())
     }
@@ -155,6 +164,9 @@ impl UdpPort {
         loop {
             match self.socket.recv_from(&mut self.rx) {
                 Ok((len, from)) => {
+                    if self.heard(len) == Verdict::Drop {
+                        continue;
+                    }
                     let packet = self.rx.get(..len.saturating_sub(EXTRA_DATA_LEN));
                     match packet {
                         Some(bytes) if from == self.target => {
@@ -204,11 +216,28 @@ impl UdpPort {
                 }
                 Err(e) => return Err(e.into()),
             };
+            if self.heard(len) == Verdict::Drop {
+                continue;
+            }
             let datagram = self.rx.get(..len).unwrap_or(&[]);
             if let Some(extra) = judge_reply(&mut self.transactions, datagram, &expect, out)? {
                 self.last_extra = Some(extra);
                 return Ok(());
             }
+        }
+    }
+
+    /// A datagram of `len` bytes arrived in the receive buffer: its 1394
+    /// packet (without the extra data) goes through the filters.
+    fn heard(&mut self, len: usize) -> Verdict {
+        if self.filters.is_empty() {
+            return Verdict::Pass;
+        }
+        let packet_len = len.checked_sub(EXTRA_DATA_LEN).unwrap_or(len);
+        let now_ps = self.now_ps();
+        match self.rx.get_mut(..packet_len) {
+            Some(packet) => self.filters.incoming(now_ps, packet),
+            None => Verdict::Pass,
         }
     }
 
@@ -356,6 +385,11 @@ impl Port for UdpPort {
 
     fn acknowledges_writes(&self) -> bool {
         false
+    }
+
+    fn add_link_filter(&mut self, filter: Box<dyn LinkFilter>) -> Result<()> {
+        self.filters.add(filter);
+        Ok(())
     }
 }
 

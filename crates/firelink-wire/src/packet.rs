@@ -213,6 +213,20 @@ open_enum! {
     }
 }
 
+impl Rcode {
+    /// A stable snake-case name (`unknown` for undefined codes).
+    pub fn name(self) -> &'static str {
+        match self {
+            Rcode::Complete => "complete",
+            Rcode::ConflictError => "conflict_error",
+            Rcode::DataError => "data_error",
+            Rcode::TypeError => "type_error",
+            Rcode::AddressError => "address_error",
+            Rcode::Unknown(_) => "unknown",
+        }
+    }
+}
+
 open_enum! {
     /// Acknowledge code (4 bits), `ieee1394.md` "Response codes and acknowledge codes".
     pub enum Ack(u8) {
@@ -798,6 +812,64 @@ fn check_range(field: &'static str, value: u64, max: u64) -> Result<()> {
     if value > max {
         Err(Error::FieldRange { field, value, max })
     } else {
+        Ok(())
+    }
+}
+
+/// One line for people: the tcode, destination and source, label, then
+/// what the tcode carries (offset, data quadlet, data length, rcode) and
+/// any failed CRC, e.g. `read_request_block 0xffc0 <- 0xffc2 tl 5
+/// @0x1000 len 268`. Bytes that do not form a whole packet read
+/// `malformed (N bytes: ...)`; nothing here panics.
+impl<T: AsRef<[u8]>> fmt::Display for Packet<T> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if let Err(e) = self.check_len() {
+            return write!(f, "malformed ({} bytes: {e})", self.buffer.as_ref().len());
+        }
+        let tcode = self.tcode();
+        write!(f, "{}", tcode.name())?;
+        if tcode.has_header_crc() {
+            write!(
+                f,
+                " {} <- {} tl {}",
+                self.destination_id(),
+                self.source_id(),
+                self.tl()
+            )?;
+        }
+        match tcode {
+            Tcode::WriteQuadletRequest => write!(
+                f,
+                " @{:#x} data {:#010x}",
+                self.offset(),
+                self.quadlet_data()
+            )?,
+            Tcode::ReadQuadletRequest => write!(f, " @{:#x}", self.offset())?,
+            Tcode::ReadBlockRequest => {
+                write!(f, " @{:#x} len {}", self.offset(), self.data_length())?
+            }
+            Tcode::WriteBlockRequest | Tcode::LockRequest => {
+                write!(f, " @{:#x} {} bytes", self.offset(), self.data_length())?
+            }
+            Tcode::WriteResponse => write!(f, " {}", self.rcode().name())?,
+            Tcode::ReadQuadletResponse => write!(
+                f,
+                " {} data {:#010x}",
+                self.rcode().name(),
+                self.quadlet_data()
+            )?,
+            Tcode::ReadBlockResponse | Tcode::LockResponse => {
+                write!(f, " {} {} bytes", self.rcode().name(), self.data_length())?
+            }
+            _ => {}
+        }
+        let crc = self.crc_status();
+        if crc.header_ok == Some(false) {
+            f.write_str(" (header CRC bad)")?;
+        }
+        if crc.data_ok == Some(false) {
+            f.write_str(" (data CRC bad)")?;
+        }
         Ok(())
     }
 }

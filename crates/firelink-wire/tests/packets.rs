@@ -535,6 +535,12 @@ proptest! {
     }
 
     #[test]
+    fn any_bytes_display_without_panicking(bytes in prop::collection::vec(any::<u8>(), 0..64)) {
+        let text = Packet::new_unchecked(&bytes[..]).to_string();
+        prop_assert!(!text.is_empty());
+    }
+
+    #[test]
     fn any_single_bit_flip_is_caught(case in arb_case(), bit in any::<prop::sample::Index>()) {
         let repr = case.repr();
         let mut buf = vec![0u8; repr.buffer_len()];
@@ -589,4 +595,60 @@ fn speeds() {
     // One quadlet at S400 takes 81.4 ns (ieee1394.md, "Timing on the wire").
     let ns = 32.0 / Speed::S400.bits_per_second() as f64 * 1e9;
     assert!((ns - 81.38).abs() < 0.01);
+}
+
+#[test]
+fn packets_display_as_one_line_naming_every_field() {
+    let show = |repr: PacketRepr<'_>| {
+        let mut buf = vec![0u8; repr.buffer_len()];
+        repr.emit(&mut buf).unwrap();
+        Packet::new_checked(&buf[..]).unwrap().to_string()
+    };
+    let h = AsyncHeader::new(NodeId(0xFFC0), NodeId(0xFFC2), 5);
+    assert_eq!(
+        show(PacketRepr::ReadBlockRequest {
+            header: h,
+            offset: 0x1000,
+            data_length: 268,
+            extended_tcode: 0,
+        }),
+        "read_request_block 0xffc0 <- 0xffc2 tl 5 @0x1000 len 268"
+    );
+    assert_eq!(
+        show(PacketRepr::WriteQuadletRequest {
+            header: h,
+            offset: 0x1800,
+            data: 0x0001_00FF,
+        }),
+        "write_request_quadlet 0xffc0 <- 0xffc2 tl 5 @0x1800 data 0x000100ff"
+    );
+    assert_eq!(
+        show(PacketRepr::ReadQuadletResponse {
+            header: h.response(),
+            rcode: Rcode::AddressError,
+            data: 0,
+        }),
+        "read_response_quadlet 0xffc2 <- 0xffc0 tl 5 address_error data 0x00000000"
+    );
+    // A damaged packet says so; bytes that are not a packet say what is
+    // wrong.
+    let mut buf = vec![0u8; 16];
+    PacketRepr::ReadQuadletRequest {
+        header: h,
+        offset: 7,
+    }
+    .emit(&mut buf)
+    .unwrap();
+    buf[13] ^= 1;
+    assert!(
+        Packet::new_checked(&buf[..])
+            .unwrap()
+            .to_string()
+            .ends_with("(header CRC bad)")
+    );
+    assert!(
+        Packet::new_unchecked(&buf[..3])
+            .to_string()
+            .starts_with("malformed (3 bytes")
+    );
 }
