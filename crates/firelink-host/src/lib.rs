@@ -11,7 +11,7 @@
 //! - [`transaction`]: labels, generation and response matching, once for
 //!   every link.
 //! - [`udp`]: the Ethernet bridge port.
-//! - [`sim`]: the simulated-bus port.
+//! - `sim`: the simulated-bus port (cargo feature `sim`, on by default).
 //! - [`trace`] and [`fault`]: port wrappers that record every call and
 //!   packet (pcap of any port), and that lose and damage packets;
 //!   [`replay`]: a port answering from such a recording.
@@ -31,6 +31,7 @@ pub mod packet_json;
 pub mod port;
 pub mod replay;
 pub mod scan;
+#[cfg(feature = "sim")]
 pub mod sim;
 pub mod trace;
 pub mod transaction;
