@@ -26,7 +26,6 @@ use firelink_wire::packet::{Ack, Speed};
 
 use crate::config::BoardConfig;
 use crate::firmware::{Firmware, PhyAccess, Reply};
-use crate::time::Time;
 
 /// Timer token of the broadcast slot.
 const SLOT_TIMER: u64 = 1;
@@ -61,10 +60,6 @@ impl PhyAccess for CtxPhy<'_, '_> {
     fn write_phy_register(&mut self, register: u8, value: u8) {
         self.0.write_phy_register(register, value);
     }
-}
-
-fn time(now: SimTime) -> Time {
-    Time(now.0)
 }
 
 impl BoardNode {
@@ -108,7 +103,7 @@ impl BoardNode {
 
     /// Hand ready broadcasts to the bus and re-arm the slot timer.
     fn pump(&mut self, now: SimTime, ctx: &mut NodeCtx<'_>) {
-        while let Some(packet) = self.firmware.poll_transmit(time(now)) {
+        while let Some(packet) = self.firmware.poll_transmit(now) {
             self.next_token += 1;
             self.in_flight = Some(self.next_token);
             ctx.transmit(TransmitRequest {
@@ -119,14 +114,11 @@ impl BoardNode {
             });
         }
         match self.firmware.next_wakeup() {
-            Some(at) => ctx.set_timer(SimTime(at.0.max(now.0)), SLOT_TIMER),
+            Some(at) => ctx.set_timer(at.max(now), SLOT_TIMER),
             None => ctx.cancel_timer(SLOT_TIMER),
         }
         // One watchdog timer at a time, never later than the expiry.
-        let expiry = self
-            .firmware
-            .watchdog_expiry()
-            .map(|t| SimTime(t.0.max(now.0)));
+        let expiry = self.firmware.watchdog_expiry().map(|t| t.max(now));
         let armed = self.watchdog_timer.filter(|t| *t > now);
         match (expiry, armed) {
             (Some(e), Some(t)) if t <= e => {}
@@ -149,8 +141,7 @@ impl Node for BoardNode {
     }
 
     fn on_bus_reset(&mut self, now: SimTime, info: &ResetInfo, ctx: &mut NodeCtx<'_>) {
-        self.firmware
-            .bus_reset(time(now), info.phy_id, info.generation);
+        self.firmware.bus_reset(now, info.phy_id, info.generation);
         self.in_flight = None;
         self.pump(now, ctx);
     }
@@ -162,7 +153,7 @@ impl Node for BoardNode {
         speed: Speed,
         ctx: &mut NodeCtx<'_>,
     ) -> RxReply {
-        let reply = self.firmware.receive(time(now), packet, &mut CtxPhy(ctx));
+        let reply = self.firmware.receive(now, packet, &mut CtxPhy(ctx));
         if let Some(error) = self.firmware.take_rx_error() {
             ctx.report_error(format!("{}: {error}", self.name));
         }
@@ -187,7 +178,7 @@ impl Node for BoardNode {
     ) {
         if self.in_flight == Some(token) {
             self.in_flight = None;
-            self.firmware.transmitted(time(now));
+            self.firmware.transmitted(now);
         }
         self.pump(now, ctx);
     }
@@ -196,7 +187,7 @@ impl Node for BoardNode {
         if token == WATCHDOG_TIMER {
             self.watchdog_timer = None;
             // Apply whatever is due now (the watchdog, if not refreshed).
-            self.firmware.advance(time(now));
+            self.firmware.advance(now);
         }
         self.pump(now, ctx);
     }

@@ -322,7 +322,7 @@ impl NodeCtx<'_> {
     /// followed by a bus reset). Setting IBR (register 1 bit 6) or ISBR
     /// (register 5 bit 6) starts a long or short bus reset.
     pub fn write_phy_register(&mut self, reg: u8, value: u8) {
-        self.regs.write_from_link(reg, value);
+        self.regs.write(reg, value);
         self.cmds.phy_writes.push((reg, value));
     }
 

@@ -28,10 +28,26 @@ pub struct PhyRegisters {
     regs: [u8; 16],
 }
 
+impl Default for PhyRegisters {
+    /// [`PhyRegisters::new`]`(0)`.
+    fn default() -> Self {
+        PhyRegisters::new(0)
+    }
+}
+
 impl PhyRegisters {
+    /// A PHY off any bus with physical ID `phy_id`: 3 ports, S400, gap
+    /// count 63 (what a board's firmware reaches through PHY_CTRL when it
+    /// runs without a bus).
+    pub fn new(phy_id: u8) -> PhyRegisters {
+        let mut r = PhyRegisters::with_ports(3, Speed::S400);
+        r.set_identity(phy_id, false);
+        r
+    }
+
     /// Registers of a PHY with `ports` ports and maximum speed `speed`, gap
     /// count 63, not yet on a bus.
-    pub fn new(ports: u8, speed: Speed) -> PhyRegisters {
+    pub fn with_ports(ports: u8, speed: Speed) -> PhyRegisters {
         let mut regs = [0u8; 16];
         regs[0] = 0x3F << 2;
         regs[1] = DEFAULT_GAP_COUNT;
@@ -47,7 +63,7 @@ impl PhyRegisters {
     }
 
     /// A write from the link: read-only registers ignore it.
-    pub(crate) fn write_from_link(&mut self, reg: u8, value: u8) {
+    pub fn write(&mut self, reg: u8, value: u8) {
         match reg {
             1 | 4 | 5 | 7 => {
                 if let Some(r) = self.regs.get_mut(usize::from(reg)) {
@@ -161,7 +177,7 @@ mod tests {
 
     #[test]
     fn register_map() {
-        let mut r = PhyRegisters::new(3, Speed::S400);
+        let mut r = PhyRegisters::with_ports(3, Speed::S400);
         assert_eq!(r.phy_id(), 63);
         assert_eq!(r.gap_count(), 63);
         assert_eq!(r.read(2), 0xE3);
@@ -169,9 +185,9 @@ mod tests {
         assert_eq!(r.read(200), 0);
         r.set_identity(5, true);
         assert_eq!(r.read(0), (5 << 2) | 2);
-        r.write_from_link(0, 0xFF); // read only
+        r.write(0, 0xFF); // read only
         assert_eq!(r.phy_id(), 5);
-        r.write_from_link(1, 0x40 | 26);
+        r.write(1, 0x40 | 26);
         assert_eq!(r.gap_count(), 26);
         assert!(r.take_ibr());
         assert!(!r.take_ibr());

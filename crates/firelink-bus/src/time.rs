@@ -8,9 +8,19 @@
 //!
 //! Arithmetic saturates instead of wrapping or panicking, so odd inputs (a
 //! node asking for a timer in the past, a huge delay) stay well defined.
+//!
+//! The 49.152 MHz clock of every 1394 PHY, which the boards' FPGAs run on
+//! ([`SYSTEM_CLOCK_HZ`]), is counted from the same time:
+//! [`SimTime::clocks`], [`SimTime::from_clocks`], [`SimDuration::from_clocks`].
+//! The emulated boards (`firelink-board`) use these types.
 
 use core::fmt;
 use core::ops::{Add, AddAssign, Mul, Sub};
+
+pub use firelink_wire::board::registers::SYSTEM_CLOCK_HZ;
+
+/// [`SYSTEM_CLOCK_HZ`] for arithmetic.
+const CLOCK_HZ: u128 = SYSTEM_CLOCK_HZ as u128;
 
 /// Picoseconds in one nanosecond.
 pub const PS_PER_NS: u64 = 1_000;
@@ -51,6 +61,43 @@ impl SimTime {
     /// The span since `earlier`, zero if `earlier` is later.
     pub const fn saturating_since(self, earlier: SimTime) -> SimDuration {
         SimDuration(self.0.saturating_sub(earlier.0))
+    }
+
+    /// `us` whole microseconds after the start.
+    pub const fn from_micros(us: u64) -> SimTime {
+        SimTime(us.saturating_mul(PS_PER_US))
+    }
+
+    /// `ms` whole milliseconds after the start.
+    pub const fn from_millis(ms: u64) -> SimTime {
+        SimTime(ms.saturating_mul(PS_PER_US * 1_000))
+    }
+
+    /// Seconds since the start, as a float (for physics and reports).
+    pub fn as_secs_f64(self) -> f64 {
+        self.0 as f64 / PS_PER_S as f64
+    }
+
+    /// The value of a free-running [`SYSTEM_CLOCK_HZ`] counter started at
+    /// time zero.
+    pub const fn clocks(self) -> u64 {
+        ((self.0 as u128 * CLOCK_HZ) / PS_PER_S as u128) as u64
+    }
+
+    /// The earliest instant at which that counter reads `clocks`.
+    pub const fn from_clocks(clocks: u64) -> SimTime {
+        let ps = (clocks as u128 * PS_PER_S as u128).div_ceil(CLOCK_HZ);
+        SimTime(if ps > u64::MAX as u128 {
+            u64::MAX
+        } else {
+            ps as u64
+        })
+    }
+
+    /// Clocks counted from `earlier` to `self` (the counter difference),
+    /// zero if `earlier` is later.
+    pub const fn clocks_since(self, earlier: SimTime) -> u64 {
+        self.clocks().saturating_sub(earlier.clocks())
     }
 }
 
@@ -112,6 +159,22 @@ impl SimDuration {
         let ps = (u128::from(bits) * u128::from(PS_PER_S) + u128::from(bits_per_second) / 2)
             / u128::from(bits_per_second);
         SimDuration(u64::try_from(ps).unwrap_or(u64::MAX))
+    }
+
+    /// `n` cycles of the [`SYSTEM_CLOCK_HZ`] clock, rounded to the nearest
+    /// picosecond.
+    pub const fn from_clocks(n: u64) -> SimDuration {
+        let ps = (n as u128 * PS_PER_S as u128 + CLOCK_HZ / 2) / CLOCK_HZ;
+        SimDuration(if ps > u64::MAX as u128 {
+            u64::MAX
+        } else {
+            ps as u64
+        })
+    }
+
+    /// The span in seconds, as a float (for physics and reports).
+    pub fn as_secs_f64(self) -> f64 {
+        self.0 as f64 / PS_PER_S as f64
     }
 
     /// The larger of two spans.
@@ -221,6 +284,28 @@ mod tests {
         assert_eq!(t - SimTime(10), SimDuration(5_000_000 - 10));
         assert_eq!(SimTime(1) - t, SimDuration::ZERO);
         assert_eq!(SimTime::MAX + SimDuration(1), SimTime::MAX);
+    }
+
+    #[test]
+    fn clock_conversions() {
+        // One second is exactly 49_152_000 clocks.
+        assert_eq!(SimTime(PS_PER_S).clocks(), u64::from(SYSTEM_CLOCK_HZ));
+        // 256 clocks (a watchdog tick) are about 5.208 us.
+        let tick = SimDuration::from_clocks(256);
+        assert!((tick.as_micros_f64() - 5.208_333).abs() < 1e-3);
+        // from_clocks is the first instant the counter shows that value.
+        for n in [0u64, 1, 2, 3, 1000, 49_151_999, 123_456_789] {
+            let t = SimTime::from_clocks(n);
+            assert_eq!(t.clocks(), n);
+            if t.0 > 0 {
+                assert_eq!(SimTime(t.0 - 1).clocks(), n - 1);
+            }
+        }
+        assert_eq!(
+            SimTime::from_micros(10).clocks_since(SimTime::from_micros(5)),
+            SimTime::from_micros(10).clocks() - SimTime::from_micros(5).clocks()
+        );
+        assert_eq!(SimTime::from_millis(2).as_secs_f64(), 0.002);
     }
 
     #[test]

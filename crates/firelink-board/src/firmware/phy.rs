@@ -2,8 +2,11 @@
 //! through PHY_CTRL / PHY_DATA (`fpga-board.md` section 2).
 //!
 //! On the simulated bus the PHY belongs to the bus model, so the firmware
-//! takes a [`PhyAccess`] with each packet; [`PhyRegisters`] is a plain
-//! register file for use without a bus.
+//! takes a [`PhyAccess`] with each packet. Without a bus, the bus's own
+//! register file serves: [`PhyRegisters`] (one definition, in
+//! `firelink-bus`), whose read-only registers ignore writes as a PHY's do.
+
+pub use firelink_bus::phy::PhyRegisters;
 
 /// Read and write the local PHY's registers (0..=15).
 pub trait PhyAccess {
@@ -13,46 +16,12 @@ pub trait PhyAccess {
     fn write_phy_register(&mut self, register: u8, value: u8);
 }
 
-/// A stand-alone 1394a PHY register file: register 0 holds the physical
-/// ID in bits 7:2, register 1 the gap count in bits 5:0 (power-up 63).
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct PhyRegisters {
-    /// The sixteen registers.
-    pub registers: [u8; 16],
-}
-
-impl PhyRegisters {
-    /// A PHY with physical ID `phy_id` and the power-up gap count 63.
-    pub fn new(phy_id: u8) -> PhyRegisters {
-        let mut registers = [0u8; 16];
-        registers[0] = (phy_id & 0x3F) << 2;
-        registers[1] = 0x3F;
-        PhyRegisters { registers }
-    }
-
-    /// The gap count (register 1, bits 5:0).
-    pub fn gap_count(&self) -> u8 {
-        self.registers[1] & 0x3F
-    }
-}
-
-impl Default for PhyRegisters {
-    fn default() -> Self {
-        PhyRegisters::new(0)
-    }
-}
-
 impl PhyAccess for PhyRegisters {
     fn read_phy_register(&mut self, register: u8) -> u8 {
-        self.registers
-            .get(usize::from(register))
-            .copied()
-            .unwrap_or(0)
+        self.read(register)
     }
 
     fn write_phy_register(&mut self, register: u8, value: u8) {
-        if let Some(r) = self.registers.get_mut(usize::from(register)) {
-            *r = value;
-        }
+        self.write(register, value);
     }
 }

@@ -380,7 +380,7 @@ impl Bus {
             node: Some(node),
             name,
             cfg,
-            regs: PhyRegisters::new(cfg.ports, cfg.max_speed),
+            regs: PhyRegisters::with_ports(cfg.ports, cfg.max_speed),
             phy: None,
             queue: VecDeque::new(),
             arb_enable: true,
