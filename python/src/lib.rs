@@ -20,7 +20,7 @@ use pyo3::types::{PyBytes, PyDict};
 use firelink_board::config::Profile;
 use firelink_control::config::{ConfigErrors, IoConfig, presets};
 use firelink_control::runner::Pacing;
-use firelink_host::io::{IoConfig as HostIoConfig, IoSystem as HostIoSystem};
+use firelink_host::io::{IoOptions, IoSystem as HostIoSystem};
 use firelink_host::packet_json::{self, PacketJson};
 use firelink_host::port::Dest;
 use firelink_host::scan::Protocol;
@@ -446,9 +446,9 @@ impl IoSystem {
                     .to_string(),
             ));
         };
-        let config = HostIoConfig {
+        let config = IoOptions {
             protocol: chosen,
-            ..HostIoConfig::default()
+            ..IoOptions::default()
         };
         let (io, _) = py
             .detach(|| HostIoSystem::open(inner, config))

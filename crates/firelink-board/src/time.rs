@@ -14,5 +14,7 @@ pub use firelink_bus::time::{
 };
 
 /// One watchdog tick: 256 system clocks, about 5.208 us (`fpga-board.md`
-/// section 2, register 3).
-pub const WATCHDOG_TICK_CLOCKS: u64 = 256;
+/// section 2, register 3; defined with the register,
+/// [`Watchdog::CLOCKS_PER_TICK`](firelink_wire::board::registers::Watchdog::CLOCKS_PER_TICK)).
+pub const WATCHDOG_TICK_CLOCKS: u64 =
+    firelink_wire::board::registers::Watchdog::CLOCKS_PER_TICK as u64;

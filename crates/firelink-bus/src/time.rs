@@ -177,6 +177,11 @@ impl SimDuration {
         self.0 as f64 / PS_PER_S as f64
     }
 
+    /// Whole cycles of the [`SYSTEM_CLOCK_HZ`] clock in the span.
+    pub const fn as_clocks(self) -> u64 {
+        ((self.0 as u128 * CLOCK_HZ) / PS_PER_S as u128) as u64
+    }
+
     /// The larger of two spans.
     pub fn max(self, other: SimDuration) -> SimDuration {
         if self >= other { self } else { other }

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 
 use firelink_host::Port;
-use firelink_host::io::{IoConfig, IoSystem};
+use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 
 use crate::CliError;
@@ -155,9 +155,9 @@ fn on_off(b: bool) -> &'static str {
 /// `firelink monitor`.
 pub fn run(args: &MonitorArgs, out: &mut impl Write) -> Result<(), CliError> {
     let port = open_port(&args.port)?;
-    let config = IoConfig {
+    let config = IoOptions {
         protocol: args.protocol,
-        ..IoConfig::default()
+        ..IoOptions::default()
     };
     let (mut io, _scan) = IoSystem::open(port, config)?;
     if let Some(w) = args.watchdog {

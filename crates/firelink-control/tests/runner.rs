@@ -10,7 +10,7 @@ use firelink_control::runner::{Pacing, Robot, RobotSettings, RunnerError};
 use firelink_control::trajectory::{Motion, Sinusoid};
 use firelink_control::{FaultKind, LifecycleError, State};
 use firelink_host::Port;
-use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
+use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
 
@@ -34,9 +34,9 @@ fn robot_on(protocol: Protocol, rate: f64, seed_000: bool) -> Robot<SimPort> {
     let port = common::port(&config, seed_000, start);
     let (io, scan) = IoSystem::open(
         port,
-        HostIoConfig {
+        IoOptions {
             protocol: Some(protocol),
-            ..HostIoConfig::default()
+            ..IoOptions::default()
         },
     )
     .unwrap();
@@ -229,7 +229,7 @@ fn configuration_errors() {
     // The dVRK configuration against a single bench board.
     let bench = presets::bench_1board();
     let port = common::port(&bench, false, |_| 0.0);
-    let (io, _) = IoSystem::open(port, HostIoConfig::default()).unwrap();
+    let (io, _) = IoSystem::open(port, IoOptions::default()).unwrap();
     let e = Robot::new(io, &presets::dvrk_seed000(), RobotSettings::default())
         .err()
         .unwrap();
@@ -239,7 +239,7 @@ fn configuration_errors() {
     );
     // A zero rate.
     let port = common::port(&bench, false, |_| 0.0);
-    let (io, _) = IoSystem::open(port, HostIoConfig::default()).unwrap();
+    let (io, _) = IoSystem::open(port, IoOptions::default()).unwrap();
     let settings = RobotSettings {
         rate_hz: 0.0,
         ..RobotSettings::default()

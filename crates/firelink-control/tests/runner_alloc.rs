@@ -13,7 +13,7 @@ use std::time::Duration;
 use firelink_control::config::presets;
 use firelink_control::runner::{Pacing, Robot, RobotSettings};
 use firelink_control::trajectory::{Motion, Sinusoid};
-use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
+use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::{Dest, Port, Result};
 
@@ -31,9 +31,9 @@ fn runner_cycle_does_not_allocate() {
         let port = NotCounted(common::port(&config, false, start));
         let (io, _) = IoSystem::open(
             port,
-            HostIoConfig {
+            IoOptions {
                 protocol: Some(protocol),
-                ..HostIoConfig::default()
+                ..IoOptions::default()
             },
         )
         .unwrap();

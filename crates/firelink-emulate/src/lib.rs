@@ -128,8 +128,7 @@ pub struct Bridge {
 
 /// 49.152 MHz ticks in a virtual duration, saturating at 16 bits.
 fn ticks16(d: SimDuration) -> u16 {
-    let ticks = d.as_micros_f64() * 49.152;
-    ticks.clamp(0.0, f64::from(u16::MAX)) as u16
+    u16::try_from(d.as_clocks()).unwrap_or(u16::MAX)
 }
 
 impl Bridge {

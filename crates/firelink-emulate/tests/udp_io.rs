@@ -10,7 +10,7 @@ use std::time::Duration;
 use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_emulate::{Bridge, Handled, ServeConfig, bind, serve};
-use firelink_host::io::{IoConfig, IoSystem};
+use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
 use firelink_host::udp::UdpPort;
 use firelink_host::{Dest, Port};
@@ -93,9 +93,9 @@ fn every_protocol_runs_over_udp() {
         Protocol::Broadcast,
     ] {
         let p = port(&server);
-        let config = IoConfig {
+        let config = IoOptions {
             protocol: Some(protocol),
-            ..IoConfig::default()
+            ..IoOptions::default()
         };
         let (mut io, _) = IoSystem::open(p, config).unwrap();
         for _ in 0..20 {

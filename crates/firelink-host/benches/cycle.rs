@@ -12,7 +12,7 @@ use std::time::Duration;
 use criterion::{Criterion, criterion_group, criterion_main};
 use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::rig::{BoardRig, RigOptions};
-use firelink_host::io::{IoConfig, IoSystem};
+use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
 use firelink_host::sim::SimPort;
 use firelink_host::{Dest, Port, Result};
@@ -72,7 +72,7 @@ fn cycle(c: &mut Criterion) {
     // Record one hub block from the emulated boards.
     let mut p = sim_port(8);
     let report = scan(&mut p).unwrap();
-    let (mut io, _) = IoSystem::open(p, IoConfig::default()).unwrap();
+    let (mut io, _) = IoSystem::open(p, IoOptions::default()).unwrap();
     io.cycle();
     let quadlets = 8 * 33 + 1;
     let mut hub = vec![0u8; quadlets * 4];
@@ -85,9 +85,9 @@ fn cycle(c: &mut Criterion) {
         seq: 0,
         entries,
     };
-    let config = IoConfig {
+    let config = IoOptions {
         protocol: Some(Protocol::Broadcast),
-        ..IoConfig::default()
+        ..IoOptions::default()
     };
     let mut host_only = IoSystem::with_scan(replay, &report, config).unwrap();
     assert!(

@@ -36,7 +36,7 @@ use crate::scan::{Protocol, ScanReport, scan};
 
 /// How to run the I/O system.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct IoConfig {
+pub struct IoOptions {
     /// Protocol to use; `None` takes the best the boards support.
     pub protocol: Option<Protocol>,
     /// Board to read the hub from; `None`: the bridge board, else the lowest ID.
@@ -239,7 +239,7 @@ pub struct IoSystem<P: Port> {
     seq: u16,
     rule: SeqRule,
     wait: Duration,
-    config: IoConfig,
+    config: IoOptions,
     board_mask: u16,
     /// Quadlets of the hub block the boards fill, and of the hub read
     /// (more for Rev 4 boards: a fixed 16-board block).
@@ -267,7 +267,7 @@ impl<P: Port> IoSystem<P> {
     /// # Errors
     /// Errors of [`scan`], or [`HostError::InvalidRequest`] when the asked
     /// protocol cannot be used with these boards.
-    pub fn open(mut port: P, config: IoConfig) -> Result<(IoSystem<P>, ScanReport)> {
+    pub fn open(mut port: P, config: IoOptions) -> Result<(IoSystem<P>, ScanReport)> {
         let report = scan(&mut port)?;
         let system = IoSystem::with_scan(port, &report, config)?;
         Ok((system, report))
@@ -278,7 +278,7 @@ impl<P: Port> IoSystem<P> {
     /// # Errors
     /// [`HostError::InvalidRequest`] when the asked protocol is better than
     /// what the boards support, or the hub board is unknown.
-    pub fn with_scan(port: P, scan: &ScanReport, config: IoConfig) -> Result<IoSystem<P>> {
+    pub fn with_scan(port: P, scan: &ScanReport, config: IoOptions) -> Result<IoSystem<P>> {
         let protocol = config.protocol.unwrap_or(scan.protocol);
         if protocol > scan.protocol {
             return Err(HostError::InvalidRequest {

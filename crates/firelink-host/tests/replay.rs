@@ -2,7 +2,7 @@
 //! `tests/data/README.md`): the same calls must send exactly the recorded
 //! requests and reach the recorded result, with no board and no bus.
 
-use firelink_host::io::{IoConfig, IoSystem};
+use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::replay::ReplayPort;
 use firelink_host::scan::{Protocol, scan};
 use firelink_host::{HostError, Port};
@@ -33,9 +33,9 @@ fn a_scan_of_four_boards_on_the_simulated_bus() {
 /// `monitor --once N`: open the I/O system, then N cycles.
 fn cycles(name: &str, protocol: Protocol, n: usize, boards: usize) {
     let port = replay(name);
-    let config = IoConfig {
+    let config = IoOptions {
         protocol: Some(protocol),
-        ..IoConfig::default()
+        ..IoOptions::default()
     };
     let (mut io, scan) = IoSystem::open(port, config).unwrap();
     assert_eq!(scan.boards.len(), boards);

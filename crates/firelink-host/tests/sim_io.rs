@@ -7,7 +7,7 @@ use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::node::BoardNode;
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::{FaultRule, HostModel, PacketFault, PacketMatch, SimDuration, TimedFault};
-use firelink_host::io::{IoConfig, IoSystem};
+use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
 use firelink_host::sim::SimPort;
 use firelink_host::{HostError, MissReason, Port};
@@ -61,7 +61,7 @@ fn dqla_boards_use_their_layout() {
     let report = scan(&mut p).unwrap();
     assert_eq!(report.boards[0].hardware.name(), "DQLA");
     assert_eq!(report.boards[0].layout.read_block_quadlets(), 60);
-    let (mut io, _) = IoSystem::open(p, IoConfig::default()).unwrap();
+    let (mut io, _) = IoSystem::open(p, IoOptions::default()).unwrap();
     assert!(io.cycle().all_ok());
     assert_eq!(io.boards()[1].axes(), 8);
 }
@@ -77,9 +77,9 @@ fn every_protocol_moves_motors() {
             Protocol::Broadcast,
         ] {
             let p = port(4, profile);
-            let config = IoConfig {
+            let config = IoOptions {
                 protocol: Some(protocol),
-                ..IoConfig::default()
+                ..IoOptions::default()
             };
             let (mut io, _) = IoSystem::open(p, config).unwrap();
             assert_eq!(io.protocol(), protocol);
@@ -125,11 +125,11 @@ fn seed_model_reproduces_pc_side_cycle_times() {
         let model = HostModel::seed000(r.bus.timing());
         let p = SimPort::new(r.bus, r.host).with_host_model(model);
         // Seed 000's PC sleeps 5 us x boards after the query.
-        let config = IoConfig {
+        let config = IoOptions {
             protocol: Some(protocol),
             broadcast_wait: Some(Duration::from_micros(40)),
             seq_rule: Some(firelink_wire::board::broadcast::SeqRule::Seed000),
-            ..IoConfig::default()
+            ..IoOptions::default()
         };
         let (mut io, _) = IoSystem::open(p, config).unwrap();
         let mut total = Duration::ZERO;
@@ -161,7 +161,7 @@ fn board_removed_mid_run_is_reported_and_the_loop_goes_on() {
         },
     );
     let p = SimPort::new(r.bus, r.host);
-    let (mut io, _) = IoSystem::open(p, IoConfig::default()).unwrap();
+    let (mut io, _) = IoSystem::open(p, IoOptions::default()).unwrap();
     let mut saw_reset = false;
     for _ in 0..40 {
         let rep = *io.cycle();
@@ -197,9 +197,9 @@ fn board_that_stops_answering_is_named_every_cycle() {
         },
     );
     let p = SimPort::new(r.bus, r.host);
-    let config = IoConfig {
+    let config = IoOptions {
         protocol: Some(Protocol::Sequential),
-        ..IoConfig::default()
+        ..IoOptions::default()
     };
     let (mut io, _) = IoSystem::open(p, config).unwrap();
     io.port_mut().wait(Duration::from_millis(4));
@@ -224,7 +224,7 @@ fn corrupt_query_is_detected_as_a_sequence_error() {
         PacketFault::FlipBits { count: 1 },
     ));
     let p = SimPort::new(r.bus, r.host);
-    let (mut io, _) = IoSystem::open(p, IoConfig::default()).unwrap();
+    let (mut io, _) = IoSystem::open(p, IoOptions::default()).unwrap();
     let mut first_bad = None;
     for cycle in 0..5 {
         let rep = *io.cycle();
@@ -249,7 +249,7 @@ fn corrupt_query_is_detected_as_a_sequence_error() {
 #[test]
 fn watchdog_expires_when_the_host_stops() {
     let p = port(2, Profile::Rev8);
-    let (mut io, _) = IoSystem::open(p, IoConfig::default()).unwrap();
+    let (mut io, _) = IoSystem::open(p, IoOptions::default()).unwrap();
     io.set_watchdog(Duration::from_millis(10)).unwrap();
     for b in io.boards_mut() {
         b.set_power(true);
@@ -302,9 +302,9 @@ fn broadcast_cycles_leave_nothing_in_the_link() {
     let p = port(8, Profile::Rev8);
     let (mut io, _) = IoSystem::open(
         p,
-        IoConfig {
+        IoOptions {
             protocol: Some(Protocol::Broadcast),
-            ..IoConfig::default()
+            ..IoOptions::default()
         },
     )
     .unwrap();

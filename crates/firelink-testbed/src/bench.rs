@@ -19,7 +19,7 @@ use firelink_control::budget::CycleBudget;
 use firelink_control::config::presets;
 use firelink_control::runner::{Pacing, Percentiles, Robot, RobotSettings};
 use firelink_host::Port;
-use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
+use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 
 use crate::TestbedError;
@@ -253,12 +253,12 @@ fn point<P: Port>(
     let io = IoSystem::with_scan(
         port,
         &scan,
-        HostIoConfig {
+        IoOptions {
             protocol: Some(used),
             broadcast_wait: Some(Duration::from_secs_f64(
                 options.wait_us_per_board.max(0.0) * boards as f64 / 1e6,
             )),
-            ..HostIoConfig::default()
+            ..IoOptions::default()
         },
     )?;
     let idle = Duration::from_secs_f64(options.idle_us.max(0.0) / 1e6);
@@ -286,7 +286,7 @@ pub fn compute_time_us() -> f64 {
     let Ok((port, _)) = rig::sim_port(boards, false) else {
         return 0.0;
     };
-    let Ok((io, _)) = IoSystem::open(port, HostIoConfig::default()) else {
+    let Ok((io, _)) = IoSystem::open(port, IoOptions::default()) else {
         return 0.0;
     };
     let settings = RobotSettings {

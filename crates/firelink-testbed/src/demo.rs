@@ -25,7 +25,7 @@ use firelink_control::runner::{Pacing, Percentiles, Robot, RobotSettings, Runner
 use firelink_control::trajectory::{Motion, PointToPoint, Sinusoid};
 use firelink_control::{FaultKind, FaultReport};
 use firelink_host::Port;
-use firelink_host::io::{IoConfig as HostIoConfig, IoStats, IoSystem};
+use firelink_host::io::{IoOptions, IoStats, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
 use firelink_host::udp::UdpPort;
@@ -679,9 +679,9 @@ fn run_robot<P: Injector>(
     let wall = Instant::now();
     let (io, scan) = IoSystem::open(
         port,
-        HostIoConfig {
+        IoOptions {
             protocol: Some(options.protocol),
-            ..HostIoConfig::default()
+            ..IoOptions::default()
         },
     )?;
     progress(DemoProgress::Found {

@@ -21,7 +21,7 @@ use firelink_control::config::IoConfig;
 use firelink_control::lifecycle::State;
 use firelink_control::runner::{Pacing, Robot, RobotSettings};
 use firelink_control::trajectory::{Motion, PointToPoint, ServoPoint};
-use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
+use firelink_host::io::{IoOptions, IoSystem};
 use std::thread::JoinHandle;
 
 use firelink_board::config::Profile;
@@ -305,7 +305,7 @@ pub fn prepare<P: Injector>(
     port_name: String,
     options: &LoopOptions,
 ) -> Result<(Robot<P>, Arc<Shared>), crate::TestbedError> {
-    let (io, _) = IoSystem::open(port, HostIoConfig::default())?;
+    let (io, _) = IoSystem::open(port, IoOptions::default())?;
     let settings = RobotSettings {
         rate_hz: options.rate_hz,
         watchdog: options.watchdog,

@@ -20,7 +20,7 @@
 //! Without host overhead the PC issues each transaction as soon as the
 //! previous one finished; between the query and the hub read it listens
 //! to the boards' status broadcasts and reads as soon as it has heard them
-//! all ([`IoConfig::listen_for_broadcasts`]). Phases are then pure wire
+//! all ([`IoOptions::listen_for_broadcasts`]). Phases are then pure wire
 //! time and `total_us` spans the first packet's start to the last packet's
 //! end, including the gaps the PC's fair arbitration waits for. With host
 //! overhead the PC pays [`HostModel`] costs around each call and sleeps
@@ -53,7 +53,7 @@ use firelink_board::rig::{BoardRig, GapCount, RigOptions};
 use firelink_bus::fault::{FaultPlan, FaultRecord};
 use firelink_bus::trace::{PacketId, PacketKind, PacketRecord, Trace};
 use firelink_bus::{ArbitrationClass, HostModel, NodeHandle, SimDuration, SimTime, TraceLevel};
-use firelink_host::io::{BroadcastRoute, IoConfig, IoSystem};
+use firelink_host::io::{BroadcastRoute, IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
 use firelink_host::trace::{CallKind, CallRecord, TracingPort};
@@ -437,7 +437,7 @@ pub fn prepare(options: &SimOptions) -> Result<PreparedSim, TestbedError> {
     };
     let hub_read_quadlets = fixed.min(options.speed.max_async_payload() / 4);
     let wait = Duration::from_micros(5 * n as u64);
-    let config = IoConfig {
+    let config = IoOptions {
         protocol: Some(options.protocol),
         hub_board: Some(n as u8 - 1),
         broadcast_wait: Some(if options.host_overhead {

@@ -47,7 +47,7 @@ use firelink_control::State;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, Robot, RobotSettings};
 use firelink_control::trajectory::{Motion, Sinusoid};
-use firelink_host::io::{CycleReport, IoConfig as IoSystemConfig, IoSystem};
+use firelink_host::io::{CycleReport, IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
 use firelink_host::{HostError, MissReason};
@@ -455,9 +455,9 @@ pub fn bring_up_robot(
     let port = SimPort::new(rig.bus, rig.host);
     let (io, _) = IoSystem::open(
         port,
-        IoSystemConfig {
+        IoOptions {
             protocol: Some(Protocol::Broadcast),
-            ..IoSystemConfig::default()
+            ..IoOptions::default()
         },
     )?;
     let robot_settings = RobotSettings {

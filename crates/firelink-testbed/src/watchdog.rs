@@ -79,7 +79,7 @@ pub fn run(trials: u64, seed: u64) -> Result<WatchdogReport, TestbedError> {
     let period = Watchdog::from_period(Duration::from_millis(20))
         .map_err(|e| TestbedError::Config(e.to_string()))?
         .period();
-    let tick = Duration::from_nanos(256 * 1_000_000_000 / 49_152_000);
+    let tick = Watchdog(1).period();
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x0057_A7C4);
     let cycle = SimDuration::from_micros_f64(1e6 / settings.rate_hz);
     let mut over = Vec::new();

@@ -177,3 +177,15 @@ pub enum Error {
 
 /// Result alias of the wire layer.
 pub type Result<T> = core::result::Result<T, Error>;
+
+/// Check a value against the largest one its field holds.
+///
+/// # Errors
+/// [`Error::FieldRange`] above `max`.
+pub(crate) fn check_max(field: &'static str, value: u64, max: u64) -> Result<()> {
+    if value > max {
+        Err(Error::FieldRange { field, value, max })
+    } else {
+        Ok(())
+    }
+}

@@ -25,7 +25,7 @@
 use core::fmt;
 
 use crate::crc::crc1394;
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, check_max};
 use crate::field::{Field, pad4, read_quadlet, write_quadlet};
 use crate::open_enum::open_enum;
 
@@ -772,7 +772,8 @@ pub struct AsyncHeader {
 }
 
 impl AsyncHeader {
-    /// A header with retry code 0 (`retry_1`-less first attempt) and priority 0.
+    /// A header with retry code 0 (`retry_1`: a first attempt) and
+    /// priority 0.
     pub const fn new(destination: NodeId, source: NodeId, tl: u8) -> AsyncHeader {
         AsyncHeader {
             destination,
@@ -802,17 +803,9 @@ impl AsyncHeader {
     }
 
     fn check(&self) -> Result<()> {
-        check_range("tl", u64::from(self.tl), 0x3F)?;
-        check_range("rt", u64::from(self.rt), 0x3)?;
-        check_range("pri", u64::from(self.pri), 0xF)
-    }
-}
-
-fn check_range(field: &'static str, value: u64, max: u64) -> Result<()> {
-    if value > max {
-        Err(Error::FieldRange { field, value, max })
-    } else {
-        Ok(())
+        check_max("tl", u64::from(self.tl), 0x3F)?;
+        check_max("rt", u64::from(self.rt), 0x3)?;
+        check_max("pri", u64::from(self.pri), 0xF)
     }
 }
 
@@ -1120,7 +1113,7 @@ impl<'a> PacketRepr<'a> {
             header.check()?;
         }
         let data = self.data();
-        check_range("data_length", data.len() as u64, 0xFFFF)?;
+        check_max("data_length", data.len() as u64, 0xFFFF)?;
         let mut packet = Packet::new_unchecked(out);
         packet.set_tcode(self.tcode());
         if let Some(h) = self.header() {
@@ -1132,7 +1125,7 @@ impl<'a> PacketRepr<'a> {
         }
         match *self {
             PacketRepr::WriteQuadletRequest { offset, data, .. } => {
-                check_range("offset", offset, MAX_OFFSET)?;
+                check_max("offset", offset, MAX_OFFSET)?;
                 packet.set_offset(offset);
                 packet.set_quadlet_data(data);
             }
@@ -1142,7 +1135,7 @@ impl<'a> PacketRepr<'a> {
                 data,
                 ..
             } => {
-                check_range("offset", offset, MAX_OFFSET)?;
+                check_max("offset", offset, MAX_OFFSET)?;
                 packet.set_offset(offset);
                 packet.set_data_length(data.len() as u16);
                 packet.set_extended_tcode(extended_tcode);
@@ -1150,7 +1143,7 @@ impl<'a> PacketRepr<'a> {
             }
             PacketRepr::WriteResponse { rcode, .. } => packet.set_rcode(rcode),
             PacketRepr::ReadQuadletRequest { offset, .. } => {
-                check_range("offset", offset, MAX_OFFSET)?;
+                check_max("offset", offset, MAX_OFFSET)?;
                 packet.set_offset(offset);
             }
             PacketRepr::ReadBlockRequest {
@@ -1159,7 +1152,7 @@ impl<'a> PacketRepr<'a> {
                 extended_tcode,
                 ..
             } => {
-                check_range("offset", offset, MAX_OFFSET)?;
+                check_max("offset", offset, MAX_OFFSET)?;
                 packet.set_offset(offset);
                 packet.set_data_length(data_length);
                 packet.set_extended_tcode(extended_tcode);

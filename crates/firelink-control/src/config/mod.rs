@@ -77,7 +77,7 @@ pub const SCHEMA_ID: &str = "saw-robot-io.schema.json";
 /// The value `$version` must have.
 pub const SCHEMA_VERSION: &str = "6";
 /// Board IDs are set by a 4-bit rotary switch.
-pub const MAX_BOARD_ID: u8 = 15;
+pub use firelink_wire::board::MAX_BOARD_ID;
 
 /// A whole configuration file: one or more robots sharing one bus.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

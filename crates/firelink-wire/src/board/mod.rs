@@ -157,11 +157,4 @@ pub(crate) fn check_exact(what: &'static str, len: usize, quadlets: usize) -> cr
     Ok(())
 }
 
-/// Check a value against the largest one its field holds.
-pub(crate) fn check_max(field: &'static str, value: u64, max: u64) -> crate::Result<()> {
-    if value > max {
-        Err(crate::Error::FieldRange { field, value, max })
-    } else {
-        Ok(())
-    }
-}
+pub(crate) use crate::error::check_max;
