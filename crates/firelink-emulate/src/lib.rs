@@ -30,6 +30,8 @@ use std::time::{Duration, Instant};
 
 use firelink_bus::host::Outcome;
 use firelink_bus::{Bus, HostLink, NodeHandle, SimDuration, SimTime};
+use firelink_host::transaction::{CrcCheck, Expect, LinkStats, Transactions};
+use firelink_host::{Dest, HostError};
 use firelink_wire::bridge::{ExtraData, ExtraFlags, split_host_datagram};
 use firelink_wire::packet::{NodeId, Packet, Speed, Tcode};
 
@@ -124,6 +126,9 @@ pub struct Bridge {
     bridge_board: NodeHandle,
     stats: BridgeStats,
     timeout: SimDuration,
+    /// The host library's transaction engine, judging what comes back
+    /// from the bus for each forwarded request.
+    transactions: Transactions,
 }
 
 /// 49.152 MHz ticks in a virtual duration, saturating at 16 bits.
@@ -141,6 +146,7 @@ impl Bridge {
             bridge_board,
             stats: BridgeStats::default(),
             timeout: SimDuration::from_micros(10_000),
+            transactions: Transactions::new(),
         }
     }
 
@@ -157,6 +163,12 @@ impl Bridge {
     /// Counters so far.
     pub fn stats(&self) -> BridgeStats {
         self.stats
+    }
+
+    /// What the bridge's link sent onto the bus and what came back, by
+    /// outcome (the host library's engine judged it).
+    pub fn link_stats(&self) -> LinkStats {
+        self.transactions.stats()
     }
 
     /// The board generation as the extra data reports it.
@@ -239,12 +251,28 @@ impl Bridge {
         }
         let received_at = self.bus.now();
         let link = self.link;
+        let answerer = if local {
+            self.bus.phy_id(self.bridge_board).unwrap_or(0)
+        } else {
+            destination.phy()
+        };
+        let dest = Dest {
+            node: answerer,
+            no_forward: local,
+        };
+        let tl = packet.tl();
+        let expect = match tcode {
+            Tcode::ReadQuadletRequest => Expect::quadlet(dest, tl),
+            Tcode::ReadBlockRequest => Expect::block(dest, tl, usize::from(packet.data_length())),
+            _ => Expect::write(dest, tl),
+        };
         let Ok(token) = self
             .bus
             .with_node::<HostLink, _>(link, |l, ctx| l.submit(ctx, bytes, Speed::S400))
         else {
             return Handled::Dropped(DropReason::BusFailure);
         };
+        self.transactions.sent();
         if is_write && (destination.is_broadcast() && !local) {
             // Broadcasts complete when they have gone out; nobody waits for
             // them, so nothing of them is kept.
@@ -257,6 +285,8 @@ impl Bridge {
         let done = HostLink::wait_on(&mut self.bus, link, token, deadline);
         self.forget_received();
         let Some(done) = done.filter(|d| d.outcome == Outcome::Complete) else {
+            let waited = (self.bus.now() - received_at).as_micros_f64() as u32;
+            let _ = self.transactions.timed_out(&expect, waited);
             self.stats.bus_failures += 1;
             return Handled::Dropped(DropReason::BusFailure);
         };
@@ -267,6 +297,18 @@ impl Bridge {
             self.stats.bus_failures += 1;
             return Handled::Dropped(DropReason::BusFailure);
         };
+        // The answer must be intact and answer this request; an error
+        // rcode is forwarded (the host judges it), anything else dropped.
+        match self
+            .transactions
+            .accept(&response, &expect, CrcCheck::Always)
+        {
+            Ok(Ok(_)) | Err(HostError::Rcode { .. }) => {}
+            Ok(Err(_)) | Err(_) => {
+                self.stats.bus_failures += 1;
+                return Handled::Dropped(DropReason::BusFailure);
+            }
+        }
         let extra = ExtraData {
             flags: ExtraFlags {
                 no_forward: local,

@@ -344,3 +344,28 @@ fn flood_over_loopback_udp() {
     assert_eq!(s.replies, 600);
     assert_eq!(backlog, 0);
 }
+
+/// The bridge judges what the bus gives back with the host library's
+/// transaction engine: a read of a board is matched, a read of a node that
+/// is not there times out, naming its label.
+#[test]
+fn the_bridges_link_is_judged_by_the_host_engine() {
+    let mut b = bridge();
+    let g = b.generation();
+    let mut reply = Vec::new();
+    let read = |node: u16, tl: u8| PacketRepr::ReadQuadletRequest {
+        header: AsyncHeader::new(NodeId(0xFFC0 | node), NodeId(0xFFD0), tl),
+        offset: 4,
+    };
+    assert!(matches!(
+        b.handle(&datagram(false, g, &read(2, 7)), &mut reply),
+        Handled::Reply(_)
+    ));
+    assert_eq!(
+        b.handle(&datagram(false, g, &read(40, 8)), &mut reply),
+        Handled::Dropped(DropReason::BusFailure)
+    );
+    let s = b.link_stats();
+    assert_eq!((s.sent, s.matched, s.timeouts), (2, 1, 1));
+    assert_eq!(s.refused(), 0);
+}
