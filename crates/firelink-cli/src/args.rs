@@ -9,10 +9,10 @@
 
 use std::time::Duration;
 
+use clap::ValueEnum;
 use firelink_board::config::{Hardware, Profile};
+use firelink_host::scan::Protocol;
 use firelink_wire::board::registers::Watchdog;
-
-use crate::CliError;
 
 /// A finite number in `lo..=hi` (or `lo < x` when `open_low`).
 fn bounded(s: &str, lo: f64, hi: f64, open_low: bool, unit: &str) -> Result<f64, String> {
@@ -150,27 +150,70 @@ pub fn watchdog(s: &str) -> Result<WatchdogSetting, String> {
     Ok(WatchdogSetting::Period(Duration::from_secs_f64(ms / 1e3)))
 }
 
-/// Parse `7`, `8` or `seed` into a firmware profile.
-pub fn profile(name: &str) -> Result<Profile, CliError> {
-    parse_profile(name).map_err(CliError::Conflict)
+/// `--firmware` (and `sim --profile`): the emulated boards' firmware.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FirmwareArg {
+    /// Seed 000's firmware: fixed TDMA slots, 0xFFFF for a corrupt query.
+    Seed,
+    /// Firmware Rev 7: chained broadcasts.
+    #[value(alias = "7")]
+    Rev7,
+    /// Firmware Rev 8: chained broadcasts, MOTOR_STATUS, write-block header.
+    #[value(alias = "8")]
+    Rev8,
 }
 
-/// Firmware profile from the command line's `--firmware 7|8|seed` (clap).
-pub fn parse_profile(text: &str) -> Result<Profile, String> {
-    match text {
-        "7" | "rev7" => Ok(Profile::Rev7),
-        "8" | "rev8" => Ok(Profile::Rev8),
-        "seed" => Ok(Profile::Seed),
-        _ => Err(format!("unknown firmware {text:?}: expected 7, 8 or seed")),
+impl From<FirmwareArg> for Profile {
+    fn from(f: FirmwareArg) -> Profile {
+        match f {
+            FirmwareArg::Seed => Profile::Seed,
+            FirmwareArg::Rev7 => Profile::Rev7,
+            FirmwareArg::Rev8 => Profile::Rev8,
+        }
     }
 }
 
-/// Hardware from `--hardware QLA1|DQLA` (clap).
-pub fn parse_hardware(text: &str) -> Result<Hardware, String> {
-    match text.to_ascii_uppercase().as_str() {
-        "QLA1" | "QLA" => Ok(Hardware::Qla1),
-        "DQLA" => Ok(Hardware::Dqla),
-        _ => Err(format!("unknown hardware {text:?}: QLA1 or DQLA")),
+/// `--hardware`: the companion board.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum HardwareArg {
+    /// Quad linear amplifier: 4 axes.
+    #[value(name = "QLA1", alias = "qla1", alias = "QLA", alias = "qla")]
+    Qla1,
+    /// Dual QLA: 8 axes.
+    #[value(name = "DQLA", alias = "dqla")]
+    Dqla,
+}
+
+impl From<HardwareArg> for Hardware {
+    fn from(h: HardwareArg) -> Hardware {
+        match h {
+            HardwareArg::Qla1 => Hardware::Qla1,
+            HardwareArg::Dqla => Hardware::Dqla,
+        }
+    }
+}
+
+/// `--protocol`: the I/O protocol.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ProtocolArg {
+    /// One block read and one block write per board.
+    #[value(alias = "seq")]
+    Sequential,
+    /// One block read per board, then one broadcast write of all commands.
+    #[value(alias = "seq-bc", alias = "seqrbw")]
+    SequentialReadBroadcastWrite,
+    /// Query, status broadcasts, one hub read, one broadcast write.
+    #[value(alias = "bcast", alias = "bc")]
+    Broadcast,
+}
+
+impl From<ProtocolArg> for Protocol {
+    fn from(p: ProtocolArg) -> Protocol {
+        match p {
+            ProtocolArg::Sequential => Protocol::Sequential,
+            ProtocolArg::SequentialReadBroadcastWrite => Protocol::SequentialReadBroadcastWrite,
+            ProtocolArg::Broadcast => Protocol::Broadcast,
+        }
     }
 }
 

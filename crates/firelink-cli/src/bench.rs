@@ -9,34 +9,75 @@
 //! [`firelink_plot::fig11`]; this file parses the options and prints.
 
 use std::io::Write;
-use std::path::Path;
+use std::path::PathBuf;
 
-use clap::Args;
+use clap::{Args, ValueEnum};
 
 use firelink_host::scan::Protocol;
 use firelink_testbed::bench::{BenchOptions, BenchTransport, check_board_counts, run_bench};
 
 use crate::CliError;
+use crate::args::{FirmwareArg, ProtocolArg};
+
+/// `--transport`: where the I/O time is measured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum TransportArg {
+    /// The simulated bus with the seed-000 PC model (virtual time).
+    Sim,
+    /// Loopback UDP to an in-process bridge emulator (wall clock).
+    Udp,
+}
+
+impl From<TransportArg> for BenchTransport {
+    fn from(t: TransportArg) -> BenchTransport {
+        match t {
+            TransportArg::Sim => BenchTransport::Sim,
+            TransportArg::Udp => BenchTransport::Udp,
+        }
+    }
+}
+
+/// The `--boards` list: each count 1..=62; counts above 16 (the board-ID
+/// space of one bus) are extrapolated from the largest measured count
+/// before them, so one must come first.
+fn board_counts(text: &str) -> Result<Vec<usize>, CliError> {
+    let counts = text
+        .split(',')
+        .filter(|x| !x.trim().is_empty())
+        .map(|x| {
+            x.trim()
+                .parse::<usize>()
+                .ok()
+                .filter(|n| (1..=62).contains(n))
+                .ok_or_else(|| {
+                    CliError::BoardCounts(format!("{x:?} is not a board count (1..=62)"))
+                })
+        })
+        .collect::<Result<Vec<usize>, CliError>>()?;
+    check_board_counts(&counts).map_err(CliError::BoardCounts)?;
+    Ok(counts)
+}
 
 /// Options of `firelink bench`.
 #[derive(Args, Debug, Clone)]
 pub struct BenchArgs {
-    /// Transports: sim, udp (comma-separated).
-    #[arg(long, default_value = "sim,udp")]
-    pub transport: String,
-    /// Board counts (comma-separated); above 16 (the board-ID space) the
-    /// figures come from the cost model fitted to the 16-board run.
+    /// Transports (comma-separated).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [TransportArg::Sim, TransportArg::Udp])]
+    pub transport: Vec<TransportArg>,
+    /// Board counts (comma-separated, 1..=62); above 16 (the board-ID
+    /// space) the figures come from the cost model fitted to the 16-board
+    /// run.
     #[arg(long, default_value = "2,4,8,16,32,62")]
     pub boards: String,
-    /// Protocols: sequential, broadcast (comma-separated).
-    #[arg(long, default_value = "sequential,broadcast")]
-    pub protocol: String,
+    /// Protocols (comma-separated).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ProtocolArg::Sequential, ProtocolArg::Broadcast])]
+    pub protocol: Vec<ProtocolArg>,
     /// Measured cycles per point (after 20 warm-up cycles), at least 1.
     #[arg(long, default_value_t = 1000, value_parser = crate::args::cycles)]
     pub cycles: u64,
-    /// Firmware of the emulated boards: 7, 8 or seed.
-    #[arg(long, default_value = "8")]
-    pub firmware: String,
+    /// Firmware of the emulated boards.
+    #[arg(long, value_enum, default_value_t = FirmwareArg::Rev8)]
+    pub firmware: FirmwareArg,
     /// Control period for the seed-002 budget check, us (default: 6 kHz).
     #[arg(long = "period-us", default_value_t = 166.67, value_parser = crate::args::period_us)]
     pub period_us: f64,
@@ -51,40 +92,29 @@ pub struct BenchArgs {
     pub idle_us: f64,
     /// Write a PNG plot of I/O time against boards here.
     #[arg(long)]
-    pub plot: Option<String>,
+    pub plot: Option<PathBuf>,
     /// Print JSON on stdout.
     #[arg(long)]
     pub json: bool,
 }
 
-fn list<T>(s: &str, f: impl Fn(&str) -> Option<T>, what: &str) -> Result<Vec<T>, CliError> {
-    s.split(',')
-        .filter(|x| !x.trim().is_empty())
-        .map(|x| f(x.trim()).ok_or_else(|| CliError::Conflict(format!("bad {what}: {x:?}"))))
-        .collect()
-}
-
-/// The `--boards` list: each count 1..=62; counts above 16 (the board-ID
-/// space of one bus) are extrapolated from the largest measured count
-/// before them, so one must come first.
-fn board_counts(text: &str) -> Result<Vec<usize>, CliError> {
-    let counts = list(
-        text,
-        |s| s.parse::<usize>().ok().filter(|n| (1..=62).contains(n)),
-        "board count (1..=62)",
-    )?;
-    check_board_counts(&counts).map_err(|e| CliError::Conflict(format!("--boards: {e}")))?;
-    Ok(counts)
-}
-
 /// The benchmark's options from the command line.
+///
+/// # Errors
+/// [`CliError::BoardCounts`]: a count outside 1..=62, or counts above 16
+/// with no measured count before them.
 pub fn options(args: &BenchArgs) -> Result<BenchOptions, CliError> {
     Ok(BenchOptions {
-        transports: list(&args.transport, BenchTransport::from_name, "transport")?,
+        transports: args
+            .transport
+            .iter()
+            .copied()
+            .map(BenchTransport::from)
+            .collect(),
         boards: board_counts(&args.boards)?,
-        protocols: list(&args.protocol, Protocol::from_name, "protocol")?,
+        protocols: args.protocol.iter().copied().map(Protocol::from).collect(),
         cycles: args.cycles,
-        firmware: crate::args::profile(&args.firmware)?,
+        firmware: args.firmware.into(),
         period_us: args.period_us,
         wait_us_per_board: args.wait_us,
         idle_us: args.idle_us,
@@ -99,11 +129,9 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
         if !quiet {
             eprintln!("bench: {} {} {n} boards", t.name(), proto.name());
         }
-    })
-    .map_err(|e| CliError::Conflict(e.to_string()))?;
+    })?;
     if let Some(path) = &args.plot {
-        firelink_plot::fig11(&report, Path::new(path))
-            .map_err(|e| CliError::Conflict(e.to_string()))?;
+        firelink_plot::fig11(&report, path)?;
     }
     if args.json {
         writeln!(out, "{}", serde_json::to_string(&report)?)?;

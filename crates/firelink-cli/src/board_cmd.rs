@@ -228,20 +228,21 @@ pub fn parse_address(text: &str) -> Result<u64, CliError> {
         })
     };
     let register = if let Some(rest) = lower.strip_prefix("axis") {
-        let (n, name) = rest.split_once('.').ok_or_else(|| {
-            CliError::Conflict(format!("register name {text:?}: expected axisN.name"))
-        })?;
-        let n: u8 = n
-            .parse()
-            .map_err(|_| CliError::Conflict(format!("register name {text:?}: bad axis number")))?;
-        let r = axis_reg(name)
-            .ok_or_else(|| CliError::Conflict(format!("unknown axis register {name:?}")))?;
+        let bad = |problem| CliError::Register {
+            name: text.to_string(),
+            problem,
+        };
+        let (n, name) = rest
+            .split_once('.')
+            .ok_or_else(|| bad("expected axisN.name"))?;
+        let n: u8 = n.parse().map_err(|_| bad("bad axis number"))?;
+        let r = axis_reg(name).ok_or_else(|| bad("no such axis register"))?;
         Register::axis(n, r)
     } else {
-        Register::board(
-            board(&lower)
-                .ok_or_else(|| CliError::Conflict(format!("unknown register {text:?}")))?,
-        )
+        Register::board(board(&lower).ok_or_else(|| CliError::Register {
+            name: text.to_string(),
+            problem: "no such board register",
+        })?)
     };
     Ok(register.offset()?)
 }
@@ -316,12 +317,9 @@ pub fn run_write(args: &WriteArgs, out: &mut impl Write) -> Result<(), CliError>
     // node is there and takes requests of this bus generation (the bridge
     // drops stale ones silently); what it reads back is shown, not judged:
     // many registers do not read back what is written.
-    let back = port.read_quadlet(dest, address).map_err(|e| {
-        CliError::Conflict(format!(
-            "write to {address:#06x} not confirmed: the bridge acknowledges no write, \
-             and a read-back failed: {e}"
-        ))
-    })?;
+    let back = port
+        .read_quadlet(dest, address)
+        .map_err(|error| CliError::WriteNotConfirmed { address, error })?;
     writeln!(
         out,
         "sent {n} quadlet(s) at {address:#06x} (not acknowledged over UDP; the node answers, \

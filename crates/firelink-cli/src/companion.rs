@@ -13,15 +13,18 @@ pub fn run(name: &str, args: &[String]) -> Result<(), CliError> {
     let here = std::env::current_exe()?;
     let binary = here.with_file_name(name);
     if !binary.exists() {
-        return Err(CliError::Conflict(format!(
-            "{name} is not built: run `cargo build --release -p {name}` (looked for {})",
-            binary.display()
-        )));
+        return Err(CliError::CompanionMissing {
+            name: name.to_string(),
+            path: binary.display().to_string(),
+        });
     }
     let status = Command::new(&binary).args(args).status()?;
     if status.success() {
         Ok(())
     } else {
-        Err(CliError::Conflict(format!("{name} exited with {status}")))
+        Err(CliError::CompanionFailed {
+            name: name.to_string(),
+            status,
+        })
     }
 }

@@ -8,15 +8,68 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use clap::Args;
+use clap::{Args, ValueEnum};
 
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::Pacing;
-use firelink_host::scan::Protocol;
-use firelink_testbed::demo::{DemoOptions, DemoProgress, RealtimeStatus, run_demo};
+use firelink_testbed::demo::{
+    DemoFault, DemoOptions, DemoPort, DemoProgress, RealtimeStatus, run_demo,
+};
 
 use crate::CliError;
+use crate::args::{FirmwareArg, ProtocolArg};
 use crate::rt;
+
+/// `--fault`: what the demo breaks half way.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FaultArg {
+    /// Nothing: the run must end without a fault.
+    None,
+    /// The host stops sending for three watchdog periods.
+    StopHost,
+    /// The next broadcast query is corrupted on the wire.
+    CorruptQuery,
+    /// PSM1's first board stops answering for good.
+    BoardLoss,
+    /// Joint 0's setpoint jumps further than it can follow.
+    FollowingError,
+}
+
+impl From<FaultArg> for DemoFault {
+    fn from(f: FaultArg) -> DemoFault {
+        match f {
+            FaultArg::None => DemoFault::None,
+            FaultArg::StopHost => DemoFault::StopHost,
+            FaultArg::CorruptQuery => DemoFault::CorruptQuery,
+            FaultArg::BoardLoss => DemoFault::BoardLoss,
+            FaultArg::FollowingError => DemoFault::FollowingError,
+        }
+    }
+}
+
+/// `--pacing`: virtual or wall-clock time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum PacingArg {
+    /// As fast as the simulation goes, in virtual time.
+    Virtual,
+    /// The wall clock.
+    Realtime,
+}
+
+impl From<PacingArg> for Pacing {
+    fn from(p: PacingArg) -> Pacing {
+        match p {
+            PacingArg::Virtual => Pacing::Virtual,
+            PacingArg::Realtime => Pacing::WallClock,
+        }
+    }
+}
+
+/// `--port`: `sim`, `emulate` or `udp:HOST[:PORT]` (clap).
+fn parse_port(text: &str) -> Result<DemoPort, String> {
+    text.parse()
+        .map_err(|e: firelink_testbed::TestbedError| e.to_string())
+}
 
 /// Options of `firelink demo`.
 #[derive(Args, Debug, Clone)]
@@ -24,9 +77,9 @@ pub struct DemoArgs {
     /// Control rate, Hz (1 to 100000).
     #[arg(long, default_value_t = 6000.0, value_parser = crate::args::rate_hz)]
     pub rate: f64,
-    /// I/O protocol: broadcast, sequential or seq-bc.
-    #[arg(long, default_value = "broadcast")]
-    pub protocol: String,
+    /// I/O protocol.
+    #[arg(long, value_enum, default_value_t = ProtocolArg::Broadcast)]
+    pub protocol: ProtocolArg,
     /// Seconds of motion after homing (above 0, at most a day).
     #[arg(long, default_value_t = 3.0, value_parser = crate::args::run_seconds)]
     pub duration: f64,
@@ -34,19 +87,17 @@ pub struct DemoArgs {
     /// in-process), `emulate` (the same boards behind an in-process
     /// `firelink emulate`, over loopback UDP) or `udp:HOST[:PORT]` (a
     /// running `firelink emulate` or a real bridge board).
-    #[arg(long, default_value = "sim")]
-    pub port: String,
-    /// Board firmware of the emulated boards: 7, 8 or seed.
-    #[arg(long, default_value = "8")]
-    pub firmware: String,
-    /// Inject a fault half-way: none, stop-host, corrupt-query, board-loss,
-    /// following-error.
-    #[arg(long, default_value = "none")]
-    pub fault: String,
-    /// virtual (as fast as the simulation goes, virtual time) or realtime
-    /// (wall clock); default: virtual for sim, realtime over UDP.
-    #[arg(long)]
-    pub pacing: Option<String>,
+    #[arg(long, default_value = "sim", value_parser = parse_port)]
+    pub port: DemoPort,
+    /// Board firmware of the emulated boards.
+    #[arg(long, value_enum, default_value_t = FirmwareArg::Rev8)]
+    pub firmware: FirmwareArg,
+    /// Inject a fault half-way.
+    #[arg(long, value_enum, default_value_t = FaultArg::None)]
+    pub fault: FaultArg,
+    /// Pacing; default: virtual for sim, realtime over UDP.
+    #[arg(long, value_enum)]
+    pub pacing: Option<PacingArg>,
     /// Board watchdog period in ms (above 0, at most 341), or `off`
     /// (a stopped host then leaves the amplifiers on: say so explicitly).
     #[arg(long = "watchdog-ms", default_value = "20", value_parser = crate::args::watchdog)]
@@ -71,11 +122,11 @@ impl Default for DemoArgs {
     fn default() -> Self {
         DemoArgs {
             rate: 6000.0,
-            protocol: "broadcast".into(),
+            protocol: ProtocolArg::Broadcast,
             duration: 3.0,
-            port: "sim".into(),
-            firmware: "8".into(),
-            fault: "none".into(),
+            port: DemoPort::Sim,
+            firmware: FirmwareArg::Rev8,
+            fault: FaultArg::None,
             pacing: None,
             watchdog: crate::args::WatchdogSetting::Period(Duration::from_millis(20)),
             no_rt: false,
@@ -136,39 +187,24 @@ fn show(event: &DemoProgress, ticking: &mut bool) {
 }
 
 /// The demo's options from the command line.
+///
+/// # Errors
+/// The configuration file could not be loaded.
 pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
     let config = match &args.config {
-        Some(path) => IoConfig::load(path).map_err(|e| CliError::Conflict(e.to_string()))?,
+        Some(path) => IoConfig::load(path)?,
         None => presets::dvrk_seed000(),
-    };
-    let protocol = Protocol::from_name(&args.protocol)
-        .ok_or_else(|| CliError::Conflict(format!("unknown protocol {:?}", args.protocol)))?;
-    let pacing = match args.pacing.as_deref() {
-        None => None,
-        Some("virtual") => Some(Pacing::Virtual),
-        Some("realtime") => Some(Pacing::WallClock),
-        Some(p) => {
-            return Err(CliError::Conflict(format!(
-                "unknown pacing {p:?}: virtual or realtime"
-            )));
-        }
     };
     let watchdog = args.watchdog.period();
     Ok(DemoOptions {
         config,
         rate_hz: args.rate,
-        protocol,
+        protocol: args.protocol.into(),
         duration_s: args.duration,
-        port: args
-            .port
-            .parse()
-            .map_err(|e: firelink_testbed::TestbedError| CliError::Conflict(e.to_string()))?,
-        firmware: crate::args::profile(&args.firmware)?,
-        fault: args
-            .fault
-            .parse()
-            .map_err(|e: firelink_testbed::TestbedError| CliError::Conflict(e.to_string()))?,
-        pacing,
+        port: args.port.clone(),
+        firmware: args.firmware.into(),
+        fault: args.fault.into(),
+        pacing: args.pacing.map(Pacing::from),
         watchdog: (!watchdog.is_zero()).then_some(watchdog),
     })
 }
@@ -197,8 +233,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
         if !quiet {
             show(&event, &mut ticking);
         }
-    })
-    .map_err(|e| CliError::Conflict(e.to_string()))?;
+    })?;
     if ticking {
         eprintln!();
     }
@@ -221,5 +256,5 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
     } else {
         write!(out, "{report}")?;
     }
-    report.verdict().map_err(CliError::Conflict)
+    report.verdict().map_err(CliError::Failed)
 }

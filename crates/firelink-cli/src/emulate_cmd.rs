@@ -10,14 +10,14 @@ use std::time::Duration;
 
 use clap::Args;
 
-use firelink_board::config::{Hardware, Profile};
+use firelink_board::config::Profile;
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::{FaultRule, PacketFault, PacketMatch, SimDuration, TimedFault};
 use firelink_control::config::IoConfig;
 use firelink_emulate::{Bridge, Event, ServeConfig};
 
 use crate::CliError;
-use crate::args::{parse_hardware, parse_profile};
+use crate::args::{FirmwareArg, HardwareArg};
 use firelink_testbed::rig::{board_configs, generic_boards};
 
 /// Options of `firelink emulate`.
@@ -30,12 +30,12 @@ pub struct EmulateArgs {
     /// with matching plants.
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Firmware: 7, 8 or seed (seed 000's TDMA and 0xFFFF rule).
-    #[arg(long, default_value = "8", value_parser = parse_profile)]
-    pub firmware: Profile,
-    /// Companion board of every board: QLA1 or DQLA.
-    #[arg(long, default_value = "QLA1", value_parser = parse_hardware)]
-    pub hardware: Hardware,
+    /// Firmware (seed: seed 000's TDMA and 0xFFFF rule).
+    #[arg(long, value_enum, default_value_t = FirmwareArg::Rev8)]
+    pub firmware: FirmwareArg,
+    /// Companion board of every board.
+    #[arg(long, value_enum, default_value_t = HardwareArg::Qla1)]
+    pub hardware: HardwareArg,
     /// Seed of the measurement noise and the fault injector.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -68,30 +68,32 @@ pub struct EmulateArgs {
     pub duration_s: f64,
 }
 
-/// Build the bridge of `args` (also used by tests and benchmarks).
+/// Build the bridge of `args`: the boards on a simulated bus with the
+/// faults asked for, and their IDs.
 pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
     let boards = match &args.config {
         Some(path) => {
-            let config = IoConfig::load(path).map_err(|e| CliError::Conflict(e.to_string()))?;
+            let config = IoConfig::load(path)?;
             let count = config.board_slots();
-            board_configs(&config, args.firmware, count)
+            board_configs(&config, args.firmware.into(), count)
         }
-        None => {
-            if !(1..=16).contains(&args.boards) {
-                return Err(CliError::Conflict(format!(
-                    "--boards {}: between 1 and 16 boards (board IDs are 4 bits)",
-                    args.boards
-                )));
-            }
-            generic_boards(args.boards, args.hardware, args.firmware, args.seed)
-        }
+        // The board count was range-checked by clap (1..=16).
+        None => generic_boards(
+            args.boards,
+            args.hardware.into(),
+            args.firmware.into(),
+            args.seed,
+        ),
     };
     let ids: Vec<u8> = boards.iter().map(|b| b.board_id).collect();
     let bridge_index = match args.bridge_board {
         Some(id) => ids
             .iter()
             .position(|b| *b == id)
-            .ok_or_else(|| CliError::Conflict(format!("--bridge-board {id}: no such board")))?,
+            .ok_or(CliError::NoSuchBoard {
+                option: "--bridge-board",
+                board: id,
+            })?,
         None => 0,
     };
     let mut rig = BoardRig::daisy_chain(
@@ -116,14 +118,14 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
         ));
     }
     let at = rig.bus.now() + SimDuration::from_micros(args.fault_at_ms.saturating_mul(1000));
-    let handle_of = |id: u8| -> Result<_, CliError> {
+    let handle_of = |option: &'static str, id: u8| -> Result<_, CliError> {
         ids.iter()
             .position(|b| *b == id)
             .and_then(|i| rig.boards.get(i).copied())
-            .ok_or_else(|| CliError::Conflict(format!("no board {id} to fault")))
+            .ok_or(CliError::NoSuchBoard { option, board: id })
     };
     if let Some(id) = args.unplug_board {
-        let node = handle_of(id)?;
+        let node = handle_of("--unplug-board", id)?;
         rig.bus.schedule_fault(
             at,
             TimedFault::Disconnect {
@@ -133,7 +135,7 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
         );
     }
     if let Some(id) = args.mute_board {
-        let node = handle_of(id)?;
+        let node = handle_of("--mute-board", id)?;
         rig.bus.schedule_fault(
             at,
             TimedFault::StopAnswering {
@@ -146,7 +148,10 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
         .boards
         .get(bridge_index)
         .copied()
-        .ok_or_else(|| CliError::Conflict("no bridge board".into()))?;
+        .ok_or(CliError::NoSuchBoard {
+            option: "--bridge-board",
+            board: bridge_index as u8,
+        })?;
     Ok((Bridge::new(rig.bus, rig.host, bridge_node), ids))
 }
 
@@ -169,7 +174,7 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
             stop.store(true, std::sync::atomic::Ordering::Relaxed);
         });
     }
-    let firmware = match args.firmware {
+    let firmware = match Profile::from(args.firmware) {
         Profile::Rev7 => "Rev 7",
         Profile::Rev8 => "Rev 8",
         Profile::Seed => "seed 000",

@@ -187,9 +187,62 @@ pub enum CliError {
         /// Largest allowed.
         max: u64,
     },
-    /// Two inputs disagree.
-    #[error("{0}")]
-    Conflict(String),
+    /// A robot configuration file is invalid (every problem, with its path).
+    #[error(transparent)]
+    Config(#[from] firelink_control::config::ConfigErrors),
+    /// A `--port` the command line does not know.
+    #[error("unknown port {port:?}: expected {expected}")]
+    Port {
+        /// What was given.
+        port: String,
+        /// What is accepted.
+        expected: &'static str,
+    },
+    /// A register name that is not on the board.
+    #[error("register {name:?}: {problem}")]
+    Register {
+        /// What was given.
+        name: String,
+        /// What is wrong with it.
+        problem: &'static str,
+    },
+    /// An option names a board that is not emulated.
+    #[error("{option} {board}: no such board")]
+    NoSuchBoard {
+        /// The option.
+        option: &'static str,
+        /// The board ID given.
+        board: u8,
+    },
+    /// The benchmark's board counts cannot be measured or modelled.
+    #[error("--boards: {0}")]
+    BoardCounts(String),
+    /// A write over the bridge could not be confirmed by reading back.
+    #[error(
+        "write to {address:#06x} not confirmed: the bridge acknowledges no write, and a read-back failed: {error}"
+    )]
+    WriteNotConfirmed {
+        /// The register.
+        address: u64,
+        /// Why the read-back failed.
+        error: firelink_host::HostError,
+    },
+    /// A companion program (`firelink-web`, `firelink-ros2`) is not built.
+    #[error("{name} is not built: run `cargo build --release -p {name}` (looked for {path})")]
+    CompanionMissing {
+        /// Its name.
+        name: String,
+        /// Where it was looked for.
+        path: String,
+    },
+    /// A companion program failed.
+    #[error("{name} exited with {status}")]
+    CompanionFailed {
+        /// Its name.
+        name: String,
+        /// Its exit status.
+        status: std::process::ExitStatus,
+    },
     /// The host library failed.
     #[error(transparent)]
     Host(#[from] firelink_host::HostError),
@@ -202,6 +255,9 @@ pub enum CliError {
     /// Assembling or running an emulated robot failed.
     #[error(transparent)]
     Testbed(#[from] firelink_testbed::TestbedError),
+    /// Drawing a figure failed.
+    #[error(transparent)]
+    Plot(#[from] firelink_plot::PlotError),
     /// Writing output failed.
     #[error("output: {0}")]
     Io(#[from] std::io::Error),

@@ -21,8 +21,8 @@ pub struct MonitorArgs {
     #[command(flatten)]
     pub port: PortArgs,
     /// I/O protocol (default: the best the boards support).
-    #[arg(long, value_parser = parse_protocol)]
-    pub protocol: Option<Protocol>,
+    #[arg(long, value_enum)]
+    pub protocol: Option<crate::args::ProtocolArg>,
     /// Target I/O rate in Hz (0 = as fast as possible, else 1 to 100000).
     #[arg(long, default_value_t = 1000.0, value_parser = crate::args::rate_hz_or_max)]
     pub rate: f64,
@@ -33,13 +33,6 @@ pub struct MonitorArgs {
     /// `off`; absent: left as the boards have it.
     #[arg(long = "watchdog-ms", value_parser = crate::args::watchdog)]
     pub watchdog: Option<crate::args::WatchdogSetting>,
-}
-
-/// Parse a protocol name for clap.
-pub fn parse_protocol(s: &str) -> Result<Protocol, String> {
-    Protocol::from_name(s).ok_or_else(|| {
-        format!("unknown protocol {s:?}: sequential, sequential-read-broadcast-write or broadcast")
-    })
 }
 
 /// Running figures the monitor shows.
@@ -156,7 +149,7 @@ fn on_off(b: bool) -> &'static str {
 pub fn run(args: &MonitorArgs, out: &mut impl Write) -> Result<(), CliError> {
     let port = open_port(&args.port)?;
     let config = IoOptions {
-        protocol: args.protocol,
+        protocol: args.protocol.map(Protocol::from),
         ..IoOptions::default()
     };
     let (mut io, _scan) = IoSystem::open(port, config)?;

@@ -11,33 +11,12 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
-use firelink_board::config::Profile;
 use firelink_bus::ArbitrationClass;
-use firelink_host::scan::Protocol;
 use firelink_testbed::sim::SimOptions;
 use firelink_wire::packet::Speed;
 
 use crate::CliError;
-
-/// Firmware profile.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum ProfileArg {
-    /// Seed 000's firmware: fixed TDMA slots, 48-byte blocks.
-    Seed,
-    /// Firmware Rev 7: chained broadcasts.
-    Rev7,
-    /// Firmware Rev 8: chained broadcasts.
-    Rev8,
-}
-
-/// I/O protocol.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum ProtocolArg {
-    /// Query, status broadcasts, hub read, command broadcast.
-    Broadcast,
-    /// One block read and one block write per board.
-    Sequential,
-}
+use crate::args::{FirmwareArg, ProtocolArg};
 
 /// Arbitration class of the boards' status broadcasts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -70,10 +49,10 @@ pub struct SimArgs {
     /// Number of boards (1 to 16).
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u8).range(1..=16))]
     boards: u8,
-    /// Firmware profile.
-    #[arg(long, value_enum, default_value_t = ProfileArg::Seed)]
-    profile: ProfileArg,
-    /// I/O protocol.
+    /// The boards' firmware (`--firmware` too).
+    #[arg(long, alias = "firmware", value_enum, default_value_t = FirmwareArg::Seed)]
+    profile: FirmwareArg,
+    /// I/O protocol: broadcast or sequential (the phase tables' two).
     #[arg(long, value_enum, default_value_t = ProtocolArg::Broadcast)]
     protocol: ProtocolArg,
     /// Gap count to set (PHY configuration packet and bus reset) before the
@@ -112,16 +91,11 @@ pub struct SimArgs {
 
 impl SimArgs {
     fn options(&self) -> SimOptions {
-        let profile = match self.profile {
-            ProfileArg::Seed => Profile::Seed,
-            ProfileArg::Rev7 => Profile::Rev7,
-            ProfileArg::Rev8 => Profile::Rev8,
-        };
-        let protocol = match self.protocol {
-            ProtocolArg::Broadcast => Protocol::Broadcast,
-            ProtocolArg::Sequential => Protocol::Sequential,
-        };
-        let mut options = SimOptions::new(usize::from(self.boards), profile, protocol);
+        let mut options = SimOptions::new(
+            usize::from(self.boards),
+            self.profile.into(),
+            self.protocol.into(),
+        );
         options.gap_count = self.gap_count;
         options.arbitration = match self.arbitration {
             ArbitrationArg::Iso => ArbitrationClass::Isochronous,
