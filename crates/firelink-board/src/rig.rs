@@ -108,7 +108,7 @@ impl BoardRig {
         };
         if let Some(g) = gap.filter(|g| bus.gap_count(host) != Some(*g)) {
             let packet = phy_config_packet(Some(g), None);
-            if let Ok(token) = HostLink::submit_on(&mut bus, host, packet, Speed::S100) {
+            if let Ok(token) = HostLink::submit_on(&mut bus, host, &packet, Speed::S100) {
                 let deadline = bus.now() + SimDuration::from_micros(1_000);
                 let _ = HostLink::wait_on(&mut bus, host, token, deadline);
                 // The PHYs take the configuration when the subaction ends.

@@ -265,17 +265,19 @@ impl HostLink {
     }
 
     /// Submit `packet` through the link node `link` of `bus` (how a host
-    /// port or a bridge drives its link from outside the simulation).
+    /// port or a bridge drives its link from outside the simulation). The
+    /// link copies the packet into its transmit FIFO: the caller keeps its
+    /// buffer.
     ///
     /// # Errors
     /// [`BusError`](crate::BusError) if `link` is not a [`HostLink`].
     pub fn submit_on(
         bus: &mut crate::Bus,
         link: crate::NodeHandle,
-        packet: Vec<u8>,
+        packet: &[u8],
         speed: Speed,
     ) -> Result<u64, crate::BusError> {
-        bus.with_node::<HostLink, _>(link, |l, ctx| l.submit(ctx, packet, speed))
+        bus.with_node::<HostLink, _>(link, |l, ctx| l.submit(ctx, packet.to_vec(), speed))
     }
 
     /// Run `bus` until the transaction `token` of the link `link` finishes

@@ -1,10 +1,13 @@
-//! # firelink-control: the pure parts of the servo loop
+//! # firelink-control: the servo loop
 //!
 //! Everything a robot program computes between reading the boards and
-//! writing them, with no I/O, no clock and no allocation in the cycle. Time
-//! is always an argument (seconds, `f64`, on whatever clock the caller runs:
-//! virtual or real), so the same code runs in the emulator and on hardware,
-//! bit for bit.
+//! writing them, with no allocation in the cycle, and the runner that
+//! drives it through the host library. The computing modules do no I/O
+//! and read no clock: time is an argument (seconds, `f64`, on whatever
+//! clock the caller runs: virtual or real), so the same code runs in the
+//! emulator and on hardware, bit for bit. The [`runner`] is the one place
+//! that does I/O (through a host [`Port`](firelink_host::Port)) and reads
+//! the machine's clock (wall-clock pacing, and the compute-time figures).
 //!
 //! - [`config`]: the robot I/O configuration in the dVRK's `saw-robot-io`
 //!   version 6 JSON layout, validation with JSON-path errors, and the unit
@@ -21,9 +24,12 @@
 //! - [`safety`]: the per-cycle safety monitor (following error, velocity,
 //!   current saturation, position, pot/encoder agreement).
 //! - [`budget`]: does the cycle fit its period (seed 002, Table I).
+//! - [`runner`]: [`Robot`](runner::Robot), a configuration over the host
+//!   library's `IoSystem`: lifecycle, homing, motion and the safety chain,
+//!   one servo cycle at a time.
 //!
-//! The servo cycle, as the runner in the layer above will drive it
-//! (ros2_control's read / update / write):
+//! The servo cycle, as the runner drives it (ros2_control's read / update /
+//! write):
 //!
 //! ```
 //! use firelink_control::config::presets;

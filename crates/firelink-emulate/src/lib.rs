@@ -266,10 +266,7 @@ impl Bridge {
             Tcode::ReadBlockRequest => Expect::block(dest, tl, usize::from(packet.data_length())),
             _ => Expect::write(dest, tl),
         };
-        let Ok(token) = self
-            .bus
-            .with_node::<HostLink, _>(link, |l, ctx| l.submit(ctx, bytes, Speed::S400))
-        else {
+        let Ok(token) = HostLink::submit_on(&mut self.bus, link, &bytes, Speed::S400) else {
             return Handled::Dropped(DropReason::BusFailure);
         };
         self.transactions.sent();

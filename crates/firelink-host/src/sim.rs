@@ -152,15 +152,15 @@ impl SimPort {
             }
             return Err(self.wait_out(&expect, self.bus.now()));
         }
-        // The bus owns the packets it carries (as a link owns its FIFO).
-        let packet = buf.to_vec();
+        // The link copies the packet into its FIFO (the simulated
+        // hardware's memory): this port allocates nothing per packet.
         let speed = if expect.dest.is_broadcast() {
             self.broadcast_speed
         } else {
             self.speed
         };
         let host = self.host;
-        let token = HostLink::submit_on(&mut self.bus, host, packet, speed).map_err(|_| {
+        let token = HostLink::submit_on(&mut self.bus, host, buf, speed).map_err(|_| {
             HostError::InvalidRequest {
                 what: "the simulated bus has no host link",
                 value: host.0 as u32,
