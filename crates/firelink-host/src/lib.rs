@@ -7,7 +7,7 @@
 //! read with a broadcast write, and seed 000's broadcast query / hub read /
 //! broadcast command protocol.
 //!
-//! - [`port`]: the one narrow [`Port`](port::Port) trait.
+//! - [`port`]: the one narrow [`Port`] trait, and the link filters wrappers use.
 //! - [`transaction`]: labels, generation and response matching, once for
 //!   every link.
 //! - [`udp`]: the Ethernet bridge port.

@@ -48,7 +48,7 @@ pub enum WebError {
 /// Options of `firelink web`.
 #[derive(Debug, Clone)]
 pub struct WebOptions {
-    /// Where the boards are (sim, emulate or udp:HOST[:PORT]).
+    /// Where the boards are (`sim`, `emulate` or `udp:HOST[:PORT]`).
     pub port: DemoPort,
     /// The robot configuration (default: seed 000's dVRK).
     pub config: Option<PathBuf>,

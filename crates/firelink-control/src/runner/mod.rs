@@ -393,7 +393,7 @@ impl<P: Port> Robot<P> {
         self.joints.get(i).map(|j| j.position)
     }
 
-    /// Joint `i`'s estimated velocity, rad/s or m/s (see [`velocity`]: the
+    /// Joint `i`'s estimated velocity, rad/s or m/s (over the
     /// measured time span of the last few cycles, late ones included).
     pub fn velocity(&self, i: usize) -> Option<f64> {
         self.joints.get(i).map(|j| j.velocity.velocity())
