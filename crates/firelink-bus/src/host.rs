@@ -45,6 +45,18 @@ pub enum Outcome {
     BusReset,
 }
 
+impl Outcome {
+    /// How a transaction whose response arrived ends: complete, or
+    /// corrupt when its data CRC failed (`data_ok` false).
+    fn of_response(data_ok: bool) -> Outcome {
+        if data_ok {
+            Outcome::Complete
+        } else {
+            Outcome::ResponseCorrupt
+        }
+    }
+}
+
 /// One finished transaction.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Completion {
@@ -401,12 +413,7 @@ impl Node for HostLink {
             if let Some(p) = self.pending.get_mut(&token) {
                 p.response = Some((packet.to_vec(), data_ok));
                 if p.awaiting_response {
-                    let outcome = if data_ok {
-                        Outcome::Complete
-                    } else {
-                        Outcome::ResponseCorrupt
-                    };
-                    self.finish(token, now, outcome, ctx);
+                    self.finish(token, now, Outcome::of_response(data_ok), ctx);
                 }
             }
             return RxReply::Ack(if data_ok {
@@ -449,28 +456,15 @@ impl Node for HostLink {
         let broadcast = p.destination.is_broadcast() || p.tcode == Tcode::LinkInternal;
         match ack {
             None if broadcast => self.finish(token, now, Outcome::Complete, ctx),
-            None => {
-                // A lost ack may still be followed by the response.
-                if let Some((_, ok)) = p.response {
-                    let outcome = if ok {
-                        Outcome::Complete
-                    } else {
-                        Outcome::ResponseCorrupt
-                    };
-                    self.finish(token, now, outcome, ctx);
-                } else {
-                    self.finish(token, now, Outcome::NoAck, ctx);
-                }
-            }
+            // A lost ack may still be followed by the response.
+            None => match p.response {
+                Some((_, ok)) => self.finish(token, now, Outcome::of_response(ok), ctx),
+                None => self.finish(token, now, Outcome::NoAck, ctx),
+            },
             Some(Ack::Complete) => self.finish(token, now, Outcome::Complete, ctx),
             Some(Ack::Pending) => {
                 if let Some((_, ok)) = p.response {
-                    let outcome = if ok {
-                        Outcome::Complete
-                    } else {
-                        Outcome::ResponseCorrupt
-                    };
-                    self.finish(token, now, outcome, ctx);
+                    self.finish(token, now, Outcome::of_response(ok), ctx);
                 } else {
                     p.awaiting_response = true;
                     ctx.set_timer(now + self.split_timeout, token);

@@ -31,6 +31,7 @@ use std::time::{Duration, Instant};
 use firelink_bus::host::Outcome;
 use firelink_bus::{Bus, HostLink, NodeHandle, SimDuration, SimTime};
 use firelink_host::transaction::{CrcCheck, Expect, LinkStats, Transactions};
+use firelink_host::udp::is_wait_over;
 use firelink_host::{Dest, HostError};
 use firelink_wire::bridge::{ExtraData, ExtraFlags, split_host_datagram};
 use firelink_wire::packet::{NodeId, Packet, Speed, Tcode};
@@ -455,15 +456,9 @@ pub fn serve(
                     }
                     Ok(())
                 }
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::WouldBlock
-                            | std::io::ErrorKind::TimedOut
-                            | std::io::ErrorKind::Interrupted
-                            | std::io::ErrorKind::ConnectionRefused
-                    ) =>
-                {
+                // A host that went away (ICMP port unreachable) is no
+                // reason to stop serving the others.
+                Err(e) if is_wait_over(&e) || e.kind() == std::io::ErrorKind::ConnectionRefused => {
                     Ok(())
                 }
                 Err(e) => Err(e),

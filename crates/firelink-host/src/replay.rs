@@ -30,7 +30,7 @@ use firelink_wire::pcap::{Direction, Records};
 
 use crate::error::{HostError, Result};
 use crate::port::{Dest, Port};
-use crate::transaction::{CrcCheck, Expect, LinkStats, Transactions};
+use crate::transaction::{CrcCheck, Expect, LinkStats, Transactions, copy_answer};
 
 /// One recorded packet.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -189,21 +189,7 @@ impl ReplayPort {
             self.next += 1;
             let bytes = entry.bytes.clone();
             if let Ok(packet) = self.transactions.accept(&bytes, expect, crc)? {
-                let quadlet = packet.quadlet_data().to_be_bytes();
-                let data: &[u8] = if expect.tcode == Tcode::ReadQuadletResponse {
-                    &quadlet
-                } else {
-                    packet.payload()
-                };
-                if data.len() != out.len() {
-                    return Err(HostError::Wire(firelink_wire::Error::BlockSize {
-                        what: "response payload",
-                        expected: out.len() / 4,
-                        found: data.len() / 4,
-                    }));
-                }
-                out.copy_from_slice(data);
-                return Ok(());
+                return copy_answer(&packet, expect, out);
             }
         }
         // No answer came in the recording: the recorded port timed out

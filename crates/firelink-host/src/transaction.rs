@@ -393,6 +393,30 @@ impl Transactions {
     }
 }
 
+/// Copy what the accepted answer `packet` to `expect` carries into `out`:
+/// the quadlet of a quadlet read, the payload of a block read.
+///
+/// # Errors
+/// [`HostError::Wire`] with [`firelink_wire::Error::BlockSize`] when that is
+/// not `out.len()` bytes.
+pub fn copy_answer(packet: &Packet<&[u8]>, expect: &Expect, out: &mut [u8]) -> Result<()> {
+    let quadlet = packet.quadlet_data().to_be_bytes();
+    let data: &[u8] = if expect.tcode == Tcode::ReadQuadletResponse {
+        &quadlet
+    } else {
+        packet.payload()
+    };
+    if data.len() != out.len() {
+        return Err(HostError::Wire(firelink_wire::Error::BlockSize {
+            what: "response payload",
+            expected: out.len() / 4,
+            found: data.len() / 4,
+        }));
+    }
+    out.copy_from_slice(data);
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -17,11 +17,11 @@ use std::time::{Duration, Instant};
 
 use firelink_wire::board::address::{BoardRegister, Register};
 use firelink_wire::bridge::{ControlWord, EXTRA_DATA_LEN, ExtraData};
-use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr, Tcode};
+use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
 
 use crate::error::{HostError, Result};
 use crate::port::{Dest, LinkFilter, LinkFilters, Port, Verdict};
-use crate::transaction::{CrcCheck, Expect, LinkStats, Transactions};
+use crate::transaction::{CrcCheck, Expect, LinkStats, Transactions, copy_answer};
 
 /// Source node ID the reference host uses (`fpga-board.md` §8).
 pub const HOST_SOURCE_ID: NodeId = NodeId(0xFFD0);
@@ -204,14 +204,7 @@ impl UdpPort {
                     self.transactions.refused_unmatched();
                     continue;
                 }
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::WouldBlock
-                            | std::io::ErrorKind::TimedOut
-                            | std::io::ErrorKind::Interrupted
-                    ) =>
-                {
+                Err(e) if is_wait_over(&e) => {
                     continue;
                 }
                 Err(e) => return Err(e.into()),
@@ -257,6 +250,17 @@ impl UdpPort {
     }
 }
 
+/// Whether a socket error only says that nothing arrived in time (or the
+/// wait was interrupted): the caller waits on, it is not a failure.
+pub fn is_wait_over(e: &std::io::Error) -> bool {
+    matches!(
+        e.kind(),
+        std::io::ErrorKind::WouldBlock
+            | std::io::ErrorKind::TimedOut
+            | std::io::ErrorKind::Interrupted
+    )
+}
+
 /// One datagram from a bridge board, judged against the open request
 /// `expect`: the response packet, then 8 bytes of extra data (which carry
 /// the bus generation, adopted through the engine). The UDP port's whole
@@ -294,20 +298,7 @@ pub fn judge_reply(
     let Ok(packet) = transactions.accept(packet_bytes, expect, crc)? else {
         return Ok(None);
     };
-    let quadlet = packet.quadlet_data().to_be_bytes();
-    let data: &[u8] = if expect.tcode == Tcode::ReadQuadletResponse {
-        &quadlet
-    } else {
-        packet.payload()
-    };
-    if data.len() != out.len() {
-        return Err(HostError::Wire(firelink_wire::Error::BlockSize {
-            what: "response payload",
-            expected: out.len() / 4,
-            found: data.len() / 4,
-        }));
-    }
-    out.copy_from_slice(data);
+    copy_answer(&packet, expect, out)?;
     transactions.observe_generation(u32::from(extra.generation));
     Ok(Some(extra))
 }

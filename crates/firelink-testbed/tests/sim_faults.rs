@@ -21,16 +21,19 @@ fn seed(boards: usize) -> SimOptions {
     SimOptions::new(boards, Profile::Seed, Protocol::Broadcast)
 }
 
+/// The boards' status broadcasts (block writes to node 63), but the first
+/// `skip`.
+fn status_broadcasts(skip: u64) -> PacketMatch {
+    PacketMatch::any()
+        .tcode(Tcode::WriteBlockRequest)
+        .to_phy(63)
+        .skip(skip)
+}
+
 #[test]
 fn drop_broadcast_is_detected_by_the_host_hub_check() {
     let mut cfg = seed(4);
-    cfg.faults = FaultPlan::new().once(
-        PacketMatch::any()
-            .tcode(Tcode::WriteBlockRequest)
-            .to_phy(63)
-            .skip(1),
-        PacketFault::Drop,
-    );
+    cfg.faults = FaultPlan::new().once(status_broadcasts(1), PacketFault::Drop);
     let mut run = run(&cfg);
     assert_eq!(run.report.boards_ok, 3);
     assert!(
@@ -71,10 +74,7 @@ fn corrupt_query_is_noticed_by_every_board() {
 fn delayed_status_broadcast_arrives_late_and_boards_notice() {
     let mut cfg = seed(4);
     cfg.faults = FaultPlan::new().once(
-        PacketMatch::any()
-            .tcode(Tcode::WriteBlockRequest)
-            .to_phy(63)
-            .skip(1),
+        status_broadcasts(1),
         PacketFault::Delay(SimDuration::from_micros(8)),
     );
     let base = run(&seed(4)).report;
@@ -103,12 +103,7 @@ fn delayed_status_broadcast_arrives_late_and_boards_notice() {
 fn duplicated_status_broadcast_is_stored_once() {
     // A duplicated status broadcast: every board caches it once.
     let mut cfg = seed(3);
-    cfg.faults = FaultPlan::new().once(
-        PacketMatch::any()
-            .tcode(Tcode::WriteBlockRequest)
-            .to_phy(63),
-        PacketFault::Duplicate,
-    );
+    cfg.faults = FaultPlan::new().once(status_broadcasts(0), PacketFault::Duplicate);
     let report = run(&cfg).report;
     assert_eq!(report.boards_ok, 3);
     assert!(report.faults[0].detected());
