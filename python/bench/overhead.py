@@ -2,7 +2,7 @@
 from Python against the same cycles run in a Rust loop (``run_cycles``),
 side by side in one process, interleaved, medians of several rounds.
 
-    python bench/overhead.py [--port loopback|sim] [--cycles 20000] [--rounds 7]
+    python bench/overhead.py [--port sim|udp:HOST[:PORT]] [--cycles 2000] [--rounds 7]
 
 Build the package in release mode first (``maturin develop --release``);
 the figures go to BENCHMARKS.md.
@@ -41,8 +41,8 @@ def python_loop_with_arrays(io: firelink.IoSystem, n: int) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--port", default="loopback")
-    parser.add_argument("--cycles", type=int, default=20000)
+    parser.add_argument("--port", default="sim")
+    parser.add_argument("--cycles", type=int, default=2000)
     parser.add_argument("--rounds", type=int, default=7)
     args = parser.parse_args()
     io = firelink.IoSystem(args.port)
