@@ -1,6 +1,6 @@
 //! The phase tables of `firelink sim`, pinned.
 //!
-//! `data/sim_phases.json` holds what `firelink sim --json` printed for 221
+//! `data/sim_phases.json` holds what `firelink sim --json` printed for 226
 //! configurations before the simulation moved onto the emulated boards and
 //! the host library (issue 10): every profile (seed, rev7, rev8), both
 //! protocols, 1 to 16 boards, wire time only and with the seed-000 PC
