@@ -140,14 +140,24 @@ impl Instrument {
     /// the model, version and name at their offsets, erased (`0xFF`)
     /// elsewhere.
     pub fn memory_image(&self) -> Vec<u8> {
+        fn put(m: &mut [u8], at: usize, bytes: &[u8]) {
+            for (slot, b) in m.iter_mut().skip(at).zip(bytes) {
+                *slot = *b;
+            }
+        }
         let mut m = vec![0xFF; Self::MEMORY_BYTES];
-        m[..3].copy_from_slice(b"997");
-        m[Self::MODEL_AT..Self::MODEL_AT + 4].copy_from_slice(&self.model.to_be_bytes());
-        m[Self::VERSION_AT] = self.version;
+        put(&mut m, 0, b"997");
+        put(&mut m, Self::MODEL_AT, &self.model.to_be_bytes());
+        put(&mut m, Self::VERSION_AT, &[self.version]);
+        // The name and its terminator stay inside the name field.
         let room = Self::NAME_END - Self::NAME_AT - 1;
-        let name = &self.name.as_bytes()[..self.name.len().min(room)];
-        m[Self::NAME_AT..Self::NAME_AT + name.len()].copy_from_slice(name);
-        m[Self::NAME_AT + name.len()] = 0;
+        let name: Vec<u8> = self
+            .name
+            .bytes()
+            .take(room)
+            .chain(core::iter::once(0))
+            .collect();
+        put(&mut m, Self::NAME_AT, &name);
         m
     }
 }
