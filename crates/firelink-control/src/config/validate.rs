@@ -456,23 +456,22 @@ fn check_simulation(c: &mut Checker<'_>, sp: &str, s: &SimulationConfig, e: &Enc
         let lo = c.finite(&format!("{hp}.lower"), h.lower);
         let hi = c.finite(&format!("{hp}.upper"), h.upper);
         let soft = e.position_limits_soft;
-        if lo && hi {
-            if h.lower > soft.lower || h.upper < soft.upper {
-                c.push(
-                    hp,
-                    Problem::OutOfRange {
-                        value: if h.lower > soft.lower {
-                            h.lower
-                        } else {
-                            h.upper
-                        },
-                        expected: format!(
-                            "stops at or beyond encoder.position_limits_soft [{}, {}]",
-                            soft.lower, soft.upper
-                        ),
-                    },
-                );
-            }
+        if lo && hi && (h.lower > soft.lower || h.upper < soft.upper) {
+            let value = if h.lower > soft.lower {
+                h.lower
+            } else {
+                h.upper
+            };
+            c.push(
+                hp,
+                Problem::OutOfRange {
+                    value,
+                    expected: format!(
+                        "stops at or beyond encoder.position_limits_soft [{}, {}]",
+                        soft.lower, soft.upper
+                    ),
+                },
+            );
         }
     }
     if let Some(search) = s.homing.as_ref().and_then(|h| h.stop_search.as_ref()) {
