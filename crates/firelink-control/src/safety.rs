@@ -92,6 +92,9 @@ struct Timers {
 pub struct SafetyMonitor {
     limits: Vec<JointLimits>,
     timers: Vec<Timers>,
+    /// Per joint: following-error and saturation checks suspended (a
+    /// stop search pushes a joint into its stop on purpose).
+    stalling: Vec<bool>,
     latched: Option<FaultReport>,
 }
 
@@ -103,9 +106,11 @@ impl SafetyMonitor {
     /// A monitor for joints with `limits`, in the order samples will come.
     pub fn new(limits: Vec<JointLimits>) -> SafetyMonitor {
         let timers = vec![Timers::default(); limits.len()];
+        let stalling = vec![false; limits.len()];
         SafetyMonitor {
             limits,
             timers,
+            stalling,
             latched: None,
         }
     }
@@ -163,6 +168,20 @@ impl SafetyMonitor {
         self.timers.fill(Timers::default());
     }
 
+    /// Lets joint `joint` stall on purpose, or stops letting it: while
+    /// allowed, its following-error and current-saturation checks are
+    /// off (every other check stays). A stop search needs it: it drives
+    /// the joint into a mechanical stop until the following error is
+    /// large. Out-of-range joints are ignored.
+    pub fn allow_stall(&mut self, joint: usize, allowed: bool) {
+        if let Some(s) = self.stalling.get_mut(joint) {
+            *s = allowed;
+        }
+        if let Some(t) = self.timers.get_mut(joint) {
+            *t = Timers::default();
+        }
+    }
+
     /// Checks one cycle at time `now` (seconds) and cycle number `cycle`;
     /// `samples[i]` is joint *i*. Returns the first fault, or the latched one.
     /// A sample list of the wrong length is checked as far as it goes and the
@@ -181,6 +200,7 @@ impl SafetyMonitor {
         let now_ok = now.is_finite();
         for (i, (lim, timers)) in self.limits.iter().zip(self.timers.iter_mut()).enumerate() {
             let joint = lim.label;
+            let stalling = self.stalling.get(i).copied().unwrap_or(false);
             let Some(s) = samples.get(i) else {
                 return Some(FaultKind::InvalidValue {
                     joint,
@@ -219,7 +239,7 @@ impl SafetyMonitor {
                     limit,
                 });
             }
-            if let Some(limit) = lim.following_error {
+            if let Some(limit) = lim.following_error.filter(|_| !stalling) {
                 let error = s.setpoint - s.position;
                 if lasting(
                     &mut timers.following_since,
@@ -236,7 +256,7 @@ impl SafetyMonitor {
                     });
                 }
             }
-            if let Some(limit) = lim.saturation_time {
+            if let Some(limit) = lim.saturation_time.filter(|_| !stalling) {
                 let saturated = s.current.abs() >= lim.maximum_current - SATURATION_SLACK;
                 if let Some(duration) = lasting(&mut timers.saturated_since, saturated, now, limit)
                 {
