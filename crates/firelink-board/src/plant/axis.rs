@@ -122,7 +122,8 @@ impl Axis {
 
     /// The current the DAC code commands (before limits), A.
     pub fn commanded_current(&self) -> f64 {
-        (f64::from(self.dac) - f64::from(DAC_ZERO)) * self.params.amplifier.amps_per_bit
+        (f64::from(self.dac) - f64::from(self.params.amplifier.zero_code))
+            * self.params.amplifier.amps_per_bit
     }
 
     /// The true motor current, A.

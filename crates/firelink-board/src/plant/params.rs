@@ -26,8 +26,12 @@ pub const POT_FULL_SCALE_VOLTS: f64 = 4.5;
 /// limit and a first-order current-loop bandwidth, limited by the supply.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AmplifierParams {
-    /// Commanded amperes per DAC count away from [`DAC_ZERO`].
+    /// Commanded amperes per DAC count away from `zero_code`.
     pub amps_per_bit: f64,
+    /// The DAC code at which this amplifier delivers no current: nominally
+    /// [`DAC_ZERO`], a few counts off on a real QLA (what a calibrated
+    /// configuration's `current_to_bits.offset` records).
+    pub zero_code: u16,
     /// Largest current magnitude the amplifier delivers, A.
     pub current_limit: f64,
     /// Closed-loop current bandwidth, Hz (first order).
@@ -217,6 +221,7 @@ impl Default for AmplifierParams {
     fn default() -> Self {
         AmplifierParams {
             amps_per_bit: QLA_AMPS_PER_BIT,
+            zero_code: DAC_ZERO,
             current_limit: QLA_FULL_SCALE_AMPS,
             bandwidth_hz: 2_000.0,
             supply_voltage: 24.0,

@@ -698,9 +698,10 @@ pub enum StopSide {
 }
 
 /// Homing by a stop search, as the dVRK console homes the MTM roll: move
-/// at constant velocity towards a mechanical stop until the joint stalls
-/// (the following error passes `stall_error`), declare the encoder to read
-/// `stop_position` there, then move freely back.
+/// at constant velocity (reached with a bounded acceleration) towards a
+/// mechanical stop until the joint stalls (the following error passes
+/// `stall_error`), declare the encoder to read `stop_position` there, then
+/// move freely back.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct StopSearchConfig {
@@ -708,6 +709,8 @@ pub struct StopSearchConfig {
     pub side: StopSide,
     /// Search speed (> 0, rad/s or m/s).
     pub velocity: f64,
+    /// Acceleration to that speed (> 0, rad/s² or m/s²).
+    pub acceleration: f64,
     /// Following error that means the joint stalled against the stop (> 0).
     pub stall_error: f64,
     /// Where the stop is (rad or m): the encoder reads this once found.

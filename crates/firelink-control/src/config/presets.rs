@@ -630,7 +630,9 @@ fn mtm_coupling() -> Vec<Vec<f64>> {
 /// A stock Classic MTMR: JHU's research kit MTMR (serial 28247) on boards
 /// 2-3 as the dVRK numbers them, its pots on the joints (coupling), the
 /// wrist roll homed by a stop search against its lower stop at -480
-/// degrees, as the dVRK console does.
+/// degrees, as the dVRK console does (360 degrees/s reached at 360
+/// degrees/s², stall declared at half a turn of following error, at most
+/// 3.25 turns of travel).
 pub fn stock_mtmr() -> IoConfig {
     let mut axes = mtm_axes(false);
     if let Some(roll) = axes.get_mut(6) {
@@ -638,6 +640,7 @@ pub fn stock_mtmr() -> IoConfig {
         roll.stop_search = Some(StopSearchConfig {
             side: StopSide::Lower,
             velocity: round_to(2.0 * PI, 6),
+            acceleration: round_to(2.0 * PI, 6),
             stall_error: round_to(PI, 6),
             stop_position: round_to(-480.0 * DEG, 12),
             max_travel: round_to(6.5 * PI, 6),

@@ -477,6 +477,7 @@ fn check_simulation(c: &mut Checker<'_>, sp: &str, s: &SimulationConfig, e: &Enc
     if let Some(search) = s.homing.as_ref().and_then(|h| h.stop_search.as_ref()) {
         let p = format!("{sp}.homing.stop_search");
         c.positive(&format!("{p}.velocity"), search.velocity);
+        c.positive(&format!("{p}.acceleration"), search.acceleration);
         c.positive(&format!("{p}.stall_error"), search.stall_error);
         c.positive(&format!("{p}.max_travel"), search.max_travel);
         c.finite(&format!("{p}.stop_position"), search.stop_position);

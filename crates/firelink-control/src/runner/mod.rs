@@ -47,7 +47,7 @@ use crate::label::{BoardSet, Label};
 use crate::lifecycle::{Lifecycle, LifecycleError, PowerStatus, State};
 use crate::pid::{Measurement, Pid, PidError, PidGains, Setpoint};
 use crate::safety::{JointSample, SafetyMonitor};
-use crate::trajectory::{Motion, ServoPoint};
+use crate::trajectory::{Motion, PointToPoint};
 
 /// How cycles are paced.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -1094,11 +1094,11 @@ impl<P: Port> Robot<P> {
     }
 
     /// Home joint `i` by a stop search, as the dVRK console homes the MTM
-    /// roll: from where it is, its setpoint moves at the configured
-    /// constant velocity towards the stop (the other joints hold) with its
-    /// following-error and current-saturation checks off, until the
-    /// following error passes `stall_error`: the joint has stalled against
-    /// the stop. The encoder is then declared to read `stop_position` (the
+    /// roll: from where it is, its setpoint moves towards the stop at the
+    /// configured constant velocity, reached with the configured
+    /// acceleration (the other joints hold), with its following-error and
+    /// current-saturation checks off, until the following error passes
+    /// `stall_error`: the joint has stalled against the stop. The encoder is then declared to read `stop_position` (the
     /// joint's offset changes), the joint holds there and its checks are
     /// back on; a move away from the stop is free. `each` is called after
     /// every cycle.
@@ -1127,14 +1127,19 @@ impl<P: Port> Robot<P> {
             StopSide::Lower => -1.0,
             StopSide::Upper => 1.0,
         };
-        let horizon = search.max_travel / search.velocity;
-        let point = ServoPoint::new(j.position, direction * search.velocity, horizon)
-            .map_err(|e| RunnerError::Config(format!("{}: stop search: {e:?}", j.label)))?;
         let start = j.position;
+        let search_move = PointToPoint::new(
+            start,
+            start + direction * search.max_travel,
+            search.velocity,
+            search.acceleration,
+        )
+        .map_err(|e| RunnerError::Config(format!("{}: stop search: {e:?}", j.label)))?;
+        let horizon = search_move.duration();
         let started = self.now();
         self.safety.allow_stall(i, true);
         let found = self
-            .set_motion(i, Motion::Servo(point))
+            .set_motion(i, Motion::PointToPoint(search_move))
             .and_then(|()| self.run_search(i, &search, started, horizon, each));
         self.safety.allow_stall(i, false);
         let (stalled_at, following_error, commanded_current, duration) = found?;
