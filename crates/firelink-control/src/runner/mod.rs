@@ -125,6 +125,15 @@ pub enum RunnerError {
     Timeout(&'static str),
 }
 
+/// A joint's pot position from the pot's ADC bits (NaN without a pot or
+/// a reading).
+fn pot_position(j: &Joint, bits: Option<u16>) -> f64 {
+    match (j.pot, bits) {
+        (Some(p), Some(bits)) => p.bits_to_position(bits),
+        _ => f64::NAN,
+    }
+}
+
 /// Why a stop search failed.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum StopSearchProblem {
@@ -172,7 +181,6 @@ struct Joint {
     drive: DriveConfig,
     encoder: EncoderConfig,
     pot: Option<PotentiometerConfig>,
-    stop_search: Option<StopSearchConfig>,
     prismatic: bool,
     motion: Motion,
     motion_start: f64,
@@ -288,6 +296,9 @@ pub struct Robot<P: Port> {
     /// (t, s, w); empty when no robot has a pot coupling (then `pot` is
     /// `raw_pot`).
     pot_mix: Vec<(usize, usize, f64)>,
+    /// Per joint: its stop search, if it homes by one (kept out of the
+    /// cycle's data).
+    stop_searches: Vec<Option<StopSearchConfig>>,
     pot: Vec<f64>,
     enc: Vec<f64>,
     times: CycleTimes,
@@ -360,10 +371,6 @@ impl<P: Port> Robot<P> {
                 drive: a.drive,
                 encoder: a.encoder,
                 pot: a.potentiometer,
-                stop_search: a
-                    .simulation
-                    .and_then(|s| s.homing)
-                    .and_then(|h| h.stop_search),
                 prismatic: a.joint_type == Some(JointType::Prismatic),
                 motion: Motion::Hold(0.0),
                 motion_start: 0.0,
@@ -411,6 +418,15 @@ impl<P: Port> Robot<P> {
             sample_clock: vec![0.0; MAX_BOARDS],
             raw_pot: vec![0.0; n],
             pot_mix,
+            stop_searches: config
+                .joints()
+                .map(|j| {
+                    j.actuator
+                        .simulation
+                        .and_then(|s| s.homing)
+                        .and_then(|h| h.stop_search)
+                })
+                .collect(),
             pot: vec![0.0; n],
             enc: vec![0.0; n],
             times: CycleTimes {
@@ -937,35 +953,31 @@ impl<P: Port> Robot<P> {
         }
     }
 
-    /// Every joint's pot position, in actuator space (through the pot
-    /// coupling where a robot has one).
-    fn read_pots(&mut self) {
+    /// Pots mounted on joints: every joint's pot position read, then
+    /// turned into actuator space through the robots' pot couplings.
+    fn read_coupled_pots(&mut self) {
         for (raw, j) in self.raw_pot.iter_mut().zip(&self.joints) {
             let bits = self
                 .io
                 .boards()
                 .get(j.board)
                 .and_then(|b| b.pot_bits(j.axis));
-            *raw = match (j.pot, bits) {
-                (Some(p), Some(bits)) => p.bits_to_position(bits),
-                _ => f64::NAN,
-            };
+            *raw = pot_position(j, bits);
         }
-        if self.pot_mix.is_empty() {
-            self.pot.copy_from_slice(&self.raw_pot);
-        } else {
-            self.pot.fill(0.0);
-            for &(t, s, w) in &self.pot_mix {
-                if let (Some(p), Some(r)) = (self.pot.get_mut(t), self.raw_pot.get(s)) {
-                    *p += w * r;
-                }
+        self.pot.fill(0.0);
+        for &(t, s, w) in &self.pot_mix {
+            if let (Some(p), Some(r)) = (self.pot.get_mut(t), self.raw_pot.get(s)) {
+                *p += w * r;
             }
         }
     }
 
     fn compute(&mut self, now: f64, dt: f64) {
         let active = self.life.state() == State::Active;
-        self.read_pots();
+        let coupled = !self.pot_mix.is_empty();
+        if coupled {
+            self.read_coupled_pots();
+        }
         for (i, j) in self.joints.iter_mut().enumerate() {
             let Some(b) = self.io.boards().get(j.board) else {
                 continue;
@@ -973,7 +985,14 @@ impl<P: Port> Robot<P> {
             let counts = b.encoder_counts(j.axis).unwrap_or(0);
             let raw = j.encoder.counts_to_position(i64::from(counts));
             let pos = raw + j.offset;
-            let pot = self.pot.get(i).copied().unwrap_or(f64::NAN);
+            let pot = match self.pot.get_mut(i) {
+                Some(p) if coupled => *p,
+                Some(p) => {
+                    *p = pot_position(j, b.pot_bits(j.axis));
+                    *p
+                }
+                None => f64::NAN,
+            };
             let sampled = self.sample_clock.get(j.board).copied().unwrap_or(now);
             let velocity = j.velocity.update(sampled, pos);
             j.position = pos;
@@ -1077,10 +1096,10 @@ impl<P: Port> Robot<P> {
 
     /// The joints whose configuration homes them by a stop search.
     pub fn stop_search_joints(&self) -> impl Iterator<Item = usize> + '_ {
-        self.joints
+        self.stop_searches
             .iter()
             .enumerate()
-            .filter(|(_, j)| j.stop_search.is_some())
+            .filter(|(_, s)| s.is_some())
             .map(|(i, _)| i)
     }
 
@@ -1117,7 +1136,7 @@ impl<P: Port> Robot<P> {
             .joints
             .get(i)
             .ok_or_else(|| RunnerError::Config(format!("no joint {i}")))?;
-        let Some(search) = j.stop_search else {
+        let Some(search) = self.stop_searches.get(i).copied().flatten() else {
             return Err(RunnerError::StopSearch {
                 joint: j.label,
                 problem: StopSearchProblem::NotConfigured,
