@@ -95,6 +95,8 @@ pub struct SafetyMonitor {
     /// Per joint: following-error and saturation checks suspended (a
     /// stop search pushes a joint into its stop on purpose).
     stalling: Vec<bool>,
+    /// Whether any joint may stall (the common case, none, costs nothing).
+    any_stalling: bool,
     latched: Option<FaultReport>,
 }
 
@@ -111,6 +113,7 @@ impl SafetyMonitor {
             limits,
             timers,
             stalling,
+            any_stalling: false,
             latched: None,
         }
     }
@@ -177,6 +180,7 @@ impl SafetyMonitor {
         if let Some(s) = self.stalling.get_mut(joint) {
             *s = allowed;
         }
+        self.any_stalling = self.stalling.iter().any(|&s| s);
         if let Some(t) = self.timers.get_mut(joint) {
             *t = Timers::default();
         }
@@ -200,7 +204,7 @@ impl SafetyMonitor {
         let now_ok = now.is_finite();
         for (i, (lim, timers)) in self.limits.iter().zip(self.timers.iter_mut()).enumerate() {
             let joint = lim.label;
-            let stalling = self.stalling.get(i).copied().unwrap_or(false);
+            let stalling = self.any_stalling && self.stalling.get(i).copied().unwrap_or(false);
             let Some(s) = samples.get(i) else {
                 return Some(FaultKind::InvalidValue {
                     joint,

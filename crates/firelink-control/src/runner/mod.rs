@@ -127,6 +127,7 @@ pub enum RunnerError {
 
 /// A joint's pot position from the pot's ADC bits (NaN without a pot or
 /// a reading).
+#[inline]
 fn pot_position(j: &Joint, bits: Option<u16>) -> f64 {
     match (j.pot, bits) {
         (Some(p), Some(bits)) => p.bits_to_position(bits),
@@ -985,19 +986,19 @@ impl<P: Port> Robot<P> {
             let counts = b.encoder_counts(j.axis).unwrap_or(0);
             let raw = j.encoder.counts_to_position(i64::from(counts));
             let pos = raw + j.offset;
-            let pot = match self.pot.get_mut(i) {
-                Some(p) if coupled => *p,
-                Some(p) => {
-                    *p = pot_position(j, b.pot_bits(j.axis));
-                    *p
-                }
-                None => f64::NAN,
+            let pot = if coupled {
+                self.pot.get(i).copied().unwrap_or(f64::NAN)
+            } else {
+                pot_position(j, b.pot_bits(j.axis))
             };
             let sampled = self.sample_clock.get(j.board).copied().unwrap_or(now);
             let velocity = j.velocity.update(sampled, pos);
             j.position = pos;
             if let Some(e) = self.enc.get_mut(i) {
                 *e = raw;
+            }
+            if let Some(p) = self.pot.get_mut(i).filter(|_| !coupled) {
+                *p = pot;
             }
             let mut amps = 0.0;
             if active {
