@@ -172,10 +172,12 @@ impl SafetyMonitor {
     }
 
     /// Lets joint `joint` stall on purpose, or stops letting it: while
-    /// allowed, its following-error and current-saturation checks are
-    /// off (every other check stays). A stop search needs it: it drives
-    /// the joint into a mechanical stop until the following error is
-    /// large. Out-of-range joints are ignored.
+    /// allowed, its position-limit, following-error and current-saturation
+    /// checks are off (every other check stays). A stop search needs it: it
+    /// drives the joint past its soft limit into a mechanical stop until
+    /// the following error is large (the dVRK console likewise stops
+    /// enforcing position limits and tracking errors then). Out-of-range
+    /// joints are ignored.
     pub fn allow_stall(&mut self, joint: usize, allowed: bool) {
         if let Some(s) = self.stalling.get_mut(joint) {
             *s = allowed;
@@ -226,7 +228,7 @@ impl SafetyMonitor {
             if !now_ok {
                 return invalid("time");
             }
-            if let Some((lower, upper, margin)) = lim.position {
+            if let Some((lower, upper, margin)) = lim.position.filter(|_| !stalling) {
                 if !(lower - margin <= s.position && s.position <= upper + margin) {
                     return Some(FaultKind::PositionLimit {
                         joint,
@@ -387,6 +389,40 @@ mod tests {
         assert_eq!(m.check(1.0, 1000, &[ok()]), Some(r));
         m.reset();
         assert_eq!(m.check(1.0, 1000, &[ok()]), None);
+    }
+
+    #[test]
+    fn a_joint_allowed_to_stall_keeps_its_other_checks() {
+        let mut m = SafetyMonitor::new(vec![limits()]);
+        m.allow_stall(0, true);
+        m.allow_stall(7, true); // no such joint: ignored
+        // Pushed into a stop past its soft limit: large following error,
+        // saturated current, for a second.
+        let stalled = JointSample {
+            setpoint: -2.0,
+            position: -1.15,
+            current: -1.0,
+            potentiometer: Some(-1.15),
+            ..ok()
+        };
+        assert_eq!(run(&mut m, 0, 1000, stalled), None);
+        // The velocity and pot checks still run.
+        let fast = JointSample {
+            velocity: 3.0,
+            ..stalled
+        };
+        assert!(matches!(
+            run(&mut m, 1000, 1001, fast).map(|r| r.kind),
+            Some(FaultKind::Velocity { .. })
+        ));
+        // Allowed no more: the following error trips again.
+        let mut m = SafetyMonitor::new(vec![limits()]);
+        m.allow_stall(0, true);
+        m.allow_stall(0, false);
+        assert!(matches!(
+            run(&mut m, 0, 1000, stalled).map(|r| r.kind),
+            Some(FaultKind::PositionLimit { .. })
+        ));
     }
 
     #[test]

@@ -1116,9 +1116,10 @@ impl<P: Port> Robot<P> {
     /// Home joint `i` by a stop search, as the dVRK console homes the MTM
     /// roll: from where it is, its setpoint moves towards the stop at the
     /// configured constant velocity, reached with the configured
-    /// acceleration (the other joints hold), with its following-error and
-    /// current-saturation checks off, until the following error passes
-    /// `stall_error`: the joint has stalled against the stop. The encoder is then declared to read `stop_position` (the
+    /// acceleration (the other joints hold), with its position-limit,
+    /// following-error and current-saturation checks off, until the
+    /// following error passes `stall_error`: the joint has stalled against
+    /// the stop. The encoder is then declared to read `stop_position` (the
     /// joint's offset changes), the joint holds there and its checks are
     /// back on; a move away from the stop is free. `each` is called after
     /// every cycle.
