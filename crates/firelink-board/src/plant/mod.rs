@@ -1,7 +1,8 @@
 //! The physical plant behind a board: per axis a linear current amplifier,
-//! a DC motor with friction, a gear train and a load, a quadrature encoder,
-//! a potentiometer, current sense with seeded noise and the amplifier
-//! temperature.
+//! a DC motor with friction, a gear train and a load between mechanical
+//! stops, a quadrature encoder, a potentiometer (on its own joint or on a
+//! joint several axes move) with an electrical range, current sense with
+//! seeded noise and the amplifier temperature.
 //!
 //! Deterministic and driven by time passed in: [`Plant::advance_to`]
 //! integrates whole fixed sub-steps on the grid `k * step` up to `now`, so
