@@ -37,6 +37,20 @@ fn start_emulate(args: &[&str]) -> (std::process::Child, Lines, String) {
     (server, lines, format!("udp:{addr}"))
 }
 
+/// `firelink scan --json` of the boards at `port`.
+fn scan(port: &str) -> Value {
+    let out = firelink()
+        .args(["scan", "--port", port, "--json", "--timeout-ms", "100"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
 #[test]
 fn emulate_serves_each_stock_arm_configuration() {
     let configs = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs");
@@ -81,16 +95,7 @@ fn emulate_serves_each_stock_arm_configuration() {
 fn emulate_scan_read_and_clean_shutdown() {
     let (mut server, lines, port) = start_emulate(&["--boards", "3"]);
 
-    let out = firelink()
-        .args(["scan", "--port", &port, "--json", "--timeout-ms", "100"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = scan(&port);
     let boards = v["boards"].as_array().unwrap();
     assert_eq!(boards.len(), 3);
     for (i, b) in boards.iter().enumerate() {

@@ -12,9 +12,12 @@ use std::time::Duration;
 
 use firelink_board::config::Profile;
 use firelink_board::node::BoardNode;
+use firelink_board::plant::Axis;
+use firelink_bus::NodeHandle;
 use firelink_control::config::{IoConfig, presets};
 use firelink_host::Port;
 use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
+use firelink_host::sim::SimPort;
 use firelink_testbed::rig;
 
 /// One driven joint after the run.
@@ -29,6 +32,19 @@ struct Driven {
     measured: f64,
     /// Joint units per encoder count.
     resolution: f64,
+}
+
+/// The emulated axis behind (board ID, axis), as it is now.
+fn plant_axis(io: &IoSystem<SimPort>, handles: &[NodeHandle], board_id: u8, axis: usize) -> Axis {
+    io.port()
+        .bus()
+        .node::<BoardNode>(handles[usize::from(board_id)])
+        .unwrap()
+        .firmware()
+        .plant()
+        .axis(axis)
+        .unwrap()
+        .clone()
 }
 
 /// Drive `joints` (joint index, signed fraction of its maximum current)
@@ -48,7 +64,7 @@ fn drive(config: &IoConfig, joints: &[(usize, f64)], seconds: f64) -> Vec<Driven
             .position(|b| b.board_id() == board_id)
             .unwrap()
     };
-    let tick = |io: &mut IoSystem<firelink_host::sim::SimPort>| {
+    let tick = |io: &mut IoSystem<SimPort>| {
         io.read_all();
         io.write_all();
         io.port_mut().wait(Duration::from_millis(1));
@@ -68,16 +84,7 @@ fn drive(config: &IoConfig, joints: &[(usize, f64)], seconds: f64) -> Vec<Driven
             let b = &io.boards()[slot(a.board_id, &io)];
             let axis = usize::from(a.axis_id);
             let counts = b.encoder_counts(axis).unwrap();
-            let truth = io
-                .port()
-                .bus()
-                .node::<BoardNode>(handles[usize::from(a.board_id)])
-                .unwrap()
-                .firmware()
-                .plant()
-                .axis(axis)
-                .unwrap()
-                .joint_position();
+            let truth = plant_axis(&io, &handles, a.board_id, axis).joint_position();
             (a.encoder.counts_to_position(i64::from(counts)), truth)
         })
         .collect();
@@ -104,16 +111,7 @@ fn drive(config: &IoConfig, joints: &[(usize, f64)], seconds: f64) -> Vec<Driven
             let axis = usize::from(a.axis_id);
             assert!(b.amp_enabled(axis), "{}", j.label);
             let counts = b.encoder_counts(axis).unwrap();
-            let plant_axis = io
-                .port()
-                .bus()
-                .node::<BoardNode>(handles[usize::from(a.board_id)])
-                .unwrap()
-                .firmware()
-                .plant()
-                .axis(axis)
-                .unwrap()
-                .clone();
+            let plant_axis = plant_axis(&io, &handles, a.board_id, axis);
             let stops = plant_axis.params().stops;
             let soft = a.encoder.position_limits_soft;
             Driven {

@@ -352,7 +352,58 @@ fn psm_axes() -> Vec<Axis> {
         (2.0, 0.1, 0.05),
     ];
     let vmax = [1.5, 1.5, 0.2, 6.0, 6.0, 6.0, 6.0];
-    (0..7)
+    patient_side_axes(PatientSideArm {
+        direction: &direction,
+        counts_per_turn: &cpt,
+        gear_ratio: &gear,
+        torque_constant: &[0.0438; 7],
+        maximum_current: &imax,
+        lower: &lower,
+        upper: &upper,
+        plants: &plants,
+        gains: &gains,
+        velocity_limit: &vmax,
+        insertion_home: 50.0 * MM,
+    })
+}
+
+/// The per-joint facts of a patient-side arm (PSM, ECM), joint by joint;
+/// the third joint is the prismatic insertion.
+struct PatientSideArm<'a> {
+    direction: &'a [f64],
+    counts_per_turn: &'a [u32],
+    gear_ratio: &'a [f64],
+    torque_constant: &'a [f64],
+    maximum_current: &'a [f64],
+    lower: &'a [f64],
+    upper: &'a [f64],
+    plants: &'a [PlantPreset],
+    /// Joint-space PID gains.
+    gains: &'a [(f64, f64, f64)],
+    velocity_limit: &'a [f64],
+    /// Where the insertion joint homes, m (the others home at 0).
+    insertion_home: f64,
+}
+
+/// A patient-side arm's axes from its table (as many as its shortest
+/// column).
+fn patient_side_axes(t: PatientSideArm<'_>) -> Vec<Axis> {
+    let n = [
+        t.direction.len(),
+        t.counts_per_turn.len(),
+        t.gear_ratio.len(),
+        t.torque_constant.len(),
+        t.maximum_current.len(),
+        t.lower.len(),
+        t.upper.len(),
+        t.plants.len(),
+        t.gains.len(),
+        t.velocity_limit.len(),
+    ]
+    .into_iter()
+    .min()
+    .unwrap_or(0);
+    (0..n)
         .map(|i| {
             let prismatic = i == 2;
             Axis {
@@ -361,19 +412,19 @@ fn psm_axes() -> Vec<Axis> {
                 } else {
                     JointType::Revolute
                 },
-                direction: direction[i],
-                counts_per_turn: cpt[i],
-                gear_ratio: gear[i],
-                torque_constant: 0.0438,
-                maximum_current: imax[i],
-                lower: lower[i],
-                upper: upper[i],
+                direction: t.direction[i],
+                counts_per_turn: t.counts_per_turn[i],
+                gear_ratio: t.gear_ratio[i],
+                torque_constant: t.torque_constant[i],
+                maximum_current: t.maximum_current[i],
+                lower: t.lower[i],
+                upper: t.upper[i],
                 pot_tolerance: if prismatic { 5.0 * MM } else { 5.0 * DEG },
-                plant: plants[i],
-                effort_gains: gains[i],
-                velocity_limit: vmax[i],
+                plant: t.plants[i],
+                effort_gains: t.gains[i],
+                velocity_limit: t.velocity_limit[i],
                 following_error: if prismatic { 0.02 } else { 0.35 },
-                home: if prismatic { 50.0 * MM } else { 0.0 },
+                home: if prismatic { t.insertion_home } else { 0.0 },
                 pot_span: None,
                 current_offsets: (0.0, 0.0),
                 hard_stops: None,
@@ -538,35 +589,19 @@ fn ecm_axes() -> Vec<Axis> {
         (2.0, 0.1, 0.05),
     ];
     let vmax = [1.0, 1.0, 0.1, 2.0];
-    (0..4)
-        .map(|i| {
-            let prismatic = i == 2;
-            Axis {
-                joint_type: if prismatic {
-                    JointType::Prismatic
-                } else {
-                    JointType::Revolute
-                },
-                direction: direction[i],
-                counts_per_turn: cpt[i],
-                gear_ratio: gear[i],
-                torque_constant: kt[i],
-                maximum_current: imax[i],
-                lower: lower[i],
-                upper: upper[i],
-                pot_tolerance: if prismatic { 5.0 * MM } else { 5.0 * DEG },
-                plant: plants[i],
-                effort_gains: gains[i],
-                velocity_limit: vmax[i],
-                following_error: if prismatic { 0.02 } else { 0.35 },
-                home: if prismatic { 20.0 * MM } else { 0.0 },
-                pot_span: None,
-                current_offsets: (0.0, 0.0),
-                hard_stops: None,
-                stop_search: None,
-            }
-        })
-        .collect()
+    patient_side_axes(PatientSideArm {
+        direction: &direction,
+        counts_per_turn: &cpt,
+        gear_ratio: &gear,
+        torque_constant: &kt,
+        maximum_current: &imax,
+        lower: &lower,
+        upper: &upper,
+        plants: &plants,
+        gains: &gains,
+        velocity_limit: &vmax,
+        insertion_home: 20.0 * MM,
+    })
 }
 
 /// How far beyond the soft limits the stock configurations put the
