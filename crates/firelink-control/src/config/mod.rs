@@ -183,21 +183,22 @@ impl DvrkArm {
 
     /// Motorised actuators of the arm.
     pub fn actuators(self) -> usize {
+        self.plants().len()
+    }
+
+    /// The plants of the arm's actuators, in order.
+    pub fn plants(self) -> &'static [PlantPreset] {
+        use PlantPreset::*;
         match self {
-            DvrkArm::Mtm | DvrkArm::Psm => 7,
-            DvrkArm::Ecm => 4,
+            DvrkArm::Mtm => &[MtmJ1, MtmJ2, MtmJ3, MtmJ4, MtmJ5, MtmJ6, MtmJ7],
+            DvrkArm::Psm => &[PsmJ1, PsmJ2, PsmJ3, PsmJ4, PsmJ5, PsmJ6, PsmJ7],
+            DvrkArm::Ecm => &[EcmJ1, EcmJ2, EcmJ3, EcmJ4],
         }
     }
 
     /// The plant of actuator `index` (0-based); `None` beyond the arm.
     pub fn plant(self, index: usize) -> Option<PlantPreset> {
-        use PlantPreset::*;
-        let list: &[PlantPreset] = match self {
-            DvrkArm::Mtm => &[MtmJ1, MtmJ2, MtmJ3, MtmJ4, MtmJ5, MtmJ6, MtmJ7],
-            DvrkArm::Psm => &[PsmJ1, PsmJ2, PsmJ3, PsmJ4, PsmJ5, PsmJ6, PsmJ7],
-            DvrkArm::Ecm => &[EcmJ1, EcmJ2, EcmJ3, EcmJ4],
-        };
-        list.get(index).copied()
+        self.plants().get(index).copied()
     }
 }
 

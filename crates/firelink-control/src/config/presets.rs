@@ -265,15 +265,7 @@ fn mtm_axes(left: bool) -> Vec<Axis> {
     let gear = [63.41, 49.88, 59.73, 10.53, 33.16, 33.16, 16.58];
     let kt = [0.0438, 0.0438, 0.0438, 0.0438, 0.00495, 0.00495, 0.00339];
     let imax = [0.67, 0.67, 0.67, 0.67, 0.59, 0.59, 0.407];
-    let plants = [
-        PlantPreset::MtmJ1,
-        PlantPreset::MtmJ2,
-        PlantPreset::MtmJ3,
-        PlantPreset::MtmJ4,
-        PlantPreset::MtmJ5,
-        PlantPreset::MtmJ6,
-        PlantPreset::MtmJ7,
-    ];
+    let plants = DvrkArm::Mtm.plants();
     // Joint-space gains (N m/rad, N m/(rad s), N m s/rad).
     let gains = [
         (30.0, 1.0, 1.5),
@@ -333,15 +325,7 @@ fn psm_axes() -> Vec<Axis> {
         174.0 * DEG,
         174.0 * DEG,
     ];
-    let plants = [
-        PlantPreset::PsmJ1,
-        PlantPreset::PsmJ2,
-        PlantPreset::PsmJ3,
-        PlantPreset::PsmJ4,
-        PlantPreset::PsmJ5,
-        PlantPreset::PsmJ6,
-        PlantPreset::PsmJ7,
-    ];
+    let plants = DvrkArm::Psm.plants();
     let gains = [
         (60.0, 2.0, 3.0),
         (60.0, 2.0, 3.0),
@@ -360,7 +344,7 @@ fn psm_axes() -> Vec<Axis> {
         maximum_current: &imax,
         lower: &lower,
         upper: &upper,
-        plants: &plants,
+        plants,
         gains: &gains,
         velocity_limit: &vmax,
         insertion_home: 50.0 * MM,
@@ -576,12 +560,7 @@ fn ecm_axes() -> Vec<Axis> {
     let imax = [0.943, 0.943, 0.67, 0.59];
     let lower = [-90.0 * DEG, -45.0 * DEG, 0.0 * MM, -89.0 * DEG];
     let upper = [90.0 * DEG, 64.0 * DEG, 255.0 * MM, 89.0 * DEG];
-    let plants = [
-        PlantPreset::EcmJ1,
-        PlantPreset::EcmJ2,
-        PlantPreset::EcmJ3,
-        PlantPreset::EcmJ4,
-    ];
+    let plants = DvrkArm::Ecm.plants();
     let gains = [
         (100.0, 3.0, 8.0),
         (100.0, 3.0, 8.0),
@@ -597,7 +576,7 @@ fn ecm_axes() -> Vec<Axis> {
         maximum_current: &imax,
         lower: &lower,
         upper: &upper,
-        plants: &plants,
+        plants,
         gains: &gains,
         velocity_limit: &vmax,
         insertion_home: 20.0 * MM,
