@@ -280,3 +280,76 @@ pub fn notes(config: &IoConfig) -> Vec<String> {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firelink_board::config::Profile;
+    use firelink_control::config::{ToolConfig, presets};
+
+    #[test]
+    fn a_tool_in_the_configuration_reaches_the_psm_board() {
+        let mut config = presets::stock_psm1();
+        // As shipped: the sterile adapter on (bit 10), no instrument.
+        assert_eq!(input_lines(&config)[7], 1 << 10);
+        assert!(instruments(&config).is_empty());
+        if let Some(sim) = config.robots[0].simulation.as_mut() {
+            sim.tool = Some(ToolConfig {
+                name: "LARGE_NEEDLE_DRIVER".into(),
+                model: 400_006,
+                version: 12,
+            });
+        }
+        assert_eq!(input_lines(&config)[7], (1 << 10) | (1 << 7));
+        let boards = crate::rig::board_configs(&config, Profile::Rev8, 8);
+        let b7 = &boards[7];
+        assert_eq!(b7.input_lines, (1 << 10) | (1 << 7));
+        let tool = b7.instrument.as_ref().unwrap();
+        assert_eq!((tool.model, tool.version), (400_006, 12));
+        assert_eq!(&tool.memory_image()[..3], b"997");
+        assert!(boards[6].instrument.is_none());
+        // An input pressed when low reads high when its part is out.
+        config.digital_inputs = Some(serde_json::json!([
+            { "name": "PSM1_adapter", "board_id": 7, "bit_id": 10, "pressed_value": false },
+            { "name": "PSM1_tool", "board_id": 7, "bit_id": 7, "pressed_value": false }
+        ]));
+        if let Some(sim) = config.robots[0].simulation.as_mut() {
+            sim.tool = None;
+            sim.adapter = false;
+        }
+        assert_eq!(input_lines(&config)[7], (1 << 10) | (1 << 7));
+    }
+
+    #[test]
+    fn the_mtm_gripper_sits_after_the_last_actuator() {
+        let config = presets::stock_mtmr();
+        assert_eq!(gripper_slot(&config.robots[0]), Some((3, 3)));
+        let boards = crate::rig::board_configs(&config, Profile::Rev8, 4);
+        let gripper = &boards[3].axes[3];
+        assert_eq!(gripper.name, "MTM gripper");
+        assert!(!gripper.has_motor);
+        assert_eq!(gripper_slot(&presets::stock_psm1().robots[0]), None);
+    }
+
+    #[test]
+    fn a_stop_the_pot_cannot_see_is_moved_inside_and_noted() {
+        // A pot calibration that reads only to 1.5 degrees past the PSM
+        // tool actuators' soft limits (as in the report that asked for
+        // stops: -3.049 rad against -3.037).
+        let mut config = presets::stock_psm1();
+        let a = &mut config.robots[0].actuators[4];
+        let soft = a.encoder.position_limits_soft;
+        let pot = a.potentiometer.as_mut().unwrap();
+        let reach = soft.upper + 1.5f64.to_radians();
+        pot.voltage_to_position.scale = 2.0 * reach / 4.5;
+        pot.voltage_to_position.offset = -reach;
+        let p = crate::rig::plant_for(&config, 4).unwrap();
+        let (lo, hi) = (p.stops.lower.unwrap(), p.stops.upper.unwrap());
+        assert!(soft.lower > lo && lo > -reach, "{lo}");
+        assert!(soft.upper < hi && hi < reach, "{hi}");
+        let notes = notes(&config);
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(notes[0].starts_with("PSM1[4]: the pot conversion reads only"));
+        assert!(!notes[0].contains("inside the soft limits"));
+    }
+}
