@@ -80,9 +80,16 @@ fn stock_mtmr_homes_its_roll_by_a_stop_search() {
     let mtm = &r.arms[0];
     assert_eq!((mtm.name.as_str(), mtm.joints.len()), ("MTMR", 7));
     check_arm(mtm);
-    // The coupled joints' pots (on the joints, not the actuators) agree
+    // The coupled joints' pots (on the joints, not the actuators: the
+    // emulated pot of actuator 3 reads a3 - 0.6697 a2 + 0.6697 a1) agree
     // in actuator space.
     assert!(mtm.joints[2].checked && mtm.joints[3].checked);
+    let config = presets::stock_mtmr();
+    let pot3 = firelink_testbed::rig::plant_for(&config, 3)
+        .unwrap()
+        .pot
+        .measures;
+    assert_eq!(pot3.len(), 3, "{pot3:?}");
     // The roll: found its lower stop by stalling against it.
     assert_eq!(mtm.stop_searches.len(), 1);
     let s = &mtm.stop_searches[0];
@@ -103,9 +110,6 @@ fn stock_mtmr_homes_its_roll_by_a_stop_search() {
         (s.measured_current.abs() - s.current_limit).abs() < 0.02,
         "{s:?}"
     );
-    // Searching towards the lower stop pushes with negative effort... in
-    // actuator terms whatever the drive direction: the current opposes
-    // the encoder motion away from the stop.
     // Then free motion back home.
     assert!((s.returned_to - s.home).abs() < 0.02, "{s:?}");
 }
