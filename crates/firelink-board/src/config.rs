@@ -102,6 +102,64 @@ pub struct BoardConfig {
     pub motor_supply_present: bool,
     /// Time from power enable to motor supply good.
     pub supply_rise: TimeDelta,
+    /// Digital input lines held high by what is plugged into the board
+    /// (DIGIN bits 11:0: home switches 3:0, positive limits 7:4, negative
+    /// limits 11:8), on top of the plant's own switches: e.g. the contacts
+    /// that tell a dVRK PSM its sterile adapter and instrument are in.
+    pub input_lines: u16,
+    /// The instrument (tool) whose 1-wire memory this board's Dallas
+    /// interface reads, if one is in.
+    pub instrument: Option<Instrument>,
+}
+
+/// An instrument (a da Vinci tool) as its 1-wire memory (DS2505, 2 KiB)
+/// describes it (`fpga-board-extras.md` section 4).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Instrument {
+    /// Model number, e.g. 400006 (Classic Large Needle Driver).
+    pub model: u32,
+    /// Version byte.
+    pub version: u8,
+    /// Name, e.g. `LARGE_NEEDLE_DRIVER` (at most 27 bytes are stored).
+    pub name: String,
+}
+
+impl Instrument {
+    /// Size of the 1-wire memory, bytes.
+    pub const MEMORY_BYTES: usize = 2048;
+    /// Where the model number is stored (big-endian 32 bits).
+    pub const MODEL_AT: usize = 0xA4;
+    /// Where the version byte is stored.
+    pub const VERSION_AT: usize = 0xA8;
+    /// Where the NUL-terminated name starts.
+    pub const NAME_AT: usize = 0x160;
+    /// Where the name field ends (exclusive).
+    pub const NAME_END: usize = 0x17C;
+
+    /// The memory image: `997` at the start (the tag a dVRK host checks),
+    /// the model, version and name at their offsets, erased (`0xFF`)
+    /// elsewhere.
+    pub fn memory_image(&self) -> Vec<u8> {
+        fn put(m: &mut [u8], at: usize, bytes: &[u8]) {
+            for (slot, b) in m.iter_mut().skip(at).zip(bytes) {
+                *slot = *b;
+            }
+        }
+        let mut m = vec![0xFF; Self::MEMORY_BYTES];
+        put(&mut m, 0, b"997");
+        put(&mut m, Self::MODEL_AT, &self.model.to_be_bytes());
+        put(&mut m, Self::VERSION_AT, &[self.version]);
+        // The name and its terminator stay inside the name field.
+        let room = Self::NAME_END - Self::NAME_AT - 1;
+        let name: Vec<u8> = self
+            .name
+            .bytes()
+            .take(room)
+            .chain(core::iter::once(0))
+            .collect();
+        put(&mut m, Self::NAME_AT, &name);
+        m
+    }
 }
 
 impl BoardConfig {
@@ -118,6 +176,8 @@ impl BoardConfig {
             plant_step: DEFAULT_STEP,
             motor_supply_present: true,
             supply_rise: TimeDelta::from_millis(5),
+            input_lines: 0,
+            instrument: None,
         }
     }
 
@@ -144,6 +204,19 @@ impl BoardConfig {
     /// The same board with another noise seed.
     pub fn with_seed(mut self, seed: u64) -> BoardConfig {
         self.seed = seed;
+        self
+    }
+
+    /// The same board with these digital input lines held high (DIGIN
+    /// bits 11:0, see [`BoardConfig::input_lines`]).
+    pub fn with_input_lines(mut self, lines: u16) -> BoardConfig {
+        self.input_lines = lines & 0x0FFF;
+        self
+    }
+
+    /// The same board with an instrument in.
+    pub fn with_instrument(mut self, instrument: Option<Instrument>) -> BoardConfig {
+        self.instrument = instrument;
         self
     }
 
@@ -184,5 +257,35 @@ impl BoardConfig {
     /// Rev 8 header + M DACs + control, Rev 7 M DACs + control.
     pub fn write_block_quadlets(&self) -> usize {
         self.layout().write_block_quadlets()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn instrument_memory_image() {
+        let tool = Instrument {
+            model: 400_006,
+            version: 12,
+            name: "LARGE_NEEDLE_DRIVER".into(),
+        };
+        let m = tool.memory_image();
+        assert_eq!(m.len(), Instrument::MEMORY_BYTES);
+        assert_eq!(&m[..3], b"997");
+        assert_eq!(&m[0xA4..0xA8], &400_006u32.to_be_bytes());
+        assert_eq!(m[0xA8], 12);
+        assert_eq!(&m[0x160..0x160 + 19], b"LARGE_NEEDLE_DRIVER");
+        assert_eq!(m[0x160 + 19], 0);
+        assert_eq!(m[3], 0xFF);
+        // A long name is cut so its terminator stays in the field.
+        let long = Instrument {
+            name: "X".repeat(100),
+            ..tool
+        };
+        let m = long.memory_image();
+        assert_eq!(m[Instrument::NAME_END - 1], 0);
+        assert_eq!(m[Instrument::NAME_END], 0xFF);
     }
 }

@@ -429,3 +429,15 @@ fn switches_and_pot_follow_the_joint() {
     let pot = f64::from(r.read(0x30) >> 16) * 4.5 / 65535.0;
     assert!((pot - volts).abs() < 0.005, "{pot} vs {volts}");
 }
+
+#[test]
+fn plugged_in_lines_read_in_digin() {
+    // A dVRK PSM's second QLA1: instrument contact on bit 7 (positive
+    // limit of axis 4), sterile adapter contact on bit 10 (negative limit
+    // of axis 3).
+    let cfg = BoardConfig::new(7, Hardware::Qla1, Profile::Rev8).with_input_lines(0x0480);
+    let mut r = Rig::new(cfg, 2);
+    assert_eq!(r.read(10) & 0x0FFF, 0x0480, "DIGIN");
+    let mut r = rig(Profile::Rev8);
+    assert_eq!(r.read(10) & 0x0FFF, 0, "nothing plugged in");
+}

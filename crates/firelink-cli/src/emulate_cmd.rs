@@ -73,6 +73,9 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
     let boards = match &args.config {
         Some(path) => {
             let config = IoConfig::load(path).map_err(|e| CliError::Conflict(e.to_string()))?;
+            for note in firelink_testbed::plant_map::notes(&config) {
+                eprintln!("note: {note}");
+            }
             let count = config.board_slots();
             board_configs(&config, args.firmware, count)
         }

@@ -11,6 +11,12 @@
 //!   configuration names, on the simulated bus behind a
 //!   [`SimPort`](firelink_host::sim::SimPort), or behind an in-process
 //!   Ethernet-bridge emulator on loopback UDP ([`rig::Emulator`]);
+//! - [`plant_map`]: how an actuator of a configuration becomes an emulated
+//!   joint: plant, mechanical stops inside what its pot can see, coupled
+//!   pots, amplifier calibration, a PSM's adapter and instrument;
+//! - [`console_homing`]: what the dVRK console does to an arm after power-on
+//!   (bias from pots, stop searches, every joint to both software limits and
+//!   back), with pot/encoder agreement and the stops watched every cycle;
 //! - [`soak`]: the fault soak: a million servo cycles with one packet in a
 //!   hundred faulted, every fault accounted for, amplifiers proven off
 //!   whenever the safety chain says so;
@@ -22,8 +28,10 @@
 //! the wall clock (its server paces virtual time to it).
 
 pub mod bench;
+pub mod console_homing;
 pub mod demo;
 pub mod error;
+pub mod plant_map;
 pub mod rig;
 pub mod service;
 pub mod soak;

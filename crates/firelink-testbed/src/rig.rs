@@ -14,6 +14,8 @@ use firelink_board::plant::presets;
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::{Bus, HostModel, NodeHandle};
 use firelink_control::config::{IoConfig, PlantPreset};
+
+use crate::plant_map;
 use firelink_emulate::{Bridge, BridgeStats, ServeConfig};
 use firelink_host::sim::SimPort;
 use firelink_host::udp::UdpPort;
@@ -30,15 +32,16 @@ pub fn start_position(config: &IoConfig, joint: usize) -> f64 {
 }
 
 /// The plant model a configuration's actuator names, with its
-/// transmission, encoder, pot and drive direction made to agree with the
-/// configuration, as a calibrated robot's configuration agrees with the
-/// robot. An actuator without a `simulation` section drives a generic
-/// motor.
+/// transmission, encoder, pot, drive direction, amplifier calibration and
+/// mechanical stops made to agree with the configuration, as a calibrated
+/// robot's configuration agrees with the robot (see [`plant_map`]). An
+/// actuator without a `simulation` section drives what its robot's dVRK
+/// arm has there (by the robot's name: `MTMR`, `PSM1`, `ECM`, ...), else a
+/// generic motor.
 pub fn plant_for(config: &IoConfig, joint: usize) -> Option<AxisParams> {
     let j = config.joints().nth(joint)?;
     let a = j.actuator;
-    let preset = a.simulation.map_or(PlantPreset::Generic, |s| s.plant);
-    let mut p = preset_params(preset);
+    let mut p = preset_params(plant_map::plant_preset(&j));
     let scale = a.encoder.bits_to_position.scale;
     let cpt = a
         .encoder
@@ -64,6 +67,7 @@ pub fn plant_for(config: &IoConfig, joint: usize) -> Option<AxisParams> {
         }
     }
     p.load.initial_position = start_position(config, joint);
+    plant_map::apply(&j, &mut p);
     Some(p)
 }
 
@@ -85,6 +89,11 @@ pub fn preset_params(preset: PlantPreset) -> AxisParams {
         PsmJ5 => (None, Some(5)),
         PsmJ6 => (None, Some(6)),
         PsmJ7 => (None, Some(7)),
+        EcmJ1 => return presets::ecm_joint(1).unwrap_or_else(presets::generic_motor),
+        EcmJ2 => return presets::ecm_joint(2).unwrap_or_else(presets::generic_motor),
+        EcmJ3 => return presets::ecm_joint(3).unwrap_or_else(presets::generic_motor),
+        EcmJ4 => return presets::ecm_joint(4).unwrap_or_else(presets::generic_motor),
+        MtmGripper => (Some(8), None),
         Generic => (None, None),
     };
     mtm.and_then(presets::mtm_joint)
@@ -92,10 +101,19 @@ pub fn preset_params(preset: PlantPreset) -> AxisParams {
         .unwrap_or_else(presets::generic_motor)
 }
 
-/// Board configurations for every board `config` uses, plus `extra`
-/// generic boards after them (for the bench beyond 8 boards).
+/// Board configurations for boards 0 to `boards - 1` (at most 16): the
+/// boards `config` uses carry its plants (an MTM's gripper on the axis
+/// after its last actuator) and what is plugged into them (a PSM's sterile
+/// adapter and instrument); the others, generic motors.
 pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<BoardConfig> {
     let mut out: Vec<BoardConfig> = Vec::new();
+    let lines = plant_map::input_lines(config);
+    let instruments = plant_map::instruments(config);
+    let grippers: Vec<(u8, u8)> = config
+        .robots
+        .iter()
+        .filter_map(plant_map::gripper_slot)
+        .collect();
     for id in 0..boards.min(16) as u8 {
         let mut b = BoardConfig::new(id, Hardware::Qla1, profile).with_seed(u64::from(id) + 1);
         let mut axes: Vec<AxisParams> = vec![presets::unused_channel(); 4];
@@ -111,10 +129,23 @@ pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<
                 }
             }
         }
+        for &(_, axis) in grippers.iter().filter(|(board, _)| *board == id) {
+            let used = config
+                .joints()
+                .any(|j| j.actuator.board_id == id && j.actuator.axis_id == axis);
+            if let (false, Some(slot)) = (used, axes.get_mut(usize::from(axis))) {
+                *slot = plant_map::gripper_params();
+            }
+        }
         if any {
             b = b.with_axes(axes);
         }
-        out.push(b);
+        let held = lines.get(usize::from(id)).copied().unwrap_or(0);
+        let instrument = instruments
+            .iter()
+            .find(|(board, _)| *board == id)
+            .map(|(_, i)| i.clone());
+        out.push(b.with_input_lines(held).with_instrument(instrument));
     }
     out
 }

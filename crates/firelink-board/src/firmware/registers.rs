@@ -497,6 +497,11 @@ impl Firmware {
             }
         }
         let [a, b, index, neg, pos, home] = lines;
+        // What is plugged in holds some switch inputs high.
+        let plugged = self.cfg.input_lines;
+        let neg = neg | ((plugged >> 8) & 0xF) as u8;
+        let pos = pos | ((plugged >> 4) & 0xF) as u8;
+        let home = home | (plugged & 0xF) as u8;
         DigitalIn::default()
             .with_v_fault(self.power.supply_fault())
             .with_enc_a(a)

@@ -37,14 +37,17 @@ use firelink_host::{HostError, MissReason, Port};
 use firelink_wire::board::MAX_BOARDS;
 use firelink_wire::board::registers::SYSTEM_CLOCK_HZ;
 
-use crate::config::{DriveConfig, EncoderConfig, IoConfig, JointType, PotentiometerConfig};
+use crate::config::{
+    DriveConfig, EncoderConfig, IoConfig, JointType, PotentiometerConfig, StopSearchConfig,
+    StopSide,
+};
 use crate::fault::{FaultKind, FaultReport};
 use crate::homing::{Homing, HomingError, HomingSettings, HomingStep};
 use crate::label::{BoardSet, Label};
 use crate::lifecycle::{Lifecycle, LifecycleError, PowerStatus, State};
 use crate::pid::{Measurement, Pid, PidError, PidGains, Setpoint};
 use crate::safety::{JointSample, SafetyMonitor};
-use crate::trajectory::Motion;
+use crate::trajectory::{Motion, PointToPoint};
 
 /// How cycles are paced.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -109,9 +112,65 @@ pub enum RunnerError {
     /// A fault while running.
     #[error("{0}")]
     Fault(FaultReport),
+    /// A stop search could not home the joint.
+    #[error("{joint}: stop search: {problem}")]
+    StopSearch {
+        /// The joint.
+        joint: Label,
+        /// What went wrong.
+        problem: StopSearchProblem,
+    },
     /// Something did not happen in time.
     #[error("timed out waiting for {0}")]
     Timeout(&'static str),
+}
+
+/// A joint's pot position from the pot's ADC bits (NaN without a pot or
+/// a reading).
+#[inline]
+fn pot_position(j: &Joint, bits: Option<u16>) -> f64 {
+    match (j.pot, bits) {
+        (Some(p), Some(bits)) => p.bits_to_position(bits),
+        _ => f64::NAN,
+    }
+}
+
+/// Why a stop search failed.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum StopSearchProblem {
+    /// The joint's configuration has no `simulation.homing.stop_search`.
+    #[error("not configured for this joint")]
+    NotConfigured,
+    /// The joint travelled the whole search without stalling: there is no
+    /// stop where one was expected (the dVRK console's "went past roll
+    /// lower limit").
+    #[error("no stop within {travel:.3} of travel")]
+    NoStop {
+        /// How far the setpoint travelled.
+        travel: f64,
+    },
+}
+
+/// What a stop search found: the joint stalled against its stop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StopFound {
+    /// The joint.
+    pub joint: Label,
+    /// Where the encoder (homed from the pot) said the joint was when the
+    /// stall was declared, before it was set to `stop_position`.
+    pub stalled_at: f64,
+    /// From the start of the search to there.
+    pub travel: f64,
+    /// |setpoint - position| then.
+    pub following_error: f64,
+    /// Current commanded then, A.
+    pub commanded_current: f64,
+    /// Current the amplifier measured then, A.
+    pub measured_current: f64,
+    /// Seconds from the start of the search.
+    pub duration: f64,
+    /// Where the encoder reads from now on (the configured stop position).
+    pub stop_position: f64,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -232,6 +291,15 @@ pub struct Robot<P: Port> {
     /// this clock: it is when the encoders were sampled, whatever the
     /// host's or the network's jitter.
     sample_clock: Vec<f64>,
+    /// Per joint: the pot position as read (where the pot is mounted).
+    raw_pot: Vec<f64>,
+    /// Pots in actuator space: `pot[t] += w * raw_pot[s]` for each
+    /// (t, s, w); empty when no robot has a pot coupling (then `pot` is
+    /// `raw_pot`).
+    pot_mix: Vec<(usize, usize, f64)>,
+    /// Per joint: its stop search, if it homes by one (kept out of the
+    /// cycle's data).
+    stop_searches: Vec<Option<StopSearchConfig>>,
     pot: Vec<f64>,
     enc: Vec<f64>,
     times: CycleTimes,
@@ -316,6 +384,25 @@ impl<P: Port> Robot<P> {
         }
         let n = joints.len();
         let cap = settings.max_samples;
+        // Pots mounted on joints (v6 coupling) are read in actuator space.
+        let mut pot_mix = Vec::new();
+        if config.robots.iter().any(|r| r.pot_coupling().is_some()) {
+            let mut base = 0;
+            for r in &config.robots {
+                let m = r.pot_coupling();
+                for t in 0..r.actuators.len() {
+                    match &m {
+                        Some(m) => pot_mix.extend(
+                            (0..r.actuators.len())
+                                .map(|s| (base + t, base + s, m.get(t, s)))
+                                .filter(|&(_, _, w)| w != 0.0),
+                        ),
+                        None => pot_mix.push((base + t, base + t, 1.0)),
+                    }
+                }
+                base += r.actuators.len();
+            }
+        }
         Ok(Robot {
             io,
             settings,
@@ -330,6 +417,17 @@ impl<P: Port> Robot<P> {
             homing: Homing::from_config(config, settings.homing),
             samples: vec![JointSample::default(); n],
             sample_clock: vec![0.0; MAX_BOARDS],
+            raw_pot: vec![0.0; n],
+            pot_mix,
+            stop_searches: config
+                .joints()
+                .map(|j| {
+                    j.actuator
+                        .simulation
+                        .and_then(|s| s.homing)
+                        .and_then(|h| h.stop_search)
+                })
+                .collect(),
             pot: vec![0.0; n],
             enc: vec![0.0; n],
             times: CycleTimes {
@@ -856,8 +954,31 @@ impl<P: Port> Robot<P> {
         }
     }
 
+    /// Pots mounted on joints: every joint's pot position read, then
+    /// turned into actuator space through the robots' pot couplings.
+    fn read_coupled_pots(&mut self) {
+        for (raw, j) in self.raw_pot.iter_mut().zip(&self.joints) {
+            let bits = self
+                .io
+                .boards()
+                .get(j.board)
+                .and_then(|b| b.pot_bits(j.axis));
+            *raw = pot_position(j, bits);
+        }
+        self.pot.fill(0.0);
+        for &(t, s, w) in &self.pot_mix {
+            if let (Some(p), Some(r)) = (self.pot.get_mut(t), self.raw_pot.get(s)) {
+                *p += w * r;
+            }
+        }
+    }
+
     fn compute(&mut self, now: f64, dt: f64) {
         let active = self.life.state() == State::Active;
+        let coupled = !self.pot_mix.is_empty();
+        if coupled {
+            self.read_coupled_pots();
+        }
         for (i, j) in self.joints.iter_mut().enumerate() {
             let Some(b) = self.io.boards().get(j.board) else {
                 continue;
@@ -865,9 +986,10 @@ impl<P: Port> Robot<P> {
             let counts = b.encoder_counts(j.axis).unwrap_or(0);
             let raw = j.encoder.counts_to_position(i64::from(counts));
             let pos = raw + j.offset;
-            let pot = match (j.pot, b.pot_bits(j.axis)) {
-                (Some(p), Some(bits)) => p.bits_to_position(bits),
-                _ => f64::NAN,
+            let pot = if coupled {
+                self.pot.get(i).copied().unwrap_or(f64::NAN)
+            } else {
+                pot_position(j, b.pot_bits(j.axis))
             };
             let sampled = self.sample_clock.get(j.board).copied().unwrap_or(now);
             let velocity = j.velocity.update(sampled, pos);
@@ -875,7 +997,7 @@ impl<P: Port> Robot<P> {
             if let Some(e) = self.enc.get_mut(i) {
                 *e = raw;
             }
-            if let Some(p) = self.pot.get_mut(i) {
+            if let Some(p) = self.pot.get_mut(i).filter(|_| !coupled) {
                 *p = pot;
             }
             let mut amps = 0.0;
@@ -957,6 +1079,150 @@ impl<P: Port> Robot<P> {
     pub fn step_setpoint(&mut self, i: usize, delta: f64) -> Result<(), RunnerError> {
         let sp = self.setpoint(i).unwrap_or(0.0);
         self.set_motion(i, Motion::Hold(sp + delta))
+    }
+
+    /// Joint `i`'s position by its potentiometer, in actuator space (NaN
+    /// for a joint without a pot), as of the last cycle.
+    pub fn potentiometer(&self, i: usize) -> Option<f64> {
+        self.pot.get(i).copied()
+    }
+
+    /// The current joint `i`'s amplifier measured, A, as of the last cycle
+    /// (`None` when its board did not answer).
+    pub fn measured_current(&self, i: usize) -> Option<f64> {
+        let j = self.joints.get(i)?;
+        let b = self.io.boards().get(j.board).filter(|b| b.is_valid())?;
+        Some(j.drive.bits_to_current(b.current_bits(j.axis)?))
+    }
+
+    /// The joints whose configuration homes them by a stop search.
+    pub fn stop_search_joints(&self) -> impl Iterator<Item = usize> + '_ {
+        self.stop_searches
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.is_some())
+            .map(|(i, _)| i)
+    }
+
+    /// Home joint `i` by its stop search: see
+    /// [`search_stop_observed`](Self::search_stop_observed).
+    ///
+    /// # Errors
+    /// As [`search_stop_observed`](Self::search_stop_observed).
+    pub fn search_stop(&mut self, i: usize) -> Result<StopFound, RunnerError> {
+        self.search_stop_observed(i, &mut |_| {})
+    }
+
+    /// Home joint `i` by a stop search, as the dVRK console homes the MTM
+    /// roll: from where it is, its setpoint moves towards the stop at the
+    /// configured constant velocity, reached with the configured
+    /// acceleration (the other joints hold), with its position-limit,
+    /// following-error and current-saturation checks off, until the
+    /// following error passes `stall_error`: the joint has stalled against
+    /// the stop. The encoder is then declared to read `stop_position` (the
+    /// joint's offset changes), the joint holds there and its checks are
+    /// back on; a move away from the stop is free. `each` is called after
+    /// every cycle.
+    ///
+    /// # Errors
+    /// Not Active; no such joint; [`StopSearchProblem::NotConfigured`];
+    /// [`StopSearchProblem::NoStop`] when the whole travel passes without a
+    /// stall; a fault while searching (the checks are back on in any case).
+    pub fn search_stop_observed(
+        &mut self,
+        i: usize,
+        each: &mut dyn FnMut(&Self),
+    ) -> Result<StopFound, RunnerError> {
+        self.life.require_motion()?;
+        let j = *self
+            .joints
+            .get(i)
+            .ok_or_else(|| RunnerError::Config(format!("no joint {i}")))?;
+        let Some(search) = self.stop_searches.get(i).copied().flatten() else {
+            return Err(RunnerError::StopSearch {
+                joint: j.label,
+                problem: StopSearchProblem::NotConfigured,
+            });
+        };
+        let direction = match search.side {
+            StopSide::Lower => -1.0,
+            StopSide::Upper => 1.0,
+        };
+        let start = j.position;
+        let search_move = PointToPoint::new(
+            start,
+            start + direction * search.max_travel,
+            search.velocity,
+            search.acceleration,
+        )
+        .map_err(|e| RunnerError::Config(format!("{}: stop search: {e:?}", j.label)))?;
+        let horizon = search_move.duration();
+        let started = self.now();
+        self.safety.allow_stall(i, true);
+        let found = self
+            .set_motion(i, Motion::PointToPoint(search_move))
+            .and_then(|()| self.run_search(i, &search, started, horizon, each));
+        self.safety.allow_stall(i, false);
+        let (stalled_at, following_error, commanded_current, duration) = found?;
+        let measured_current = self.measured_current(i).unwrap_or(f64::NAN);
+        let now = self.now();
+        if let Some(j) = self.joints.get_mut(i) {
+            j.offset += search.stop_position - stalled_at;
+            j.position = search.stop_position;
+            j.setpoint = search.stop_position;
+            j.motion = Motion::Hold(search.stop_position);
+            j.motion_start = now;
+            j.velocity.reset();
+        }
+        if let Some(pid) = self.pids.get_mut(i) {
+            pid.reset();
+        }
+        self.safety.restart_timers();
+        Ok(StopFound {
+            joint: j.label,
+            stalled_at,
+            travel: (stalled_at - start).abs(),
+            following_error,
+            commanded_current,
+            measured_current,
+            duration,
+            stop_position: search.stop_position,
+        })
+    }
+
+    /// Cycles until joint `i` stalls: (position, following error, current
+    /// command, seconds since `started`).
+    fn run_search(
+        &mut self,
+        i: usize,
+        search: &StopSearchConfig,
+        started: f64,
+        horizon: f64,
+        each: &mut dyn FnMut(&Self),
+    ) -> Result<(f64, f64, f64, f64), RunnerError> {
+        // Past the end of the travel, give the joint a moment to catch up.
+        let give_up = horizon + 1.0;
+        loop {
+            let r = self.step(Pacing::Virtual);
+            each(self);
+            r?;
+            let Some(j) = self.joints.get(i) else {
+                return Err(RunnerError::Config(format!("no joint {i}")));
+            };
+            let error = (j.setpoint - j.position).abs();
+            let elapsed = self.now() - started;
+            if error > search.stall_error {
+                return Ok((j.position, error, j.current, elapsed));
+            }
+            if elapsed > give_up {
+                return Err(RunnerError::StopSearch {
+                    joint: j.label,
+                    problem: StopSearchProblem::NoStop {
+                        travel: search.max_travel,
+                    },
+                });
+            }
+        }
     }
 
     /// The label of joint `i`.
