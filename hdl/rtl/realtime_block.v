@@ -46,31 +46,43 @@ module realtime_block (
         end
     end
 
-    function [31:0] word(input [9:0] q);
+    // One multiplexer per port (always @* so every source is in the
+    // sensitivity list).
+    reg [31:0] mux_a, mux_b;
+    always @* begin
+        mux_a = select(index_a, timestamp, status_word, din_word, temp_word, adc_word,
+                       pos_word, enc_period, enc_qtr1, enc_qtr5, enc_run, mstat_word);
+        mux_b = select(index_b, timestamp, status_word, din_word, temp_word, adc_word,
+                       pos_word, enc_period, enc_qtr1, enc_qtr5, enc_run, mstat_word);
+    end
+    assign data_a = mux_a;
+    assign data_b = mux_b;
+
+    function [31:0] select(input [9:0] q, input [31:0] ts, input [31:0] st,
+                           input [31:0] din, input [31:0] temp, input [127:0] adcs,
+                           input [127:0] pos, input [127:0] per, input [127:0] q1,
+                           input [127:0] q5, input [127:0] run, input [127:0] ms);
         begin
-            word = 32'd0;
+            select = 32'd0;
             if (q < 10'd32) begin
                 case (q[4:2])
                     3'd0: case (q[1:0])
-                              2'd0: word = timestamp;
-                              2'd1: word = status_word;
-                              2'd2: word = din_word;
-                              default: word = temp_word;
+                              2'd0: select = ts;
+                              2'd1: select = st;
+                              2'd2: select = din;
+                              default: select = temp;
                           endcase
-                    3'd1: word = adc_word[32*q[1:0] +: 32];
-                    3'd2: word = pos_word[32*q[1:0] +: 32];
-                    3'd3: word = enc_period[32*q[1:0] +: 32];
-                    3'd4: word = enc_qtr1[32*q[1:0] +: 32];
-                    3'd5: word = enc_qtr5[32*q[1:0] +: 32];
-                    3'd6: word = enc_run[32*q[1:0] +: 32];
-                    default: word = mstat_word[32*q[1:0] +: 32];
+                    3'd1: select = adcs[32*q[1:0] +: 32];
+                    3'd2: select = pos[32*q[1:0] +: 32];
+                    3'd3: select = per[32*q[1:0] +: 32];
+                    3'd4: select = q1[32*q[1:0] +: 32];
+                    3'd5: select = q5[32*q[1:0] +: 32];
+                    3'd6: select = run[32*q[1:0] +: 32];
+                    default: select = ms[32*q[1:0] +: 32];
                 endcase
             end
         end
     endfunction
-
-    assign data_a = word(index_a);
-    assign data_b = word(index_b);
 endmodule
 
 `default_nettype wire

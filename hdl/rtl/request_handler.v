@@ -155,16 +155,17 @@ module request_handler (
     reg  [1:0]  pl_src;
     reg  [15:0] pl_base;
     reg  [31:0] pl_time;
-    reg         p1_valid;
-    reg  [9:0]  p1_index;
+    // The framer's request addresses the sources in its own clock; the
+    // word is registered (block RAMs register theirs): data on the second
+    // clock.
+    wire        p1_valid = pl_rd;
+    wire [9:0]  p1_index = pl_index;
     reg  [1:0]  p2_sel;     // 0 real-time, 1 registers, 2 hub, 3 snapshot
     reg  [31:0] p2_word;
     wire [15:0] p1_addr = pl_base + {6'd0, p1_index};
     reg  [15:0] rq_addr;
     reg         rq_read;
     always @(posedge clk) begin
-        p1_valid <= pl_rd;
-        if (pl_rd) p1_index <= pl_index;
         if (pl_snapshot)               p2_sel <= 2'd3;
         else if (pl_src == P_RT)       p2_sel <= 2'd0;
         else if (p1_addr[15:12] == 4'h1) p2_sel <= 2'd2;
