@@ -50,6 +50,7 @@ module broadcast_hub (
     // Source RAM.
     output reg  [8:0]  src_addr,
     output reg         src_sel,         // 0 receive buffer, 1 snapshot
+    output wire        src_active,      // a store is reading the source
     input  wire [31:0] src_data,
     // Boards heard this cycle.
     output reg  [15:0] seen,
@@ -107,7 +108,8 @@ module broadcast_hub (
     end
     assign rd_data = rd_is_timing ? rd_timing : (rd_is_mem ? mem_rdata : rd_other);
 
-    assign st_ready = (state == S_IDLE) && !own_pending;
+    assign st_ready   = (state == S_IDLE) && !own_pending;
+    assign src_active = (state != S_IDLE) && (state != S_CLEAR);
 
     // Header rewrite (Rev 8).
     wire [15:0] b_seq  = src_data[31:16];

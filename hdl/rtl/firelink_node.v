@@ -192,7 +192,7 @@ module firelink_node #(
     wire [15:0] st_len;
     wire [31:0] st_time;
     wire [8:0]  hub_src_addr;
-    wire        hub_src_sel;
+    wire        hub_src_sel, hub_src_active;
     wire [15:0] seen;
     wire        seen_event;
     wire [31:0] seen_time;
@@ -209,7 +209,7 @@ module firelink_node #(
         .st_valid(st_valid), .st_ready(st_ready), .st_len(st_len),
         .st_time(st_time), .st_done(st_done),
         .own_valid(bc_sent), .own_time(now),
-        .src_addr(hub_src_addr), .src_sel(hub_src_sel),
+        .src_addr(hub_src_addr), .src_sel(hub_src_sel), .src_active(hub_src_active),
         .src_data(hub_src_sel ? snap_rdata : rxb_rdata),
         .seen(seen), .seen_event(seen_event), .seen_time(seen_time),
         .rd_addr(hub_rd_addr), .rd_time(hub_rd_time), .rd_data(hub_rd_data));
@@ -221,7 +221,7 @@ module firelink_node #(
     wire        bc_active;
     sdp_ram #(.WIDTH(32), .DEPTH(64), .ADDR_BITS(6)) snapshot (
         .clk(clk), .wr_en(snap_we), .wr_addr(snap_waddr), .wr_data(snap_wdata),
-        .rd_addr(hub_src_sel ? hub_src_addr[5:0] : snap_pl_addr),
+        .rd_addr((hub_src_sel && hub_src_active) ? hub_src_addr[5:0] : snap_pl_addr),
         .rd_data(snap_rdata));
 
     status_broadcast #(.BOARD_ID(ID), .CHAIN(CHAINED)) broadcaster (

@@ -99,7 +99,7 @@ async def start(dut, phy_id: int = 1, **inputs):
     set_inputs(dut, **inputs)
     dut.phy_ctl_i.value = 0
     dut.phy_d_i.value = 0
-    cocotb.start_soon(Clock(dut.clk, CLOCK_PS, unit="ps").start())
+    cocotb.start_soon(Clock(dut.clk, CLOCK_PS, unit="ps", impl="gpi").start())
     dut.rst.value = 1
     for _ in range(4):
         await RisingEdge(dut.clk)

@@ -26,7 +26,7 @@ from collections import deque
 from dataclasses import dataclass, field
 
 import cocotb
-from cocotb.triggers import Event, FallingEdge, First
+from cocotb.triggers import Event, FallingEdge, First, Timer
 
 CTL_IDLE, CTL_RECEIVE, CTL_STATUS, CTL_GRANT = 0, 1, 2, 3
 LINK_IDLE, LINK_TRANSMIT, LINK_HOLD = 0, 1, 2
@@ -82,6 +82,8 @@ class Phy:
     granted (default: as soon as the lines are idle); `on_transmission` is
     called with each finished Transmission."""
 
+    clock_ps = 20346
+
     def __init__(self, clk, ctl_i, d_i, ctl_o, d_o, oe, lreq, now, regs=None, name="phy"):
         self.clk, self.ctl_i, self.d_i = clk, ctl_i, d_i
         self.ctl_o, self.d_o, self.oe, self.lreq, self.now_sig = ctl_o, d_o, oe, lreq, now
@@ -105,6 +107,8 @@ class Phy:
         self._pending_status: deque = deque()
         self.errors: list[str] = []
         self._wake = None
+        # Actions at given clocks: (clock, callable(phy, now)), sorted.
+        self.timeline: deque = deque()
         ctl_i.value = CTL_IDLE
         d_i.value = 0
 
@@ -150,18 +154,28 @@ class Phy:
     # ---- the clock loop ------------------------------------------------------------
     def busy(self) -> bool:
         return bool(self.drive) or self._tx is not None or self._granting or \
-            self._frame is not None or self.bus_request is not None or bool(self._pending_status)
+            self._frame is not None or self.bus_request is not None or \
+            bool(self._pending_status) or int(self.oe.value) == 1 or \
+            (bool(self.timeline) and self.timeline[0][0] - self.now <= 4)
 
     async def run(self) -> None:
         while True:
             if not self.busy() and self._wake is None:
-                # Nothing to do: sleep until the link raises LREQ or we are woken.
+                # Nothing to do: sleep until the link raises LREQ, we are
+                # woken, or the next timeline action is near.
                 self._wake = Event()
-                await First(self.lreq.value_change, self._wake.wait())
+                triggers = [self.lreq.value_change, self._wake.wait()]
+                if self.timeline:
+                    ahead = self.timeline[0][0] - self.now - 3
+                    triggers.append(Timer(max(ahead, 1) * self.clock_ps, "ps"))
+                await First(*triggers)
                 self._wake = None
             await FallingEdge(self.clk)
             self.now = int(self.now_sig.value)
             self._sample()
+            while self.timeline and self.timeline[0][0] <= self.now:
+                _, action = self.timeline.popleft()
+                action(self, self.now)
             self._drive_next()
 
     def poke(self) -> None:
@@ -250,6 +264,8 @@ class Phy:
             self.idle_clocks = 0
             return
         if self.drive:
+            if self._tx is not None or int(self.oe.value):
+                self.errors.append(f"receive started while the link owns the bus at {self.now}")
             ctl, d = self.drive.popleft()
             self.ctl_i.value = ctl
             self.d_i.value = d
