@@ -224,7 +224,15 @@ module broadcast_hub (
                     mem_we    <= 1'b1;
                     mem_waddr <= count[8:0] + w[8:0];
                     mem_wdata <= src_data;
-                    if (w == 10'd2) board <= src_data[27:24];
+                    if (w == 10'd2) begin
+                        // The STATUS quadlet names the board: heard now
+                        // (the store can no longer fail), so the chain's
+                        // next board learns it within a few clocks.
+                        board      <= src_data[27:24];
+                        seen       <= seen | (16'd1 << src_data[27:24]);
+                        seen_event <= 1'b1;
+                        seen_time  <= t_store;
+                    end
                     w <= w + 10'd1;
                     if (k < nq) begin
                         src_addr <= k[8:0];
@@ -234,9 +242,12 @@ module broadcast_hub (
                 end
                 S_FINISH: begin
                     count      <= count + nq;
-                    seen       <= seen_after;
-                    seen_event <= 1'b1;
-                    seen_time  <= t_store;
+                    if (nq < 10'd3) begin
+                        // Too short to name a board: counts as board 0.
+                        seen       <= seen_after;
+                        seen_event <= 1'b1;
+                        seen_time  <= t_store;
+                    end
                     if (!src_sel) st_done <= 1'b1;
                     state <= S_IDLE;
                     if (!complete && mask != 16'd0 && (mask & ~seen_after) == 16'd0) begin

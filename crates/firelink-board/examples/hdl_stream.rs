@@ -46,9 +46,17 @@ const DUT: usize = 1;
 /// Boards on the bus.
 const BOARDS: u8 = 3;
 
+/// The boards: QLA1 Rev 8, generic motors, a motor supply that is good
+/// 1 ms after power is enabled (keeps the simulated span, and so the
+/// Verilog simulation, short).
 fn configs() -> Vec<BoardConfig> {
     (0..BOARDS)
-        .map(|id| BoardConfig::new(id, Hardware::Qla1, Profile::Rev8).with_seed(100 + u64::from(id)))
+        .map(|id| {
+            let mut cfg = BoardConfig::new(id, Hardware::Qla1, Profile::Rev8)
+                .with_seed(100 + u64::from(id));
+            cfg.supply_rise = TimeDelta::from_millis(1);
+            cfg
+        })
         .collect()
 }
 
@@ -192,8 +200,8 @@ fn session() -> BoardRig {
         pc.idle(SimDuration::from_micros(5));
         pc.read(dut, 2);
     }
-    // Watchdog 10 ms, power and relay on (broadcast), preloads, delays.
-    pc.write(NodeId::BROADCAST, 3, 0x0780);
+    // Watchdog 2 ms, power and relay on (broadcast), preloads, delays.
+    pc.write(NodeId::BROADCAST, 3, 0x0180);
     pc.write(NodeId::BROADCAST, 0, 0x000C_0000);
     pc.write(NodeId::BROADCAST, 0, 0x0003_0000);
     for axis in 1..=4u64 {
@@ -204,7 +212,7 @@ fn session() -> BoardRig {
     // Broadcast cycles at 1 kHz until the supply is good and the
     // amplifiers have been on for a while.
     let mut seq = 1u16;
-    for cycle in 0..60u32 {
+    for cycle in 0..46u32 {
         let amps = match cycle {
             0..=4 => None,
             5 => Some(true),
@@ -212,7 +220,7 @@ fn session() -> BoardRig {
         };
         pc.broadcast_cycle(seq, 0b111, amps);
         seq += 1;
-        if cycle % 10 == 3 {
+        if cycle % 10 == 3 || cycle == 45 {
             pc.read_block(dut, 0, 128);
             pc.read(dut, 0x25);
             pc.read(dut, 0x1C);
@@ -248,8 +256,8 @@ fn session() -> BoardRig {
     seq += 1;
     pc.idle(SimDuration::from_micros(500));
     pc.broadcast_cycle(seq, 0b110, None);
-    // Silence: the watchdog (10 ms) fires; the host finds out.
-    pc.idle(SimDuration::from_millis(12));
+    // Silence: the watchdog (2 ms) fires; the host finds out.
+    pc.idle(SimDuration::from_millis(3));
     pc.read(dut, 0);
     pc.read_block(dut, 0, 128);
     pc.read_block(dut, 0x1000, 80);
