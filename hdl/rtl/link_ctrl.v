@@ -64,6 +64,7 @@ module link_ctrl (
     reg [31:0] r_h0, r_h1, r_h2, r_h3;
     reg [9:0]  r_dq;
     reg [7:0]  waited;
+    reg        bc_wait_drop;  // sent: ignore bc_req until the broadcaster drops it
 
     // The broadcast's header: block write to broadcast, pri 0xA, to
     // 0xFFFF_FF00_1000 (Rev 8), 33 quadlets.
@@ -86,6 +87,7 @@ module link_ctrl (
             have_reply   <= 1'b0;
             busreq_valid <= 1'b0;
             job_valid    <= 1'b0;
+            bc_wait_drop <= 1'b0;
             if (rst) begin
                 busreq_type <= REQ_IMM;
                 r_kind <= 2'd0; r_ack <= 4'd0; r_dq <= 10'd0;
@@ -96,6 +98,7 @@ module link_ctrl (
                 waited <= 8'd0;
             end
         end else begin
+            if (!bc_req) bc_wait_drop <= 1'b0;
             if (early_for_me) begin
                 want_imm   <= 1'b1;
                 have_reply <= 1'b0;   // a reply now belongs to this packet
@@ -117,8 +120,8 @@ module link_ctrl (
                     busreq_type  <= REQ_IMM;
                     outstanding  <= O_IMM;
                     want_imm     <= 1'b0;
-                end else if (bc_req && outstanding == O_NONE && !want_imm &&
-                             !early_for_me) begin
+                end else if (bc_req && !bc_wait_drop && outstanding == O_NONE &&
+                             !want_imm && !early_for_me) begin
                     busreq_valid <= 1'b1;
                     busreq_type  <= REQ_ISO;
                     outstanding  <= O_ISO;
@@ -173,7 +176,10 @@ module link_ctrl (
                         gstate      <= G_IDLE;
                         outstanding <= O_NONE;
                         bc_active   <= 1'b0;
-                        if (sending_bc) bc_sent <= 1'b1;
+                        if (sending_bc) begin
+                            bc_sent      <= 1'b1;
+                            bc_wait_drop <= 1'b1;
+                        end
                         sending_bc  <= 1'b0;
                     end
                 end

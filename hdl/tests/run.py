@@ -27,7 +27,8 @@ TESTS = {
     "test_slicer": ("command_slicer", {"BOARD_ID": 2}, []),
     "test_watchdog": ("board_watchdog", {"POWER_UP_TICKS": 4}, []),
     "test_node": ("firelink_node", {"BOARD_ID": 3}, []),
-    "test_bus": ("tb_bus", {}, [HERE / "tb_bus.v"]),
+    "test_bus": ("tb_bus", {"CHAIN": 1}, [HERE / "tb_bus.v"]),
+    "test_tdma": ("tb_bus", {"CHAIN": 0}, [HERE / "tb_bus.v"]),
     "test_crosscheck": ("firelink_node", {"BOARD_ID": 1}, []),
 }
 

@@ -159,7 +159,9 @@ async def replay_matches_software_board(dut):
                     f"  node    {got.packets[1].hex()}\n  software {want_bytes.hex()}")
         compared += 1
 
-    # Status broadcasts: bytes and the clock of the bus request.
+    # Status broadcasts: one bus request each, bytes, the request's clock.
+    iso = [r for r in phy.requests if r.kind == REQ_ISO]
+    assert len(iso) == len(broadcasts), f"{len(iso)} broadcast requests for {len(broadcasts)} broadcasts"
     sent = [tx for kind, tx, _ in transmissions if kind == "broadcast"]
     assert len(sent) == len(broadcasts), f"{len(sent)} broadcasts vs {len(broadcasts)}"
     offsets = []
