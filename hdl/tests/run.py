@@ -23,7 +23,6 @@ BUILD = HERE.parent / "build"
 TESTS = {
     "test_crc": ("crc32_1394", {}, []),
     "test_lreq": ("phy_lreq_tx", {}, []),
-    "test_phy_link": ("phy_link_if", {}, []),
     "test_slicer": ("command_slicer", {"BOARD_ID": 2}, []),
     "test_watchdog": ("board_watchdog", {"POWER_UP_TICKS": 4}, []),
     "test_node": ("firelink_node", {"BOARD_ID": 3}, []),

@@ -156,6 +156,17 @@ async def crc_errors_change_nothing(dut):
     bad[-2] ^= 0x01
     assert await host.send(bytes(bad)) is None
     assert await host.read(NODE, 0x0011) == 0x8000
+    # A register block write (WATCHDOG, HW_VERSION, TEMPERATURE, DIGITAL_OUT)
+    # with a bad data CRC: not even its first register changes.
+    regs = pk.to_bytes([0x0055, 0, 0, 0x0F00])
+    bad = bytearray(pk.write_block(NODE, HOST, 3, regs))
+    bad[-1] ^= 0x40
+    ack, _ = await host.request(bytes(bad))
+    assert ack == pk.ACK_DATA_ERROR
+    assert await host.read(NODE, 3) == 0x1680 and await host.read(NODE, 6) == 0
+    ack, _ = await host.request(pk.write_block(NODE, HOST, 3, regs))
+    assert ack == pk.ACK_COMPLETE
+    assert await host.read(NODE, 3) == 0x0055 and await host.read(NODE, 6) == 0x0F
     # The same packets intact do take effect.
     ack, _ = await host.request(pk.write_block(NODE, HOST, 0, data))
     assert ack == pk.ACK_COMPLETE
