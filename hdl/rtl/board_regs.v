@@ -7,7 +7,7 @@
 // range (rd_strobe). Writes arrive one quadlet per clock with their time.
 // The sensors (ADC, encoder counter and velocity words, switches,
 // temperatures) are the QLA's inputs; the board's state words (STATUS,
-// DIGITAL_IN, per-axis words) are also exported for the real-time block.
+// DIGITAL_IN, per-axis words) are what the real-time block reads.
 // PHY_CTRL requests reach the PHY through the PHY-link interface; the
 // answer of a read lands in PHY_DATA.
 `default_nettype none
@@ -67,16 +67,13 @@ module board_regs #(
     output wire         relay_on,
     output wire [3:0]   amp_enable,
     output wire [63:0]  dac_out,         // effective commands, 16 per axis
-    output wire [7:0]   dout,
-    // State words for the real-time block.
-    output wire [31:0]  status_word,
-    output wire [31:0]  din_word,
-    output wire [31:0]  temp_word,
-    output wire [127:0] adc_word,
-    output wire [127:0] pos_word,
-    output wire [127:0] mstat_word
+    output wire [7:0]   dout
 );
     localparam [31:0] ENC_NEUTRAL = 32'h0080_0000;
+
+    // State words (also read as the real-time block).
+    wire [31:0]  status_word, din_word, temp_word;
+    wire [127:0] adc_word, pos_word, mstat_word;
 
     // ---- decode ---------------------------------------------------------
     wire        wr_main  = (wr_addr[15:8] == 8'h00);

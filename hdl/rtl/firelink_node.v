@@ -131,14 +131,12 @@ module firelink_node #(
 
     // ---- board ------------------------------------------------------------------
     wire        wr_en, regs_rd_strobe;
-    wire [15:0] wr_addr, regs_rd_addr;
+    wire [15:0] wr_addr, handler_rd_addr;
     wire [31:0] wr_data, wr_time, regs_rd_data;
     wire        wd_fire, wd_timed_out, wd_set, wd_clear, reboot;
     wire [15:0] wd_period, wd_value;
     wire        refresh;
     wire [31:0] refresh_time;
-    wire [31:0] status_word, din_word, temp_word;
-    wire [127:0] adc_word, pos_word, mstat_word;
     wire        hr_rt_sample, bc_rt_sample;
     wire [31:0] hr_rt_time, bc_rt_time;
 
@@ -151,7 +149,8 @@ module firelink_node #(
     board_regs #(.BOARD_ID(ID)) regs (
         .clk(clk), .rst(rst), .now(now),
         .wr_en(wr_en), .wr_addr(wr_addr), .wr_data(wr_data), .wr_time(wr_time),
-        .rd_addr(regs_rd_addr), .rd_strobe(regs_rd_strobe), .rd_data(regs_rd_data),
+        .rd_addr(snap_busy ? rt_addr_b : handler_rd_addr),
+        .rd_strobe(regs_rd_strobe && !snap_busy), .rd_data(regs_rd_data),
         .rt_sample(hr_rt_sample || bc_rt_sample),
         .watchdog_fire(wd_fire), .watchdog_timed_out(wd_timed_out),
         .watchdog_period(wd_period), .watchdog_set(wd_set),
@@ -167,23 +166,23 @@ module firelink_node #(
         .temperature(temperature), .supply_present(supply_present),
         .supply_good(supply_good),
         .power_enable(power_enable), .relay_on(relay_on), .amp_enable(amp_enable),
-        .dac_out(dac_out), .dout(dout),
-        .status_word(status_word), .din_word(din_word), .temp_word(temp_word),
-        .adc_word(adc_word), .pos_word(pos_word), .mstat_word(mstat_word));
+        .dac_out(dac_out), .dout(dout));
 
+    // The real-time block: a timestamp plus registers read through the
+    // register file's read port (the status-broadcast snapshot has the port
+    // while it copies; no packet is taken meanwhile).
     wire [9:0]  rt_index_a, rt_index_b;
-    wire [31:0] rt_data_a, rt_data_b;
+    wire [15:0] rt_addr_a, rt_addr_b;
+    wire        rt_stamp_a, rt_stamp_b, rt_zero_a, rt_zero_b;
+    wire [31:0] rt_timestamp, rt_data_b;
     realtime_block rt_block (
         .clk(clk), .rst(rst),
         .sample(hr_rt_sample || bc_rt_sample),
         .sample_time(hr_rt_sample ? hr_rt_time : bc_rt_time),
-        .restart(reboot), .restart_time(wr_time),
-        .status_word(status_word), .din_word(din_word), .temp_word(temp_word),
-        .adc_word(adc_word), .pos_word(pos_word), .enc_period(enc_period),
-        .enc_qtr1(enc_qtr1), .enc_qtr5(enc_qtr5), .enc_run(enc_run),
-        .mstat_word(mstat_word),
-        .index_a(rt_index_a), .data_a(rt_data_a),
-        .index_b(rt_index_b), .data_b(rt_data_b));
+        .restart(reboot), .restart_time(wr_time), .timestamp(rt_timestamp),
+        .index_a(rt_index_a), .addr_a(rt_addr_a), .stamp_a(rt_stamp_a), .zero_a(rt_zero_a),
+        .index_b(rt_index_b), .addr_b(rt_addr_b), .stamp_b(rt_stamp_b), .zero_b(rt_zero_b));
+    assign rt_data_b = rt_stamp_b ? rt_timestamp : (rt_zero_b ? 32'd0 : regs_rd_data);
 
     // Hub.
     wire        query_valid, query_event;
@@ -265,7 +264,7 @@ module firelink_node #(
         .snap_busy(snap_busy),
         .rxb_addr(rxb_raddr), .rxb_data(rxb_rdata),
         .wr_en(wr_en), .wr_addr(wr_addr), .wr_data(wr_data), .wr_time(wr_time),
-        .regs_rd_addr(regs_rd_addr), .regs_rd_strobe(regs_rd_strobe),
+        .regs_rd_addr(handler_rd_addr), .regs_rd_strobe(regs_rd_strobe),
         .regs_rd_data(regs_rd_data),
         .refresh(refresh), .refresh_time(refresh_time),
         .query_valid(query_valid), .query_word(query_word), .query_time(query_time),
@@ -274,7 +273,8 @@ module firelink_node #(
         .hub_rd_addr(hub_rd_addr), .hub_rd_time(hub_rd_time),
         .hub_rd_data(hub_rd_data),
         .rt_sample(hr_rt_sample), .rt_sample_time(hr_rt_time),
-        .rt_index(rt_index_a), .rt_data(rt_data_a),
+        .rt_index(rt_index_a), .rt_addr(rt_addr_a), .rt_stamp(rt_stamp_a),
+        .rt_zero(rt_zero_a), .rt_timestamp(rt_timestamp),
         .sl_start(sl_start), .sl_len(sl_len), .sl_time(sl_time), .sl_busy(sl_busy),
         .sl_rd_addr(sl_rd_addr), .sl_wr_en(sl_wr_en), .sl_wr_addr(sl_wr_addr),
         .sl_wr_data(sl_wr_data), .sl_wr_time(sl_wr_time),

@@ -45,7 +45,7 @@ module link_ctrl (
     output reg         job_ack,
     output reg  [3:0]  job_ack_code,
     output reg         job_pkt,
-    output reg  [31:0] job_h0, job_h1, job_h2, job_h3,
+    output wire [31:0] job_h0, job_h1, job_h2, job_h3,
     output reg  [2:0]  job_hdr_quads,
     output reg  [9:0]  job_data_quads
 );
@@ -61,8 +61,8 @@ module link_ctrl (
     reg        have_reply;
     reg [1:0]  r_kind;
     reg [3:0]  r_ack;
-    reg [31:0] r_h0, r_h1, r_h2, r_h3;
     reg [9:0]  r_dq;
+    reg        job_bc;        // the job is the status broadcast
     reg [7:0]  waited;
     reg        bc_wait_drop;  // sent: ignore bc_req until the broadcaster drops it
 
@@ -72,6 +72,12 @@ module link_ctrl (
     wire [31:0] bc_h1 = {10'h3FF, phy_id, 16'hFFFF};
     wire [31:0] bc_h2 = 32'hFF00_1000;
     wire [31:0] bc_h3 = {16'd132, 16'd0};
+    // The reply's header stays in the handler's registers until its next
+    // reply (after this one has gone out), so the framer reads it there.
+    assign job_h0 = job_bc ? bc_h0 : reply_h0;
+    assign job_h1 = job_bc ? bc_h1 : reply_h1;
+    assign job_h2 = job_bc ? bc_h2 : reply_h2;
+    assign job_h3 = job_bc ? bc_h3 : reply_h3;
 
     always @(posedge clk) begin
         bc_sent <= 1'b0;
@@ -91,9 +97,8 @@ module link_ctrl (
             if (rst) begin
                 busreq_type <= REQ_IMM;
                 r_kind <= 2'd0; r_ack <= 4'd0; r_dq <= 10'd0;
-                r_h0 <= 32'd0; r_h1 <= 32'd0; r_h2 <= 32'd0; r_h3 <= 32'd0;
                 job_ack <= 1'b0; job_ack_code <= 4'd0; job_pkt <= 1'b0;
-                job_h0 <= 32'd0; job_h1 <= 32'd0; job_h2 <= 32'd0; job_h3 <= 32'd0;
+                job_bc <= 1'b0;
                 job_hdr_quads <= 3'd4; job_data_quads <= 10'd0;
                 waited <= 8'd0;
             end
@@ -106,7 +111,6 @@ module link_ctrl (
             if (reply_valid) begin
                 have_reply <= 1'b1;
                 r_kind <= reply_kind; r_ack <= reply_ack;
-                r_h0 <= reply_h0; r_h1 <= reply_h1; r_h2 <= reply_h2; r_h3 <= reply_h3;
                 r_dq <= reply_data_quads;
                 // A reply needing an ack without an immediate request out.
                 if (reply_kind != 2'd0 && outstanding != O_IMM && !want_imm &&
@@ -133,7 +137,7 @@ module link_ctrl (
                         job_valid      <= 1'b1;
                         job_ack        <= 1'b0;
                         job_pkt        <= 1'b1;
-                        job_h0 <= bc_h0; job_h1 <= bc_h1; job_h2 <= bc_h2; job_h3 <= bc_h3;
+                        job_bc         <= 1'b1;
                         job_hdr_quads  <= 3'd4;
                         job_data_quads <= 10'd33;
                         sending_bc     <= 1'b1;
@@ -158,10 +162,7 @@ module link_ctrl (
                             job_ack        <= 1'b1;
                             job_ack_code   <= reply_valid ? reply_ack : r_ack;
                             job_pkt        <= (reply_valid ? reply_kind : r_kind) == 2'd2;
-                            job_h0 <= reply_valid ? reply_h0 : r_h0;
-                            job_h1 <= reply_valid ? reply_h1 : r_h1;
-                            job_h2 <= reply_valid ? reply_h2 : r_h2;
-                            job_h3 <= reply_valid ? reply_h3 : r_h3;
+                            job_bc         <= 1'b0;
                             job_hdr_quads  <= 3'd4;
                             job_data_quads <= reply_valid ? reply_data_quads : r_dq;
                         end

@@ -4,9 +4,11 @@
 //   2 DIGITAL_IN, 3 TEMPERATURE, 4-7 ADC, 8-11 ENC_POSITION,
 //   12-15 ENC_PERIOD, 16-19 ENC_QTR1, 20-23 ENC_QTR5, 24-27 ENC_RUN,
 //   28-31 MOTOR_STATUS; quadlets beyond read 0.
-// A sample (a block read of address 0, or a broadcast query) latches the
-// timestamp and restarts it. Two independent read ports: one for read
-// responses, one for the status-broadcast snapshot.
+// Every quadlet but the timestamp is a register of the register file, so
+// this module keeps the timestamp and maps a quadlet index to the register
+// address to read (two indices: the read response and the status-broadcast
+// snapshot). A sample (a block read of address 0, or a broadcast query)
+// latches the timestamp and restarts it.
 `default_nettype none
 
 module realtime_block (
@@ -16,23 +18,17 @@ module realtime_block (
     input  wire [31:0]  sample_time,     // ... at this clock
     input  wire         restart,         // reboot: the timestamp restarts
     input  wire [31:0]  restart_time,
-    input  wire [31:0]  status_word,
-    input  wire [31:0]  din_word,
-    input  wire [31:0]  temp_word,
-    input  wire [127:0] adc_word,
-    input  wire [127:0] pos_word,
-    input  wire [127:0] enc_period,
-    input  wire [127:0] enc_qtr1,
-    input  wire [127:0] enc_qtr5,
-    input  wire [127:0] enc_run,
-    input  wire [127:0] mstat_word,
+    output reg  [31:0]  timestamp,       // of the last sample
     input  wire [9:0]   index_a,
-    output wire [31:0]  data_a,
+    output wire [15:0]  addr_a,          // register to read for it
+    output wire         stamp_a,         // it is the timestamp
+    output wire         zero_a,          // it reads 0
     input  wire [9:0]   index_b,
-    output wire [31:0]  data_b
+    output wire [15:0]  addr_b,
+    output wire         stamp_b,
+    output wire         zero_b
 );
     reg [31:0] last_sample;
-    reg [31:0] timestamp;       // of the last sample
 
     always @(posedge clk) begin
         if (rst) begin
@@ -46,43 +42,34 @@ module realtime_block (
         end
     end
 
-    // One multiplexer per port (always @* so every source is in the
-    // sensitivity list).
-    reg [31:0] mux_a, mux_b;
-    always @* begin
-        mux_a = select(index_a, timestamp, status_word, din_word, temp_word, adc_word,
-                       pos_word, enc_period, enc_qtr1, enc_qtr5, enc_run, mstat_word);
-        mux_b = select(index_b, timestamp, status_word, din_word, temp_word, adc_word,
-                       pos_word, enc_period, enc_qtr1, enc_qtr5, enc_run, mstat_word);
-    end
-    assign data_a = mux_a;
-    assign data_b = mux_b;
-
-    function [31:0] select(input [9:0] q, input [31:0] ts, input [31:0] st,
-                           input [31:0] din, input [31:0] temp, input [127:0] adcs,
-                           input [127:0] pos, input [127:0] per, input [127:0] q1,
-                           input [127:0] q5, input [127:0] run, input [127:0] ms);
+    // Quadlet index -> register address (channel 0 board, 1..4 axes).
+    function [15:0] address(input [4:0] q);
+        reg [3:0] axis;
         begin
-            select = 32'd0;
-            if (q < 10'd32) begin
-                case (q[4:2])
-                    3'd0: case (q[1:0])
-                              2'd0: select = ts;
-                              2'd1: select = st;
-                              2'd2: select = din;
-                              default: select = temp;
-                          endcase
-                    3'd1: select = adcs[32*q[1:0] +: 32];
-                    3'd2: select = pos[32*q[1:0] +: 32];
-                    3'd3: select = per[32*q[1:0] +: 32];
-                    3'd4: select = q1[32*q[1:0] +: 32];
-                    3'd5: select = q5[32*q[1:0] +: 32];
-                    3'd6: select = run[32*q[1:0] +: 32];
-                    default: select = ms[32*q[1:0] +: 32];
-                endcase
-            end
+            axis = {2'b00, q[1:0]} + 4'd1;
+            case (q[4:2])
+                3'd0: case (q[1:0])
+                          2'd1:    address = 16'h0000;   // STATUS
+                          2'd2:    address = 16'h000A;   // DIGITAL_IN
+                          default: address = 16'h0005;   // TEMPERATURE (0: timestamp)
+                      endcase
+                3'd1: address = {8'h00, axis, 4'h0};     // ADC
+                3'd2: address = {8'h00, axis, 4'h5};     // ENC_POSITION
+                3'd3: address = {8'h00, axis, 4'h6};     // ENC_PERIOD
+                3'd4: address = {8'h00, axis, 4'h7};     // ENC_QTR1
+                3'd5: address = {8'h00, axis, 4'h9};     // ENC_QTR5
+                3'd6: address = {8'h00, axis, 4'hA};     // ENC_RUN
+                default: address = {8'h00, axis, 4'hC};  // MOTOR_STATUS
+            endcase
         end
     endfunction
+
+    assign addr_a  = address(index_a[4:0]);
+    assign stamp_a = (index_a == 10'd0);
+    assign zero_a  = (index_a >= 10'd32);
+    assign addr_b  = address(index_b[4:0]);
+    assign stamp_b = (index_b == 10'd0);
+    assign zero_b  = (index_b >= 10'd32);
 endmodule
 
 `default_nettype wire

@@ -76,7 +76,10 @@ module request_handler (
     output reg         rt_sample,
     output reg  [31:0] rt_sample_time,
     output wire [9:0]  rt_index,
-    input  wire [31:0] rt_data,
+    input  wire [15:0] rt_addr,       // the register holding that quadlet
+    input  wire        rt_stamp,      // ... or the timestamp
+    input  wire        rt_zero,       // ... or 0
+    input  wire [31:0] rt_timestamp,
     // Command slicer.
     output reg         sl_start,
     output reg  [15:0] sl_len,
@@ -170,14 +173,17 @@ module request_handler (
         else if (pl_src == P_RT)       p2_sel <= 2'd0;
         else if (p1_addr[15:12] == 4'h1) p2_sel <= 2'd2;
         else                           p2_sel <= 2'd1;
-        p2_word <= (pl_src == P_RT) ? rt_data : regs_rd_data;
+        p2_word <= (pl_src != P_RT) ? regs_rd_data :
+                   rt_stamp ? rt_timestamp : (rt_zero ? 32'd0 : regs_rd_data);
     end
     assign pl_data       = (p2_sel == 2'd3) ? snap_rd_data :
                            (p2_sel == 2'd2) ? hub_rd_data : p2_word;
     assign snap_rd_addr  = p1_index[5:0];
     assign rt_index      = p1_index;
     wire   payload_reg_read = p1_valid && !pl_snapshot && pl_src == P_ADDR;
-    assign regs_rd_addr  = payload_reg_read ? p1_addr : rq_addr;
+    wire   payload_rt_read  = p1_valid && !pl_snapshot && pl_src == P_RT;
+    assign regs_rd_addr  = payload_reg_read ? p1_addr :
+                           (payload_rt_read ? rt_addr : rq_addr);
     assign regs_rd_strobe = (payload_reg_read && p1_addr[15:12] != 4'h1) || rq_read;
     assign hub_rd_addr   = payload_reg_read ? p1_addr : rq_addr;
     assign hub_rd_time   = pl_time;
@@ -242,14 +248,18 @@ module request_handler (
                 S_DECIDE: begin
                     state <= S_IDLE;
                     // The reply (only to packets the link asked a grant for).
+                    // The reply registers change only for packets the link
+                    // asked a grant for (they are read when it comes).
                     reply_valid <= early;
-                    reply_kind  <= K_NONE;
-                    reply_h0 <= {source, tl, 2'b00, TC_RQRESP, 4'h0};
-                    reply_h1 <= resp_h1;
-                    reply_h2 <= 32'd0;
-                    reply_h3 <= 32'd0;
-                    reply_data_quads <= 10'd0;
-                    if (taken && to_me) begin
+                    if (early) begin
+                        reply_kind <= K_NONE;
+                        reply_h0 <= {source, tl, 2'b00, TC_RQRESP, 4'h0};
+                        reply_h1 <= resp_h1;
+                        reply_h2 <= 32'd0;
+                        reply_h3 <= 32'd0;
+                        reply_data_quads <= 10'd0;
+                    end
+                    if (taken && to_me && early) begin
                         case (tcode)
                             TC_WQ: begin reply_kind <= K_ACK; reply_ack <= ACK_COMPLETE; end
                             TC_WB: begin
