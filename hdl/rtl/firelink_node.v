@@ -197,7 +197,7 @@ module firelink_node #(
     wire [31:0] seen_time;
     wire [15:0] hub_rd_addr;
     wire [31:0] hub_rd_time, hub_rd_data;
-    wire        bc_sent;
+    wire        bc_sent, drop_early;
     wire [31:0] snap_rdata;
 
     broadcast_hub hub (
@@ -261,7 +261,7 @@ module firelink_node #(
         .pkt_hdr_ok(pkt_hdr_ok), .pkt_has_data(pkt_has_data),
         .pkt_data_ok(pkt_data_ok), .pkt_len_ok(pkt_len_ok),
         .pkt_slot(pkt_slot), .pkt_early(pkt_early), .pkt_time(pkt_time),
-        .snap_busy(snap_busy),
+        .drop_early(drop_early), .snap_busy(snap_busy),
         .rxb_addr(rxb_raddr), .rxb_data(rxb_rdata),
         .wr_en(wr_en), .wr_addr(wr_addr), .wr_data(wr_data), .wr_time(wr_time),
         .regs_rd_addr(handler_rd_addr), .regs_rd_strobe(regs_rd_strobe),
@@ -296,7 +296,8 @@ module firelink_node #(
         .reply_valid(reply_valid), .reply_kind(reply_kind), .reply_ack(reply_ack),
         .reply_h0(reply_h0), .reply_h1(reply_h1), .reply_h2(reply_h2),
         .reply_h3(reply_h3), .reply_data_quads(reply_data_quads),
-        .bc_req(bc_req), .bc_sent(bc_sent), .bc_active(bc_active),
+        .bc_req(bc_req), .bc_sent(bc_sent), .drop_early(drop_early),
+        .bc_active(bc_active),
         .busreq_valid(busreq_valid), .busreq_ready(busreq_ready),
         .busreq_type(busreq_type), .grant(grant), .cancel(cancel),
         .tx_done(tx_done),

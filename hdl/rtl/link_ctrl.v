@@ -5,7 +5,10 @@
 //   ends, with no arbitration). When the grant comes, the request handler's
 //   reply decides: an ack, an ack followed by the concatenated response
 //   (ack_pending + read response, without releasing the bus), or nothing
-//   (a header CRC error: the grant is released unused). An immediate
+//   (a header CRC error: the grant is released unused). A handler still
+//   busy with an earlier packet REPLY_WAIT clocks after the grant gets
+//   ack_busy_X sent for it, and is told to drop that packet (drop_early):
+//   the requester will send it again. An immediate
 //   request replaces a waiting broadcast request in the PHY; the broadcast
 //   is asked for again afterwards.
 // - The status broadcast: an isochronous-style request while the
@@ -31,6 +34,7 @@ module link_ctrl (
     // Status broadcast.
     input  wire        bc_req,
     output reg         bc_sent,
+    output reg         drop_early,      // the packet was answered busy: drop it
     output reg         bc_active,       // the payload comes from the snapshot
     // PHY-link interface.
     output reg         busreq_valid,
@@ -52,7 +56,8 @@ module link_ctrl (
     localparam [2:0] REQ_IMM = 3'd0, REQ_ISO = 3'd1;
     localparam [1:0] O_NONE = 2'd0, O_IMM = 2'd1, O_ISO = 2'd2;
     localparam [1:0] G_IDLE = 2'd0, G_WAIT_REPLY = 2'd1, G_SENDING = 2'd2;
-    localparam [7:0] REPLY_TIMEOUT = 8'd200;
+    localparam [7:0] REPLY_WAIT = 8'd32;
+    localparam [3:0] ACK_BUSY_X = 4'h4;
 
     reg [1:0]  outstanding;   // request the PHY holds
     reg [1:0]  gstate;
@@ -80,8 +85,9 @@ module link_ctrl (
     assign job_h3 = job_bc ? bc_h3 : reply_h3;
 
     always @(posedge clk) begin
-        bc_sent <= 1'b0;
-        cancel  <= 1'b0;
+        bc_sent    <= 1'b0;
+        cancel     <= 1'b0;
+        drop_early <= 1'b0;
         if (job_valid && job_ready) job_valid <= 1'b0;
         if (busreq_valid && busreq_ready) busreq_valid <= 1'b0;
         if (rst || bus_reset) begin
@@ -167,9 +173,16 @@ module link_ctrl (
                             job_data_quads <= reply_valid ? reply_data_quads : r_dq;
                         end
                         gstate <= G_SENDING;
-                    end else if (waited == REPLY_TIMEOUT) begin
-                        cancel <= 1'b1;
-                        gstate <= G_SENDING;
+                    end else if (waited == REPLY_WAIT) begin
+                        // Busy with an earlier packet: ack_busy_X.
+                        job_valid      <= 1'b1;
+                        job_ack        <= 1'b1;
+                        job_ack_code   <= ACK_BUSY_X;
+                        job_pkt        <= 1'b0;
+                        job_bc         <= 1'b0;
+                        job_data_quads <= 10'd0;
+                        drop_early     <= 1'b1;
+                        gstate         <= G_SENDING;
                     end
                 end
                 default: begin // G_SENDING: until the interface is released

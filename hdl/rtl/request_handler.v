@@ -45,6 +45,7 @@ module request_handler (
     input  wire        pkt_slot,
     input  wire        pkt_early,     // link_ctrl asked for an ack grant
     input  wire [31:0] pkt_time,
+    input  wire        drop_early,    // the link answered it busy: ignore it
     input  wire        snap_busy,
     // Receive buffer read (data one clock after the address).
     output reg  [9:0]  rxb_addr,
@@ -126,6 +127,7 @@ module request_handler (
     reg  [31:0] q1, q2, q3;
     reg         hdr_ok, has_data, data_ok, len_ok, slot, early;
     reg  [31:0] t;
+    reg         dropped;      // a packet answered busy still to be skipped
 
     // ---- header fields -----------------------------------------------------
     wire [15:0] dest    = q0[31:16];
@@ -216,7 +218,7 @@ module request_handler (
             state <= S_IDLE;
             q0 <= 32'd0; q1 <= 32'd0; q2 <= 32'd0; q3 <= 32'd0;
             hdr_ok <= 1'b0; has_data <= 1'b0; data_ok <= 1'b0; len_ok <= 1'b0;
-            slot <= 1'b0; early <= 1'b0; t <= 32'd0;
+            slot <= 1'b0; early <= 1'b0; t <= 32'd0; dropped <= 1'b0;
             st_valid <= 1'b0;
             pl_src <= P_RT; pl_base <= 16'd0; pl_time <= 32'd0;
             rq_addr <= 16'd0;
@@ -235,8 +237,11 @@ module request_handler (
                 wr_data <= sl_wr_data;
                 wr_time <= sl_wr_time;
             end
+            if (drop_early) dropped <= 1'b1;
             case (state)
-                S_IDLE: if (pkt_valid && pkt_ready) begin
+                S_IDLE: if (pkt_valid && pkt_ready && pkt_early && (dropped || drop_early)) begin
+                    dropped <= 1'b0;           // answered busy: no effect
+                end else if (pkt_valid && pkt_ready) begin
                     q0 <= pkt_q0; q1 <= pkt_q1; q2 <= pkt_q2; q3 <= pkt_q3;
                     hdr_ok <= pkt_hdr_ok; has_data <= pkt_has_data;
                     data_ok <= pkt_data_ok; len_ok <= pkt_len_ok;

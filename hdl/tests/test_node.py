@@ -273,3 +273,21 @@ async def broadcast_query_and_hub(dut):
     await host.send(pk.write_block(0xFFFF, pk.node_id(2), 0xFFFFFF001000, pk.to_bytes(other), pri=0xA))
     hub = await host.read_block(NODE, 0x1000, 2)
     assert hub[0] >> 24 == 33 and (hub[0] >> 16) & 0xFF == 0x33 and hub[0] & 0x8000
+
+
+@cocotb.test()
+async def busy_node_answers_ack_busy(dut):
+    phy, host = await start(dut, phy_id=1)
+    # A broadcast block write of 400 quadlets (to axis channels the board
+    # does not have: no effect) keeps the request handler busy for 400
+    # clocks; a read that arrives right behind it gets ack_busy_X and has
+    # no effect; sent again, it is answered.
+    phy.receive(pk.write_block(0xFFFF, HOST, 0x0080, bytes(1600)))
+    write = pk.write_quadlet(NODE, HOST, 3, 0x0777, tl=7)
+    tx = await host.send(write)
+    assert tx is not None and tx.packets == [bytes([pk.ack_byte(pk.ACK_BUSY_X)])]
+    await host.clocks(500)
+    assert await host.read(NODE, 3) == 0x1680
+    ack, _ = await host.request(write)
+    assert ack == pk.ACK_COMPLETE
+    assert await host.read(NODE, 3) == 0x0777
