@@ -52,8 +52,8 @@ const BOARDS: u8 = 3;
 fn configs() -> Vec<BoardConfig> {
     (0..BOARDS)
         .map(|id| {
-            let mut cfg = BoardConfig::new(id, Hardware::Qla1, Profile::Rev8)
-                .with_seed(100 + u64::from(id));
+            let mut cfg =
+                BoardConfig::new(id, Hardware::Qla1, Profile::Rev8).with_seed(100 + u64::from(id));
             cfg.supply_rise = TimeDelta::from_millis(1);
             cfg
         })
@@ -105,7 +105,10 @@ impl Pc {
 
     fn read(&mut self, dest: NodeId, offset: u64) {
         let header = self.header(dest);
-        self.send(Self::emit(&PacketRepr::ReadQuadletRequest { header, offset }));
+        self.send(Self::emit(&PacketRepr::ReadQuadletRequest {
+            header,
+            offset,
+        }));
     }
 
     fn write(&mut self, dest: NodeId, offset: u64, data: u32) {
@@ -267,9 +270,19 @@ fn session() -> BoardRig {
 
 /// One thing the board under test lived through.
 enum Event {
-    Reset { at: SimTime, phy: u8 },
-    Receive { at: SimTime, bytes: Vec<u8>, speed: Speed, live: Reply },
-    Transmitted { at: SimTime },
+    Reset {
+        at: SimTime,
+        phy: u8,
+    },
+    Receive {
+        at: SimTime,
+        bytes: Vec<u8>,
+        speed: Speed,
+        live: Reply,
+    },
+    Transmitted {
+        at: SimTime,
+    },
 }
 
 impl Event {
@@ -364,11 +377,7 @@ fn inputs(fw: &mut Firmware, now: Time) -> String {
     let din = fw.read_quadlet(now, 10);
     let temperature = fw.read_quadlet(now, 5) & 0xFFFF;
     let raw: Vec<u32> = (0..4)
-        .map(|i| {
-            fw.plant()
-                .axis(i)
-                .map_or(0, |a| a.encoder().count() as u32)
-        })
+        .map(|i| fw.plant().axis(i).map_or(0, |a| a.encoder().count() as u32))
         .collect();
     let field = |shift: u32| (din >> shift) & 0xF;
     format!(
@@ -448,9 +457,9 @@ fn replay(rig: &BoardRig, stream: &[Event]) -> (String, usize) {
         match event {
             Event::Reset { phy: id, .. } => {
                 fw.bus_reset(at, *id, 0);
-                let _ = write!(
+                let _ = writeln!(
                     json,
-                    "{{\"kind\":\"reset\",\"clock\":{},\"phy_id\":{id}}},\n",
+                    "{{\"kind\":\"reset\",\"clock\":{},\"phy_id\":{id}}},",
                     at.clocks()
                 );
             }
@@ -461,17 +470,20 @@ fn replay(rig: &BoardRig, stream: &[Event]) -> (String, usize) {
                 let reply = fw.receive(at, bytes, &mut phy);
                 if &reply != live {
                     mismatches += 1;
-                    eprintln!("replay differs from the bus at {:?}: {reply:?} vs {live:?}", at);
+                    eprintln!(
+                        "replay differs from the bus at {:?}: {reply:?} vs {live:?}",
+                        at
+                    );
                 }
                 let speed = match speed {
                     Speed::S100 => 0,
                     Speed::S200 => 1,
                     Speed::S400 => 2,
                 };
-                let _ = write!(
+                let _ = writeln!(
                     json,
                     "{{\"kind\":\"rx\",\"clock\":{},\"t_ps\":{},\"speed\":{speed},\"bytes\":\"{}\",\
-                     \"inputs\":{sensors},\"reply\":{}}},\n",
+                     \"inputs\":{sensors},\"reply\":{}}},",
                     at.clocks(),
                     at.0,
                     hex(bytes),
@@ -486,17 +498,13 @@ fn replay(rig: &BoardRig, stream: &[Event]) -> (String, usize) {
                     if Time::from_clocks(k) < good {
                         k += 1;
                     }
-                    let _ = write!(json, "{{\"kind\":\"supply_good\",\"clock\":{k}}},\n");
+                    let _ = writeln!(json, "{{\"kind\":\"supply_good\",\"clock\":{k}}},");
                 }
                 power_on = on;
             }
             Event::Transmitted { .. } => {
                 fw.transmitted(at);
-                let _ = write!(
-                    json,
-                    "{{\"kind\":\"tx_done\",\"clock\":{}}},\n",
-                    at.clocks()
-                );
+                let _ = writeln!(json, "{{\"kind\":\"tx_done\",\"clock\":{}}},", at.clocks());
             }
         }
         poll(&mut fw, at, &mut broadcasts);
