@@ -225,7 +225,7 @@ module firelink_node #(
 
     status_broadcast #(.BOARD_ID(ID), .CHAIN(CHAINED)) broadcaster (
         .clk(clk), .rst(rst), .now(now), .phy_id(phy_id),
-        .phy_id_valid(phy_id_valid), .bus_reset(bus_reset),
+        .phy_id_valid(phy_id_valid), .bus_reset(bus_reset), .reboot(reboot),
         .query_event(query_event), .query_reg(query_reg), .query_at(query_at),
         .seen(seen), .seen_event(seen_event), .seen_time(seen_time),
         .rt_sample(bc_rt_sample), .rt_sample_time(bc_rt_time),

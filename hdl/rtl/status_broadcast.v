@@ -15,7 +15,8 @@
 // arbitration acceleration) goes to the PHY REQUEST_DELAY clocks after the
 // slot instant, a fixed pipeline delay that covers the time the hub takes
 // to store a received broadcast, so the instant itself is exact to the
-// clock. A bus reset or a new query drops a broadcast not yet sent.
+// clock. A bus reset, a reboot or a new query drops a broadcast not yet
+// sent.
 `default_nettype none
 
 module status_broadcast #(
@@ -33,6 +34,7 @@ module status_broadcast #(
     input  wire [5:0]  phy_id,
     input  wire        phy_id_valid,
     input  wire        bus_reset,
+    input  wire        reboot,        // STATUS reboot: nothing waits any more
     // From the hub.
     input  wire        query_event,
     input  wire [31:0] query_reg,
@@ -94,7 +96,7 @@ module status_broadcast #(
     always @(posedge clk) begin
         rt_sample <= 1'b0;
         snap_we   <= 1'b0;
-        if (rst || bus_reset) begin
+        if (rst || bus_reset || reboot) begin
             pending  <= 1'b0;
             bc_req   <= 1'b0;
             copy     <= 7'd0;

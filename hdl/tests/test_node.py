@@ -291,3 +291,21 @@ async def busy_node_answers_ack_busy(dut):
     ack, _ = await host.request(write)
     assert ack == pk.ACK_COMPLETE
     assert await host.read(NODE, 3) == 0x0777
+
+
+@cocotb.test()
+async def reboot_restores_power_up_state(dut):
+    phy, host = await start(dut, phy_id=1)
+    await host.write(NODE, 3, 0x0042)
+    await host.write(NODE, 0x0011, 0x80001234)
+    await host.write(NODE, 0, 0x000C0000)
+    await host.send(pk.write_quadlet(pk.node_id(0), HOST, 0x1800, 0x00050008), wait=10)
+    await host.clocks(400)
+    assert await host.read(NODE, 0x1802) == 33 + 1          # own entry + timing
+    await host.write(NODE, 0, 0x00300000)                     # reboot
+    await host.clocks(600)                                     # hub memory cleared
+    assert await host.read(NODE, 3) == 0x1680
+    assert await host.read(NODE, 0x0011) == 0x8000
+    assert (await host.read(NODE, 0)) & (1 << 18) == 0
+    assert await host.read(NODE, 0x1802) == 0 and await host.read(NODE, 0x1800) == 0
+    assert await host.read_block(NODE, 0x1000, 8) == [0] * 8
