@@ -16,6 +16,13 @@
 // current (ADC bits 15:0) with its effective command; a difference above
 // 0.44 A (2306 counts) that lasts 50 ms drops the request and sets the
 // axis's safety disable (STATUS bits 7:4, MOTOR_STATUS bit 17).
+//
+// To keep the arithmetic small, one unit serves the axes in turn: each
+// axis's turn-on instant is recomputed every AXES clocks (an axis whose
+// request, delay or supply changed is held off until its instant is
+// fresh), and the current check runs over the axes one per clock right
+// after each tick, with the tick's clock and the amplifier states latched
+// at the tick.
 `default_nettype none
 
 module board_power #(
@@ -38,6 +45,7 @@ module board_power #(
     input  wire            reboot,
     // Per-axis inputs.
     input  wire [8*AXES-1:0]  enable_delay,  // MOTOR_CONFIG 23:16
+    input  wire [AXES-1:0]    delay_written, // MOTOR_CONFIG written this clock
     input  wire [16*AXES-1:0] measured,      // ADC current codes
     input  wire [16*AXES-1:0] command,       // effective DAC commands
     // Pins.
@@ -59,6 +67,9 @@ module board_power #(
         end
     end
 
+    localparam integer LAST = AXES - 1;
+    localparam [1:0]  LAST_AXIS = LAST[1:0];
+    localparam [2:0]  SCAN_END  = AXES[2:0];
     localparam [31:0] HOLD_CLOCKS     = 32'd1966080;  // 40 ms
     localparam [31:0] MISMATCH_CLOCKS = 32'd2457600;  // 50 ms
     localparam [15:0] MISMATCH_COUNTS = 16'd2306;     // 0.44 A
@@ -79,12 +90,17 @@ module board_power #(
     reg        good_seen;
     reg [31:0] good_since;
     reg [31:0] req_since [0:AXES-1];
+    reg [31:0] on_at [0:AXES-1];
+    reg [AXES-1:0] on_fresh;          // on_at is up to date
     reg [31:0] mismatch_since [0:AXES-1];
     reg [AXES-1:0] mismatching;
     reg [15:0] tick_acc;
     reg        tick;
+    reg [31:0] tick_time;
+    reg [AXES-1:0] tick_on;           // amplifiers driving at the tick
+    reg [2:0]  scan;                  // 0: idle, else axis scan - 1 is checked
+    reg [1:0]  rr;                    // axis whose turn-on instant is computed
 
-    wire [AXES-1:0] mm_expired;
     reg [AXES-1:0] want_on, want_off;
     reg            any_enable_request;
     integer i;
@@ -103,28 +119,30 @@ module board_power #(
     end
     assign clear_watchdog = power_on_cmd || any_enable_request;
 
-    // When each amplifier drives: max(request, good + hold) + delay.
+    // The turn-on instant of axis rr: max(request, good + hold) + delay.
+    wire [1:0]  ax       = (AXES == 1) ? 2'd0 : rr;
+    wire [31:0] allowed  = good_since + HOLD_CLOCKS;
+    wire [31:0] rr_req   = req_since[ax];
+    wire        rr_early = $signed(rr_req - allowed) < 0;
+    wire [31:0] rr_on_at = (rr_early ? allowed : rr_req) +
+                           {14'd0, enable_delay[8*ax +: 8], 10'd0};
+
     genvar g;
     generate
         for (g = 0; g < AXES; g = g + 1) begin : axis
-            wire [31:0] allowed = good_since + HOLD_CLOCKS;
-            wire        earlier = $signed(req_since[g] - allowed) < 0;
-            wire [31:0] base    = earlier ? allowed : req_since[g];
-            wire [31:0] on_at   = base + {14'd0, enable_delay[8*g +: 8], 10'd0};
             assign amp_on[g] = requested[g] && power_enabled && good_seen &&
-                               $signed(now - on_at) >= 0;
-            assign mm_expired[g] = (now - mismatch_since[g]) >= MISMATCH_CLOCKS;
+                               on_fresh[g] && $signed(now - on_at[g]) >= 0;
         end
     endgenerate
 
-    // |measured - command| > threshold.
-    function over(input [15:0] a, input [15:0] b);
-        reg [16:0] d;
-        begin
-            d = (a >= b) ? {1'b0, a} - {1'b0, b} : {1'b0, b} - {1'b0, a};
-            over = (d > {1'b0, MISMATCH_COUNTS});
-        end
-    endfunction
+    // The current check of one axis (scan - 1).
+    wire [1:0]  sax      = (AXES == 1) ? 2'd0 : scan[1:0] - 2'd1;
+    wire [15:0] m_cur    = measured[16*sax +: 16];
+    wire [15:0] m_cmd    = command[16*sax +: 16];
+    wire [16:0] m_diff   = (m_cur >= m_cmd) ? {1'b0, m_cur} - {1'b0, m_cmd}
+                                            : {1'b0, m_cmd} - {1'b0, m_cur};
+    wire        m_over   = m_diff > {1'b0, MISMATCH_COUNTS};
+    wire        m_long   = (tick_time - mismatch_since[sax]) >= MISMATCH_CLOCKS;
 
     always @(posedge clk) begin
         if (rst || reboot) begin
@@ -133,15 +151,25 @@ module board_power #(
             requested       <= {AXES{1'b0}};
             safety_disabled <= {AXES{1'b0}};
             mismatching     <= {AXES{1'b0}};
+            on_fresh        <= {AXES{1'b0}};
             good_seen       <= 1'b0;
             good_since      <= 32'd0;
             tick_acc        <= 16'd0;
             tick            <= 1'b0;
+            tick_time       <= 32'd0;
+            tick_on         <= {AXES{1'b0}};
+            scan            <= 3'd0;
+            rr              <= 2'd0;
             for (i = 0; i < AXES; i = i + 1) begin
                 req_since[i]      <= 32'd0;
+                on_at[i]          <= 32'd0;
                 mismatch_since[i] <= 32'd0;
             end
         end else begin
+            // One axis's turn-on instant per clock.
+            on_at[ax] <= rr_on_at;
+            rr <= (rr == LAST_AXIS) ? 2'd0 : rr + 2'd1;
+            on_fresh <= (on_fresh | ({{(AXES-1){1'b0}}, 1'b1} << ax)) & ~delay_written;
             // The safety tick: a clock whose count crossed k * 4915.2.
             if (tick_acc + TICK_NUM >= TICK_DEN) begin
                 tick_acc <= tick_acc + TICK_NUM - TICK_DEN;
@@ -151,29 +179,33 @@ module board_power #(
                 tick     <= 1'b0;
             end
             // Motor supply good, while power is enabled.
-            if (!power_enabled || !supply_good) good_seen <= 1'b0;
-            else if (!good_seen) begin
+            if (!power_enabled || !supply_good) begin
+                if (good_seen) on_fresh <= {AXES{1'b0}};
+                good_seen <= 1'b0;
+            end else if (!good_seen) begin
                 good_seen  <= 1'b1;
                 good_since <= now;
+                on_fresh   <= {AXES{1'b0}};
             end
             // The watchdog drops every request first.
             if (watchdog_fire) requested <= {AXES{1'b0}};
-            // The current check.
+            // The current check, one axis per clock after the tick.
             if (tick) begin
-                for (i = 0; i < AXES; i = i + 1) begin
-                    if (!amp_on[i] || !over(measured[16*i +: 16], command[16*i +: 16])) begin
-                        mismatching[i] <= 1'b0;
-                    end else if (!mismatching[i]) begin
-                        mismatching[i]    <= 1'b1;
-                        mismatch_since[i] <= now;
-                    end else begin
-                        if (mm_expired[i]) begin
-                            requested[i]       <= 1'b0;
-                            safety_disabled[i] <= 1'b1;
-                            mismatching[i]     <= 1'b0;
-                        end
-                    end
+                tick_time <= now;
+                tick_on   <= amp_on;
+                scan      <= 3'd1;
+            end else if (scan != 3'd0) begin
+                if (!tick_on[sax] || !m_over) begin
+                    mismatching[sax] <= 1'b0;
+                end else if (!mismatching[sax]) begin
+                    mismatching[sax]    <= 1'b1;
+                    mismatch_since[sax] <= tick_time;
+                end else if (m_long) begin
+                    requested[sax]       <= 1'b0;
+                    safety_disabled[sax] <= 1'b1;
+                    mismatching[sax]     <= 1'b0;
                 end
+                scan <= (scan == SCAN_END) ? 3'd0 : scan + 3'd1;
             end
             // STATUS command: power first, then relay, then amplifiers.
             if (cmd_valid && power_mask) begin
@@ -194,6 +226,7 @@ module board_power #(
                                         !(cmd_valid && power_mask && !power_value))) begin
                         requested[i] <= 1'b1;
                         req_since[i] <= cmd_valid ? cmd_time : amp_req_time;
+                        on_fresh[i]  <= 1'b0;
                     end
                 end else if (want_off[i]) begin
                     requested[i] <= 1'b0;

@@ -111,19 +111,24 @@ module board_regs #(
         end
     end
 
-    // Effective commands (current limit around 0x8000) and ADC currents.
+    // Effective commands: the command within the current limit around
+    // 0x8000 (MOTOR_CONFIG 15:0), recomputed for the axis written (one
+    // write per clock, so one clamp serves the four axes).
+    wire        mcfg_wr  = wr_axis && wr_reg == 4'd11;
+    wire [15:0] new_cmd  = (dac_wr && wr_data[31]) ? wr_data[15:0] : dac_cmd[wr_ax];
+    wire [15:0] new_lim  = mcfg_wr ? wr_data[15:0] : cur_limit[wr_ax];
+    wire [16:0] c_off    = {1'b0, new_cmd} - 17'h08000;          // command - zero
+    wire [16:0] c_mag    = c_off[16] ? (17'd0 - c_off) : c_off;
+    // Beyond the limit: 0x8000 -/+ limit (never outside 0..0xFFFF, since
+    // |command - 0x8000| <= 0x8000).
+    wire [15:0] limited  = (c_mag <= {1'b0, new_lim}) ? new_cmd :
+                           (c_off[16] ? 16'h8000 - new_lim : 16'h8000 + new_lim);
+    reg  [15:0] dac_eff [0:3];
     wire [63:0] measured;
     genvar g;
     generate
         for (g = 0; g < 4; g = g + 1) begin : cmd
-            wire [17:0] c  = {2'b00, dac_cmd[g]};
-            wire [17:0] lo = 18'h08000 - {2'b00, cur_limit[g]};  // may be negative
-            wire [17:0] hi = 18'h08000 + {2'b00, cur_limit[g]};
-            wire below = $signed(c) < $signed(lo);
-            wire above = $signed(c) > $signed(hi);
-            wire [17:0] k  = below ? lo : (above ? hi : c);
-            assign dac_out[16*g +: 16] = $signed(k) < 0 ? 16'h0000 :
-                                         (k > 18'h0FFFF ? 16'hFFFF : k[15:0]);
+            assign dac_out[16*g +: 16]  = dac_eff[g];
             assign measured[16*g +: 16] = adc[32*g +: 16];
         end
     endgenerate
@@ -136,6 +141,7 @@ module board_regs #(
         .amp_req_valid(amp_req_valid), .amp_req_value(amp_req_value),
         .amp_req_time(wr_time), .watchdog_fire(watchdog_fire), .reboot(reboot),
         .enable_delay({en_delay[3], en_delay[2], en_delay[1], en_delay[0]}),
+        .delay_written({4{mcfg_wr}} & (4'd1 << wr_ax)),
         .measured(measured), .command(dac_out),
         .supply_present(supply_present), .supply_good(supply_good),
         .power_enabled(power_enabled), .relay(relay), .supply_fault(supply_fault),
@@ -236,6 +242,7 @@ module board_regs #(
             overflow         <= 4'd0;
             for (i = 0; i < 4; i = i + 1) begin
                 dac_cmd[i]   <= 16'h8000;
+                dac_eff[i]   <= 16'h8000;
                 preload[i]   <= ENC_NEUTRAL;
                 offset[i]    <= {1'b0, ENC_NEUTRAL} - {enc_raw[32*i+31], enc_raw[32*i +: 32]};
                 en_delay[i]  <= 8'd120;
@@ -265,13 +272,14 @@ module board_regs #(
                 dout_r <= (dout_r & ~wr_data[15:8]) | (~wr_data[7:0] & wr_data[15:8]);
             if (wr_board && wr_reg == 4'd11 && HAS_ETHERNET) ip_addr <= wr_data;
             if (dac_wr && wr_data[31]) dac_cmd[wr_ax] <= wr_data[15:0];
+            if ((dac_wr && wr_data[31]) || mcfg_wr) dac_eff[wr_ax] <= limited;
             if (wr_axis && wr_reg == 4'd4) begin
                 preload[wr_ax]  <= {8'd0, wr_data[23:0]};
                 offset[wr_ax]   <= {9'd0, wr_data[23:0]} -
                                    {enc_raw[32*wr_ax+31], enc_raw[32*wr_ax +: 32]};
                 overflow[wr_ax] <= 1'b0;
             end
-            if (wr_axis && wr_reg == 4'd11) begin
+            if (mcfg_wr) begin
                 en_delay[wr_ax]  <= wr_data[23:16];
                 cur_limit[wr_ax] <= wr_data[15:0];
             end

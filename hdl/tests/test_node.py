@@ -43,8 +43,13 @@ async def quadlet_writes_and_registers(dut):
     assert await host.read(NODE, 0x0021) == 0x9000
     await host.write(NODE, 0x0031, 0x00001111)              # not valid: ignored
     assert await host.read(NODE, 0x0031) == 0x8000
-    await host.write(NODE, 0x002B, 0x00100400)              # MOTOR_CONFIG
+    await host.write(NODE, 0x002B, 0x00100400)              # MOTOR_CONFIG: limit 0x400
     assert await host.read(NODE, 0x002B) == 0x03100400
+    assert (int(dut.dac_out.value) >> 16) & 0xFFFF == 0x8400    # axis 2 held to the limit
+    await host.write(NODE, 0x0021, 0x80007E00)              # within the limit
+    assert (int(dut.dac_out.value) >> 16) & 0xFFFF == 0x7E00
+    await host.write(NODE, 0x0021, 0x80000000)              # below it
+    assert (int(dut.dac_out.value) >> 16) & 0xFFFF == 0x7C00
     assert await host.read(NODE, 0x2000) == 0               # unmapped
     assert await host.read(NODE, 15) == 0x0F1E1140          # GIT_DESC
 
