@@ -44,7 +44,7 @@ def main(argv: list[str]) -> int:
         t0 = time.monotonic()
         runner.build(sources=sources + extra, hdl_toplevel=top, parameters=params,
                      build_dir=build, timescale=("1ps", "1ps"), always=True,
-                     build_args=["-Wall", "-Wno-timescale"])
+                     build_args=["-Wall", "-Wno-timescale", "-Wno-sensitivity-entire-array"])
         results = runner.test(hdl_toplevel=top, test_module=name, build_dir=build,
                               test_dir=HERE, extra_env={"PYTHONPATH": str(HERE)})
         fails = _count_failures(results)
