@@ -46,7 +46,8 @@ def main(argv: list[str]) -> int:
                      build_dir=build, timescale=("1ps", "1ps"), always=True,
                      build_args=["-Wall", "-Wno-timescale", "-Wno-sensitivity-entire-array"])
         results = runner.test(hdl_toplevel=top, test_module=name, build_dir=build,
-                              test_dir=HERE, extra_env={"PYTHONPATH": str(HERE)})
+                              test_dir=HERE, results_xml=str(build / "results.xml"),
+                              extra_env={"PYTHONPATH": str(HERE)})
         fails = _count_failures(results)
         tests = _count_tests(results)
         total += tests
