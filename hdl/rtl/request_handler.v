@@ -116,7 +116,7 @@ module request_handler (
     localparam [1:0] K_NONE = 2'd0, K_ACK = 2'd1, K_RESP = 2'd2;
     localparam [2:0] S_IDLE = 3'd0, S_DECIDE = 3'd1, S_RQ_HUB = 3'd2,
                      S_BLKWR = 3'd3, S_QUERY_RD = 3'd4, S_STORE = 3'd5,
-                     S_SLICE = 3'd6;
+                     S_SLICE = 3'd6, S_QUERY_TAKE = 3'd7;
     localparam [1:0] P_RT = 2'd0, P_ADDR = 2'd1;
 
     reg  [2:0]  state;
@@ -355,25 +355,19 @@ module request_handler (
                     reply_h3    <= hub_rd_data;
                     state       <= S_IDLE;
                 end
-                S_QUERY_RD: begin
-                    // rxb_addr = slot:0 since last clock; data next clock.
-                    state <= S_STORE;    // reuse: wait one more clock below
-                    st_valid <= 1'b0;
-                    query_word <= 32'd0;
-                    blk_d <= 1'b1;
+                // A query in the first quadlet of a block write: the buffer
+                // reads quadlet 0 (address set since the decision), its data
+                // is there one clock later.
+                S_QUERY_RD: state <= S_QUERY_TAKE;
+                S_QUERY_TAKE: begin
+                    query_valid <= 1'b1;
+                    query_word  <= rxb_data;
+                    query_time  <= t;
+                    state       <= S_IDLE;
                 end
                 S_STORE: begin
-                    if (blk_d) begin
-                        // Query from the first quadlet of a block write.
-                        blk_d       <= 1'b0;
-                        query_valid <= 1'b1;
-                        query_word  <= rxb_data;
-                        query_time  <= t;
-                        state       <= S_IDLE;
-                    end else begin
-                        if (st_valid && st_ready) st_valid <= 1'b0;
-                        if (st_done) state <= S_IDLE;
-                    end
+                    if (st_valid && st_ready) st_valid <= 1'b0;
+                    if (st_done) state <= S_IDLE;
                 end
                 S_SLICE: if (!sl_start && !sl_busy) state <= S_IDLE;
                 S_BLKWR: begin

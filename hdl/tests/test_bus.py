@@ -30,7 +30,7 @@ class Bus:
         self.owner = None
         self.quiet = 0
         for i in range(count):
-            n = getattr(dut.n, f"__getitem__")(i) if False else dut.n[i]
+            n = dut.n[i]
             phy = Phy(dut.clk, n.ctl_i, n.d_i, n.ctl_o, n.d_o, n.oe, n.lreq, n.now,
                       regs=board_phy_registers(i), name=f"phy{i}")
             phy.clock_ps = CLOCK_PS

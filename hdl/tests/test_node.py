@@ -314,3 +314,21 @@ async def reboot_restores_power_up_state(dut):
     assert (await host.read(NODE, 0)) & (1 << 18) == 0
     assert await host.read(NODE, 0x1802) == 0 and await host.read(NODE, 0x1800) == 0
     assert await host.read_block(NODE, 0x1000, 8) == [0] * 8
+
+
+@cocotb.test()
+async def query_by_block_write_and_hub_registers(dut):
+    phy, host = await start(dut, phy_id=1)
+    # A block write to 0x1800 takes the query from its first quadlet.
+    ack, _ = await host.request(pk.write_block(NODE, HOST, 0x1800, pk.to_bytes([0x00090008, 0])))
+    assert ack == pk.ACK_COMPLETE
+    await host.clocks(400)
+    assert await host.read(NODE, 0x1800) == 0x00090008
+    assert await host.read(NODE, 0x1802) == 34
+    # Sequence 0 is not a query: ignored.
+    await host.write(NODE, 0x1800, 0x00000008)
+    assert await host.read(NODE, 0x1800) == 0x00090008
+    # A status broadcast whose size field does not match its length is not stored.
+    bad = [0x00090020] + [0] * 32
+    await host.send(pk.write_block(0xFFFF, pk.node_id(2), 0xFFFFFF001000, pk.to_bytes(bad), pri=0xA))
+    assert await host.read(NODE, 0x1802) == 34
