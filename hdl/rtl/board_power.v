@@ -22,11 +22,14 @@
 // request, delay or supply changed is held off until its instant is
 // fresh), and the current check runs over the axes one per clock right
 // after each tick, with the tick's clock and the amplifier states latched
-// at the tick.
+// at the tick. As in the software board, the check also runs at the
+// instant an amplifier turns on.
 `default_nettype none
 
 module board_power #(
-    parameter integer AXES = 4   // amplifiers on the board (QLA1: 4)
+    parameter integer AXES = 4,                      // amplifiers (QLA1: 4), 1..4
+    parameter [31:0]  HOLD_CLOCKS     = 32'd1966080, // supply good to drive: 40 ms
+    parameter [31:0]  MISMATCH_CLOCKS = 32'd2457600  // current mismatch to trip: 50 ms
 ) (
     input  wire            clk,
     input  wire            rst,
@@ -65,13 +68,15 @@ module board_power #(
             $display("board_power: AXES must be 1..4");
             $finish;
         end
+        if (HOLD_CLOCKS == 32'd0 || MISMATCH_CLOCKS == 32'd0) begin
+            $display("board_power: HOLD_CLOCKS and MISMATCH_CLOCKS must not be 0");
+            $finish;
+        end
     end
 
     localparam integer LAST = AXES - 1;
     localparam [1:0]  LAST_AXIS = LAST[1:0];
     localparam [2:0]  SCAN_END  = AXES[2:0];
-    localparam [31:0] HOLD_CLOCKS     = 32'd1966080;  // 40 ms
-    localparam [31:0] MISMATCH_CLOCKS = 32'd2457600;  // 50 ms
     localparam [15:0] MISMATCH_COUNTS = 16'd2306;     // 0.44 A
     localparam [15:0] TICK_NUM = 16'd5, TICK_DEN = 16'd24576; // 4915.2 clocks
 
@@ -100,6 +105,7 @@ module board_power #(
     reg [AXES-1:0] tick_on;           // amplifiers driving at the tick
     reg [2:0]  scan;                  // 0: idle, else axis scan - 1 is checked
     reg [1:0]  rr;                    // axis whose turn-on instant is computed
+    reg [AXES-1:0] was_on;            // amp_on one clock ago
 
     reg [AXES-1:0] want_on, want_off;
     reg            any_enable_request;
@@ -160,6 +166,7 @@ module board_power #(
             tick_on         <= {AXES{1'b0}};
             scan            <= 3'd0;
             rr              <= 2'd0;
+            was_on          <= {AXES{1'b0}};
             for (i = 0; i < AXES; i = i + 1) begin
                 req_since[i]      <= 32'd0;
                 on_at[i]          <= 32'd0;
@@ -189,8 +196,10 @@ module board_power #(
             end
             // The watchdog drops every request first.
             if (watchdog_fire) requested <= {AXES{1'b0}};
-            // The current check, one axis per clock after the tick.
-            if (tick) begin
+            // The current check, one axis per clock after the tick (or after
+            // an amplifier turned on).
+            was_on <= amp_on;
+            if (tick || (amp_on & ~was_on) != {AXES{1'b0}}) begin
                 tick_time <= now;
                 tick_on   <= amp_on;
                 scan      <= 3'd1;

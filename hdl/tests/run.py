@@ -25,6 +25,7 @@ TESTS = {
     "test_lreq": ("phy_lreq_tx", {}, []),
     "test_slicer": ("command_slicer", {"BOARD_ID": 2}, []),
     "test_watchdog": ("board_watchdog", {"POWER_UP_TICKS": 4}, []),
+    "test_power": ("board_power", {"HOLD_CLOCKS": 1000, "MISMATCH_CLOCKS": 20000}, []),
     "test_node": ("firelink_node", {"BOARD_ID": 3}, []),
     "test_bus": ("tb_bus", {"CHAIN": 1}, [HERE / "tb_bus.v"]),
     "test_tdma": ("tb_bus", {"CHAIN": 0}, [HERE / "tb_bus.v"]),
