@@ -24,6 +24,9 @@
 //   bytes address_error, with no data.
 // - Responses to requests the board never makes: ack_complete; a lock
 //   request: ack_type_error.
+// - A packet for this node that arrives while an earlier one still keeps
+//   the handler busy is answered ack_busy_X by link_ctrl and dropped here
+//   (drop_early): the requester sends it again.
 // Response payload quadlets come from the payload port two clocks after
 // the framer asks (registers, real-time block, hub, or the broadcast
 // snapshot while the status broadcast goes out).
