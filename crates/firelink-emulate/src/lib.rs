@@ -28,6 +28,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use firelink_board::node::BoardNode;
 use firelink_bus::host::Outcome;
 use firelink_bus::{Bus, HostLink, NodeHandle, SimDuration, SimTime};
 use firelink_wire::bridge::{ExtraData, ExtraFlags, split_host_datagram};
@@ -122,9 +123,18 @@ pub struct Bridge {
     bus: Bus,
     link: NodeHandle,
     bridge_board: NodeHandle,
+    /// Every emulated board on the bus (their status slots are completed
+    /// before the next datagram is handled).
+    boards: Vec<NodeHandle>,
     stats: BridgeStats,
     timeout: SimDuration,
 }
+
+/// The longest a datagram waits, in virtual time, for the boards to finish
+/// the status broadcasts the datagrams before it started: more than a full
+/// Rev 7+ chain of 16 boards with every predecessor silent
+/// (16 x [`CHAIN_TIMEOUT_PER_BOARD`](firelink_board::firmware::CHAIN_TIMEOUT_PER_BOARD)).
+const SETTLE_LIMIT: SimDuration = SimDuration::from_micros(2_000);
 
 /// 49.152 MHz ticks in a virtual duration, saturating at 16 bits.
 fn ticks16(d: SimDuration) -> u16 {
@@ -136,10 +146,15 @@ impl Bridge {
     /// A bridge whose FireWire link is the [`HostLink`] node `link` of `bus`
     /// and whose own registers are those of the board node `bridge_board`.
     pub fn new(bus: Bus, link: NodeHandle, bridge_board: NodeHandle) -> Bridge {
+        let boards = (0..bus.len())
+            .map(NodeHandle)
+            .filter(|h| bus.node::<BoardNode>(*h).is_some())
+            .collect();
         Bridge {
             bus,
             link,
             bridge_board,
+            boards,
             stats: BridgeStats::default(),
             timeout: SimDuration::from_micros(10_000),
         }
@@ -173,6 +188,31 @@ impl Bridge {
         }
     }
 
+    /// Let the boards finish, in virtual time, what the datagrams handled
+    /// so far started: every status broadcast a query scheduled is sent
+    /// (and stored in every hub) before the next datagram is looked at.
+    /// Real boards finish their slots within microseconds of the query,
+    /// sooner than any host can get its hub read to the bridge; here a
+    /// query and a hub read that queue up back to back (a busy host or
+    /// emulator thread) would otherwise meet almost no virtual time apart.
+    /// A board that can no longer send (muted, unplugged) is not waited
+    /// for once its slot has passed; the wait is bounded by
+    /// [`SETTLE_LIMIT`].
+    fn settle(&mut self) {
+        let deadline = self.bus.now() + SETTLE_LIMIT;
+        let boards = &self.boards;
+        self.bus.run_until_with(deadline, |bus| {
+            let now = firelink_board::time::Time(bus.now().0);
+            let owed = boards.iter().any(|h| {
+                bus.node::<BoardNode>(*h)
+                    .and_then(|b| b.firmware().next_wakeup())
+                    .is_some_and(|due| due >= now)
+            });
+            !owed && !bus.has_pending_traffic()
+        });
+        self.forget_received();
+    }
+
     /// Other nodes' broadcasts reach the bridge's link too; the bridge has
     /// no use for them, so they are not kept.
     fn forget_received(&mut self) {
@@ -192,6 +232,7 @@ impl Bridge {
 
     /// Handle one host datagram; a reply, if any, is written to `reply`.
     pub fn handle(&mut self, datagram: &[u8], reply: &mut Vec<u8>) -> Handled {
+        self.settle();
         self.stats.datagrams += 1;
         let Ok((control, packet)) = split_host_datagram(datagram) else {
             self.stats.malformed += 1;
