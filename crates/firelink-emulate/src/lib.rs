@@ -28,6 +28,9 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+mod arrival;
+
+use arrival::{Received, Receiver};
 use firelink_board::node::BoardNode;
 use firelink_bus::host::Outcome;
 use firelink_bus::{Bus, HostLink, NodeHandle, SimDuration, SimTime};
@@ -334,6 +337,10 @@ impl Bridge {
     }
 }
 
+/// Largest datagram the server reads whole (anything longer is cut, and
+/// then does not decode): more than any request the bridge takes.
+const MAX_DATAGRAM: usize = 8192;
+
 /// Where and how the server listens.
 #[derive(Debug, Clone)]
 pub struct ServeConfig {
@@ -396,6 +403,12 @@ pub fn bind(config: &ServeConfig) -> std::io::Result<(UdpSocket, Option<UdpSocke
 /// Run the bridge until `stop` is set: receive datagrams, keep virtual time
 /// in step with the wall clock, answer reads from the unicast socket.
 ///
+/// Each datagram is handled at the virtual time of its arrival (the
+/// kernel's receive stamp), and virtual time only moves past a moment of
+/// the wall clock once every datagram that arrived before it has been
+/// handled: a server kept off the CPU answers late, but the boards see
+/// the host's requests at the times the host sent them.
+///
 /// # Errors
 /// Socket errors other than time-outs.
 pub fn serve(
@@ -413,26 +426,76 @@ pub fn serve(
     // broadcast socket is polled between.
     unicast.set_nonblocking(false)?;
     unicast.set_read_timeout(Some(Duration::from_micros(500)))?;
-    if let Some(b) = broadcast {
-        b.set_nonblocking(true)?;
-    }
+    let mut unicast_rx = Receiver::new(unicast)?;
+    let mut broadcast_rx = match broadcast {
+        Some(b) => {
+            b.set_nonblocking(true)?;
+            Some((b, Receiver::new(b)?))
+        }
+        None => None,
+    };
     let wall_origin = Instant::now();
     let virtual_origin = bridge.bus().now();
-    let mut buf = vec![0u8; 4096];
-    let mut reply = Vec::with_capacity(4096);
+    let virtual_at = |at: Instant| {
+        virtual_origin
+            + SimDuration::from_micros_f64(at.duration_since(wall_origin).as_secs_f64() * 1e6)
+    };
+    let mut buf = vec![0u8; MAX_DATAGRAM];
+    let mut reply = Vec::with_capacity(MAX_DATAGRAM);
     // Hosts announced so far; a flood from many source ports must not
     // grow this, so only the first few are remembered (and announced).
     const HOSTS_REMEMBERED: usize = 16;
     let mut hosts: Vec<SocketAddr> = Vec::with_capacity(HOSTS_REMEMBERED);
     let mut generation = bridge.generation();
     let mut lag_reported = Instant::now() - Duration::from_secs(10);
+    let mut handle = |r: Received,
+                      buf: &[u8],
+                      bridge: &mut Bridge,
+                      on_event: &mut dyn FnMut(Event)|
+     -> std::io::Result<()> {
+        if hosts.len() < HOSTS_REMEMBERED && !hosts.contains(&r.from) {
+            hosts.push(r.from);
+            on_event(Event::HostSeen(r.from));
+        }
+        bridge.advance_to(virtual_at(r.at));
+        if let Handled::Reply(n) = bridge.handle(buf.get(..r.len).unwrap_or(buf), &mut reply) {
+            // A host that went away is not the server's failure.
+            if let Err(e) = unicast.send_to(&reply[..n], r.from)
+                && !matches!(
+                    e.kind(),
+                    std::io::ErrorKind::ConnectionRefused
+                        | std::io::ErrorKind::WouldBlock
+                        | std::io::ErrorKind::Interrupted
+                )
+            {
+                return Err(e);
+            }
+        }
+        Ok(())
+    };
     while !stop.load(Ordering::Relaxed) {
-        // Keep virtual time in step with the wall clock.
-        let wall = wall_origin.elapsed();
-        let target = virtual_origin + SimDuration::from_micros_f64(wall.as_secs_f64() * 1e6);
-        bridge.advance_to(target);
+        // Everything that arrived before this moment is queued now: handle
+        // it at its arrival time, then let virtual time reach the moment.
+        let wall = Instant::now();
+        loop {
+            let mut any = false;
+            if let Some((b, rx)) = broadcast_rx.as_mut()
+                && let Some(r) = rx.receive(b, &mut buf, false)?
+            {
+                handle(r, &buf, bridge, &mut on_event)?;
+                any = true;
+            }
+            if let Some(r) = unicast_rx.receive(unicast, &mut buf, false)? {
+                handle(r, &buf, bridge, &mut on_event)?;
+                any = true;
+            }
+            if !any {
+                break;
+            }
+        }
+        bridge.advance_to(virtual_at(wall));
         let ahead_us = bridge.bus().now().as_micros_f64() - virtual_origin.as_micros_f64();
-        let behind = wall.as_secs_f64() - ahead_us / 1e6;
+        let behind = wall_origin.elapsed().as_secs_f64() - ahead_us / 1e6;
         if behind > 0.010 && lag_reported.elapsed() > Duration::from_secs(5) {
             on_event(Event::Lagging(Duration::from_secs_f64(behind)));
             lag_reported = Instant::now();
@@ -441,41 +504,10 @@ pub fn serve(
             generation = bridge.generation();
             on_event(Event::BusReset(generation));
         }
-        let mut received = |socket: &UdpSocket, bridge: &mut Bridge| -> std::io::Result<()> {
-            match socket.recv_from(&mut buf) {
-                Ok((len, from)) => {
-                    if hosts.len() < HOSTS_REMEMBERED && !hosts.contains(&from) {
-                        hosts.push(from);
-                        on_event(Event::HostSeen(from));
-                    }
-                    // Virtual time catches up with the wall clock first.
-                    let wall = wall_origin.elapsed();
-                    bridge.advance_to(
-                        virtual_origin + SimDuration::from_micros_f64(wall.as_secs_f64() * 1e6),
-                    );
-                    if let Handled::Reply(n) = bridge.handle(&buf[..len], &mut reply) {
-                        unicast.send_to(&reply[..n], from)?;
-                    }
-                    Ok(())
-                }
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::WouldBlock
-                            | std::io::ErrorKind::TimedOut
-                            | std::io::ErrorKind::Interrupted
-                            | std::io::ErrorKind::ConnectionRefused
-                    ) =>
-                {
-                    Ok(())
-                }
-                Err(e) => Err(e),
-            }
-        };
-        if let Some(b) = broadcast {
-            received(b, bridge)?;
+        // Sleep until the next datagram (or a little while).
+        if let Some(r) = unicast_rx.receive(unicast, &mut buf, true)? {
+            handle(r, &buf, bridge, &mut on_event)?;
         }
-        received(unicast, bridge)?;
     }
     on_event(Event::Stopped(bridge.stats()));
     Ok(())
