@@ -15,6 +15,9 @@ use firelink_wire::board::realtime::{BoardLayout, FirmwareRev};
 pub use firelink_wire::board::registers::FpgaVersion;
 use firelink_wire::board::registers::HardwareVersion;
 
+use firelink_wire::board::extras::{fpga_serial_image, qla_serial_image};
+
+use crate::firmware::Instrument;
 use crate::plant::{AxisParams, DEFAULT_STEP, presets};
 use crate::time::TimeDelta;
 
@@ -102,6 +105,71 @@ pub struct BoardConfig {
     pub motor_supply_present: bool,
     /// Time from power enable to motor supply good.
     pub supply_rise: TimeDelta,
+    /// Motor supply voltage, V (what `MeasureMotorSupplyVoltage` finds
+    /// through the comparator, `fpga-board-extras.md` §7).
+    pub motor_supply_volts: f64,
+    /// FPGA serial number in the configuration PROM (`1234-56`, at most 11
+    /// characters; `fpga-board-extras.md` §1).
+    pub fpga_serial: String,
+    /// QLA serial number per QLA (one; two on a DQLA), in the QLA PROMs
+    /// (at most 8 characters; `fpga-board-extras.md` §2). Missing ones get
+    /// the default; an invalid one leaves its PROM erased.
+    pub qla_serials: Vec<String>,
+    /// The instrument on the 1-wire line (a tool's DS2505), if any.
+    pub instrument: Option<Instrument>,
+}
+
+/// The default FPGA serial number of board `board_id`: unique per board ID
+/// and the same every run (build `8801`, board number `ID + 1`).
+pub fn default_fpga_serial(board_id: u8) -> String {
+    format!("8801-{:02}", u16::from(board_id & 0xF) + 1)
+}
+
+/// The default serial number of QLA `qla` (0, or 1 for a DQLA's second)
+/// of board `board_id` (build `8802`; a DQLA's second QLA counts from 17).
+pub fn default_qla_serial(board_id: u8, qla: usize) -> String {
+    let n = u16::from(board_id & 0xF) + 1 + 16 * (qla as u16 & 1);
+    format!("8802-{n:02}")
+}
+
+/// The nominal motor supply of board `board_id` in a dVRK controller, as
+/// `dvrktest` expects it (`fpga-board-extras.md` §7): 12 V for the MTMs'
+/// second boards (1, 3), 36 V for the ECM (4, 5), 48 V for board 12, 24 V
+/// elsewhere.
+pub fn nominal_motor_supply_volts(board_id: u8) -> f64 {
+    match board_id & 0xF {
+        1 | 3 => 12.0,
+        4 | 5 => 36.0,
+        12 => 48.0,
+        _ => 24.0,
+    }
+}
+
+/// A configuration value the board cannot hold.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ConfigError {
+    /// A serial number that does not fit its PROM format.
+    #[error(
+        "board {board}: {what} serial number {serial:?} must be 1 to {max} printable characters without spaces"
+    )]
+    Serial {
+        /// Board ID.
+        board: u8,
+        /// "FPGA" or "QLA".
+        what: &'static str,
+        /// The serial given.
+        serial: String,
+        /// Its longest length.
+        max: usize,
+    },
+    /// A motor supply voltage outside what the comparator can measure.
+    #[error("board {board}: motor supply {volts} V is outside 0..=80 V")]
+    SupplyVolts {
+        /// Board ID.
+        board: u8,
+        /// The voltage given.
+        volts: f64,
+    },
 }
 
 impl BoardConfig {
@@ -118,7 +186,98 @@ impl BoardConfig {
             plant_step: DEFAULT_STEP,
             motor_supply_present: true,
             supply_rise: TimeDelta::from_millis(5),
+            motor_supply_volts: nominal_motor_supply_volts(board_id),
+            fpga_serial: default_fpga_serial(board_id),
+            qla_serials: Vec::new(),
+            instrument: None,
         }
+    }
+
+    /// The same board with this FPGA serial number.
+    pub fn with_fpga_serial(mut self, serial: impl Into<String>) -> BoardConfig {
+        self.fpga_serial = serial.into();
+        self
+    }
+
+    /// The same board with QLA `qla`'s serial number set (0; 0 or 1 on a
+    /// DQLA); ignored for a QLA the board does not have.
+    pub fn with_qla_serial(mut self, qla: usize, serial: impl Into<String>) -> BoardConfig {
+        if qla < self.qla_count() {
+            let mut serials = self.qla_serials();
+            if let Some(s) = serials.get_mut(qla) {
+                *s = serial.into();
+            }
+            self.qla_serials = serials;
+        }
+        self
+    }
+
+    /// The same board with another motor supply voltage.
+    pub fn with_motor_supply_volts(mut self, volts: f64) -> BoardConfig {
+        self.motor_supply_volts = volts;
+        self
+    }
+
+    /// The same board with an instrument on its 1-wire line.
+    pub fn with_instrument(mut self, instrument: Instrument) -> BoardConfig {
+        self.instrument = Some(instrument);
+        self
+    }
+
+    /// QLAs on the companion board: 1, or 2 on a DQLA.
+    pub fn qla_count(&self) -> usize {
+        match self.hardware {
+            Hardware::Qla1 => 1,
+            Hardware::Dqla => 2,
+        }
+    }
+
+    /// The QLA serial numbers, one per QLA, defaults filled in.
+    pub fn qla_serials(&self) -> Vec<String> {
+        (0..self.qla_count())
+            .map(|i| {
+                self.qla_serials
+                    .get(i)
+                    .cloned()
+                    .unwrap_or_else(|| default_qla_serial(self.board_id, i))
+            })
+            .collect()
+    }
+
+    /// Check what the board's memories and comparator can hold.
+    ///
+    /// # Errors
+    /// The first [`ConfigError`] found.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        let serial = |what, serial: &str, max, ok: bool| {
+            if ok {
+                Ok(())
+            } else {
+                Err(ConfigError::Serial {
+                    board: self.board_id,
+                    what,
+                    serial: serial.to_string(),
+                    max,
+                })
+            }
+        };
+        use firelink_wire::board::extras::{FPGA_SERIAL_MAX, QLA_SERIAL_MAX};
+        serial(
+            "FPGA",
+            &self.fpga_serial,
+            FPGA_SERIAL_MAX,
+            fpga_serial_image(&self.fpga_serial).is_ok(),
+        )?;
+        for s in self.qla_serials() {
+            serial("QLA", &s, QLA_SERIAL_MAX, qla_serial_image(&s).is_ok())?;
+        }
+        if !(0.0..=80.0).contains(&self.motor_supply_volts) {
+            return Err(ConfigError::SupplyVolts {
+                board: self.board_id,
+                volts: self.motor_supply_volts,
+            });
+        }
+        Ok(())
     }
 
     /// The same board with these axes.

@@ -72,11 +72,18 @@
 //! assert_eq!(resp.quadlet_data(), 8);
 //! ```
 
+mod dallas;
+mod dout;
+mod ethernet;
+mod expander;
 mod hub;
 mod phy;
 mod power;
+mod prom;
 mod registers;
 
+pub use dallas::Instrument;
+pub use dout::{OUTPUTS as DIGITAL_OUTPUTS, WAVEFORM_ENTRIES};
 pub use hub::{CHAIN_TIMEOUT_PER_BOARD, FIRST_SLOT_CLOCKS, SEED_OFFSET, SEED_SLOT};
 pub use phy::{PhyAccess, PhyRegisters};
 pub use power::{
@@ -96,8 +103,13 @@ use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Rcode,
 use crate::config::{BoardConfig, Profile};
 use crate::plant::Plant;
 use crate::time::{Time, TimeDelta};
+use dallas::Dallas;
+use dout::DigitalOutputs;
+use ethernet::Ethernet;
+use expander::Expander;
 use hub::{Hub, Pending};
 use power::{AxisState, Power, Watchdog};
+use prom::{FpgaProm, QlaProm};
 
 /// Largest block read served, bytes (one S400 payload).
 pub const MAX_BLOCK_READ: usize = 2048;
@@ -155,8 +167,14 @@ pub struct Firmware {
     // Board registers.
     phy_ctrl: u32,
     phy_data: PhyData,
-    dout: u8,
+    dout: DigitalOutputs,
     ip_addr: u32,
+    fpga_prom: FpgaProm,
+    /// One per QLA (a DQLA has two).
+    qla_proms: Vec<QlaProm>,
+    dallas: Dallas,
+    expander: Expander,
+    ethernet: Ethernet,
     power: Power,
     watchdog: Watchdog,
     axes: Vec<AxisState>,
@@ -177,6 +195,10 @@ impl Firmware {
             .iter()
             .map(|a| AxisState::new(a.encoder().count()))
             .collect();
+        let fpga_prom = FpgaProm::new(&cfg.fpga_serial);
+        let qla_proms = cfg.qla_serials().iter().map(|s| QlaProm::new(s)).collect();
+        let dallas = Dallas::new(cfg.instrument.as_ref());
+        let ethernet = Ethernet::new(cfg.board_id);
         Firmware {
             power: Power::new(cfg.motor_supply_present, cfg.supply_rise),
             cfg,
@@ -186,8 +208,13 @@ impl Firmware {
             generation: 0,
             phy_ctrl: 0,
             phy_data: PhyData::default(),
-            dout: 0,
+            dout: DigitalOutputs::new(),
             ip_addr: 0,
+            fpga_prom,
+            qla_proms,
+            dallas,
+            expander: Expander::new(),
+            ethernet,
             watchdog: Watchdog::new(Time::ZERO),
             axes,
             last_sample: Time::ZERO,
@@ -259,6 +286,40 @@ impl Firmware {
     /// Whether the watchdog has fired (STATUS bit 23).
     pub fn watchdog_timed_out(&self) -> bool {
         self.watchdog.timed_out
+    }
+
+    /// Bytes `address..address + len` of the FPGA configuration PROM.
+    pub fn fpga_prom_bytes(&self, address: usize, len: usize) -> Vec<u8> {
+        self.fpga_prom.read(address, len)
+    }
+
+    /// Bytes `address..address + len` of QLA PROM `qla` (0, or 0/1 on a
+    /// DQLA); `None` for a QLA the board does not have.
+    pub fn qla_prom_bytes(&self, qla: usize, address: usize, len: usize) -> Option<Vec<u8>> {
+        self.qla_proms.get(qla).map(|p| p.read(address, len))
+    }
+
+    /// The raw digital outputs now (bit i = DOUT i+1; what register 6
+    /// bits 3:0 and DIGIN bits 15:12 read).
+    pub fn digital_outputs(&self) -> u8 {
+        self.dout.raw_outputs(self.now)
+    }
+
+    /// Put an instrument on the 1-wire line, or take it off (`None`).
+    pub fn set_instrument(&mut self, instrument: Option<&Instrument>) {
+        self.dallas.set_instrument(instrument);
+    }
+
+    /// Connect or disconnect this board's Ethernet port (an FPGA V2 whose
+    /// port is connected is the bridge board: link up).
+    pub fn set_ethernet_link(&mut self, up: bool) {
+        self.ethernet.set_link(up);
+    }
+
+    /// A FireWire packet arrived over this board's Ethernet port (the
+    /// bridge records it in the Ethernet debug window).
+    pub fn ethernet_received(&mut self, packet: &[u8]) {
+        self.ethernet.received(packet);
     }
 
     /// Connect or disconnect the motor supply at `now` (fault injection).
