@@ -85,9 +85,31 @@ pub struct BridgeStats {
     pub unsupported: u64,
     /// Transactions that failed on the bus.
     pub bus_failures: u64,
+    /// Quadlet reads of node 63: answered by the bridge board (counted as
+    /// local) and also forwarded onto FireWire, where every board ignores
+    /// them.
+    pub broadcast_reads: u64,
 }
 
 impl BridgeStats {
+    /// Count a datagram dropped for `reason` (every drop goes through here,
+    /// so none is silent).
+    fn count_drop(&mut self, reason: DropReason) -> Handled {
+        match reason {
+            DropReason::Malformed => self.malformed += 1,
+            DropReason::BadCrc => self.bad_crc += 1,
+            DropReason::StaleGeneration => self.stale_generation += 1,
+            DropReason::BusFailure => self.bus_failures += 1,
+            DropReason::Unsupported => self.unsupported += 1,
+        }
+        Handled::Dropped(reason)
+    }
+
+    /// Datagrams dropped, whatever the reason.
+    pub fn dropped(&self) -> u64 {
+        self.malformed + self.bad_crc + self.unsupported + self.stale_generation + self.bus_failures
+    }
+
     /// Datagrams accounted for by exactly one outcome: every datagram is
     /// malformed, has a bad CRC, is unsupported, stale, forwarded or local.
     /// Equal to [`datagrams`](Self::datagrams) at all times.
@@ -106,12 +128,15 @@ impl core::fmt::Display for BridgeStats {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         write!(
             f,
-            "{} datagrams, {} replies, {} forwarded, {} local, {} malformed, {} bad CRC, \
-             {} unsupported tcode, {} stale generation, {} bus failures",
+            "{} datagrams, {} replies, {} forwarded, {} local ({} broadcast reads), \
+             {} dropped: {} malformed, {} bad CRC, {} unsupported tcode, \
+             {} stale generation, {} bus failures",
             self.datagrams,
             self.replies,
             self.forwarded,
             self.local,
+            self.broadcast_reads,
+            self.dropped(),
             self.malformed,
             self.bad_crc,
             self.unsupported,
@@ -153,6 +178,11 @@ impl Bridge {
             .map(NodeHandle)
             .filter(|h| bus.node::<BoardNode>(*h).is_some())
             .collect();
+        let mut bus = bus;
+        // The bridge board's Ethernet port is the one connected.
+        if let Some(b) = bus.node_mut::<BoardNode>(bridge_board) {
+            b.firmware_mut().set_ethernet_link(true);
+        }
         Bridge {
             bus,
             link,
@@ -238,35 +268,52 @@ impl Bridge {
         self.settle();
         self.stats.datagrams += 1;
         let Ok((control, packet)) = split_host_datagram(datagram) else {
-            self.stats.malformed += 1;
-            return Handled::Dropped(DropReason::Malformed);
+            return self.stats.count_drop(DropReason::Malformed);
         };
+        let received = &packet.as_bytes()[..packet.total_len()];
+        if let Some(b) = self.bus.node_mut::<BoardNode>(self.bridge_board) {
+            b.firmware_mut().ethernet_received(received);
+        }
         if packet.verify().is_err() {
-            self.stats.bad_crc += 1;
-            return Handled::Dropped(DropReason::BadCrc);
+            return self.stats.count_drop(DropReason::BadCrc);
         }
         let tcode = packet.tcode();
         let is_read = matches!(tcode, Tcode::ReadQuadletRequest | Tcode::ReadBlockRequest);
         let is_write = matches!(tcode, Tcode::WriteQuadletRequest | Tcode::WriteBlockRequest);
         if !is_read && !is_write {
-            self.stats.unsupported += 1;
-            return Handled::Dropped(DropReason::Unsupported);
+            return self.stats.count_drop(DropReason::Unsupported);
         }
         let destination = packet.destination_id();
-        // A read of node 63 cannot be a 1394 broadcast (boards take only
-        // broadcast writes): the bridge answers it from its own registers,
-        // as the firmware does (fpga-board-extras.md section 9).
+        // A read of node 63 is both local and remote (fpga-board-extras.md
+        // section 9): the bridge answers it from its own registers and also
+        // forwards it onto FireWire, where every board ignores broadcast
+        // reads. The generation is not checked for broadcasts.
         let broadcast_read = is_read && destination.is_broadcast();
         let local = control.no_forward || broadcast_read;
         if !local && !destination.is_broadcast() && control.generation != self.generation() {
-            self.stats.stale_generation += 1;
-            return Handled::Dropped(DropReason::StaleGeneration);
+            return self.stats.count_drop(DropReason::StaleGeneration);
+        }
+        let host_source = packet.source_id();
+        let original = received.to_vec();
+        if local {
+            self.stats.local += 1;
+        } else {
+            self.stats.forwarded += 1;
+        }
+        if broadcast_read {
+            self.stats.broadcast_reads += 1;
+            self.transmit_broadcast(original.clone());
+        }
+        if is_write && destination.is_broadcast() && !local {
+            return match self.transmit_broadcast(original) {
+                true => Handled::Written,
+                false => self.stats.count_drop(DropReason::BusFailure),
+            };
         }
         // The bridge transmits on FireWire with its own node ID as source
         // (responses must come back to it); local requests go to the bridge
         // board's node.
-        let host_source = packet.source_id();
-        let mut bytes = packet.as_bytes()[..packet.total_len()].to_vec();
+        let mut bytes = original;
         {
             let link_phy = self.bus.phy_id(self.link).unwrap_or(0);
             let mut p = Packet::new_unchecked(&mut bytes[..]);
@@ -277,40 +324,25 @@ impl Bridge {
             }
             p.fill_header_crc();
         }
-        if local {
-            self.stats.local += 1;
-        } else {
-            self.stats.forwarded += 1;
-        }
         let received_at = self.bus.now();
         let link = self.link;
         let Ok(token) = self
             .bus
             .with_node::<HostLink, _>(link, |l, ctx| l.submit(ctx, bytes, Speed::S400))
         else {
-            return Handled::Dropped(DropReason::BusFailure);
+            return self.stats.count_drop(DropReason::BusFailure);
         };
-        if is_write && (destination.is_broadcast() && !local) {
-            // Broadcasts complete when they have gone out; nobody waits for
-            // them, so nothing of them is kept.
-            if let Some(l) = self.bus.node_mut::<HostLink>(link) {
-                l.abandon(token);
-            }
-            return Handled::Written;
-        }
         let deadline = self.bus.now() + self.timeout;
         let done = HostLink::wait_on(&mut self.bus, link, token, deadline);
         self.forget_received();
         let Some(done) = done.filter(|d| d.outcome == Outcome::Complete) else {
-            self.stats.bus_failures += 1;
-            return Handled::Dropped(DropReason::BusFailure);
+            return self.stats.count_drop(DropReason::BusFailure);
         };
         if is_write {
             return Handled::Written;
         }
         let Some(response) = done.response else {
-            self.stats.bus_failures += 1;
-            return Handled::Dropped(DropReason::BusFailure);
+            return self.stats.count_drop(DropReason::BusFailure);
         };
         let extra = ExtraData {
             flags: ExtraFlags {
@@ -334,6 +366,29 @@ impl Bridge {
         reply.extend_from_slice(&extra.to_bytes());
         self.stats.replies += 1;
         Handled::Reply(reply.len())
+    }
+
+    /// Put a broadcast packet (as the host sent it) onto FireWire with the
+    /// link's node ID as source. Nobody answers a broadcast, so nothing of
+    /// it is kept. Returns whether the link took it.
+    fn transmit_broadcast(&mut self, mut bytes: Vec<u8>) -> bool {
+        let link_phy = self.bus.phy_id(self.link).unwrap_or(0);
+        {
+            let mut p = Packet::new_unchecked(&mut bytes[..]);
+            p.set_source_id(NodeId::local(link_phy));
+            p.fill_header_crc();
+        }
+        let link = self.link;
+        let Ok(token) = self
+            .bus
+            .with_node::<HostLink, _>(link, |l, ctx| l.submit(ctx, bytes, Speed::S400))
+        else {
+            return false;
+        };
+        if let Some(l) = self.bus.node_mut::<HostLink>(link) {
+            l.abandon(token);
+        }
+        true
     }
 }
 
