@@ -78,15 +78,10 @@ impl Ethernet {
     /// A FireWire packet (header and data, wire order) arrived over
     /// Ethernet: it fills the window's first 128 quadlets.
     pub fn received(&mut self, packet: &[u8]) {
-        self.last_packet = packet
-            .chunks(4)
-            .take(PACKET_QUADLETS)
-            .map(|c| {
-                let mut q = [0u8; 4];
-                q[..c.len()].copy_from_slice(c);
-                u32::from_be_bytes(q)
-            })
-            .collect();
+        let mut bytes = packet.to_vec();
+        bytes.resize(packet.len().div_ceil(4) * 4, 0);
+        self.last_packet = super::registers::quadlets_of(&bytes);
+        self.last_packet.truncate(PACKET_QUADLETS);
     }
 
     fn ksz_register(&self, register: u8) -> u16 {

@@ -232,18 +232,14 @@ impl FpgaProm {
                     self.wip_until = now + clocks_of_ms(SECTOR_ERASE_MS);
                 }
             }
-            PromOpcode::BulkErase => {
-                if self.writable(now) && (self.status >> 2) & 0x7 == 0 {
-                    self.sectors.clear();
-                    self.wip_until = now + clocks_of_ms(BULK_ERASE_MS);
-                }
+            PromOpcode::BulkErase if self.writable(now) && (self.status >> 2) & 0x7 == 0 => {
+                self.sectors.clear();
+                self.wip_until = now + clocks_of_ms(BULK_ERASE_MS);
             }
-            PromOpcode::WriteStatus => {
-                if self.writable(now) {
-                    let value = (cmd.address() >> 16) as u8;
-                    self.status = (self.status & !STATUS_WRITABLE) | (value & STATUS_WRITABLE);
-                    self.wip_until = now + clocks_of_ms(WRITE_STATUS_MS);
-                }
+            PromOpcode::WriteStatus if self.writable(now) => {
+                let value = (cmd.address() >> 16) as u8;
+                self.status = (self.status & !STATUS_WRITABLE) | (value & STATUS_WRITABLE);
+                self.wip_until = now + clocks_of_ms(WRITE_STATUS_MS);
             }
             PromOpcode::DeepPowerDown => self.deep_power_down = true,
             PromOpcode::Wake => {
@@ -427,9 +423,9 @@ impl QlaProm {
             }
             QlaPromOpcode::ReadBlock => {
                 let n = usize::from(cmd.data() & 0xF) + 1;
-                let bytes = self.read(address, 4 * n);
-                for (q, c) in self.buffer.iter_mut().zip(bytes.chunks_exact(4)) {
-                    *q = u32::from_be_bytes([c[0], c[1], c[2], c[3]]);
+                let quadlets = super::registers::quadlets_of(&self.read(address, 4 * n));
+                for (q, v) in self.buffer.iter_mut().zip(quadlets) {
+                    *q = v;
                 }
             }
             QlaPromOpcode::WriteBlock if self.writable(now) => {
