@@ -152,7 +152,7 @@ fn outputs_waveforms_and_status_words() {
     write_waveform_table(&mut p, b0, 600, &stop).unwrap();
     read_waveform_table(&mut p, b0, 600, &mut stop).unwrap();
     assert_eq!(stop, [0]);
-    assert_eq!(waveform_status(&mut p, b0).unwrap().0, false);
+    assert!(!waveform_status(&mut p, b0).unwrap().0);
     start_waveform(&mut p, b0, 0x3, 0x3).unwrap();
     assert!(waveform_status(&mut p, b0).unwrap().0, "playing");
     // 600 entries of 0x101 clocks: about 3.1 ms, then it stops.

@@ -523,7 +523,7 @@ fn io_expander_fpgatest_m() {
 #[test]
 fn ethernet_status_and_debug_window() {
     let mut host = RefHost::new(bridge(qla1(2)));
-    let mut ksz = |host: &mut RefHost, node: u8, reg: u32| {
+    let ksz = |host: &mut RefHost, node: u8, reg: u32| {
         host.qwrite(node, 12, 0x0100_0000 | reg << 16);
         let s = host.qread(node, 12);
         assert_eq!(s >> 30, 0b10, "present, no request error: {s:#x}");
