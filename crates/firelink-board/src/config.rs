@@ -71,6 +71,15 @@ impl Hardware {
         }
     }
 
+    /// From its name: `QLA1` (or `QLA`) or `DQLA`, any case.
+    pub fn from_name(name: &str) -> Option<Hardware> {
+        match name.to_ascii_uppercase().as_str() {
+            "QLA1" | "QLA" => Some(Hardware::Qla1),
+            "DQLA" => Some(Hardware::Dqla),
+            _ => None,
+        }
+    }
+
     /// The HW_VERSION register (`fpga-board.md` section 2).
     pub fn hardware_version(self) -> HardwareVersion {
         match self {
@@ -161,6 +170,14 @@ pub enum ConfigError {
         serial: String,
         /// Its longest length.
         max: usize,
+    },
+    /// A board setting that does not parse.
+    #[error("board setting {setting:?}: {why}")]
+    Setting {
+        /// The text given.
+        setting: String,
+        /// What is wrong with it.
+        why: &'static str,
     },
     /// A motor supply voltage outside what the comparator can measure.
     #[error("board {board}: motor supply {volts} V is outside 0..=80 V")]
@@ -343,5 +360,195 @@ impl BoardConfig {
     /// Rev 8 header + M DACs + control, Rev 7 M DACs + control.
     pub fn write_block_quadlets(&self) -> usize {
         self.layout().write_block_quadlets()
+    }
+}
+
+/// Settings of one board, as a command line gives them:
+/// `ID:key=value,key=value...` with the keys `hardware` (`QLA1`, `DQLA`),
+/// `fpga-serial`, `qla-serial` (every QLA of the board), `qla2-serial` (a
+/// DQLA's second), `supply-volts` and `instrument`
+/// (`MODEL/VERSION/NAME`).
+///
+/// ```
+/// use firelink_board::config::{BoardConfig, BoardSettings, Hardware, Profile};
+/// let s: BoardSettings = "2:hardware=DQLA,qla-serial=22723,fpga-serial=5496-03".parse().unwrap();
+/// let b = s.apply(BoardConfig::new(2, Hardware::Qla1, Profile::Rev8));
+/// assert_eq!(b.hardware, Hardware::Dqla);
+/// assert_eq!(b.qla_serials(), ["22723", "22723"]);
+/// assert_eq!(b.fpga_serial, "5496-03");
+/// ```
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct BoardSettings {
+    /// The board these settings are for.
+    pub board_id: u8,
+    /// Companion board.
+    pub hardware: Option<Hardware>,
+    /// FPGA serial number.
+    pub fpga_serial: Option<String>,
+    /// Serial number of every QLA of the board.
+    pub qla_serial: Option<String>,
+    /// Serial number of a DQLA's second QLA.
+    pub qla2_serial: Option<String>,
+    /// Motor supply, V.
+    pub supply_volts: Option<f64>,
+    /// Instrument on the 1-wire line.
+    pub instrument: Option<Instrument>,
+}
+
+impl core::str::FromStr for BoardSettings {
+    type Err = ConfigError;
+
+    fn from_str(text: &str) -> Result<BoardSettings, ConfigError> {
+        let bad = |why| ConfigError::Setting {
+            setting: text.to_string(),
+            why,
+        };
+        let (id, rest) = text
+            .split_once(':')
+            .ok_or_else(|| bad("expected ID:key=value,..."))?;
+        let board_id: u8 = id
+            .trim()
+            .parse()
+            .ok()
+            .filter(|id| *id <= 15)
+            .ok_or_else(|| bad("the board ID must be 0..=15"))?;
+        let mut s = BoardSettings {
+            board_id,
+            ..BoardSettings::default()
+        };
+        for pair in rest.split(',').filter(|p| !p.trim().is_empty()) {
+            let (key, value) = pair
+                .split_once('=')
+                .ok_or_else(|| bad("each setting is key=value"))?;
+            let value = value.trim();
+            match key.trim() {
+                "hardware" => {
+                    s.hardware = Some(
+                        Hardware::from_name(value)
+                            .ok_or_else(|| bad("hardware is QLA1 or DQLA"))?,
+                    );
+                }
+                "fpga-serial" => s.fpga_serial = Some(value.to_string()),
+                "qla-serial" => s.qla_serial = Some(value.to_string()),
+                "qla2-serial" => s.qla2_serial = Some(value.to_string()),
+                "supply-volts" => {
+                    s.supply_volts = Some(
+                        value
+                            .parse::<f64>()
+                            .ok()
+                            .filter(|v| v.is_finite())
+                            .ok_or_else(|| bad("supply-volts is a number of volts"))?,
+                    );
+                }
+                "instrument" => {
+                    let mut parts = value.splitn(3, '/');
+                    let model = parts.next().and_then(|m| m.trim().parse::<u32>().ok());
+                    let version = parts.next().and_then(|v| v.trim().parse::<u8>().ok());
+                    let name = parts.next().unwrap_or("").trim().to_string();
+                    match (model, version) {
+                        (Some(model), Some(version)) if model <= 0x00FF_FFFF => {
+                            s.instrument = Some(Instrument {
+                                model,
+                                version,
+                                name,
+                            });
+                        }
+                        _ => return Err(bad("instrument is MODEL/VERSION/NAME (24-bit model)")),
+                    }
+                }
+                _ => {
+                    return Err(bad(
+                        "unknown key: hardware, fpga-serial, qla-serial, qla2-serial, \
+                         supply-volts or instrument",
+                    ));
+                }
+            }
+        }
+        Ok(s)
+    }
+}
+
+impl BoardSettings {
+    /// `board` with these settings applied (the companion board first, so
+    /// the serials land on every QLA it has).
+    pub fn apply(&self, mut board: BoardConfig) -> BoardConfig {
+        if let Some(h) = self.hardware {
+            board.hardware = h;
+        }
+        if let Some(s) = &self.fpga_serial {
+            board.fpga_serial = s.clone();
+        }
+        if let Some(s) = &self.qla_serial {
+            for q in 0..board.qla_count() {
+                board = board.with_qla_serial(q, s.clone());
+            }
+        }
+        if let Some(s) = &self.qla2_serial {
+            board = board.with_qla_serial(1, s.clone());
+        }
+        if let Some(v) = self.supply_volts {
+            board.motor_supply_volts = v;
+        }
+        if let Some(i) = &self.instrument {
+            board.instrument = Some(i.clone());
+        }
+        board
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_unique_stable_and_valid() {
+        let mut seen = std::collections::HashSet::new();
+        for id in 0..16u8 {
+            for hw in [Hardware::Qla1, Hardware::Dqla] {
+                let b = BoardConfig::new(id, hw, Profile::Rev8);
+                assert_eq!(b.check(), Ok(()));
+                assert_eq!(b, BoardConfig::new(id, hw, Profile::Rev8));
+                if hw == Hardware::Dqla {
+                    for s in b.qla_serials() {
+                        assert!(seen.insert(s));
+                    }
+                    assert!(seen.insert(b.fpga_serial.clone()));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn settings_parse_apply_and_refuse() {
+        let s: BoardSettings =
+            "4:qla-serial=334455,supply-volts=36.5,instrument=400006/3/LARGE NEEDLE DRIVER"
+                .parse()
+                .unwrap();
+        let b = s.apply(BoardConfig::new(4, Hardware::Qla1, Profile::Rev8));
+        assert_eq!(b.qla_serials(), ["334455"]);
+        assert_eq!(b.motor_supply_volts, 36.5);
+        assert_eq!(b.instrument.as_ref().map(|i| i.model), Some(400_006));
+        let s: BoardSettings = "1:hardware=dqla,qla2-serial=X-2".parse().unwrap();
+        let b = s.apply(BoardConfig::new(1, Hardware::Qla1, Profile::Rev8));
+        assert_eq!(
+            b.qla_serials(),
+            [default_qla_serial(1, 0), "X-2".to_string()]
+        );
+        for bad in [
+            "4",
+            "16:hardware=QLA1",
+            "4:colour=red",
+            "4:hardware=QLA9",
+            "4:supply-volts=lots",
+            "4:instrument=1",
+            "4:instrument=x/2/NAME",
+            "4:qla-serial",
+        ] {
+            assert!(bad.parse::<BoardSettings>().is_err(), "{bad}");
+        }
+        // A serial the PROM cannot hold is reported by check().
+        let b = BoardConfig::new(2, Hardware::Qla1, Profile::Rev8).with_qla_serial(0, "123456789");
+        let e = b.check().unwrap_err().to_string();
+        assert!(e.contains("board 2") && e.contains("QLA"), "{e}");
     }
 }

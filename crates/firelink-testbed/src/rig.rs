@@ -13,7 +13,7 @@ use firelink_board::plant::AxisParams;
 use firelink_board::plant::presets;
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::{Bus, HostModel, NodeHandle};
-use firelink_control::config::{IoConfig, PlantPreset};
+use firelink_control::config::{HardwareVersion, IoConfig, PlantPreset};
 use firelink_emulate::{Bridge, BridgeStats, ServeConfig};
 use firelink_host::sim::SimPort;
 use firelink_host::udp::UdpPort;
@@ -94,11 +94,24 @@ pub fn preset_params(preset: PlantPreset) -> AxisParams {
 
 /// Board configurations for every board `config` uses, plus `extra`
 /// generic boards after them (for the bench beyond 8 boards).
+///
+/// Each board is the companion board its robot names (`QLA1` or `DQLA`;
+/// a `dRA1` is emulated as a QLA1) and its QLA PROM(s) hold the robot's
+/// `serial_number`, as the boards of a dVRK arm do (the console compares
+/// the two). A serial the PROM cannot hold (more than 8 characters) stays
+/// in the configuration and is reported by [`BoardConfig::check`]; its
+/// PROM is left erased.
 pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<BoardConfig> {
+    let uses = config.boards();
     let mut out: Vec<BoardConfig> = Vec::new();
     for id in 0..boards.min(16) as u8 {
-        let mut b = BoardConfig::new(id, Hardware::Qla1, profile).with_seed(u64::from(id) + 1);
-        let mut axes: Vec<AxisParams> = vec![presets::unused_channel(); 4];
+        let board_use = uses.iter().find(|u| u.board_id == id);
+        let hardware = match board_use.map(|u| u.hardware) {
+            Some(HardwareVersion::Dqla) => Hardware::Dqla,
+            _ => Hardware::Qla1,
+        };
+        let mut b = BoardConfig::new(id, hardware, profile).with_seed(u64::from(id) + 1);
+        let mut axes: Vec<AxisParams> = vec![presets::unused_channel(); hardware.axes()];
         let mut any = false;
         for (i, j) in config.joints().enumerate() {
             if j.actuator.board_id == id {
@@ -113,6 +126,18 @@ pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<
         }
         if any {
             b = b.with_axes(axes);
+        }
+        let serial = board_use.and_then(|u| {
+            config
+                .robots
+                .iter()
+                .find(|r| r.name == u.robot.as_str())
+                .map(|r| r.serial_number.trim())
+        });
+        if let Some(serial) = serial.filter(|s| !s.is_empty()) {
+            for q in 0..b.qla_count() {
+                b = b.with_qla_serial(q, serial);
+            }
         }
         out.push(b);
     }
@@ -252,4 +277,35 @@ pub fn udp_port(addr: std::net::SocketAddr) -> Result<UdpPort, TestbedError> {
     let mut p = UdpPort::open(addr)?;
     p.set_timeout(UDP_TIMEOUT);
     Ok(p)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firelink_control::config::presets;
+
+    /// Each arm's boards carry its serial number in their QLA PROMs and
+    /// are the companion board its configuration names.
+    #[test]
+    fn boards_carry_their_robots_serial_and_hardware() {
+        let dvrk = presets::dvrk_seed000();
+        let boards = board_configs(&dvrk, Profile::Rev8, 9);
+        for robot in &dvrk.robots {
+            for a in &robot.actuators {
+                let b = &boards[usize::from(a.board_id)];
+                assert_eq!(b.qla_serials(), [robot.serial_number.clone()]);
+                assert_eq!(b.check(), Ok(()));
+            }
+        }
+        // A board no robot uses keeps its unique default.
+        assert_eq!(
+            boards[8].qla_serials(),
+            [firelink_board::config::default_qla_serial(8, 0)]
+        );
+        let snake = presets::snake_36axes();
+        let boards = board_configs(&snake, Profile::Rev8, 8);
+        assert_eq!(boards[0].hardware, Hardware::Dqla);
+        assert_eq!(boards[0].qla_serials().len(), 2);
+        assert_eq!(boards[7].hardware, Hardware::Qla1);
+    }
 }
