@@ -647,12 +647,16 @@ fn phy_registers_as_fpgatest_f_reads_them() {
 /// Item 6: block reads are answered as the firmware answers them, whole,
 /// in one response, up to 2048 bytes (512 quadlets; the reference host's
 /// loopback abort at 368 quadlets is its own buffer overrun); the first
-/// size beyond, 2052 bytes, gets an error response and no data.
+/// size beyond, 2052 bytes, gets an error response and no data. Block
+/// writes: up to 2024 bytes; 2028 is refused.
 #[test]
 fn largest_block_read_and_the_first_too_large() {
     let mut host = RefHost::new(bridge(qla1(1)));
     let table: Vec<u32> = (0..512u32).map(|i| 0x8000_0000 | i << 8).collect();
-    assert_eq!(host.bwrite(0, 0x8000, &table), Handled::Written);
+    for half in table.chunks(256).enumerate() {
+        let at = 0x8000 + 256 * half.0 as u64;
+        assert_eq!(host.bwrite(0, at, half.1), Handled::Written);
+    }
     for quadlets in [360u16, 361, 367, 368, 506, 512] {
         let a = host.try_bread(0, 0x8000, quadlets * 4).expect("an answer");
         assert_eq!(a.rcode, firelink_wire::packet::Rcode::Complete);
@@ -667,4 +671,17 @@ fn largest_block_read_and_the_first_too_large() {
     assert!(a.quadlets.is_empty());
     // Hub memory, 512 quadlets, in one read too.
     assert_eq!(host.bread(0, 0x1000, 2048).len(), 512);
+    // Writes: the request memory (512 quadlets with header and CRCs) takes
+    // 2024 bytes of data; a longer write is refused whole (the bridge
+    // counts the refused transaction) and nothing of it is committed.
+    let write: Vec<u32> = (0..507u32).map(|i| 0x8000_0000 | i).collect();
+    assert_eq!(host.bwrite(0, 0x8000, &write[..506]), Handled::Written);
+    assert_eq!(host.bread(0, 0x8000, 506 * 4), write[..506]);
+    let failures = host.bridge.stats().bus_failures;
+    assert!(matches!(
+        host.bwrite(0, 0x8000 + 600, &write),
+        Handled::Dropped(_)
+    ));
+    assert_eq!(host.bridge.stats().bus_failures, failures + 1);
+    assert_eq!(host.bread(0, 0x8000 + 600, 4), vec![0], "not committed");
 }

@@ -293,7 +293,7 @@ mod tests {
         for robot in &dvrk.robots {
             for a in &robot.actuators {
                 let b = &boards[usize::from(a.board_id)];
-                assert_eq!(b.qla_serials(), [robot.serial_number.clone()]);
+                assert_eq!(b.qla_serials(), std::slice::from_ref(&robot.serial_number));
                 assert_eq!(b.check(), Ok(()));
             }
         }

@@ -111,8 +111,17 @@ use hub::{Hub, Pending};
 use power::{AxisState, Power, Watchdog};
 use prom::{FpgaProm, QlaProm};
 
-/// Largest block read served, bytes (one S400 payload).
+/// Largest block read served, bytes (one S400 payload; the firmware's
+/// 10-bit quadlet counters; `fpga-board-extras.md` §8). Longer reads are
+/// answered with rcode `address_error` and no data.
 pub const MAX_BLOCK_READ: usize = 2048;
+
+/// Largest block write taken, bytes: the firmware's request packet memory
+/// holds 512 quadlets, the header (4), its CRC and the data CRC included,
+/// leaving 506 quadlets of data (inference; the reference host never
+/// writes more: 2024 bytes on FireWire and over loopback UDP). A longer
+/// write is refused with `ack_type_error` and nothing is committed.
+pub const MAX_BLOCK_WRITE: usize = 2024;
 
 /// How the board's link answers a packet.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -143,6 +152,9 @@ pub enum RxError {
     /// A query with a failed header CRC, answered with sequence `0xFFFF`
     /// (seed profile).
     CorruptQuery,
+    /// A block write longer than the request memory: `ack_type_error`, not
+    /// committed.
+    WriteTooLong,
 }
 
 impl core::fmt::Display for RxError {
@@ -151,6 +163,7 @@ impl core::fmt::Display for RxError {
             RxError::HeaderCrc => "header CRC error: packet dropped",
             RxError::DataCrc => "data CRC error: ack_data_error, not committed",
             RxError::CorruptQuery => "corrupt query: answered with sequence 0xFFFF",
+            RxError::WriteTooLong => "block write beyond 2024 bytes: ack_type_error, not committed",
         })
     }
 }
@@ -478,6 +491,10 @@ impl Firmware {
                 if packet.data_crc_ok() == Some(false) {
                     self.rx_error = Some(RxError::DataCrc);
                     return ack(Ack::DataError);
+                }
+                if usize::from(packet.data_length()) > MAX_BLOCK_WRITE {
+                    self.rx_error = Some(RxError::WriteTooLong);
+                    return ack(Ack::TypeError);
                 }
                 self.write_block_from(now, offset, packet.data(), to_me && !broadcast, phy);
                 ack(Ack::Complete)

@@ -15,8 +15,10 @@ use crate::port::{Dest, Port};
 pub const OUTPUTS: u8 = 4;
 /// Entries of the waveform table.
 pub const WAVEFORM_ENTRIES: usize = 1024;
-/// Quadlets per waveform block transfer (2048 bytes, the S400 maximum).
-const TABLE_CHUNK: usize = 512;
+/// Quadlets per waveform block transfer: 1 KiB, within every limit (a
+/// board takes writes of up to 2024 bytes; an Ethernet host with a 1500
+/// MTU sends at most 1446).
+const TABLE_CHUNK: usize = 256;
 /// `WritePWM` refuses frequencies at or below this (the 16-bit times
 /// would overflow).
 pub const PWM_MIN_HZ: f64 = 375.0;
@@ -144,7 +146,7 @@ pub fn write_pwm<P: Port + ?Sized>(
 }
 
 /// Write waveform entries from `offset` (`WriteWaveformTable`): each value
-/// XOR `0xF` (levels to raw), in block writes of at most 512 quadlets.
+/// XOR `0xF` (levels to raw), in block writes of at most 256 quadlets.
 ///
 /// # Errors
 /// Transaction failures; entries beyond the table.
