@@ -518,6 +518,25 @@ mod tests {
         }
     }
 
+    /// Arbitrary text never panics the settings parser.
+    #[test]
+    fn settings_parser_takes_any_text() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(13);
+        let alphabet = b"0123456789:=,/.-abcdeqlsrtuvwhyDQLA \xff";
+        for _ in 0..20_000 {
+            let len = rng.random_range(0..40);
+            let text: String = (0..len)
+                .map(|_| char::from(alphabet[rng.random_range(0..alphabet.len())]))
+                .collect();
+            if let Ok(s) = text.parse::<BoardSettings>() {
+                let _ = s
+                    .apply(BoardConfig::new(s.board_id, Hardware::Qla1, Profile::Rev8))
+                    .check();
+            }
+        }
+    }
+
     #[test]
     fn settings_parse_apply_and_refuse() {
         let s: BoardSettings =

@@ -866,3 +866,21 @@ proptest! {
         let _ = packer.finish(HubTiming::default());
     }
 }
+
+proptest! {
+    /// The serial-number readers never panic on arbitrary PROM bytes, and
+    /// every serial the images accept reads back unchanged.
+    #[test]
+    fn serial_numbers(bytes in proptest::collection::vec(any::<u8>(), 0..24),
+                      serial in "[!-~]{1,11}") {
+        let _ = firelink_wire::board::extras::parse_fpga_serial(&bytes);
+        let _ = firelink_wire::board::extras::parse_qla_serial(&bytes);
+        use firelink_wire::board::extras::*;
+        let image = fpga_serial_image(&serial).unwrap();
+        prop_assert_eq!(parse_fpga_serial(&image), Ok(serial.as_str()));
+        match qla_serial_image(&serial) {
+            Ok(image) => prop_assert_eq!(parse_qla_serial(&image), Ok(serial.as_str())),
+            Err(_) => prop_assert!(serial.len() > QLA_SERIAL_MAX),
+        }
+    }
+}
