@@ -85,9 +85,9 @@ pub struct BridgeStats {
     pub unsupported: u64,
     /// Transactions that failed on the bus.
     pub bus_failures: u64,
-    /// Quadlet reads of node 63: answered by the bridge board (counted as
-    /// local) and also forwarded onto FireWire, where every board ignores
-    /// them.
+    /// Quadlet reads of node 63 without the no-forward bit: answered by
+    /// the bridge board (counted as local) and also forwarded onto
+    /// FireWire, where every board ignores them.
     pub broadcast_reads: u64,
 }
 
@@ -300,7 +300,8 @@ impl Bridge {
         } else {
             self.stats.forwarded += 1;
         }
-        if broadcast_read {
+        // With the no-forward bit set the board only answers itself.
+        if broadcast_read && !control.no_forward {
             self.stats.broadcast_reads += 1;
             self.transmit_broadcast(original.clone());
         }

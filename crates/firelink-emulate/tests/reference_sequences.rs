@@ -174,6 +174,10 @@ fn broadcast_quadlet_read_is_answered_by_the_bridge_alone() {
         assert_eq!(s.dropped(), 0);
         // Nothing else came back: the next read answers normally.
         assert_eq!((host.qread(1, 0) >> 24) & 0xF, 1);
+        // With the no-forward bit (discovery) the bridge answers alone.
+        let a = host.try_qread(63, true, 4).expect("HW_VERSION");
+        assert_eq!(a.quadlets[0], 0x514C_4131);
+        assert_eq!(host.bridge.stats().broadcast_reads, 1);
     }
 }
 
