@@ -8,6 +8,12 @@
 //! | 1 | 7 RHB (root holdoff), 6 IBR (initiate bus reset), 5:0 gap_count | read/write |
 //! | 2 | 7:5 extended (7), 4:0 total ports | read only |
 //! | 3 | 7:5 max speed (0 S100, 1 S200, 2 S400), 3:0 delay | read only |
+//!
+//! Register 3's delay field gives the PHY's worst-case repeater delay as
+//! `144 + 20 x delay` ns; the PHYs here repeat in 144 ns (the bus timing's
+//! figure), so it reads 0, as the FPGA1394's PHY does: a board reads
+//! `0x40` (S400, delay 0) and `0xE2` in register 2 (`fpga-board-extras.md`
+//! §8, fpgatest `f`).
 //! | 4 | 7 LCtrl, 6 contender, 5:3 jitter, 2:0 power class | read/write |
 //! | 5 | 6 ISBR (initiate short bus reset), others interrupt enables | read/write |
 //! | 7 | 7:5 page select, 3:0 port select | read/write |
@@ -36,7 +42,7 @@ impl PhyRegisters {
         regs[0] = 0x3F << 2;
         regs[1] = DEFAULT_GAP_COUNT;
         regs[2] = (7 << 5) | (ports & 0x1F);
-        regs[3] = (speed.code() << 5) | 0x0F;
+        regs[3] = speed.code() << 5;
         regs[4] = 0x80 | 0x04; // link active, power class 4
         PhyRegisters { regs }
     }
@@ -165,7 +171,8 @@ mod tests {
         assert_eq!(r.phy_id(), 63);
         assert_eq!(r.gap_count(), 63);
         assert_eq!(r.read(2), 0xE3);
-        assert_eq!(r.read(3) >> 5, 2);
+        assert_eq!(r.read(3), 0x40, "S400, repeater delay 0 (144 ns)");
+        assert_eq!(PhyRegisters::new(2, Speed::S400).read(2), 0xE2);
         assert_eq!(r.read(200), 0);
         r.set_identity(5, true);
         assert_eq!(r.read(0), (5 << 2) | 2);

@@ -167,11 +167,7 @@ pub fn parse_profile(text: &str) -> Result<Profile, String> {
 
 /// Hardware from `--hardware QLA1|DQLA` (clap).
 pub fn parse_hardware(text: &str) -> Result<Hardware, String> {
-    match text.to_ascii_uppercase().as_str() {
-        "QLA1" | "QLA" => Ok(Hardware::Qla1),
-        "DQLA" => Ok(Hardware::Dqla),
-        _ => Err(format!("unknown hardware {text:?}: QLA1 or DQLA")),
-    }
+    Hardware::from_name(text).ok_or_else(|| format!("unknown hardware {text:?}: QLA1 or DQLA"))
 }
 
 /// Whether the default run should be quiet about progress (tests).

@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use clap::Args;
 
-use firelink_board::config::{Hardware, Profile};
+use firelink_board::config::{BoardConfig, BoardSettings, Hardware, Profile};
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::{FaultRule, PacketFault, PacketMatch, SimDuration, TimedFault};
 use firelink_control::config::IoConfig;
@@ -36,6 +36,13 @@ pub struct EmulateArgs {
     /// Companion board of every board: QLA1 or DQLA.
     #[arg(long, default_value = "QLA1", value_parser = parse_hardware)]
     pub hardware: Hardware,
+    /// One board's settings (repeatable): `ID:key=value,...` with keys
+    /// hardware (QLA1, DQLA), fpga-serial, qla-serial, qla2-serial,
+    /// supply-volts, instrument (MODEL/VERSION/NAME). Serials default to
+    /// unique ones per board ID (with --config: the QLA serial is the
+    /// arm's serial_number).
+    #[arg(long = "board-set", value_name = "ID:KEY=VALUE,...")]
+    pub board_set: Vec<BoardSettings>,
     /// Seed of the measurement noise and the fault injector.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -68,8 +75,9 @@ pub struct EmulateArgs {
     pub duration_s: f64,
 }
 
-/// Build the bridge of `args` (also used by tests and benchmarks).
-pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
+/// Build the bridge of `args` (also used by tests and benchmarks), with
+/// the configurations of its boards.
+pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<BoardConfig>), CliError> {
     let boards = match &args.config {
         Some(path) => {
             let config = IoConfig::load(path).map_err(|e| CliError::Conflict(e.to_string()))?;
@@ -89,7 +97,21 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
             generic_boards(args.boards, args.hardware, args.firmware, args.seed)
         }
     };
+    let mut boards = boards;
+    for set in &args.board_set {
+        let board = boards
+            .iter_mut()
+            .find(|b| b.board_id == set.board_id)
+            .ok_or_else(|| {
+                CliError::Conflict(format!("--board-set {}: no such board", set.board_id))
+            })?;
+        *board = set.apply(board.clone());
+    }
+    for b in &boards {
+        b.check().map_err(|e| CliError::Conflict(e.to_string()))?;
+    }
     let ids: Vec<u8> = boards.iter().map(|b| b.board_id).collect();
+    let configs = boards.clone();
     let bridge_index = match args.bridge_board {
         Some(id) => ids
             .iter()
@@ -150,12 +172,13 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
         .get(bridge_index)
         .copied()
         .ok_or_else(|| CliError::Conflict("no bridge board".into()))?;
-    Ok((Bridge::new(rig.bus, rig.host, bridge_node), ids))
+    Ok((Bridge::new(rig.bus, rig.host, bridge_node), configs))
 }
 
 /// `firelink emulate`.
 pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
-    let (mut bridge, ids) = build_bridge(args)?;
+    let (mut bridge, boards) = build_bridge(args)?;
+    let ids: Vec<u8> = boards.iter().map(|b| b.board_id).collect();
     let config = ServeConfig {
         listen: args.listen,
         loopback_broadcast: !args.no_broadcast,
@@ -184,6 +207,21 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
         ids,
         bridge.generation()
     )?;
+    for b in &boards {
+        writeln!(
+            out,
+            "  board {}: {}, FPGA serial {}, QLA serial {}, motor supply {} V{}",
+            b.board_id,
+            b.hardware.hardware_version().name(),
+            b.fpga_serial,
+            b.qla_serials().join(" / "),
+            b.motor_supply_volts,
+            b.instrument
+                .as_ref()
+                .map(|i| format!(", instrument {} ({})", i.model, i.name))
+                .unwrap_or_default()
+        )?;
+    }
     out.flush()?;
     let mut log = |e: Event| {
         let line = match e {

@@ -190,3 +190,98 @@ fn sim_port_strings_work_everywhere() {
         .unwrap();
     assert!(!out.status.success());
 }
+
+/// Per-board settings: companion board type and serials from the command
+/// line (and, with --config, the arms' serial numbers), shown at start;
+/// settings the boards cannot hold are refused with the reason.
+#[test]
+fn emulate_board_settings() {
+    let mut server = firelink()
+        .args([
+            "emulate",
+            "--boards",
+            "2",
+            "--board-set",
+            "1:hardware=DQLA,qla-serial=22723,fpga-serial=5496-07,supply-volts=36",
+            "--listen",
+            "127.0.0.1:0",
+            "--no-broadcast",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("start emulate");
+    let stdout = server.stdout.take().unwrap();
+    let mut lines = BufReader::new(stdout).lines();
+    let mut seen = Vec::new();
+    let mut addr = None;
+    for line in lines.by_ref() {
+        let line = line.unwrap();
+        if let Some(rest) = line.strip_prefix("listening on udp ") {
+            addr = rest.split_whitespace().next().map(str::to_string);
+            break;
+        }
+        seen.push(line);
+    }
+    let board1 = seen
+        .iter()
+        .find(|l| l.contains("board 1:"))
+        .expect("board 1 line");
+    assert!(board1.contains("DQLA"), "{board1}");
+    assert!(board1.contains("FPGA serial 5496-07"), "{board1}");
+    assert!(board1.contains("QLA serial 22723 / 22723"), "{board1}");
+    assert!(board1.contains("36 V"), "{board1}");
+    let board0 = seen
+        .iter()
+        .find(|l| l.contains("board 0:"))
+        .expect("board 0 line");
+    assert!(board0.contains("QLA1"), "{board0}");
+    let port = format!("udp:{}", addr.expect("address"));
+    let out = firelink()
+        .args(["scan", "--port", &port, "--json", "--timeout-ms", "100"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["boards"][1]["hardware"], "DQLA");
+    let _ = Command::new("kill")
+        .args(["-TERM", &server.id().to_string()])
+        .status();
+    assert!(server.wait().unwrap().success());
+
+    // The stock dVRK configuration: each arm's boards carry its serial.
+    let config = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../configs/dvrk-seed000.json"
+    );
+    let out = firelink()
+        .args(["emulate", "--config", config, "--listen", "127.0.0.1:0"])
+        .args(["--no-broadcast", "--duration-s", "0.2"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        text.contains("board 0: QLA1, FPGA serial 8801-01, QLA serial 22723"),
+        "{text}"
+    );
+
+    for (setting, words) in [
+        ("1:qla-serial=123456789", "QLA serial number"),
+        ("5:qla-serial=1", "no such board"),
+        ("1:colour=red", "unknown key"),
+    ] {
+        let out = firelink()
+            .args(["emulate", "--boards", "2", "--board-set", setting])
+            .args(["--listen", "127.0.0.1:0", "--duration-s", "0.1"])
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{setting}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(words), "{setting}: {err}");
+    }
+}

@@ -15,12 +15,16 @@
 //! - [`scan`]: discovery and protocol choice.
 //! - [`board`]: the per-board I/O buffers and accessors.
 //! - [`io`]: the I/O system running the three protocols.
+//! - [`extras`]: the firmware features beyond the servo cycle (PROMs and
+//!   serial numbers, digital outputs and waveforms, instrument memory, I/O
+//!   expander, Ethernet registers, motor supply, PHY registers).
 //!
 //! Protocols never know which port they use, so the same program drives
 //! emulated boards today and real boards over Ethernet tomorrow.
 
 pub mod board;
 pub mod error;
+pub mod extras;
 pub mod io;
 pub mod pacing;
 pub mod packet_json;

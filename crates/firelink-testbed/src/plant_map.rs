@@ -306,7 +306,7 @@ mod tests {
         assert_eq!(b7.input_lines, (1 << 10) | (1 << 7));
         let tool = b7.instrument.as_ref().unwrap();
         assert_eq!((tool.model, tool.version), (400_006, 12));
-        assert_eq!(&tool.memory_image()[..3], b"997");
+        assert_eq!(&tool.memory()[0x80..0x83], b"997");
         assert!(boards[6].instrument.is_none());
         // An input pressed when low reads high when its part is out.
         config.digital_inputs = Some(serde_json::json!([

@@ -13,7 +13,7 @@ use firelink_board::plant::AxisParams;
 use firelink_board::plant::presets;
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::{Bus, HostModel, NodeHandle};
-use firelink_control::config::{IoConfig, PlantPreset};
+use firelink_control::config::{HardwareVersion, IoConfig, PlantPreset};
 
 use crate::plant_map;
 use firelink_emulate::{Bridge, BridgeStats, ServeConfig};
@@ -101,11 +101,21 @@ pub fn preset_params(preset: PlantPreset) -> AxisParams {
         .unwrap_or_else(presets::generic_motor)
 }
 
-/// Board configurations for boards 0 to `boards - 1` (at most 16): the
-/// boards `config` uses carry its plants (an MTM's gripper on the axis
-/// after its last actuator) and what is plugged into them (a PSM's sterile
-/// adapter and instrument); the others, generic motors.
+/// Board configurations for every board `config` uses, plus generic
+/// boards after them up to `boards` (at most 16; for the bench beyond 8
+/// boards).
+///
+/// Each board is the companion board its robot names (`QLA1` or `DQLA`;
+/// a `dRA1` is emulated as a QLA1) and carries its plants (an MTM's
+/// gripper on the axis after its last actuator) and what is plugged into
+/// it (a PSM's sterile adapter and instrument). Its PROMs hold the serial
+/// numbers the robot's `simulation.boards` gives it, else the QLA PROM(s)
+/// hold the robot's `serial_number`, as the boards of a dVRK arm do. A
+/// serial the PROM cannot hold (more than 8 characters) stays in the
+/// configuration and is reported by [`BoardConfig::check`]; its PROM is
+/// left erased.
 pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<BoardConfig> {
+    let uses = config.boards();
     let mut out: Vec<BoardConfig> = Vec::new();
     let lines = plant_map::input_lines(config);
     let instruments = plant_map::instruments(config);
@@ -115,8 +125,13 @@ pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<
         .filter_map(plant_map::gripper_slot)
         .collect();
     for id in 0..boards.min(16) as u8 {
-        let mut b = BoardConfig::new(id, Hardware::Qla1, profile).with_seed(u64::from(id) + 1);
-        let mut axes: Vec<AxisParams> = vec![presets::unused_channel(); 4];
+        let board_use = uses.iter().find(|u| u.board_id == id);
+        let hardware = match board_use.map(|u| u.hardware) {
+            Some(HardwareVersion::Dqla) => Hardware::Dqla,
+            _ => Hardware::Qla1,
+        };
+        let mut b = BoardConfig::new(id, hardware, profile).with_seed(u64::from(id) + 1);
+        let mut axes: Vec<AxisParams> = vec![presets::unused_channel(); hardware.axes()];
         let mut any = false;
         for (i, j) in config.joints().enumerate() {
             if j.actuator.board_id == id {
@@ -141,11 +156,31 @@ pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<
             b = b.with_axes(axes);
         }
         let held = lines.get(usize::from(id)).copied().unwrap_or(0);
-        let instrument = instruments
-            .iter()
-            .find(|(board, _)| *board == id)
-            .map(|(_, i)| i.clone());
-        out.push(b.with_input_lines(held).with_instrument(instrument));
+        b = b.with_input_lines(held);
+        if let Some((_, instrument)) = instruments.iter().find(|(board, _)| *board == id) {
+            b = b.with_instrument(instrument.clone());
+        }
+        let robot_serial = board_use.and_then(|u| {
+            config
+                .robots
+                .iter()
+                .find(|r| r.name == u.robot.as_str())
+                .map(|r| r.serial_number.trim())
+        });
+        let board_serial = config.board_serial(id);
+        let qla_serial = board_serial
+            .and_then(|s| s.qla.as_deref())
+            .or(robot_serial)
+            .filter(|s| !s.is_empty());
+        if let Some(serial) = qla_serial {
+            for q in 0..b.qla_count() {
+                b = b.with_qla_serial(q, serial);
+            }
+        }
+        if let Some(fpga) = board_serial.and_then(|s| s.fpga.as_deref()) {
+            b.fpga_serial = fpga.to_string();
+        }
+        out.push(b);
     }
     out
 }
@@ -283,4 +318,35 @@ pub fn udp_port(addr: std::net::SocketAddr) -> Result<UdpPort, TestbedError> {
     let mut p = UdpPort::open(addr)?;
     p.set_timeout(UDP_TIMEOUT);
     Ok(p)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firelink_control::config::presets;
+
+    /// Each arm's boards carry its serial number in their QLA PROMs and
+    /// are the companion board its configuration names.
+    #[test]
+    fn boards_carry_their_robots_serial_and_hardware() {
+        let dvrk = presets::dvrk_seed000();
+        let boards = board_configs(&dvrk, Profile::Rev8, 9);
+        for robot in &dvrk.robots {
+            for a in &robot.actuators {
+                let b = &boards[usize::from(a.board_id)];
+                assert_eq!(b.qla_serials(), std::slice::from_ref(&robot.serial_number));
+                assert_eq!(b.check(), Ok(()));
+            }
+        }
+        // A board no robot uses keeps its unique default.
+        assert_eq!(
+            boards[8].qla_serials(),
+            [firelink_board::config::default_qla_serial(8, 0)]
+        );
+        let snake = presets::snake_36axes();
+        let boards = board_configs(&snake, Profile::Rev8, 8);
+        assert_eq!(boards[0].hardware, Hardware::Dqla);
+        assert_eq!(boards[0].qla_serials().len(), 2);
+        assert_eq!(boards[7].hardware, Hardware::Qla1);
+    }
 }

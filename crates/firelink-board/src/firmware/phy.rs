@@ -13,8 +13,10 @@ pub trait PhyAccess {
     fn write_phy_register(&mut self, register: u8, value: u8);
 }
 
-/// A stand-alone 1394a PHY register file: register 0 holds the physical
-/// ID in bits 7:2, register 1 the gap count in bits 5:0 (power-up 63).
+/// A stand-alone 1394a PHY register file as the FPGA1394's PHY has it:
+/// register 0 holds the physical ID in bits 7:2, register 1 the gap count
+/// in bits 5:0 (power-up 63), register 2 `0xE2` (extended map, 2 ports),
+/// register 3 `0x40` (S400, repeater delay 0).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct PhyRegisters {
     /// The sixteen registers.
@@ -27,6 +29,8 @@ impl PhyRegisters {
         let mut registers = [0u8; 16];
         registers[0] = (phy_id & 0x3F) << 2;
         registers[1] = 0x3F;
+        registers[2] = 0xE2;
+        registers[3] = 0x40;
         PhyRegisters { registers }
     }
 
