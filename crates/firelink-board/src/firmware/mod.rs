@@ -74,7 +74,7 @@
 
 mod hub;
 mod phy;
-mod power;
+pub(crate) mod power;
 mod registers;
 
 pub use hub::{CHAIN_TIMEOUT_PER_BOARD, FIRST_SLOT_CLOCKS, SEED_OFFSET, SEED_SLOT};
@@ -595,7 +595,7 @@ impl Firmware {
 }
 
 /// Emit a packet this module built (always valid: fields in range).
-fn emit(repr: &PacketRepr<'_>) -> Vec<u8> {
+pub(crate) fn emit(repr: &PacketRepr<'_>) -> Vec<u8> {
     let mut buf = vec![0u8; repr.buffer_len()];
     match repr.emit(&mut buf) {
         Ok(len) => buf.truncate(len),
