@@ -15,7 +15,9 @@
 //! let b = bus.add(SnakeNode::new(SnakeNodeConfig::new(1)), NodeConfig::board());
 //! bus.daisy_chain(&[a, b]).unwrap();
 //! bus.reset();
-//! assert_eq!(bus.node::<SnakeNode>(a).unwrap().firmware().phy_id(), Some(0));
+//! // Two nodes, each with its own physical ID (the root gets the highest).
+//! assert_eq!(bus.node::<SnakeNode>(a).unwrap().firmware().phy_id(), Some(1));
+//! assert_eq!(bus.node::<SnakeNode>(b).unwrap().firmware().phy_id(), Some(0));
 //! ```
 
 use firelink_bus::{Node, NodeCtx, ResetInfo, RxReply, SimTime};
