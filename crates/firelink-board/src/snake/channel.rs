@@ -20,9 +20,10 @@
 //! current-driven axis model does the rest (its current loop, motor,
 //! load, encoder, pot, noise).
 
-use firelink_wire::snake::EEPROM_WORDS;
+use firelink_wire::snake::{EEPROM_WORDS, analog};
+use firelink_wire::snake::analog::command_volts;
 use firelink_wire::snake::registers::{
-    DAC_MIDPOINT, ENCODER_MAX, EncoderData, EncoderPeriod, PotOutputs, Wiper, dac_to_volts,
+    ENCODER_MAX, EncoderData, EncoderPeriod, PotOutputs, Wiper, dac_to_volts,
 };
 
 use crate::plant::encoder::VelocityFields;
@@ -48,19 +49,20 @@ pub struct AmplifierModel {
 }
 
 impl Default for AmplifierModel {
-    /// 12 V bridge, 9.6 V/V (full command = full supply), 0.5 ohm sense
-    /// (1.25 A full scale in torque mode at the nominal gain of 2), limit
-    /// 0.8 A/V (2 A at 2.5 V), monitor 0.5 V/A (+-2.5 A), 85 C thermal
-    /// fault.
+    /// The values of [`firelink_wire::snake::analog`] (which the host's
+    /// conversions use): 12 V bridge, 9.6 V/V (full command = full
+    /// supply), 0.5 ohm sense (1.25 A full scale in torque mode at the
+    /// nominal gain of 2), limit 0.8 A/V (2 A at 2.5 V), monitor 0.5 V/A
+    /// (+-2.5 A), 85 C thermal fault.
     fn default() -> Self {
         AmplifierModel {
-            supply_volts: 12.0,
-            volts_per_command_volt: 9.6,
-            sense_ohms: 0.5,
-            limit_amps_per_volt: 0.8,
-            monitor_volts_per_amp: 0.5,
-            max_amps: 2.5,
-            fault_celsius: 85.0,
+            supply_volts: analog::MOTOR_SUPPLY_VOLTS,
+            volts_per_command_volt: analog::BRIDGE_GAIN,
+            sense_ohms: analog::SENSE_OHMS,
+            limit_amps_per_volt: analog::LIMIT_AMPS_PER_VOLT,
+            monitor_volts_per_amp: analog::MONITOR_VOLTS_PER_AMP,
+            max_amps: analog::MAX_AMPS,
+            fault_celsius: analog::FAULT_CELSIUS,
         }
     }
 }
@@ -96,11 +98,6 @@ impl AmplifierModel {
     pub fn monitor_sample(&self, amps: f64) -> i16 {
         volts_to_sample(self.monitor_volts_per_amp * amps)
     }
-}
-
-/// The command a motor-DAC code means, volts around the 1.25 V midpoint.
-pub fn command_volts(code: u16) -> f64 {
-    dac_to_volts(code) - dac_to_volts(DAC_MIDPOINT)
 }
 
 /// The 14-bit signed sample of a voltage around 1.25 V (saturating).
@@ -207,6 +204,7 @@ pub fn period_register(fields: &VelocityFields) -> EncoderPeriod {
 mod tests {
     use super::*;
     use crate::plant::encoder::{QuarterField, RunField};
+    use firelink_wire::snake::registers::DAC_MIDPOINT;
 
     #[test]
     fn torque_mode_scales_with_the_gain() {

@@ -9,7 +9,7 @@ use firelink_wire::snake::CHANNELS;
 
 /// The version register of the emulated firmware: "SNK" and revision 2
 /// (seed 001's final revision, §5.4).
-pub const SNAKE_VERSION: u32 = 0x534E_4B02;
+pub const SNAKE_VERSION: u32 = firelink_wire::snake::registers::VERSION;
 
 /// Everything that makes one emulated Snake node.
 #[derive(Debug, Clone, PartialEq)]

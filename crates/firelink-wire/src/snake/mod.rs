@@ -14,6 +14,8 @@
 //! - [`registers`]: the quadlets: STATUS (Table 2), power control, ADC,
 //!   DAC, digital potentiometer command and result, encoder count,
 //!   preload and period; the feedback gain of eq. 1.
+//! - [`analog`]: the channels' analog values (DAC, ADC and amplifier
+//!   scales) that turn codes into volts and amperes.
 //! - [`block`]: the block read (status, timestamp, every channel's
 //!   feedback) and the block write (one quadlet per channel with its MSB
 //!   valid bit), checked views and meaning types.
@@ -33,6 +35,7 @@
 //! ```
 
 pub mod address;
+pub mod analog;
 pub mod block;
 pub mod registers;
 

@@ -103,6 +103,19 @@ pub const DAC_FULL_SCALE_VOLTS: f64 = 2.5;
 pub const PERIOD_CLOCK_HZ: u32 = 768_000;
 /// The node's timestamp clock, 49.152 MHz (§5.3).
 pub const SYSTEM_CLOCK_HZ: u32 = 49_152_000;
+/// The version register's top 24 bits on Firelink's emulated firmware:
+/// "SNK". The low byte is the revision. (The seed sets the register at
+/// synthesis and deprecated it; a host uses it to tell a Snake node from
+/// other boards on the bus.)
+pub const VERSION_SIGNATURE: u32 = 0x53_4E4B;
+/// The version register of the emulated firmware: "SNK", revision 2 (the
+/// seed's final revision, §5.4).
+pub const VERSION: u32 = (VERSION_SIGNATURE << 8) | 2;
+
+/// Whether a version register value is a Snake node's.
+pub fn is_snake_version(word: u32) -> bool {
+    word >> 8 == VERSION_SIGNATURE
+}
 
 // ---------------------------------------------------------------- STATUS ---
 
