@@ -74,7 +74,8 @@ pub struct CycleReport {
 }
 
 impl CycleReport {
-    const EMPTY: CycleReport = CycleReport {
+    /// A report of no cycle yet.
+    pub const EMPTY: CycleReport = CycleReport {
         cycle: 0,
         seq: 0,
         started: Duration::ZERO,
@@ -149,7 +150,8 @@ impl IoStats {
             + self.other
     }
 
-    fn count_error(&mut self, e: &HostError) {
+    /// Count one error by its kind.
+    pub fn count_error(&mut self, e: &HostError) {
         match e {
             HostError::Timeout { .. } => self.timeouts += 1,
             HostError::BusReset { .. } => self.bus_resets += 1,
@@ -159,7 +161,8 @@ impl IoStats {
         }
     }
 
-    fn count_miss(&mut self, reason: MissReason) {
+    /// Count one missed board by its reason.
+    pub fn count_miss(&mut self, reason: MissReason) {
         match reason {
             MissReason::Sequence { .. } | MissReason::NotUpdated => self.sequence_errors += 1,
             MissReason::CorruptQuery => self.corrupt_queries += 1,

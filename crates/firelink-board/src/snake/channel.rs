@@ -20,11 +20,11 @@
 //! current-driven axis model does the rest (its current loop, motor,
 //! load, encoder, pot, noise).
 
-use firelink_wire::snake::{EEPROM_WORDS, analog};
 use firelink_wire::snake::analog::command_volts;
 use firelink_wire::snake::registers::{
     ENCODER_MAX, EncoderData, EncoderPeriod, PotOutputs, Wiper, dac_to_volts,
 };
+use firelink_wire::snake::{EEPROM_WORDS, analog};
 
 use crate::plant::encoder::VelocityFields;
 

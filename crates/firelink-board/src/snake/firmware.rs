@@ -474,9 +474,10 @@ impl SnakeFirmware {
                     ChannelDevice::PotData => c.pot_result.raw(),
                     ChannelDevice::EncoderPreload => c.encoder.preload,
                     ChannelDevice::EncoderData => c.encoder.data(self.encoder_raw(i)).raw(),
-                    ChannelDevice::EncoderPeriod => self.plant.axis(i).map_or(0, |a| {
-                        period_register(&a.encoder().fields(now)).raw()
-                    }),
+                    ChannelDevice::EncoderPeriod => self
+                        .plant
+                        .axis(i)
+                        .map_or(0, |a| period_register(&a.encoder().fields(now)).raw()),
                     ChannelDevice::EncoderFrequency => return Err(Rcode::AddressError),
                 }
             }
