@@ -26,7 +26,7 @@
 //! CLI that does.
 
 pub mod loopback;
-mod velocity;
+pub(crate) mod velocity;
 
 use velocity::VelocityEstimator;
 
@@ -150,14 +150,50 @@ pub struct ArmTracking {
     pub samples: u64,
 }
 
+/// Running tracking-error sums of one arm.
 #[derive(Debug, Clone, Default)]
-struct ArmAcc {
+pub(crate) struct ArmAcc {
     sum_rad: f64,
     n_rad: u64,
     max_rad: f64,
     sum_m: f64,
     n_m: u64,
     max_m: f64,
+}
+
+impl ArmAcc {
+    /// Add one joint's |setpoint - position|.
+    pub(crate) fn add(&mut self, err: f64, prismatic: bool) {
+        if prismatic {
+            self.sum_m += err * err;
+            self.n_m += 1;
+            self.max_m = self.max_m.max(err);
+        } else {
+            self.sum_rad += err * err;
+            self.n_rad += 1;
+            self.max_rad = self.max_rad.max(err);
+        }
+    }
+
+    /// The arm's tracking so far.
+    pub(crate) fn tracking(&self, name: &str) -> ArmTracking {
+        ArmTracking {
+            name: name.to_string(),
+            rms_rad: if self.n_rad > 0 {
+                (self.sum_rad / self.n_rad as f64).sqrt()
+            } else {
+                0.0
+            },
+            max_rad: self.max_rad,
+            rms_mm: if self.n_m > 0 {
+                1e3 * (self.sum_m / self.n_m as f64).sqrt()
+            } else {
+                0.0
+            },
+            max_mm: 1e3 * self.max_m,
+            samples: self.n_rad + self.n_m,
+        }
+    }
 }
 
 /// Median, p99 and max of a set of durations, microseconds.
@@ -209,6 +245,35 @@ pub struct CycleTimes {
     pub overruns: u64,
     /// Compute time of the last cycle, us (kept when the record is full).
     pub last_compute_us: f32,
+}
+
+impl CycleTimes {
+    /// An empty record with room for `cap` cycles.
+    pub(crate) fn with_capacity(cap: usize) -> CycleTimes {
+        CycleTimes {
+            io_us: Vec::with_capacity(cap),
+            compute_us: Vec::with_capacity(cap),
+            cycle_us: Vec::with_capacity(cap),
+            dropped: 0,
+            overruns: 0,
+            last_compute_us: 0.0,
+        }
+    }
+
+    /// Record one cycle (allocation-free: beyond the capacity it is only
+    /// counted).
+    pub(crate) fn record(&mut self, io: Duration, compute: Duration) {
+        let io_us = io.as_secs_f64() * 1e6;
+        let c_us = compute.as_secs_f64() * 1e6;
+        self.last_compute_us = c_us as f32;
+        if self.io_us.len() < self.io_us.capacity() {
+            self.io_us.push(io_us as f32);
+            self.compute_us.push(c_us as f32);
+            self.cycle_us.push((io_us + c_us) as f32);
+        } else {
+            self.dropped += 1;
+        }
+    }
 }
 
 /// One robot program: configuration, I/O, lifecycle, controllers.
@@ -332,14 +397,7 @@ impl<P: Port> Robot<P> {
             sample_clock: vec![0.0; MAX_BOARDS],
             pot: vec![0.0; n],
             enc: vec![0.0; n],
-            times: CycleTimes {
-                io_us: Vec::with_capacity(cap),
-                compute_us: Vec::with_capacity(cap),
-                cycle_us: Vec::with_capacity(cap),
-                dropped: 0,
-                overruns: 0,
-                last_compute_us: 0.0,
-            },
+            times: CycleTimes::with_capacity(cap),
             cycle: 0,
             last_start: None,
             last_report: None,
@@ -430,22 +488,7 @@ impl<P: Port> Robot<P> {
         self.arm_names
             .iter()
             .zip(&self.arm_acc)
-            .map(|(name, a)| ArmTracking {
-                name: name.clone(),
-                rms_rad: if a.n_rad > 0 {
-                    (a.sum_rad / a.n_rad as f64).sqrt()
-                } else {
-                    0.0
-                },
-                max_rad: a.max_rad,
-                rms_mm: if a.n_m > 0 {
-                    1e3 * (a.sum_m / a.n_m as f64).sqrt()
-                } else {
-                    0.0
-                },
-                max_mm: 1e3 * a.max_m,
-                samples: a.n_rad + a.n_m,
-            })
+            .map(|(name, a)| a.tracking(name))
             .collect()
     }
 
@@ -763,24 +806,10 @@ impl<P: Port> Robot<P> {
         }
         let report = *self.io.write_all();
         self.last_report = Some(report);
-        self.record(report.io_time(), compute);
+        self.times.record(report.io_time(), compute);
         match self.fault {
             Some(f) => Err(f),
             None => Ok(()),
-        }
-    }
-
-    fn record(&mut self, io: Duration, compute: Duration) {
-        let t = &mut self.times;
-        let io_us = io.as_secs_f64() * 1e6;
-        let c_us = compute.as_secs_f64() * 1e6;
-        t.last_compute_us = c_us as f32;
-        if t.io_us.len() < t.io_us.capacity() {
-            t.io_us.push(io_us as f32);
-            t.compute_us.push(c_us as f32);
-            t.cycle_us.push((io_us + c_us) as f32);
-        } else {
-            t.dropped += 1;
         }
     }
 
@@ -896,17 +925,8 @@ impl<P: Port> Robot<P> {
                         dt,
                     );
                 }
-                let err = (sp.position - pos).abs();
                 if let Some(acc) = self.arm_acc.get_mut(j.arm) {
-                    if j.prismatic {
-                        acc.sum_m += err * err;
-                        acc.n_m += 1;
-                        acc.max_m = acc.max_m.max(err);
-                    } else {
-                        acc.sum_rad += err * err;
-                        acc.n_rad += 1;
-                        acc.max_rad = acc.max_rad.max(err);
-                    }
+                    acc.add((sp.position - pos).abs(), j.prismatic);
                 }
             } else {
                 j.setpoint = pos;
