@@ -351,8 +351,10 @@ fn watchdog_expiry_disables_every_amplifier() {
     let s = rig.status();
     assert!(s.watchdog_timeout());
     assert_eq!(s.amp_enable(), 0);
-    // The flag stays until STATUS is written; re-enabling needs a write.
+    // The flag stays until an amplifier is turned back on (a write that
+    // only turns amplifiers off keeps it); re-enabling needs a write.
     rig.block_write(&[0; 7]);
+    rig.write(0x00, PowerControl::all(false).raw());
     assert!(rig.status().watchdog_timeout());
     rig.write(0x00, PowerControl::channel(1, true).unwrap().raw());
     let s = rig.status();

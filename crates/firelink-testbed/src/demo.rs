@@ -251,7 +251,7 @@ pub struct TimeStats {
 }
 
 impl TimeStats {
-    fn of(samples: &mut [f32]) -> TimeStats {
+    pub(crate) fn of(samples: &mut [f32]) -> TimeStats {
         let p = Percentiles::of(samples);
         TimeStats {
             median: round2(p.median),

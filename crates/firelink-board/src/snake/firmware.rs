@@ -29,7 +29,8 @@
 //!   `ack_busy_X`. EEPROM writes while write-protected finish with the
 //!   result's error bit.
 //! - The watchdog is off at power-up; when it expires every amplifier is
-//!   disabled and STATUS bit 23 is set until the next STATUS write.
+//!   disabled and STATUS bit 23 is set until a STATUS write turns an
+//!   amplifier back on (writes that only turn amplifiers off keep it).
 //! - A channel's fault line (injected, or the amplifier above
 //!   [`AmplifierModel::fault_celsius`]) clears its enable; it cannot be
 //!   enabled while the line is asserted.
@@ -508,7 +509,10 @@ impl SnakeFirmware {
                     let p = PowerControl(value);
                     self.enable_mask = p.mask();
                     self.amp_enable = p.apply(self.amp_enable) & !self.fault_lines();
-                    self.watchdog.timed_out = false;
+                    // Turning an amplifier back on acknowledges the time-out.
+                    if p.mask() & p.enable() != 0 {
+                        self.watchdog.timed_out = false;
+                    }
                 }
                 GlobalRegister::PhyControl => match PhyRequest::parse(value) {
                     Ok(PhyRequest::Read { register }) => {

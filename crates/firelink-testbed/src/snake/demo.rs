@@ -1,0 +1,525 @@
+//! The Snake demo: seed 001's 36-axis system (two 11-axis Snake robots
+//! and two 7-axis masters on six 7-channel nodes) servoed by the generic
+//! [`Servo`] over the abstract robot I/O: configure, prepare the nodes
+//! (wiper, torque mode, current limit, encoder preload), power on, home,
+//! follow trajectories on every arm, optionally inject a fault half way,
+//! power off; then, on the simulated bus, find the highest rate that
+//! holds. The report is the dVRK demo's ([`DemoReport`]) plus the rate
+//! search.
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+
+use firelink_control::FaultReport;
+use firelink_control::config::{IoConfig, presets};
+use firelink_control::runner::{Pacing, Percentiles, RobotSettings, RunnerError};
+use firelink_control::servo::Servo;
+use firelink_host::RobotIo;
+use firelink_host::snake::SnakeSystem;
+
+use crate::TestbedError;
+use crate::demo::{
+    DemoFault, DemoPort, DemoProgress, DemoReport, ErrorCounts, FaultSummary, Injector,
+    RealtimeStatus, TimeStats, TrackingDetail, WatchdogReport, motion_for,
+};
+use crate::rig;
+use crate::snake::{emulator, node_configs, prepare, sim_port};
+
+/// Options of a Snake demo run.
+#[derive(Debug, Clone)]
+pub struct SnakeDemoOptions {
+    /// The robot (default: `configs/snake-seed001.json`).
+    pub config: IoConfig,
+    /// Control rate, Hz (the seed's target: 1 kHz).
+    pub rate_hz: f64,
+    /// Seconds of motion after homing.
+    pub duration_s: f64,
+    /// Where the nodes are (`Loopback` is a QLA model: refused).
+    pub port: DemoPort,
+    /// The fault to inject half way (a corrupt query needs the broadcast
+    /// protocol, which the Snake nodes do not have: refused).
+    pub fault: DemoFault,
+    /// Pacing; `None`: the port's default.
+    pub pacing: Option<Pacing>,
+    /// Node watchdog period; `None` turns the watchdogs off.
+    pub watchdog: Option<Duration>,
+    /// After the run, search for the highest rate that holds (simulated
+    /// bus only).
+    pub find_max_rate: bool,
+    /// Seed of the plants' noise.
+    pub seed: u64,
+}
+
+impl Default for SnakeDemoOptions {
+    fn default() -> Self {
+        SnakeDemoOptions {
+            config: presets::snake_seed001(),
+            rate_hz: 1000.0,
+            duration_s: 3.0,
+            port: DemoPort::Sim,
+            fault: DemoFault::None,
+            pacing: None,
+            watchdog: Some(Duration::from_millis(20)),
+            find_max_rate: true,
+            seed: 1,
+        }
+    }
+}
+
+/// One trial of the rate search.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RateTrial {
+    /// The rate tried, Hz.
+    pub rate_hz: f64,
+    /// Whether it held: no fault, no I/O error, and the 99th percentile of
+    /// I/O plus computation within the period.
+    pub held: bool,
+    /// I/O + computation per cycle with motion, us.
+    pub cycle_time_us: TimeStats,
+    /// Cycles whose I/O + computation exceeded the period.
+    pub late_cycles: u64,
+    /// I/O errors.
+    pub errors: u64,
+    /// The fault, if one happened.
+    pub fault: Option<String>,
+}
+
+/// The highest rate that holds, and how it was found.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MaxRate {
+    /// The highest rate tried that held, Hz (0 if none did).
+    pub rate_hz: f64,
+    /// The bound from the I/O time alone: 1 / (largest I/O time), Hz.
+    pub io_bound_hz: f64,
+    /// The trials, in order (the first from the main run's 99th
+    /// percentiles, rounded down to 50 Hz; each failure 10 % lower).
+    pub trials: Vec<RateTrial>,
+}
+
+/// What a Snake demo run did; serialises to `firelink demo --robot snake
+/// --json`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SnakeDemoReport {
+    /// The run, reported as the dVRK demo reports it.
+    #[serde(flatten)]
+    pub demo: DemoReport,
+    /// Board IDs of the nodes found.
+    pub nodes: Vec<u8>,
+    /// Cycles with motion whose I/O plus computation exceeded the period.
+    pub late_cycles: u64,
+    /// The rate search (simulated bus, when asked).
+    pub max_rate: Option<MaxRate>,
+}
+
+impl SnakeDemoReport {
+    /// Whether the run did what it was asked (as
+    /// [`DemoReport::verdict`]; and a rate search found a rate that holds
+    /// at least at the demo's own rate).
+    ///
+    /// # Errors
+    /// What went wrong, in one line.
+    pub fn verdict(&self) -> Result<(), String> {
+        self.demo.verdict()?;
+        if let Some(m) = &self.max_rate {
+            if m.rate_hz < self.demo.rate_hz && self.demo.fault.is_none() {
+                return Err(format!(
+                    "no rate at or above {} Hz held in the rate search",
+                    self.demo.rate_hz
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl fmt::Display for SnakeDemoReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.demo)?;
+        writeln!(f, "  Snake nodes (board IDs): {:?}", self.nodes)?;
+        writeln!(
+            f,
+            "  cycles whose I/O + computation exceeded the period: {}",
+            self.late_cycles
+        )?;
+        if let Some(m) = &self.max_rate {
+            writeln!(
+                f,
+                "  highest rate that holds: {:.0} Hz (I/O alone allows {:.0} Hz)",
+                m.rate_hz, m.io_bound_hz
+            )?;
+            for t in &m.trials {
+                writeln!(
+                    f,
+                    "    {:6.0} Hz: {}  cycle p99 {:7.1} us  max {:7.1} us  late {}  errors {}{}",
+                    t.rate_hz,
+                    if t.held { "held  " } else { "failed" },
+                    t.cycle_time_us.p99,
+                    t.cycle_time_us.max,
+                    t.late_cycles,
+                    t.errors,
+                    t.fault
+                        .as_ref()
+                        .map_or(String::new(), |s| format!("  fault: {s}"))
+                )?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Run the Snake demo. `realtime` is called once the port is open, when
+/// the pacing is wall-clock.
+///
+/// # Errors
+/// Options the Snake nodes cannot honour; assembling the rig; the servo
+/// failing outside a cycle (configuration, homing, time-outs).
+pub fn run_snake_demo(
+    options: &SnakeDemoOptions,
+    realtime: Option<&dyn Fn() -> RealtimeStatus>,
+    mut progress: impl FnMut(DemoProgress),
+) -> Result<SnakeDemoReport, TestbedError> {
+    if !(options.rate_hz.is_finite() && options.rate_hz > 0.0) {
+        return Err(TestbedError::Config(format!(
+            "rate {} Hz: must be above 0",
+            options.rate_hz
+        )));
+    }
+    if !(options.duration_s.is_finite() && options.duration_s > 0.0) {
+        return Err(TestbedError::Config(format!(
+            "duration {} s: must be above 0",
+            options.duration_s
+        )));
+    }
+    if options.fault == DemoFault::CorruptQuery {
+        return Err(TestbedError::Config(
+            "fault corrupt-query needs the broadcast protocol; Snake nodes are read and \
+             written one by one (stop-host, board-loss or following-error)"
+                .into(),
+        ));
+    }
+    let nodes = node_configs(&options.config, options.seed)?;
+    let pacing = options
+        .pacing
+        .unwrap_or_else(|| options.port.default_pacing());
+    let out = match &options.port {
+        DemoPort::Sim => {
+            let port = sim_port(nodes, true, None)?;
+            run_on(
+                port,
+                options,
+                SIM_NAME.into(),
+                pacing,
+                realtime,
+                &mut progress,
+            )?
+        }
+        DemoPort::Emulate => {
+            let emu = emulator(nodes)?;
+            let name = format!("udp:{} (in-process firelink emulate)", emu.addr);
+            let r = run_on(emu.port()?, options, name, pacing, realtime, &mut progress);
+            emu.stop()?;
+            r?
+        }
+        DemoPort::Udp(addr) => {
+            let port = rig::udp_port(*addr)?;
+            let name = format!("udp:{addr}");
+            run_on(port, options, name, pacing, realtime, &mut progress)?
+        }
+        DemoPort::Loopback => {
+            return Err(TestbedError::Config(
+                "the loopback port models QLA boards; the Snake demo runs on sim, emulate or udp"
+                    .into(),
+            ));
+        }
+    };
+    let max_rate =
+        (options.find_max_rate && options.port == DemoPort::Sim && out.report.fault.is_none())
+            .then(|| search_max_rate(options, &out))
+            .transpose()?;
+    Ok(SnakeDemoReport {
+        demo: out.report,
+        nodes: out.ids,
+        late_cycles: out.late_cycles,
+        max_rate,
+    })
+}
+
+/// The periodic progress event: the median I/O time of the last 2000
+/// cycles.
+fn tick<R: RobotIo>(s: &Servo<R>) -> DemoProgress {
+    let io = &s.times().io_us;
+    let mut last: Vec<f32> = io[io.len().saturating_sub(2000)..].to_vec();
+    DemoProgress::Tick {
+        t: s.now(),
+        cycles: s.cycles(),
+        io_median_us: Percentiles::of(&mut last).median,
+        errors: s.io().stats().total_errors(),
+    }
+}
+
+/// What one run gives: the report, the board IDs found, and the cycles
+/// with motion: their I/O plus computation, how many exceeded the period,
+/// their largest I/O time.
+struct RunOutcome {
+    report: DemoReport,
+    ids: Vec<u8>,
+    motion_cycle_us: TimeStats,
+    late_cycles: u64,
+    motion_io_max_us: f64,
+}
+
+/// Run the demo over one port.
+fn run_on<P: Injector>(
+    port: P,
+    options: &SnakeDemoOptions,
+    port_name: String,
+    pacing: Pacing,
+    realtime: Option<&dyn Fn() -> RealtimeStatus>,
+    progress: &mut dyn FnMut(DemoProgress),
+) -> Result<RunOutcome, TestbedError> {
+    let rt = match (pacing, realtime) {
+        (Pacing::WallClock, Some(setup)) => setup(),
+        _ => RealtimeStatus::default(),
+    };
+    let config = &options.config;
+    let wall = Instant::now();
+    let mut system = SnakeSystem::open(port)?;
+    let ids: Vec<u8> = system.nodes().iter().map(|n| n.board_id()).collect();
+    let version = system.nodes().first().map(|n| n.info().version);
+    progress(DemoProgress::Found {
+        boards: ids.len(),
+        port: port_name.clone(),
+        reason: "Snake nodes found by their version register".into(),
+        protocol: "per-node block read and block write",
+    });
+    if options.watchdog.is_none() {
+        progress(DemoProgress::WatchdogOff);
+    }
+    prepare(&mut system, config)?;
+    let watchdog = options.watchdog.unwrap_or(Duration::ZERO);
+    let settings = RobotSettings {
+        rate_hz: options.rate_hz,
+        watchdog,
+        ..RobotSettings::default()
+    };
+    let mut servo = Servo::new(system, config, settings)?;
+    servo.configure()?;
+    progress(DemoProgress::Configured);
+    servo.power_on()?;
+    progress(DemoProgress::Powered(servo.now()));
+    servo.home()?;
+    servo.activate()?;
+    progress(DemoProgress::Homed(servo.now()));
+    for i in 0..servo.joint_count() {
+        let here = servo.position(i).unwrap_or(0.0);
+        servo.set_motion(i, motion_for(config, i, here))?;
+    }
+    servo.reset_tracking();
+    let setup_cycles = servo.cycles();
+    let rate = options.rate_hz;
+    let total = (options.duration_s * rate).round() as u64;
+    let every = (rate / 4.0).max(1.0) as u64;
+    let half = total / 2;
+    let inject = options.fault;
+    let first = if inject == DemoFault::None {
+        total
+    } else {
+        half
+    };
+    let mut outcome = servo.run(first, pacing, every, |s| progress(tick(s)));
+    if outcome.is_ok() && inject != DemoFault::None {
+        progress(DemoProgress::Injecting(inject));
+        servo.io_mut().port_mut().inject(inject, watchdog)?;
+        if inject == DemoFault::FollowingError {
+            let sp = servo.setpoint(0).unwrap_or(0.0);
+            let _ = servo.set_motion(0, firelink_control::trajectory::Motion::Hold(sp + 0.5));
+        }
+        outcome = servo.run(total - half, pacing, every, |s| progress(tick(s)));
+    }
+    let mut fault: Option<FaultReport> = None;
+    match outcome {
+        Ok(()) => {}
+        Err(RunnerError::Fault(f)) => {
+            fault = Some(f);
+            progress(DemoProgress::Fault(f.to_string()));
+            // Cycles in Fault for twice the watchdog period: outputs safe,
+            // and a node that stopped answering turns its own amplifiers
+            // off when its watchdog expires.
+            let n = ((2.0 * watchdog.as_secs_f64() * rate).ceil() as u64).max(3);
+            for _ in 0..n {
+                let _ = servo.step(Pacing::Virtual);
+            }
+            progress(DemoProgress::SafetyChain {
+                state: servo.state().to_string(),
+                amplifiers_on: servo.any_amp_on(),
+            });
+        }
+        Err(e) => return Err(e.into()),
+    }
+    let amps_after_fault = servo.any_amp_on();
+    let silent: Vec<u8> = ids
+        .iter()
+        .copied()
+        .filter(|&id| !servo.io().board_answered(id))
+        .collect();
+    let expired: Vec<u8> = ids
+        .iter()
+        .copied()
+        .filter(|&id| servo.io().watchdog_expired(id))
+        .collect();
+    let state_after = servo.state().to_string();
+    let motion_cycles = servo.cycles() - setup_cycles;
+    servo.shutdown()?;
+    let wall_s = wall.elapsed().as_secs_f64();
+    progress(DemoProgress::PoweredOff(wall_s));
+    let times = servo.times().clone();
+    let period_us = 1e6 / rate;
+    let setup = (setup_cycles as usize).min(times.cycle_us.len());
+    let end = (setup + motion_cycles as usize).min(times.cycle_us.len());
+    let mut motion: Vec<f32> = times.cycle_us[setup..end].to_vec();
+    let late_cycles = motion.iter().filter(|&&c| f64::from(c) > period_us).count() as u64;
+    let motion_io_max_us = times.io_us[setup..end]
+        .iter()
+        .fold(0.0f64, |m, &x| m.max(f64::from(x)));
+    let motion_cycle_us = TimeStats::of(&mut motion);
+    let (mut c, mut io, mut comp) = (times.cycle_us, times.io_us, times.compute_us);
+    let mut tracking_error = BTreeMap::new();
+    let mut tracking_error_detail = BTreeMap::new();
+    for t in servo.tracking() {
+        tracking_error.insert(t.name.clone(), t.rms_rad);
+        tracking_error_detail.insert(
+            t.name.clone(),
+            TrackingDetail {
+                rms_rad: t.rms_rad,
+                max_rad: t.max_rad,
+                prismatic_rms_mm: t.rms_mm,
+                prismatic_max_mm: t.max_mm,
+                samples: t.samples,
+            },
+        );
+    }
+    let port_time_s = servo.now();
+    let report = DemoReport {
+        port: port_name,
+        boards: ids.len(),
+        axes: servo.joint_count(),
+        firmware: version,
+        protocol: "snake per-node block read/write".into(),
+        rate_hz: rate,
+        pacing: match pacing {
+            Pacing::Virtual => "virtual",
+            Pacing::WallClock => "realtime",
+        }
+        .to_string(),
+        cycles: servo.cycles(),
+        motion_cycles,
+        port_time_s,
+        wall_time_s: wall_s,
+        speed_vs_real_time: if wall_s > 0.0 {
+            port_time_s / wall_s
+        } else {
+            0.0
+        },
+        cycle_time_us: TimeStats::of(&mut c),
+        io_time_us: TimeStats::of(&mut io),
+        compute_time_us: TimeStats::of(&mut comp),
+        overruns: times.overruns,
+        realtime: rt,
+        tracking_error,
+        tracking_error_unit: "rad RMS over each arm's revolute joints (prismatic: tracking_error_detail, mm)",
+        tracking_error_detail,
+        errors: ErrorCounts::from(servo.io().stats()),
+        watchdog: WatchdogReport {
+            period_ms: watchdog.as_secs_f64() * 1e3,
+            expired_boards: expired,
+        },
+        fault_injected: inject.name(),
+        fault: fault.as_ref().map(FaultSummary::from),
+        state_after_run: state_after,
+        amplifiers_on_after_fault: fault.map(|_| amps_after_fault),
+        boards_not_answering: silent,
+        state: servo.state().to_string(),
+    };
+    Ok(RunOutcome {
+        report,
+        ids,
+        motion_cycle_us,
+        late_cycles,
+        motion_io_max_us,
+    })
+}
+
+/// The simulated port's name in reports: the nodes on the simulated bus,
+/// the PC's overhead that of seed 001's machine.
+const SIM_NAME: &str = "sim (seed 001 PC model)";
+
+/// Motion after homing in a rate trial, seconds.
+const TRIAL_SECONDS: f64 = 0.5;
+/// Trials at most.
+const MAX_TRIALS: usize = 5;
+
+/// One short run at `rate_hz` on a fresh simulated rig.
+fn trial(options: &SnakeDemoOptions, rate_hz: f64) -> Result<RateTrial, TestbedError> {
+    let run = SnakeDemoOptions {
+        rate_hz,
+        duration_s: TRIAL_SECONDS,
+        port: crate::demo::DemoPort::Sim,
+        fault: DemoFault::None,
+        pacing: Some(Pacing::Virtual),
+        find_max_rate: false,
+        ..options.clone()
+    };
+    let port = sim_port(node_configs(&run.config, run.seed)?, true, None)?;
+    let out = run_on(
+        port,
+        &run,
+        SIM_NAME.into(),
+        Pacing::Virtual,
+        None,
+        &mut |_| {},
+    )?;
+    let report = out.report;
+    let late = out.motion_cycle_us.p99 > 1e6 / rate_hz;
+    let held = report.fault.is_none() && report.errors.total == 0 && !late;
+    Ok(RateTrial {
+        rate_hz,
+        held,
+        cycle_time_us: out.motion_cycle_us,
+        late_cycles: out.late_cycles,
+        errors: report.errors.total,
+        fault: report.fault.map(|f| f.text),
+    })
+}
+
+/// From the main run's cycles with motion (99th percentile of I/O plus
+/// computation), the rate that should hold (rounded down to 50 Hz),
+/// confirmed by a trial; each failure tries 10 % lower.
+fn search_max_rate(options: &SnakeDemoOptions, main: &RunOutcome) -> Result<MaxRate, TestbedError> {
+    let cycle_us = main.motion_cycle_us.p99;
+    let io_bound_hz = if main.motion_io_max_us > 0.0 {
+        1e6 / main.motion_io_max_us
+    } else {
+        0.0
+    };
+    let mut rate = (1e6 / cycle_us.max(1.0) / 50.0).floor() * 50.0;
+    let mut trials = Vec::new();
+    let mut best = 0.0;
+    while trials.len() < MAX_TRIALS && rate >= 50.0 {
+        let t = trial(options, rate)?;
+        let held = t.held;
+        trials.push(t);
+        if held {
+            best = rate;
+            break;
+        }
+        rate = (rate * 0.9 / 50.0).floor() * 50.0;
+    }
+    Ok(MaxRate {
+        rate_hz: best,
+        io_bound_hz,
+        trials,
+    })
+}
