@@ -12,13 +12,15 @@ use clap::Args;
 
 use firelink_board::config::{Hardware, Profile};
 use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_bus::Node;
 use firelink_bus::{FaultRule, PacketFault, PacketMatch, SimDuration, TimedFault};
-use firelink_control::config::IoConfig;
+use firelink_control::config::{IoConfig, presets};
 use firelink_emulate::{Bridge, Event, ServeConfig};
 
 use crate::CliError;
 use crate::args::{parse_hardware, parse_profile};
-use firelink_testbed::rig::{board_configs, generic_boards};
+use firelink_testbed::rig::{board_configs, generic_boards, qla_nodes};
+use firelink_testbed::snake;
 
 /// Options of `firelink emulate`.
 #[derive(Args, Debug)]
@@ -27,9 +29,14 @@ pub struct EmulateArgs {
     #[arg(long, default_value_t = 8, conflicts_with = "config", value_parser = crate::args::board_count)]
     pub boards: u8,
     /// A robot configuration (saw-robot-io v6 JSON): emulate its boards
-    /// with matching plants.
+    /// with matching plants (SNAKE boards: seed 001's 7-channel nodes).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Emulate seed 001's 36-axis Snake system on its 7-channel nodes
+    /// (`configs/snake-seed001.json`), for `firelink snake-tool` and
+    /// `firelink demo --robot snake --port udp:...`.
+    #[arg(long, value_enum, conflicts_with_all = ["config", "boards"])]
+    pub robot: Option<crate::demo::DemoRobot>,
     /// Firmware: 7, 8 or seed (seed 000's TDMA and 0xFFFF rule).
     #[arg(long, default_value = "8", value_parser = parse_profile)]
     pub firmware: Profile,
@@ -70,11 +77,23 @@ pub struct EmulateArgs {
 
 /// Build the bridge of `args` (also used by tests and benchmarks).
 pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
-    let boards = match &args.config {
-        Some(path) => {
-            let config = IoConfig::load(path).map_err(|e| CliError::Conflict(e.to_string()))?;
+    let config = match (&args.config, args.robot) {
+        (Some(path), _) => {
+            Some(IoConfig::load(path).map_err(|e| CliError::Conflict(e.to_string()))?)
+        }
+        (None, Some(crate::demo::DemoRobot::Snake)) => Some(presets::snake_seed001()),
+        (None, Some(crate::demo::DemoRobot::Dvrk)) => Some(presets::dvrk_seed000()),
+        (None, None) => None,
+    };
+    if let Some(c) = config.as_ref().filter(|c| snake::is_snake_config(c)) {
+        let nodes = snake::node_configs(c, args.seed)?;
+        let ids = nodes.iter().map(|n| n.board_id).collect();
+        return assemble(args, snake::nodes(nodes), ids);
+    }
+    let boards = match &config {
+        Some(config) => {
             let count = config.board_slots();
-            board_configs(&config, args.firmware, count)
+            board_configs(config, args.firmware, count)
         }
         None => {
             if !(1..=16).contains(&args.boards) {
@@ -87,6 +106,16 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
         }
     };
     let ids: Vec<u8> = boards.iter().map(|b| b.board_id).collect();
+    assemble(args, qla_nodes(boards), ids)
+}
+
+/// The bus of `nodes` (board IDs `ids`) with the faults `args` ask for,
+/// behind the bridge.
+fn assemble(
+    args: &EmulateArgs,
+    nodes: Vec<Box<dyn Node>>,
+    ids: Vec<u8>,
+) -> Result<(Bridge, Vec<u8>), CliError> {
     let bridge_index = match args.bridge_board {
         Some(id) => ids
             .iter()
@@ -94,8 +123,8 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
             .ok_or_else(|| CliError::Conflict(format!("--bridge-board {id}: no such board")))?,
         None => 0,
     };
-    let mut rig = BoardRig::daisy_chain(
-        boards,
+    let mut rig = BoardRig::daisy_chain_nodes(
+        nodes,
         &RigOptions {
             seed: args.seed,
             ..RigOptions::default()
@@ -169,7 +198,12 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
             stop.store(true, std::sync::atomic::Ordering::Relaxed);
         });
     }
+    let snake = bridge
+        .bus()
+        .node::<firelink_board::snake::SnakeNode>(firelink_bus::NodeHandle(1))
+        .is_some();
     let firmware = match args.firmware {
+        _ if snake => "seed 001 Snake node",
         Profile::Rev7 => "Rev 7",
         Profile::Rev8 => "Rev 8",
         Profile::Seed => "seed 000",

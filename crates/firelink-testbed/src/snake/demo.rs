@@ -288,7 +288,8 @@ fn run_on<P: Injector>(
     let wall = Instant::now();
     let mut system = SnakeSystem::open(port)?;
     let ids: Vec<u8> = system.nodes().iter().map(|n| n.board_id()).collect();
-    let version = system.nodes().first().map(|n| n.info().version);
+    // The version register's low byte is the firmware revision.
+    let version = system.nodes().first().map(|n| n.info().version & 0xFF);
     progress(DemoProgress::Found {
         boards: ids.len(),
         port: port_name.clone(),
