@@ -3,7 +3,7 @@
 //! noise seed.
 
 use super::channel::{AmplifierModel, DigitalPot};
-use crate::plant::{AxisParams, DEFAULT_STEP, presets};
+use crate::plant::{AxisParams, presets};
 use crate::time::TimeDelta;
 use firelink_wire::snake::CHANNELS;
 
@@ -28,7 +28,8 @@ pub struct SnakeNodeConfig {
     pub version: u32,
     /// Seed of the measurement noise.
     pub seed: u64,
-    /// Plant integration step.
+    /// Plant integration step (default: the ADC's 2 us conversion time,
+    /// so that every conversion samples a fresh plant state).
     pub plant_step: TimeDelta,
 }
 
@@ -42,7 +43,7 @@ impl SnakeNodeConfig {
             amplifier: AmplifierModel::default(),
             version: SNAKE_VERSION,
             seed: 0,
-            plant_step: DEFAULT_STEP,
+            plant_step: super::firmware::ADC_CONVERSION_TIME,
         }
     }
 

@@ -34,8 +34,10 @@
 //! - A channel's fault line (injected, or the amplifier above
 //!   [`AmplifierModel::fault_celsius`]) clears its enable; it cannot be
 //!   enabled while the line is asserted.
-//! - The ADC converts every 2 us; a read returns the last conversion of
-//!   the plant's state (the plant integrates on its 5 us grid).
+//! - The ADC converts continuously, every 2 us (§6.2: "roughly 2 us"):
+//!   the node's plant integrates on that grid (its default step), so a
+//!   read returns the last conversion, a sample of the plant at most 2 us
+//!   old with fresh noise.
 
 use firelink_wire::board::registers::{PhyData, PhyRequest};
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Rcode, Tcode};
