@@ -677,9 +677,13 @@ impl HostModel {
     /// block of `n` quadlets takes the base latency (33.2 us read, 30.7 us
     /// write) plus `n` quadlets at the measured speed (360 and 290 Mb/s),
     /// the wire's own share of both subtracted (its intercept and slope
-    /// at S400 to the adjacent node). No jitter until
-    /// [`with_jitter`](Self::with_jitter).
+    /// at S400 to the adjacent node, up to the moment the PC's link has
+    /// the answer: the response of a read, the ack of a write). No jitter
+    /// until [`with_jitter`](Self::with_jitter).
     pub fn seed001(timing: &BusTiming) -> HostModel {
+        // A read is done for the PC when the response has arrived; its own
+        // ack of the response follows on the wire.
+        let final_ack = timing.ack_gap + timing.ack_time(Speed::S400);
         let one = |f: &dyn Fn(usize) -> SimDuration, n: usize| f(n).as_micros_f64();
         let block = |f: &dyn Fn(usize) -> SimDuration, base: f64, mbps: f64| {
             // The wire is linear in the payload: fit it over the sweep.
@@ -695,7 +699,7 @@ impl HostModel {
             m.per_quadlet = SimDuration::from_micros_f64(target_slope - wire_slope);
             m
         };
-        let read_wire = |n: usize| timing.nominal_block_read(4 * n, Speed::S400, 1);
+        let read_wire = |n: usize| timing.nominal_block_read(4 * n, Speed::S400, 1) - final_ack;
         let write_wire = |n: usize| timing.nominal_block_write(4 * n, Speed::S400, 1);
         let [w_lo, w_hi] = SEED001_WRITE_BANDS_US;
         HostModel {
@@ -711,7 +715,7 @@ impl HostModel {
             },
             quadlet_read: Some(split_call(
                 SEED001_QUADLET_READ_US,
-                timing.nominal_quadlet_read(Speed::S400, 1),
+                timing.nominal_quadlet_read(Speed::S400, 1) - final_ack,
                 bands(SEED001_QUADLET_READ_US, SEED001_READ_BANDS_US, 0.1),
             )),
             quadlet_write: Some(split_call(
@@ -851,6 +855,7 @@ mod tests {
     fn seed001_calibration_adds_up() {
         let t = BusTiming::default();
         let m = HostModel::seed001(&t);
+        let final_ack = t.ack_gap + t.ack_time(Speed::S400);
         let total = |call, transfer, wire: SimDuration| {
             let c = m.mean_cost(call, transfer);
             (c.before + c.after + wire).as_micros_f64()
@@ -858,7 +863,7 @@ mod tests {
         let q = total(
             HostCall::Read,
             Transfer::Quadlet,
-            t.nominal_quadlet_read(Speed::S400, 1),
+            t.nominal_quadlet_read(Speed::S400, 1) - final_ack,
         );
         assert!((q - 34.5).abs() < 1e-5, "{q}");
         let q = total(
@@ -872,7 +877,7 @@ mod tests {
             let r = total(
                 HostCall::Read,
                 Transfer::Block { quadlets: n },
-                t.nominal_block_read(4 * n, Speed::S400, 1),
+                t.nominal_block_read(4 * n, Speed::S400, 1) - final_ack,
             );
             let expect = 33.2 + n as f64 * 32.0 / 360.0;
             assert!((r - expect).abs() < 1e-3, "{n}: {r} vs {expect}");
@@ -890,7 +895,8 @@ mod tests {
     fn seed001_bands_keep_the_mean() {
         let t = BusTiming::default();
         let mut m = HostModel::seed001(&t).with_jitter(1);
-        let wire = t.nominal_quadlet_read(Speed::S400, 1).as_micros_f64();
+        let final_ack = t.ack_gap + t.ack_time(Speed::S400);
+        let wire = (t.nominal_quadlet_read(Speed::S400, 1) - final_ack).as_micros_f64();
         let draws: Vec<f64> = (0..20_000)
             .map(|_| {
                 let c = m.cost_of(HostCall::Read, Transfer::Quadlet);
