@@ -155,6 +155,18 @@ pub(crate) fn show(event: &DemoProgress, ticking: &mut bool) {
     }
 }
 
+/// The `--pacing` option: `None` for the port's default.
+pub(crate) fn pacing(args: &DemoArgs) -> Result<Option<Pacing>, CliError> {
+    match args.pacing.as_deref() {
+        None => Ok(None),
+        Some("virtual") => Ok(Some(Pacing::Virtual)),
+        Some("realtime") => Ok(Some(Pacing::WallClock)),
+        Some(p) => Err(CliError::Conflict(format!(
+            "unknown pacing {p:?}: virtual or realtime"
+        ))),
+    }
+}
+
 /// The demo's options from the command line.
 pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
     let config = match &args.config {
@@ -163,16 +175,7 @@ pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
     };
     let protocol = Protocol::from_name(&args.protocol)
         .ok_or_else(|| CliError::Conflict(format!("unknown protocol {:?}", args.protocol)))?;
-    let pacing = match args.pacing.as_deref() {
-        None => None,
-        Some("virtual") => Some(Pacing::Virtual),
-        Some("realtime") => Some(Pacing::WallClock),
-        Some(p) => {
-            return Err(CliError::Conflict(format!(
-                "unknown pacing {p:?}: virtual or realtime"
-            )));
-        }
-    };
+    let pacing = pacing(args)?;
     let watchdog = args.watchdog.period();
     Ok(DemoOptions {
         config,

@@ -6,7 +6,6 @@
 use std::io::Write;
 
 use firelink_control::config::{IoConfig, presets};
-use firelink_control::runner::Pacing;
 use firelink_testbed::demo::RealtimeStatus;
 use firelink_testbed::snake::demo::{SnakeDemoOptions, run_snake_demo};
 use firelink_testbed::snake::is_snake_config;
@@ -33,16 +32,7 @@ pub fn wanted(args: &DemoArgs) -> Result<bool, CliError> {
 /// The Snake demo's options from the command line.
 pub fn options(args: &DemoArgs) -> Result<SnakeDemoOptions, CliError> {
     let config = config(args)?.unwrap_or_else(presets::snake_seed001);
-    let pacing = match args.pacing.as_deref() {
-        None => None,
-        Some("virtual") => Some(Pacing::Virtual),
-        Some("realtime") => Some(Pacing::WallClock),
-        Some(p) => {
-            return Err(CliError::Conflict(format!(
-                "unknown pacing {p:?}: virtual or realtime"
-            )));
-        }
-    };
+    let pacing = crate::demo::pacing(args)?;
     let conflict = |e: firelink_testbed::TestbedError| CliError::Conflict(e.to_string());
     let watchdog = args.watchdog.period();
     Ok(SnakeDemoOptions {

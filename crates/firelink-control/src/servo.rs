@@ -28,42 +28,23 @@ use firelink_host::io::CycleReport;
 use firelink_wire::board::MAX_BOARDS;
 use firelink_wire::snake::registers::SYSTEM_CLOCK_HZ;
 
-use crate::config::{DriveConfig, EncoderConfig, IoConfig, JointType, PotentiometerConfig};
+use crate::config::IoConfig;
 use crate::fault::{FaultKind, FaultReport};
 use crate::homing::{Homing, HomingStep};
 use crate::label::{BoardSet, Label};
 use crate::lifecycle::{Lifecycle, LifecycleError, PowerStatus, State};
-use crate::pid::{Measurement, Pid, PidGains, Setpoint};
-use crate::runner::velocity::VelocityEstimator;
+use crate::pid::{Pid, PidGains};
+use crate::runner::joint::{self, Joint, Pacer};
 use crate::runner::{ArmAcc, ArmTracking, CycleTimes, Pacing, RobotSettings, RunnerError};
 use crate::safety::{JointSample, SafetyMonitor};
 use crate::trajectory::Motion;
-
-/// One joint: its axis in the I/O system and its control state.
-#[derive(Debug, Clone, Copy)]
-struct ServoJoint {
-    label: Label,
-    arm: usize,
-    board_id: u8,
-    axis: usize,
-    drive: DriveConfig,
-    encoder: EncoderConfig,
-    pot: Option<PotentiometerConfig>,
-    prismatic: bool,
-    motion: Motion,
-    motion_start: f64,
-    offset: f64,
-    position: f64,
-    velocity: VelocityEstimator,
-    setpoint: f64,
-    current: f64,
-}
 
 /// A servo program: configuration, I/O, lifecycle, controllers.
 pub struct Servo<R: RobotIo> {
     io: R,
     settings: RobotSettings,
-    joints: Vec<ServoJoint>,
+    /// Joints; `board` is the board ID, `axis` the I/O system's axis.
+    joints: Vec<Joint>,
     pids: Vec<Pid>,
     arm_names: Vec<String>,
     arm_acc: Vec<ArmAcc>,
@@ -82,7 +63,7 @@ pub struct Servo<R: RobotIo> {
     last_report: Option<CycleReport>,
     disabled_acknowledged: u16,
     fault: Option<FaultReport>,
-    next_deadline: Option<Instant>,
+    pacer: Pacer,
 }
 
 impl<R: RobotIo> Servo<R> {
@@ -116,23 +97,7 @@ impl<R: RobotIo> Servo<R> {
                 .and_then(|s| s.pid)
                 .unwrap_or_else(|| PidGains::pd(1.0, 0.05));
             pids.push(Pid::new(gains, a.drive.maximum_current).map_err(RunnerError::Pid)?);
-            joints.push(ServoJoint {
-                label: j.label,
-                arm: j.robot_index,
-                board_id: a.board_id,
-                axis,
-                drive: a.drive,
-                encoder: a.encoder,
-                pot: a.potentiometer,
-                prismatic: a.joint_type == Some(JointType::Prismatic),
-                motion: Motion::Hold(0.0),
-                motion_start: 0.0,
-                offset: 0.0,
-                position: 0.0,
-                velocity: VelocityEstimator::default(),
-                setpoint: 0.0,
-                current: 0.0,
-            });
+            joints.push(Joint::new(&j, usize::from(a.board_id), axis));
         }
         let n = joints.len();
         let arm_names: Vec<String> = config.robots.iter().map(|r| r.name.clone()).collect();
@@ -157,7 +122,7 @@ impl<R: RobotIo> Servo<R> {
             last_report: None,
             disabled_acknowledged: 0,
             fault: None,
-            next_deadline: None,
+            pacer: Pacer::default(),
         })
     }
 
@@ -263,7 +228,7 @@ impl<R: RobotIo> Servo<R> {
             let all = self
                 .joints
                 .iter()
-                .filter(|j| j.board_id == id)
+                .filter(|j| j.board == usize::from(id))
                 .all(|j| self.io.amplifier_enabled(j.axis).unwrap_or(false));
             if self.io.board_answered(id) && all {
                 s.amplifiers_enabled.insert(id);
@@ -344,12 +309,11 @@ impl<R: RobotIo> Servo<R> {
                     .use_software_offsets()
                     .map_err(RunnerError::Homing)?,
                 HomingStep::Done => {
-                    let offsets = self.homing.applied_offsets();
-                    for ((j, off), raw) in self.joints.iter_mut().zip(offsets).zip(&self.enc) {
-                        j.offset = *off;
-                        j.position = raw + off;
-                        j.velocity.reset();
-                    }
+                    joint::apply_offsets(
+                        &mut self.joints,
+                        self.homing.applied_offsets(),
+                        &self.enc,
+                    );
                     return Ok(());
                 }
                 HomingStep::Failed(e) => return Err(RunnerError::Homing(e)),
@@ -366,11 +330,7 @@ impl<R: RobotIo> Servo<R> {
     pub fn activate(&mut self) -> Result<(), RunnerError> {
         self.life.activate(self.power_status())?;
         let now = self.now();
-        for (j, pid) in self.joints.iter_mut().zip(self.pids.iter_mut()) {
-            j.motion = Motion::Hold(j.position);
-            j.motion_start = now;
-            pid.reset();
-        }
+        joint::hold_all(&mut self.joints, &mut self.pids, now);
         self.safety.restart_timers();
         Ok(())
     }
@@ -382,12 +342,7 @@ impl<R: RobotIo> Servo<R> {
     pub fn set_motion(&mut self, i: usize, motion: Motion) -> Result<(), RunnerError> {
         self.life.require_motion()?;
         let now = self.now();
-        let j = self
-            .joints
-            .get_mut(i)
-            .ok_or_else(|| RunnerError::Config(format!("no joint {i}")))?;
-        j.motion = motion;
-        j.motion_start = now;
+        joint::start_motion(&mut self.joints, i, motion, now)?;
         self.safety.restart_timers();
         Ok(())
     }
@@ -421,7 +376,7 @@ impl<R: RobotIo> Servo<R> {
         every: u64,
         mut progress: impl FnMut(&Servo<R>),
     ) -> Result<(), RunnerError> {
-        self.next_deadline = None;
+        self.pacer.restart();
         for k in 0..cycles {
             self.step(pacing)?;
             if every > 0 && (k + 1) % every == 0 {
@@ -439,27 +394,15 @@ impl<R: RobotIo> Servo<R> {
     /// A fault detected in this cycle (or latched before).
     pub fn step(&mut self, pacing: Pacing) -> Result<(), RunnerError> {
         let period = Duration::from_secs_f64(self.period());
-        if pacing == Pacing::WallClock {
-            let deadline = self.next_deadline.unwrap_or_else(Instant::now);
-            let now = Instant::now();
-            if now > deadline + period / 2 {
-                self.times.overruns += 1;
-                self.next_deadline = Some(now + period);
-            } else {
-                firelink_host::pacing::sleep_until(deadline);
-                self.next_deadline = Some(deadline + period);
-            }
-        }
+        self.pacer.before_cycle(pacing, period, &mut self.times);
         let started = self.io.now();
         let r = self.cycle();
         // A bus reset renumbers nodes: find the boards again between
         // cycles (a failed attempt is retried after the next cycle).
         let _ = self.io.recover();
-        if pacing == Pacing::Virtual {
-            let spent = self.io.now().saturating_sub(started);
-            if let Some(rest) = period.checked_sub(spent).filter(|d| !d.is_zero()) {
-                self.io.wait(rest);
-            }
+        let spent = self.io.now().saturating_sub(started);
+        if let Some(rest) = Pacer::rest(pacing, period, spent) {
+            self.io.wait(rest);
         }
         r.map_err(RunnerError::Fault)
     }
@@ -557,7 +500,7 @@ impl<R: RobotIo> Servo<R> {
                 .iter()
                 .find(|j| !self.io.amplifier_enabled(j.axis).unwrap_or(false))
                 .map(|j| FaultKind::Amplifier {
-                    board_id: j.board_id,
+                    board_id: j.board as u8,
                     axis_id: self.io.axis_location(j.axis).map_or(0, |(_, axis)| axis),
                 });
         }
@@ -570,58 +513,25 @@ impl<R: RobotIo> Servo<R> {
         let active = self.life.state() == State::Active;
         for (i, j) in self.joints.iter_mut().enumerate() {
             let counts = self.io.encoder_position(j.axis).unwrap_or(0);
-            let raw = j.encoder.counts_to_position(i64::from(counts));
-            let pos = raw + j.offset;
-            let pot = match (j.pot, self.io.analog_position(j.axis)) {
-                (Some(p), Ok(bits)) => p.bits_to_position(bits),
-                _ => f64::NAN,
-            };
-            let sampled = self
-                .sample_clock
-                .get(usize::from(j.board_id))
-                .copied()
-                .unwrap_or(now);
-            let velocity = j.velocity.update(sampled, pos);
-            j.position = pos;
+            let sampled = self.sample_clock.get(j.board).copied().unwrap_or(now);
+            let u = j.update(
+                counts,
+                self.io.analog_position(j.axis).ok(),
+                sampled,
+                now,
+                dt,
+                active,
+                self.pids.get_mut(i),
+                self.arm_acc.get_mut(j.arm),
+            );
             if let Some(e) = self.enc.get_mut(i) {
-                *e = raw;
+                *e = u.raw;
             }
             if let Some(p) = self.pot.get_mut(i) {
-                *p = pot;
+                *p = u.pot;
             }
-            let mut amps = 0.0;
-            if active {
-                let sp = j.motion.sample(now - j.motion_start);
-                j.setpoint = sp.position;
-                if let Some(pid) = self.pids.get_mut(i) {
-                    amps = pid.update(
-                        Setpoint {
-                            position: sp.position,
-                            velocity: sp.velocity,
-                            feedforward: 0.0,
-                        },
-                        Measurement {
-                            position: pos,
-                            velocity,
-                        },
-                        dt,
-                    );
-                }
-                if let Some(acc) = self.arm_acc.get_mut(j.arm) {
-                    acc.add((sp.position - pos).abs(), j.prismatic);
-                }
-            } else {
-                j.setpoint = pos;
-            }
-            j.current = amps;
             if let Some(s) = self.samples.get_mut(i) {
-                *s = JointSample {
-                    setpoint: j.setpoint,
-                    position: pos,
-                    velocity,
-                    current: amps,
-                    potentiometer: (j.pot.is_some() && active && pot.is_finite()).then_some(pot),
-                };
+                *s = u.sample;
             }
         }
         if active {
@@ -634,12 +544,7 @@ impl<R: RobotIo> Servo<R> {
         }
         let active = self.life.state() == State::Active;
         for j in &self.joints {
-            let code = if active {
-                j.drive.current_to_bits(j.current)
-            } else {
-                j.drive.zero_current_bits()
-            };
-            let _ = self.io.set_motor_command(j.axis, code);
+            let _ = self.io.set_motor_command(j.axis, j.command(active));
         }
     }
 }

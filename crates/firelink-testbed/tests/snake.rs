@@ -191,14 +191,14 @@ fn the_rate_search_confirms_a_rate_that_holds() {
 
 #[test]
 fn seed_001_measurements_are_reproduced_within_15_percent() {
-    let r = run_seed001_bench(&Seed001Options {
+    let options = Seed001Options {
         iterations: 3000,
         sweep_step: 4,
         sweep_repeats: 2,
         cycles: 200,
         seed: 7,
-    })
-    .unwrap();
+    };
+    let r = run_seed001_bench(&options).unwrap();
     r.verdict().unwrap();
     assert_eq!(r.rows.len(), 8);
     assert_eq!(r.quadlet_read_us.len(), 3000);
@@ -213,14 +213,7 @@ fn seed_001_measurements_are_reproduced_within_15_percent() {
     assert!(near(writes, 27.0) > near(writes, 42.0));
     assert_eq!(near(writes, 49.0), 0);
     // The same seed, the same figures.
-    let again = run_seed001_bench(&Seed001Options {
-        iterations: 3000,
-        sweep_step: 4,
-        sweep_repeats: 2,
-        cycles: 200,
-        seed: 7,
-    })
-    .unwrap();
+    let again = run_seed001_bench(&options).unwrap();
     assert_eq!(again.rows, r.rows);
 }
 

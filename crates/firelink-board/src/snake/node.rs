@@ -25,7 +25,8 @@ use firelink_wire::packet::Speed;
 
 use super::config::SnakeNodeConfig;
 use super::firmware::SnakeFirmware;
-use crate::firmware::{PhyAccess, Reply};
+use crate::firmware::Reply;
+use crate::node::CtxPhy;
 use crate::time::Time;
 
 /// Timer token of the node's next self-driven change.
@@ -37,19 +38,6 @@ pub struct SnakeNode {
     name: String,
     firmware: SnakeFirmware,
     timer: Option<SimTime>,
-}
-
-/// The node's PHY registers, reached through the callback context.
-struct CtxPhy<'c, 'a>(&'c mut NodeCtx<'a>);
-
-impl PhyAccess for CtxPhy<'_, '_> {
-    fn read_phy_register(&mut self, register: u8) -> u8 {
-        self.0.read_phy_register(register)
-    }
-
-    fn write_phy_register(&mut self, register: u8, value: u8) {
-        self.0.write_phy_register(register, value);
-    }
 }
 
 impl SnakeNode {

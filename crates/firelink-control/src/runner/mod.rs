@@ -25,10 +25,11 @@
 //! also read the machine's monotonic clock. This is the one place below the
 //! CLI that does.
 
+pub(crate) mod joint;
 pub mod loopback;
 pub(crate) mod velocity;
 
-use velocity::VelocityEstimator;
+use joint::{Joint, Pacer};
 
 use std::time::{Duration, Instant};
 
@@ -37,12 +38,12 @@ use firelink_host::{HostError, MissReason, Port};
 use firelink_wire::board::MAX_BOARDS;
 use firelink_wire::board::registers::SYSTEM_CLOCK_HZ;
 
-use crate::config::{DriveConfig, EncoderConfig, IoConfig, JointType, PotentiometerConfig};
+use crate::config::IoConfig;
 use crate::fault::{FaultKind, FaultReport};
 use crate::homing::{Homing, HomingError, HomingSettings, HomingStep};
 use crate::label::{BoardSet, Label};
 use crate::lifecycle::{Lifecycle, LifecycleError, PowerStatus, State};
-use crate::pid::{Measurement, Pid, PidError, PidGains, Setpoint};
+use crate::pid::{Pid, PidError, PidGains};
 use crate::safety::{JointSample, SafetyMonitor};
 use crate::trajectory::Motion;
 
@@ -112,25 +113,6 @@ pub enum RunnerError {
     /// Something did not happen in time.
     #[error("timed out waiting for {0}")]
     Timeout(&'static str),
-}
-
-#[derive(Debug, Clone, Copy)]
-struct Joint {
-    label: Label,
-    arm: usize,
-    board: usize,
-    axis: usize,
-    drive: DriveConfig,
-    encoder: EncoderConfig,
-    pot: Option<PotentiometerConfig>,
-    prismatic: bool,
-    motion: Motion,
-    motion_start: f64,
-    offset: f64,
-    position: f64,
-    velocity: VelocityEstimator,
-    setpoint: f64,
-    current: f64,
 }
 
 /// Tracking error of one arm, over the cycles it was Active with a motion.
@@ -307,7 +289,7 @@ pub struct Robot<P: Port> {
     /// (bit i = board ID i), since the fault.
     disabled_acknowledged: u16,
     fault: Option<FaultReport>,
-    next_deadline: Option<Instant>,
+    pacer: Pacer,
 }
 
 impl<P: Port> Robot<P> {
@@ -361,23 +343,7 @@ impl<P: Port> Robot<P> {
                 .and_then(|s| s.pid)
                 .unwrap_or_else(|| PidGains::pd(1.0, 0.05));
             pids.push(Pid::new(gains, a.drive.maximum_current).map_err(RunnerError::Pid)?);
-            joints.push(Joint {
-                label: j.label,
-                arm: j.robot_index,
-                board,
-                axis: usize::from(a.axis_id),
-                drive: a.drive,
-                encoder: a.encoder,
-                pot: a.potentiometer,
-                prismatic: a.joint_type == Some(JointType::Prismatic),
-                motion: Motion::Hold(0.0),
-                motion_start: 0.0,
-                offset: 0.0,
-                position: 0.0,
-                velocity: VelocityEstimator::default(),
-                setpoint: 0.0,
-                current: 0.0,
-            });
+            joints.push(Joint::new(&j, board, usize::from(a.axis_id)));
         }
         let n = joints.len();
         let cap = settings.max_samples;
@@ -403,7 +369,7 @@ impl<P: Port> Robot<P> {
             last_report: None,
             disabled_acknowledged: 0,
             fault: None,
-            next_deadline: None,
+            pacer: Pacer::default(),
         })
     }
 
@@ -611,12 +577,11 @@ impl<P: Port> Robot<P> {
                     .use_software_offsets()
                     .map_err(RunnerError::Homing)?,
                 HomingStep::Done => {
-                    let offsets = self.homing.applied_offsets();
-                    for ((j, off), raw) in self.joints.iter_mut().zip(offsets).zip(&self.enc) {
-                        j.offset = *off;
-                        j.position = raw + off;
-                        j.velocity.reset();
-                    }
+                    joint::apply_offsets(
+                        &mut self.joints,
+                        self.homing.applied_offsets(),
+                        &self.enc,
+                    );
                     return Ok(());
                 }
                 HomingStep::Failed(e) => return Err(RunnerError::Homing(e)),
@@ -656,11 +621,7 @@ impl<P: Port> Robot<P> {
     pub fn activate(&mut self) -> Result<(), RunnerError> {
         self.life.activate(self.power_status())?;
         let now = self.now();
-        for (j, pid) in self.joints.iter_mut().zip(self.pids.iter_mut()) {
-            j.motion = Motion::Hold(j.position);
-            j.motion_start = now;
-            pid.reset();
-        }
+        joint::hold_all(&mut self.joints, &mut self.pids, now);
         self.safety.restart_timers();
         Ok(())
     }
@@ -673,12 +634,7 @@ impl<P: Port> Robot<P> {
     pub fn set_motion(&mut self, i: usize, motion: Motion) -> Result<(), RunnerError> {
         self.life.require_motion()?;
         let now = self.now();
-        let j = self
-            .joints
-            .get_mut(i)
-            .ok_or_else(|| RunnerError::Config(format!("no joint {i}")))?;
-        j.motion = motion;
-        j.motion_start = now;
+        joint::start_motion(&mut self.joints, i, motion, now)?;
         self.safety.restart_timers();
         Ok(())
     }
@@ -717,7 +673,7 @@ impl<P: Port> Robot<P> {
         progress_every: u64,
         mut progress: impl FnMut(&Robot<P>),
     ) -> Result<(), RunnerError> {
-        self.next_deadline = None;
+        self.pacer.restart();
         for k in 0..cycles {
             self.step(pacing)?;
             if progress_every > 0 && (k + 1) % progress_every == 0 {
@@ -733,17 +689,7 @@ impl<P: Port> Robot<P> {
     /// A fault detected in this cycle (or latched before).
     pub fn step(&mut self, pacing: Pacing) -> Result<(), RunnerError> {
         let period = Duration::from_secs_f64(self.period());
-        if pacing == Pacing::WallClock {
-            let deadline = self.next_deadline.unwrap_or_else(Instant::now);
-            let now = Instant::now();
-            if now > deadline + period / 2 {
-                self.times.overruns += 1;
-                self.next_deadline = Some(now + period);
-            } else {
-                firelink_host::pacing::sleep_until(deadline);
-                self.next_deadline = Some(deadline + period);
-            }
-        }
+        self.pacer.before_cycle(pacing, period, &mut self.times);
         let started = self.io.port().now();
         let r = self.cycle();
         // A bus reset renumbers nodes: scan again between cycles, never
@@ -751,11 +697,9 @@ impl<P: Port> Robot<P> {
         if self.io.needs_rescan() {
             let _ = self.io.recover();
         }
-        if pacing == Pacing::Virtual {
-            let spent = self.io.port().now().saturating_sub(started);
-            if let Some(rest) = period.checked_sub(spent).filter(|d| !d.is_zero()) {
-                self.io.port_mut().wait(rest);
-            }
+        let spent = self.io.port().now().saturating_sub(started);
+        if let Some(rest) = Pacer::rest(pacing, period, spent) {
+            self.io.port_mut().wait(rest);
         }
         r.map_err(RunnerError::Fault)
     }
@@ -892,58 +836,25 @@ impl<P: Port> Robot<P> {
                 continue;
             };
             let counts = b.encoder_counts(j.axis).unwrap_or(0);
-            let raw = j.encoder.counts_to_position(i64::from(counts));
-            let pos = raw + j.offset;
-            let pot = match (j.pot, b.pot_bits(j.axis)) {
-                (Some(p), Some(bits)) => p.bits_to_position(bits),
-                _ => f64::NAN,
-            };
             let sampled = self.sample_clock.get(j.board).copied().unwrap_or(now);
-            let velocity = j.velocity.update(sampled, pos);
-            j.position = pos;
+            let u = j.update(
+                counts,
+                b.pot_bits(j.axis),
+                sampled,
+                now,
+                dt,
+                active,
+                self.pids.get_mut(i),
+                self.arm_acc.get_mut(j.arm),
+            );
             if let Some(e) = self.enc.get_mut(i) {
-                *e = raw;
+                *e = u.raw;
             }
             if let Some(p) = self.pot.get_mut(i) {
-                *p = pot;
+                *p = u.pot;
             }
-            let mut amps = 0.0;
-            if active {
-                let sp = j.motion.sample(now - j.motion_start);
-                j.setpoint = sp.position;
-                if let Some(pid) = self.pids.get_mut(i) {
-                    amps = pid.update(
-                        Setpoint {
-                            position: sp.position,
-                            velocity: sp.velocity,
-                            feedforward: 0.0,
-                        },
-                        Measurement {
-                            position: pos,
-                            velocity,
-                        },
-                        dt,
-                    );
-                }
-                if let Some(acc) = self.arm_acc.get_mut(j.arm) {
-                    acc.add((sp.position - pos).abs(), j.prismatic);
-                }
-            } else {
-                j.setpoint = pos;
-            }
-            j.current = amps;
             if let Some(s) = self.samples.get_mut(i) {
-                *s = JointSample {
-                    setpoint: j.setpoint,
-                    position: pos,
-                    velocity,
-                    current: amps,
-                    potentiometer: if j.pot.is_some() && active && pot.is_finite() {
-                        Some(pot)
-                    } else {
-                        None
-                    },
-                };
+                *s = u.sample;
             }
         }
         if active {
@@ -957,13 +868,8 @@ impl<P: Port> Robot<P> {
         let active = self.life.state() == State::Active;
         let boards = self.io.boards_mut();
         for j in &self.joints {
-            let bits = if active {
-                j.drive.current_to_bits(j.current)
-            } else {
-                j.drive.zero_current_bits()
-            };
             if let Some(b) = boards.get_mut(j.board) {
-                let _ = b.set_dac(j.axis, bits);
+                let _ = b.set_dac(j.axis, j.command(active));
             }
         }
     }

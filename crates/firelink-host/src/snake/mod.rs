@@ -196,13 +196,8 @@ impl<P: Port> SnakeSystem<P> {
     }
 
     fn note_error(&mut self, e: HostError) {
-        self.stats.count_error(&e);
-        if self.report.error.is_none() {
-            self.report.error = Some(e);
-        }
-        if matches!(e, HostError::BusReset { .. }) {
+        if self.report.note_error(&mut self.stats, e) {
             self.needs_rescan = true;
-            self.report.bus_reset = true;
         }
     }
 
@@ -211,15 +206,8 @@ impl<P: Port> SnakeSystem<P> {
             return;
         };
         node.invalidate();
-        let id = usize::from(node.board_id() & 0xF);
-        self.report.missed |= 1 << id;
-        if let Some(r) = self.report.reasons.get_mut(id) {
-            *r = Some(reason);
-        }
-        if let Some(c) = self.stats.missed_by_board.get_mut(id) {
-            *c += 1;
-        }
-        self.stats.count_miss(reason);
+        let id = node.board_id();
+        self.report.note_miss(&mut self.stats, id, reason);
     }
 
     /// `LatchAllInputs`: one block read per node. Never fails as a whole:

@@ -7,23 +7,23 @@
 //! holds. The report is the dVRK demo's ([`DemoReport`]) plus the rate
 //! search.
 
-use std::collections::BTreeMap;
 use std::fmt;
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
-use firelink_control::FaultReport;
+use firelink_control::State;
 use firelink_control::config::{IoConfig, presets};
-use firelink_control::runner::{Pacing, Percentiles, RobotSettings, RunnerError};
+use firelink_control::runner::{ArmTracking, CycleTimes, Pacing, RunnerError};
 use firelink_control::servo::Servo;
-use firelink_host::RobotIo;
+use firelink_control::trajectory::Motion;
+use firelink_host::io::IoStats;
 use firelink_host::snake::SnakeSystem;
 
 use crate::TestbedError;
 use crate::demo::{
-    DemoFault, DemoPort, DemoProgress, DemoReport, ErrorCounts, FaultSummary, Injector,
-    RealtimeStatus, TimeStats, TrackingDetail, WatchdogReport, motion_for,
+    DemoFault, DemoPlan, DemoPort, DemoProgram, DemoProgress, DemoReport, Injector, RealtimeStatus,
+    TimeStats, run_program,
 };
 use crate::rig;
 use crate::snake::{emulator, node_configs, prepare, sim_port};
@@ -247,16 +247,90 @@ pub fn run_snake_demo(
     })
 }
 
-/// The periodic progress event: the median I/O time of the last 2000
-/// cycles.
-fn tick<R: RobotIo>(s: &Servo<R>) -> DemoProgress {
-    let io = &s.times().io_us;
-    let mut last: Vec<f32> = io[io.len().saturating_sub(2000)..].to_vec();
-    DemoProgress::Tick {
-        t: s.now(),
-        cycles: s.cycles(),
-        io_median_us: Percentiles::of(&mut last).median,
-        errors: s.io().stats().total_errors(),
+impl<P: Injector> DemoProgram for Servo<SnakeSystem<P>> {
+    type Port = P;
+    fn injector(&mut self) -> &mut P {
+        self.io_mut().port_mut()
+    }
+    fn configure(&mut self) -> Result<(), RunnerError> {
+        Servo::configure(self)
+    }
+    fn power_on(&mut self) -> Result<(), RunnerError> {
+        Servo::power_on(self)
+    }
+    fn home(&mut self) -> Result<(), RunnerError> {
+        Servo::home(self)
+    }
+    fn activate(&mut self) -> Result<(), RunnerError> {
+        Servo::activate(self)
+    }
+    fn set_motion(&mut self, joint: usize, motion: Motion) -> Result<(), RunnerError> {
+        Servo::set_motion(self, joint, motion)
+    }
+    fn run_cycles(
+        &mut self,
+        cycles: u64,
+        pacing: Pacing,
+        every: u64,
+        progress: &mut dyn FnMut(&Self),
+    ) -> Result<(), RunnerError> {
+        self.run(cycles, pacing, every, progress)
+    }
+    fn step(&mut self, pacing: Pacing) -> Result<(), RunnerError> {
+        Servo::step(self, pacing)
+    }
+    fn shutdown(&mut self) -> Result<(), RunnerError> {
+        Servo::shutdown(self)
+    }
+    fn now(&self) -> f64 {
+        Servo::now(self)
+    }
+    fn cycles(&self) -> u64 {
+        Servo::cycles(self)
+    }
+    fn joint_count(&self) -> usize {
+        Servo::joint_count(self)
+    }
+    fn position(&self, joint: usize) -> Option<f64> {
+        Servo::position(self, joint)
+    }
+    fn setpoint(&self, joint: usize) -> Option<f64> {
+        Servo::setpoint(self, joint)
+    }
+    fn reset_tracking(&mut self) {
+        Servo::reset_tracking(self)
+    }
+    fn tracking(&self) -> Vec<ArmTracking> {
+        Servo::tracking(self)
+    }
+    fn times(&self) -> &CycleTimes {
+        Servo::times(self)
+    }
+    fn io_stats(&self) -> &IoStats {
+        self.io().stats()
+    }
+    fn state(&self) -> State {
+        Servo::state(self)
+    }
+    fn any_amp_on(&self) -> bool {
+        Servo::any_amp_on(self)
+    }
+    fn board_states(&self) -> Vec<(u8, bool, bool)> {
+        self.io()
+            .nodes()
+            .iter()
+            .map(|n| {
+                let id = n.board_id();
+                (id, n.is_valid(), n.status().watchdog_timeout())
+            })
+            .collect()
+    }
+    fn firmware(&self) -> Option<u32> {
+        // The version register's low byte is the firmware revision.
+        self.io().nodes().first().map(|n| n.info().version & 0xFF)
+    }
+    fn protocol(&self) -> String {
+        "snake per-node block read/write".into()
     }
 }
 
@@ -284,170 +358,39 @@ fn run_on<P: Injector>(
         (Pacing::WallClock, Some(setup)) => setup(),
         _ => RealtimeStatus::default(),
     };
-    let config = &options.config;
     let wall = Instant::now();
     let mut system = SnakeSystem::open(port)?;
     let ids: Vec<u8> = system.nodes().iter().map(|n| n.board_id()).collect();
-    // The version register's low byte is the firmware revision.
-    let version = system.nodes().first().map(|n| n.info().version & 0xFF);
     progress(DemoProgress::Found {
         boards: ids.len(),
         port: port_name.clone(),
         reason: "Snake nodes found by their version register".into(),
         protocol: "per-node block read and block write",
     });
-    if options.watchdog.is_none() {
-        progress(DemoProgress::WatchdogOff);
-    }
-    prepare(&mut system, config)?;
-    let watchdog = options.watchdog.unwrap_or(Duration::ZERO);
-    let settings = RobotSettings {
+    prepare(&mut system, &options.config)?;
+    let plan = DemoPlan {
+        config: &options.config,
         rate_hz: options.rate_hz,
-        watchdog,
-        ..RobotSettings::default()
+        duration_s: options.duration_s,
+        fault: options.fault,
+        watchdog: options.watchdog,
+        pacing,
     };
-    let mut servo = Servo::new(system, config, settings)?;
-    servo.configure()?;
-    progress(DemoProgress::Configured);
-    servo.power_on()?;
-    progress(DemoProgress::Powered(servo.now()));
-    servo.home()?;
-    servo.activate()?;
-    progress(DemoProgress::Homed(servo.now()));
-    for i in 0..servo.joint_count() {
-        let here = servo.position(i).unwrap_or(0.0);
-        servo.set_motion(i, motion_for(config, i, here))?;
-    }
-    servo.reset_tracking();
-    let setup_cycles = servo.cycles();
-    let rate = options.rate_hz;
-    let total = (options.duration_s * rate).round() as u64;
-    let every = (rate / 4.0).max(1.0) as u64;
-    let half = total / 2;
-    let inject = options.fault;
-    let first = if inject == DemoFault::None {
-        total
-    } else {
-        half
-    };
-    let mut outcome = servo.run(first, pacing, every, |s| progress(tick(s)));
-    if outcome.is_ok() && inject != DemoFault::None {
-        progress(DemoProgress::Injecting(inject));
-        servo.io_mut().port_mut().inject(inject, watchdog)?;
-        if inject == DemoFault::FollowingError {
-            let sp = servo.setpoint(0).unwrap_or(0.0);
-            let _ = servo.set_motion(0, firelink_control::trajectory::Motion::Hold(sp + 0.5));
-        }
-        outcome = servo.run(total - half, pacing, every, |s| progress(tick(s)));
-    }
-    let mut fault: Option<FaultReport> = None;
-    match outcome {
-        Ok(()) => {}
-        Err(RunnerError::Fault(f)) => {
-            fault = Some(f);
-            progress(DemoProgress::Fault(f.to_string()));
-            // Cycles in Fault for twice the watchdog period: outputs safe,
-            // and a node that stopped answering turns its own amplifiers
-            // off when its watchdog expires.
-            let n = ((2.0 * watchdog.as_secs_f64() * rate).ceil() as u64).max(3);
-            for _ in 0..n {
-                let _ = servo.step(Pacing::Virtual);
-            }
-            progress(DemoProgress::SafetyChain {
-                state: servo.state().to_string(),
-                amplifiers_on: servo.any_amp_on(),
-            });
-        }
-        Err(e) => return Err(e.into()),
-    }
-    let amps_after_fault = servo.any_amp_on();
-    let silent: Vec<u8> = ids
-        .iter()
-        .copied()
-        .filter(|&id| !servo.io().board_answered(id))
-        .collect();
-    let expired: Vec<u8> = ids
-        .iter()
-        .copied()
-        .filter(|&id| servo.io().watchdog_expired(id))
-        .collect();
-    let state_after = servo.state().to_string();
-    let motion_cycles = servo.cycles() - setup_cycles;
-    servo.shutdown()?;
-    let wall_s = wall.elapsed().as_secs_f64();
-    progress(DemoProgress::PoweredOff(wall_s));
-    let times = servo.times().clone();
-    let period_us = 1e6 / rate;
-    let setup = (setup_cycles as usize).min(times.cycle_us.len());
-    let end = (setup + motion_cycles as usize).min(times.cycle_us.len());
+    let servo = Servo::new(system, &options.config, plan.settings())?;
+    let run = run_program(servo, &plan, port_name, rt, wall, progress)?;
+    let period_us = 1e6 / options.rate_hz;
+    let times = &run.times;
+    let setup = (run.setup_cycles as usize).min(times.cycle_us.len());
+    let end = (setup + run.report.motion_cycles as usize).min(times.cycle_us.len());
     let mut motion: Vec<f32> = times.cycle_us[setup..end].to_vec();
     let late_cycles = motion.iter().filter(|&&c| f64::from(c) > period_us).count() as u64;
     let motion_io_max_us = times.io_us[setup..end]
         .iter()
         .fold(0.0f64, |m, &x| m.max(f64::from(x)));
-    let motion_cycle_us = TimeStats::of(&mut motion);
-    let (mut c, mut io, mut comp) = (times.cycle_us, times.io_us, times.compute_us);
-    let mut tracking_error = BTreeMap::new();
-    let mut tracking_error_detail = BTreeMap::new();
-    for t in servo.tracking() {
-        tracking_error.insert(t.name.clone(), t.rms_rad);
-        tracking_error_detail.insert(
-            t.name.clone(),
-            TrackingDetail {
-                rms_rad: t.rms_rad,
-                max_rad: t.max_rad,
-                prismatic_rms_mm: t.rms_mm,
-                prismatic_max_mm: t.max_mm,
-                samples: t.samples,
-            },
-        );
-    }
-    let port_time_s = servo.now();
-    let report = DemoReport {
-        port: port_name,
-        boards: ids.len(),
-        axes: servo.joint_count(),
-        firmware: version,
-        protocol: "snake per-node block read/write".into(),
-        rate_hz: rate,
-        pacing: match pacing {
-            Pacing::Virtual => "virtual",
-            Pacing::WallClock => "realtime",
-        }
-        .to_string(),
-        cycles: servo.cycles(),
-        motion_cycles,
-        port_time_s,
-        wall_time_s: wall_s,
-        speed_vs_real_time: if wall_s > 0.0 {
-            port_time_s / wall_s
-        } else {
-            0.0
-        },
-        cycle_time_us: TimeStats::of(&mut c),
-        io_time_us: TimeStats::of(&mut io),
-        compute_time_us: TimeStats::of(&mut comp),
-        overruns: times.overruns,
-        realtime: rt,
-        tracking_error,
-        tracking_error_unit: "rad RMS over each arm's revolute joints (prismatic: tracking_error_detail, mm)",
-        tracking_error_detail,
-        errors: ErrorCounts::from(servo.io().stats()),
-        watchdog: WatchdogReport {
-            period_ms: watchdog.as_secs_f64() * 1e3,
-            expired_boards: expired,
-        },
-        fault_injected: inject.name(),
-        fault: fault.as_ref().map(FaultSummary::from),
-        state_after_run: state_after,
-        amplifiers_on_after_fault: fault.map(|_| amps_after_fault),
-        boards_not_answering: silent,
-        state: servo.state().to_string(),
-    };
     Ok(RunOutcome {
-        report,
+        report: run.report,
         ids,
-        motion_cycle_us,
+        motion_cycle_us: TimeStats::of(&mut motion),
         late_cycles,
         motion_io_max_us,
     })
