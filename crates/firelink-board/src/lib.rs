@@ -20,6 +20,8 @@
 //!   [`firelink_wire::board`].
 //! - [`node`]: [`BoardNode`](node::BoardNode), the firmware as a
 //!   [`firelink_bus::Node`] on the simulated bus.
+//! - [`snake`]: seed 001's 7-channel Snake robot node, a board model of
+//!   its own beside the QLA (firmware, channels, bus node).
 //!
 //! Everything takes `now`; nothing reads a clock. The same configuration,
 //! seed and packet sequence give the same run, bit for bit.
@@ -53,4 +55,5 @@ pub mod firmware;
 pub mod node;
 pub mod plant;
 pub mod rig;
+pub mod snake;
 pub mod time;

@@ -6,7 +6,9 @@
 //! and the PC (the root) gets the highest ID.
 
 use firelink_bus::phy::phy_config_packet;
-use firelink_bus::{Bus, BusConfig, HostLink, NodeConfig, NodeHandle, SimDuration, TraceLevel};
+use firelink_bus::{
+    Bus, BusConfig, HostLink, Node, NodeConfig, NodeHandle, SimDuration, TraceLevel,
+};
 use firelink_wire::packet::Speed;
 
 use crate::config::BoardConfig;
@@ -69,6 +71,19 @@ impl BoardRig {
     /// Build the bus, add the PC link and the boards, wire the chain and
     /// run the first bus reset.
     pub fn daisy_chain(boards: Vec<BoardConfig>, options: &RigOptions) -> BoardRig {
+        let nodes = boards
+            .into_iter()
+            .map(|cfg| {
+                let name = format!("board{}", cfg.board_id);
+                Box::new(BoardNode::new(cfg).with_name(name)) as Box<dyn Node>
+            })
+            .collect();
+        BoardRig::daisy_chain_nodes(nodes, options)
+    }
+
+    /// The same with any nodes as the boards (Snake nodes, a mix of
+    /// kinds): the first given gets physical ID 0.
+    pub fn daisy_chain_nodes(nodes: Vec<Box<dyn Node>>, options: &RigOptions) -> BoardRig {
         let mut bus = Bus::new(BusConfig {
             seed: options.seed,
             trace: options.trace,
@@ -76,12 +91,9 @@ impl BoardRig {
             ..BusConfig::default()
         });
         let host = bus.add(HostLink::new("pc"), NodeConfig::pc());
-        let handles: Vec<NodeHandle> = boards
+        let handles: Vec<NodeHandle> = nodes
             .into_iter()
-            .map(|cfg| {
-                let name = format!("board{}", cfg.board_id);
-                bus.add(BoardNode::new(cfg).with_name(name), NodeConfig::board())
-            })
+            .map(|node| bus.add_node(node, NodeConfig::board()))
             .collect();
         let mut chain = vec![host];
         chain.extend(handles.iter().rev().copied());

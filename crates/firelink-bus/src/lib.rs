@@ -48,7 +48,7 @@ pub mod trace;
 pub use bus::{Bus, BusConfig, NodeConfig, NodeHandle, TraceLevel};
 pub use error::BusError;
 pub use fault::{FaultPlan, FaultRule, PacketFault, PacketMatch, TimedFault};
-pub use host::{HostLink, HostModel};
+pub use host::{HostLink, HostModel, Transfer};
 pub use node::{ArbitrationClass, Node, NodeCtx, ResetInfo, RxReply, TransmitRequest};
 pub use time::{SimDuration, SimTime};
 pub use timing::BusTiming;

@@ -21,9 +21,17 @@ use crate::rt;
 /// Options of `firelink demo`.
 #[derive(Args, Debug, Clone)]
 pub struct DemoArgs {
-    /// Control rate, Hz (1 to 100000).
-    #[arg(long, default_value_t = 6000.0, value_parser = crate::args::rate_hz)]
-    pub rate: f64,
+    /// Which robot: `dvrk` (seed 000's 28 axes on QLA boards) or `snake`
+    /// (seed 001's 36 axes on its own 7-channel nodes; also chosen by a
+    /// `--config` whose boards are SNAKE nodes).
+    #[arg(long, value_enum, default_value_t = DemoRobot::Dvrk)]
+    pub robot: DemoRobot,
+    /// Control rate, Hz (1 to 100000; default 6000, the Snake robot 1000).
+    #[arg(long, value_parser = crate::args::rate_hz)]
+    pub rate: Option<f64>,
+    /// Snake robot: skip the search for the highest rate that holds.
+    #[arg(long = "no-rate-search")]
+    pub no_rate_search: bool,
     /// I/O protocol: broadcast, sequential or seq-bc.
     #[arg(long, default_value = "broadcast")]
     pub protocol: String,
@@ -71,7 +79,9 @@ pub struct DemoArgs {
 impl Default for DemoArgs {
     fn default() -> Self {
         DemoArgs {
-            rate: 6000.0,
+            robot: DemoRobot::Dvrk,
+            rate: None,
+            no_rate_search: false,
             protocol: "broadcast".into(),
             duration: 3.0,
             port: "sim".into(),
@@ -113,8 +123,17 @@ fn progress_line(event: &DemoProgress) -> Option<String> {
     })
 }
 
+/// The demo's robots.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DemoRobot {
+    /// Seed 000's da Vinci Research Kit on QLA boards.
+    Dvrk,
+    /// Seed 001's Snake robot system on its 7-channel nodes.
+    Snake,
+}
+
 /// Show one progress event on stderr (ticks overwrite one line).
-fn show(event: &DemoProgress, ticking: &mut bool) {
+pub(crate) fn show(event: &DemoProgress, ticking: &mut bool) {
     if let DemoProgress::Tick {
         t,
         cycles,
@@ -136,6 +155,18 @@ fn show(event: &DemoProgress, ticking: &mut bool) {
     }
 }
 
+/// The `--pacing` option: `None` for the port's default.
+pub(crate) fn pacing(args: &DemoArgs) -> Result<Option<Pacing>, CliError> {
+    match args.pacing.as_deref() {
+        None => Ok(None),
+        Some("virtual") => Ok(Some(Pacing::Virtual)),
+        Some("realtime") => Ok(Some(Pacing::WallClock)),
+        Some(p) => Err(CliError::Conflict(format!(
+            "unknown pacing {p:?}: virtual or realtime"
+        ))),
+    }
+}
+
 /// The demo's options from the command line.
 pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
     let config = match &args.config {
@@ -144,20 +175,11 @@ pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
     };
     let protocol = Protocol::from_name(&args.protocol)
         .ok_or_else(|| CliError::Conflict(format!("unknown protocol {:?}", args.protocol)))?;
-    let pacing = match args.pacing.as_deref() {
-        None => None,
-        Some("virtual") => Some(Pacing::Virtual),
-        Some("realtime") => Some(Pacing::WallClock),
-        Some(p) => {
-            return Err(CliError::Conflict(format!(
-                "unknown pacing {p:?}: virtual or realtime"
-            )));
-        }
-    };
+    let pacing = pacing(args)?;
     let watchdog = args.watchdog.period();
     Ok(DemoOptions {
         config,
-        rate_hz: args.rate,
+        rate_hz: args.rate.unwrap_or(6000.0),
         protocol,
         duration_s: args.duration,
         port: args
@@ -174,7 +196,7 @@ pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
     })
 }
 
-fn realtime_setup() -> RealtimeStatus {
+pub(crate) fn realtime_setup() -> RealtimeStatus {
     let s = rt::setup(80);
     RealtimeStatus {
         requested: true,
@@ -187,6 +209,9 @@ fn realtime_setup() -> RealtimeStatus {
 
 /// Run `firelink demo`.
 pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
+    if crate::snake_demo::wanted(args)? {
+        return crate::snake_demo::run(args, out);
+    }
     let options = options(args)?;
     let quiet = args.quiet || crate::args::quiet();
     if let Some(w) = args.watchdog.warning() {

@@ -12,13 +12,15 @@ use clap::Args;
 
 use firelink_board::config::{BoardConfig, BoardSettings, Hardware, Profile};
 use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_bus::Node;
 use firelink_bus::{FaultRule, PacketFault, PacketMatch, SimDuration, TimedFault};
-use firelink_control::config::IoConfig;
+use firelink_control::config::{IoConfig, presets};
 use firelink_emulate::{Bridge, Event, ServeConfig};
 
 use crate::CliError;
 use crate::args::{parse_hardware, parse_profile};
-use firelink_testbed::rig::{board_configs, generic_boards};
+use firelink_testbed::rig::{board_configs, generic_boards, qla_nodes};
+use firelink_testbed::snake;
 
 /// Options of `firelink emulate`.
 #[derive(Args, Debug)]
@@ -27,9 +29,14 @@ pub struct EmulateArgs {
     #[arg(long, default_value_t = 8, conflicts_with = "config", value_parser = crate::args::board_count)]
     pub boards: u8,
     /// A robot configuration (saw-robot-io v6 JSON): emulate its boards
-    /// with matching plants.
+    /// with matching plants (SNAKE boards: seed 001's 7-channel nodes).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Emulate seed 001's 36-axis Snake system on its 7-channel nodes
+    /// (`configs/snake-seed001.json`), for `firelink snake-tool` and
+    /// `firelink demo --robot snake --port udp:...`.
+    #[arg(long, value_enum, conflicts_with_all = ["config", "boards"])]
+    pub robot: Option<crate::demo::DemoRobot>,
     /// Firmware: 7, 8 or seed (seed 000's TDMA and 0xFFFF rule).
     #[arg(long, default_value = "8", value_parser = parse_profile)]
     pub firmware: Profile,
@@ -75,17 +82,31 @@ pub struct EmulateArgs {
     pub duration_s: f64,
 }
 
-/// Build the bridge of `args` (also used by tests and benchmarks), with
-/// the configurations of its boards.
-pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<BoardConfig>), CliError> {
-    let boards = match &args.config {
-        Some(path) => {
-            let config = IoConfig::load(path).map_err(|e| CliError::Conflict(e.to_string()))?;
-            for note in firelink_testbed::plant_map::notes(&config) {
+/// Build the bridge of `args` (also used by tests and benchmarks): the
+/// bridge, the board IDs on its bus and the configurations of its QLA
+/// boards (none for Snake nodes).
+pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>, Vec<BoardConfig>), CliError> {
+    let config = match (&args.config, args.robot) {
+        (Some(path), _) => {
+            Some(IoConfig::load(path).map_err(|e| CliError::Conflict(e.to_string()))?)
+        }
+        (None, Some(crate::demo::DemoRobot::Snake)) => Some(presets::snake_seed001()),
+        (None, Some(crate::demo::DemoRobot::Dvrk)) => Some(presets::dvrk_seed000()),
+        (None, None) => None,
+    };
+    if let Some(c) = config.as_ref().filter(|c| snake::is_snake_config(c)) {
+        let nodes = snake::node_configs(c, args.seed)?;
+        let ids = nodes.iter().map(|n| n.board_id).collect();
+        let (bridge, ids) = assemble(args, snake::nodes(nodes), ids)?;
+        return Ok((bridge, ids, Vec::new()));
+    }
+    let boards = match &config {
+        Some(config) => {
+            for note in firelink_testbed::plant_map::notes(config) {
                 eprintln!("note: {note}");
             }
             let count = config.board_slots();
-            board_configs(&config, args.firmware, count)
+            board_configs(config, args.firmware, count)
         }
         None => {
             if !(1..=16).contains(&args.boards) {
@@ -111,7 +132,17 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<BoardConfig>), Cl
         b.check().map_err(|e| CliError::Conflict(e.to_string()))?;
     }
     let ids: Vec<u8> = boards.iter().map(|b| b.board_id).collect();
-    let configs = boards.clone();
+    let (bridge, ids) = assemble(args, qla_nodes(boards.clone()), ids)?;
+    Ok((bridge, ids, boards))
+}
+
+/// The bus of `nodes` (board IDs `ids`) with the faults `args` ask for,
+/// behind the bridge.
+fn assemble(
+    args: &EmulateArgs,
+    nodes: Vec<Box<dyn Node>>,
+    ids: Vec<u8>,
+) -> Result<(Bridge, Vec<u8>), CliError> {
     let bridge_index = match args.bridge_board {
         Some(id) => ids
             .iter()
@@ -119,8 +150,8 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<BoardConfig>), Cl
             .ok_or_else(|| CliError::Conflict(format!("--bridge-board {id}: no such board")))?,
         None => 0,
     };
-    let mut rig = BoardRig::daisy_chain(
-        boards,
+    let mut rig = BoardRig::daisy_chain_nodes(
+        nodes,
         &RigOptions {
             seed: args.seed,
             ..RigOptions::default()
@@ -172,13 +203,12 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<BoardConfig>), Cl
         .get(bridge_index)
         .copied()
         .ok_or_else(|| CliError::Conflict("no bridge board".into()))?;
-    Ok((Bridge::new(rig.bus, rig.host, bridge_node), configs))
+    Ok((Bridge::new(rig.bus, rig.host, bridge_node), ids))
 }
 
 /// `firelink emulate`.
 pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
-    let (mut bridge, boards) = build_bridge(args)?;
-    let ids: Vec<u8> = boards.iter().map(|b| b.board_id).collect();
+    let (mut bridge, ids, boards) = build_bridge(args)?;
     let config = ServeConfig {
         listen: args.listen,
         loopback_broadcast: !args.no_broadcast,
@@ -195,7 +225,12 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
             stop.store(true, std::sync::atomic::Ordering::Relaxed);
         });
     }
+    let snake = bridge
+        .bus()
+        .node::<firelink_board::snake::SnakeNode>(firelink_bus::NodeHandle(1))
+        .is_some();
     let firmware = match args.firmware {
+        _ if snake => "seed 001 Snake node",
         Profile::Rev7 => "Rev 7",
         Profile::Rev8 => "Rev 8",
         Profile::Seed => "seed 000",

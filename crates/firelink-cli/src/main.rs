@@ -15,7 +15,10 @@ mod monitor;
 mod packet_cmd;
 mod ports;
 mod rt;
+mod seed001_bench;
 mod sim;
+mod snake_demo;
+mod snake_tool;
 mod soak_cmd;
 mod tour;
 
@@ -67,6 +70,9 @@ enum Command {
     /// Fault soak: millions of servo cycles with faulted packets, every
     /// fault accounted for; then the watchdog proof.
     Soak(soak_cmd::SoakArgs),
+    /// Seed 001's test and configuration program for its Snake nodes
+    /// (terminal UI, or scripted with `exec`).
+    SnakeTool(snake_tool::SnakeToolArgs),
     /// The web console (runs `firelink-web`, built by `cargo build -p
     /// firelink-web`; its options: `firelink web --help`).
     #[command(disable_help_flag = true)]
@@ -263,6 +269,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Demo(args) => demo::run(&args, &mut out)?,
         Command::Bench(args) => bench::run(&args, &mut out)?,
         Command::Soak(args) => soak_cmd::run(&args, &mut out)?,
+        Command::SnakeTool(args) => snake_tool::run(&args, &mut out)?,
         Command::Web { args } => companion::run("firelink-web", &args)?,
         Command::Ros2 { args } => companion::run("firelink-ros2", &args)?,
     }

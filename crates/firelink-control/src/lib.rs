@@ -21,6 +21,9 @@
 //! - [`safety`]: the per-cycle safety monitor (following error, velocity,
 //!   current saturation, position, pot/encoder agreement).
 //! - [`budget`]: does the cycle fit its period (seed 002, Table I).
+//! - [`servo`]: a servo program over the abstract robot I/O of seed 001
+//!   (`firelink_host::RobotIo`), the same code for QLA boards and Snake
+//!   nodes.
 //!
 //! The servo cycle, as the runner in the layer above will drive it
 //! (ros2_control's read / update / write):
@@ -74,6 +77,7 @@ pub mod lifecycle;
 pub mod pid;
 pub mod runner;
 pub mod safety;
+pub mod servo;
 pub mod trajectory;
 
 pub use fault::{FaultKind, FaultReport};

@@ -73,6 +73,29 @@ fn bench_and_snake_load() {
 }
 
 #[test]
+fn snake_seed001_is_the_seeds_arrangement() {
+    let s = load("snake-seed001.json");
+    assert_eq!(s.actuator_count(), 36);
+    let boards = s.boards();
+    assert_eq!(boards.len(), 6);
+    assert!(boards.iter().all(|b| b.hardware == HardwareVersion::Snake));
+    // Each Snake: 7 axes on its actuation-unit node, 4 on its second node;
+    // each master: 7 on one node.
+    let used: Vec<(u8, u32)> = boards
+        .iter()
+        .map(|b| (b.board_id, b.axes_used.count_ones()))
+        .collect();
+    assert_eq!(used, [(0, 7), (1, 4), (2, 7), (3, 4), (4, 7), (5, 7)]);
+    let a = &s.robot("SNAKE2").unwrap().actuators[8];
+    assert_eq!((a.board_id, a.axis_id), (3, 1));
+    // The node's conventions: pot 0..=16383 over 2.5 V, monitor around 8192.
+    let pot = a.potentiometer.unwrap();
+    assert!((pot.bits_to_voltage.apply(16384.0) - 2.5).abs() < 1e-12);
+    assert!(a.drive.bits_to_current(8192).abs() < 1e-9);
+    assert_eq!(a.drive.zero_current_bits(), 0x8000);
+}
+
+#[test]
 fn shipped_files_match_the_presets() {
     for (name, preset) in presets::shipped() {
         let text = std::fs::read_to_string(configs_dir().join(name)).unwrap();

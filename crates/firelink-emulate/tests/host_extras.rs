@@ -154,10 +154,24 @@ fn outputs_waveforms_and_status_words() {
     assert_eq!(stop, [0]);
     assert!(!waveform_status(&mut p, b0).unwrap().0);
     start_waveform(&mut p, b0, 0x3, 0x3).unwrap();
-    assert!(waveform_status(&mut p, b0).unwrap().0, "playing");
-    // 600 entries of 0x101 clocks: about 3.1 ms, then it stops.
-    std::thread::sleep(Duration::from_millis(50));
+    // 600 entries of 0x101 clocks: about 3.1 ms of the emulator's time,
+    // then it stops at the end marker. Over UDP the emulator's clock
+    // follows the wall, so how far it got by the first status read
+    // depends on the machine: the status only has to be consistent (the
+    // exact playback is tested in virtual time, `reference_sequences`).
     let (playing, index) = waveform_status(&mut p, b0).unwrap();
+    assert!(
+        playing && index < 600 || !playing && index == 600,
+        "{playing} {index}"
+    );
+    let deadline = std::time::Instant::now() + Duration::from_secs(30);
+    let (playing, index) = loop {
+        let status = waveform_status(&mut p, b0).unwrap();
+        if !status.0 || std::time::Instant::now() > deadline {
+            break status;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
     assert!(!playing);
     assert_eq!(index, 600);
     // The instrument on board 1; none on board 0.

@@ -18,6 +18,12 @@
 //! - [`extras`]: the firmware features beyond the servo cycle (PROMs and
 //!   serial numbers, digital outputs and waveforms, instrument memory, I/O
 //!   expander, Ethernet registers, motor supply, PHY registers).
+//! - [`robot_io`]: seed 001's abstract robot I/O ([`RobotIo`]): latch all
+//!   inputs, per-axis get/set, apply all outputs, the same for every
+//!   kind of board (implemented for [`io::IoSystem`] and
+//!   [`snake::SnakeSystem`]).
+//! - [`snake`]: seed 001's Snake robot nodes: the node layer over block
+//!   buffers with valid bits, and every Get/Set of the seed's API.
 //!
 //! Protocols never know which port they use, so the same program drives
 //! emulated boards today and real boards over Ethernet tomorrow.
@@ -29,10 +35,13 @@ pub mod io;
 pub mod pacing;
 pub mod packet_json;
 pub mod port;
+pub mod robot_io;
 pub mod scan;
 pub mod sim;
+pub mod snake;
 pub mod transaction;
 pub mod udp;
 
 pub use error::{HostError, MissReason, Result};
 pub use port::{Dest, Port};
+pub use robot_io::RobotIo;

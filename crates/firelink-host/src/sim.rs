@@ -15,7 +15,7 @@
 
 use std::time::Duration;
 
-use firelink_bus::host::{HostCall, Outcome};
+use firelink_bus::host::{HostCall, Outcome, Transfer};
 use firelink_bus::{Bus, HostLink, HostModel, NodeHandle, SimDuration, SimTime};
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Speed};
 
@@ -122,7 +122,10 @@ impl SimPort {
         repr.emit(buf)?;
         // The bus owns the packets it carries (as a link owns its FIFO).
         let packet = buf.to_vec();
-        let cost = self.model.as_mut().map(|m| m.cost(call));
+        let cost = self
+            .model
+            .as_mut()
+            .map(|m| m.cost_of(call, Transfer::of(&repr)));
         if let Some(c) = cost {
             self.bus.run_for(c.before);
         }

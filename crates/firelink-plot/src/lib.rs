@@ -8,6 +8,10 @@
 //! 8-board figures as crosses. Both axes are logarithmic so that the
 //! paper's range (2 to 8 boards) stays readable next to 62 boards.
 //!
+//! [`seed001()`] draws seed 001's Fig. 20 and Fig. 21 from the
+//! reproduction of its bus measurements
+//! ([`firelink_testbed::snake::bench`]).
+//!
 //! The font: `FIRELINK_FONT` if set, else the first of a few usual paths of
 //! DejaVu Sans, Liberation Sans or FreeSans (`apt-get install
 //! fonts-dejavu-core` provides one).
@@ -18,6 +22,9 @@ use std::sync::OnceLock;
 use plotters::prelude::*;
 
 use firelink_testbed::bench::{BenchPoint, BenchReport};
+
+mod seed001;
+pub use seed001::seed001;
 
 /// Why a figure could not be drawn.
 #[derive(Debug, thiserror::Error)]

@@ -21,7 +21,10 @@
 //!   hundred faulted, every fault accounted for, amplifiers proven off
 //!   whenever the safety chain says so;
 //! - [`watchdog`]: the watchdog proof: the host stopped at random moments,
-//!   every board's amplifiers off within the watchdog period plus one tick.
+//!   every board's amplifiers off within the watchdog period plus one tick;
+//! - [`snake`]: seed 001's own system: Snake-node rigs, the 36-axis demo
+//!   on the generic servo, and the reproduction of the seed's bus
+//!   measurements with its PC model.
 //!
 //! Everything here runs in virtual time and is seeded: the same inputs give
 //! the same report, bit for bit. Only [`rig::Emulator`] touches sockets and
@@ -34,6 +37,7 @@ pub mod error;
 pub mod plant_map;
 pub mod rig;
 pub mod service;
+pub mod snake;
 pub mod soak;
 pub mod watchdog;
 

@@ -9,10 +9,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 
 use firelink_board::config::{BoardConfig, Hardware, Profile};
+use firelink_board::node::BoardNode;
 use firelink_board::plant::AxisParams;
 use firelink_board::plant::presets;
 use firelink_board::rig::{BoardRig, RigOptions};
-use firelink_bus::{Bus, HostModel, NodeHandle};
+use firelink_bus::{Bus, HostModel, Node, NodeHandle};
 use firelink_control::config::{HardwareVersion, IoConfig, PlantPreset};
 
 use crate::plant_map;
@@ -190,10 +191,28 @@ pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<
 pub fn build_bus(
     boards: Vec<BoardConfig>,
 ) -> Result<(Bus, NodeHandle, Vec<NodeHandle>), TestbedError> {
-    if boards.is_empty() {
+    build_bus_of(qla_nodes(boards))
+}
+
+/// The boards of `boards` as bus nodes (emulated QLA-family boards).
+pub fn qla_nodes(boards: Vec<BoardConfig>) -> Vec<Box<dyn Node>> {
+    boards
+        .into_iter()
+        .map(|cfg| {
+            let name = format!("board{}", cfg.board_id);
+            Box::new(BoardNode::new(cfg).with_name(name)) as Box<dyn Node>
+        })
+        .collect()
+}
+
+/// [`build_bus`] with any nodes (Snake nodes, a mix of kinds).
+pub fn build_bus_of(
+    nodes: Vec<Box<dyn Node>>,
+) -> Result<(Bus, NodeHandle, Vec<NodeHandle>), TestbedError> {
+    if nodes.is_empty() {
         return Err(TestbedError::NoBoards);
     }
-    let rig = BoardRig::daisy_chain(boards, &RigOptions::default());
+    let rig = BoardRig::daisy_chain_nodes(nodes, &RigOptions::default());
     Ok((rig.bus, rig.host, rig.boards))
 }
 
@@ -237,7 +256,16 @@ impl Emulator {
     /// # Errors
     /// [`TestbedError::NoBoards`]; socket errors binding loopback.
     pub fn start(boards: Vec<BoardConfig>) -> Result<Emulator, TestbedError> {
-        if boards.is_empty() {
+        Emulator::start_nodes(qla_nodes(boards))
+    }
+
+    /// Start serving any nodes (Snake nodes, a mix of kinds); the first is
+    /// the Ethernet-connected one.
+    ///
+    /// # Errors
+    /// As [`start`](Self::start).
+    pub fn start_nodes(nodes: Vec<Box<dyn Node>>) -> Result<Emulator, TestbedError> {
+        if nodes.is_empty() {
             return Err(TestbedError::NoBoards);
         }
         let (unicast, _) = firelink_emulate::bind(&ServeConfig {
@@ -248,9 +276,9 @@ impl Emulator {
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
         let (ready, started) = std::sync::mpsc::channel();
-        // The bus is not Send: it is built on the server thread.
+        // The bus is built on the server thread.
         let thread = std::thread::spawn(move || {
-            let (bus, link, handles) = match build_bus(boards) {
+            let (bus, link, handles) = match build_bus_of(nodes) {
                 Ok(b) => b,
                 Err(e) => {
                     let _ = ready.send(Err(e.to_string()));

@@ -14,6 +14,9 @@
 //!   register map, register quadlet codecs, the real-time read and write
 //!   blocks, and the broadcast protocol (query, status broadcasts, hub
 //!   block, command block).
+//! - [`snake`]: seed 001's 7-channel Snake robot node: its address map
+//!   (Table 1), registers (Table 2 and the channel devices) and its
+//!   fixed-size real-time blocks with valid bits (Fig. 17).
 //!
 //! Every parser checks lengths before reading; untrusted bytes never panic
 //! and failures are [`Error`] values naming what was wrong.
@@ -44,5 +47,6 @@ pub mod field;
 mod open_enum;
 pub mod packet;
 pub mod phy;
+pub mod snake;
 
 pub use error::{Error, Result};

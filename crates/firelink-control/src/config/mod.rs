@@ -279,6 +279,10 @@ pub enum HardwareVersion {
     /// dVRK-Si controller: 10 axes per board.
     #[serde(rename = "dRA1")]
     Dra1,
+    /// Seed 001's 7-channel Snake robot node (its own FPGA/1394 board,
+    /// not a JHU one): 7 axes per board.
+    #[serde(rename = "SNAKE")]
+    Snake,
 }
 
 impl HardwareVersion {
@@ -288,6 +292,7 @@ impl HardwareVersion {
             HardwareVersion::Qla1 => 4,
             HardwareVersion::Dqla => 8,
             HardwareVersion::Dra1 => 10,
+            HardwareVersion::Snake => 7,
         }
     }
 
@@ -297,16 +302,25 @@ impl HardwareVersion {
             HardwareVersion::Qla1 => "QLA1",
             HardwareVersion::Dqla => "DQLA",
             HardwareVersion::Dra1 => "dRA1",
+            HardwareVersion::Snake => "SNAKE",
         }
     }
 
-    /// The board's HW_VERSION register value (`fpga-board.md` §2).
+    /// The board's HW_VERSION register value (`fpga-board.md` §2); for
+    /// a Snake node, its version register (seed 001 Table 1, address 4).
     pub fn hw_version_register(self) -> u32 {
         match self {
             HardwareVersion::Qla1 => 0x514C_4131,
             HardwareVersion::Dqla => 0x4451_4C41,
             HardwareVersion::Dra1 => 0x6452_4131,
+            HardwareVersion::Snake => firelink_wire::snake::registers::VERSION,
         }
+    }
+
+    /// Whether the board is seed 001's Snake node (driven through
+    /// `firelink_host::snake`, not the QLA protocols).
+    pub fn is_snake(self) -> bool {
+        self == HardwareVersion::Snake
     }
 }
 

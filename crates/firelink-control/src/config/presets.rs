@@ -26,6 +26,8 @@ use super::{
 };
 use crate::pid::PidGains;
 use core::f64::consts::PI;
+use firelink_wire::snake::analog;
+use firelink_wire::snake::registers::Wiper;
 use serde_json::json;
 
 const DEG: f64 = PI / 180.0;
@@ -35,6 +37,8 @@ const MM: f64 = 1e-3;
 const QLA_FULL_SCALE_AMPS: f64 = 6.25;
 /// QLA pot ADC: 16 bits over 4.5 V.
 const QLA_POT_VOLTS: f64 = 4.5;
+/// Snake node: DAC and ADC over 0..2.5 V (seed 001 §7.2).
+const SNAKE_VOLTS: f64 = 2.5;
 
 fn round_to(x: f64, decimals: i32) -> f64 {
     let p = 10f64.powi(decimals);
@@ -151,6 +155,40 @@ impl Axis {
         }
     }
 
+    /// Seed 001's Snake node instead of a QLA: the motor DAC in torque
+    /// mode at the nominal wiper (amperes through the feedback gain and the
+    /// sense resistor), the 14-bit current monitor and potentiometer in the
+    /// API's 0..=16383 (ADC + 8192) over 0..2.5 V
+    /// (`firelink_wire::snake::analog`).
+    fn snake_conversions(&self, actuator: &mut ActuatorConfig) {
+        let gain = Wiper::NOMINAL.feedback_gain();
+        let amps_to_bits = self.direction * gain * analog::SENSE_OHMS * 65536.0 / SNAKE_VOLTS;
+        let amps_per_count = SNAKE_VOLTS / 16384.0 / analog::MONITOR_VOLTS_PER_AMP;
+        actuator.drive.current_to_bits = LinearFunction {
+            scale: round_to(amps_to_bits, 4),
+            offset: 32768.0,
+        };
+        actuator.drive.bits_to_current = LinearFunction {
+            scale: round_to(self.direction * amps_per_count, 14),
+            offset: round_to(-self.direction * 8192.0 * amps_per_count, 9),
+        };
+        let span = 2.0 * (self.upper - self.lower);
+        let scale = round_to(span / SNAKE_VOLTS, 8);
+        actuator.potentiometer = Some(PotentiometerConfig {
+            bits_to_voltage: LinearFunction {
+                scale: SNAKE_VOLTS / 16384.0,
+                offset: 0.0,
+            },
+            voltage_to_position: LinearFunction {
+                scale,
+                offset: round_to(
+                    0.5 * (self.lower + self.upper) - scale * SNAKE_VOLTS / 2.0,
+                    8,
+                ),
+            },
+        });
+    }
+
     fn actuator(&self, index: usize, board_id: u8, axis_id: u8) -> ActuatorConfig {
         let e2c = self.effort_to_current();
         let (kp, ki, kd) = self.effort_gains;
@@ -210,7 +248,11 @@ fn robot(
         .enumerate()
         .map(|(i, a)| {
             let board = boards.get(i / per_board).copied().unwrap_or(u8::MAX);
-            a.actuator(i, board, (i % per_board) as u8)
+            let mut actuator = a.actuator(i, board, (i % per_board) as u8);
+            if hardware.is_snake() {
+                a.snake_conversions(&mut actuator);
+            }
+            actuator
         })
         .collect();
     let tolerances = axes
@@ -494,24 +536,7 @@ pub fn bench_1board() -> IoConfig {
 /// puts each Snake on two DQLA boards (8 axes each: 8 + 3 used) and each
 /// master on two QLA1 boards (4 + 3), 8 boards in all.
 pub fn snake_36axes() -> IoConfig {
-    let snake_axes: Vec<Axis> = (0..11)
-        .map(|i| {
-            let mut a = generic_axis(90.0 * DEG, 1.0);
-            // Small cable-drive motors for the continuum segments.
-            a.gear_ratio = 64.0;
-            a.torque_constant = 0.0107;
-            a.maximum_current = 0.5;
-            a.counts_per_turn = 2048;
-            a.effort_gains = (4.0, 0.2, 0.1);
-            a.velocity_limit = 1.5;
-            if i >= 8 {
-                // Gripper / wrist roll.
-                a.lower = -PI;
-                a.upper = PI;
-            }
-            a
-        })
-        .collect();
+    let snake_axes = snake_robot_axes();
     io_config(
         "Seed 001 Snake robot system: two 11-axis Snake robots and two 7-axis masters, \
          36 axes. Seed 001 used 7-channel nodes (14-bit ADC, 16-bit DAC); Firelink emits \
@@ -838,8 +863,58 @@ fn digital_inputs(inputs: &[(&str, u8, u8)]) -> serde_json::Value {
     )
 }
 
+/// The Snake robot's own axes (two three-axis SLUs, a gripper, a
+/// two-axis Z-Theta stage and a two-axis five bar): small geared motors.
+fn snake_robot_axes() -> Vec<Axis> {
+    (0..11)
+        .map(|i| {
+            let mut a = generic_axis(90.0 * DEG, 1.0);
+            // Small cable-drive motors for the continuum segments.
+            a.gear_ratio = 64.0;
+            a.torque_constant = 0.0107;
+            a.maximum_current = 0.5;
+            a.counts_per_turn = 2048;
+            // About 30 rad/s closed-loop, damping near 0.7 on the
+            // joint-side inertia of these axes.
+            a.effort_gains = (10.0, 0.5, 0.4);
+            a.velocity_limit = 2.5;
+            if i >= 8 {
+                // Gripper / wrist roll.
+                a.lower = -PI;
+                a.upper = PI;
+            }
+            a
+        })
+        .collect()
+}
+
+/// Seed 001's own system: two 11-axis Snake robots and two 7-axis
+/// masters, 36 axes on six of the seed's 7-channel nodes, in the seed's
+/// arrangement (§5.3): each Snake on two nodes, one for its actuation
+/// unit (7 axes, board IDs 0 and 2) and one for its Z-Theta and five-bar
+/// stages (4 axes, IDs 1 and 3); each master on one node (IDs 4 and 5).
+pub fn snake_seed001() -> IoConfig {
+    let snake = HardwareVersion::Snake;
+    io_config(
+        "Seed 001 Snake robot system on the seed's own 7-channel FPGA/1394 nodes: \
+         SNAKE1 and SNAKE2 (11 axes each: actuation unit on one node, Z-Theta and \
+         five bar on a second), MASTER1 and MASTER2 (7 axes each, one node each): \
+         36 axes on 6 nodes (board IDs 0-5). Conversions are the node's: the motor \
+         DAC in torque mode at the nominal wiper 375 (feedback gain 2.01, 0.5 ohm \
+         sense), the 14-bit current monitor and pot reported as ADC + 8192 over \
+         0..2.5 V. Snake axes are small geared motors; masters reuse the Classic \
+         MTM factors. The DQLA mapping of the same robots is snake-36axes.json.",
+        vec![
+            robot("SNAKE1", "S001", snake, &[0, 1], &snake_robot_axes()),
+            robot("SNAKE2", "S002", snake, &[2, 3], &snake_robot_axes()),
+            robot("MASTER1", "M001", snake, &[4], &mtm_axes(true)),
+            robot("MASTER2", "M002", snake, &[5], &mtm_axes(false)),
+        ],
+    )
+}
+
 /// Every shipped configuration with its file name under `configs/`.
-pub fn shipped() -> [(&'static str, IoConfig); 6] {
+pub fn shipped() -> [(&'static str, IoConfig); 7] {
     [
         ("dvrk-seed000.json", dvrk_seed000()),
         ("bench-1board.json", bench_1board()),
@@ -847,6 +922,7 @@ pub fn shipped() -> [(&'static str, IoConfig); 6] {
         ("dvrk-psm1-28007.json", stock_psm1()),
         ("dvrk-mtmr-28247.json", stock_mtmr()),
         ("dvrk-ecm-29738.json", stock_ecm()),
+        ("snake-seed001.json", snake_seed001()),
     ]
 }
 

@@ -25,10 +25,11 @@
 //! also read the machine's monotonic clock. This is the one place below the
 //! CLI that does.
 
+pub(crate) mod joint;
 pub mod loopback;
-mod velocity;
+pub(crate) mod velocity;
 
-use velocity::VelocityEstimator;
+use joint::{Joint, Pacer};
 
 use std::time::{Duration, Instant};
 
@@ -37,15 +38,12 @@ use firelink_host::{HostError, MissReason, Port};
 use firelink_wire::board::MAX_BOARDS;
 use firelink_wire::board::registers::SYSTEM_CLOCK_HZ;
 
-use crate::config::{
-    DriveConfig, EncoderConfig, IoConfig, JointType, PotentiometerConfig, StopSearchConfig,
-    StopSide,
-};
+use crate::config::{IoConfig, StopSearchConfig, StopSide};
 use crate::fault::{FaultKind, FaultReport};
 use crate::homing::{Homing, HomingError, HomingSettings, HomingStep};
 use crate::label::{BoardSet, Label};
 use crate::lifecycle::{Lifecycle, LifecycleError, PowerStatus, State};
-use crate::pid::{Measurement, Pid, PidError, PidGains, Setpoint};
+use crate::pid::{Pid, PidError, PidGains};
 use crate::safety::{JointSample, SafetyMonitor};
 use crate::trajectory::{Motion, PointToPoint};
 
@@ -125,16 +123,6 @@ pub enum RunnerError {
     Timeout(&'static str),
 }
 
-/// A joint's pot position from the pot's ADC bits (NaN without a pot or
-/// a reading).
-#[inline]
-fn pot_position(j: &Joint, bits: Option<u16>) -> f64 {
-    match (j.pot, bits) {
-        (Some(p), Some(bits)) => p.bits_to_position(bits),
-        _ => f64::NAN,
-    }
-}
-
 /// Why a stop search failed.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum StopSearchProblem {
@@ -173,25 +161,6 @@ pub struct StopFound {
     pub stop_position: f64,
 }
 
-#[derive(Debug, Clone, Copy)]
-struct Joint {
-    label: Label,
-    arm: usize,
-    board: usize,
-    axis: usize,
-    drive: DriveConfig,
-    encoder: EncoderConfig,
-    pot: Option<PotentiometerConfig>,
-    prismatic: bool,
-    motion: Motion,
-    motion_start: f64,
-    offset: f64,
-    position: f64,
-    velocity: VelocityEstimator,
-    setpoint: f64,
-    current: f64,
-}
-
 /// Tracking error of one arm, over the cycles it was Active with a motion.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ArmTracking {
@@ -209,14 +178,50 @@ pub struct ArmTracking {
     pub samples: u64,
 }
 
+/// Running tracking-error sums of one arm.
 #[derive(Debug, Clone, Default)]
-struct ArmAcc {
+pub(crate) struct ArmAcc {
     sum_rad: f64,
     n_rad: u64,
     max_rad: f64,
     sum_m: f64,
     n_m: u64,
     max_m: f64,
+}
+
+impl ArmAcc {
+    /// Add one joint's |setpoint - position|.
+    pub(crate) fn add(&mut self, err: f64, prismatic: bool) {
+        if prismatic {
+            self.sum_m += err * err;
+            self.n_m += 1;
+            self.max_m = self.max_m.max(err);
+        } else {
+            self.sum_rad += err * err;
+            self.n_rad += 1;
+            self.max_rad = self.max_rad.max(err);
+        }
+    }
+
+    /// The arm's tracking so far.
+    pub(crate) fn tracking(&self, name: &str) -> ArmTracking {
+        ArmTracking {
+            name: name.to_string(),
+            rms_rad: if self.n_rad > 0 {
+                (self.sum_rad / self.n_rad as f64).sqrt()
+            } else {
+                0.0
+            },
+            max_rad: self.max_rad,
+            rms_mm: if self.n_m > 0 {
+                1e3 * (self.sum_m / self.n_m as f64).sqrt()
+            } else {
+                0.0
+            },
+            max_mm: 1e3 * self.max_m,
+            samples: self.n_rad + self.n_m,
+        }
+    }
 }
 
 /// Median, p99 and max of a set of durations, microseconds.
@@ -270,6 +275,35 @@ pub struct CycleTimes {
     pub last_compute_us: f32,
 }
 
+impl CycleTimes {
+    /// An empty record with room for `cap` cycles.
+    pub(crate) fn with_capacity(cap: usize) -> CycleTimes {
+        CycleTimes {
+            io_us: Vec::with_capacity(cap),
+            compute_us: Vec::with_capacity(cap),
+            cycle_us: Vec::with_capacity(cap),
+            dropped: 0,
+            overruns: 0,
+            last_compute_us: 0.0,
+        }
+    }
+
+    /// Record one cycle (allocation-free: beyond the capacity it is only
+    /// counted).
+    pub(crate) fn record(&mut self, io: Duration, compute: Duration) {
+        let io_us = io.as_secs_f64() * 1e6;
+        let c_us = compute.as_secs_f64() * 1e6;
+        self.last_compute_us = c_us as f32;
+        if self.io_us.len() < self.io_us.capacity() {
+            self.io_us.push(io_us as f32);
+            self.compute_us.push(c_us as f32);
+            self.cycle_us.push((io_us + c_us) as f32);
+        } else {
+            self.dropped += 1;
+        }
+    }
+}
+
 /// One robot program: configuration, I/O, lifecycle, controllers.
 pub struct Robot<P: Port> {
     io: IoSystem<P>,
@@ -310,7 +344,7 @@ pub struct Robot<P: Port> {
     /// (bit i = board ID i), since the fault.
     disabled_acknowledged: u16,
     fault: Option<FaultReport>,
-    next_deadline: Option<Instant>,
+    pacer: Pacer,
 }
 
 impl<P: Port> Robot<P> {
@@ -364,23 +398,7 @@ impl<P: Port> Robot<P> {
                 .and_then(|s| s.pid)
                 .unwrap_or_else(|| PidGains::pd(1.0, 0.05));
             pids.push(Pid::new(gains, a.drive.maximum_current).map_err(RunnerError::Pid)?);
-            joints.push(Joint {
-                label: j.label,
-                arm: j.robot_index,
-                board,
-                axis: usize::from(a.axis_id),
-                drive: a.drive,
-                encoder: a.encoder,
-                pot: a.potentiometer,
-                prismatic: a.joint_type == Some(JointType::Prismatic),
-                motion: Motion::Hold(0.0),
-                motion_start: 0.0,
-                offset: 0.0,
-                position: 0.0,
-                velocity: VelocityEstimator::default(),
-                setpoint: 0.0,
-                current: 0.0,
-            });
+            joints.push(Joint::new(&j, board, usize::from(a.axis_id)));
         }
         let n = joints.len();
         let cap = settings.max_samples;
@@ -430,20 +448,13 @@ impl<P: Port> Robot<P> {
                 .collect(),
             pot: vec![0.0; n],
             enc: vec![0.0; n],
-            times: CycleTimes {
-                io_us: Vec::with_capacity(cap),
-                compute_us: Vec::with_capacity(cap),
-                cycle_us: Vec::with_capacity(cap),
-                dropped: 0,
-                overruns: 0,
-                last_compute_us: 0.0,
-            },
+            times: CycleTimes::with_capacity(cap),
             cycle: 0,
             last_start: None,
             last_report: None,
             disabled_acknowledged: 0,
             fault: None,
-            next_deadline: None,
+            pacer: Pacer::default(),
         })
     }
 
@@ -528,22 +539,7 @@ impl<P: Port> Robot<P> {
         self.arm_names
             .iter()
             .zip(&self.arm_acc)
-            .map(|(name, a)| ArmTracking {
-                name: name.clone(),
-                rms_rad: if a.n_rad > 0 {
-                    (a.sum_rad / a.n_rad as f64).sqrt()
-                } else {
-                    0.0
-                },
-                max_rad: a.max_rad,
-                rms_mm: if a.n_m > 0 {
-                    1e3 * (a.sum_m / a.n_m as f64).sqrt()
-                } else {
-                    0.0
-                },
-                max_mm: 1e3 * a.max_m,
-                samples: a.n_rad + a.n_m,
-            })
+            .map(|(name, a)| a.tracking(name))
             .collect()
     }
 
@@ -666,12 +662,11 @@ impl<P: Port> Robot<P> {
                     .use_software_offsets()
                     .map_err(RunnerError::Homing)?,
                 HomingStep::Done => {
-                    let offsets = self.homing.applied_offsets();
-                    for ((j, off), raw) in self.joints.iter_mut().zip(offsets).zip(&self.enc) {
-                        j.offset = *off;
-                        j.position = raw + off;
-                        j.velocity.reset();
-                    }
+                    joint::apply_offsets(
+                        &mut self.joints,
+                        self.homing.applied_offsets(),
+                        &self.enc,
+                    );
                     return Ok(());
                 }
                 HomingStep::Failed(e) => return Err(RunnerError::Homing(e)),
@@ -711,11 +706,7 @@ impl<P: Port> Robot<P> {
     pub fn activate(&mut self) -> Result<(), RunnerError> {
         self.life.activate(self.power_status())?;
         let now = self.now();
-        for (j, pid) in self.joints.iter_mut().zip(self.pids.iter_mut()) {
-            j.motion = Motion::Hold(j.position);
-            j.motion_start = now;
-            pid.reset();
-        }
+        joint::hold_all(&mut self.joints, &mut self.pids, now);
         self.safety.restart_timers();
         Ok(())
     }
@@ -728,12 +719,7 @@ impl<P: Port> Robot<P> {
     pub fn set_motion(&mut self, i: usize, motion: Motion) -> Result<(), RunnerError> {
         self.life.require_motion()?;
         let now = self.now();
-        let j = self
-            .joints
-            .get_mut(i)
-            .ok_or_else(|| RunnerError::Config(format!("no joint {i}")))?;
-        j.motion = motion;
-        j.motion_start = now;
+        joint::start_motion(&mut self.joints, i, motion, now)?;
         self.safety.restart_timers();
         Ok(())
     }
@@ -772,7 +758,7 @@ impl<P: Port> Robot<P> {
         progress_every: u64,
         mut progress: impl FnMut(&Robot<P>),
     ) -> Result<(), RunnerError> {
-        self.next_deadline = None;
+        self.pacer.restart();
         for k in 0..cycles {
             self.step(pacing)?;
             if progress_every > 0 && (k + 1) % progress_every == 0 {
@@ -788,17 +774,7 @@ impl<P: Port> Robot<P> {
     /// A fault detected in this cycle (or latched before).
     pub fn step(&mut self, pacing: Pacing) -> Result<(), RunnerError> {
         let period = Duration::from_secs_f64(self.period());
-        if pacing == Pacing::WallClock {
-            let deadline = self.next_deadline.unwrap_or_else(Instant::now);
-            let now = Instant::now();
-            if now > deadline + period / 2 {
-                self.times.overruns += 1;
-                self.next_deadline = Some(now + period);
-            } else {
-                firelink_host::pacing::sleep_until(deadline);
-                self.next_deadline = Some(deadline + period);
-            }
-        }
+        self.pacer.before_cycle(pacing, period, &mut self.times);
         let started = self.io.port().now();
         let r = self.cycle();
         // A bus reset renumbers nodes: scan again between cycles, never
@@ -806,11 +782,9 @@ impl<P: Port> Robot<P> {
         if self.io.needs_rescan() {
             let _ = self.io.recover();
         }
-        if pacing == Pacing::Virtual {
-            let spent = self.io.port().now().saturating_sub(started);
-            if let Some(rest) = period.checked_sub(spent).filter(|d| !d.is_zero()) {
-                self.io.port_mut().wait(rest);
-            }
+        let spent = self.io.port().now().saturating_sub(started);
+        if let Some(rest) = Pacer::rest(pacing, period, spent) {
+            self.io.port_mut().wait(rest);
         }
         r.map_err(RunnerError::Fault)
     }
@@ -861,24 +835,10 @@ impl<P: Port> Robot<P> {
         }
         let report = *self.io.write_all();
         self.last_report = Some(report);
-        self.record(report.io_time(), compute);
+        self.times.record(report.io_time(), compute);
         match self.fault {
             Some(f) => Err(f),
             None => Ok(()),
-        }
-    }
-
-    fn record(&mut self, io: Duration, compute: Duration) {
-        let t = &mut self.times;
-        let io_us = io.as_secs_f64() * 1e6;
-        let c_us = compute.as_secs_f64() * 1e6;
-        t.last_compute_us = c_us as f32;
-        if t.io_us.len() < t.io_us.capacity() {
-            t.io_us.push(io_us as f32);
-            t.compute_us.push(c_us as f32);
-            t.cycle_us.push((io_us + c_us) as f32);
-        } else {
-            t.dropped += 1;
         }
     }
 
@@ -963,7 +923,7 @@ impl<P: Port> Robot<P> {
                 .boards()
                 .get(j.board)
                 .and_then(|b| b.pot_bits(j.axis));
-            *raw = pot_position(j, bits);
+            *raw = j.pot_position(bits);
         }
         self.pot.fill(0.0);
         for &(t, s, w) in &self.pot_mix {
@@ -984,68 +944,31 @@ impl<P: Port> Robot<P> {
                 continue;
             };
             let counts = b.encoder_counts(j.axis).unwrap_or(0);
-            let raw = j.encoder.counts_to_position(i64::from(counts));
-            let pos = raw + j.offset;
-            let pot = if coupled {
-                self.pot.get(i).copied().unwrap_or(f64::NAN)
-            } else {
-                pot_position(j, b.pot_bits(j.axis))
-            };
             let sampled = self.sample_clock.get(j.board).copied().unwrap_or(now);
-            let velocity = j.velocity.update(sampled, pos);
-            j.position = pos;
+            let mut u = j.update(
+                counts,
+                b.pot_bits(j.axis),
+                sampled,
+                now,
+                dt,
+                active,
+                self.pids.get_mut(i),
+                self.arm_acc.get_mut(j.arm),
+            );
             if let Some(e) = self.enc.get_mut(i) {
-                *e = raw;
+                *e = u.raw;
             }
-            if let Some(p) = self.pot.get_mut(i).filter(|_| !coupled) {
-                *p = pot;
+            if coupled {
+                // The pot reads the joint; the safety monitor compares the
+                // encoder with it in actuator space.
+                let pot = self.pot.get(i).copied().unwrap_or(f64::NAN);
+                u.sample.potentiometer =
+                    (j.pot.is_some() && active && pot.is_finite()).then_some(pot);
+            } else if let Some(p) = self.pot.get_mut(i) {
+                *p = u.pot;
             }
-            let mut amps = 0.0;
-            if active {
-                let sp = j.motion.sample(now - j.motion_start);
-                j.setpoint = sp.position;
-                if let Some(pid) = self.pids.get_mut(i) {
-                    amps = pid.update(
-                        Setpoint {
-                            position: sp.position,
-                            velocity: sp.velocity,
-                            feedforward: 0.0,
-                        },
-                        Measurement {
-                            position: pos,
-                            velocity,
-                        },
-                        dt,
-                    );
-                }
-                let err = (sp.position - pos).abs();
-                if let Some(acc) = self.arm_acc.get_mut(j.arm) {
-                    if j.prismatic {
-                        acc.sum_m += err * err;
-                        acc.n_m += 1;
-                        acc.max_m = acc.max_m.max(err);
-                    } else {
-                        acc.sum_rad += err * err;
-                        acc.n_rad += 1;
-                        acc.max_rad = acc.max_rad.max(err);
-                    }
-                }
-            } else {
-                j.setpoint = pos;
-            }
-            j.current = amps;
             if let Some(s) = self.samples.get_mut(i) {
-                *s = JointSample {
-                    setpoint: j.setpoint,
-                    position: pos,
-                    velocity,
-                    current: amps,
-                    potentiometer: if j.pot.is_some() && active && pot.is_finite() {
-                        Some(pot)
-                    } else {
-                        None
-                    },
-                };
+                *s = u.sample;
             }
         }
         if active {
@@ -1059,13 +982,8 @@ impl<P: Port> Robot<P> {
         let active = self.life.state() == State::Active;
         let boards = self.io.boards_mut();
         for j in &self.joints {
-            let bits = if active {
-                j.drive.current_to_bits(j.current)
-            } else {
-                j.drive.zero_current_bits()
-            };
             if let Some(b) = boards.get_mut(j.board) {
-                let _ = b.set_dac(j.axis, bits);
+                let _ = b.set_dac(j.axis, j.command(active));
             }
         }
     }
