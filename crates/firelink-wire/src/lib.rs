@@ -14,6 +14,9 @@
 //!   register map, register quadlet codecs, the real-time read and write
 //!   blocks, and the broadcast protocol (query, status broadcasts, hub
 //!   block, command block).
+//! - [`mahru`]: the MAHRU humanoid's module protocol of seed 002 (command
+//!   codes in the destination offset, module IDs, joint, force/torque,
+//!   set-point and parameter blocks).
 //!
 //! Every parser checks lengths before reading; untrusted bytes never panic
 //! and failures are [`Error`] values naming what was wrong.
@@ -41,6 +44,7 @@ pub mod bridge;
 pub mod crc;
 mod error;
 pub mod field;
+pub mod mahru;
 mod open_enum;
 pub mod packet;
 pub mod phy;
