@@ -20,6 +20,9 @@
 //!   [`firelink_wire::board`].
 //! - [`node`]: [`BoardNode`](node::BoardNode), the firmware as a
 //!   [`firelink_bus::Node`] on the simulated bus.
+//! - [`mahru`]: seed 002's MAHRU humanoid modules (DSP + FPGA motor
+//!   controllers and force/torque sensors) as bus nodes speaking the
+//!   module protocol of [`firelink_wire::mahru`].
 //!
 //! Everything takes `now`; nothing reads a clock. The same configuration,
 //! seed and packet sequence give the same run, bit for bit.
@@ -50,6 +53,7 @@
 
 pub mod config;
 pub mod firmware;
+pub mod mahru;
 pub mod node;
 pub mod plant;
 pub mod rig;

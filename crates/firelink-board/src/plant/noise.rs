@@ -16,6 +16,8 @@ pub enum NoiseChannel {
     Current = 0,
     /// Potentiometer.
     Pot = 1,
+    /// A force/torque sensor's strain gauges (the axis picks the gauge).
+    ForceTorque = 2,
 }
 
 /// The noise generator of one plant.
