@@ -15,6 +15,8 @@
 //! - [`scan`]: discovery and protocol choice.
 //! - [`board`]: the per-board I/O buffers and accessors.
 //! - [`io`]: the I/O system running the three protocols.
+//! - [`mahru`]: seed 002's MotionController for the MAHRU humanoid's
+//!   modules, and its computer's real-time systems as overhead models.
 //!
 //! Protocols never know which port they use, so the same program drives
 //! emulated boards today and real boards over Ethernet tomorrow.
@@ -22,6 +24,7 @@
 pub mod board;
 pub mod error;
 pub mod io;
+pub mod mahru;
 pub mod pacing;
 pub mod packet_json;
 pub mod port;
