@@ -125,8 +125,8 @@ fn an_error_frame_costs_its_bits_and_the_frame_is_sent_again() {
     let lost = 11 + 6 + 6 + 8 + 3;
     assert_eq!(bus.errors()[0].lost, us(lost));
     assert_eq!(d.attempts, 2);
-    assert_eq!(d.started_at, us(lost as u64));
-    assert_eq!(d.bus_free_at, us(lost as u64 + f.bits() as u64));
+    assert_eq!(d.started_at, us(lost));
+    assert_eq!(d.bus_free_at, us(lost + f.bits() as u64));
     assert_eq!(bus.transmit_errors(a), Some(7));
 }
 
