@@ -103,6 +103,9 @@ pub struct FtParams {
     pub noise: [f64; 2],
     /// Seed of the noise.
     pub seed: u64,
+    /// The joints' angles at power-up, by ModID (what the load model
+    /// assumes until the first QWRITE).
+    pub initial_pose: [f64; QWRITE_SLOTS],
 }
 
 /// What the sensor knows of one joint's set-point.
@@ -145,13 +148,16 @@ impl FtSensor {
         FtSensor {
             mod_id,
             noise: Noise::new(params.seed),
+            joints: params.initial_pose.map(|position| JointMotion {
+                position,
+                ..JointMotion::default()
+            }),
             params,
             samples: 0,
             bias: [0.0; 6],
             biased: false,
             standing: false,
             state: ModuleState::Idle,
-            joints: [JointMotion::default(); QWRITE_SLOTS],
             trace: vec![[0; 6]; TRACE_READINGS],
         }
     }
@@ -222,7 +228,9 @@ impl FtSensor {
                 // The swing leg bends its knee: its foot unloads.
                 let share = 0.5 - 0.5 * (8.0 * bend).tanh();
                 let fz = b.mass * G * share;
-                let fx = -b.mass * b.leg_length * hip.acceleration * share;
+                // The body's centre of mass moves about a third as much as
+                // the swinging foot.
+                let fx = -b.mass * 0.3 * b.leg_length * hip.acceleration * share;
                 let side = if left { -1.0 } else { 1.0 };
                 let fy = side * 0.04 * fz;
                 let x_cop = (0.3 * b.leg_length * hip.position.sin()).clamp(-0.08, 0.12);
@@ -368,6 +376,7 @@ mod tests {
             offset: [3.0, -2.0, 5.0, 0.2, -0.1, 0.05],
             noise: [0.3, 0.02],
             seed: 7,
+            initial_pose: [0.0; QWRITE_SLOTS],
         }
     }
 
