@@ -241,6 +241,40 @@ impl MahruDemoReport {
     }
 }
 
+/// One sensor's readings, summed up.
+#[derive(Debug, Clone, Copy)]
+struct FtAccum {
+    sum: [f64; 6],
+    min: [f64; 6],
+    max: [f64; 6],
+    first: Option<[f64; 6]>,
+    count: u64,
+}
+
+impl Default for FtAccum {
+    fn default() -> Self {
+        FtAccum {
+            sum: [0.0; 6],
+            min: [f64::INFINITY; 6],
+            max: [f64::NEG_INFINITY; 6],
+            first: None,
+            count: 0,
+        }
+    }
+}
+
+impl FtAccum {
+    fn add(&mut self, w: [f64; 6]) {
+        self.first.get_or_insert(w);
+        self.count += 1;
+        for (a, x) in w.into_iter().enumerate() {
+            self.sum[a] += x;
+            self.min[a] = self.min[a].min(x);
+            self.max[a] = self.max[a].max(x);
+        }
+    }
+}
+
 /// A robot on the bus, brought up.
 pub(crate) struct Running {
     pub controller: MotionController<SimPort>,
@@ -336,8 +370,7 @@ pub fn run_mahru_demo(
     let mut phases = PhaseSamples::default();
     let mut reads: Vec<Vec<f32>> = vec![Vec::with_capacity(periods as usize); n];
     let mut tracking: Vec<(f64, f64, u64)> = vec![(0.0, 0.0, 0); n];
-    let mut ft: Vec<([f64; 6], [f64; 6], [f64; 6], Option<[f64; 6]>)> =
-        vec![([0.0; 6], [f64::INFINITY; 6], [f64::NEG_INFINITY; 6], None); n];
+    let mut ft: Vec<FtAccum> = vec![FtAccum::default(); n];
     let mut samples = 0u64;
     let mut feet_fz = 0.0;
     let feet: Vec<usize> = r
@@ -363,14 +396,7 @@ pub fn run_mahru_demo(
                     t.2 += 1;
                 }
                 if let Some(w) = fb.wrenches[i] {
-                    let w = w.wrench();
-                    let s = &mut ft[i];
-                    s.3.get_or_insert(w);
-                    for a in 0..6 {
-                        s.0[a] += w[a];
-                        s.1[a] = s.1[a].min(w[a]);
-                        s.2[a] = s.2[a].max(w[a]);
-                    }
+                    ft[i].add(w.wrench());
                 }
             }
             feet_fz += feet
@@ -430,10 +456,10 @@ pub fn run_mahru_demo(
             FtReport {
                 mod_id: m.mod_id.0,
                 name: m.name.clone(),
-                mean: s.0.map(|x| round(x / samples.max(1) as f64)),
-                min: s.1.map(round),
-                max: s.2.map(round),
-                first: s.3.unwrap_or_default().map(round),
+                mean: s.sum.map(|x| round(x / s.count.max(1) as f64)),
+                min: s.min.map(round),
+                max: s.max.map(round),
+                first: s.first.unwrap_or_default().map(round),
             }
         })
         .collect();

@@ -149,14 +149,14 @@ mod tests {
             assert!(s.velocity.abs() < 1e-3);
         }
         // After the ramp the hips swing in opposition with the full amplitude.
-        let t = 2.0 + 0.3; // a quarter stride after 2 s
+        let t = 1.2 * 2.25; // a quarter stride after two strides
         let l = g.position(ModId(0), t);
         let r = g.position(ModId(2), t);
         assert!((l + r).abs() < 1e-9);
         assert!((l.abs() - 0.25).abs() < 1e-6);
         // Knees: one bends while the other is straight (at its centre).
-        let lk = g.position(ModId(1), 2.0) - 0.2;
-        let rk = g.position(ModId(3), 2.0) - 0.2;
+        let lk = g.position(ModId(1), 2.4) - 0.2;
+        let rk = g.position(ModId(3), 2.4) - 0.2;
         assert!(lk > 0.4 && rk.abs() < 1e-9, "{lk} {rk}");
         // The derivative is the derivative.
         let s = g.setpoint(ModId(0), 2.1);

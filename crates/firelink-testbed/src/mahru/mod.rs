@@ -17,11 +17,14 @@
 //!   systems (Table III).
 //! - [`can`]: the same 14-module cycle on a CAN bus (Table IV).
 
+pub mod budget;
+pub mod can;
 pub mod config;
 pub mod demo;
 pub mod gait;
 pub mod main_loop;
 pub mod rig;
+pub mod table3;
 
 pub use config::MahruConfig;
 pub use demo::{MahruDemoOptions, MahruDemoReport, run_mahru_demo};
