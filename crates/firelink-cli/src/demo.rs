@@ -21,6 +21,13 @@ use crate::rt;
 /// Options of `firelink demo`.
 #[derive(Args, Debug, Clone)]
 pub struct DemoArgs {
+    /// The robot: `dvrk` (seed 000's 28 axes) or `mahru` (seed 002's
+    /// humanoid; it uses --duration, --period-us, --config, --json, --quiet).
+    #[arg(long, value_enum, default_value_t = crate::mahru_cmd::RobotChoice::Dvrk)]
+    pub robot: crate::mahru_cmd::RobotChoice,
+    /// MAHRU: the control period in us (default: its configuration's 2000).
+    #[arg(long = "period-us", value_parser = crate::args::period_us)]
+    pub period_us: Option<f64>,
     /// Control rate, Hz (1 to 100000).
     #[arg(long, default_value_t = 6000.0, value_parser = crate::args::rate_hz)]
     pub rate: f64,
@@ -71,6 +78,8 @@ pub struct DemoArgs {
 impl Default for DemoArgs {
     fn default() -> Self {
         DemoArgs {
+            robot: crate::mahru_cmd::RobotChoice::Dvrk,
+            period_us: None,
             rate: 6000.0,
             protocol: "broadcast".into(),
             duration: 3.0,
@@ -187,6 +196,9 @@ fn realtime_setup() -> RealtimeStatus {
 
 /// Run `firelink demo`.
 pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
+    if args.robot == crate::mahru_cmd::RobotChoice::Mahru {
+        return crate::mahru_cmd::run_demo(args, out);
+    }
     let options = options(args)?;
     let quiet = args.quiet || crate::args::quiet();
     if let Some(w) = args.watchdog.warning() {

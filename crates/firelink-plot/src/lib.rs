@@ -7,6 +7,8 @@
 //! from the cost model hollow (and named so in the legend), the paper's
 //! 8-board figures as crosses. Both axes are logarithmic so that the
 //! paper's range (2 to 8 boards) stays readable next to 62 boards.
+//! [`mahru::table3`] draws seed 002's Table III (read time by payload)
+//! from the simulation beside the seed's worst cases.
 //!
 //! The font: `FIRELINK_FONT` if set, else the first of a few usual paths of
 //! DejaVu Sans, Liberation Sans or FreeSans (`apt-get install
@@ -18,6 +20,8 @@ use std::sync::OnceLock;
 use plotters::prelude::*;
 
 use firelink_testbed::bench::{BenchPoint, BenchReport};
+
+pub mod mahru;
 
 /// Why a figure could not be drawn.
 #[derive(Debug, thiserror::Error)]

@@ -146,7 +146,7 @@ impl RtosModel {
             Rtos::Xenomai => (
                 us(22.0),
                 us(5.5),
-                us(6.0),
+                us(7.0),
                 Latency {
                     mean: us(2.0),
                     bound: us(11.0),
@@ -155,10 +155,10 @@ impl RtosModel {
             Rtos::RtLinux => (
                 us(21.0),
                 us(4.5),
-                us(5.0),
+                us(6.0),
                 Latency {
                     mean: us(1.5),
-                    bound: us(7.7),
+                    bound: us(8.7),
                 },
             ),
         };
