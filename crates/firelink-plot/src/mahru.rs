@@ -67,7 +67,10 @@ pub fn table3(report: &Table3Report, path: &Path) -> Result<(), PlotError> {
             points.iter().map(|p| (p.payload as f64, f(p))).collect()
         };
         chart
-            .draw_series(LineSeries::new(line(|p| p.total.max), colour.stroke_width(3)))
+            .draw_series(LineSeries::new(
+                line(|p| p.total.max),
+                colour.stroke_width(3),
+            ))
             .map_err(|e| draw_err(path, e))?
             .label(format!("{rtos}: simulated maximum"))
             .legend(move |(x, y)| {
@@ -83,7 +86,10 @@ pub fn table3(report: &Table3Report, path: &Path) -> Result<(), PlotError> {
             .label(format!("{rtos}: simulated 99th percentile"))
             .legend(move |(x, y)| Circle::new((x + 12, y), 4, colour.filled()));
         chart
-            .draw_series(LineSeries::new(line(|p| p.total.p50), colour.stroke_width(1)))
+            .draw_series(LineSeries::new(
+                line(|p| p.total.p50),
+                colour.stroke_width(1),
+            ))
             .map_err(|e| draw_err(path, e))?
             .label(format!("{rtos}: simulated median"))
             .legend(move |(x, y)| {

@@ -14,7 +14,7 @@ use firelink_board::mahru::{
     BodyParams, DeviceConfig, FtLoad, FtParams, JointParams, ModuleConfig, ModuleNode,
     ResponderTiming,
 };
-use firelink_bus::{NodeHandle, SimDuration, TimedFault};
+use firelink_bus::{HostLink, NodeHandle, SimDuration, TimedFault};
 use firelink_host::HostError;
 use firelink_host::Port;
 use firelink_host::mahru::rtos::Rtos;
@@ -31,7 +31,7 @@ use firelink_wire::mahru::{
     Command, FtBlock, IdCheck, Identity, JointBlock, ModId, ModMask, ModuleKind, ModuleState,
     ParameterRecord, QWRITE_LEN, SetpointSlot,
 };
-use firelink_wire::packet::{Rcode, Speed};
+use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr, Rcode, Speed};
 
 fn motor(id: u8) -> ModuleConfig {
     ModuleConfig {
@@ -142,9 +142,19 @@ fn every_command_code_is_handled_and_unknown_ones_are_ignored() {
         .unwrap();
     port.wait(Duration::from_micros(50));
     assert!(module(&port, h[2]).force_torque().unwrap().biased());
-    // READY (15) and START (16).
-    port.write_quadlet(Dest::BROADCAST, 15, ModMask::ALL.0)
-        .unwrap();
+    // READY (15), sent as the seed's computer sends broadcasts: source ID
+    // 0xFFFF (local bus, node 0x3F); START (16) from the port as usual.
+    let ready = PacketRepr::WriteQuadletRequest {
+        header: AsyncHeader::new(NodeId(0xFFFF), NodeId(0xFFFF), 0),
+        offset: Command::Ready.offset(),
+        data: ModMask::ALL.0,
+    };
+    let mut raw = vec![0u8; ready.buffer_len()];
+    ready.emit(&mut raw).unwrap();
+    let pc = port.host();
+    HostLink::submit_on(port.bus_mut(), pc, raw, Speed::S400).unwrap();
+    port.wait(Duration::from_micros(20));
+    assert_eq!(module(&port, h[0]).state(), ModuleState::Ready);
     port.write_quadlet(Dest::BROADCAST, 16, ModMask::ALL.0)
         .unwrap();
     port.wait(Duration::from_micros(50));

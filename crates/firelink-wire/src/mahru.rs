@@ -22,6 +22,17 @@
 //! | 18 | QWRITE | broadcast block write, 320 bytes | 10 [`SetpointSlot`]s |
 //! | 19 | FTREAD | P2P block read, 24 bytes | answer: [`FtBlock`] |
 //!
+//! **Source ID.** Seed 002 fills the source ID with the node ID or the
+//! ModID "depending on the type of operation", and with 0x3F (the local
+//! bus's broadcast physical ID) in the computer's broadcasts. Here a
+//! module's *responses* carry its node ID, because that is what the
+//! computer's link matches responses by (with the transaction label), as
+//! an OHCI link does; the ModID travels in the data of every answer that
+//! identifies a module (IDREQUEST, IDCHECK, QREAD). Modules take broadcast
+//! commands from any source, so a computer that writes 0xFFFF (bus 0x3FF,
+//! node 0x3F) there, as the seed's does, is obeyed like one that writes its
+//! own node ID.
+//!
 //! The seed gives the codes, the transaction types and the sizes (24 B
 //! from a sensor module, 32 B from a motor controller, 320 B of set-points
 //! for 10 controllers); it does not print the field layouts inside the
