@@ -55,13 +55,13 @@ impl RtosChoice {
 pub enum Table {
     /// Table I: the time budget.
     #[value(name = "1")]
-    I,
+    Budget,
     /// Table III: read time by payload.
     #[value(name = "3")]
-    III,
+    ReadTimes,
     /// Table IV: CAN against 1394.
     #[value(name = "4")]
-    IV,
+    Can,
 }
 
 /// Options of `firelink budget`.
@@ -148,7 +148,7 @@ pub fn run_budget_cmd(args: &BudgetArgs, out: &mut impl Write) -> Result<(), Cli
     let config = config(args.config.as_deref())?;
     let systems = args.rtos.systems();
     let mut json = serde_json::Map::new();
-    if args.tables.contains(&Table::I) {
+    if args.tables.contains(&Table::Budget) {
         let report = run_budget(
             &BudgetOptions {
                 config: config.clone(),
@@ -165,7 +165,7 @@ pub fn run_budget_cmd(args: &BudgetArgs, out: &mut impl Write) -> Result<(), Cli
             writeln!(out, "{report}")?;
         }
     }
-    if args.tables.contains(&Table::III) {
+    if args.tables.contains(&Table::ReadTimes) {
         say(&format!(
             "Table III: {} reads per payload and system",
             args.reads
@@ -190,7 +190,7 @@ pub fn run_budget_cmd(args: &BudgetArgs, out: &mut impl Write) -> Result<(), Cli
             writeln!(out, "{report}")?;
         }
     }
-    if args.tables.contains(&Table::IV) {
+    if args.tables.contains(&Table::Can) {
         let report = run_table4(
             &Table4Options {
                 config,
