@@ -48,6 +48,8 @@ use firelink_wire::mahru::{
 };
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Rcode, Speed, Tcode};
 
+use crate::firmware::emit;
+
 pub use ft::{BodyParams, FtLoad, FtParams, FtSensor};
 pub use joint::{JointParams, MotorController};
 
@@ -598,16 +600,6 @@ fn refused(header: AsyncHeader, rcode: Rcode, block: bool) -> PacketRepr<'static
             data: 0,
         }
     }
-}
-
-/// Emit a packet this module built (fields always in range).
-fn emit(repr: &PacketRepr<'_>) -> Vec<u8> {
-    let mut buf = vec![0u8; repr.buffer_len()];
-    match repr.emit(&mut buf) {
-        Ok(len) => buf.truncate(len),
-        Err(_) => buf.clear(),
-    }
-    buf
 }
 
 impl Node for ModuleNode {

@@ -32,7 +32,7 @@ use firelink_wire::mahru::{
 use super::config::MahruConfig;
 use super::demo::{PhaseSamples, PhaseStats, Stat, bring_up, motion};
 use super::main_loop::MainLoop;
-use super::rig::{build_bus, sbc_port};
+use super::rig::robot_port;
 use crate::TestbedError;
 
 /// What to measure.
@@ -236,14 +236,7 @@ fn measure_transactions(
     config: &MahruConfig,
     samples: u32,
 ) -> Result<TransactionTimes, TestbedError> {
-    let b = build_bus(&config.module_configs(), config.seed)?;
-    let port = sbc_port(
-        b.bus,
-        b.pc,
-        config.rtos()?,
-        config.seed,
-        config.broadcast_speed()?,
-    );
+    let (port, _, _) = robot_port(config)?;
     let layout: RobotLayout = config.layout()?;
     let mut c = MotionController::new(port, layout.clone()).map_err(motion)?;
     c.map_modules().map_err(motion)?;

@@ -18,7 +18,7 @@ use firelink_wire::mahru::{ModuleKind, ModuleState};
 
 use super::config::MahruConfig;
 use super::main_loop::{MainLoop, PeriodTimes};
-use super::rig::{PlacedModule, build_bus, sbc_port};
+use super::rig::{PlacedModule, robot_port};
 use crate::TestbedError;
 
 /// What to run.
@@ -285,20 +285,13 @@ pub(crate) struct Running {
 /// Build the robot of `config` and bring it up (the first SETBIAS while
 /// it hangs, START lowers it to the ground).
 pub(crate) fn bring_up(config: &MahruConfig) -> Result<Running, TestbedError> {
-    let b = build_bus(&config.module_configs(), config.seed)?;
-    let port = sbc_port(
-        b.bus,
-        b.pc,
-        config.rtos()?,
-        config.seed,
-        config.broadcast_speed()?,
-    );
+    let (port, modules, diameter) = robot_port(config)?;
     let mut controller = MotionController::new(port, config.layout()?).map_err(motion)?;
     controller.bring_up().map_err(motion)?;
     Ok(Running {
         controller,
-        modules: b.modules,
-        diameter: b.diameter,
+        modules,
+        diameter,
     })
 }
 

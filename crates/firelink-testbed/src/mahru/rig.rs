@@ -11,6 +11,7 @@ use firelink_host::sim::SimPort;
 use firelink_wire::mahru::ModId;
 use firelink_wire::packet::Speed;
 
+use super::config::MahruConfig;
 use crate::TestbedError;
 
 /// One module on the bus.
@@ -111,10 +112,27 @@ pub fn sbc_port(bus: Bus, pc: NodeHandle, rtos: Rtos, seed: u64, broadcast: Spee
         .with_blocking_broadcasts()
 }
 
+/// The robot of `config` on its bus, behind the computer's port (its
+/// real-time system, seed and broadcast speed), not yet brought up; with
+/// its modules and the bus's diameter.
+///
+/// # Errors
+/// What [`build_bus`] and the configuration's checks find.
+pub fn robot_port(config: &MahruConfig) -> Result<(SimPort, Vec<PlacedModule>, u32), TestbedError> {
+    let b = build_bus(&config.module_configs(), config.seed)?;
+    let port = sbc_port(
+        b.bus,
+        b.pc,
+        config.rtos()?,
+        config.seed,
+        config.broadcast_speed()?,
+    );
+    Ok((port, b.modules, b.diameter))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mahru::config::MahruConfig;
 
     #[test]
     fn three_chains_with_their_hops() {
