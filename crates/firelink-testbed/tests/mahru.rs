@@ -647,6 +647,23 @@ fn table_iii_read_times_by_payload_within_15_percent() {
     let four = report.point(Rtos::Xenomai, 4).unwrap();
     assert!((four.request.max - 29.0).abs() < 0.15 * 29.0);
     assert!((four.response.max - 32.0).abs() < 0.15 * 32.0);
+    // A slow responder dominates: an FPGA answering by itself reads 496
+    // bytes in a fraction of the DSP module's time.
+    let fpga = run_table3(
+        &Table3Options {
+            reads: 2_000,
+            payloads: vec![496],
+            responder: ResponderTiming::IMMEDIATE,
+            ..Table3Options::default()
+        },
+        |_| {},
+    )
+    .unwrap();
+    for rtos in Rtos::ALL {
+        let fast = fpga.point(rtos, 496).unwrap().total.max;
+        let slow = report.point(rtos, 496).unwrap().total.max;
+        assert!(fast < 0.3 * slow, "{rtos}: {fast} vs {slow}");
+    }
     // Seeded: the same run twice gives the same figures.
     let small = Table3Options {
         reads: 500,
