@@ -111,6 +111,12 @@ impl SimPort {
         self
     }
 
+    /// Wait at most `timeout` for a transaction to finish (default 20 ms).
+    pub fn with_timeout(mut self, timeout: Duration) -> SimPort {
+        self.timeout = SimDuration::from_micros_f64(timeout.as_secs_f64() * 1e6);
+        self
+    }
+
     /// Broadcast writes wait until the packet has gone out on the bus (and
     /// then pay the call's `after` cost), as a driver that reports the
     /// transmit completion does.

@@ -393,6 +393,16 @@ fn a_missed_module_stops_the_robot() {
     }
     let dead = bus.node::<ModuleNode>(knee).unwrap().motor().unwrap();
     assert_ne!(dead.flags() & JointBlock::WATCHDOG, 0);
+    // The others were stopped by STOP, within the 1 ms time-out, before
+    // their own watchdogs would have done it.
+    for m in modules.iter().filter(|m| m.handle != knee) {
+        let flags = bus
+            .node::<ModuleNode>(m.handle)
+            .unwrap()
+            .motor()
+            .map_or(0, |j| j.flags());
+        assert_eq!(flags & JointBlock::WATCHDOG, 0, "{}", m.name);
+    }
 }
 
 #[test]

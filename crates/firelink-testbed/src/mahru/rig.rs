@@ -103,13 +103,21 @@ pub fn build_bus(chains: &[Vec<ModuleConfig>], seed: u64) -> Result<MahruBus, Te
     })
 }
 
+/// How long the computer waits for a module's answer: a read takes well
+/// under 0.3 ms, and a module that does not answer must be noticed (and
+/// the robot stopped) long before the other modules' 10 ms watchdogs
+/// would stop them on their own.
+pub const MODULE_TIMEOUT: std::time::Duration = std::time::Duration::from_millis(1);
+
 /// The computer's port on `bus`: `rtos`'s overhead model seeded with
-/// `seed`, broadcasts at `broadcast` speed, returning once sent.
+/// `seed`, broadcasts at `broadcast` speed, returning once sent, and
+/// [`MODULE_TIMEOUT`].
 pub fn sbc_port(bus: Bus, pc: NodeHandle, rtos: Rtos, seed: u64, broadcast: Speed) -> SimPort {
     SimPort::new(bus, pc)
         .with_overhead(RtosModel::new(rtos, seed))
         .with_broadcast_speed(broadcast)
         .with_blocking_broadcasts()
+        .with_timeout(MODULE_TIMEOUT)
 }
 
 /// The robot of `config` on its bus, behind the computer's port (its
