@@ -56,6 +56,25 @@ pub fn linux_gap_count(hops: usize) -> u8 {
     TABLE.get(hops).copied().unwrap_or(63)
 }
 
+/// Set every PHY's gap count to `gap` as the Linux stack does when it is
+/// bus manager: the PC's link `host` sends a PHY configuration packet,
+/// then a bus reset makes it take effect. Nothing is sent if the gap
+/// count is already `gap`.
+pub fn set_gap_count(bus: &mut Bus, host: NodeHandle, gap: u8) {
+    let gap = gap.min(63);
+    if bus.gap_count(host) == Some(gap) {
+        return;
+    }
+    let packet = phy_config_packet(Some(gap), None);
+    if let Ok(token) = HostLink::submit_on(bus, host, packet, Speed::S100) {
+        let deadline = bus.now() + SimDuration::from_micros(1_000);
+        let _ = HostLink::wait_on(bus, host, token, deadline);
+        // The PHYs take the configuration when the subaction ends.
+        bus.run_until_with(deadline, |b| !b.has_pending_traffic());
+    }
+    bus.reset();
+}
+
 impl Default for RigOptions {
     fn default() -> Self {
         RigOptions {
@@ -106,15 +125,8 @@ impl BoardRig {
             Some(GapCount::Fixed(g)) => Some(g.min(63)),
             None => None,
         };
-        if let Some(g) = gap.filter(|g| bus.gap_count(host) != Some(*g)) {
-            let packet = phy_config_packet(Some(g), None);
-            if let Ok(token) = HostLink::submit_on(&mut bus, host, packet, Speed::S100) {
-                let deadline = bus.now() + SimDuration::from_micros(1_000);
-                let _ = HostLink::wait_on(&mut bus, host, token, deadline);
-                // The PHYs take the configuration when the subaction ends.
-                bus.run_until_with(deadline, |b| !b.has_pending_traffic());
-            }
-            bus.reset();
+        if let Some(g) = gap {
+            set_gap_count(&mut bus, host, g);
         }
         BoardRig {
             bus,

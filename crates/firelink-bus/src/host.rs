@@ -575,6 +575,15 @@ impl Transfer {
             _ => Transfer::Quadlet,
         }
     }
+
+    /// Payload bytes moved: 4 for a quadlet, else the block's quadlets
+    /// (at least one).
+    pub fn bytes(self) -> usize {
+        match self {
+            Transfer::Quadlet => 4,
+            Transfer::Block { quadlets } => 4 * quadlets.max(1),
+        }
+    }
 }
 
 /// The PC's per-call software overhead. See the module docs.

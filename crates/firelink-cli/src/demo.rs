@@ -21,9 +21,11 @@ use crate::rt;
 /// Options of `firelink demo`.
 #[derive(Args, Debug, Clone)]
 pub struct DemoArgs {
-    /// Which robot: `dvrk` (seed 000's 28 axes on QLA boards) or `snake`
+    /// Which robot: `dvrk` (seed 000's 28 axes on QLA boards), `snake`
     /// (seed 001's 36 axes on its own 7-channel nodes; also chosen by a
-    /// `--config` whose boards are SNAKE nodes).
+    /// `--config` whose boards are SNAKE nodes) or `mahru` (seed 002's
+    /// humanoid; it uses --duration, --period-us, --config, --json,
+    /// --quiet).
     #[arg(long, value_enum, default_value_t = DemoRobot::Dvrk)]
     pub robot: DemoRobot,
     /// Control rate, Hz (1 to 100000; default 6000, the Snake robot 1000).
@@ -32,6 +34,9 @@ pub struct DemoArgs {
     /// Snake robot: skip the search for the highest rate that holds.
     #[arg(long = "no-rate-search")]
     pub no_rate_search: bool,
+    /// MAHRU: the control period in us (default: its configuration's 2000).
+    #[arg(long = "period-us", value_parser = crate::args::period_us)]
+    pub period_us: Option<f64>,
     /// I/O protocol: broadcast, sequential or seq-bc.
     #[arg(long, default_value = "broadcast")]
     pub protocol: String,
@@ -82,6 +87,7 @@ impl Default for DemoArgs {
             robot: DemoRobot::Dvrk,
             rate: None,
             no_rate_search: false,
+            period_us: None,
             protocol: "broadcast".into(),
             duration: 3.0,
             port: "sim".into(),
@@ -130,6 +136,8 @@ pub enum DemoRobot {
     Dvrk,
     /// Seed 001's Snake robot system on its 7-channel nodes.
     Snake,
+    /// Seed 002's MAHRU humanoid: 14 modules on three chains, walking.
+    Mahru,
 }
 
 /// Show one progress event on stderr (ticks overwrite one line).
@@ -209,6 +217,9 @@ pub(crate) fn realtime_setup() -> RealtimeStatus {
 
 /// Run `firelink demo`.
 pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
+    if args.robot == DemoRobot::Mahru {
+        return crate::mahru_cmd::run_demo(args, out);
+    }
     if crate::snake_demo::wanted(args)? {
         return crate::snake_demo::run(args, out);
     }

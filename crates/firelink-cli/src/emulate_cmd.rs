@@ -92,6 +92,13 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>, Vec<BoardCon
         }
         (None, Some(crate::demo::DemoRobot::Snake)) => Some(presets::snake_seed001()),
         (None, Some(crate::demo::DemoRobot::Dvrk)) => Some(presets::dvrk_seed000()),
+        (None, Some(crate::demo::DemoRobot::Mahru)) => {
+            return Err(CliError::Conflict(
+                "--robot mahru: the MAHRU modules speak seed 002's own protocol, not the \
+                 FPGA1394 bridge's; run `firelink demo --robot mahru`"
+                    .into(),
+            ));
+        }
         (None, None) => None,
     };
     if let Some(c) = config.as_ref().filter(|c| snake::is_snake_config(c)) {

@@ -24,6 +24,9 @@
 //!   [`snake::SnakeSystem`]).
 //! - [`snake`]: seed 001's Snake robot nodes: the node layer over block
 //!   buffers with valid bits, and every Get/Set of the seed's API.
+
+//! - [`mahru`]: seed 002's MotionController for the MAHRU humanoid's
+//!   modules, and its computer's real-time systems as overhead models.
 //!
 //! Protocols never know which port they use, so the same program drives
 //! emulated boards today and real boards over Ethernet tomorrow.
@@ -32,6 +35,7 @@ pub mod board;
 pub mod error;
 pub mod extras;
 pub mod io;
+pub mod mahru;
 pub mod pacing;
 pub mod packet_json;
 pub mod port;

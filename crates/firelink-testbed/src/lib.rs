@@ -20,6 +20,9 @@
 //! - [`soak`]: the fault soak: a million servo cycles with one packet in a
 //!   hundred faulted, every fault accounted for, amplifiers proven off
 //!   whenever the safety chain says so;
+//! - [`mahru`]: seed 002's MAHRU humanoid (14 modules on three chains,
+//!   the MotionController walking it), its time budget (Table I), read
+//!   times by payload (Table III) and the CAN comparison (Table IV);
 //! - [`watchdog`]: the watchdog proof: the host stopped at random moments,
 //!   every board's amplifiers off within the watchdog period plus one tick;
 //! - [`snake`]: seed 001's own system: Snake-node rigs, the 36-axis demo
@@ -35,6 +38,8 @@ pub mod console_homing;
 pub mod demo;
 pub mod error;
 pub mod plant_map;
+
+pub mod mahru;
 pub mod rig;
 pub mod service;
 pub mod snake;

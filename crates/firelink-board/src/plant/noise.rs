@@ -16,6 +16,8 @@ pub enum NoiseChannel {
     Current = 0,
     /// Potentiometer.
     Pot = 1,
+    /// A force/torque sensor's strain gauges (the axis picks the gauge).
+    ForceTorque = 2,
 }
 
 /// SplitMix64's increment (2^64 / golden ratio).
