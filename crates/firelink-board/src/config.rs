@@ -15,6 +15,9 @@ use firelink_wire::board::realtime::{BoardLayout, FirmwareRev};
 pub use firelink_wire::board::registers::FpgaVersion;
 use firelink_wire::board::registers::HardwareVersion;
 
+use firelink_wire::board::extras::{fpga_serial_image, qla_serial_image};
+
+pub use crate::firmware::Instrument;
 use crate::plant::{AxisParams, DEFAULT_STEP, presets};
 use crate::time::TimeDelta;
 
@@ -82,6 +85,15 @@ impl Hardware {
         }
     }
 
+    /// From its name: `QLA1` (or `QLA`) or `DQLA`, any case.
+    pub fn from_name(name: &str) -> Option<Hardware> {
+        match name.to_ascii_uppercase().as_str() {
+            "QLA1" | "QLA" => Some(Hardware::Qla1),
+            "DQLA" => Some(Hardware::Dqla),
+            _ => None,
+        }
+    }
+
     /// The HW_VERSION register (`fpga-board.md` section 2).
     pub fn hardware_version(self) -> HardwareVersion {
         match self {
@@ -121,6 +133,84 @@ pub struct BoardConfig {
     pub motor_supply_present: bool,
     /// Time from power enable to motor supply good.
     pub supply_rise: TimeDelta,
+    /// Digital input lines held high by what is plugged into the board
+    /// (DIGIN bits 11:0: home switches 3:0, positive limits 7:4, negative
+    /// limits 11:8), on top of the plant's own switches: e.g. the contacts
+    /// that tell a dVRK PSM its sterile adapter and instrument are in.
+    pub input_lines: u16,
+    /// Motor supply voltage, V (what `MeasureMotorSupplyVoltage` finds
+    /// through the comparator, `fpga-board-extras.md` §7).
+    pub motor_supply_volts: f64,
+    /// FPGA serial number in the configuration PROM (`1234-56`, at most 11
+    /// characters; `fpga-board-extras.md` §1).
+    pub fpga_serial: String,
+    /// QLA serial number per QLA (one; two on a DQLA), in the QLA PROMs
+    /// (at most 8 characters; `fpga-board-extras.md` §2). Missing ones get
+    /// the default; an invalid one leaves its PROM erased.
+    pub qla_serials: Vec<String>,
+    /// The instrument on the 1-wire line (a tool's DS2505), if any.
+    pub instrument: Option<Instrument>,
+}
+
+/// The default FPGA serial number of board `board_id`: unique per board ID
+/// and the same every run (build `8801`, board number `ID + 1`).
+pub fn default_fpga_serial(board_id: u8) -> String {
+    format!("8801-{:02}", u16::from(board_id & 0xF) + 1)
+}
+
+/// The default serial number of QLA `qla` (0, or 1 for a DQLA's second)
+/// of board `board_id` (build `8802`; a DQLA's second QLA counts from 17).
+pub fn default_qla_serial(board_id: u8, qla: usize) -> String {
+    let n = u16::from(board_id & 0xF) + 1 + 16 * (qla as u16 & 1);
+    format!("8802-{n:02}")
+}
+
+/// The nominal motor supply of board `board_id` in a dVRK controller, as
+/// `dvrktest` expects it (`fpga-board-extras.md` §7): 12 V for the MTMs'
+/// second boards (1, 3), 36 V for the ECM (4, 5), 48 V for board 12, 24 V
+/// elsewhere.
+pub fn nominal_motor_supply_volts(board_id: u8) -> f64 {
+    match board_id & 0xF {
+        1 | 3 => 12.0,
+        4 | 5 => 36.0,
+        12 => 48.0,
+        _ => 24.0,
+    }
+}
+
+/// A configuration value the board cannot hold.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ConfigError {
+    /// A serial number that does not fit its PROM format.
+    #[error(
+        "board {board}: {what} serial number {serial:?} must be 1 to {max} printable characters without spaces"
+    )]
+    Serial {
+        /// Board ID.
+        board: u8,
+        /// "FPGA" or "QLA".
+        what: &'static str,
+        /// The serial given.
+        serial: String,
+        /// Its longest length.
+        max: usize,
+    },
+    /// A board setting that does not parse.
+    #[error("board setting {setting:?}: {why}")]
+    Setting {
+        /// The text given.
+        setting: String,
+        /// What is wrong with it.
+        why: &'static str,
+    },
+    /// A motor supply voltage outside what the comparator can measure.
+    #[error("board {board}: motor supply {volts} V is outside 0..=80 V")]
+    SupplyVolts {
+        /// Board ID.
+        board: u8,
+        /// The voltage given.
+        volts: f64,
+    },
 }
 
 impl BoardConfig {
@@ -138,7 +228,99 @@ impl BoardConfig {
             plant_step: DEFAULT_STEP,
             motor_supply_present: true,
             supply_rise: TimeDelta::from_millis(5),
+            input_lines: 0,
+            motor_supply_volts: nominal_motor_supply_volts(board_id),
+            fpga_serial: default_fpga_serial(board_id),
+            qla_serials: Vec::new(),
+            instrument: None,
         }
+    }
+
+    /// The same board with this FPGA serial number.
+    pub fn with_fpga_serial(mut self, serial: impl Into<String>) -> BoardConfig {
+        self.fpga_serial = serial.into();
+        self
+    }
+
+    /// The same board with QLA `qla`'s serial number set (0; 0 or 1 on a
+    /// DQLA); ignored for a QLA the board does not have.
+    pub fn with_qla_serial(mut self, qla: usize, serial: impl Into<String>) -> BoardConfig {
+        if qla < self.qla_count() {
+            let mut serials = self.qla_serials();
+            if let Some(s) = serials.get_mut(qla) {
+                *s = serial.into();
+            }
+            self.qla_serials = serials;
+        }
+        self
+    }
+
+    /// The same board with another motor supply voltage.
+    pub fn with_motor_supply_volts(mut self, volts: f64) -> BoardConfig {
+        self.motor_supply_volts = volts;
+        self
+    }
+
+    /// The same board with an instrument on its 1-wire line.
+    pub fn with_instrument(mut self, instrument: Instrument) -> BoardConfig {
+        self.instrument = Some(instrument);
+        self
+    }
+
+    /// QLAs on the companion board: 1, or 2 on a DQLA.
+    pub fn qla_count(&self) -> usize {
+        match self.hardware {
+            Hardware::Qla1 => 1,
+            Hardware::Dqla => 2,
+        }
+    }
+
+    /// The QLA serial numbers, one per QLA, defaults filled in.
+    pub fn qla_serials(&self) -> Vec<String> {
+        (0..self.qla_count())
+            .map(|i| {
+                self.qla_serials
+                    .get(i)
+                    .cloned()
+                    .unwrap_or_else(|| default_qla_serial(self.board_id, i))
+            })
+            .collect()
+    }
+
+    /// Check what the board's memories and comparator can hold.
+    ///
+    /// # Errors
+    /// The first [`ConfigError`] found.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        let serial = |what, serial: &str, max, ok: bool| {
+            if ok {
+                Ok(())
+            } else {
+                Err(ConfigError::Serial {
+                    board: self.board_id,
+                    what,
+                    serial: serial.to_string(),
+                    max,
+                })
+            }
+        };
+        use firelink_wire::board::extras::{FPGA_SERIAL_MAX, QLA_SERIAL_MAX};
+        serial(
+            "FPGA",
+            &self.fpga_serial,
+            FPGA_SERIAL_MAX,
+            fpga_serial_image(&self.fpga_serial).is_ok(),
+        )?;
+        for s in self.qla_serials() {
+            serial("QLA", &s, QLA_SERIAL_MAX, qla_serial_image(&s).is_ok())?;
+        }
+        if !(0.0..=80.0).contains(&self.motor_supply_volts) {
+            return Err(ConfigError::SupplyVolts {
+                board: self.board_id,
+                volts: self.motor_supply_volts,
+            });
+        }
+        Ok(())
     }
 
     /// The same board with these axes.
@@ -172,6 +354,13 @@ impl BoardConfig {
     /// The same board with another noise seed.
     pub fn with_seed(mut self, seed: u64) -> BoardConfig {
         self.seed = seed;
+        self
+    }
+
+    /// The same board with these digital input lines held high (DIGIN
+    /// bits 11:0, see [`BoardConfig::input_lines`]).
+    pub fn with_input_lines(mut self, lines: u16) -> BoardConfig {
+        self.input_lines = lines & 0x0FFF;
         self
     }
 
@@ -213,5 +402,214 @@ impl BoardConfig {
     /// DACs.
     pub fn write_block_quadlets(&self) -> usize {
         self.layout().write_block_quadlets()
+    }
+}
+
+/// Settings of one board, as a command line gives them:
+/// `ID:key=value,key=value...` with the keys `hardware` (`QLA1`, `DQLA`),
+/// `fpga-serial`, `qla-serial` (every QLA of the board), `qla2-serial` (a
+/// DQLA's second), `supply-volts` and `instrument`
+/// (`MODEL/VERSION/NAME`).
+///
+/// ```
+/// use firelink_board::config::{BoardConfig, BoardSettings, Hardware, Profile};
+/// let s: BoardSettings = "2:hardware=DQLA,qla-serial=22723,fpga-serial=5496-03".parse().unwrap();
+/// let b = s.apply(BoardConfig::new(2, Hardware::Qla1, Profile::Rev8));
+/// assert_eq!(b.hardware, Hardware::Dqla);
+/// assert_eq!(b.qla_serials(), ["22723", "22723"]);
+/// assert_eq!(b.fpga_serial, "5496-03");
+/// ```
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct BoardSettings {
+    /// The board these settings are for.
+    pub board_id: u8,
+    /// Companion board.
+    pub hardware: Option<Hardware>,
+    /// FPGA serial number.
+    pub fpga_serial: Option<String>,
+    /// Serial number of every QLA of the board.
+    pub qla_serial: Option<String>,
+    /// Serial number of a DQLA's second QLA.
+    pub qla2_serial: Option<String>,
+    /// Motor supply, V.
+    pub supply_volts: Option<f64>,
+    /// Instrument on the 1-wire line.
+    pub instrument: Option<Instrument>,
+}
+
+impl core::str::FromStr for BoardSettings {
+    type Err = ConfigError;
+
+    fn from_str(text: &str) -> Result<BoardSettings, ConfigError> {
+        let bad = |why| ConfigError::Setting {
+            setting: text.to_string(),
+            why,
+        };
+        let (id, rest) = text
+            .split_once(':')
+            .ok_or_else(|| bad("expected ID:key=value,..."))?;
+        let board_id: u8 = id
+            .trim()
+            .parse()
+            .ok()
+            .filter(|id| *id <= 15)
+            .ok_or_else(|| bad("the board ID must be 0..=15"))?;
+        let mut s = BoardSettings {
+            board_id,
+            ..BoardSettings::default()
+        };
+        for pair in rest.split(',').filter(|p| !p.trim().is_empty()) {
+            let (key, value) = pair
+                .split_once('=')
+                .ok_or_else(|| bad("each setting is key=value"))?;
+            let value = value.trim();
+            match key.trim() {
+                "hardware" => {
+                    s.hardware = Some(
+                        Hardware::from_name(value)
+                            .ok_or_else(|| bad("hardware is QLA1 or DQLA"))?,
+                    );
+                }
+                "fpga-serial" => s.fpga_serial = Some(value.to_string()),
+                "qla-serial" => s.qla_serial = Some(value.to_string()),
+                "qla2-serial" => s.qla2_serial = Some(value.to_string()),
+                "supply-volts" => {
+                    s.supply_volts = Some(
+                        value
+                            .parse::<f64>()
+                            .ok()
+                            .filter(|v| v.is_finite())
+                            .ok_or_else(|| bad("supply-volts is a number of volts"))?,
+                    );
+                }
+                "instrument" => {
+                    let mut parts = value.splitn(3, '/');
+                    let model = parts.next().and_then(|m| m.trim().parse::<u32>().ok());
+                    let version = parts.next().and_then(|v| v.trim().parse::<u8>().ok());
+                    let name = parts.next().unwrap_or("").trim().to_string();
+                    match (model, version) {
+                        (Some(model), Some(version)) if model <= 0x00FF_FFFF => {
+                            s.instrument = Some(Instrument {
+                                model,
+                                version,
+                                name,
+                            });
+                        }
+                        _ => return Err(bad("instrument is MODEL/VERSION/NAME (24-bit model)")),
+                    }
+                }
+                _ => {
+                    return Err(bad(
+                        "unknown key: hardware, fpga-serial, qla-serial, qla2-serial, \
+                         supply-volts or instrument",
+                    ));
+                }
+            }
+        }
+        Ok(s)
+    }
+}
+
+impl BoardSettings {
+    /// `board` with these settings applied (the companion board first, so
+    /// the serials land on every QLA it has).
+    pub fn apply(&self, mut board: BoardConfig) -> BoardConfig {
+        if let Some(h) = self.hardware {
+            board.hardware = h;
+        }
+        if let Some(s) = &self.fpga_serial {
+            board.fpga_serial = s.clone();
+        }
+        if let Some(s) = &self.qla_serial {
+            for q in 0..board.qla_count() {
+                board = board.with_qla_serial(q, s.clone());
+            }
+        }
+        if let Some(s) = &self.qla2_serial {
+            board = board.with_qla_serial(1, s.clone());
+        }
+        if let Some(v) = self.supply_volts {
+            board.motor_supply_volts = v;
+        }
+        if let Some(i) = &self.instrument {
+            board.instrument = Some(i.clone());
+        }
+        board
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_unique_stable_and_valid() {
+        let mut seen = std::collections::HashSet::new();
+        for id in 0..16u8 {
+            for hw in [Hardware::Qla1, Hardware::Dqla] {
+                let b = BoardConfig::new(id, hw, Profile::Rev8);
+                assert_eq!(b.check(), Ok(()));
+                assert_eq!(b, BoardConfig::new(id, hw, Profile::Rev8));
+                if hw == Hardware::Dqla {
+                    for s in b.qla_serials() {
+                        assert!(seen.insert(s));
+                    }
+                    assert!(seen.insert(b.fpga_serial.clone()));
+                }
+            }
+        }
+    }
+
+    /// Arbitrary text never panics the settings parser.
+    #[test]
+    fn settings_parser_takes_any_text() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(13);
+        let alphabet = b"0123456789:=,/.-abcdeqlsrtuvwhyDQLA \xff";
+        for _ in 0..20_000 {
+            let len = rng.random_range(0..40);
+            let text: String = (0..len)
+                .map(|_| char::from(alphabet[rng.random_range(0..alphabet.len())]))
+                .collect();
+            if let Ok(s) = text.parse::<BoardSettings>() {
+                let _ = s
+                    .apply(BoardConfig::new(s.board_id, Hardware::Qla1, Profile::Rev8))
+                    .check();
+            }
+        }
+    }
+
+    #[test]
+    fn settings_parse_apply_and_refuse() {
+        let s: BoardSettings =
+            "4:qla-serial=334455,supply-volts=36.5,instrument=400006/3/LARGE NEEDLE DRIVER"
+                .parse()
+                .unwrap();
+        let b = s.apply(BoardConfig::new(4, Hardware::Qla1, Profile::Rev8));
+        assert_eq!(b.qla_serials(), ["334455"]);
+        assert_eq!(b.motor_supply_volts, 36.5);
+        assert_eq!(b.instrument.as_ref().map(|i| i.model), Some(400_006));
+        let s: BoardSettings = "1:hardware=dqla,qla2-serial=X-2".parse().unwrap();
+        let b = s.apply(BoardConfig::new(1, Hardware::Qla1, Profile::Rev8));
+        assert_eq!(
+            b.qla_serials(),
+            [default_qla_serial(1, 0), "X-2".to_string()]
+        );
+        for bad in [
+            "4",
+            "16:hardware=QLA1",
+            "4:colour=red",
+            "4:hardware=QLA9",
+            "4:supply-volts=lots",
+            "4:instrument=1",
+            "4:instrument=x/2/NAME",
+            "4:qla-serial",
+        ] {
+            assert!(bad.parse::<BoardSettings>().is_err(), "{bad}");
+        }
+        // A serial the PROM cannot hold is reported by check().
+        let b = BoardConfig::new(2, Hardware::Qla1, Profile::Rev8).with_qla_serial(0, "123456789");
+        let e = b.check().unwrap_err().to_string();
+        assert!(e.contains("board 2") && e.contains("QLA"), "{e}");
     }
 }

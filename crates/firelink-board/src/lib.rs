@@ -20,6 +20,12 @@
 //!   [`firelink_wire::board`].
 //! - [`node`]: [`BoardNode`](node::BoardNode), the firmware as a
 //!   [`firelink_bus::Node`] on the simulated bus.
+//! - [`snake`]: seed 001's 7-channel Snake robot node, a board model of
+//!   its own beside the QLA (firmware, channels, bus node).
+
+//! - [`mahru`]: seed 002's MAHRU humanoid modules (DSP + FPGA motor
+//!   controllers and force/torque sensors) as bus nodes speaking the
+//!   module protocol of [`firelink_wire::mahru`].
 //!
 //! Everything takes `now`; nothing reads a clock. The same configuration,
 //! seed and packet sequence give the same run, bit for bit.
@@ -50,7 +56,9 @@
 
 pub mod config;
 pub mod firmware;
+pub mod mahru;
 pub mod node;
 pub mod plant;
 pub mod rig;
+pub mod snake;
 pub mod time;

@@ -50,7 +50,7 @@ pub struct BoardNode {
 }
 
 /// The node's PHY registers, reached through the callback context.
-struct CtxPhy<'c, 'a>(&'c mut NodeCtx<'a>);
+pub(crate) struct CtxPhy<'c, 'a>(pub(crate) &'c mut NodeCtx<'a>);
 
 impl PhyAccess for CtxPhy<'_, '_> {
     fn read_phy_register(&mut self, register: u8) -> u8 {

@@ -7,7 +7,8 @@
 
 use firelink_bus::phy::phy_config_packet;
 use firelink_bus::{
-    ArbitrationClass, Bus, BusConfig, HostLink, NodeConfig, NodeHandle, SimDuration, TraceLevel,
+    ArbitrationClass, Bus, BusConfig, HostLink, Node, NodeConfig, NodeHandle, SimDuration,
+    TraceLevel,
 };
 use firelink_wire::packet::Speed;
 
@@ -61,6 +62,25 @@ pub fn linux_gap_count(hops: usize) -> u8 {
     TABLE.get(hops).copied().unwrap_or(63)
 }
 
+/// Set every PHY's gap count to `gap` as the Linux stack does when it is
+/// bus manager: the PC's link `host` sends a PHY configuration packet,
+/// then a bus reset makes it take effect. Nothing is sent if the gap
+/// count is already `gap`.
+pub fn set_gap_count(bus: &mut Bus, host: NodeHandle, gap: u8) {
+    let gap = gap.min(63);
+    if bus.gap_count(host) == Some(gap) {
+        return;
+    }
+    let packet = phy_config_packet(Some(gap), None);
+    if let Ok(token) = HostLink::submit_on(bus, host, &packet, Speed::S100) {
+        let deadline = bus.now() + SimDuration::from_micros(1_000);
+        let _ = HostLink::wait_on(bus, host, token, deadline);
+        // The PHYs take the configuration when the subaction ends.
+        bus.run_until_with(deadline, |b| !b.has_pending_traffic());
+    }
+    bus.reset();
+}
+
 impl Default for RigOptions {
     fn default() -> Self {
         RigOptions {
@@ -78,6 +98,22 @@ impl BoardRig {
     /// Build the bus, add the PC link and the boards, wire the chain and
     /// run the first bus reset.
     pub fn daisy_chain(boards: Vec<BoardConfig>, options: &RigOptions) -> BoardRig {
+        let nodes = boards
+            .into_iter()
+            .map(|cfg| {
+                let name = format!("board{}", cfg.board_id);
+                let node = BoardNode::new(cfg)
+                    .with_name(name)
+                    .with_broadcast(options.broadcast_speed, options.broadcast_class);
+                Box::new(node) as Box<dyn Node>
+            })
+            .collect();
+        BoardRig::daisy_chain_nodes(nodes, options)
+    }
+
+    /// The same with any nodes as the boards (Snake nodes, a mix of
+    /// kinds): the first given gets physical ID 0.
+    pub fn daisy_chain_nodes(nodes: Vec<Box<dyn Node>>, options: &RigOptions) -> BoardRig {
         let mut bus = Bus::new(BusConfig {
             seed: options.seed,
             trace: options.trace,
@@ -85,15 +121,9 @@ impl BoardRig {
             ..BusConfig::default()
         });
         let host = bus.add(HostLink::new("pc"), NodeConfig::pc());
-        let handles: Vec<NodeHandle> = boards
+        let handles: Vec<NodeHandle> = nodes
             .into_iter()
-            .map(|cfg| {
-                let name = format!("board{}", cfg.board_id);
-                let node = BoardNode::new(cfg)
-                    .with_name(name)
-                    .with_broadcast(options.broadcast_speed, options.broadcast_class);
-                bus.add(node, NodeConfig::board())
-            })
+            .map(|node| bus.add_node(node, NodeConfig::board()))
             .collect();
         let mut chain = vec![host];
         chain.extend(handles.iter().rev().copied());
@@ -106,15 +136,8 @@ impl BoardRig {
             Some(GapCount::Fixed(g)) => Some(g.min(63)),
             None => None,
         };
-        if let Some(g) = gap.filter(|g| bus.gap_count(host) != Some(*g)) {
-            let packet = phy_config_packet(Some(g), None);
-            if let Ok(token) = HostLink::submit_on(&mut bus, host, &packet, Speed::S100) {
-                let deadline = bus.now() + SimDuration::from_micros(1_000);
-                let _ = HostLink::wait_on(&mut bus, host, token, deadline);
-                // The PHYs take the configuration when the subaction ends.
-                bus.run_until_with(deadline, |b| !b.has_pending_traffic());
-            }
-            bus.reset();
+        if let Some(g) = gap {
+            set_gap_count(&mut bus, host, g);
         }
         BoardRig {
             bus,

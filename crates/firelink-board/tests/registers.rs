@@ -28,7 +28,7 @@ fn identity_reads() {
                 let mut r = Rig::new(cfg, 3);
                 assert_eq!(r.read(4), code, "HW_VERSION");
                 assert_eq!(r.read(7), fw, "FW_VERSION");
-                assert_eq!(r.read(12), eth, "ETH_STATUS");
+                assert_eq!(r.read(12) & 0x8000_0000, eth, "ETH_STATUS");
                 assert_eq!(r.read(15), 0x1234_5678, "GIT_DESC");
                 let status = r.read(0);
                 assert_eq!(status >> 28, axes, "number of axes");
@@ -49,15 +49,23 @@ fn board_registers() {
     assert_eq!(r.read(3), 0x0100);
     // TEMPERATURE: both sensors at ambient (25 C) at power-up.
     assert_eq!(r.read(5), 0x1919);
-    // DIGITAL_OUT: mask<<8 | (~bits & mask); read back in DIGITAL_IN 15:12.
-    let dout = |mask, outputs| DigitalOutWrite { mask, outputs }.to_word();
-    assert_eq!(dout(0xF, 0b1010), 0x0F05);
-    r.write(6, dout(0xF, 0b1010));
-    assert_eq!((r.read(10) >> 12) & 0xF, 0b1010);
-    r.write(6, dout(0x1, 0)); // output 0 to 0, others kept
-    assert_eq!((r.read(10) >> 12) & 0xF, 0b1010);
-    r.write(6, dout(0x2, 0)); // output 1 to 0
-    assert_eq!((r.read(10) >> 12) & 0xF, 0b1000);
+    // DIGITAL_OUT stores the raw bits written (extras §3): register 6 and
+    // DIGITAL_IN 15:12 read them unmodified. The host means levels and
+    // sends their complement (mask<<8 | (~bits & mask)).
+    assert_eq!(r.read(6), 0, "power-up raw 0");
+    let host = |mask, levels| DigitalOutWrite::levels(mask, levels).to_word();
+    assert_eq!(host(0xF, 0b1010), 0x0F05);
+    r.write(6, host(0xF, 0b1010));
+    assert_eq!(r.read(6) & 0xF, 0b0101);
+    assert_eq!((r.read(10) >> 12) & 0xF, 0b0101);
+    r.write(6, host(0x1, 0)); // output 1 to level 0 (raw 1), others kept
+    assert_eq!((r.read(10) >> 12) & 0xF, 0b0101);
+    r.write(6, host(0x2, 0)); // output 2 to level 0 (raw 1)
+    assert_eq!((r.read(10) >> 12) & 0xF, 0b0111);
+    // Issue 13: writing 0x0F0E reads back 0xE (it used to read 0x1).
+    r.write(6, 0x0F0E);
+    assert_eq!(r.read(6), 0xE);
+    assert_eq!((r.read(10) >> 12) & 0xF, 0xE);
     // DIGITAL_IN at rest: encoder lines at count 0 (A = B = 0, index 1).
     let din = r.read(10);
     assert_eq!((din >> 24) & 0xF, 0, "A lines");
@@ -66,10 +74,8 @@ fn board_registers() {
     // IP_ADDR, little-endian, on an Ethernet-capable FPGA.
     r.write(11, 0x6400_FEA9);
     assert_eq!(r.read(11), 0x6400_FEA9);
-    // PROM registers and unmapped addresses read 0.
-    for offset in [
-        8u64, 9, 13, 14, 0x0100, 0x0F00, 0x2000, 0x3000, 0x4000, 0x7000, 0x8000,
-    ] {
+    // Unmapped addresses (and spaces not modelled) read 0.
+    for offset in [0x0100u64, 0x0F00, 0x3000, 0x5000, 0x7000, 0x9000, 0xF000] {
         assert_eq!(r.read(offset), 0, "offset {offset:#x}");
     }
     // Channel 5 on a 4-axis board is unmapped.
@@ -428,4 +434,16 @@ fn switches_and_pot_follow_the_joint() {
     let volts = axis.pot.offset_volts + axis.pot.volts_per_unit * 0.5;
     let pot = f64::from(r.read(0x30) >> 16) * 4.5 / 65535.0;
     assert!((pot - volts).abs() < 0.005, "{pot} vs {volts}");
+}
+
+#[test]
+fn plugged_in_lines_read_in_digin() {
+    // A dVRK PSM's second QLA1: instrument contact on bit 7 (positive
+    // limit of axis 4), sterile adapter contact on bit 10 (negative limit
+    // of axis 3).
+    let cfg = BoardConfig::new(7, Hardware::Qla1, Profile::Rev8).with_input_lines(0x0480);
+    let mut r = Rig::new(cfg, 2);
+    assert_eq!(r.read(10) & 0x0FFF, 0x0480, "DIGIN");
+    let mut r = rig(Profile::Rev8);
+    assert_eq!(r.read(10) & 0x0FFF, 0, "nothing plugged in");
 }

@@ -13,6 +13,8 @@
 //!   broadcast write call 2.51 us. It is a separate piece: a host port adds
 //!   its costs around the bus transactions. With jitter on, the costs are
 //!   drawn from a seeded distribution with seed 000's standard deviations.
+//!   [`HostModel::seed001`] is seed 001's PC instead: quadlet and block
+//!   transactions priced apart, blocks by their size (Fig. 20 and 21).
 
 use std::collections::{BTreeMap, VecDeque};
 
@@ -511,6 +513,23 @@ pub struct CallCost {
     pub after: SimDuration,
 }
 
+/// How the cost of one kind of call varies from call to call (used when
+/// jitter is on).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Spread {
+    /// A normal deviate with this standard deviation (seed 000's figures).
+    Normal(SimDuration),
+    /// Discrete bands, as seed 001's Fig. 20 shows: the total lands at the
+    /// mean plus `offsets_us[i]` with probability `weights[i]` (weights sum
+    /// to 1 and the offsets average to 0, so the mean is kept).
+    Bands {
+        /// Offsets from the mean total, us.
+        offsets_us: [f64; 3],
+        /// Probability of each band.
+        weights: [f64; 3],
+    },
+}
+
 /// Mean costs and spread of one kind of call.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CallModel {
@@ -518,8 +537,49 @@ pub struct CallModel {
     pub before: SimDuration,
     /// Mean time after the transaction until the call returns.
     pub after: SimDuration,
-    /// Standard deviation of the total (used when jitter is on).
-    pub sd: SimDuration,
+    /// Extra time per quadlet of block payload (copying it through the
+    /// OS): after the transaction for reads, before it for writes.
+    pub per_quadlet: SimDuration,
+    /// How the total varies (used when jitter is on).
+    pub spread: Spread,
+}
+
+/// What a call moves: one quadlet, or a block of some quadlets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Transfer {
+    /// A quadlet read or write.
+    Quadlet,
+    /// A block read or write of this many quadlets.
+    Block {
+        /// Quadlets of payload.
+        quadlets: usize,
+    },
+}
+
+impl Transfer {
+    /// What a request packet moves (anything but a block request counts
+    /// as a quadlet transaction).
+    pub fn of(request: &firelink_wire::packet::PacketRepr<'_>) -> Transfer {
+        use firelink_wire::packet::PacketRepr;
+        match request {
+            PacketRepr::ReadBlockRequest { data_length, .. } => Transfer::Block {
+                quadlets: usize::from(*data_length).div_ceil(4),
+            },
+            PacketRepr::WriteBlockRequest { data, .. } => Transfer::Block {
+                quadlets: data.len().div_ceil(4),
+            },
+            _ => Transfer::Quadlet,
+        }
+    }
+
+    /// Payload bytes moved: 4 for a quadlet, else the block's quadlets
+    /// (at least one).
+    pub fn bytes(self) -> usize {
+        match self {
+            Transfer::Quadlet => 4,
+            Transfer::Block { quadlets } => 4 * quadlets.max(1),
+        }
+    }
 }
 
 /// The PC's per-call software overhead. See the module docs.
@@ -531,6 +591,12 @@ pub struct HostModel {
     pub write: CallModel,
     /// Non-blocking broadcast write.
     pub broadcast_write: CallModel,
+    /// Blocking quadlet read, when it costs differently from a block read
+    /// (`None`: as a block read).
+    pub quadlet_read: Option<CallModel>,
+    /// Blocking quadlet write, when it costs differently from a block
+    /// write (`None`: as a block write).
+    pub quadlet_write: Option<CallModel>,
     rng: Option<ChaCha8Rng>,
 }
 
@@ -543,6 +609,49 @@ pub const SEED000_BROADCAST_CALL_US: f64 = 2.51;
 /// Standard deviations measured in seed 000 (read, write, broadcast call).
 pub const SEED000_SD_US: [f64; 3] = [12.02, 8.56, 2.71];
 
+/// Seed 001's PC (a 2 GHz Pentium 4 under Linux, one node, S400): mean
+/// quadlet read and write transaction times over 9000 iterations (§8.2).
+pub const SEED001_QUADLET_READ_US: f64 = 34.5;
+/// See [`SEED001_QUADLET_READ_US`].
+pub const SEED001_QUADLET_WRITE_US: f64 = 30.2;
+/// Seed 001's block transfers (§8.3, Fig. 21): base latency of a block
+/// read and a block write, us.
+pub const SEED001_BLOCK_BASE_US: [f64; 2] = [33.2, 30.7];
+/// Seed 001's block transfer speeds from the slopes up to 512 quadlets,
+/// Mb/s (read, write).
+pub const SEED001_BLOCK_MBPS: [f64; 2] = [360.0, 290.0];
+/// The bands of Fig. 20, us: quadlet reads at 30, 42 and 49, writes at 27
+/// and 42, the lowest band the most common.
+pub const SEED001_READ_BANDS_US: [f64; 3] = [30.0, 42.0, 49.0];
+/// See [`SEED001_READ_BANDS_US`].
+pub const SEED001_WRITE_BANDS_US: [f64; 2] = [27.0, 42.0];
+/// Spread of block transfers: "about 20 us" of noise on Fig. 21 (§8.4),
+/// taken as +-2 standard deviations.
+pub const SEED001_BLOCK_SD_US: f64 = 5.0;
+
+/// The OS part of a call whose measured mean total is `total_us` for a
+/// transaction of wire time `wire`, split evenly before and after.
+fn split_call(total_us: f64, wire: SimDuration, spread: Spread) -> CallModel {
+    let os = SimDuration::from_micros_f64(total_us) - wire;
+    CallModel {
+        before: SimDuration(os.0 / 2),
+        after: SimDuration(os.0 - os.0 / 2),
+        per_quadlet: SimDuration::ZERO,
+        spread,
+    }
+}
+
+/// Three bands of totals with the paper's mean: the top band of reads
+/// is taken as a tenth of the calls, the rest split so the mean holds.
+fn bands(mean: f64, totals: [f64; 3], top_weight: f64) -> Spread {
+    let [lo, mid, hi] = totals;
+    let mid_weight = ((mean - lo) - top_weight * (hi - lo)) / (mid - lo);
+    Spread::Bands {
+        offsets_us: [lo - mean, mid - mean, hi - mean],
+        weights: [1.0 - mid_weight - top_weight, mid_weight, top_weight],
+    }
+}
+
 impl HostModel {
     /// Seed 000's PC, calibrated for `timing`: the OS part of a call is the
     /// measured total minus the nominal wire time of the transaction the
@@ -551,29 +660,80 @@ impl HostModel {
     pub fn seed000(timing: &BusTiming) -> HostModel {
         let wire_read = timing.nominal_block_read(48, Speed::S400, 1);
         let wire_write = timing.nominal_block_write(16, Speed::S400, 1);
-        let split = |total_us: f64, wire: SimDuration, sd: f64| {
-            let os = SimDuration::from_micros_f64(total_us) - wire;
-            CallModel {
-                before: SimDuration(os.0 / 2),
-                after: SimDuration(os.0 - os.0 / 2),
-                sd: SimDuration::from_micros_f64(sd),
-            }
-        };
+        let normal = |sd: f64| Spread::Normal(SimDuration::from_micros_f64(sd));
         HostModel {
-            read: split(SEED000_READ_US, wire_read, SEED000_SD_US[0]),
-            write: split(SEED000_WRITE_US, wire_write, SEED000_SD_US[1]),
+            read: split_call(SEED000_READ_US, wire_read, normal(SEED000_SD_US[0])),
+            write: split_call(SEED000_WRITE_US, wire_write, normal(SEED000_SD_US[1])),
             broadcast_write: CallModel {
                 before: SimDuration::from_micros_f64(SEED000_BROADCAST_CALL_US),
                 after: SimDuration::ZERO,
-                sd: SimDuration::from_micros_f64(SEED000_SD_US[2]),
+                per_quadlet: SimDuration::ZERO,
+                spread: normal(SEED000_SD_US[2]),
             },
+            quadlet_read: None,
+            quadlet_write: None,
             rng: None,
         }
     }
 
-    /// Draw each cost from a seeded distribution: the mean plus a normal
-    /// deviate with the call's standard deviation, never below a quarter of
-    /// the mean.
+    /// Seed 001's PC, calibrated for `timing` the same way, per kind of
+    /// transaction: quadlet reads and writes take their measured means
+    /// (34.5 and 30.2 us) with the bands of Fig. 20 as their spread; a
+    /// block of `n` quadlets takes the base latency (33.2 us read, 30.7 us
+    /// write) plus `n` quadlets at the measured speed (360 and 290 Mb/s),
+    /// the wire's own share of both subtracted (its intercept and slope
+    /// at S400 to the adjacent node, up to the moment the PC's link has
+    /// the answer: the response of a read, the ack of a write). No jitter
+    /// until [`with_jitter`](Self::with_jitter).
+    pub fn seed001(timing: &BusTiming) -> HostModel {
+        // A read is done for the PC when the response has arrived; its own
+        // ack of the response follows on the wire.
+        let final_ack = timing.ack_gap + timing.ack_time(Speed::S400);
+        let one = |f: &dyn Fn(usize) -> SimDuration, n: usize| f(n).as_micros_f64();
+        let block = |f: &dyn Fn(usize) -> SimDuration, base: f64, mbps: f64| {
+            // The wire is linear in the payload: fit it over the sweep.
+            let (a, b) = (one(f, 1), one(f, 512));
+            let wire_slope = (b - a) / 511.0;
+            let wire_base = a - wire_slope;
+            let target_slope = 32.0 / mbps;
+            let mut m = split_call(
+                base,
+                SimDuration::from_micros_f64(wire_base),
+                Spread::Normal(SimDuration::from_micros_f64(SEED001_BLOCK_SD_US)),
+            );
+            m.per_quadlet = SimDuration::from_micros_f64(target_slope - wire_slope);
+            m
+        };
+        let read_wire = |n: usize| timing.nominal_block_read(4 * n, Speed::S400, 1) - final_ack;
+        let write_wire = |n: usize| timing.nominal_block_write(4 * n, Speed::S400, 1);
+        let [w_lo, w_hi] = SEED001_WRITE_BANDS_US;
+        HostModel {
+            read: block(&read_wire, SEED001_BLOCK_BASE_US[0], SEED001_BLOCK_MBPS[0]),
+            write: block(&write_wire, SEED001_BLOCK_BASE_US[1], SEED001_BLOCK_MBPS[1]),
+            // The seed's node ignores broadcasts; a broadcast call costs
+            // what a write call costs before the packet goes out.
+            broadcast_write: CallModel {
+                before: SimDuration::from_micros_f64(SEED001_BLOCK_BASE_US[1] / 2.0),
+                after: SimDuration::ZERO,
+                per_quadlet: SimDuration::ZERO,
+                spread: Spread::Normal(SimDuration::from_micros_f64(SEED001_BLOCK_SD_US)),
+            },
+            quadlet_read: Some(split_call(
+                SEED001_QUADLET_READ_US,
+                timing.nominal_quadlet_read(Speed::S400, 1) - final_ack,
+                bands(SEED001_QUADLET_READ_US, SEED001_READ_BANDS_US, 0.1),
+            )),
+            quadlet_write: Some(split_call(
+                SEED001_QUADLET_WRITE_US,
+                timing.nominal_quadlet_write(Speed::S400, 1),
+                bands(SEED001_QUADLET_WRITE_US, [w_lo, w_hi, w_hi], 0.0),
+            )),
+            rng: None,
+        }
+    }
+
+    /// Draw each cost from a seeded distribution: the mean plus a deviate
+    /// of the call's [`Spread`], never below a quarter of the mean.
     pub fn with_jitter(mut self, seed: u64) -> HostModel {
         self.rng = Some(ChaCha8Rng::seed_from_u64(seed ^ 0x05_0000_1394));
         self
@@ -584,38 +744,93 @@ impl HostModel {
         self.rng.is_some()
     }
 
-    /// The model of one kind of call.
-    pub fn model(&self, call: HostCall) -> CallModel {
-        match call {
-            HostCall::Read => self.read,
-            HostCall::Write => self.write,
-            HostCall::BroadcastWrite => self.broadcast_write,
+    /// The model of one kind of call moving `transfer`.
+    pub fn model_of(&self, call: HostCall, transfer: Transfer) -> CallModel {
+        match (call, transfer) {
+            (HostCall::Read, Transfer::Quadlet) => self.quadlet_read.unwrap_or(self.read),
+            (HostCall::Write, Transfer::Quadlet) => self.quadlet_write.unwrap_or(self.write),
+            (HostCall::Read, _) => self.read,
+            (HostCall::Write, _) => self.write,
+            (HostCall::BroadcastWrite, _) => self.broadcast_write,
         }
     }
 
-    /// The cost of one call (a fresh draw when jitter is on).
-    pub fn cost(&mut self, call: HostCall) -> CallCost {
-        let m = self.model(call);
-        let Some(rng) = self.rng.as_mut() else {
-            return CallCost {
-                before: m.before,
-                after: m.after,
-            };
+    /// The model of one kind of call (block transfers).
+    pub fn model(&self, call: HostCall) -> CallModel {
+        self.model_of(call, Transfer::Block { quadlets: 0 })
+    }
+
+    /// The mean cost of one call moving `transfer`, before and after its
+    /// transaction.
+    pub fn mean_cost(&self, call: HostCall, transfer: Transfer) -> CallCost {
+        let m = self.model_of(call, transfer);
+        let quadlets = match transfer {
+            Transfer::Quadlet => 0,
+            Transfer::Block { quadlets } => quadlets as u64,
         };
-        let z = standard_normal(rng);
-        let mean = (m.before + m.after).as_micros_f64();
-        let total = (mean + z * m.sd.as_micros_f64()).max(mean / 4.0);
-        let scale = if mean > 0.0 { total / mean } else { 1.0 };
-        CallCost {
-            before: SimDuration::from_micros_f64(m.before.as_micros_f64() * scale),
-            after: SimDuration::from_micros_f64(m.after.as_micros_f64() * scale),
+        let copy = SimDuration(m.per_quadlet.0.saturating_mul(quadlets));
+        match call {
+            HostCall::Read => CallCost {
+                before: m.before,
+                after: m.after + copy,
+            },
+            HostCall::Write | HostCall::BroadcastWrite => CallCost {
+                before: m.before + copy,
+                after: m.after,
+            },
         }
     }
+
+    /// The cost of one call moving `transfer` (a fresh draw when jitter
+    /// is on).
+    pub fn cost_of(&mut self, call: HostCall, transfer: Transfer) -> CallCost {
+        let mean_cost = self.mean_cost(call, transfer);
+        let spread = self.model_of(call, transfer).spread;
+        let Some(rng) = self.rng.as_mut() else {
+            return mean_cost;
+        };
+        let mean = (mean_cost.before + mean_cost.after).as_micros_f64();
+        let deviation = match spread {
+            Spread::Normal(sd) => standard_normal(rng) * sd.as_micros_f64(),
+            Spread::Bands {
+                offsets_us,
+                weights,
+            } => {
+                let u = unit(rng);
+                let mut acc = 0.0;
+                let mut pick = offsets_us[0];
+                for (offset, weight) in offsets_us.iter().zip(weights) {
+                    acc += weight;
+                    pick = *offset;
+                    if u < acc {
+                        break;
+                    }
+                }
+                pick
+            }
+        };
+        let total = (mean + deviation).max(mean / 4.0);
+        let scale = if mean > 0.0 { total / mean } else { 1.0 };
+        CallCost {
+            before: SimDuration::from_micros_f64(mean_cost.before.as_micros_f64() * scale),
+            after: SimDuration::from_micros_f64(mean_cost.after.as_micros_f64() * scale),
+        }
+    }
+
+    /// The cost of one call (block transfers of no payload; a fresh draw
+    /// when jitter is on).
+    pub fn cost(&mut self, call: HostCall) -> CallCost {
+        self.cost_of(call, Transfer::Block { quadlets: 0 })
+    }
+}
+
+/// A uniform deviate in (0, 1) from a seeded RNG.
+fn unit(rng: &mut ChaCha8Rng) -> f64 {
+    ((rng.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
 }
 
 /// A standard normal deviate (Box-Muller) from a seeded RNG.
 fn standard_normal(rng: &mut ChaCha8Rng) -> f64 {
-    let unit = |rng: &mut ChaCha8Rng| ((rng.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
     let u1 = unit(rng);
     let u2 = unit(rng);
     (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
@@ -639,6 +854,67 @@ mod tests {
             m.cost(HostCall::BroadcastWrite).before,
             SimDuration::from_micros_f64(2.51)
         );
+    }
+
+    #[test]
+    fn seed001_calibration_adds_up() {
+        let t = BusTiming::default();
+        let m = HostModel::seed001(&t);
+        let final_ack = t.ack_gap + t.ack_time(Speed::S400);
+        let total = |call, transfer, wire: SimDuration| {
+            let c = m.mean_cost(call, transfer);
+            (c.before + c.after + wire).as_micros_f64()
+        };
+        let q = total(
+            HostCall::Read,
+            Transfer::Quadlet,
+            t.nominal_quadlet_read(Speed::S400, 1) - final_ack,
+        );
+        assert!((q - 34.5).abs() < 1e-5, "{q}");
+        let q = total(
+            HostCall::Write,
+            Transfer::Quadlet,
+            t.nominal_quadlet_write(Speed::S400, 1),
+        );
+        assert!((q - 30.2).abs() < 1e-5, "{q}");
+        // Blocks: base + n x 32 bits at the measured speed.
+        for n in [1usize, 7, 23, 100, 512] {
+            let r = total(
+                HostCall::Read,
+                Transfer::Block { quadlets: n },
+                t.nominal_block_read(4 * n, Speed::S400, 1) - final_ack,
+            );
+            let expect = 33.2 + n as f64 * 32.0 / 360.0;
+            assert!((r - expect).abs() < 1e-3, "{n}: {r} vs {expect}");
+            let w = total(
+                HostCall::Write,
+                Transfer::Block { quadlets: n },
+                t.nominal_block_write(4 * n, Speed::S400, 1),
+            );
+            let expect = 30.7 + n as f64 * 32.0 / 290.0;
+            assert!((w - expect).abs() < 1e-3, "{n}: {w} vs {expect}");
+        }
+    }
+
+    #[test]
+    fn seed001_bands_keep_the_mean() {
+        let t = BusTiming::default();
+        let mut m = HostModel::seed001(&t).with_jitter(1);
+        let final_ack = t.ack_gap + t.ack_time(Speed::S400);
+        let wire = (t.nominal_quadlet_read(Speed::S400, 1) - final_ack).as_micros_f64();
+        let draws: Vec<f64> = (0..20_000)
+            .map(|_| {
+                let c = m.cost_of(HostCall::Read, Transfer::Quadlet);
+                (c.before + c.after).as_micros_f64() + wire
+            })
+            .collect();
+        let mean = draws.iter().sum::<f64>() / draws.len() as f64;
+        assert!((mean - 34.5).abs() < 0.3, "{mean}");
+        // Three bands, the lowest the most common.
+        let near = |b: f64| draws.iter().filter(|d| (*d - b).abs() < 0.01).count();
+        let (lo, mid, hi) = (near(30.0), near(42.0), near(49.0));
+        assert_eq!(lo + mid + hi, draws.len());
+        assert!(lo > mid && mid > hi && hi > 0, "{lo} {mid} {hi}");
     }
 
     #[test]

@@ -55,7 +55,7 @@ pub mod trace;
 pub use bus::{Bus, BusConfig, NodeConfig, TraceLevel};
 pub use error::BusError;
 pub use fault::{FaultPlan, FaultRule, PacketFault, PacketMatch, TimedFault};
-pub use host::{HostLink, HostModel};
+pub use host::{HostLink, HostModel, Transfer};
 pub use node::{ArbitrationClass, Node, NodeCtx, NodeHandle, ResetInfo, RxReply, TransmitRequest};
 pub use time::{SimDuration, SimTime};
 pub use timing::BusTiming;

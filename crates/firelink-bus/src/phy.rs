@@ -12,6 +12,12 @@
 //! | 5 | 6 ISBR (initiate short bus reset), others interrupt enables | read/write |
 //! | 7 | 7:5 page select, 3:0 port select | read/write |
 //!
+//! Register 3's delay field gives the PHY's worst-case repeater delay as
+//! `144 + 20 x delay` ns; the PHYs here repeat in 144 ns (the bus timing's
+//! figure), so it reads 0, as the FPGA1394's PHY does: a board reads
+//! `0x40` (S400, delay 0) and `0xE2` in register 2 (`fpga-board-extras.md`
+//! §8, fpgatest `f`).
+//!
 //! Gap-count rule (1394a): a PHY configuration packet with the gap-count bit
 //! set changes every PHY's gap count; a bus reset keeps that value, but the
 //! gap count returns to 63 after a bus reset that was not preceded by such a
@@ -36,11 +42,11 @@ impl Default for PhyRegisters {
 }
 
 impl PhyRegisters {
-    /// A PHY off any bus with physical ID `phy_id`: 3 ports, S400, gap
-    /// count 63 (what a board's firmware reaches through PHY_CTRL when it
-    /// runs without a bus).
+    /// A PHY off any bus with physical ID `phy_id` as the FPGA1394 has it:
+    /// 2 ports, S400, gap count 63 (what a board's firmware reaches through
+    /// PHY_CTRL when it runs without a bus).
     pub fn new(phy_id: u8) -> PhyRegisters {
-        let mut r = PhyRegisters::with_ports(3, Speed::S400);
+        let mut r = PhyRegisters::with_ports(2, Speed::S400);
         r.set_identity(phy_id, false);
         r
     }
@@ -52,7 +58,7 @@ impl PhyRegisters {
         regs[0] = 0x3F << 2;
         regs[1] = DEFAULT_GAP_COUNT;
         regs[2] = (7 << 5) | (ports & 0x1F);
-        regs[3] = (speed.code() << 5) | 0x0F;
+        regs[3] = speed.code() << 5;
         regs[4] = 0x80 | 0x04; // link active, power class 4
         PhyRegisters { regs }
     }
@@ -181,7 +187,9 @@ mod tests {
         assert_eq!(r.phy_id(), 63);
         assert_eq!(r.gap_count(), 63);
         assert_eq!(r.read(2), 0xE3);
-        assert_eq!(r.read(3) >> 5, 2);
+        assert_eq!(r.read(3), 0x40, "S400, repeater delay 0 (144 ns)");
+        assert_eq!(PhyRegisters::with_ports(2, Speed::S400).read(2), 0xE2);
+        assert_eq!(PhyRegisters::new(4).read(2), 0xE2, "the FPGA1394's PHY");
         assert_eq!(r.read(200), 0);
         r.set_identity(5, true);
         assert_eq!(r.read(0), (5 << 2) | 2);

@@ -147,6 +147,31 @@ impl BusTiming {
             + self.ack_time(speed)
     }
 
+    /// Nominal wire time of a concatenated quadlet read between two nodes
+    /// `hops` apart (16-byte request, ack_pending, 20-byte response, final
+    /// ack), when the requester is the root.
+    pub fn nominal_quadlet_read(&self, speed: Speed, hops: u32) -> SimDuration {
+        let prop = self.hop_delay * u64::from(hops);
+        self.packet_time(16, speed)
+            + prop
+            + self.ack_gap
+            + self.data_prefix
+            + self.bits(ACK_BITS, speed)
+            + self.concat_prefix
+            + self.payload_time(20, speed)
+            + self.data_end
+            + prop
+            + self.ack_gap
+            + self.ack_time(speed)
+    }
+
+    /// Nominal wire time of a unified quadlet write (a 20-byte request and
+    /// ack_complete).
+    pub fn nominal_quadlet_write(&self, speed: Speed, hops: u32) -> SimDuration {
+        let prop = self.hop_delay * u64::from(hops);
+        self.packet_time(20, speed) + prop + self.ack_gap + self.ack_time(speed)
+    }
+
     /// Nominal wire time of a unified block write (request and ack_complete).
     pub fn nominal_block_write(&self, payload: usize, speed: Speed, hops: u32) -> SimDuration {
         let prop = self.hop_delay * u64::from(hops);

@@ -90,9 +90,18 @@ pub struct BenchArgs {
     /// the PC's fairness interval restarts), as at seed 000's 6 kHz.
     #[arg(long = "idle-us", default_value_t = 50.0, value_parser = crate::args::wait_us)]
     pub idle_us: f64,
-    /// Write a PNG plot of I/O time against boards here.
+    /// Write a PNG plot of I/O time against boards here (with `--seed
+    /// 001`: that paper's Fig. 20 and 21).
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// Reproduce a seed paper's own measurements instead: `001`, seed
+    /// 001's quadlet and block transaction times and servo budgets on one
+    /// Snake node with its PC's model (the other options do not apply).
+    #[arg(long, value_enum)]
+    pub seed: Option<crate::seed001_bench::SeedPaper>,
+    /// With `--seed 001`: quadlet reads and writes each (the paper: 9000).
+    #[arg(long, default_value_t = 9000, value_parser = crate::args::cycles)]
+    pub iterations: u64,
     /// Print JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -123,6 +132,9 @@ pub fn options(args: &BenchArgs) -> Result<BenchOptions, CliError> {
 
 /// Run `firelink bench`.
 pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
+    if args.seed.is_some() {
+        return crate::seed001_bench::run(args, out);
+    }
     let options = options(args)?;
     let quiet = crate::args::quiet();
     let report = run_bench(&options, |t, proto, n| {

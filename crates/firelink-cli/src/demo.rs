@@ -74,9 +74,22 @@ fn parse_port(text: &str) -> Result<DemoPort, String> {
 /// Options of `firelink demo`.
 #[derive(Args, Debug, Clone)]
 pub struct DemoArgs {
-    /// Control rate, Hz (1 to 100000).
-    #[arg(long, default_value_t = 6000.0, value_parser = crate::args::rate_hz)]
-    pub rate: f64,
+    /// Which robot: `dvrk` (seed 000's 28 axes on QLA boards), `snake`
+    /// (seed 001's 36 axes on its own 7-channel nodes; also chosen by a
+    /// `--config` whose boards are SNAKE nodes) or `mahru` (seed 002's
+    /// humanoid; it uses --duration, --period-us, --config, --json,
+    /// --quiet).
+    #[arg(long, value_enum, default_value_t = DemoRobot::Dvrk)]
+    pub robot: DemoRobot,
+    /// Control rate, Hz (1 to 100000; default 6000, the Snake robot 1000).
+    #[arg(long, value_parser = crate::args::rate_hz)]
+    pub rate: Option<f64>,
+    /// Snake robot: skip the search for the highest rate that holds.
+    #[arg(long = "no-rate-search")]
+    pub no_rate_search: bool,
+    /// MAHRU: the control period in us (default: its configuration's 2000).
+    #[arg(long = "period-us", value_parser = crate::args::period_us)]
+    pub period_us: Option<f64>,
     /// I/O protocol.
     #[arg(long, value_enum, default_value_t = ProtocolArg::Broadcast)]
     pub protocol: ProtocolArg,
@@ -121,7 +134,10 @@ pub struct DemoArgs {
 impl Default for DemoArgs {
     fn default() -> Self {
         DemoArgs {
-            rate: 6000.0,
+            robot: DemoRobot::Dvrk,
+            rate: None,
+            no_rate_search: false,
+            period_us: None,
             protocol: ProtocolArg::Broadcast,
             duration: 3.0,
             port: DemoPort::Sim,
@@ -163,8 +179,19 @@ fn progress_line(event: &DemoProgress) -> Option<String> {
     })
 }
 
+/// The demo's robots.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DemoRobot {
+    /// Seed 000's da Vinci Research Kit on QLA boards.
+    Dvrk,
+    /// Seed 001's Snake robot system on its 7-channel nodes.
+    Snake,
+    /// Seed 002's MAHRU humanoid: 14 modules on three chains, walking.
+    Mahru,
+}
+
 /// Show one progress event on stderr (ticks overwrite one line).
-fn show(event: &DemoProgress, ticking: &mut bool) {
+pub(crate) fn show(event: &DemoProgress, ticking: &mut bool) {
     if let DemoProgress::Tick {
         t,
         cycles,
@@ -198,7 +225,7 @@ pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
     let watchdog = args.watchdog.period();
     Ok(DemoOptions {
         config,
-        rate_hz: args.rate,
+        rate_hz: args.rate.unwrap_or(6000.0),
         protocol: args.protocol.into(),
         duration_s: args.duration,
         port: args.port.clone(),
@@ -209,7 +236,7 @@ pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
     })
 }
 
-fn realtime_setup() -> RealtimeStatus {
+pub(crate) fn realtime_setup() -> RealtimeStatus {
     let s = rt::setup(80);
     RealtimeStatus {
         requested: true,
@@ -222,6 +249,12 @@ fn realtime_setup() -> RealtimeStatus {
 
 /// Run `firelink demo`.
 pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
+    if args.robot == DemoRobot::Mahru {
+        return crate::mahru_cmd::run_demo(args, out);
+    }
+    if crate::snake_demo::wanted(args)? {
+        return crate::snake_demo::run(args, out);
+    }
     let options = options(args)?;
     let quiet = args.quiet || crate::args::quiet();
     if let Some(w) = args.watchdog.warning() {

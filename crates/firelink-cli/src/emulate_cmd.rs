@@ -10,15 +10,17 @@ use std::time::Duration;
 
 use clap::Args;
 
-use firelink_board::config::Profile;
+use firelink_board::config::{BoardConfig, BoardSettings, Profile};
 use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_bus::Node;
 use firelink_bus::{FaultRule, PacketFault, PacketMatch, SimDuration, TimedFault};
-use firelink_control::config::IoConfig;
+use firelink_control::config::{IoConfig, presets};
 use firelink_emulate::{Bridge, Event, ServeConfig};
 
 use crate::CliError;
 use crate::args::{FirmwareArg, HardwareArg};
-use firelink_testbed::rig::{board_configs, generic_boards};
+use firelink_testbed::rig::{board_configs, generic_boards, qla_nodes};
+use firelink_testbed::snake;
 
 /// Options of `firelink emulate`.
 #[derive(Args, Debug)]
@@ -27,15 +29,27 @@ pub struct EmulateArgs {
     #[arg(long, default_value_t = 8, conflicts_with = "config", value_parser = crate::args::board_count)]
     pub boards: u8,
     /// A robot configuration (saw-robot-io v6 JSON): emulate its boards
-    /// with matching plants.
+    /// with matching plants (SNAKE boards: seed 001's 7-channel nodes).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Emulate seed 001's 36-axis Snake system on its 7-channel nodes
+    /// (`configs/snake-seed001.json`), for `firelink snake-tool` and
+    /// `firelink demo --robot snake --port udp:...`.
+    #[arg(long, value_enum, conflicts_with_all = ["config", "boards"])]
+    pub robot: Option<crate::demo::DemoRobot>,
     /// Firmware (seed: seed 000's TDMA and 0xFFFF rule).
     #[arg(long, value_enum, default_value_t = FirmwareArg::Rev8)]
     pub firmware: FirmwareArg,
     /// Companion board of every board.
     #[arg(long, value_enum, default_value_t = HardwareArg::Qla1)]
     pub hardware: HardwareArg,
+    /// One board's settings (repeatable): `ID:key=value,...` with keys
+    /// hardware (QLA1, DQLA), fpga-serial, qla-serial, qla2-serial,
+    /// supply-volts, instrument (MODEL/VERSION/NAME). Serials default to
+    /// unique ones per board ID (with --config: the QLA serial is the
+    /// arm's serial_number).
+    #[arg(long = "board-set", value_name = "ID:KEY=VALUE,...")]
+    pub board_set: Vec<BoardSettings>,
     /// Seed of the measurement noise and the fault injector.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -69,13 +83,35 @@ pub struct EmulateArgs {
 }
 
 /// Build the bridge of `args`: the boards on a simulated bus with the
-/// faults asked for, and their IDs.
-pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
-    let boards = match &args.config {
-        Some(path) => {
-            let config = IoConfig::load(path)?;
+/// faults asked for, the board IDs on it and the configurations of its
+/// QLA boards (none for Snake nodes).
+pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>, Vec<BoardConfig>), CliError> {
+    let config = match (&args.config, args.robot) {
+        (Some(path), _) => Some(IoConfig::load(path)?),
+        (None, Some(crate::demo::DemoRobot::Snake)) => Some(presets::snake_seed001()),
+        (None, Some(crate::demo::DemoRobot::Dvrk)) => Some(presets::dvrk_seed000()),
+        (None, Some(crate::demo::DemoRobot::Mahru)) => {
+            return Err(CliError::NotSupported {
+                option: "--robot mahru",
+                reason: "the MAHRU modules speak seed 002's own protocol, not the FPGA1394 \
+                         bridge's; run `firelink demo --robot mahru`",
+            });
+        }
+        (None, None) => None,
+    };
+    if let Some(c) = config.as_ref().filter(|c| snake::is_snake_config(c)) {
+        let nodes = snake::node_configs(c, args.seed)?;
+        let ids = nodes.iter().map(|n| n.board_id).collect();
+        let (bridge, ids) = assemble(args, snake::nodes(nodes), ids)?;
+        return Ok((bridge, ids, Vec::new()));
+    }
+    let boards = match &config {
+        Some(config) => {
+            for note in firelink_testbed::plant_map::notes(config) {
+                eprintln!("note: {note}");
+            }
             let count = config.board_slots();
-            board_configs(&config, args.firmware.into(), count)
+            board_configs(config, args.firmware.into(), count)
         }
         // The board count was range-checked by clap (1..=16).
         None => generic_boards(
@@ -85,7 +121,32 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
             args.seed,
         ),
     };
+    let mut boards = boards;
+    for set in &args.board_set {
+        let board = boards
+            .iter_mut()
+            .find(|b| b.board_id == set.board_id)
+            .ok_or(CliError::NoSuchBoard {
+                option: "--board-set",
+                board: set.board_id,
+            })?;
+        *board = set.apply(board.clone());
+    }
+    for b in &boards {
+        b.check()?;
+    }
     let ids: Vec<u8> = boards.iter().map(|b| b.board_id).collect();
+    let (bridge, ids) = assemble(args, qla_nodes(boards.clone()), ids)?;
+    Ok((bridge, ids, boards))
+}
+
+/// The bus of `nodes` (board IDs `ids`) with the faults `args` ask for,
+/// behind the bridge.
+fn assemble(
+    args: &EmulateArgs,
+    nodes: Vec<Box<dyn Node>>,
+    ids: Vec<u8>,
+) -> Result<(Bridge, Vec<u8>), CliError> {
     let bridge_index = match args.bridge_board {
         Some(id) => ids
             .iter()
@@ -96,8 +157,8 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
             })?,
         None => 0,
     };
-    let mut rig = BoardRig::daisy_chain(
-        boards,
+    let mut rig = BoardRig::daisy_chain_nodes(
+        nodes,
         &RigOptions {
             seed: args.seed,
             ..RigOptions::default()
@@ -157,7 +218,7 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>), CliError> {
 
 /// `firelink emulate`.
 pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
-    let (mut bridge, ids) = build_bridge(args)?;
+    let (mut bridge, ids, boards) = build_bridge(args)?;
     let config = ServeConfig {
         listen: args.listen,
         loopback_broadcast: !args.no_broadcast,
@@ -174,7 +235,12 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
             stop.store(true, std::sync::atomic::Ordering::Relaxed);
         });
     }
+    let snake = bridge
+        .bus()
+        .node::<firelink_board::snake::SnakeNode>(firelink_bus::NodeHandle(1))
+        .is_some();
     let firmware = match Profile::from(args.firmware) {
+        _ if snake => "seed 001 Snake node",
         Profile::Rev7 => "Rev 7",
         Profile::Rev8 => "Rev 8",
         Profile::Seed => "seed 000",
@@ -186,6 +252,21 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
         ids,
         bridge.generation()
     )?;
+    for b in &boards {
+        writeln!(
+            out,
+            "  board {}: {}, FPGA serial {}, QLA serial {}, motor supply {} V{}",
+            b.board_id,
+            b.hardware.hardware_version().name(),
+            b.fpga_serial,
+            b.qla_serials().join(" / "),
+            b.motor_supply_volts,
+            b.instrument
+                .as_ref()
+                .map(|i| format!(", instrument {} ({})", i.model, i.name))
+                .unwrap_or_default()
+        )?;
+    }
     out.flush()?;
     let mut log = |e: Event| {
         let line = match e {

@@ -11,11 +11,15 @@ mod companion;
 mod demo;
 mod emulate_cmd;
 mod hex;
+mod mahru_cmd;
 mod monitor;
 mod packet_cmd;
 mod ports;
 mod rt;
+mod seed001_bench;
 mod sim;
+mod snake_demo;
+mod snake_tool;
 mod soak_cmd;
 mod tour;
 
@@ -58,15 +62,23 @@ enum Command {
     Monitor(monitor::MonitorArgs),
     /// Simulate one I/O cycle on the simulated 1394a bus; print phase times.
     Sim(sim::SimArgs),
-    /// The main job: the 28-axis dVRK of seed 000 on emulated boards (the default).
+    /// The main job: the 28-axis dVRK of seed 000 on emulated boards (the default;
+    /// `--robot mahru`: seed 002's humanoid walking).
     Demo(demo::DemoArgs),
     /// I/O time per cycle vs boards and protocol: simulated bus and loopback UDP.
     Bench(bench::BenchArgs),
+    /// Seed 002's timing analysis of the MAHRU humanoid: Table I (the time
+    /// budget, from simulated transactions and end to end), Table III
+    /// (read time by payload, Xenomai and RTLinux), Table IV (CAN vs 1394).
+    Budget(Box<mahru_cmd::BudgetArgs>),
     /// Emulated boards behind an Ethernet bridge on UDP (127.0.0.1:1394).
     Emulate(Box<emulate_cmd::EmulateArgs>),
     /// Fault soak: millions of servo cycles with faulted packets, every
     /// fault accounted for; then the watchdog proof.
     Soak(soak_cmd::SoakArgs),
+    /// Seed 001's test and configuration program for its Snake nodes
+    /// (terminal UI, or scripted with `exec`).
+    SnakeTool(snake_tool::SnakeToolArgs),
     /// The web console (runs `firelink-web`, built by `cargo build -p
     /// firelink-web`; its options: `firelink web --help`).
     #[command(disable_help_flag = true)]
@@ -318,7 +330,9 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Sim(args) => sim::run(&args, &mut out)?,
         Command::Demo(args) => demo::run(&args, &mut out)?,
         Command::Bench(args) => bench::run(&args, &mut out)?,
+        Command::Budget(args) => mahru_cmd::run_budget_cmd(&args, &mut out)?,
         Command::Soak(args) => soak_cmd::run(&args, &mut out)?,
+        Command::SnakeTool(args) => snake_tool::run(&args, &mut out)?,
         Command::Web { args } => companion::run("firelink-web", &args)?,
         Command::Ros2 { args } => companion::run("firelink-ros2", &args)?,
     }

@@ -10,17 +10,15 @@ fn firelink() -> Command {
     Command::new(env!("CARGO_BIN_EXE_firelink"))
 }
 
-#[test]
-fn emulate_scan_read_and_clean_shutdown() {
+type Lines = std::io::Lines<BufReader<std::process::ChildStdout>>;
+
+/// `firelink emulate` with `args` on an ephemeral loopback port: the
+/// server, its remaining output lines and the `--port` string to reach it.
+fn start_emulate(args: &[&str]) -> (std::process::Child, Lines, String) {
     let mut server = firelink()
-        .args([
-            "emulate",
-            "--boards",
-            "3",
-            "--listen",
-            "127.0.0.1:0",
-            "--no-broadcast",
-        ])
+        .arg("emulate")
+        .args(args)
+        .args(["--listen", "127.0.0.1:0", "--no-broadcast"])
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())
         .spawn()
@@ -36,10 +34,13 @@ fn emulate_scan_read_and_clean_shutdown() {
         }
     }
     let addr = addr.expect("emulate prints its address");
-    let port = format!("udp:{addr}");
+    (server, lines, format!("udp:{addr}"))
+}
 
+/// `firelink scan --json` of the boards at `port`.
+fn scan(port: &str) -> Value {
     let out = firelink()
-        .args(["scan", "--port", &port, "--json", "--timeout-ms", "100"])
+        .args(["scan", "--port", port, "--json", "--timeout-ms", "100"])
         .output()
         .unwrap();
     assert!(
@@ -47,7 +48,54 @@ fn emulate_scan_read_and_clean_shutdown() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn emulate_serves_each_stock_arm_configuration() {
+    let configs = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs");
+    // (file, boards on the bus, (board, DIGIN bits 11:0 expected)).
+    for (file, boards, digin) in [
+        // PSM1 on boards 6-7: sterile adapter in (bit 10), no instrument
+        // (bit 7), as the file's simulation section says.
+        ("dvrk-psm1-28007.json", 8, Some((7, 0x400))),
+        ("dvrk-mtmr-28247.json", 4, None),
+        ("dvrk-ecm-29738.json", 6, None),
+    ] {
+        let path = configs.join(file);
+        let (mut server, _lines, port) = start_emulate(&["--config", path.to_str().unwrap()]);
+        let out = firelink()
+            .args(["scan", "--port", &port, "--json", "--timeout-ms", "100"])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{file}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(v["boards"].as_array().unwrap().len(), boards, "{file}");
+        if let Some((board, bits)) = digin {
+            let out = firelink()
+                .args(["read", "--port", &port, "--board", &board.to_string(), "10"])
+                .args(["--timeout-ms", "100"])
+                .output()
+                .unwrap();
+            assert!(out.status.success(), "{file}");
+            let text = String::from_utf8(out.stdout).unwrap();
+            let value = u32::from_str_radix(text.trim().rsplit(' ').next().unwrap(), 16).unwrap();
+            assert_eq!(value & 0x0FFF, bits, "{file}: DIGIN {text}");
+        }
+        server.kill().unwrap();
+        server.wait().unwrap();
+    }
+}
+
+#[test]
+fn emulate_scan_read_and_clean_shutdown() {
+    let (mut server, lines, port) = start_emulate(&["--boards", "3"]);
+
+    let v = scan(&port);
     let boards = v["boards"].as_array().unwrap();
     assert_eq!(boards.len(), 3);
     for (i, b) in boards.iter().enumerate() {
@@ -141,4 +189,99 @@ fn sim_port_strings_work_everywhere() {
         .output()
         .unwrap();
     assert!(!out.status.success());
+}
+
+/// Per-board settings: companion board type and serials from the command
+/// line (and, with --config, the arms' serial numbers), shown at start;
+/// settings the boards cannot hold are refused with the reason.
+#[test]
+fn emulate_board_settings() {
+    let mut server = firelink()
+        .args([
+            "emulate",
+            "--boards",
+            "2",
+            "--board-set",
+            "1:hardware=DQLA,qla-serial=22723,fpga-serial=5496-07,supply-volts=36",
+            "--listen",
+            "127.0.0.1:0",
+            "--no-broadcast",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("start emulate");
+    let stdout = server.stdout.take().unwrap();
+    let mut lines = BufReader::new(stdout).lines();
+    let mut seen = Vec::new();
+    let mut addr = None;
+    for line in lines.by_ref() {
+        let line = line.unwrap();
+        if let Some(rest) = line.strip_prefix("listening on udp ") {
+            addr = rest.split_whitespace().next().map(str::to_string);
+            break;
+        }
+        seen.push(line);
+    }
+    let board1 = seen
+        .iter()
+        .find(|l| l.contains("board 1:"))
+        .expect("board 1 line");
+    assert!(board1.contains("DQLA"), "{board1}");
+    assert!(board1.contains("FPGA serial 5496-07"), "{board1}");
+    assert!(board1.contains("QLA serial 22723 / 22723"), "{board1}");
+    assert!(board1.contains("36 V"), "{board1}");
+    let board0 = seen
+        .iter()
+        .find(|l| l.contains("board 0:"))
+        .expect("board 0 line");
+    assert!(board0.contains("QLA1"), "{board0}");
+    let port = format!("udp:{}", addr.expect("address"));
+    let out = firelink()
+        .args(["scan", "--port", &port, "--json", "--timeout-ms", "100"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["boards"][1]["hardware"], "DQLA");
+    let _ = Command::new("kill")
+        .args(["-TERM", &server.id().to_string()])
+        .status();
+    assert!(server.wait().unwrap().success());
+
+    // The stock dVRK configuration: each arm's boards carry its serial.
+    let config = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../configs/dvrk-seed000.json"
+    );
+    let out = firelink()
+        .args(["emulate", "--config", config, "--listen", "127.0.0.1:0"])
+        .args(["--no-broadcast", "--duration-s", "0.2"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        text.contains("board 0: QLA1, FPGA serial 8801-01, QLA serial 22723"),
+        "{text}"
+    );
+
+    for (setting, words) in [
+        ("1:qla-serial=123456789", "QLA serial number"),
+        ("5:qla-serial=1", "no such board"),
+        ("1:colour=red", "unknown key"),
+    ] {
+        let out = firelink()
+            .args(["emulate", "--boards", "2", "--board-set", setting])
+            .args(["--listen", "127.0.0.1:0", "--duration-s", "0.1"])
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{setting}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(words), "{setting}: {err}");
+    }
 }

@@ -92,6 +92,11 @@ struct Timers {
 pub struct SafetyMonitor {
     limits: Vec<JointLimits>,
     timers: Vec<Timers>,
+    /// Per joint: following-error and saturation checks suspended (a
+    /// stop search pushes a joint into its stop on purpose).
+    stalling: Vec<bool>,
+    /// Whether any joint may stall (the common case, none, costs nothing).
+    any_stalling: bool,
     latched: Option<FaultReport>,
 }
 
@@ -103,9 +108,12 @@ impl SafetyMonitor {
     /// A monitor for joints with `limits`, in the order samples will come.
     pub fn new(limits: Vec<JointLimits>) -> SafetyMonitor {
         let timers = vec![Timers::default(); limits.len()];
+        let stalling = vec![false; limits.len()];
         SafetyMonitor {
             limits,
             timers,
+            stalling,
+            any_stalling: false,
             latched: None,
         }
     }
@@ -163,6 +171,23 @@ impl SafetyMonitor {
         self.timers.fill(Timers::default());
     }
 
+    /// Lets joint `joint` stall on purpose, or stops letting it: while
+    /// allowed, its position-limit, following-error and current-saturation
+    /// checks are off (every other check stays). A stop search needs it: it
+    /// drives the joint past its soft limit into a mechanical stop until
+    /// the following error is large (the dVRK console likewise stops
+    /// enforcing position limits and tracking errors then). Out-of-range
+    /// joints are ignored.
+    pub fn allow_stall(&mut self, joint: usize, allowed: bool) {
+        if let Some(s) = self.stalling.get_mut(joint) {
+            *s = allowed;
+        }
+        self.any_stalling = self.stalling.iter().any(|&s| s);
+        if let Some(t) = self.timers.get_mut(joint) {
+            *t = Timers::default();
+        }
+    }
+
     /// Checks one cycle at time `now` (seconds) and cycle number `cycle`;
     /// `samples[i]` is joint *i*. Returns the first fault, or the latched one.
     /// A sample list of the wrong length is checked as far as it goes and the
@@ -181,6 +206,7 @@ impl SafetyMonitor {
         let now_ok = now.is_finite();
         for (i, (lim, timers)) in self.limits.iter().zip(self.timers.iter_mut()).enumerate() {
             let joint = lim.label;
+            let stalling = self.any_stalling && self.stalling.get(i).copied().unwrap_or(false);
             let Some(s) = samples.get(i) else {
                 return Some(FaultKind::InvalidValue {
                     joint,
@@ -202,7 +228,7 @@ impl SafetyMonitor {
             if !now_ok {
                 return invalid("time");
             }
-            if let Some((lower, upper, margin)) = lim.position {
+            if let Some((lower, upper, margin)) = lim.position.filter(|_| !stalling) {
                 if !(lower - margin <= s.position && s.position <= upper + margin) {
                     return Some(FaultKind::PositionLimit {
                         joint,
@@ -219,7 +245,7 @@ impl SafetyMonitor {
                     limit,
                 });
             }
-            if let Some(limit) = lim.following_error {
+            if let Some(limit) = lim.following_error.filter(|_| !stalling) {
                 let error = s.setpoint - s.position;
                 if lasting(
                     &mut timers.following_since,
@@ -236,7 +262,7 @@ impl SafetyMonitor {
                     });
                 }
             }
-            if let Some(limit) = lim.saturation_time {
+            if let Some(limit) = lim.saturation_time.filter(|_| !stalling) {
                 let saturated = s.current.abs() >= lim.maximum_current - SATURATION_SLACK;
                 if let Some(duration) = lasting(&mut timers.saturated_since, saturated, now, limit)
                 {
@@ -363,6 +389,40 @@ mod tests {
         assert_eq!(m.check(1.0, 1000, &[ok()]), Some(r));
         m.reset();
         assert_eq!(m.check(1.0, 1000, &[ok()]), None);
+    }
+
+    #[test]
+    fn a_joint_allowed_to_stall_keeps_its_other_checks() {
+        let mut m = SafetyMonitor::new(vec![limits()]);
+        m.allow_stall(0, true);
+        m.allow_stall(7, true); // no such joint: ignored
+        // Pushed into a stop past its soft limit: large following error,
+        // saturated current, for a second.
+        let stalled = JointSample {
+            setpoint: -2.0,
+            position: -1.15,
+            current: -1.0,
+            potentiometer: Some(-1.15),
+            ..ok()
+        };
+        assert_eq!(run(&mut m, 0, 1000, stalled), None);
+        // The velocity and pot checks still run.
+        let fast = JointSample {
+            velocity: 3.0,
+            ..stalled
+        };
+        assert!(matches!(
+            run(&mut m, 1000, 1001, fast).map(|r| r.kind),
+            Some(FaultKind::Velocity { .. })
+        ));
+        // Allowed no more: the following error trips again.
+        let mut m = SafetyMonitor::new(vec![limits()]);
+        m.allow_stall(0, true);
+        m.allow_stall(0, false);
+        assert!(matches!(
+            run(&mut m, 0, 1000, stalled).map(|r| r.kind),
+            Some(FaultKind::PositionLimit { .. })
+        ));
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //! errors that name the file, the JSON path and the problem.
 
 use firelink_control::config::{
-    ConfigErrors, HardwareVersion, IoConfig, PlantPreset, Problem, presets,
+    ConfigErrors, DvrkArm, HardwareVersion, IoConfig, PlantPreset, Problem, StopSide, presets,
 };
 use serde_json::{Value, json};
 use std::path::PathBuf;
@@ -70,6 +70,29 @@ fn bench_and_snake_load() {
         ]
     );
     assert!(s.description.as_deref().unwrap().contains("7-channel"));
+}
+
+#[test]
+fn snake_seed001_is_the_seeds_arrangement() {
+    let s = load("snake-seed001.json");
+    assert_eq!(s.actuator_count(), 36);
+    let boards = s.boards();
+    assert_eq!(boards.len(), 6);
+    assert!(boards.iter().all(|b| b.hardware == HardwareVersion::Snake));
+    // Each Snake: 7 axes on its actuation-unit node, 4 on its second node;
+    // each master: 7 on one node.
+    let used: Vec<(u8, u32)> = boards
+        .iter()
+        .map(|b| (b.board_id, b.axes_used.count_ones()))
+        .collect();
+    assert_eq!(used, [(0, 7), (1, 4), (2, 7), (3, 4), (4, 7), (5, 7)]);
+    let a = &s.robot("SNAKE2").unwrap().actuators[8];
+    assert_eq!((a.board_id, a.axis_id), (3, 1));
+    // The node's conventions: pot 0..=16383 over 2.5 V, monitor around 8192.
+    let pot = a.potentiometer.unwrap();
+    assert!((pot.bits_to_voltage.apply(16384.0) - 2.5).abs() < 1e-12);
+    assert!(a.drive.bits_to_current(8192).abs() < 1e-9);
+    assert_eq!(a.drive.zero_current_bits(), 0x8000);
 }
 
 #[test]
@@ -491,4 +514,136 @@ fn missing_file_is_named() {
         e.to_string()
             .starts_with("/nonexistent/robot.json: cannot read")
     );
+}
+
+#[test]
+fn stock_arm_files_load_with_their_dvrk_facts() {
+    let psm = load("dvrk-psm1-28007.json");
+    let r = &psm.robots[0];
+    assert_eq!(
+        (r.name.as_str(), r.serial_number.as_str()),
+        ("PSM1", "28007")
+    );
+    assert_eq!(r.dvrk_arm(), Some(DvrkArm::Psm));
+    // The dVRK's board IDs for PSM1, its adapter and tool inputs.
+    assert_eq!(psm.board_set().0, 0b1100_0000);
+    assert_eq!(psm.digital_input("PSM1_adapter"), Some((7, 10, true)));
+    assert_eq!(psm.digital_input("PSM1_tool"), Some((7, 7, true)));
+    assert_eq!(psm.board_slots(), 8);
+    let serial = psm.board_serial(6).unwrap();
+    assert_eq!(
+        (serial.fpga.as_deref(), serial.qla.as_deref()),
+        (Some("3116-01"), Some("3791-15"))
+    );
+    // A calibrated file: DAC zero offsets are not all equal (the console
+    // refuses a file where they are).
+    let offsets: Vec<f64> = r
+        .actuators
+        .iter()
+        .map(|a| a.drive.current_to_bits.offset)
+        .collect();
+    assert!(offsets.windows(2).any(|w| w[0] != w[1]));
+    // Every actuator states stops beyond its soft limits.
+    for a in &r.actuators {
+        let s = a.simulation.unwrap().hard_stops.unwrap();
+        let soft = a.encoder.position_limits_soft;
+        assert!(s.lower < soft.lower && soft.upper < s.upper);
+    }
+
+    let mtm = load("dvrk-mtmr-28247.json");
+    let r = &mtm.robots[0];
+    assert_eq!(r.dvrk_arm(), Some(DvrkArm::Mtm));
+    let c = r.pot_coupling().unwrap();
+    assert_eq!(c.size(), 7);
+    assert_eq!((c.get(2, 1), c.get(3, 2), c.get(3, 3)), (1.0, 0.6697, 1.0));
+    let roll = r.actuators[6].simulation.unwrap();
+    let search = roll.homing.unwrap().stop_search.unwrap();
+    assert_eq!(search.side, StopSide::Lower);
+    assert!((search.stop_position.to_degrees() + 480.0).abs() < 1e-9);
+    assert_eq!(
+        r.potentiometers.as_ref().unwrap().tolerances[6].distance,
+        0.0
+    );
+
+    let ecm = load("dvrk-ecm-29738.json");
+    let r = &ecm.robots[0];
+    assert_eq!((r.actuators.len(), r.number_of_brakes), (4, Some(3)));
+    // The brakes' board (5) is on the bus even though no actuator uses it.
+    assert_eq!(ecm.board_set().0, 0b1_0000);
+    assert_eq!(ecm.board_slots(), 6);
+}
+
+#[test]
+fn simulation_sections_are_checked() {
+    // Stops inside the soft limits.
+    let (p, _) = single(
+        &with(
+            "/robots/0/actuators/0/simulation",
+            json!({ "plant": "psm_j1", "hard_stops": { "lower": -0.5, "upper": 1.5 } }),
+        ),
+        "robots[0].actuators[0].simulation.hard_stops",
+    );
+    assert!(matches!(p, Problem::OutOfRange { value, .. } if value == -0.5));
+    // A stop search that cannot move.
+    let (_, shown) = single(
+        &with(
+            "/robots/0/actuators/0/simulation",
+            json!({ "plant": "mtm_j7", "homing": { "velocity": 1.0, "acceleration": 1.0,
+                "stop_search": { "side": "lower", "velocity": 0.0, "acceleration": 1.0,
+                    "stall_error": 1.0, "stop_position": -1.1, "max_travel": 5.0 } } }),
+        ),
+        "robots[0].actuators[0].simulation.homing.stop_search.velocity",
+    );
+    assert!(shown.contains("> 0"), "{shown}");
+    // A serial number no PROM can hold, a board listed twice, a tool
+    // without a name.
+    let mut v = base();
+    v["robots"][0]["simulation"] = json!({
+        "arm": "PSM", "adapter": true,
+        "tool": { "name": "", "model": 400006 },
+        "boards": [
+            { "board_id": 0, "serial": { "fpga": "3116-01", "qla": "a serial far too long" } },
+            { "board_id": 0, "serial": {} }
+        ]
+    });
+    let e = errors(&v.to_string());
+    assert_eq!(e.errors().len(), 3, "{e}");
+    assert!(e.has_path("robots[0].simulation.tool.name"));
+    assert!(e.has_path("robots[0].simulation.boards[0].serial.qla"));
+    assert!(e.has_path("robots[0].simulation.boards[1].board_id"));
+    // An unknown arm is a type error naming its path.
+    let (_, shown) = single(
+        &with("/robots/0/simulation", json!({ "arm": "SUJ" })),
+        "robots[0].simulation.arm",
+    );
+    assert!(shown.contains("unknown variant `SUJ`"), "{shown}");
+}
+
+#[test]
+fn pot_couplings_must_fit_and_invert() {
+    let coupling = |m: Value| {
+        let mut v = base();
+        v["robots"][0]["potentiometers"] = json!({ "coupling": { "JointToActuatorPosition": m } });
+        v.to_string()
+    };
+    let (p, _) = single(
+        &coupling(json!([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])),
+        "robots[0].potentiometers.coupling.JointToActuatorPosition",
+    );
+    assert!(
+        matches!(p, Problem::Mismatch(ref m) if m.contains("2 x 2")),
+        "{p:?}"
+    );
+    let (p, _) = single(
+        &coupling(json!([[1.0, 2.0], [0.5, 1.0]])),
+        "robots[0].potentiometers.coupling.JointToActuatorPosition",
+    );
+    assert!(
+        matches!(p, Problem::Mismatch(ref m) if m.contains("singular")),
+        "{p:?}"
+    );
+    let c = IoConfig::from_json_str(&coupling(json!([[1.0, 0.0], [1.0, 1.0]])), "ok.json").unwrap();
+    let m = c.robots[0].pot_coupling().unwrap();
+    let inv = m.inverse().unwrap();
+    assert_eq!((inv.get(1, 0), inv.get(1, 1)), (-1.0, 1.0));
 }

@@ -292,3 +292,73 @@ fn late_cycles_do_not_inflate_the_velocity_estimate() {
         }
     }
 }
+
+#[test]
+fn a_stop_search_without_a_stop_fails_and_leaves_the_checks_on() {
+    // No mechanical stop within the search's travel (the MTM roll's stops
+    // are more than a turn away): a stop search runs its whole travel and
+    // says so; the joint's checks are back on after.
+    let mut config = presets::dvrk_seed000();
+    let roll = &mut config.robots[1].actuators[6];
+    let soft = roll.encoder.position_limits_soft;
+    let mut sim = roll.simulation.unwrap();
+    let mut homing = sim.homing.unwrap();
+    homing.stop_search = Some(firelink_control::config::StopSearchConfig {
+        side: firelink_control::config::StopSide::Lower,
+        velocity: 2.0,
+        acceleration: 8.0,
+        stall_error: 0.5,
+        stop_position: soft.lower - 0.1,
+        max_travel: 1.0,
+    });
+    sim.homing = Some(homing);
+    roll.simulation = Some(sim);
+    let port = common::port(&config, false, start);
+    let (io, _) = IoSystem::open(port, IoOptions::default()).unwrap();
+    let mut r = Robot::new(io, &config, RobotSettings::default()).unwrap();
+    let roll = 13;
+    assert_eq!(r.stop_search_joints().collect::<Vec<_>>(), [roll]);
+    // Not before Active.
+    assert!(matches!(
+        r.search_stop(roll),
+        Err(RunnerError::Lifecycle(LifecycleError::NotActive { .. }))
+    ));
+    r.configure().unwrap();
+    r.power_on().unwrap();
+    r.home().unwrap();
+    r.activate().unwrap();
+    assert!(matches!(
+        r.search_stop(0),
+        Err(RunnerError::StopSearch {
+            problem: firelink_control::runner::StopSearchProblem::NotConfigured,
+            ..
+        })
+    ));
+    let before = r.position(roll).unwrap();
+    let e = r.search_stop(roll).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            RunnerError::StopSearch {
+                problem: firelink_control::runner::StopSearchProblem::NoStop { .. },
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(
+        e.to_string().contains("MTMR[6]: stop search: no stop"),
+        "{e}"
+    );
+    // It travelled the whole way and is still Active, holding.
+    assert!((r.position(roll).unwrap() - (before - 1.0)).abs() < 0.05);
+    assert_eq!(r.state(), State::Active);
+    // The following-error check is back: a setpoint jump faults.
+    r.step_setpoint(roll, 1.0).unwrap();
+    let faulted = (0..2000).any(|_| r.step(Pacing::Virtual).is_err());
+    assert!(faulted);
+    assert!(matches!(
+        r.fault().map(|f| f.kind),
+        Some(FaultKind::FollowingError { .. })
+    ));
+}

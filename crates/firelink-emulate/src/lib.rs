@@ -28,10 +28,13 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+mod arrival;
+
+use arrival::{Received, Receiver};
+use firelink_board::node::BoardNode;
 use firelink_bus::host::Outcome;
 use firelink_bus::{Bus, HostLink, NodeHandle, SimDuration, SimTime};
 use firelink_host::transaction::{CrcCheck, Expect, LinkStats, Transactions};
-use firelink_host::udp::is_wait_over;
 use firelink_host::{Dest, HostError};
 use firelink_wire::bridge::{ExtraData, ExtraFlags, split_host_datagram};
 use firelink_wire::packet::{NodeId, Packet, Speed, Tcode};
@@ -84,9 +87,31 @@ pub struct BridgeStats {
     pub unsupported: u64,
     /// Transactions that failed on the bus.
     pub bus_failures: u64,
+    /// Quadlet reads of node 63 without the no-forward bit: answered by
+    /// the bridge board (counted as local) and also forwarded onto
+    /// FireWire, where every board ignores them.
+    pub broadcast_reads: u64,
 }
 
 impl BridgeStats {
+    /// Count a datagram dropped for `reason` (every drop goes through here,
+    /// so none is silent).
+    fn count_drop(&mut self, reason: DropReason) -> Handled {
+        match reason {
+            DropReason::Malformed => self.malformed += 1,
+            DropReason::BadCrc => self.bad_crc += 1,
+            DropReason::StaleGeneration => self.stale_generation += 1,
+            DropReason::BusFailure => self.bus_failures += 1,
+            DropReason::Unsupported => self.unsupported += 1,
+        }
+        Handled::Dropped(reason)
+    }
+
+    /// Datagrams dropped, whatever the reason.
+    pub fn dropped(&self) -> u64 {
+        self.malformed + self.bad_crc + self.unsupported + self.stale_generation + self.bus_failures
+    }
+
     /// Datagrams accounted for by exactly one outcome: every datagram is
     /// malformed, has a bad CRC, is unsupported, stale, forwarded or local.
     /// Equal to [`datagrams`](Self::datagrams) at all times.
@@ -105,12 +130,15 @@ impl core::fmt::Display for BridgeStats {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         write!(
             f,
-            "{} datagrams, {} replies, {} forwarded, {} local, {} malformed, {} bad CRC, \
-             {} unsupported tcode, {} stale generation, {} bus failures",
+            "{} datagrams, {} replies, {} forwarded, {} local ({} broadcast reads), \
+             {} dropped: {} malformed, {} bad CRC, {} unsupported tcode, \
+             {} stale generation, {} bus failures",
             self.datagrams,
             self.replies,
             self.forwarded,
             self.local,
+            self.broadcast_reads,
+            self.dropped(),
             self.malformed,
             self.bad_crc,
             self.unsupported,
@@ -125,12 +153,21 @@ pub struct Bridge {
     bus: Bus,
     link: NodeHandle,
     bridge_board: NodeHandle,
+    /// Every emulated board on the bus (their status slots are completed
+    /// before the next datagram is handled).
+    boards: Vec<NodeHandle>,
     stats: BridgeStats,
     timeout: SimDuration,
     /// The host library's transaction engine, judging what comes back
     /// from the bus for each forwarded request.
     transactions: Transactions,
 }
+
+/// The longest a datagram waits, in virtual time, for the boards to finish
+/// the status broadcasts the datagrams before it started: more than a full
+/// Rev 7+ chain of 16 boards with every predecessor silent
+/// (16 x [`CHAIN_TIMEOUT_PER_BOARD`](firelink_board::firmware::CHAIN_TIMEOUT_PER_BOARD)).
+const SETTLE_LIMIT: SimDuration = SimDuration::from_micros(2_000);
 
 /// 49.152 MHz ticks in a virtual duration, saturating at 16 bits.
 fn ticks16(d: SimDuration) -> u16 {
@@ -141,10 +178,20 @@ impl Bridge {
     /// A bridge whose FireWire link is the [`HostLink`] node `link` of `bus`
     /// and whose own registers are those of the board node `bridge_board`.
     pub fn new(bus: Bus, link: NodeHandle, bridge_board: NodeHandle) -> Bridge {
+        let boards = (0..bus.len())
+            .map(NodeHandle)
+            .filter(|h| bus.node::<BoardNode>(*h).is_some())
+            .collect();
+        let mut bus = bus;
+        // The bridge board's Ethernet port is the one connected.
+        if let Some(b) = bus.node_mut::<BoardNode>(bridge_board) {
+            b.firmware_mut().set_ethernet_link(true);
+        }
         Bridge {
             bus,
             link,
             bridge_board,
+            boards,
             stats: BridgeStats::default(),
             timeout: SimDuration::from_micros(10_000),
             transactions: Transactions::new(),
@@ -185,6 +232,31 @@ impl Bridge {
         }
     }
 
+    /// Let the boards finish, in virtual time, what the datagrams handled
+    /// so far started: every status broadcast a query scheduled is sent
+    /// (and stored in every hub) before the next datagram is looked at.
+    /// Real boards finish their slots within microseconds of the query,
+    /// sooner than any host can get its hub read to the bridge; here a
+    /// query and a hub read that queue up back to back (a busy host or
+    /// emulator thread) would otherwise meet almost no virtual time apart.
+    /// A board that can no longer send (muted, unplugged) is not waited
+    /// for once its slot has passed; the wait is bounded by
+    /// [`SETTLE_LIMIT`].
+    fn settle(&mut self) {
+        let deadline = self.bus.now() + SETTLE_LIMIT;
+        let boards = &self.boards;
+        self.bus.run_until_with(deadline, |bus| {
+            let now = bus.now();
+            let owed = boards.iter().any(|h| {
+                bus.node::<BoardNode>(*h)
+                    .and_then(|b| b.firmware().next_wakeup())
+                    .is_some_and(|due| due >= now)
+            });
+            !owed && !bus.has_pending_traffic()
+        });
+        self.forget_received();
+    }
+
     /// Other nodes' broadcasts reach the bridge's link too; the bridge has
     /// no use for them, so they are not kept.
     fn forget_received(&mut self) {
@@ -204,37 +276,56 @@ impl Bridge {
 
     /// Handle one host datagram; a reply, if any, is written to `reply`.
     pub fn handle(&mut self, datagram: &[u8], reply: &mut Vec<u8>) -> Handled {
+        self.settle();
         self.stats.datagrams += 1;
         let Ok((control, packet)) = split_host_datagram(datagram) else {
-            self.stats.malformed += 1;
-            return Handled::Dropped(DropReason::Malformed);
+            return self.stats.count_drop(DropReason::Malformed);
         };
+        let received = &packet.as_bytes()[..packet.total_len()];
+        if let Some(b) = self.bus.node_mut::<BoardNode>(self.bridge_board) {
+            b.firmware_mut().ethernet_received(received);
+        }
         if packet.verify().is_err() {
-            self.stats.bad_crc += 1;
-            return Handled::Dropped(DropReason::BadCrc);
+            return self.stats.count_drop(DropReason::BadCrc);
         }
         let tcode = packet.tcode();
         let is_read = matches!(tcode, Tcode::ReadQuadletRequest | Tcode::ReadBlockRequest);
         let is_write = matches!(tcode, Tcode::WriteQuadletRequest | Tcode::WriteBlockRequest);
         if !is_read && !is_write {
-            self.stats.unsupported += 1;
-            return Handled::Dropped(DropReason::Unsupported);
+            return self.stats.count_drop(DropReason::Unsupported);
         }
         let destination = packet.destination_id();
-        // A read of node 63 cannot be a 1394 broadcast (boards take only
-        // broadcast writes): the bridge answers it from its own registers,
-        // as the firmware does (fpga-board-extras.md section 9).
+        // A read of node 63 is both local and remote (fpga-board-extras.md
+        // section 9): the bridge answers it from its own registers and also
+        // forwards it onto FireWire, where every board ignores broadcast
+        // reads. The generation is not checked for broadcasts.
         let broadcast_read = is_read && destination.is_broadcast();
         let local = control.no_forward || broadcast_read;
         if !local && !destination.is_broadcast() && control.generation != self.generation() {
-            self.stats.stale_generation += 1;
-            return Handled::Dropped(DropReason::StaleGeneration);
+            return self.stats.count_drop(DropReason::StaleGeneration);
+        }
+        let host_source = packet.source_id();
+        let original = received.to_vec();
+        if local {
+            self.stats.local += 1;
+        } else {
+            self.stats.forwarded += 1;
+        }
+        // With the no-forward bit set the board only answers itself.
+        if broadcast_read && !control.no_forward {
+            self.stats.broadcast_reads += 1;
+            self.transmit_broadcast(original.clone());
+        }
+        if is_write && destination.is_broadcast() && !local {
+            return match self.transmit_broadcast(original) {
+                true => Handled::Written,
+                false => self.stats.count_drop(DropReason::BusFailure),
+            };
         }
         // The bridge transmits on FireWire with its own node ID as source
         // (responses must come back to it); local requests go to the bridge
         // board's node.
-        let host_source = packet.source_id();
-        let mut bytes = packet.as_bytes()[..packet.total_len()].to_vec();
+        let mut bytes = original;
         {
             let link_phy = self.bus.phy_id(self.link).unwrap_or(0);
             let mut p = Packet::new_unchecked(&mut bytes[..]);
@@ -244,11 +335,6 @@ impl Bridge {
                 p.set_destination_id(NodeId::local(phy));
             }
             p.fill_header_crc();
-        }
-        if local {
-            self.stats.local += 1;
-        } else {
-            self.stats.forwarded += 1;
         }
         let received_at = self.bus.now();
         let link = self.link;
@@ -268,32 +354,22 @@ impl Bridge {
             _ => Expect::write(dest, tl),
         };
         let Ok(token) = HostLink::submit_on(&mut self.bus, link, &bytes, Speed::S400) else {
-            return Handled::Dropped(DropReason::BusFailure);
+            return self.stats.count_drop(DropReason::BusFailure);
         };
         self.transactions.sent();
-        if is_write && (destination.is_broadcast() && !local) {
-            // Broadcasts complete when they have gone out; nobody waits for
-            // them, so nothing of them is kept.
-            if let Some(l) = self.bus.node_mut::<HostLink>(link) {
-                l.abandon(token);
-            }
-            return Handled::Written;
-        }
         let deadline = self.bus.now() + self.timeout;
         let done = HostLink::wait_on(&mut self.bus, link, token, deadline);
         self.forget_received();
         let Some(done) = done.filter(|d| d.outcome == Outcome::Complete) else {
             let waited = (self.bus.now() - received_at).as_micros_f64() as u32;
             let _ = self.transactions.timed_out(&expect, waited);
-            self.stats.bus_failures += 1;
-            return Handled::Dropped(DropReason::BusFailure);
+            return self.stats.count_drop(DropReason::BusFailure);
         };
         if is_write {
             return Handled::Written;
         }
         let Some(response) = done.response else {
-            self.stats.bus_failures += 1;
-            return Handled::Dropped(DropReason::BusFailure);
+            return self.stats.count_drop(DropReason::BusFailure);
         };
         // The answer must be intact and answer this request; an error
         // rcode is forwarded (the host judges it), anything else dropped.
@@ -302,10 +378,7 @@ impl Bridge {
             .accept(&response, &expect, CrcCheck::Always)
         {
             Ok(Ok(_)) | Err(HostError::Rcode { .. }) => {}
-            Ok(Err(_)) | Err(_) => {
-                self.stats.bus_failures += 1;
-                return Handled::Dropped(DropReason::BusFailure);
-            }
+            Ok(Err(_)) | Err(_) => return self.stats.count_drop(DropReason::BusFailure),
         }
         let extra = ExtraData {
             flags: ExtraFlags {
@@ -330,7 +403,32 @@ impl Bridge {
         self.stats.replies += 1;
         Handled::Reply(reply.len())
     }
+
+    /// Put a broadcast packet (as the host sent it) onto FireWire with the
+    /// link's node ID as source. Nobody answers a broadcast, so nothing of
+    /// it is kept. Returns whether the link took it.
+    fn transmit_broadcast(&mut self, mut bytes: Vec<u8>) -> bool {
+        let link_phy = self.bus.phy_id(self.link).unwrap_or(0);
+        {
+            let mut p = Packet::new_unchecked(&mut bytes[..]);
+            p.set_source_id(NodeId::local(link_phy));
+            p.fill_header_crc();
+        }
+        let link = self.link;
+        let Ok(token) = HostLink::submit_on(&mut self.bus, link, &bytes, Speed::S400) else {
+            return false;
+        };
+        self.transactions.sent();
+        if let Some(l) = self.bus.node_mut::<HostLink>(link) {
+            l.abandon(token);
+        }
+        true
+    }
 }
+
+/// Largest datagram the server reads whole (anything longer is cut, and
+/// then does not decode): more than any request the bridge takes.
+const MAX_DATAGRAM: usize = 8192;
 
 /// Where and how the server listens.
 #[derive(Debug, Clone)]
@@ -394,6 +492,12 @@ pub fn bind(config: &ServeConfig) -> std::io::Result<(UdpSocket, Option<UdpSocke
 /// Run the bridge until `stop` is set: receive datagrams, keep virtual time
 /// in step with the wall clock, answer reads from the unicast socket.
 ///
+/// Each datagram is handled at the virtual time of its arrival (the
+/// kernel's receive stamp), and virtual time only moves past a moment of
+/// the wall clock once every datagram that arrived before it has been
+/// handled: a server kept off the CPU answers late, but the boards see
+/// the host's requests at the times the host sent them.
+///
 /// # Errors
 /// Socket errors other than time-outs.
 pub fn serve(
@@ -411,26 +515,76 @@ pub fn serve(
     // broadcast socket is polled between.
     unicast.set_nonblocking(false)?;
     unicast.set_read_timeout(Some(Duration::from_micros(500)))?;
-    if let Some(b) = broadcast {
-        b.set_nonblocking(true)?;
-    }
+    let mut unicast_rx = Receiver::new(unicast)?;
+    let mut broadcast_rx = match broadcast {
+        Some(b) => {
+            b.set_nonblocking(true)?;
+            Some((b, Receiver::new(b)?))
+        }
+        None => None,
+    };
     let wall_origin = Instant::now();
     let virtual_origin = bridge.bus().now();
-    let mut buf = vec![0u8; 4096];
-    let mut reply = Vec::with_capacity(4096);
+    let virtual_at = |at: Instant| {
+        virtual_origin
+            + SimDuration::from_micros_f64(at.duration_since(wall_origin).as_secs_f64() * 1e6)
+    };
+    let mut buf = vec![0u8; MAX_DATAGRAM];
+    let mut reply = Vec::with_capacity(MAX_DATAGRAM);
     // Hosts announced so far; a flood from many source ports must not
     // grow this, so only the first few are remembered (and announced).
     const HOSTS_REMEMBERED: usize = 16;
     let mut hosts: Vec<SocketAddr> = Vec::with_capacity(HOSTS_REMEMBERED);
     let mut generation = bridge.generation();
     let mut lag_reported = Instant::now() - Duration::from_secs(10);
+    let mut handle = |r: Received,
+                      buf: &[u8],
+                      bridge: &mut Bridge,
+                      on_event: &mut dyn FnMut(Event)|
+     -> std::io::Result<()> {
+        if hosts.len() < HOSTS_REMEMBERED && !hosts.contains(&r.from) {
+            hosts.push(r.from);
+            on_event(Event::HostSeen(r.from));
+        }
+        bridge.advance_to(virtual_at(r.at));
+        if let Handled::Reply(n) = bridge.handle(buf.get(..r.len).unwrap_or(buf), &mut reply) {
+            // A host that went away is not the server's failure.
+            if let Err(e) = unicast.send_to(&reply[..n], r.from)
+                && !matches!(
+                    e.kind(),
+                    std::io::ErrorKind::ConnectionRefused
+                        | std::io::ErrorKind::WouldBlock
+                        | std::io::ErrorKind::Interrupted
+                )
+            {
+                return Err(e);
+            }
+        }
+        Ok(())
+    };
     while !stop.load(Ordering::Relaxed) {
-        // Keep virtual time in step with the wall clock.
-        let wall = wall_origin.elapsed();
-        let target = virtual_origin + SimDuration::from_micros_f64(wall.as_secs_f64() * 1e6);
-        bridge.advance_to(target);
+        // Everything that arrived before this moment is queued now: handle
+        // it at its arrival time, then let virtual time reach the moment.
+        let wall = Instant::now();
+        loop {
+            let mut any = false;
+            if let Some((b, rx)) = broadcast_rx.as_mut()
+                && let Some(r) = rx.receive(b, &mut buf, false)?
+            {
+                handle(r, &buf, bridge, &mut on_event)?;
+                any = true;
+            }
+            if let Some(r) = unicast_rx.receive(unicast, &mut buf, false)? {
+                handle(r, &buf, bridge, &mut on_event)?;
+                any = true;
+            }
+            if !any {
+                break;
+            }
+        }
+        bridge.advance_to(virtual_at(wall));
         let ahead_us = bridge.bus().now().as_micros_f64() - virtual_origin.as_micros_f64();
-        let behind = wall.as_secs_f64() - ahead_us / 1e6;
+        let behind = wall_origin.elapsed().as_secs_f64() - ahead_us / 1e6;
         if behind > 0.010 && lag_reported.elapsed() > Duration::from_secs(5) {
             on_event(Event::Lagging(Duration::from_secs_f64(behind)));
             lag_reported = Instant::now();
@@ -439,35 +593,10 @@ pub fn serve(
             generation = bridge.generation();
             on_event(Event::BusReset(generation));
         }
-        let mut received = |socket: &UdpSocket, bridge: &mut Bridge| -> std::io::Result<()> {
-            match socket.recv_from(&mut buf) {
-                Ok((len, from)) => {
-                    if hosts.len() < HOSTS_REMEMBERED && !hosts.contains(&from) {
-                        hosts.push(from);
-                        on_event(Event::HostSeen(from));
-                    }
-                    // Virtual time catches up with the wall clock first.
-                    let wall = wall_origin.elapsed();
-                    bridge.advance_to(
-                        virtual_origin + SimDuration::from_micros_f64(wall.as_secs_f64() * 1e6),
-                    );
-                    if let Handled::Reply(n) = bridge.handle(&buf[..len], &mut reply) {
-                        unicast.send_to(&reply[..n], from)?;
-                    }
-                    Ok(())
-                }
-                // A host that went away (ICMP port unreachable) is no
-                // reason to stop serving the others.
-                Err(e) if is_wait_over(&e) || e.kind() == std::io::ErrorKind::ConnectionRefused => {
-                    Ok(())
-                }
-                Err(e) => Err(e),
-            }
-        };
-        if let Some(b) = broadcast {
-            received(b, bridge)?;
+        // Sleep until the next datagram (or a little while).
+        if let Some(r) = unicast_rx.receive(unicast, &mut buf, true)? {
+            handle(r, &buf, bridge, &mut on_event)?;
         }
-        received(unicast, bridge)?;
     }
     on_event(Event::Stopped(bridge.stats()));
     Ok(())

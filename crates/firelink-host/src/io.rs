@@ -116,7 +116,8 @@ pub struct CycleReport {
 }
 
 impl CycleReport {
-    const EMPTY: CycleReport = CycleReport {
+    /// A report of no cycle yet.
+    pub const EMPTY: CycleReport = CycleReport {
         cycle: 0,
         seq: 0,
         started: Duration::ZERO,
@@ -145,6 +146,33 @@ impl CycleReport {
             .iter()
             .enumerate()
             .filter_map(|(id, r)| r.map(|r| (id as u8, r)))
+    }
+
+    /// Board `board_id` missed this cycle for `reason`: in this report and
+    /// counted in `stats`.
+    pub fn note_miss(&mut self, stats: &mut IoStats, board_id: u8, reason: MissReason) {
+        let id = usize::from(board_id & 0xF);
+        self.missed |= 1 << id;
+        if let Some(r) = self.reasons.get_mut(id) {
+            *r = Some(reason);
+        }
+        if let Some(c) = stats.missed_by_board.get_mut(id) {
+            *c += 1;
+        }
+        stats.count_miss(reason);
+    }
+
+    /// An error in this cycle: counted in `stats`, the first one kept.
+    /// Returns whether it was a bus reset (node numbers may have moved:
+    /// the caller finds its boards again between cycles).
+    pub fn note_error(&mut self, stats: &mut IoStats, e: HostError) -> bool {
+        stats.count_error(&e);
+        if self.error.is_none() {
+            self.error = Some(e);
+        }
+        let reset = matches!(e, HostError::BusReset { .. });
+        self.bus_reset |= reset;
+        reset
     }
 }
 
@@ -191,7 +219,8 @@ impl IoStats {
             + self.other
     }
 
-    fn count_error(&mut self, e: &HostError) {
+    /// Count one error by its kind.
+    pub fn count_error(&mut self, e: &HostError) {
         match e {
             HostError::Timeout { .. } => self.timeouts += 1,
             HostError::BusReset { .. } => self.bus_resets += 1,
@@ -201,7 +230,8 @@ impl IoStats {
         }
     }
 
-    fn count_miss(&mut self, reason: MissReason) {
+    /// Count one missed board by its reason.
+    pub fn count_miss(&mut self, reason: MissReason) {
         match reason {
             MissReason::Sequence { .. } | MissReason::NotUpdated => self.sequence_errors += 1,
             MissReason::CorruptQuery => self.corrupt_queries += 1,
@@ -597,15 +627,10 @@ impl<P: Port> IoSystem<P> {
     }
 
     fn note_error(&mut self, e: HostError) {
-        self.stats.count_error(&e);
-        if self.report.error.is_none() {
-            self.report.error = Some(e);
-        }
-        if matches!(e, HostError::BusReset { .. }) {
-            // Node numbers may have changed: the caller rescans between
-            // cycles (`recover`), not inside this one.
+        // Node numbers may have changed after a bus reset: the caller
+        // rescans between cycles (`recover`), not inside this one.
+        if self.report.note_error(&mut self.stats, e) {
             self.needs_rescan = true;
-            self.report.bus_reset = true;
         }
     }
 
@@ -615,14 +640,7 @@ impl<P: Port> IoSystem<P> {
         };
         board.invalidate();
         let id = board.board_id();
-        self.report.missed |= 1 << id;
-        if let Some(r) = self.report.reasons.get_mut(usize::from(id)) {
-            *r = Some(reason);
-        }
-        if let Some(c) = self.stats.missed_by_board.get_mut(usize::from(id)) {
-            *c += 1;
-        }
-        self.stats.count_miss(reason);
+        self.report.note_miss(&mut self.stats, id, reason);
     }
 
     fn miss_all(&mut self, reason: MissReason) {

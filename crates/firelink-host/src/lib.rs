@@ -18,24 +18,40 @@
 //! - [`scan`]: discovery and protocol choice.
 //! - [`board`]: the per-board I/O buffers and accessors.
 //! - [`io`]: the I/O system running the three protocols.
+//! - [`extras`]: the firmware features beyond the servo cycle (PROMs and
+//!   serial numbers, digital outputs and waveforms, instrument memory, I/O
+//!   expander, Ethernet registers, motor supply, PHY registers).
+//! - [`robot_io`]: seed 001's abstract robot I/O ([`RobotIo`]): latch all
+//!   inputs, per-axis get/set, apply all outputs, the same for every
+//!   kind of board (implemented for [`io::IoSystem`] and
+//!   [`snake::SnakeSystem`]).
+//! - [`snake`]: seed 001's Snake robot nodes: the node layer over block
+//!   buffers with valid bits, and every Get/Set of the seed's API.
+//! - [`mahru`]: seed 002's MotionController for the MAHRU humanoid's
+//!   modules, and its computer's real-time systems as overhead models.
 //!
 //! Protocols never know which port they use, so the same program drives
 //! emulated boards today and real boards over Ethernet tomorrow.
 
 pub mod board;
 pub mod error;
+pub mod extras;
 pub mod fault;
 pub mod io;
+pub mod mahru;
 pub mod pacing;
 pub mod packet_json;
 pub mod port;
 pub mod replay;
+pub mod robot_io;
 pub mod scan;
 #[cfg(feature = "sim")]
 pub mod sim;
+pub mod snake;
 pub mod trace;
 pub mod transaction;
 pub mod udp;
 
 pub use error::{HostError, MissReason, Result};
 pub use port::{Dest, LinkFilter, Port};
+pub use robot_io::RobotIo;

@@ -11,11 +11,19 @@
 //! Blocking calls (reads, unicast writes) return when the transaction
 //! completes; broadcast writes return after the call overhead, as the
 //! non-blocking `raw1394_start_write` of seed 000 does, while the packet goes
-//! out on the bus behind them.
+//! out on the bus behind them (or, with
+//! [`SimPort::with_blocking_broadcasts`], once the packet has gone out).
+//!
+//! The overhead model is anything implementing [`CallOverhead`]: seed 000's
+//! [`HostModel`], or a model of another computer and operating system (seed
+//! 002's real-time Linux variants live in [`crate::mahru`]).
+//! [`SimPort::last_call`] gives the instants of the last call: when it was
+//! made, when its request reached the link, when the ack and the answer
+//! came and when it returned.
 
 use std::time::Duration;
 
-use firelink_bus::host::{HostCall, Outcome};
+use firelink_bus::host::{CallCost, HostCall, Outcome, Transfer};
 use firelink_bus::{Bus, HostLink, HostModel, NodeHandle, SimDuration, SimTime};
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Speed};
 
@@ -28,11 +36,43 @@ fn pc_node(phy: u8) -> NodeId {
     NodeId::local(phy)
 }
 
+/// The PC's software cost around one library call, as a host port
+/// charges it: before the request reaches the link, and after the
+/// transaction finished until the call returns.
+pub trait CallOverhead: Send {
+    /// The cost of one `call` moving `transfer` (a fresh draw for models
+    /// with jitter).
+    fn cost(&mut self, call: HostCall, transfer: Transfer) -> CallCost;
+}
+
+impl CallOverhead for HostModel {
+    fn cost(&mut self, call: HostCall, transfer: Transfer) -> CallCost {
+        self.cost_of(call, transfer)
+    }
+}
+
+/// The instants of one call on a [`SimPort`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CallTiming {
+    /// The call was made.
+    pub called: SimTime,
+    /// Its request reached the PC's link.
+    pub submitted: SimTime,
+    /// The ack arrived (a unicast request), or the broadcast went out.
+    pub acked: Option<SimTime>,
+    /// The transaction finished at the link (the response, for a read).
+    pub completed: Option<SimTime>,
+    /// The call returned.
+    pub returned: SimTime,
+}
+
 /// A [`Port`] on a simulated bus.
 pub struct SimPort {
     bus: Bus,
     host: NodeHandle,
-    model: Option<HostModel>,
+    model: Option<Box<dyn CallOverhead>>,
+    blocking_broadcasts: bool,
+    last_call: Option<CallTiming>,
     transactions: Transactions,
     speed: Speed,
     broadcast_speed: Speed,
@@ -52,6 +92,8 @@ impl SimPort {
             bus,
             host,
             model: None,
+            blocking_broadcasts: false,
+            last_call: None,
             transactions,
             speed: Speed::S400,
             broadcast_speed: Speed::S400,
@@ -64,8 +106,33 @@ impl SimPort {
 
     /// Add the PC software overhead model.
     pub fn with_host_model(mut self, model: HostModel) -> SimPort {
-        self.model = Some(model);
+        self.model = Some(Box::new(model));
         self
+    }
+
+    /// Add another computer's overhead model.
+    pub fn with_overhead(mut self, model: impl CallOverhead + 'static) -> SimPort {
+        self.model = Some(Box::new(model));
+        self
+    }
+
+    /// Wait at most `timeout` for a transaction to finish (default 20 ms).
+    pub fn with_timeout(mut self, timeout: Duration) -> SimPort {
+        self.timeout = SimDuration::from_micros_f64(timeout.as_secs_f64() * 1e6);
+        self
+    }
+
+    /// Broadcast writes wait until the packet has gone out on the bus (and
+    /// then pay the call's `after` cost), as a driver that reports the
+    /// transmit completion does.
+    pub fn with_blocking_broadcasts(mut self) -> SimPort {
+        self.blocking_broadcasts = true;
+        self
+    }
+
+    /// The instants of the last call that reached the link.
+    pub fn last_call(&self) -> Option<CallTiming> {
+        self.last_call
     }
 
     /// Speed of broadcast packets (seed 000 patched the driver for S400;
@@ -133,7 +200,11 @@ impl SimPort {
             });
         };
         repr.emit(buf)?;
-        let cost = self.model.as_mut().map(|m| m.cost(call));
+        let called = self.bus.now();
+        let cost = self
+            .model
+            .as_mut()
+            .map(|m| m.cost(call, Transfer::of(&repr)));
         if let Some(c) = cost {
             self.bus.run_for(c.before);
         }
@@ -167,22 +238,37 @@ impl SimPort {
             }
         })?;
         self.transactions.sent();
-        if call == HostCall::BroadcastWrite {
+        let submitted = self.bus.now();
+        let blocking = self.blocking_broadcasts && expect.dest.is_broadcast();
+        if call == HostCall::BroadcastWrite && !blocking {
             // Non-blocking (a broadcast, or a write started without
             // waiting): the packet goes out while the caller goes on, and
             // nobody will take its completion.
             if let Some(l) = self.bus.node_mut::<HostLink>(host) {
                 l.abandon(token);
             }
+            self.last_call = Some(CallTiming {
+                called,
+                submitted,
+                acked: None,
+                completed: None,
+                returned: submitted,
+            });
             return Ok(None);
         }
-        let submitted = self.bus.now();
         let submitted_generation = self.bus.generation();
         let deadline = submitted + self.timeout;
         let completion = HostLink::wait_on(&mut self.bus, host, token, deadline);
         if let Some(c) = cost {
             self.bus.run_for(c.after);
         }
+        self.last_call = Some(CallTiming {
+            called,
+            submitted,
+            acked: completion.as_ref().and_then(|c| c.acked_at),
+            completed: completion.as_ref().map(|c| c.completed_at),
+            returned: self.bus.now(),
+        });
         let node = expect.dest.node;
         // A request lost in a bus reset failed because of the reset: say
         // so (node numbers may have moved), not "no answer".

@@ -7,6 +7,12 @@
 //! from the cost model hollow (and named so in the legend), the paper's
 //! 8-board figures as crosses. Both axes are logarithmic so that the
 //! paper's range (2 to 8 boards) stays readable next to 62 boards.
+//! [`mahru::table3`] draws seed 002's Table III (read time by payload)
+//! from the simulation beside the seed's worst cases.
+//!
+//! [`seed001()`] draws seed 001's Fig. 20 and Fig. 21 from the
+//! reproduction of its bus measurements
+//! ([`firelink_testbed::snake::bench`]).
 //!
 //! The font: `FIRELINK_FONT` if set, else the first of a few usual paths of
 //! DejaVu Sans, Liberation Sans or FreeSans (`apt-get install
@@ -18,6 +24,11 @@ use std::sync::OnceLock;
 use plotters::prelude::*;
 
 use firelink_testbed::bench::{BenchPoint, BenchReport};
+
+mod seed001;
+pub use seed001::seed001;
+
+pub mod mahru;
 
 /// Why a figure could not be drawn.
 #[derive(Debug, thiserror::Error)]

@@ -21,9 +21,11 @@ use firelink_board::config::Profile;
 use firelink_bus::NodeHandle;
 use firelink_bus::fault::{FaultPlan, PacketFault, PacketMatch, TimedFault};
 use firelink_control::config::{IoConfig, presets};
-use firelink_control::runner::{Pacing, Percentiles, Robot, RobotSettings, RunnerError};
+use firelink_control::runner::{
+    ArmTracking, CycleTimes, Pacing, Percentiles, Robot, RobotSettings, RunnerError,
+};
 use firelink_control::trajectory::{Motion, PointToPoint, Sinusoid};
-use firelink_control::{FaultKind, FaultReport};
+use firelink_control::{FaultKind, FaultReport, State};
 use firelink_host::Port;
 use firelink_host::io::{IoOptions, IoStats, IoSystem};
 use firelink_host::scan::Protocol;
@@ -247,7 +249,7 @@ pub struct TimeStats {
 }
 
 impl TimeStats {
-    fn of(samples: &mut [f32]) -> TimeStats {
+    pub(crate) fn of(samples: &mut [f32]) -> TimeStats {
         let p = Percentiles::of(samples);
         TimeStats {
             median: round2(p.median),
@@ -648,16 +650,183 @@ pub fn run_demo(
     }
 }
 
+/// What the demo needs of a servo program: the QLA runner
+/// ([`Robot`]) and the generic servo over the abstract robot I/O
+/// ([`Servo`](firelink_control::servo::Servo)) both run the same demo
+/// ([`run_program`]).
+pub trait DemoProgram {
+    /// The port the program talks through (faults are injected there).
+    type Port: Injector;
+    /// The port, to inject faults.
+    fn injector(&mut self) -> &mut Self::Port;
+    /// Unconfigured -> Configured.
+    ///
+    /// # Errors
+    /// The program's refusal.
+    fn configure(&mut self) -> Result<(), RunnerError>;
+    /// Power and amplifiers on.
+    ///
+    /// # Errors
+    /// The program's refusal, a fault or a time-out.
+    fn power_on(&mut self) -> Result<(), RunnerError>;
+    /// Home every joint.
+    ///
+    /// # Errors
+    /// Homing failed.
+    fn home(&mut self) -> Result<(), RunnerError>;
+    /// Configured -> Active.
+    ///
+    /// # Errors
+    /// The lifecycle's refusal.
+    fn activate(&mut self) -> Result<(), RunnerError>;
+    /// Start a motion on a joint.
+    ///
+    /// # Errors
+    /// Not Active; no such joint.
+    fn set_motion(&mut self, joint: usize, motion: Motion) -> Result<(), RunnerError>;
+    /// Run cycles, with a progress call every `every`.
+    ///
+    /// # Errors
+    /// The first fault.
+    fn run_cycles(
+        &mut self,
+        cycles: u64,
+        pacing: Pacing,
+        every: u64,
+        progress: &mut dyn FnMut(&Self),
+    ) -> Result<(), RunnerError>;
+    /// One cycle.
+    ///
+    /// # Errors
+    /// A fault.
+    fn step(&mut self, pacing: Pacing) -> Result<(), RunnerError>;
+    /// Active -> Configured, outputs safe, power off.
+    ///
+    /// # Errors
+    /// The program's refusal.
+    fn shutdown(&mut self) -> Result<(), RunnerError>;
+    /// Seconds on the port's clock.
+    fn now(&self) -> f64;
+    /// Cycles run.
+    fn cycles(&self) -> u64;
+    /// Joints.
+    fn joint_count(&self) -> usize;
+    /// A joint's position.
+    fn position(&self, joint: usize) -> Option<f64>;
+    /// A joint's setpoint.
+    fn setpoint(&self, joint: usize) -> Option<f64>;
+    /// Forget the tracking statistics.
+    fn reset_tracking(&mut self);
+    /// Per-arm tracking.
+    fn tracking(&self) -> Vec<ArmTracking>;
+    /// The timing record.
+    fn times(&self) -> &CycleTimes;
+    /// I/O error counters.
+    fn io_stats(&self) -> &IoStats;
+    /// Lifecycle state.
+    fn state(&self) -> State;
+    /// Any used amplifier on.
+    fn any_amp_on(&self) -> bool;
+    /// Board IDs found, with whether each answered the last cycle and
+    /// whether its watchdog had expired.
+    fn board_states(&self) -> Vec<(u8, bool, bool)>;
+    /// Firmware of the first board.
+    fn firmware(&self) -> Option<u32>;
+    /// The I/O protocol's name.
+    fn protocol(&self) -> String;
+}
+
+impl<P: Injector> DemoProgram for Robot<P> {
+    type Port = P;
+    fn injector(&mut self) -> &mut P {
+        self.io_mut().port_mut()
+    }
+    fn configure(&mut self) -> Result<(), RunnerError> {
+        Robot::configure(self)
+    }
+    fn power_on(&mut self) -> Result<(), RunnerError> {
+        Robot::power_on(self)
+    }
+    fn home(&mut self) -> Result<(), RunnerError> {
+        Robot::home(self)
+    }
+    fn activate(&mut self) -> Result<(), RunnerError> {
+        Robot::activate(self)
+    }
+    fn set_motion(&mut self, joint: usize, motion: Motion) -> Result<(), RunnerError> {
+        Robot::set_motion(self, joint, motion)
+    }
+    fn run_cycles(
+        &mut self,
+        cycles: u64,
+        pacing: Pacing,
+        every: u64,
+        progress: &mut dyn FnMut(&Self),
+    ) -> Result<(), RunnerError> {
+        self.run(cycles, pacing, every, progress)
+    }
+    fn step(&mut self, pacing: Pacing) -> Result<(), RunnerError> {
+        Robot::step(self, pacing)
+    }
+    fn shutdown(&mut self) -> Result<(), RunnerError> {
+        Robot::shutdown(self)
+    }
+    fn now(&self) -> f64 {
+        Robot::now(self)
+    }
+    fn cycles(&self) -> u64 {
+        Robot::cycles(self)
+    }
+    fn joint_count(&self) -> usize {
+        Robot::joint_count(self)
+    }
+    fn position(&self, joint: usize) -> Option<f64> {
+        Robot::position(self, joint)
+    }
+    fn setpoint(&self, joint: usize) -> Option<f64> {
+        Robot::setpoint(self, joint)
+    }
+    fn reset_tracking(&mut self) {
+        Robot::reset_tracking(self)
+    }
+    fn tracking(&self) -> Vec<ArmTracking> {
+        Robot::tracking(self)
+    }
+    fn times(&self) -> &CycleTimes {
+        Robot::times(self)
+    }
+    fn io_stats(&self) -> &IoStats {
+        Robot::io_stats(self)
+    }
+    fn state(&self) -> State {
+        Robot::state(self)
+    }
+    fn any_amp_on(&self) -> bool {
+        Robot::any_amp_on(self)
+    }
+    fn board_states(&self) -> Vec<(u8, bool, bool)> {
+        self.io()
+            .boards()
+            .iter()
+            .map(|b| (b.board_id(), b.is_valid(), b.watchdog_expired()))
+            .collect()
+    }
+    fn firmware(&self) -> Option<u32> {
+        self.io().boards().first().map(|b| b.info().firmware)
+    }
+    fn protocol(&self) -> String {
+        self.io().protocol().name().to_string()
+    }
+}
+
 /// The periodic progress event: the median I/O time of the last 2000 cycles.
-fn tick<P: Port>(r: &Robot<P>) -> DemoProgress {
-    let mut io = r.times().io_us.clone();
-    let n = io.len().min(2000);
-    let start = io.len() - n;
-    let p = Percentiles::of(&mut io[start..]);
+fn tick<S: DemoProgram>(r: &S) -> DemoProgress {
+    let io = &r.times().io_us;
+    let mut last: Vec<f32> = io[io.len().saturating_sub(2000)..].to_vec();
     DemoProgress::Tick {
         t: r.now(),
         cycles: r.cycles(),
-        io_median_us: p.median,
+        io_median_us: Percentiles::of(&mut last).median,
         errors: r.io_stats().total_errors(),
     }
 }
@@ -690,16 +859,80 @@ fn run_robot<P: Injector>(
         reason: scan.protocol_reason.to_string(),
         protocol: io.protocol().name(),
     });
-    if options.watchdog.is_none() {
+    let plan = DemoPlan {
+        config,
+        rate_hz: options.rate_hz,
+        duration_s: options.duration_s,
+        fault: options.fault,
+        watchdog: options.watchdog,
+        pacing,
+    };
+    let robot = Robot::new(io, config, plan.settings())?;
+    let done = run_program(robot, &plan, port_name, rt, wall, progress)?;
+    Ok(done.report)
+}
+
+/// What a demo run does, whatever the robot.
+#[derive(Debug, Clone, Copy)]
+pub struct DemoPlan<'a> {
+    /// The robot.
+    pub config: &'a IoConfig,
+    /// Control rate, Hz.
+    pub rate_hz: f64,
+    /// Seconds of motion after homing.
+    pub duration_s: f64,
+    /// The fault to inject half way.
+    pub fault: DemoFault,
+    /// Board watchdog period; `None`: off.
+    pub watchdog: Option<Duration>,
+    /// Pacing.
+    pub pacing: Pacing,
+}
+
+impl DemoPlan<'_> {
+    /// The servo settings of the plan.
+    pub fn settings(&self) -> RobotSettings {
+        RobotSettings {
+            rate_hz: self.rate_hz,
+            watchdog: self.watchdog.unwrap_or(Duration::ZERO),
+            ..RobotSettings::default()
+        }
+    }
+}
+
+/// A finished demo: the report, the timing record and the cycles before
+/// the motion started.
+#[derive(Debug, Clone)]
+pub struct DemoRun {
+    /// The report.
+    pub report: DemoReport,
+    /// Every cycle's timing.
+    pub times: CycleTimes,
+    /// Cycles run before the motion (power on, homing).
+    pub setup_cycles: u64,
+}
+
+/// Run the demo with a servo program on its boards: configure, power on,
+/// home, move every joint, inject the plan's fault half way, power off,
+/// report. `wall` is when the run started (for the wall time).
+///
+/// # Errors
+/// The program failed outside a cycle; the fault could not be injected on
+/// this port.
+pub fn run_program<S: DemoProgram>(
+    mut robot: S,
+    plan: &DemoPlan<'_>,
+    port_name: String,
+    rt: RealtimeStatus,
+    wall: Instant,
+    progress: &mut dyn FnMut(DemoProgress),
+) -> Result<DemoRun, TestbedError> {
+    let config = plan.config;
+    let pacing = plan.pacing;
+    if plan.watchdog.is_none() {
         progress(DemoProgress::WatchdogOff);
     }
-    let watchdog = options.watchdog.unwrap_or(Duration::ZERO);
-    let settings = RobotSettings {
-        rate_hz: options.rate_hz,
-        watchdog,
-        ..RobotSettings::default()
-    };
-    let mut robot = Robot::new(io, config, settings)?;
+    let watchdog = plan.watchdog.unwrap_or(Duration::ZERO);
     robot.configure()?;
     progress(DemoProgress::Configured);
     robot.power_on()?;
@@ -713,25 +946,26 @@ fn run_robot<P: Injector>(
     }
     robot.reset_tracking();
     let setup_cycles = robot.cycles();
-    let rate = options.rate_hz;
-    let total = (options.duration_s * rate).round() as u64;
+    let rate = plan.rate_hz;
+    let total = (plan.duration_s * rate).round() as u64;
     let every = (rate / 4.0).max(1.0) as u64;
     let half = total / 2;
-    let inject = options.fault;
+    let inject = plan.fault;
     let first = if inject == DemoFault::None {
         total
     } else {
         half
     };
-    let mut outcome = robot.run(first, pacing, every, |r| progress(tick(r)));
+    let mut outcome = robot.run_cycles(first, pacing, every, &mut |r| progress(tick(r)));
     if outcome.is_ok() && inject != DemoFault::None {
         progress(DemoProgress::Injecting(inject));
-        robot.io_mut().port_mut().inject(inject, watchdog)?;
+        robot.injector().inject(inject, watchdog)?;
         if inject == DemoFault::FollowingError {
             // A setpoint jump the joint cannot follow within the grace time.
-            let _ = robot.step_setpoint(0, 0.5);
+            let sp = robot.setpoint(0).unwrap_or(0.0);
+            let _ = robot.set_motion(0, Motion::Hold(sp + 0.5));
         }
-        outcome = robot.run(total - half, pacing, every, |r| progress(tick(r)));
+        outcome = robot.run_cycles(total - half, pacing, every, &mut |r| progress(tick(r)));
     }
     let mut fault: Option<FaultReport> = None;
     match outcome {
@@ -754,16 +988,16 @@ fn run_robot<P: Injector>(
         Err(e) => return Err(e.into()),
     }
     let amps_after_fault = robot.any_amp_on();
-    let boards = robot.io().boards();
+    let boards = robot.board_states();
     let silent: Vec<u8> = boards
         .iter()
-        .filter(|b| !b.is_valid())
-        .map(|b| b.board_id())
+        .filter(|(_, answered, _)| !answered)
+        .map(|(id, ..)| *id)
         .collect();
     let expired: Vec<u8> = boards
         .iter()
-        .filter(|b| b.watchdog_expired())
-        .map(|b| b.board_id())
+        .filter(|(.., expired)| *expired)
+        .map(|(id, ..)| *id)
         .collect();
     let state_after = robot.state().to_string();
     let motion_cycles = robot.cycles() - setup_cycles;
@@ -771,7 +1005,11 @@ fn run_robot<P: Injector>(
     let wall_s = wall.elapsed().as_secs_f64();
     progress(DemoProgress::PoweredOff(wall_s));
     let times = robot.times().clone();
-    let (mut c, mut io, mut comp) = (times.cycle_us, times.io_us, times.compute_us);
+    let (mut c, mut io, mut comp) = (
+        times.cycle_us.clone(),
+        times.io_us.clone(),
+        times.compute_us.clone(),
+    );
     let mut tracking_error = BTreeMap::new();
     let mut tracking_error_detail = BTreeMap::new();
     for t in robot.tracking() {
@@ -788,12 +1026,12 @@ fn run_robot<P: Injector>(
         );
     }
     let port_time_s = robot.now();
-    Ok(DemoReport {
+    let report = DemoReport {
         port: port_name,
-        boards: robot.io().boards().len(),
+        boards: boards.len(),
         axes: robot.joint_count(),
-        firmware: robot.io().boards().first().map(|b| b.info().firmware),
-        protocol: robot.io().protocol().name().to_string(),
+        firmware: robot.firmware(),
+        protocol: robot.protocol(),
         rate_hz: rate,
         pacing: match pacing {
             Pacing::Virtual => "virtual",
@@ -828,5 +1066,10 @@ fn run_robot<P: Injector>(
         amplifiers_on_after_fault: fault.map(|_| amps_after_fault),
         boards_not_answering: silent,
         state: robot.state().to_string(),
+    };
+    Ok(DemoRun {
+        report,
+        times,
+        setup_cycles,
     })
 }

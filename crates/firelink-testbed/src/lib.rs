@@ -13,22 +13,38 @@
 //!   Ethernet-bridge emulator on loopback UDP ([`rig::Emulator`]);
 //! - [`sim`]: one I/O cycle of N boards on the simulated bus, measured
 //!   phase by phase (the wire times of the seed papers; `firelink sim`);
+//! - [`plant_map`]: how an actuator of a configuration becomes an emulated
+//!   joint: plant, mechanical stops inside what its pot can see, coupled
+//!   pots, amplifier calibration, a PSM's adapter and instrument;
+//! - [`console_homing`]: what the dVRK console does to an arm after power-on
+//!   (bias from pots, stop searches, every joint to both software limits and
+//!   back), with pot/encoder agreement and the stops watched every cycle;
 //! - [`soak`]: the fault soak: a million servo cycles with one packet in a
 //!   hundred faulted, every fault accounted for, amplifiers proven off
 //!   whenever the safety chain says so;
+//! - [`mahru`]: seed 002's MAHRU humanoid (14 modules on three chains,
+//!   the MotionController walking it), its time budget (Table I), read
+//!   times by payload (Table III) and the CAN comparison (Table IV);
 //! - [`watchdog`]: the watchdog proof: the host stopped at random moments,
-//!   every board's amplifiers off within the watchdog period plus one tick.
+//!   every board's amplifiers off within the watchdog period plus one tick;
+//! - [`snake`]: seed 001's own system: Snake-node rigs, the 36-axis demo
+//!   on the generic servo, and the reproduction of the seed's bus
+//!   measurements with its PC model.
 //!
 //! Everything here runs in virtual time and is seeded: the same inputs give
 //! the same report, bit for bit. Only [`rig::Emulator`] touches sockets and
 //! the wall clock (its server paces virtual time to it).
 
 pub mod bench;
+pub mod console_homing;
 pub mod demo;
 pub mod error;
+pub mod mahru;
+pub mod plant_map;
 pub mod rig;
 pub mod service;
 pub mod sim;
+pub mod snake;
 pub mod soak;
 pub mod watchdog;
 

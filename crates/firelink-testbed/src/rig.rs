@@ -9,16 +9,18 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 
 use firelink_board::config::{BoardConfig, Hardware, Profile};
+use firelink_board::node::BoardNode;
 use firelink_board::plant::AxisParams;
 use firelink_board::plant::presets;
 use firelink_board::rig::{BoardRig, RigOptions};
-use firelink_bus::{Bus, HostModel, NodeHandle};
-use firelink_control::config::{IoConfig, PlantPreset};
+use firelink_bus::{Bus, HostModel, Node, NodeHandle};
+use firelink_control::config::{HardwareVersion, IoConfig, PlantPreset};
 use firelink_emulate::{Bridge, BridgeStats, ServeConfig};
 use firelink_host::sim::SimPort;
 use firelink_host::udp::UdpPort;
 
 use crate::TestbedError;
+use crate::plant_map;
 
 /// Where a joint starts, inside its soft limits (a little off centre, so
 /// homing has something to do).
@@ -30,10 +32,12 @@ pub fn start_position(config: &IoConfig, joint: usize) -> f64 {
 }
 
 /// The plant model a configuration's actuator names, with its
-/// transmission, encoder, pot and drive direction made to agree with the
-/// configuration, as a calibrated robot's configuration agrees with the
-/// robot, starting at [`start_position`]. An actuator without a
-/// `simulation` section drives a generic motor.
+/// transmission, encoder, pot, drive direction, amplifier calibration and
+/// mechanical stops made to agree with the configuration, as a calibrated
+/// robot's configuration agrees with the robot (see [`plant_map`]),
+/// starting at [`start_position`]. An actuator without a `simulation`
+/// section drives what its robot's dVRK arm has there (by the robot's
+/// name: `MTMR`, `PSM1`, `ECM`, ...), else a generic motor.
 pub fn plant_for(config: &IoConfig, joint: usize) -> Option<AxisParams> {
     plant_starting_at(config, joint, start_position(config, joint))
 }
@@ -42,8 +46,7 @@ pub fn plant_for(config: &IoConfig, joint: usize) -> Option<AxisParams> {
 pub fn plant_starting_at(config: &IoConfig, joint: usize, start: f64) -> Option<AxisParams> {
     let j = config.joints().nth(joint)?;
     let a = j.actuator;
-    let preset = a.simulation.map_or(PlantPreset::Generic, |s| s.plant);
-    let mut p = preset_params(preset);
+    let mut p = preset_params(plant_map::plant_preset(&j));
     let scale = a.encoder.bits_to_position.scale;
     let cpt = a
         .encoder
@@ -69,6 +72,7 @@ pub fn plant_starting_at(config: &IoConfig, joint: usize, start: f64) -> Option<
         }
     }
     p.load.initial_position = start;
+    plant_map::apply(&j, &mut p);
     Some(p)
 }
 
@@ -90,6 +94,11 @@ pub fn preset_params(preset: PlantPreset) -> AxisParams {
         PsmJ5 => (None, Some(5)),
         PsmJ6 => (None, Some(6)),
         PsmJ7 => (None, Some(7)),
+        EcmJ1 => return presets::ecm_joint(1).unwrap_or_else(presets::generic_motor),
+        EcmJ2 => return presets::ecm_joint(2).unwrap_or_else(presets::generic_motor),
+        EcmJ3 => return presets::ecm_joint(3).unwrap_or_else(presets::generic_motor),
+        EcmJ4 => return presets::ecm_joint(4).unwrap_or_else(presets::generic_motor),
+        MtmGripper => (Some(8), None),
         Generic => (None, None),
     };
     mtm.and_then(presets::mtm_joint)
@@ -97,10 +106,19 @@ pub fn preset_params(preset: PlantPreset) -> AxisParams {
         .unwrap_or_else(presets::generic_motor)
 }
 
-/// Board configurations for boards 0..`boards` (at most 16): each axis a
-/// configuration's actuator drives gets the plant [`plant_for`] gives it,
-/// boards and axes the configuration does not use get generic motors or
-/// unused channels.
+/// Board configurations for every board `config` uses, plus generic
+/// boards after them up to `boards` (at most 16; for the bench beyond 8
+/// boards).
+///
+/// Each board is the companion board its robot names (`QLA1` or `DQLA`;
+/// a `dRA1` is emulated as a QLA1) and carries its plants (an MTM's
+/// gripper on the axis after its last actuator) and what is plugged into
+/// it (a PSM's sterile adapter and instrument). Its PROMs hold the serial
+/// numbers the robot's `simulation.boards` gives it, else the QLA PROM(s)
+/// hold the robot's `serial_number`, as the boards of a dVRK arm do. A
+/// serial the PROM cannot hold (more than 8 characters) stays in the
+/// configuration and is reported by [`BoardConfig::check`]; its PROM is
+/// left erased.
 pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<BoardConfig> {
     board_configs_starting_at(config, profile, boards, |j| start_position(config, j))
 }
@@ -112,10 +130,23 @@ pub fn board_configs_starting_at(
     boards: usize,
     start: impl Fn(usize) -> f64,
 ) -> Vec<BoardConfig> {
+    let uses = config.boards();
     let mut out: Vec<BoardConfig> = Vec::new();
+    let lines = plant_map::input_lines(config);
+    let instruments = plant_map::instruments(config);
+    let grippers: Vec<(u8, u8)> = config
+        .robots
+        .iter()
+        .filter_map(plant_map::gripper_slot)
+        .collect();
     for id in 0..boards.min(16) as u8 {
-        let mut b = BoardConfig::new(id, Hardware::Qla1, profile).with_seed(u64::from(id) + 1);
-        let mut axes: Vec<AxisParams> = vec![presets::unused_channel(); 4];
+        let board_use = uses.iter().find(|u| u.board_id == id);
+        let hardware = match board_use.map(|u| u.hardware) {
+            Some(HardwareVersion::Dqla) => Hardware::Dqla,
+            _ => Hardware::Qla1,
+        };
+        let mut b = BoardConfig::new(id, hardware, profile).with_seed(u64::from(id) + 1);
+        let mut axes: Vec<AxisParams> = vec![presets::unused_channel(); hardware.axes()];
         let mut any = false;
         for (i, j) in config.joints().enumerate() {
             if j.actuator.board_id == id {
@@ -128,8 +159,41 @@ pub fn board_configs_starting_at(
                 }
             }
         }
+        for &(_, axis) in grippers.iter().filter(|(board, _)| *board == id) {
+            let used = config
+                .joints()
+                .any(|j| j.actuator.board_id == id && j.actuator.axis_id == axis);
+            if let (false, Some(slot)) = (used, axes.get_mut(usize::from(axis))) {
+                *slot = plant_map::gripper_params();
+            }
+        }
         if any {
             b = b.with_axes(axes);
+        }
+        let held = lines.get(usize::from(id)).copied().unwrap_or(0);
+        b = b.with_input_lines(held);
+        if let Some((_, instrument)) = instruments.iter().find(|(board, _)| *board == id) {
+            b = b.with_instrument(instrument.clone());
+        }
+        let robot_serial = board_use.and_then(|u| {
+            config
+                .robots
+                .iter()
+                .find(|r| r.name == u.robot.as_str())
+                .map(|r| r.serial_number.trim())
+        });
+        let board_serial = config.board_serial(id);
+        let qla_serial = board_serial
+            .and_then(|s| s.qla.as_deref())
+            .or(robot_serial)
+            .filter(|s| !s.is_empty());
+        if let Some(serial) = qla_serial {
+            for q in 0..b.qla_count() {
+                b = b.with_qla_serial(q, serial);
+            }
+        }
+        if let Some(fpga) = board_serial.and_then(|s| s.fpga.as_deref()) {
+            b.fpga_serial = fpga.to_string();
         }
         out.push(b);
     }
@@ -141,10 +205,28 @@ pub fn board_configs_starting_at(
 pub fn build_bus(
     boards: Vec<BoardConfig>,
 ) -> Result<(Bus, NodeHandle, Vec<NodeHandle>), TestbedError> {
-    if boards.is_empty() {
+    build_bus_of(qla_nodes(boards))
+}
+
+/// The boards of `boards` as bus nodes (emulated QLA-family boards).
+pub fn qla_nodes(boards: Vec<BoardConfig>) -> Vec<Box<dyn Node>> {
+    boards
+        .into_iter()
+        .map(|cfg| {
+            let name = format!("board{}", cfg.board_id);
+            Box::new(BoardNode::new(cfg).with_name(name)) as Box<dyn Node>
+        })
+        .collect()
+}
+
+/// [`build_bus`] with any nodes (Snake nodes, a mix of kinds).
+pub fn build_bus_of(
+    nodes: Vec<Box<dyn Node>>,
+) -> Result<(Bus, NodeHandle, Vec<NodeHandle>), TestbedError> {
+    if nodes.is_empty() {
         return Err(TestbedError::NoBoards);
     }
-    let rig = BoardRig::daisy_chain(boards, &RigOptions::default());
+    let rig = BoardRig::daisy_chain_nodes(nodes, &RigOptions::default());
     Ok((rig.bus, rig.host, rig.boards))
 }
 
@@ -188,7 +270,16 @@ impl Emulator {
     /// # Errors
     /// [`TestbedError::NoBoards`]; socket errors binding loopback.
     pub fn start(boards: Vec<BoardConfig>) -> Result<Emulator, TestbedError> {
-        if boards.is_empty() {
+        Emulator::start_nodes(qla_nodes(boards))
+    }
+
+    /// Start serving any nodes (Snake nodes, a mix of kinds); the first is
+    /// the Ethernet-connected one.
+    ///
+    /// # Errors
+    /// As [`start`](Self::start).
+    pub fn start_nodes(nodes: Vec<Box<dyn Node>>) -> Result<Emulator, TestbedError> {
+        if nodes.is_empty() {
             return Err(TestbedError::NoBoards);
         }
         let (unicast, _) = firelink_emulate::bind(&ServeConfig {
@@ -199,9 +290,9 @@ impl Emulator {
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
         let (ready, started) = std::sync::mpsc::channel();
-        // The bus is not Send: it is built on the server thread.
+        // The bus is built on the server thread.
         let thread = std::thread::spawn(move || {
-            let (bus, link, handles) = match build_bus(boards) {
+            let (bus, link, handles) = match build_bus_of(nodes) {
                 Ok(b) => b,
                 Err(e) => {
                     let _ = ready.send(Err(e.to_string()));
@@ -269,4 +360,35 @@ pub fn udp_port(addr: std::net::SocketAddr) -> Result<UdpPort, TestbedError> {
     let mut p = UdpPort::open(addr)?;
     p.set_timeout(UDP_TIMEOUT);
     Ok(p)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firelink_control::config::presets;
+
+    /// Each arm's boards carry its serial number in their QLA PROMs and
+    /// are the companion board its configuration names.
+    #[test]
+    fn boards_carry_their_robots_serial_and_hardware() {
+        let dvrk = presets::dvrk_seed000();
+        let boards = board_configs(&dvrk, Profile::Rev8, 9);
+        for robot in &dvrk.robots {
+            for a in &robot.actuators {
+                let b = &boards[usize::from(a.board_id)];
+                assert_eq!(b.qla_serials(), std::slice::from_ref(&robot.serial_number));
+                assert_eq!(b.check(), Ok(()));
+            }
+        }
+        // A board no robot uses keeps its unique default.
+        assert_eq!(
+            boards[8].qla_serials(),
+            [firelink_board::config::default_qla_serial(8, 0)]
+        );
+        let snake = presets::snake_36axes();
+        let boards = board_configs(&snake, Profile::Rev8, 8);
+        assert_eq!(boards[0].hardware, Hardware::Dqla);
+        assert_eq!(boards[0].qla_serials().len(), 2);
+        assert_eq!(boards[7].hardware, Hardware::Qla1);
+    }
 }

@@ -543,7 +543,14 @@ pub fn run<P: Injector>(mut robot: Robot<P>, shared: Arc<Shared>, options: LoopO
     let wall_start = Instant::now();
     let port_start = robot.now();
     while !shared.stop.load(Ordering::Relaxed) {
-        if let Some(command) = shared.commands.pop() {
+        // Every command waiting is taken before the cycle (at most what the
+        // queue holds, so a cycle's work stays bounded): a servo stream
+        // faster than this loop (a slow machine, a debug build) then never
+        // fills the queue; the newest servo point of an arm wins.
+        for _ in 0..shared.commands.capacity() {
+            let Some(command) = shared.commands.pop() else {
+                break;
+            };
             let r = execute(&mut robot, &shared, command, &options);
             // Servo commands stream at the publisher's rate: only their
             // refusals are reported (the success path allocates nothing).

@@ -27,7 +27,9 @@ function makeCharts() {
   const common = (title, ylabel, names, colours) => ({
     title, width, height: 220,
     scales: { x: { time: false } },
-    axes: [{ label: "time, s" }, { label: ylabel }],
+    // Three significant digits on the value axis: a current of a few mA
+    // reads 0.002, not 0.
+    axes: [{ label: "time, s" }, { label: ylabel, values: (u, ticks) => ticks.map((v) => String(+v.toPrecision(3))) }],
     series: [{ label: "t" }].concat(names.map((n, i) => ({ label: n, stroke: colours[i], width: 1.5 }))),
   });
   const empty = [[], [], []];

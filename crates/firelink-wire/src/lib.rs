@@ -14,6 +14,13 @@
 //!   register map, register quadlet codecs, the real-time read and write
 //!   blocks, and the broadcast protocol (query, status broadcasts, hub
 //!   block, command block).
+//! - [`snake`]: seed 001's 7-channel Snake robot node: its address map
+//!   (Table 1), registers (Table 2 and the channel devices) and its
+//!   fixed-size real-time blocks with valid bits (Fig. 17).
+
+//! - [`mahru`]: the MAHRU humanoid's module protocol of seed 002 (command
+//!   codes in the destination offset, module IDs, joint, force/torque,
+//!   set-point and parameter blocks).
 //!
 //! Every parser checks lengths before reading; untrusted bytes never panic
 //! and failures are [`Error`] values naming what was wrong.
@@ -41,9 +48,11 @@ pub mod bridge;
 pub mod crc;
 mod error;
 pub mod field;
+pub mod mahru;
 mod open_enum;
 pub mod packet;
 pub mod pcap;
 pub mod phy;
+pub mod snake;
 
 pub use error::{Error, Result};

@@ -19,15 +19,19 @@ use firelink_wire::board::broadcast::{
     Query, SeqRule, StatusBroadcast, StatusBroadcastRepr, command_block_quadlets, command_slices,
     emit_command_block, find_command_block, hub_block_quadlets, status_broadcast_offset,
 };
+use firelink_wire::board::extras::{
+    DallasControl, DallasStatus, EthControl, EthStatusV2, ExpanderDebug, ExpanderRead,
+    ExpanderWrite, PromCommand, PromStatus, QlaPromCommand,
+};
 use firelink_wire::board::realtime::{
     BlockFormat, BoardLayout, FirmwareRev, ReadBlock, ReadBlockRepr, WriteBlock, WriteBlockRepr,
 };
 use firelink_wire::board::registers::{
-    AdcWord, DAC_ZERO, DacWord, DigitalIn, DigitalOutWrite, EncPeriod, EncPosition, EncPreload,
-    EncQuarter, EncRun, FpgaVersion, GitDesc, HardwareVersion, MotorConfig, MotorStatus, PhyData,
-    PhyRequest, STATUS_POWER_OFF, STATUS_POWER_ON, STATUS_RELAY_ON, StatusCommand, StatusRead,
-    StatusWrite, Temperature, Watchdog, counts_from_offset_binary, ip_from_register,
-    ip_to_register, offset_binary_from_counts,
+    AdcWord, DAC_ZERO, DacWord, DigitalIn, DigitalOutRead, DigitalOutWrite, DoutCtrl, EncPeriod,
+    EncPosition, EncPreload, EncQuarter, EncRun, FpgaVersion, GitDesc, HardwareVersion,
+    MotorConfig, MotorStatus, PhyData, PhyRequest, STATUS_POWER_OFF, STATUS_POWER_ON,
+    STATUS_RELAY_ON, StatusCommand, StatusRead, StatusWrite, Temperature, Watchdog, WaveformEntry,
+    counts_from_offset_binary, ip_from_register, ip_to_register, offset_binary_from_counts,
 };
 use firelink_wire::field::{read_quadlet, write_quadlet};
 use proptest::prelude::*;
@@ -119,15 +123,10 @@ fn spec_register_encodings() {
         Ok(0x113F)
     );
     assert_eq!(PhyRequest::Read { register: 1 }.to_word(), Ok(1));
-    // §2 DIGITAL_OUT: mask<<8 | (~bits & mask).
-    assert_eq!(
-        DigitalOutWrite {
-            mask: 0xF,
-            outputs: 0x3
-        }
-        .to_word(),
-        0x0F0C
-    );
+    // §2 DIGITAL_OUT: the host sends mask<<8 | (~bits & mask); the board
+    // stores the raw bits (extras §3).
+    assert_eq!(DigitalOutWrite::levels(0xF, 0x3).to_word(), 0x0F0C);
+    assert_eq!(DigitalOutWrite::parse(0x0F0C).raw, 0xC);
     // §3 DAC zero, ENC neutral.
     assert_eq!(DacWord::valid_command(DAC_ZERO).raw(), 0x8000_8000);
     assert_eq!(counts_from_offset_binary(0x80_0000), 0);
@@ -509,6 +508,7 @@ proptest! {
             StatusRead {
                 axes / with_axes, board_id / with_board_id,
                 watchdog_timeout / with_watchdog_timeout, quad_dac / with_quad_dac,
+                dout_checked / with_dout_checked, dout_bidirectional / with_dout_bidirectional,
                 motor_supply_good / with_motor_supply_good,
                 motor_power_enabled / with_motor_power_enabled,
                 relay_state / with_relay_state, relay_on / with_relay_on,
@@ -528,9 +528,18 @@ proptest! {
             Temperature { upper / with_upper, lower / with_lower }
             GitDesc { commit / with_commit, dirty / with_dirty }
             DigitalIn {
-                v_fault / with_v_fault, enc_a / with_enc_a, enc_b / with_enc_b,
+                v_fault / with_v_fault, waveform_active / with_waveform_active,
+                supply_comparator / with_supply_comparator, enc_a / with_enc_a, enc_b / with_enc_b,
                 index / with_index, outputs / with_outputs, neg_limits / with_neg_limits,
                 pos_limits / with_pos_limits, home / with_home,
+            }
+            DigitalOutRead {
+                table_active / with_table_active, table_valid / with_table_valid,
+                table_index / with_table_index, extra_io / with_extra_io, outputs / with_outputs,
+            }
+            DoutCtrl { high_time / with_high_time, low_time / with_low_time }
+            WaveformEntry {
+                valid / with_valid, end_count / with_end_count, outputs / with_outputs,
             }
             AdcWord { pot / with_pot, current / with_current }
             DacWord {
@@ -560,6 +569,54 @@ proptest! {
                 amp_on / with_amp_on, amp_requested / with_amp_requested,
                 safety_disable / with_safety_disable, amp_fault / with_amp_fault,
                 current_command / with_current_command,
+            }
+            PromCommand { opcode_bits / with_opcode_bits, address / with_address }
+            PromStatus {
+                error_info / with_error_info, released / with_released, cs / with_cs,
+                sclk / with_sclk, miso / with_miso, mosi / with_mosi,
+                block_write / with_block_write, state / with_state,
+            }
+            QlaPromCommand {
+                opcode_bits / with_opcode_bits, address / with_address, data / with_data,
+            }
+            DallasStatus {
+                family / with_family, rise_time / with_rise_time, ds2480b / with_ds2480b,
+                busy / with_busy, state / with_state, bidirectional / with_bidirectional,
+                reset_bits / with_reset_bits, enabled / with_enabled,
+            }
+            DallasControl {
+                address / with_address, end_session / with_end_session,
+                mode_bits / with_mode_bits,
+            }
+            ExpanderWrite {
+                clear / with_clear, debug / with_debug, id / with_id, command / with_command,
+            }
+            ExpanderRead {
+                marker / with_marker, prom_busy / with_prom_busy,
+                read_waiting / with_read_waiting, pending / with_pending,
+                poll_error / with_poll_error, mismatch / with_mismatch,
+                mismatch_mask / with_mismatch_mask, answer / with_answer,
+            }
+            ExpanderDebug {
+                mismatch_mask / with_mismatch_mask, mismatch_count / with_mismatch_count,
+                ports_read / with_ports_read, ports_commanded / with_ports_commanded,
+            }
+            EthStatusV2 {
+                present / with_present, ksz_request_error / with_ksz_request_error,
+                ksz_init_ok / with_ksz_init_ok, frame_error / with_frame_error,
+                ipv4_error / with_ipv4_error, udp_port_error / with_udp_port_error,
+                destination_error / with_destination_error,
+                bus_access_error / with_bus_access_error,
+                ksz_state_error / with_ksz_state_error,
+                send_state_error / with_send_state_error, udp_mode / with_udp_mode,
+                link_up / with_link_up, ksz_idle / with_ksz_idle,
+                wait_point / with_wait_point, data / with_data,
+            }
+            EthControl {
+                clear_eth_errors / with_clear_eth_errors,
+                clear_ksz_errors / with_clear_ksz_errors, dma / with_dma,
+                reset_ksz / with_reset_ksz, write / with_write, word / with_word,
+                register / with_register, data / with_data,
             }
         );
     }
@@ -716,7 +773,7 @@ proptest! {
         }
         let ip = ip_from_register(word);
         prop_assert_eq!(ip_to_register(ip), word);
-        let d = DigitalOutWrite { mask: data, outputs: (word as u8) & data };
+        let d = DigitalOutWrite { mask: data & 0xF, raw: (word as u8) & 0xF, play_waveform: word >> 31 != 0 };
         prop_assert_eq!(DigitalOutWrite::parse(d.to_word()), d);
         let w = Watchdog(word & 0xFFFF);
         prop_assert_eq!(Watchdog::from_period(w.period()), Ok(w));
@@ -807,5 +864,23 @@ proptest! {
         let mut packer = HubPacker::new(&mut mem);
         let _ = packer.store_broadcast(&bytes, seq, seq, layout.format());
         let _ = packer.finish(HubTiming::default());
+    }
+}
+
+proptest! {
+    /// The serial-number readers never panic on arbitrary PROM bytes, and
+    /// every serial the images accept reads back unchanged.
+    #[test]
+    fn serial_numbers(bytes in proptest::collection::vec(any::<u8>(), 0..24),
+                      serial in "[!-~]{1,11}") {
+        let _ = firelink_wire::board::extras::parse_fpga_serial(&bytes);
+        let _ = firelink_wire::board::extras::parse_qla_serial(&bytes);
+        use firelink_wire::board::extras::*;
+        let image = fpga_serial_image(&serial).unwrap();
+        prop_assert_eq!(parse_fpga_serial(&image), Ok(serial.as_str()));
+        match qla_serial_image(&serial) {
+            Ok(image) => prop_assert_eq!(parse_qla_serial(&image), Ok(serial.as_str())),
+            Err(_) => prop_assert!(serial.len() > QLA_SERIAL_MAX),
+        }
     }
 }

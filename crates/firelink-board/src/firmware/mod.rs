@@ -72,11 +72,18 @@
 //! assert_eq!(resp.quadlet_data(), 8);
 //! ```
 
+mod dallas;
+mod dout;
+mod ethernet;
+mod expander;
 mod hub;
 mod phy;
-mod power;
+pub(crate) mod power;
+mod prom;
 mod registers;
 
+pub use dallas::Instrument;
+pub use dout::{OUTPUTS as DIGITAL_OUTPUTS, WAVEFORM_ENTRIES};
 pub use hub::{
     CHAIN_TIMEOUT_PER_BOARD, FIRST_SLOT_CLOCKS, SEED_OFFSET, SEED_SLOT, SEED_SLOT_CLOCKS, seed_slot,
 };
@@ -99,15 +106,29 @@ use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Rcode,
 use crate::config::{BoardConfig, Profile};
 use crate::plant::Plant;
 use crate::time::{Time, TimeDelta};
+use dallas::Dallas;
+use dout::DigitalOutputs;
+use ethernet::Ethernet;
+use expander::Expander;
 use hub::{Hub, Pending};
 use power::{AxisState, Power, Watchdog};
+use prom::{FpgaProm, QlaProm};
 
-/// Largest block read served, bytes (one S400 payload).
+/// Largest block read served, bytes (one S400 payload; the firmware's
+/// 10-bit quadlet counters; `fpga-board-extras.md` §8). Longer reads are
+/// answered with rcode `address_error` and no data.
 pub const MAX_BLOCK_READ: usize = 2048;
 
 /// Seed profile: how long after the end of its TDMA slot a status
 /// broadcast may still arrive before it counts as late.
 pub const SLOT_GRACE: TimeDelta = TimeDelta::from_micros(2);
+
+/// Largest block write taken, bytes: the firmware's request packet memory
+/// holds 512 quadlets, the header (4), its CRC and the data CRC included,
+/// leaving 506 quadlets of data (inference; the reference host never
+/// writes more: 2024 bytes on FireWire and over loopback UDP). A longer
+/// write is refused with `ack_type_error` and nothing is committed.
+pub const MAX_BLOCK_WRITE: usize = 2024;
 
 /// How the board's link answers a packet.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -144,6 +165,9 @@ pub enum RxError {
     /// Seed profile: a status broadcast that arrived after its sender's
     /// TDMA slot had ended (stored all the same).
     LateBroadcast,
+    /// A block write longer than the request memory: `ack_type_error`, not
+    /// committed.
+    WriteTooLong,
 }
 
 impl core::fmt::Display for RxError {
@@ -154,6 +178,7 @@ impl core::fmt::Display for RxError {
             RxError::CorruptQuery => "corrupt query: answered with sequence 0xFFFF",
             RxError::DuplicateBroadcast => "duplicate status broadcast: stored once",
             RxError::LateBroadcast => "status broadcast arrived after its slot",
+            RxError::WriteTooLong => "block write beyond 2024 bytes: ack_type_error, not committed",
         })
     }
 }
@@ -170,8 +195,14 @@ pub struct Firmware {
     // Board registers.
     phy_ctrl: u32,
     phy_data: PhyData,
-    dout: u8,
+    dout: DigitalOutputs,
     ip_addr: u32,
+    fpga_prom: FpgaProm,
+    /// One per QLA (a DQLA has two).
+    qla_proms: Vec<QlaProm>,
+    dallas: Dallas,
+    expander: Expander,
+    ethernet: Ethernet,
     power: Power,
     watchdog: Watchdog,
     axes: Vec<AxisState>,
@@ -192,6 +223,10 @@ impl Firmware {
             .iter()
             .map(|a| AxisState::new(a.encoder().count()))
             .collect();
+        let fpga_prom = FpgaProm::new(&cfg.fpga_serial);
+        let qla_proms = cfg.qla_serials().iter().map(|s| QlaProm::new(s)).collect();
+        let dallas = Dallas::new(cfg.instrument.as_ref());
+        let ethernet = Ethernet::new(cfg.board_id);
         Firmware {
             power: Power::new(cfg.motor_supply_present, cfg.supply_rise),
             cfg,
@@ -201,8 +236,13 @@ impl Firmware {
             generation: 0,
             phy_ctrl: 0,
             phy_data: PhyData::default(),
-            dout: 0,
+            dout: DigitalOutputs::new(),
             ip_addr: 0,
+            fpga_prom,
+            qla_proms,
+            dallas,
+            expander: Expander::new(),
+            ethernet,
             watchdog: Watchdog::new(Time::ZERO),
             axes,
             last_sample: Time::ZERO,
@@ -274,6 +314,40 @@ impl Firmware {
     /// Whether the watchdog has fired (STATUS bit 23).
     pub fn watchdog_timed_out(&self) -> bool {
         self.watchdog.timed_out
+    }
+
+    /// Bytes `address..address + len` of the FPGA configuration PROM.
+    pub fn fpga_prom_bytes(&self, address: usize, len: usize) -> Vec<u8> {
+        self.fpga_prom.read(address, len)
+    }
+
+    /// Bytes `address..address + len` of QLA PROM `qla` (0, or 0/1 on a
+    /// DQLA); `None` for a QLA the board does not have.
+    pub fn qla_prom_bytes(&self, qla: usize, address: usize, len: usize) -> Option<Vec<u8>> {
+        self.qla_proms.get(qla).map(|p| p.read(address, len))
+    }
+
+    /// The raw digital outputs now (bit i = DOUT i+1; what register 6
+    /// bits 3:0 and DIGIN bits 15:12 read).
+    pub fn digital_outputs(&self) -> u8 {
+        self.dout.raw_outputs(self.now)
+    }
+
+    /// Put an instrument on the 1-wire line, or take it off (`None`).
+    pub fn set_instrument(&mut self, instrument: Option<&Instrument>) {
+        self.dallas.set_instrument(instrument);
+    }
+
+    /// Connect or disconnect this board's Ethernet port (an FPGA V2 whose
+    /// port is connected is the bridge board: link up).
+    pub fn set_ethernet_link(&mut self, up: bool) {
+        self.ethernet.set_link(up);
+    }
+
+    /// A FireWire packet arrived over this board's Ethernet port (the
+    /// bridge records it in the Ethernet debug window).
+    pub fn ethernet_received(&mut self, packet: &[u8]) {
+        self.ethernet.received(packet);
     }
 
     /// Connect or disconnect the motor supply at `now` (fault injection).
@@ -432,6 +506,10 @@ impl Firmware {
                 if packet.data_crc_ok() == Some(false) {
                     self.rx_error = Some(RxError::DataCrc);
                     return ack(Ack::DataError);
+                }
+                if usize::from(packet.data_length()) > MAX_BLOCK_WRITE {
+                    self.rx_error = Some(RxError::WriteTooLong);
+                    return ack(Ack::TypeError);
                 }
                 if broadcast && self.late_for_its_slot(now, packet.source_id().phy(), offset) {
                     self.rx_error = Some(RxError::LateBroadcast);
@@ -628,7 +706,7 @@ impl Firmware {
 }
 
 /// Emit a packet this module built (always valid: fields in range).
-fn emit(repr: &PacketRepr<'_>) -> Vec<u8> {
+pub(crate) fn emit(repr: &PacketRepr<'_>) -> Vec<u8> {
     let mut buf = vec![0u8; repr.buffer_len()];
     match repr.emit(&mut buf) {
         Ok(len) => buf.truncate(len),

@@ -2,16 +2,21 @@
 //! (`fpga-board.md` sections 1-5), and the real-time blocks.
 
 use firelink_wire::board::address::{
-    Address, AxisRegister, BoardRegister, HubAddress, REALTIME_BLOCK_OFFSET, Register,
+    Address, AddressSpace, AxisRegister, BoardRegister, HubAddress, REALTIME_BLOCK_OFFSET, Register,
 };
 use firelink_wire::board::broadcast::find_command_block;
+use firelink_wire::board::extras::{
+    DallasControl, EthControl, ExpanderWrite, PromCommand, QlaPromCommand,
+};
 use firelink_wire::board::realtime::{BlockFormat, ReadBlock, WriteBlock};
 use firelink_wire::board::registers::{
-    AdcWord, DacWord, DigitalIn, DigitalOutWrite, ENC_NEUTRAL, EncPeriod, EncPosition, EncQuarter,
-    EncRun, MotorConfig, MotorStatus, PhyData, PhyRequest, StatusCommand, StatusRead, StatusWrite,
-    Temperature,
+    AdcWord, DacWord, DigitalIn, DigitalOutWrite, DoutCtrl, ENC_NEUTRAL, EncPeriod, EncPosition,
+    EncQuarter, EncRun, FpgaVersion, MotorConfig, MotorStatus, PhyData, PhyRequest, StatusCommand,
+    StatusRead, StatusWrite, Temperature,
 };
 
+use super::dout::OUTPUTS;
+use super::expander::ExpanderInputs;
 use super::power::{AxisState, Watchdog};
 use super::{Firmware, PhyAccess, RxError};
 use crate::plant::encoder::{PeriodField, QuarterField, RunField, VelocityFields};
@@ -27,6 +32,8 @@ enum Target {
     /// 0-based axis.
     Axis(usize, AxisRegister),
     Hub(HubAddress),
+    /// Another address space, with the address inside it (bits 11:0).
+    Space(AddressSpace, u16),
     Unmapped,
 }
 
@@ -40,11 +47,17 @@ fn decode(offset: u64) -> Target {
             }
         };
     }
-    match address.hub() {
-        Some(hub) => Target::Hub(hub),
-        None => Target::Unmapped,
+    match address.space {
+        AddressSpace::Main => Target::Unmapped,
+        AddressSpace::Hub => address.hub().map_or(Target::Unmapped, Target::Hub),
+        space => Target::Space(space, address.index),
     }
 }
+
+/// Volts per DAC count at the motor-supply comparator: the axis-4 DAC's
+/// 2.5 V full scale over 16 bits, times the divider of 21
+/// (`fpga-board-extras.md` §7: 24 V is about `0x7507`).
+pub(crate) const COMPARATOR_VOLTS_PER_COUNT: f64 = 2.5 / 65535.0 * 21.0;
 
 fn period_word(p: PeriodField) -> u32 {
     EncPeriod::default()
@@ -115,8 +128,83 @@ impl Firmware {
             Target::Hub(HubAddress::Memory(i)) => self.hub.read(usize::from(i), now),
             Target::Hub(HubAddress::Query) => self.hub.query_word(),
             Target::Hub(HubAddress::QuadletsWritten) => self.hub.count as u32,
+            Target::Space(space, index) => self.read_space(space, index),
             Target::Hub(HubAddress::Unmapped(_)) | Target::Unmapped => 0,
         }
+    }
+
+    /// A quadlet of the PROM, Ethernet, 1-wire or waveform space.
+    fn read_space(&self, space: AddressSpace, index: u16) -> u32 {
+        let now = self.now;
+        match space {
+            AddressSpace::FpgaProm => self.fpga_prom.buffer_quadlet(index),
+            AddressSpace::QlaProm => {
+                let Some(prom) = self.qla_prom(index) else {
+                    return 0;
+                };
+                match (index >> 8, index & 0xF) {
+                    (0, 1) => u32::from(prom.status().raw() as u16),
+                    (0, 2) => prom.result(),
+                    (1, q) => prom.buffer_quadlet(usize::from(q)),
+                    _ => 0,
+                }
+            }
+            AddressSpace::Ethernet if self.cfg.fpga == FpgaVersion::V2 => {
+                self.ethernet.window(index)
+            }
+            AddressSpace::OneWire => self.dallas.buffer_quadlet(index),
+            AddressSpace::Waveform => self.dout.read_table(now, index),
+            _ => 0,
+        }
+    }
+
+    /// A write to the PROM, Ethernet, 1-wire or waveform space.
+    fn write_space(&mut self, space: AddressSpace, index: u16, value: u32) {
+        let now = self.now;
+        match space {
+            AddressSpace::FpgaProm => self.fpga_prom.stream(now, index, &[value]),
+            AddressSpace::QlaProm => {
+                let Some(prom) = self.qla_prom_mut(index) else {
+                    return;
+                };
+                match (index >> 8, index & 0xF) {
+                    (0, 0) => prom.command(now, QlaPromCommand(value)),
+                    (1, q) => prom.set_buffer_quadlet(usize::from(q), value),
+                    _ => {}
+                }
+            }
+            AddressSpace::Waveform => self.dout.write_table(now, index, value),
+            _ => {}
+        }
+    }
+
+    /// Which QLA PROM a space-3 address (bits 7:4 the channel) reaches: a
+    /// QLA1 uses channel 0, a DQLA channels 1 and 2.
+    fn qla_prom_slot(&self, index: u16) -> Option<usize> {
+        let channel = usize::from((index >> 4) & 0xF);
+        if self.qla_proms.len() == 1 {
+            (channel == 0).then_some(0)
+        } else {
+            channel.checked_sub(1)
+        }
+    }
+
+    fn qla_prom(&self, index: u16) -> Option<&super::prom::QlaProm> {
+        self.qla_prom_slot(index)
+            .and_then(|i| self.qla_proms.get(i))
+    }
+
+    fn qla_prom_mut(&mut self, index: u16) -> Option<&mut super::prom::QlaProm> {
+        self.qla_prom_slot(index)
+            .and_then(|i| self.qla_proms.get_mut(i))
+    }
+
+    /// The motor-supply comparator (DIGIN bit 28): the axis-4 DAC's voltage
+    /// is below the motor supply, which is present only while it is good.
+    pub(crate) fn supply_comparator(&self) -> bool {
+        let command = self.axes.get(3).map_or(0, |a| a.command);
+        self.power.supply_good(self.now)
+            && f64::from(command) * COMPARATOR_VOLTS_PER_COUNT < self.cfg.motor_supply_volts
     }
 
     /// Read `quadlets` quadlets from `offset` at `now`, as a block read
@@ -145,6 +233,7 @@ impl Firmware {
             Target::Board(r) => self.write_board_register(now, r, value, phy),
             Target::Axis(i, r) => self.write_axis_register(now, i, r, value),
             Target::Hub(HubAddress::Query) => self.query(now, Some(value)),
+            Target::Space(space, index) => self.write_space(space, index, value),
             Target::Hub(_) | Target::Unmapped => {}
         }
         self.sync_plant();
@@ -187,11 +276,16 @@ impl Firmware {
                     self.query(now, Some(w));
                 }
             }
-            Target::Board(_) | Target::Axis(..) => {
+            // A page-program stream goes to the PROM whole.
+            Target::Space(AddressSpace::FpgaProm, index) => {
+                self.fpga_prom.stream(now, index, &quadlets_of(data));
+            }
+            Target::Board(_) | Target::Axis(..) | Target::Space(..) => {
                 for (k, q) in quadlets_of(data).into_iter().enumerate() {
                     match decode(u64::from(addr.wrapping_add(k as u16))) {
                         Target::Board(r) => self.write_board_register(now, r, q, phy),
                         Target::Axis(i, r) => self.write_axis_register(now, i, r, q),
+                        Target::Space(space, index) => self.write_space(space, index, q),
                         _ => {}
                     }
                 }
@@ -235,11 +329,18 @@ impl Firmware {
             BoardRegister::Watchdog => u32::from(self.watchdog.ticks),
             BoardRegister::HwVersion => u32::from(self.cfg.hardware.hardware_version()),
             BoardRegister::Temperature => self.temperature_word(),
-            BoardRegister::DigitalOut => u32::from(self.dout),
+            BoardRegister::DigitalOut => self.dout.read(self.now).raw(),
             BoardRegister::FwVersion => self.cfg.firmware.number(),
+            BoardRegister::PromCmd => self.fpga_prom.status(self.now).raw(),
+            BoardRegister::PromResult => self.fpga_prom.result(),
             BoardRegister::DigitalIn => self.digital_in().raw(),
             BoardRegister::IpAddr if self.cfg.fpga.has_ethernet() => self.ip_addr,
+            BoardRegister::EthStatus if self.cfg.fpga == FpgaVersion::V2 => {
+                self.ethernet.status().raw()
+            }
             BoardRegister::EthStatus => self.cfg.fpga.eth_status_bits(),
+            BoardRegister::DallasStatus => self.dallas.status(self.now, true).raw(),
+            BoardRegister::IoExpander => self.expander.read(),
             BoardRegister::GitDesc => self.cfg.git_desc,
             _ => 0,
         }
@@ -268,16 +369,28 @@ impl Firmware {
                 }
             }
             BoardRegister::Watchdog => self.watchdog.ticks = value as u16,
-            BoardRegister::DigitalOut => {
-                let w = DigitalOutWrite::parse(value);
-                self.dout = (self.dout & !w.mask) | w.outputs;
-            }
+            BoardRegister::DigitalOut => self.dout.write(now, DigitalOutWrite::parse(value)),
+            BoardRegister::PromCmd => self.fpga_prom.command(now, PromCommand(value)),
             BoardRegister::IpAddr if self.cfg.fpga.has_ethernet() => self.ip_addr = value,
+            BoardRegister::EthStatus if self.cfg.fpga == FpgaVersion::V2 => {
+                self.ethernet.write(EthControl(value));
+            }
+            BoardRegister::DallasStatus => self.dallas.write(now, DallasControl(value)),
+            BoardRegister::IoExpander => {
+                let inputs = ExpanderInputs {
+                    safety_feedback: self.power.relay,
+                    supply_comparator: self.supply_comparator(),
+                };
+                self.expander.write(ExpanderWrite(value), inputs);
+            }
             _ => {}
         }
     }
 
     fn read_axis_register(&mut self, i: usize, r: AxisRegister) -> u32 {
+        if r == AxisRegister::DoutCtrl {
+            return self.dout.ctrl(i).map_or(0, DoutCtrl::raw);
+        }
         if i >= self.n_axes() {
             return 0;
         }
@@ -299,6 +412,12 @@ impl Firmware {
     }
 
     fn write_axis_register(&mut self, now: Time, i: usize, r: AxisRegister, value: u32) {
+        if r == AxisRegister::DoutCtrl {
+            if i < OUTPUTS {
+                self.dout.write_ctrl(now, i, DoutCtrl(value));
+            }
+            return;
+        }
         if i >= self.n_axes() {
             return;
         }
@@ -411,8 +530,17 @@ impl Firmware {
             .collect();
         self.phy_ctrl = 0;
         self.phy_data = PhyData::default();
-        self.dout = 0;
+        self.dout = super::DigitalOutputs::new();
         self.ip_addr = 0;
+        self.fpga_prom.reboot();
+        for p in &mut self.qla_proms {
+            p.reboot();
+        }
+        self.dallas.reboot();
+        self.expander = super::Expander::new();
+        let link = self.ethernet.link();
+        self.ethernet = super::Ethernet::new(self.cfg.board_id);
+        self.ethernet.set_link(link);
         self.last_sample = now;
         self.hub = super::Hub::new();
     }
@@ -443,6 +571,8 @@ impl Firmware {
             .with_board_id(self.cfg.board_id)
             .with_watchdog_timeout(self.watchdog.timed_out)
             .with_quad_dac(true)
+            .with_dout_checked(true)
+            .with_dout_bidirectional(true)
             .with_motor_supply_good(self.power.supply_good(now))
             .with_motor_power_enabled(self.power.enabled)
             .with_relay_state(self.power.relay)
@@ -499,12 +629,19 @@ impl Firmware {
             }
         }
         let [a, b, index, neg, pos, home] = lines;
+        // What is plugged in holds some switch inputs high.
+        let plugged = self.cfg.input_lines;
+        let neg = neg | ((plugged >> 8) & 0xF) as u8;
+        let pos = pos | ((plugged >> 4) & 0xF) as u8;
+        let home = home | (plugged & 0xF) as u8;
         DigitalIn::default()
             .with_v_fault(self.power.supply_fault())
+            .with_waveform_active(self.dout.table_active(self.now))
+            .with_supply_comparator(self.supply_comparator())
             .with_enc_a(a)
             .with_enc_b(b)
             .with_index(index)
-            .with_outputs(self.dout)
+            .with_outputs(self.dout.raw_outputs(self.now))
             .with_neg_limits(neg)
             .with_pos_limits(pos)
             .with_home(home)

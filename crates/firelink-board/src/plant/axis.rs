@@ -13,7 +13,10 @@
 //!    at rest while the driving torque does not exceed the friction) and
 //!    viscous friction treated implicitly. Friction never reverses the
 //!    motion within a step: a velocity crossing zero stops.
-//! 3. Position from the new velocity; the encoder records the edges
+//! 3. Position from the new velocity, held inside the mechanical stops:
+//!    a joint that reaches a stop stays there with zero velocity (an
+//!    inelastic, rigid stop) while the drive pushes into it, and leaves it
+//!    freely when the drive pulls away; the encoder records the edges
 //!    crossed with interpolated times.
 //! 4. Temperature: exact first-order response to the dissipated power.
 
@@ -35,6 +38,8 @@ pub struct Axis {
     alpha_thermal: f64,
     inertia: f64,
     counts_per_rad: f64,
+    /// The mechanical stops as motor angles (lower, upper), rad.
+    motor_stops: (f64, f64),
     // Inputs.
     dac: u16,
     enabled: bool,
@@ -58,11 +63,24 @@ impl Axis {
         };
         let motor_angle = params.load.initial_position * params.load.gear_ratio;
         let encoder = Encoder::new(params.encoder.counts_per_rev, motor_angle * counts_per_rad);
+        let motor_stops = {
+            let n = params.load.gear_ratio;
+            let from_lower = params.stops.lower.map(|l| l * n);
+            let from_upper = params.stops.upper.map(|u| u * n);
+            // A negative gear ratio swaps which motor angle is the lower stop.
+            let (lo, hi) = if n > 0.0 {
+                (from_lower, from_upper)
+            } else {
+                (from_upper, from_lower)
+            };
+            (lo.unwrap_or(f64::NEG_INFINITY), hi.unwrap_or(f64::INFINITY))
+        };
         Axis {
             alpha_current: 1.0 - (-2.0 * PI * params.amplifier.bandwidth_hz * step_s).exp(),
             alpha_thermal: 1.0 - (-step_s / params.thermal.time_constant).exp(),
             inertia: params.motor_side_inertia(),
             counts_per_rad,
+            motor_stops,
             dac: DAC_ZERO,
             enabled: false,
             external_torque: 0.0,
@@ -104,7 +122,8 @@ impl Axis {
 
     /// The current the DAC code commands (before limits), A.
     pub fn commanded_current(&self) -> f64 {
-        (f64::from(self.dac) - f64::from(DAC_ZERO)) * self.params.amplifier.amps_per_bit
+        (f64::from(self.dac) - f64::from(self.params.amplifier.zero_code))
+            * self.params.amplifier.amps_per_bit
     }
 
     /// The true motor current, A.
@@ -142,11 +161,23 @@ impl Axis {
         &self.encoder
     }
 
-    /// The potentiometer voltage without noise, clamped to the ADC range.
+    /// The potentiometer voltage without noise when the pot measures this
+    /// joint: linear in the position, held at the ends of its electrical
+    /// range (see [`AxisParams::pot_volts_at`]).
     pub fn pot_voltage(&self) -> f64 {
-        let v =
-            self.params.pot.offset_volts + self.params.pot.volts_per_unit * self.joint_position();
-        v.clamp(0.0, super::params::POT_FULL_SCALE_VOLTS)
+        self.params.pot_volts_at(self.joint_position())
+    }
+
+    /// Which mechanical stop the joint rests against, if any: `Some(false)`
+    /// the lower, `Some(true)` the upper.
+    pub fn at_stop(&self) -> Option<bool> {
+        if self.motor_angle <= self.motor_stops.0 {
+            Some(self.params.load.gear_ratio < 0.0)
+        } else if self.motor_angle >= self.motor_stops.1 {
+            Some(self.params.load.gear_ratio > 0.0)
+        } else {
+            None
+        }
     }
 
     /// (negative limit, positive limit, home) switch states.
@@ -195,13 +226,17 @@ impl Axis {
         i
     }
 
-    /// Whether a step would change nothing but the temperature.
-    fn is_quiescent(&self) -> bool {
-        self.current == 0.0
-            && self.motor_velocity == 0.0
-            && self.target_current() == 0.0
-            && (self.load_torque() / self.params.load.gear_ratio).abs()
-                <= self.params.motor.coulomb_friction
+    /// Whether a step would change nothing but the temperature: at rest,
+    /// no current, and the load either held by friction or pressing the
+    /// joint into the stop it rests against.
+    pub(crate) fn is_quiescent(&self) -> bool {
+        if self.current != 0.0 || self.motor_velocity != 0.0 || self.target_current() != 0.0 {
+            return false;
+        }
+        let push = self.load_torque() / self.params.load.gear_ratio;
+        push.abs() <= self.params.motor.coulomb_friction
+            || (push < 0.0 && self.motor_angle <= self.motor_stops.0)
+            || (push > 0.0 && self.motor_angle >= self.motor_stops.1)
     }
 
     /// Advance `steps` sub-steps of `step_ps` picoseconds starting at
@@ -250,9 +285,19 @@ impl Axis {
             }
         };
         self.motor_velocity = if new_w.is_finite() { new_w } else { 0.0 };
-        // 3. Position and encoder.
+        // 3. Position inside the stops, and the encoder.
         let old_angle = self.motor_angle;
-        self.motor_angle += h * self.motor_velocity;
+        let (lo, hi) = self.motor_stops;
+        let angle = self.motor_angle + h * self.motor_velocity;
+        if angle <= lo {
+            self.motor_angle = lo;
+            self.motor_velocity = self.motor_velocity.max(0.0);
+        } else if angle >= hi {
+            self.motor_angle = hi;
+            self.motor_velocity = self.motor_velocity.min(0.0);
+        } else {
+            self.motor_angle = angle;
+        }
         if self.motor_angle != old_angle {
             self.encoder.track(
                 old_angle * self.counts_per_rad,

@@ -1,7 +1,8 @@
 //! The physical plant behind a board: per axis a linear current amplifier,
-//! a DC motor with friction, a gear train and a load, a quadrature encoder,
-//! a potentiometer, current sense with seeded noise and the amplifier
-//! temperature.
+//! a DC motor with friction, a gear train and a load between mechanical
+//! stops, a quadrature encoder, a potentiometer (on its own joint or on a
+//! joint several axes move) with an electrical range, current sense with
+//! seeded noise and the amplifier temperature.
 //!
 //! Deterministic and driven by time passed in: [`Plant::advance_to`]
 //! integrates whole fixed sub-steps on the grid `k * step` up to `now`, so
@@ -31,7 +32,7 @@ pub mod presets;
 pub use axis::Axis;
 pub use params::{
     AmplifierParams, AxisParams, CurrentSenseParams, DAC_ZERO, EncoderParams, GravityParams,
-    LoadParams, MotorParams, POT_FULL_SCALE_VOLTS, PotParams, QLA_AMPS_PER_BIT,
+    HardStops, LoadParams, MotorParams, POT_FULL_SCALE_VOLTS, PotParams, QLA_AMPS_PER_BIT,
     QLA_FULL_SCALE_AMPS, SpringParams, SwitchParams, ThermalParams,
 };
 
@@ -128,6 +129,32 @@ impl Plant {
         })
     }
 
+    /// The position the potentiometer of an axis measures: its own joint,
+    /// or the weighted positions of the axes it is coupled to
+    /// ([`PotParams::measures`]); joint units.
+    pub fn pot_position(&self, index: usize) -> f64 {
+        let Some(a) = self.axes.get(index) else {
+            return 0.0;
+        };
+        let terms = &a.params().pot.measures;
+        if terms.is_empty() {
+            return a.joint_position();
+        }
+        terms
+            .iter()
+            .map(|&(k, w)| w * self.axes.get(k).map_or(0.0, Axis::joint_position))
+            .sum()
+    }
+
+    /// The potentiometer voltage of an axis without noise: the wiper at
+    /// [`pot_position`](Self::pot_position), held at the ends of its
+    /// electrical range, V.
+    pub fn pot_voltage(&self, index: usize) -> f64 {
+        self.axes
+            .get(index)
+            .map_or(0.0, |a| a.params().pot_volts_at(self.pot_position(index)))
+    }
+
     /// The measured potentiometer voltage of an axis, with seeded noise,
     /// clamped to the ADC range, V.
     pub fn measured_pot(&self, index: usize) -> f64 {
@@ -135,7 +162,8 @@ impl Plant {
             let n = self
                 .noise
                 .gaussian(index, NoiseChannel::Pot, self.steps_done);
-            (a.pot_voltage() + a.params().pot.noise_volts * n).clamp(0.0, POT_FULL_SCALE_VOLTS)
+            (self.pot_voltage(index) + a.params().pot.noise_volts * n)
+                .clamp(0.0, POT_FULL_SCALE_VOLTS)
         })
     }
 }
@@ -251,6 +279,118 @@ mod tests {
         let t0 = p.axis(0).unwrap().temperature();
         p.advance_to(Time::from_millis(2000));
         assert!(p.axis(0).unwrap().temperature() > t0 + 0.5);
+    }
+
+    /// A free-running generic motor with stops at +-0.3 rad.
+    fn stopped(gear: f64) -> AxisParams {
+        let mut p = presets::generic_motor();
+        p.load.gear_ratio = gear;
+        p.stops = HardStops::new(-0.3, 0.3);
+        p
+    }
+
+    #[test]
+    fn a_joint_driven_into_a_stop_stalls_there() {
+        for gear in [50.0, -50.0] {
+            let mut p = Plant::new(vec![stopped(gear)], 0, DEFAULT_STEP);
+            // Drive towards negative joint positions whatever the gear sign.
+            let amps = -0.8 * gear.signum();
+            p.axis_mut(0).unwrap().set_drive(amps_to_dac(amps), true);
+            p.advance_to(Time::from_millis(300));
+            let a = p.axis(0).unwrap();
+            assert_eq!(a.joint_position(), -0.3, "gear {gear}");
+            assert_eq!(a.motor_velocity(), 0.0);
+            assert_eq!(a.at_stop(), Some(false));
+            // Stalled: no back-EMF, the full command flows.
+            assert!((a.current() - amps).abs() < 1e-3, "{}", a.current());
+            let count = a.encoder().count();
+            p.advance_to(Time::from_millis(400));
+            assert_eq!(p.axis(0).unwrap().encoder().count(), count);
+            // The encoder agrees with the shaft at the stop.
+            let a = p.axis(0).unwrap();
+            assert_eq!(
+                a.encoder().count(),
+                (a.motor_angle() * a.counts_per_rad()).floor() as i64
+            );
+            // Pulling away moves freely.
+            p.axis_mut(0).unwrap().set_drive(amps_to_dac(-amps), true);
+            p.advance_to(Time::from_millis(450));
+            let a = p.axis(0).unwrap();
+            assert!(a.joint_position() > -0.3, "gear {gear}");
+            assert_eq!(a.at_stop(), None);
+            // And stops at the other end.
+            p.advance_to(Time::from_millis(1200));
+            assert_eq!(p.axis(0).unwrap().joint_position(), 0.3);
+            assert_eq!(p.axis(0).unwrap().at_stop(), Some(true));
+        }
+    }
+
+    #[test]
+    fn the_pot_follows_the_joint_up_to_its_stops() {
+        let mut params = stopped(50.0);
+        params.pot.noise_volts = 0.0;
+        let mut p = Plant::new(vec![params.clone()], 0, DEFAULT_STEP);
+        p.axis_mut(0).unwrap().set_drive(amps_to_dac(-1.0), true);
+        for ms in (0..=400).step_by(5) {
+            p.advance_to(Time::from_millis(ms));
+            let q = p.axis(0).unwrap().joint_position();
+            let v = p.measured_pot(0);
+            let from_pot = (v - params.pot.offset_volts) / params.pot.volts_per_unit;
+            assert!((from_pot - q).abs() < 1e-12, "{from_pot} vs {q}");
+        }
+        // The wiper stays at its electrical end beyond it.
+        let mut narrow = params;
+        narrow.pot.electrical_range = (2.0, 2.4);
+        assert_eq!(narrow.pot_volts_at(-10.0), 2.0);
+        assert_eq!(narrow.pot_volts_at(10.0), 2.4);
+        let (lo, hi) = narrow.pot_position_range().unwrap();
+        assert!((narrow.pot_volts_at(lo) - 2.0).abs() < 1e-12);
+        assert!((narrow.pot_volts_at(hi) - 2.4).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_pot_can_measure_a_coupled_joint() {
+        let mut a = presets::generic_motor();
+        a.load.initial_position = 0.2;
+        let mut b = presets::generic_motor();
+        b.load.initial_position = 0.5;
+        // Axis 1's pot measures joint = q1 - q0 (an MTM elbow).
+        b.pot.measures = vec![(1, 1.0), (0, -1.0), (9, 2.0)];
+        b.pot.noise_volts = 0.0;
+        let p = Plant::new(vec![a, b.clone()], 0, DEFAULT_STEP);
+        assert!((p.pot_position(1) - 0.3).abs() < 1e-12);
+        assert!((p.pot_position(0) - 0.2).abs() < 1e-12);
+        let v = b.pot.offset_volts + b.pot.volts_per_unit * 0.3;
+        assert!((p.measured_pot(1) - v).abs() < 1e-12);
+    }
+
+    #[test]
+    fn resting_on_a_stop_under_gravity_is_quiescent() {
+        let mut params = stopped(50.0);
+        // A constant load pulling the joint down (a weight on a slope).
+        params.load.bias = -2.0;
+        params.load.initial_position = 0.1;
+        let mut p = Plant::new(vec![params], 0, DEFAULT_STEP);
+        p.advance_to(Time::from_millis(2000));
+        let a = p.axis(0).unwrap();
+        assert_eq!(a.joint_position(), -0.3);
+        assert_eq!(a.motor_velocity(), 0.0);
+        assert!(a.is_quiescent());
+    }
+
+    #[test]
+    fn stops_are_sanitized_and_hold_the_initial_position() {
+        let mut params = presets::generic_motor();
+        params.stops = HardStops::new(0.5, -0.5);
+        assert_eq!(params.sanitized().stops, HardStops::default());
+        params.stops = HardStops {
+            lower: Some(f64::NAN),
+            upper: Some(0.1),
+        };
+        params.load.initial_position = 0.7;
+        let s = params.sanitized();
+        assert_eq!(s.stops.lower, None);
+        assert_eq!(s.load.initial_position, 0.1);
     }
 
     #[test]

@@ -1,5 +1,6 @@
-//! Physical parameters of one axis: amplifier, motor, transmission, load,
-//! encoder, potentiometer, current sense and amplifier temperature.
+//! Physical parameters of one axis: amplifier, motor, transmission, load
+//! and its mechanical stops, encoder, potentiometer, current sense and
+//! amplifier temperature.
 //!
 //! All values are SI at the place named: motor-side quantities at the motor
 //! shaft, joint-side quantities at the joint. A joint may be revolute (its
@@ -25,8 +26,12 @@ pub const POT_FULL_SCALE_VOLTS: f64 = 4.5;
 /// limit and a first-order current-loop bandwidth, limited by the supply.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AmplifierParams {
-    /// Commanded amperes per DAC count away from [`DAC_ZERO`].
+    /// Commanded amperes per DAC count away from `zero_code`.
     pub amps_per_bit: f64,
+    /// The DAC code at which this amplifier delivers no current: nominally
+    /// [`DAC_ZERO`], a few counts off on a real QLA (what a calibrated
+    /// configuration's `current_to_bits.offset` records).
+    pub zero_code: u16,
     /// Largest current magnitude the amplifier delivers, A.
     pub current_limit: f64,
     /// Closed-loop current bandwidth, Hz (first order).
@@ -89,6 +94,34 @@ pub struct LoadParams {
     pub initial_position: f64,
 }
 
+/// The mechanical (hard) stops of a joint, joint units. A joint driven
+/// into a stop stops there: the motion into the stop is lost (an
+/// inelastic, rigid stop), the motor stalls and its current is whatever
+/// the amplifier delivers; motion away from the stop is free.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct HardStops {
+    /// The joint cannot go below this position.
+    pub lower: Option<f64>,
+    /// The joint cannot go above this position.
+    pub upper: Option<f64>,
+}
+
+impl HardStops {
+    /// Stops at `lower` and `upper`.
+    pub fn new(lower: f64, upper: f64) -> HardStops {
+        HardStops {
+            lower: Some(lower),
+            upper: Some(upper),
+        }
+    }
+
+    /// `q` moved inside the stops.
+    pub fn clamp(&self, q: f64) -> f64 {
+        let q = self.lower.map_or(q, |l| q.max(l));
+        self.upper.map_or(q, |u| q.min(u))
+    }
+}
+
 /// An incremental quadrature encoder on the motor shaft.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EncoderParams {
@@ -98,7 +131,9 @@ pub struct EncoderParams {
     pub reversed: bool,
 }
 
-/// An analog potentiometer on the joint.
+/// An analog potentiometer: its wiper voltage is linear in the position
+/// it measures, `offset_volts + volts_per_unit * position`, between the
+/// ends of its electrical range, where it stays.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PotParams {
     /// Volts per joint unit.
@@ -107,6 +142,15 @@ pub struct PotParams {
     pub offset_volts: f64,
     /// Standard deviation of the reading noise, V.
     pub noise_volts: f64,
+    /// The electrical range of the wiper, V (lower end, upper end): past
+    /// its ends the voltage stays at the end. At most the ADC's range
+    /// (0 to [`POT_FULL_SCALE_VOLTS`]).
+    pub electrical_range: (f64, f64),
+    /// What the pot measures, as weights of the positions of this board's
+    /// axes (axis index, weight): a pot mounted on a joint that several
+    /// actuators move (the dVRK MTM's coupled joints). Empty: the pot
+    /// measures its own axis.
+    pub measures: Vec<(usize, f64)>,
 }
 
 /// The amplifier's current-sense channel.
@@ -168,6 +212,8 @@ pub struct AxisParams {
     pub thermal: ThermalParams,
     /// Limit and home switches.
     pub switches: SwitchParams,
+    /// Mechanical stops of the joint.
+    pub stops: HardStops,
 }
 
 impl Default for AmplifierParams {
@@ -175,6 +221,7 @@ impl Default for AmplifierParams {
     fn default() -> Self {
         AmplifierParams {
             amps_per_bit: QLA_AMPS_PER_BIT,
+            zero_code: DAC_ZERO,
             current_limit: QLA_FULL_SCALE_AMPS,
             bandwidth_hz: 2_000.0,
             supply_voltage: 24.0,
@@ -189,6 +236,8 @@ impl Default for PotParams {
             volts_per_unit: 1.0,
             offset_volts: POT_FULL_SCALE_VOLTS / 2.0,
             noise_volts: 0.0005,
+            electrical_range: (0.0, POT_FULL_SCALE_VOLTS),
+            measures: Vec::new(),
         }
     }
 }
@@ -264,6 +313,23 @@ impl AxisParams {
         p.pot.volts_per_unit = finite(p.pot.volts_per_unit);
         p.pot.offset_volts = finite(p.pot.offset_volts);
         p.pot.noise_volts = non_neg(p.pot.noise_volts);
+        let (lo, hi) = p.pot.electrical_range;
+        let lo = if lo.is_finite() {
+            lo.clamp(0.0, POT_FULL_SCALE_VOLTS)
+        } else {
+            0.0
+        };
+        let hi = if hi.is_finite() {
+            hi.clamp(0.0, POT_FULL_SCALE_VOLTS)
+        } else {
+            POT_FULL_SCALE_VOLTS
+        };
+        p.pot.electrical_range = if lo < hi {
+            (lo, hi)
+        } else {
+            (0.0, POT_FULL_SCALE_VOLTS)
+        };
+        p.pot.measures.retain(|(_, w)| w.is_finite() && *w != 0.0);
         p.current_sense.offset_amps = finite(p.current_sense.offset_amps);
         p.current_sense.noise_amps = non_neg(p.current_sense.noise_amps);
         p.thermal.ambient_c = finite(p.thermal.ambient_c);
@@ -280,6 +346,17 @@ impl AxisParams {
                 *v = None;
             }
         }
+        for v in [&mut p.stops.lower, &mut p.stops.upper] {
+            if v.is_some_and(|x| !x.is_finite()) {
+                *v = None;
+            }
+        }
+        if let (Some(l), Some(u)) = (p.stops.lower, p.stops.upper) {
+            if l >= u {
+                p.stops = HardStops::default();
+            }
+        }
+        p.load.initial_position = p.stops.clamp(p.load.initial_position);
         p
     }
 
@@ -287,6 +364,28 @@ impl AxisParams {
     pub fn motor_side_inertia(&self) -> f64 {
         let n = self.load.gear_ratio;
         self.motor.rotor_inertia + self.load.inertia / (n * n)
+    }
+
+    /// The wiper voltage at joint (or measured) position `q`, before
+    /// noise: linear, held at the ends of the electrical range.
+    pub fn pot_volts_at(&self, q: f64) -> f64 {
+        let (lo, hi) = self.pot.electrical_range;
+        let v = self.pot.offset_volts + self.pot.volts_per_unit * q;
+        if v.is_nan() { lo } else { v.clamp(lo, hi) }
+    }
+
+    /// The positions where the pot reaches the ends of its electrical
+    /// range, (lower, upper) in joint units; `None` for a pot that does
+    /// not move (zero gain).
+    pub fn pot_position_range(&self) -> Option<(f64, f64)> {
+        let k = self.pot.volts_per_unit;
+        if k == 0.0 || !k.is_finite() {
+            return None;
+        }
+        let (lo, hi) = self.pot.electrical_range;
+        let a = (lo - self.pot.offset_volts) / k;
+        let b = (hi - self.pot.offset_volts) / k;
+        Some((a.min(b), a.max(b)))
     }
 
     /// Encoder counts per joint unit.

@@ -1,4 +1,5 @@
-//! Axis presets: a generic motor and the da Vinci Research Kit arm joints.
+//! Axis presets: a generic motor and the da Vinci Research Kit arm joints
+//! (MTM, PSM, ECM).
 //!
 //! The values are *plausible*, not calibrated: motor data in the range of
 //! the public Maxon catalogue for the motor classes the dVRK arms use
@@ -16,6 +17,17 @@
 //! | RE 40, 48 V winding | 60.3 | 1.16 | 134 |
 //! | RE 25, 24 V winding | 23.4 | 2.3 | 10.5 |
 //! | RE 13-class, 12 V winding | 9.0 | 10.0 | 0.6 |
+//! | large (ECM joints 1-2) | 119 | 0.8 | 300 |
+//!
+//! The large class takes its torque constant from the public dVRK ECM
+//! configuration (0.119 N m/A); its resistance and inertia are plausible
+//! values for a motor of that size.
+//!
+//! Mechanical stops: 5 % of each joint's range beyond both ends, except
+//! where the public dVRK software states the physical range: the MTM wrist
+//! roll's lower stop is at -480 degrees (the console sets the roll encoder
+//! there when its stop search stalls) and the roll turns about 2.6 turns
+//! in all ("limited to ~2.6 turns"), so its upper stop is at +456 degrees.
 
 use super::params::*;
 
@@ -25,6 +37,7 @@ enum MotorClass {
     Re40,
     Re25,
     Re13,
+    Large,
 }
 
 fn motor(class: MotorClass) -> MotorParams {
@@ -50,6 +63,13 @@ fn motor(class: MotorClass) -> MotorParams {
             viscous_friction: 2e-7,
             coulomb_friction: 3e-4,
         },
+        MotorClass::Large => MotorParams {
+            torque_constant: 0.119,
+            resistance: 0.8,
+            rotor_inertia: 300e-7,
+            viscous_friction: 1e-5,
+            coulomb_friction: 8e-3,
+        },
     }
 }
 
@@ -63,9 +83,14 @@ struct Joint {
     counts_per_rev: u32,
     inertia: f64,
     gravity: f64,
-    /// Joint range, used to centre the potentiometer.
+    /// Joint range, used to centre the potentiometer and to place the
+    /// mechanical stops (5 % of the range beyond each end).
     range: (f64, f64),
 }
+
+/// How far beyond its range a preset joint's mechanical stops are, as a
+/// fraction of the range.
+const STOP_MARGIN: f64 = 0.05;
 
 fn build(j: Joint) -> AxisParams {
     let span = (j.range.1 - j.range.0).abs().max(1e-6);
@@ -104,6 +129,10 @@ fn build(j: Joint) -> AxisParams {
         current_sense: CurrentSenseParams::default(),
         thermal: ThermalParams::default(),
         switches: SwitchParams::default(),
+        stops: HardStops::new(
+            j.range.0.min(j.range.1) - STOP_MARGIN * span,
+            j.range.0.max(j.range.1) + STOP_MARGIN * span,
+        ),
     }
 }
 
@@ -211,7 +240,7 @@ pub fn mtm_joint(joint: u8) -> Option<AxisParams> {
         _ => return None,
     };
     let current_limit = if class == Re25 { 0.8 } else { 0.4 };
-    Some(build(Joint {
+    let mut p = build(Joint {
         name,
         class,
         supply: 24.0,
@@ -221,8 +250,20 @@ pub fn mtm_joint(joint: u8) -> Option<AxisParams> {
         inertia,
         gravity,
         range,
-    }))
+    });
+    if joint == 7 {
+        p.stops = HardStops::new(MTM_ROLL_LOWER_STOP, MTM_ROLL_UPPER_STOP);
+    }
+    Some(p)
 }
+
+/// The MTM wrist roll's lower mechanical stop, rad: -480 degrees, where
+/// the dVRK console sets the roll encoder when its stop search stalls.
+pub const MTM_ROLL_LOWER_STOP: f64 = -480.0 * core::f64::consts::PI / 180.0;
+
+/// The MTM wrist roll's upper mechanical stop, rad: about 2.6 turns above
+/// the lower one (+456 degrees).
+pub const MTM_ROLL_UPPER_STOP: f64 = MTM_ROLL_LOWER_STOP + 2.6 * 2.0 * core::f64::consts::PI;
 
 /// A da Vinci Research Kit patient side manipulator (PSM) joint, 1..=7:
 /// outer yaw, outer pitch, insertion (prismatic: metres, gear ratio in
@@ -316,6 +357,68 @@ pub fn psm_joint(joint: u8) -> Option<AxisParams> {
     }))
 }
 
+/// A da Vinci Research Kit endoscope camera manipulator (ECM) joint,
+/// 1..=4: outer yaw, outer pitch, insertion (prismatic: metres, gear
+/// ratio in motor radians per metre) and the camera roll. Ranges are the
+/// public Classic ECM soft limits; gear ratios and encoder resolutions
+/// those of its public configuration. The ECM's brakes are not modelled,
+/// so neither is gravity (a braked arm does not fall; an emulated one
+/// without brakes would). `None` for other numbers.
+pub fn ecm_joint(joint: u8) -> Option<AxisParams> {
+    use MotorClass::*;
+    const DEG: f64 = core::f64::consts::PI / 180.0;
+    let (name, class, gear, cpr, inertia, range, limit) = match joint {
+        1 => (
+            "ECM J1 outer yaw",
+            Large,
+            240.0,
+            4000,
+            0.6,
+            (-90.0 * DEG, 90.0 * DEG),
+            1.0,
+        ),
+        2 => (
+            "ECM J2 outer pitch",
+            Large,
+            240.0,
+            4000,
+            0.6,
+            (-45.0 * DEG, 64.0 * DEG),
+            1.0,
+        ),
+        3 => (
+            "ECM J3 insertion",
+            Re25,
+            2748.55,
+            640,
+            1.5,
+            (0.0, 0.255),
+            0.8,
+        ),
+        4 => (
+            "ECM J4 camera roll",
+            Re13,
+            300.15,
+            64,
+            0.002,
+            (-89.0 * DEG, 89.0 * DEG),
+            0.7,
+        ),
+        _ => return None,
+    };
+    Some(build(Joint {
+        name,
+        class,
+        supply: if class == Large { 48.0 } else { 24.0 },
+        current_limit: limit,
+        gear_ratio: gear,
+        counts_per_rev: cpr,
+        inertia,
+        gravity: 0.0,
+        range,
+    }))
+}
+
 /// A dVRK arm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Arm {
@@ -323,6 +426,8 @@ pub enum Arm {
     Mtm,
     /// Patient side manipulator: joints 1..=7.
     Psm,
+    /// Endoscope camera manipulator: joints 1..=4.
+    Ecm,
 }
 
 /// The axes of board `index` (0-based) of an arm, `per_board` axes each,
@@ -337,6 +442,7 @@ pub fn arm_axes(arm: Arm, index: usize, per_board: usize) -> Vec<AxisParams> {
             match arm {
                 Arm::Mtm => mtm_joint(joint),
                 Arm::Psm => psm_joint(joint),
+                Arm::Ecm => ecm_joint(joint),
             }
             .unwrap_or_else(unused_channel)
         })
@@ -359,7 +465,25 @@ mod tests {
             // The joint range stays inside the pot range.
             assert!(p.pot.offset_volts > 0.0 && p.pot.offset_volts < POT_FULL_SCALE_VOLTS);
         }
+        for j in 1..=4 {
+            let p = ecm_joint(j).unwrap();
+            assert_eq!(p.sanitized(), p, "{}", p.name);
+        }
         assert!(mtm_joint(0).is_none() && mtm_joint(9).is_none() && psm_joint(8).is_none());
+        assert!(ecm_joint(5).is_none());
+        // Every motorised preset joint has stops that its pot can see.
+        for p in (1..=7)
+            .filter_map(mtm_joint)
+            .chain((1..=7).filter_map(psm_joint))
+            .chain((1..=4).filter_map(ecm_joint))
+        {
+            let (lo, hi) = (p.stops.lower.unwrap(), p.stops.upper.unwrap());
+            let (pot_lo, pot_hi) = p.pot_position_range().unwrap();
+            assert!(pot_lo < lo && hi < pot_hi, "{}", p.name);
+        }
+        let roll = mtm_joint(7).unwrap().stops;
+        assert!((roll.lower.unwrap().to_degrees() + 480.0).abs() < 1e-9);
+        assert!((roll.upper.unwrap().to_degrees() - 456.0).abs() < 1e-9);
         let board2 = arm_axes(Arm::Psm, 1, 4);
         assert_eq!(board2.len(), 4);
         assert_eq!(board2[0].name, "PSM J5 tool pitch");

@@ -4,13 +4,19 @@
 //! `"$id": "saw-robot-io.schema.json"` and `"$version": "6"`, then `robots`,
 //! each with `actuators` that name a `board_id` and `axis_id` and carry the
 //! `drive`, `encoder` and `potentiometer` conversions under the same keys as
-//! sawRobotIO1394's generated files. Firelink adds three optional,
-//! per-actuator sections that v6 does not have: `limits` (velocity,
-//! following error, current saturation time), `simulation` (the plant preset,
-//! PID gains and homing defaults) and, on the encoder, `counts_per_turn`.
-//! A file may also carry v6's `digital_inputs`, `digital_outputs`,
-//! `dallas_chips` and a robot's `brakes`: they are accepted and kept as JSON
-//! but not used yet.
+//! sawRobotIO1394's generated files. Firelink adds optional sections that v6
+//! does not have: per actuator `limits` (velocity, following error, current
+//! saturation time), `simulation` (the plant preset, its mechanical stops,
+//! PID gains and homing defaults, including a stop search) and, on the
+//! encoder, `counts_per_turn`; per robot `simulation` (which dVRK arm it is,
+//! the PSM's sterile adapter and instrument, the boards' serial numbers).
+//! A robot's v6 `potentiometers.coupling` (pots mounted on joints, as on
+//! the dVRK MTM) is used: pot positions are turned into actuator space with
+//! its `JointToActuatorPosition` matrix, as sawRobotIO1394 does. A file may
+//! also carry v6's `digital_inputs`, `digital_outputs`, `dallas_chips` and a
+//! robot's `brakes`: they are accepted and kept as JSON (the emulator reads
+//! the PSM's adapter and tool inputs from `digital_inputs`); brakes are not
+//! driven.
 //!
 //! Older sawRobotIO1394 names are accepted as aliases: `amps_to_bits` for
 //! `current_to_bits`, `bits_to_feedback_amps` for `bits_to_current`,
@@ -140,6 +146,124 @@ pub struct RobotConfig {
     /// homing and the safety monitor).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub potentiometers: Option<PotentiometersConfig>,
+    /// What the emulator puts behind this robot (Firelink extension).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub simulation: Option<RobotSimulation>,
+}
+
+/// The da Vinci Research Kit arms Firelink knows the mechanics of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum DvrkArm {
+    /// Master tool manipulator (MTML, MTMR): 7 actuators and a gripper.
+    #[serde(rename = "MTM")]
+    Mtm,
+    /// Patient side manipulator (PSM1-3): 7 actuators.
+    #[serde(rename = "PSM")]
+    Psm,
+    /// Endoscope camera manipulator: 4 actuators (and 3 brakes).
+    #[serde(rename = "ECM")]
+    Ecm,
+}
+
+impl DvrkArm {
+    /// The arm a robot name says, as the dVRK names them (`MTML`, `MTMR`,
+    /// `PSM1`, ..., `ECM`); `None` for other names.
+    pub fn from_robot_name(name: &str) -> Option<DvrkArm> {
+        let upper = name.to_ascii_uppercase();
+        if upper.starts_with("MTM") {
+            Some(DvrkArm::Mtm)
+        } else if upper.starts_with("PSM") {
+            Some(DvrkArm::Psm)
+        } else if upper.starts_with("ECM") {
+            Some(DvrkArm::Ecm)
+        } else {
+            None
+        }
+    }
+
+    /// Motorised actuators of the arm.
+    pub fn actuators(self) -> usize {
+        self.plants().len()
+    }
+
+    /// The plants of the arm's actuators, in order.
+    pub fn plants(self) -> &'static [PlantPreset] {
+        use PlantPreset::*;
+        match self {
+            DvrkArm::Mtm => &[MtmJ1, MtmJ2, MtmJ3, MtmJ4, MtmJ5, MtmJ6, MtmJ7],
+            DvrkArm::Psm => &[PsmJ1, PsmJ2, PsmJ3, PsmJ4, PsmJ5, PsmJ6, PsmJ7],
+            DvrkArm::Ecm => &[EcmJ1, EcmJ2, EcmJ3, EcmJ4],
+        }
+    }
+
+    /// The plant of actuator `index` (0-based); `None` beyond the arm.
+    pub fn plant(self, index: usize) -> Option<PlantPreset> {
+        self.plants().get(index).copied()
+    }
+}
+
+/// What the emulator puts behind one robot (Firelink extension).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotSimulation {
+    /// Which dVRK arm the robot is, for the plants of actuators whose
+    /// `simulation` names none; by default the robot's name says
+    /// ([`DvrkArm::from_robot_name`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub arm: Option<DvrkArm>,
+    /// PSM: whether the sterile adapter is on (its contact, the v6 digital
+    /// input named `<robot>_adapter`, reads pressed).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub adapter: bool,
+    /// PSM: the instrument in the adapter, if any (its contact, the v6
+    /// digital input `<robot>_tool`, reads pressed, and its 1-wire memory
+    /// holds what is here).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tool: Option<ToolConfig>,
+    /// Serial numbers of the robot's boards, as their PROMs hold them.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub boards: Vec<BoardSimulation>,
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
+}
+
+/// An instrument as its 1-wire memory describes it.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ToolConfig {
+    /// Name, as the dVRK tool index spells it (`LARGE_NEEDLE_DRIVER`).
+    pub name: String,
+    /// Model number (`400006`).
+    pub model: u32,
+    /// Version byte.
+    #[serde(default)]
+    pub version: u8,
+}
+
+/// One board of a robot, as the emulator presents it.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoardSimulation {
+    /// Board ID (rotary switch).
+    pub board_id: u8,
+    /// Serial numbers in the board's PROMs.
+    pub serial: BoardSerial,
+}
+
+/// The serial numbers of an FPGA board and its companion QLA, as printed
+/// on their labels (`1234-56` or `1234-567`; the PROMs add the `FPGA ` and
+/// `QLA ` prefixes).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoardSerial {
+    /// The FPGA board's serial number.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fpga: Option<String>,
+    /// The QLA's serial number.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub qla: Option<String>,
 }
 
 /// Controller board types, as v6 names them.
@@ -155,6 +279,10 @@ pub enum HardwareVersion {
     /// dVRK-Si controller: 10 axes per board.
     #[serde(rename = "dRA1")]
     Dra1,
+    /// Seed 001's 7-channel Snake robot node (its own FPGA/1394 board,
+    /// not a JHU one): 7 axes per board.
+    #[serde(rename = "SNAKE")]
+    Snake,
 }
 
 impl HardwareVersion {
@@ -164,6 +292,7 @@ impl HardwareVersion {
             HardwareVersion::Qla1 => 4,
             HardwareVersion::Dqla => 8,
             HardwareVersion::Dra1 => 10,
+            HardwareVersion::Snake => 7,
         }
     }
 
@@ -173,16 +302,25 @@ impl HardwareVersion {
             HardwareVersion::Qla1 => "QLA1",
             HardwareVersion::Dqla => "DQLA",
             HardwareVersion::Dra1 => "dRA1",
+            HardwareVersion::Snake => "SNAKE",
         }
     }
 
-    /// The board's HW_VERSION register value (`fpga-board.md` §2).
+    /// The board's HW_VERSION register value (`fpga-board.md` §2); for
+    /// a Snake node, its version register (seed 001 Table 1, address 4).
     pub fn hw_version_register(self) -> u32 {
         match self {
             HardwareVersion::Qla1 => 0x514C_4131,
             HardwareVersion::Dqla => 0x4451_4C41,
             HardwareVersion::Dra1 => 0x6452_4131,
+            HardwareVersion::Snake => firelink_wire::snake::registers::VERSION,
         }
+    }
+
+    /// Whether the board is seed 001's Snake node (driven through
+    /// `firelink_host::snake`, not the QLA protocols).
+    pub fn is_snake(self) -> bool {
+        self == HardwareVersion::Snake
     }
 }
 
@@ -324,12 +462,146 @@ pub struct PotentiometersConfig {
     /// Allowed pot/encoder disagreement per actuator.
     #[serde(default)]
     pub tolerances: Vec<PotentiometerTolerance>,
-    /// v6 coupling matrix (accepted, not used yet).
+    /// v6 coupling: where the pots are mounted on joints that several
+    /// actuators move, `JointToActuatorPosition` turns their positions
+    /// into actuator space.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub coupling: Option<serde_json::Value>,
+    pub coupling: Option<ActuatorJointCoupling>,
     /// v6 lookup table file for digital pots (accepted, not used yet).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lookup_table_file: Option<String>,
+}
+
+/// The cisst actuator/joint coupling matrices (`prmActuatorJointCoupling`),
+/// square, one row and column per actuator. Firelink uses
+/// `JointToActuatorPosition` (or the inverse of `ActuatorToJointPosition`
+/// when only that is given); the effort matrices are kept.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ActuatorJointCoupling {
+    /// Actuator positions from joint positions.
+    #[serde(
+        rename = "JointToActuatorPosition",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub joint_to_actuator_position: Option<Vec<Vec<f64>>>,
+    /// Joint positions from actuator positions.
+    #[serde(
+        rename = "ActuatorToJointPosition",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub actuator_to_joint_position: Option<Vec<Vec<f64>>>,
+    /// Actuator efforts from joint efforts (kept, not used).
+    #[serde(
+        rename = "JointToActuatorEffort",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub joint_to_actuator_effort: Option<Vec<Vec<f64>>>,
+    /// Joint efforts from actuator efforts (kept, not used).
+    #[serde(
+        rename = "ActuatorToJointEffort",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub actuator_to_joint_effort: Option<Vec<Vec<f64>>>,
+}
+
+impl ActuatorJointCoupling {
+    /// Actuator positions from joint positions: `JointToActuatorPosition`,
+    /// or the inverse of `ActuatorToJointPosition`. `None` if neither is
+    /// given, or the one given is not square or cannot be inverted.
+    pub fn joint_to_actuator(&self) -> Option<Matrix> {
+        if let Some(m) = &self.joint_to_actuator_position {
+            return Matrix::from_rows(m);
+        }
+        Matrix::from_rows(self.actuator_to_joint_position.as_ref()?)?.inverse()
+    }
+
+    /// Joint positions from actuator positions (the other direction).
+    pub fn actuator_to_joint(&self) -> Option<Matrix> {
+        if let Some(m) = &self.actuator_to_joint_position {
+            return Matrix::from_rows(m);
+        }
+        Matrix::from_rows(self.joint_to_actuator_position.as_ref()?)?.inverse()
+    }
+}
+
+/// A small dense square matrix (row-major), for couplings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Matrix {
+    n: usize,
+    values: Vec<f64>,
+}
+
+impl Matrix {
+    /// The matrix with these rows; `None` unless square, non-empty and
+    /// finite.
+    pub fn from_rows(rows: &[Vec<f64>]) -> Option<Matrix> {
+        let n = rows.len();
+        if n == 0
+            || rows
+                .iter()
+                .any(|r| r.len() != n || r.iter().any(|v| !v.is_finite()))
+        {
+            return None;
+        }
+        Some(Matrix {
+            n,
+            values: rows.iter().flatten().copied().collect(),
+        })
+    }
+
+    /// Rows and columns.
+    pub fn size(&self) -> usize {
+        self.n
+    }
+
+    /// Element (row, column); 0 outside.
+    pub fn get(&self, row: usize, col: usize) -> f64 {
+        if row < self.n && col < self.n {
+            self.values.get(row * self.n + col).copied().unwrap_or(0.0)
+        } else {
+            0.0
+        }
+    }
+
+    /// The inverse (Gauss-Jordan with partial pivoting); `None` if singular.
+    pub fn inverse(&self) -> Option<Matrix> {
+        let n = self.n;
+        let mut a = self.values.clone();
+        let mut inv: Vec<f64> = (0..n * n)
+            .map(|k| if k / n == k % n { 1.0 } else { 0.0 })
+            .collect();
+        for col in 0..n {
+            let pivot =
+                (col..n).max_by(|&x, &y| a[x * n + col].abs().total_cmp(&a[y * n + col].abs()))?;
+            let p = a[pivot * n + col];
+            if p.abs() < 1e-12 {
+                return None;
+            }
+            for k in 0..n {
+                a.swap(col * n + k, pivot * n + k);
+                inv.swap(col * n + k, pivot * n + k);
+            }
+            for k in 0..n {
+                a[col * n + k] /= p;
+                inv[col * n + k] /= p;
+            }
+            for row in (0..n).filter(|&r| r != col) {
+                let f = a[row * n + col];
+                if f != 0.0 {
+                    for k in 0..n {
+                        a[row * n + k] -= f * a[col * n + k];
+                        inv[row * n + k] -= f * inv[col * n + k];
+                    }
+                }
+            }
+        }
+        Some(Matrix { n, values: inv })
+    }
 }
 
 /// v6 potentiometer kinds.
@@ -398,6 +670,13 @@ fn default_saturation_time() -> f64 {
 pub struct SimulationConfig {
     /// Which emulated plant drives this axis.
     pub plant: PlantPreset,
+    /// The mechanical stops of the emulated joint (rad or m), at or beyond
+    /// `encoder.position_limits_soft`. Absent: the arm's physical range
+    /// where Firelink knows it (the MTM roll), else the soft limits widened
+    /// by 3 degrees (3 mm for a prismatic joint); see
+    /// `firelink_testbed::rig`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hard_stops: Option<Limits>,
     /// Default PID gains (current out, SI in).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pid: Option<PidGains>,
@@ -417,6 +696,42 @@ pub struct HomingDefaults {
     pub velocity: f64,
     /// Acceleration of the homing move (> 0).
     pub acceleration: f64,
+    /// For a joint its pot cannot home (the MTM wrist roll turns more than
+    /// its pot can tell): find a mechanical stop instead.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stop_search: Option<StopSearchConfig>,
+}
+
+/// Which way a stop search goes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopSide {
+    /// Towards decreasing positions.
+    Lower,
+    /// Towards increasing positions.
+    Upper,
+}
+
+/// Homing by a stop search, as the dVRK console homes the MTM roll: move
+/// at constant velocity (reached with a bounded acceleration) towards a
+/// mechanical stop until the joint stalls (the following error passes
+/// `stall_error`), declare the encoder to read `stop_position` there, then
+/// move freely back.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StopSearchConfig {
+    /// Which stop.
+    pub side: StopSide,
+    /// Search speed (> 0, rad/s or m/s).
+    pub velocity: f64,
+    /// Acceleration to that speed (> 0, rad/s² or m/s²).
+    pub acceleration: f64,
+    /// Following error that means the joint stalled against the stop (> 0).
+    pub stall_error: f64,
+    /// Where the stop is (rad or m): the encoder reads this once found.
+    pub stop_position: f64,
+    /// Longest travel before giving up: a stop that is not there (> 0).
+    pub max_travel: f64,
 }
 
 /// Named plant models for the board emulator. The parameters live with the
@@ -439,13 +754,20 @@ pub enum PlantPreset {
     PsmJ5,
     PsmJ6,
     PsmJ7,
+    EcmJ1,
+    EcmJ2,
+    EcmJ3,
+    EcmJ4,
+    /// The MTM gripper: a Hall-effect sensor on the analog input, no
+    /// motor.
+    MtmGripper,
     /// A generic motor + load (benches, the Snake robot).
     Generic,
 }
 
 impl PlantPreset {
     /// Every preset, in file order.
-    pub const ALL: [PlantPreset; 15] = [
+    pub const ALL: [PlantPreset; 20] = [
         PlantPreset::MtmJ1,
         PlantPreset::MtmJ2,
         PlantPreset::MtmJ3,
@@ -460,14 +782,37 @@ impl PlantPreset {
         PlantPreset::PsmJ5,
         PlantPreset::PsmJ6,
         PlantPreset::PsmJ7,
+        PlantPreset::EcmJ1,
+        PlantPreset::EcmJ2,
+        PlantPreset::EcmJ3,
+        PlantPreset::EcmJ4,
+        PlantPreset::MtmGripper,
         PlantPreset::Generic,
     ];
 
     /// The name used in the files (`"mtm_j1"`, ..., `"generic"`).
     pub fn name(self) -> &'static str {
-        const NAMES: [&str; 15] = [
-            "mtm_j1", "mtm_j2", "mtm_j3", "mtm_j4", "mtm_j5", "mtm_j6", "mtm_j7", "psm_j1",
-            "psm_j2", "psm_j3", "psm_j4", "psm_j5", "psm_j6", "psm_j7", "generic",
+        const NAMES: [&str; 20] = [
+            "mtm_j1",
+            "mtm_j2",
+            "mtm_j3",
+            "mtm_j4",
+            "mtm_j5",
+            "mtm_j6",
+            "mtm_j7",
+            "psm_j1",
+            "psm_j2",
+            "psm_j3",
+            "psm_j4",
+            "psm_j5",
+            "psm_j6",
+            "psm_j7",
+            "ecm_j1",
+            "ecm_j2",
+            "ecm_j3",
+            "ecm_j4",
+            "mtm_gripper",
+            "generic",
         ];
         NAMES[self as usize]
     }
@@ -493,6 +838,29 @@ pub struct JointRef<'a> {
     pub actuator: &'a ActuatorConfig,
     /// `robot[actuator_index]`, e.g. `MTML[3]`.
     pub label: Label,
+}
+
+impl RobotConfig {
+    /// The dVRK arm this robot is: its `simulation.arm`, else what its name
+    /// says.
+    pub fn dvrk_arm(&self) -> Option<DvrkArm> {
+        self.simulation
+            .as_ref()
+            .and_then(|s| s.arm)
+            .or_else(|| DvrkArm::from_robot_name(&self.name))
+    }
+
+    /// Actuator positions from joint positions for the pots
+    /// (`potentiometers.coupling`), if the robot has a usable coupling.
+    pub fn pot_coupling(&self) -> Option<Matrix> {
+        let m = self
+            .potentiometers
+            .as_ref()?
+            .coupling
+            .as_ref()?
+            .joint_to_actuator()?;
+        (m.size() == self.actuators.len()).then_some(m)
+    }
 }
 
 impl<'a> JointRef<'a> {
@@ -614,13 +982,63 @@ impl IoConfig {
     }
 
     /// How many boards a rig must emulate for this configuration: board
-    /// IDs 0 up to the highest one used.
+    /// IDs 0 up to the highest one used by an actuator, a brake, a digital
+    /// input or output or a Dallas chip.
     pub fn board_slots(&self) -> usize {
         self.boards()
             .iter()
-            .map(|b| usize::from(b.board_id) + 1)
+            .map(|b| b.board_id)
+            .chain(self.other_boards())
+            .map(|id| usize::from(id) + 1)
             .max()
             .unwrap_or(0)
+    }
+
+    /// Board IDs the v6 sections kept as JSON name (brakes, digital inputs
+    /// and outputs, Dallas chips), in file order, repeats included.
+    fn other_boards(&self) -> impl Iterator<Item = u8> + '_ {
+        let lists = self
+            .robots
+            .iter()
+            .filter_map(|r| r.brakes.as_ref())
+            .chain(self.digital_inputs.as_ref())
+            .chain(self.digital_outputs.as_ref())
+            .chain(self.dallas_chips.as_ref());
+        lists
+            .filter_map(serde_json::Value::as_array)
+            .flatten()
+            .filter_map(|item| item.get("board_id")?.as_u64())
+            .filter_map(|id| u8::try_from(id).ok())
+            .filter(|&id| id <= MAX_BOARD_ID)
+    }
+
+    /// The serial numbers a robot's `simulation.boards` gives board
+    /// `board_id`, if any robot gives them.
+    pub fn board_serial(&self, board_id: u8) -> Option<&BoardSerial> {
+        self.robots
+            .iter()
+            .filter_map(|r| r.simulation.as_ref())
+            .flat_map(|s| &s.boards)
+            .find(|b| b.board_id == board_id)
+            .map(|b| &b.serial)
+    }
+
+    /// The v6 digital input named `name`: (board ID, bit, level when
+    /// pressed).
+    pub fn digital_input(&self, name: &str) -> Option<(u8, u8, bool)> {
+        let item = self
+            .digital_inputs
+            .as_ref()?
+            .as_array()?
+            .iter()
+            .find(|d| d.get("name").and_then(serde_json::Value::as_str) == Some(name))?;
+        let board = u8::try_from(item.get("board_id")?.as_u64()?).ok()?;
+        let bit = u8::try_from(item.get("bit_id")?.as_u64()?).ok()?;
+        let pressed = match item.get("pressed_value")? {
+            serde_json::Value::Bool(b) => *b,
+            v => v.as_u64()? != 0,
+        };
+        Some((board, bit, pressed))
     }
 
     /// The boards in use, by ascending ID.

@@ -7,21 +7,28 @@
 //!
 //! Where the numbers come from: the conversion formulas and the per-joint
 //! facts (encoder counts per turn, gear ratios, motor torque constants,
-//! maximum currents, drive directions, soft limits, pot tolerances) are the
-//! public ones of the dVRK's Classic MTM and PSM as used by its
-//! configuration generator for QLA1 boards. Calibration-specific values
-//! (pot gains and offsets) and the Firelink extensions (velocity and
-//! following-error limits, PID gains, homing moves) are plausible choices,
-//! not a calibrated robot's.
+//! maximum currents, drive directions, soft limits, pot tolerances, the
+//! MTM's pot coupling, board IDs, digital inputs, the ECM's brakes) are the
+//! public ones of the dVRK's Classic MTM, PSM and ECM as used by its
+//! configuration generator for QLA1 boards; arm serial numbers and the
+//! boards' serial numbers are the public ones of JHU's own research kit
+//! where its hardware status page lists them. Calibration-specific values
+//! (pot gains and offsets, current offsets) and the Firelink extensions
+//! (velocity and following-error limits, PID gains, homing moves, stops)
+//! are plausible choices, not a calibrated robot's.
 
 use super::{
-    ActuatorConfig, DriveConfig, EncoderConfig, HardwareVersion, HomingDefaults, IoConfig,
-    JointType, Limits, LimitsConfig, LinearFunction, PlantPreset, PotentiometerConfig,
-    PotentiometerTolerance, PotentiometersConfig, PotentiometersType, RobotConfig, SCHEMA_ID,
-    SCHEMA_VERSION, SimulationConfig, VelocitySource,
+    ActuatorConfig, ActuatorJointCoupling, BoardSerial, BoardSimulation, DriveConfig, DvrkArm,
+    EncoderConfig, HardwareVersion, HomingDefaults, IoConfig, JointType, Limits, LimitsConfig,
+    LinearFunction, PlantPreset, PotentiometerConfig, PotentiometerTolerance, PotentiometersConfig,
+    PotentiometersType, RobotConfig, RobotSimulation, SCHEMA_ID, SCHEMA_VERSION, SimulationConfig,
+    StopSearchConfig, StopSide, VelocitySource,
 };
 use crate::pid::PidGains;
 use core::f64::consts::PI;
+use firelink_wire::snake::analog;
+use firelink_wire::snake::registers::Wiper;
+use serde_json::json;
 
 const DEG: f64 = PI / 180.0;
 const MM: f64 = 1e-3;
@@ -30,6 +37,8 @@ const MM: f64 = 1e-3;
 const QLA_FULL_SCALE_AMPS: f64 = 6.25;
 /// QLA pot ADC: 16 bits over 4.5 V.
 const QLA_POT_VOLTS: f64 = 4.5;
+/// Snake node: DAC and ADC over 0..2.5 V (seed 001 §7.2).
+const SNAKE_VOLTS: f64 = 2.5;
 
 fn round_to(x: f64, decimals: i32) -> f64 {
     let p = 10f64.powi(decimals);
@@ -69,19 +78,30 @@ struct Axis {
     velocity_limit: f64,
     following_error: f64,
     home: f64,
+    /// The positions the pot reads at 0 V and at 4.5 V; `None`: the soft
+    /// range widened by half on each side.
+    pot_span: Option<(f64, f64)>,
+    /// Calibrated DAC code of 0 A minus 32768, and ADC reading of 0 A in
+    /// amperes (both 0 for an uncalibrated file).
+    current_offsets: (f64, f64),
+    /// Mechanical stops of the emulated joint, if stated.
+    hard_stops: Option<(f64, f64)>,
+    /// Homing by a stop search, if the joint needs one.
+    stop_search: Option<StopSearchConfig>,
 }
 
 impl Axis {
     fn drive(&self) -> DriveConfig {
         let amps_to_bits = self.direction * 32768.0 / QLA_FULL_SCALE_AMPS;
+        let (dac_zero, sense_zero) = self.current_offsets;
         DriveConfig {
             current_to_bits: LinearFunction {
                 scale: round_to(amps_to_bits, 4),
-                offset: 32768.0,
+                offset: 32768.0 + dac_zero,
             },
             bits_to_current: LinearFunction {
                 scale: round_to(1.0 / amps_to_bits, 9),
-                offset: round_to(-self.direction * QLA_FULL_SCALE_AMPS, 4),
+                offset: round_to(-self.direction * QLA_FULL_SCALE_AMPS + sense_zero, 4),
             },
             effort_to_current: LinearFunction {
                 scale: round_to(self.effort_to_current(), 10),
@@ -113,12 +133,16 @@ impl Axis {
         }
     }
 
-    /// A pot whose 0..4.5 V spans the soft range widened by half on each
-    /// side, centred on it.
+    /// A pot whose 0..4.5 V spans [`Axis::pot_span`], by default the soft
+    /// range widened by half on each side, centred on it.
     fn potentiometer(&self) -> PotentiometerConfig {
-        let span = 2.0 * (self.upper - self.lower);
+        let (at_zero, at_full) = self.pot_span.unwrap_or_else(|| {
+            let half = self.upper - self.lower;
+            (self.lower - 0.5 * half, self.upper + 0.5 * half)
+        });
+        let span = at_full - at_zero;
         let scale = round_to(span / QLA_POT_VOLTS, 8);
-        let centre = 0.5 * (self.lower + self.upper);
+        let centre = 0.5 * (at_zero + at_full);
         PotentiometerConfig {
             bits_to_voltage: LinearFunction {
                 scale: QLA_POT_VOLTS / 65536.0,
@@ -129,6 +153,40 @@ impl Axis {
                 offset: round_to(centre - scale * QLA_POT_VOLTS / 2.0, 8),
             },
         }
+    }
+
+    /// Seed 001's Snake node instead of a QLA: the motor DAC in torque
+    /// mode at the nominal wiper (amperes through the feedback gain and the
+    /// sense resistor), the 14-bit current monitor and potentiometer in the
+    /// API's 0..=16383 (ADC + 8192) over 0..2.5 V
+    /// (`firelink_wire::snake::analog`).
+    fn snake_conversions(&self, actuator: &mut ActuatorConfig) {
+        let gain = Wiper::NOMINAL.feedback_gain();
+        let amps_to_bits = self.direction * gain * analog::SENSE_OHMS * 65536.0 / SNAKE_VOLTS;
+        let amps_per_count = SNAKE_VOLTS / 16384.0 / analog::MONITOR_VOLTS_PER_AMP;
+        actuator.drive.current_to_bits = LinearFunction {
+            scale: round_to(amps_to_bits, 4),
+            offset: 32768.0,
+        };
+        actuator.drive.bits_to_current = LinearFunction {
+            scale: round_to(self.direction * amps_per_count, 14),
+            offset: round_to(-self.direction * 8192.0 * amps_per_count, 9),
+        };
+        let span = 2.0 * (self.upper - self.lower);
+        let scale = round_to(span / SNAKE_VOLTS, 8);
+        actuator.potentiometer = Some(PotentiometerConfig {
+            bits_to_voltage: LinearFunction {
+                scale: SNAKE_VOLTS / 16384.0,
+                offset: 0.0,
+            },
+            voltage_to_position: LinearFunction {
+                scale,
+                offset: round_to(
+                    0.5 * (self.lower + self.upper) - scale * SNAKE_VOLTS / 2.0,
+                    8,
+                ),
+            },
+        });
     }
 
     fn actuator(&self, index: usize, board_id: u8, axis_id: u8) -> ActuatorConfig {
@@ -152,6 +210,10 @@ impl Axis {
             }),
             simulation: Some(SimulationConfig {
                 plant: self.plant,
+                hard_stops: self.hard_stops.map(|(lower, upper)| Limits {
+                    lower: round_to(lower, 12),
+                    upper: round_to(upper, 12),
+                }),
                 pid: Some(PidGains {
                     integral_limit: Some(round_sig(0.5 * self.maximum_current, 3)),
                     ..PidGains::pid(
@@ -164,6 +226,7 @@ impl Axis {
                     position: self.home,
                     velocity: round_sig(0.25 * self.velocity_limit, 3),
                     acceleration: round_sig(self.velocity_limit, 3),
+                    stop_search: self.stop_search,
                 }),
             }),
         }
@@ -185,7 +248,11 @@ fn robot(
         .enumerate()
         .map(|(i, a)| {
             let board = boards.get(i / per_board).copied().unwrap_or(u8::MAX);
-            a.actuator(i, board, (i % per_board) as u8)
+            let mut actuator = a.actuator(i, board, (i % per_board) as u8);
+            if hardware.is_snake() {
+                a.snake_conversions(&mut actuator);
+            }
+            actuator
         })
         .collect();
     let tolerances = axes
@@ -214,6 +281,7 @@ fn robot(
             coupling: None,
             lookup_table_file: None,
         }),
+        simulation: None,
     }
 }
 
@@ -239,15 +307,7 @@ fn mtm_axes(left: bool) -> Vec<Axis> {
     let gear = [63.41, 49.88, 59.73, 10.53, 33.16, 33.16, 16.58];
     let kt = [0.0438, 0.0438, 0.0438, 0.0438, 0.00495, 0.00495, 0.00339];
     let imax = [0.67, 0.67, 0.67, 0.67, 0.59, 0.59, 0.407];
-    let plants = [
-        PlantPreset::MtmJ1,
-        PlantPreset::MtmJ2,
-        PlantPreset::MtmJ3,
-        PlantPreset::MtmJ4,
-        PlantPreset::MtmJ5,
-        PlantPreset::MtmJ6,
-        PlantPreset::MtmJ7,
-    ];
+    let plants = DvrkArm::Mtm.plants();
     // Joint-space gains (N m/rad, N m/(rad s), N m s/rad).
     let gains = [
         (30.0, 1.0, 1.5),
@@ -275,6 +335,10 @@ fn mtm_axes(left: bool) -> Vec<Axis> {
             velocity_limit: vmax[i],
             following_error: if i < 3 { 0.35 } else { 0.5 },
             home: 0.0,
+            pot_span: None,
+            current_offsets: (0.0, 0.0),
+            hard_stops: None,
+            stop_search: None,
         })
         .collect()
 }
@@ -303,15 +367,7 @@ fn psm_axes() -> Vec<Axis> {
         174.0 * DEG,
         174.0 * DEG,
     ];
-    let plants = [
-        PlantPreset::PsmJ1,
-        PlantPreset::PsmJ2,
-        PlantPreset::PsmJ3,
-        PlantPreset::PsmJ4,
-        PlantPreset::PsmJ5,
-        PlantPreset::PsmJ6,
-        PlantPreset::PsmJ7,
-    ];
+    let plants = DvrkArm::Psm.plants();
     let gains = [
         (60.0, 2.0, 3.0),
         (60.0, 2.0, 3.0),
@@ -322,7 +378,58 @@ fn psm_axes() -> Vec<Axis> {
         (2.0, 0.1, 0.05),
     ];
     let vmax = [1.5, 1.5, 0.2, 6.0, 6.0, 6.0, 6.0];
-    (0..7)
+    patient_side_axes(PatientSideArm {
+        direction: &direction,
+        counts_per_turn: &cpt,
+        gear_ratio: &gear,
+        torque_constant: &[0.0438; 7],
+        maximum_current: &imax,
+        lower: &lower,
+        upper: &upper,
+        plants,
+        gains: &gains,
+        velocity_limit: &vmax,
+        insertion_home: 50.0 * MM,
+    })
+}
+
+/// The per-joint facts of a patient-side arm (PSM, ECM), joint by joint;
+/// the third joint is the prismatic insertion.
+struct PatientSideArm<'a> {
+    direction: &'a [f64],
+    counts_per_turn: &'a [u32],
+    gear_ratio: &'a [f64],
+    torque_constant: &'a [f64],
+    maximum_current: &'a [f64],
+    lower: &'a [f64],
+    upper: &'a [f64],
+    plants: &'a [PlantPreset],
+    /// Joint-space PID gains.
+    gains: &'a [(f64, f64, f64)],
+    velocity_limit: &'a [f64],
+    /// Where the insertion joint homes, m (the others home at 0).
+    insertion_home: f64,
+}
+
+/// A patient-side arm's axes from its table (as many as its shortest
+/// column).
+fn patient_side_axes(t: PatientSideArm<'_>) -> Vec<Axis> {
+    let n = [
+        t.direction.len(),
+        t.counts_per_turn.len(),
+        t.gear_ratio.len(),
+        t.torque_constant.len(),
+        t.maximum_current.len(),
+        t.lower.len(),
+        t.upper.len(),
+        t.plants.len(),
+        t.gains.len(),
+        t.velocity_limit.len(),
+    ]
+    .into_iter()
+    .min()
+    .unwrap_or(0);
+    (0..n)
         .map(|i| {
             let prismatic = i == 2;
             Axis {
@@ -331,19 +438,23 @@ fn psm_axes() -> Vec<Axis> {
                 } else {
                     JointType::Revolute
                 },
-                direction: direction[i],
-                counts_per_turn: cpt[i],
-                gear_ratio: gear[i],
-                torque_constant: 0.0438,
-                maximum_current: imax[i],
-                lower: lower[i],
-                upper: upper[i],
+                direction: t.direction[i],
+                counts_per_turn: t.counts_per_turn[i],
+                gear_ratio: t.gear_ratio[i],
+                torque_constant: t.torque_constant[i],
+                maximum_current: t.maximum_current[i],
+                lower: t.lower[i],
+                upper: t.upper[i],
                 pot_tolerance: if prismatic { 5.0 * MM } else { 5.0 * DEG },
-                plant: plants[i],
-                effort_gains: gains[i],
-                velocity_limit: vmax[i],
+                plant: t.plants[i],
+                effort_gains: t.gains[i],
+                velocity_limit: t.velocity_limit[i],
                 following_error: if prismatic { 0.02 } else { 0.35 },
-                home: if prismatic { 50.0 * MM } else { 0.0 },
+                home: if prismatic { t.insertion_home } else { 0.0 },
+                pot_span: None,
+                current_offsets: (0.0, 0.0),
+                hard_stops: None,
+                stop_search: None,
             }
         })
         .collect()
@@ -366,6 +477,10 @@ fn generic_axis(range: f64, direction: f64) -> Axis {
         velocity_limit: 3.0,
         following_error: 0.3,
         home: 0.0,
+        pot_span: None,
+        current_offsets: (0.0, 0.0),
+        hard_stops: None,
+        stop_search: None,
     }
 }
 
@@ -421,24 +536,7 @@ pub fn bench_1board() -> IoConfig {
 /// puts each Snake on two DQLA boards (8 axes each: 8 + 3 used) and each
 /// master on two QLA1 boards (4 + 3), 8 boards in all.
 pub fn snake_36axes() -> IoConfig {
-    let snake_axes: Vec<Axis> = (0..11)
-        .map(|i| {
-            let mut a = generic_axis(90.0 * DEG, 1.0);
-            // Small cable-drive motors for the continuum segments.
-            a.gear_ratio = 64.0;
-            a.torque_constant = 0.0107;
-            a.maximum_current = 0.5;
-            a.counts_per_turn = 2048;
-            a.effort_gains = (4.0, 0.2, 0.1);
-            a.velocity_limit = 1.5;
-            if i >= 8 {
-                // Gripper / wrist roll.
-                a.lower = -PI;
-                a.upper = PI;
-            }
-            a
-        })
-        .collect();
+    let snake_axes = snake_robot_axes();
     io_config(
         "Seed 001 Snake robot system: two 11-axis Snake robots and two 7-axis masters, \
          36 axes. Seed 001 used 7-channel nodes (14-bit ADC, 16-bit DAC); Firelink emits \
@@ -478,12 +576,353 @@ pub fn snake_36axes() -> IoConfig {
     )
 }
 
+/// Classic ECM axes.
+fn ecm_axes() -> Vec<Axis> {
+    let direction = [1.0, 1.0, -1.0, 1.0];
+    let cpt = [4000, 4000, 640, 64];
+    let gear = [240.0, 240.0, 2748.55, 300.15];
+    let kt = [0.1190, 0.1190, 0.0438, 0.00495];
+    let imax = [0.943, 0.943, 0.67, 0.59];
+    let lower = [-90.0 * DEG, -45.0 * DEG, 0.0 * MM, -89.0 * DEG];
+    let upper = [90.0 * DEG, 64.0 * DEG, 255.0 * MM, 89.0 * DEG];
+    let plants = DvrkArm::Ecm.plants();
+    let gains = [
+        (100.0, 3.0, 8.0),
+        (100.0, 3.0, 8.0),
+        (3000.0, 100.0, 150.0),
+        (2.0, 0.1, 0.05),
+    ];
+    let vmax = [1.0, 1.0, 0.1, 2.0];
+    patient_side_axes(PatientSideArm {
+        direction: &direction,
+        counts_per_turn: &cpt,
+        gear_ratio: &gear,
+        torque_constant: &kt,
+        maximum_current: &imax,
+        lower: &lower,
+        upper: &upper,
+        plants,
+        gains: &gains,
+        velocity_limit: &vmax,
+        insertion_home: 20.0 * MM,
+    })
+}
+
+/// How far beyond the soft limits the stock configurations put the
+/// emulated arms' mechanical stops: 3 degrees for a revolute joint.
+pub const STOP_MARGIN_RAD: f64 = 3.0 * DEG;
+/// The same for a prismatic joint: 3 mm.
+pub const STOP_MARGIN_M: f64 = 3.0 * MM;
+
+/// Calibrated-looking current offsets (DAC code of 0 A minus 32768, and
+/// the ADC reading of 0 A in amperes): a calibrated arm's are all
+/// different, and the dVRK console refuses a file whose DAC offsets are
+/// all equal ("please calibrate the current offsets").
+const CURRENT_OFFSETS: [(f64, f64); 7] = [
+    (37.0, 0.0031),
+    (-22.0, -0.0044),
+    (14.0, 0.0012),
+    (-41.0, 0.0057),
+    (29.0, -0.0026),
+    (-8.0, 0.0009),
+    (51.0, -0.0038),
+];
+
+/// A stock arm's axes: calibrated current offsets, stops 3 degrees (3 mm)
+/// beyond the soft limits unless stated, and a pot that spans the stops
+/// widened by 15 % of its range on each side unless stated.
+fn stock(axes: Vec<Axis>) -> Vec<Axis> {
+    axes.into_iter()
+        .enumerate()
+        .map(|(i, mut a)| {
+            a.current_offsets = CURRENT_OFFSETS[i % CURRENT_OFFSETS.len()];
+            let margin = if a.joint_type == JointType::Prismatic {
+                STOP_MARGIN_M
+            } else {
+                STOP_MARGIN_RAD
+            };
+            let (lo, hi) = *a
+                .hard_stops
+                .get_or_insert((a.lower - margin, a.upper + margin));
+            if a.pot_span.is_none() {
+                let widen = 0.15 * (hi - lo);
+                a.pot_span = Some((lo - widen, hi + widen));
+            }
+            a
+        })
+        .collect()
+}
+
+/// The Classic MTM's pot coupling (the pots of actuators 2-4 are mounted
+/// on joints the actuators move together): actuator positions from joint
+/// positions, as the dVRK's configuration generator writes it.
+fn mtm_coupling() -> Vec<Vec<f64>> {
+    let mut m = vec![vec![0.0; 7]; 7];
+    for (i, row) in m.iter_mut().enumerate() {
+        row[i] = 1.0;
+    }
+    m[2][1] = 1.0;
+    m[3][2] = 0.6697;
+    m
+}
+
+/// A stock Classic MTMR: JHU's research kit MTMR (serial 28247) on boards
+/// 2-3 as the dVRK numbers them, its pots on the joints (coupling), the
+/// wrist roll homed by a stop search against its lower stop at -480
+/// degrees, as the dVRK console does (360 degrees/s reached at 360
+/// degrees/s², stall declared at half a turn of following error, at most
+/// 3.25 turns of travel).
+pub fn stock_mtmr() -> IoConfig {
+    let mut axes = mtm_axes(false);
+    if let Some(roll) = axes.get_mut(6) {
+        roll.hard_stops = Some((-480.0 * DEG, -480.0 * DEG + 2.6 * 2.0 * PI));
+        roll.stop_search = Some(StopSearchConfig {
+            side: StopSide::Lower,
+            velocity: round_to(2.0 * PI, 6),
+            acceleration: round_to(2.0 * PI, 6),
+            stall_error: round_to(PI, 6),
+            stop_position: round_to(-480.0 * DEG, 12),
+            max_travel: round_to(6.5 * PI, 6),
+        });
+    }
+    let mut axes = stock(axes);
+    // The coupled pots read joints: span what the joints can reach with
+    // every actuator inside its stops.
+    let coupling = mtm_coupling();
+    if let Some(a2j) = super::Matrix::from_rows(&coupling).and_then(|m| m.inverse()) {
+        let stops: Vec<(f64, f64)> = axes
+            .iter()
+            .map(|a| a.hard_stops.unwrap_or((a.lower, a.upper)))
+            .collect();
+        for (i, a) in axes.iter_mut().enumerate() {
+            let (lo, hi) = stops
+                .iter()
+                .enumerate()
+                .fold((0.0, 0.0), |(lo, hi), (j, s)| {
+                    let w = a2j.get(i, j);
+                    let (x, y) = (w * s.0, w * s.1);
+                    (lo + x.min(y), hi + x.max(y))
+                });
+            let widen = 0.15 * (hi - lo);
+            a.pot_span = Some((lo - widen, hi + widen));
+        }
+    }
+    let mut mtmr = robot("MTMR", "28247", HardwareVersion::Qla1, &[2, 3], &axes);
+    if let Some(p) = mtmr.potentiometers.as_mut() {
+        p.coupling = Some(ActuatorJointCoupling {
+            joint_to_actuator_position: Some(coupling),
+            ..ActuatorJointCoupling::default()
+        });
+    }
+    mtmr.simulation = Some(RobotSimulation {
+        arm: Some(DvrkArm::Mtm),
+        boards: serials(&[(2, "3792-22", "3791-14"), (3, "3792-43", "3791-41")]),
+        ..RobotSimulation::default()
+    });
+    io_config(
+        "Stock-style Classic MTMR (serial 28247, JHU's research kit) on two QLA1 boards with \
+         the dVRK's board IDs 2-3, as the dVRK's configuration generator lays out \
+         sawRobotIO1394-MTMR-28247.json: public gear ratios, encoder counts, torque constants, \
+         maximum currents, directions, soft limits, pot tolerances and pot coupling (pots on \
+         the joints); board serial numbers from JHU's public hardware status page. Pot and \
+         current calibrations are plausible values. Firelink sections: stops 3 degrees beyond \
+         the soft limits (roll: -480 and +456 degrees), the roll homed by a stop search as the \
+         console does (stall at a following error of half a turn, encoder set to -480 \
+         degrees).",
+        vec![mtmr],
+    )
+}
+
+/// A stock Classic PSM1: JHU's research kit PSM1 (serial 28007) on boards
+/// 6-7 as the dVRK numbers them, with its digital inputs (the sterile
+/// adapter and instrument contacts) and Dallas chip, the sterile adapter
+/// on and no instrument.
+pub fn stock_psm1() -> IoConfig {
+    let mut psm1 = robot(
+        "PSM1",
+        "28007",
+        HardwareVersion::Qla1,
+        &[6, 7],
+        &stock(psm_axes()),
+    );
+    psm1.simulation = Some(RobotSimulation {
+        arm: Some(DvrkArm::Psm),
+        adapter: true,
+        tool: None,
+        boards: serials(&[(6, "3116-01", "3791-15"), (7, "3116-03", "3791-19")]),
+    });
+    let mut c = io_config(
+        "Stock-style Classic PSM1 (serial 28007, JHU's research kit) on two QLA1 boards with \
+         the dVRK's board IDs 6-7, as the dVRK's configuration generator lays out \
+         sawRobotIO1394-PSM1-28007.json: public gear ratios, encoder counts, torque constants, \
+         maximum currents, directions, soft limits, pot tolerances, digital inputs (SUJ and \
+         arm clutch, instrument, sterile adapter) and Dallas chip; board serial numbers from \
+         JHU's public hardware status page. Pot and current calibrations are plausible values. \
+         Firelink sections: stops 3 degrees (3 mm) beyond the soft limits, the sterile adapter \
+         on, no instrument (set simulation.tool to put one in).",
+        vec![psm1],
+    );
+    c.digital_inputs = Some(digital_inputs(&[
+        ("PSM1_SUJ_clutch", 6, 0),
+        ("PSM1_arm_clutch", 6, 2),
+        ("PSM1_tool", 7, 7),
+        ("PSM1_adapter", 7, 10),
+    ]));
+    c.dallas_chips = Some(json!([{ "board_id": 7, "name": "PSM1_dallas" }]));
+    c
+}
+
+/// A stock Classic ECM: JHU's ECM (serial 29738) on boards 4-5 as the
+/// dVRK numbers them, its three brakes on the second board (listed, not
+/// driven: the emulator does not model brakes).
+pub fn stock_ecm() -> IoConfig {
+    let mut ecm = robot(
+        "ECM",
+        "29738",
+        HardwareVersion::Qla1,
+        &[4, 5],
+        &stock(ecm_axes()),
+    );
+    let brakes: Vec<serde_json::Value> =
+        [(0.25, 0.25, 0.08), (0.22, 0.22, 0.07), (0.90, 0.90, 0.20)]
+            .iter()
+            .enumerate()
+            .map(|(axis, &(max, release, released))| {
+                json!({
+                    "axis_id": axis,
+                    "board_id": 5,
+                    "drive": {
+                        "current_to_bits": { "scale": 5242.88, "offset": 32768.0 },
+                        "bits_to_current": { "scale": round_to(1.0 / 5242.88, 9), "offset": -6.25 },
+                        "maximum_current": max
+                    },
+                    "release_current": release,
+                    "release_time": 2.0,
+                    "released_current": released,
+                    "engaged_current": 0.0
+                })
+            })
+            .collect();
+    ecm.number_of_brakes = Some(brakes.len());
+    ecm.brakes = Some(serde_json::Value::Array(brakes));
+    ecm.simulation = Some(RobotSimulation {
+        arm: Some(DvrkArm::Ecm),
+        boards: serials(&[(4, "3985-01", "3984-01"), (5, "3985-02", "3984-02")]),
+        ..RobotSimulation::default()
+    });
+    let mut c = io_config(
+        "Stock-style Classic ECM (serial 29738) on two QLA1 boards with the dVRK's board IDs \
+         4-5, as the dVRK's configuration generator lays out sawRobotIO1394-ECM-29738.json: \
+         public gear ratios, encoder counts, torque constants, maximum currents, directions, \
+         soft limits, pot tolerances, brakes (board 5, axes 0-2) and digital inputs (arm and \
+         SUJ clutch). Pot and current calibrations are plausible values; the board serial \
+         numbers have the public format but are not a documented ECM's. Firelink sections: \
+         stops 3 degrees (3 mm) beyond the soft limits. Brakes are not modelled by the \
+         emulator (the joints are free, and carry no gravity load).",
+        vec![ecm],
+    );
+    c.digital_inputs = Some(digital_inputs(&[
+        ("ECM_arm_clutch", 4, 0),
+        ("ECM_SUJ_clutch", 4, 2),
+    ]));
+    c
+}
+
+/// Board serial numbers: (board ID, FPGA, QLA).
+fn serials(boards: &[(u8, &str, &str)]) -> Vec<BoardSimulation> {
+    boards
+        .iter()
+        .map(|&(board_id, fpga, qla)| BoardSimulation {
+            board_id,
+            serial: BoardSerial {
+                fpga: Some(fpga.to_string()),
+                qla: Some(qla.to_string()),
+            },
+        })
+        .collect()
+}
+
+/// v6 digital inputs: (name, board ID, bit), pressed when high, 0.2 s
+/// debounce, events both ways (the Classic arms' settings).
+fn digital_inputs(inputs: &[(&str, u8, u8)]) -> serde_json::Value {
+    serde_json::Value::Array(
+        inputs
+            .iter()
+            .map(|&(name, board_id, bit_id)| {
+                json!({
+                    "bit_id": bit_id,
+                    "board_id": board_id,
+                    "debounce_time": 0.2,
+                    "name": name,
+                    "pressed_value": true,
+                    "trigger_when_pressed": true,
+                    "trigger_when_released": true
+                })
+            })
+            .collect(),
+    )
+}
+
+/// The Snake robot's own axes (two three-axis SLUs, a gripper, a
+/// two-axis Z-Theta stage and a two-axis five bar): small geared motors.
+fn snake_robot_axes() -> Vec<Axis> {
+    (0..11)
+        .map(|i| {
+            let mut a = generic_axis(90.0 * DEG, 1.0);
+            // Small cable-drive motors for the continuum segments.
+            a.gear_ratio = 64.0;
+            a.torque_constant = 0.0107;
+            a.maximum_current = 0.5;
+            a.counts_per_turn = 2048;
+            // About 30 rad/s closed-loop, damping near 0.7 on the
+            // joint-side inertia of these axes.
+            a.effort_gains = (10.0, 0.5, 0.4);
+            a.velocity_limit = 2.5;
+            if i >= 8 {
+                // Gripper / wrist roll.
+                a.lower = -PI;
+                a.upper = PI;
+            }
+            a
+        })
+        .collect()
+}
+
+/// Seed 001's own system: two 11-axis Snake robots and two 7-axis
+/// masters, 36 axes on six of the seed's 7-channel nodes, in the seed's
+/// arrangement (§5.3): each Snake on two nodes, one for its actuation
+/// unit (7 axes, board IDs 0 and 2) and one for its Z-Theta and five-bar
+/// stages (4 axes, IDs 1 and 3); each master on one node (IDs 4 and 5).
+pub fn snake_seed001() -> IoConfig {
+    let snake = HardwareVersion::Snake;
+    io_config(
+        "Seed 001 Snake robot system on the seed's own 7-channel FPGA/1394 nodes: \
+         SNAKE1 and SNAKE2 (11 axes each: actuation unit on one node, Z-Theta and \
+         five bar on a second), MASTER1 and MASTER2 (7 axes each, one node each): \
+         36 axes on 6 nodes (board IDs 0-5). Conversions are the node's: the motor \
+         DAC in torque mode at the nominal wiper 375 (feedback gain 2.01, 0.5 ohm \
+         sense), the 14-bit current monitor and pot reported as ADC + 8192 over \
+         0..2.5 V. Snake axes are small geared motors; masters reuse the Classic \
+         MTM factors. The DQLA mapping of the same robots is snake-36axes.json.",
+        vec![
+            robot("SNAKE1", "S001", snake, &[0, 1], &snake_robot_axes()),
+            robot("SNAKE2", "S002", snake, &[2, 3], &snake_robot_axes()),
+            robot("MASTER1", "M001", snake, &[4], &mtm_axes(true)),
+            robot("MASTER2", "M002", snake, &[5], &mtm_axes(false)),
+        ],
+    )
+}
+
 /// Every shipped configuration with its file name under `configs/`.
-pub fn shipped() -> [(&'static str, IoConfig); 3] {
+pub fn shipped() -> [(&'static str, IoConfig); 7] {
     [
         ("dvrk-seed000.json", dvrk_seed000()),
         ("bench-1board.json", bench_1board()),
         ("snake-36axes.json", snake_36axes()),
+        ("dvrk-psm1-28007.json", stock_psm1()),
+        ("dvrk-mtmr-28247.json", stock_mtmr()),
+        ("dvrk-ecm-29738.json", stock_ecm()),
+        ("snake-seed001.json", snake_seed001()),
     ]
 }
 

@@ -3,8 +3,8 @@
 
 use super::{
     ConfigError, ConfigErrors, DriveConfig, EncoderConfig, HardwareVersion, IoConfig, LimitsConfig,
-    LinearFunction, PotentiometerConfig, Problem, RobotConfig, SCHEMA_ID, SCHEMA_VERSION,
-    SimulationConfig,
+    LinearFunction, PotentiometerConfig, Problem, RobotConfig, RobotSimulation, SCHEMA_ID,
+    SCHEMA_VERSION, SimulationConfig,
 };
 use crate::config::MAX_BOARD_ID;
 use crate::pid::PidGains;
@@ -216,9 +216,47 @@ fn check_robot(c: &mut Checker<'_>, rp: &str, robot: &RobotConfig) {
             )),
         );
     }
+    if let Some(sim) = &robot.simulation {
+        check_robot_simulation(c, &format!("{rp}.simulation"), sim);
+    }
     let Some(pots) = &robot.potentiometers else {
         return;
     };
+    if let Some(coupling) = &pots.coupling {
+        let cp = format!("{rp}.potentiometers.coupling");
+        let n = robot.actuators.len();
+        for (name, m) in [
+            (
+                "JointToActuatorPosition",
+                &coupling.joint_to_actuator_position,
+            ),
+            (
+                "ActuatorToJointPosition",
+                &coupling.actuator_to_joint_position,
+            ),
+        ] {
+            let Some(m) = m else { continue };
+            let mp = format!("{cp}.{name}");
+            if m.len() != n || m.iter().any(|r| r.len() != n) {
+                c.push(
+                    mp,
+                    Problem::Mismatch(format!(
+                        "must be {n} x {n} (one row and column per actuator)"
+                    )),
+                );
+            } else if m.iter().flatten().any(|v| !v.is_finite()) {
+                c.push(mp, Problem::NotFinite);
+            } else if super::Matrix::from_rows(m)
+                .and_then(|m| m.inverse())
+                .is_none()
+            {
+                c.push(
+                    mp,
+                    Problem::Mismatch("cannot be inverted (singular)".into()),
+                );
+            }
+        }
+    }
     for (ti, t) in pots.tolerances.iter().enumerate() {
         let tp = format!("{rp}.potentiometers.tolerances[{ti}]");
         if t.axis_id >= robot.actuators.len() {
@@ -248,6 +286,52 @@ fn check_robot(c: &mut Checker<'_>, rp: &str, robot: &RobotConfig) {
         }
         c.non_negative(&format!("{tp}.distance"), t.distance);
         c.non_negative(&format!("{tp}.latency"), t.latency);
+    }
+}
+
+fn check_robot_simulation(c: &mut Checker<'_>, sp: &str, sim: &RobotSimulation) {
+    if let Some(t) = &sim.tool {
+        if t.name.is_empty() {
+            c.push(format!("{sp}.tool.name"), Problem::Empty);
+        }
+    }
+    for (bi, b) in sim.boards.iter().enumerate() {
+        let bp = format!("{sp}.boards[{bi}]");
+        if b.board_id > MAX_BOARD_ID {
+            c.push(
+                format!("{bp}.board_id"),
+                Problem::OutOfRange {
+                    value: f64::from(b.board_id),
+                    expected: format!("0..={MAX_BOARD_ID} (4-bit rotary switch)"),
+                },
+            );
+        }
+        if let Some(first) = sim
+            .boards
+            .iter()
+            .take(bi)
+            .position(|o| o.board_id == b.board_id)
+        {
+            c.push(
+                format!("{bp}.board_id"),
+                Problem::Duplicate {
+                    what: format!("board {}", b.board_id),
+                    first: format!("{sp}.boards[{first}]"),
+                },
+            );
+        }
+        // What the PROMs can hold after their "FPGA " and "QLA " prefixes.
+        for (name, value) in [("fpga", &b.serial.fpga), ("qla", &b.serial.qla)] {
+            let Some(v) = value else { continue };
+            if v.is_empty() || v.len() > 8 || !v.bytes().all(|x| x.is_ascii_graphic()) {
+                c.push(
+                    format!("{bp}.serial.{name}"),
+                    Problem::Mismatch(format!(
+                        "serial number {v:?}: 1 to 8 printable ASCII characters (e.g. \"1234-56\")"
+                    )),
+                );
+            }
+        }
     }
 }
 
@@ -366,6 +450,37 @@ fn check_limits(c: &mut Checker<'_>, lp: &str, l: &LimitsConfig) {
 fn check_simulation(c: &mut Checker<'_>, sp: &str, s: &SimulationConfig, e: &EncoderConfig) {
     if let Some(g) = &s.pid {
         check_pid(c, &format!("{sp}.pid"), g);
+    }
+    if let Some(h) = &s.hard_stops {
+        let hp = format!("{sp}.hard_stops");
+        let lo = c.finite(&format!("{hp}.lower"), h.lower);
+        let hi = c.finite(&format!("{hp}.upper"), h.upper);
+        let soft = e.position_limits_soft;
+        if lo && hi && (h.lower > soft.lower || h.upper < soft.upper) {
+            let value = if h.lower > soft.lower {
+                h.lower
+            } else {
+                h.upper
+            };
+            c.push(
+                hp,
+                Problem::OutOfRange {
+                    value,
+                    expected: format!(
+                        "stops at or beyond encoder.position_limits_soft [{}, {}]",
+                        soft.lower, soft.upper
+                    ),
+                },
+            );
+        }
+    }
+    if let Some(search) = s.homing.as_ref().and_then(|h| h.stop_search.as_ref()) {
+        let p = format!("{sp}.homing.stop_search");
+        c.positive(&format!("{p}.velocity"), search.velocity);
+        c.positive(&format!("{p}.acceleration"), search.acceleration);
+        c.positive(&format!("{p}.stall_error"), search.stall_error);
+        c.positive(&format!("{p}.max_travel"), search.max_travel);
+        c.finite(&format!("{p}.stop_position"), search.stop_position);
     }
     if let Some(h) = &s.homing {
         let hp = format!("{sp}.homing");

@@ -25,9 +25,10 @@
 //! also read the machine's monotonic clock. This is the one place below the
 //! CLI that does.
 
-mod velocity;
+pub(crate) mod joint;
+pub(crate) mod velocity;
 
-use velocity::VelocityEstimator;
+use joint::{Joint, Pacer};
 
 use std::time::{Duration, Instant};
 
@@ -36,14 +37,14 @@ use firelink_host::{HostError, MissReason, Port};
 use firelink_wire::board::MAX_BOARDS;
 use firelink_wire::board::registers::SYSTEM_CLOCK_HZ;
 
-use crate::config::{DriveConfig, EncoderConfig, IoConfig, JointType, PotentiometerConfig};
+use crate::config::{IoConfig, StopSearchConfig, StopSide};
 use crate::fault::{FaultKind, FaultReport};
 use crate::homing::{Homing, HomingError, HomingSettings, HomingStep};
 use crate::label::{BoardSet, Label};
 use crate::lifecycle::{Lifecycle, LifecycleError, PowerStatus, State};
-use crate::pid::{Measurement, Pid, PidError, PidGains, Setpoint};
+use crate::pid::{Pid, PidError, PidGains};
 use crate::safety::{JointSample, SafetyMonitor};
-use crate::trajectory::Motion;
+use crate::trajectory::{Motion, PointToPoint};
 
 /// How cycles are paced.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -108,28 +109,55 @@ pub enum RunnerError {
     /// A fault while running.
     #[error("{0}")]
     Fault(FaultReport),
+    /// A stop search could not home the joint.
+    #[error("{joint}: stop search: {problem}")]
+    StopSearch {
+        /// The joint.
+        joint: Label,
+        /// What went wrong.
+        problem: StopSearchProblem,
+    },
     /// Something did not happen in time.
     #[error("timed out waiting for {0}")]
     Timeout(&'static str),
 }
 
-#[derive(Debug, Clone, Copy)]
-struct Joint {
-    label: Label,
-    arm: usize,
-    board: usize,
-    axis: usize,
-    drive: DriveConfig,
-    encoder: EncoderConfig,
-    pot: Option<PotentiometerConfig>,
-    prismatic: bool,
-    motion: Motion,
-    motion_start: f64,
-    offset: f64,
-    position: f64,
-    velocity: VelocityEstimator,
-    setpoint: f64,
-    current: f64,
+/// Why a stop search failed.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum StopSearchProblem {
+    /// The joint's configuration has no `simulation.homing.stop_search`.
+    #[error("not configured for this joint")]
+    NotConfigured,
+    /// The joint travelled the whole search without stalling: there is no
+    /// stop where one was expected (the dVRK console's "went past roll
+    /// lower limit").
+    #[error("no stop within {travel:.3} of travel")]
+    NoStop {
+        /// How far the setpoint travelled.
+        travel: f64,
+    },
+}
+
+/// What a stop search found: the joint stalled against its stop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StopFound {
+    /// The joint.
+    pub joint: Label,
+    /// Where the encoder (homed from the pot) said the joint was when the
+    /// stall was declared, before it was set to `stop_position`.
+    pub stalled_at: f64,
+    /// From the start of the search to there.
+    pub travel: f64,
+    /// |setpoint - position| then.
+    pub following_error: f64,
+    /// Current commanded then, A.
+    pub commanded_current: f64,
+    /// Current the amplifier measured then, A.
+    pub measured_current: f64,
+    /// Seconds from the start of the search.
+    pub duration: f64,
+    /// Where the encoder reads from now on (the configured stop position).
+    pub stop_position: f64,
 }
 
 /// Tracking error of one arm, over the cycles it was Active with a motion.
@@ -149,14 +177,50 @@ pub struct ArmTracking {
     pub samples: u64,
 }
 
+/// Running tracking-error sums of one arm.
 #[derive(Debug, Clone, Default)]
-struct ArmAcc {
+pub(crate) struct ArmAcc {
     sum_rad: f64,
     n_rad: u64,
     max_rad: f64,
     sum_m: f64,
     n_m: u64,
     max_m: f64,
+}
+
+impl ArmAcc {
+    /// Add one joint's |setpoint - position|.
+    pub(crate) fn add(&mut self, err: f64, prismatic: bool) {
+        if prismatic {
+            self.sum_m += err * err;
+            self.n_m += 1;
+            self.max_m = self.max_m.max(err);
+        } else {
+            self.sum_rad += err * err;
+            self.n_rad += 1;
+            self.max_rad = self.max_rad.max(err);
+        }
+    }
+
+    /// The arm's tracking so far.
+    pub(crate) fn tracking(&self, name: &str) -> ArmTracking {
+        ArmTracking {
+            name: name.to_string(),
+            rms_rad: if self.n_rad > 0 {
+                (self.sum_rad / self.n_rad as f64).sqrt()
+            } else {
+                0.0
+            },
+            max_rad: self.max_rad,
+            rms_mm: if self.n_m > 0 {
+                1e3 * (self.sum_m / self.n_m as f64).sqrt()
+            } else {
+                0.0
+            },
+            max_mm: 1e3 * self.max_m,
+            samples: self.n_rad + self.n_m,
+        }
+    }
 }
 
 /// Median, p99 and max of a set of durations, microseconds.
@@ -210,6 +274,35 @@ pub struct CycleTimes {
     pub last_compute_us: f32,
 }
 
+impl CycleTimes {
+    /// An empty record with room for `cap` cycles.
+    pub(crate) fn with_capacity(cap: usize) -> CycleTimes {
+        CycleTimes {
+            io_us: Vec::with_capacity(cap),
+            compute_us: Vec::with_capacity(cap),
+            cycle_us: Vec::with_capacity(cap),
+            dropped: 0,
+            overruns: 0,
+            last_compute_us: 0.0,
+        }
+    }
+
+    /// Record one cycle (allocation-free: beyond the capacity it is only
+    /// counted).
+    pub(crate) fn record(&mut self, io: Duration, compute: Duration) {
+        let io_us = io.as_secs_f64() * 1e6;
+        let c_us = compute.as_secs_f64() * 1e6;
+        self.last_compute_us = c_us as f32;
+        if self.io_us.len() < self.io_us.capacity() {
+            self.io_us.push(io_us as f32);
+            self.compute_us.push(c_us as f32);
+            self.cycle_us.push((io_us + c_us) as f32);
+        } else {
+            self.dropped += 1;
+        }
+    }
+}
+
 /// One robot program: configuration, I/O, lifecycle, controllers.
 pub struct Robot<P: Port> {
     io: IoSystem<P>,
@@ -231,6 +324,15 @@ pub struct Robot<P: Port> {
     /// this clock: it is when the encoders were sampled, whatever the
     /// host's or the network's jitter.
     sample_clock: Vec<f64>,
+    /// Per joint: the pot position as read (where the pot is mounted).
+    raw_pot: Vec<f64>,
+    /// Pots in actuator space: `pot[t] += w * raw_pot[s]` for each
+    /// (t, s, w); empty when no robot has a pot coupling (then `pot` is
+    /// `raw_pot`).
+    pot_mix: Vec<(usize, usize, f64)>,
+    /// Per joint: its stop search, if it homes by one (kept out of the
+    /// cycle's data).
+    stop_searches: Vec<Option<StopSearchConfig>>,
     pot: Vec<f64>,
     enc: Vec<f64>,
     times: CycleTimes,
@@ -241,7 +343,7 @@ pub struct Robot<P: Port> {
     /// (bit i = board ID i), since the fault.
     disabled_acknowledged: u16,
     fault: Option<FaultReport>,
-    next_deadline: Option<Instant>,
+    pacer: Pacer,
 }
 
 impl<P: Port> Robot<P> {
@@ -295,26 +397,29 @@ impl<P: Port> Robot<P> {
                 .and_then(|s| s.pid)
                 .unwrap_or_else(|| PidGains::pd(1.0, 0.05));
             pids.push(Pid::new(gains, a.drive.maximum_current).map_err(RunnerError::Pid)?);
-            joints.push(Joint {
-                label: j.label,
-                arm: j.robot_index,
-                board,
-                axis: usize::from(a.axis_id),
-                drive: a.drive,
-                encoder: a.encoder,
-                pot: a.potentiometer,
-                prismatic: a.joint_type == Some(JointType::Prismatic),
-                motion: Motion::Hold(0.0),
-                motion_start: 0.0,
-                offset: 0.0,
-                position: 0.0,
-                velocity: VelocityEstimator::default(),
-                setpoint: 0.0,
-                current: 0.0,
-            });
+            joints.push(Joint::new(&j, board, usize::from(a.axis_id)));
         }
         let n = joints.len();
         let cap = settings.max_samples;
+        // Pots mounted on joints (v6 coupling) are read in actuator space.
+        let mut pot_mix = Vec::new();
+        if config.robots.iter().any(|r| r.pot_coupling().is_some()) {
+            let mut base = 0;
+            for r in &config.robots {
+                let m = r.pot_coupling();
+                for t in 0..r.actuators.len() {
+                    match &m {
+                        Some(m) => pot_mix.extend(
+                            (0..r.actuators.len())
+                                .map(|s| (base + t, base + s, m.get(t, s)))
+                                .filter(|&(_, _, w)| w != 0.0),
+                        ),
+                        None => pot_mix.push((base + t, base + t, 1.0)),
+                    }
+                }
+                base += r.actuators.len();
+            }
+        }
         Ok(Robot {
             io,
             settings,
@@ -329,22 +434,26 @@ impl<P: Port> Robot<P> {
             homing: Homing::from_config(config, settings.homing),
             samples: vec![JointSample::default(); n],
             sample_clock: vec![0.0; MAX_BOARDS],
+            raw_pot: vec![0.0; n],
+            pot_mix,
+            stop_searches: config
+                .joints()
+                .map(|j| {
+                    j.actuator
+                        .simulation
+                        .and_then(|s| s.homing)
+                        .and_then(|h| h.stop_search)
+                })
+                .collect(),
             pot: vec![0.0; n],
             enc: vec![0.0; n],
-            times: CycleTimes {
-                io_us: Vec::with_capacity(cap),
-                compute_us: Vec::with_capacity(cap),
-                cycle_us: Vec::with_capacity(cap),
-                dropped: 0,
-                overruns: 0,
-                last_compute_us: 0.0,
-            },
+            times: CycleTimes::with_capacity(cap),
             cycle: 0,
             last_start: None,
             last_report: None,
             disabled_acknowledged: 0,
             fault: None,
-            next_deadline: None,
+            pacer: Pacer::default(),
         })
     }
 
@@ -429,22 +538,7 @@ impl<P: Port> Robot<P> {
         self.arm_names
             .iter()
             .zip(&self.arm_acc)
-            .map(|(name, a)| ArmTracking {
-                name: name.clone(),
-                rms_rad: if a.n_rad > 0 {
-                    (a.sum_rad / a.n_rad as f64).sqrt()
-                } else {
-                    0.0
-                },
-                max_rad: a.max_rad,
-                rms_mm: if a.n_m > 0 {
-                    1e3 * (a.sum_m / a.n_m as f64).sqrt()
-                } else {
-                    0.0
-                },
-                max_mm: 1e3 * a.max_m,
-                samples: a.n_rad + a.n_m,
-            })
+            .map(|(name, a)| a.tracking(name))
             .collect()
     }
 
@@ -567,12 +661,11 @@ impl<P: Port> Robot<P> {
                     .use_software_offsets()
                     .map_err(RunnerError::Homing)?,
                 HomingStep::Done => {
-                    let offsets = self.homing.applied_offsets();
-                    for ((j, off), raw) in self.joints.iter_mut().zip(offsets).zip(&self.enc) {
-                        j.offset = *off;
-                        j.position = raw + off;
-                        j.velocity.reset();
-                    }
+                    joint::apply_offsets(
+                        &mut self.joints,
+                        self.homing.applied_offsets(),
+                        &self.enc,
+                    );
                     return Ok(());
                 }
                 HomingStep::Failed(e) => return Err(RunnerError::Homing(e)),
@@ -612,11 +705,7 @@ impl<P: Port> Robot<P> {
     pub fn activate(&mut self) -> Result<(), RunnerError> {
         self.life.activate(self.power_status())?;
         let now = self.now();
-        for (j, pid) in self.joints.iter_mut().zip(self.pids.iter_mut()) {
-            j.motion = Motion::Hold(j.position);
-            j.motion_start = now;
-            pid.reset();
-        }
+        joint::hold_all(&mut self.joints, &mut self.pids, now);
         self.safety.restart_timers();
         Ok(())
     }
@@ -629,12 +718,7 @@ impl<P: Port> Robot<P> {
     pub fn set_motion(&mut self, i: usize, motion: Motion) -> Result<(), RunnerError> {
         self.life.require_motion()?;
         let now = self.now();
-        let j = self
-            .joints
-            .get_mut(i)
-            .ok_or_else(|| RunnerError::Config(format!("no joint {i}")))?;
-        j.motion = motion;
-        j.motion_start = now;
+        joint::start_motion(&mut self.joints, i, motion, now)?;
         self.safety.restart_timers();
         Ok(())
     }
@@ -673,7 +757,7 @@ impl<P: Port> Robot<P> {
         progress_every: u64,
         mut progress: impl FnMut(&Robot<P>),
     ) -> Result<(), RunnerError> {
-        self.next_deadline = None;
+        self.pacer.restart();
         for k in 0..cycles {
             self.step(pacing)?;
             if progress_every > 0 && (k + 1) % progress_every == 0 {
@@ -689,17 +773,7 @@ impl<P: Port> Robot<P> {
     /// A fault detected in this cycle (or latched before).
     pub fn step(&mut self, pacing: Pacing) -> Result<(), RunnerError> {
         let period = Duration::from_secs_f64(self.period());
-        if pacing == Pacing::WallClock {
-            let deadline = self.next_deadline.unwrap_or_else(Instant::now);
-            let now = Instant::now();
-            if now > deadline + period / 2 {
-                self.times.overruns += 1;
-                self.next_deadline = Some(now + period);
-            } else {
-                firelink_host::pacing::sleep_until(deadline);
-                self.next_deadline = Some(deadline + period);
-            }
-        }
+        self.pacer.before_cycle(pacing, period, &mut self.times);
         let started = self.io.port().now();
         let r = self.cycle();
         // A bus reset renumbers nodes: scan again between cycles, never
@@ -707,11 +781,9 @@ impl<P: Port> Robot<P> {
         if self.io.needs_rescan() {
             let _ = self.io.recover();
         }
-        if pacing == Pacing::Virtual {
-            let spent = self.io.port().now().saturating_sub(started);
-            if let Some(rest) = period.checked_sub(spent).filter(|d| !d.is_zero()) {
-                self.io.port_mut().wait(rest);
-            }
+        let spent = self.io.port().now().saturating_sub(started);
+        if let Some(rest) = Pacer::rest(pacing, period, spent) {
+            self.io.port_mut().wait(rest);
         }
         r.map_err(RunnerError::Fault)
     }
@@ -762,24 +834,10 @@ impl<P: Port> Robot<P> {
         }
         let report = *self.io.write_all();
         self.last_report = Some(report);
-        self.record(report.io_time(), compute);
+        self.times.record(report.io_time(), compute);
         match self.fault {
             Some(f) => Err(f),
             None => Ok(()),
-        }
-    }
-
-    fn record(&mut self, io: Duration, compute: Duration) {
-        let t = &mut self.times;
-        let io_us = io.as_secs_f64() * 1e6;
-        let c_us = compute.as_secs_f64() * 1e6;
-        t.last_compute_us = c_us as f32;
-        if t.io_us.len() < t.io_us.capacity() {
-            t.io_us.push(io_us as f32);
-            t.compute_us.push(c_us as f32);
-            t.cycle_us.push((io_us + c_us) as f32);
-        } else {
-            t.dropped += 1;
         }
     }
 
@@ -855,74 +913,61 @@ impl<P: Port> Robot<P> {
         }
     }
 
+    /// Pots mounted on joints: every joint's pot position read, then
+    /// turned into actuator space through the robots' pot couplings.
+    fn read_coupled_pots(&mut self) {
+        for (raw, j) in self.raw_pot.iter_mut().zip(&self.joints) {
+            let bits = self
+                .io
+                .boards()
+                .get(j.board)
+                .and_then(|b| b.pot_bits(j.axis));
+            *raw = j.pot_position(bits);
+        }
+        self.pot.fill(0.0);
+        for &(t, s, w) in &self.pot_mix {
+            if let (Some(p), Some(r)) = (self.pot.get_mut(t), self.raw_pot.get(s)) {
+                *p += w * r;
+            }
+        }
+    }
+
     fn compute(&mut self, now: f64, dt: f64) {
         let active = self.life.state() == State::Active;
+        let coupled = !self.pot_mix.is_empty();
+        if coupled {
+            self.read_coupled_pots();
+        }
         for (i, j) in self.joints.iter_mut().enumerate() {
             let Some(b) = self.io.boards().get(j.board) else {
                 continue;
             };
             let counts = b.encoder_counts(j.axis).unwrap_or(0);
-            let raw = j.encoder.counts_to_position(i64::from(counts));
-            let pos = raw + j.offset;
-            let pot = match (j.pot, b.pot_bits(j.axis)) {
-                (Some(p), Some(bits)) => p.bits_to_position(bits),
-                _ => f64::NAN,
-            };
             let sampled = self.sample_clock.get(j.board).copied().unwrap_or(now);
-            let velocity = j.velocity.update(sampled, pos);
-            j.position = pos;
+            let mut u = j.update(
+                counts,
+                b.pot_bits(j.axis),
+                sampled,
+                now,
+                dt,
+                active,
+                self.pids.get_mut(i),
+                self.arm_acc.get_mut(j.arm),
+            );
             if let Some(e) = self.enc.get_mut(i) {
-                *e = raw;
+                *e = u.raw;
             }
-            if let Some(p) = self.pot.get_mut(i) {
-                *p = pot;
+            if coupled {
+                // The pot reads the joint; the safety monitor compares the
+                // encoder with it in actuator space.
+                let pot = self.pot.get(i).copied().unwrap_or(f64::NAN);
+                u.sample.potentiometer =
+                    (j.pot.is_some() && active && pot.is_finite()).then_some(pot);
+            } else if let Some(p) = self.pot.get_mut(i) {
+                *p = u.pot;
             }
-            let mut amps = 0.0;
-            if active {
-                let sp = j.motion.sample(now - j.motion_start);
-                j.setpoint = sp.position;
-                if let Some(pid) = self.pids.get_mut(i) {
-                    amps = pid.update(
-                        Setpoint {
-                            position: sp.position,
-                            velocity: sp.velocity,
-                            feedforward: 0.0,
-                        },
-                        Measurement {
-                            position: pos,
-                            velocity,
-                        },
-                        dt,
-                    );
-                }
-                let err = (sp.position - pos).abs();
-                if let Some(acc) = self.arm_acc.get_mut(j.arm) {
-                    if j.prismatic {
-                        acc.sum_m += err * err;
-                        acc.n_m += 1;
-                        acc.max_m = acc.max_m.max(err);
-                    } else {
-                        acc.sum_rad += err * err;
-                        acc.n_rad += 1;
-                        acc.max_rad = acc.max_rad.max(err);
-                    }
-                }
-            } else {
-                j.setpoint = pos;
-            }
-            j.current = amps;
             if let Some(s) = self.samples.get_mut(i) {
-                *s = JointSample {
-                    setpoint: j.setpoint,
-                    position: pos,
-                    velocity,
-                    current: amps,
-                    potentiometer: if j.pot.is_some() && active && pot.is_finite() {
-                        Some(pot)
-                    } else {
-                        None
-                    },
-                };
+                *s = u.sample;
             }
         }
         if active {
@@ -936,13 +981,8 @@ impl<P: Port> Robot<P> {
         let active = self.life.state() == State::Active;
         let boards = self.io.boards_mut();
         for j in &self.joints {
-            let bits = if active {
-                j.drive.current_to_bits(j.current)
-            } else {
-                j.drive.zero_current_bits()
-            };
             if let Some(b) = boards.get_mut(j.board) {
-                let _ = b.set_dac(j.axis, bits);
+                let _ = b.set_dac(j.axis, j.command(active));
             }
         }
     }
@@ -956,6 +996,150 @@ impl<P: Port> Robot<P> {
     pub fn step_setpoint(&mut self, i: usize, delta: f64) -> Result<(), RunnerError> {
         let sp = self.setpoint(i).unwrap_or(0.0);
         self.set_motion(i, Motion::Hold(sp + delta))
+    }
+
+    /// Joint `i`'s position by its potentiometer, in actuator space (NaN
+    /// for a joint without a pot), as of the last cycle.
+    pub fn potentiometer(&self, i: usize) -> Option<f64> {
+        self.pot.get(i).copied()
+    }
+
+    /// The current joint `i`'s amplifier measured, A, as of the last cycle
+    /// (`None` when its board did not answer).
+    pub fn measured_current(&self, i: usize) -> Option<f64> {
+        let j = self.joints.get(i)?;
+        let b = self.io.boards().get(j.board).filter(|b| b.is_valid())?;
+        Some(j.drive.bits_to_current(b.current_bits(j.axis)?))
+    }
+
+    /// The joints whose configuration homes them by a stop search.
+    pub fn stop_search_joints(&self) -> impl Iterator<Item = usize> + '_ {
+        self.stop_searches
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.is_some())
+            .map(|(i, _)| i)
+    }
+
+    /// Home joint `i` by its stop search: see
+    /// [`search_stop_observed`](Self::search_stop_observed).
+    ///
+    /// # Errors
+    /// As [`search_stop_observed`](Self::search_stop_observed).
+    pub fn search_stop(&mut self, i: usize) -> Result<StopFound, RunnerError> {
+        self.search_stop_observed(i, &mut |_| {})
+    }
+
+    /// Home joint `i` by a stop search, as the dVRK console homes the MTM
+    /// roll: from where it is, its setpoint moves towards the stop at the
+    /// configured constant velocity, reached with the configured
+    /// acceleration (the other joints hold), with its position-limit,
+    /// following-error and current-saturation checks off, until the
+    /// following error passes `stall_error`: the joint has stalled against
+    /// the stop. The encoder is then declared to read `stop_position` (the
+    /// joint's offset changes), the joint holds there and its checks are
+    /// back on; a move away from the stop is free. `each` is called after
+    /// every cycle.
+    ///
+    /// # Errors
+    /// Not Active; no such joint; [`StopSearchProblem::NotConfigured`];
+    /// [`StopSearchProblem::NoStop`] when the whole travel passes without a
+    /// stall; a fault while searching (the checks are back on in any case).
+    pub fn search_stop_observed(
+        &mut self,
+        i: usize,
+        each: &mut dyn FnMut(&Self),
+    ) -> Result<StopFound, RunnerError> {
+        self.life.require_motion()?;
+        let j = *self
+            .joints
+            .get(i)
+            .ok_or_else(|| RunnerError::Config(format!("no joint {i}")))?;
+        let Some(search) = self.stop_searches.get(i).copied().flatten() else {
+            return Err(RunnerError::StopSearch {
+                joint: j.label,
+                problem: StopSearchProblem::NotConfigured,
+            });
+        };
+        let direction = match search.side {
+            StopSide::Lower => -1.0,
+            StopSide::Upper => 1.0,
+        };
+        let start = j.position;
+        let search_move = PointToPoint::new(
+            start,
+            start + direction * search.max_travel,
+            search.velocity,
+            search.acceleration,
+        )
+        .map_err(|e| RunnerError::Config(format!("{}: stop search: {e:?}", j.label)))?;
+        let horizon = search_move.duration();
+        let started = self.now();
+        self.safety.allow_stall(i, true);
+        let found = self
+            .set_motion(i, Motion::PointToPoint(search_move))
+            .and_then(|()| self.run_search(i, &search, started, horizon, each));
+        self.safety.allow_stall(i, false);
+        let (stalled_at, following_error, commanded_current, duration) = found?;
+        let measured_current = self.measured_current(i).unwrap_or(f64::NAN);
+        let now = self.now();
+        if let Some(j) = self.joints.get_mut(i) {
+            j.offset += search.stop_position - stalled_at;
+            j.position = search.stop_position;
+            j.setpoint = search.stop_position;
+            j.motion = Motion::Hold(search.stop_position);
+            j.motion_start = now;
+            j.velocity.reset();
+        }
+        if let Some(pid) = self.pids.get_mut(i) {
+            pid.reset();
+        }
+        self.safety.restart_timers();
+        Ok(StopFound {
+            joint: j.label,
+            stalled_at,
+            travel: (stalled_at - start).abs(),
+            following_error,
+            commanded_current,
+            measured_current,
+            duration,
+            stop_position: search.stop_position,
+        })
+    }
+
+    /// Cycles until joint `i` stalls: (position, following error, current
+    /// command, seconds since `started`).
+    fn run_search(
+        &mut self,
+        i: usize,
+        search: &StopSearchConfig,
+        started: f64,
+        horizon: f64,
+        each: &mut dyn FnMut(&Self),
+    ) -> Result<(f64, f64, f64, f64), RunnerError> {
+        // Past the end of the travel, give the joint a moment to catch up.
+        let give_up = horizon + 1.0;
+        loop {
+            let r = self.step(Pacing::Virtual);
+            each(self);
+            r?;
+            let Some(j) = self.joints.get(i) else {
+                return Err(RunnerError::Config(format!("no joint {i}")));
+            };
+            let error = (j.setpoint - j.position).abs();
+            let elapsed = self.now() - started;
+            if error > search.stall_error {
+                return Ok((j.position, error, j.current, elapsed));
+            }
+            if elapsed > give_up {
+                return Err(RunnerError::StopSearch {
+                    joint: j.label,
+                    problem: StopSearchProblem::NoStop {
+                        travel: search.max_travel,
+                    },
+                });
+            }
+        }
     }
 
     /// The label of joint `i`.

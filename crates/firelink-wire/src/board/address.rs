@@ -92,8 +92,13 @@ open_enum! {
         DigitalIn = 10,
         /// Offset 11: IP_ADDR, the IPv4 address, little-endian (§2).
         IpAddr = 11,
-        /// Offset 12: ETH_STATUS, which tells the FPGA version (§2).
+        /// Offset 12: ETH_STATUS, which tells the FPGA version (§2); on a V2
+        /// also the KSZ8851 register access (extras §6).
         EthStatus = 12,
+        /// Offset 13: DS_STATUS, the DS2505 1-wire interface (extras §4).
+        DallasStatus = 13,
+        /// Offset 14: the MAX7317 I/O expander (QLA 1.5+, extras §5).
+        IoExpander = 14,
         /// Offset 15: GIT_DESC, the firmware's short commit id (§2).
         GitDesc = 15,
     }
@@ -120,6 +125,9 @@ open_enum! {
         /// Offset 7: ENC_QTR1, most recent quarter-cycle period (§3; the
         /// encoder frequency on seed 001).
         EncQtr1 = 7,
+        /// Offset 8: DOUT_CTRL, the PWM / one-shot times of digital
+        /// output N (extras §3).
+        DoutCtrl = 8,
         /// Offset 9: ENC_QTR5, quarter-cycle period four edges back (§3).
         EncQtr5 = 9,
         /// Offset 10: ENC_RUN, clocks since the last encoder edge (§3).
@@ -408,7 +416,7 @@ mod tests {
         );
         assert_eq!(
             Register::from_offset(0x0D),
-            Some(Register::Board(BoardRegister::Unknown(13)))
+            Some(Register::Board(BoardRegister::DallasStatus))
         );
         assert_eq!(
             Register::from_offset(0x41),

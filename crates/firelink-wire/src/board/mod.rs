@@ -13,6 +13,8 @@
 //!   and write blocks (checked views and meaning types).
 //! - [`broadcast`]: the query word, status broadcasts, the hub block and the
 //!   concatenated command block.
+//! - [`extras`]: the PROMs and serial numbers, the 1-wire interface, the
+//!   I/O expander and the Ethernet status (`fpga-board-extras.md`).
 //!
 //! ```
 //! use firelink_wire::board::realtime::{BoardLayout, FirmwareRev};
@@ -26,6 +28,7 @@
 
 pub mod address;
 pub mod broadcast;
+pub mod extras;
 pub mod realtime;
 pub mod registers;
 

@@ -1,0 +1,75 @@
+//! `firelink demo --robot snake`: seed 001's 36-axis system on its own
+//! 7-channel nodes, servoed through the abstract robot I/O. The run is
+//! [`firelink_testbed::snake::demo`]; this file maps the demo's options
+//! onto it and prints the report.
+
+use std::io::Write;
+
+use firelink_control::config::{IoConfig, presets};
+use firelink_testbed::demo::RealtimeStatus;
+use firelink_testbed::snake::demo::{SnakeDemoOptions, run_snake_demo};
+use firelink_testbed::snake::is_snake_config;
+
+use crate::CliError;
+use crate::demo::{DemoArgs, DemoRobot, realtime_setup, show};
+
+fn config(args: &DemoArgs) -> Result<Option<IoConfig>, CliError> {
+    args.config
+        .as_ref()
+        .map(|path| IoConfig::load(path).map_err(|e| CliError::Conflict(e.to_string())))
+        .transpose()
+}
+
+/// Whether the options ask for the Snake robot (`--robot snake`, or a
+/// `--config` on SNAKE nodes).
+pub fn wanted(args: &DemoArgs) -> Result<bool, CliError> {
+    if args.robot == DemoRobot::Snake {
+        return Ok(true);
+    }
+    Ok(config(args)?.as_ref().is_some_and(is_snake_config))
+}
+
+/// The Snake demo's options from the command line.
+pub fn options(args: &DemoArgs) -> Result<SnakeDemoOptions, CliError> {
+    let config = config(args)?.unwrap_or_else(presets::snake_seed001);
+    let pacing = crate::demo::pacing(args)?;
+    let conflict = |e: firelink_testbed::TestbedError| CliError::Conflict(e.to_string());
+    let watchdog = args.watchdog.period();
+    Ok(SnakeDemoOptions {
+        config,
+        rate_hz: args.rate.unwrap_or(1000.0),
+        duration_s: args.duration,
+        port: args.port.parse().map_err(conflict)?,
+        fault: args.fault.parse().map_err(conflict)?,
+        pacing,
+        watchdog: (!watchdog.is_zero()).then_some(watchdog),
+        find_max_rate: !args.no_rate_search,
+        ..SnakeDemoOptions::default()
+    })
+}
+
+/// Run `firelink demo --robot snake`.
+pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
+    let options = options(args)?;
+    let quiet = args.quiet || crate::args::quiet();
+    if let Some(w) = args.watchdog.warning() {
+        eprintln!("demo: {w}");
+    }
+    let setup: &dyn Fn() -> RealtimeStatus = &realtime_setup;
+    let mut ticking = false;
+    let report = run_snake_demo(&options, (!args.no_rt).then_some(setup), |event| {
+        if !quiet {
+            show(&event, &mut ticking);
+        }
+    })
+    .map_err(|e| CliError::Conflict(e.to_string()))?;
+    if ticking {
+        eprintln!();
+    }
+    if args.json {
+        writeln!(out, "{}", serde_json::to_string(&report)?)?;
+    } else {
+        write!(out, "{report}")?;
+    }
+    report.verdict().map_err(CliError::Conflict)
+}

@@ -1,0 +1,145 @@
+//! The terminal UI of the snake tool: the selected node's seven channels
+//! redrawn ten times a second, keys for the common actions and a prompt
+//! for any command.
+
+use std::io::Write;
+use std::time::{Duration, Instant};
+
+use crossterm::event::{self, Event, KeyCode, KeyEvent};
+use crossterm::{cursor, execute, terminal};
+
+use firelink_host::Port;
+
+use super::session::{HELP, Session, render};
+use crate::CliError;
+
+const KEYS: &str = "keys: <- -> channel  up/down board  e enable  +/- voltage 0.05 V  [ ] limit 10 mA  \
+< > wiper 10  t torque/speed  w write protect  r reset encoder  : command  q quit";
+
+/// Run the UI until `q`.
+pub fn run<P: Port>(session: &mut Session<P>, out: &mut impl Write) -> Result<(), CliError> {
+    terminal::enable_raw_mode()?;
+    execute!(out, terminal::EnterAlternateScreen, cursor::Hide)?;
+    let result = ui(session, out);
+    let _ = execute!(out, cursor::Show, terminal::LeaveAlternateScreen);
+    let _ = terminal::disable_raw_mode();
+    result
+}
+
+fn ui<P: Port>(session: &mut Session<P>, out: &mut impl Write) -> Result<(), CliError> {
+    let mut message = String::from("type : then help for every command");
+    let mut prompt: Option<String> = None;
+    let mut last = Instant::now() - Duration::from_secs(1);
+    loop {
+        if last.elapsed() >= Duration::from_millis(100) {
+            let elapsed = last.elapsed().min(Duration::from_millis(500));
+            last = Instant::now();
+            // On the simulated bus, time moves as the UI waits.
+            let _ = session.command(&format!("wait {}", elapsed.as_secs_f64() * 1e3));
+            let frame = match session.view() {
+                Ok(v) => render(&v, session.channel()),
+                Err(e) => format!("board {}: {e}\n", session.board()),
+            };
+            execute!(
+                out,
+                cursor::MoveTo(0, 0),
+                terminal::Clear(terminal::ClearType::All)
+            )?;
+            let line = match &prompt {
+                Some(p) => format!(":{p}"),
+                None => message.clone(),
+            };
+            let text = format!(
+                "firelink snake-tool  boards {:?}  channel {}\n{frame}\n{KEYS}\n{line}\n",
+                session.boards(),
+                session.channel()
+            );
+            write!(out, "{}", text.replace('\n', "\r\n"))?;
+            out.flush()?;
+        }
+        if !event::poll(Duration::from_millis(20))? {
+            continue;
+        }
+        let Event::Key(KeyEvent { code, .. }) = event::read()? else {
+            continue;
+        };
+        last = Instant::now() - Duration::from_secs(1);
+        if let Some(p) = prompt.as_mut() {
+            match code {
+                KeyCode::Enter => {
+                    let line = std::mem::take(p);
+                    prompt = None;
+                    message = if line.trim() == "help" {
+                        HELP.replace('\n', " | ")
+                    } else {
+                        outcome(session.command(&line))
+                    };
+                }
+                KeyCode::Esc => prompt = None,
+                KeyCode::Backspace => {
+                    p.pop();
+                }
+                KeyCode::Char(c) => p.push(c),
+                _ => {}
+            }
+            continue;
+        }
+        let boards = session.boards();
+        let at = boards
+            .iter()
+            .position(|b| *b == session.board())
+            .unwrap_or(0);
+        let command = match code {
+            KeyCode::Char('q') | KeyCode::Esc => return Ok(()),
+            KeyCode::Char(':') => {
+                prompt = Some(String::new());
+                continue;
+            }
+            KeyCode::Left => format!("channel {}", session.channel().saturating_sub(1).max(1)),
+            KeyCode::Right => format!("channel {}", (session.channel() + 1).min(7)),
+            KeyCode::Up => format!("board {}", boards[at.saturating_sub(1)]),
+            KeyCode::Down => format!("board {}", boards[(at + 1).min(boards.len() - 1)]),
+            KeyCode::Char(c) => match step_command(session, c) {
+                Ok(Some(cmd)) => cmd,
+                Ok(None) => continue,
+                Err(e) => {
+                    message = e.to_string();
+                    continue;
+                }
+            },
+            _ => continue,
+        };
+        message = outcome(session.command(&command));
+    }
+}
+
+/// The command a one-key action means, from the channel's readouts now.
+fn step_command<P: Port>(session: &mut Session<P>, key: char) -> Result<Option<String>, CliError> {
+    let view = session.view()?;
+    let Some(c) = view.channels.get(usize::from(session.channel()) - 1) else {
+        return Ok(None);
+    };
+    Ok(Some(match key {
+        'e' => format!("enable {}", if c.enabled { "off" } else { "on" }),
+        '+' | '=' => format!("voltage {}", (c.motor_volts + 0.05).min(1.25)),
+        '-' => format!("voltage {}", (c.motor_volts - 0.05).max(-1.25)),
+        ']' => format!("current-limit {}", (c.current_limit_ma + 10.0).min(2000.0)),
+        '[' => format!("current-limit {}", (c.current_limit_ma - 10.0).max(0.0)),
+        '>' | '.' => format!("wiper {}", (c.wiper + 10).min(1023)),
+        '<' | ',' => format!("wiper {}", c.wiper.saturating_sub(10)),
+        't' => format!("switch {}", if c.speed_mode { "torque" } else { "speed" }),
+        'w' => format!(
+            "write-protect {}",
+            if c.write_protect { "off" } else { "on" }
+        ),
+        'r' => "reset-encoder".into(),
+        _ => return Ok(None),
+    }))
+}
+
+fn outcome(r: Result<String, CliError>) -> String {
+    match r {
+        Ok(text) => text.trim().replace('\n', " | "),
+        Err(e) => format!("error: {e}"),
+    }
+}

@@ -1,0 +1,234 @@
+//! What every servo program of this crate does per joint and per cycle,
+//! whatever the boards: one joint's conversions, velocity, trajectory,
+//! PID and tracking ([`Joint::update`]), and the pacing of cycles
+//! ([`Pacer`]). [`Robot`](super::Robot) and
+//! [`Servo`](crate::servo::Servo) both run on these.
+
+use std::time::{Duration, Instant};
+
+use super::velocity::VelocityEstimator;
+use super::{ArmAcc, CycleTimes, Pacing};
+use crate::config::{DriveConfig, EncoderConfig, JointRef, JointType, PotentiometerConfig};
+use crate::label::Label;
+use crate::pid::{Measurement, Pid, Setpoint};
+use crate::safety::JointSample;
+use crate::trajectory::Motion;
+
+/// One joint: where its owner finds its axis, its conversions and its
+/// control state.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Joint {
+    pub label: Label,
+    pub arm: usize,
+    /// The owner's board reference (an index or a board ID).
+    pub board: usize,
+    /// The owner's axis reference (on the board, or over all boards).
+    pub axis: usize,
+    pub drive: DriveConfig,
+    pub encoder: EncoderConfig,
+    pub pot: Option<PotentiometerConfig>,
+    pub prismatic: bool,
+    pub motion: Motion,
+    pub motion_start: f64,
+    pub offset: f64,
+    pub position: f64,
+    pub velocity: VelocityEstimator,
+    pub setpoint: f64,
+    pub current: f64,
+}
+
+/// What one joint's cycle measured, for homing and the safety monitor.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct JointUpdate {
+    /// Encoder position before the homing offset.
+    pub raw: f64,
+    /// Potentiometer position (NaN without one).
+    pub pot: f64,
+    /// The safety monitor's sample.
+    pub sample: JointSample,
+}
+
+impl Joint {
+    /// A joint of the configuration, found at `(board, axis)`, holding
+    /// still.
+    pub fn new(j: &JointRef<'_>, board: usize, axis: usize) -> Joint {
+        let a = j.actuator;
+        Joint {
+            label: j.label,
+            arm: j.robot_index,
+            board,
+            axis,
+            drive: a.drive,
+            encoder: a.encoder,
+            pot: a.potentiometer,
+            prismatic: a.joint_type == Some(JointType::Prismatic),
+            motion: Motion::Hold(0.0),
+            motion_start: 0.0,
+            offset: 0.0,
+            position: 0.0,
+            velocity: VelocityEstimator::default(),
+            setpoint: 0.0,
+            current: 0.0,
+        }
+    }
+
+    /// One cycle: the encoder `counts` and pot `pot_bits` latched, the
+    /// boards' sample clock `sampled` (s), the port's time `now` and the
+    /// period `dt`. Active: the trajectory's setpoint, the PID's current
+    /// and the tracking error into `acc`; otherwise the joint follows its
+    /// position with no current. Allocation-free.
+    #[allow(clippy::too_many_arguments)]
+    pub fn update(
+        &mut self,
+        counts: i32,
+        pot_bits: Option<u16>,
+        sampled: f64,
+        now: f64,
+        dt: f64,
+        active: bool,
+        pid: Option<&mut Pid>,
+        acc: Option<&mut ArmAcc>,
+    ) -> JointUpdate {
+        let raw = self.encoder.counts_to_position(i64::from(counts));
+        let pos = raw + self.offset;
+        let pot = self.pot_position(pot_bits);
+        let velocity = self.velocity.update(sampled, pos);
+        self.position = pos;
+        let mut amps = 0.0;
+        if active {
+            let sp = self.motion.sample(now - self.motion_start);
+            self.setpoint = sp.position;
+            if let Some(pid) = pid {
+                amps = pid.update(
+                    Setpoint {
+                        position: sp.position,
+                        velocity: sp.velocity,
+                        feedforward: 0.0,
+                    },
+                    Measurement {
+                        position: pos,
+                        velocity,
+                    },
+                    dt,
+                );
+            }
+            if let Some(acc) = acc {
+                acc.add((sp.position - pos).abs(), self.prismatic);
+            }
+        } else {
+            self.setpoint = pos;
+        }
+        self.current = amps;
+        JointUpdate {
+            raw,
+            pot,
+            sample: JointSample {
+                setpoint: self.setpoint,
+                position: pos,
+                velocity,
+                current: amps,
+                potentiometer: (self.pot.is_some() && active && pot.is_finite()).then_some(pot),
+            },
+        }
+    }
+
+    /// The pot position from the pot's ADC bits (NaN without a pot or a
+    /// reading).
+    #[inline]
+    pub fn pot_position(&self, bits: Option<u16>) -> f64 {
+        match (self.pot, bits) {
+            (Some(p), Some(bits)) => p.bits_to_position(bits),
+            _ => f64::NAN,
+        }
+    }
+
+    /// The DAC code to write: the current while active, else zero current.
+    pub fn command(&self, active: bool) -> u16 {
+        if active {
+            self.drive.current_to_bits(self.current)
+        } else {
+            self.drive.zero_current_bits()
+        }
+    }
+}
+
+/// Every joint holds where it is, its PID restarted; a motion set later
+/// starts at `now`.
+pub(crate) fn hold_all(joints: &mut [Joint], pids: &mut [Pid], now: f64) {
+    for (j, pid) in joints.iter_mut().zip(pids.iter_mut()) {
+        j.motion = Motion::Hold(j.position);
+        j.motion_start = now;
+        pid.reset();
+    }
+}
+
+/// Homing is done: each joint takes its offset; positions are the raw
+/// encoder positions `raw` plus the offsets, velocities start again.
+pub(crate) fn apply_offsets(joints: &mut [Joint], offsets: &[f64], raw: &[f64]) {
+    for ((j, off), raw) in joints.iter_mut().zip(offsets).zip(raw) {
+        j.offset = *off;
+        j.position = raw + off;
+        j.velocity.reset();
+    }
+}
+
+/// Start `motion` on joint `i` at `now`.
+///
+/// # Errors
+/// [`RunnerError::Config`](super::RunnerError::Config) for a joint that
+/// does not exist.
+pub(crate) fn start_motion(
+    joints: &mut [Joint],
+    i: usize,
+    motion: Motion,
+    now: f64,
+) -> Result<(), super::RunnerError> {
+    let j = joints
+        .get_mut(i)
+        .ok_or_else(|| super::RunnerError::Config(format!("no joint {i}")))?;
+    j.motion = motion;
+    j.motion_start = now;
+    Ok(())
+}
+
+/// Paces cycles on the machine's clock ([`Pacing::WallClock`]); with
+/// [`Pacing::Virtual`] the port waits out the rest of each period instead
+/// ([`Pacer::rest`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Pacer {
+    next_deadline: Option<Instant>,
+}
+
+impl Pacer {
+    /// Start a new run: the next cycle starts at once.
+    pub fn restart(&mut self) {
+        self.next_deadline = None;
+    }
+
+    /// Before a cycle: with wall-clock pacing, sleep until its deadline;
+    /// a cycle more than half a period late counts as an overrun and
+    /// restarts the schedule from now.
+    pub fn before_cycle(&mut self, pacing: Pacing, period: Duration, times: &mut CycleTimes) {
+        if pacing != Pacing::WallClock {
+            return;
+        }
+        let deadline = self.next_deadline.unwrap_or_else(Instant::now);
+        let now = Instant::now();
+        if now > deadline + period / 2 {
+            times.overruns += 1;
+            self.next_deadline = Some(now + period);
+        } else {
+            firelink_host::pacing::sleep_until(deadline);
+            self.next_deadline = Some(deadline + period);
+        }
+    }
+
+    /// After a cycle that took `spent` on the port's clock: how long the
+    /// port should wait with virtual pacing (none if the period is over).
+    pub fn rest(pacing: Pacing, period: Duration, spent: Duration) -> Option<Duration> {
+        if pacing != Pacing::Virtual {
+            return None;
+        }
+        period.checked_sub(spent).filter(|d| !d.is_zero())
+    }
+}

@@ -1,0 +1,295 @@
+//! Fig. 18's top layer: abstract robot I/O, the same for every kind of
+//! board, so that one controller drives a QLA robot and a Snake robot.
+//!
+//! [`RobotIo`] has seed 001's shape: `latch_all_inputs` samples every
+//! board at once, per-axis getters read the latched values, per-axis
+//! setters fill local buffers, `apply_all_outputs` writes every board at
+//! once. Values are primitive and raw, in the board's own units (DAC and
+//! ADC codes, encoder counts); a robot's configuration converts them to
+//! SI (`firelink_control::config`). Axes are numbered from 0 over all
+//! boards in the order the system lists them; [`RobotIo::axis_index`]
+//! finds the axis of a `(board ID, axis on the board)` pair once, at
+//! setup, so the cycle indexes directly.
+//!
+//! Implemented for the QLA family's [`IoSystem`] here and for the Snake
+//! node's [`SnakeSystem`](crate::snake::SnakeSystem) in [`crate::snake`].
+//!
+//! | seed 001 (Fig. 18) | [`RobotIo`] |
+//! |---|---|
+//! | `LatchAllInputs` | [`latch_all_inputs`](RobotIo::latch_all_inputs) |
+//! | `ApplyAllOutputs` | [`apply_all_outputs`](RobotIo::apply_all_outputs) |
+//! | `GetStatus` | [`board_answered`](RobotIo::board_answered), [`powered`](RobotIo::powered), [`watchdog_expired`](RobotIo::watchdog_expired) |
+//! | `GetTimestamp` | [`timestamp`](RobotIo::timestamp) |
+//! | `GetEncoderPosition` / `GetEncoderVelocity` | [`encoder_position`](RobotIo::encoder_position) / [`encoder_velocity`](RobotIo::encoder_velocity) |
+//! | `GetAnalogPosition` / `GetMotorCurrent` | [`analog_position`](RobotIo::analog_position) / [`motor_current`](RobotIo::motor_current) |
+//! | `SetMotorVoltage` | [`set_motor_command`](RobotIo::set_motor_command) |
+//! | `SetPowerControl` | [`set_power`](RobotIo::set_power), [`set_amplifier_enable`](RobotIo::set_amplifier_enable) |
+
+use std::time::Duration;
+
+use crate::error::{HostError, Result};
+use crate::io::{CycleReport, IoStats, IoSystem};
+use crate::port::Port;
+
+/// Abstract robot I/O: see the module docs.
+///
+/// # Errors
+/// Per-axis methods fail with [`HostError::InvalidRequest`] for an axis
+/// the system does not have; I/O errors of a cycle are in its
+/// [`CycleReport`], never raised.
+pub trait RobotIo {
+    /// A short name of the port ("sim", "udp:127.0.0.1:1394").
+    fn port_name(&self) -> &str;
+    /// The port's clock (virtual on the simulated bus).
+    fn now(&self) -> Duration;
+    /// Let `duration` pass on the port's clock.
+    fn wait(&mut self, duration: Duration);
+
+    /// Board IDs present (bit i = board ID i).
+    fn boards(&self) -> u16;
+    /// Axes over all boards.
+    fn axis_count(&self) -> usize;
+    /// The axis of `(board ID, axis on that board, from 0)`.
+    fn axis_index(&self, board_id: u8, axis: u8) -> Option<usize>;
+    /// The `(board ID, axis on that board)` of an axis.
+    fn axis_location(&self, axis: usize) -> Option<(u8, u8)>;
+
+    /// `LatchAllInputs`: sample every board; the cycle's report says who
+    /// answered.
+    fn latch_all_inputs(&mut self) -> &CycleReport;
+    /// `ApplyAllOutputs`: write every board's buffered outputs.
+    fn apply_all_outputs(&mut self) -> &CycleReport;
+    /// Error counters over all cycles.
+    fn stats(&self) -> &IoStats;
+
+    /// Whether board `board_id` answered the last latch.
+    fn board_answered(&self, board_id: u8) -> bool;
+    /// Whether board `board_id`'s motor power was on at the last latch
+    /// (boards without a switched motor supply: whenever they answered).
+    fn powered(&self, board_id: u8) -> bool;
+    /// Whether board `board_id`'s watchdog had expired at the last latch.
+    fn watchdog_expired(&self, board_id: u8) -> bool;
+    /// 49.152 MHz clocks between board `board_id`'s last two samples
+    /// (`None` if it did not answer; 0 if the board does not say).
+    fn timestamp(&self, board_id: u8) -> Option<u32>;
+
+    /// Ask for motor power on or off with the next apply, on every board
+    /// (boards without a switched motor supply: off disables every
+    /// amplifier, on does nothing).
+    fn set_power(&mut self, on: bool);
+    /// Program every board's watchdog (zero turns it off).
+    ///
+    /// # Errors
+    /// Port errors; a period the boards cannot hold.
+    fn set_watchdog(&mut self, period: Duration) -> Result<()>;
+    /// The fault path's backstop: tell each board in `boards` directly to
+    /// turn every amplifier off; returns those that acknowledged.
+    fn disable_amplifiers_acknowledged(&mut self, boards: u16) -> u16;
+    /// Between cycles: after a bus reset, find the boards again.
+    ///
+    /// # Errors
+    /// The discovery failed (the next call tries again).
+    fn recover(&mut self) -> Result<()>;
+
+    /// `GetEncoderPosition`: counts relative to the midpoint preload.
+    ///
+    /// # Errors
+    /// See the trait docs.
+    fn encoder_position(&self, axis: usize) -> Result<i32>;
+    /// `GetEncoderVelocity`: counts per second from the board's period
+    /// measurement (0 when too slow to measure).
+    ///
+    /// # Errors
+    /// See the trait docs.
+    fn encoder_velocity(&self, axis: usize) -> Result<f64>;
+    /// `GetAnalogPosition`: the potentiometer ADC code.
+    ///
+    /// # Errors
+    /// See the trait docs.
+    fn analog_position(&self, axis: usize) -> Result<u16>;
+    /// `GetMotorCurrent`: the current-feedback ADC code.
+    ///
+    /// # Errors
+    /// See the trait docs.
+    fn motor_current(&self, axis: usize) -> Result<u16>;
+    /// Whether the axis's amplifier was on at the last latch.
+    ///
+    /// # Errors
+    /// See the trait docs.
+    fn amplifier_enabled(&self, axis: usize) -> Result<bool>;
+    /// `SetMotorVoltage` / the motor command: the DAC code the next apply
+    /// writes.
+    ///
+    /// # Errors
+    /// See the trait docs.
+    fn set_motor_command(&mut self, axis: usize, code: u16) -> Result<()>;
+    /// Ask for the axis's amplifier on or off with the next apply.
+    ///
+    /// # Errors
+    /// See the trait docs.
+    fn set_amplifier_enable(&mut self, axis: usize, on: bool) -> Result<()>;
+    /// Every axis to its neutral command and every amplifier off with the
+    /// next apply.
+    fn set_all_safe(&mut self);
+}
+
+/// The error for an axis a system does not have.
+pub fn bad_axis(axis: usize) -> HostError {
+    HostError::InvalidRequest {
+        what: "axis (beyond the boards found)",
+        value: u32::try_from(axis).unwrap_or(u32::MAX),
+    }
+}
+
+impl<P: Port> IoSystem<P> {
+    /// (index in `boards()`, axis on it) of a flat axis number.
+    fn locate(&self, axis: usize) -> Result<(usize, usize)> {
+        let mut rest = axis;
+        for (i, b) in self.boards().iter().enumerate() {
+            if rest < b.axes() {
+                return Ok((i, rest));
+            }
+            rest -= b.axes();
+        }
+        Err(bad_axis(axis))
+    }
+
+    fn board_at(&self, axis: usize) -> Result<(&crate::board::BoardIo, usize)> {
+        let (b, a) = self.locate(axis)?;
+        let board = self.boards().get(b).ok_or_else(|| bad_axis(axis))?;
+        Ok((board, a))
+    }
+}
+
+impl<P: Port> RobotIo for IoSystem<P> {
+    fn port_name(&self) -> &str {
+        self.port().name()
+    }
+
+    fn now(&self) -> Duration {
+        self.port().now()
+    }
+
+    fn wait(&mut self, duration: Duration) {
+        self.port_mut().wait(duration);
+    }
+
+    fn boards(&self) -> u16 {
+        IoSystem::boards(self)
+            .iter()
+            .fold(0, |m, b| m | (1 << (b.board_id() & 0xF)))
+    }
+
+    fn axis_count(&self) -> usize {
+        IoSystem::boards(self).iter().map(|b| b.axes()).sum()
+    }
+
+    fn axis_index(&self, board_id: u8, axis: u8) -> Option<usize> {
+        let mut base = 0;
+        for b in IoSystem::boards(self) {
+            if b.board_id() == board_id {
+                return (usize::from(axis) < b.axes()).then_some(base + usize::from(axis));
+            }
+            base += b.axes();
+        }
+        None
+    }
+
+    fn axis_location(&self, axis: usize) -> Option<(u8, u8)> {
+        let (b, a) = self.board_at(axis).ok()?;
+        Some((b.board_id(), a as u8))
+    }
+
+    fn latch_all_inputs(&mut self) -> &CycleReport {
+        self.read_all()
+    }
+
+    fn apply_all_outputs(&mut self) -> &CycleReport {
+        self.write_all()
+    }
+
+    fn stats(&self) -> &IoStats {
+        IoSystem::stats(self)
+    }
+
+    fn board_answered(&self, board_id: u8) -> bool {
+        self.board(board_id).is_some_and(|b| b.is_valid())
+    }
+
+    fn powered(&self, board_id: u8) -> bool {
+        self.board(board_id)
+            .is_some_and(|b| b.is_valid() && b.power_enabled())
+    }
+
+    fn watchdog_expired(&self, board_id: u8) -> bool {
+        self.board(board_id).is_some_and(|b| b.watchdog_expired())
+    }
+
+    fn timestamp(&self, board_id: u8) -> Option<u32> {
+        self.board(board_id)
+            .filter(|b| b.is_valid())
+            .map(|b| b.timestamp())
+    }
+
+    fn set_power(&mut self, on: bool) {
+        for b in self.boards_mut() {
+            b.set_power(on);
+            b.set_relay(on);
+        }
+    }
+
+    fn set_watchdog(&mut self, period: Duration) -> Result<()> {
+        IoSystem::set_watchdog(self, period)
+    }
+
+    fn disable_amplifiers_acknowledged(&mut self, boards: u16) -> u16 {
+        IoSystem::disable_amplifiers_acknowledged(self, boards)
+    }
+
+    fn recover(&mut self) -> Result<()> {
+        IoSystem::recover(self).map(|_| ())
+    }
+
+    fn encoder_position(&self, axis: usize) -> Result<i32> {
+        let (b, a) = self.board_at(axis)?;
+        b.encoder_counts(a).ok_or_else(|| bad_axis(axis))
+    }
+
+    fn encoder_velocity(&self, axis: usize) -> Result<f64> {
+        let (b, a) = self.board_at(axis)?;
+        b.encoder_velocity(a).ok_or_else(|| bad_axis(axis))
+    }
+
+    fn analog_position(&self, axis: usize) -> Result<u16> {
+        let (b, a) = self.board_at(axis)?;
+        b.pot_bits(a).ok_or_else(|| bad_axis(axis))
+    }
+
+    fn motor_current(&self, axis: usize) -> Result<u16> {
+        let (b, a) = self.board_at(axis)?;
+        b.current_bits(a).ok_or_else(|| bad_axis(axis))
+    }
+
+    fn amplifier_enabled(&self, axis: usize) -> Result<bool> {
+        let (b, a) = self.board_at(axis)?;
+        Ok(b.is_valid() && b.amp_enabled(a))
+    }
+
+    fn set_motor_command(&mut self, axis: usize, code: u16) -> Result<()> {
+        let (b, a) = self.locate(axis)?;
+        let board = self.boards_mut().get_mut(b).ok_or_else(|| bad_axis(axis))?;
+        board.set_dac(a, code)
+    }
+
+    fn set_amplifier_enable(&mut self, axis: usize, on: bool) -> Result<()> {
+        let (b, a) = self.locate(axis)?;
+        let board = self.boards_mut().get_mut(b).ok_or_else(|| bad_axis(axis))?;
+        board.set_amp_enable(a, on)
+    }
+
+    fn set_all_safe(&mut self) {
+        for b in self.boards_mut() {
+            b.safe_outputs();
+        }
+    }
+}

@@ -1,0 +1,355 @@
+//! How a configuration's actuator becomes an emulated joint: its plant, its
+//! mechanical stops, what its potentiometer measures, how its amplifier's
+//! calibration shows, and what is plugged into its boards (a PSM's sterile
+//! adapter and instrument). [`rig::plant_for`](crate::rig::plant_for) and
+//! [`rig::board_configs`](crate::rig::board_configs) use it.
+//!
+//! The emulated robot agrees with its configuration as a calibrated robot
+//! agrees with its own: the encoder and the pot measure the same joint
+//! through the configuration's conversions, over the whole mechanical
+//! range.
+//!
+//! **Stops.** Each joint stops at the configuration's
+//! `simulation.hard_stops`; without them, at the arm's physical range where
+//! Firelink knows it (the MTM wrist roll: -480 to +456 degrees, from the
+//! dVRK console), else 3 degrees (3 mm) beyond the soft limits. A stop the
+//! pot could not see (past the end of its electrical range through the
+//! configuration's pot conversion) is moved inside that range, so pot and
+//! encoder agree at the stops too; [`notes`] says when that happens.
+//!
+//! **Coupled pots.** Where a robot's `potentiometers.coupling` says its
+//! pots sit on joints that several actuators move (the dVRK MTM), each pot
+//! measures its joint, `inverse(JointToActuatorPosition) x actuators`, as
+//! the real arm's do; the host turns them back into actuator space.
+
+use firelink_board::config::Instrument;
+use firelink_board::plant::presets;
+use firelink_board::plant::{AxisParams, HardStops, POT_FULL_SCALE_VOLTS};
+use firelink_control::config::presets::{STOP_MARGIN_M, STOP_MARGIN_RAD};
+use firelink_control::config::{
+    ActuatorConfig, DvrkArm, IoConfig, JointRef, JointType, PlantPreset, RobotConfig,
+};
+
+/// How far inside the end of its electrical range a pot must still be at a
+/// stop, V: well above its noise (0.5 mV) and an ADC count (69 uV).
+const POT_END_GUARD_VOLTS: f64 = 0.005;
+
+/// The plant an actuator gets: its `simulation.plant`, else what its
+/// robot's dVRK arm has at that index, else a generic motor.
+pub fn plant_preset(joint: &JointRef<'_>) -> PlantPreset {
+    joint
+        .actuator
+        .simulation
+        .map(|s| s.plant)
+        .or_else(|| {
+            joint
+                .robot
+                .dvrk_arm()
+                .and_then(|arm| arm.plant(joint.actuator_index))
+        })
+        .unwrap_or(PlantPreset::Generic)
+}
+
+/// Where a joint's mechanical stops are, before the pot has its say (see
+/// the module docs).
+pub fn stated_stops(joint: &JointRef<'_>) -> (f64, f64) {
+    let a = joint.actuator;
+    let soft = a.encoder.position_limits_soft;
+    if let Some(s) = a.simulation.and_then(|s| s.hard_stops) {
+        return (s.lower, s.upper);
+    }
+    if plant_preset(joint) == PlantPreset::MtmJ7 {
+        let (lo, hi) = (presets::MTM_ROLL_LOWER_STOP, presets::MTM_ROLL_UPPER_STOP);
+        if lo <= soft.lower && soft.upper <= hi {
+            return (lo, hi);
+        }
+    }
+    let margin = if a.joint_type == Some(JointType::Prismatic) {
+        STOP_MARGIN_M
+    } else {
+        STOP_MARGIN_RAD
+    };
+    (soft.lower - margin, soft.upper + margin)
+}
+
+/// What one actuator's pot measures: weights of its robot's actuators
+/// (actuator index, weight). Without a coupling, the actuator itself.
+fn pot_weights(joint: &JointRef<'_>) -> Vec<(usize, f64)> {
+    let coupled = joint.robot.pot_coupling().and_then(|j2a| j2a.inverse());
+    match coupled {
+        Some(a2j) => (0..joint.robot.actuators.len())
+            .map(|s| (s, a2j.get(joint.actuator_index, s)))
+            .filter(|&(_, w)| w != 0.0)
+            .collect(),
+        None => vec![(joint.actuator_index, 1.0)],
+    }
+}
+
+/// Whether an actuator's pot measures only its own actuator.
+fn pot_is_own(joint: &JointRef<'_>) -> bool {
+    matches!(pot_weights(joint).as_slice(), [(s, w)] if *s == joint.actuator_index && *w == 1.0)
+}
+
+/// Sets the plant's stops, pot coupling and amplifier calibration from the
+/// configuration (the transmission, encoder and pot conversion are already
+/// set by the caller).
+pub fn apply(joint: &JointRef<'_>, p: &mut AxisParams) {
+    let a = joint.actuator;
+    // Stops, pulled inside what the pot can see.
+    let (mut lo, mut hi) = stated_stops(joint);
+    if a.potentiometer.is_some() && pot_is_own(joint) {
+        if let Some((pot_lo, pot_hi)) = pot_visible_range(p) {
+            lo = lo.max(pot_lo);
+            hi = hi.min(pot_hi);
+        }
+    }
+    if lo < hi {
+        p.stops = HardStops::new(lo, hi);
+    }
+    p.load.initial_position = p.stops.clamp(p.load.initial_position);
+    // A pot on a joint several actuators move.
+    if !pot_is_own(joint) {
+        p.pot.measures = pot_weights(joint)
+            .into_iter()
+            .filter_map(|(s, w)| {
+                let other = joint.robot.actuators.get(s)?;
+                (other.board_id == a.board_id).then_some((usize::from(other.axis_id), w))
+            })
+            .collect();
+    }
+    calibrate_amplifier(a, p);
+}
+
+/// The positions the pot reads between the ends of its electrical range,
+/// kept [`POT_END_GUARD_VOLTS`] inside them.
+fn pot_visible_range(p: &AxisParams) -> Option<(f64, f64)> {
+    let k = p.pot.volts_per_unit.abs();
+    let (lo, hi) = p.pot_position_range()?;
+    let guard = POT_END_GUARD_VOLTS / k;
+    (lo + guard < hi - guard).then_some((lo + guard, hi - guard))
+}
+
+/// The amplifier delivers no current at the configuration's calibrated DAC
+/// code, and its current sense reads so that the configuration's feedback
+/// conversion gives the true current.
+fn calibrate_amplifier(a: &ActuatorConfig, p: &mut AxisParams) {
+    let c2b = a.drive.current_to_bits;
+    let b2c = a.drive.bits_to_current;
+    if (0.0..=65535.0).contains(&c2b.offset) {
+        p.amplifier.zero_code = c2b.offset.round() as u16;
+    }
+    // Plant amperes per configured ampere (+-1 for the QLA's own scale).
+    let k = c2b.scale * p.amplifier.amps_per_bit;
+    let zero_reading = b2c.scale * f64::from(firelink_board::plant::DAC_ZERO) + b2c.offset;
+    // Below 0.1 mA (half an ADC count) it is the rounding of the file's
+    // numbers, not a calibration.
+    let offset = -k * zero_reading;
+    if offset.is_finite() && (1e-4..1.0).contains(&offset.abs()) {
+        p.current_sense.offset_amps = offset;
+    }
+}
+
+/// Where a robot's MTM gripper is wired: the axis after its last actuator
+/// (board ID, axis), if that axis exists on a QLA1 or DQLA board.
+pub fn gripper_slot(robot: &RobotConfig) -> Option<(u8, u8)> {
+    if robot.dvrk_arm() != Some(DvrkArm::Mtm) {
+        return None;
+    }
+    let last = robot.actuators.get(DvrkArm::Mtm.actuators() - 1)?;
+    let axis = last.axis_id.checked_add(1)?;
+    (axis < robot.hardware_version.axes()).then_some((last.board_id, axis))
+}
+
+/// The MTM gripper's plant: a Hall-effect sensor on the analog input, no
+/// motor.
+pub fn gripper_params() -> AxisParams {
+    presets::mtm_joint(8).unwrap_or_else(presets::unused_channel)
+}
+
+/// Per board ID, the digital input lines held high (DIGIN bits 11:0): for
+/// every v6 digital input, its level given what is plugged in (the PSM's
+/// sterile adapter and instrument contacts, named `<robot>_adapter` and
+/// `<robot>_tool`, read pressed when the robot's simulation section puts
+/// them in; every other input reads released).
+pub fn input_lines(config: &IoConfig) -> [u16; 16] {
+    let mut lines = [0u16; 16];
+    let Some(inputs) = config
+        .digital_inputs
+        .as_ref()
+        .and_then(serde_json::Value::as_array)
+    else {
+        return lines;
+    };
+    for name in inputs
+        .iter()
+        .filter_map(|d| d.get("name").and_then(serde_json::Value::as_str))
+    {
+        let Some((board, bit, pressed_value)) = config.digital_input(name) else {
+            continue;
+        };
+        let pressed = config.robots.iter().any(|r| {
+            let sim = r.simulation.as_ref();
+            let adapter = sim.is_some_and(|s| s.adapter || s.tool.is_some());
+            let tool = sim.is_some_and(|s| s.tool.is_some());
+            (adapter && name == format!("{}_adapter", r.name))
+                || (tool && name == format!("{}_tool", r.name))
+        });
+        let level = pressed == pressed_value;
+        if let Some(l) = lines.get_mut(usize::from(board)) {
+            if level && bit < 12 {
+                *l |= 1 << bit;
+            }
+        }
+    }
+    lines
+}
+
+/// Per board ID, the instrument whose 1-wire memory it reads: a robot's
+/// `simulation.tool`, on the board of its Dallas chip (`<robot>_dallas`
+/// in the v6 `dallas_chips`), else on its last board.
+pub fn instruments(config: &IoConfig) -> Vec<(u8, Instrument)> {
+    config
+        .robots
+        .iter()
+        .filter_map(|r| {
+            let tool = r.simulation.as_ref()?.tool.as_ref()?;
+            let dallas = config
+                .dallas_chips
+                .as_ref()
+                .and_then(serde_json::Value::as_array)
+                .and_then(|chips| {
+                    chips.iter().find(|c| {
+                        c.get("name").and_then(serde_json::Value::as_str)
+                            == Some(&format!("{}_dallas", r.name))
+                    })
+                })
+                .and_then(|c| c.get("board_id")?.as_u64())
+                .and_then(|b| u8::try_from(b).ok());
+            let board = dallas.or_else(|| r.actuators.iter().map(|a| a.board_id).max())?;
+            Some((
+                board,
+                Instrument {
+                    model: tool.model,
+                    version: tool.version,
+                    name: tool.name.clone(),
+                },
+            ))
+        })
+        .collect()
+}
+
+/// What the emulated robot cannot make agree with the configuration, one
+/// sentence each: stops pulled inside the soft limits by a pot that cannot
+/// see that far, pots coupled to actuators on another board.
+pub fn notes(config: &IoConfig) -> Vec<String> {
+    let mut out = Vec::new();
+    for j in config.joints() {
+        let Some(p) = crate::rig::plant_for(config, j.index) else {
+            continue;
+        };
+        let soft = j.actuator.encoder.position_limits_soft;
+        let (lo, hi) = stated_stops(&j);
+        if pot_is_own(&j) && j.actuator.potentiometer.is_some() {
+            if let Some((pot_lo, pot_hi)) = pot_visible_range(&p) {
+                if pot_lo > lo || pot_hi < hi {
+                    out.push(format!(
+                        "{}: the pot conversion reads only [{pot_lo:.4}, {pot_hi:.4}] within \
+                         0..{POT_FULL_SCALE_VOLTS} V: the stops [{lo:.4}, {hi:.4}] are moved \
+                         inside it{}",
+                        j.label,
+                        if pot_lo > soft.lower || pot_hi < soft.upper {
+                            ", inside the soft limits (the arm cannot reach them)"
+                        } else {
+                            ""
+                        }
+                    ));
+                }
+            }
+        }
+        let across = pot_weights(&j)
+            .iter()
+            .filter_map(|&(s, _)| j.robot.actuators.get(s))
+            .any(|o| o.board_id != j.actuator.board_id);
+        if across {
+            out.push(format!(
+                "{}: its pot is coupled to actuators on another board; only those on board {} \
+                 are emulated",
+                j.label, j.actuator.board_id
+            ));
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firelink_board::config::Profile;
+    use firelink_control::config::{ToolConfig, presets};
+
+    #[test]
+    fn a_tool_in_the_configuration_reaches_the_psm_board() {
+        let mut config = presets::stock_psm1();
+        // As shipped: the sterile adapter on (bit 10), no instrument.
+        assert_eq!(input_lines(&config)[7], 1 << 10);
+        assert!(instruments(&config).is_empty());
+        if let Some(sim) = config.robots[0].simulation.as_mut() {
+            sim.tool = Some(ToolConfig {
+                name: "LARGE_NEEDLE_DRIVER".into(),
+                model: 400_006,
+                version: 12,
+            });
+        }
+        assert_eq!(input_lines(&config)[7], (1 << 10) | (1 << 7));
+        let boards = crate::rig::board_configs(&config, Profile::Rev8, 8);
+        let b7 = &boards[7];
+        assert_eq!(b7.input_lines, (1 << 10) | (1 << 7));
+        let tool = b7.instrument.as_ref().unwrap();
+        assert_eq!((tool.model, tool.version), (400_006, 12));
+        assert_eq!(&tool.memory()[0x80..0x83], b"997");
+        assert!(boards[6].instrument.is_none());
+        // An input pressed when low reads high when its part is out.
+        config.digital_inputs = Some(serde_json::json!([
+            { "name": "PSM1_adapter", "board_id": 7, "bit_id": 10, "pressed_value": false },
+            { "name": "PSM1_tool", "board_id": 7, "bit_id": 7, "pressed_value": false }
+        ]));
+        if let Some(sim) = config.robots[0].simulation.as_mut() {
+            sim.tool = None;
+            sim.adapter = false;
+        }
+        assert_eq!(input_lines(&config)[7], (1 << 10) | (1 << 7));
+    }
+
+    #[test]
+    fn the_mtm_gripper_sits_after_the_last_actuator() {
+        let config = presets::stock_mtmr();
+        assert_eq!(gripper_slot(&config.robots[0]), Some((3, 3)));
+        let boards = crate::rig::board_configs(&config, Profile::Rev8, 4);
+        let gripper = &boards[3].axes[3];
+        assert_eq!(gripper.name, "MTM gripper");
+        assert!(!gripper.has_motor);
+        assert_eq!(gripper_slot(&presets::stock_psm1().robots[0]), None);
+    }
+
+    #[test]
+    fn a_stop_the_pot_cannot_see_is_moved_inside_and_noted() {
+        // A pot calibration that reads only to 1.5 degrees past the PSM
+        // tool actuators' soft limits (as in the report that asked for
+        // stops: -3.049 rad against -3.037).
+        let mut config = presets::stock_psm1();
+        let a = &mut config.robots[0].actuators[4];
+        let soft = a.encoder.position_limits_soft;
+        let pot = a.potentiometer.as_mut().unwrap();
+        let reach = soft.upper + 1.5f64.to_radians();
+        pot.voltage_to_position.scale = 2.0 * reach / 4.5;
+        pot.voltage_to_position.offset = -reach;
+        let p = crate::rig::plant_for(&config, 4).unwrap();
+        let (lo, hi) = (p.stops.lower.unwrap(), p.stops.upper.unwrap());
+        assert!(soft.lower > lo && lo > -reach, "{lo}");
+        assert!(soft.upper < hi && hi < reach, "{hi}");
+        let notes = notes(&config);
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(notes[0].starts_with("PSM1[4]: the pot conversion reads only"));
+        assert!(!notes[0].contains("inside the soft limits"));
+    }
+}

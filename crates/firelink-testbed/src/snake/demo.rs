@@ -1,0 +1,469 @@
+//! The Snake demo: seed 001's 36-axis system (two 11-axis Snake robots
+//! and two 7-axis masters on six 7-channel nodes) servoed by the generic
+//! [`Servo`] over the abstract robot I/O: configure, prepare the nodes
+//! (wiper, torque mode, current limit, encoder preload), power on, home,
+//! follow trajectories on every arm, optionally inject a fault half way,
+//! power off; then, on the simulated bus, find the highest rate that
+//! holds. The report is the dVRK demo's ([`DemoReport`]) plus the rate
+//! search.
+
+use std::fmt;
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+
+use firelink_control::State;
+use firelink_control::config::{IoConfig, presets};
+use firelink_control::runner::{ArmTracking, CycleTimes, Pacing, RunnerError};
+use firelink_control::servo::Servo;
+use firelink_control::trajectory::Motion;
+use firelink_host::io::IoStats;
+use firelink_host::snake::SnakeSystem;
+
+use crate::TestbedError;
+use crate::demo::{
+    DemoFault, DemoPlan, DemoPort, DemoProgram, DemoProgress, DemoReport, Injector, RealtimeStatus,
+    TimeStats, run_program,
+};
+use crate::rig;
+use crate::snake::{emulator, node_configs, prepare, sim_port};
+
+/// Options of a Snake demo run.
+#[derive(Debug, Clone)]
+pub struct SnakeDemoOptions {
+    /// The robot (default: `configs/snake-seed001.json`).
+    pub config: IoConfig,
+    /// Control rate, Hz (the seed's target: 1 kHz).
+    pub rate_hz: f64,
+    /// Seconds of motion after homing.
+    pub duration_s: f64,
+    /// Where the nodes are (`Loopback` is a QLA model: refused).
+    pub port: DemoPort,
+    /// The fault to inject half way (a corrupt query needs the broadcast
+    /// protocol, which the Snake nodes do not have: refused).
+    pub fault: DemoFault,
+    /// Pacing; `None`: the port's default.
+    pub pacing: Option<Pacing>,
+    /// Node watchdog period; `None` turns the watchdogs off.
+    pub watchdog: Option<Duration>,
+    /// After the run, search for the highest rate that holds (simulated
+    /// bus only).
+    pub find_max_rate: bool,
+    /// Seed of the plants' noise.
+    pub seed: u64,
+}
+
+impl Default for SnakeDemoOptions {
+    fn default() -> Self {
+        SnakeDemoOptions {
+            config: presets::snake_seed001(),
+            rate_hz: 1000.0,
+            duration_s: 3.0,
+            port: DemoPort::Sim,
+            fault: DemoFault::None,
+            pacing: None,
+            watchdog: Some(Duration::from_millis(20)),
+            find_max_rate: true,
+            seed: 1,
+        }
+    }
+}
+
+/// One trial of the rate search.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RateTrial {
+    /// The rate tried, Hz.
+    pub rate_hz: f64,
+    /// Whether it held: no fault, no I/O error, and the 99th percentile of
+    /// I/O plus computation within the period.
+    pub held: bool,
+    /// I/O + computation per cycle with motion, us.
+    pub cycle_time_us: TimeStats,
+    /// Cycles whose I/O + computation exceeded the period.
+    pub late_cycles: u64,
+    /// I/O errors.
+    pub errors: u64,
+    /// The fault, if one happened.
+    pub fault: Option<String>,
+}
+
+/// The highest rate that holds, and how it was found.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MaxRate {
+    /// The highest rate tried that held, Hz (0 if none did).
+    pub rate_hz: f64,
+    /// The bound from the I/O time alone: 1 / (largest I/O time), Hz.
+    pub io_bound_hz: f64,
+    /// The trials, in order (the first from the main run's 99th
+    /// percentiles, rounded down to 50 Hz; each failure 10 % lower).
+    pub trials: Vec<RateTrial>,
+}
+
+/// What a Snake demo run did; serialises to `firelink demo --robot snake
+/// --json`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SnakeDemoReport {
+    /// The run, reported as the dVRK demo reports it.
+    #[serde(flatten)]
+    pub demo: DemoReport,
+    /// Board IDs of the nodes found.
+    pub nodes: Vec<u8>,
+    /// Cycles with motion whose I/O plus computation exceeded the period.
+    pub late_cycles: u64,
+    /// The rate search (simulated bus, when asked).
+    pub max_rate: Option<MaxRate>,
+}
+
+impl SnakeDemoReport {
+    /// Whether the run did what it was asked (as
+    /// [`DemoReport::verdict`]; and a rate search found a rate that holds
+    /// at least at the demo's own rate).
+    ///
+    /// # Errors
+    /// What went wrong, in one line.
+    pub fn verdict(&self) -> Result<(), String> {
+        self.demo.verdict()?;
+        if let Some(m) = &self.max_rate {
+            if m.rate_hz < self.demo.rate_hz && self.demo.fault.is_none() {
+                return Err(format!(
+                    "no rate at or above {} Hz held in the rate search",
+                    self.demo.rate_hz
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl fmt::Display for SnakeDemoReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.demo)?;
+        writeln!(f, "  Snake nodes (board IDs): {:?}", self.nodes)?;
+        writeln!(
+            f,
+            "  cycles whose I/O + computation exceeded the period: {}",
+            self.late_cycles
+        )?;
+        if let Some(m) = &self.max_rate {
+            writeln!(
+                f,
+                "  highest rate that holds: {:.0} Hz (I/O alone allows {:.0} Hz)",
+                m.rate_hz, m.io_bound_hz
+            )?;
+            for t in &m.trials {
+                writeln!(
+                    f,
+                    "    {:6.0} Hz: {}  cycle p99 {:7.1} us  max {:7.1} us  late {}  errors {}{}",
+                    t.rate_hz,
+                    if t.held { "held  " } else { "failed" },
+                    t.cycle_time_us.p99,
+                    t.cycle_time_us.max,
+                    t.late_cycles,
+                    t.errors,
+                    t.fault
+                        .as_ref()
+                        .map_or(String::new(), |s| format!("  fault: {s}"))
+                )?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Run the Snake demo. `realtime` is called once the port is open, when
+/// the pacing is wall-clock.
+///
+/// # Errors
+/// Options the Snake nodes cannot honour; assembling the rig; the servo
+/// failing outside a cycle (configuration, homing, time-outs).
+pub fn run_snake_demo(
+    options: &SnakeDemoOptions,
+    realtime: Option<&dyn Fn() -> RealtimeStatus>,
+    mut progress: impl FnMut(DemoProgress),
+) -> Result<SnakeDemoReport, TestbedError> {
+    if !(options.rate_hz.is_finite() && options.rate_hz > 0.0) {
+        return Err(TestbedError::Config(format!(
+            "rate {} Hz: must be above 0",
+            options.rate_hz
+        )));
+    }
+    if !(options.duration_s.is_finite() && options.duration_s > 0.0) {
+        return Err(TestbedError::Config(format!(
+            "duration {} s: must be above 0",
+            options.duration_s
+        )));
+    }
+    if options.fault == DemoFault::CorruptQuery {
+        return Err(TestbedError::Config(
+            "fault corrupt-query needs the broadcast protocol; Snake nodes are read and \
+             written one by one (stop-host, board-loss or following-error)"
+                .into(),
+        ));
+    }
+    let nodes = node_configs(&options.config, options.seed)?;
+    let pacing = options
+        .pacing
+        .unwrap_or_else(|| options.port.default_pacing());
+    let out = match &options.port {
+        DemoPort::Sim => {
+            let port = sim_port(nodes, true, None)?;
+            run_on(
+                port,
+                options,
+                SIM_NAME.into(),
+                pacing,
+                realtime,
+                &mut progress,
+            )?
+        }
+        DemoPort::Emulate => {
+            let emu = emulator(nodes)?;
+            let name = format!("udp:{} (in-process firelink emulate)", emu.addr);
+            let r = run_on(emu.port()?, options, name, pacing, realtime, &mut progress);
+            emu.stop()?;
+            r?
+        }
+        DemoPort::Udp(addr) => {
+            let port = rig::udp_port(*addr)?;
+            let name = format!("udp:{addr}");
+            run_on(port, options, name, pacing, realtime, &mut progress)?
+        }
+        DemoPort::Loopback => {
+            return Err(TestbedError::Config(
+                "the loopback port models QLA boards; the Snake demo runs on sim, emulate or udp"
+                    .into(),
+            ));
+        }
+    };
+    let max_rate =
+        (options.find_max_rate && options.port == DemoPort::Sim && out.report.fault.is_none())
+            .then(|| search_max_rate(options, &out))
+            .transpose()?;
+    Ok(SnakeDemoReport {
+        demo: out.report,
+        nodes: out.ids,
+        late_cycles: out.late_cycles,
+        max_rate,
+    })
+}
+
+impl<P: Injector> DemoProgram for Servo<SnakeSystem<P>> {
+    type Port = P;
+    fn injector(&mut self) -> &mut P {
+        self.io_mut().port_mut()
+    }
+    fn configure(&mut self) -> Result<(), RunnerError> {
+        Servo::configure(self)
+    }
+    fn power_on(&mut self) -> Result<(), RunnerError> {
+        Servo::power_on(self)
+    }
+    fn home(&mut self) -> Result<(), RunnerError> {
+        Servo::home(self)
+    }
+    fn activate(&mut self) -> Result<(), RunnerError> {
+        Servo::activate(self)
+    }
+    fn set_motion(&mut self, joint: usize, motion: Motion) -> Result<(), RunnerError> {
+        Servo::set_motion(self, joint, motion)
+    }
+    fn run_cycles(
+        &mut self,
+        cycles: u64,
+        pacing: Pacing,
+        every: u64,
+        progress: &mut dyn FnMut(&Self),
+    ) -> Result<(), RunnerError> {
+        self.run(cycles, pacing, every, progress)
+    }
+    fn step(&mut self, pacing: Pacing) -> Result<(), RunnerError> {
+        Servo::step(self, pacing)
+    }
+    fn shutdown(&mut self) -> Result<(), RunnerError> {
+        Servo::shutdown(self)
+    }
+    fn now(&self) -> f64 {
+        Servo::now(self)
+    }
+    fn cycles(&self) -> u64 {
+        Servo::cycles(self)
+    }
+    fn joint_count(&self) -> usize {
+        Servo::joint_count(self)
+    }
+    fn position(&self, joint: usize) -> Option<f64> {
+        Servo::position(self, joint)
+    }
+    fn setpoint(&self, joint: usize) -> Option<f64> {
+        Servo::setpoint(self, joint)
+    }
+    fn reset_tracking(&mut self) {
+        Servo::reset_tracking(self)
+    }
+    fn tracking(&self) -> Vec<ArmTracking> {
+        Servo::tracking(self)
+    }
+    fn times(&self) -> &CycleTimes {
+        Servo::times(self)
+    }
+    fn io_stats(&self) -> &IoStats {
+        self.io().stats()
+    }
+    fn state(&self) -> State {
+        Servo::state(self)
+    }
+    fn any_amp_on(&self) -> bool {
+        Servo::any_amp_on(self)
+    }
+    fn board_states(&self) -> Vec<(u8, bool, bool)> {
+        self.io()
+            .nodes()
+            .iter()
+            .map(|n| {
+                let id = n.board_id();
+                (id, n.is_valid(), n.status().watchdog_timeout())
+            })
+            .collect()
+    }
+    fn firmware(&self) -> Option<u32> {
+        // The version register's low byte is the firmware revision.
+        self.io().nodes().first().map(|n| n.info().version & 0xFF)
+    }
+    fn protocol(&self) -> String {
+        "snake per-node block read/write".into()
+    }
+}
+
+/// What one run gives: the report, the board IDs found, and the cycles
+/// with motion: their I/O plus computation, how many exceeded the period,
+/// their largest I/O time.
+struct RunOutcome {
+    report: DemoReport,
+    ids: Vec<u8>,
+    motion_cycle_us: TimeStats,
+    late_cycles: u64,
+    motion_io_max_us: f64,
+}
+
+/// Run the demo over one port.
+fn run_on<P: Injector>(
+    port: P,
+    options: &SnakeDemoOptions,
+    port_name: String,
+    pacing: Pacing,
+    realtime: Option<&dyn Fn() -> RealtimeStatus>,
+    progress: &mut dyn FnMut(DemoProgress),
+) -> Result<RunOutcome, TestbedError> {
+    let rt = match (pacing, realtime) {
+        (Pacing::WallClock, Some(setup)) => setup(),
+        _ => RealtimeStatus::default(),
+    };
+    let wall = Instant::now();
+    let mut system = SnakeSystem::open(port)?;
+    let ids: Vec<u8> = system.nodes().iter().map(|n| n.board_id()).collect();
+    progress(DemoProgress::Found {
+        boards: ids.len(),
+        port: port_name.clone(),
+        reason: "Snake nodes found by their version register".into(),
+        protocol: "per-node block read and block write",
+    });
+    prepare(&mut system, &options.config)?;
+    let plan = DemoPlan {
+        config: &options.config,
+        rate_hz: options.rate_hz,
+        duration_s: options.duration_s,
+        fault: options.fault,
+        watchdog: options.watchdog,
+        pacing,
+    };
+    let servo = Servo::new(system, &options.config, plan.settings())?;
+    let run = run_program(servo, &plan, port_name, rt, wall, progress)?;
+    let period_us = 1e6 / options.rate_hz;
+    let times = &run.times;
+    let setup = (run.setup_cycles as usize).min(times.cycle_us.len());
+    let end = (setup + run.report.motion_cycles as usize).min(times.cycle_us.len());
+    let mut motion: Vec<f32> = times.cycle_us[setup..end].to_vec();
+    let late_cycles = motion.iter().filter(|&&c| f64::from(c) > period_us).count() as u64;
+    let motion_io_max_us = times.io_us[setup..end]
+        .iter()
+        .fold(0.0f64, |m, &x| m.max(f64::from(x)));
+    Ok(RunOutcome {
+        report: run.report,
+        ids,
+        motion_cycle_us: TimeStats::of(&mut motion),
+        late_cycles,
+        motion_io_max_us,
+    })
+}
+
+/// The simulated port's name in reports: the nodes on the simulated bus,
+/// the PC's overhead that of seed 001's machine.
+const SIM_NAME: &str = "sim (seed 001 PC model)";
+
+/// Motion after homing in a rate trial, seconds.
+const TRIAL_SECONDS: f64 = 0.5;
+/// Trials at most.
+const MAX_TRIALS: usize = 5;
+
+/// One short run at `rate_hz` on a fresh simulated rig.
+fn trial(options: &SnakeDemoOptions, rate_hz: f64) -> Result<RateTrial, TestbedError> {
+    let run = SnakeDemoOptions {
+        rate_hz,
+        duration_s: TRIAL_SECONDS,
+        port: crate::demo::DemoPort::Sim,
+        fault: DemoFault::None,
+        pacing: Some(Pacing::Virtual),
+        find_max_rate: false,
+        ..options.clone()
+    };
+    let port = sim_port(node_configs(&run.config, run.seed)?, true, None)?;
+    let out = run_on(
+        port,
+        &run,
+        SIM_NAME.into(),
+        Pacing::Virtual,
+        None,
+        &mut |_| {},
+    )?;
+    let report = out.report;
+    let late = out.motion_cycle_us.p99 > 1e6 / rate_hz;
+    let held = report.fault.is_none() && report.errors.total == 0 && !late;
+    Ok(RateTrial {
+        rate_hz,
+        held,
+        cycle_time_us: out.motion_cycle_us,
+        late_cycles: out.late_cycles,
+        errors: report.errors.total,
+        fault: report.fault.map(|f| f.text),
+    })
+}
+
+/// From the main run's cycles with motion (99th percentile of I/O plus
+/// computation), the rate that should hold (rounded down to 50 Hz),
+/// confirmed by a trial; each failure tries 10 % lower.
+fn search_max_rate(options: &SnakeDemoOptions, main: &RunOutcome) -> Result<MaxRate, TestbedError> {
+    let cycle_us = main.motion_cycle_us.p99;
+    let io_bound_hz = if main.motion_io_max_us > 0.0 {
+        1e6 / main.motion_io_max_us
+    } else {
+        0.0
+    };
+    let mut rate = (1e6 / cycle_us.max(1.0) / 50.0).floor() * 50.0;
+    let mut trials = Vec::new();
+    let mut best = 0.0;
+    while trials.len() < MAX_TRIALS && rate >= 50.0 {
+        let t = trial(options, rate)?;
+        let held = t.held;
+        trials.push(t);
+        if held {
+            best = rate;
+            break;
+        }
+        rate = (rate * 0.9 / 50.0).floor() * 50.0;
+    }
+    Ok(MaxRate {
+        rate_hz: best,
+        io_bound_hz,
+        trials,
+    })
+}

@@ -1,0 +1,394 @@
+// request_handler: what the board does with each received packet, and
+// what it answers (shared/spec/fpga-board.md; shared/spec/ieee1394.md).
+//
+// A packet is looked at only once it has ended and both its CRCs are
+// known (link_rx). It is taken when it is on the local bus and addressed to
+// this node, to broadcast (63), or to node 0 at the snooped query (quadlet
+// write to 0x1800) or command (block write to 0xFFFF_FFFF_0000) addresses;
+// only packets addressed to this node are acknowledged.
+// - A truncated packet or a header CRC error: nothing, no ack.
+// - Quadlet write: the register, the query, or nothing (unmapped);
+//   ack_complete.
+// - Block write: a data CRC error is answered ack_data_error and changes
+//   nothing. Else address 0 takes the real-time write block or this
+//   board's slice of a command block (command_slicer); hub memory stores a
+//   status broadcast (broadcast_hub); 0x1800 takes the query from its first
+//   quadlet; main-space addresses are written register by register;
+//   ack_complete.
+// - Every taken write refreshes the watchdog, at the packet's clock.
+// - Quadlet and block reads: ack_pending and the response concatenated at
+//   once (source = this node, tl echoed, rcode complete). A block read of
+//   address 0 is the real-time block (sampled at the packet's clock); other
+//   block reads read address by address (hub quadlets from the hub). A
+//   length of 0 or not whole quadlets gets rcode type_error, above 2048
+//   bytes address_error, with no data.
+// - Responses to requests the board never makes: ack_complete; a lock
+//   request: ack_type_error.
+// - A packet for this node that arrives while an earlier one still keeps
+//   the handler busy is answered ack_busy_X by link_ctrl and dropped here
+//   (drop_early): the requester sends it again.
+// Response payload quadlets come from the payload port two clocks after
+// the framer asks (registers, real-time block, hub, or the broadcast
+// snapshot while the status broadcast goes out).
+`default_nettype none
+
+module request_handler (
+    input  wire        clk,
+    input  wire        rst,
+    input  wire [5:0]  phy_id,
+    input  wire        phy_id_valid,
+    // Packet descriptor (link_rx).
+    input  wire        pkt_valid,
+    output wire        pkt_ready,
+    input  wire [31:0] pkt_q0, pkt_q1, pkt_q2, pkt_q3,
+    input  wire        pkt_hdr_ok,
+    input  wire        pkt_has_data,
+    input  wire        pkt_data_ok,
+    input  wire        pkt_len_ok,
+    input  wire        pkt_slot,
+    input  wire        pkt_early,     // link_ctrl asked for an ack grant
+    input  wire [31:0] pkt_time,
+    input  wire        drop_early,    // the link answered it busy: ignore it
+    input  wire        snap_busy,
+    // Receive buffer read (data one clock after the address).
+    output reg  [9:0]  rxb_addr,
+    input  wire [31:0] rxb_data,
+    // Register file.
+    output reg         wr_en,
+    output reg  [15:0] wr_addr,
+    output reg  [31:0] wr_data,
+    output reg  [31:0] wr_time,
+    output wire [15:0] regs_rd_addr,
+    output wire        regs_rd_strobe,
+    input  wire [31:0] regs_rd_data,
+    // Watchdog refresh.
+    output reg         refresh,
+    output reg  [31:0] refresh_time,
+    // Hub.
+    output reg         query_valid,
+    output reg  [31:0] query_word,
+    output reg  [31:0] query_time,
+    output reg         st_valid,
+    input  wire        st_ready,
+    output reg  [15:0] st_len,
+    output reg  [31:0] st_time,
+    input  wire        st_done,
+    output wire [15:0] hub_rd_addr,
+    output wire [31:0] hub_rd_time,
+    input  wire [31:0] hub_rd_data,
+    // Real-time block.
+    output reg         rt_sample,
+    output reg  [31:0] rt_sample_time,
+    output wire [9:0]  rt_index,
+    input  wire [15:0] rt_addr,       // the register holding that quadlet
+    input  wire        rt_stamp,      // ... or the timestamp
+    input  wire        rt_zero,       // ... or 0
+    input  wire [31:0] rt_timestamp,
+    // Command slicer.
+    output reg         sl_start,
+    output reg  [15:0] sl_len,
+    output reg  [31:0] sl_time,
+    input  wire        sl_busy,
+    input  wire [8:0]  sl_rd_addr,
+    input  wire        sl_wr_en,
+    input  wire [15:0] sl_wr_addr,
+    input  wire [31:0] sl_wr_data,
+    input  wire [31:0] sl_wr_time,
+    input  wire [8:0]  hub_src_addr,
+    // Reply to link_ctrl.
+    output reg         reply_valid,
+    output reg  [1:0]  reply_kind,
+    output reg  [3:0]  reply_ack,
+    output reg  [31:0] reply_h0, reply_h1, reply_h2, reply_h3,
+    output reg  [9:0]  reply_data_quads,
+    // Payload port (framer).
+    input  wire        pl_rd,
+    input  wire [9:0]  pl_index,
+    input  wire        pl_snapshot,   // the broadcast is going out
+    input  wire [31:0] snap_rd_data,
+    output wire [5:0]  snap_rd_addr,
+    output wire [31:0] pl_data
+);
+    localparam [3:0] TC_WQ = 4'h0, TC_WB = 4'h1, TC_WRESP = 4'h2, TC_RQ = 4'h4,
+                     TC_RB = 4'h5, TC_RQRESP = 4'h6, TC_RBRESP = 4'h7,
+                     TC_LOCK = 4'h9, TC_LOCKRESP = 4'hB;
+    localparam [3:0] ACK_COMPLETE = 4'h1, ACK_PENDING = 4'h2,
+                     ACK_DATA_ERROR = 4'hD, ACK_TYPE_ERROR = 4'hE;
+    localparam [3:0] RC_COMPLETE = 4'h0, RC_TYPE_ERROR = 4'h6,
+                     RC_ADDRESS_ERROR = 4'h7;
+    localparam [1:0] K_NONE = 2'd0, K_ACK = 2'd1, K_RESP = 2'd2;
+    localparam [2:0] S_IDLE = 3'd0, S_DECIDE = 3'd1, S_RQ_HUB = 3'd2,
+                     S_BLKWR = 3'd3, S_QUERY_RD = 3'd4, S_STORE = 3'd5,
+                     S_SLICE = 3'd6, S_QUERY_TAKE = 3'd7;
+    localparam [1:0] P_RT = 2'd0, P_ADDR = 2'd1;
+
+    reg  [2:0]  state;
+    // q0's rt and pri fields are not used.
+    /* verilator lint_off UNUSEDSIGNAL */
+    reg  [31:0] q0;
+    /* verilator lint_on UNUSEDSIGNAL */
+    reg  [31:0] q1, q2, q3;
+    reg         hdr_ok, has_data, data_ok, len_ok, slot, early;
+    reg  [31:0] t;
+    reg         dropped;      // a packet answered busy still to be skipped
+
+    // ---- header fields -----------------------------------------------------
+    wire [15:0] dest    = q0[31:16];
+    wire [5:0]  tl      = q0[15:10];
+    wire [3:0]  tcode   = q0[7:4];
+    wire [15:0] source  = q1[31:16];
+    wire [15:0] addr16  = q2[15:0];
+    wire [47:0] offset  = {q1[15:0], q2};
+    wire [15:0] dlen    = q3[31:16];
+    wire        local_bus = (dest[15:6] == 10'h3FF);
+    wire        to_me   = phy_id_valid && (dest[5:0] == phy_id);
+    wire        bcast   = (dest[5:0] == 6'h3F);
+    wire        node0   = !to_me && (dest[5:0] == 6'd0);
+    wire        taken   = len_ok && hdr_ok && local_bus && (to_me || bcast || node0);
+    wire        is_main = (addr16[15:8] == 8'h00);
+    wire        is_hub_mem = (addr16[15:12] == 4'h1) && (addr16[11:0] < 12'h200);
+    wire        is_query   = (addr16 == 16'h1800);
+
+    wire wq_taken = taken && tcode == TC_WQ && !(node0 && !is_query);
+    wire wb_taken = taken && tcode == TC_WB &&
+                    !(node0 && offset != 48'hFFFF_FFFF_0000);
+    wire wb_bad   = wb_taken && has_data && !data_ok;
+
+    // Response headers.
+    wire [31:0] resp_h1 = {10'h3FF, phy_id, 16'd0};
+    wire [3:0]  rb_rcode = (dlen == 16'd0 || dlen[1:0] != 2'd0) ? RC_TYPE_ERROR :
+                           (dlen > 16'd2048) ? RC_ADDRESS_ERROR : RC_COMPLETE;
+
+    // ---- payload port ------------------------------------------------------
+    reg  [1:0]  pl_src;
+    reg  [15:0] pl_base;
+    reg  [31:0] pl_time;
+    // The framer's request addresses the sources in its own clock; the
+    // word is registered (block RAMs register theirs): data on the second
+    // clock.
+    wire        p1_valid = pl_rd;
+    wire [9:0]  p1_index = pl_index;
+    reg  [1:0]  p2_sel;     // 0 real-time, 1 registers, 2 hub, 3 snapshot
+    reg  [31:0] p2_word;
+    wire [15:0] p1_addr = pl_base + {6'd0, p1_index};
+    reg  [15:0] rq_addr;
+    reg         rq_read;
+    always @(posedge clk) begin
+        if (pl_snapshot)               p2_sel <= 2'd3;
+        else if (pl_src == P_RT)       p2_sel <= 2'd0;
+        else if (p1_addr[15:12] == 4'h1) p2_sel <= 2'd2;
+        else                           p2_sel <= 2'd1;
+        p2_word <= (pl_src != P_RT) ? regs_rd_data :
+                   rt_stamp ? rt_timestamp : (rt_zero ? 32'd0 : regs_rd_data);
+    end
+    assign pl_data       = (p2_sel == 2'd3) ? snap_rd_data :
+                           (p2_sel == 2'd2) ? hub_rd_data : p2_word;
+    assign snap_rd_addr  = p1_index[5:0];
+    assign rt_index      = p1_index;
+    wire   payload_reg_read = p1_valid && !pl_snapshot && pl_src == P_ADDR;
+    wire   payload_rt_read  = p1_valid && !pl_snapshot && pl_src == P_RT;
+    assign regs_rd_addr  = payload_reg_read ? p1_addr :
+                           (payload_rt_read ? rt_addr : rq_addr);
+    assign regs_rd_strobe = (payload_reg_read && p1_addr[15:12] != 4'h1) || rq_read;
+    assign hub_rd_addr   = payload_reg_read ? p1_addr : rq_addr;
+    assign hub_rd_time   = pl_time;
+
+    // ---- receive buffer read mux -------------------------------------------
+    reg [9:0] blk_k;        // next quadlet to read (S_BLKWR)
+    reg [9:0] blk_n;
+    reg       blk_d;        // a quadlet read last clock
+    reg [9:0] blk_kd;
+    always @* begin
+        case (state)
+            S_SLICE:  rxb_addr = {slot, sl_rd_addr};
+            S_STORE:  rxb_addr = {slot, hub_src_addr};
+            S_BLKWR:  rxb_addr = {slot, blk_k[8:0]};
+            default:  rxb_addr = {slot, 9'd0};
+        endcase
+    end
+
+    assign pkt_ready = (state == S_IDLE) && !snap_busy;
+
+    always @(posedge clk) begin
+        reply_valid <= 1'b0;
+        refresh     <= 1'b0;
+        query_valid <= 1'b0;
+        rt_sample   <= 1'b0;
+        sl_start    <= 1'b0;
+        wr_en       <= 1'b0;
+        rq_read     <= 1'b0;
+        if (rst) begin
+            state <= S_IDLE;
+            q0 <= 32'd0; q1 <= 32'd0; q2 <= 32'd0; q3 <= 32'd0;
+            hdr_ok <= 1'b0; has_data <= 1'b0; data_ok <= 1'b0; len_ok <= 1'b0;
+            slot <= 1'b0; early <= 1'b0; t <= 32'd0; dropped <= 1'b0;
+            st_valid <= 1'b0;
+            pl_src <= P_RT; pl_base <= 16'd0; pl_time <= 32'd0;
+            rq_addr <= 16'd0;
+            blk_k <= 10'd0; blk_n <= 10'd0; blk_d <= 1'b0; blk_kd <= 10'd0;
+            reply_kind <= K_NONE; reply_ack <= 4'd0; reply_data_quads <= 10'd0;
+            reply_h0 <= 32'd0; reply_h1 <= 32'd0; reply_h2 <= 32'd0; reply_h3 <= 32'd0;
+            wr_addr <= 16'd0; wr_data <= 32'd0; wr_time <= 32'd0;
+            refresh_time <= 32'd0; query_word <= 32'd0; query_time <= 32'd0;
+            st_len <= 16'd0; st_time <= 32'd0; rt_sample_time <= 32'd0;
+            sl_len <= 16'd0; sl_time <= 32'd0;
+        end else begin
+            // The slicer's writes pass through.
+            if (sl_wr_en) begin
+                wr_en   <= 1'b1;
+                wr_addr <= sl_wr_addr;
+                wr_data <= sl_wr_data;
+                wr_time <= sl_wr_time;
+            end
+            if (drop_early) dropped <= 1'b1;
+            case (state)
+                S_IDLE: if (pkt_valid && pkt_ready && pkt_early && (dropped || drop_early)) begin
+                    dropped <= 1'b0;           // answered busy: no effect
+                end else if (pkt_valid && pkt_ready) begin
+                    q0 <= pkt_q0; q1 <= pkt_q1; q2 <= pkt_q2; q3 <= pkt_q3;
+                    hdr_ok <= pkt_hdr_ok; has_data <= pkt_has_data;
+                    data_ok <= pkt_data_ok; len_ok <= pkt_len_ok;
+                    slot <= pkt_slot; early <= pkt_early; t <= pkt_time;
+                    rq_addr <= pkt_q2[15:0];
+                    pl_time <= pkt_time;
+                    state <= S_DECIDE;
+                end
+                S_DECIDE: begin
+                    state <= S_IDLE;
+                    // The reply (only to packets the link asked a grant for).
+                    // The reply registers change only for packets the link
+                    // asked a grant for (they are read when it comes).
+                    reply_valid <= early;
+                    if (early) begin
+                        reply_kind <= K_NONE;
+                        reply_h0 <= {source, tl, 2'b00, TC_RQRESP, 4'h0};
+                        reply_h1 <= resp_h1;
+                        reply_h2 <= 32'd0;
+                        reply_h3 <= 32'd0;
+                        reply_data_quads <= 10'd0;
+                    end
+                    if (taken && to_me && early) begin
+                        case (tcode)
+                            TC_WQ: begin reply_kind <= K_ACK; reply_ack <= ACK_COMPLETE; end
+                            TC_WB: begin
+                                reply_kind <= K_ACK;
+                                reply_ack  <= wb_bad ? ACK_DATA_ERROR : ACK_COMPLETE;
+                            end
+                            TC_RQ: begin
+                                reply_kind <= K_RESP;
+                                reply_ack  <= ACK_PENDING;
+                                reply_h3   <= regs_rd_data;
+                            end
+                            TC_RB: begin
+                                reply_kind <= K_RESP;
+                                reply_ack  <= ACK_PENDING;
+                                reply_h0   <= {source, tl, 2'b00, TC_RBRESP, 4'h0};
+                                reply_h1   <= {10'h3FF, phy_id, rb_rcode, 12'd0};
+                                reply_h3   <= {(rb_rcode == RC_COMPLETE) ? dlen : 16'd0, 16'd0};
+                                reply_data_quads <= (rb_rcode == RC_COMPLETE) ? dlen[11:2] : 10'd0;
+                            end
+                            TC_WRESP, TC_RQRESP, TC_RBRESP, TC_LOCKRESP: begin
+                                reply_kind <= K_ACK; reply_ack <= ACK_COMPLETE;
+                            end
+                            TC_LOCK: begin reply_kind <= K_ACK; reply_ack <= ACK_TYPE_ERROR; end
+                            default: ;
+                        endcase
+                    end
+                    // Reads.
+                    if (taken && to_me && tcode == TC_RQ) begin
+                        if (addr16[15:12] == 4'h1) begin
+                            // Hub quadlets come from the hub's read port.
+                            reply_valid <= 1'b0;
+                            state       <= S_RQ_HUB;
+                        end else begin
+                            rq_read <= 1'b1;
+                        end
+                    end
+                    if (taken && to_me && tcode == TC_RB && rb_rcode == RC_COMPLETE) begin
+                        pl_base <= addr16;
+                        if (addr16 == 16'd0) begin
+                            pl_src         <= P_RT;
+                            rt_sample      <= 1'b1;
+                            rt_sample_time <= t;
+                        end else begin
+                            pl_src <= P_ADDR;
+                        end
+                    end
+                    // Writes.
+                    if (wq_taken) begin
+                        refresh      <= 1'b1;
+                        refresh_time <= t;
+                        if (is_query) begin
+                            query_valid <= 1'b1;
+                            query_word  <= q3;
+                            query_time  <= t;
+                        end else begin
+                            wr_en   <= 1'b1;
+                            wr_addr <= addr16;
+                            wr_data <= q3;
+                            wr_time <= t;
+                        end
+                    end
+                    if (wb_taken && !wb_bad) begin
+                        refresh      <= 1'b1;
+                        refresh_time <= t;
+                        if (addr16 == 16'd0) begin
+                            sl_start <= 1'b1;
+                            sl_len   <= has_data ? dlen : 16'd0;
+                            sl_time  <= t;
+                            state    <= S_SLICE;
+                        end else if (is_hub_mem) begin
+                            st_valid <= 1'b1;
+                            st_len   <= has_data ? dlen : 16'd0;
+                            st_time  <= t;
+                            state    <= S_STORE;
+                        end else if (is_query) begin
+                            if (has_data && dlen >= 16'd4) state <= S_QUERY_RD;
+                        end else if (is_main && has_data) begin
+                            blk_k <= 10'd0;
+                            blk_n <= (dlen[15:11] != 5'd0) ? 10'd512 : {1'b0, dlen[10:2]};
+                            blk_d <= 1'b0;
+                            state <= S_BLKWR;
+                        end
+                    end
+                end
+                S_RQ_HUB: begin
+                    // hub_rd_data answers rq_addr now.
+                    reply_valid <= early;
+                    reply_h3    <= hub_rd_data;
+                    state       <= S_IDLE;
+                end
+                // A query in the first quadlet of a block write: the buffer
+                // reads quadlet 0 (address set since the decision), its data
+                // is there one clock later.
+                S_QUERY_RD: state <= S_QUERY_TAKE;
+                S_QUERY_TAKE: begin
+                    query_valid <= 1'b1;
+                    query_word  <= rxb_data;
+                    query_time  <= t;
+                    state       <= S_IDLE;
+                end
+                S_STORE: begin
+                    if (st_valid && st_ready) st_valid <= 1'b0;
+                    if (st_done) state <= S_IDLE;
+                end
+                S_SLICE: if (!sl_start && !sl_busy) state <= S_IDLE;
+                S_BLKWR: begin
+                    blk_d  <= (blk_k < blk_n);
+                    blk_kd <= blk_k;
+                    if (blk_k < blk_n) blk_k <= blk_k + 10'd1;
+                    if (blk_d) begin
+                        wr_en   <= 1'b1;
+                        wr_addr <= addr16 + {6'd0, blk_kd};
+                        wr_data <= rxb_data;
+                        wr_time <= t;
+                    end
+                    if (!blk_d && blk_k >= blk_n) state <= S_IDLE;
+                end
+                default: state <= S_IDLE;
+            endcase
+        end
+    end
+endmodule
+
+`default_nettype wire
