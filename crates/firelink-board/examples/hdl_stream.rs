@@ -34,7 +34,7 @@ use std::fmt::Write as _;
 use std::process::ExitCode;
 
 use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::firmware::{Firmware, PhyRegisters, Reply};
+use firelink_board::firmware::{Firmware, Reply};
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_board::time::{Time, TimeDelta};
 use firelink_bus::trace::{PacketKind, TraceEvent};
@@ -90,7 +90,7 @@ impl Pc {
     /// Send raw bytes and wait for the transaction (or 200 us).
     fn send(&mut self, bytes: Vec<u8>) {
         let host = self.rig.host;
-        if let Ok(token) = HostLink::submit_on(&mut self.rig.bus, host, bytes, Speed::S400) {
+        if let Ok(token) = HostLink::submit_on(&mut self.rig.bus, host, &bytes, Speed::S400) {
             let deadline = self.rig.bus.now() + SimDuration::from_micros(200);
             let _ = HostLink::wait_on(&mut self.rig.bus, host, token, deadline);
         }
@@ -422,13 +422,7 @@ fn replay(rig: &BoardRig, stream: &[Event]) -> (String, usize) {
         .boards
         .get(DUT)
         .and_then(|h| rig.bus.phy_registers(*h))
-        .map(|r| {
-            let mut p = PhyRegisters::new(0);
-            for (i, v) in p.registers.iter_mut().enumerate() {
-                *v = r.read(i as u8);
-            }
-            p
-        })
+        .copied()
         .unwrap_or_default();
     let mut phy = regs.clone();
     let mut json = String::new();
@@ -510,12 +504,12 @@ fn replay(rig: &BoardRig, stream: &[Event]) -> (String, usize) {
         poll(&mut fw, at, &mut broadcasts);
     }
     let events = json.trim_end().trim_end_matches(',').to_string();
-    let registers: Vec<u32> = regs.registers.iter().map(|r| u32::from(*r)).collect();
+    let registers: Vec<u32> = (0..16).map(|r| u32::from(regs.read(r))).collect();
     let out = format!(
         "{{\"board_id\":{DUT},\"phy_id\":{},\"clock_hz\":49152000,\"supply_rise_ps\":{},\n\
          \"phy_registers\":{},\n\"initial\":{initial},\n\"events\":[\n{events}\n],\n\
          \"broadcasts\":[\n{}\n]}}\n",
-        regs.registers[0] >> 2,
+        regs.read(0) >> 2,
         TimeDelta(supply_rise.0).0,
         list(&registers),
         broadcasts.join(",\n")

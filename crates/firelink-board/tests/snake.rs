@@ -375,7 +375,7 @@ fn watchdog_acts_on_the_bus_without_traffic() {
             offset,
             data,
         });
-        let t = HostLink::submit_on(bus, pc, p, Speed::S400).unwrap();
+        let t = HostLink::submit_on(bus, pc, &p, Speed::S400).unwrap();
         let deadline = bus.now() + SimDuration::from_micros(1000);
         HostLink::wait_on(bus, pc, t, deadline).unwrap()
     };

@@ -171,8 +171,7 @@ pub fn run_budget_cmd(args: &BudgetArgs, out: &mut impl Write) -> Result<(), Cli
             |p| say(&format!("{} {} B done", p.rtos, p.payload)),
         )?;
         if let Some(path) = &args.plot {
-            firelink_plot::mahru::table3(&report, path)
-                .map_err(|e| CliError::Conflict(e.to_string()))?;
+            firelink_plot::mahru::table3(&report, path)?;
         }
         if args.json {
             json.insert("table_iii".into(), serde_json::to_value(&report)?);

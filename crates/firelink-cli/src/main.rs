@@ -226,6 +226,21 @@ pub enum CliError {
         /// The board ID given.
         board: u8,
     },
+    /// An option this command cannot honour here.
+    #[error("{option}: {reason}")]
+    NotSupported {
+        /// The option.
+        option: &'static str,
+        /// Why, and what to do instead.
+        reason: &'static str,
+    },
+    /// An emulated board's settings are inconsistent (`--board-set`).
+    #[error(transparent)]
+    BoardSettings(#[from] firelink_board::config::ConfigError),
+    /// A `snake-tool` command was refused (the message names the command
+    /// and what was wrong).
+    #[error("{0}")]
+    ToolCommand(String),
     /// The benchmark's board counts cannot be measured or modelled.
     #[error("--boards: {0}")]
     BoardCounts(String),

@@ -6,7 +6,6 @@
 //! [`firelink_plot::seed001`].
 
 use std::io::Write;
-use std::path::Path;
 
 use firelink_testbed::snake::bench::{Seed001Options, run_seed001_bench};
 
@@ -34,10 +33,9 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
             options.iterations
         );
     }
-    let report = run_seed001_bench(&options).map_err(|e| CliError::Conflict(e.to_string()))?;
+    let report = run_seed001_bench(&options)?;
     if let Some(path) = &args.plot {
-        firelink_plot::seed001(&report, Path::new(path))
-            .map_err(|e| CliError::Conflict(e.to_string()))?;
+        firelink_plot::seed001(&report, path)?;
     }
     if args.json {
         writeln!(out, "{}", serde_json::to_string(&report)?)?;

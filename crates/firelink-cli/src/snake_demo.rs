@@ -6,6 +6,7 @@
 use std::io::Write;
 
 use firelink_control::config::{IoConfig, presets};
+use firelink_control::runner::Pacing;
 use firelink_testbed::demo::RealtimeStatus;
 use firelink_testbed::snake::demo::{SnakeDemoOptions, run_snake_demo};
 use firelink_testbed::snake::is_snake_config;
@@ -16,7 +17,7 @@ use crate::demo::{DemoArgs, DemoRobot, realtime_setup, show};
 fn config(args: &DemoArgs) -> Result<Option<IoConfig>, CliError> {
     args.config
         .as_ref()
-        .map(|path| IoConfig::load(path).map_err(|e| CliError::Conflict(e.to_string())))
+        .map(|path| IoConfig::load(path).map_err(CliError::from))
         .transpose()
 }
 
@@ -32,16 +33,14 @@ pub fn wanted(args: &DemoArgs) -> Result<bool, CliError> {
 /// The Snake demo's options from the command line.
 pub fn options(args: &DemoArgs) -> Result<SnakeDemoOptions, CliError> {
     let config = config(args)?.unwrap_or_else(presets::snake_seed001);
-    let pacing = crate::demo::pacing(args)?;
-    let conflict = |e: firelink_testbed::TestbedError| CliError::Conflict(e.to_string());
     let watchdog = args.watchdog.period();
     Ok(SnakeDemoOptions {
         config,
         rate_hz: args.rate.unwrap_or(1000.0),
         duration_s: args.duration,
-        port: args.port.parse().map_err(conflict)?,
-        fault: args.fault.parse().map_err(conflict)?,
-        pacing,
+        port: args.port.clone(),
+        fault: args.fault.into(),
+        pacing: args.pacing.map(Pacing::from),
         watchdog: (!watchdog.is_zero()).then_some(watchdog),
         find_max_rate: !args.no_rate_search,
         ..SnakeDemoOptions::default()
@@ -61,8 +60,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
         if !quiet {
             show(&event, &mut ticking);
         }
-    })
-    .map_err(|e| CliError::Conflict(e.to_string()))?;
+    })?;
     if ticking {
         eprintln!();
     }
@@ -71,5 +69,5 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
     } else {
         write!(out, "{report}")?;
     }
-    report.verdict().map_err(CliError::Conflict)
+    report.verdict().map_err(CliError::Failed)
 }

@@ -25,7 +25,7 @@ use std::time::Duration;
 use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_emulate::{Bridge, BridgeStats, ServeConfig, bind, serve};
-use firelink_host::io::{IoConfig, IoStats, IoSystem};
+use firelink_host::io::{IoOptions, IoStats, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::udp::UdpPort;
 
@@ -84,10 +84,10 @@ fn run(boards: u8, profile: Profile, cycles: u64) -> (IoStats, BridgeStats) {
     let server = Server::start(boards, profile);
     let mut port = UdpPort::open(server.addr).unwrap();
     port.set_timeout(Duration::from_millis(100));
-    let config = IoConfig {
+    let config = IoOptions {
         protocol: Some(Protocol::Broadcast),
         broadcast_wait: Some(Duration::ZERO),
-        ..IoConfig::default()
+        ..IoOptions::default()
     };
     let (mut io, scan) = IoSystem::open(port, config).unwrap();
     assert_eq!(scan.boards.len(), usize::from(boards));

@@ -33,7 +33,7 @@ use firelink_control::Label;
 use firelink_control::config::{IoConfig, JointType};
 use firelink_control::runner::{Pacing, Robot, RobotSettings, StopFound};
 use firelink_control::trajectory::{Motion, PointToPoint};
-use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
+use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::sim::SimPort;
 use serde::Serialize;
 
@@ -326,7 +326,7 @@ pub fn run_console_homing(
             (handle, usize::from(j.actuator.axis_id))
         })
         .collect::<Vec<_>>();
-    let (io, _) = IoSystem::open(port, HostIoConfig::default())?;
+    let (io, _) = IoSystem::open(port, IoOptions::default())?;
     let settings = RobotSettings {
         rate_hz: options.rate_hz,
         ..RobotSettings::default()

@@ -152,7 +152,7 @@ fn every_command_code_is_handled_and_unknown_ones_are_ignored() {
     let mut raw = vec![0u8; ready.buffer_len()];
     ready.emit(&mut raw).unwrap();
     let pc = port.host();
-    HostLink::submit_on(port.bus_mut(), pc, raw, Speed::S400).unwrap();
+    HostLink::submit_on(port.bus_mut(), pc, &raw, Speed::S400).unwrap();
     port.wait(Duration::from_micros(20));
     assert_eq!(module(&port, h[0]).state(), ModuleState::Ready);
     port.write_quadlet(Dest::BROADCAST, 16, ModMask::ALL.0)

@@ -10,10 +10,10 @@ use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, RobotSettings};
 use firelink_control::servo::Servo;
 use firelink_host::RobotIo;
-use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
+use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::snake::SnakeSystem;
-use firelink_testbed::demo::{DemoFault, DemoPort, motion_for};
+use firelink_testbed::demo::{DemoFault, motion_for};
 use firelink_testbed::rig;
 use firelink_testbed::snake::bench::{Seed001Options, run_seed001_bench};
 use firelink_testbed::snake::demo::{SnakeDemoOptions, run_snake_demo};
@@ -92,9 +92,9 @@ fn the_same_servo_drives_a_qla_rig_and_a_snake_rig() {
     let (port, _) = rig::sim_port(boards, false).unwrap();
     let (qla, _) = IoSystem::open(
         port,
-        HostIoConfig {
+        IoOptions {
             protocol: Some(Protocol::Sequential),
-            ..HostIoConfig::default()
+            ..IoOptions::default()
         },
     )
     .unwrap();
@@ -149,11 +149,6 @@ fn a_following_error_trips_the_safety_monitor() {
 fn options_the_nodes_cannot_honour_are_refused() {
     let e = run_snake_demo(&short(DemoFault::CorruptQuery), None, |_| {}).unwrap_err();
     assert!(e.to_string().contains("broadcast"), "{e}");
-    let loopback = SnakeDemoOptions {
-        port: DemoPort::Loopback,
-        ..short(DemoFault::None)
-    };
-    assert!(run_snake_demo(&loopback, None, |_| {}).is_err());
     let qla = SnakeDemoOptions {
         config: presets::dvrk_seed000(),
         ..short(DemoFault::None)

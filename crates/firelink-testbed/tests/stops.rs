@@ -16,7 +16,7 @@ use firelink_board::plant::Axis;
 use firelink_bus::NodeHandle;
 use firelink_control::config::{IoConfig, presets};
 use firelink_host::Port;
-use firelink_host::io::{IoConfig as HostIoConfig, IoSystem};
+use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::sim::SimPort;
 use firelink_testbed::rig;
 
@@ -52,7 +52,7 @@ fn plant_axis(io: &IoSystem<SimPort>, handles: &[NodeHandle], board_id: u8, axis
 fn drive(config: &IoConfig, joints: &[(usize, f64)], seconds: f64) -> Vec<Driven> {
     let boards = rig::board_configs(config, Profile::Rev8, config.board_slots());
     let (port, handles) = rig::sim_port(boards, false).unwrap();
-    let (mut io, _) = IoSystem::open(port, HostIoConfig::default()).unwrap();
+    let (mut io, _) = IoSystem::open(port, IoOptions::default()).unwrap();
     io.set_watchdog(Duration::from_millis(50)).unwrap();
     let refs: Vec<_> = joints
         .iter()

@@ -124,7 +124,7 @@ impl Dallas {
     /// A register-13 write at `now`.
     pub fn write(&mut self, now: Time, c: DallasControl) {
         let now = now.clocks();
-        let us = |us: u64| us * SYSCLK_HZ / 1_000_000;
+        let us = |us: u64| us * u64::from(SYSCLK_HZ) / 1_000_000;
         match c.mode() {
             DallasMode::Release => self.enabled = false,
             DallasMode::Take => self.enabled = true,

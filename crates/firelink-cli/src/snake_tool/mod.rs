@@ -18,6 +18,7 @@ mod session;
 mod tui;
 
 use std::io::Write;
+use std::net::SocketAddr;
 use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
@@ -31,6 +32,29 @@ use firelink_testbed::snake::{node_configs, sim_port};
 use crate::CliError;
 pub use session::Session;
 
+/// Where the tool finds the nodes (`--port`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ToolPort {
+    /// The configuration's nodes on an in-process simulated bus.
+    Sim,
+    /// A bridge (`firelink emulate --robot snake`, or real nodes).
+    Udp(SocketAddr),
+}
+
+/// `--port` (clap): `sim` or `udp:HOST[:PORT]`.
+fn parse_tool_port(text: &str) -> Result<ToolPort, CliError> {
+    if text == "sim" {
+        return Ok(ToolPort::Sim);
+    }
+    if text.starts_with("udp") {
+        return Ok(ToolPort::Udp(UdpPort::parse_address(text)?));
+    }
+    Err(CliError::Port {
+        port: text.to_string(),
+        expected: "sim, udp:HOST or udp:HOST:PORT",
+    })
+}
+
 /// Options of `firelink snake-tool`.
 #[derive(Args, Debug)]
 pub struct SnakeToolArgs {
@@ -38,8 +62,8 @@ pub struct SnakeToolArgs {
     /// in-process simulated bus; the state lasts one invocation) or
     /// `udp:HOST[:PORT]` (a running `firelink emulate --robot snake`, or a
     /// bridge to real nodes).
-    #[arg(long, default_value = "sim")]
-    pub port: String,
+    #[arg(long, default_value = "sim", value_parser = parse_tool_port)]
+    pub port: ToolPort,
     /// The robot configuration: nodes to simulate, and the conversion
     /// factors of the channels it maps (default: configs/snake-seed001.json).
     #[arg(long)]
@@ -63,6 +87,7 @@ pub enum ToolCommand {
     /// Run commands (`;` or new lines between them; `help` lists them).
     Exec {
         /// The commands.
+        #[arg(required_unless_present = "file")]
         script: Option<String>,
         /// Read the commands from this file.
         #[arg(long, conflicts_with = "script")]
@@ -78,23 +103,20 @@ pub enum ToolCommand {
 
 fn open(args: &SnakeToolArgs) -> Result<(Box<dyn Port>, Option<IoConfig>), CliError> {
     let config = match &args.config {
-        Some(path) => Some(IoConfig::load(path).map_err(|e| CliError::Conflict(e.to_string()))?),
-        None => Some(presets::snake_seed001()),
+        Some(path) => IoConfig::load(path)?,
+        None => presets::snake_seed001(),
     };
-    if args.port == "sim" {
-        let nodes = node_configs(config.as_ref().unwrap_or(&presets::snake_seed001()), 1)?;
-        return Ok((Box::new(sim_port(nodes, false, None)?), config));
+    match args.port {
+        ToolPort::Sim => {
+            let nodes = node_configs(&config, 1)?;
+            Ok((Box::new(sim_port(nodes, false, None)?), Some(config)))
+        }
+        ToolPort::Udp(addr) => {
+            let mut port = UdpPort::open(addr)?;
+            port.set_timeout(std::time::Duration::from_millis(args.timeout_ms));
+            Ok((Box::new(port), Some(config)))
+        }
     }
-    if args.port.starts_with("udp") {
-        let addr = UdpPort::parse_address(&args.port)?;
-        let mut port = UdpPort::open(addr)?;
-        port.set_timeout(std::time::Duration::from_millis(args.timeout_ms));
-        return Ok((Box::new(port), config));
-    }
-    Err(CliError::Conflict(format!(
-        "unknown port {:?}: sim or udp:HOST[:PORT]",
-        args.port
-    )))
 }
 
 /// `firelink snake-tool`.
@@ -111,11 +133,8 @@ pub fn run(args: &SnakeToolArgs, out: &mut impl Write) -> Result<(), CliError> {
             let text = match (script, file) {
                 (Some(s), _) => s.clone(),
                 (None, Some(f)) => std::fs::read_to_string(f)?,
-                (None, None) => {
-                    return Err(CliError::Conflict(
-                        "exec: give the commands, or --file FILE".into(),
-                    ));
-                }
+                // clap asks for one of the two.
+                (None, None) => return Err(CliError::Missing("exec: the commands or --file")),
             };
             session
                 .run_script(&text)

@@ -207,7 +207,7 @@ pub struct Session<P: Port> {
 }
 
 fn bad(what: impl Into<String>) -> CliError {
-    CliError::Conflict(what.into())
+    CliError::ToolCommand(what.into())
 }
 
 fn parse_on_off(word: Option<&str>, what: &str) -> Result<bool, CliError> {

@@ -30,10 +30,11 @@
 //! The cycle allocates nothing: blocks are read into and written from
 //! buffers made at construction.
 //!
-//! [`rtos::RtosModel`] is the seed's computer (Xenomai or RTLinux) as an
-//! overhead model for the simulated port.
+//! `rtos::RtosModel` (cargo feature `sim`) is the seed's computer (Xenomai
+//! or RTLinux) as an overhead model for the simulated port.
 
 mod error;
+#[cfg(feature = "sim")]
 pub mod rtos;
 
 use std::time::Duration;

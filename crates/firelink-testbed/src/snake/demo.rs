@@ -37,7 +37,7 @@ pub struct SnakeDemoOptions {
     pub rate_hz: f64,
     /// Seconds of motion after homing.
     pub duration_s: f64,
-    /// Where the nodes are (`Loopback` is a QLA model: refused).
+    /// Where the nodes are.
     pub port: DemoPort,
     /// The fault to inject half way (a corrupt query needs the broadcast
     /// protocol, which the Snake nodes do not have: refused).
@@ -227,12 +227,6 @@ pub fn run_snake_demo(
             let port = rig::udp_port(*addr)?;
             let name = format!("udp:{addr}");
             run_on(port, options, name, pacing, realtime, &mut progress)?
-        }
-        DemoPort::Loopback => {
-            return Err(TestbedError::Config(
-                "the loopback port models QLA boards; the Snake demo runs on sim, emulate or udp"
-                    .into(),
-            ));
         }
     };
     let max_rate =
