@@ -145,7 +145,11 @@ impl Expect {
         }
         match self.tcode {
             Tcode::ReadQuadletResponse => self.len == 4,
-            Tcode::ReadBlockResponse => usize::from(p.data_length()) == self.len,
+            // An error response answers whatever its size (a refused
+            // read carries no data): its rcode says what went wrong.
+            Tcode::ReadBlockResponse => {
+                usize::from(p.data_length()) == self.len || p.rcode() != Rcode::Complete
+            }
             _ => true,
         }
     }
@@ -431,6 +435,44 @@ mod tests {
         let mut b = vec![0u8; repr.buffer_len()];
         repr.emit(&mut b).unwrap();
         b
+    }
+
+    /// A block read refused with an error rcode and no data is the
+    /// answer (its rcode is the error), not a stranger's packet.
+    #[test]
+    fn an_error_response_answers_a_block_read_of_any_size() {
+        let mut t = Transactions::with_generation(1);
+        let tl = t.next_label();
+        let want = Expect::block(Dest::node(3), tl, 2052);
+        let header = AsyncHeader::new(NodeId(0xFFD0), NodeId::local(3), tl);
+        let refused = PacketRepr::ReadBlockResponse {
+            header,
+            rcode: Rcode::AddressError,
+            extended_tcode: 0,
+            data: &[],
+        };
+        let mut b = vec![0u8; refused.buffer_len()];
+        refused.emit(&mut b).unwrap();
+        assert!(matches!(
+            t.accept(&b, &want, CrcCheck::Always),
+            Err(HostError::Rcode {
+                node: 3,
+                rcode: Rcode::AddressError
+            })
+        ));
+        // Complete but the wrong size: not the answer.
+        let short = PacketRepr::ReadBlockResponse {
+            header,
+            rcode: Rcode::Complete,
+            extended_tcode: 0,
+            data: &[0; 8],
+        };
+        let mut b = vec![0u8; short.buffer_len()];
+        short.emit(&mut b).unwrap();
+        assert!(matches!(
+            t.accept(&b, &want, CrcCheck::Always),
+            Ok(Err(Refusal::Unmatched { .. }))
+        ));
     }
 
     #[test]
