@@ -424,7 +424,7 @@ fn replay(rig: &BoardRig, stream: &[Event]) -> (String, usize) {
         .and_then(|h| rig.bus.phy_registers(*h))
         .copied()
         .unwrap_or_default();
-    let mut phy = regs.clone();
+    let mut phy = regs;
     let mut json = String::new();
     let mut broadcasts = Vec::new();
     let mut mismatches = 0;
