@@ -6,7 +6,7 @@
 
 use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::firmware::{Firmware, PhyRegisters, Reply};
-use firelink_board::time::{Time, TimeDelta};
+use firelink_board::time::{SimTime, SimDuration};
 use firelink_wire::packet::Packet;
 use libfuzzer_sys::fuzz_target;
 
@@ -23,12 +23,12 @@ fuzz_target!(|data: &[u8]| {
     let board_id = (selector >> 4) & 0x0F;
     let mut firmware = Firmware::new(BoardConfig::new(board_id, hardware, profile));
     let mut phy = PhyRegisters::new(2);
-    firmware.bus_reset(Time::ZERO, 2, 1);
-    let mut now = Time::ZERO;
+    firmware.bus_reset(SimTime::ZERO, 2, 1);
+    let mut now = SimTime::ZERO;
     // Each packet: one byte of elapsed time (x 1 us), one length byte
     // (quadlets), then the packet bytes.
     while let [gap, quadlets, tail @ ..] = rest {
-        now = Time(now.0 + TimeDelta::from_micros(u64::from(*gap)).0);
+        now = SimTime(now.0 + SimDuration::from_micros(u64::from(*gap)).0);
         let len = (usize::from(*quadlets) * 4).min(tail.len());
         let (bytes, after) = tail.split_at(len);
         rest = after;

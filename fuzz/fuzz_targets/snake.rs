@@ -6,7 +6,7 @@
 
 use firelink_board::firmware::{PhyRegisters, Reply};
 use firelink_board::snake::{SnakeFirmware, SnakeNodeConfig};
-use firelink_board::time::Time;
+use firelink_board::time::SimTime;
 use firelink_wire::packet::Packet;
 use firelink_wire::snake::address::SnakeRegister;
 use firelink_wire::snake::block::{ReadBlock, ReadBlockRepr, WriteBlock, WriteBlockRepr};
@@ -36,8 +36,8 @@ fuzz_target!(|data: &[u8]| {
     // them at the node (physical ID 0) and deliver them in order.
     let mut node = SnakeFirmware::new(SnakeNodeConfig::new(1));
     let mut phy = PhyRegisters::new(0);
-    node.bus_reset(Time::ZERO, 0, 1);
-    let mut t = Time::from_micros(1);
+    node.bus_reset(SimTime::ZERO, 0, 1);
+    let mut t = SimTime::from_micros(1);
     for piece in data.split(|b| *b == 0xFE) {
         let mut bytes = piece.to_vec();
         if let Ok(mut p) = Packet::new_checked(&mut bytes[..]) {
@@ -47,7 +47,7 @@ fuzz_target!(|data: &[u8]| {
                 p.fill_data_crc();
             }
         }
-        t = Time(t.0 + 30_000_000);
+        t = SimTime(t.0 + 30_000_000);
         match node.receive(t, &bytes, &mut phy) {
             Reply::AckThenResponse { response, .. } => {
                 let r = Packet::new_checked(&response[..]).expect("a whole response");

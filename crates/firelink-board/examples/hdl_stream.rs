@@ -36,7 +36,6 @@ use std::process::ExitCode;
 use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::firmware::{Firmware, Reply};
 use firelink_board::rig::{BoardRig, RigOptions};
-use firelink_board::time::{Time, TimeDelta};
 use firelink_bus::trace::{PacketKind, TraceEvent};
 use firelink_bus::{HostLink, SimDuration, SimTime, TraceLevel};
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr, Speed};
@@ -54,7 +53,7 @@ fn configs() -> Vec<BoardConfig> {
         .map(|id| {
             let mut cfg =
                 BoardConfig::new(id, Hardware::Qla1, Profile::Rev8).with_seed(100 + u64::from(id));
-            cfg.supply_rise = TimeDelta::from_millis(1);
+            cfg.supply_rise = SimDuration::from_millis(1);
             cfg
         })
         .collect()
@@ -363,7 +362,7 @@ fn list(values: &[u32]) -> String {
 }
 
 /// The sensor values the board's QLA inputs carry at `now`, as JSON.
-fn inputs(fw: &mut Firmware, now: Time) -> String {
+fn inputs(fw: &mut Firmware, now: SimTime) -> String {
     let axis = |fw: &mut Firmware, reg: u64| -> Vec<u32> {
         (1..=4u64)
             .map(|a| fw.read_quadlet(now, a * 0x10 + reg))
@@ -429,8 +428,8 @@ fn replay(rig: &BoardRig, stream: &[Event]) -> (String, usize) {
     let mut broadcasts = Vec::new();
     let mut mismatches = 0;
     let mut power_on = false;
-    let initial = inputs(&mut fw, Time::ZERO);
-    let poll = |fw: &mut Firmware, now: Time, broadcasts: &mut Vec<String>| {
+    let initial = inputs(&mut fw, SimTime::ZERO);
+    let poll = |fw: &mut Firmware, now: SimTime, broadcasts: &mut Vec<String>| {
         while let Some(packet) = fw.poll_transmit(now) {
             broadcasts.push(format!(
                 "{{\"ready_clock\":{},\"bytes\":\"{}\"}}",
@@ -440,7 +439,7 @@ fn replay(rig: &BoardRig, stream: &[Event]) -> (String, usize) {
         }
     };
     for event in stream {
-        let at = Time(event.at().0);
+        let at = event.at();
         // Slots that came due before this event.
         while let Some(due) = fw.next_wakeup().filter(|t| *t < at) {
             poll(&mut fw, due, &mut broadcasts);
@@ -489,7 +488,7 @@ fn replay(rig: &BoardRig, stream: &[Event]) -> (String, usize) {
                 if on && !power_on {
                     let good = at + supply_rise;
                     let mut k = good.clocks();
-                    if Time::from_clocks(k) < good {
+                    if SimTime::from_clocks(k) < good {
                         k += 1;
                     }
                     let _ = writeln!(json, "{{\"kind\":\"supply_good\",\"clock\":{k}}},");
@@ -510,7 +509,7 @@ fn replay(rig: &BoardRig, stream: &[Event]) -> (String, usize) {
          \"phy_registers\":{},\n\"initial\":{initial},\n\"events\":[\n{events}\n],\n\
          \"broadcasts\":[\n{}\n]}}\n",
         regs.read(0) >> 2,
-        TimeDelta(supply_rise.0).0,
+        supply_rise.0,
         list(&registers),
         broadcasts.join(",\n")
     );

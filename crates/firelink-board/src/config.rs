@@ -19,7 +19,7 @@ use firelink_wire::board::extras::{fpga_serial_image, qla_serial_image};
 
 pub use crate::firmware::Instrument;
 use crate::plant::{AxisParams, DEFAULT_STEP, presets};
-use crate::time::TimeDelta;
+use crate::time::SimDuration;
 
 /// Which firmware behaviour a board reproduces.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -127,12 +127,12 @@ pub struct BoardConfig {
     /// Seed of the measurement noise.
     pub seed: u64,
     /// Plant integration step.
-    pub plant_step: TimeDelta,
+    pub plant_step: SimDuration,
     /// Whether the motor supply is connected (false: power never becomes
     /// good and STATUS shows a supply fault once power is enabled).
     pub motor_supply_present: bool,
     /// Time from power enable to motor supply good.
-    pub supply_rise: TimeDelta,
+    pub supply_rise: SimDuration,
     /// Digital input lines held high by what is plugged into the board
     /// (DIGIN bits 11:0: home switches 3:0, positive limits 7:4, negative
     /// limits 11:8), on top of the plant's own switches: e.g. the contacts
@@ -227,7 +227,7 @@ impl BoardConfig {
             seed: 0,
             plant_step: DEFAULT_STEP,
             motor_supply_present: true,
-            supply_rise: TimeDelta::from_millis(5),
+            supply_rise: SimDuration::from_millis(5),
             input_lines: 0,
             motor_supply_volts: nominal_motor_supply_volts(board_id),
             fpga_serial: default_fpga_serial(board_id),

@@ -33,12 +33,12 @@
 //! ```
 //! use firelink_board::config::{BoardConfig, Hardware, Profile};
 //! use firelink_board::firmware::{Firmware, PhyRegisters, Reply};
-//! use firelink_board::time::Time;
+//! use firelink_board::time::SimTime;
 //! use firelink_wire::packet::{Ack, AsyncHeader, NodeId, PacketRepr};
 //!
 //! let mut board = Firmware::new(BoardConfig::new(0, Hardware::Qla1, Profile::Rev8));
 //! let mut phy = PhyRegisters::new(0);
-//! board.bus_reset(Time::ZERO, 0, 1);
+//! board.bus_reset(SimTime::ZERO, 0, 1);
 //! // The host (node 1) switches motor power on: a unified quadlet write.
 //! let write = PacketRepr::WriteQuadletRequest {
 //!     header: AsyncHeader::new(NodeId::local(0), NodeId::local(1), 0),
@@ -47,10 +47,10 @@
 //! };
 //! let mut buf = [0u8; 20];
 //! let len = write.emit(&mut buf).unwrap();
-//! let reply = board.receive(Time::from_micros(5), &buf[..len], &mut phy);
+//! let reply = board.receive(SimTime::from_micros(5), &buf[..len], &mut phy);
 //! assert_eq!(reply, Reply::Ack(Ack::Complete));
 //! // 10 ms later the motor supply is good (STATUS bit 19).
-//! assert_ne!(board.read_quadlet(Time::from_millis(10), 0) & (1 << 19), 0);
+//! assert_ne!(board.read_quadlet(SimTime::from_millis(10), 0) & (1 << 19), 0);
 //! ```
 #![cfg_attr(not(test), warn(clippy::indexing_slicing))]
 

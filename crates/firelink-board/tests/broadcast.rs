@@ -9,7 +9,7 @@ mod common;
 use common::*;
 use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::firmware::Reply;
-use firelink_board::time::{Time, TimeDelta};
+use firelink_board::time::{SimDuration, SimTime};
 use firelink_wire::Error;
 use firelink_wire::board::broadcast::{
     BoardSlot, HubBlock, HubHeader, SeqRule, emit_command_block, hub_block_quadlets,
@@ -19,16 +19,16 @@ use firelink_wire::board::registers::{DacWord, StatusRead};
 use firelink_wire::packet::{NodeId, Packet};
 
 /// Transmission time of `bytes` at S400 (393.216 Mb/s).
-fn s400(bytes: usize) -> TimeDelta {
-    TimeDelta((bytes as u64 * 8 * 1_000_000_000_000) / 393_216_000)
+fn s400(bytes: usize) -> SimDuration {
+    SimDuration((bytes as u64 * 8 * 1_000_000_000_000) / 393_216_000)
 }
 
 /// Boards with IDs `ids` on nodes 0.., all with the same profile.
 struct Wire {
     boards: Vec<Rig>,
-    now: Time,
+    now: SimTime,
     /// (sender node, time) of each status broadcast, in order.
-    log: Vec<(u8, Time)>,
+    log: Vec<(u8, SimTime)>,
 }
 
 impl Wire {
@@ -40,7 +40,7 @@ impl Wire {
             .collect();
         Wire {
             boards,
-            now: Time::from_micros(100),
+            now: SimTime::from_micros(100),
             log: Vec::new(),
         }
     }
@@ -78,7 +78,7 @@ impl Wire {
                     assert!(replies.iter().all(|r| *r == Reply::Silent));
                     self.boards[k].fw.transmitted(self.now);
                     // Isochronous-style gap before the next arbitration.
-                    self.now += TimeDelta::from_nanos(40);
+                    self.now += SimDuration::from_nanos(40);
                     sent = true;
                     break;
                 }
@@ -147,7 +147,7 @@ fn cycle_checks(profile: Profile, hw: Hardware, n: usize, via_node0: bool) {
     };
     let mut entries_seen: Option<Vec<Vec<u8>>> = None;
     for b in &mut wire.boards {
-        b.now = wire.now + TimeDelta::from_micros(5);
+        b.now = wire.now + SimDuration::from_micros(5);
         assert_eq!(b.read(0x1802) as usize, quadlets, "quadlets written");
         assert_eq!(b.read(0x1800), (0x1234 << 16) | u32::from(mask));
         let hub = bytes(&b.read_block(0x1000, quadlets));
@@ -425,7 +425,7 @@ fn status_broadcast_offsets() {
             0x1800,
             (1 << 16) | 0x40,
         ));
-        r.wait(TimeDelta::from_micros(50));
+        r.wait(SimDuration::from_micros(50));
         let p = r.fw.poll_transmit(r.now).expect("status broadcast");
         let packet = Packet::new_checked(&p[..]).unwrap();
         assert_eq!(packet.offset(), expect);
@@ -457,7 +457,7 @@ fn rev4_boards_use_seed_000_sizes_and_clock_exact_slots() {
         .collect();
     let mut wire = Wire {
         boards,
-        now: Time::from_micros(100),
+        now: SimTime::from_micros(100),
         log: Vec::new(),
     };
     wire.query(NodeId::BROADCAST, 0x0042, 0x001F);
@@ -466,13 +466,17 @@ fn rev4_boards_use_seed_000_sizes_and_clock_exact_slots() {
     assert_eq!(wire.log.len(), usize::from(n));
     for (node, at) in &wire.log {
         let clocks = 150 + 256 * u64::from(*node);
-        assert_eq!(*at - t_query, TimeDelta::from_clocks(clocks), "node {node}");
+        assert_eq!(
+            *at - t_query,
+            SimDuration::from_clocks(clocks),
+            "node {node}"
+        );
     }
     let slots = wire.slots();
     assert_eq!(slots[0].layout.read_block_quadlets(), 12);
     assert_eq!(hub_block_quadlets(slots.iter().map(|s| s.layout)), 13 * 5);
     for b in &mut wire.boards {
-        b.now = wire.now + TimeDelta::from_micros(5);
+        b.now = wire.now + SimDuration::from_micros(5);
         assert_eq!(b.read(7), 4, "FW_VERSION");
         assert_eq!(b.read(0x1802), 13 * 5, "no timing quadlet");
         let hub = bytes(&b.read_block(0x1000, 13 * 5));

@@ -6,7 +6,7 @@ mod common;
 use common::*;
 use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::plant::presets;
-use firelink_board::time::{Time, TimeDelta};
+use firelink_board::time::{SimDuration, SimTime};
 use firelink_wire::packet::Ack;
 
 const STATUS: u64 = 0;
@@ -44,7 +44,7 @@ fn servo_write(r: &mut Rig, dacs: [u16; 4], control: u32) {
 }
 
 /// Run the servo loop every `period` until `until`.
-fn servo_until(r: &mut Rig, until: Time, period: TimeDelta, dacs: [u16; 4]) {
+fn servo_until(r: &mut Rig, until: SimTime, period: SimDuration, dacs: [u16; 4]) {
     while r.now < until {
         servo_write(r, dacs, 0);
         r.wait(period);
@@ -54,16 +54,16 @@ fn servo_until(r: &mut Rig, until: Time, period: TimeDelta, dacs: [u16; 4]) {
 #[test]
 fn power_supply_hold_and_enable_delay() {
     let mut r = damped_board(Profile::Rev8);
-    r.wait(TimeDelta::from_millis(1));
+    r.wait(SimDuration::from_millis(1));
     assert_eq!(r.write(STATUS, POWER_ON | RELAY_ON), Some(Ack::Complete));
     assert_eq!(r.write(STATUS, 0x0000_0101), Some(Ack::Complete));
-    let t_on = Time::from_micros(1_000 + 5_000 + 40_000 + 2_500);
+    let t_on = SimTime::from_micros(1_000 + 5_000 + 40_000 + 2_500);
     // Supply good after 5 ms; amplifier requested at once, on after the
     // 40 ms hold and the 2.5 ms delay.
     servo_until(
         &mut r,
-        Time::from_millis(5),
-        TimeDelta::from_micros(500),
+        SimTime::from_millis(5),
+        SimDuration::from_micros(500),
         [0x8000; 4],
     );
     let s = r.read(STATUS);
@@ -76,15 +76,15 @@ fn power_supply_hold_and_enable_delay() {
     assert_eq!(s & 0xF, 1, "amplifier 1 requested");
     servo_until(
         &mut r,
-        Time::from_micros(6_500),
-        TimeDelta::from_micros(500),
+        SimTime::from_micros(6_500),
+        SimDuration::from_micros(500),
         [0x8000; 4],
     );
     assert_ne!(r.read(STATUS) & (1 << 19), 0, "supply good");
     servo_until(
         &mut r,
-        Time(t_on.0 - 1_000_000_000),
-        TimeDelta::from_micros(250),
+        SimTime(t_on.0 - 1_000_000_000),
+        SimDuration::from_micros(250),
         [0x8000; 4],
     );
     assert!(r.now < t_on);
@@ -110,8 +110,8 @@ fn dac_current_motion_and_velocity_fields() {
     r.write(0x21, 0xB000_0000 | u32::from(cmd));
     servo_until(
         &mut r,
-        Time::from_millis(150),
-        TimeDelta::from_micros(100),
+        SimTime::from_millis(150),
+        SimDuration::from_micros(100),
         [cmd, cmd, 0x8000, 0x8000],
     );
     assert!(r.fw.amplifier_on(0) && r.fw.amplifier_on(1));
@@ -158,15 +158,15 @@ fn dac_current_motion_and_velocity_fields() {
     let neg = amps_to_dac(-0.3);
     servo_until(
         &mut r,
-        Time::from_millis(300),
-        TimeDelta::from_micros(100),
+        SimTime::from_millis(300),
+        SimDuration::from_micros(100),
         [neg, cmd, 0x8000, 0x8000],
     );
     let v = period_to_velocity(r.read(0x16));
     assert!(v < 0.0, "{v}");
     // Stop: the period grows with the running counter, then overflows.
     r.write(STATUS, POWER_OFF);
-    r.wait(TimeDelta::from_millis(1500));
+    r.wait(SimDuration::from_millis(1500));
     assert_ne!(
         r.read(0x16) & 0x8000_0000,
         0,
@@ -183,21 +183,21 @@ fn watchdog_expiry_and_clearing() {
     let cmd = amps_to_dac(0.2);
     servo_until(
         &mut r,
-        Time::from_millis(60),
-        TimeDelta::from_millis(1),
+        SimTime::from_millis(60),
+        SimDuration::from_millis(1),
         [cmd; 4],
     );
     assert!(r.fw.amplifier_on(0));
     let last_write = r.now;
     servo_write(&mut r, [cmd; 4], 0);
     // Reads do not refresh the watchdog.
-    while r.now + TimeDelta::from_millis(1) < Time(last_write.0 + 29_990_000_000) {
+    while r.now + SimDuration::from_millis(1) < SimTime(last_write.0 + 29_990_000_000) {
         assert_eq!(r.read(STATUS) & (1 << 23), 0);
-        r.wait(TimeDelta::from_millis(1));
+        r.wait(SimDuration::from_millis(1));
     }
-    r.now = Time(last_write.0 + 29_990_000_000);
+    r.now = SimTime(last_write.0 + 29_990_000_000);
     assert_eq!(r.read(STATUS) & (1 << 23), 0, "not yet at 29.99 ms");
-    r.now = Time(last_write.0 + 30_001_000_000);
+    r.now = SimTime(last_write.0 + 30_001_000_000);
     let s = r.read(STATUS);
     assert_ne!(s & (1 << 23), 0, "timed out at 30 ms");
     assert_eq!(s & 0xF, 0, "every amplifier off");
@@ -217,7 +217,7 @@ fn watchdog_expiry_and_clearing() {
     assert_eq!(s & (1 << 23), 0);
     assert_eq!(s & 0xF, 1);
     // ... and so does a power enable.
-    r.wait(TimeDelta::from_millis(31));
+    r.wait(SimDuration::from_millis(31));
     assert_ne!(r.read(STATUS) & (1 << 23), 0);
     r.write(STATUS, POWER_ON);
     assert_eq!(r.read(STATUS) & (1 << 23), 0);
@@ -235,15 +235,15 @@ fn broadcast_traffic_refreshes_the_watchdog_and_zero_disables_it() {
             seq << 16 | 0x8,
         );
         r.deliver(&q);
-        r.wait(TimeDelta::from_millis(10));
+        r.wait(SimDuration::from_millis(10));
     }
     assert_eq!(r.read(STATUS) & (1 << 23), 0);
-    r.wait(TimeDelta::from_millis(25));
+    r.wait(SimDuration::from_millis(25));
     assert_ne!(r.read(STATUS) & (1 << 23), 0);
     // Period 0: never fires.
     let mut r = damped_board(Profile::Rev8);
     r.write(3, 0);
-    r.wait(TimeDelta::from_millis(500));
+    r.wait(SimDuration::from_millis(500));
     assert_eq!(r.read(STATUS) & (1 << 23), 0);
 }
 
@@ -255,8 +255,8 @@ fn rev7_amplifiers_through_status() {
     let cmd = amps_to_dac(0.2);
     servo_until(
         &mut r,
-        Time::from_millis(60),
-        TimeDelta::from_millis(1),
+        SimTime::from_millis(60),
+        SimDuration::from_millis(1),
         [cmd; 4],
     );
     let s = r.read(STATUS);
@@ -286,23 +286,23 @@ fn current_mismatch_disables_the_amplifier() {
     let cmd = amps_to_dac(2.0);
     servo_until(
         &mut r,
-        Time::from_millis(60),
-        TimeDelta::from_millis(1),
+        SimTime::from_millis(60),
+        SimDuration::from_millis(1),
         [cmd, 0x8000, 0x8000, 0x8000],
     );
     assert!(r.fw.amplifier_on(0));
-    let on_since = Time::from_micros(47_500);
+    let on_since = SimTime::from_micros(47_500);
     servo_until(
         &mut r,
-        Time(on_since.0 + 49_000_000_000),
-        TimeDelta::from_millis(1),
+        SimTime(on_since.0 + 49_000_000_000),
+        SimDuration::from_millis(1),
         [cmd, 0x8000, 0x8000, 0x8000],
     );
     assert!(r.fw.amplifier_on(0), "still on before 50 ms of mismatch");
     servo_until(
         &mut r,
-        Time(on_since.0 + 51_000_000_000),
-        TimeDelta::from_millis(1),
+        SimTime(on_since.0 + 51_000_000_000),
+        SimDuration::from_millis(1),
         [cmd, 0x8000, 0x8000, 0x8000],
     );
     assert!(!r.fw.amplifier_on(0));
@@ -317,8 +317,8 @@ fn current_mismatch_disables_the_amplifier() {
     let ok = amps_to_dac(0.3);
     servo_until(
         &mut r,
-        Time::from_millis(300),
-        TimeDelta::from_millis(1),
+        SimTime::from_millis(300),
+        SimDuration::from_millis(1),
         [ok, 0x8000, 0x8000, 0x8000],
     );
     assert!(r.fw.amplifier_on(0));
@@ -333,8 +333,8 @@ fn missing_motor_supply() {
     r.write(STATUS, 0x0000_0101);
     servo_until(
         &mut r,
-        Time::from_millis(100),
-        TimeDelta::from_millis(1),
+        SimTime::from_millis(100),
+        SimDuration::from_millis(1),
         [0x8000; 4],
     );
     let s = r.read(STATUS);
@@ -346,8 +346,8 @@ fn missing_motor_supply() {
     r.fw.set_motor_supply(r.now, true);
     servo_until(
         &mut r,
-        Time::from_millis(150),
-        TimeDelta::from_millis(1),
+        SimTime::from_millis(150),
+        SimDuration::from_millis(1),
         [0x8000; 4],
     );
     assert_ne!(r.read(STATUS) & (1 << 19), 0);
@@ -366,15 +366,15 @@ fn motor_config_delay_and_current_limit() {
     r.write(0x11, 0xB000_0000 | u32::from(amps_to_dac(1.0)));
     servo_until(
         &mut r,
-        Time::from_micros(44_900),
-        TimeDelta::from_micros(100),
+        SimTime::from_micros(44_900),
+        SimDuration::from_micros(100),
         [amps_to_dac(1.0), 0x8000, 0x8000, 0x8000],
     );
     assert!(!r.fw.amplifier_on(0));
-    r.now = Time::from_micros(45_000);
+    r.now = SimTime::from_micros(45_000);
     r.fw.advance(r.now);
     assert!(r.fw.amplifier_on(0), "on right after the 40 ms hold");
-    r.wait(TimeDelta::from_millis(2));
+    r.wait(SimDuration::from_millis(2));
     let i = r.fw.plant().axis(0).unwrap().current();
     assert!((i - 0x400 as f64 * 12.5 / 65536.0).abs() < 0.01, "{i}");
 }
@@ -393,7 +393,7 @@ fn session(seed: u64) -> Vec<(u32, u32, u32)> {
     for ms in 0..200u64 {
         let amps = 0.5 * ((ms as f64) * 0.05).sin();
         servo_write(&mut r, [amps_to_dac(amps); 4], 0);
-        r.wait(TimeDelta::from_millis(1));
+        r.wait(SimDuration::from_millis(1));
         let block = r.read_block(0, 32);
         trace.push((block[8], block[12], block[4]));
     }
@@ -423,7 +423,7 @@ fn dqla_axes_5_to_8_through_the_dac_word() {
     r.write(0x81, 0xB000_0000 | u32::from(cmd));
     for _ in 0..60 {
         r.write(0x81, 0x8000_0000 | u32::from(cmd));
-        r.wait(TimeDelta::from_millis(1));
+        r.wait(SimDuration::from_millis(1));
     }
     assert!(r.fw.amplifier_on(7));
     assert_eq!(r.read(0x8C) >> 28 & 3, 3);
@@ -448,8 +448,8 @@ fn amplifier_temperature_rises_under_load() {
     let cmd = amps_to_dac(2.0);
     servo_until(
         &mut r,
-        Time::from_millis(400),
-        TimeDelta::from_millis(1),
+        SimTime::from_millis(400),
+        SimDuration::from_millis(1),
         [0x8000, 0x8000, cmd, 0x8000],
     );
     let t = r.read(5);

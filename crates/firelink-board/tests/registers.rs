@@ -6,7 +6,7 @@ mod common;
 use common::*;
 use firelink_board::config::{BoardConfig, FpgaVersion, Hardware, Profile};
 use firelink_board::firmware::{Reply, RxError};
-use firelink_board::time::TimeDelta;
+use firelink_board::time::SimDuration;
 use firelink_wire::board::registers::DigitalOutWrite;
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, PacketRepr, Rcode};
 
@@ -183,7 +183,7 @@ fn realtime_block_layouts() {
         let m = hw.axes();
         r.write((1 << 4) | 1, 0x8000_8123);
         r.write(0x14, 0x80_0010);
-        r.wait(TimeDelta::from_micros(100));
+        r.wait(SimDuration::from_micros(100));
         let block = r.read_block(0, size);
         // Timestamp: clocks since power-up (the previous sample).
         let ts = block[0];
@@ -204,7 +204,7 @@ fn realtime_block_layouts() {
             assert_eq!(block[4 + 6 * m] & 0xFFFF, 0x8123, "MOTOR_STATUS command");
         }
         // The timestamp restarts at every real-time read.
-        r.wait(TimeDelta::from_micros(10));
+        r.wait(SimDuration::from_micros(10));
         let again = r.read_block(0, size);
         assert!((f64::from(again[0]) - 10e-6 * 49.152e6).abs() < 2.0);
     }
@@ -389,7 +389,7 @@ fn garbage_never_panics() {
             let _ = r.deliver(&p);
             let _ = r.fw.poll_transmit(r.now);
             r.fw.transmitted(r.now);
-            r.wait(TimeDelta::from_micros(next() % 50));
+            r.wait(SimDuration::from_micros(next() % 50));
         }
     }
 }

@@ -10,8 +10,8 @@ use firelink_board::firmware::{PhyRegisters, Reply};
 use firelink_board::snake::channel::AmplifierModel;
 use firelink_board::snake::firmware::{EEPROM_WRITE_TIME, POT_SPI_TIME};
 use firelink_board::snake::{SNAKE_VERSION, SnakeFirmware, SnakeNode, SnakeNodeConfig};
-use firelink_board::time::{Time, TimeDelta};
-use firelink_bus::{Bus, BusConfig, HostLink, NodeConfig, SimDuration};
+use firelink_board::time::{SimDuration, SimTime};
+use firelink_bus::{Bus, BusConfig, HostLink, NodeConfig};
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Rcode, Speed};
 use firelink_wire::snake::address::{Access, ChannelDevice, GlobalRegister, SnakeRegister};
 use firelink_wire::snake::block::{READ_BLOCK_QUADLETS, ReadBlock, ReadBlockRepr};
@@ -26,18 +26,18 @@ const NODE: u8 = 2;
 struct SnakeRig {
     fw: SnakeFirmware,
     phy: PhyRegisters,
-    now: Time,
+    now: SimTime,
     tl: u8,
 }
 
 impl SnakeRig {
     fn new(cfg: SnakeNodeConfig) -> SnakeRig {
         let mut fw = SnakeFirmware::new(cfg);
-        fw.bus_reset(Time::ZERO, NODE, 1);
+        fw.bus_reset(SimTime::ZERO, NODE, 1);
         SnakeRig {
             fw,
             phy: PhyRegisters::new(NODE),
-            now: Time::from_micros(10),
+            now: SimTime::from_micros(10),
             tl: 0,
         }
     }
@@ -51,13 +51,13 @@ impl SnakeRig {
         self.tl
     }
 
-    fn wait(&mut self, dt: TimeDelta) {
+    fn wait(&mut self, dt: SimDuration) {
         self.now += dt;
         self.fw.advance(self.now);
     }
 
     fn deliver(&mut self, packet: &[u8]) -> Reply {
-        self.now += TimeDelta::from_micros(1);
+        self.now += SimDuration::from_micros(1);
         self.fw.receive(self.now, packet, &mut self.phy)
     }
 
@@ -302,7 +302,7 @@ fn block_read_layout_timestamp_and_sizes() {
     let first = rig.block();
     assert_eq!(first.status.board_id(), 5);
     assert!(first.status.amp_enabled(2));
-    rig.wait(TimeDelta::from_micros(999));
+    rig.wait(SimDuration::from_micros(999));
     let second = rig.block();
     // 1 ms less the read's own microsecond: 49.152 clocks per us.
     let expected = (1000.0 * 49.152) as u32;
@@ -334,7 +334,7 @@ fn watchdog_expiry_disables_every_amplifier() {
     let written = rig.now;
     // Writes within the period keep clearing the counter.
     for _ in 0..5 {
-        rig.wait(TimeDelta::from_micros(800));
+        rig.wait(SimDuration::from_micros(800));
         rig.block_write(&[0; 7]);
     }
     assert_eq!(rig.status().amp_enable(), 0x7F);
@@ -344,9 +344,9 @@ fn watchdog_expiry_disables_every_amplifier() {
     assert!(expiry > written);
     assert!((expiry.0 - last.0) as f64 * 1e-6 - 1000.0 < 1.0);
     // Silence: off at the expiry, not before.
-    rig.wait(TimeDelta(expiry.0 - rig.now.0 - 1_000_000));
+    rig.wait(SimDuration(expiry.0 - rig.now.0 - 1_000_000));
     assert!(rig.fw.amplifier_on(1));
-    rig.wait(TimeDelta::from_micros(2));
+    rig.wait(SimDuration::from_micros(2));
     assert!(!rig.fw.amplifier_on(1));
     let s = rig.status();
     assert!(s.watchdog_timeout());
@@ -499,7 +499,7 @@ fn torque_mode_current_follows_gain_and_limit() {
     rig.write(0x00, PowerControl::channel(1, true).unwrap().raw());
     rig.write(dac, DacCommand::CurrentLimit(0xFFFF).to_word());
     rig.write(dac, DacCommand::MotorVoltage(0xA000).to_word());
-    rig.wait(TimeDelta::from_millis(20));
+    rig.wait(SimDuration::from_millis(20));
     let gain = Wiper::NOMINAL.feedback_gain();
     let expect = model.torque_amps(0xA000, gain);
     let i = rig.fw.plant().axis(0).unwrap().current();
@@ -510,18 +510,18 @@ fn torque_mode_current_follows_gain_and_limit() {
     assert!((amps - expect).abs() < 0.01, "{amps}");
     // A higher wiper, a higher gain: less current for the same command.
     rig.pot(1, PotCommand::WriteWiper(Wiper::new(649).unwrap()));
-    rig.wait(TimeDelta::from_millis(20));
+    rig.wait(SimDuration::from_millis(20));
     let i2 = rig.fw.plant().axis(0).unwrap().current();
     assert!((i2 - expect * gain / 3.57727).abs() < 0.005, "{i2}");
     // The limit channel caps it.
     rig.write(dac, DacCommand::CurrentLimit(0x0800).to_word());
-    rig.wait(TimeDelta::from_millis(20));
+    rig.wait(SimDuration::from_millis(20));
     let cap = model.limit_amps(0x0800);
     let i3 = rig.fw.plant().axis(0).unwrap().current();
     assert!((i3 - cap).abs() < 0.002, "{i3} vs {cap}");
     // Disabled: no current.
     rig.write(0x00, PowerControl::all(false).raw());
-    rig.wait(TimeDelta::from_millis(20));
+    rig.wait(SimDuration::from_millis(20));
     assert_eq!(rig.fw.plant().axis(0).unwrap().current(), 0.0);
 }
 
@@ -540,15 +540,15 @@ fn speed_mode_holds_a_speed_and_the_encoder_counts() {
     rig.write(0x00, PowerControl::channel(1, true).unwrap().raw());
     rig.write(dac, DacCommand::CurrentLimit(0xFFFF).to_word());
     rig.write(dac, DacCommand::MotorVoltage(0x8800).to_word());
-    rig.wait(TimeDelta::from_millis(300));
+    rig.wait(SimDuration::from_millis(300));
     let w1 = rig.fw.plant().axis(0).unwrap().motor_velocity();
-    rig.wait(TimeDelta::from_millis(100));
+    rig.wait(SimDuration::from_millis(100));
     let w2 = rig.fw.plant().axis(0).unwrap().motor_velocity();
     assert!(w1 > 1.0, "{w1}");
     assert!((w2 - w1).abs() / w1 < 0.02, "steady: {w1} {w2}");
     // Twice the command, about twice the speed.
     rig.write(dac, DacCommand::MotorVoltage(0x9000).to_word());
-    rig.wait(TimeDelta::from_millis(400));
+    rig.wait(SimDuration::from_millis(400));
     let w3 = rig.fw.plant().axis(0).unwrap().motor_velocity();
     assert!((w3 / w2 - 2.0).abs() < 0.2, "{w2} {w3}");
     // The encoder counted up from the preload; the period is positive.

@@ -267,7 +267,7 @@ fn watchdog_expires_when_the_host_stops() {
     // The host goes silent for 30 ms; the firmware applies the expiry at
     // its exact time (10 ms after the last write).
     io.port_mut().wait(Duration::from_millis(30));
-    let now = firelink_board::time::Time(io.port().bus().now().0);
+    let now = firelink_board::time::SimTime(io.port().bus().now().0);
     let node = io.port().bus().node_by_phy(0).unwrap();
     let fw = io
         .port_mut()

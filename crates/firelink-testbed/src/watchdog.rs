@@ -13,7 +13,6 @@
 use std::time::Duration;
 
 use firelink_board::node::BoardNode;
-use firelink_board::time::Time;
 use firelink_bus::{NodeHandle, SimDuration, SimTime};
 use firelink_control::State;
 use firelink_control::config::presets;
@@ -101,7 +100,7 @@ pub fn run(trials: u64, seed: u64) -> Result<WatchdogReport, TestbedError> {
             let last = port
                 .bus()
                 .node::<BoardNode>(*handle)
-                .map_or(Time::ZERO, |b| b.firmware().last_host_write());
+                .map_or(SimTime::ZERO, |b| b.firmware().last_host_write());
             let Some(off_at) = off_at else {
                 continue; // never went off: not within the bound
             };

@@ -13,7 +13,7 @@ use firelink_wire::board::extras::{
     DallasStatus,
 };
 
-use crate::time::{SYSCLK_HZ, Time};
+use crate::time::{SYSTEM_CLOCK_HZ, SimTime};
 
 /// Time the firmware gives a DS2480B to answer before it uses the direct
 /// line.
@@ -109,7 +109,7 @@ impl Dallas {
 
     /// Register 13 as read at `now`; `bidirectional` is the QLA's DOUT
     /// hardware (bit 3).
-    pub fn status(&self, now: Time, bidirectional: bool) -> DallasStatus {
+    pub fn status(&self, now: SimTime, bidirectional: bool) -> DallasStatus {
         let busy = now.clocks() < self.busy_until;
         DallasStatus::default()
             .with_family(self.family)
@@ -122,9 +122,9 @@ impl Dallas {
     }
 
     /// A register-13 write at `now`.
-    pub fn write(&mut self, now: Time, c: DallasControl) {
+    pub fn write(&mut self, now: SimTime, c: DallasControl) {
         let now = now.clocks();
-        let us = |us: u64| us * u64::from(SYSCLK_HZ) / 1_000_000;
+        let us = |us: u64| us * u64::from(SYSTEM_CLOCK_HZ) / 1_000_000;
         match c.mode() {
             DallasMode::Release => self.enabled = false,
             DallasMode::Take => self.enabled = true,
@@ -184,16 +184,16 @@ impl Dallas {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::time::TimeDelta;
+    use crate::time::SimDuration;
 
     #[test]
     fn power_up_absent_and_present() {
-        let t = Time::from_micros(5);
+        let t = SimTime::from_micros(5);
         let mut d = Dallas::new(None);
         assert_eq!(d.status(t, true).raw(), 0x00FF_0008, "power-up read");
         d.write(t, DallasControl(0x0080_0002));
         assert!(d.status(t, true).busy());
-        let idle = t + TimeDelta::from_millis(5);
+        let idle = t + SimDuration::from_millis(5);
         assert_eq!(d.status(idle, true).raw(), 0x0018_000F, "no tool");
         let tool = Instrument {
             model: 400_006,
@@ -202,9 +202,9 @@ mod tests {
         };
         let mut d = Dallas::new(Some(&tool));
         d.write(t, DallasControl(0x0080_0002));
-        let s = d.status(t + TimeDelta::from_millis(100), true);
+        let s = d.status(t + SimDuration::from_millis(100), true);
         assert_eq!(s.raw() & 0x20F0, 0x2010, "busy while reading");
-        let s = d.status(t + TimeDelta::from_millis(300), true);
+        let s = d.status(t + SimDuration::from_millis(300), true);
         assert_eq!(s.raw(), 0x0B18_000B);
         // The buffer holds tool bytes 0x80..0x180: "997" first.
         assert_eq!(d.buffer_quadlet(0) >> 8, 0x39_3937);

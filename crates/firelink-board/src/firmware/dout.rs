@@ -10,7 +10,7 @@
 
 use firelink_wire::board::registers::{DigitalOutRead, DigitalOutWrite, DoutCtrl, WaveformEntry};
 
-use crate::time::Time;
+use crate::time::SimTime;
 
 /// Digital outputs of a QLA.
 pub const OUTPUTS: usize = 4;
@@ -166,7 +166,7 @@ impl DigitalOutputs {
 
     /// The raw outputs at `now` (bit i = DOUT i+1): the table's values on
     /// the outputs it drives, the stored (timed) values elsewhere.
-    pub fn raw_outputs(&self, now: Time) -> u8 {
+    pub fn raw_outputs(&self, now: SimTime) -> u8 {
         let now = now.clocks();
         let play = self.play_state(now);
         let table = play
@@ -184,12 +184,12 @@ impl DigitalOutputs {
 
     /// Whether the table drives any output at `now` (register 6 bit 31,
     /// DIGIN bit 29).
-    pub fn table_active(&self, now: Time) -> bool {
+    pub fn table_active(&self, now: SimTime) -> bool {
         self.play_state(now.clocks()).playback.is_some()
     }
 
     /// Register 6 as read at `now`.
-    pub fn read(&self, now: Time) -> DigitalOutRead {
+    pub fn read(&self, now: SimTime) -> DigitalOutRead {
         let play = self.play_state(now.clocks());
         let active = play.playback.is_some();
         DigitalOutRead::default()
@@ -202,7 +202,7 @@ impl DigitalOutputs {
     /// A register-6 write at `now`: the masked outputs take their raw
     /// values (restarting their timers); the table restarts at index 0 on
     /// the masked outputs (bit 31) or stops on all of them.
-    pub fn write(&mut self, now: Time, w: DigitalOutWrite) {
+    pub fn write(&mut self, now: SimTime, w: DigitalOutWrite) {
         let now = now.clocks();
         self.settle(now);
         for (i, o) in self.outputs.iter_mut().enumerate() {
@@ -225,7 +225,7 @@ impl DigitalOutputs {
     }
 
     /// Write DOUT_CTRL of output `i` at `now` (the output's timer restarts).
-    pub fn write_ctrl(&mut self, now: Time, i: usize, ctrl: DoutCtrl) {
+    pub fn write_ctrl(&mut self, now: SimTime, i: usize, ctrl: DoutCtrl) {
         let now = now.clocks();
         self.settle(now);
         if let Some(o) = self.outputs.get_mut(i) {
@@ -236,7 +236,7 @@ impl DigitalOutputs {
 
     /// Space 8 read of entry `index` (bits 9:0) at `now`: while the table
     /// plays, the current playback entry whatever the address.
-    pub fn read_table(&self, now: Time, index: u16) -> u32 {
+    pub fn read_table(&self, now: SimTime, index: u16) -> u32 {
         let play = self.play_state(now.clocks());
         let at = if play.playback.is_some() {
             play.index
@@ -247,7 +247,7 @@ impl DigitalOutputs {
     }
 
     /// Space 8 write of entry `index` (bits 9:0) at `now`.
-    pub fn write_table(&mut self, now: Time, index: u16, value: u32) {
+    pub fn write_table(&mut self, now: SimTime, index: u16, value: u32) {
         self.settle(now.clocks());
         if let Some(e) = self.table.get_mut(usize::from(index) % WAVEFORM_ENTRIES) {
             *e = value;
@@ -258,21 +258,21 @@ impl DigitalOutputs {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::time::TimeDelta;
+    use crate::time::SimDuration;
 
-    fn at_clocks(c: u64) -> Time {
-        Time::from_clocks(c)
+    fn at_clocks(c: u64) -> SimTime {
+        SimTime::from_clocks(c)
     }
 
     #[test]
     fn stored_raw_as_written() {
         let mut d = DigitalOutputs::new();
-        d.write(Time::ZERO, DigitalOutWrite::parse(0x0F0E));
-        assert_eq!(d.raw_outputs(Time::from_micros(1)), 0xE);
-        assert_eq!(d.read(Time::from_micros(1)).raw(), 0xE);
+        d.write(SimTime::ZERO, DigitalOutWrite::parse(0x0F0E));
+        assert_eq!(d.raw_outputs(SimTime::from_micros(1)), 0xE);
+        assert_eq!(d.read(SimTime::from_micros(1)).raw(), 0xE);
         // Only masked outputs change.
-        d.write(Time::from_micros(2), DigitalOutWrite::parse(0x0101));
-        assert_eq!(d.raw_outputs(Time::from_micros(3)), 0xF);
+        d.write(SimTime::from_micros(2), DigitalOutWrite::parse(0x0101));
+        assert_eq!(d.raw_outputs(SimTime::from_micros(3)), 0xF);
     }
 
     #[test]
@@ -280,12 +280,12 @@ mod tests {
         let mut d = DigitalOutputs::new();
         // Output 1: raw 1 for 10 clocks (+1), raw 0 for 20 (+1).
         d.write_ctrl(
-            Time::ZERO,
+            SimTime::ZERO,
             0,
             DoutCtrl::default().with_high_time(10).with_low_time(20),
         );
-        d.write(Time::ZERO, DigitalOutWrite::parse(0x0101));
-        let t0 = Time::ZERO.clocks();
+        d.write(SimTime::ZERO, DigitalOutWrite::parse(0x0101));
+        let t0 = SimTime::ZERO.clocks();
         let level = |d: &DigitalOutputs, c: u64| d.raw_outputs(at_clocks(t0 + c)) & 1;
         assert_eq!(level(&d, 0), 1);
         assert_eq!(level(&d, 10), 1);
@@ -296,8 +296,8 @@ mod tests {
         assert_eq!(level(&d, 32 * 1_000_000 + 5), 1);
         assert_eq!(level(&d, 32 * 1_000_000 + 11), 0);
         // One-shot on output 2: raw 0 stays 100 (+1) clocks, then 1 for ever.
-        d.write_ctrl(Time::ZERO, 1, DoutCtrl::default().with_low_time(100));
-        d.write(Time::ZERO, DigitalOutWrite::parse(0x0200));
+        d.write_ctrl(SimTime::ZERO, 1, DoutCtrl::default().with_low_time(100));
+        d.write(SimTime::ZERO, DigitalOutWrite::parse(0x0200));
         let level2 = |d: &DigitalOutputs, c: u64| (d.raw_outputs(at_clocks(c)) >> 1) & 1;
         assert_eq!(level2(&d, 100), 0);
         assert_eq!(level2(&d, 101), 1);
@@ -310,16 +310,16 @@ mod tests {
         let mut d = DigitalOutputs::new();
         // fpgatest 'w': entries 0x80C0000x (0xC000 + 1 clocks each, ~1 ms).
         for i in 0..4u16 {
-            d.write_table(Time::ZERO, i, 0x80C0_0000 | u32::from(i));
+            d.write_table(SimTime::ZERO, i, 0x80C0_0000 | u32::from(i));
         }
-        d.write_table(Time::ZERO, 4, 0);
+        d.write_table(SimTime::ZERO, 4, 0);
         // Stopped: space 8 reads the addressed entry.
-        assert_eq!(d.read_table(Time::ZERO, 2), 0x80C0_0002);
-        let start = Time::from_micros(10);
+        assert_eq!(d.read_table(SimTime::ZERO, 2), 0x80C0_0002);
+        let start = SimTime::from_micros(10);
         d.write(start, DigitalOutWrite::waveform(0x3, 0x3));
         assert!(d.table_active(start));
-        let entry = TimeDelta::from_clocks(0xC001);
-        let mid = |k: u64| start + TimeDelta(entry.0 * k + entry.0 / 2);
+        let entry = SimDuration::from_clocks(0xC001);
+        let mid = |k: u64| start + SimDuration(entry.0 * k + entry.0 / 2);
         for k in 0..4u64 {
             let r = d.read(mid(k));
             assert!(r.table_active() && r.table_valid());
@@ -339,7 +339,7 @@ mod tests {
         // A write without bit 31 stops playback at once.
         d.write(mid(6), DigitalOutWrite::waveform(0x3, 0x3));
         d.write(
-            mid(6) + TimeDelta::from_micros(1),
+            mid(6) + SimDuration::from_micros(1),
             DigitalOutWrite::levels(0, 0),
         );
         assert!(!d.table_active(mid(7)));
@@ -349,14 +349,14 @@ mod tests {
     fn a_table_of_valid_entries_plays_for_ever() {
         let mut d = DigitalOutputs::new();
         for i in 0..WAVEFORM_ENTRIES as u16 {
-            d.write_table(Time::ZERO, i, 0x8000_0000 | u32::from(i & 1));
+            d.write_table(SimTime::ZERO, i, 0x8000_0000 | u32::from(i & 1));
         }
-        d.write(Time::ZERO, DigitalOutWrite::waveform(0x1, 0));
+        d.write(SimTime::ZERO, DigitalOutWrite::waveform(0x1, 0));
         // One clock per entry: after 10 rounds + 3 clocks, entry 3.
-        let t = at_clocks(Time::ZERO.clocks() + 10 * 1024 + 3);
+        let t = at_clocks(SimTime::ZERO.clocks() + 10 * 1024 + 3);
         assert_eq!(d.read(t).table_index(), 3);
         assert_eq!(d.raw_outputs(t) & 1, 1);
-        let far = Time::from_millis(60_000);
+        let far = SimTime::from_millis(60_000);
         assert!(d.table_active(far));
     }
 }

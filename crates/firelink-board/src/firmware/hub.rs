@@ -10,17 +10,17 @@ use firelink_wire::board::realtime::{BlockFormat, FirmwareRev};
 use firelink_wire::board::registers::StatusRead;
 use firelink_wire::field::read_quadlet;
 
-use crate::time::{Time, TimeDelta};
+use crate::time::{SimDuration, SimTime};
 
 /// Rev 7+: the lowest selected board waits this many clocks after the
 /// query (about 3 us).
 pub const FIRST_SLOT_CLOCKS: u64 = 150;
 
 /// Seed profile: fixed slot width per node ID (about 5.2 us) ...
-pub const SEED_SLOT: TimeDelta = TimeDelta::from_nanos(5_200);
+pub const SEED_SLOT: SimDuration = SimDuration::from_nanos(5_200);
 
 /// ... after this offset from the query (about 3 us).
-pub const SEED_OFFSET: TimeDelta = TimeDelta::from_nanos(3_000);
+pub const SEED_OFFSET: SimDuration = SimDuration::from_nanos(3_000);
 
 /// Seed 000's own firmware (Rev 4) counts its TDMA slots in FPGA clocks:
 /// 256 per node ID (5.21 us), after [`FIRST_SLOT_CLOCKS`].
@@ -31,18 +31,18 @@ pub const SEED_SLOT_CLOCKS: u64 = 256;
 /// node, the figures calibrated against seed 000's Fig. 9); over later
 /// firmware's layouts the profile keeps the spec's round figures
 /// ([`SEED_OFFSET`] + [`SEED_SLOT`] x node).
-pub fn seed_slot(firmware: FirmwareRev, node: u8) -> TimeDelta {
+pub fn seed_slot(firmware: FirmwareRev, node: u8) -> SimDuration {
     if firmware.block_format() == BlockFormat::Rev4 {
-        TimeDelta::from_clocks(FIRST_SLOT_CLOCKS + SEED_SLOT_CLOCKS * u64::from(node))
+        SimDuration::from_clocks(FIRST_SLOT_CLOCKS + SEED_SLOT_CLOCKS * u64::from(node))
     } else {
-        SEED_OFFSET + TimeDelta(SEED_SLOT.0 * u64::from(node))
+        SEED_OFFSET + SimDuration(SEED_SLOT.0 * u64::from(node))
     }
 }
 
 /// Rev 7+: a board whose predecessors have not all been heard transmits
 /// anyway this long per predecessor after its first possible slot, so one
 /// silent board does not silence the chain behind it.
-pub const CHAIN_TIMEOUT_PER_BOARD: TimeDelta = TimeDelta::from_micros(50);
+pub const CHAIN_TIMEOUT_PER_BOARD: SimDuration = SimDuration::from_micros(50);
 
 /// This board's status broadcast, waiting for its slot.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -50,21 +50,21 @@ pub(crate) struct Pending {
     /// Header and real-time block, wire order.
     pub payload: Vec<u8>,
     /// Not before.
-    pub earliest: Time,
+    pub earliest: SimTime,
     /// Board IDs (mask) whose broadcasts must have arrived first.
     pub wait_for: u16,
     /// Transmit at this time even if some have not.
-    pub deadline: Time,
+    pub deadline: SimTime,
 }
 
 impl Pending {
     /// Whether it may go at `now`, given the boards heard (`seen`).
-    pub fn ready(&self, now: Time, seen: u16) -> bool {
+    pub fn ready(&self, now: SimTime, seen: u16) -> bool {
         now >= self.earliest && (self.wait_for & !seen == 0 || now >= self.deadline)
     }
 
     /// When it becomes ready if nothing more is heard.
-    pub fn due(&self, seen: u16) -> Time {
+    pub fn due(&self, seen: u16) -> SimTime {
         if self.wait_for & !seen == 0 {
             self.earliest
         } else {
@@ -83,11 +83,11 @@ pub(crate) struct Hub {
     /// The last query taken.
     pub query: Option<Query>,
     /// When it arrived.
-    pub query_at: Option<Time>,
+    pub query_at: Option<SimTime>,
     /// Boards heard since (bit = board ID).
     pub seen: u16,
     /// When every selected board had been heard.
-    pub complete_at: Option<Time>,
+    pub complete_at: Option<SimTime>,
     /// Where the timing quadlet sits.
     pub timing_index: Option<usize>,
     /// This board's broadcast waiting for its slot.
@@ -122,7 +122,7 @@ impl Hub {
     }
 
     /// Start a new cycle at `now`.
-    pub fn start_cycle(&mut self, now: Time) {
+    pub fn start_cycle(&mut self, now: SimTime) {
         self.query_at = Some(now);
         self.count = 0;
         self.seen = 0;
@@ -138,7 +138,7 @@ impl Hub {
     /// its length, or that does not fit, is not stored; nor is a second
     /// block answering this board's query from a board already heard (a
     /// packet the bus delivered twice): that returns `false`.
-    pub fn store(&mut self, now: Time, payload: &[u8], format: BlockFormat) -> bool {
+    pub fn store(&mut self, now: SimTime, payload: &[u8], format: BlockFormat) -> bool {
         // The block's STATUS quadlet (after header and timestamp) names the
         // board.
         let board = StatusRead(read_quadlet(payload, 2)).board_id();
@@ -192,7 +192,7 @@ impl Hub {
     /// clocks from the query to the start of the read, and to the moment
     /// the quadlet goes out (4 clocks per quadlet at S400 after a 5-quadlet
     /// response header).
-    pub fn read(&self, index: usize, read_start: Time) -> u32 {
+    pub fn read(&self, index: usize, read_start: SimTime) -> u32 {
         if Some(index) == self.timing_index
             && let Some(q) = self.query_at
         {

@@ -51,12 +51,12 @@
 //! ```
 //! use firelink_board::config::{BoardConfig, Hardware, Profile};
 //! use firelink_board::firmware::{Firmware, PhyRegisters, Reply};
-//! use firelink_board::time::Time;
+//! use firelink_board::time::SimTime;
 //! use firelink_wire::packet::{AsyncHeader, NodeId, Packet, PacketRepr, Ack};
 //!
 //! let mut fw = Firmware::new(BoardConfig::new(3, Hardware::Qla1, Profile::Rev8));
 //! let mut phy = PhyRegisters::new(2);
-//! fw.bus_reset(Time::ZERO, 2, 1);
+//! fw.bus_reset(SimTime::ZERO, 2, 1);
 //! // The host (node 5) reads FW_VERSION (register 7).
 //! let req = PacketRepr::ReadQuadletRequest {
 //!     header: AsyncHeader::new(NodeId::local(2), NodeId::local(5), 1),
@@ -64,7 +64,7 @@
 //! };
 //! let mut buf = [0u8; 16];
 //! req.emit(&mut buf).unwrap();
-//! let Reply::AckThenResponse { ack, response } = fw.receive(Time::from_micros(10), &buf, &mut phy) else {
+//! let Reply::AckThenResponse { ack, response } = fw.receive(SimTime::from_micros(10), &buf, &mut phy) else {
 //!     panic!("no response");
 //! };
 //! assert_eq!(ack, Ack::Pending);
@@ -105,7 +105,7 @@ use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Rcode,
 
 use crate::config::{BoardConfig, Profile};
 use crate::plant::Plant;
-use crate::time::{Time, TimeDelta};
+use crate::time::{SimDuration, SimTime};
 use dallas::Dallas;
 use dout::DigitalOutputs;
 use ethernet::Ethernet;
@@ -121,7 +121,7 @@ pub const MAX_BLOCK_READ: usize = 2048;
 
 /// Seed profile: how long after the end of its TDMA slot a status
 /// broadcast may still arrive before it counts as late.
-pub const SLOT_GRACE: TimeDelta = TimeDelta::from_micros(2);
+pub const SLOT_GRACE: SimDuration = SimDuration::from_micros(2);
 
 /// Largest block write taken, bytes: the firmware's request packet memory
 /// holds 512 quadlets, the header (4), its CRC and the data CRC included,
@@ -189,7 +189,7 @@ pub struct Firmware {
     cfg: BoardConfig,
     plant: Plant,
     /// Time the state corresponds to.
-    now: Time,
+    now: SimTime,
     phy_id: Option<u8>,
     generation: u32,
     // Board registers.
@@ -207,7 +207,7 @@ pub struct Firmware {
     watchdog: Watchdog,
     axes: Vec<AxisState>,
     /// Last real-time sample (block read or query): the timestamp base.
-    last_sample: Time,
+    last_sample: SimTime,
     hub: Hub,
     rx_error: Option<RxError>,
 }
@@ -231,7 +231,7 @@ impl Firmware {
             power: Power::new(cfg.motor_supply_present, cfg.supply_rise),
             cfg,
             plant,
-            now: Time::ZERO,
+            now: SimTime::ZERO,
             phy_id: None,
             generation: 0,
             phy_ctrl: 0,
@@ -243,9 +243,9 @@ impl Firmware {
             dallas,
             expander: Expander::new(),
             ethernet,
-            watchdog: Watchdog::new(Time::ZERO),
+            watchdog: Watchdog::new(SimTime::ZERO),
             axes,
-            last_sample: Time::ZERO,
+            last_sample: SimTime::ZERO,
             hub: Hub::new(),
             rx_error: None,
         }
@@ -272,7 +272,7 @@ impl Firmware {
     }
 
     /// The time the state corresponds to.
-    pub fn now(&self) -> Time {
+    pub fn now(&self) -> SimTime {
         self.now
     }
 
@@ -301,13 +301,13 @@ impl Firmware {
 
     /// When the host last wrote to this board (what refreshes the
     /// watchdog).
-    pub fn last_host_write(&self) -> Time {
+    pub fn last_host_write(&self) -> SimTime {
         self.watchdog.last_write
     }
 
     /// When the watchdog will fire if nothing is written before (`None`:
     /// disabled, or already fired).
-    pub fn watchdog_expiry(&self) -> Option<Time> {
+    pub fn watchdog_expiry(&self) -> Option<SimTime> {
         self.watchdog.expiry()
     }
 
@@ -351,7 +351,7 @@ impl Firmware {
     }
 
     /// Connect or disconnect the motor supply at `now` (fault injection).
-    pub fn set_motor_supply(&mut self, now: Time, present: bool) {
+    pub fn set_motor_supply(&mut self, now: SimTime, present: bool) {
         self.advance(now);
         self.power.supply_present = present;
         self.power.update_supply(now);
@@ -360,7 +360,7 @@ impl Firmware {
 
     /// A bus reset gave this board physical ID `phy_id`. Pending
     /// transactions (its broadcast) are dropped; registers are kept.
-    pub fn bus_reset(&mut self, now: Time, phy_id: u8, generation: u32) {
+    pub fn bus_reset(&mut self, now: SimTime, phy_id: u8, generation: u32) {
         self.advance(now);
         self.phy_id = Some(phy_id & 0x3F);
         self.generation = generation;
@@ -371,7 +371,7 @@ impl Firmware {
     /// Let time pass up to `now`: integrate the plant and apply the
     /// watchdog, amplifier enables and safety checks at their exact times.
     /// Earlier times are ignored.
-    pub fn advance(&mut self, now: Time) {
+    pub fn advance(&mut self, now: SimTime) {
         while self.now < now {
             let target = self
                 .next_internal_event()
@@ -384,7 +384,7 @@ impl Firmware {
     }
 
     /// The earliest internal event strictly after `self.now`.
-    fn next_internal_event(&self) -> Option<Time> {
+    fn next_internal_event(&self) -> Option<SimTime> {
         let now = self.now;
         let watchdog = self.watchdog.expiry().filter(|t| *t > now);
         let amp_on = self
@@ -396,7 +396,7 @@ impl Firmware {
         let any_on = self.axes.iter().any(|a| a.is_on(&self.power, now));
         let tick = any_on.then(|| {
             let step = SAFETY_TICK.0;
-            Time((now.0 / step + 1).saturating_mul(step))
+            SimTime((now.0 / step + 1).saturating_mul(step))
         });
         [watchdog, amp_on, tick].into_iter().flatten().min()
     }
@@ -452,7 +452,7 @@ impl Firmware {
 
     /// Handle one packet as it arrived at `now` (CRCs are checked here).
     /// `phy` is this node's PHY, reached through PHY_CTRL.
-    pub fn receive(&mut self, now: Time, bytes: &[u8], phy: &mut dyn PhyAccess) -> Reply {
+    pub fn receive(&mut self, now: SimTime, bytes: &[u8], phy: &mut dyn PhyAccess) -> Reply {
         self.advance(now);
         self.rx_error = None;
         let reply = self.receive_inner(now, bytes, phy);
@@ -460,7 +460,7 @@ impl Firmware {
         reply
     }
 
-    fn receive_inner(&mut self, now: Time, bytes: &[u8], phy: &mut dyn PhyAccess) -> Reply {
+    fn receive_inner(&mut self, now: SimTime, bytes: &[u8], phy: &mut dyn PhyAccess) -> Reply {
         let Ok(packet) = Packet::new_checked(bytes) else {
             return Reply::Silent;
         };
@@ -552,7 +552,7 @@ impl Firmware {
 
     fn block_read_response(
         &mut self,
-        now: Time,
+        now: SimTime,
         header: AsyncHeader,
         offset: u64,
         length: u16,
@@ -590,7 +590,7 @@ impl Firmware {
     /// write to broadcast, priority 0xA, carrying this board's header and
     /// real-time block (section 6.2). Hand it to the bus, then call
     /// [`transmitted`](Self::transmitted) when it has gone out.
-    pub fn poll_transmit(&mut self, now: Time) -> Option<Vec<u8>> {
+    pub fn poll_transmit(&mut self, now: SimTime) -> Option<Vec<u8>> {
         self.advance(now);
         let ready = self
             .hub
@@ -618,7 +618,7 @@ impl Firmware {
     /// The status broadcast handed out by
     /// [`poll_transmit`](Self::poll_transmit) finished at `now`: store it
     /// in this board's own hub memory, in arrival order.
-    pub fn transmitted(&mut self, now: Time) {
+    pub fn transmitted(&mut self, now: SimTime) {
         self.advance(now);
         if let Some(payload) = self.hub.in_flight.take() {
             let _ = self.hub.store(now, &payload, self.cfg.layout().format());
@@ -629,14 +629,14 @@ impl Firmware {
     /// the slot of the waiting status broadcast (which also becomes ready
     /// when the boards before it have been heard, so poll after every
     /// received packet too).
-    pub fn next_wakeup(&self) -> Option<Time> {
+    pub fn next_wakeup(&self) -> Option<SimTime> {
         self.hub.pending.as_ref().map(|p| p.due(self.hub.seen))
     }
 
     /// Seed profile: whether a status broadcast from node `sender`
     /// arriving at `now` (at `offset`) is later than its TDMA slot allows:
     /// the end of the slot plus 2 us.
-    fn late_for_its_slot(&self, now: Time, sender: u8, offset: u64) -> bool {
+    fn late_for_its_slot(&self, now: SimTime, sender: u8, offset: u64) -> bool {
         let in_hub = (STATUS_BROADCAST_OFFSET
             ..STATUS_BROADCAST_OFFSET + u64::from(HUB_MEMORY_QUADLETS as u32) * 4)
             .contains(&offset);
@@ -651,7 +651,7 @@ impl Firmware {
     /// A broadcast query at `now`: `Some(word)`, or `None` for a query
     /// known only to be corrupt (seed profile). A word with sequence 0 is
     /// not a query (hosts never send one) and is ignored.
-    fn query(&mut self, now: Time, word: Option<u32>) {
+    fn query(&mut self, now: SimTime, word: Option<u32>) {
         let seq = match word {
             Some(w) => {
                 let Ok(query) = Query::parse(w) else {
@@ -691,13 +691,13 @@ impl Firmware {
                     return;
                 }
                 let before = mask & ((1u16 << id) - 1);
-                let earliest = now + TimeDelta::from_clocks(FIRST_SLOT_CLOCKS);
+                let earliest = now + SimDuration::from_clocks(FIRST_SLOT_CLOCKS);
                 Pending {
                     payload,
                     earliest,
                     wait_for: before,
                     deadline: earliest
-                        + TimeDelta(CHAIN_TIMEOUT_PER_BOARD.0 * u64::from(before.count_ones())),
+                        + SimDuration(CHAIN_TIMEOUT_PER_BOARD.0 * u64::from(before.count_ones())),
                 }
             }
         };

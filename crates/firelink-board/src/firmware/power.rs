@@ -9,23 +9,23 @@
 use firelink_wire::board::registers::{ENC_NEUTRAL, Watchdog as WatchdogWord};
 
 use crate::plant::QLA_AMPS_PER_BIT;
-use crate::time::{Time, TimeDelta};
+use crate::time::{SimDuration, SimTime};
 
 /// Watchdog period after power-up: 0x1680 ticks, 30 ms (section 2).
 pub const WATCHDOG_POWER_UP_TICKS: u16 = WatchdogWord::POWER_UP.0 as u16;
 
 /// Amplifiers stay off this long after the motor supply becomes good
 /// (section 7).
-pub const SUPPLY_HOLD: TimeDelta = TimeDelta::from_millis(40);
+pub const SUPPLY_HOLD: SimDuration = SimDuration::from_millis(40);
 
 /// Measured and commanded current may differ by this much (A) ...
 pub const MISMATCH_AMPS: f64 = 0.44;
 
 /// ... for this long before the amplifier is disabled (section 7).
-pub const MISMATCH_TIME: TimeDelta = TimeDelta::from_millis(50);
+pub const MISMATCH_TIME: SimDuration = SimDuration::from_millis(50);
 
 /// How often the current check runs while an amplifier is on.
-pub const SAFETY_TICK: TimeDelta = TimeDelta::from_micros(100);
+pub const SAFETY_TICK: SimDuration = SimDuration::from_micros(100);
 
 /// One unit of the amplifier enable delay: a 48 kHz clock (1024 system
 /// clocks, 20.83 us).
@@ -49,13 +49,13 @@ pub(crate) struct Power {
     /// The motor supply is connected.
     pub supply_present: bool,
     /// Since when power has been enabled with a supply present.
-    pub supply_on_since: Option<Time>,
+    pub supply_on_since: Option<SimTime>,
     /// Time from that to motor supply good.
-    pub supply_rise: TimeDelta,
+    pub supply_rise: SimDuration,
 }
 
 impl Power {
-    pub fn new(supply_present: bool, supply_rise: TimeDelta) -> Power {
+    pub fn new(supply_present: bool, supply_rise: SimDuration) -> Power {
         Power {
             enabled: false,
             relay: false,
@@ -66,7 +66,7 @@ impl Power {
     }
 
     /// Follow a change of `enabled` or `supply_present` made at `now`.
-    pub fn update_supply(&mut self, now: Time) {
+    pub fn update_supply(&mut self, now: SimTime) {
         let on = self.enabled && self.supply_present;
         match (on, self.supply_on_since) {
             (true, None) => self.supply_on_since = Some(now),
@@ -76,13 +76,13 @@ impl Power {
     }
 
     /// Motor supply good (STATUS bit 19) at `t`.
-    pub fn supply_good(&self, t: Time) -> bool {
+    pub fn supply_good(&self, t: SimTime) -> bool {
         self.supply_on_since
             .is_some_and(|s| t >= s + self.supply_rise)
     }
 
     /// Earliest time amplifiers may drive, if the supply is on.
-    pub fn drive_allowed_from(&self) -> Option<Time> {
+    pub fn drive_allowed_from(&self) -> Option<SimTime> {
         self.supply_on_since
             .map(|s| s + self.supply_rise + SUPPLY_HOLD)
     }
@@ -99,13 +99,13 @@ pub(crate) struct Watchdog {
     /// Period in ticks of 256 clocks; 0 disables.
     pub ticks: u16,
     /// The last write to the board.
-    pub last_write: Time,
+    pub last_write: SimTime,
     /// STATUS bit 23.
     pub timed_out: bool,
 }
 
 impl Watchdog {
-    pub fn new(now: Time) -> Watchdog {
+    pub fn new(now: SimTime) -> Watchdog {
         Watchdog {
             ticks: WATCHDOG_POWER_UP_TICKS,
             last_write: now,
@@ -114,9 +114,9 @@ impl Watchdog {
     }
 
     /// When the watchdog fires if nothing is written before.
-    pub fn expiry(&self) -> Option<Time> {
+    pub fn expiry(&self) -> Option<SimTime> {
         (self.ticks != 0 && !self.timed_out).then(|| {
-            Time::from_clocks(
+            SimTime::from_clocks(
                 self.last_write.clocks().saturating_add(
                     u64::from(self.ticks) * u64::from(WatchdogWord::CLOCKS_PER_TICK),
                 ),
@@ -144,11 +144,11 @@ pub(crate) struct AxisState {
     /// The host's amplifier request (cleared by safety events).
     pub requested: bool,
     /// When the request was made.
-    pub requested_since: Time,
+    pub requested_since: SimTime,
     /// Disabled by the current check (STATUS 7:4, MOTOR_STATUS 17).
     pub safety_disabled: bool,
     /// Since when measured and commanded current disagree.
-    pub mismatch_since: Option<Time>,
+    pub mismatch_since: Option<SimTime>,
 }
 
 impl AxisState {
@@ -161,7 +161,7 @@ impl AxisState {
             enable_delay: DEFAULT_ENABLE_DELAY,
             current_limit: 0xFFFF,
             requested: false,
-            requested_since: Time::ZERO,
+            requested_since: SimTime::ZERO,
             safety_disabled: false,
             mismatch_since: None,
         }
@@ -169,17 +169,18 @@ impl AxisState {
 
     /// When this axis's amplifier turns (or turned) on, given the power
     /// state; `None` while it is not requested or the supply is off.
-    pub fn on_at(&self, power: &Power) -> Option<Time> {
+    pub fn on_at(&self, power: &Power) -> Option<SimTime> {
         if !self.requested {
             return None;
         }
         let allowed = power.drive_allowed_from()?;
-        let delay = TimeDelta::from_clocks(u64::from(self.enable_delay) * ENABLE_DELAY_UNIT_CLOCKS);
+        let delay =
+            SimDuration::from_clocks(u64::from(self.enable_delay) * ENABLE_DELAY_UNIT_CLOCKS);
         Some(self.requested_since.max(allowed) + delay)
     }
 
     /// Whether the amplifier drives the motor at `t`.
-    pub fn is_on(&self, power: &Power, t: Time) -> bool {
+    pub fn is_on(&self, power: &Power, t: SimTime) -> bool {
         self.on_at(power).is_some_and(|on| t >= on)
     }
 
@@ -198,31 +199,31 @@ mod tests {
 
     #[test]
     fn watchdog_power_up_is_30_ms() {
-        let w = Watchdog::new(Time::ZERO);
+        let w = Watchdog::new(SimTime::ZERO);
         let e = w.expiry().unwrap();
         assert!((e.as_secs_f64() - 0.030).abs() < 1e-5, "{e:?}");
         let off = Watchdog {
             ticks: 0,
-            ..Watchdog::new(Time::ZERO)
+            ..Watchdog::new(SimTime::ZERO)
         };
         assert_eq!(off.expiry(), None);
     }
 
     #[test]
     fn amplifier_waits_for_supply_hold_and_delay() {
-        let mut p = Power::new(true, TimeDelta::from_millis(5));
+        let mut p = Power::new(true, SimDuration::from_millis(5));
         p.enabled = true;
-        p.update_supply(Time::from_millis(1));
+        p.update_supply(SimTime::from_millis(1));
         let mut a = AxisState::new(0);
         a.requested = true;
-        a.requested_since = Time::from_millis(1);
+        a.requested_since = SimTime::from_millis(1);
         let on = a.on_at(&p).unwrap();
         // 1 + 5 + 40 ms, then 2.5 ms delay.
         assert!((on.as_secs_f64() - 0.0485).abs() < 1e-6, "{on:?}");
-        assert!(!a.is_on(&p, Time::from_millis(48)));
-        assert!(a.is_on(&p, Time::from_millis(49)));
+        assert!(!a.is_on(&p, SimTime::from_millis(48)));
+        assert!(a.is_on(&p, SimTime::from_millis(49)));
         p.enabled = false;
-        p.update_supply(Time::from_millis(50));
-        assert!(!a.is_on(&p, Time::from_millis(51)));
+        p.update_supply(SimTime::from_millis(50));
+        assert!(!a.is_on(&p, SimTime::from_millis(51)));
     }
 }

@@ -20,7 +20,7 @@ use firelink_wire::board::extras::{
     QlaPromCommand, QlaPromOpcode, fpga_serial_image, qla_serial_image,
 };
 
-use crate::time::{SYSCLK_HZ, Time};
+use crate::time::{SYSTEM_CLOCK_HZ, SimTime};
 
 /// System clocks per SPI bit of the FPGA PROM interface (SPI clock =
 /// 24.576 MHz: a 256-byte read, 2080 bits, takes 84.6 us).
@@ -37,7 +37,7 @@ pub const WRITE_STATUS_MS: f64 = 1.5;
 pub const QLA_WRITE_MS: f64 = 5.0;
 
 fn clocks_of_ms(ms: f64) -> u64 {
-    (ms * SYSCLK_HZ as f64 / 1000.0) as u64
+    (ms * SYSTEM_CLOCK_HZ as f64 / 1000.0) as u64
 }
 
 /// Block-protect bits of the M25P16 status byte (4:2) and SRWD (7).
@@ -158,7 +158,7 @@ impl FpgaProm {
     }
 
     /// PROM_CMD as read at `now`.
-    pub fn status(&self, now: Time) -> PromStatus {
+    pub fn status(&self, now: SimTime) -> PromStatus {
         let now = now.clocks();
         let busy = now < self.busy_until;
         PromStatus::default()
@@ -184,7 +184,7 @@ impl FpgaProm {
     }
 
     /// A PROM_CMD write at `now` (ignored unless the interface is idle).
-    pub fn command(&mut self, now: Time, cmd: PromCommand) {
+    pub fn command(&mut self, now: SimTime, cmd: PromCommand) {
         let now = now.clocks();
         self.settle(now);
         if now < self.busy_until {
@@ -259,7 +259,7 @@ impl FpgaProm {
     /// the data bytes in order. The firmware shifts as the quadlets come
     /// and needs quadlet i at offset i: a stream that starts elsewhere is
     /// refused with the error info `{00, addr[5:0], 0, expected[6:0]}`.
-    pub fn stream(&mut self, now: Time, first: u16, quadlets: &[u32]) {
+    pub fn stream(&mut self, now: SimTime, first: u16, quadlets: &[u32]) {
         let now = now.clocks();
         self.settle(now);
         if now < self.busy_until {
@@ -389,7 +389,7 @@ impl QlaProm {
     }
 
     /// A command at `0x3000`.
-    pub fn command(&mut self, now: Time, cmd: QlaPromCommand) {
+    pub fn command(&mut self, now: SimTime, cmd: QlaPromCommand) {
         let now = now.clocks();
         self.settle(now);
         let address = usize::from(cmd.address());
@@ -447,7 +447,7 @@ impl QlaProm {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::time::TimeDelta;
+    use crate::time::SimDuration;
     use firelink_wire::board::extras::{parse_fpga_serial, parse_qla_serial};
 
     fn cmd(op: PromOpcode, a: u32) -> PromCommand {
@@ -457,20 +457,23 @@ mod tests {
     #[test]
     fn fpga_prom_reads_the_serial_number() {
         let mut p = FpgaProm::new("1234-56");
-        let t = Time::from_micros(10);
+        let t = SimTime::from_micros(10);
         p.command(t, cmd(PromOpcode::Read, FPGA_SERIAL_ADDRESS));
         // Busy for about 85 us, then idle with 64 quadlets read.
-        assert_eq!(p.status(t + TimeDelta::from_micros(80)).state(), 1);
-        assert_eq!(p.status(t + TimeDelta::from_micros(90)).state(), 0);
+        assert_eq!(p.status(t + SimDuration::from_micros(80)).state(), 1);
+        assert_eq!(p.status(t + SimDuration::from_micros(90)).state(), 0);
         assert_eq!(p.result(), 64);
         let bytes: Vec<u8> = (0..4)
             .flat_map(|i| p.buffer_quadlet(i).to_be_bytes())
             .collect();
         assert_eq!(parse_fpga_serial(&bytes), Ok("1234-56"));
         // Commands are refused while busy.
-        p.command(t + TimeDelta::from_micros(100), cmd(PromOpcode::ReadId, 0));
         p.command(
-            t + TimeDelta::from_micros(101),
+            t + SimDuration::from_micros(100),
+            cmd(PromOpcode::ReadId, 0),
+        );
+        p.command(
+            t + SimDuration::from_micros(101),
             cmd(PromOpcode::ReadStatus, 0),
         );
         assert_eq!(p.result(), FPGA_PROM_ID);
@@ -479,8 +482,8 @@ mod tests {
     #[test]
     fn erase_and_program_follow_the_chip() {
         let mut p = FpgaProm::new("1234-56");
-        let mut t = Time::from_micros(1);
-        let step = |t: &mut Time, us: u64| *t += TimeDelta::from_micros(us);
+        let mut t = SimTime::from_micros(1);
+        let step = |t: &mut SimTime, us: u64| *t += SimDuration::from_micros(us);
         // Without write enable nothing is erased.
         p.command(t, cmd(PromOpcode::SectorErase, 0x1F_0000));
         step(&mut t, 10);
@@ -516,7 +519,7 @@ mod tests {
     #[test]
     fn qla_prom_serial_bytes_and_blocks() {
         let mut q = QlaProm::new("1234-56");
-        let t = Time::from_micros(1);
+        let t = SimTime::from_micros(1);
         assert_eq!(parse_qla_serial(&q.read(0, 12)), Ok("1234-56"));
         q.command(t, QlaPromCommand::new(QlaPromOpcode::ReadBlock, 0, 2));
         assert_eq!(
@@ -543,7 +546,7 @@ mod tests {
         assert_eq!(q.read(0x100, 1), [0x42]);
         q.command(t, QlaPromCommand::new(QlaPromOpcode::ReadStatus, 0, 0));
         assert_eq!(q.result(), u32::from(PROM_STATUS_WIP | PROM_STATUS_WEL));
-        let later = t + TimeDelta::from_millis(6);
+        let later = t + SimDuration::from_millis(6);
         q.command(later, QlaPromCommand::new(QlaPromOpcode::ReadStatus, 0, 0));
         assert_eq!(q.result(), 0);
         // Block write of the buffer, wrapping in the 64-byte page.

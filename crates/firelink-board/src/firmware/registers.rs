@@ -21,7 +21,7 @@ use super::power::{AxisState, Watchdog};
 use super::{Firmware, PhyAccess, RxError};
 use crate::plant::encoder::{PeriodField, QuarterField, RunField, VelocityFields};
 use crate::plant::{POT_FULL_SCALE_VOLTS, QLA_AMPS_PER_BIT, QLA_FULL_SCALE_AMPS};
-use crate::time::Time;
+use crate::time::SimTime;
 
 /// Mask of the 24-bit encoder count.
 const ENC_COUNT_MASK: i64 = 0x00FF_FFFF;
@@ -120,7 +120,7 @@ impl Firmware {
 
     /// Read one quadlet at `offset` (only its low 16 bits are decoded) at
     /// `now`, as a quadlet read request would. Unmapped addresses read 0.
-    pub fn read_quadlet(&mut self, now: Time, offset: u64) -> u32 {
+    pub fn read_quadlet(&mut self, now: SimTime, offset: u64) -> u32 {
         self.advance(now);
         match decode(offset) {
             Target::Board(r) => self.read_board_register(r),
@@ -211,7 +211,7 @@ impl Firmware {
     /// would: address 0 is the real-time block (and restarts its
     /// timestamp), hub memory reads in arrival order, other addresses
     /// read register by register.
-    pub fn read_block(&mut self, now: Time, offset: u64, quadlets: usize) -> Vec<u32> {
+    pub fn read_block(&mut self, now: SimTime, offset: u64, quadlets: usize) -> Vec<u32> {
         self.advance(now);
         let addr = (offset & 0xFFFF) as u16;
         if u64::from(addr) == REALTIME_BLOCK_OFFSET {
@@ -226,7 +226,13 @@ impl Firmware {
 
     /// Write one quadlet at `offset` at `now`, as a quadlet write request
     /// addressed to this board would (refreshes the watchdog).
-    pub fn write_quadlet(&mut self, now: Time, offset: u64, value: u32, phy: &mut dyn PhyAccess) {
+    pub fn write_quadlet(
+        &mut self,
+        now: SimTime,
+        offset: u64,
+        value: u32,
+        phy: &mut dyn PhyAccess,
+    ) {
         self.advance(now);
         self.watchdog.last_write = now;
         match decode(offset) {
@@ -244,7 +250,7 @@ impl Firmware {
     /// address 0 takes a real-time write block (or this board's slice of
     /// a command block), hub memory takes a status broadcast, other
     /// addresses are written register by register.
-    pub fn write_block(&mut self, now: Time, offset: u64, data: &[u8], phy: &mut dyn PhyAccess) {
+    pub fn write_block(&mut self, now: SimTime, offset: u64, data: &[u8], phy: &mut dyn PhyAccess) {
         self.advance(now);
         self.write_block_from(now, offset, data, true, phy);
         self.sync_plant();
@@ -253,7 +259,7 @@ impl Firmware {
     /// Block write; `unicast` when addressed to this node alone.
     pub(crate) fn write_block_from(
         &mut self,
-        now: Time,
+        now: SimTime,
         offset: u64,
         data: &[u8],
         unicast: bool,
@@ -298,7 +304,7 @@ impl Firmware {
     /// block of concatenated write blocks from which this board takes the
     /// slice naming it (sections 5 and 6.5). A unicast Rev 4 or Rev 7 block of
     /// exactly one board's size is taken whatever board ID it carries.
-    fn realtime_write(&mut self, now: Time, data: &[u8], unicast: bool) {
+    fn realtime_write(&mut self, now: SimTime, data: &[u8], unicast: bool) {
         let layout = self.cfg.layout();
         let own = unicast
             && layout.format() != BlockFormat::Rev8
@@ -348,7 +354,7 @@ impl Firmware {
 
     fn write_board_register(
         &mut self,
-        now: Time,
+        now: SimTime,
         r: BoardRegister,
         value: u32,
         phy: &mut dyn PhyAccess,
@@ -411,7 +417,7 @@ impl Firmware {
         }
     }
 
-    fn write_axis_register(&mut self, now: Time, i: usize, r: AxisRegister, value: u32) {
+    fn write_axis_register(&mut self, now: SimTime, i: usize, r: AxisRegister, value: u32) {
         if r == AxisRegister::DoutCtrl {
             if i < OUTPUTS {
                 self.dout.write_ctrl(now, i, DoutCtrl(value));
@@ -445,7 +451,7 @@ impl Firmware {
 
     /// A DAC word (register or write block): command if valid, and on
     /// Rev 8 the amplifier request of bits 29:28.
-    fn dac_write(&mut self, now: Time, i: usize, word: DacWord) {
+    fn dac_write(&mut self, now: SimTime, i: usize, word: DacWord) {
         if let Some(a) = self.axes.get_mut(i)
             && word.valid()
         {
@@ -461,7 +467,7 @@ impl Firmware {
     /// The host asks for amplifier `i` on or off. Asking for on clears the
     /// watchdog flag and the axis's safety disable; it takes effect only
     /// with motor power enabled.
-    fn request_amplifier(&mut self, now: Time, i: usize, enable: bool) {
+    fn request_amplifier(&mut self, now: SimTime, i: usize, enable: bool) {
         if enable {
             self.watchdog.timed_out = false;
         }
@@ -484,7 +490,7 @@ impl Firmware {
     /// A STATUS write (section 2): power, relay, amplifiers, reboot.
     /// Power is applied first, so one word may enable power and
     /// amplifiers.
-    fn status_command(&mut self, now: Time, cmd: StatusCommand) {
+    fn status_command(&mut self, now: SimTime, cmd: StatusCommand) {
         if cmd.reboot {
             self.reboot(now);
             return;
@@ -519,7 +525,7 @@ impl Firmware {
 
     /// Reboot (STATUS `0x00300000`): every register back to its power-up
     /// value; the plant keeps moving.
-    fn reboot(&mut self, now: Time) {
+    fn reboot(&mut self, now: SimTime) {
         self.power = super::Power::new(self.power.supply_present, self.cfg.supply_rise);
         self.watchdog = Watchdog::new(now);
         self.axes = self
@@ -698,7 +704,7 @@ impl Firmware {
 
     /// Sample the real-time read block at `now` (section 4), wire order,
     /// and restart the timestamp.
-    pub(crate) fn sample_block(&mut self, now: Time) -> Vec<u8> {
+    pub(crate) fn sample_block(&mut self, now: SimTime) -> Vec<u8> {
         let timestamp = now.clocks().wrapping_sub(self.last_sample.clocks()) as u32;
         self.last_sample = now;
         let layout = self.cfg.layout();

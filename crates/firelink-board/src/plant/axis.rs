@@ -24,7 +24,7 @@ use core::f64::consts::PI;
 
 use super::encoder::Encoder;
 use super::params::{AxisParams, DAC_ZERO};
-use crate::time::Time;
+use crate::time::SimTime;
 
 /// Current below which the amplifier is considered to carry none, A.
 const CURRENT_EPSILON: f64 = 1e-9;
@@ -241,7 +241,7 @@ impl Axis {
 
     /// Advance `steps` sub-steps of `step_ps` picoseconds starting at
     /// `start` (the grid time of the first step).
-    pub(crate) fn advance(&mut self, start: Time, step_ps: u64, steps: u64) {
+    pub(crate) fn advance(&mut self, start: SimTime, step_ps: u64, steps: u64) {
         let h = step_ps as f64 * 1e-12;
         let mut t = start;
         for k in 0..steps {
@@ -250,11 +250,11 @@ impl Axis {
                 return;
             }
             self.step(t, step_ps, h);
-            t = Time(t.0.saturating_add(step_ps));
+            t = SimTime(t.0.saturating_add(step_ps));
         }
     }
 
-    fn step(&mut self, start: Time, step_ps: u64, h: f64) {
+    fn step(&mut self, start: SimTime, step_ps: u64, h: f64) {
         // 1. Current loop.
         let target = self.target_current();
         self.current += (target - self.current) * self.alpha_current;

@@ -26,7 +26,7 @@
 //! Each value has 26 bits; beyond that it saturates and sets its overflow
 //! flag.
 
-use crate::time::Time;
+use crate::time::SimTime;
 
 /// Largest period value, 26 bits.
 pub const PERIOD_MAX: u32 = (1 << 26) - 1;
@@ -186,7 +186,7 @@ impl Encoder {
     /// Move the shaft linearly from `from` to `to` counts during the span
     /// that starts at `start` and lasts `span_ps` picoseconds, recording
     /// every edge crossed with its interpolated time.
-    pub fn track(&mut self, from: f64, to: f64, start: Time, span_ps: u64) {
+    pub fn track(&mut self, from: f64, to: f64, start: SimTime, span_ps: u64) {
         let target = floor_count(to);
         if target == self.count {
             return;
@@ -210,7 +210,7 @@ impl Encoder {
             } else {
                 1.0
             };
-            let at = Time(start.0.saturating_add((span_ps as f64 * frac) as u64));
+            let at = SimTime(start.0.saturating_add((span_ps as f64 * frac) as u64));
             let kind = EdgeKind::of_transition(self.count, up);
             self.count += if up { 1 } else { -1 };
             self.push(Edge {
@@ -228,7 +228,7 @@ impl Encoder {
     }
 
     /// The velocity fields the FPGA would latch at `now`.
-    pub fn fields(&self, now: Time) -> VelocityFields {
+    pub fn fields(&self, now: SimTime) -> VelocityFields {
         let now_clk = now.clocks();
         let Some(e0) = self.edges[0] else {
             let (run, run_over) = saturate(now_clk);
@@ -343,19 +343,19 @@ fn floor_count(position: f64) -> i64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::time::{PS_PER_SECOND, SYSCLK_HZ};
+    use crate::time::{PS_PER_S, SYSTEM_CLOCK_HZ};
 
     /// Constant speed: `counts_per_s` for `seconds`, in 10 us sub-steps.
-    fn run(enc: &mut Encoder, start_pos: f64, counts_per_s: f64, seconds: f64) -> (f64, Time) {
+    fn run(enc: &mut Encoder, start_pos: f64, counts_per_s: f64, seconds: f64) -> (f64, SimTime) {
         let step_ps = 10_000_000u64;
-        let steps = (seconds * PS_PER_SECOND as f64 / step_ps as f64) as u64;
+        let steps = (seconds * PS_PER_S as f64 / step_ps as f64) as u64;
         let mut pos = start_pos;
-        let mut t = Time::ZERO;
+        let mut t = SimTime::ZERO;
         for _ in 0..steps {
-            let next = pos + counts_per_s * step_ps as f64 / PS_PER_SECOND as f64;
+            let next = pos + counts_per_s * step_ps as f64 / PS_PER_S as f64;
             enc.track(pos, next, t, step_ps);
             pos = next;
-            t = Time(t.0 + step_ps);
+            t = SimTime(t.0 + step_ps);
         }
         (pos, t)
     }
@@ -366,7 +366,7 @@ mod tests {
         let mut seen = std::vec::Vec::new();
         for c in 0..8 {
             let from = c as f64 + 0.5;
-            enc.track(from, from + 1.0, Time::ZERO, 1);
+            enc.track(from, from + 1.0, SimTime::ZERO, 1);
             seen.push((enc.a(), enc.b()));
         }
         // Counts 1..=8: states 1,2,3,0,...: A leads B.
@@ -383,7 +383,7 @@ mod tests {
         // 10_000 counts/s: one quarter = 100 us = 4915.2 clocks.
         let (_, t) = run(&mut enc, 0.5, 10_000.0, 0.01);
         let f = enc.fields(t);
-        let cycle = 4.0 * SYSCLK_HZ as f64 / 10_000.0;
+        let cycle = 4.0 * SYSTEM_CLOCK_HZ as f64 / 10_000.0;
         assert!(!f.period.overflow && !f.period.partial && !f.period.direction_changed);
         assert!(f.period.up);
         assert!((f64::from(f.period.clocks) - cycle).abs() <= 2.0, "{f:?}");
@@ -399,9 +399,9 @@ mod tests {
         let (pos, t) = run(&mut enc, 0.5, 10_000.0, 0.01);
         let _ = pos;
         let moving = enc.fields(t).period.clocks;
-        let later = enc.fields(Time(t.0 + PS_PER_SECOND / 100));
+        let later = enc.fields(SimTime(t.0 + PS_PER_S / 100));
         assert!(later.period.clocks > moving);
-        let much_later = enc.fields(Time(t.0 + 2 * PS_PER_SECOND));
+        let much_later = enc.fields(SimTime(t.0 + 2 * PS_PER_S));
         assert!(much_later.period.overflow && much_later.run.overflow);
         assert_eq!(much_later.run.clocks, PERIOD_MAX);
     }
@@ -411,7 +411,7 @@ mod tests {
         let mut enc = Encoder::new(4000, 0.0);
         let (pos, t) = run(&mut enc, 0.5, 10_000.0, 0.01);
         enc.track(pos, pos - 1.0, t, 1_000_000);
-        let f = enc.fields(Time(t.0 + 1_000_000));
+        let f = enc.fields(SimTime(t.0 + 1_000_000));
         assert!(!f.period.up && f.period.direction_changed && f.period.partial);
         assert!(!f.qtr1.up);
     }
@@ -423,14 +423,14 @@ mod tests {
         assert_eq!(enc.count(), -100);
         let f = enc.fields(t);
         assert!(!f.period.up && !f.period.direction_changed);
-        let cycle = 4.0 * SYSCLK_HZ as f64 / 20_000.0;
+        let cycle = 4.0 * SYSTEM_CLOCK_HZ as f64 / 20_000.0;
         assert!((f64::from(f.period.clocks) - cycle).abs() <= 2.0);
     }
 
     #[test]
     fn no_edges_is_overflow() {
         let enc = Encoder::new(4000, 0.0);
-        let f = enc.fields(Time::from_millis(1));
+        let f = enc.fields(SimTime::from_millis(1));
         assert!(f.period.overflow && f.qtr1.overflow && f.qtr5.overflow);
         assert!(!f.run.overflow);
     }

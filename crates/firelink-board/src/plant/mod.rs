@@ -13,12 +13,12 @@
 //!
 //! ```
 //! use firelink_board::plant::{Plant, presets};
-//! use firelink_board::time::{Time, TimeDelta};
-//! let mut plant = Plant::new(vec![presets::generic_motor()], 1, TimeDelta::from_micros(5));
+//! use firelink_board::time::{SimTime, SimDuration};
+//! let mut plant = Plant::new(vec![presets::generic_motor()], 1, SimDuration::from_micros(5));
 //! // 0.5 A into the motor for 50 ms.
 //! let dac = 0x8000 + (0.5 / firelink_board::plant::QLA_AMPS_PER_BIT) as u16;
 //! plant.axis_mut(0).unwrap().set_drive(dac, true);
-//! plant.advance_to(Time::from_millis(50));
+//! plant.advance_to(SimTime::from_millis(50));
 //! assert!(plant.axis(0).unwrap().joint_velocity() > 0.0);
 //! assert!(plant.axis(0).unwrap().encoder().count() > 0);
 //! ```
@@ -36,12 +36,12 @@ pub use params::{
     QLA_FULL_SCALE_AMPS, SpringParams, SwitchParams, ThermalParams,
 };
 
-use crate::time::{Time, TimeDelta};
+use crate::time::{SimDuration, SimTime};
 use noise::{Noise, NoiseChannel};
 
 /// The default integration sub-step: 5 us, twenty per 10 kHz control
 /// period.
-pub const DEFAULT_STEP: TimeDelta = TimeDelta(5_000_000);
+pub const DEFAULT_STEP: SimDuration = SimDuration(5_000_000);
 
 /// All axes of one board, integrated together.
 #[derive(Debug, Clone)]
@@ -55,7 +55,7 @@ pub struct Plant {
 impl Plant {
     /// A plant with one axis per parameter set, seeded noise and a fixed
     /// integration step (at least 1 ns; [`DEFAULT_STEP`] is a good choice).
-    pub fn new(axes: Vec<AxisParams>, seed: u64, step: TimeDelta) -> Plant {
+    pub fn new(axes: Vec<AxisParams>, seed: u64, step: SimDuration) -> Plant {
         let step_ps = step.0.max(1_000);
         let step_s = step_ps as f64 * 1e-12;
         Plant {
@@ -67,14 +67,14 @@ impl Plant {
     }
 
     /// The integration step.
-    pub fn step(&self) -> TimeDelta {
-        TimeDelta(self.step_ps)
+    pub fn step(&self) -> SimDuration {
+        SimDuration(self.step_ps)
     }
 
     /// Grid time the state corresponds to (the last whole step <= the
     /// latest `advance_to`).
-    pub fn time(&self) -> Time {
-        Time(self.steps_done.saturating_mul(self.step_ps))
+    pub fn time(&self) -> SimTime {
+        SimTime(self.steps_done.saturating_mul(self.step_ps))
     }
 
     /// Number of axes.
@@ -104,7 +104,7 @@ impl Plant {
 
     /// Integrate every whole step up to `now`. Going back in time is a
     /// no-op.
-    pub fn advance_to(&mut self, now: Time) {
+    pub fn advance_to(&mut self, now: SimTime) {
         let target = now.0 / self.step_ps;
         if target <= self.steps_done {
             return;
@@ -191,19 +191,25 @@ mod tests {
         let mut b = a.clone();
         a.axis_mut(0).unwrap().set_drive(amps_to_dac(0.3), true);
         b.axis_mut(0).unwrap().set_drive(amps_to_dac(0.3), true);
-        a.advance_to(Time::from_millis(20));
+        a.advance_to(SimTime::from_millis(20));
         for us in (0..=20_000).step_by(37) {
-            b.advance_to(Time::from_micros(us));
+            b.advance_to(SimTime::from_micros(us));
         }
-        b.advance_to(Time::from_millis(20));
+        b.advance_to(SimTime::from_millis(20));
         assert_eq!(
             a.axis(0).unwrap().motor_angle(),
             b.axis(0).unwrap().motor_angle()
         );
         assert_eq!(a.measured_current(0), b.measured_current(0));
         assert_eq!(
-            a.axis(0).unwrap().encoder().fields(Time::from_millis(20)),
-            b.axis(0).unwrap().encoder().fields(Time::from_millis(20))
+            a.axis(0)
+                .unwrap()
+                .encoder()
+                .fields(SimTime::from_millis(20)),
+            b.axis(0)
+                .unwrap()
+                .encoder()
+                .fields(SimTime::from_millis(20))
         );
     }
 
@@ -213,15 +219,15 @@ mod tests {
         p.axis_mut(0).unwrap().set_drive(amps_to_dac(1.0), true);
         let bw = p.axis(0).unwrap().params().amplifier.bandwidth_hz;
         let tau = 1.0 / (2.0 * core::f64::consts::PI * bw);
-        p.advance_to(Time((tau * 1e12) as u64));
+        p.advance_to(SimTime((tau * 1e12) as u64));
         let i = p.axis(0).unwrap().current();
         // One time constant: 63 %.
         assert!((i - 0.632).abs() < 0.05, "{i}");
-        p.advance_to(Time::from_millis(5));
+        p.advance_to(SimTime::from_millis(5));
         assert!((p.axis(0).unwrap().current() - 1.0).abs() < 1e-3);
         // Disabled: decays to zero.
         p.axis_mut(0).unwrap().set_drive(amps_to_dac(1.0), false);
-        p.advance_to(Time::from_millis(10));
+        p.advance_to(SimTime::from_millis(10));
         assert_eq!(p.axis(0).unwrap().current(), 0.0);
     }
 
@@ -232,7 +238,7 @@ mod tests {
         params.motor.coulomb_friction = 0.0;
         let mut p = Plant::new(vec![params.clone()], 0, DEFAULT_STEP);
         p.axis_mut(0).unwrap().set_drive(amps_to_dac(0.2), true);
-        p.advance_to(Time::from_millis(20));
+        p.advance_to(SimTime::from_millis(20));
         let axis = p.axis(0).unwrap();
         let j = params.motor_side_inertia();
         let i = axis.current();
@@ -254,7 +260,7 @@ mod tests {
         p.axis_mut(0)
             .unwrap()
             .set_drive(amps_to_dac(0.5 * tc / kt), true);
-        p.advance_to(Time::from_millis(50));
+        p.advance_to(SimTime::from_millis(50));
         assert_eq!(p.axis(0).unwrap().motor_velocity(), 0.0);
         assert_eq!(p.axis(0).unwrap().encoder().count(), 0);
     }
@@ -268,7 +274,7 @@ mod tests {
         });
         params.load.initial_position = 0.5;
         let mut p = Plant::new(vec![params], 0, DEFAULT_STEP);
-        p.advance_to(Time::from_millis(100));
+        p.advance_to(SimTime::from_millis(100));
         assert!(p.axis(0).unwrap().joint_position() < 0.5);
     }
 
@@ -277,7 +283,7 @@ mod tests {
         let mut p = Plant::new(vec![locked()], 0, DEFAULT_STEP);
         p.axis_mut(0).unwrap().set_drive(amps_to_dac(3.0), true);
         let t0 = p.axis(0).unwrap().temperature();
-        p.advance_to(Time::from_millis(2000));
+        p.advance_to(SimTime::from_millis(2000));
         assert!(p.axis(0).unwrap().temperature() > t0 + 0.5);
     }
 
@@ -296,7 +302,7 @@ mod tests {
             // Drive towards negative joint positions whatever the gear sign.
             let amps = -0.8 * gear.signum();
             p.axis_mut(0).unwrap().set_drive(amps_to_dac(amps), true);
-            p.advance_to(Time::from_millis(300));
+            p.advance_to(SimTime::from_millis(300));
             let a = p.axis(0).unwrap();
             assert_eq!(a.joint_position(), -0.3, "gear {gear}");
             assert_eq!(a.motor_velocity(), 0.0);
@@ -304,7 +310,7 @@ mod tests {
             // Stalled: no back-EMF, the full command flows.
             assert!((a.current() - amps).abs() < 1e-3, "{}", a.current());
             let count = a.encoder().count();
-            p.advance_to(Time::from_millis(400));
+            p.advance_to(SimTime::from_millis(400));
             assert_eq!(p.axis(0).unwrap().encoder().count(), count);
             // The encoder agrees with the shaft at the stop.
             let a = p.axis(0).unwrap();
@@ -314,12 +320,12 @@ mod tests {
             );
             // Pulling away moves freely.
             p.axis_mut(0).unwrap().set_drive(amps_to_dac(-amps), true);
-            p.advance_to(Time::from_millis(450));
+            p.advance_to(SimTime::from_millis(450));
             let a = p.axis(0).unwrap();
             assert!(a.joint_position() > -0.3, "gear {gear}");
             assert_eq!(a.at_stop(), None);
             // And stops at the other end.
-            p.advance_to(Time::from_millis(1200));
+            p.advance_to(SimTime::from_millis(1200));
             assert_eq!(p.axis(0).unwrap().joint_position(), 0.3);
             assert_eq!(p.axis(0).unwrap().at_stop(), Some(true));
         }
@@ -332,7 +338,7 @@ mod tests {
         let mut p = Plant::new(vec![params.clone()], 0, DEFAULT_STEP);
         p.axis_mut(0).unwrap().set_drive(amps_to_dac(-1.0), true);
         for ms in (0..=400).step_by(5) {
-            p.advance_to(Time::from_millis(ms));
+            p.advance_to(SimTime::from_millis(ms));
             let q = p.axis(0).unwrap().joint_position();
             let v = p.measured_pot(0);
             let from_pot = (v - params.pot.offset_volts) / params.pot.volts_per_unit;
@@ -371,7 +377,7 @@ mod tests {
         params.load.bias = -2.0;
         params.load.initial_position = 0.1;
         let mut p = Plant::new(vec![params], 0, DEFAULT_STEP);
-        p.advance_to(Time::from_millis(2000));
+        p.advance_to(SimTime::from_millis(2000));
         let a = p.axis(0).unwrap();
         assert_eq!(a.joint_position(), -0.3);
         assert_eq!(a.motor_velocity(), 0.0);

@@ -4,7 +4,7 @@
 
 use super::channel::{AmplifierModel, DigitalPot};
 use crate::plant::{AxisParams, presets};
-use crate::time::TimeDelta;
+use crate::time::SimDuration;
 use firelink_wire::snake::CHANNELS;
 
 /// The version register of the emulated firmware: "SNK" and revision 2
@@ -30,7 +30,7 @@ pub struct SnakeNodeConfig {
     pub seed: u64,
     /// Plant integration step (default: the ADC's 2 us conversion time,
     /// so that every conversion samples a fresh plant state).
-    pub plant_step: TimeDelta,
+    pub plant_step: SimDuration,
 }
 
 impl SnakeNodeConfig {

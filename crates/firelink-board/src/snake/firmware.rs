@@ -58,14 +58,14 @@ use super::config::SnakeNodeConfig;
 use crate::firmware::power::Watchdog;
 use crate::firmware::{PhyAccess, Reply, emit};
 use crate::plant::{DAC_ZERO, Plant};
-use crate::time::{Time, TimeDelta};
+use crate::time::{SimDuration, SimTime};
 
 /// Time of one digital-pot SPI command.
-pub const POT_SPI_TIME: TimeDelta = TimeDelta::from_micros(20);
+pub const POT_SPI_TIME: SimDuration = SimDuration::from_micros(20);
 /// Time of an EEPROM write in the digital pot.
-pub const EEPROM_WRITE_TIME: TimeDelta = TimeDelta::from_millis(2);
+pub const EEPROM_WRITE_TIME: SimDuration = SimDuration::from_millis(2);
 /// The ADC's conversion time (§6.2: "roughly 2 us").
-pub const ADC_CONVERSION_TIME: TimeDelta = TimeDelta::from_micros(2);
+pub const ADC_CONVERSION_TIME: SimDuration = SimDuration::from_micros(2);
 
 /// What the node counted about the packets it saw.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -98,7 +98,7 @@ pub struct SnakeNodeStats {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct PotJob {
     command: PotCommand,
-    done_at: Time,
+    done_at: SimTime,
 }
 
 /// State of one channel.
@@ -124,7 +124,7 @@ struct Channel {
 pub struct SnakeFirmware {
     cfg: SnakeNodeConfig,
     plant: Plant,
-    now: Time,
+    now: SimTime,
     phy_id: Option<u8>,
     generation: u32,
     phy_ctrl: u32,
@@ -133,7 +133,7 @@ pub struct SnakeFirmware {
     amp_enable: u8,
     enable_mask: u8,
     channels: Vec<Channel>,
-    last_block_read: Time,
+    last_block_read: SimTime,
     stats: SnakeNodeStats,
     rx_error: Option<&'static str>,
 }
@@ -180,20 +180,20 @@ impl SnakeFirmware {
             .collect();
         SnakeFirmware {
             plant,
-            now: Time::ZERO,
+            now: SimTime::ZERO,
             phy_id: None,
             generation: 0,
             phy_ctrl: 0,
             phy_data: PhyData::default(),
             watchdog: Watchdog {
                 ticks: 0,
-                last_write: Time::ZERO,
+                last_write: SimTime::ZERO,
                 timed_out: false,
             },
             amp_enable: 0,
             enable_mask: 0,
             channels,
-            last_block_read: Time::ZERO,
+            last_block_read: SimTime::ZERO,
             stats: SnakeNodeStats::default(),
             rx_error: None,
             cfg,
@@ -216,7 +216,7 @@ impl SnakeFirmware {
     }
 
     /// The time the state corresponds to.
-    pub fn now(&self) -> Time {
+    pub fn now(&self) -> SimTime {
         self.now
     }
 
@@ -262,13 +262,13 @@ impl SnakeFirmware {
     }
 
     /// When the watchdog fires if nothing is written before.
-    pub fn watchdog_expiry(&self) -> Option<Time> {
+    pub fn watchdog_expiry(&self) -> Option<SimTime> {
         self.watchdog.expiry()
     }
 
     /// When the node next changes by itself (watchdog, a pot command
     /// finishing): the bus node sets a timer for it.
-    pub fn next_wakeup(&self) -> Option<Time> {
+    pub fn next_wakeup(&self) -> Option<SimTime> {
         let pot = self
             .channels
             .iter()
@@ -279,7 +279,7 @@ impl SnakeFirmware {
 
     /// Assert or release channel `channel`'s amplifier fault line at
     /// `now` (fault injection).
-    pub fn set_fault(&mut self, now: Time, channel: u8, asserted: bool) {
+    pub fn set_fault(&mut self, now: SimTime, channel: u8, asserted: bool) {
         self.advance(now);
         if let Some(c) = channel_index(channel).and_then(|i| self.channels.get_mut(i)) {
             c.injected_fault = asserted;
@@ -292,7 +292,7 @@ impl SnakeFirmware {
     }
 
     /// A bus reset gave this node physical ID `phy_id`; registers are kept.
-    pub fn bus_reset(&mut self, now: Time, phy_id: u8, generation: u32) {
+    pub fn bus_reset(&mut self, now: SimTime, phy_id: u8, generation: u32) {
         self.advance(now);
         self.phy_id = Some(phy_id & 0x3F);
         self.generation = generation;
@@ -301,7 +301,7 @@ impl SnakeFirmware {
     /// Let time pass up to `now`: the plant integrates, the watchdog and
     /// pot commands take effect at their exact times. Earlier times are
     /// ignored.
-    pub fn advance(&mut self, now: Time) {
+    pub fn advance(&mut self, now: SimTime) {
         while self.now < now {
             let target = self
                 .next_wakeup()
@@ -316,7 +316,7 @@ impl SnakeFirmware {
     /// Integrate the plant to `target`, recomputing the amplifier drives
     /// every sub-step while a channel drives in speed mode (its current
     /// depends on the motor's state), once otherwise.
-    fn integrate_to(&mut self, target: Time) {
+    fn integrate_to(&mut self, target: SimTime) {
         let speed_mode = self
             .channels
             .iter()
@@ -326,7 +326,7 @@ impl SnakeFirmware {
             let step = self.plant.step().0;
             while self.plant.time().0.saturating_add(step) <= target.0 {
                 self.apply_drives();
-                let next = Time(self.plant.time().0 + step);
+                let next = SimTime(self.plant.time().0 + step);
                 self.plant.advance_to(next);
             }
         } else {
@@ -448,7 +448,7 @@ impl SnakeFirmware {
     /// # Errors
     /// [`Rcode::AddressError`] for an address Table 1 does not list or
     /// lists as not implemented.
-    pub fn read_quadlet(&mut self, now: Time, offset: u64) -> Result<u32, Rcode> {
+    pub fn read_quadlet(&mut self, now: SimTime, offset: u64) -> Result<u32, Rcode> {
         self.advance(now);
         let r = SnakeRegister::from_offset(offset).map_err(|_| Rcode::AddressError)?;
         if !r.access().readable() {
@@ -492,7 +492,7 @@ impl SnakeFirmware {
     /// whatever the outcome). Returns the ack.
     pub fn write_quadlet(
         &mut self,
-        now: Time,
+        now: SimTime,
         offset: u64,
         value: u32,
         phy: &mut dyn PhyAccess,
@@ -615,7 +615,7 @@ impl SnakeFirmware {
     }
 
     /// The block read at `now` (its timestamp restarts).
-    pub fn block_read(&mut self, now: Time) -> ReadBlockRepr {
+    pub fn block_read(&mut self, now: SimTime) -> ReadBlockRepr {
         self.advance(now);
         let mut block = ReadBlockRepr {
             status: self.status(),
@@ -641,7 +641,7 @@ impl SnakeFirmware {
 
     /// Apply a block write's data at `now` (watchdog cleared). Returns
     /// the ack.
-    pub fn block_write(&mut self, now: Time, data: &[u8]) -> Ack {
+    pub fn block_write(&mut self, now: SimTime, data: &[u8]) -> Ack {
         self.advance(now);
         self.watchdog.last_write = now;
         if data.len() != WRITE_BLOCK_LEN {
@@ -663,7 +663,7 @@ impl SnakeFirmware {
     }
 
     /// Handle one packet as it arrived at `now` (CRCs are checked here).
-    pub fn receive(&mut self, now: Time, bytes: &[u8], phy: &mut dyn PhyAccess) -> Reply {
+    pub fn receive(&mut self, now: SimTime, bytes: &[u8], phy: &mut dyn PhyAccess) -> Reply {
         self.advance(now);
         self.rx_error = None;
         self.stats.packets += 1;
@@ -747,7 +747,7 @@ impl SnakeFirmware {
 
     fn block_read_response(
         &mut self,
-        now: Time,
+        now: SimTime,
         header: AsyncHeader,
         offset: u64,
         length: u16,
@@ -795,7 +795,7 @@ impl Channel {
         }
     }
 
-    fn start_pot(&mut self, now: Time, word: u32, command: PotCommand, sample: AdcData) {
+    fn start_pot(&mut self, now: SimTime, word: u32, command: PotCommand, sample: AdcData) {
         let duration = if matches!(command, PotCommand::WriteEeprom { .. }) {
             EEPROM_WRITE_TIME
         } else {

@@ -19,12 +19,12 @@
 //! ```
 //! use firelink_board::firmware::{PhyRegisters, Reply};
 //! use firelink_board::snake::{SnakeFirmware, SnakeNodeConfig};
-//! use firelink_board::time::Time;
+//! use firelink_board::time::SimTime;
 //! use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr};
 //!
 //! let mut node = SnakeFirmware::new(SnakeNodeConfig::new(3));
 //! let mut phy = PhyRegisters::new(0);
-//! node.bus_reset(Time::ZERO, 0, 1);
+//! node.bus_reset(SimTime::ZERO, 0, 1);
 //! // The host (node 1) enables channel 2's amplifier: mask 0x02, enable 0x02.
 //! let write = PacketRepr::WriteQuadletRequest {
 //!     header: AsyncHeader::new(NodeId::local(0), NodeId::local(1), 0),
@@ -33,7 +33,7 @@
 //! };
 //! let mut buf = [0u8; 20];
 //! write.emit(&mut buf).unwrap();
-//! assert_eq!(node.receive(Time::from_micros(5), &buf, &mut phy), Reply::Ack(Ack::Complete));
+//! assert_eq!(node.receive(SimTime::from_micros(5), &buf, &mut phy), Reply::Ack(Ack::Complete));
 //! // STATUS: board ID 3, channel 2 enabled, mask 0x02 (Table 2).
 //! assert_eq!(node.status().raw(), 0x0300_0202);
 //! ```

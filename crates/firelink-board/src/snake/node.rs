@@ -27,7 +27,6 @@ use super::config::SnakeNodeConfig;
 use super::firmware::SnakeFirmware;
 use crate::firmware::Reply;
 use crate::node::CtxPhy;
-use crate::time::Time;
 
 /// Timer token of the node's next self-driven change.
 const WAKEUP_TIMER: u64 = 1;
@@ -62,7 +61,7 @@ impl SnakeNode {
 
     /// Keep one timer at the firmware's next wake-up.
     fn arm(&mut self, now: SimTime, ctx: &mut NodeCtx<'_>) {
-        let due = self.firmware.next_wakeup().map(|t| SimTime(t.0.max(now.0)));
+        let due = self.firmware.next_wakeup().map(|t| t.max(now));
         if due != self.timer {
             match due {
                 Some(t) => ctx.set_timer(t, WAKEUP_TIMER),
@@ -79,8 +78,7 @@ impl Node for SnakeNode {
     }
 
     fn on_bus_reset(&mut self, now: SimTime, info: &ResetInfo, ctx: &mut NodeCtx<'_>) {
-        self.firmware
-            .bus_reset(Time(now.0), info.phy_id, info.generation);
+        self.firmware.bus_reset(now, info.phy_id, info.generation);
         self.arm(now, ctx);
     }
 
@@ -91,7 +89,7 @@ impl Node for SnakeNode {
         speed: Speed,
         ctx: &mut NodeCtx<'_>,
     ) -> RxReply {
-        let reply = self.firmware.receive(Time(now.0), packet, &mut CtxPhy(ctx));
+        let reply = self.firmware.receive(now, packet, &mut CtxPhy(ctx));
         if let Some(error) = self.firmware.take_rx_error() {
             ctx.report_error(format!("{}: {error}", self.name));
         }
@@ -109,7 +107,7 @@ impl Node for SnakeNode {
 
     fn on_timer(&mut self, now: SimTime, _token: u64, ctx: &mut NodeCtx<'_>) {
         self.timer = None;
-        self.firmware.advance(Time(now.0));
+        self.firmware.advance(now);
         self.arm(now, ctx);
     }
 }

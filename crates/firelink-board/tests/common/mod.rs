@@ -6,7 +6,7 @@
 
 use firelink_board::config::BoardConfig;
 use firelink_board::firmware::{Firmware, PhyRegisters, Reply};
-use firelink_board::time::{Time, TimeDelta};
+use firelink_board::time::{SimDuration, SimTime};
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Rcode, Tcode};
 
 /// The host's physical ID in the tests.
@@ -72,7 +72,7 @@ pub struct Rig {
     pub fw: Firmware,
     pub phy: PhyRegisters,
     pub node: u8,
-    pub now: Time,
+    pub now: SimTime,
     tl: u8,
 }
 
@@ -80,12 +80,12 @@ impl Rig {
     /// A board that got physical ID `node` at a bus reset at time zero.
     pub fn new(cfg: BoardConfig, node: u8) -> Rig {
         let mut fw = Firmware::new(cfg);
-        fw.bus_reset(Time::ZERO, node, 1);
+        fw.bus_reset(SimTime::ZERO, node, 1);
         Rig {
             fw,
             phy: PhyRegisters::new(node),
             node,
-            now: Time::ZERO,
+            now: SimTime::ZERO,
             tl: 0,
         }
     }
@@ -100,7 +100,7 @@ impl Rig {
     }
 
     /// Let virtual time pass (nothing is sent).
-    pub fn wait(&mut self, dt: TimeDelta) {
+    pub fn wait(&mut self, dt: SimDuration) {
         self.now += dt;
         self.fw.advance(self.now);
     }
