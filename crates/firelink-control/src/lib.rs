@@ -5,9 +5,9 @@
 //! drives it through the host library. The computing modules do no I/O
 //! and read no clock: time is an argument (seconds, `f64`, on whatever
 //! clock the caller runs: virtual or real), so the same code runs in the
-//! emulator and on hardware, bit for bit. The [`runner`] and the [`servo`]
-//! program are the places that do I/O (through the host library) and read
-//! the machine's clock (wall-clock pacing, and the compute-time figures).
+//! emulator and on hardware, bit for bit. The [`runner`] is the one place that
+//! does I/O (through the host library's abstract robot I/O) and reads the
+//! machine's clock (wall-clock pacing, and the compute-time figures).
 //!
 //! - [`config`]: the robot I/O configuration in the dVRK's `saw-robot-io`
 //!   version 6 JSON layout, validation with JSON-path errors, and the unit
@@ -25,11 +25,10 @@
 //!   current saturation, position, pot/encoder agreement).
 //! - [`budget`]: does the cycle fit its period (seed 002, Table I).
 //! - [`runner`]: [`Robot`](runner::Robot), a configuration over the host
-//!   library's `IoSystem`: lifecycle, homing, motion and the safety chain,
-//!   one servo cycle at a time.
-//! - [`servo`]: a servo program over the abstract robot I/O of seed 001
-//!   (`firelink_host::RobotIo`), the same code for QLA boards and Snake
-//!   nodes.
+//!   library's abstract robot I/O (`firelink_host::RobotIo`, seed 001's
+//!   top layer): lifecycle, homing (pots and stop searches), motion and the
+//!   safety chain, one servo cycle at a time, the same code for QLA boards
+//!   and Snake nodes.
 //!
 //! The servo cycle, as the runner drives it (ros2_control's read / update /
 //! write):
@@ -83,7 +82,6 @@ pub mod lifecycle;
 pub mod pid;
 pub mod runner;
 pub mod safety;
-pub mod servo;
 pub mod trajectory;
 
 pub use fault::{FaultKind, FaultReport};

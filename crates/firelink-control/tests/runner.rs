@@ -23,13 +23,13 @@ fn start(i: usize) -> f64 {
     0.5 * (l.lower + l.upper) + 0.1 * l.span() * ((i % 5) as f64 - 2.0) / 2.0
 }
 
-fn robot(protocol: Protocol, rate: f64) -> Robot<SimPort> {
+fn robot(protocol: Protocol, rate: f64) -> Robot<IoSystem<SimPort>> {
     robot_on(protocol, rate, false)
 }
 
 /// `seed_000`: seed 000's own boards (they answer a corrupt query with
 /// sequence 0xFFFF); otherwise Rev 8 boards.
-fn robot_on(protocol: Protocol, rate: f64, seed_000: bool) -> Robot<SimPort> {
+fn robot_on(protocol: Protocol, rate: f64, seed_000: bool) -> Robot<IoSystem<SimPort>> {
     let config = presets::dvrk_seed000();
     let port = common::port(&config, seed_000, start);
     let (io, scan) = IoSystem::open(
@@ -52,11 +52,11 @@ fn robot_on(protocol: Protocol, rate: f64, seed_000: bool) -> Robot<SimPort> {
     .unwrap()
 }
 
-fn active(protocol: Protocol) -> Robot<SimPort> {
+fn active(protocol: Protocol) -> Robot<IoSystem<SimPort>> {
     active_on(protocol, false)
 }
 
-fn active_on(protocol: Protocol, seed_000: bool) -> Robot<SimPort> {
+fn active_on(protocol: Protocol, seed_000: bool) -> Robot<IoSystem<SimPort>> {
     let mut r = robot_on(protocol, 2000.0, seed_000);
     r.configure().unwrap();
     r.power_on().unwrap();
@@ -69,7 +69,7 @@ fn active_on(protocol: Protocol, seed_000: bool) -> Robot<SimPort> {
 #[test]
 fn motion_is_refused_unless_active() {
     let mut r = robot(Protocol::Broadcast, 1000.0);
-    let refused = |r: &mut Robot<SimPort>| {
+    let refused = |r: &mut Robot<IoSystem<SimPort>>| {
         matches!(
             r.set_motion(0, Motion::Hold(0.1)),
             Err(RunnerError::Lifecycle(LifecycleError::NotActive { .. }))

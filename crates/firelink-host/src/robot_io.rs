@@ -73,10 +73,10 @@ pub trait RobotIo {
     /// (`None` if it did not answer; 0 if the board does not say).
     fn timestamp(&self, board_id: u8) -> Option<u32>;
 
-    /// Ask for motor power on or off with the next apply, on every board
-    /// (boards without a switched motor supply: off disables every
-    /// amplifier, on does nothing).
-    fn set_power(&mut self, on: bool);
+    /// Ask for motor power on or off with the next apply, on the boards in
+    /// `boards` (bit i = board ID i; boards without a switched motor
+    /// supply: off disables every amplifier, on does nothing).
+    fn set_power(&mut self, boards: u16, on: bool);
     /// Program every board's watchdog (zero turns it off).
     ///
     /// # Errors
@@ -231,10 +231,12 @@ impl<P: Port> RobotIo for IoSystem<P> {
             .map(|b| b.timestamp())
     }
 
-    fn set_power(&mut self, on: bool) {
+    fn set_power(&mut self, boards: u16, on: bool) {
         for b in self.boards_mut() {
-            b.set_power(on);
-            b.set_relay(on);
+            if boards & (1 << (b.board_id() & 0xF)) != 0 {
+                b.set_power(on);
+                b.set_relay(on);
+            }
         }
     }
 

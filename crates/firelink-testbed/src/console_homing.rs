@@ -249,7 +249,7 @@ impl Watch {
     /// The plant axis behind joint `i`.
     fn axis<'a>(
         &self,
-        robot: &'a Robot<SimPort>,
+        robot: &'a Robot<IoSystem<SimPort>>,
         i: usize,
     ) -> Option<&'a firelink_board::plant::Axis> {
         let (handle, axis) = self.plant.get(i)?;
@@ -263,7 +263,7 @@ impl Watch {
             .axis(*axis)
     }
 
-    fn observe(&mut self, robot: &Robot<SimPort>) {
+    fn observe(&mut self, robot: &Robot<IoSystem<SimPort>>) {
         for i in 0..self.plant.len() {
             if self.homed {
                 if let (Some(p), Some(e)) = (robot.potentiometer(i), robot.position(i)) {
@@ -465,7 +465,7 @@ pub fn run_console_homing(
 /// Move joint `i` to `target` with a trapezoidal profile at `speed` times
 /// its configured velocity and acceleration limits, and let it settle.
 fn move_to(
-    robot: &mut Robot<SimPort>,
+    robot: &mut Robot<IoSystem<SimPort>>,
     watch: &mut Watch,
     config: &IoConfig,
     i: usize,

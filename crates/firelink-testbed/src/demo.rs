@@ -22,15 +22,15 @@ use firelink_bus::NodeHandle;
 use firelink_bus::fault::{FaultPlan, PacketFault, PacketMatch, TimedFault};
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{
-    ArmTracking, CycleTimes, Pacing, Percentiles, Robot, RobotSettings, RunnerError,
+    CycleTimes, Pacing, Percentiles, Robot, RobotSettings, RunnerError,
 };
 use firelink_control::trajectory::{Motion, PointToPoint, Sinusoid};
-use firelink_control::{FaultKind, FaultReport, State};
-use firelink_host::Port;
+use firelink_control::{FaultKind, FaultReport};
 use firelink_host::io::{IoOptions, IoStats, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
 use firelink_host::udp::UdpPort;
+use firelink_host::{Port, RobotIo};
 use firelink_wire::packet::Tcode;
 
 use crate::TestbedError;
@@ -650,177 +650,37 @@ pub fn run_demo(
     }
 }
 
-/// What the demo needs of a servo program: the QLA runner
-/// ([`Robot`]) and the generic servo over the abstract robot I/O
-/// ([`Servo`](firelink_control::servo::Servo)) both run the same demo
-/// ([`run_program`]).
-pub trait DemoProgram {
-    /// The port the program talks through (faults are injected there).
+/// What the demo needs of a robot's I/O beyond the abstract robot I/O
+/// ([`RobotIo`]): the port, where faults are injected, and what the
+/// report names. QLA boards ([`IoSystem`]) and seed 001's Snake nodes
+/// ([`SnakeSystem`](firelink_host::snake::SnakeSystem)) both run the same
+/// demo ([`run_program`]).
+pub trait DemoIo: RobotIo {
+    /// The port the I/O system talks through.
     type Port: Injector;
     /// The port, to inject faults.
     fn injector(&mut self) -> &mut Self::Port;
-    /// Unconfigured -> Configured.
-    ///
-    /// # Errors
-    /// The program's refusal.
-    fn configure(&mut self) -> Result<(), RunnerError>;
-    /// Power and amplifiers on.
-    ///
-    /// # Errors
-    /// The program's refusal, a fault or a time-out.
-    fn power_on(&mut self) -> Result<(), RunnerError>;
-    /// Home every joint.
-    ///
-    /// # Errors
-    /// Homing failed.
-    fn home(&mut self) -> Result<(), RunnerError>;
-    /// Configured -> Active.
-    ///
-    /// # Errors
-    /// The lifecycle's refusal.
-    fn activate(&mut self) -> Result<(), RunnerError>;
-    /// Start a motion on a joint.
-    ///
-    /// # Errors
-    /// Not Active; no such joint.
-    fn set_motion(&mut self, joint: usize, motion: Motion) -> Result<(), RunnerError>;
-    /// Run cycles, with a progress call every `every`.
-    ///
-    /// # Errors
-    /// The first fault.
-    fn run_cycles(
-        &mut self,
-        cycles: u64,
-        pacing: Pacing,
-        every: u64,
-        progress: &mut dyn FnMut(&Self),
-    ) -> Result<(), RunnerError>;
-    /// One cycle.
-    ///
-    /// # Errors
-    /// A fault.
-    fn step(&mut self, pacing: Pacing) -> Result<(), RunnerError>;
-    /// Active -> Configured, outputs safe, power off.
-    ///
-    /// # Errors
-    /// The program's refusal.
-    fn shutdown(&mut self) -> Result<(), RunnerError>;
-    /// Seconds on the port's clock.
-    fn now(&self) -> f64;
-    /// Cycles run.
-    fn cycles(&self) -> u64;
-    /// Joints.
-    fn joint_count(&self) -> usize;
-    /// A joint's position.
-    fn position(&self, joint: usize) -> Option<f64>;
-    /// A joint's setpoint.
-    fn setpoint(&self, joint: usize) -> Option<f64>;
-    /// Forget the tracking statistics.
-    fn reset_tracking(&mut self);
-    /// Per-arm tracking.
-    fn tracking(&self) -> Vec<ArmTracking>;
-    /// The timing record.
-    fn times(&self) -> &CycleTimes;
-    /// I/O error counters.
-    fn io_stats(&self) -> &IoStats;
-    /// Lifecycle state.
-    fn state(&self) -> State;
-    /// Any used amplifier on.
-    fn any_amp_on(&self) -> bool;
-    /// Board IDs found, with whether each answered the last cycle and
-    /// whether its watchdog had expired.
-    fn board_states(&self) -> Vec<(u8, bool, bool)>;
     /// Firmware of the first board.
     fn firmware(&self) -> Option<u32>;
     /// The I/O protocol's name.
     fn protocol(&self) -> String;
 }
 
-impl<P: Injector> DemoProgram for Robot<P> {
+impl<P: Injector> DemoIo for IoSystem<P> {
     type Port = P;
     fn injector(&mut self) -> &mut P {
-        self.io_mut().port_mut()
-    }
-    fn configure(&mut self) -> Result<(), RunnerError> {
-        Robot::configure(self)
-    }
-    fn power_on(&mut self) -> Result<(), RunnerError> {
-        Robot::power_on(self)
-    }
-    fn home(&mut self) -> Result<(), RunnerError> {
-        Robot::home(self)
-    }
-    fn activate(&mut self) -> Result<(), RunnerError> {
-        Robot::activate(self)
-    }
-    fn set_motion(&mut self, joint: usize, motion: Motion) -> Result<(), RunnerError> {
-        Robot::set_motion(self, joint, motion)
-    }
-    fn run_cycles(
-        &mut self,
-        cycles: u64,
-        pacing: Pacing,
-        every: u64,
-        progress: &mut dyn FnMut(&Self),
-    ) -> Result<(), RunnerError> {
-        self.run(cycles, pacing, every, progress)
-    }
-    fn step(&mut self, pacing: Pacing) -> Result<(), RunnerError> {
-        Robot::step(self, pacing)
-    }
-    fn shutdown(&mut self) -> Result<(), RunnerError> {
-        Robot::shutdown(self)
-    }
-    fn now(&self) -> f64 {
-        Robot::now(self)
-    }
-    fn cycles(&self) -> u64 {
-        Robot::cycles(self)
-    }
-    fn joint_count(&self) -> usize {
-        Robot::joint_count(self)
-    }
-    fn position(&self, joint: usize) -> Option<f64> {
-        Robot::position(self, joint)
-    }
-    fn setpoint(&self, joint: usize) -> Option<f64> {
-        Robot::setpoint(self, joint)
-    }
-    fn reset_tracking(&mut self) {
-        Robot::reset_tracking(self)
-    }
-    fn tracking(&self) -> Vec<ArmTracking> {
-        Robot::tracking(self)
-    }
-    fn times(&self) -> &CycleTimes {
-        Robot::times(self)
-    }
-    fn io_stats(&self) -> &IoStats {
-        Robot::io_stats(self)
-    }
-    fn state(&self) -> State {
-        Robot::state(self)
-    }
-    fn any_amp_on(&self) -> bool {
-        Robot::any_amp_on(self)
-    }
-    fn board_states(&self) -> Vec<(u8, bool, bool)> {
-        self.io()
-            .boards()
-            .iter()
-            .map(|b| (b.board_id(), b.is_valid(), b.watchdog_expired()))
-            .collect()
+        self.port_mut()
     }
     fn firmware(&self) -> Option<u32> {
-        self.io().boards().first().map(|b| b.info().firmware)
+        IoSystem::boards(self).first().map(|b| b.info().firmware)
     }
     fn protocol(&self) -> String {
-        self.io().protocol().name().to_string()
+        IoSystem::protocol(self).name().to_string()
     }
 }
 
 /// The periodic progress event: the median I/O time of the last 2000 cycles.
-fn tick<S: DemoProgram>(r: &S) -> DemoProgress {
+fn tick<R: RobotIo>(r: &Robot<R>) -> DemoProgress {
     let io = &r.times().io_us;
     let mut last: Vec<f32> = io[io.len().saturating_sub(2000)..].to_vec();
     DemoProgress::Tick {
@@ -919,20 +779,47 @@ pub struct DemoRun {
 /// # Errors
 /// The program failed outside a cycle; the fault could not be injected on
 /// this port.
-pub fn run_program<S: DemoProgram>(
-    mut robot: S,
+pub fn run_program<R: DemoIo>(
+    mut robot: Robot<R>,
     plan: &DemoPlan<'_>,
     port_name: String,
     rt: RealtimeStatus,
     wall: Instant,
     progress: &mut dyn FnMut(DemoProgress),
 ) -> Result<DemoRun, TestbedError> {
-    let config = plan.config;
-    let pacing = plan.pacing;
     if plan.watchdog.is_none() {
         progress(DemoProgress::WatchdogOff);
     }
-    let watchdog = plan.watchdog.unwrap_or(Duration::ZERO);
+    bring_up(&mut robot, plan.config, progress)?;
+    let setup_cycles = robot.cycles();
+    let fault = run_motion(&mut robot, plan, progress)?;
+    let after = AfterRun::of(&robot);
+    let motion_cycles = robot.cycles() - setup_cycles;
+    robot.shutdown()?;
+    let wall_s = wall.elapsed().as_secs_f64();
+    progress(DemoProgress::PoweredOff(wall_s));
+    let run = FinishedRun {
+        port_name,
+        rt,
+        wall_s,
+        motion_cycles,
+        fault,
+        after,
+    };
+    Ok(DemoRun {
+        report: demo_report(&robot, plan, run),
+        times: robot.times().clone(),
+        setup_cycles,
+    })
+}
+
+/// Configure, power on, home and activate the robot, and start every
+/// joint's motion.
+fn bring_up<R: DemoIo>(
+    robot: &mut Robot<R>,
+    config: &IoConfig,
+    progress: &mut dyn FnMut(DemoProgress),
+) -> Result<(), TestbedError> {
     robot.configure()?;
     progress(DemoProgress::Configured);
     robot.power_on()?;
@@ -945,33 +832,40 @@ pub fn run_program<S: DemoProgram>(
         robot.set_motion(i, motion_for(config, i, here))?;
     }
     robot.reset_tracking();
-    let setup_cycles = robot.cycles();
-    let rate = plan.rate_hz;
+    Ok(())
+}
+
+/// The plan's motion, its fault injected half way; a fault ends the motion
+/// and is followed by cycles in Fault (twice the watchdog period) so that
+/// the safety chain can act. Returns the fault, if one happened.
+fn run_motion<R: DemoIo>(
+    robot: &mut Robot<R>,
+    plan: &DemoPlan<'_>,
+    progress: &mut dyn FnMut(DemoProgress),
+) -> Result<Option<FaultReport>, TestbedError> {
+    let (pacing, rate, inject) = (plan.pacing, plan.rate_hz, plan.fault);
+    let watchdog = plan.watchdog.unwrap_or(Duration::ZERO);
     let total = (plan.duration_s * rate).round() as u64;
     let every = (rate / 4.0).max(1.0) as u64;
     let half = total / 2;
-    let inject = plan.fault;
     let first = if inject == DemoFault::None {
         total
     } else {
         half
     };
-    let mut outcome = robot.run_cycles(first, pacing, every, &mut |r| progress(tick(r)));
+    let mut outcome = robot.run(first, pacing, every, |r| progress(tick(r)));
     if outcome.is_ok() && inject != DemoFault::None {
         progress(DemoProgress::Injecting(inject));
-        robot.injector().inject(inject, watchdog)?;
+        robot.io_mut().injector().inject(inject, watchdog)?;
         if inject == DemoFault::FollowingError {
             // A setpoint jump the joint cannot follow within the grace time.
-            let sp = robot.setpoint(0).unwrap_or(0.0);
-            let _ = robot.set_motion(0, Motion::Hold(sp + 0.5));
+            let _ = robot.step_setpoint(0, 0.5);
         }
-        outcome = robot.run_cycles(total - half, pacing, every, &mut |r| progress(tick(r)));
+        outcome = robot.run(total - half, pacing, every, |r| progress(tick(r)));
     }
-    let mut fault: Option<FaultReport> = None;
     match outcome {
-        Ok(()) => {}
+        Ok(()) => Ok(None),
         Err(RunnerError::Fault(f)) => {
-            fault = Some(f);
             progress(DemoProgress::Fault(f.to_string()));
             // Cycles in Fault for twice the watchdog period: outputs stay
             // safe, and a board that stopped answering has time to turn
@@ -984,27 +878,56 @@ pub fn run_program<S: DemoProgram>(
                 state: robot.state().to_string(),
                 amplifiers_on: robot.any_amp_on(),
             });
+            Ok(Some(f))
         }
-        Err(e) => return Err(e.into()),
+        Err(e) => Err(e.into()),
     }
-    let amps_after_fault = robot.any_amp_on();
-    let boards = robot.board_states();
-    let silent: Vec<u8> = boards
-        .iter()
-        .filter(|(_, answered, _)| !answered)
-        .map(|(id, ..)| *id)
-        .collect();
-    let expired: Vec<u8> = boards
-        .iter()
-        .filter(|(.., expired)| *expired)
-        .map(|(id, ..)| *id)
-        .collect();
-    let state_after = robot.state().to_string();
-    let motion_cycles = robot.cycles() - setup_cycles;
-    robot.shutdown()?;
-    let wall_s = wall.elapsed().as_secs_f64();
-    progress(DemoProgress::PoweredOff(wall_s));
-    let times = robot.times().clone();
+}
+
+/// The robot's state right after the motion, before shutdown.
+struct AfterRun {
+    amplifiers_on: bool,
+    boards: usize,
+    silent: Vec<u8>,
+    expired: Vec<u8>,
+    state: String,
+}
+
+impl AfterRun {
+    fn of<R: RobotIo>(robot: &Robot<R>) -> AfterRun {
+        let io = robot.io();
+        let found: Vec<u8> = (0..16u8).filter(|id| robot.found().contains(*id)).collect();
+        AfterRun {
+            amplifiers_on: robot.any_amp_on(),
+            boards: found.len(),
+            silent: found
+                .iter()
+                .copied()
+                .filter(|id| !io.board_answered(*id))
+                .collect(),
+            expired: found
+                .iter()
+                .copied()
+                .filter(|id| io.watchdog_expired(*id))
+                .collect(),
+            state: robot.state().to_string(),
+        }
+    }
+}
+
+/// What a finished run hands the report beside the robot.
+struct FinishedRun {
+    port_name: String,
+    rt: RealtimeStatus,
+    wall_s: f64,
+    motion_cycles: u64,
+    fault: Option<FaultReport>,
+    after: AfterRun,
+}
+
+/// The demo's report of a finished run.
+fn demo_report<R: DemoIo>(robot: &Robot<R>, plan: &DemoPlan<'_>, run: FinishedRun) -> DemoReport {
+    let times = robot.times();
     let (mut c, mut io, mut comp) = (
         times.cycle_us.clone(),
         times.io_us.clone(),
@@ -1026,20 +949,22 @@ pub fn run_program<S: DemoProgram>(
         );
     }
     let port_time_s = robot.now();
-    let report = DemoReport {
-        port: port_name,
-        boards: boards.len(),
+    let wall_s = run.wall_s;
+    let watchdog = plan.watchdog.unwrap_or(Duration::ZERO);
+    DemoReport {
+        port: run.port_name,
+        boards: run.after.boards,
         axes: robot.joint_count(),
-        firmware: robot.firmware(),
-        protocol: robot.protocol(),
-        rate_hz: rate,
-        pacing: match pacing {
+        firmware: robot.io().firmware(),
+        protocol: robot.io().protocol(),
+        rate_hz: plan.rate_hz,
+        pacing: match plan.pacing {
             Pacing::Virtual => "virtual",
             Pacing::WallClock => "realtime",
         }
         .to_string(),
         cycles: robot.cycles(),
-        motion_cycles,
+        motion_cycles: run.motion_cycles,
         port_time_s,
         wall_time_s: wall_s,
         speed_vs_real_time: if wall_s > 0.0 {
@@ -1051,25 +976,20 @@ pub fn run_program<S: DemoProgram>(
         io_time_us: TimeStats::of(&mut io),
         compute_time_us: TimeStats::of(&mut comp),
         overruns: times.overruns,
-        realtime: rt,
+        realtime: run.rt,
         tracking_error,
         tracking_error_unit: "rad RMS over each arm's revolute joints (prismatic: tracking_error_detail, mm)",
         tracking_error_detail,
         errors: ErrorCounts::from(robot.io_stats()),
         watchdog: WatchdogReport {
             period_ms: watchdog.as_secs_f64() * 1e3,
-            expired_boards: expired,
+            expired_boards: run.after.expired,
         },
-        fault_injected: inject.name(),
-        fault: fault.as_ref().map(FaultSummary::from),
-        state_after_run: state_after,
-        amplifiers_on_after_fault: fault.map(|_| amps_after_fault),
-        boards_not_answering: silent,
+        fault_injected: plan.fault.name(),
+        fault: run.fault.as_ref().map(FaultSummary::from),
+        state_after_run: run.after.state,
+        amplifiers_on_after_fault: run.fault.map(|_| run.after.amplifiers_on),
+        boards_not_answering: run.after.silent,
         state: robot.state().to_string(),
-    };
-    Ok(DemoRun {
-        report,
-        times,
-        setup_cycles,
-    })
+    }
 }

@@ -123,7 +123,7 @@ impl Frame {
     }
 
     /// Fill from the robot after a cycle; no allocation.
-    fn fill<P: firelink_host::Port>(&mut self, robot: &Robot<P>) {
+    fn fill<P: firelink_host::Port>(&mut self, robot: &Robot<IoSystem<P>>) {
         self.t = robot.now();
         self.cycle = robot.cycles();
         self.state = robot.state();
@@ -304,7 +304,7 @@ pub fn prepare<P: Injector>(
     port: P,
     port_name: String,
     options: &LoopOptions,
-) -> Result<(Robot<P>, Arc<Shared>), crate::TestbedError> {
+) -> Result<(Robot<IoSystem<P>>, Arc<Shared>), crate::TestbedError> {
     let (io, _) = IoSystem::open(port, IoOptions::default())?;
     let settings = RobotSettings {
         rate_hz: options.rate_hz,
@@ -353,7 +353,7 @@ pub fn prepare<P: Injector>(
     Ok((robot, Arc::new(shared)))
 }
 
-fn publish<P: firelink_host::Port>(shared: &Shared, robot: &Robot<P>) {
+fn publish<P: firelink_host::Port>(shared: &Shared, robot: &Robot<IoSystem<P>>) {
     match shared.free.pop() {
         Some(mut frame) => {
             frame.fill(robot);
@@ -381,7 +381,7 @@ fn outcome(shared: &Shared, command: Command, result: Result<(), String>) {
 }
 
 fn execute<P: Injector>(
-    robot: &mut Robot<P>,
+    robot: &mut Robot<IoSystem<P>>,
     shared: &Shared,
     command: Command,
     options: &LoopOptions,
@@ -498,7 +498,10 @@ fn execute<P: Injector>(
 }
 
 /// Motion commands need an Active robot whose joints are homed.
-fn ready_for_motion<P: Injector>(robot: &Robot<P>, shared: &Shared) -> Result<(), String> {
+fn ready_for_motion<P: Injector>(
+    robot: &Robot<IoSystem<P>>,
+    shared: &Shared,
+) -> Result<(), String> {
     if robot.state() != State::Active {
         return Err(format!(
             "refused: the robot is {}, not active",
@@ -513,7 +516,7 @@ fn ready_for_motion<P: Injector>(robot: &Robot<P>, shared: &Shared) -> Result<()
 
 /// Joint indices and positions of a servo or move command, checked.
 fn joints<'a, P: Injector>(
-    robot: &Robot<P>,
+    robot: &Robot<IoSystem<P>>,
     first: u16,
     count: u8,
     positions: &'a [f64; MAX_ARM_JOINTS],
@@ -538,7 +541,7 @@ fn joints<'a, P: Injector>(
 
 /// Run the robot until `shared.stop`; then power off. Call on the thread
 /// that owns the robot.
-pub fn run<P: Injector>(mut robot: Robot<P>, shared: Arc<Shared>, options: LoopOptions) {
+pub fn run<P: Injector>(mut robot: Robot<IoSystem<P>>, shared: Arc<Shared>, options: LoopOptions) {
     let period = Duration::from_secs_f64(1.0 / options.rate_hz);
     let wall_start = Instant::now();
     let port_start = robot.now();

@@ -436,7 +436,7 @@ pub fn run(
 pub fn bring_up_robot(
     config: &IoConfig,
     settings: &SoakSettings,
-) -> Result<(Robot<SimPort>, Vec<NodeHandle>, NodeHandle), TestbedError> {
+) -> Result<(Robot<IoSystem<SimPort>>, Vec<NodeHandle>, NodeHandle), TestbedError> {
     let boards: Vec<BoardConfig> = board_configs(config, Profile::Rev8, 8)
         .into_iter()
         .map(|b| {
@@ -476,7 +476,7 @@ pub fn bring_up_robot(
 }
 
 /// Small sinusoids on every joint around where it stands.
-fn move_joints(robot: &mut Robot<SimPort>) {
+fn move_joints(robot: &mut Robot<IoSystem<SimPort>>) {
     for i in 0..robot.joint_count() {
         let Some(p) = robot.position(i) else {
             continue;
@@ -634,7 +634,7 @@ impl Soak {
 
     /// Bring a robot that is not Active back: settle in Fault a few cycles
     /// (outputs off), clear, configure, power, enable, move.
-    fn rearm(&mut self, robot: &mut Robot<SimPort>, config: &IoConfig) {
+    fn rearm(&mut self, robot: &mut Robot<IoSystem<SimPort>>, config: &IoConfig) {
         // A few cycles in the current state first (the boards see the safe
         // outputs; a reconnecting board has time to come back).
         for _ in 0..6 {
@@ -650,7 +650,7 @@ impl Soak {
             return;
         }
         if robot.state() == State::Configured {
-            let mut each = |r: &Robot<SimPort>| self.observe(r);
+            let mut each = |r: &Robot<IoSystem<SimPort>>| self.observe(r);
             if robot.power_on_observed(&mut each).is_err() {
                 return;
             }
@@ -663,7 +663,7 @@ impl Soak {
 
     /// After every cycle: the safety invariants from the boards' own
     /// state, the cycle's report, and the faults the bus logged.
-    fn observe(&mut self, robot: &Robot<SimPort>) {
+    fn observe(&mut self, robot: &Robot<IoSystem<SimPort>>) {
         let Some(report) = robot.last_report().copied() else {
             return;
         };
@@ -749,7 +749,7 @@ impl Soak {
     }
 
     /// Set the command memory to what the host sends now.
-    fn remember_commands(&mut self, robot: &Robot<SimPort>) {
+    fn remember_commands(&mut self, robot: &Robot<IoSystem<SimPort>>) {
         let bus = robot.io().port().bus();
         for (slot, &handle) in self.boards.iter().enumerate() {
             let Some(fw) = bus.node::<BoardNode>(handle).map(BoardNode::firmware) else {

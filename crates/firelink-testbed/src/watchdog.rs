@@ -17,6 +17,7 @@ use firelink_bus::{NodeHandle, SimDuration, SimTime};
 use firelink_control::State;
 use firelink_control::config::presets;
 use firelink_control::runner::{Pacing, Robot};
+use firelink_host::io::IoSystem;
 use firelink_host::sim::SimPort;
 use firelink_wire::board::registers::Watchdog;
 use rand::{Rng, SeedableRng};
@@ -154,7 +155,7 @@ fn amplifiers_off(
 }
 
 /// The robot finds the watchdog fault on its next cycle; bring it back.
-fn rearm(robot: &mut Robot<SimPort>) {
+fn rearm(robot: &mut Robot<IoSystem<SimPort>>) {
     for _ in 0..4 {
         let _ = robot.step(Pacing::Virtual);
         if robot.state() == State::Fault {

@@ -7,8 +7,7 @@
 use std::time::Duration;
 
 use firelink_control::config::{IoConfig, presets};
-use firelink_control::runner::{Pacing, RobotSettings};
-use firelink_control::servo::Servo;
+use firelink_control::runner::{Pacing, Robot, RobotSettings};
 use firelink_host::RobotIo;
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
@@ -63,7 +62,7 @@ fn exercise<R: RobotIo>(io: R, config: &IoConfig, cycles: u64) -> (Vec<(String, 
         watchdog: Duration::from_millis(20),
         ..RobotSettings::default()
     };
-    let mut servo = Servo::new(io, config, settings).unwrap();
+    let mut servo = Robot::new(io, config, settings).unwrap();
     servo.configure().unwrap();
     servo.power_on().unwrap();
     servo.home().unwrap();

@@ -1,8 +1,7 @@
-//! What every servo program of this crate does per joint and per cycle,
-//! whatever the boards: one joint's conversions, velocity, trajectory,
+//! What the runner does per joint and per cycle, whatever the boards:
+//! one joint's conversions, velocity, trajectory,
 //! PID and tracking ([`Joint::update`]), and the pacing of cycles
-//! ([`Pacer`]). [`Robot`](super::Robot) and
-//! [`Servo`](crate::servo::Servo) both run on these.
+//! ([`Pacer`]), for [`Robot`](super::Robot).
 
 use std::time::{Duration, Instant};
 
@@ -20,9 +19,9 @@ use crate::trajectory::Motion;
 pub(crate) struct Joint {
     pub label: Label,
     pub arm: usize,
-    /// The owner's board reference (an index or a board ID).
+    /// The board ID.
     pub board: usize,
-    /// The owner's axis reference (on the board, or over all boards).
+    /// The I/O system's axis (over all boards).
     pub axis: usize,
     pub drive: DriveConfig,
     pub encoder: EncoderConfig,

@@ -705,10 +705,12 @@ impl<P: Port> RobotIo for SnakeSystem<P> {
             .map(|n| n.timestamp())
     }
 
-    fn set_power(&mut self, on: bool) {
+    fn set_power(&mut self, boards: u16, on: bool) {
         if !on {
             for n in &mut self.nodes {
-                n.set_all_amplifiers(false);
+                if boards & (1 << (n.board_id() & 0xF)) != 0 {
+                    n.set_all_amplifiers(false);
+                }
             }
         }
     }

@@ -1,6 +1,6 @@
 //! The Snake demo: seed 001's 36-axis system (two 11-axis Snake robots
-//! and two 7-axis masters on six 7-channel nodes) servoed by the generic
-//! [`Servo`] over the abstract robot I/O: configure, prepare the nodes
+//! and two 7-axis masters on six 7-channel nodes) servoed by the runner's
+//! [`Robot`] over the abstract robot I/O: configure, prepare the nodes
 //! (wiper, torque mode, current limit, encoder preload), power on, home,
 //! follow trajectories on every arm, optionally inject a fault half way,
 //! power off; then, on the simulated bus, find the highest rate that
@@ -12,17 +12,13 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
-use firelink_control::State;
 use firelink_control::config::{IoConfig, presets};
-use firelink_control::runner::{ArmTracking, CycleTimes, Pacing, RunnerError};
-use firelink_control::servo::Servo;
-use firelink_control::trajectory::Motion;
-use firelink_host::io::IoStats;
+use firelink_control::runner::{Pacing, Robot};
 use firelink_host::snake::SnakeSystem;
 
 use crate::TestbedError;
 use crate::demo::{
-    DemoFault, DemoPlan, DemoPort, DemoProgram, DemoProgress, DemoReport, Injector, RealtimeStatus,
+    DemoFault, DemoIo, DemoPlan, DemoPort, DemoProgress, DemoReport, Injector, RealtimeStatus,
     TimeStats, run_program,
 };
 use crate::rig;
@@ -241,87 +237,14 @@ pub fn run_snake_demo(
     })
 }
 
-impl<P: Injector> DemoProgram for Servo<SnakeSystem<P>> {
+impl<P: Injector> DemoIo for SnakeSystem<P> {
     type Port = P;
     fn injector(&mut self) -> &mut P {
-        self.io_mut().port_mut()
-    }
-    fn configure(&mut self) -> Result<(), RunnerError> {
-        Servo::configure(self)
-    }
-    fn power_on(&mut self) -> Result<(), RunnerError> {
-        Servo::power_on(self)
-    }
-    fn home(&mut self) -> Result<(), RunnerError> {
-        Servo::home(self)
-    }
-    fn activate(&mut self) -> Result<(), RunnerError> {
-        Servo::activate(self)
-    }
-    fn set_motion(&mut self, joint: usize, motion: Motion) -> Result<(), RunnerError> {
-        Servo::set_motion(self, joint, motion)
-    }
-    fn run_cycles(
-        &mut self,
-        cycles: u64,
-        pacing: Pacing,
-        every: u64,
-        progress: &mut dyn FnMut(&Self),
-    ) -> Result<(), RunnerError> {
-        self.run(cycles, pacing, every, progress)
-    }
-    fn step(&mut self, pacing: Pacing) -> Result<(), RunnerError> {
-        Servo::step(self, pacing)
-    }
-    fn shutdown(&mut self) -> Result<(), RunnerError> {
-        Servo::shutdown(self)
-    }
-    fn now(&self) -> f64 {
-        Servo::now(self)
-    }
-    fn cycles(&self) -> u64 {
-        Servo::cycles(self)
-    }
-    fn joint_count(&self) -> usize {
-        Servo::joint_count(self)
-    }
-    fn position(&self, joint: usize) -> Option<f64> {
-        Servo::position(self, joint)
-    }
-    fn setpoint(&self, joint: usize) -> Option<f64> {
-        Servo::setpoint(self, joint)
-    }
-    fn reset_tracking(&mut self) {
-        Servo::reset_tracking(self)
-    }
-    fn tracking(&self) -> Vec<ArmTracking> {
-        Servo::tracking(self)
-    }
-    fn times(&self) -> &CycleTimes {
-        Servo::times(self)
-    }
-    fn io_stats(&self) -> &IoStats {
-        self.io().stats()
-    }
-    fn state(&self) -> State {
-        Servo::state(self)
-    }
-    fn any_amp_on(&self) -> bool {
-        Servo::any_amp_on(self)
-    }
-    fn board_states(&self) -> Vec<(u8, bool, bool)> {
-        self.io()
-            .nodes()
-            .iter()
-            .map(|n| {
-                let id = n.board_id();
-                (id, n.is_valid(), n.status().watchdog_timeout())
-            })
-            .collect()
+        self.port_mut()
     }
     fn firmware(&self) -> Option<u32> {
         // The version register's low byte is the firmware revision.
-        self.io().nodes().first().map(|n| n.info().version & 0xFF)
+        self.nodes().first().map(|n| n.info().version & 0xFF)
     }
     fn protocol(&self) -> String {
         "snake per-node block read/write".into()
@@ -370,8 +293,8 @@ fn run_on<P: Injector>(
         watchdog: options.watchdog,
         pacing,
     };
-    let servo = Servo::new(system, &options.config, plan.settings())?;
-    let run = run_program(servo, &plan, port_name, rt, wall, progress)?;
+    let robot = Robot::new(system, &options.config, plan.settings())?;
+    let run = run_program(robot, &plan, port_name, rt, wall, progress)?;
     let period_us = 1e6 / options.rate_hz;
     let times = &run.times;
     let setup = (run.setup_cycles as usize).min(times.cycle_us.len());
