@@ -62,6 +62,32 @@ impl PhyAccess for CtxPhy<'_, '_> {
     }
 }
 
+/// What a board's link puts on the bus for the firmware's `reply` to a
+/// packet that arrived at `speed` (a response goes back at that speed).
+pub(crate) fn on_bus(reply: Reply, speed: Speed) -> RxReply {
+    match reply {
+        Reply::Silent => RxReply::Silent,
+        Reply::Ack(ack) => RxReply::Ack(ack),
+        Reply::AckThenResponse { ack, response } => RxReply::AckThenResponse {
+            ack,
+            response,
+            speed,
+        },
+    }
+}
+
+/// Tell the bus about a damaged packet the firmware of node `name`
+/// noticed, if any.
+pub(crate) fn report_rx_error(
+    name: &str,
+    error: Option<impl core::fmt::Display>,
+    ctx: &mut NodeCtx<'_>,
+) {
+    if let Some(error) = error {
+        ctx.report_error(format!("{name}: {error}"));
+    }
+}
+
 impl BoardNode {
     /// A board named `board <id>` whose status broadcasts go out at S400
     /// with isochronous-style arbitration (seed 000's bus arbitration
@@ -154,19 +180,9 @@ impl Node for BoardNode {
         ctx: &mut NodeCtx<'_>,
     ) -> RxReply {
         let reply = self.firmware.receive(now, packet, &mut CtxPhy(ctx));
-        if let Some(error) = self.firmware.take_rx_error() {
-            ctx.report_error(format!("{}: {error}", self.name));
-        }
+        report_rx_error(&self.name, self.firmware.take_rx_error(), ctx);
         self.pump(now, ctx);
-        match reply {
-            Reply::Silent => RxReply::Silent,
-            Reply::Ack(ack) => RxReply::Ack(ack),
-            Reply::AckThenResponse { ack, response } => RxReply::AckThenResponse {
-                ack,
-                response,
-                speed,
-            },
-        }
+        on_bus(reply, speed)
     }
 
     fn on_transmitted(

@@ -21,6 +21,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+use plotters::coord::ranged1d::ValueFormatter;
 use plotters::prelude::*;
 
 use firelink_testbed::bench::{BenchPoint, BenchReport};
@@ -138,6 +139,56 @@ fn draw_err(path: &Path, e: impl std::fmt::Display) -> PlotError {
     }
 }
 
+/// Draw a chart's axes in the figures' style: whole-number labels,
+/// `x_desc` and `y_desc` at font size `size` (labels one smaller), no
+/// light grid lines.
+fn draw_axes<DB, X, Y>(
+    chart: &mut ChartContext<'_, DB, Cartesian2d<X, Y>>,
+    (x_desc, y_desc): (&str, &str),
+    size: u32,
+    path: &Path,
+) -> Result<(), PlotError>
+where
+    DB: DrawingBackend,
+    X: Ranged<ValueType = f64> + ValueFormatter<f64>,
+    Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
+{
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .x_label_formatter(&|x| format!("{x:.0}"))
+        .y_label_formatter(&|y| format!("{y:.0}"))
+        .light_line_style(WHITE)
+        .label_style((FAMILY, size - 2))
+        .axis_desc_style((FAMILY, size))
+        .draw()
+        .map_err(|e| draw_err(path, e))
+}
+
+/// Draw a chart's legend in the figures' style at `position`, labels at
+/// font size `size`.
+fn draw_legend<'a, DB, X, Y>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    position: SeriesLabelPosition,
+    size: u32,
+    path: &Path,
+) -> Result<(), PlotError>
+where
+    DB: DrawingBackend + 'a,
+    X: Ranged,
+    Y: Ranged,
+{
+    chart
+        .configure_series_labels()
+        .position(position)
+        .label_font((FAMILY, size))
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| draw_err(path, e))
+}
+
 /// Round I/O-time grid values (1-2-5 steps) inside `range`.
 fn time_ticks(range: &std::ops::Range<f64>) -> Vec<f64> {
     let mut out = Vec::new();
@@ -192,17 +243,15 @@ pub fn fig11(report: &BenchReport, path: &Path) -> Result<(), PlotError> {
                 .with_key_points(time_ticks(&y_range)),
         )
         .map_err(|e| draw_err(path, e))?;
-    chart
-        .configure_mesh()
-        .x_desc("boards on the bus (log scale)")
-        .y_desc("I/O time per cycle, us (log scale)")
-        .x_label_formatter(&|x| format!("{x:.0}"))
-        .y_label_formatter(&|y| format!("{y:.0}"))
-        .light_line_style(WHITE)
-        .label_style((FAMILY, 15))
-        .axis_desc_style((FAMILY, 17))
-        .draw()
-        .map_err(|e| draw_err(path, e))?;
+    draw_axes(
+        &mut chart,
+        (
+            "boards on the bus (log scale)",
+            "I/O time per cycle, us (log scale)",
+        ),
+        17,
+        path,
+    )?;
     for (i, s) in series(report).iter().enumerate() {
         let colour = PALETTE[i % PALETTE.len()];
         let line: Vec<(f64, f64)> = s
@@ -272,14 +321,7 @@ pub fn fig11(report: &BenchReport, path: &Path) -> Result<(), PlotError> {
         .map_err(|e| draw_err(path, e))?
         .label("paper, 8 boards (seed 000)")
         .legend(|(x, y)| Cross::new((x + 12, y), 6, BLACK.stroke_width(2)));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .label_font((FAMILY, 15))
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .draw()
-        .map_err(|e| draw_err(path, e))?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperLeft, 15, path)?;
     root.present().map_err(|e| draw_err(path, e))?;
     Ok(())
 }

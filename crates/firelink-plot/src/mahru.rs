@@ -8,7 +8,7 @@ use plotters::prelude::*;
 
 use firelink_testbed::mahru::table3::{Table3Point, Table3Report};
 
-use super::{FAMILY, PALETTE, PlotError, draw_err, ensure_font};
+use super::{FAMILY, PALETTE, PlotError, draw_axes, draw_err, draw_legend, ensure_font};
 
 /// Draw Table III (simulated distribution and the seed's WCET) into a PNG.
 ///
@@ -41,17 +41,12 @@ pub fn table3(report: &Table3Report, path: &Path) -> Result<(), PlotError> {
         .y_label_area_size(70)
         .build_cartesian_2d(0.0..max_payload * 1.05, 0.0..max_time * 1.1)
         .map_err(|e| draw_err(path, e))?;
-    chart
-        .configure_mesh()
-        .x_desc("payload, bytes")
-        .y_desc("call to return, us")
-        .x_label_formatter(&|x| format!("{x:.0}"))
-        .y_label_formatter(&|y| format!("{y:.0}"))
-        .light_line_style(WHITE)
-        .label_style((FAMILY, 15))
-        .axis_desc_style((FAMILY, 17))
-        .draw()
-        .map_err(|e| draw_err(path, e))?;
+    draw_axes(
+        &mut chart,
+        ("payload, bytes", "call to return, us"),
+        17,
+        path,
+    )?;
     let mut systems: Vec<&str> = Vec::new();
     for p in &report.points {
         if !systems.contains(&p.rtos) {
@@ -109,14 +104,7 @@ pub fn table3(report: &Table3Report, path: &Path) -> Result<(), PlotError> {
             .label(format!("{rtos}: the seed's WCET"))
             .legend(move |(x, y)| Cross::new((x + 12, y), 6, colour.stroke_width(2)));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .label_font((FAMILY, 15))
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .draw()
-        .map_err(|e| draw_err(path, e))?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperLeft, 15, path)?;
     root.present().map_err(|e| draw_err(path, e))?;
     Ok(())
 }

@@ -9,7 +9,7 @@ use plotters::prelude::*;
 
 use firelink_testbed::snake::bench::Seed001Report;
 
-use crate::{FAMILY, PALETTE, PlotError, draw_err, ensure_font};
+use crate::{FAMILY, PALETTE, PlotError, draw_axes, draw_err, draw_legend, ensure_font};
 
 /// The paper's lines of Fig. 21: base latency, Mb/s.
 const PAPER_READ: (f64, f64) = (33.2, 360.0);
@@ -47,17 +47,7 @@ pub fn seed001(report: &Seed001Report, path: &Path) -> Result<(), PlotError> {
         .y_label_area_size(64)
         .build_cartesian_2d(0f64..n as f64, 0f64..(f64::from(top) * 1.15).max(60.0))
         .map_err(|e| draw_err(path, e))?;
-    chart
-        .configure_mesh()
-        .x_desc("iteration")
-        .y_desc("transaction time, us")
-        .x_label_formatter(&|x| format!("{x:.0}"))
-        .y_label_formatter(&|y| format!("{y:.0}"))
-        .label_style((FAMILY, 14))
-        .axis_desc_style((FAMILY, 16))
-        .light_line_style(WHITE)
-        .draw()
-        .map_err(|e| draw_err(path, e))?;
+    draw_axes(&mut chart, ("iteration", "transaction time, us"), 16, path)?;
     for (label, data, colour, paper) in [
         ("read", &report.quadlet_read_us, read_c, 34.5),
         ("write", &report.quadlet_write_us, write_c, 30.2),
@@ -91,14 +81,7 @@ pub fn seed001(report: &Seed001Report, path: &Path) -> Result<(), PlotError> {
             ))
             .map_err(|e| draw_err(path, e))?;
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .label_font((FAMILY, 13))
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .draw()
-        .map_err(|e| draw_err(path, e))?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 13, path)?;
 
     // Fig. 21.
     let max_q = report
@@ -123,17 +106,15 @@ pub fn seed001(report: &Seed001Report, path: &Path) -> Result<(), PlotError> {
         .y_label_area_size(64)
         .build_cartesian_2d(0f64..max_q * 1.02, 0f64..top * 1.15)
         .map_err(|e| draw_err(path, e))?;
-    chart
-        .configure_mesh()
-        .x_desc("block size, quadlets")
-        .y_desc("transaction time, us (mean per size)")
-        .x_label_formatter(&|x| format!("{x:.0}"))
-        .y_label_formatter(&|y| format!("{y:.0}"))
-        .label_style((FAMILY, 14))
-        .axis_desc_style((FAMILY, 16))
-        .light_line_style(WHITE)
-        .draw()
-        .map_err(|e| draw_err(path, e))?;
+    draw_axes(
+        &mut chart,
+        (
+            "block size, quadlets",
+            "transaction time, us (mean per size)",
+        ),
+        16,
+        path,
+    )?;
     for (label, points, fit, colour, paper) in [
         (
             "read",
@@ -184,14 +165,7 @@ pub fn seed001(report: &Seed001Report, path: &Path) -> Result<(), PlotError> {
             .label(format!("{label}, paper: {} us + {} Mb/s", paper.0, paper.1))
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], BLACK.stroke_width(1)));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .label_font((FAMILY, 13))
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .draw()
-        .map_err(|e| draw_err(path, e))?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperLeft, 13, path)?;
     root.present().map_err(|e| draw_err(path, e))?;
     Ok(())
 }

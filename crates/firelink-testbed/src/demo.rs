@@ -597,6 +597,36 @@ pub fn motion_for(config: &IoConfig, i: usize, here: f64) -> Motion {
     }
 }
 
+/// A demo's rate and duration must be finite and above 0.
+///
+/// # Errors
+/// [`TestbedError::Config`] naming the value.
+pub(crate) fn check_run(rate_hz: f64, duration_s: f64) -> Result<(), TestbedError> {
+    if !(rate_hz.is_finite() && rate_hz > 0.0) {
+        return Err(TestbedError::Config(format!(
+            "rate {rate_hz} Hz: must be above 0"
+        )));
+    }
+    if !(duration_s.is_finite() && duration_s > 0.0) {
+        return Err(TestbedError::Config(format!(
+            "duration {duration_s} s: must be above 0"
+        )));
+    }
+    Ok(())
+}
+
+/// The real-time settings of a run: `realtime()` with wall-clock pacing,
+/// none otherwise.
+pub(crate) fn realtime_status(
+    pacing: Pacing,
+    realtime: Option<&dyn Fn() -> RealtimeStatus>,
+) -> RealtimeStatus {
+    match (pacing, realtime) {
+        (Pacing::WallClock, Some(setup)) => setup(),
+        _ => RealtimeStatus::default(),
+    }
+}
+
 /// Run the demo. `realtime` is called once the port is open, on the
 /// calling thread, when the pacing is wall-clock (the CLI passes its
 /// SCHED_FIFO/mlockall setup; `None`: no real-time settings).
@@ -605,18 +635,7 @@ pub fn run_demo(
     realtime: Option<&dyn Fn() -> RealtimeStatus>,
     mut progress: impl FnMut(DemoProgress),
 ) -> Result<DemoReport, TestbedError> {
-    if !(options.rate_hz.is_finite() && options.rate_hz > 0.0) {
-        return Err(TestbedError::Config(format!(
-            "rate {} Hz: must be above 0",
-            options.rate_hz
-        )));
-    }
-    if !(options.duration_s.is_finite() && options.duration_s > 0.0) {
-        return Err(TestbedError::Config(format!(
-            "duration {} s: must be above 0",
-            options.duration_s
-        )));
-    }
+    check_run(options.rate_hz, options.duration_s)?;
     let config = &options.config;
     // Boards 0..=the highest board ID the configuration uses.
     let boards = config.board_slots();
@@ -700,10 +719,7 @@ fn run_robot<P: Injector>(
     realtime: Option<&dyn Fn() -> RealtimeStatus>,
     progress: &mut dyn FnMut(DemoProgress),
 ) -> Result<DemoReport, TestbedError> {
-    let rt = match (pacing, realtime) {
-        (Pacing::WallClock, Some(setup)) => setup(),
-        _ => RealtimeStatus::default(),
-    };
+    let rt = realtime_status(pacing, realtime);
     let config = &options.config;
     let wall = Instant::now();
     let (io, scan) = IoSystem::open(

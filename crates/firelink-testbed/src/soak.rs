@@ -336,7 +336,11 @@ pub fn run(
     mut progress: impl FnMut(u64, &SoakReport),
 ) -> Result<SoakReport, TestbedError> {
     let config = presets::dvrk_seed000();
-    let (mut robot, boards, host) = bring_up_robot(&config, settings)?;
+    let RunningRobot {
+        mut robot,
+        boards,
+        host,
+    } = bring_up_robot(&config, settings)?;
     let mut soak = Soak::new(settings, boards.clone());
     // Packets on the bus per cycle, measured, against those a fault is
     // aimed at, so that the faulted share of all packets is the one asked.
@@ -427,16 +431,25 @@ pub fn run(
     Ok(soak.report)
 }
 
+/// A robot moving on the simulated bus, and where its nodes are.
+pub struct RunningRobot {
+    /// The robot.
+    pub robot: Robot<IoSystem<SimPort>>,
+    /// The boards' nodes, by board ID.
+    pub boards: Vec<NodeHandle>,
+    /// The PC's node.
+    pub host: NodeHandle,
+}
+
 /// The dVRK of seed 000 on its 8 boards, configured, powered, homed and
-/// moving, with no fault injected yet: the robot, the boards' nodes (by
-/// board ID) and the PC's node.
+/// moving, with no fault injected yet.
 ///
 /// # Errors
 /// The boards were not found or the robot did not come up.
 pub fn bring_up_robot(
     config: &IoConfig,
     settings: &SoakSettings,
-) -> Result<(Robot<IoSystem<SimPort>>, Vec<NodeHandle>, NodeHandle), TestbedError> {
+) -> Result<RunningRobot, TestbedError> {
     let boards: Vec<BoardConfig> = board_configs(config, Profile::Rev8, 8)
         .into_iter()
         .map(|b| {
@@ -472,7 +485,11 @@ pub fn bring_up_robot(
     robot.home()?;
     robot.activate()?;
     move_joints(&mut robot);
-    Ok((robot, handles, host))
+    Ok(RunningRobot {
+        robot,
+        boards: handles,
+        host,
+    })
 }
 
 /// Small sinusoids on every joint around where it stands.

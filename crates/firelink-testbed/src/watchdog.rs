@@ -25,7 +25,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
 use crate::TestbedError;
-use crate::soak::{SoakSettings, bring_up_robot};
+use crate::soak::{RunningRobot, SoakSettings, bring_up_robot};
 
 /// The result (`firelink soak --watchdog-trials N`).
 #[derive(Debug, Clone, Serialize)]
@@ -75,7 +75,9 @@ pub fn run(trials: u64, seed: u64) -> Result<WatchdogReport, TestbedError> {
         ..SoakSettings::default()
     };
     let config = presets::dvrk_seed000();
-    let (mut robot, boards, _) = bring_up_robot(&config, &settings)?;
+    let RunningRobot {
+        mut robot, boards, ..
+    } = bring_up_robot(&config, &settings)?;
     let period = Watchdog::from_period(Duration::from_millis(20))
         .map_err(|e| TestbedError::Config(e.to_string()))?
         .period();

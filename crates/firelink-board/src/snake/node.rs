@@ -25,8 +25,7 @@ use firelink_wire::packet::Speed;
 
 use super::config::SnakeNodeConfig;
 use super::firmware::SnakeFirmware;
-use crate::firmware::Reply;
-use crate::node::CtxPhy;
+use crate::node::{CtxPhy, on_bus, report_rx_error};
 
 /// Timer token of the node's next self-driven change.
 const WAKEUP_TIMER: u64 = 1;
@@ -90,19 +89,9 @@ impl Node for SnakeNode {
         ctx: &mut NodeCtx<'_>,
     ) -> RxReply {
         let reply = self.firmware.receive(now, packet, &mut CtxPhy(ctx));
-        if let Some(error) = self.firmware.take_rx_error() {
-            ctx.report_error(format!("{}: {error}", self.name));
-        }
+        report_rx_error(&self.name, self.firmware.take_rx_error(), ctx);
         self.arm(now, ctx);
-        match reply {
-            Reply::Silent => RxReply::Silent,
-            Reply::Ack(ack) => RxReply::Ack(ack),
-            Reply::AckThenResponse { ack, response } => RxReply::AckThenResponse {
-                ack,
-                response,
-                speed,
-            },
-        }
+        on_bus(reply, speed)
     }
 
     fn on_timer(&mut self, now: SimTime, _token: u64, ctx: &mut NodeCtx<'_>) {

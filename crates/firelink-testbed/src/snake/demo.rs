@@ -19,7 +19,7 @@ use firelink_host::snake::SnakeSystem;
 use crate::TestbedError;
 use crate::demo::{
     DemoFault, DemoIo, DemoPlan, DemoPort, DemoProgress, DemoReport, Injector, RealtimeStatus,
-    TimeStats, run_program,
+    TimeStats, check_run, realtime_status, run_program,
 };
 use crate::rig;
 use crate::snake::{emulator, node_configs, prepare, sim_port};
@@ -177,18 +177,7 @@ pub fn run_snake_demo(
     realtime: Option<&dyn Fn() -> RealtimeStatus>,
     mut progress: impl FnMut(DemoProgress),
 ) -> Result<SnakeDemoReport, TestbedError> {
-    if !(options.rate_hz.is_finite() && options.rate_hz > 0.0) {
-        return Err(TestbedError::Config(format!(
-            "rate {} Hz: must be above 0",
-            options.rate_hz
-        )));
-    }
-    if !(options.duration_s.is_finite() && options.duration_s > 0.0) {
-        return Err(TestbedError::Config(format!(
-            "duration {} s: must be above 0",
-            options.duration_s
-        )));
-    }
+    check_run(options.rate_hz, options.duration_s)?;
     if options.fault == DemoFault::CorruptQuery {
         return Err(TestbedError::Config(
             "fault corrupt-query needs the broadcast protocol; Snake nodes are read and \
@@ -271,10 +260,7 @@ fn run_on<P: Injector>(
     realtime: Option<&dyn Fn() -> RealtimeStatus>,
     progress: &mut dyn FnMut(DemoProgress),
 ) -> Result<RunOutcome, TestbedError> {
-    let rt = match (pacing, realtime) {
-        (Pacing::WallClock, Some(setup)) => setup(),
-        _ => RealtimeStatus::default(),
-    };
+    let rt = realtime_status(pacing, realtime);
     let wall = Instant::now();
     let mut system = SnakeSystem::open(port)?;
     let ids: Vec<u8> = system.nodes().iter().map(|n| n.board_id()).collect();
