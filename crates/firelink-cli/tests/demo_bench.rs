@@ -1,27 +1,9 @@
 //! `firelink demo` and `firelink bench` end to end, in short virtual-time
 //! runs, parsing their JSON.
 
-use std::process::{Command, Output};
+mod common;
 
-use serde_json::Value;
-
-fn firelink(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_firelink"))
-        .args(args)
-        .env("FIRELINK_QUIET", "1")
-        .output()
-        .expect("run firelink")
-}
-
-fn json(args: &[&str]) -> Value {
-    let out = firelink(args);
-    assert!(
-        out.status.success(),
-        "{args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("one JSON object")
-}
+use common::{firelink, json};
 
 #[test]
 fn demo_runs_the_dvrk_and_reports() {

@@ -1,46 +1,23 @@
 //! End-to-end tests of `firelink packet`, `firelink crc` and `firelink tour`,
 //! run as a user would run them.
 
-use std::process::{Command, Output};
+mod common;
 
-use serde_json::Value;
+use common::{fails, firelink, json};
 
-fn firelink(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_firelink"))
-        .args(args)
-        .output()
-        .expect("run firelink")
-}
-
-fn ok_json(args: &[&str]) -> Value {
-    let out = firelink(args);
-    assert!(
-        out.status.success(),
-        "{args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("one JSON object")
-}
-
+/// `firelink ARGS` fails with one line of error naming `needle`.
 fn fails_with(args: &[&str], needle: &str) {
-    let out = firelink(args);
-    assert!(!out.status.success(), "{args:?} should fail");
-    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stderr = fails(args, needle);
     assert_eq!(
         stderr.lines().count(),
         1,
         "one line of error, got {stderr:?}"
     );
-    assert!(
-        stderr.contains(needle),
-        "{args:?}: {stderr:?} lacks {needle:?}"
-    );
 }
-
 #[test]
 fn decode_quadlet_read_request() {
     // CRC vector "quadlet read request header, dest 0xffc1, tl 5, offset 0x7".
-    let v = ok_json(&["packet", "decode", "ffc11540 ffc20000 00000007 b2b02823"]);
+    let v = json(&["packet", "decode", "ffc11540 ffc20000 00000007 b2b02823"]);
     assert_eq!(v["tcode"], 4);
     assert_eq!(v["tcode_name"], "read_request_quadlet");
     assert_eq!(v["destination_id"], 0xffc1);
@@ -56,7 +33,7 @@ fn decode_quadlet_read_request() {
 
 #[test]
 fn decode_quadlet_read_response_and_bad_crc() {
-    let v = ok_json(&[
+    let v = json(&[
         "packet",
         "decode",
         "ffc21460ffc100000000000000000009 50d68132",
@@ -65,7 +42,7 @@ fn decode_quadlet_read_response_and_bad_crc() {
     assert_eq!(v["quadlet_data"], 9);
     assert_eq!(v["rcode"], 0);
     assert!(v.get("offset").is_none());
-    let v = ok_json(&[
+    let v = json(&[
         "packet",
         "decode",
         "ffc21460ffc100000000000000000009 50d68133",
@@ -97,7 +74,7 @@ fn encode_then_decode_block_write_via_flags_and_json() {
         String::from_utf8_lossy(&out.stderr)
     );
     let hex = String::from_utf8(out.stdout).unwrap();
-    let v = ok_json(&["packet", "decode", hex.trim()]);
+    let v = json(&["packet", "decode", hex.trim()]);
     assert_eq!(v["tcode"], 1);
     assert_eq!(v["destination_id"], 0xffff);
     assert_eq!(v["pri"], 10);
@@ -140,7 +117,7 @@ fn bridge_decode_adds_control_word() {
     );
     let hex = String::from_utf8(out.stdout).unwrap();
     assert!(hex.starts_with("0107"), "{hex}");
-    let v = ok_json(&["packet", "decode", "--bridge", hex.trim()]);
+    let v = json(&["packet", "decode", "--bridge", hex.trim()]);
     assert_eq!(v["no_forward"], true);
     assert_eq!(v["generation"], 7);
     assert_eq!(v["destination_id"], 0xffc3);

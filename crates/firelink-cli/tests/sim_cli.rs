@@ -1,15 +1,10 @@
 //! End-to-end tests of `firelink sim`, run as a user would run it.
 
-use std::process::{Command, Output};
+mod common;
+
+use common::firelink;
 
 use serde_json::Value;
-
-fn firelink(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_firelink"))
-        .args(args)
-        .output()
-        .expect("run firelink")
-}
 
 fn sim_json(args: &[&str]) -> Value {
     let mut all = vec!["sim", "--json"];

@@ -2,34 +2,11 @@
 //! `firelink bench --seed 001` and `firelink snake-tool`, end to end on
 //! the simulated bus (virtual time), parsing what they print.
 
-use std::process::{Command, Output};
+mod common;
+
+use common::{fails, ok};
 
 use serde_json::Value;
-
-fn firelink(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_firelink"))
-        .args(args)
-        .env("FIRELINK_QUIET", "1")
-        .output()
-        .expect("run firelink")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = firelink(args);
-    assert!(
-        out.status.success(),
-        "{args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
-fn fails(args: &[&str], needle: &str) {
-    let out = firelink(args);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{args:?} should fail");
-    assert!(err.contains(needle), "{args:?}: {err:?} lacks {needle:?}");
-}
 
 /// The last JSON line of a tool's output.
 fn last_json(text: &str) -> Value {
