@@ -4,11 +4,13 @@
 //! [`firelink_testbed::demo`]; this file parses the options, shows
 //! progress and prints the report.
 
+use std::fmt;
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
 
 use clap::{Args, ValueEnum};
+use serde::Serialize;
 
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::Pacing;
@@ -247,6 +249,46 @@ pub(crate) fn realtime_setup() -> RealtimeStatus {
     }
 }
 
+/// Run a demo with its progress on stderr (unless quiet): `run` gets the
+/// real-time setup to call (unless `--no-rt`) and the progress sink.
+pub(crate) fn with_progress<T>(
+    args: &DemoArgs,
+    run: impl FnOnce(
+        Option<&dyn Fn() -> RealtimeStatus>,
+        &mut dyn FnMut(DemoProgress),
+    ) -> Result<T, firelink_testbed::TestbedError>,
+) -> Result<T, CliError> {
+    let quiet = args.quiet || crate::args::quiet();
+    if let Some(w) = args.watchdog.warning() {
+        eprintln!("demo: {w}");
+    }
+    let setup: &dyn Fn() -> RealtimeStatus = &realtime_setup;
+    let mut ticking = false;
+    let report = run((!args.no_rt).then_some(setup), &mut |event| {
+        if !quiet {
+            show(&event, &mut ticking);
+        }
+    })?;
+    if ticking {
+        eprintln!();
+    }
+    Ok(report)
+}
+
+/// Print a demo's report: JSON with `--json`, else the table.
+pub(crate) fn print_report(
+    args: &DemoArgs,
+    out: &mut impl Write,
+    report: &(impl Serialize + fmt::Display),
+) -> Result<(), CliError> {
+    if args.json {
+        writeln!(out, "{}", serde_json::to_string(report)?)?;
+    } else {
+        write!(out, "{report}")?;
+    }
+    Ok(())
+}
+
 /// Run `firelink demo`.
 pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
     if args.robot == DemoRobot::Mahru {
@@ -256,21 +298,8 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
         return crate::snake_demo::run(args, out);
     }
     let options = options(args)?;
-    let quiet = args.quiet || crate::args::quiet();
-    if let Some(w) = args.watchdog.warning() {
-        eprintln!("demo: {w}");
-    }
-    let setup: &dyn Fn() -> RealtimeStatus = &realtime_setup;
-    let mut ticking = false;
-    let report = run_demo(&options, (!args.no_rt).then_some(setup), |event| {
-        if !quiet {
-            show(&event, &mut ticking);
-        }
-    })?;
-    if ticking {
-        eprintln!();
-    }
-    if !quiet && report.realtime.requested {
+    let report = with_progress(args, |rt, progress| run_demo(&options, rt, progress))?;
+    if !(args.quiet || crate::args::quiet()) && report.realtime.requested {
         let r = &report.realtime;
         eprintln!(
             "demo: real time: SCHED_FIFO {}, memory locked {}, timer slack 1 ns {}{}",
@@ -284,10 +313,6 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
             }
         );
     }
-    if args.json {
-        writeln!(out, "{}", serde_json::to_string(&report)?)?;
-    } else {
-        write!(out, "{report}")?;
-    }
+    print_report(args, out, &report)?;
     report.verdict().map_err(CliError::Failed)
 }

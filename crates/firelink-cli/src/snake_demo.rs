@@ -7,12 +7,11 @@ use std::io::Write;
 
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::Pacing;
-use firelink_testbed::demo::RealtimeStatus;
 use firelink_testbed::snake::demo::{SnakeDemoOptions, run_snake_demo};
 use firelink_testbed::snake::is_snake_config;
 
 use crate::CliError;
-use crate::demo::{DemoArgs, DemoRobot, realtime_setup, show};
+use crate::demo::{DemoArgs, DemoRobot, print_report, with_progress};
 
 fn config(args: &DemoArgs) -> Result<Option<IoConfig>, CliError> {
     args.config
@@ -50,24 +49,7 @@ pub fn options(args: &DemoArgs) -> Result<SnakeDemoOptions, CliError> {
 /// Run `firelink demo --robot snake`.
 pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
     let options = options(args)?;
-    let quiet = args.quiet || crate::args::quiet();
-    if let Some(w) = args.watchdog.warning() {
-        eprintln!("demo: {w}");
-    }
-    let setup: &dyn Fn() -> RealtimeStatus = &realtime_setup;
-    let mut ticking = false;
-    let report = run_snake_demo(&options, (!args.no_rt).then_some(setup), |event| {
-        if !quiet {
-            show(&event, &mut ticking);
-        }
-    })?;
-    if ticking {
-        eprintln!();
-    }
-    if args.json {
-        writeln!(out, "{}", serde_json::to_string(&report)?)?;
-    } else {
-        write!(out, "{report}")?;
-    }
+    let report = with_progress(args, |rt, progress| run_snake_demo(&options, rt, progress))?;
+    print_report(args, out, &report)?;
     report.verdict().map_err(CliError::Failed)
 }
