@@ -69,6 +69,12 @@ impl Bus {
         }
     }
 
+    /// The bus is idle: the node whose request reaches the root first
+    /// (ties: a cycle start first, then the nearer node, the lower
+    /// physical ID) wins, unless a delay fault sends its packet back to
+    /// wait; the winner's packet starts after the arbitration time. If no
+    /// request has reached the root yet, arbitration is scheduled for
+    /// when the first will.
     pub(super) fn arbitrate(&mut self) {
         loop {
             let Medium::Idle { since } = self.medium else {
@@ -76,30 +82,11 @@ impl Bus {
             };
             let now = self.now;
             self.refill_babblers();
-            let hop = self.cfg.timing.hop_delay;
-            // (arrival at root, not-urgent, depth, phy, index, eligible)
-            let mut best: Option<(SimTime, u8, u32, u8, usize, SimTime)> = None;
-            for (i, slot) in self.slots.iter().enumerate() {
-                let (Some(phy), Some(p)) = (slot.phy, slot.queue.front()) else {
-                    continue;
-                };
-                if slot.muted {
-                    continue;
-                }
-                let eligible = p.ready_at.max(since + self.needed_gap(slot, p));
-                let depth = self.tree.depth.get(i).copied().unwrap_or(0);
-                let at_root = eligible + hop * u64::from(depth);
-                let urgent = u8::from(p.kind != PacketKind::CycleStart);
-                let key = (at_root, urgent, depth, phy, i, eligible);
-                if best.is_none_or(|b| key < b) {
-                    best = Some(key);
-                }
-            }
-            let Some((at_root, _, depth, phy, idx, eligible)) = best else {
+            let Some(w) = self.first_request(since) else {
                 return;
             };
-            if at_root > now {
-                self.schedule_arbitration(at_root);
+            if w.at_root > now {
+                self.schedule_arbitration(w.at_root);
                 return;
             }
             // A new fairness interval for every PHY that saw an arbitration
@@ -110,85 +97,150 @@ impl Bus {
                     slot.arb_enable = true;
                 }
             }
-            let Some(mut pending) = self.slots[idx].queue.pop_front() else {
+            let Some(pending) = self.slots[w.idx].queue.pop_front() else {
                 return;
             };
-            let handle = NodeHandle(idx);
             // Delay faults first: the packet goes back to wait.
-            if !self.injector.is_empty() && !pending.delayed && pending.kind == PacketKind::Request
-            {
-                let d = self
-                    .injector
-                    .decide_delay(handle, pending.kind, &pending.bytes, now);
-                if let Some((delay, what, rule)) = d {
-                    let source = rule.map(FaultSource::Rule);
-                    let id = self.log.add(now, what.clone(), None, Some(idx), source);
-                    self.log_event(TraceEvent::Fault { id, what });
-                    pending.delayed = true;
-                    pending.ready_at = now + delay;
-                    pending.faults.push(id);
-                    self.slots[idx].queue.push_front(pending);
-                    continue;
-                }
-            }
-            let start = now + hop * u64::from(depth) + self.cfg.timing.arbitration_base;
-            if pending.kind == PacketKind::CycleStart {
-                pending.bytes = Arc::from(cycle_start_packet(phy, start));
-            }
-            if pending.class == ArbitrationClass::Fair && pending.kind != PacketKind::CycleStart {
-                self.slots[idx].arb_enable = false;
-            }
-            self.medium = Medium::Busy;
-            self.log_event(TraceEvent::Arbitration {
-                node: idx,
-                class: pending.class,
-                requested: eligible,
-            });
-            let id = self.next_id;
-            self.next_id += 1;
-            let mut sub = Sub {
-                id,
-                kind: pending.kind,
-                sender: idx,
-                sender_phy: phy,
-                bytes: pending.bytes.clone(),
-                speed: pending.speed,
-                token: pending.token,
-                dest: None,
-                reply: None,
-                end: start,
-                faults: pending.faults.clone(),
-                drop_ack: false,
-                corrupt_ack: false,
-                dropped: false,
-                notified: false,
-                answers: None,
+            let Some(pending) = self.delay_fault(w.idx, pending) else {
+                continue;
             };
-            let duplicate = self.decide_faults(&mut sub, now);
-            if duplicate {
-                self.slots[idx].queue.push_front(Pending {
-                    bytes: pending.bytes.clone(),
-                    speed: pending.speed,
-                    class: pending.class,
-                    token: None,
-                    kind: PacketKind::Duplicate,
-                    ready_at: now,
-                    delayed: true,
-                    faults: sub.faults.clone(),
-                });
-            }
-            self.subs.insert(id, sub);
-            self.push_epoch(
-                start,
-                Ev::TxStart {
-                    sub: id,
-                    arb_start: Some(eligible),
-                    class: Some(pending.class),
-                },
-            );
+            self.grant(&w, pending);
             return;
         }
     }
+
+    /// The request that reaches the root first, the bus idle since
+    /// `since`.
+    fn first_request(&self, since: SimTime) -> Option<Winner> {
+        let hop = self.cfg.timing.hop_delay;
+        // (arrival at root, not-urgent, depth, phy, index, eligible)
+        let mut best: Option<(SimTime, u8, u32, u8, usize, SimTime)> = None;
+        for (i, slot) in self.slots.iter().enumerate() {
+            let (Some(phy), Some(p)) = (slot.phy, slot.queue.front()) else {
+                continue;
+            };
+            if slot.muted {
+                continue;
+            }
+            let eligible = p.ready_at.max(since + self.needed_gap(slot, p));
+            let depth = self.tree.depth.get(i).copied().unwrap_or(0);
+            let at_root = eligible + hop * u64::from(depth);
+            let urgent = u8::from(p.kind != PacketKind::CycleStart);
+            let key = (at_root, urgent, depth, phy, i, eligible);
+            if best.is_none_or(|b| key < b) {
+                best = Some(key);
+            }
+        }
+        best.map(|(at_root, _, depth, phy, idx, eligible)| Winner {
+            at_root,
+            depth,
+            phy,
+            idx,
+            eligible,
+        })
+    }
+
+    /// A delay fault for node `idx`'s request `pending`, if one fires: the
+    /// packet goes back to the front of its queue, ready later (`None`).
+    /// Otherwise the packet.
+    fn delay_fault(&mut self, idx: usize, mut pending: Pending) -> Option<Pending> {
+        if self.injector.is_empty() || pending.delayed || pending.kind != PacketKind::Request {
+            return Some(pending);
+        }
+        let now = self.now;
+        let d = self
+            .injector
+            .decide_delay(NodeHandle(idx), pending.kind, &pending.bytes, now);
+        let Some((delay, what, rule)) = d else {
+            return Some(pending);
+        };
+        let source = rule.map(FaultSource::Rule);
+        let id = self.log.add(now, what.clone(), None, Some(idx), source);
+        self.log_event(TraceEvent::Fault { id, what });
+        pending.delayed = true;
+        pending.ready_at = now + delay;
+        pending.faults.push(id);
+        self.slots[idx].queue.push_front(pending);
+        None
+    }
+
+    /// The winner `w` has the bus: its packet becomes a subaction (with
+    /// the packet faults decided for it, a duplicate queued behind it)
+    /// that starts on the wire after the arbitration time.
+    fn grant(&mut self, w: &Winner, mut pending: Pending) {
+        let now = self.now;
+        let idx = w.idx;
+        let start =
+            now + self.cfg.timing.hop_delay * u64::from(w.depth) + self.cfg.timing.arbitration_base;
+        if pending.kind == PacketKind::CycleStart {
+            pending.bytes = Arc::from(cycle_start_packet(w.phy, start));
+        }
+        if pending.class == ArbitrationClass::Fair && pending.kind != PacketKind::CycleStart {
+            self.slots[idx].arb_enable = false;
+        }
+        self.medium = Medium::Busy;
+        self.log_event(TraceEvent::Arbitration {
+            node: idx,
+            class: pending.class,
+            requested: w.eligible,
+        });
+        let id = self.next_id;
+        self.next_id += 1;
+        let mut sub = Sub {
+            id,
+            kind: pending.kind,
+            sender: idx,
+            sender_phy: w.phy,
+            bytes: pending.bytes.clone(),
+            speed: pending.speed,
+            token: pending.token,
+            dest: None,
+            reply: None,
+            end: start,
+            faults: pending.faults.clone(),
+            drop_ack: false,
+            corrupt_ack: false,
+            dropped: false,
+            notified: false,
+            answers: None,
+        };
+        let duplicate = self.decide_faults(&mut sub, now);
+        if duplicate {
+            self.slots[idx].queue.push_front(Pending {
+                bytes: pending.bytes.clone(),
+                speed: pending.speed,
+                class: pending.class,
+                token: None,
+                kind: PacketKind::Duplicate,
+                ready_at: now,
+                delayed: true,
+                faults: sub.faults.clone(),
+            });
+        }
+        self.subs.insert(id, sub);
+        self.push_epoch(
+            start,
+            Ev::TxStart {
+                sub: id,
+                arb_start: Some(w.eligible),
+                class: Some(pending.class),
+            },
+        );
+    }
+}
+
+/// The request that wins arbitration.
+struct Winner {
+    /// When it reaches the root.
+    at_root: SimTime,
+    /// Its node's depth in the tree.
+    depth: u32,
+    /// Its node's physical ID.
+    phy: u8,
+    /// Its node's slot.
+    idx: usize,
+    /// When it was eligible to ask.
+    eligible: SimTime,
 }
 
 #[cfg(test)]

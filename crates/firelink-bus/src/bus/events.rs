@@ -161,127 +161,154 @@ impl Bus {
         self.dispatch_any(idx, f)
     }
 
+    /// Carry out what node `idx` did in a callback: its PHY registers
+    /// (`regs`, as it left them), its reports, timers and transmit
+    /// requests; a bus reset it asked for through IBR/ISBR starts last.
     pub(super) fn apply(&mut self, idx: usize, regs: PhyRegisters, cmds: &mut Commands) {
-        let now = self.now;
-        let mut reset: Option<bool> = None;
-        {
-            let slot = &mut self.slots[idx];
-            let old_gap = slot.regs.gap_count();
-            slot.regs = regs;
-            if slot.regs.take_ibr() {
-                reset = Some(false);
-            }
-            if slot.regs.take_isbr() {
-                reset = reset.or(Some(true));
-            }
-            if slot.regs.gap_count() != old_gap {
-                let text = format!(
-                    "{} gap count {} -> {} (register write)",
-                    slot.name,
-                    old_gap,
-                    slot.regs.gap_count()
-                );
-                self.note(text);
-            }
-        }
+        let reset = self.apply_phy_registers(idx, regs);
         for report in cmds.reports.drain(..) {
-            let packet = self.current_rx.as_ref().map(|(p, _)| *p);
-            if let Some((_, faults)) = &self.current_rx {
-                for &f in faults {
-                    self.log.add_evidence(
-                        f,
-                        Evidence {
-                            time: now,
-                            node: idx,
-                            kind: EvidenceKind::Report(report.clone()),
-                        },
-                    );
-                }
-            }
-            self.log_event(TraceEvent::Report {
-                node: idx,
-                text: report,
-                packet,
-            });
+            self.apply_report(idx, report);
         }
         for cmd in cmds.timers.drain(..) {
-            match cmd {
-                TimerCommand::Set { at, token } => {
-                    self.timer_stamp += 1;
-                    let stamp = self.timer_stamp;
-                    self.slots[idx].timers.insert(token, stamp);
-                    self.push(
-                        at.max(now),
-                        None,
-                        Ev::Timer {
-                            node: idx,
-                            token,
-                            stamp,
-                        },
-                    );
-                }
-                TimerCommand::Cancel { token } => {
-                    self.slots[idx].timers.remove(&token);
-                }
-            }
+            self.apply_timer(idx, cmd);
         }
         let mut want_arb = false;
         for req in cmds.transmits.drain(..) {
-            let TransmitRequest {
-                packet,
-                speed,
-                class,
-                token,
-            } = req;
-            let slot = &self.slots[idx];
-            let refuse = if packet.len() > self.cfg.max_packet_len {
-                Some(format!(
-                    "{} bytes is longer than the bus accepts",
-                    packet.len()
-                ))
-            } else if slot.muted {
-                Some("node stopped answering".to_string())
-            } else if slot.phy.is_none() && self.medium != Medium::Resetting {
-                Some("node is not on the bus".to_string())
-            } else {
-                None
-            };
-            if let Some(why) = refuse {
-                let text = format!("{}: transmit refused: {why}", slot.name);
-                self.note(text);
-                self.push(
-                    now,
-                    None,
-                    Ev::Notify {
-                        node: idx,
-                        token: Some(token),
-                        kind: PacketKind::Request,
-                        ack: None,
-                    },
-                );
-                continue;
-            }
-            self.slots[idx].queue.push_back(Pending {
-                bytes: Arc::from(packet),
-                speed,
-                class,
-                token: Some(token),
-                kind: PacketKind::Request,
-                ready_at: now,
-                delayed: false,
-                faults: Vec::new(),
-            });
-            want_arb = true;
+            want_arb |= self.queue_transmit(idx, req);
         }
         if !cmds.phy_writes.is_empty() {
             cmds.phy_writes.clear();
         }
         if want_arb && self.is_idle() {
-            self.schedule_arbitration(now);
+            self.schedule_arbitration(self.now);
         }
         if let Some(short) = reset {
             self.start_reset(short, format!("{} set IBR/ISBR", self.slots[idx].name));
         }
+    }
+
+    /// Node `idx`'s PHY registers as it left them; a gap-count change is
+    /// noted. Returns the bus reset it asked for: `Some(false)` a long one
+    /// (IBR), `Some(true)` a short one (ISBR only).
+    fn apply_phy_registers(&mut self, idx: usize, regs: PhyRegisters) -> Option<bool> {
+        let slot = &mut self.slots[idx];
+        let old_gap = slot.regs.gap_count();
+        slot.regs = regs;
+        let mut reset = None;
+        if slot.regs.take_ibr() {
+            reset = Some(false);
+        }
+        if slot.regs.take_isbr() {
+            reset = reset.or(Some(true));
+        }
+        if slot.regs.gap_count() != old_gap {
+            let text = format!(
+                "{} gap count {} -> {} (register write)",
+                slot.name,
+                old_gap,
+                slot.regs.gap_count()
+            );
+            self.note(text);
+        }
+        reset
+    }
+
+    /// A node's report about the packet it is receiving (evidence for
+    /// the faults that packet carries).
+    fn apply_report(&mut self, idx: usize, report: String) {
+        let packet = self.current_rx.as_ref().map(|(p, _)| *p);
+        if let Some((_, faults)) = &self.current_rx {
+            for &f in faults {
+                self.log.add_evidence(
+                    f,
+                    Evidence {
+                        time: self.now,
+                        node: idx,
+                        kind: EvidenceKind::Report(report.clone()),
+                    },
+                );
+            }
+        }
+        self.log_event(TraceEvent::Report {
+            node: idx,
+            text: report,
+            packet,
+        });
+    }
+
+    /// A node sets or cancels a timer (a timer set for the past fires now).
+    fn apply_timer(&mut self, idx: usize, cmd: TimerCommand) {
+        match cmd {
+            TimerCommand::Set { at, token } => {
+                self.timer_stamp += 1;
+                let stamp = self.timer_stamp;
+                self.slots[idx].timers.insert(token, stamp);
+                self.push(
+                    at.max(self.now),
+                    None,
+                    Ev::Timer {
+                        node: idx,
+                        token,
+                        stamp,
+                    },
+                );
+            }
+            TimerCommand::Cancel { token } => {
+                self.slots[idx].timers.remove(&token);
+            }
+        }
+    }
+
+    /// Queue node `idx`'s packet for arbitration, or refuse it (too long,
+    /// node muted or off the bus: the node is told at once). Returns
+    /// whether it was queued.
+    fn queue_transmit(&mut self, idx: usize, req: TransmitRequest) -> bool {
+        let now = self.now;
+        let TransmitRequest {
+            packet,
+            speed,
+            class,
+            token,
+        } = req;
+        let slot = &self.slots[idx];
+        let refuse = if packet.len() > self.cfg.max_packet_len {
+            Some(format!(
+                "{} bytes is longer than the bus accepts",
+                packet.len()
+            ))
+        } else if slot.muted {
+            Some("node stopped answering".to_string())
+        } else if slot.phy.is_none() && self.medium != Medium::Resetting {
+            Some("node is not on the bus".to_string())
+        } else {
+            None
+        };
+        if let Some(why) = refuse {
+            let text = format!("{}: transmit refused: {why}", slot.name);
+            self.note(text);
+            self.push(
+                now,
+                None,
+                Ev::Notify {
+                    node: idx,
+                    token: Some(token),
+                    kind: PacketKind::Request,
+                    ack: None,
+                },
+            );
+            return false;
+        }
+        self.slots[idx].queue.push_back(Pending {
+            bytes: Arc::from(packet),
+            speed,
+            class,
+            token: Some(token),
+            kind: PacketKind::Request,
+            ready_at: now,
+            delayed: false,
+            faults: Vec::new(),
+        });
+        true
     }
 
     pub(super) fn fire_timer(&mut self, node: usize, token: u64, stamp: u64) {

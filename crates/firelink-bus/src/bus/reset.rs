@@ -102,6 +102,10 @@ impl Bus {
         }
     }
 
+    /// The bus reset and self-ID are over: a new generation, every node's
+    /// physical ID from the tree, the self-ID packets in the trace, the
+    /// reset's faults given their evidence, every node told; the cycle
+    /// master starts if it is on, and arbitration resumes.
     pub(super) fn reset_done(&mut self) {
         let now = self.now;
         self.generation += 1;
@@ -116,52 +120,8 @@ impl Bus {
                 slot.phy.is_some() && i == root,
             );
         }
-        // Self-ID packets, for the record.
         if self.cfg.trace >= TraceLevel::Packets {
-            let t = self.cfg.timing;
-            let mut at = self.reset_began;
-            for phy in 0..count {
-                let node = self.tree.by_phy[phy];
-                let slot = &self.slots[node];
-                let ports = &self.tree.port_status[node];
-                let port = |k: usize| {
-                    ports
-                        .get(k)
-                        .copied()
-                        .unwrap_or(firelink_wire::phy::PortStatus::NotPresent)
-                };
-                let packet = PhyPacket::SelfId(SelfId {
-                    phy_id: phy as u8,
-                    link_active: slot.regs.link_active(),
-                    gap_count: slot.regs.gap_count(),
-                    speed: slot.cfg.max_speed.code(),
-                    contender: slot.regs.contender(),
-                    power_class: 4,
-                    ports: [port(0), port(1), port(2)],
-                    initiated_reset: false,
-                });
-                let bits_end = at + t.data_prefix + t.bits(PHY_PACKET_BITS, Speed::S100);
-                let end = bits_end + t.data_end;
-                let id = self.next_id;
-                self.next_id += 1;
-                self.trace.packets.push(PacketRecord {
-                    id,
-                    kind: PacketKind::SelfId,
-                    sender: node,
-                    sender_phy: phy as u8,
-                    arb_start: None,
-                    class: None,
-                    start: at,
-                    bits_end,
-                    end,
-                    speed: Speed::S100,
-                    bytes: Arc::from(phy_packet_bytes(&packet)),
-                    answers: None,
-                    generation: self.generation,
-                    faults: Vec::new(),
-                });
-                at = end + t.self_id_gap;
-            }
+            self.record_self_ids();
         }
         let root_phy = count.saturating_sub(1) as u8;
         self.log_event(TraceEvent::ResetDone {
@@ -200,6 +160,55 @@ impl Bus {
             self.push(next, None, Ev::CycleTick);
         }
         self.arbitrate();
+    }
+
+    /// The self-ID packets of the reset that just ended, one per node in
+    /// physical-ID order at S100, for the record.
+    fn record_self_ids(&mut self) {
+        let t = self.cfg.timing;
+        let mut at = self.reset_began;
+        for phy in 0..self.tree.node_count() {
+            let node = self.tree.by_phy[phy];
+            let slot = &self.slots[node];
+            let ports = &self.tree.port_status[node];
+            let port = |k: usize| {
+                ports
+                    .get(k)
+                    .copied()
+                    .unwrap_or(firelink_wire::phy::PortStatus::NotPresent)
+            };
+            let packet = PhyPacket::SelfId(SelfId {
+                phy_id: phy as u8,
+                link_active: slot.regs.link_active(),
+                gap_count: slot.regs.gap_count(),
+                speed: slot.cfg.max_speed.code(),
+                contender: slot.regs.contender(),
+                power_class: 4,
+                ports: [port(0), port(1), port(2)],
+                initiated_reset: false,
+            });
+            let bits_end = at + t.data_prefix + t.bits(PHY_PACKET_BITS, Speed::S100);
+            let end = bits_end + t.data_end;
+            let id = self.next_id;
+            self.next_id += 1;
+            self.trace.packets.push(PacketRecord {
+                id,
+                kind: PacketKind::SelfId,
+                sender: node,
+                sender_phy: phy as u8,
+                arb_start: None,
+                class: None,
+                start: at,
+                bits_end,
+                end,
+                speed: Speed::S100,
+                bytes: Arc::from(phy_packet_bytes(&packet)),
+                answers: None,
+                generation: self.generation,
+                faults: Vec::new(),
+            });
+            at = end + t.self_id_gap;
+        }
     }
 }
 

@@ -47,6 +47,10 @@ impl Bus {
         d.duplicate
     }
 
+    /// A packet starts on the wire now (after arbitration begun at
+    /// `arb_start` in `class`): its bits and end, the trace, its delivery
+    /// to every node it reaches, then the addressee's ack, or the end of
+    /// the subaction when none will come.
     pub(super) fn tx_start(
         &mut self,
         id: PacketId,
@@ -58,64 +62,104 @@ impl Bus {
         let Some(sub) = self.subs.get_mut(&id) else {
             return;
         };
-        let dropped = sub.dropped;
-        let is_phy_packet = sub.bytes.len() >= 12
-            && sub
-                .bytes
-                .get(3)
-                .is_some_and(|b| b >> 4 == u8::from(Tcode::LinkInternal));
-        let bits = if is_phy_packet {
-            t.bits(PHY_PACKET_BITS, sub.speed)
-        } else {
-            t.payload_time(sub.bytes.len(), sub.speed)
-        };
-        let prefix = if sub.kind == PacketKind::ConcatResponse {
-            t.concat_prefix
-        } else {
-            t.data_prefix
-        };
-        let bits_end = now + prefix + bits;
-        let end = bits_end + t.data_end;
-        sub.end = end;
-        let sender = sub.sender;
-        let sender_phy = sub.sender_phy;
-        let speed = sub.speed;
-        let kind = sub.kind;
-        let token = sub.token;
-        let dest_phy = sub.bytes.get(1).map(|b| b & 0x3F);
-        let unicast = !is_phy_packet
-            && !matches!(kind, PacketKind::CycleStart | PacketKind::Ack)
-            && dest_phy.is_some_and(|d| d != NodeId::BROADCAST_PHY);
+        let shape = WireShape::of(sub, &t, now);
+        sub.end = shape.end;
+        let (sender, sender_phy) = (sub.sender, sub.sender_phy);
         if self.cfg.trace >= TraceLevel::Packets {
-            self.trace.packets.push(PacketRecord {
-                id,
-                kind,
-                sender,
-                sender_phy,
-                arb_start,
-                class,
-                start: now,
-                bits_end,
-                end,
-                speed,
-                bytes: sub.bytes.clone(),
-                answers: sub.answers,
-                generation: self.generation,
-                faults: sub.faults.clone(),
-            });
+            self.record_packet(id, arb_start, class, &shape);
         }
         self.log_event(TraceEvent::PacketStart(id));
-        // Deliveries.
-        let mut dest_receives = false;
-        let mut dest_node = None;
-        let mut mute_fault = None;
-        if let Some(d) = dest_phy.filter(|_| unicast) {
-            dest_node = self.tree.by_phy.get(usize::from(d)).copied();
+        let dest_node = shape
+            .dest_phy
+            .filter(|_| shape.unicast)
+            .and_then(|d| self.tree.by_phy.get(usize::from(d)).copied());
+        let (dest_receives, mute_fault) = self.schedule_deliveries(id, &shape, dest_node);
+        let Some(sub) = self.subs.get_mut(&id) else {
+            return;
+        };
+        if let Some(f) = mute_fault {
+            sub.faults.push(f);
         }
+        let idle_at = shape.end + t.hop_delay * u64::from(self.tree.eccentricity(sender_phy));
+        if shape.unicast && dest_receives {
+            let dest = dest_node.unwrap_or(0);
+            sub.dest = Some(dest);
+            let dest_phy = self.slots[dest].phy.unwrap_or(0);
+            let at = shape.end
+                + t.hop_delay * u64::from(self.tree.hops(sender_phy, dest_phy))
+                + t.ack_gap;
+            self.push_epoch(at, Ev::AckStart { sub: id });
+        } else {
+            if !shape.unicast && shape.kind == PacketKind::Request {
+                sub.notified = true;
+                let token = sub.token;
+                self.push(
+                    shape.end,
+                    None,
+                    Ev::Notify {
+                        node: sender,
+                        token,
+                        kind: shape.kind,
+                        ack: None,
+                    },
+                );
+            }
+            if shape.unicast {
+                self.no_ack(id, idle_at);
+            }
+            self.push_epoch(idle_at, Ev::SubEnd { sub: id });
+        }
+        if self.cfg.trace >= TraceLevel::Normal {
+            self.push_epoch(shape.end, Ev::PacketEnd(id));
+        }
+    }
+
+    /// Keep the record of a packet that starts now.
+    fn record_packet(
+        &mut self,
+        id: PacketId,
+        arb_start: Option<SimTime>,
+        class: Option<ArbitrationClass>,
+        shape: &WireShape,
+    ) {
+        let Some(sub) = self.subs.get(&id) else {
+            return;
+        };
+        self.trace.packets.push(PacketRecord {
+            id,
+            kind: sub.kind,
+            sender: sub.sender,
+            sender_phy: sub.sender_phy,
+            arb_start,
+            class,
+            start: self.now,
+            bits_end: shape.bits_end,
+            end: shape.end,
+            speed: sub.speed,
+            bytes: sub.bytes.clone(),
+            answers: sub.answers,
+            generation: self.generation,
+            faults: sub.faults.clone(),
+        });
+    }
+
+    /// Deliver packet `id` to every node its path reaches at its speed
+    /// (none when it was dropped; a muted node hears nothing), each when
+    /// its last bit arrives there. Returns whether the addressee
+    /// `dest_node` receives it, and the fault that muted the addressee.
+    fn schedule_deliveries(
+        &mut self,
+        id: PacketId,
+        shape: &WireShape,
+        dest_node: Option<usize>,
+    ) -> (bool, Option<FaultId>) {
+        let t = self.cfg.timing;
+        let mut dest_receives = false;
+        let mut mute_fault = None;
         for phy in 0..self.tree.by_phy.len() {
             let node = self.tree.by_phy[phy];
             let phy = phy as u8;
-            if node == sender {
+            if node == shape.sender {
                 continue;
             }
             let slot = &self.slots[node];
@@ -125,51 +169,17 @@ impl Bus {
                 }
                 continue;
             }
-            if dropped || speed > self.tree.path_speed(sender_phy, phy) {
+            if shape.dropped || shape.speed > self.tree.path_speed(shape.sender_phy, phy) {
                 continue;
             }
             if Some(node) == dest_node {
                 dest_receives = true;
             }
-            let at = bits_end + t.hop_delay * u64::from(self.tree.hops(sender_phy, phy));
+            let at =
+                shape.bits_end + t.hop_delay * u64::from(self.tree.hops(shape.sender_phy, phy));
             self.push_epoch(at, Ev::Deliver { sub: id, node });
         }
-        let Some(sub) = self.subs.get_mut(&id) else {
-            return;
-        };
-        if let Some(f) = mute_fault {
-            sub.faults.push(f);
-        }
-        let idle_at = end + t.hop_delay * u64::from(self.tree.eccentricity(sender_phy));
-        if unicast && dest_receives {
-            let dest = dest_node.unwrap_or(0);
-            sub.dest = Some(dest);
-            let dest_phy = self.slots[dest].phy.unwrap_or(0);
-            let at =
-                end + t.hop_delay * u64::from(self.tree.hops(sender_phy, dest_phy)) + t.ack_gap;
-            self.push_epoch(at, Ev::AckStart { sub: id });
-        } else {
-            if !unicast && kind == PacketKind::Request {
-                sub.notified = true;
-                self.push(
-                    end,
-                    None,
-                    Ev::Notify {
-                        node: sender,
-                        token,
-                        kind,
-                        ack: None,
-                    },
-                );
-            }
-            if unicast {
-                self.no_ack(id, idle_at);
-            }
-            self.push_epoch(idle_at, Ev::SubEnd { sub: id });
-        }
-        if self.cfg.trace >= TraceLevel::Normal {
-            self.push_epoch(end, Ev::PacketEnd(id));
-        }
+        (dest_receives, mute_fault)
     }
 
     pub(super) fn no_ack(&mut self, id: PacketId, idle_at: SimTime) {
@@ -522,6 +532,59 @@ impl Bus {
             self.log_event(TraceEvent::Idle);
         }
         self.arbitrate();
+    }
+}
+
+/// What a packet that starts now looks like on the wire.
+struct WireShape {
+    sender: usize,
+    sender_phy: u8,
+    speed: Speed,
+    kind: PacketKind,
+    dropped: bool,
+    /// Its destination's physical ID (from the header).
+    dest_phy: Option<u8>,
+    /// Addressed to one node (not a broadcast, PHY packet, cycle start or
+    /// ack): an ack is due.
+    unicast: bool,
+    /// Its last bit leaves the sender.
+    bits_end: SimTime,
+    /// The data-end after it: the sender lets go of the bus.
+    end: SimTime,
+}
+
+impl WireShape {
+    fn of(sub: &Sub, t: &BusTiming, now: SimTime) -> WireShape {
+        let is_phy_packet = sub.bytes.len() >= 12
+            && sub
+                .bytes
+                .get(3)
+                .is_some_and(|b| b >> 4 == u8::from(Tcode::LinkInternal));
+        let bits = if is_phy_packet {
+            t.bits(PHY_PACKET_BITS, sub.speed)
+        } else {
+            t.payload_time(sub.bytes.len(), sub.speed)
+        };
+        let prefix = if sub.kind == PacketKind::ConcatResponse {
+            t.concat_prefix
+        } else {
+            t.data_prefix
+        };
+        let bits_end = now + prefix + bits;
+        let dest_phy = sub.bytes.get(1).map(|b| b & 0x3F);
+        WireShape {
+            sender: sub.sender,
+            sender_phy: sub.sender_phy,
+            speed: sub.speed,
+            kind: sub.kind,
+            dropped: sub.dropped,
+            dest_phy,
+            unicast: !is_phy_packet
+                && !matches!(sub.kind, PacketKind::CycleStart | PacketKind::Ack)
+                && dest_phy.is_some_and(|d| d != NodeId::BROADCAST_PHY),
+            bits_end,
+            end: bits_end + t.data_end,
+        }
     }
 }
 
