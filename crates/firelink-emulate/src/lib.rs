@@ -32,7 +32,7 @@ mod arrival;
 
 use arrival::{Received, Receiver};
 use firelink_board::node::BoardNode;
-use firelink_bus::host::Outcome;
+use firelink_bus::host::{Completion, Outcome};
 use firelink_bus::{Bus, HostLink, NodeHandle, SimDuration, SimTime};
 use firelink_host::transaction::{CrcCheck, Expect, LinkStats, Transactions};
 use firelink_host::{Dest, HostError};
@@ -174,6 +174,25 @@ fn ticks16(d: SimDuration) -> u16 {
     u16::try_from(d.as_clocks()).unwrap_or(u16::MAX)
 }
 
+/// A host request the bridge took.
+struct HostRequest {
+    /// The packet as the host sent it.
+    bytes: Vec<u8>,
+    tcode: Tcode,
+    tl: u8,
+    /// A block request's data length.
+    data_length: usize,
+    destination: NodeId,
+    host_source: NodeId,
+    is_write: bool,
+    /// A read of node 63: local and also forwarded (unless no-forward).
+    broadcast_read: bool,
+    /// Answered by the bridge board itself.
+    local: bool,
+    /// The control word's no-forward bit.
+    no_forward: bool,
+}
+
 impl Bridge {
     /// A bridge whose FireWire link is the [`HostLink`] node `link` of `bus`
     /// and whose own registers are those of the board node `bridge_board`.
@@ -278,111 +297,37 @@ impl Bridge {
     pub fn handle(&mut self, datagram: &[u8], reply: &mut Vec<u8>) -> Handled {
         self.settle();
         self.stats.datagrams += 1;
-        let Ok((control, packet)) = split_host_datagram(datagram) else {
-            return self.stats.count_drop(DropReason::Malformed);
+        let req = match self.take(datagram) {
+            Ok(r) => r,
+            Err(reason) => return self.stats.count_drop(reason),
         };
-        let received = &packet.as_bytes()[..packet.total_len()];
-        if let Some(b) = self.bus.node_mut::<BoardNode>(self.bridge_board) {
-            b.firmware_mut().ethernet_received(received);
-        }
-        if packet.verify().is_err() {
-            return self.stats.count_drop(DropReason::BadCrc);
-        }
-        let tcode = packet.tcode();
-        let is_read = matches!(tcode, Tcode::ReadQuadletRequest | Tcode::ReadBlockRequest);
-        let is_write = matches!(tcode, Tcode::WriteQuadletRequest | Tcode::WriteBlockRequest);
-        if !is_read && !is_write {
-            return self.stats.count_drop(DropReason::Unsupported);
-        }
-        let destination = packet.destination_id();
-        // A read of node 63 is both local and remote (fpga-board-extras.md
-        // section 9): the bridge answers it from its own registers and also
-        // forwards it onto FireWire, where every board ignores broadcast
-        // reads. The generation is not checked for broadcasts.
-        let broadcast_read = is_read && destination.is_broadcast();
-        let local = control.no_forward || broadcast_read;
-        if !local && !destination.is_broadcast() && control.generation != self.generation() {
-            return self.stats.count_drop(DropReason::StaleGeneration);
-        }
-        let host_source = packet.source_id();
-        let original = received.to_vec();
-        if local {
+        if req.local {
             self.stats.local += 1;
         } else {
             self.stats.forwarded += 1;
         }
         // With the no-forward bit set the board only answers itself.
-        if broadcast_read && !control.no_forward {
+        if req.broadcast_read && !req.no_forward {
             self.stats.broadcast_reads += 1;
-            self.transmit_broadcast(original.clone());
+            self.transmit_broadcast(req.bytes.clone());
         }
-        if is_write && destination.is_broadcast() && !local {
-            return match self.transmit_broadcast(original) {
+        if req.is_write && req.destination.is_broadcast() && !req.local {
+            return match self.transmit_broadcast(req.bytes) {
                 true => Handled::Written,
                 false => self.stats.count_drop(DropReason::BusFailure),
             };
         }
-        // The bridge transmits on FireWire with its own node ID as source
-        // (responses must come back to it); local requests go to the bridge
-        // board's node.
-        let mut bytes = original;
-        {
-            let link_phy = self.bus.phy_id(self.link).unwrap_or(0);
-            let mut p = Packet::new_unchecked(&mut bytes[..]);
-            p.set_source_id(NodeId::local(link_phy));
-            if local {
-                let phy = self.bus.phy_id(self.bridge_board).unwrap_or(0);
-                p.set_destination_id(NodeId::local(phy));
-            }
-            p.fill_header_crc();
-        }
         let received_at = self.bus.now();
-        let link = self.link;
-        let answerer = if local {
-            self.bus.phy_id(self.bridge_board).unwrap_or(0)
-        } else {
-            destination.phy()
+        let done = match self.transact(&req, received_at) {
+            Ok(d) => d,
+            Err(reason) => return self.stats.count_drop(reason),
         };
-        let dest = Dest {
-            node: answerer,
-            no_forward: local,
-        };
-        let tl = packet.tl();
-        let expect = match tcode {
-            Tcode::ReadQuadletRequest => Expect::quadlet(dest, tl),
-            Tcode::ReadBlockRequest => Expect::block(dest, tl, usize::from(packet.data_length())),
-            _ => Expect::write(dest, tl),
-        };
-        let Ok(token) = HostLink::submit_on(&mut self.bus, link, &bytes, Speed::S400) else {
-            return self.stats.count_drop(DropReason::BusFailure);
-        };
-        self.transactions.sent();
-        let deadline = self.bus.now() + self.timeout;
-        let done = HostLink::wait_on(&mut self.bus, link, token, deadline);
-        self.forget_received();
-        let Some(done) = done.filter(|d| d.outcome == Outcome::Complete) else {
-            let waited = (self.bus.now() - received_at).as_micros_f64() as u32;
-            let _ = self.transactions.timed_out(&expect, waited);
-            return self.stats.count_drop(DropReason::BusFailure);
-        };
-        if is_write {
+        let Some(response) = done.response.as_deref() else {
             return Handled::Written;
-        }
-        let Some(response) = done.response else {
-            return self.stats.count_drop(DropReason::BusFailure);
         };
-        // The answer must be intact and answer this request; an error
-        // rcode is forwarded (the host judges it), anything else dropped.
-        match self
-            .transactions
-            .accept(&response, &expect, CrcCheck::Always)
-        {
-            Ok(Ok(_)) | Err(HostError::Rcode { .. }) => {}
-            Ok(Err(_)) | Err(_) => return self.stats.count_drop(DropReason::BusFailure),
-        }
         let extra = ExtraData {
             flags: ExtraFlags {
-                no_forward: local,
+                no_forward: req.local,
                 ..ExtraFlags::default()
             },
             generation: self.generation(),
@@ -392,16 +337,120 @@ impl Bridge {
             total_time: ticks16(done.completed_at - received_at),
         };
         reply.clear();
-        reply.extend_from_slice(&response);
+        reply.extend_from_slice(response);
         // Hand the response back addressed to the host, as the bridge does.
         if Packet::new_checked(&reply[..]).is_ok() {
             let mut p = Packet::new_unchecked(&mut reply[..]);
-            p.set_destination_id(host_source);
+            p.set_destination_id(req.host_source);
             p.fill_header_crc();
         }
         reply.extend_from_slice(&extra.to_bytes());
         self.stats.replies += 1;
         Handled::Reply(reply.len())
+    }
+
+    /// What a host datagram asks, if the bridge takes it: a well-formed,
+    /// intact read or write request, of this bus generation unless it is
+    /// local or a broadcast. The bridge board's Ethernet debug window sees
+    /// every packet that decodes.
+    fn take(&mut self, datagram: &[u8]) -> Result<HostRequest, DropReason> {
+        let (control, packet) = split_host_datagram(datagram).map_err(|_| DropReason::Malformed)?;
+        let received = &packet.as_bytes()[..packet.total_len()];
+        if let Some(b) = self.bus.node_mut::<BoardNode>(self.bridge_board) {
+            b.firmware_mut().ethernet_received(received);
+        }
+        if packet.verify().is_err() {
+            return Err(DropReason::BadCrc);
+        }
+        let tcode = packet.tcode();
+        let is_read = matches!(tcode, Tcode::ReadQuadletRequest | Tcode::ReadBlockRequest);
+        let is_write = matches!(tcode, Tcode::WriteQuadletRequest | Tcode::WriteBlockRequest);
+        if !is_read && !is_write {
+            return Err(DropReason::Unsupported);
+        }
+        let destination = packet.destination_id();
+        // A read of node 63 is both local and remote (fpga-board-extras.md
+        // section 9): the bridge answers it from its own registers and also
+        // forwards it onto FireWire, where every board ignores broadcast
+        // reads. The generation is not checked for broadcasts.
+        let broadcast_read = is_read && destination.is_broadcast();
+        let local = control.no_forward || broadcast_read;
+        if !local && !destination.is_broadcast() && control.generation != self.generation() {
+            return Err(DropReason::StaleGeneration);
+        }
+        Ok(HostRequest {
+            bytes: received.to_vec(),
+            tcode,
+            tl: packet.tl(),
+            data_length: usize::from(packet.data_length()),
+            destination,
+            host_source: packet.source_id(),
+            is_write,
+            broadcast_read,
+            local,
+            no_forward: control.no_forward,
+        })
+    }
+
+    /// Send `req` on FireWire from the bridge's link (local requests to the
+    /// bridge board's node) and wait for it; the host's transaction engine
+    /// judges the answer. An error rcode is forwarded (the host judges it);
+    /// anything else wrong is a bus failure.
+    fn transact(
+        &mut self,
+        req: &HostRequest,
+        received_at: SimTime,
+    ) -> Result<Completion, DropReason> {
+        // The bridge transmits on FireWire with its own node ID as source
+        // (responses must come back to it); local requests go to the bridge
+        // board's node.
+        let board_phy = self.bus.phy_id(self.bridge_board).unwrap_or(0);
+        let mut bytes = req.bytes.clone();
+        {
+            let link_phy = self.bus.phy_id(self.link).unwrap_or(0);
+            let mut p = Packet::new_unchecked(&mut bytes[..]);
+            p.set_source_id(NodeId::local(link_phy));
+            if req.local {
+                p.set_destination_id(NodeId::local(board_phy));
+            }
+            p.fill_header_crc();
+        }
+        let dest = Dest {
+            node: if req.local {
+                board_phy
+            } else {
+                req.destination.phy()
+            },
+            no_forward: req.local,
+        };
+        let expect = match req.tcode {
+            Tcode::ReadQuadletRequest => Expect::quadlet(dest, req.tl),
+            Tcode::ReadBlockRequest => Expect::block(dest, req.tl, req.data_length),
+            _ => Expect::write(dest, req.tl),
+        };
+        let link = self.link;
+        let token = HostLink::submit_on(&mut self.bus, link, &bytes, Speed::S400)
+            .map_err(|_| DropReason::BusFailure)?;
+        self.transactions.sent();
+        let deadline = self.bus.now() + self.timeout;
+        let done = HostLink::wait_on(&mut self.bus, link, token, deadline);
+        self.forget_received();
+        let Some(done) = done.filter(|d| d.outcome == Outcome::Complete) else {
+            let waited = (self.bus.now() - received_at).as_micros_f64() as u32;
+            let _ = self.transactions.timed_out(&expect, waited);
+            return Err(DropReason::BusFailure);
+        };
+        if req.is_write {
+            return Ok(done);
+        }
+        let response = done.response.as_deref().ok_or(DropReason::BusFailure)?;
+        match self
+            .transactions
+            .accept(response, &expect, CrcCheck::Always)
+        {
+            Ok(Ok(_)) | Err(HostError::Rcode { .. }) => Ok(done),
+            Ok(Err(_)) | Err(_) => Err(DropReason::BusFailure),
+        }
     }
 
     /// Put a broadcast packet (as the host sent it) onto FireWire with the

@@ -23,7 +23,7 @@
 
 use std::time::Duration;
 
-use firelink_bus::host::{CallCost, HostCall, Outcome, Transfer};
+use firelink_bus::host::{CallCost, Completion, HostCall, Outcome, Transfer};
 use firelink_bus::{Bus, HostLink, HostModel, NodeHandle, SimDuration, SimTime};
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Speed};
 
@@ -189,17 +189,7 @@ impl SimPort {
     ) -> Result<Option<Vec<u8>>> {
         self.transactions.observe_generation(self.bus.generation());
         self.transactions.check_generation(expect.dest)?;
-        let len = repr.buffer_len();
-        if self.out.len() < len {
-            self.out.resize(len, 0);
-        }
-        let Some(buf) = self.out.get_mut(..len) else {
-            return Err(HostError::InvalidRequest {
-                what: "packet size",
-                value: len as u32,
-            });
-        };
-        repr.emit(buf)?;
+        let len = self.emit(&repr)?;
         let called = self.bus.now();
         let cost = self
             .model
@@ -208,20 +198,88 @@ impl SimPort {
         if let Some(c) = cost {
             self.bus.run_for(c.before);
         }
-        let now_ps = self.bus.now().0;
-        let Some(buf) = self.out.get_mut(..len) else {
-            return Err(HostError::InvalidRequest {
-                what: "packet size",
-                value: len as u32,
-            });
-        };
-        if self.filters.outgoing(now_ps, buf) == Verdict::Drop {
+        let Some(token) = self.submit(len, &expect)? else {
             // Lost on the way: nobody answers.
-            self.transactions.sent();
             if call == HostCall::BroadcastWrite {
                 return Ok(None);
             }
             return Err(self.wait_out(&expect, self.bus.now()));
+        };
+        let submitted = self.bus.now();
+        let blocking = self.blocking_broadcasts && expect.dest.is_broadcast();
+        if call == HostCall::BroadcastWrite && !blocking {
+            // Non-blocking (a broadcast, or a write started without
+            // waiting): the packet goes out while the caller goes on, and
+            // nobody will take its completion.
+            if let Some(l) = self.bus.node_mut::<HostLink>(self.host) {
+                l.abandon(token);
+            }
+            self.last_call = Some(CallTiming {
+                called,
+                submitted,
+                acked: None,
+                completed: None,
+                returned: submitted,
+            });
+            return Ok(None);
+        }
+        let submitted_generation = self.bus.generation();
+        let deadline = submitted + self.timeout;
+        let completion = HostLink::wait_on(&mut self.bus, self.host, token, deadline);
+        if let Some(c) = cost {
+            self.bus.run_for(c.after);
+        }
+        self.last_call = Some(CallTiming {
+            called,
+            submitted,
+            acked: completion.as_ref().and_then(|c| c.acked_at),
+            completed: completion.as_ref().map(|c| c.completed_at),
+            returned: self.bus.now(),
+        });
+        // A request lost in a bus reset failed because of the reset: say
+        // so (node numbers may have moved), not "no answer".
+        if self.bus.generation() != submitted_generation
+            && !completion
+                .as_ref()
+                .is_some_and(|c| c.outcome == Outcome::Complete)
+        {
+            self.transactions.observe_generation(self.bus.generation());
+            self.transactions.check_generation(expect.dest)?;
+        }
+        let Some(done) = completion else {
+            let waited = (self.bus.now() - submitted).as_micros_f64() as u32;
+            return Err(self.transactions.timed_out(&expect, waited));
+        };
+        self.judge(&expect, done, submitted)
+    }
+
+    /// The request `repr` into the port's packet buffer; returns its
+    /// length.
+    fn emit(&mut self, repr: &PacketRepr<'_>) -> Result<usize> {
+        let len = repr.buffer_len();
+        if self.out.len() < len {
+            self.out.resize(len, 0);
+        }
+        let buf = self.out.get_mut(..len).ok_or(HostError::InvalidRequest {
+            what: "packet size",
+            value: len as u32,
+        })?;
+        repr.emit(buf)?;
+        Ok(len)
+    }
+
+    /// Hand the request in the packet buffer (`len` bytes) to the PC's
+    /// link, through the outgoing filters: its token, or `None` when a
+    /// filter lost it.
+    fn submit(&mut self, len: usize, expect: &Expect) -> Result<Option<u64>> {
+        let now_ps = self.bus.now().0;
+        let buf = self.out.get_mut(..len).ok_or(HostError::InvalidRequest {
+            what: "packet size",
+            value: len as u32,
+        })?;
+        if self.filters.outgoing(now_ps, buf) == Verdict::Drop {
+            self.transactions.sent();
+            return Ok(None);
         }
         // The link copies the packet into its FIFO (the simulated
         // hardware's memory): this port allocates nothing per packet.
@@ -238,61 +296,27 @@ impl SimPort {
             }
         })?;
         self.transactions.sent();
-        let submitted = self.bus.now();
-        let blocking = self.blocking_broadcasts && expect.dest.is_broadcast();
-        if call == HostCall::BroadcastWrite && !blocking {
-            // Non-blocking (a broadcast, or a write started without
-            // waiting): the packet goes out while the caller goes on, and
-            // nobody will take its completion.
-            if let Some(l) = self.bus.node_mut::<HostLink>(host) {
-                l.abandon(token);
-            }
-            self.last_call = Some(CallTiming {
-                called,
-                submitted,
-                acked: None,
-                completed: None,
-                returned: submitted,
-            });
-            return Ok(None);
-        }
-        let submitted_generation = self.bus.generation();
-        let deadline = submitted + self.timeout;
-        let completion = HostLink::wait_on(&mut self.bus, host, token, deadline);
-        if let Some(c) = cost {
-            self.bus.run_for(c.after);
-        }
-        self.last_call = Some(CallTiming {
-            called,
-            submitted,
-            acked: completion.as_ref().and_then(|c| c.acked_at),
-            completed: completion.as_ref().map(|c| c.completed_at),
-            returned: self.bus.now(),
-        });
-        let node = expect.dest.node;
-        // A request lost in a bus reset failed because of the reset: say
-        // so (node numbers may have moved), not "no answer".
-        if self.bus.generation() != submitted_generation
-            && !completion
-                .as_ref()
-                .is_some_and(|c| c.outcome == Outcome::Complete)
-        {
-            self.transactions.observe_generation(self.bus.generation());
-            self.transactions.check_generation(expect.dest)?;
-        }
-        let Some(done) = completion else {
-            let waited = (self.bus.now() - submitted).as_micros_f64() as u32;
-            return Err(self.transactions.timed_out(&expect, waited));
-        };
+        Ok(Some(token))
+    }
+
+    /// What the link says of the transaction `expect`, submitted at
+    /// `submitted`: the read's response, the engine's verdict on it, or
+    /// the error that ended it.
+    fn judge(
+        &mut self,
+        expect: &Expect,
+        done: Completion,
+        submitted: SimTime,
+    ) -> Result<Option<Vec<u8>>> {
         match done.outcome {
             Outcome::Complete | Outcome::ResponseCorrupt => {}
             Outcome::NoAck | Outcome::ResponseTimeout => {
                 let waited = (done.completed_at - done.submitted_at).as_micros_f64() as u32;
-                return Err(self.transactions.timed_out(&expect, waited));
+                return Err(self.transactions.timed_out(expect, waited));
             }
             Outcome::Busy | Outcome::AckError => {
                 return Err(HostError::Ack {
-                    node,
+                    node: expect.dest.node,
                     ack: done.ack.unwrap_or(Ack::Unknown(0)),
                 });
             }
@@ -310,17 +334,17 @@ impl SimPort {
             return Ok(None);
         };
         if self.filters.incoming(self.bus.now().0, &mut response) == Verdict::Drop {
-            return Err(self.wait_out(&expect, submitted));
+            return Err(self.wait_out(expect, submitted));
         }
         // The engine checks what the link matched: CRCs (a damaged
         // response fails with the CRCs it carries and should carry), tcode,
         // size and rcode.
         match self
             .transactions
-            .accept(&response, &expect, CrcCheck::Always)?
+            .accept(&response, expect, CrcCheck::Always)?
         {
             Ok(_) => Ok(Some(response)),
-            Err(refusal) => Err(refusal_error(refusal, &expect)),
+            Err(refusal) => Err(refusal_error(refusal, expect)),
         }
     }
 
