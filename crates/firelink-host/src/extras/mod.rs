@@ -4,9 +4,9 @@
 //! the I/O expander, the Ethernet registers of an FPGA V2, the motor
 //! supply measurement and the PHY registers.
 //!
-//! Every function takes any [`Port`](crate::Port) and the board's
-//! [`Dest`](crate::Dest), sends the same request sequence as the reference
-//! host library and waits with [`Port::wait`](crate::Port::wait) (virtual
+//! Every function takes any [`Port`] and the board's
+//! [`Dest`], sends the same request sequence as the reference
+//! host library and waits with [`Port::wait`] (virtual
 //! time on the simulated bus). Over the Ethernet bridge, whose writes are
 //! not acknowledged, a PROM command is given the reference host's 1 ms
 //! (`PromDelay`) before its result is read.

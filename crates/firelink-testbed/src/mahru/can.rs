@@ -22,7 +22,7 @@
 //! the first one's start to the last one's end; receive time from the SYNC
 //! to the last module frame. The seed's CAN row (4000 / 6500 / 10500 us)
 //! comes from another humanoid's CAN system at 1 Mb/s with 8-byte frames
-//! (its reference [16]); the model explains its size: a cycle of this
+//! (its reference \[16\]); the model explains its size: a cycle of this
 //! robot's data needs about 93 frames of 110-135 bits.
 //!
 //! # The ratio

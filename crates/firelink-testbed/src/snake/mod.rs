@@ -3,7 +3,7 @@
 //! the simulated bus with seed 001's PC model or behind an in-process
 //! Ethernet bridge), the node setup a program does before servoing
 //! ([`prepare`]), the 36-axis demo ([`demo`]) and the reproduction of the
-//! seed's measurements ([`bench`]).
+//! seed's measurements ([`bench`](mod@bench)).
 
 pub mod bench;
 pub mod demo;
