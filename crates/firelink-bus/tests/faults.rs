@@ -5,11 +5,11 @@
 
 mod common;
 
-use common::{Recorder, Reply, bwrite, qwrite, rec, send};
+use common::{Recorder, Reply, bwrite, qwrite, rec, send_fair};
 use firelink_bus::fault::{EvidenceKind, FaultPlan, PacketFault, PacketMatch, TimedFault};
 use firelink_bus::host::{HostLink, Outcome};
 use firelink_bus::trace::PacketKind;
-use firelink_bus::{ArbitrationClass, Bus, BusConfig, NodeConfig, NodeHandle, SimDuration};
+use firelink_bus::{Bus, BusConfig, NodeConfig, NodeHandle, SimDuration};
 use firelink_wire::packet::{Speed, Tcode};
 
 /// PC (HostLink) and `n` responders (writes acked, quadlet reads answered
@@ -238,13 +238,7 @@ fn a_babbling_node_starves_the_bus_and_receivers_reject_its_garbage() {
     bus.run_for(SimDuration::from_nanos(1));
     let me = bus.phy_id(pc).unwrap();
     let dst = bus.phy_id(a).unwrap();
-    send(
-        &mut bus,
-        pc,
-        qwrite(me, dst, 0, 1),
-        ArbitrationClass::Fair,
-        1,
-    );
+    send_fair(&mut bus, pc, qwrite(me, dst, 0, 1), 1);
     bus.run_for(SimDuration::from_micros(100));
     let babble = bus
         .trace()

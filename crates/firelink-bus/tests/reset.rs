@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{Recorder, Reply, rec, send};
+use common::{Recorder, Reply, packets_of, rec, send, send_fair};
 use firelink_bus::phy::phy_config_packet;
 use firelink_bus::trace::PacketKind;
 use firelink_bus::{
@@ -114,13 +114,7 @@ fn generation_increments_and_renumbers_on_connect_and_disconnect() {
     assert_eq!(bus.phy_id(nodes[1]), Some(0));
     assert_eq!(rec(&bus, nodes[0]).resets.last().unwrap().node_count, 2);
     // A detached node cannot transmit: it is told at once.
-    send(
-        &mut bus,
-        late,
-        common::qwrite(0, 1, 0, 0),
-        ArbitrationClass::Fair,
-        5,
-    );
+    send_fair(&mut bus, late, common::qwrite(0, 1, 0, 0), 5);
     bus.run_for(SimDuration::from_micros(1));
     assert_eq!(rec(&bus, late).transmitted.last().unwrap().1, 5);
     assert_eq!(rec(&bus, late).transmitted.last().unwrap().2, None);
@@ -175,13 +169,7 @@ fn gap_count_by_phy_config_packet_survives_one_reset() {
         assert_eq!(bus.gap_count(n), Some(63));
     }
     let root = nodes[0];
-    send(
-        &mut bus,
-        root,
-        phy_config_packet(Some(5), None),
-        ArbitrationClass::Fair,
-        1,
-    );
+    send_fair(&mut bus, root, phy_config_packet(Some(5), None), 1);
     bus.run_for(SimDuration::from_micros(20));
     for &n in &nodes {
         assert_eq!(
@@ -242,20 +230,8 @@ fn gap_count_changes_subaction_gap_and_register_write_is_immediate() {
             2,
         );
         bus.run_for(SimDuration::from_micros(100));
-        let reqs: Vec<_> = bus
-            .trace()
-            .packets()
-            .iter()
-            .filter(|p| p.kind == PacketKind::Request)
-            .cloned()
-            .collect();
-        let acks: Vec<_> = bus
-            .trace()
-            .packets()
-            .iter()
-            .filter(|p| p.kind == PacketKind::Ack)
-            .cloned()
-            .collect();
+        let reqs: Vec<_> = packets_of(&bus, PacketKind::Request);
+        let acks: Vec<_> = packets_of(&bus, PacketKind::Ack);
         assert_eq!(reqs.len(), 2);
         // From the end of the first ack to the second node's arbitration start.
         (reqs[1].arb_start.unwrap() - acks[0].end).as_micros_f64()

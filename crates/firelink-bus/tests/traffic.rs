@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{Recorder, Reply, bwrite, qread, qwrite, rec, send};
+use common::{Recorder, Reply, bwrite, packets_of, qread, qwrite, rec, send, send_fair};
 use firelink_bus::host::{HostLink, Outcome};
 use firelink_bus::trace::PacketKind;
 use firelink_bus::{
@@ -39,13 +39,7 @@ fn pc_phy(bus: &Bus, pc: NodeHandle) -> u8 {
 fn broadcast_reaches_every_node_and_is_never_acked() {
     let (mut bus, pc, nodes) = bus_with(5, Reply::Fixed(Ack::Complete));
     let me = pc_phy(&bus, pc);
-    send(
-        &mut bus,
-        pc,
-        qwrite(me, 63, 0x1800, 0x0001_00FF),
-        ArbitrationClass::Fair,
-        11,
-    );
+    send_fair(&mut bus, pc, qwrite(me, 63, 0x1800, 0x0001_00FF), 11);
     bus.run_for(SimDuration::from_micros(30));
     for &n in &nodes {
         assert_eq!(
@@ -84,13 +78,7 @@ fn unicast_acks_follow_after_the_ack_gap() {
         let (mut bus, pc, nodes) = bus_with(2, Reply::Fixed(ack));
         let me = pc_phy(&bus, pc);
         let dst = bus.phy_id(nodes[0]).unwrap();
-        send(
-            &mut bus,
-            pc,
-            qwrite(me, dst, 0, 1),
-            ArbitrationClass::Fair,
-            3,
-        );
+        send_fair(&mut bus, pc, qwrite(me, dst, 0, 1), 3);
         bus.run_for(SimDuration::from_micros(30));
         let packets = bus.trace().packets();
         assert_eq!(packets.len(), 2);
@@ -114,21 +102,9 @@ fn no_ack_from_an_absent_or_silent_node() {
     let me = pc_phy(&bus, pc);
     // To a silent node.
     let dst = bus.phy_id(nodes[1]).unwrap();
-    send(
-        &mut bus,
-        pc,
-        qwrite(me, dst, 0, 1),
-        ArbitrationClass::Fair,
-        1,
-    );
+    send_fair(&mut bus, pc, qwrite(me, dst, 0, 1), 1);
     // To an ID nobody has.
-    send(
-        &mut bus,
-        pc,
-        qwrite(me, 40, 0, 1),
-        ArbitrationClass::Fair,
-        2,
-    );
+    send_fair(&mut bus, pc, qwrite(me, 40, 0, 1), 2);
     bus.run_for(SimDuration::from_micros(200));
     let t = &rec(&bus, pc).transmitted;
     assert_eq!(
@@ -241,20 +217,8 @@ fn fairness_interval_makes_a_second_fair_request_wait_the_arb_reset_gap() {
     let (mut bus, pc, nodes) = bus_with(1, Reply::Complete);
     let me = pc_phy(&bus, pc);
     let dst = bus.phy_id(nodes[0]).unwrap();
-    send(
-        &mut bus,
-        pc,
-        qwrite(me, dst, 0, 1),
-        ArbitrationClass::Fair,
-        1,
-    );
-    send(
-        &mut bus,
-        pc,
-        qwrite(me, dst, 0, 2),
-        ArbitrationClass::Fair,
-        2,
-    );
+    send_fair(&mut bus, pc, qwrite(me, dst, 0, 1), 1);
+    send_fair(&mut bus, pc, qwrite(me, dst, 0, 2), 2);
     send(
         &mut bus,
         pc,
@@ -263,20 +227,8 @@ fn fairness_interval_makes_a_second_fair_request_wait_the_arb_reset_gap() {
         3,
     );
     bus.run_for(SimDuration::from_micros(200));
-    let req: Vec<_> = bus
-        .trace()
-        .packets()
-        .iter()
-        .filter(|p| p.kind == PacketKind::Request)
-        .cloned()
-        .collect();
-    let acks: Vec<_> = bus
-        .trace()
-        .packets()
-        .iter()
-        .filter(|p| p.kind == PacketKind::Ack)
-        .cloned()
-        .collect();
+    let req: Vec<_> = packets_of(&bus, PacketKind::Request);
+    let acks: Vec<_> = packets_of(&bus, PacketKind::Ack);
     let idle = |i: usize| (req[i + 1].arb_start.unwrap() - acks[i].end).as_micros_f64() - 0.144;
     assert!(
         (idle(0) - 21.03).abs() < 0.05,
@@ -329,13 +281,7 @@ fn slow_phy_on_the_path_blocks_faster_packets() {
     bus.daisy_chain(&[pc, slow, far]).unwrap();
     bus.reset();
     let me = bus.phy_id(pc).unwrap();
-    send(
-        &mut bus,
-        pc,
-        qwrite(me, 63, 0, 1),
-        ArbitrationClass::Fair,
-        1,
-    );
+    send_fair(&mut bus, pc, qwrite(me, 63, 0, 1), 1);
     bus.run_for(SimDuration::from_micros(50));
     assert!(rec(&bus, slow).received.is_empty());
     assert!(
@@ -384,13 +330,7 @@ fn cycle_master_sends_cycle_starts_every_125_us_and_delays_async() {
     bus.run_until(tick - SimDuration::from_nanos(5));
     let me = bus.phy_id(pc).unwrap();
     let dst = bus.phy_id(n).unwrap();
-    send(
-        &mut bus,
-        n,
-        qwrite(dst, me, 0, 1),
-        ArbitrationClass::Fair,
-        9,
-    );
+    send_fair(&mut bus, n, qwrite(dst, me, 0, 1), 9);
     bus.run_for(SimDuration::from_micros(50));
     let after: Vec<PacketKind> = bus
         .trace()

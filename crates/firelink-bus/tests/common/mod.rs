@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 use firelink_bus::node::{Node, NodeCtx, ResetInfo, RxReply, TransmitRequest};
+use firelink_bus::trace::{PacketKind, PacketRecord};
 use firelink_bus::{ArbitrationClass, Bus, NodeHandle, SimTime};
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Rcode, Speed};
 
@@ -228,6 +229,21 @@ pub fn send(bus: &mut Bus, node: NodeHandle, packet: Vec<u8>, class: Arbitration
 }
 
 /// The recorder at `node`.
+/// [`send`] with fair arbitration (an ordinary asynchronous request).
+pub fn send_fair(bus: &mut Bus, node: NodeHandle, packet: Vec<u8>, token: u64) {
+    send(bus, node, packet, ArbitrationClass::Fair, token);
+}
+
+/// The packets of `kind` in the bus's trace, in wire order.
+pub fn packets_of(bus: &Bus, kind: PacketKind) -> Vec<PacketRecord> {
+    bus.trace()
+        .packets()
+        .iter()
+        .filter(|p| p.kind == kind)
+        .cloned()
+        .collect()
+}
+
 pub fn rec(bus: &Bus, node: NodeHandle) -> &Recorder {
     bus.node::<Recorder>(node).unwrap()
 }
