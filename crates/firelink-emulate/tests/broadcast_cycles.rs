@@ -16,74 +16,23 @@
 //! (`( while :; do :; done ) &` twice), run
 //! `cargo test -p firelink-emulate --test broadcast_cycles`, then kill them.
 
-use std::net::SocketAddr;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::thread::JoinHandle;
+mod common;
+
+use common::{Server, qla1s};
+
 use std::time::Duration;
 
-use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::rig::{BoardRig, RigOptions};
-use firelink_emulate::{Bridge, BridgeStats, ServeConfig, bind, serve};
+use firelink_board::config::Profile;
+use firelink_emulate::BridgeStats;
 use firelink_host::io::{IoOptions, IoStats, IoSystem};
 use firelink_host::scan::Protocol;
-use firelink_host::udp::UdpPort;
-
-struct Server {
-    addr: SocketAddr,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<BridgeStats>>,
-}
-
-impl Server {
-    fn start(boards: u8, profile: Profile) -> Server {
-        let (unicast, _) = bind(&ServeConfig {
-            listen: "127.0.0.1:0".parse().unwrap(),
-            loopback_broadcast: false,
-        })
-        .unwrap();
-        let addr = unicast.local_addr().unwrap();
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = Arc::clone(&stop);
-        let thread = std::thread::spawn(move || {
-            let configs = (0..boards)
-                .map(|id| BoardConfig::new(id, Hardware::Qla1, profile))
-                .collect();
-            let rig = BoardRig::daisy_chain(configs, &RigOptions::default());
-            let first = rig.boards[0];
-            let mut bridge = Bridge::new(rig.bus, rig.host, first);
-            serve(&mut bridge, &unicast, None, &flag, |_| {}).unwrap();
-            bridge.stats()
-        });
-        Server {
-            addr,
-            stop,
-            thread: Some(thread),
-        }
-    }
-
-    fn stop(mut self) -> BridgeStats {
-        self.stop.store(true, Ordering::Relaxed);
-        self.thread.take().unwrap().join().unwrap()
-    }
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
 
 /// Run `cycles` broadcast cycles (query, hub read, command write) against
 /// `boards` emulated boards; the host does not wait between query and hub
 /// read.
 fn run(boards: u8, profile: Profile, cycles: u64) -> (IoStats, BridgeStats) {
-    let server = Server::start(boards, profile);
-    let mut port = UdpPort::open(server.addr).unwrap();
-    port.set_timeout(Duration::from_millis(100));
+    let server = Server::start(qla1s(boards, profile));
+    let port = server.port(Duration::from_millis(100));
     let config = IoOptions {
         protocol: Some(Protocol::Broadcast),
         broadcast_wait: Some(Duration::ZERO),

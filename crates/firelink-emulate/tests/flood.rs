@@ -5,8 +5,9 @@
 //! received, and each equals what was sent of its kind), and nothing
 //! accumulates between datagrams, however many arrive.
 
-use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::rig::{BoardRig, RigOptions};
+mod common;
+
+use firelink_board::config::Profile;
 use firelink_emulate::{Bridge, BridgeStats, DropReason, Handled};
 use firelink_wire::bridge::{ControlWord, split_board_datagram};
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
@@ -16,12 +17,7 @@ use rand_chacha::ChaCha8Rng;
 const BOARDS: u8 = 8;
 
 fn bridge() -> Bridge {
-    let boards = (0..BOARDS)
-        .map(|id| BoardConfig::new(id, Hardware::Qla1, Profile::Rev8))
-        .collect();
-    let rig = BoardRig::daisy_chain(boards, &RigOptions::default());
-    let first = rig.boards[0];
-    Bridge::new(rig.bus, rig.host, first)
+    common::bridge(common::qla1s(BOARDS, Profile::Rev8))
 }
 
 fn datagram(no_forward: bool, generation: u8, repr: &PacketRepr<'_>) -> Vec<u8> {

@@ -2,16 +2,14 @@
 //! `fpga-board-extras.md` driven by `firelink_host::extras` over loopback
 //! UDP against the emulator, as a dVRK host drives real boards.
 
-use std::net::SocketAddr;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::thread::JoinHandle;
+mod common;
+
+use common::Server;
+
 use std::time::Duration;
 
 use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::firmware::Instrument;
-use firelink_board::rig::{BoardRig, RigOptions};
-use firelink_emulate::{Bridge, ServeConfig, bind, serve};
 use firelink_host::extras::dallas::read_tool;
 use firelink_host::extras::dout::{
     read_digital_outputs, read_dout_control, read_waveform_table, start_waveform, waveform_status,
@@ -25,52 +23,7 @@ use firelink_host::extras::prom::{
 use firelink_host::extras::supply::measure_motor_supply_voltage;
 use firelink_host::extras::{FeatureError, is_qla_expanded, read_phy_register};
 use firelink_host::scan::scan;
-use firelink_host::udp::UdpPort;
 use firelink_host::{Dest, HostError, Port};
-
-struct Server {
-    addr: SocketAddr,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
-fn start(boards: Vec<BoardConfig>) -> Server {
-    let (unicast, _) = bind(&ServeConfig {
-        listen: "127.0.0.1:0".parse().unwrap(),
-        loopback_broadcast: false,
-    })
-    .unwrap();
-    let addr = unicast.local_addr().unwrap();
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = Arc::clone(&stop);
-    let thread = std::thread::spawn(move || {
-        let rig = BoardRig::daisy_chain(boards, &RigOptions::default());
-        let first = rig.boards[0];
-        let mut b = Bridge::new(rig.bus, rig.host, first);
-        serve(&mut b, &unicast, None, &flag, |_| {}).unwrap();
-    });
-    Server {
-        addr,
-        stop,
-        thread: Some(thread),
-    }
-}
-
-fn port(server: &Server) -> UdpPort {
-    let mut p = UdpPort::open(server.addr).unwrap();
-    // Generous: test builds are unoptimised and the machine is shared.
-    p.set_timeout(Duration::from_millis(500));
-    p
-}
 
 fn boards() -> Vec<BoardConfig> {
     vec![
@@ -88,8 +41,9 @@ fn boards() -> Vec<BoardConfig> {
 
 #[test]
 fn serial_numbers_and_proms() {
-    let server = start(boards());
-    let mut p = port(&server);
+    let server = Server::start(boards());
+    // Generous: test builds are unoptimised and the machine is shared.
+    let mut p = server.port(Duration::from_millis(500));
     // Discovery waits out a time-out per absent node: keep it short there.
     p.set_timeout(Duration::from_millis(50));
     let found = scan(&mut p).unwrap();
@@ -129,8 +83,9 @@ fn serial_numbers_and_proms() {
 
 #[test]
 fn outputs_waveforms_and_status_words() {
-    let server = start(boards());
-    let mut p = port(&server);
+    let server = Server::start(boards());
+    // Generous: test builds are unoptimised and the machine is shared.
+    let mut p = server.port(Duration::from_millis(500));
     let b0 = Dest::node(0);
     // Levels in, the same levels out (the board stores their complement).
     write_digital_outputs(&mut p, b0, 0xF, 0b0110).unwrap();
@@ -201,11 +156,12 @@ fn outputs_waveforms_and_status_words() {
 
 #[test]
 fn motor_supply_measured_per_board() {
-    let server = start(vec![
+    let server = Server::start(vec![
         BoardConfig::new(3, Hardware::Qla1, Profile::Rev8),
         BoardConfig::new(4, Hardware::Qla1, Profile::Rev8).with_motor_supply_volts(30.0),
     ]);
-    let mut p = port(&server);
+    // Generous: test builds are unoptimised and the machine is shared.
+    let mut p = server.port(Duration::from_millis(500));
     let v = measure_motor_supply_voltage(&mut p, Dest::node(0)).unwrap();
     assert!((v - 12.0).abs() < 0.1, "board 3: {v} V");
     let v = measure_motor_supply_voltage(&mut p, Dest::node(1)).unwrap();
@@ -216,8 +172,9 @@ fn motor_supply_measured_per_board() {
 
 #[test]
 fn block_reads_up_to_2048_bytes_and_the_node_63_read() {
-    let server = start(boards());
-    let mut p = port(&server);
+    let server = Server::start(boards());
+    // Generous: test builds are unoptimised and the machine is shared.
+    let mut p = server.port(Duration::from_millis(500));
     let mut big = vec![0u8; 2048];
     p.read_block(Dest::node(0), 0x1000, &mut big).unwrap();
     let mut too_big = vec![0u8; 2052];

@@ -1,78 +1,28 @@
 //! The host library over loopback UDP against the emulator: scan, every
 //! protocol, register access, and the bridge's own rules.
 
-use std::net::SocketAddr;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::thread::JoinHandle;
+mod common;
+
+use common::{Server, bridge, qla1s};
+
+/// Generous: test builds are unoptimised and share two cores.
+const TIMEOUT: std::time::Duration = std::time::Duration::from_millis(100);
+
 use std::time::Duration;
 
-use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::rig::{BoardRig, RigOptions};
-use firelink_emulate::{Bridge, Handled, ServeConfig, bind, serve};
+use firelink_board::config::Profile;
+use firelink_emulate::Handled;
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
-use firelink_host::udp::UdpPort;
 use firelink_host::{Dest, Port};
 use firelink_wire::bridge::{ControlWord, split_board_datagram};
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
 
-struct Server {
-    addr: SocketAddr,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
-fn bridge(n: u8, profile: Profile) -> Bridge {
-    let boards = (0..n)
-        .map(|id| BoardConfig::new(id, Hardware::Qla1, profile))
-        .collect();
-    let rig = BoardRig::daisy_chain(boards, &RigOptions::default());
-    let first = rig.boards[0];
-    Bridge::new(rig.bus, rig.host, first)
-}
-
-fn start(n: u8, profile: Profile) -> Server {
-    let config = ServeConfig {
-        listen: "127.0.0.1:0".parse().unwrap(),
-        loopback_broadcast: false,
-    };
-    let (unicast, _) = bind(&config).unwrap();
-    let addr = unicast.local_addr().unwrap();
-    let stop = Arc::new(AtomicBool::new(false));
-    let stop2 = Arc::clone(&stop);
-    let thread = std::thread::spawn(move || {
-        let mut b = bridge(n, profile);
-        serve(&mut b, &unicast, None, &stop2, |_| {}).unwrap();
-    });
-    Server {
-        addr,
-        stop,
-        thread: Some(thread),
-    }
-}
-
-fn port(server: &Server) -> UdpPort {
-    let mut p = UdpPort::open(server.addr).unwrap();
-    // Generous: test builds are unoptimised and share two cores.
-    p.set_timeout(Duration::from_millis(100));
-    p
-}
-
 #[test]
 fn scan_over_udp_finds_1_8_and_16_boards() {
     for n in [1u8, 8, 16] {
-        let server = start(n, Profile::Rev7);
-        let mut p = port(&server);
+        let server = Server::start(qla1s(n, Profile::Rev7));
+        let mut p = server.port(TIMEOUT);
         let report = scan(&mut p).unwrap();
         assert_eq!(report.boards.len(), usize::from(n));
         assert_eq!(report.bridge_board, Some(0));
@@ -86,13 +36,13 @@ fn scan_over_udp_finds_1_8_and_16_boards() {
 
 #[test]
 fn every_protocol_runs_over_udp() {
-    let server = start(4, Profile::Rev8);
+    let server = Server::start(qla1s(4, Profile::Rev8));
     for protocol in [
         Protocol::Sequential,
         Protocol::SequentialReadBroadcastWrite,
         Protocol::Broadcast,
     ] {
-        let p = port(&server);
+        let p = server.port(TIMEOUT);
         let config = IoOptions {
             protocol: Some(protocol),
             ..IoOptions::default()
@@ -125,8 +75,8 @@ fn every_protocol_runs_over_udp() {
 
 #[test]
 fn register_writes_and_block_reads_over_udp() {
-    let server = start(2, Profile::Rev8);
-    let mut p = port(&server);
+    let server = Server::start(qla1s(2, Profile::Rev8));
+    let mut p = server.port(TIMEOUT);
     scan(&mut p).unwrap();
     // Watchdog register of board 1: write, read back.
     p.write_quadlet(Dest::node(1), 3, 0x0100).unwrap();
@@ -139,7 +89,7 @@ fn register_writes_and_block_reads_over_udp() {
 
 #[test]
 fn bridge_rules_without_sockets() {
-    let mut b = bridge(2, Profile::Rev8);
+    let mut b = bridge(qla1s(2, Profile::Rev8));
     let mut reply = Vec::new();
     let read = |node: u8, generation: u8, no_forward: bool| {
         let repr = PacketRepr::ReadQuadletRequest {
@@ -197,7 +147,7 @@ fn bridge_rules_without_sockets() {
 /// gap count through PHY_CTRL=1 / PHY_DATA. Requests use source 0xFFD0.
 #[test]
 fn reference_host_discovery_sequence() {
-    let mut b = bridge(3, Profile::Rev8);
+    let mut b = bridge(qla1s(3, Profile::Rev8));
     let mut reply = Vec::new();
     let mut tl = 0u8;
     let mut generation = 0u8;
@@ -330,8 +280,8 @@ fn reference_host_discovery_sequence() {
 /// forwarded request dropped as stale (the bridge's generation is not 0).
 #[test]
 fn a_fresh_port_learns_the_generation_before_forwarding() {
-    let server = start(4, Profile::Rev8);
-    let mut p = port(&server);
+    let server = Server::start(qla1s(4, Profile::Rev8));
+    let mut p = server.port(TIMEOUT);
     let status = p.read_quadlet(Dest::node(2), 0).unwrap();
     assert_eq!((status >> 24) & 0xF, 2, "STATUS names board 2");
     assert_ne!(p.generation(), 0);

@@ -1,14 +1,22 @@
-//! The reference host's side of the bridge protocol as raw datagrams
-//! (`fpga-board.md` §8): a control word, then a 1394 request with source
-//! `0xFFD0` and destination `0xFFC0 | node`, handed to a [`Bridge`]
-//! without sockets, so every test replays an exact request sequence in
-//! virtual time.
+//! The emulator's test rigs: bridges over emulated boards, served on
+//! loopback UDP ([`Server`]) or driven without sockets by the reference
+//! host's side of the bridge protocol as raw datagrams ([`RefHost`],
+//! `fpga-board.md` §8: a control word, then a 1394 request with source
+//! `0xFFD0` and destination `0xFFC0 | node`), so a test replays an exact
+//! request sequence in virtual time.
 #![allow(dead_code)]
 
-use firelink_board::config::BoardConfig;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::SimDuration;
-use firelink_emulate::{Bridge, Handled};
+use firelink_emulate::{Bridge, BridgeStats, Handled, ServeConfig, bind, serve};
+use firelink_host::udp::UdpPort;
 use firelink_wire::bridge::{ControlWord, ExtraData, split_board_datagram};
 use firelink_wire::packet::{AsyncHeader, NodeId, Packet, PacketRepr, Rcode, Tcode};
 
@@ -20,6 +28,68 @@ pub fn bridge(boards: Vec<BoardConfig>) -> Bridge {
     let rig = BoardRig::daisy_chain(boards, &RigOptions::default());
     let first = rig.boards[0];
     Bridge::new(rig.bus, rig.host, first)
+}
+
+/// `n` QLA1 boards with IDs 0..n running `profile`.
+pub fn qla1s(n: u8, profile: Profile) -> Vec<BoardConfig> {
+    (0..n)
+        .map(|id| BoardConfig::new(id, Hardware::Qla1, profile))
+        .collect()
+}
+
+/// A bridge over `boards` serving 127.0.0.1 (an ephemeral port) on its own
+/// thread until stopped or dropped.
+pub struct Server {
+    /// Where it listens.
+    pub addr: SocketAddr,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<BridgeStats>>,
+}
+
+impl Server {
+    /// Start serving `boards` (the first one Ethernet-connected).
+    pub fn start(boards: Vec<BoardConfig>) -> Server {
+        let (unicast, _) = bind(&ServeConfig {
+            listen: "127.0.0.1:0".parse().unwrap(),
+            loopback_broadcast: false,
+        })
+        .unwrap();
+        let addr = unicast.local_addr().unwrap();
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = Arc::clone(&stop);
+        let thread = std::thread::spawn(move || {
+            let mut b = bridge(boards);
+            serve(&mut b, &unicast, None, &flag, |_| {}).unwrap();
+            b.stats()
+        });
+        Server {
+            addr,
+            stop,
+            thread: Some(thread),
+        }
+    }
+
+    /// A UDP port to it with read time-out `timeout`.
+    pub fn port(&self, timeout: Duration) -> UdpPort {
+        let mut p = UdpPort::open(self.addr).unwrap();
+        p.set_timeout(timeout);
+        p
+    }
+
+    /// Stop serving; the bridge's counters.
+    pub fn stop(mut self) -> BridgeStats {
+        self.stop.store(true, Ordering::Relaxed);
+        self.thread.take().unwrap().join().unwrap()
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
 }
 
 /// One answer: the response packet's fields and the extra data.
