@@ -348,34 +348,35 @@ impl SimPort {
         }
     }
 
-    fn quadlet_write(&mut self, dest: Dest, offset: u64, value: u32, call: HostCall) -> Result<()> {
+    /// A write to `dest` as library call `call`: `request` builds the
+    /// packet from its header.
+    fn write<'a>(
+        &mut self,
+        dest: Dest,
+        call: HostCall,
+        request: impl FnOnce(AsyncHeader) -> PacketRepr<'a>,
+    ) -> Result<()> {
         let header = self.header(dest);
-        self.transact(
-            Expect::write(dest, header.tl),
-            PacketRepr::WriteQuadletRequest {
-                header,
-                offset,
-                data: value,
-            },
-            call,
-        )?;
+        self.transact(Expect::write(dest, header.tl), request(header), call)?;
         Ok(())
+    }
+
+    fn quadlet_write(&mut self, dest: Dest, offset: u64, value: u32, call: HostCall) -> Result<()> {
+        self.write(dest, call, |header| PacketRepr::WriteQuadletRequest {
+            header,
+            offset,
+            data: value,
+        })
     }
 
     fn block_write(&mut self, dest: Dest, offset: u64, data: &[u8], call: HostCall) -> Result<()> {
         crate::port::check_block(data.len())?;
-        let header = self.header(dest);
-        self.transact(
-            Expect::write(dest, header.tl),
-            PacketRepr::WriteBlockRequest {
-                header,
-                offset,
-                extended_tcode: 0,
-                data,
-            },
-            call,
-        )?;
-        Ok(())
+        self.write(dest, call, |header| PacketRepr::WriteBlockRequest {
+            header,
+            offset,
+            extended_tcode: 0,
+            data,
+        })
     }
 
     /// The answer to `expect`, asked at `since`, is lost: the host waits
