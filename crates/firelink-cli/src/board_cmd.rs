@@ -174,9 +174,9 @@ pub fn run_info(args: &ScanArgs, out: &mut impl Write) -> Result<(), CliError> {
     Ok(())
 }
 
-/// Options of `firelink read`.
+/// Which board a register access goes to, and through which port.
 #[derive(Args, Debug)]
-pub struct ReadArgs {
+pub struct TargetArgs {
     #[command(flatten)]
     pub port: PortArgs,
     /// Board ID (rotary switch, 0..=15); mapped to its node by a scan.
@@ -185,6 +185,22 @@ pub struct ReadArgs {
     /// Physical node ID (0..=62, 63 = broadcast), without a scan.
     #[arg(long, value_parser = crate::args::node_id)]
     pub node: Option<u8>,
+}
+
+impl TargetArgs {
+    /// The port, opened, and the destination on it.
+    fn open(&self) -> Result<(Box<dyn Port>, Dest), CliError> {
+        let mut port = open_port(&self.port)?;
+        let dest = resolve(port.as_mut(), self.board, self.node)?;
+        Ok((port, dest))
+    }
+}
+
+/// Options of `firelink read`.
+#[derive(Args, Debug)]
+pub struct ReadArgs {
+    #[command(flatten)]
+    pub target: TargetArgs,
     /// Register address: a number (0x10 = axis 1 ADC) or a name such as
     /// status, hw_version, axis2.enc_position.
     pub address: String,
@@ -197,13 +213,7 @@ pub struct ReadArgs {
 #[derive(Args, Debug)]
 pub struct WriteArgs {
     #[command(flatten)]
-    pub port: PortArgs,
-    /// Board ID (rotary switch, 0..=15); mapped to its node by a scan.
-    #[arg(long, default_value_t = 0, conflicts_with = "node", value_parser = crate::args::board_id)]
-    pub board: u8,
-    /// Physical node ID (0..=62, 63 = broadcast), without a scan.
-    #[arg(long, value_parser = crate::args::node_id)]
-    pub node: Option<u8>,
+    pub target: TargetArgs,
     /// Register address (number or name, as for `read`).
     pub address: String,
     /// Quadlets to write (more than one uses one block write).
@@ -265,8 +275,7 @@ fn resolve(port: &mut dyn Port, board: u8, node: Option<u8>) -> Result<Dest, Cli
 /// `firelink read`.
 pub fn run_read(args: &ReadArgs, out: &mut impl Write) -> Result<(), CliError> {
     let address = parse_address(&args.address)?;
-    let mut port = open_port(&args.port)?;
-    let dest = resolve(port.as_mut(), args.board, args.node)?;
+    let (mut port, dest) = args.target.open()?;
     if args.count <= 1 {
         let v = port.read_quadlet(dest, address)?;
         writeln!(out, "{address:#06x}: {v:08x}")?;
@@ -292,8 +301,7 @@ pub fn run_write(args: &WriteArgs, out: &mut impl Write) -> Result<(), CliError>
             max: u64::from(u32::MAX),
         })?);
     }
-    let mut port = open_port(&args.port)?;
-    let dest = resolve(port.as_mut(), args.board, args.node)?;
+    let (mut port, dest) = args.target.open()?;
     match values.as_slice() {
         [one] => port.write_quadlet(dest, address, *one)?,
         many => {

@@ -425,6 +425,14 @@ fn sim_duration(d: Duration) -> SimDuration {
     SimDuration::from_micros_f64(d.as_secs_f64() * 1e6)
 }
 
+/// A read with label `tl` finished without its response.
+fn no_response(tl: u8) -> HostError {
+    HostError::Wire(firelink_wire::Error::Malformed {
+        what: "read completed without a response",
+        value: u32::from(tl),
+    })
+}
+
 fn no_broadcast_reads(dest: Dest) -> Result<()> {
     if dest.is_broadcast() {
         return Err(HostError::InvalidRequest {
@@ -448,10 +456,7 @@ impl Port for SimPort {
             PacketRepr::ReadQuadletRequest { header, offset },
             HostCall::Read,
         )?;
-        let response = response.ok_or(HostError::Wire(firelink_wire::Error::Malformed {
-            what: "read completed without a response",
-            value: u32::from(header.tl),
-        }))?;
+        let response = response.ok_or(no_response(header.tl))?;
         Ok(Packet::new_unchecked(&response[..]).quadlet_data())
     }
 
@@ -477,10 +482,7 @@ impl Port for SimPort {
             },
             HostCall::Read,
         )?;
-        let response = response.ok_or(HostError::Wire(firelink_wire::Error::Malformed {
-            what: "read completed without a response",
-            value: u32::from(header.tl),
-        }))?;
+        let response = response.ok_or(no_response(header.tl))?;
         let payload = Packet::new_unchecked(&response[..]).payload();
         if payload.len() != out.len() {
             return Err(HostError::Wire(firelink_wire::Error::BlockSize {
