@@ -595,7 +595,6 @@ impl<P: Port> Session<P> {
         let arg = words.next();
         let arg2 = words.next();
         let mut out = String::new();
-        let (b, ch) = (self.board, self.channel);
         match verb {
             "board" => {
                 self.select_board(parse_num(arg, "board")?)?;
@@ -605,6 +604,34 @@ impl<P: Port> Session<P> {
                 self.select_channel(parse_num(arg, "channel")?)?;
                 let _ = writeln!(out, "channel {}", self.channel);
             }
+            "eeprom-read" | "eeprom-read-float" | "eeprom-write" | "eeprom-write-float" => {
+                out = self.eeprom_command(verb, arg, arg2)?;
+            }
+            "factors" => out = self.factors_command(line)?,
+            "help" => out.push_str(HELP),
+            "" => {}
+            _ => {
+                if let Some(text) = self.channel_command(verb, arg)? {
+                    out = text;
+                } else if let Some(text) = self.session_command(verb, arg)? {
+                    out = text;
+                } else {
+                    return Err(bad(format!("unknown command {verb:?} (try help)")));
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// The selected channel's settings (`None`: not one of them).
+    fn channel_command(
+        &mut self,
+        verb: &str,
+        arg: Option<&str>,
+    ) -> Result<Option<String>, CliError> {
+        let mut out = String::new();
+        let (b, ch) = (self.board, self.channel);
+        match verb {
             "enable" => {
                 let on = parse_on_off(arg, "enable")?;
                 self.state_mut()?.enabled = on;
@@ -694,54 +721,84 @@ impl<P: Port> Session<P> {
                     "board {b} channel {ch}: wiper {w}, feedback gain {g:.5}"
                 );
             }
-            "eeprom-read" | "eeprom-read-float" | "eeprom-write" | "eeprom-write-float" => {
-                let word: u8 = parse_num(arg, "EEPROM word (0..=13)")?;
-                let index = (u32::from(ch) << 4) | u32::from(word);
-                let float = verb.ends_with("float");
-                if verb.starts_with("eeprom-read") {
-                    if float {
-                        let v = self.system.eeprom_float(b, index)?;
-                        let _ = writeln!(out, "board {b} EEPROM {index:#04x}: {v} (float)");
-                    } else {
-                        let v = self.system.eeprom_raw(b, index)?;
-                        let _ = writeln!(out, "board {b} EEPROM {index:#04x}: {v:#06x} ({v})");
-                    }
-                } else if float {
-                    let v: f32 = parse_num(arg2, "EEPROM float")?;
-                    self.system.set_eeprom_float(b, index, v)?;
-                    let _ = writeln!(out, "board {b} EEPROM {index:#04x}: wrote {v} (float)");
-                } else {
-                    let v: u16 = parse_num(arg2, "EEPROM word value (0..=65535)")?;
-                    self.system.set_eeprom_raw(b, index, v)?;
-                    let _ = writeln!(out, "board {b} EEPROM {index:#04x}: wrote {v:#06x}");
+            _ => return Ok(None),
+        }
+        Ok(Some(out))
+    }
+
+    /// The EEPROM word `arg` of the selected channel, raw or as a float:
+    /// read, or written with `arg2`.
+    fn eeprom_command(
+        &mut self,
+        verb: &str,
+        arg: Option<&str>,
+        arg2: Option<&str>,
+    ) -> Result<String, CliError> {
+        let mut out = String::new();
+        let (b, ch) = (self.board, self.channel);
+        let word: u8 = parse_num(arg, "EEPROM word (0..=13)")?;
+        let index = (u32::from(ch) << 4) | u32::from(word);
+        let float = verb.ends_with("float");
+        if verb.starts_with("eeprom-read") {
+            if float {
+                let v = self.system.eeprom_float(b, index)?;
+                let _ = writeln!(out, "board {b} EEPROM {index:#04x}: {v} (float)");
+            } else {
+                let v = self.system.eeprom_raw(b, index)?;
+                let _ = writeln!(out, "board {b} EEPROM {index:#04x}: {v:#06x} ({v})");
+            }
+        } else if float {
+            let v: f32 = parse_num(arg2, "EEPROM float")?;
+            self.system.set_eeprom_float(b, index, v)?;
+            let _ = writeln!(out, "board {b} EEPROM {index:#04x}: wrote {v} (float)");
+        } else {
+            let v: u16 = parse_num(arg2, "EEPROM word value (0..=65535)")?;
+            self.system.set_eeprom_raw(b, index, v)?;
+            let _ = writeln!(out, "board {b} EEPROM {index:#04x}: wrote {v:#06x}");
+        }
+        Ok(out)
+    }
+
+    /// `factors key=value ...`: the selected channel's conversion factors.
+    fn factors_command(&mut self, line: &str) -> Result<String, CliError> {
+        let mut out = String::new();
+        let (b, ch) = (self.board, self.channel);
+        let mut f = self.factors(b, ch);
+        for kv in line.split_whitespace().skip(1) {
+            let (k, v) = kv
+                .split_once('=')
+                .ok_or_else(|| bad(format!("factors: {kv:?} is not key=value")))?;
+            match k {
+                "encoder" => f.encoder_per_count = parse_f64(Some(v), k, -1e9, 1e9)?,
+                "encoder-unit" => f.encoder_unit = v.to_string(),
+                "pot" => f.pot_per_volt = parse_f64(Some(v), k, -1e9, 1e9)?,
+                "pot-offset" => f.pot_offset = parse_f64(Some(v), k, -1e9, 1e9)?,
+                "pot-unit" => f.pot_unit = v.to_string(),
+                _ => {
+                    return Err(bad(format!(
+                        "factors: unknown {k:?} (encoder, encoder-unit, pot, pot-offset, pot-unit)"
+                    )));
                 }
             }
-            "factors" => {
-                let mut f = self.factors(b, ch);
-                for kv in line.split_whitespace().skip(1) {
-                    let (k, v) = kv
-                        .split_once('=')
-                        .ok_or_else(|| bad(format!("factors: {kv:?} is not key=value")))?;
-                    match k {
-                        "encoder" => f.encoder_per_count = parse_f64(Some(v), k, -1e9, 1e9)?,
-                        "encoder-unit" => f.encoder_unit = v.to_string(),
-                        "pot" => f.pot_per_volt = parse_f64(Some(v), k, -1e9, 1e9)?,
-                        "pot-offset" => f.pot_offset = parse_f64(Some(v), k, -1e9, 1e9)?,
-                        "pot-unit" => f.pot_unit = v.to_string(),
-                        _ => {
-                            return Err(bad(format!(
-                                "factors: unknown {k:?} (encoder, encoder-unit, pot, pot-offset, pot-unit)"
-                            )));
-                        }
-                    }
-                }
-                let _ = writeln!(
-                    out,
-                    "board {b} channel {ch}: encoder {} {}/count, pot {} {}/V + {}",
-                    f.encoder_per_count, f.encoder_unit, f.pot_per_volt, f.pot_unit, f.pot_offset
-                );
-                self.state_mut()?.factors = f;
-            }
+        }
+        let _ = writeln!(
+            out,
+            "board {b} channel {ch}: encoder {} {}/count, pot {} {}/V + {}",
+            f.encoder_per_count, f.encoder_unit, f.pot_per_volt, f.pot_unit, f.pot_offset
+        );
+        self.state_mut()?.factors = f;
+        Ok(out)
+    }
+
+    /// Commands on the nodes and the session (`None`: not one of them).
+    fn session_command(
+        &mut self,
+        verb: &str,
+        arg: Option<&str>,
+    ) -> Result<Option<String>, CliError> {
+        let mut out = String::new();
+        let (b, ch) = (self.board, self.channel);
+        match verb {
             "watchdog" => {
                 let period = match arg {
                     Some("off") => Duration::ZERO,
@@ -800,11 +857,9 @@ impl<P: Port> Session<P> {
                     out.push_str(&render(&view, self.channel));
                 }
             }
-            "help" => out.push_str(HELP),
-            "" => {}
-            other => return Err(bad(format!("unknown command {other:?} (try help)"))),
+            _ => return Ok(None),
         }
-        Ok(out)
+        Ok(Some(out))
     }
 }
 
