@@ -291,6 +291,10 @@ pub struct IoSystem<P: Port> {
 /// Finished cycles whose reports an [`IoSystem`] keeps.
 pub const HISTORY: usize = 1024;
 
+/// Per board (index in the system): its block from the hub, or why it
+/// has none; `None` when no block came.
+type HubOutcomes = [Option<core::result::Result<ReadBlockRepr, MissReason>>; MAX_BOARDS];
+
 impl<P: Port> IoSystem<P> {
     /// Scan the port and set up every board found.
     ///
@@ -723,45 +727,15 @@ impl<P: Port> IoSystem<P> {
         }
     }
 
+    /// The broadcast protocol's read: query, wait for the status
+    /// broadcasts, one hub read, each hub block taken for its board.
     fn read_broadcast(&mut self) {
-        self.seq = self.rule.next_seq(self.seq);
-        self.report.seq = self.seq;
-        let query = Query {
-            seq: self.seq,
-            board_mask: self.board_mask,
-        };
-        let word = match query.to_word() {
-            Ok(w) => w,
-            Err(e) => {
-                self.note_error(e.into());
-                self.miss_all(MissReason::Transaction);
-                return;
-            }
-        };
-        let route = self.config.broadcast_route;
-        if let Err(e) = self
-            .port
-            .start_write_quadlet(route.query(), HUB_QUERY_OFFSET, word)
-        {
+        if let Err(e) = self.send_query() {
             self.note_error(e);
             self.miss_all(MissReason::Transaction);
             return;
         }
-        if self.config.listen_for_broadcasts {
-            let (seq, expected) = (self.seq, self.board_mask);
-            let mut heard = 0u16;
-            self.port.wait_until_heard(self.wait, &mut |bytes| {
-                if let Ok(packet) = Packet::new_checked(bytes)
-                    && let Some((header, board)) = status_broadcast_board(&packet)
-                    && header.seq == seq
-                {
-                    heard |= 1u16.checked_shl(u32::from(board)).unwrap_or(0);
-                }
-                heard & expected == expected
-            });
-        } else {
-            self.port.wait(self.wait);
-        }
+        self.await_broadcasts();
         let hub_len = self.hub_quadlets * 4;
         let read_len = self.hub_read_quadlets * 4;
         let hub_node = self.boards.get(self.hub).map_or(0, |b| b.info().node);
@@ -777,8 +751,8 @@ impl<P: Port> IoSystem<P> {
             self.miss_all(MissReason::Transaction);
             return;
         }
-        let hub = match HubBlock::new_checked(&self.buf[..hub_len], &self.slots) {
-            Ok(h) => h,
+        let outcomes = match self.hub_outcomes(hub_len) {
+            Ok(o) => o,
             Err(e) => {
                 let reason = miss_from_wire(e);
                 self.stats.count_error(&HostError::Wire(e));
@@ -786,15 +760,72 @@ impl<P: Port> IoSystem<P> {
                 return;
             }
         };
+        for (i, outcome) in outcomes.into_iter().enumerate() {
+            match outcome {
+                Some(Ok(repr)) => {
+                    if let Some(b) = self.boards.get_mut(i) {
+                        b.latch(repr);
+                    }
+                }
+                Some(Err(reason)) => self.miss(i, reason),
+                None if i < self.boards.len() => self.miss(i, MissReason::NotUpdated),
+                None => {}
+            }
+        }
+    }
+
+    /// The next query, on its broadcast route (without waiting).
+    fn send_query(&mut self) -> Result<()> {
+        self.seq = self.rule.next_seq(self.seq);
+        self.report.seq = self.seq;
+        let query = Query {
+            seq: self.seq,
+            board_mask: self.board_mask,
+        };
+        let word = query.to_word()?;
+        let route = self.config.broadcast_route;
+        self.port
+            .start_write_quadlet(route.query(), HUB_QUERY_OFFSET, word)
+    }
+
+    /// Wait for the boards' status broadcasts: until every expected one
+    /// of this query was overheard (at most the wait), or the whole wait.
+    fn await_broadcasts(&mut self) {
+        if !self.config.listen_for_broadcasts {
+            self.port.wait(self.wait);
+            return;
+        }
+        let (seq, expected) = (self.seq, self.board_mask);
+        let mut heard = 0u16;
+        self.port.wait_until_heard(self.wait, &mut |bytes| {
+            if let Ok(packet) = Packet::new_checked(bytes)
+                && let Some((header, board)) = status_broadcast_board(&packet)
+                && header.seq == seq
+            {
+                heard |= 1u16.checked_shl(u32::from(board)).unwrap_or(0);
+            }
+            heard & expected == expected
+        });
+    }
+
+    /// Each board's outcome from the hub memory read into the buffer
+    /// (`hub_len` bytes): its block, or why it has none (`None`: no block
+    /// came); the update times go into the report.
+    ///
+    /// # Errors
+    /// The hub memory does not decode.
+    fn hub_outcomes(
+        &mut self,
+        hub_len: usize,
+    ) -> core::result::Result<HubOutcomes, firelink_wire::Error> {
+        let hub = HubBlock::new_checked(&self.buf[..hub_len], &self.slots)?;
         let clock_us = 1e6 / f64::from(SYSTEM_CLOCK_HZ);
         // The hub packs blocks in arrival order, which is board order for
         // the Rev 7+ chain but not always for TDMA slots (a late slot, fair
         // arbitration): when every block has the same size, each one is
         // taken for the board its STATUS names.
         let uniform = self.slots.windows(2).all(|w| w[0].layout == w[1].layout);
-        // Collect per-board outcomes first (the hub view borrows the buffer).
-        let mut outcomes: [Option<core::result::Result<ReadBlockRepr, MissReason>>; MAX_BOARDS] =
-            [None; MAX_BOARDS];
+        let mut outcomes: HubOutcomes = [None; MAX_BOARDS];
         for (i, entry) in hub.entries().enumerate() {
             let named = entry.block.status().board_id();
             let index = if uniform {
@@ -833,18 +864,7 @@ impl<P: Port> IoSystem<P> {
                 *o = Some(outcome);
             }
         }
-        for (i, outcome) in outcomes.into_iter().enumerate() {
-            match outcome {
-                Some(Ok(repr)) => {
-                    if let Some(b) = self.boards.get_mut(i) {
-                        b.latch(repr);
-                    }
-                }
-                Some(Err(reason)) => self.miss(i, reason),
-                None if i < self.boards.len() => self.miss(i, MissReason::NotUpdated),
-                None => {}
-            }
-        }
+        Ok(outcomes)
     }
 
     /// Apply every board's outputs with the protocol in use.
