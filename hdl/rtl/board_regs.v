@@ -16,7 +16,10 @@ module board_regs #(
     parameter [3:0]  BOARD_ID   = 4'd0,
     parameter [31:0] HW_VERSION = 32'h514C_4131,  // "QLA1"
     parameter [31:0] FW_VERSION = 32'd8,
-    parameter [31:0] ETH_STATUS = 32'h8000_0000,  // FPGA V2
+    // FPGA V2 register 12 with no KSZ8851 traffic: present (31), KSZ
+    // initialised (29), UDP mode (20), KSZ idle (18), link down (19 = 0),
+    // no register read yet (15:0): what the software board answers.
+    parameter [31:0] ETH_STATUS = 32'hA014_0000,
     parameter [31:0] GIT_DESC   = 32'h0F1E_1140,
     parameter        HAS_ETHERNET = 1'b1
 ) (
@@ -156,7 +159,10 @@ module board_regs #(
     assign dout           = dout_r;
 
     // ---- state words -----------------------------------------------------
-    assign status_word = {4'd4, BOARD_ID, watchdog_timed_out, 1'b1, 2'b00,
+    // Bits 21:20: the digital-output check is done and the outputs are
+    // the bidirectional kind (QLA 1.4+), as the software board reports;
+    // the check itself is not modelled here.
+    assign status_word = {4'd4, BOARD_ID, watchdog_timed_out, 1'b1, 2'b11,
                           supply_good, power_enabled, relay, relay,
                           supply_fault, relay, 1'b0, 1'b1,
                           4'd0,                 // Rev 8: no amp fault field
@@ -269,7 +275,7 @@ module board_regs #(
                 end
             end
             if (wr_board && wr_reg == 4'd6)
-                dout_r <= (dout_r & ~wr_data[15:8]) | (~wr_data[7:0] & wr_data[15:8]);
+                dout_r <= (dout_r & ~wr_data[15:8]) | (wr_data[7:0] & wr_data[15:8]);
             if (wr_board && wr_reg == 4'd11 && HAS_ETHERNET) ip_addr <= wr_data;
             if (dac_wr && wr_data[31]) dac_cmd[wr_ax] <= wr_data[15:0];
             if ((dac_wr && wr_data[31]) || mcfg_wr) dac_eff[wr_ax] <= limited;
