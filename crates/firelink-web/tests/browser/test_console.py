@@ -27,7 +27,10 @@ WAIT_MS = 60_000  # generous: the machine may be loaded; nothing here is timed
 @pytest.fixture(scope="module")
 def console():
     proc = subprocess.Popen(
-        [BIN, "--port", "sim", "--listen", "127.0.0.1:0", "--rate", "500"],
+        # 1 kHz, the console's default: at 500 Hz the dVRK's gains leave
+        # PSM1's wrist (joint 5) under-damped and its velocity limit trips,
+        # as `firelink demo --rate 500` shows.
+        [BIN, "--port", "sim", "--listen", "127.0.0.1:0", "--rate", "1000"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
     try:
