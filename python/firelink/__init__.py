@@ -14,6 +14,12 @@ Quick start::
         port = firelink.open(emu.address)
         print(port.scan())
 
+Seed 001's Snake nodes (seven channels each, the seed's Get/Set list)::
+
+    snake = firelink.SnakeSystem("sim")    # the six nodes of configs/snake-seed001.json
+    snake.latch_all_inputs(); snake.analog_position()
+    snake.set_digital_pot_wiper(0, 1, 375); snake.apply_all_outputs()
+
 Port descriptions: ``"sim"`` (8 boards, firmware Rev 8), ``"sim:N"`` or
 ``"sim:N:FW"`` (N boards 1..16, FW 7, 8 or seed), ``"udp:HOST[:PORT]"``
 (a running ``firelink emulate`` or a real bridge board).
@@ -38,7 +44,18 @@ from ._errors import (
     PacketError,
     PortError,
 )
-from ._firelink import Board, Config, Emulator, IoSystem, Port, crc1394, load_config, parse_config
+from ._firelink import (
+    Board,
+    Config,
+    Emulator,
+    IoSystem,
+    Port,
+    SnakeNode,
+    SnakeSystem,
+    crc1394,
+    load_config,
+    parse_config,
+)
 
 __all__ = [
     "Board",
@@ -56,6 +73,8 @@ __all__ = [
     "Port",
     "PortError",
     "Report",
+    "SnakeNode",
+    "SnakeSystem",
     "crc1394",
     "decode_packet",
     "encode_packet",

@@ -2,12 +2,14 @@
 //!
 //! Thin bindings over the Rust library: ports and discovery
 //! ([`firelink_host`]), the I/O system with per-axis data as numpy arrays,
-//! register access, configurations ([`firelink_control::config`]), the demo,
+//! register access, seed 001's Snake nodes ([`snake`]), configurations ([`firelink_control::config`]), the demo,
 //! the benchmark and the in-process emulator ([`firelink_testbed`]), packet
 //! records ([`firelink_host::packet_json`]). Every call that does I/O or
 //! simulation releases the GIL; every error becomes one of the package's
 //! exceptions (defined in `firelink/_errors.py`) with the library's
 //! one-line message. Bad input raises; it never panics.
+
+mod snake;
 
 use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
@@ -110,15 +112,19 @@ fn profile(py: Python<'_>, name: &str) -> PyResult<Profile> {
     }
 }
 
+/// Open a `udp:HOST[:PORT]` port.
+fn open_udp(py: Python<'_>, spec: &str) -> PyResult<(AnyPort, String)> {
+    let addr = UdpPort::parse_address(spec).map_err(|e| error(py, "PortError", e.to_string()))?;
+    let port = rig::udp_port(addr).map_err(|e| testbed_error(py, e))?;
+    Ok((Box::new(port), format!("udp:{addr}")))
+}
+
 /// Open a port from its description (see `firelink.open`).
 fn open_port(py: Python<'_>, spec: &str) -> PyResult<(AnyPort, String)> {
     let spec = spec.trim();
     let dvrk = presets::dvrk_seed000();
     if spec.starts_with("udp") {
-        let addr =
-            UdpPort::parse_address(spec).map_err(|e| error(py, "PortError", e.to_string()))?;
-        let port = rig::udp_port(addr).map_err(|e| testbed_error(py, e))?;
-        return Ok((Box::new(port), format!("udp:{addr}")));
+        return open_udp(py, spec);
     }
     let mut parts = spec.split(':');
     if parts.next() != Some("sim") {
@@ -348,6 +354,27 @@ impl Port {
     }
 }
 
+/// Take the port out of a `Port` object for a system (`what`) that owns it
+/// from now on.
+fn take_port(py: Python<'_>, port: &Bound<'_, PyAny>, what: &str) -> PyResult<AnyPort> {
+    let Ok(p) = port.cast::<Port>() else {
+        return Err(error(
+            py,
+            "PortError",
+            format!("{what}(port): port must be a firelink.Port or a port description string"),
+        ));
+    };
+    let mut p = p.borrow_mut();
+    let name = p.name.clone();
+    exclusive(&mut p.inner).take().ok_or_else(|| {
+        error(
+            py,
+            "PortError",
+            format!("port {name} is already used by an IoSystem or a SnakeSystem"),
+        )
+    })
+}
+
 fn duration(py: Python<'_>, seconds: f64, what: &str) -> PyResult<Duration> {
     if !(seconds.is_finite() && (0.0..=86_400.0).contains(&seconds)) {
         return Err(bad(py, format!("{what} = {seconds}: must be 0..=86400 s")));
@@ -428,23 +455,8 @@ impl IoSystem {
         let chosen = self::protocol(py, protocol)?;
         let inner: AnyPort = if let Ok(text) = port.extract::<String>() {
             open_port(py, &text)?.0
-        } else if let Ok(p) = port.cast::<Port>() {
-            let mut p = p.borrow_mut();
-            let name = p.name.clone();
-            exclusive(&mut p.inner).take().ok_or_else(|| {
-                error(
-                    py,
-                    "PortError",
-                    format!("port {name} is already used by an IoSystem"),
-                )
-            })?
         } else {
-            return Err(error(
-                py,
-                "PortError",
-                "IoSystem(port): port must be a firelink.Port or a port description string"
-                    .to_string(),
-            ));
+            take_port(py, port, "IoSystem")?
         };
         let config = IoOptions {
             protocol: chosen,
@@ -680,28 +692,12 @@ impl IoSystem {
 
     /// Error counters since the system opened, as a dict.
     fn stats<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let s = exclusive(&mut self.io).stats();
-        let d = PyDict::new(py);
-        d.set_item("cycles", s.cycles)?;
-        d.set_item("clean_cycles", s.clean_cycles)?;
-        d.set_item("total_errors", s.total_errors())?;
-        d.set_item("timeouts", s.timeouts)?;
-        d.set_item("bus_resets", s.bus_resets)?;
-        d.set_item("bad_packets", s.bad_packets)?;
-        d.set_item("nacks", s.nacks)?;
-        d.set_item("sequence_errors", s.sequence_errors)?;
-        d.set_item("corrupt_queries", s.corrupt_queries)?;
-        d.set_item("wrong_board", s.wrong_board)?;
-        d.set_item("block_size", s.block_size)?;
-        d.set_item("other", s.other)?;
-        d.set_item("missed_by_board", s.missed_by_board.to_vec())?;
-        Ok(d)
+        stats_dict(py, exclusive(&mut self.io).stats())
     }
 
     /// The last cycle: (all boards answered, I/O time in microseconds).
     fn last_cycle(&mut self) -> (bool, f64) {
-        let r = exclusive(&mut self.io).report();
-        (r.all_ok(), r.io_time().as_secs_f64() * 1e6)
+        cycle_result(exclusive(&mut self.io).report())
     }
 
     fn __repr__(&mut self) -> String {
@@ -716,6 +712,33 @@ impl IoSystem {
     }
 }
 
+/// A cycle's report as (nothing failed, I/O time in microseconds).
+fn cycle_result(r: &firelink_host::io::CycleReport) -> (bool, f64) {
+    (r.all_ok(), r.io_time().as_secs_f64() * 1e6)
+}
+
+/// Error counters as a dict (`IoSystem.stats`, `SnakeSystem.stats`).
+fn stats_dict<'py>(
+    py: Python<'py>,
+    s: &firelink_host::io::IoStats,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("cycles", s.cycles)?;
+    d.set_item("clean_cycles", s.clean_cycles)?;
+    d.set_item("total_errors", s.total_errors())?;
+    d.set_item("timeouts", s.timeouts)?;
+    d.set_item("bus_resets", s.bus_resets)?;
+    d.set_item("bad_packets", s.bad_packets)?;
+    d.set_item("nacks", s.nacks)?;
+    d.set_item("sequence_errors", s.sequence_errors)?;
+    d.set_item("corrupt_queries", s.corrupt_queries)?;
+    d.set_item("wrong_board", s.wrong_board)?;
+    d.set_item("block_size", s.block_size)?;
+    d.set_item("other", s.other)?;
+    d.set_item("missed_by_board", s.missed_by_board.to_vec())?;
+    Ok(d)
+}
+
 // ----------------------------------------------------------- emulator ---
 
 /// An in-process `firelink emulate`: emulated boards behind a UDP bridge
@@ -728,18 +751,42 @@ struct Emulator {
 
 #[pymethods]
 impl Emulator {
-    /// Start `boards` (1..=16) emulated QLA1 boards with `firmware` (7, 8 or seed).
+    /// Start `boards` (1..=16) emulated QLA1 boards with `firmware` (7, 8
+    /// or seed) for the robots of `config` (default: seed 000's dVRK);
+    /// with `robot="snake"`, one Snake node per board of `config`
+    /// (default: the six of `configs/snake-seed001.json`) instead, for
+    /// `SnakeSystem` (`boards` and `firmware` do not apply).
     #[new]
-    #[pyo3(signature = (boards=8, firmware="8"))]
-    fn new(py: Python<'_>, boards: usize, firmware: &str) -> PyResult<Emulator> {
-        if !(1..=16).contains(&boards) {
-            return Err(bad(py, format!("{boards} boards: an emulator has 1..=16")));
-        }
-        let profile = profile(py, firmware)?;
-        let dvrk = presets::dvrk_seed000();
-        let configs = rig::board_configs(&dvrk, profile, boards);
+    #[pyo3(signature = (boards=8, firmware="8", *, robot="qla", config=None))]
+    fn new(
+        py: Python<'_>,
+        boards: usize,
+        firmware: &str,
+        robot: &str,
+        config: Option<&Config>,
+    ) -> PyResult<Emulator> {
+        let start = match robot {
+            "qla" => {
+                if !(1..=16).contains(&boards) {
+                    return Err(bad(py, format!("{boards} boards: an emulator has 1..=16")));
+                }
+                let profile = profile(py, firmware)?;
+                let dvrk = config.map_or_else(presets::dvrk_seed000, |c| c.inner.clone());
+                let configs = rig::board_configs(&dvrk, profile, boards);
+                rig::qla_nodes(configs)
+            }
+            "snake" => {
+                let snake = snake::snake_config(config);
+                let configs = firelink_testbed::snake::node_configs(&snake, 1)
+                    .map_err(|e| testbed_error(py, e))?;
+                firelink_testbed::snake::nodes(configs)
+            }
+            other => {
+                return Err(bad(py, format!("unknown robot {other:?}: qla or snake")));
+            }
+        };
         let emu = py
-            .detach(|| rig::Emulator::start(configs))
+            .detach(|| rig::Emulator::start_nodes(start))
             .map_err(|e| testbed_error(py, e))?;
         let address = format!("udp:{}", emu.addr);
         Ok(Emulator {
@@ -1028,6 +1075,7 @@ fn _firelink(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<IoSystem>()?;
     m.add_class::<Emulator>()?;
     m.add_class::<Config>()?;
+    snake::register(m)?;
     m.add_function(wrap_pyfunction!(load_config, m)?)?;
     m.add_function(wrap_pyfunction!(parse_config, m)?)?;
     m.add_function(wrap_pyfunction!(run_demo_json, m)?)?;
