@@ -21,6 +21,12 @@ impl Checker<'_> {
             .push(ConfigError::new(self.file, path.into(), problem));
     }
 
+    /// A value that repeats an earlier one: `what` names the value, `first`
+    /// is the path of the earlier one.
+    fn duplicate(&mut self, path: impl Into<String>, what: String, first: String) {
+        self.push(path, Problem::Duplicate { what, first });
+    }
+
     /// A finite number.
     fn finite(&mut self, path: &str, v: f64) -> bool {
         if v.is_finite() {
@@ -70,6 +76,12 @@ impl Checker<'_> {
     }
 }
 
+/// The index of the first of `items[..index]` for which `same` holds: where
+/// an earlier entry already used the value `items[index]` repeats.
+fn earlier_match<T>(items: &[T], index: usize, same: impl Fn(&T) -> bool) -> Option<usize> {
+    items.iter().take(index).position(same)
+}
+
 pub(super) fn validate(config: &IoConfig, file: &str) -> Result<(), ConfigErrors> {
     let mut c = Checker {
         file,
@@ -105,18 +117,11 @@ pub(super) fn validate(config: &IoConfig, file: &str) -> Result<(), ConfigErrors
         let rp = format!("robots[{ri}]");
         if robot.name.is_empty() {
             c.push(format!("{rp}.name"), Problem::Empty);
-        } else if let Some(first) = config
-            .robots
-            .iter()
-            .take(ri)
-            .position(|r| r.name == robot.name)
-        {
-            c.push(
+        } else if let Some(first) = earlier_match(&config.robots, ri, |r| r.name == robot.name) {
+            c.duplicate(
                 format!("{rp}.name"),
-                Problem::Duplicate {
-                    what: format!("robot name {:?}", robot.name),
-                    first: format!("robots[{first}].name"),
-                },
+                format!("robot name {:?}", robot.name),
+                format!("robots[{first}].name"),
             );
         }
         check_robot(&mut c, &rp, robot);
@@ -171,12 +176,10 @@ pub(super) fn validate(config: &IoConfig, file: &str) -> Result<(), ConfigErrors
                 }
                 let key = (a.board_id, a.axis_id);
                 if let Some((_, first)) = axis_users.iter().find(|(k, _)| *k == key) {
-                    c.push(
+                    c.duplicate(
                         ap.clone(),
-                        Problem::Duplicate {
-                            what: format!("(board_id {}, axis_id {})", key.0, key.1),
-                            first: first.clone(),
-                        },
+                        format!("(board_id {}, axis_id {})", key.0, key.1),
+                        first.clone(),
                     );
                 } else {
                     axis_users.push((key, ap.clone()));
@@ -270,18 +273,12 @@ fn check_robot(c: &mut Checker<'_>, rp: &str, robot: &RobotConfig) {
                     ),
                 },
             );
-        } else if let Some(first) = pots
-            .tolerances
-            .iter()
-            .take(ti)
-            .position(|o| o.axis_id == t.axis_id)
+        } else if let Some(first) = earlier_match(&pots.tolerances, ti, |o| o.axis_id == t.axis_id)
         {
-            c.push(
+            c.duplicate(
                 format!("{tp}.axis_id"),
-                Problem::Duplicate {
-                    what: format!("tolerance for actuator {}", t.axis_id),
-                    first: format!("{rp}.potentiometers.tolerances[{first}]"),
-                },
+                format!("tolerance for actuator {}", t.axis_id),
+                format!("{rp}.potentiometers.tolerances[{first}]"),
             );
         }
         c.non_negative(&format!("{tp}.distance"), t.distance);
@@ -306,18 +303,11 @@ fn check_robot_simulation(c: &mut Checker<'_>, sp: &str, sim: &RobotSimulation) 
                 },
             );
         }
-        if let Some(first) = sim
-            .boards
-            .iter()
-            .take(bi)
-            .position(|o| o.board_id == b.board_id)
-        {
-            c.push(
+        if let Some(first) = earlier_match(&sim.boards, bi, |o| o.board_id == b.board_id) {
+            c.duplicate(
                 format!("{bp}.board_id"),
-                Problem::Duplicate {
-                    what: format!("board {}", b.board_id),
-                    first: format!("{sp}.boards[{first}]"),
-                },
+                format!("board {}", b.board_id),
+                format!("{sp}.boards[{first}]"),
             );
         }
         // What the PROMs can hold after their "FPGA " and "QLA " prefixes.
