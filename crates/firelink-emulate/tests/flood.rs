@@ -7,9 +7,10 @@
 
 mod common;
 
+use common::request_datagram;
 use firelink_board::config::Profile;
 use firelink_emulate::{Bridge, BridgeStats, DropReason, Handled};
-use firelink_wire::bridge::{ControlWord, split_board_datagram};
+use firelink_wire::bridge::split_board_datagram;
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -18,19 +19,6 @@ const BOARDS: u8 = 8;
 
 fn bridge() -> Bridge {
     common::bridge(common::qla1s(BOARDS, Profile::Rev8))
-}
-
-fn datagram(no_forward: bool, generation: u8, repr: &PacketRepr<'_>) -> Vec<u8> {
-    let mut d = ControlWord {
-        no_forward,
-        generation,
-    }
-    .to_bytes()
-    .to_vec();
-    let mut packet = vec![0u8; repr.buffer_len()];
-    repr.emit(&mut packet).unwrap();
-    d.extend_from_slice(&packet);
-    d
 }
 
 fn header(rng: &mut ChaCha8Rng, node: u16) -> AsyncHeader {
@@ -95,7 +83,7 @@ fn flood_of_garbage_and_valid_requests() {
                     header: header(&mut rng, node),
                     offset: rng.random_range(0..0x1_0000u64),
                 };
-                let mut d = datagram(false, generation, &repr);
+                let mut d = request_datagram(false, generation, &repr);
                 // Source ID, offset or the CRC itself (a flipped tcode or
                 // length would make another, malformed, packet).
                 let bit = rng.random_range(32..128usize);
@@ -112,7 +100,7 @@ fn flood_of_garbage_and_valid_requests() {
                     rcode: firelink_wire::packet::Rcode::Complete,
                 };
                 sent.unsupported += 1;
-                let h = b.handle(&datagram(false, generation, &repr), &mut reply);
+                let h = b.handle(&request_datagram(false, generation, &repr), &mut reply);
                 assert_eq!(h, Handled::Dropped(DropReason::Unsupported), "datagram {i}");
             }
             // Forwarded with a stale generation.
@@ -123,7 +111,7 @@ fn flood_of_garbage_and_valid_requests() {
                 };
                 sent.stale += 1;
                 let h = b.handle(
-                    &datagram(false, generation.wrapping_add(1), &repr),
+                    &request_datagram(false, generation.wrapping_add(1), &repr),
                     &mut reply,
                 );
                 assert_eq!(
@@ -139,7 +127,8 @@ fn flood_of_garbage_and_valid_requests() {
                     offset: 0,
                 };
                 sent.forwarded += 1;
-                let Handled::Reply(n) = b.handle(&datagram(false, generation, &repr), &mut reply)
+                let Handled::Reply(n) =
+                    b.handle(&request_datagram(false, generation, &repr), &mut reply)
                 else {
                     panic!("datagram {i}: valid STATUS read of node {node} got no reply");
                 };
@@ -162,7 +151,7 @@ fn flood_of_garbage_and_valid_requests() {
                     extended_tcode: 0,
                 };
                 sent.forwarded += 1;
-                let h = b.handle(&datagram(false, generation, &repr), &mut reply);
+                let h = b.handle(&request_datagram(false, generation, &repr), &mut reply);
                 assert!(
                     matches!(
                         h,
@@ -178,7 +167,7 @@ fn flood_of_garbage_and_valid_requests() {
                     offset: 4,
                 };
                 sent.local += 1;
-                let d = datagram(true, rng.random(), &repr);
+                let d = request_datagram(true, rng.random(), &repr);
                 let Handled::Reply(n) = b.handle(&d, &mut reply) else {
                     panic!("datagram {i}: local read got no reply");
                 };
@@ -210,7 +199,7 @@ fn broadcast_writes_leave_nothing_behind() {
             data: 0x1680 + k % 16,
         };
         assert_eq!(
-            b.handle(&datagram(false, 0, &repr), &mut reply),
+            b.handle(&request_datagram(false, 0, &repr), &mut reply),
             Handled::Written
         );
         let t = b.bus().now() + firelink_bus::SimDuration::from_micros(50);
@@ -229,7 +218,7 @@ fn broadcast_quadlet_read_is_answered_by_the_bridge() {
         header: AsyncHeader::new(NodeId::BROADCAST, NodeId(0xFFD0), 9),
         offset: 0,
     };
-    let Handled::Reply(n) = b.handle(&datagram(false, 0xEE, &repr), &mut reply) else {
+    let Handled::Reply(n) = b.handle(&request_datagram(false, 0xEE, &repr), &mut reply) else {
         panic!("no reply to a node-63 read");
     };
     let (packet, _) = split_board_datagram(&reply[..n]).unwrap();
@@ -291,7 +280,7 @@ fn flood_over_loopback_udp() {
                         header: header(&mut rng, node),
                         offset: 0,
                     };
-                    let mut d = datagram(false, 0, &repr);
+                    let mut d = request_datagram(false, 0, &repr);
                     d[2 + 12] ^= 0x40; // the header CRC itself
                     d
                 }
@@ -301,7 +290,7 @@ fn flood_over_loopback_udp() {
                         header: header(&mut rng, node),
                         rcode: firelink_wire::packet::Rcode::Complete,
                     };
-                    datagram(false, 0, &repr)
+                    request_datagram(false, 0, &repr)
                 }
                 _ => {
                     sent.local += 1;
@@ -312,7 +301,7 @@ fn flood_over_loopback_udp() {
                         offset: 3,
                         data: 0x1680,
                     };
-                    datagram(true, 0, &repr)
+                    request_datagram(true, 0, &repr)
                 }
             };
             client.send_to(&d, addr).unwrap();
@@ -323,7 +312,9 @@ fn flood_over_loopback_udp() {
             header: header(&mut rng, 0x3F),
             offset: 4,
         };
-        client.send_to(&datagram(true, 0, &repr), addr).unwrap();
+        client
+            .send_to(&request_datagram(true, 0, &repr), addr)
+            .unwrap();
         let (n, _) = client
             .recv_from(&mut buf)
             .unwrap_or_else(|e| panic!("round {round}: no answer to a valid read: {e}"));
@@ -352,11 +343,11 @@ fn the_bridges_link_is_judged_by_the_host_engine() {
         offset: 4,
     };
     assert!(matches!(
-        b.handle(&datagram(false, g, &read(2, 7)), &mut reply),
+        b.handle(&request_datagram(false, g, &read(2, 7)), &mut reply),
         Handled::Reply(_)
     ));
     assert_eq!(
-        b.handle(&datagram(false, g, &read(40, 8)), &mut reply),
+        b.handle(&request_datagram(false, g, &read(40, 8)), &mut reply),
         Handled::Dropped(DropReason::BusFailure)
     );
     let s = b.link_stats();

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{Server, bridge, qla1s};
+use common::{Server, bridge, qla1s, request_datagram};
 
 /// Generous: test builds are unoptimised and share two cores.
 const TIMEOUT: std::time::Duration = std::time::Duration::from_millis(100);
@@ -15,7 +15,7 @@ use firelink_emulate::Handled;
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
 use firelink_host::{Dest, Port};
-use firelink_wire::bridge::{ControlWord, split_board_datagram};
+use firelink_wire::bridge::split_board_datagram;
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
 
 #[test]
@@ -96,16 +96,7 @@ fn bridge_rules_without_sockets() {
             header: AsyncHeader::new(NodeId::local(node), NodeId(0xFFD0), 1),
             offset: 4,
         };
-        let mut d = ControlWord {
-            no_forward,
-            generation,
-        }
-        .to_bytes()
-        .to_vec();
-        let mut pkt = vec![0u8; repr.buffer_len()];
-        repr.emit(&mut pkt).unwrap();
-        d.extend_from_slice(&pkt);
-        d
+        request_datagram(no_forward, generation, &repr)
     };
     // Stale generation: forwarded requests are dropped.
     assert_eq!(
@@ -158,17 +149,7 @@ impl DiscoveryRequests {
     ) -> Vec<u8> {
         self.tl = (self.tl + 1) & 0x3F;
         let header = AsyncHeader::new(NodeId(0xFFC0 | u16::from(node)), NodeId(0xFFD0), self.tl);
-        let repr = request(header);
-        let mut d = ControlWord {
-            no_forward,
-            generation: self.generation,
-        }
-        .to_bytes()
-        .to_vec();
-        let mut pkt = vec![0u8; repr.buffer_len()];
-        repr.emit(&mut pkt).unwrap();
-        d.extend_from_slice(&pkt);
-        d
+        request_datagram(no_forward, self.generation, &request(header))
     }
 
     /// A quadlet write to `node`, forwarded onto the bus.
