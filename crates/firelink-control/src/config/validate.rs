@@ -27,6 +27,22 @@ impl Checker<'_> {
         self.push(path, Problem::Duplicate { what, first });
     }
 
+    /// A board ID the 4-bit rotary switch can set. Returns whether it is
+    /// one.
+    fn board_id(&mut self, path: String, id: u8) -> bool {
+        if id <= MAX_BOARD_ID {
+            return true;
+        }
+        self.push(
+            path,
+            Problem::OutOfRange {
+                value: f64::from(id),
+                expected: format!("0..={MAX_BOARD_ID} (4-bit rotary switch)"),
+            },
+        );
+        false
+    }
+
     /// A finite number.
     fn finite(&mut self, path: &str, v: f64) -> bool {
         if v.is_finite() {
@@ -137,14 +153,7 @@ pub(super) fn validate(config: &IoConfig, file: &str) -> Result<(), ConfigErrors
                 );
             }
             let mut wiring_ok = true;
-            if a.board_id > MAX_BOARD_ID {
-                c.push(
-                    format!("{ap}.board_id"),
-                    Problem::OutOfRange {
-                        value: f64::from(a.board_id),
-                        expected: format!("0..={MAX_BOARD_ID} (4-bit rotary switch)"),
-                    },
-                );
+            if !c.board_id(format!("{ap}.board_id"), a.board_id) {
                 wiring_ok = false;
             }
             let hw = robot.hardware_version;
@@ -294,15 +303,7 @@ fn check_robot_simulation(c: &mut Checker<'_>, sp: &str, sim: &RobotSimulation) 
     }
     for (bi, b) in sim.boards.iter().enumerate() {
         let bp = format!("{sp}.boards[{bi}]");
-        if b.board_id > MAX_BOARD_ID {
-            c.push(
-                format!("{bp}.board_id"),
-                Problem::OutOfRange {
-                    value: f64::from(b.board_id),
-                    expected: format!("0..={MAX_BOARD_ID} (4-bit rotary switch)"),
-                },
-            );
-        }
+        c.board_id(format!("{bp}.board_id"), b.board_id);
         if let Some(first) = earlier_match(&sim.boards, bi, |o| o.board_id == b.board_id) {
             c.duplicate(
                 format!("{bp}.board_id"),
