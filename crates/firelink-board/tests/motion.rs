@@ -13,6 +13,8 @@ const STATUS: u64 = 0;
 const POWER_ON: u32 = 0x000C_0000;
 const POWER_OFF: u32 = 0x0008_0000;
 const RELAY_ON: u32 = 0x0003_0000;
+/// The DAC code for zero motor current (mid-scale).
+const ZERO_CURRENT: u16 = 0x8000;
 
 /// A Rev 8 QLA1 board whose axes reach a terminal velocity quickly
 /// (strong viscous friction), so velocity can be compared with the plant.
@@ -51,6 +53,29 @@ fn servo_until(r: &mut Rig, until: SimTime, period: SimDuration, dacs: [u16; 4])
     }
 }
 
+/// Run the servo loop every millisecond until `until_ms` milliseconds.
+fn servo_every_ms_until(r: &mut Rig, until_ms: u64, dacs: [u16; 4]) {
+    servo_until(
+        r,
+        SimTime::from_millis(until_ms),
+        SimDuration::from_millis(1),
+        dacs,
+    );
+}
+
+/// Run the servo loop every `period` until `until`, commanding zero current
+/// on every axis.
+fn servo_zero_current_until(r: &mut Rig, until: SimTime, period: SimDuration) {
+    servo_until(r, until, period, [ZERO_CURRENT; 4]);
+}
+
+/// DAC codes that command `code` on `axis` and zero current on the others.
+fn on_one_axis(axis: usize, code: u16) -> [u16; 4] {
+    let mut dacs = [ZERO_CURRENT; 4];
+    dacs[axis] = code;
+    dacs
+}
+
 #[test]
 fn power_supply_hold_and_enable_delay() {
     let mut r = damped_board(Profile::Rev8);
@@ -60,11 +85,10 @@ fn power_supply_hold_and_enable_delay() {
     let t_on = SimTime::from_micros(1_000 + 5_000 + 40_000 + 2_500);
     // Supply good after 5 ms; amplifier requested at once, on after the
     // 40 ms hold and the 2.5 ms delay.
-    servo_until(
+    servo_zero_current_until(
         &mut r,
         SimTime::from_millis(5),
         SimDuration::from_micros(500),
-        [0x8000; 4],
     );
     let s = r.read(STATUS);
     assert_eq!(s & (1 << 19), 0, "supply not good yet");
@@ -74,18 +98,16 @@ fn power_supply_hold_and_enable_delay() {
         "power enabled, relay on and sensed"
     );
     assert_eq!(s & 0xF, 1, "amplifier 1 requested");
-    servo_until(
+    servo_zero_current_until(
         &mut r,
         SimTime::from_micros(6_500),
         SimDuration::from_micros(500),
-        [0x8000; 4],
     );
     assert_ne!(r.read(STATUS) & (1 << 19), 0, "supply good");
-    servo_until(
+    servo_zero_current_until(
         &mut r,
         SimTime(t_on.0 - 1_000_000_000),
         SimDuration::from_micros(250),
-        [0x8000; 4],
     );
     assert!(r.now < t_on);
     assert_eq!(r.read(0x1C) >> 29 & 1, 0, "not on before the delay");
@@ -112,7 +134,7 @@ fn dac_current_motion_and_velocity_fields() {
         &mut r,
         SimTime::from_millis(150),
         SimDuration::from_micros(100),
-        [cmd, cmd, 0x8000, 0x8000],
+        [cmd, cmd, ZERO_CURRENT, ZERO_CURRENT],
     );
     assert!(r.fw.amplifier_on(0) && r.fw.amplifier_on(1));
     for axis in 0..2usize {
@@ -160,7 +182,7 @@ fn dac_current_motion_and_velocity_fields() {
         &mut r,
         SimTime::from_millis(300),
         SimDuration::from_micros(100),
-        [neg, cmd, 0x8000, 0x8000],
+        [neg, cmd, ZERO_CURRENT, ZERO_CURRENT],
     );
     let v = period_to_velocity(r.read(0x16));
     assert!(v < 0.0, "{v}");
@@ -181,12 +203,7 @@ fn watchdog_expiry_and_clearing() {
     r.write(STATUS, POWER_ON | RELAY_ON);
     r.write(STATUS, 0x0000_0F0F);
     let cmd = amps_to_dac(0.2);
-    servo_until(
-        &mut r,
-        SimTime::from_millis(60),
-        SimDuration::from_millis(1),
-        [cmd; 4],
-    );
+    servo_every_ms_until(&mut r, 60, [cmd; 4]);
     assert!(r.fw.amplifier_on(0));
     let last_write = r.now;
     servo_write(&mut r, [cmd; 4], 0);
@@ -253,12 +270,7 @@ fn rev7_amplifiers_through_status() {
     r.write(STATUS, POWER_ON);
     r.write(STATUS, 0x0000_0C04);
     let cmd = amps_to_dac(0.2);
-    servo_until(
-        &mut r,
-        SimTime::from_millis(60),
-        SimDuration::from_millis(1),
-        [cmd; 4],
-    );
+    servo_every_ms_until(&mut r, 60, [cmd; 4]);
     let s = r.read(STATUS);
     assert_eq!(s & 0xF, 0b0100, "axis 3 requested, axis 4 off");
     assert_eq!(s >> 8 & 0xF, 0b0100, "Rev 7 amplifier status bits");
@@ -284,26 +296,21 @@ fn current_mismatch_disables_the_amplifier() {
     r.write(STATUS, 0x0000_0101);
     // 2 A asked, 0.5 A delivered: 1.5 A mismatch.
     let cmd = amps_to_dac(2.0);
-    servo_until(
-        &mut r,
-        SimTime::from_millis(60),
-        SimDuration::from_millis(1),
-        [cmd, 0x8000, 0x8000, 0x8000],
-    );
+    servo_every_ms_until(&mut r, 60, on_one_axis(0, cmd));
     assert!(r.fw.amplifier_on(0));
     let on_since = SimTime::from_micros(47_500);
     servo_until(
         &mut r,
         SimTime(on_since.0 + 49_000_000_000),
         SimDuration::from_millis(1),
-        [cmd, 0x8000, 0x8000, 0x8000],
+        on_one_axis(0, cmd),
     );
     assert!(r.fw.amplifier_on(0), "still on before 50 ms of mismatch");
     servo_until(
         &mut r,
         SimTime(on_since.0 + 51_000_000_000),
         SimDuration::from_millis(1),
-        [cmd, 0x8000, 0x8000, 0x8000],
+        on_one_axis(0, cmd),
     );
     assert!(!r.fw.amplifier_on(0));
     let s = r.read(STATUS);
@@ -315,12 +322,7 @@ fn current_mismatch_disables_the_amplifier() {
     assert_eq!(r.read(STATUS) >> 4 & 0xF, 0);
     // A consistent command keeps it on.
     let ok = amps_to_dac(0.3);
-    servo_until(
-        &mut r,
-        SimTime::from_millis(300),
-        SimDuration::from_millis(1),
-        [ok, 0x8000, 0x8000, 0x8000],
-    );
+    servo_every_ms_until(&mut r, 300, on_one_axis(0, ok));
     assert!(r.fw.amplifier_on(0));
 }
 
@@ -331,12 +333,7 @@ fn missing_motor_supply() {
     let mut r = Rig::new(cfg, 0);
     r.write(STATUS, POWER_ON);
     r.write(STATUS, 0x0000_0101);
-    servo_until(
-        &mut r,
-        SimTime::from_millis(100),
-        SimDuration::from_millis(1),
-        [0x8000; 4],
-    );
+    servo_every_ms_until(&mut r, 100, [ZERO_CURRENT; 4]);
     let s = r.read(STATUS);
     assert_eq!(s & (1 << 19), 0, "supply never good");
     assert_ne!(s & (1 << 15), 0, "supply fault");
@@ -344,12 +341,7 @@ fn missing_motor_supply() {
     assert!(!r.fw.amplifier_on(0));
     // Connecting it: good after the rise, amplifiers after hold + delay.
     r.fw.set_motor_supply(r.now, true);
-    servo_until(
-        &mut r,
-        SimTime::from_millis(150),
-        SimDuration::from_millis(1),
-        [0x8000; 4],
-    );
+    servo_every_ms_until(&mut r, 150, [ZERO_CURRENT; 4]);
     assert_ne!(r.read(STATUS) & (1 << 19), 0);
     assert!(r.fw.amplifier_on(0));
     // Losing it turns the amplifier off at once.
@@ -368,7 +360,7 @@ fn motor_config_delay_and_current_limit() {
         &mut r,
         SimTime::from_micros(44_900),
         SimDuration::from_micros(100),
-        [amps_to_dac(1.0), 0x8000, 0x8000, 0x8000],
+        on_one_axis(0, amps_to_dac(1.0)),
     );
     assert!(!r.fw.amplifier_on(0));
     r.now = SimTime::from_micros(45_000);
@@ -446,12 +438,7 @@ fn amplifier_temperature_rises_under_load() {
     r.write(STATUS, POWER_ON);
     r.write(STATUS, 0x0000_0404);
     let cmd = amps_to_dac(2.0);
-    servo_until(
-        &mut r,
-        SimTime::from_millis(400),
-        SimDuration::from_millis(1),
-        [0x8000, 0x8000, cmd, 0x8000],
-    );
+    servo_every_ms_until(&mut r, 400, on_one_axis(2, cmd));
     let t = r.read(5);
     // Axes 3-4 share the sensor in bits 7:0: 25 + (4 W x 2 ohm ... ) > 25.
     assert!((t & 0xFF) > 0x19 + 10, "{t:#x}");

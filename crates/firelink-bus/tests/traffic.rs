@@ -53,12 +53,7 @@ fn broadcast_reaches_every_node_and_is_never_acked() {
         "the sender does not receive itself"
     );
     // Nodes replied with an ack to a broadcast: the bus ignores it.
-    assert!(
-        bus.trace()
-            .packets()
-            .iter()
-            .all(|p| p.kind != PacketKind::Ack)
-    );
+    assert!(packets_of(&bus, PacketKind::Ack).is_empty());
     assert_eq!(
         rec(&bus, pc).transmitted,
         vec![(rec(&bus, pc).transmitted[0].0, 11, None)]
@@ -111,12 +106,7 @@ fn no_ack_from_an_absent_or_silent_node() {
         t.iter().map(|x| (x.1, x.2)).collect::<Vec<_>>(),
         vec![(1, None), (2, None)]
     );
-    assert!(
-        bus.trace()
-            .packets()
-            .iter()
-            .all(|p| p.kind != PacketKind::Ack)
-    );
+    assert!(packets_of(&bus, PacketKind::Ack).is_empty());
     assert_eq!(
         bus.trace()
             .entries()

@@ -7,9 +7,10 @@
 
 mod common;
 
+use common::request_datagram;
 use firelink_board::config::Profile;
 use firelink_emulate::{Bridge, BridgeStats, DropReason, Handled};
-use firelink_wire::bridge::{ControlWord, split_board_datagram};
+use firelink_wire::bridge::split_board_datagram;
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -18,19 +19,6 @@ const BOARDS: u8 = 8;
 
 fn bridge() -> Bridge {
     common::bridge(common::qla1s(BOARDS, Profile::Rev8))
-}
-
-fn datagram(no_forward: bool, generation: u8, repr: &PacketRepr<'_>) -> Vec<u8> {
-    let mut d = ControlWord {
-        no_forward,
-        generation,
-    }
-    .to_bytes()
-    .to_vec();
-    let mut packet = vec![0u8; repr.buffer_len()];
-    repr.emit(&mut packet).unwrap();
-    d.extend_from_slice(&packet);
-    d
 }
 
 fn header(rng: &mut ChaCha8Rng, node: u16) -> AsyncHeader {
@@ -50,6 +38,20 @@ struct Sent {
     stale: u64,
     forwarded: u64,
     local: u64,
+}
+
+impl Sent {
+    /// What the bridge's counters say was sent, in the same categories.
+    fn counted_by(s: &BridgeStats) -> Sent {
+        Sent {
+            malformed: s.malformed,
+            bad_crc: s.bad_crc,
+            unsupported: s.unsupported,
+            stale: s.stale_generation,
+            forwarded: s.forwarded,
+            local: s.local,
+        }
+    }
 }
 
 #[test]
@@ -81,7 +83,7 @@ fn flood_of_garbage_and_valid_requests() {
                     header: header(&mut rng, node),
                     offset: rng.random_range(0..0x1_0000u64),
                 };
-                let mut d = datagram(false, generation, &repr);
+                let mut d = request_datagram(false, generation, &repr);
                 // Source ID, offset or the CRC itself (a flipped tcode or
                 // length would make another, malformed, packet).
                 let bit = rng.random_range(32..128usize);
@@ -98,7 +100,7 @@ fn flood_of_garbage_and_valid_requests() {
                     rcode: firelink_wire::packet::Rcode::Complete,
                 };
                 sent.unsupported += 1;
-                let h = b.handle(&datagram(false, generation, &repr), &mut reply);
+                let h = b.handle(&request_datagram(false, generation, &repr), &mut reply);
                 assert_eq!(h, Handled::Dropped(DropReason::Unsupported), "datagram {i}");
             }
             // Forwarded with a stale generation.
@@ -109,7 +111,7 @@ fn flood_of_garbage_and_valid_requests() {
                 };
                 sent.stale += 1;
                 let h = b.handle(
-                    &datagram(false, generation.wrapping_add(1), &repr),
+                    &request_datagram(false, generation.wrapping_add(1), &repr),
                     &mut reply,
                 );
                 assert_eq!(
@@ -125,7 +127,8 @@ fn flood_of_garbage_and_valid_requests() {
                     offset: 0,
                 };
                 sent.forwarded += 1;
-                let Handled::Reply(n) = b.handle(&datagram(false, generation, &repr), &mut reply)
+                let Handled::Reply(n) =
+                    b.handle(&request_datagram(false, generation, &repr), &mut reply)
                 else {
                     panic!("datagram {i}: valid STATUS read of node {node} got no reply");
                 };
@@ -148,7 +151,7 @@ fn flood_of_garbage_and_valid_requests() {
                     extended_tcode: 0,
                 };
                 sent.forwarded += 1;
-                let h = b.handle(&datagram(false, generation, &repr), &mut reply);
+                let h = b.handle(&request_datagram(false, generation, &repr), &mut reply);
                 assert!(
                     matches!(
                         h,
@@ -164,7 +167,7 @@ fn flood_of_garbage_and_valid_requests() {
                     offset: 4,
                 };
                 sent.local += 1;
-                let d = datagram(true, rng.random(), &repr);
+                let d = request_datagram(true, rng.random(), &repr);
                 let Handled::Reply(n) = b.handle(&d, &mut reply) else {
                     panic!("datagram {i}: local read got no reply");
                 };
@@ -178,15 +181,7 @@ fn flood_of_garbage_and_valid_requests() {
     let s: BridgeStats = b.stats();
     assert_eq!(s.datagrams, 30_000);
     assert_eq!(s.accounted(), s.datagrams, "{s}");
-    let counted = Sent {
-        malformed: s.malformed,
-        bad_crc: s.bad_crc,
-        unsupported: s.unsupported,
-        stale: s.stale_generation,
-        forwarded: s.forwarded,
-        local: s.local,
-    };
-    assert_eq!(counted, sent, "{s}");
+    assert_eq!(Sent::counted_by(&s), sent, "{s}");
     assert!(status_reads > 5_000);
 }
 
@@ -204,7 +199,7 @@ fn broadcast_writes_leave_nothing_behind() {
             data: 0x1680 + k % 16,
         };
         assert_eq!(
-            b.handle(&datagram(false, 0, &repr), &mut reply),
+            b.handle(&request_datagram(false, 0, &repr), &mut reply),
             Handled::Written
         );
         let t = b.bus().now() + firelink_bus::SimDuration::from_micros(50);
@@ -223,7 +218,7 @@ fn broadcast_quadlet_read_is_answered_by_the_bridge() {
         header: AsyncHeader::new(NodeId::BROADCAST, NodeId(0xFFD0), 9),
         offset: 0,
     };
-    let Handled::Reply(n) = b.handle(&datagram(false, 0xEE, &repr), &mut reply) else {
+    let Handled::Reply(n) = b.handle(&request_datagram(false, 0xEE, &repr), &mut reply) else {
         panic!("no reply to a node-63 read");
     };
     let (packet, _) = split_board_datagram(&reply[..n]).unwrap();
@@ -285,7 +280,7 @@ fn flood_over_loopback_udp() {
                         header: header(&mut rng, node),
                         offset: 0,
                     };
-                    let mut d = datagram(false, 0, &repr);
+                    let mut d = request_datagram(false, 0, &repr);
                     d[2 + 12] ^= 0x40; // the header CRC itself
                     d
                 }
@@ -295,7 +290,7 @@ fn flood_over_loopback_udp() {
                         header: header(&mut rng, node),
                         rcode: firelink_wire::packet::Rcode::Complete,
                     };
-                    datagram(false, 0, &repr)
+                    request_datagram(false, 0, &repr)
                 }
                 _ => {
                     sent.local += 1;
@@ -306,7 +301,7 @@ fn flood_over_loopback_udp() {
                         offset: 3,
                         data: 0x1680,
                     };
-                    datagram(true, 0, &repr)
+                    request_datagram(true, 0, &repr)
                 }
             };
             client.send_to(&d, addr).unwrap();
@@ -317,7 +312,9 @@ fn flood_over_loopback_udp() {
             header: header(&mut rng, 0x3F),
             offset: 4,
         };
-        client.send_to(&datagram(true, 0, &repr), addr).unwrap();
+        client
+            .send_to(&request_datagram(true, 0, &repr), addr)
+            .unwrap();
         let (n, _) = client
             .recv_from(&mut buf)
             .unwrap_or_else(|e| panic!("round {round}: no answer to a valid read: {e}"));
@@ -328,15 +325,7 @@ fn flood_over_loopback_udp() {
     let (s, backlog) = thread.join().unwrap();
     assert_eq!(s.datagrams, 600 * 11, "{s}");
     assert_eq!(s.accounted(), s.datagrams, "{s}");
-    let counted = Sent {
-        malformed: s.malformed,
-        bad_crc: s.bad_crc,
-        unsupported: s.unsupported,
-        stale: s.stale_generation,
-        forwarded: s.forwarded,
-        local: s.local,
-    };
-    assert_eq!(counted, sent, "{s}");
+    assert_eq!(Sent::counted_by(&s), sent, "{s}");
     assert_eq!(s.replies, 600);
     assert_eq!(backlog, 0);
 }
@@ -354,11 +343,11 @@ fn the_bridges_link_is_judged_by_the_host_engine() {
         offset: 4,
     };
     assert!(matches!(
-        b.handle(&datagram(false, g, &read(2, 7)), &mut reply),
+        b.handle(&request_datagram(false, g, &read(2, 7)), &mut reply),
         Handled::Reply(_)
     ));
     assert_eq!(
-        b.handle(&datagram(false, g, &read(40, 8)), &mut reply),
+        b.handle(&request_datagram(false, g, &read(40, 8)), &mut reply),
         Handled::Dropped(DropReason::BusFailure)
     );
     let s = b.link_stats();

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{Server, bridge, qla1s};
+use common::{Server, bridge, qla1s, request_datagram};
 
 /// Generous: test builds are unoptimised and share two cores.
 const TIMEOUT: std::time::Duration = std::time::Duration::from_millis(100);
@@ -15,7 +15,7 @@ use firelink_emulate::Handled;
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
 use firelink_host::{Dest, Port};
-use firelink_wire::bridge::{ControlWord, split_board_datagram};
+use firelink_wire::bridge::split_board_datagram;
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
 
 #[test]
@@ -96,16 +96,7 @@ fn bridge_rules_without_sockets() {
             header: AsyncHeader::new(NodeId::local(node), NodeId(0xFFD0), 1),
             offset: 4,
         };
-        let mut d = ControlWord {
-            no_forward,
-            generation,
-        }
-        .to_bytes()
-        .to_vec();
-        let mut pkt = vec![0u8; repr.buffer_len()];
-        repr.emit(&mut pkt).unwrap();
-        d.extend_from_slice(&pkt);
-        d
+        request_datagram(no_forward, generation, &repr)
     };
     // Stale generation: forwarded requests are dropped.
     assert_eq!(
@@ -139,6 +130,55 @@ fn bridge_rules_without_sockets() {
     assert_eq!(b.stats().bad_crc, 1);
 }
 
+/// The request datagrams of [`reference_host_discovery_sequence`], as the
+/// reference host builds them: source node 0xFFD0, a new transaction label
+/// each, and the bus generation last learnt from a reply.
+#[derive(Default)]
+struct DiscoveryRequests {
+    tl: u8,
+    generation: u8,
+}
+
+impl DiscoveryRequests {
+    /// One request to `node` (63: every node) behind its control word.
+    fn datagram(
+        &mut self,
+        node: u8,
+        no_forward: bool,
+        request: impl FnOnce(AsyncHeader) -> PacketRepr<'static>,
+    ) -> Vec<u8> {
+        self.tl = (self.tl + 1) & 0x3F;
+        let header = AsyncHeader::new(NodeId(0xFFC0 | u16::from(node)), NodeId(0xFFD0), self.tl);
+        request_datagram(no_forward, self.generation, &request(header))
+    }
+
+    /// A quadlet write to `node`, forwarded onto the bus.
+    fn write(&mut self, node: u8, offset: u64, data: u32) -> Vec<u8> {
+        self.datagram(node, false, |header| PacketRepr::WriteQuadletRequest {
+            header,
+            offset,
+            data,
+        })
+    }
+
+    /// A quadlet read of `node`, forwarded onto the bus.
+    fn read(&mut self, node: u8, offset: u64) -> Vec<u8> {
+        self.datagram(node, false, |header| PacketRepr::ReadQuadletRequest {
+            header,
+            offset,
+        })
+    }
+
+    /// A broadcast quadlet read the Ethernet board answers itself (not
+    /// forwarded).
+    fn read_no_forward(&mut self, offset: u64) -> Vec<u8> {
+        self.datagram(63, true, |header| PacketRepr::ReadQuadletRequest {
+            header,
+            offset,
+        })
+    }
+}
+
 /// The discovery sequence of the reference host library (`fpga-board.md`
 /// §8), as raw datagrams (unicast here: tests never send to broadcast
 /// addresses): IP_ADDR broadcast write; broadcast no-forward reads of
@@ -149,53 +189,19 @@ fn bridge_rules_without_sockets() {
 fn reference_host_discovery_sequence() {
     let mut b = bridge(qla1s(3, Profile::Rev8));
     let mut reply = Vec::new();
-    let mut tl = 0u8;
-    let mut generation = 0u8;
-    let datagram = |_node: u8, no_forward: bool, generation: u8, repr: PacketRepr<'_>| {
-        let mut d = ControlWord {
-            no_forward,
-            generation,
-        }
-        .to_bytes()
-        .to_vec();
-        let mut pkt = vec![0u8; repr.buffer_len()];
-        repr.emit(&mut pkt).unwrap();
-        d.extend_from_slice(&pkt);
-        d
-    };
-    let mut header = |node: u8| {
-        tl = (tl + 1) & 0x3F;
-        AsyncHeader::new(NodeId(0xFFC0 | u16::from(node)), NodeId(0xFFD0), tl)
-    };
+    let mut requests = DiscoveryRequests::default();
     // IP_ADDR (169.254.0.100, little-endian) to every board: no reply.
-    let d = datagram(
-        63,
-        false,
-        generation,
-        PacketRepr::WriteQuadletRequest {
-            header: header(63),
-            offset: 11,
-            data: 0x6400_FEA9,
-        },
-    );
+    let d = requests.write(63, 11, 0x6400_FEA9);
     assert_eq!(b.handle(&d, &mut reply), Handled::Written);
     // Broadcast no-forward reads answered by the Ethernet board itself.
     let mut local = Vec::new();
     for offset in [4u64, 0, 7, 12] {
-        let d = datagram(
-            63,
-            true,
-            generation,
-            PacketRepr::ReadQuadletRequest {
-                header: header(63),
-                offset,
-            },
-        );
+        let d = requests.read_no_forward(offset);
         let Handled::Reply(n) = b.handle(&d, &mut reply) else {
             panic!("no reply to local read {offset}");
         };
         let (p, extra) = split_board_datagram(&reply[..n]).unwrap();
-        generation = extra.generation;
+        requests.generation = extra.generation;
         local.push(p.quadlet_data());
     }
     assert_eq!(local[0], 0x514C_4131, "HW_VERSION QLA1");
@@ -203,31 +209,14 @@ fn reference_host_discovery_sequence() {
     assert_eq!(local[2], 8, "FW_VERSION");
     assert_eq!(local[3] >> 31, 1, "ETH_STATUS: FPGA V2");
     // PHY_CTRL = 0 to everybody.
-    let d = datagram(
-        63,
-        false,
-        generation,
-        PacketRepr::WriteQuadletRequest {
-            header: header(63),
-            offset: 1,
-            data: 0,
-        },
-    );
+    let d = requests.write(63, 1, 0);
     assert_eq!(b.handle(&d, &mut reply), Handled::Written);
     // Per node 0..15: present nodes answer, absent ones do not.
     let mut found = Vec::new();
     for node in 0..16u8 {
         let mut answers = Vec::new();
         for offset in [4u64, 7, 12, 0, 15] {
-            let d = datagram(
-                node,
-                false,
-                generation,
-                PacketRepr::ReadQuadletRequest {
-                    header: header(node),
-                    offset,
-                },
-            );
+            let d = requests.read(node, offset);
             match b.handle(&d, &mut reply) {
                 Handled::Reply(n) => {
                     let (p, _) = split_board_datagram(&reply[..n]).unwrap();
@@ -245,26 +234,9 @@ fn reference_host_discovery_sequence() {
     }
     assert_eq!(found, vec![0, 1, 2]);
     // Gap count: write PHY_CTRL = 1 (read register 1), read PHY_DATA.
-    let d = datagram(
-        0,
-        false,
-        generation,
-        PacketRepr::WriteQuadletRequest {
-            header: header(0),
-            offset: 1,
-            data: 1,
-        },
-    );
+    let d = requests.write(0, 1, 1);
     assert_eq!(b.handle(&d, &mut reply), Handled::Written);
-    let d = datagram(
-        0,
-        false,
-        generation,
-        PacketRepr::ReadQuadletRequest {
-            header: header(0),
-            offset: 2,
-        },
-    );
+    let d = requests.read(0, 2);
     let Handled::Reply(n) = b.handle(&d, &mut reply) else {
         panic!("no PHY_DATA");
     };

@@ -26,6 +26,16 @@ fn port(n: u8, profile: Profile) -> SimPort {
     SimPort::new(r.bus, r.host)
 }
 
+/// Power every board on (one cycle carries the request) and wait 60 ms for
+/// the motor supply to come up, amplifiers still off.
+fn power_up(io: &mut IoSystem<SimPort>) {
+    for b in io.boards_mut() {
+        b.set_power(true);
+    }
+    io.cycle();
+    io.port_mut().wait(Duration::from_millis(60));
+}
+
 #[test]
 fn scan_finds_1_8_and_16_boards() {
     for (n, profile, protocol) in [
@@ -89,11 +99,7 @@ fn every_protocol_moves_motors() {
             }
             assert!(io.boards().iter().all(|b| b.is_valid()));
             // Power on, wait for the supply, then amplifiers and current.
-            for b in io.boards_mut() {
-                b.set_power(true);
-            }
-            io.cycle();
-            io.port_mut().wait(Duration::from_millis(60));
+            power_up(&mut io);
             for b in io.boards_mut() {
                 b.set_all_amps(true);
                 b.set_dac(0, 0x8000 + 0x1800).unwrap();
@@ -251,11 +257,7 @@ fn watchdog_expires_when_the_host_stops() {
     let p = port(2, Profile::Rev8);
     let (mut io, _) = IoSystem::open(p, IoOptions::default()).unwrap();
     io.set_watchdog(Duration::from_millis(10)).unwrap();
-    for b in io.boards_mut() {
-        b.set_power(true);
-    }
-    io.cycle();
-    io.port_mut().wait(Duration::from_millis(60));
+    power_up(&mut io);
     for b in io.boards_mut() {
         b.set_all_amps(true);
     }

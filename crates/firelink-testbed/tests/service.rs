@@ -29,6 +29,17 @@ fn run(shared: &Shared, c: Command) -> CommandOutcome {
     outcome(shared)
 }
 
+/// A servo point for joints `first..first + count`: all at 0, at rest.
+fn servo_at_zero(first: u16, count: u8) -> Command {
+    Command::ServoJoints {
+        first,
+        count,
+        positions: [0.0; MAX_ARM_JOINTS],
+        velocities: [0.0; MAX_ARM_JOINTS],
+        stamp_ns: 0,
+    }
+}
+
 #[test]
 fn commands_drive_the_lifecycle_and_motion_waits_for_homing() {
     let service = Service::start(
@@ -39,13 +50,7 @@ fn commands_drive_the_lifecycle_and_motion_waits_for_homing() {
     )
     .unwrap();
     let shared = &service.shared;
-    let servo = Command::ServoJoints {
-        first: 0,
-        count: 1,
-        positions: [0.0; MAX_ARM_JOINTS],
-        velocities: [0.0; MAX_ARM_JOINTS],
-        stamp_ns: 0,
-    };
+    let servo = servo_at_zero(0, 1);
     assert!(run(shared, servo).result.contains("not active"));
     assert_eq!(run(shared, Command::Configure).result, "ok");
     assert_eq!(run(shared, Command::PowerOn).result, "ok");
@@ -68,13 +73,7 @@ fn commands_drive_the_lifecycle_and_motion_waits_for_homing() {
         assert!(start.elapsed() < Duration::from_secs(120));
         std::thread::sleep(Duration::from_millis(2));
     }
-    let bad = Command::ServoJoints {
-        first: 3,
-        count: 4,
-        positions: [0.0; MAX_ARM_JOINTS],
-        velocities: [0.0; MAX_ARM_JOINTS],
-        stamp_ns: 0,
-    };
+    let bad = servo_at_zero(3, 4);
     assert!(run(shared, bad).result.contains("do not exist"));
     // Frames keep coming and say Active.
     let start = Instant::now();

@@ -558,32 +558,15 @@ impl Firmware {
         length: u16,
     ) -> Vec<u8> {
         let length = usize::from(length);
-        let rcode = if length == 0 || length % 4 != 0 {
-            Some(Rcode::TypeError)
-        } else if length > MAX_BLOCK_READ {
-            Some(Rcode::AddressError)
-        } else {
-            None
-        };
-        if let Some(rcode) = rcode {
-            return emit(&PacketRepr::ReadBlockResponse {
-                header,
-                rcode,
-                extended_tcode: 0,
-                data: &[],
-            });
+        if let Some(rcode) = block_read_refusal(length, MAX_BLOCK_READ) {
+            return block_response_packet(header, rcode, &[]);
         }
         let data: Vec<u8> = self
             .read_block(now, offset, length / 4)
             .iter()
             .flat_map(|q| q.to_be_bytes())
             .collect();
-        emit(&PacketRepr::ReadBlockResponse {
-            header,
-            rcode: Rcode::Complete,
-            extended_tcode: 0,
-            data: &data,
-        })
+        block_response_packet(header, Rcode::Complete, &data)
     }
 
     /// The status broadcast, when its slot has come at `now`: a block
@@ -703,6 +686,30 @@ impl Firmware {
         };
         self.hub.pending = Some(pending);
     }
+}
+
+/// Why a block read of `length` bytes is refused, if it is: not whole
+/// quadlets (`resp_type_error`), or more than `max_bytes`
+/// (`resp_address_error`).
+pub(crate) fn block_read_refusal(length: usize, max_bytes: usize) -> Option<Rcode> {
+    if length == 0 || length % 4 != 0 {
+        Some(Rcode::TypeError)
+    } else if length > max_bytes {
+        Some(Rcode::AddressError)
+    } else {
+        None
+    }
+}
+
+/// A block read response carrying `rcode` and `data` (empty when the read
+/// is refused).
+pub(crate) fn block_response_packet(header: AsyncHeader, rcode: Rcode, data: &[u8]) -> Vec<u8> {
+    emit(&PacketRepr::ReadBlockResponse {
+        header,
+        rcode,
+        extended_tcode: 0,
+        data,
+    })
 }
 
 /// Emit a packet this module built (always valid: fields in range).

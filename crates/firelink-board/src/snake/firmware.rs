@@ -56,7 +56,7 @@ use super::channel::{
 };
 use super::config::SnakeNodeConfig;
 use crate::firmware::power::Watchdog;
-use crate::firmware::{PhyAccess, Reply, emit};
+use crate::firmware::{PhyAccess, Reply, block_read_refusal, block_response_packet, emit};
 use crate::plant::{DAC_ZERO, Plant};
 use crate::time::{SimDuration, SimTime};
 
@@ -753,21 +753,11 @@ impl SnakeFirmware {
         length: u16,
     ) -> Vec<u8> {
         let length = usize::from(length);
-        let refusal = if length == 0 || length % 4 != 0 {
-            Some(Rcode::TypeError)
-        } else if length / 4 > MAX_BLOCK_QUADLETS || offset != BLOCK_OFFSET {
-            Some(Rcode::AddressError)
-        } else {
-            None
-        };
+        let refusal = block_read_refusal(length, 4 * MAX_BLOCK_QUADLETS)
+            .or((offset != BLOCK_OFFSET).then_some(Rcode::AddressError));
         if let Some(rcode) = refusal {
             self.stats.refused += 1;
-            return emit(&PacketRepr::ReadBlockResponse {
-                header,
-                rcode,
-                extended_tcode: 0,
-                data: &[],
-            });
+            return block_response_packet(header, rcode, &[]);
         }
         self.stats.block_reads += 1;
         let block = self.block_read(now);
@@ -775,12 +765,7 @@ impl SnakeFirmware {
         // The buffer holds at least the whole block: emitting cannot fail.
         let _ = block.emit(&mut data);
         data.truncate(length);
-        emit(&PacketRepr::ReadBlockResponse {
-            header,
-            rcode: Rcode::Complete,
-            extended_tcode: 0,
-            data: &data,
-        })
+        block_response_packet(header, Rcode::Complete, &data)
     }
 }
 

@@ -110,36 +110,45 @@ impl Rig {
         self.fw.receive(self.now, packet, &mut self.phy)
     }
 
-    /// Quadlet write to this board; returns the ack (None if silent).
-    pub fn write(&mut self, offset: u64, value: u32) -> Option<Ack> {
-        let tl = self.next_tl();
-        let p = quadlet_write(self.dest(), tl, offset, value);
-        match self.deliver(&p) {
+    /// Deliver a write request and take its ack (`None` if silent); a
+    /// response to a write fails the test.
+    fn write_ack(&mut self, request: &[u8]) -> Option<Ack> {
+        match self.deliver(request) {
             Reply::Ack(a) => Some(a),
             Reply::Silent => None,
             other => panic!("unexpected reply to a write: {other:?}"),
         }
+    }
+
+    /// Quadlet write to this board; returns the ack (None if silent).
+    pub fn write(&mut self, offset: u64, value: u32) -> Option<Ack> {
+        let tl = self.next_tl();
+        let p = quadlet_write(self.dest(), tl, offset, value);
+        self.write_ack(&p)
     }
 
     /// Block write to this board; returns the ack.
     pub fn write_block(&mut self, offset: u64, data: &[u32]) -> Option<Ack> {
         let tl = self.next_tl();
         let p = block_write(self.dest(), tl, offset, data);
-        match self.deliver(&p) {
-            Reply::Ack(a) => Some(a),
-            Reply::Silent => None,
-            other => panic!("unexpected reply to a write: {other:?}"),
-        }
+        self.write_ack(&p)
+    }
+
+    /// Deliver a read request and take its concatenated response, checking
+    /// the ack_pending before it; `what` names the read for the failure.
+    fn read_response(&mut self, request: &[u8], what: &str, offset: u64) -> Vec<u8> {
+        let Reply::AckThenResponse { ack, response } = self.deliver(request) else {
+            panic!("no response to a {what} of {offset:#x}");
+        };
+        assert_eq!(ack, Ack::Pending);
+        response
     }
 
     /// Quadlet read; checks the concatenated response.
     pub fn read(&mut self, offset: u64) -> u32 {
         let tl = self.next_tl();
         let p = quadlet_read(self.dest(), tl, offset);
-        let Reply::AckThenResponse { ack, response } = self.deliver(&p) else {
-            panic!("no response to a quadlet read of {offset:#x}");
-        };
-        assert_eq!(ack, Ack::Pending);
+        let response = self.read_response(&p, "quadlet read", offset);
         let repr = PacketRepr::parse_verified(&response).expect("response CRCs");
         let PacketRepr::ReadQuadletResponse {
             header,
@@ -160,10 +169,7 @@ impl Rig {
     pub fn read_block_rcode(&mut self, offset: u64, quadlets: usize) -> (Rcode, Vec<u32>) {
         let tl = self.next_tl();
         let p = block_read(self.dest(), tl, offset, quadlets);
-        let Reply::AckThenResponse { ack, response } = self.deliver(&p) else {
-            panic!("no response to a block read of {offset:#x}");
-        };
-        assert_eq!(ack, Ack::Pending);
+        let response = self.read_response(&p, "block read", offset);
         let packet = Packet::new_checked(&response[..]).unwrap();
         assert_eq!(packet.tcode(), Tcode::ReadBlockResponse);
         let repr = PacketRepr::parse_verified(&response).expect("response CRCs");

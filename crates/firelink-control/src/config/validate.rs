@@ -21,6 +21,28 @@ impl Checker<'_> {
             .push(ConfigError::new(self.file, path.into(), problem));
     }
 
+    /// A value that repeats an earlier one: `what` names the value, `first`
+    /// is the path of the earlier one.
+    fn duplicate(&mut self, path: impl Into<String>, what: String, first: String) {
+        self.push(path, Problem::Duplicate { what, first });
+    }
+
+    /// A board ID the 4-bit rotary switch can set. Returns whether it is
+    /// one.
+    fn board_id(&mut self, path: String, id: u8) -> bool {
+        if id <= MAX_BOARD_ID {
+            return true;
+        }
+        self.push(
+            path,
+            Problem::OutOfRange {
+                value: f64::from(id),
+                expected: format!("0..={MAX_BOARD_ID} (4-bit rotary switch)"),
+            },
+        );
+        false
+    }
+
     /// A finite number.
     fn finite(&mut self, path: &str, v: f64) -> bool {
         if v.is_finite() {
@@ -70,6 +92,12 @@ impl Checker<'_> {
     }
 }
 
+/// The index of the first of `items[..index]` for which `same` holds: where
+/// an earlier entry already used the value `items[index]` repeats.
+fn earlier_match<T>(items: &[T], index: usize, same: impl Fn(&T) -> bool) -> Option<usize> {
+    items.iter().take(index).position(same)
+}
+
 pub(super) fn validate(config: &IoConfig, file: &str) -> Result<(), ConfigErrors> {
     let mut c = Checker {
         file,
@@ -105,18 +133,11 @@ pub(super) fn validate(config: &IoConfig, file: &str) -> Result<(), ConfigErrors
         let rp = format!("robots[{ri}]");
         if robot.name.is_empty() {
             c.push(format!("{rp}.name"), Problem::Empty);
-        } else if let Some(first) = config
-            .robots
-            .iter()
-            .take(ri)
-            .position(|r| r.name == robot.name)
-        {
-            c.push(
+        } else if let Some(first) = earlier_match(&config.robots, ri, |r| r.name == robot.name) {
+            c.duplicate(
                 format!("{rp}.name"),
-                Problem::Duplicate {
-                    what: format!("robot name {:?}", robot.name),
-                    first: format!("robots[{first}].name"),
-                },
+                format!("robot name {:?}", robot.name),
+                format!("robots[{first}].name"),
             );
         }
         check_robot(&mut c, &rp, robot);
@@ -132,14 +153,7 @@ pub(super) fn validate(config: &IoConfig, file: &str) -> Result<(), ConfigErrors
                 );
             }
             let mut wiring_ok = true;
-            if a.board_id > MAX_BOARD_ID {
-                c.push(
-                    format!("{ap}.board_id"),
-                    Problem::OutOfRange {
-                        value: f64::from(a.board_id),
-                        expected: format!("0..={MAX_BOARD_ID} (4-bit rotary switch)"),
-                    },
-                );
+            if !c.board_id(format!("{ap}.board_id"), a.board_id) {
                 wiring_ok = false;
             }
             let hw = robot.hardware_version;
@@ -171,12 +185,10 @@ pub(super) fn validate(config: &IoConfig, file: &str) -> Result<(), ConfigErrors
                 }
                 let key = (a.board_id, a.axis_id);
                 if let Some((_, first)) = axis_users.iter().find(|(k, _)| *k == key) {
-                    c.push(
+                    c.duplicate(
                         ap.clone(),
-                        Problem::Duplicate {
-                            what: format!("(board_id {}, axis_id {})", key.0, key.1),
-                            first: first.clone(),
-                        },
+                        format!("(board_id {}, axis_id {})", key.0, key.1),
+                        first.clone(),
                     );
                 } else {
                     axis_users.push((key, ap.clone()));
@@ -270,18 +282,12 @@ fn check_robot(c: &mut Checker<'_>, rp: &str, robot: &RobotConfig) {
                     ),
                 },
             );
-        } else if let Some(first) = pots
-            .tolerances
-            .iter()
-            .take(ti)
-            .position(|o| o.axis_id == t.axis_id)
+        } else if let Some(first) = earlier_match(&pots.tolerances, ti, |o| o.axis_id == t.axis_id)
         {
-            c.push(
+            c.duplicate(
                 format!("{tp}.axis_id"),
-                Problem::Duplicate {
-                    what: format!("tolerance for actuator {}", t.axis_id),
-                    first: format!("{rp}.potentiometers.tolerances[{first}]"),
-                },
+                format!("tolerance for actuator {}", t.axis_id),
+                format!("{rp}.potentiometers.tolerances[{first}]"),
             );
         }
         c.non_negative(&format!("{tp}.distance"), t.distance);
@@ -297,27 +303,12 @@ fn check_robot_simulation(c: &mut Checker<'_>, sp: &str, sim: &RobotSimulation) 
     }
     for (bi, b) in sim.boards.iter().enumerate() {
         let bp = format!("{sp}.boards[{bi}]");
-        if b.board_id > MAX_BOARD_ID {
-            c.push(
+        c.board_id(format!("{bp}.board_id"), b.board_id);
+        if let Some(first) = earlier_match(&sim.boards, bi, |o| o.board_id == b.board_id) {
+            c.duplicate(
                 format!("{bp}.board_id"),
-                Problem::OutOfRange {
-                    value: f64::from(b.board_id),
-                    expected: format!("0..={MAX_BOARD_ID} (4-bit rotary switch)"),
-                },
-            );
-        }
-        if let Some(first) = sim
-            .boards
-            .iter()
-            .take(bi)
-            .position(|o| o.board_id == b.board_id)
-        {
-            c.push(
-                format!("{bp}.board_id"),
-                Problem::Duplicate {
-                    what: format!("board {}", b.board_id),
-                    first: format!("{sp}.boards[{first}]"),
-                },
+                format!("board {}", b.board_id),
+                format!("{sp}.boards[{first}]"),
             );
         }
         // What the PROMs can hold after their "FPGA " and "QLA " prefixes.

@@ -106,6 +106,21 @@ pub struct Answer {
     pub len: usize,
 }
 
+/// A host-to-bridge datagram: the control word (`no_forward`, the bus
+/// `generation` the host believes in), then the packet of `repr`.
+pub fn request_datagram(no_forward: bool, generation: u8, repr: &PacketRepr<'_>) -> Vec<u8> {
+    let mut d = ControlWord {
+        no_forward,
+        generation,
+    }
+    .to_bytes()
+    .to_vec();
+    let mut pkt = vec![0u8; repr.buffer_len()];
+    repr.emit(&mut pkt).unwrap();
+    d.extend_from_slice(&pkt);
+    d
+}
+
 /// The reference host talking to one bridge.
 pub struct RefHost {
     pub bridge: Bridge,
@@ -132,16 +147,7 @@ impl RefHost {
 
     /// The datagram of `repr` with the host's generation.
     pub fn datagram(&self, no_forward: bool, repr: &PacketRepr<'_>) -> Vec<u8> {
-        let mut d = ControlWord {
-            no_forward,
-            generation: self.generation,
-        }
-        .to_bytes()
-        .to_vec();
-        let mut pkt = vec![0u8; repr.buffer_len()];
-        repr.emit(&mut pkt).unwrap();
-        d.extend_from_slice(&pkt);
-        d
+        request_datagram(no_forward, self.generation, repr)
     }
 
     /// Hand one datagram to the bridge.

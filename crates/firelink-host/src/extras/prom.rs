@@ -51,6 +51,18 @@ fn fpga_command<P: Port + ?Sized>(
     Ok(port.read_quadlet(dest, result_register())?)
 }
 
+/// Set the FPGA PROM's write-enable latch (every erase or program needs it
+/// first).
+fn fpga_write_enable<P: Port + ?Sized>(port: &mut P, dest: Dest) -> Result<()> {
+    fpga_command(
+        port,
+        dest,
+        PromCommand::new(PromOpcode::WriteEnable, 0),
+        "PROM write enable",
+    )?;
+    Ok(())
+}
+
 /// Poll PROM_CMD until `mask` of its low bits reads 0 (up to 8 polls, 10 us
 /// apart). Returns the last status.
 fn wait_idle<P: Port + ?Sized>(
@@ -167,12 +179,7 @@ pub fn erase_fpga_prom_sector<P: Port + ?Sized>(
     dest: Dest,
     address: u32,
 ) -> Result<()> {
-    fpga_command(
-        port,
-        dest,
-        PromCommand::new(PromOpcode::WriteEnable, 0),
-        "PROM write enable",
-    )?;
+    fpga_write_enable(port, dest)?;
     fpga_command(
         port,
         dest,
@@ -202,12 +209,7 @@ pub fn program_fpga_prom_page<P: Port + ?Sized>(
             value: data.len() as u32,
         });
     }
-    fpga_command(
-        port,
-        dest,
-        PromCommand::new(PromOpcode::WriteEnable, 0),
-        "PROM write enable",
-    )?;
+    fpga_write_enable(port, dest)?;
     let mut block = PromCommand::new(PromOpcode::PageProgram, address)
         .raw()
         .to_be_bytes()
@@ -274,16 +276,20 @@ fn qla_offset(base: u64, channel: u8) -> u64 {
     base | (u64::from(channel & 0xF) << 4)
 }
 
+/// Send QLA PROM `channel` the command `opcode` with its address and
+/// value, then give the PROM its command delay.
 fn qla_command<P: Port + ?Sized>(
     port: &mut P,
     dest: Dest,
     channel: u8,
-    cmd: QlaPromCommand,
+    opcode: QlaPromOpcode,
+    address: u16,
+    value: u8,
 ) -> Result<()> {
     port.write_quadlet(
         dest,
         qla_offset(QLA_PROM_COMMAND_OFFSET, channel),
-        cmd.raw(),
+        QlaPromCommand::new(opcode, address, value).raw(),
     )?;
     port.wait(prom_delay(port));
     Ok(())
@@ -299,12 +305,7 @@ pub fn read_qla_prom_byte<P: Port + ?Sized>(
     channel: u8,
     address: u16,
 ) -> Result<u8> {
-    qla_command(
-        port,
-        dest,
-        channel,
-        QlaPromCommand::new(QlaPromOpcode::ReadByte, address, 0),
-    )?;
+    qla_command(port, dest, channel, QlaPromOpcode::ReadByte, address, 0)?;
     let r = port.read_quadlet(dest, qla_offset(QLA_PROM_RESULT_OFFSET, channel))?;
     Ok(r as u8)
 }
@@ -321,18 +322,15 @@ pub fn write_qla_prom_byte<P: Port + ?Sized>(
     address: u16,
     value: u8,
 ) -> Result<()> {
-    qla_command(
-        port,
-        dest,
-        channel,
-        QlaPromCommand::new(QlaPromOpcode::WriteEnable, 0, 0),
-    )?;
+    qla_command(port, dest, channel, QlaPromOpcode::WriteEnable, 0, 0)?;
     port.wait(Duration::from_micros(100));
     qla_command(
         port,
         dest,
         channel,
-        QlaPromCommand::new(QlaPromOpcode::WriteByte, address, value),
+        QlaPromOpcode::WriteByte,
+        address,
+        value,
     )?;
     port.wait(Duration::from_millis(5));
     Ok(())
@@ -361,12 +359,7 @@ pub fn read_qla_prom_block<P: Port + ?Sized>(
     out: &mut [u8],
 ) -> Result<()> {
     let n = check_block(out.len())?;
-    qla_command(
-        port,
-        dest,
-        channel,
-        QlaPromCommand::new(QlaPromOpcode::ReadBlock, address, n),
-    )?;
+    qla_command(port, dest, channel, QlaPromOpcode::ReadBlock, address, n)?;
     port.read_block(dest, qla_offset(QLA_PROM_BUFFER_OFFSET, channel), out)?;
     Ok(())
 }
@@ -386,18 +379,8 @@ pub fn write_qla_prom_block<P: Port + ?Sized>(
 ) -> Result<()> {
     let n = check_block(data.len())?;
     port.write_block(dest, qla_offset(QLA_PROM_BUFFER_OFFSET, channel), data)?;
-    qla_command(
-        port,
-        dest,
-        channel,
-        QlaPromCommand::new(QlaPromOpcode::WriteEnable, 0, 0),
-    )?;
-    qla_command(
-        port,
-        dest,
-        channel,
-        QlaPromCommand::new(QlaPromOpcode::WriteBlock, address, n),
-    )?;
+    qla_command(port, dest, channel, QlaPromOpcode::WriteEnable, 0, 0)?;
+    qla_command(port, dest, channel, QlaPromOpcode::WriteBlock, address, n)?;
     port.wait(Duration::from_millis(5));
     Ok(())
 }

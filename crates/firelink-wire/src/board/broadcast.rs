@@ -42,7 +42,7 @@ use crate::board::realtime::{
     WriteHeader,
 };
 use crate::board::registers::DacWord;
-use crate::board::{MAX_BOARDS, check_exact, check_max};
+use crate::board::{MAX_BOARDS, check_exact, check_max, layout_view};
 use crate::error::{Error, Result};
 use crate::field::{read_quadlet, write_quadlet};
 
@@ -213,47 +213,15 @@ impl BroadcastHeader {
     }
 }
 
-/// A checked view of a status broadcast payload: header, then the board's
-/// real-time read block (`fpga-board.md` §6.2).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct StatusBroadcast<T: AsRef<[u8]>> {
-    buffer: T,
-    layout: BoardLayout,
+layout_view! {
+    /// A checked view of a status broadcast payload: header, then the board's
+    /// real-time read block (`fpga-board.md` §6.2).
+    pub struct StatusBroadcast;
+    what: "status broadcast",
+    quadlets: broadcast_quadlets,
 }
 
 impl<T: AsRef<[u8]>> StatusBroadcast<T> {
-    /// Wrap a buffer without checking it.
-    pub const fn new_unchecked(buffer: T, layout: BoardLayout) -> StatusBroadcast<T> {
-        StatusBroadcast { buffer, layout }
-    }
-
-    /// Wrap a buffer after checking its length.
-    ///
-    /// # Errors
-    /// See [`check_len`](Self::check_len).
-    pub fn new_checked(buffer: T, layout: BoardLayout) -> Result<StatusBroadcast<T>> {
-        let b = Self::new_unchecked(buffer, layout);
-        b.check_len()?;
-        Ok(b)
-    }
-
-    /// Check that the buffer is exactly header plus read block.
-    ///
-    /// # Errors
-    /// [`Error::NotQuadletAligned`] or [`Error::BlockSize`].
-    pub fn check_len(&self) -> Result<()> {
-        check_exact(
-            "status broadcast",
-            self.buffer.as_ref().len(),
-            self.layout.broadcast_quadlets(),
-        )
-    }
-
-    /// The layout.
-    pub fn layout(&self) -> BoardLayout {
-        self.layout
-    }
-
     /// The header.
     pub fn header(&self) -> BroadcastHeader {
         BroadcastHeader::from_word(read_quadlet(self.buffer.as_ref(), 0))

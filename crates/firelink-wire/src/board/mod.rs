@@ -145,6 +145,81 @@ macro_rules! quadlet_register {
 
 pub(crate) use quadlet_register;
 
+/// Define a checked view of a buffer whose exact size a
+/// [`BoardLayout`](crate::board::realtime::BoardLayout) sets: the struct
+/// (buffer and layout) with `new_unchecked`, `new_checked`, `check_len`
+/// (against the layout's `$quadlets()`, errors naming `$what`), `layout`,
+/// `as_bytes` and `into_inner`. The view's own accessors go in a separate
+/// `impl`.
+macro_rules! layout_view {
+    (
+        $(#[$attr:meta])*
+        pub struct $name:ident;
+        what: $what:literal,
+        quadlets: $quadlets:ident,
+    ) => {
+        $(#[$attr])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+        pub struct $name<T: AsRef<[u8]>> {
+            buffer: T,
+            layout: $crate::board::realtime::BoardLayout,
+        }
+
+        impl<T: AsRef<[u8]>> $name<T> {
+            /// Wrap a buffer without checking it.
+            pub const fn new_unchecked(
+                buffer: T,
+                layout: $crate::board::realtime::BoardLayout,
+            ) -> $name<T> {
+                $name { buffer, layout }
+            }
+
+            /// Wrap a buffer after checking its length.
+            ///
+            /// # Errors
+            /// See [`check_len`](Self::check_len).
+            pub fn new_checked(
+                buffer: T,
+                layout: $crate::board::realtime::BoardLayout,
+            ) -> $crate::Result<$name<T>> {
+                let view = Self::new_unchecked(buffer, layout);
+                view.check_len()?;
+                Ok(view)
+            }
+
+            #[doc = concat!("Check that the buffer is exactly the layout's ", $what, ".")]
+            ///
+            /// # Errors
+            /// [`Error::NotQuadletAligned`](crate::Error::NotQuadletAligned) or
+            /// [`Error::BlockSize`](crate::Error::BlockSize).
+            pub fn check_len(&self) -> $crate::Result<()> {
+                $crate::board::check_exact(
+                    $what,
+                    self.buffer.as_ref().len(),
+                    self.layout.$quadlets(),
+                )
+            }
+
+            /// The layout.
+            pub fn layout(&self) -> $crate::board::realtime::BoardLayout {
+                self.layout
+            }
+
+            /// The underlying bytes.
+            pub fn as_bytes(&self) -> &[u8] {
+                self.buffer.as_ref()
+            }
+
+            /// Consume the view, returning the buffer.
+            pub fn into_inner(self) -> T {
+                self.buffer
+            }
+        }
+    };
+}
+
+pub(crate) use layout_view;
+
 /// Check that the buffer is exactly `quadlets` quadlets long.
 pub(crate) fn check_exact(what: &'static str, len: usize, quadlets: usize) -> crate::Result<()> {
     if len % 4 != 0 {

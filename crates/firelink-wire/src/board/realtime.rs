@@ -30,7 +30,7 @@ use crate::board::registers::{
     AdcWord, DacWord, DigitalIn, EncPeriod, EncPosition, EncQuarter, EncRun, HardwareVersion,
     MotorStatus, StatusRead, StatusWrite, Temperature,
 };
-use crate::board::{MAX_AXES, check_exact};
+use crate::board::{MAX_AXES, layout_view};
 use crate::error::{Error, Result};
 use crate::field::{read_quadlet, write_quadlet};
 use crate::open_enum::open_enum;
@@ -305,56 +305,14 @@ impl BoardLayout {
 
 // ------------------------------------------------------------ Read block ---
 
-/// A checked view of a real-time read block (`fpga-board.md` §4).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct ReadBlock<T: AsRef<[u8]>> {
-    buffer: T,
-    layout: BoardLayout,
+layout_view! {
+    /// A checked view of a real-time read block (`fpga-board.md` §4).
+    pub struct ReadBlock;
+    what: "real-time read block",
+    quadlets: read_block_quadlets,
 }
 
 impl<T: AsRef<[u8]>> ReadBlock<T> {
-    /// Wrap a buffer without checking it.
-    pub const fn new_unchecked(buffer: T, layout: BoardLayout) -> ReadBlock<T> {
-        ReadBlock { buffer, layout }
-    }
-
-    /// Wrap a buffer after checking its length.
-    ///
-    /// # Errors
-    /// See [`check_len`](Self::check_len).
-    pub fn new_checked(buffer: T, layout: BoardLayout) -> Result<ReadBlock<T>> {
-        let block = Self::new_unchecked(buffer, layout);
-        block.check_len()?;
-        Ok(block)
-    }
-
-    /// Check that the buffer is exactly the layout's read block.
-    ///
-    /// # Errors
-    /// [`Error::NotQuadletAligned`] or [`Error::BlockSize`].
-    pub fn check_len(&self) -> Result<()> {
-        check_exact(
-            "real-time read block",
-            self.buffer.as_ref().len(),
-            self.layout.read_block_quadlets(),
-        )
-    }
-
-    /// The layout.
-    pub fn layout(&self) -> BoardLayout {
-        self.layout
-    }
-
-    /// The underlying bytes.
-    pub fn as_bytes(&self) -> &[u8] {
-        self.buffer.as_ref()
-    }
-
-    /// Consume the view, returning the buffer.
-    pub fn into_inner(self) -> T {
-        self.buffer
-    }
-
     fn entry(&self, section: Section, index: usize) -> Option<u32> {
         let q = self.layout.quadlet(section, index).ok()?;
         Some(read_quadlet(self.buffer.as_ref(), q))
@@ -690,56 +648,14 @@ impl WriteHeader {
     }
 }
 
-/// A checked view of a real-time write block (`fpga-board.md` §5).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct WriteBlock<T: AsRef<[u8]>> {
-    buffer: T,
-    layout: BoardLayout,
+layout_view! {
+    /// A checked view of a real-time write block (`fpga-board.md` §5).
+    pub struct WriteBlock;
+    what: "real-time write block",
+    quadlets: write_block_quadlets,
 }
 
 impl<T: AsRef<[u8]>> WriteBlock<T> {
-    /// Wrap a buffer without checking it.
-    pub const fn new_unchecked(buffer: T, layout: BoardLayout) -> WriteBlock<T> {
-        WriteBlock { buffer, layout }
-    }
-
-    /// Wrap a buffer after checking its length.
-    ///
-    /// # Errors
-    /// See [`check_len`](Self::check_len).
-    pub fn new_checked(buffer: T, layout: BoardLayout) -> Result<WriteBlock<T>> {
-        let block = Self::new_unchecked(buffer, layout);
-        block.check_len()?;
-        Ok(block)
-    }
-
-    /// Check that the buffer is exactly the layout's write block.
-    ///
-    /// # Errors
-    /// [`Error::NotQuadletAligned`] or [`Error::BlockSize`].
-    pub fn check_len(&self) -> Result<()> {
-        check_exact(
-            "real-time write block",
-            self.buffer.as_ref().len(),
-            self.layout.write_block_quadlets(),
-        )
-    }
-
-    /// The layout.
-    pub fn layout(&self) -> BoardLayout {
-        self.layout
-    }
-
-    /// The underlying bytes.
-    pub fn as_bytes(&self) -> &[u8] {
-        self.buffer.as_ref()
-    }
-
-    /// Consume the view, returning the buffer.
-    pub fn into_inner(self) -> T {
-        self.buffer
-    }
-
     fn dac_quadlet(&self) -> usize {
         match self.layout.format() {
             BlockFormat::Rev4 | BlockFormat::Rev7 => 0,
