@@ -807,13 +807,26 @@ impl Emulator {
         self.inner.is_some()
     }
 
-    /// A new port to this emulator.
-    fn port(&self, py: Python<'_>) -> PyResult<Port> {
+    /// A new port to this emulator. `timeout` (seconds, default 1) is how
+    /// long a request waits for its answer: the emulator runs in this
+    /// process, so a late answer means the machine stalled the thread, not
+    /// that a packet was lost (`firelink.open(emu.address)` keeps the UDP
+    /// port's real-time default of 20 ms).
+    #[pyo3(signature = (timeout = 1.0))]
+    fn port(&self, py: Python<'_>, timeout: f64) -> PyResult<Port> {
         let emu = self
             .inner
             .as_ref()
             .ok_or_else(|| error(py, "EmulatorClosed", "the emulator is stopped".to_string()))?;
-        let port = emu.port().map_err(|e| testbed_error(py, e))?;
+        if !(timeout.is_finite() && timeout > 0.0 && timeout <= 60.0) {
+            return Err(error(
+                py,
+                "InvalidRequest",
+                format!("timeout {timeout} s: must be above 0 and at most 60"),
+            ));
+        }
+        let mut port = emu.port().map_err(|e| testbed_error(py, e))?;
+        port.set_timeout(std::time::Duration::from_secs_f64(timeout));
         Ok(Port {
             inner: Mutex::new(Some(Box::new(port))),
             name: self.address.clone(),

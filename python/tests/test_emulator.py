@@ -41,3 +41,11 @@ def test_stop_reports_the_counters():
 def test_bad_emulator_options(kwargs):
     with pytest.raises(firelink.FirelinkError):
         firelink.Emulator(**kwargs)
+
+
+@pytest.mark.parametrize("timeout", [0.0, -1.0, float("nan"), 1e9])
+def test_a_bad_port_timeout_is_refused(timeout):
+    with firelink.Emulator(boards=1) as emu:
+        with pytest.raises(firelink.InvalidRequest, match="timeout"):
+            emu.port(timeout=timeout)
+        assert len(emu.port(timeout=0.5).scan()) == 1

@@ -217,7 +217,7 @@ def test_bad_ports_raise_port_error():
 
 def test_snake_nodes_behind_the_in_process_emulator_over_udp():
     with firelink.Emulator(robot="snake") as emu:
-        snake = firelink.SnakeSystem(emu.address)
+        snake = firelink.SnakeSystem(emu.port())
         assert [n.board_id for n in snake.nodes] == SNAKE_CONFIG_IDS
         ok = sum(snake.latch_all_inputs() & snake.apply_all_outputs() for _ in range(200))
         snake.set_digital_pot_wiper(4, 7, 512)
