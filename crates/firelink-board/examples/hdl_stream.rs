@@ -504,8 +504,9 @@ fn replay(rig: &BoardRig, stream: &[Event]) -> (String, usize) {
     }
     let events = json.trim_end().trim_end_matches(',').to_string();
     let registers: Vec<u32> = (0..16).map(|r| u32::from(regs.read(r))).collect();
+    let clock_hz = firelink_board::time::SYSTEM_CLOCK_HZ;
     let out = format!(
-        "{{\"board_id\":{DUT},\"phy_id\":{},\"clock_hz\":49152000,\"supply_rise_ps\":{},\n\
+        "{{\"board_id\":{DUT},\"phy_id\":{},\"clock_hz\":{clock_hz},\"supply_rise_ps\":{},\n\
          \"phy_registers\":{},\n\"initial\":{initial},\n\"events\":[\n{events}\n],\n\
          \"broadcasts\":[\n{}\n]}}\n",
         regs.read(0) >> 2,
