@@ -12,6 +12,7 @@
 //! (`PromDelay`) before its result is read.
 //!
 //! ```
+//! # #[cfg(feature = "sim")] {
 //! use firelink_board::config::{BoardConfig, Hardware, Profile};
 //! use firelink_board::rig::{BoardRig, RigOptions};
 //! use firelink_host::extras::prom::{fpga_serial_number, qla_serial_number};
@@ -25,6 +26,7 @@
 //! let board = Dest::node(0);
 //! assert_eq!(fpga_serial_number(&mut port, board).unwrap(), "4981-03");
 //! assert_eq!(qla_serial_number(&mut port, board, 0).unwrap(), "4980-03");
+//! # }
 //! ```
 
 pub mod dallas;
