@@ -331,8 +331,8 @@ fn trial(options: &SnakeDemoOptions, rate_hz: f64) -> Result<RateTrial, TestbedE
         Ok(out) => out,
         // A rate at which the robot cannot even home (the gains leave a
         // joint under-damped at a low rate) did not hold: say why and let
-        // the search go on.
-        Err(e) => {
+        // the search go on. Any other error (the rig, the scan) is one.
+        Err(e @ TestbedError::Runner(_)) => {
             return Ok(RateTrial {
                 rate_hz,
                 held: false,
@@ -342,6 +342,7 @@ fn trial(options: &SnakeDemoOptions, rate_hz: f64) -> Result<RateTrial, TestbedE
                 fault: Some(e.to_string()),
             });
         }
+        Err(e) => return Err(e),
     };
     let report = out.report;
     let late = out.motion_cycle_us.p99 > 1e6 / rate_hz;
