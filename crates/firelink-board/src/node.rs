@@ -179,7 +179,10 @@ impl Node for BoardNode {
         speed: Speed,
         ctx: &mut NodeCtx<'_>,
     ) -> RxReply {
-        let reply = self.firmware.receive(now, packet, &mut CtxPhy(ctx));
+        let crc = ctx.received_crc_status();
+        let reply = self
+            .firmware
+            .receive_checked(now, packet, crc, &mut CtxPhy(ctx));
         report_rx_error(&self.name, self.firmware.take_rx_error(), ctx);
         self.pump(now, ctx);
         on_bus(reply, speed)

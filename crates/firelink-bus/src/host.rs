@@ -383,7 +383,9 @@ impl Node for HostLink {
             ctx.report_error("host: malformed packet");
             return RxReply::Silent;
         };
-        let status = view.crc_status();
+        let status = ctx
+            .received_crc_status()
+            .unwrap_or_else(|| view.crc_status());
         if status.header_ok == Some(false) {
             ctx.report_error("host: header CRC error");
             return RxReply::Silent;

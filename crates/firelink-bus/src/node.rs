@@ -55,7 +55,7 @@
 use std::any::Any;
 use std::fmt;
 
-use firelink_wire::packet::{Ack, Speed};
+use firelink_wire::packet::{Ack, CrcStatus, Speed};
 
 use crate::phy::PhyRegisters;
 use crate::time::SimTime;
@@ -245,6 +245,7 @@ pub(crate) enum TimerCommand {
 /// What a node may see and do during a callback.
 pub struct NodeCtx<'a> {
     pub(crate) now: SimTime,
+    pub(crate) rx_crc: Option<CrcStatus>,
     pub(crate) phy_id: u8,
     pub(crate) generation: u32,
     pub(crate) node_count: u8,
@@ -267,6 +268,14 @@ impl NodeCtx<'_> {
     /// The current virtual time.
     pub fn now(&self) -> SimTime {
         self.now
+    }
+
+    /// While a packet is being received ([`Node::on_receive`]): what its
+    /// CRCs say, as [`Packet::crc_status`](firelink_wire::packet::Packet::crc_status)
+    /// would for the bytes the node got (the bus works it out once for
+    /// every node the packet reaches). `None` in other callbacks.
+    pub fn received_crc_status(&self) -> Option<CrcStatus> {
+        self.rx_crc
     }
 
     /// This node's physical ID; 63 (`0x3F`) until the first bus reset or

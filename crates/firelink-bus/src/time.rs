@@ -22,6 +22,22 @@ pub use firelink_wire::board::registers::SYSTEM_CLOCK_HZ;
 /// [`SYSTEM_CLOCK_HZ`] for arithmetic.
 const CLOCK_HZ: u128 = SYSTEM_CLOCK_HZ as u128;
 
+/// One clock is `PS_PER_CLOCK_NUM / PS_PER_CLOCK_DEN` ps (10^12 / 49.152e6
+/// reduced: 125e6 / 6144, 20345.05 ps).
+const PS_PER_CLOCK_NUM: u64 = 125_000_000;
+const PS_PER_CLOCK_DEN: u64 = 6_144;
+
+/// Whole clocks in `ps` picoseconds (rounded down): 64-bit arithmetic
+/// while it cannot overflow (the first 50 minutes), else 128-bit; the same
+/// result either way.
+const fn ps_to_clocks(ps: u64) -> u64 {
+    if ps <= u64::MAX / PS_PER_CLOCK_DEN {
+        ps * PS_PER_CLOCK_DEN / PS_PER_CLOCK_NUM
+    } else {
+        ((ps as u128 * CLOCK_HZ) / PS_PER_S as u128) as u64
+    }
+}
+
 /// Picoseconds in one nanosecond.
 pub const PS_PER_NS: u64 = 1_000;
 /// Picoseconds in one microsecond.
@@ -81,11 +97,16 @@ impl SimTime {
     /// The value of a free-running [`SYSTEM_CLOCK_HZ`] counter started at
     /// time zero.
     pub const fn clocks(self) -> u64 {
-        ((self.0 as u128 * CLOCK_HZ) / PS_PER_S as u128) as u64
+        ps_to_clocks(self.0)
     }
 
     /// The earliest instant at which that counter reads `clocks`.
     pub const fn from_clocks(clocks: u64) -> SimTime {
+        // ps = clocks x 10^12 / 49.152 MHz = clocks x 125e6 / 6144 exactly;
+        // in 64 bits for the first hour of virtual time.
+        if clocks <= u64::MAX / PS_PER_CLOCK_NUM {
+            return SimTime((clocks * PS_PER_CLOCK_NUM).div_ceil(PS_PER_CLOCK_DEN));
+        }
         let ps = (clocks as u128 * PS_PER_S as u128).div_ceil(CLOCK_HZ);
         SimTime(if ps > u64::MAX as u128 {
             u64::MAX
@@ -164,6 +185,9 @@ impl SimDuration {
     /// `n` cycles of the [`SYSTEM_CLOCK_HZ`] clock, rounded to the nearest
     /// picosecond.
     pub const fn from_clocks(n: u64) -> SimDuration {
+        if n <= u64::MAX / PS_PER_CLOCK_NUM {
+            return SimDuration((n * PS_PER_CLOCK_NUM + PS_PER_CLOCK_DEN / 2) / PS_PER_CLOCK_DEN);
+        }
         let ps = (n as u128 * PS_PER_S as u128 + CLOCK_HZ / 2) / CLOCK_HZ;
         SimDuration(if ps > u64::MAX as u128 {
             u64::MAX
@@ -179,7 +203,7 @@ impl SimDuration {
 
     /// Whole cycles of the [`SYSTEM_CLOCK_HZ`] clock in the span.
     pub const fn as_clocks(self) -> u64 {
-        ((self.0 as u128 * CLOCK_HZ) / PS_PER_S as u128) as u64
+        ps_to_clocks(self.0)
     }
 
     /// The larger of two spans.
@@ -289,6 +313,32 @@ mod tests {
         assert_eq!(t - SimTime(10), SimDuration(5_000_000 - 10));
         assert_eq!(SimTime(1) - t, SimDuration::ZERO);
         assert_eq!(SimTime::MAX + SimDuration(1), SimTime::MAX);
+    }
+
+    #[test]
+    fn the_64_bit_conversions_agree_with_128_bit_arithmetic() {
+        let slow_clocks = |ps: u64| ((ps as u128 * CLOCK_HZ) / PS_PER_S as u128) as u64;
+        let slow_from = |c: u64| (c as u128 * PS_PER_S as u128).div_ceil(CLOCK_HZ) as u64;
+        let slow_dur = |n: u64| ((n as u128 * PS_PER_S as u128 + CLOCK_HZ / 2) / CLOCK_HZ) as u64;
+        let ps_edge = u64::MAX / PS_PER_CLOCK_DEN;
+        let clock_edge = u64::MAX / PS_PER_CLOCK_NUM;
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        let mut values = vec![0, 1, 2, 20_345, 20_346, ps_edge - 1, ps_edge, ps_edge + 1];
+        values.extend([clock_edge - 1, clock_edge, clock_edge + 1, u64::MAX / 2]);
+        for _ in 0..10_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            values.push(x >> (x % 40));
+        }
+        for v in values {
+            assert_eq!(SimTime(v).clocks(), slow_clocks(v), "{v} ps");
+            assert_eq!(SimDuration(v).as_clocks(), slow_clocks(v), "{v} ps");
+            if v <= u64::MAX / 1_000_000 {
+                assert_eq!(SimTime::from_clocks(v).0, slow_from(v), "{v} clocks");
+                assert_eq!(SimDuration::from_clocks(v).0, slow_dur(v), "{v} clocks");
+            }
+        }
     }
 
     #[test]

@@ -38,21 +38,25 @@ impl Field {
     }
 
     /// Extract the field from a quadlet value.
+    #[inline]
     pub const fn extract(&self, quadlet: u32) -> u32 {
         (quadlet >> self.shift) & self.mask
     }
 
     /// Insert `value` (truncated to the field width) into a quadlet value.
+    #[inline]
     pub const fn insert(&self, quadlet: u32, value: u32) -> u32 {
         (quadlet & !(self.mask << self.shift)) | ((value & self.mask) << self.shift)
     }
 
     /// Read the field from a byte buffer.
+    #[inline]
     pub fn get(&self, buf: &[u8]) -> u32 {
         self.extract(read_quadlet(buf, self.q))
     }
 
     /// Write the field into a byte buffer.
+    #[inline]
     pub fn set(&self, buf: &mut [u8], value: u32) {
         let q = read_quadlet(buf, self.q);
         write_quadlet(buf, self.q, self.insert(q, value));
@@ -60,6 +64,7 @@ impl Field {
 }
 
 /// Read big-endian quadlet `q` of `buf`; 0 if it is not there.
+#[inline]
 pub fn read_quadlet(buf: &[u8], q: usize) -> u32 {
     let start = q.saturating_mul(4);
     match buf.get(start..start.saturating_add(4)) {
@@ -69,6 +74,7 @@ pub fn read_quadlet(buf: &[u8], q: usize) -> u32 {
 }
 
 /// Write big-endian quadlet `q` of `buf`; ignored if it is not there.
+#[inline]
 pub fn write_quadlet(buf: &mut [u8], q: usize, value: u32) {
     let start = q.saturating_mul(4);
     if let Some(dst) = buf.get_mut(start..start.saturating_add(4)) {

@@ -94,6 +94,9 @@ pub(crate) struct Hub {
     pub pending: Option<Pending>,
     /// This board's broadcast handed to the bus, stored once sent.
     pub in_flight: Option<Vec<u8>>,
+    /// A payload buffer kept for the next broadcast (no allocation per
+    /// query).
+    spare: Vec<u8>,
 }
 
 impl Hub {
@@ -108,7 +111,18 @@ impl Hub {
             timing_index: None,
             pending: None,
             in_flight: None,
+            spare: Vec::new(),
         }
+    }
+
+    /// A buffer for the next broadcast's payload.
+    pub fn spare_payload(&mut self) -> Vec<u8> {
+        core::mem::take(&mut self.spare)
+    }
+
+    /// Keep a sent broadcast's payload buffer for the next one.
+    pub fn keep_payload(&mut self, payload: Vec<u8>) {
+        self.spare = payload;
     }
 
     /// The selected boards of the last query.
@@ -185,6 +199,25 @@ impl Hub {
             }
         }
         true
+    }
+
+    /// Hub memory quadlets from `start` on, as read by a read that started
+    /// at `read_start`, into `out` (wire order) as far as the memory goes;
+    /// returns how many quadlets that was.
+    pub fn read_into(&self, start: usize, read_start: SimTime, out: &mut [u8]) -> usize {
+        let end = HUB_MEMORY_QUADLETS.min(start.saturating_add(out.len() / 4));
+        let n = end.saturating_sub(start);
+        if let (Some(src), Some(dst)) = (self.memory.get(start * 4..end * 4), out.get_mut(..n * 4))
+        {
+            dst.copy_from_slice(src);
+        }
+        if let Some(t) = self.timing_index.filter(|t| (start..end).contains(t)) {
+            let k = (t - start) * 4;
+            if let Some(dst) = out.get_mut(k..k + 4) {
+                dst.copy_from_slice(&self.read(t, read_start).to_be_bytes());
+            }
+        }
+        n
     }
 
     /// Hub memory quadlet `index` as read by a read that started at

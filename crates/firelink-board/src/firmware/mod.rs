@@ -101,7 +101,9 @@ use firelink_wire::board::broadcast::{
     BroadcastHeader, CORRUPT_QUERY_SEQ, Query, status_broadcast_offset,
 };
 use firelink_wire::board::registers::PhyData;
-use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Rcode, Tcode};
+use firelink_wire::packet::{
+    Ack, AsyncHeader, CrcStatus, NodeId, Packet, PacketRepr, Rcode, Tcode,
+};
 
 use crate::config::{BoardConfig, Profile};
 use crate::plant::Plant;
@@ -210,6 +212,17 @@ pub struct Firmware {
     last_sample: SimTime,
     hub: Hub,
     rx_error: Option<RxError>,
+    /// A buffer kept for block reads (no allocation per read).
+    scratch: Vec<u8>,
+    /// The next internal event, or earlier: every write moves the
+    /// watchdog's expiry later without touching this, so when it comes it
+    /// is worked out again before anything is done.
+    next_event: Option<SimTime>,
+    /// The control state (power, amplifier requests, commands, watchdog
+    /// settings) changed since `next_event` was worked out.
+    events_stale: bool,
+    /// ... since the plant's inputs were.
+    drive_stale: bool,
 }
 
 impl Firmware {
@@ -248,6 +261,10 @@ impl Firmware {
             last_sample: SimTime::ZERO,
             hub: Hub::new(),
             rx_error: None,
+            scratch: Vec::new(),
+            next_event: None,
+            events_stale: true,
+            drive_stale: true,
         }
     }
 
@@ -276,7 +293,9 @@ impl Firmware {
         self.now
     }
 
-    /// The plant (to observe the physics).
+    /// The plant (to observe the physics), as of the last time the
+    /// firmware looked at it: [`advance`](Self::advance) brings it to the
+    /// time given.
     pub fn plant(&self) -> &Plant {
         &self.plant
     }
@@ -352,94 +371,163 @@ impl Firmware {
 
     /// Connect or disconnect the motor supply at `now` (fault injection).
     pub fn set_motor_supply(&mut self, now: SimTime, present: bool) {
-        self.advance(now);
+        self.catch_up(now);
         self.power.supply_present = present;
         self.power.update_supply(now);
+        self.control_changed();
         self.sync_plant();
     }
 
     /// A bus reset gave this board physical ID `phy_id`. Pending
     /// transactions (its broadcast) are dropped; registers are kept.
     pub fn bus_reset(&mut self, now: SimTime, phy_id: u8, generation: u32) {
-        self.advance(now);
+        self.catch_up(now);
         self.phy_id = Some(phy_id & 0x3F);
         self.generation = generation;
         self.hub.pending = None;
         self.hub.in_flight = None;
     }
 
-    /// Let time pass up to `now`: integrate the plant and apply the
-    /// watchdog, amplifier enables and safety checks at their exact times.
-    /// Earlier times are ignored.
+    /// Let time pass up to `now`: the watchdog, amplifier enables and
+    /// safety checks at their exact times, and the plant (observed at
+    /// `now`, see [`plant`](Self::plant)). Earlier times are ignored.
     pub fn advance(&mut self, now: SimTime) {
-        while self.now < now {
-            let target = self
-                .next_internal_event()
-                .filter(|t| *t <= now)
-                .unwrap_or(now);
-            self.plant.advance_to(target);
-            self.now = target;
+        self.catch_up(now);
+        self.observe();
+    }
+
+    /// Let time pass up to `now` for the board's own events (the
+    /// watchdog, amplifier enables, the current check at every safety
+    /// tick), each at its exact time; the plant follows lazily: it is
+    /// integrated when it is looked at ([`observe`](Self::observe)) and
+    /// takes new inputs at their exact times.
+    fn catch_up(&mut self, now: SimTime) {
+        if now <= self.now {
+            return;
+        }
+        loop {
+            if self.events_stale {
+                self.next_event = self.next_internal_event();
+                self.events_stale = false;
+            }
+            if self.next_event.is_none_or(|t| t > now) {
+                break;
+            }
+            // Due by the bound: work it out exactly (the watchdog may have
+            // been refreshed since), and act if it really is.
+            self.next_event = self.next_internal_event();
+            let Some(t) = self.next_event.filter(|t| *t <= now) else {
+                continue;
+            };
+            self.now = t;
             self.process_events();
         }
+        self.now = now;
+    }
+
+    /// The power, amplifier, command or watchdog state changed: the next
+    /// internal event and the plant's inputs are worked out again.
+    pub(crate) fn control_changed(&mut self) {
+        self.events_stale = true;
+        self.drive_stale = true;
+    }
+
+    /// Bring the plant to `self.now`, to read what it measures.
+    fn observe(&mut self) {
+        self.plant.advance_to(self.now);
     }
 
     /// The earliest internal event strictly after `self.now`.
     fn next_internal_event(&self) -> Option<SimTime> {
         let now = self.now;
-        let watchdog = self.watchdog.expiry().filter(|t| *t > now);
-        let amp_on = self
-            .axes
-            .iter()
-            .filter_map(|a| a.on_at(&self.power))
-            .filter(|t| *t > now)
-            .min();
-        let any_on = self.axes.iter().any(|a| a.is_on(&self.power, now));
-        let tick = any_on.then(|| {
+        let mut next = self.watchdog.expiry().filter(|t| *t > now);
+        let mut any_on = false;
+        for a in &self.axes {
+            if let Some(on) = a.on_at(&self.power) {
+                if on > now {
+                    next = Some(next.map_or(on, |n| n.min(on)));
+                } else {
+                    any_on = true;
+                }
+            }
+        }
+        if any_on {
             let step = SAFETY_TICK.0;
-            SimTime((now.0 / step + 1).saturating_mul(step))
-        });
-        [watchdog, amp_on, tick].into_iter().flatten().min()
+            let tick = SimTime((now.0 / step + 1).saturating_mul(step));
+            next = Some(next.map_or(tick, |n| n.min(tick)));
+        }
+        next
     }
 
-    /// Apply what is due at `self.now`.
+    /// Apply what is due at `self.now` (an internal event's time).
     fn process_events(&mut self) {
         let now = self.now;
+        // The next event is worked out again after any event; the plant's
+        // inputs only when an amplifier turned on or off.
+        self.events_stale = true;
         if self.watchdog.expiry().is_some_and(|t| now >= t) {
             self.watchdog.timed_out = true;
             for a in &mut self.axes {
                 a.requested = false;
             }
+            self.drive_stale = true;
         }
-        // The current check (section 7).
-        let threshold = power::mismatch_counts();
-        for (i, a) in self.axes.iter_mut().enumerate() {
-            if !a.is_on(&self.power, now) {
-                a.mismatch_since = None;
-                continue;
-            }
-            let measured = registers::current_to_counts(self.plant.measured_current(i));
-            let diff = (f64::from(measured) - f64::from(a.effective_command())).abs();
-            if diff <= threshold {
-                a.mismatch_since = None;
-                continue;
-            }
-            let since = *a.mismatch_since.get_or_insert(now);
-            if now - since >= MISMATCH_TIME {
-                a.requested = false;
-                a.safety_disabled = true;
-                a.mismatch_since = None;
+        // An amplifier's enable delay ending now.
+        if self.axes.iter().any(|a| a.on_at(&self.power) == Some(now)) {
+            self.drive_stale = true;
+        }
+        // The current check (section 7), at every safety tick.
+        if now.0 % SAFETY_TICK.0 == 0 && self.axes.iter().any(|a| a.is_on(&self.power, now)) {
+            self.observe();
+            let threshold = power::mismatch_counts();
+            for (i, a) in self.axes.iter_mut().enumerate() {
+                if !a.is_on(&self.power, now) {
+                    a.mismatch_since = None;
+                    continue;
+                }
+                let measured = registers::current_to_counts(self.plant.measured_current(i));
+                let diff = (f64::from(measured) - f64::from(a.effective_command())).abs();
+                if diff <= threshold {
+                    a.mismatch_since = None;
+                    continue;
+                }
+                let since = *a.mismatch_since.get_or_insert(now);
+                if now - since >= MISMATCH_TIME {
+                    a.requested = false;
+                    a.safety_disabled = true;
+                    a.mismatch_since = None;
+                    self.drive_stale = true;
+                }
             }
         }
         self.sync_plant();
     }
 
-    /// Hand the amplifier inputs to the plant.
+    /// Hand the amplifier inputs to the plant, from `self.now` on, where
+    /// they changed.
     fn sync_plant(&mut self) {
+        if !self.drive_stale {
+            return;
+        }
+        self.drive_stale = false;
         let now = self.now;
+        let mut clock_set = false;
         for (i, a) in self.axes.iter().enumerate() {
             let on = a.is_on(&self.power, now);
+            let dac = a.effective_command();
+            let changed = self
+                .plant
+                .axis(i)
+                .is_some_and(|x| x.dac() != dac || x.enabled() != on);
+            if !changed {
+                continue;
+            }
+            if !clock_set {
+                self.plant.pass_to(now);
+                clock_set = true;
+            }
             if let Some(axis) = self.plant.axis_mut(i) {
-                axis.set_drive(a.effective_command(), on);
+                axis.set_drive(dac, on);
             }
         }
     }
@@ -453,14 +541,21 @@ impl Firmware {
     /// Handle one packet as it arrived at `now` (CRCs are checked here).
     /// `phy` is this node's PHY, reached through PHY_CTRL.
     pub fn receive(&mut self, now: SimTime, bytes: &[u8], phy: &mut dyn PhyAccess) -> Reply {
-        self.advance(now);
-        self.rx_error = None;
-        let reply = self.receive_inner(now, bytes, phy);
-        self.sync_plant();
-        reply
+        self.receive_checked(now, bytes, None, phy)
     }
 
-    fn receive_inner(&mut self, now: SimTime, bytes: &[u8], phy: &mut dyn PhyAccess) -> Reply {
+    /// [`receive`](Self::receive) with the packet's CRC status already
+    /// known (`crc`: what [`Packet::crc_status`] says of these bytes; the
+    /// simulated bus works it out once for every node a packet reaches).
+    /// `None` checks them here.
+    pub fn receive_checked(
+        &mut self,
+        now: SimTime,
+        bytes: &[u8],
+        crc: Option<CrcStatus>,
+        phy: &mut dyn PhyAccess,
+    ) -> Reply {
+        self.rx_error = None;
         let Ok(packet) = Packet::new_checked(bytes) else {
             return Reply::Silent;
         };
@@ -478,8 +573,27 @@ impl Firmware {
         if !(to_me || broadcast || to_node0) {
             return Reply::Silent;
         }
+        let crc = crc.unwrap_or_else(|| packet.crc_status());
+        self.catch_up(now);
+        let reply = self.receive_inner(now, &packet, crc, to_me, broadcast, to_node0, phy);
+        self.sync_plant();
+        reply
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn receive_inner(
+        &mut self,
+        now: SimTime,
+        packet: &Packet<&[u8]>,
+        crc: CrcStatus,
+        to_me: bool,
+        broadcast: bool,
+        to_node0: bool,
+        phy: &mut dyn PhyAccess,
+    ) -> Reply {
+        let tcode = packet.tcode();
         let offset = packet.offset();
-        if packet.header_crc_ok() != Some(true) {
+        if crc.header_ok != Some(true) {
             self.rx_error = Some(RxError::HeaderCrc);
             if self.cfg.profile == Profile::Seed
                 && tcode == Tcode::WriteQuadletRequest
@@ -503,7 +617,7 @@ impl Firmware {
                 if to_node0 && offset != COMMAND_SNOOP_OFFSET {
                     return Reply::Silent;
                 }
-                if packet.data_crc_ok() == Some(false) {
+                if crc.data_ok == Some(false) {
                     self.rx_error = Some(RxError::DataCrc);
                     return ack(Ack::DataError);
                 }
@@ -561,12 +675,13 @@ impl Firmware {
         if let Some(rcode) = block_read_refusal(length, MAX_BLOCK_READ) {
             return block_response_packet(header, rcode, &[]);
         }
-        let data: Vec<u8> = self
-            .read_block(now, offset, length / 4)
-            .iter()
-            .flat_map(|q| q.to_be_bytes())
-            .collect();
-        block_response_packet(header, Rcode::Complete, &data)
+        let mut data = core::mem::take(&mut self.scratch);
+        data.clear();
+        data.resize(length, 0);
+        self.read_block_into(now, offset, &mut data);
+        let response = block_response_packet(header, Rcode::Complete, &data);
+        self.scratch = data;
+        response
     }
 
     /// The status broadcast, when its slot has come at `now`: a block
@@ -574,7 +689,7 @@ impl Firmware {
     /// real-time block (section 6.2). Hand it to the bus, then call
     /// [`transmitted`](Self::transmitted) when it has gone out.
     pub fn poll_transmit(&mut self, now: SimTime) -> Option<Vec<u8>> {
-        self.advance(now);
+        self.catch_up(now);
         let ready = self
             .hub
             .pending
@@ -602,9 +717,10 @@ impl Firmware {
     /// [`poll_transmit`](Self::poll_transmit) finished at `now`: store it
     /// in this board's own hub memory, in arrival order.
     pub fn transmitted(&mut self, now: SimTime) {
-        self.advance(now);
+        self.catch_up(now);
         if let Some(payload) = self.hub.in_flight.take() {
             let _ = self.hub.store(now, &payload, self.cfg.layout().format());
+            self.hub.keep_payload(payload);
         }
     }
 
@@ -646,14 +762,18 @@ impl Firmware {
             None => CORRUPT_QUERY_SEQ,
         };
         self.hub.start_cycle(now);
-        let block = self.sample_block(now);
+        let len = self.cfg.layout().read_block_len();
         let header = BroadcastHeader {
             seq,
-            quadlets: u16::try_from(block.len() / 4 + 1).unwrap_or(u16::MAX),
+            quadlets: u16::try_from(len / 4 + 1).unwrap_or(u16::MAX),
         };
-        let mut payload = Vec::with_capacity(block.len() + 4);
-        payload.extend(header.to_word().to_be_bytes());
-        payload.extend(block);
+        let mut payload = self.hub.spare_payload();
+        payload.clear();
+        payload.extend_from_slice(&header.to_word().to_be_bytes());
+        payload.resize(len + 4, 0);
+        if let Some(block) = payload.get_mut(4..) {
+            self.sample_block_into(now, block);
+        }
         let id = self.cfg.board_id;
         let pending = match self.cfg.profile {
             Profile::Seed => {

@@ -122,6 +122,12 @@ impl Firmware {
     /// `now`, as a quadlet read request would. Unmapped addresses read 0.
     pub fn read_quadlet(&mut self, now: SimTime, offset: u64) -> u32 {
         self.advance(now);
+        self.read_register(now, offset)
+    }
+
+    /// What a quadlet read of `offset` returns now (time caught up and the
+    /// plant observed by the caller).
+    fn read_register(&mut self, now: SimTime, offset: u64) -> u32 {
         match decode(offset) {
             Target::Board(r) => self.read_board_register(r),
             Target::Axis(i, r) => self.read_axis_register(i, r),
@@ -212,16 +218,46 @@ impl Firmware {
     /// timestamp), hub memory reads in arrival order, other addresses
     /// read register by register.
     pub fn read_block(&mut self, now: SimTime, offset: u64, quadlets: usize) -> Vec<u32> {
-        self.advance(now);
+        let mut out = vec![0u8; quadlets * 4];
+        self.read_block_into(now, offset, &mut out);
+        quadlets_of(&out)
+    }
+
+    /// [`read_block`](Self::read_block) into `out` (whole quadlets, wire
+    /// order; its length says how many).
+    pub(crate) fn read_block_into(&mut self, now: SimTime, offset: u64, out: &mut [u8]) {
+        self.catch_up(now);
         let addr = (offset & 0xFFFF) as u16;
         if u64::from(addr) == REALTIME_BLOCK_OFFSET {
-            let mut block = quadlets_of(&self.sample_block(now));
-            block.resize(quadlets, 0);
-            return block;
+            let len = self.cfg.layout().read_block_len();
+            if let Some((block, rest)) = out.split_at_mut_checked(len) {
+                self.sample_block_into(now, block);
+                rest.fill(0);
+            } else {
+                let mut block = vec![0u8; len];
+                self.sample_block_into(now, &mut block);
+                let n = out.len();
+                out.copy_from_slice(block.get(..n).unwrap_or_default());
+            }
+            return;
         }
-        (0..quadlets)
-            .map(|k| self.read_quadlet(now, u64::from(addr.wrapping_add(k as u16))))
-            .collect()
+        if let Target::Hub(HubAddress::Memory(start)) = decode(u64::from(addr)) {
+            // Hub memory reads straight from the memory (the timing
+            // quadlet latched as it goes out); past its end, register by
+            // register as the address space goes on.
+            let start = usize::from(start);
+            let in_hub = self.hub.read_into(start, now, out);
+            for (k, q) in out.chunks_exact_mut(4).enumerate().skip(in_hub) {
+                let v = self.read_register(now, u64::from(addr.wrapping_add(k as u16)));
+                q.copy_from_slice(&v.to_be_bytes());
+            }
+            return;
+        }
+        self.observe();
+        for (k, q) in out.chunks_exact_mut(4).enumerate() {
+            let v = self.read_register(now, u64::from(addr.wrapping_add(k as u16)));
+            q.copy_from_slice(&v.to_be_bytes());
+        }
     }
 
     /// Write one quadlet at `offset` at `now`, as a quadlet write request
@@ -233,15 +269,19 @@ impl Firmware {
         value: u32,
         phy: &mut dyn PhyAccess,
     ) {
-        self.advance(now);
+        self.catch_up(now);
         self.watchdog.last_write = now;
         match decode(offset) {
             Target::Board(r) => self.write_board_register(now, r, value, phy),
             Target::Axis(i, r) => self.write_axis_register(now, i, r, value),
-            Target::Hub(HubAddress::Query) => self.query(now, Some(value)),
+            Target::Hub(HubAddress::Query) => {
+                self.query(now, Some(value));
+                return;
+            }
             Target::Space(space, index) => self.write_space(space, index, value),
-            Target::Hub(_) | Target::Unmapped => {}
+            Target::Hub(_) | Target::Unmapped => return,
         }
+        self.control_changed();
         self.sync_plant();
     }
 
@@ -251,7 +291,7 @@ impl Firmware {
     /// a command block), hub memory takes a status broadcast, other
     /// addresses are written register by register.
     pub fn write_block(&mut self, now: SimTime, offset: u64, data: &[u8], phy: &mut dyn PhyAccess) {
-        self.advance(now);
+        self.catch_up(now);
         self.write_block_from(now, offset, data, true, phy);
         self.sync_plant();
     }
@@ -287,6 +327,7 @@ impl Firmware {
                 self.fpga_prom.stream(now, index, &quadlets_of(data));
             }
             Target::Board(_) | Target::Axis(..) | Target::Space(..) => {
+                self.control_changed();
                 for (k, q) in quadlets_of(data).into_iter().enumerate() {
                     match decode(u64::from(addr.wrapping_add(k as u16))) {
                         Target::Board(r) => self.write_board_register(now, r, q, phy),
@@ -319,6 +360,7 @@ impl Firmware {
         let Some(block) = block else {
             return;
         };
+        self.control_changed();
         for i in 0..self.n_axes() {
             if let Some(dac) = block.dac(i) {
                 self.dac_write(now, i, dac);
@@ -427,11 +469,12 @@ impl Firmware {
         if i >= self.n_axes() {
             return;
         }
-        let raw = self.raw_count(i);
         let rev8 = self.cfg.profile.is_rev8();
         match r {
             AxisRegister::Dac => self.dac_write(now, i, DacWord(value)),
             AxisRegister::EncPreload => {
+                self.observe();
+                let raw = self.raw_count(i);
                 if let Some(a) = self.axes.get_mut(i) {
                     a.preload = value & ENC_COUNT_MASK as u32;
                     a.count_offset = i64::from(a.preload) - raw;
@@ -526,6 +569,8 @@ impl Firmware {
     /// Reboot (STATUS `0x00300000`): every register back to its power-up
     /// value; the plant keeps moving.
     fn reboot(&mut self, now: SimTime) {
+        self.observe();
+        self.control_changed();
         self.power = super::Power::new(self.power.supply_present, self.cfg.supply_rise);
         self.watchdog = Watchdog::new(now);
         self.axes = self
@@ -703,32 +748,42 @@ impl Firmware {
     }
 
     /// Sample the real-time read block at `now` (section 4), wire order,
-    /// and restart the timestamp.
-    pub(crate) fn sample_block(&mut self, now: SimTime) -> Vec<u8> {
+    /// into `buf` (at least the layout's read block long; the rest is left
+    /// alone), and restart the timestamp.
+    pub(crate) fn sample_block_into(&mut self, now: SimTime, buf: &mut [u8]) {
+        self.observe();
         let timestamp = now.clocks().wrapping_sub(self.last_sample.clocks()) as u32;
         self.last_sample = now;
         let layout = self.cfg.layout();
         let n = self.n_axes().min(layout.motors()).min(layout.encoders());
-        let positions: Vec<EncPosition> = (0..n).map(|i| self.position_word(i)).collect();
-        let mut buf = vec![0u8; layout.read_block_len()];
+        let status = self.status_word();
+        let digital_in = self.digital_in();
+        let temperature = Temperature(self.temperature_word());
+        let rev8 = self.cfg.profile.is_rev8();
+        let Some(buf) = buf.get_mut(..layout.read_block_len()) else {
+            return;
+        };
+        buf.fill(0);
         let mut block = ReadBlock::new_unchecked(&mut buf[..], layout);
         block.set_timestamp(timestamp);
-        block.set_status(self.status_word());
-        block.set_digital_in(self.digital_in());
-        block.set_temperature(Temperature(self.temperature_word()));
-        for (i, position) in positions.into_iter().enumerate() {
+        block.set_status(status);
+        block.set_digital_in(digital_in);
+        block.set_temperature(temperature);
+        for i in 0..n {
+            let position = self.position_word(i);
             let f = self.velocity(i);
+            let adc = self.adc_word(i);
+            let motor_status = rev8.then(|| self.motor_status_word(i));
             // Indices are within the layout: these cannot fail.
-            let _ = block.set_adc(i, self.adc_word(i));
+            let _ = block.set_adc(i, adc);
             let _ = block.set_enc_position(i, position);
             let _ = block.set_enc_period(i, EncPeriod(period_word(f.period)));
             let _ = block.set_enc_qtr1(i, EncQuarter(quarter_word(f.qtr1)));
             let _ = block.set_enc_qtr5(i, EncQuarter(quarter_word(f.qtr5)));
             let _ = block.set_enc_run(i, EncRun(run_word(f.run)));
-            if self.cfg.profile.is_rev8() {
-                let _ = block.set_motor_status(i, self.motor_status_word(i));
+            if let Some(word) = motor_status {
+                let _ = block.set_motor_status(i, word);
             }
         }
-        buf
     }
 }

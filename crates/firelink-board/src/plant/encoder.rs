@@ -138,24 +138,54 @@ fn saturate(clocks: u64) -> (u32, bool) {
 }
 
 /// Encoder state: count, levels and the edge history.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct Encoder {
     counts_per_rev: u32,
     count: i64,
-    /// Most recent first.
-    edges: [Option<Edge>; HISTORY],
+    /// The last edges, a ring: `ring[newest]` is the most recent, the one
+    /// before it at `newest - 1` (mod [`HISTORY`]); `stored` of them valid.
+    ring: [Edge; HISTORY],
+    newest: usize,
+    stored: usize,
     edge_count: u64,
+}
+
+impl PartialEq for Encoder {
+    fn eq(&self, other: &Self) -> bool {
+        self.counts_per_rev == other.counts_per_rev
+            && self.count == other.count
+            && self.edge_count == other.edge_count
+            && self.stored == other.stored
+            && (0..self.stored).all(|i| self.edge(i) == other.edge(i))
+    }
 }
 
 impl Encoder {
     /// An encoder whose shaft sits at `position` counts (fractional).
     pub fn new(counts_per_rev: u32, position: f64) -> Encoder {
+        let unused = Edge {
+            clock: 0,
+            up: false,
+            kind: EdgeKind::ARise,
+        };
         Encoder {
             counts_per_rev: counts_per_rev.max(1),
             count: floor_count(position),
-            edges: [None; HISTORY],
+            ring: [unused; HISTORY],
+            newest: 0,
+            stored: 0,
             edge_count: 0,
         }
+    }
+
+    /// Edge `i` back from the newest (0 = the newest), if remembered.
+    fn edge(&self, i: usize) -> Option<Edge> {
+        if i >= self.stored {
+            return None;
+        }
+        self.ring
+            .get((self.newest + HISTORY - i) % HISTORY)
+            .copied()
     }
 
     /// The raw count since power-up (no wrap, no preload).
@@ -202,11 +232,12 @@ impl Encoder {
             self.count -= skip as i64;
         }
         let dx = to - from;
+        let per_count = if dx != 0.0 { 1.0 / dx } else { 0.0 };
         while self.count != target {
             // The boundary crossed: count+1 going up, count going down.
             let boundary = if up { self.count + 1 } else { self.count };
             let frac = if dx != 0.0 {
-                ((boundary as f64 - from) / dx).clamp(0.0, 1.0)
+                ((boundary as f64 - from) * per_count).clamp(0.0, 1.0)
             } else {
                 1.0
             };
@@ -222,15 +253,18 @@ impl Encoder {
     }
 
     fn push(&mut self, edge: Edge) {
-        self.edges.rotate_right(1);
-        self.edges[0] = Some(edge);
+        self.newest = (self.newest + 1) % HISTORY;
+        if let Some(slot) = self.ring.get_mut(self.newest) {
+            *slot = edge;
+        }
+        self.stored = (self.stored + 1).min(HISTORY);
         self.edge_count = self.edge_count.saturating_add(1);
     }
 
     /// The velocity fields the FPGA would latch at `now`.
     pub fn fields(&self, now: SimTime) -> VelocityFields {
         let now_clk = now.clocks();
-        let Some(e0) = self.edges[0] else {
+        let Some(e0) = self.edge(0) else {
             let (run, run_over) = saturate(now_clk);
             return VelocityFields {
                 period: PeriodField {
@@ -256,13 +290,11 @@ impl Encoder {
             };
         };
         // Consecutive edges, newest first, in the direction of the newest.
-        let same = self
-            .edges
-            .iter()
-            .take_while(|e| e.is_some_and(|e| e.up == e0.up))
+        let same = (0..self.stored)
+            .take_while(|&i| self.edge(i).is_some_and(|e| e.up == e0.up))
             .count();
-        let reversed = self.edges.get(same).is_some_and(|e| e.is_some());
-        let clock = |i: usize| self.edges.get(i).copied().flatten().map(|e| e.clock);
+        let reversed = same < self.stored;
+        let clock = |i: usize| self.edge(i).map(|e| e.clock);
 
         // Latched full-cycle period (or its extrapolation).
         let intervals = (same.min(5) - 1) as u64;
@@ -287,7 +319,7 @@ impl Encoder {
         let error = clock(1).is_some_and(|c1| c1 == e0.clock);
 
         let quarter = |newer: usize| -> QuarterField {
-            match (self.edges.get(newer).copied().flatten(), clock(newer + 1)) {
+            match (self.edge(newer), clock(newer + 1)) {
                 (Some(e), Some(older)) => {
                     let (clocks, overflow) = saturate(e.clock - older);
                     QuarterField {
@@ -331,13 +363,15 @@ impl Encoder {
 }
 
 fn floor_count(position: f64) -> i64 {
-    if position.is_finite() {
-        position
-            .floor()
-            .clamp(i64::MIN as f64 / 2.0, i64::MAX as f64 / 2.0) as i64
-    } else {
-        0
+    const LIMIT: f64 = i64::MAX as f64 / 2.0;
+    if !position.is_finite() {
+        return 0;
     }
+    let clamped = position.clamp(-LIMIT, LIMIT);
+    // Truncation, then one down for negative fractions: the floor without
+    // a call into libm (x86-64's baseline has no rounding instruction).
+    let t = clamped as i64;
+    if (t as f64) > clamped { t - 1 } else { t }
 }
 
 #[cfg(test)]
@@ -425,6 +459,28 @@ mod tests {
         assert!(!f.period.up && !f.period.direction_changed);
         let cycle = 4.0 * SYSTEM_CLOCK_HZ as f64 / 20_000.0;
         assert!((f64::from(f.period.clocks) - cycle).abs() <= 2.0);
+    }
+
+    #[test]
+    fn floor_count_is_the_floor() {
+        for x in [
+            0.0,
+            0.5,
+            -0.5,
+            -1.0,
+            1.0,
+            -1.5,
+            2.999,
+            -2.999,
+            1e15 + 0.5,
+            -1e15 - 0.5,
+        ] {
+            assert_eq!(floor_count(x), x.floor() as i64, "{x}");
+        }
+        assert_eq!(floor_count(f64::NAN), 0);
+        assert_eq!(floor_count(f64::INFINITY), 0);
+        assert_eq!(floor_count(1e300), (i64::MAX as f64 / 2.0) as i64);
+        assert_eq!(floor_count(-1e300), -((i64::MAX as f64 / 2.0) as i64));
     }
 
     #[test]

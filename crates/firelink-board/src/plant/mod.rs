@@ -4,12 +4,15 @@
 //! joint several axes move) with an electrical range, current sense with
 //! seeded noise and the amplifier temperature.
 //!
-//! Deterministic and driven by time passed in: [`Plant::advance_to`]
-//! integrates whole fixed sub-steps on the grid `k * step` up to `now`, so
-//! how the caller splits time into calls never changes the result. Inputs
-//! (DAC code, amplifier enable) take effect from the next sub-step.
-//! Measurement noise is a pure function of (seed, axis, sub-step index),
-//! see [`noise`].
+//! Deterministic and driven by time passed in: the plant commits whole
+//! steps of a fixed grid `k * step` ([`DEFAULT_STEP`], 100 us), so how the
+//! caller splits time into calls never changes the motion. Between grid
+//! points nothing is late: [`Plant::advance_to`] shows the state exactly at
+//! the time asked (integrated from the last grid point, not committed),
+//! and inputs (DAC code, amplifier enable, external torque) take effect at
+//! the plant's clock, the last time it was advanced to, even inside a
+//! step ([`axis`](self::axis) explains the integration). Measurement
+//! noise is a pure function of (seed, axis, step index), see [`noise`].
 //!
 //! ```
 //! use firelink_board::plant::{Plant, presets};
@@ -29,7 +32,7 @@ pub mod noise;
 mod params;
 pub mod presets;
 
-pub use axis::Axis;
+pub use axis::{Axis, Integrator};
 pub use params::{
     AmplifierParams, AxisParams, CurrentSenseParams, DAC_ZERO, EncoderParams, GravityParams,
     HardStops, LoadParams, MotorParams, POT_FULL_SCALE_VOLTS, PotParams, QLA_AMPS_PER_BIT,
@@ -39,9 +42,15 @@ pub use params::{
 use crate::time::{SimDuration, SimTime};
 use noise::{Noise, NoiseChannel};
 
-/// The default integration sub-step: 5 us, twenty per 10 kHz control
-/// period.
-pub const DEFAULT_STEP: SimDuration = SimDuration(5_000_000);
+/// The default grid step: 100 us, the firmware's safety tick. Spans are
+/// integrated exactly in the current loop ([`Integrator::Exact`]), which
+/// agrees with the semi-implicit integration at [`REFERENCE_STEP`] (the
+/// tests say how closely: `tests/plant_accuracy.rs`).
+pub const DEFAULT_STEP: SimDuration = SimDuration(100_000_000);
+
+/// The step of the reference integration ([`Integrator::SemiImplicitEuler`]):
+/// 5 us, the model's step before the exact integration.
+pub const REFERENCE_STEP: SimDuration = SimDuration(5_000_000);
 
 /// All axes of one board, integrated together.
 #[derive(Debug, Clone)]
@@ -49,19 +58,39 @@ pub struct Plant {
     axes: Vec<Axis>,
     step_ps: u64,
     steps_done: u64,
+    /// The plant's clock: the latest time it was advanced (or moved) to.
+    clock: SimTime,
+    /// Whether the axes show their state at `clock` (not only at the grid).
+    observed: bool,
     noise: Noise,
 }
 
 impl Plant {
     /// A plant with one axis per parameter set, seeded noise and a fixed
-    /// integration step (at least 1 ns; [`DEFAULT_STEP`] is a good choice).
+    /// grid step (at least 1 ns; [`DEFAULT_STEP`] is a good choice),
+    /// integrated [exactly](Integrator::Exact).
     pub fn new(axes: Vec<AxisParams>, seed: u64, step: SimDuration) -> Plant {
+        Plant::with_integrator(axes, seed, step, Integrator::Exact)
+    }
+
+    /// The same with another integration ([`Integrator::SemiImplicitEuler`]
+    /// at [`REFERENCE_STEP`] is the reference).
+    pub fn with_integrator(
+        axes: Vec<AxisParams>,
+        seed: u64,
+        step: SimDuration,
+        integrator: Integrator,
+    ) -> Plant {
         let step_ps = step.0.max(1_000);
-        let step_s = step_ps as f64 * 1e-12;
         Plant {
-            axes: axes.iter().map(|p| Axis::new(p, step_s)).collect(),
+            axes: axes
+                .iter()
+                .map(|p| Axis::new(p, step_ps, integrator))
+                .collect(),
             step_ps,
             steps_done: 0,
+            clock: SimTime::ZERO,
+            observed: true,
             noise: Noise::new(seed),
         }
     }
@@ -71,10 +100,15 @@ impl Plant {
         SimDuration(self.step_ps)
     }
 
-    /// Grid time the state corresponds to (the last whole step <= the
-    /// latest `advance_to`).
+    /// The last committed grid point (the last whole step <= the clock).
     pub fn time(&self) -> SimTime {
         SimTime(self.steps_done.saturating_mul(self.step_ps))
+    }
+
+    /// The plant's clock: the latest time it was advanced to. Inputs set
+    /// now take effect at this instant.
+    pub fn clock(&self) -> SimTime {
+        self.clock
     }
 
     /// Number of axes.
@@ -92,7 +126,8 @@ impl Plant {
         self.axes.get(index)
     }
 
-    /// One axis, to set its inputs.
+    /// One axis, to set its inputs (they take effect at the plant's
+    /// [clock](Self::clock)).
     pub fn axis_mut(&mut self, index: usize) -> Option<&mut Axis> {
         self.axes.get_mut(index)
     }
@@ -102,19 +137,42 @@ impl Plant {
         &self.axes
     }
 
-    /// Integrate every whole step up to `now`. Going back in time is a
-    /// no-op.
+    /// Let time pass up to `now` and show every axis's state exactly at
+    /// `now`: whole steps are committed, the rest of the way is integrated
+    /// without committing it. Going back in time is a no-op.
     pub fn advance_to(&mut self, now: SimTime) {
-        let target = now.0 / self.step_ps;
-        if target <= self.steps_done {
+        self.move_clock(now, true);
+    }
+
+    /// Let time pass up to `now` without looking: whole steps are
+    /// committed and inputs set next take effect at `now`, but the axes
+    /// show their state at the last grid point until the next
+    /// [`advance_to`](Self::advance_to) (cheaper when only inputs change).
+    /// Going back in time is a no-op.
+    pub fn pass_to(&mut self, now: SimTime) {
+        self.move_clock(now, false);
+    }
+
+    fn move_clock(&mut self, now: SimTime, observe: bool) {
+        if now < self.clock || (now == self.clock && (self.observed || !observe)) {
             return;
         }
-        let start = self.time();
-        let steps = target - self.steps_done;
-        for axis in &mut self.axes {
-            axis.advance(start, self.step_ps, steps);
+        let target = now.0 / self.step_ps;
+        if target > self.steps_done {
+            let start = self.time();
+            let steps = target - self.steps_done;
+            for axis in &mut self.axes {
+                axis.commit(start, self.step_ps, steps);
+            }
+            self.steps_done = target;
         }
-        self.steps_done = target;
+        let grid = self.time();
+        let offset = now.0 - grid.0;
+        for axis in &mut self.axes {
+            axis.set_clock(grid, offset, observe);
+        }
+        self.clock = now;
+        self.observed = observe || offset == 0;
     }
 
     /// The measured motor current of an axis: true current plus offset

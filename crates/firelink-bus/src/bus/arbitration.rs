@@ -202,6 +202,7 @@ impl Bus {
             corrupt_ack: false,
             dropped: false,
             notified: false,
+            crc: None,
             answers: None,
         };
         let duplicate = self.decide_faults(&mut sub, now);

@@ -8,12 +8,12 @@ use super::*;
 impl Bus {
     /// Time of the next event, if any.
     pub fn next_event_time(&self) -> Option<SimTime> {
-        self.events.peek().map(|Reverse(q)| q.time)
+        self.events.peek_time()
     }
 
     /// Process the next event. Returns false if there was none.
     pub fn step(&mut self) -> bool {
-        let Some(Reverse(q)) = self.events.pop() else {
+        let Some(q) = self.events.pop() else {
             return false;
         };
         self.now = self.now.max(q.time);
@@ -25,13 +25,7 @@ impl Bus {
     }
 
     pub(super) fn push(&mut self, time: SimTime, epoch: Option<u64>, ev: Ev) {
-        self.seq += 1;
-        self.events.push(Reverse(Queued {
-            time,
-            seq: self.seq,
-            epoch,
-            ev,
-        }));
+        self.events.push(time, epoch, ev);
     }
 
     pub(super) fn push_epoch(&mut self, time: SimTime, ev: Ev) {
@@ -126,6 +120,7 @@ impl Bus {
         let result = {
             let mut ctx = NodeCtx {
                 now,
+                rx_crc: self.rx_crc,
                 phy_id,
                 generation,
                 node_count,
@@ -240,21 +235,22 @@ impl Bus {
     fn apply_timer(&mut self, idx: usize, cmd: TimerCommand) {
         match cmd {
             TimerCommand::Set { at, token } => {
-                self.timer_stamp += 1;
-                let stamp = self.timer_stamp;
-                self.slots[idx].timers.insert(token, stamp);
-                self.push(
-                    at.max(self.now),
-                    None,
-                    Ev::Timer {
-                        node: idx,
-                        token,
-                        stamp,
-                    },
-                );
+                let at = at.max(self.now);
+                // Set again for the same instant: the timer already armed
+                // stands (no second event).
+                if let Some(&(stamp, armed)) = self.slots[idx].timers.get(&token) {
+                    if armed == at {
+                        return;
+                    }
+                    self.events.cancel_timer(armed, stamp);
+                }
+                let stamp = self.events.push_timer(at, idx, token);
+                self.slots[idx].timers.insert(token, (stamp, at));
             }
             TimerCommand::Cancel { token } => {
-                self.slots[idx].timers.remove(&token);
+                if let Some((stamp, armed)) = self.slots[idx].timers.remove(&token) {
+                    self.events.cancel_timer(armed, stamp);
+                }
             }
         }
     }
@@ -315,7 +311,7 @@ impl Bus {
         let Some(slot) = self.slots.get_mut(node) else {
             return;
         };
-        if slot.timers.get(&token) != Some(&stamp) {
+        if slot.timers.get(&token).map(|t| t.0) != Some(stamp) {
             return;
         }
         slot.timers.remove(&token);

@@ -36,16 +36,16 @@ mod cycle;
 mod events;
 #[cfg(test)]
 mod probe;
+mod queue;
 mod reset;
 mod timed_fault;
 mod transmission;
 
-use std::cmp::Reverse;
-use std::collections::{BTreeMap, BinaryHeap, VecDeque};
+use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 
 use firelink_wire::crc::crc1394;
-use firelink_wire::packet::{Ack, NodeId, Speed, Tcode};
+use firelink_wire::packet::{Ack, CrcStatus, NodeId, Packet, Speed, Tcode};
 use firelink_wire::phy::{PhyPacket, SelfId};
 use rand_chacha::rand_core::RngCore;
 
@@ -63,6 +63,7 @@ use crate::time::{SimDuration, SimTime};
 use crate::timing::{BusTiming, DEFAULT_GAP_COUNT, PHY_PACKET_BITS};
 use crate::topology::{Topology, Tree};
 use crate::trace::{PacketId, PacketKind, PacketRecord, Trace, TraceEntry, TraceEvent};
+use queue::EventQueue;
 
 /// The PHY of a node.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -191,7 +192,8 @@ struct Slot {
     phy: Option<u8>,
     queue: VecDeque<Pending>,
     arb_enable: bool,
-    timers: BTreeMap<u64, u64>,
+    /// Armed timers: token -> (stamp of its event, when it fires).
+    timers: BTreeMap<u64, (u64, SimTime)>,
     muted: bool,
     mute_fault: Option<FaultId>,
     babble: Option<BabbleState>,
@@ -215,6 +217,9 @@ struct Sub {
     dropped: bool,
     notified: bool,
     answers: Option<PacketId>,
+    /// The CRC status of `bytes`, worked out once for every node that
+    /// receives them.
+    crc: Option<CrcStatus>,
 }
 
 #[derive(Debug)]
@@ -269,31 +274,6 @@ struct NoAckInfo {
     faults: Vec<FaultId>,
 }
 
-#[derive(Debug)]
-struct Queued {
-    time: SimTime,
-    seq: u64,
-    epoch: Option<u64>,
-    ev: Ev,
-}
-
-impl PartialEq for Queued {
-    fn eq(&self, other: &Self) -> bool {
-        (self.time, self.seq) == (other.time, other.seq)
-    }
-}
-impl Eq for Queued {}
-impl PartialOrd for Queued {
-    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl Ord for Queued {
-    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-        (self.time, self.seq).cmp(&(other.time, other.seq))
-    }
-}
-
 /// A simulated 1394a bus. See the module docs.
 pub struct Bus {
     cfg: BusConfig,
@@ -304,8 +284,7 @@ pub struct Bus {
     root: Option<usize>,
     generation: u32,
     started: bool,
-    events: BinaryHeap<Reverse<Queued>>,
-    seq: u64,
+    events: EventQueue,
     epoch: u64,
     medium: Medium,
     subs: BTreeMap<PacketId, Sub>,
@@ -319,8 +298,11 @@ pub struct Bus {
     gap_set_since_reset: bool,
     cycle_tick_scheduled: bool,
     current_rx: Option<(PacketId, Vec<FaultId>)>,
+    /// The CRC status of the packet being delivered.
+    rx_crc: Option<CrcStatus>,
+    /// Scratch list of a packet's arrivals (time, node).
+    arrivals: Vec<(SimTime, usize)>,
     scratch: Commands,
-    timer_stamp: u64,
     reset_began: SimTime,
 }
 
@@ -347,8 +329,7 @@ impl Bus {
             root: None,
             generation: 0,
             started: false,
-            events: BinaryHeap::new(),
-            seq: 0,
+            events: EventQueue::default(),
             epoch: 0,
             medium: Medium::Idle {
                 since: SimTime::ZERO,
@@ -364,8 +345,9 @@ impl Bus {
             gap_set_since_reset: false,
             cycle_tick_scheduled: false,
             current_rx: None,
+            rx_crc: None,
+            arrivals: Vec::new(),
             scratch: Commands::default(),
-            timer_stamp: 0,
             reset_began: SimTime::ZERO,
         }
     }
@@ -708,10 +690,7 @@ impl Bus {
     pub fn run_until_idle(&mut self) -> bool {
         let limit = self.now + SimDuration::from_millis(1000);
         loop {
-            let only_ticks = self
-                .events
-                .iter()
-                .all(|Reverse(q)| matches!(q.ev, Ev::CycleTick));
+            let only_ticks = self.events.only_cycle_ticks();
             if only_ticks && self.is_idle() && !self.has_pending_traffic() {
                 return true;
             }

@@ -150,7 +150,9 @@ impl Bus {
         slot.muted = true;
         slot.mute_fault = Some(id);
         slot.queue.clear();
-        slot.timers.clear();
+        for (_, (stamp, at)) in std::mem::take(&mut slot.timers) {
+            self.events.cancel_timer(at, stamp);
+        }
         if let Some(d) = duration {
             self.push(self.now + d, None, Ev::Unmute { node: n });
         }

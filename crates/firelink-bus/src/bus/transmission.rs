@@ -156,6 +156,8 @@ impl Bus {
         let t = self.cfg.timing;
         let mut dest_receives = false;
         let mut mute_fault = None;
+        let mut arrivals = std::mem::take(&mut self.arrivals);
+        arrivals.clear();
         for phy in 0..self.tree.by_phy.len() {
             let node = self.tree.by_phy[phy];
             let phy = phy as u8;
@@ -177,8 +179,11 @@ impl Bus {
             }
             let at =
                 shape.bits_end + t.hop_delay * u64::from(self.tree.hops(shape.sender_phy, phy));
-            self.push_epoch(at, Ev::Deliver { sub: id, node });
+            arrivals.push((at, node));
         }
+        self.events
+            .push_wave(id, self.epoch, arrivals.iter().copied());
+        self.arrivals = arrivals;
         (dest_receives, mute_fault)
     }
 
@@ -203,9 +208,18 @@ impl Bus {
     }
 
     pub(super) fn deliver(&mut self, id: PacketId, node: usize) {
-        let Some(sub) = self.subs.get(&id) else {
+        let Some(sub) = self.subs.get_mut(&id) else {
             return;
         };
+        let crc = *sub.crc.get_or_insert_with(|| {
+            Packet::new_checked(&sub.bytes[..]).map_or(
+                CrcStatus {
+                    header_ok: None,
+                    data_ok: None,
+                },
+                |p| p.crc_status(),
+            )
+        });
         let bytes = sub.bytes.clone();
         let speed = sub.speed;
         let is_dest = sub.dest == Some(node);
@@ -215,7 +229,9 @@ impl Bus {
         }
         let now = self.now;
         self.current_rx = Some((id, faults));
+        self.rx_crc = Some(crc);
         let reply = self.dispatch(node, |n, ctx| n.on_receive(now, &bytes, speed, ctx));
+        self.rx_crc = None;
         self.current_rx = None;
         let Some(reply) = reply else {
             return;
@@ -473,6 +489,7 @@ impl Bus {
             corrupt_ack: false,
             dropped: false,
             notified: false,
+            crc: None,
             answers: Some(sub.id),
         };
         let mut start = bits_end;

@@ -1,0 +1,323 @@
+//! The event queue: every event in one total order, (virtual time,
+//! insertion order), kept in three places by how it behaves.
+//!
+//! - General events (arbitration, packet starts, acks, notifications...)
+//!   sit in a binary heap.
+//! - Node timers sit in an ordered map, so a timer that is cancelled or
+//!   set again leaves at once instead of lingering in the heap until its
+//!   time (a PC's 100 ms split time-outs, cancelled after every read,
+//!   would otherwise pile up by the hundred).
+//! - A packet's deliveries, one per node it reaches, form a *wave*: their
+//!   arrival times are known together and they come out one by one in
+//!   order, without a heap operation each.
+//!
+//! Each event takes its insertion number when it is queued (a wave takes
+//! one per delivery, in the order the nodes are listed), and `pop` always
+//! returns the smallest (time, number) of the three: the order is exactly
+//! the one a single heap would give.
+
+use std::cmp::Reverse;
+use std::collections::{BTreeMap, BinaryHeap};
+
+use super::Ev;
+use crate::time::SimTime;
+use crate::trace::PacketId;
+
+/// An event in the heap.
+#[derive(Debug)]
+struct Queued {
+    time: SimTime,
+    seq: u64,
+    epoch: Option<u64>,
+    ev: Ev,
+}
+
+impl PartialEq for Queued {
+    fn eq(&self, other: &Self) -> bool {
+        (self.time, self.seq) == (other.time, other.seq)
+    }
+}
+impl Eq for Queued {}
+impl PartialOrd for Queued {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for Queued {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        (self.time, self.seq).cmp(&(other.time, other.seq))
+    }
+}
+
+/// One delivery of a wave.
+#[derive(Debug, Clone, Copy)]
+struct Arrival {
+    time: SimTime,
+    seq: u64,
+    node: usize,
+}
+
+/// The deliveries of one packet, in (time, number) order.
+#[derive(Debug)]
+struct Wave {
+    sub: PacketId,
+    epoch: u64,
+    arrivals: Vec<Arrival>,
+    next: usize,
+}
+
+impl Wave {
+    fn head(&self) -> Option<(SimTime, u64)> {
+        self.arrivals.get(self.next).map(|a| (a.time, a.seq))
+    }
+}
+
+/// An event taken off the queue.
+#[derive(Debug)]
+pub(super) struct Popped {
+    pub time: SimTime,
+    /// The bus epoch the event belongs to (`None`: any).
+    pub epoch: Option<u64>,
+    pub ev: Ev,
+}
+
+/// Where the next event comes from.
+enum Source {
+    Heap,
+    Timer,
+    Wave(usize),
+}
+
+/// The queue. See the module docs.
+#[derive(Debug, Default)]
+pub(super) struct EventQueue {
+    heap: BinaryHeap<Reverse<Queued>>,
+    /// (time, number) -> (node, token).
+    timers: BTreeMap<(SimTime, u64), (usize, u64)>,
+    waves: Vec<Wave>,
+    /// Arrival buffers of finished waves, kept for the next ones.
+    spare: Vec<Vec<Arrival>>,
+    seq: u64,
+}
+
+impl EventQueue {
+    fn next_seq(&mut self) -> u64 {
+        self.seq += 1;
+        self.seq
+    }
+
+    /// Queue `ev` at `time`.
+    pub fn push(&mut self, time: SimTime, epoch: Option<u64>, ev: Ev) {
+        let seq = self.next_seq();
+        self.heap.push(Reverse(Queued {
+            time,
+            seq,
+            epoch,
+            ev,
+        }));
+    }
+
+    /// Queue node `node`'s timer `token` at `time`; returns its number
+    /// (what [`cancel_timer`](Self::cancel_timer) needs, and the stamp its
+    /// event carries).
+    pub fn push_timer(&mut self, time: SimTime, node: usize, token: u64) -> u64 {
+        let seq = self.next_seq();
+        self.timers.insert((time, seq), (node, token));
+        seq
+    }
+
+    /// Take a timer queued with [`push_timer`](Self::push_timer) out again.
+    pub fn cancel_timer(&mut self, time: SimTime, seq: u64) {
+        self.timers.remove(&(time, seq));
+    }
+
+    /// Queue the deliveries of packet `sub` (epoch `epoch`) to `arrivals`:
+    /// (time, node) in the order they are numbered.
+    pub fn push_wave(
+        &mut self,
+        sub: PacketId,
+        epoch: u64,
+        arrivals: impl IntoIterator<Item = (SimTime, usize)>,
+    ) {
+        let mut list = self.spare.pop().unwrap_or_default();
+        list.clear();
+        for (time, node) in arrivals {
+            let seq = self.next_seq();
+            list.push(Arrival { time, seq, node });
+        }
+        if list.is_empty() {
+            self.spare.push(list);
+            return;
+        }
+        list.sort_unstable_by_key(|a| (a.time, a.seq));
+        self.waves.push(Wave {
+            sub,
+            epoch,
+            arrivals: list,
+            next: 0,
+        });
+    }
+
+    /// The source of the next event and its (time, number).
+    fn first(&self) -> Option<(Source, SimTime, u64)> {
+        let mut best = self
+            .heap
+            .peek()
+            .map(|Reverse(q)| (Source::Heap, q.time, q.seq));
+        let mut consider = |source: Source, key: (SimTime, u64)| {
+            if best.as_ref().is_none_or(|b| key < (b.1, b.2)) {
+                best = Some((source, key.0, key.1));
+            }
+        };
+        if let Some((&key, _)) = self.timers.first_key_value() {
+            consider(Source::Timer, key);
+        }
+        for (i, w) in self.waves.iter().enumerate() {
+            if let Some(key) = w.head() {
+                consider(Source::Wave(i), key);
+            }
+        }
+        best
+    }
+
+    /// Time of the next event.
+    pub fn peek_time(&self) -> Option<SimTime> {
+        self.first().map(|f| f.1)
+    }
+
+    /// Take the next event.
+    pub fn pop(&mut self) -> Option<Popped> {
+        let (source, _, _) = self.first()?;
+        match source {
+            Source::Heap => self.heap.pop().map(|Reverse(q)| Popped {
+                time: q.time,
+                epoch: q.epoch,
+                ev: q.ev,
+            }),
+            Source::Timer => self
+                .timers
+                .pop_first()
+                .map(|((time, seq), (node, token))| Popped {
+                    time,
+                    epoch: None,
+                    ev: Ev::Timer {
+                        node,
+                        token,
+                        stamp: seq,
+                    },
+                }),
+            Source::Wave(i) => {
+                let wave = self.waves.get_mut(i)?;
+                let a = *wave.arrivals.get(wave.next)?;
+                wave.next += 1;
+                let (sub, epoch) = (wave.sub, wave.epoch);
+                if wave.next >= wave.arrivals.len() {
+                    let done = self.waves.swap_remove(i);
+                    self.spare.push(done.arrivals);
+                }
+                Some(Popped {
+                    time: a.time,
+                    epoch: Some(epoch),
+                    ev: Ev::Deliver { sub, node: a.node },
+                })
+            }
+        }
+    }
+
+    /// Whether nothing is queued but cycle-start ticks.
+    pub fn only_cycle_ticks(&self) -> bool {
+        self.timers.is_empty()
+            && self.waves.is_empty()
+            && self
+                .heap
+                .iter()
+                .all(|Reverse(q)| matches!(q.ev, Ev::CycleTick))
+    }
+
+    /// Events queued.
+    #[cfg(test)]
+    pub fn len(&self) -> usize {
+        self.heap.len()
+            + self.timers.len()
+            + self
+                .waves
+                .iter()
+                .map(|w| w.arrivals.len() - w.next)
+                .sum::<usize>()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn t(ns: u64) -> SimTime {
+        SimTime(ns * 1000)
+    }
+
+    /// Drain the queue into (time, kind) pairs.
+    fn drain(q: &mut EventQueue) -> Vec<(SimTime, String)> {
+        let mut out = Vec::new();
+        while let Some(p) = q.pop() {
+            let what = match p.ev {
+                Ev::Timer { token, .. } => format!("timer {token}"),
+                Ev::Deliver { node, .. } => format!("deliver {node}"),
+                Ev::Arbitrate => "arbitrate".to_string(),
+                other => format!("{other:?}"),
+            };
+            out.push((p.time, what));
+        }
+        out
+    }
+
+    #[test]
+    fn the_three_sources_come_out_in_time_then_insertion_order() {
+        let mut q = EventQueue::default();
+        q.push(t(10), None, Ev::Arbitrate);
+        // Nodes 0..3 reached at 12, 10, 12 (numbered in that order).
+        q.push_wave(7, 0, [(t(12), 0), (t(10), 1), (t(12), 2)]);
+        q.push_timer(t(10), 5, 1);
+        q.push_timer(t(11), 5, 2);
+        let got = drain(&mut q);
+        let want = [
+            (t(10), "arbitrate"),
+            (t(10), "deliver 1"),
+            (t(10), "timer 1"),
+            (t(11), "timer 2"),
+            (t(12), "deliver 0"),
+            (t(12), "deliver 2"),
+        ];
+        assert_eq!(got.len(), want.len());
+        for (g, w) in got.iter().zip(want) {
+            assert_eq!((g.0, g.1.as_str()), w);
+        }
+        assert_eq!(q.len(), 0);
+        assert!(q.only_cycle_ticks());
+    }
+
+    #[test]
+    fn a_cancelled_timer_leaves_nothing_behind() {
+        let mut q = EventQueue::default();
+        let seq = q.push_timer(t(100), 0, 9);
+        assert_eq!(q.len(), 1);
+        q.cancel_timer(t(100), seq);
+        assert_eq!(q.len(), 0);
+        assert!(q.pop().is_none());
+    }
+
+    #[test]
+    fn events_queued_while_a_wave_runs_interleave_by_time() {
+        let mut q = EventQueue::default();
+        q.push_wave(1, 3, [(t(5), 0), (t(9), 1)]);
+        let first = q.pop().unwrap();
+        assert_eq!(first.time, t(5));
+        assert_eq!(first.epoch, Some(3));
+        // Queued later but earlier than the wave's second delivery.
+        q.push(t(7), None, Ev::Arbitrate);
+        // Queued later at the same time: after it.
+        q.push(t(9), None, Ev::Arbitrate);
+        let rest = drain(&mut q);
+        let kinds: Vec<&str> = rest.iter().map(|r| r.1.as_str()).collect();
+        assert_eq!(kinds, ["arbitrate", "deliver 1", "arbitrate"]);
+    }
+}
