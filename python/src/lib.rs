@@ -26,7 +26,7 @@ use firelink_host::io::{IoOptions, IoSystem as HostIoSystem};
 use firelink_host::packet_json::{self, PacketJson};
 use firelink_host::port::Dest;
 use firelink_host::scan::Protocol;
-use firelink_host::udp::UdpPort;
+use firelink_host::udp::{UdpPort, WaitMode};
 use firelink_host::{HostError, Port as HostPort};
 use firelink_testbed::TestbedError;
 use firelink_testbed::bench::{BenchOptions, BenchTransport};
@@ -990,6 +990,7 @@ fn run_demo_json(
             }
         },
         watchdog,
+        udp_wait: WaitMode::Blocking,
     };
     let report = py
         .detach(|| firelink_testbed::demo::run_demo(&options, None, |_| {}))

@@ -12,6 +12,7 @@ use std::time::Duration;
 use clap::ValueEnum;
 use firelink_board::config::{Hardware, Profile};
 use firelink_host::scan::Protocol;
+use firelink_host::udp::WaitMode;
 use firelink_wire::board::registers::Watchdog;
 
 /// A finite number in `lo..=hi` (or `lo < x` when `open_low`).
@@ -213,6 +214,27 @@ impl From<ProtocolArg> for Protocol {
             ProtocolArg::Sequential => Protocol::Sequential,
             ProtocolArg::SequentialReadBroadcastWrite => Protocol::SequentialReadBroadcastWrite,
             ProtocolArg::Broadcast => Protocol::Broadcast,
+        }
+    }
+}
+
+/// `--udp-wait`: how a UDP port's reads wait for their answer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum UdpWaitArg {
+    /// Sleep in the kernel until the answer or the time-out: low CPU.
+    #[value(alias = "blocking")]
+    Block,
+    /// Poll the socket until the answer or the time-out: low latency,
+    /// one core busy while waiting.
+    #[value(alias = "spinning")]
+    Spin,
+}
+
+impl From<UdpWaitArg> for WaitMode {
+    fn from(w: UdpWaitArg) -> WaitMode {
+        match w {
+            UdpWaitArg::Block => WaitMode::Blocking,
+            UdpWaitArg::Spin => WaitMode::Spinning,
         }
     }
 }

@@ -1,23 +1,28 @@
 //! `firelink bench`: I/O time per cycle against the number of boards, for
 //! the sequential and broadcast protocols, on the simulated bus with the
 //! seed-000 PC model (seed 000, Fig. 11) and measured for real over
-//! loopback UDP against an in-process `firelink emulate`, side by side.
-//! Plus the maximum sustainable control rate and seed 002's time budget.
+//! loopback UDP against an in-process `firelink emulate` (or any bridge:
+//! `--port udp:HOST[:PORT]`), side by side. Plus the maximum sustainable
+//! control rate and seed 002's time budget; for UDP, each wait mode
+//! (`--udp-wait block,spin`), the floor of the same exchange and the CPU
+//! time per cycle.
 
 //!
 //! The measurement is [`firelink_testbed::bench`], the figure
 //! [`firelink_plot::fig11`]; this file parses the options and prints.
 
 use std::io::Write;
+use std::net::SocketAddr;
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
 
 use firelink_host::scan::Protocol;
+use firelink_host::udp::{UdpPort, WaitMode};
 use firelink_testbed::bench::{BenchOptions, BenchTransport, check_board_counts, run_bench};
 
 use crate::CliError;
-use crate::args::{FirmwareArg, ProtocolArg};
+use crate::args::{FirmwareArg, ProtocolArg, UdpWaitArg};
 
 /// `--transport`: where the I/O time is measured.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -35,6 +40,17 @@ impl From<TransportArg> for BenchTransport {
             TransportArg::Udp => BenchTransport::Udp,
         }
     }
+}
+
+/// `--port`: `udp:HOST` (port 1394) or `udp:HOST:PORT`.
+fn bridge_address(text: &str) -> Result<SocketAddr, CliError> {
+    if !text.starts_with("udp:") {
+        return Err(CliError::Port {
+            port: text.to_string(),
+            expected: "udp:HOST or udp:HOST:PORT",
+        });
+    }
+    Ok(UdpPort::parse_address(text)?)
 }
 
 /// The `--boards` list: each count 1..=62; counts above 16 (the board-ID
@@ -61,9 +77,21 @@ fn board_counts(text: &str) -> Result<Vec<usize>, CliError> {
 /// Options of `firelink bench`.
 #[derive(Args, Debug, Clone)]
 pub struct BenchArgs {
-    /// Transports (comma-separated).
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [TransportArg::Sim, TransportArg::Udp])]
+    /// Transports (comma-separated; default `sim,udp`, with `--port` only
+    /// `udp`).
+    #[arg(long, value_enum, value_delimiter = ',')]
     pub transport: Vec<TransportArg>,
+    /// UDP points: measure the boards behind this bridge (`udp:HOST` on
+    /// port 1394, or `udp:HOST:PORT`: a running `firelink emulate` or real
+    /// boards) instead of an in-process emulator: one point per protocol
+    /// with the boards the scan finds; no emulator CPU.
+    #[arg(long, value_parser = bridge_address)]
+    pub port: Option<SocketAddr>,
+    /// UDP points: how the host's reads wait (comma-separated, each
+    /// measured side by side): `block` (sleep in the kernel) or `spin`
+    /// (poll the socket).
+    #[arg(long = "udp-wait", value_enum, value_delimiter = ',', default_values_t = [UdpWaitArg::Block])]
+    pub udp_wait: Vec<UdpWaitArg>,
     /// Board counts (comma-separated, 1..=62); above 16 (the board-ID
     /// space) the figures come from the cost model fitted to the 16-board
     /// run.
@@ -113,13 +141,19 @@ pub struct BenchArgs {
 /// [`CliError::BoardCounts`]: a count outside 1..=62, or counts above 16
 /// with no measured count before them.
 pub fn options(args: &BenchArgs) -> Result<BenchOptions, CliError> {
+    let transports = match (args.transport.is_empty(), args.port) {
+        (false, _) => args.transport.clone(),
+        (true, Some(_)) => vec![TransportArg::Udp],
+        (true, None) => vec![TransportArg::Sim, TransportArg::Udp],
+    };
+    let mut udp_waits = Vec::new();
+    for w in args.udp_wait.iter().copied().map(WaitMode::from) {
+        if !udp_waits.contains(&w) {
+            udp_waits.push(w);
+        }
+    }
     Ok(BenchOptions {
-        transports: args
-            .transport
-            .iter()
-            .copied()
-            .map(BenchTransport::from)
-            .collect(),
+        transports: transports.into_iter().map(BenchTransport::from).collect(),
         boards: board_counts(&args.boards)?,
         protocols: args.protocol.iter().copied().map(Protocol::from).collect(),
         cycles: args.cycles,
@@ -127,6 +161,8 @@ pub fn options(args: &BenchArgs) -> Result<BenchOptions, CliError> {
         period_us: args.period_us,
         wait_us_per_board: args.wait_us,
         idle_us: args.idle_us,
+        udp_waits,
+        udp_target: args.port,
     })
 }
 
@@ -138,8 +174,14 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
     let options = options(args)?;
     let quiet = crate::args::quiet();
     let report = run_bench(&options, |t, proto, n| {
-        if !quiet {
-            eprintln!("bench: {} {} {n} boards", t.name(), proto.name());
+        if quiet {
+            return;
+        }
+        match (t, options.udp_target) {
+            (BenchTransport::Udp, Some(addr)) => {
+                eprintln!("bench: {} {} at udp:{addr}", t.name(), proto.name());
+            }
+            _ => eprintln!("bench: {} {} {n} boards", t.name(), proto.name()),
         }
     })?;
     if let Some(path) = &args.plot {

@@ -19,7 +19,7 @@ use firelink_testbed::demo::{
 };
 
 use crate::CliError;
-use crate::args::{FirmwareArg, ProtocolArg};
+use crate::args::{FirmwareArg, ProtocolArg, UdpWaitArg};
 use crate::rt;
 
 /// `--fault`: what the demo breaks half way.
@@ -104,6 +104,11 @@ pub struct DemoArgs {
     /// running `firelink emulate` or a real bridge board).
     #[arg(long, default_value = "sim", value_parser = parse_port)]
     pub port: DemoPort,
+    /// Over UDP (`emulate`, `udp:...`): how the port's reads wait for the
+    /// answer, `block` (sleep in the kernel, low CPU) or `spin` (poll the
+    /// socket, low latency, one core busy while waiting).
+    #[arg(long = "udp-wait", value_enum, default_value_t = UdpWaitArg::Block)]
+    pub udp_wait: UdpWaitArg,
     /// Board firmware of the emulated boards.
     #[arg(long, value_enum, default_value_t = FirmwareArg::Rev8)]
     pub firmware: FirmwareArg,
@@ -143,6 +148,7 @@ impl Default for DemoArgs {
             protocol: ProtocolArg::Broadcast,
             duration: 3.0,
             port: DemoPort::Sim,
+            udp_wait: UdpWaitArg::Block,
             firmware: FirmwareArg::Rev8,
             fault: FaultArg::None,
             pacing: None,
@@ -235,6 +241,7 @@ pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
         fault: args.fault.into(),
         pacing: args.pacing.map(Pacing::from),
         watchdog: (!watchdog.is_zero()).then_some(watchdog),
+        udp_wait: args.udp_wait.into(),
     })
 }
 

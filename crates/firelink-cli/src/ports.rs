@@ -11,7 +11,7 @@ use firelink_host::trace::PcapWriter;
 use firelink_host::udp::UdpPort;
 
 use crate::CliError;
-use crate::args::FirmwareArg;
+use crate::args::{FirmwareArg, UdpWaitArg};
 
 /// What `--port` names.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -72,6 +72,11 @@ pub struct PortArgs {
     /// Read time-out in milliseconds (1..=60000).
     #[arg(long = "timeout-ms", default_value_t = 20, value_parser = crate::args::timeout_ms)]
     pub timeout_ms: u64,
+    /// How a UDP port's reads wait for the answer: `block` (sleep in the
+    /// kernel, low CPU) or `spin` (poll the socket, low latency, one core
+    /// busy while waiting).
+    #[arg(long = "udp-wait", value_enum, default_value_t = UdpWaitArg::Block)]
+    pub udp_wait: UdpWaitArg,
     /// Record every 1394 packet the host sends and receives to this pcap
     /// file (Wireshark opens it; the host library's replay tests play such
     /// files back).
@@ -89,6 +94,7 @@ pub fn open_port(args: &PortArgs) -> Result<Box<dyn Port>, CliError> {
         PortSpec::Udp(addr) => {
             let mut port = UdpPort::open(addr)?;
             port.set_timeout(std::time::Duration::from_millis(args.timeout_ms));
+            port.set_wait_mode(args.udp_wait.into());
             Box::new(port)
         }
     };

@@ -42,6 +42,7 @@ pub fn options(args: &DemoArgs) -> Result<SnakeDemoOptions, CliError> {
         pacing: args.pacing.map(Pacing::from),
         watchdog: (!watchdog.is_zero()).then_some(watchdog),
         find_max_rate: !args.no_rate_search,
+        udp_wait: args.udp_wait.into(),
         ..SnakeDemoOptions::default()
     })
 }

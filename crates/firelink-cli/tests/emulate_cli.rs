@@ -108,6 +108,53 @@ fn emulate_serves_each_stock_arm_configuration() {
     }
 }
 
+/// The commands that open a UDP port take `--udp-wait`; `firelink bench
+/// --port` measures the boards of a running `firelink emulate` (those its
+/// scan finds; the emulator's CPU is not the bench's to read).
+#[test]
+fn scan_and_bench_against_a_running_emulator() {
+    let emu = Emulate::start(&["--boards", "3"]);
+    for wait in ["block", "spin"] {
+        let v = json(&[
+            "scan",
+            "--port",
+            &emu.port,
+            "--json",
+            "--timeout-ms",
+            "100",
+            "--udp-wait",
+            wait,
+        ]);
+        assert_eq!(v["boards"].as_array().unwrap().len(), 3, "{wait}");
+    }
+    let r = json(&[
+        "bench",
+        "--port",
+        &emu.port,
+        "--cycles",
+        "20",
+        "--udp-wait",
+        "block,spin",
+        "--json",
+    ]);
+    let results = r["results"].as_array().unwrap();
+    // Sequential and broadcast, each wait mode; no simulated points.
+    assert_eq!(results.len(), 4, "{r}");
+    for x in results {
+        assert_eq!(x["transport"], "udp");
+        assert_eq!(x["boards"], 3);
+        let u = &x["udp"];
+        assert_eq!(u["target"].as_str(), Some(emu.port.as_str()));
+        assert!(u["emulator_cpu_us"].is_null(), "{x}");
+        assert!(u["floor_us"]["median"].as_f64().unwrap() > 0.0, "{x}");
+        assert!(u["floor_ratio"].as_f64().unwrap() > 0.0, "{x}");
+    }
+    assert_eq!(results.iter().filter(|x| x["wait"] == "spin").count(), 2);
+    fails(&["bench", "--port", "sim"], "--port");
+    fails(&["scan", "--udp-wait", "nap"], "--udp-wait");
+    emu.terminate();
+}
+
 #[test]
 fn emulate_scan_read_and_clean_shutdown() {
     let emu = Emulate::start(&["--boards", "3"]);

@@ -11,7 +11,21 @@
 //! length; anything else (garbage, a bad CRC, a late answer to an earlier
 //! request, a stray datagram) is counted under its reason and dropped.
 //! Buffers are allocated once, so a transaction allocates nothing.
+//!
+//! How a read waits for its answer is the program's choice, made once
+//! ([`UdpPort::set_wait_mode`]): [`WaitMode::Blocking`] sleeps in the
+//! kernel (low CPU), [`WaitMode::Spinning`] polls a non-blocking socket
+//! (low latency, one core busy while waiting). The socket is put in that
+//! mode once and its receive time-out set once, so a broadcast cycle
+//! (query, hub read request, hub read answer, commands) is four system
+//! calls when nothing stray arrives: no per-read mode switching and no
+//! per-read draining (a datagram left over from an earlier request is
+//! judged and counted by the receive loop like any other; only after a
+//! read timed out is the socket drained once before the next read, since
+//! its late answer may then be queued). [`UdpPort::socket_calls`] counts
+//! the calls.
 
+use std::io;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
@@ -30,12 +44,145 @@ pub const HOST_SOURCE_ID: NodeId = NodeId(0xFFD0);
 /// payload, data CRC.
 const MAX_DATAGRAM: usize = 2 + 20 + 2048 + 4 + 16;
 
+/// How a [`UdpPort`] waits for the answer to a read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum WaitMode {
+    /// Sleep in the kernel until a datagram arrives or the time-out
+    /// passes (a blocking socket with its receive time-out): no CPU while
+    /// waiting; the answer costs a wake-up of the sleeping thread.
+    #[default]
+    Blocking,
+    /// Poll the non-blocking socket in a loop until the answer arrives or
+    /// the time-out passes: the answer is taken as soon as it is queued,
+    /// at the price of one core busy for the whole wait.
+    Spinning,
+}
+
+impl WaitMode {
+    /// Both modes, blocking first.
+    pub const ALL: [WaitMode; 2] = [WaitMode::Blocking, WaitMode::Spinning];
+
+    /// The name on the command line and in reports: `block` or `spin`.
+    pub fn name(self) -> &'static str {
+        match self {
+            WaitMode::Blocking => "block",
+            WaitMode::Spinning => "spin",
+        }
+    }
+
+    /// Parse [`name`](Self::name) (also `blocking`, `spinning`).
+    pub fn from_name(name: &str) -> Option<WaitMode> {
+        match name {
+            "block" | "blocking" => Some(WaitMode::Blocking),
+            "spin" | "spinning" => Some(WaitMode::Spinning),
+            _ => None,
+        }
+    }
+}
+
+impl core::fmt::Display for WaitMode {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The system calls a [`UdpPort`] made on its socket, by kind.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct SocketCalls {
+    /// Datagrams sent (`sendto`).
+    pub sends: u64,
+    /// Receive calls (`recvfrom`), whether a datagram came or not.
+    pub receives: u64,
+    /// Receive calls that returned no datagram (nothing queued on a
+    /// non-blocking socket, the receive time-out, a signal).
+    pub empty_receives: u64,
+    /// Changes of the socket's settings: blocking mode (`ioctl`) and
+    /// receive time-out (`setsockopt`).
+    pub settings: u64,
+}
+
+impl SocketCalls {
+    /// Every system call counted.
+    pub fn total(&self) -> u64 {
+        self.sends + self.receives + self.settings
+    }
+
+    /// Calls since `earlier` (a snapshot taken before).
+    pub fn since(&self, earlier: &SocketCalls) -> SocketCalls {
+        SocketCalls {
+            sends: self.sends.saturating_sub(earlier.sends),
+            receives: self.receives.saturating_sub(earlier.receives),
+            empty_receives: self.empty_receives.saturating_sub(earlier.empty_receives),
+            settings: self.settings.saturating_sub(earlier.settings),
+        }
+    }
+}
+
+/// The port's socket: every call counted, and its settings remembered so
+/// that setting what it already has costs no system call.
+struct Socket {
+    udp: UdpSocket,
+    nonblocking: bool,
+    read_timeout: Option<Duration>,
+    calls: SocketCalls,
+}
+
+impl Socket {
+    fn new(udp: UdpSocket) -> Socket {
+        Socket {
+            udp,
+            nonblocking: false,
+            read_timeout: None,
+            calls: SocketCalls::default(),
+        }
+    }
+
+    fn send_to(&mut self, buf: &[u8], target: SocketAddr) -> io::Result<usize> {
+        self.calls.sends += 1;
+        self.udp.send_to(buf, target)
+    }
+
+    fn recv_from(&mut self, buf: &mut [u8]) -> io::Result<(usize, SocketAddr)> {
+        self.calls.receives += 1;
+        let r = self.udp.recv_from(buf);
+        if r.is_err() {
+            self.calls.empty_receives += 1;
+        }
+        r
+    }
+
+    fn set_nonblocking(&mut self, on: bool) -> io::Result<()> {
+        if self.nonblocking != on {
+            self.calls.settings += 1;
+            self.udp.set_nonblocking(on)?;
+            self.nonblocking = on;
+        }
+        Ok(())
+    }
+
+    /// Set the receive time-out of a blocking socket (at least 1 us: the
+    /// socket takes no zero).
+    fn set_read_timeout(&mut self, limit: Duration) -> io::Result<()> {
+        let limit = limit.max(Duration::from_micros(1));
+        if self.read_timeout != Some(limit) {
+            self.calls.settings += 1;
+            self.udp.set_read_timeout(Some(limit))?;
+            self.read_timeout = Some(limit);
+        }
+        Ok(())
+    }
+}
+
 /// A port speaking the Ethernet bridge protocol over UDP.
 pub struct UdpPort {
     name: String,
-    socket: UdpSocket,
+    socket: Socket,
     target: SocketAddr,
     timeout: Duration,
+    wait_mode: WaitMode,
+    /// A read timed out since the socket was last drained: its answer may
+    /// be queued.
+    drain_before_read: bool,
     transactions: Transactions,
     tx: Vec<u8>,
     rx: Vec<u8>,
@@ -62,9 +209,11 @@ impl UdpPort {
         let socket = UdpSocket::bind(SocketAddr::new(local, 0))?;
         Ok(UdpPort {
             name: format!("udp:{target}"),
-            socket,
+            socket: Socket::new(socket),
             target,
             timeout: Self::DEFAULT_TIMEOUT,
+            wait_mode: WaitMode::default(),
+            drain_before_read: false,
             transactions: Transactions::new(),
             tx: vec![0; MAX_DATAGRAM],
             rx: vec![0; MAX_DATAGRAM + 64],
@@ -90,9 +239,40 @@ impl UdpPort {
         rest.parse::<SocketAddr>().map_err(|_| bad)
     }
 
-    /// Set the read time-out.
+    /// Set the read time-out. A blocking port gives it to its socket at
+    /// the next read, once (not before every read).
     pub fn set_timeout(&mut self, timeout: Duration) {
         self.timeout = timeout;
+    }
+
+    /// The read time-out.
+    pub fn timeout(&self) -> Duration {
+        self.timeout
+    }
+
+    /// Choose how reads wait for their answer (default
+    /// [`WaitMode::Blocking`]). The socket takes the mode at the next read
+    /// and keeps it.
+    pub fn set_wait_mode(&mut self, mode: WaitMode) {
+        self.wait_mode = mode;
+    }
+
+    /// How reads wait for their answer.
+    pub fn wait_mode(&self) -> WaitMode {
+        self.wait_mode
+    }
+
+    /// The system calls made on the socket so far, by kind.
+    pub fn socket_calls(&self) -> SocketCalls {
+        self.socket.calls
+    }
+
+    /// The local address of the port's socket (where answers come to).
+    ///
+    /// # Errors
+    /// [`HostError::Io`] from the socket.
+    pub fn local_addr(&self) -> Result<SocketAddr> {
+        Ok(self.socket.udp.local_addr()?)
     }
 
     /// What the port has counted so far: requests, answers, time-outs and
@@ -152,15 +332,44 @@ impl UdpPort {
         };
         let lost = self.filters.outgoing(now_ps, &mut buf[2..]) == Verdict::Drop;
         if !lost {
-            self.socket.send_to(buf, self.target)?;
+            // A spinning port's socket does not block: a full send buffer
+            // (rare) is waited out, at most the time-out.
+            let started = Instant::now();
+            loop {
+                match self.socket.send_to(buf, self.target) {
+                    Ok(_) => break,
+                    Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                    Err(e)
+                        if e.kind() == io::ErrorKind::WouldBlock
+                            && started.elapsed() < self.timeout =>
+                    {
+                        std::hint::spin_loop();
+                    }
+                    Err(e) => return Err(e.into()),
+                }
+            }
         }
         self.transactions.sent();
         Ok(())
     }
 
-    /// Drop anything already queued (answers to requests that timed out).
-    fn flush(&mut self) -> Result<()> {
+    /// Before a read: after a read timed out, its answer may have come in
+    /// the meantime; drop (and count) everything queued, once. Otherwise
+    /// nothing: whatever else is queued is judged by the receive loop.
+    fn drain_if_stale(&mut self) -> Result<()> {
+        if !self.drain_before_read {
+            return Ok(());
+        }
+        self.drain_before_read = false;
         self.socket.set_nonblocking(true)?;
+        let drained = self.drain();
+        // The mode the reads use (spinning keeps the socket non-blocking).
+        self.socket
+            .set_nonblocking(self.wait_mode == WaitMode::Spinning)?;
+        drained
+    }
+
+    fn drain(&mut self) -> Result<()> {
         loop {
             match self.socket.recv_from(&mut self.rx) {
                 Ok((len, from)) => {
@@ -175,47 +384,66 @@ impl UdpPort {
                         _ => self.transactions.refused_unmatched(),
                     }
                 }
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => break,
-                Err(e) => {
-                    self.socket.set_nonblocking(false)?;
-                    return Err(e.into());
-                }
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Ok(()),
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(e.into()),
             }
         }
-        self.socket.set_nonblocking(false)?;
-        Ok(())
     }
 
     /// Wait for the answer to `expect` and copy its payload (or quadlet)
     /// into `out`; every other datagram is counted by the engine under the
     /// reason it was refused.
+    ///
+    /// Blocking: one `recvfrom` with the socket's receive time-out, which
+    /// is set to the port's time-out once and kept; only after a datagram
+    /// that is not the answer does the wait go on with what is left of the
+    /// time-out (and the next read sets the whole time-out back).
+    /// Spinning: `recvfrom` on the non-blocking socket until the answer or
+    /// the time-out.
     fn receive(&mut self, expect: Expect, out: &mut [u8]) -> Result<()> {
         let started = Instant::now();
+        let spinning = self.wait_mode == WaitMode::Spinning;
+        self.socket.set_nonblocking(spinning)?;
+        let mut limit = self.timeout;
         loop {
-            let elapsed = started.elapsed();
-            let Some(remaining) = self.timeout.checked_sub(elapsed).filter(|d| !d.is_zero()) else {
-                let waited = elapsed.as_micros().min(u128::from(u32::MAX)) as u32;
-                return Err(self.transactions.timed_out(&expect, waited));
-            };
-            self.socket.set_read_timeout(Some(remaining))?;
-            let len = match self.socket.recv_from(&mut self.rx) {
-                Ok((len, from)) if from == self.target => len,
+            if !spinning {
+                self.socket.set_read_timeout(limit)?;
+            }
+            let received = self.socket.recv_from(&mut self.rx);
+            let judged = match received {
+                Ok((len, from)) if from == self.target => {
+                    if self.heard(len) == Verdict::Drop {
+                        None
+                    } else {
+                        let datagram = self.rx.get(..len).unwrap_or(&[]);
+                        judge_reply(&mut self.transactions, datagram, &expect, out)?
+                    }
+                }
                 Ok(_) => {
                     self.transactions.refused_unmatched();
-                    continue;
+                    None
                 }
                 Err(e) if is_wait_over(&e) => {
-                    continue;
+                    if spinning {
+                        std::hint::spin_loop();
+                    }
+                    None
                 }
                 Err(e) => return Err(e.into()),
             };
-            if self.heard(len) == Verdict::Drop {
-                continue;
-            }
-            let datagram = self.rx.get(..len).unwrap_or(&[]);
-            if let Some(extra) = judge_reply(&mut self.transactions, datagram, &expect, out)? {
+            if let Some(extra) = judged {
                 self.last_extra = Some(extra);
                 return Ok(());
+            }
+            let elapsed = started.elapsed();
+            match self.timeout.checked_sub(elapsed).filter(|d| !d.is_zero()) {
+                Some(remaining) => limit = remaining,
+                None => {
+                    let waited = elapsed.as_micros().min(u128::from(u32::MAX)) as u32;
+                    self.drain_before_read = true;
+                    return Err(self.transactions.timed_out(&expect, waited));
+                }
             }
         }
     }
@@ -241,7 +469,7 @@ impl UdpPort {
 
     /// A quadlet read without the generation check (used to learn it).
     fn read_quadlet_now(&mut self, dest: Dest, offset: u64) -> Result<u32> {
-        self.flush()?;
+        self.drain_if_stale()?;
         let header = self.header(dest);
         self.send(dest, &PacketRepr::ReadQuadletRequest { header, offset })?;
         let mut out = [0u8; 4];
@@ -252,12 +480,10 @@ impl UdpPort {
 
 /// Whether a socket error only says that nothing arrived in time (or the
 /// wait was interrupted): the caller waits on, it is not a failure.
-pub fn is_wait_over(e: &std::io::Error) -> bool {
+pub fn is_wait_over(e: &io::Error) -> bool {
     matches!(
         e.kind(),
-        std::io::ErrorKind::WouldBlock
-            | std::io::ErrorKind::TimedOut
-            | std::io::ErrorKind::Interrupted
+        io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut | io::ErrorKind::Interrupted
     )
 }
 
@@ -329,7 +555,7 @@ impl Port for UdpPort {
     fn read_block(&mut self, dest: Dest, offset: u64, out: &mut [u8]) -> Result<()> {
         crate::port::check_block(out.len())?;
         self.check_generation(dest)?;
-        self.flush()?;
+        self.drain_if_stale()?;
         let header = self.header(dest);
         self.send(
             dest,

@@ -8,7 +8,7 @@ use std::thread;
 use std::time::Duration;
 
 use firelink_host::transaction::LinkStats;
-use firelink_host::udp::UdpPort;
+use firelink_host::udp::{UdpPort, WaitMode};
 use firelink_host::{Dest, HostError, Port};
 use firelink_wire::bridge::{ExtraData, split_host_datagram};
 use firelink_wire::packet::{AsyncHeader, PacketRepr, Rcode};
@@ -313,4 +313,187 @@ fn late_and_duplicated_answers_are_told_apart() {
     let s = p.stats();
     assert_eq!(s.matched, 2, "{s}");
     assert!(s.unmatched >= 1, "{s}");
+}
+
+/// A bridge that answers every read at once (a quadlet, or zeros of the
+/// length asked for) and takes writes silently, for as long as requests
+/// come (it stops after a quiet second).
+fn mirror() -> std::net::SocketAddr {
+    let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+    socket
+        .set_read_timeout(Some(Duration::from_secs(1)))
+        .unwrap();
+    let addr = socket.local_addr().unwrap();
+    thread::spawn(move || {
+        let mut buf = [0u8; 4096];
+        while let Ok((len, from)) = socket.recv_from(&mut buf) {
+            let read = split_host_datagram(&buf[..len])
+                .ok()
+                .and_then(|(_, packet)| PacketRepr::parse(&packet).ok())
+                .is_some_and(|req| {
+                    matches!(
+                        req,
+                        PacketRepr::ReadQuadletRequest { .. } | PacketRepr::ReadBlockRequest { .. }
+                    )
+                });
+            if let (true, Some(reply)) =
+                (read, response(&buf[..len], Answer::Good { generation: 0 }))
+            {
+                let _ = socket.send_to(&reply, from);
+            }
+        }
+    });
+    addr
+}
+
+/// One broadcast cycle's requests: the query (a quadlet write), the hub
+/// read (a block read and its answer), the commands (a block write).
+fn broadcast_cycle(p: &mut UdpPort, hub: &mut [u8]) {
+    p.write_quadlet(Dest::BROADCAST, 0x1800, 0x0001_0003)
+        .unwrap();
+    p.read_block(Dest::node(0), 0x1000, hub).unwrap();
+    p.write_block(Dest::BROADCAST, 0, &[0u8; 64]).unwrap();
+}
+
+/// Blocking: once the socket has its receive time-out (set at the first
+/// read), a broadcast cycle is four system calls (three sends, one
+/// receive) and never touches the socket's settings.
+#[test]
+fn a_blocking_broadcast_cycle_is_four_system_calls() {
+    let mut p = UdpPort::open(mirror()).unwrap();
+    assert_eq!(p.wait_mode(), WaitMode::Blocking);
+    // Long enough never to expire on a loaded machine: the count must not
+    // depend on timing.
+    p.set_timeout(Duration::from_secs(20));
+    let mut hub = [0u8; 8];
+    broadcast_cycle(&mut p, &mut hub);
+    let (calls, stats) = (p.socket_calls(), p.stats());
+    for _ in 0..50 {
+        broadcast_cycle(&mut p, &mut hub);
+    }
+    let c = p.socket_calls().since(&calls);
+    assert_eq!(c.sends, 150, "{c:?}");
+    assert_eq!(c.receives, 50, "{c:?}");
+    assert_eq!(c.settings, 0, "{c:?}");
+    assert_eq!(c.total(), 4 * 50, "{c:?}");
+    let s = p.stats().since(&stats);
+    assert_eq!(s.matched, 50, "{s}");
+    assert_eq!(hub, [0x11, 0x22, 0x33, 0x44, 0x55, 0x66, 0x77, 0x88]);
+}
+
+/// Spinning: the socket is made non-blocking once; reads poll it until
+/// the answer, with no setting changed per read.
+#[test]
+fn a_spinning_port_sets_its_socket_once_and_reads() {
+    let mut p = UdpPort::open(mirror()).unwrap();
+    p.set_wait_mode(WaitMode::Spinning);
+    p.set_timeout(Duration::from_secs(20));
+    let mut hub = [0u8; 8];
+    broadcast_cycle(&mut p, &mut hub);
+    let (calls, stats) = (p.socket_calls(), p.stats());
+    for _ in 0..50 {
+        broadcast_cycle(&mut p, &mut hub);
+        assert_eq!(p.read_quadlet(Dest::node(1), 4).unwrap(), 0x5151_4131);
+    }
+    let c = p.socket_calls().since(&calls);
+    assert_eq!(c.sends, 200, "{c:?}");
+    // Each read ends with the receive that got its answer.
+    assert_eq!(c.receives - c.empty_receives, 100, "{c:?}");
+    assert_eq!(c.settings, 0, "{c:?}");
+    assert_eq!(p.stats().since(&stats).matched, 100);
+    assert_eq!(hub, [0x11, 0x22, 0x33, 0x44, 0x55, 0x66, 0x77, 0x88]);
+}
+
+/// In both modes: silence is a time-out naming node and label, bad
+/// datagrams are counted by reason before the answer, and the late answer
+/// to a timed-out read is told apart.
+#[test]
+fn both_wait_modes_keep_the_ports_rules() {
+    for mode in WaitMode::ALL {
+        let addr = responder(vec![learn(), vec![Answer::Silence]]);
+        let mut p = UdpPort::open(addr).unwrap();
+        p.set_wait_mode(mode);
+        p.set_timeout(Duration::from_millis(200));
+        p.learn_generation().unwrap();
+        p.set_timeout(Duration::from_millis(30));
+        let err = p.read_quadlet(Dest::node(5), 4).unwrap_err();
+        assert!(
+            matches!(err, HostError::Timeout { node: 5, tl: 2, .. }),
+            "{mode}: {err}"
+        );
+
+        let addr = responder(vec![
+            learn(),
+            vec![
+                Answer::WrongTl,
+                Answer::Garbage,
+                Answer::Truncated,
+                Answer::Good { generation: 0 },
+            ],
+        ]);
+        let mut p = UdpPort::open(addr).unwrap();
+        p.set_wait_mode(mode);
+        p.set_timeout(Duration::from_secs(5));
+        p.learn_generation().unwrap();
+        let since = p.stats();
+        let mut out = [0u8; 8];
+        p.read_block(Dest::node(1), 0, &mut out).unwrap();
+        let s = p.stats().since(&since);
+        assert_eq!(
+            (s.unmatched, s.garbage, s.matched),
+            (1, 2, 1),
+            "{mode}: {s}"
+        );
+
+        // The answer to request k comes when request k+1 arrives.
+        let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let addr = socket.local_addr().unwrap();
+        socket
+            .set_read_timeout(Some(Duration::from_secs(5)))
+            .unwrap();
+        thread::spawn(move || {
+            let mut buf = [0u8; 4096];
+            let mut previous: Option<Vec<u8>> = None;
+            for _ in 0..3 {
+                let Ok((len, from)) = socket.recv_from(&mut buf) else {
+                    return;
+                };
+                if let Some(reply) = previous.take() {
+                    let _ = socket.send_to(&reply, from);
+                }
+                previous = response(&buf[..len], Answer::Good { generation: 0 });
+            }
+        });
+        let mut p = UdpPort::open(addr).unwrap();
+        p.set_wait_mode(mode);
+        p.set_timeout(Duration::from_millis(100));
+        for _ in 0..2 {
+            let err = p.read_quadlet(Dest::BROADCAST, 4).unwrap_err();
+            assert!(matches!(err, HostError::Timeout { .. }), "{mode}: {err}");
+        }
+        let s = p.stats();
+        assert_eq!((s.timeouts, s.late, s.matched), (2, 1, 0), "{mode}: {s}");
+    }
+}
+
+/// A datagram from a stranger is counted and the wait goes on for what is
+/// left of the time-out; the next read sets the whole time-out back: the
+/// only setting changes a blocking port makes after its first read.
+#[test]
+fn a_stray_datagram_rearms_the_rest_of_the_wait() {
+    let mut p = UdpPort::open(mirror()).unwrap();
+    p.set_timeout(Duration::from_secs(20));
+    assert_eq!(p.read_quadlet(Dest::node(1), 4).unwrap(), 0x5151_4131);
+    let (calls, stats) = (p.socket_calls(), p.stats());
+    let stranger = UdpSocket::bind("127.0.0.1:0").unwrap();
+    stranger
+        .send_to(b"not a bridge", p.local_addr().unwrap())
+        .unwrap();
+    assert_eq!(p.read_quadlet(Dest::node(1), 4).unwrap(), 0x5151_4131);
+    assert_eq!(p.read_quadlet(Dest::node(1), 4).unwrap(), 0x5151_4131);
+    let c = p.socket_calls().since(&calls);
+    let s = p.stats().since(&stats);
+    assert_eq!((s.unmatched, s.matched), (1, 2), "{s}");
+    assert_eq!(c.receives, 3, "{c:?}");
+    assert!(c.settings <= 2, "{c:?}");
 }

@@ -108,7 +108,8 @@ const PALETTE: [RGBColor; 6] = [
     RGBColor(90, 90, 90),
 ];
 
-/// One series of the figure: a transport and a protocol.
+/// One series of the figure: a transport (with the UDP wait mode) and a
+/// protocol.
 struct Series<'a> {
     label: String,
     points: Vec<&'a BenchPoint>,
@@ -117,7 +118,11 @@ struct Series<'a> {
 fn series(report: &BenchReport) -> Vec<Series<'_>> {
     let mut out: Vec<Series<'_>> = Vec::new();
     for p in &report.results {
-        let label = format!("{} {}", p.transport, p.protocol_asked);
+        // UDP points say how the host waited (each mode is a series).
+        let label = match p.wait {
+            Some(wait) => format!("{} ({wait}) {}", p.transport, p.protocol_asked),
+            None => format!("{} {}", p.transport, p.protocol_asked),
+        };
         match out.iter_mut().find(|s| s.label == label) {
             Some(s) => s.points.push(p),
             None => out.push(Series {

@@ -29,7 +29,7 @@ use firelink_control::{FaultKind, FaultReport};
 use firelink_host::io::{IoOptions, IoStats, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
-use firelink_host::udp::UdpPort;
+use firelink_host::udp::{UdpPort, WaitMode};
 use firelink_host::{Port, RobotIo};
 use firelink_wire::packet::Tcode;
 
@@ -169,6 +169,8 @@ pub struct DemoOptions {
     pub pacing: Option<Pacing>,
     /// Board watchdog period; `None` turns the watchdogs off.
     pub watchdog: Option<Duration>,
+    /// How the UDP port's reads wait for their answer (emulate, udp).
+    pub udp_wait: WaitMode,
 }
 
 impl Default for DemoOptions {
@@ -183,6 +185,7 @@ impl Default for DemoOptions {
             fault: DemoFault::None,
             pacing: None,
             watchdog: Some(Duration::from_millis(20)),
+            udp_wait: WaitMode::Blocking,
         }
     }
 }
@@ -651,12 +654,13 @@ pub fn run_demo(
         DemoPort::Emulate => {
             let emu = rig::Emulator::start(rig::board_configs(config, options.firmware, boards))?;
             let name = format!("udp:{} (in-process firelink emulate)", emu.addr);
-            let report = run_robot(emu.port()?, options, name, pacing, realtime, &mut progress);
+            let port = emu.port_with(options.udp_wait)?;
+            let report = run_robot(port, options, name, pacing, realtime, &mut progress);
             emu.stop()?;
             report
         }
         DemoPort::Udp(addr) => {
-            let port = rig::udp_port(*addr)?;
+            let port = rig::udp_port_with(*addr, options.udp_wait)?;
             run_robot(
                 port,
                 options,

@@ -37,6 +37,7 @@
 
 pub mod bench;
 pub mod console_homing;
+pub mod cpu;
 pub mod demo;
 pub mod error;
 pub mod mahru;

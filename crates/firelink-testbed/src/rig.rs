@@ -17,9 +17,10 @@ use firelink_bus::{Bus, HostModel, Node, NodeHandle};
 use firelink_control::config::{HardwareVersion, IoConfig, PlantPreset};
 use firelink_emulate::{Bridge, BridgeStats, ServeConfig};
 use firelink_host::sim::SimPort;
-use firelink_host::udp::UdpPort;
+use firelink_host::udp::{UdpPort, WaitMode};
 
 use crate::TestbedError;
+use crate::cpu::ThreadCpuClock;
 use crate::plant_map;
 
 /// Where a joint starts, inside its soft limits (a little off centre, so
@@ -262,6 +263,7 @@ pub struct Emulator {
     pub addr: SocketAddr,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<std::io::Result<BridgeStats>>>,
+    cpu: Option<ThreadCpuClock>,
 }
 
 impl Emulator {
@@ -313,11 +315,21 @@ impl Emulator {
             Ok(Err(e)) => return Err(TestbedError::Emulator(e)),
             Err(_) => return Err(TestbedError::Emulator("the server thread failed".into())),
         }
+        let cpu = ThreadCpuClock::of(&thread);
         Ok(Emulator {
             addr,
             stop,
             thread: Some(thread),
+            cpu,
         })
+    }
+
+    /// CPU time the server thread has used so far (user and system), while
+    /// it runs; `None` once it has stopped or where thread clocks cannot
+    /// be read.
+    pub fn server_cpu_time(&self) -> Option<std::time::Duration> {
+        let running = self.thread.as_ref().is_some_and(|t| !t.is_finished());
+        self.cpu.filter(|_| running).and_then(|c| c.now())
     }
 
     /// Stop the server and return its counters.
@@ -336,6 +348,11 @@ impl Emulator {
     /// A UDP port to it.
     pub fn port(&self) -> Result<UdpPort, TestbedError> {
         udp_port(self.addr)
+    }
+
+    /// A UDP port to it whose reads wait as `wait` says.
+    pub fn port_with(&self, wait: WaitMode) -> Result<UdpPort, TestbedError> {
+        udp_port_with(self.addr, wait)
     }
 }
 
@@ -357,8 +374,17 @@ pub const UDP_TIMEOUT: std::time::Duration = std::time::Duration::from_millis(20
 /// # Errors
 /// The socket could not be opened.
 pub fn udp_port(addr: std::net::SocketAddr) -> Result<UdpPort, TestbedError> {
+    udp_port_with(addr, WaitMode::default())
+}
+
+/// [`udp_port`] whose reads wait as `wait` says.
+///
+/// # Errors
+/// The socket could not be opened.
+pub fn udp_port_with(addr: std::net::SocketAddr, wait: WaitMode) -> Result<UdpPort, TestbedError> {
     let mut p = UdpPort::open(addr)?;
     p.set_timeout(UDP_TIMEOUT);
+    p.set_wait_mode(wait);
     Ok(p)
 }
 

@@ -71,6 +71,10 @@ pub struct SnakeToolArgs {
     /// Read time-out in milliseconds (1..=60000).
     #[arg(long = "timeout-ms", default_value_t = 100, value_parser = crate::args::timeout_ms)]
     pub timeout_ms: u64,
+    /// How the UDP port's reads wait for the answer: `block` (low CPU) or
+    /// `spin` (low latency, one core busy while waiting).
+    #[arg(long = "udp-wait", value_enum, default_value_t = crate::args::UdpWaitArg::Block)]
+    pub udp_wait: crate::args::UdpWaitArg,
     /// Start on this board (default: the lowest ID found).
     #[arg(long, value_parser = crate::args::board_id)]
     pub board: Option<u8>,
@@ -114,6 +118,7 @@ fn open(args: &SnakeToolArgs) -> Result<(Box<dyn Port>, Option<IoConfig>), CliEr
         ToolPort::Udp(addr) => {
             let mut port = UdpPort::open(addr)?;
             port.set_timeout(std::time::Duration::from_millis(args.timeout_ms));
+            port.set_wait_mode(args.udp_wait.into());
             Ok((Box::new(port), Some(config)))
         }
     }

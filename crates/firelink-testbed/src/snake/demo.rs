@@ -15,6 +15,7 @@ use serde::Serialize;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, Robot};
 use firelink_host::snake::SnakeSystem;
+use firelink_host::udp::WaitMode;
 
 use crate::TestbedError;
 use crate::demo::{
@@ -47,6 +48,8 @@ pub struct SnakeDemoOptions {
     pub find_max_rate: bool,
     /// Seed of the plants' noise.
     pub seed: u64,
+    /// How the UDP port's reads wait for their answer (emulate, udp).
+    pub udp_wait: WaitMode,
 }
 
 impl Default for SnakeDemoOptions {
@@ -61,6 +64,7 @@ impl Default for SnakeDemoOptions {
             watchdog: Some(Duration::from_millis(20)),
             find_max_rate: true,
             seed: 1,
+            udp_wait: WaitMode::Blocking,
         }
     }
 }
@@ -204,12 +208,13 @@ pub fn run_snake_demo(
         DemoPort::Emulate => {
             let emu = emulator(nodes)?;
             let name = format!("udp:{} (in-process firelink emulate)", emu.addr);
-            let r = run_on(emu.port()?, options, name, pacing, realtime, &mut progress);
+            let port = emu.port_with(options.udp_wait)?;
+            let r = run_on(port, options, name, pacing, realtime, &mut progress);
             emu.stop()?;
             r?
         }
         DemoPort::Udp(addr) => {
-            let port = rig::udp_port(*addr)?;
+            let port = rig::udp_port_with(*addr, options.udp_wait)?;
             let name = format!("udp:{addr}");
             run_on(port, options, name, pacing, realtime, &mut progress)?
         }

@@ -6,10 +6,21 @@
 //! board-ID space of one bus) come from a cost model fitted to the largest
 //! measured count, and say so.
 //!
+//! Each UDP point is measured for every wait mode asked for (the host
+//! blocking in the kernel or spinning on its socket) and beside its
+//! *floor*: the same requests, datagram sizes and host waits against a
+//! responder that answers at once, interleaved in blocks of cycles in the
+//! same run (see [`udp`]); with the CPU time per cycle of the host's
+//! thread and of the emulator's server thread. The UDP points can also
+//! run against any bridge ([`BenchOptions::udp_target`]).
+//!
 //! The library behind `firelink bench` and the Python package's
 //! `run_bench`; [`BenchReport`] serialises to `firelink bench --json`.
 
+pub mod udp;
+
 use std::fmt;
+use std::net::SocketAddr;
 use std::time::Duration;
 
 use serde::Serialize;
@@ -21,6 +32,7 @@ use firelink_control::runner::{Pacing, Percentiles, Robot, RobotSettings};
 use firelink_host::Port;
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
+use firelink_host::udp::WaitMode;
 
 use crate::TestbedError;
 use crate::rig;
@@ -30,7 +42,8 @@ use crate::rig;
 pub enum BenchTransport {
     /// The simulated bus with the seed-000 PC model (virtual time).
     Sim,
-    /// Loopback UDP to an in-process bridge emulator (wall clock).
+    /// UDP to a bridge: an in-process emulator on loopback, or
+    /// [`BenchOptions::udp_target`] (wall clock).
     Udp,
 }
 
@@ -74,6 +87,14 @@ pub struct BenchOptions {
     pub wait_us_per_board: f64,
     /// Idle bus time between cycles, us (a paced loop leaves the bus idle).
     pub idle_us: f64,
+    /// UDP points: how the host's reads wait. Every mode is measured at
+    /// every UDP point, side by side (their blocks of cycles alternate).
+    pub udp_waits: Vec<WaitMode>,
+    /// UDP points: the boards at this address (a running `firelink
+    /// emulate` or a real bridge board) instead of an in-process emulator;
+    /// one point per protocol with the boards the scan finds there (the
+    /// board counts apply to the simulated bus only), and no emulator CPU.
+    pub udp_target: Option<SocketAddr>,
 }
 
 impl Default for BenchOptions {
@@ -87,6 +108,8 @@ impl Default for BenchOptions {
             period_us: 1e6 / 6000.0,
             wait_us_per_board: 5.0,
             idle_us: 50.0,
+            udp_waits: vec![WaitMode::Blocking],
+            udp_target: None,
         }
     }
 }
@@ -138,11 +161,41 @@ pub struct BudgetFit {
     pub fits: bool,
 }
 
+/// What a measured UDP point adds: its floor, and CPU time per cycle.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct UdpFigures {
+    /// Where the boards were: `in-process emulator`, or the address given.
+    pub target: String,
+    /// The floor: the point's own port calls (requests, datagram sizes,
+    /// host waits) against a loopback responder that answers every read at
+    /// once and emulates nothing, with the same wait mode; measured in
+    /// blocks alternating with the point's own. Time per cycle, us.
+    pub floor_us: IoTime,
+    /// The point's I/O median over the floor's median.
+    pub floor_ratio: f64,
+    /// Floor cycles that failed (a time-out).
+    pub floor_errors: u64,
+    /// CPU time of the host's thread per cycle (the cycle's I/O, not the
+    /// idle time between cycles), us.
+    pub host_cpu_us: f64,
+    /// The same for the floor's cycles, us.
+    pub floor_host_cpu_us: f64,
+    /// System calls on the host's socket per cycle.
+    pub socket_calls_per_cycle: f64,
+    /// CPU time of the in-process emulator's server thread per cycle
+    /// (user and system, everything it did while the point's cycles ran,
+    /// the idle time between cycles included), us; absent for a bridge
+    /// given by address or where thread clocks cannot be read.
+    pub emulator_cpu_us: Option<f64>,
+}
+
 /// One point of the benchmark.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct BenchPoint {
     /// `sim` or `udp`.
     pub transport: &'static str,
+    /// UDP: how the host's reads waited, `block` or `spin`.
+    pub wait: Option<&'static str>,
     /// The protocol used.
     pub protocol: &'static str,
     /// The protocol asked for (the scan may refuse it: see `note`).
@@ -167,6 +220,8 @@ pub struct BenchPoint {
     pub budget: BudgetFit,
     /// Why the protocol differs, or where a modelled point comes from.
     pub note: Option<String>,
+    /// A measured UDP point's floor and CPU figures.
+    pub udp: Option<UdpFigures>,
 }
 
 /// The paper's figures the benchmark is compared with.
@@ -193,12 +248,17 @@ pub struct BenchReport {
     pub firmware: &'static str,
     /// Measured cycles per point.
     pub cycles: u64,
+    /// UDP points: cycles per block (the point's and its floor's blocks
+    /// alternate).
+    pub udp_block_cycles: u64,
 }
 
 /// A raw measurement, before rounding and the budget.
 #[derive(Debug, Clone)]
 struct Raw {
     transport: BenchTransport,
+    wait: Option<WaitMode>,
+    udp: Option<(String, udp::ModeRun)>,
     protocol: Protocol,
     asked: Protocol,
     boards: usize,
@@ -265,6 +325,8 @@ fn point<P: Port>(
     let (io, read, write, errors) = measure(io, options.cycles.max(1), idle);
     Ok(Raw {
         transport,
+        wait: None,
+        udp: None,
         protocol: used,
         asked: protocol,
         boards,
@@ -337,6 +399,7 @@ fn model(base: &Raw, boards: usize) -> Raw {
             "model: extrapolated from the {}-board measurement (a 1394 bus addresses 16 boards)",
             base.boards
         )),
+        udp: None,
         ..base.clone()
     }
 }
@@ -385,7 +448,50 @@ fn finish(raw: &Raw, compute: f64, period_us: f64) -> BenchPoint {
             fits: budget.total < budget.period,
         },
         note: raw.note.clone(),
+        udp: raw.udp.as_ref().map(|(target, m)| UdpFigures {
+            target: target.clone(),
+            floor_us: IoTime {
+                median: round2(m.floor.median),
+                p99: round2(m.floor.p99),
+                max: finite(m.floor.max),
+                mean: round2(m.floor.mean),
+            },
+            floor_ratio: (raw.io.median / m.floor.median.max(1e-9) * 1000.0).round() / 1000.0,
+            floor_errors: m.floor_errors,
+            host_cpu_us: round2(m.host_cpu),
+            floor_host_cpu_us: round2(m.floor_host_cpu),
+            socket_calls_per_cycle: round2(m.socket_calls),
+            emulator_cpu_us: m.emulator_cpu.map(round2),
+        }),
+        wait: raw.wait.map(WaitMode::name),
     }
+}
+
+/// A UDP point's raw measurement per wait mode.
+fn udp_raws(
+    bridge: &udp::Bridge<'_>,
+    target: &str,
+    protocol: Protocol,
+    options: &BenchOptions,
+) -> Result<Vec<Raw>, TestbedError> {
+    let runs = udp::measure_point(bridge, protocol, options)?;
+    Ok(runs
+        .into_iter()
+        .map(|m| Raw {
+            transport: BenchTransport::Udp,
+            wait: Some(m.wait),
+            protocol: m.protocol,
+            asked: protocol,
+            boards: m.boards,
+            io: m.io,
+            read: m.read,
+            write: m.write,
+            cycles: m.cycles,
+            errors: m.errors,
+            note: m.note.clone(),
+            udp: Some((target.to_string(), m)),
+        })
+        .collect())
 }
 
 fn profile_name(p: Profile) -> &'static str {
@@ -396,7 +502,9 @@ fn profile_name(p: Profile) -> &'static str {
     }
 }
 
-/// Run the benchmark; `progress` hears of each point before it runs.
+/// Run the benchmark; `progress` hears of each point before it runs (the
+/// board count is 0 for the UDP points of a [`BenchOptions::udp_target`],
+/// whose boards the scan finds).
 pub fn run_bench(
     options: &BenchOptions,
     mut progress: impl FnMut(BenchTransport, Protocol, usize),
@@ -411,12 +519,20 @@ pub fn run_bench(
     let mut raws: Vec<Raw> = Vec::new();
     for &t in &options.transports {
         for &proto in &options.protocols {
-            let mut last: Option<Raw> = None;
+            if let (BenchTransport::Udp, Some(addr)) = (t, options.udp_target) {
+                progress(t, proto, 0);
+                let bridge = udp::Bridge {
+                    addr,
+                    emulator: None,
+                };
+                raws.extend(udp_raws(&bridge, &format!("udp:{addr}"), proto, options)?);
+                continue;
+            }
+            // The last measured point of each wait mode (sim: one).
+            let mut last: Vec<Raw> = Vec::new();
             for &n in &options.boards {
                 if n > 16 {
-                    if let Some(b) = &last {
-                        raws.push(model(b, n));
-                    }
+                    raws.extend(last.iter().map(|b| model(b, n)));
                     continue;
                 }
                 progress(t, proto, n);
@@ -427,20 +543,24 @@ pub fn run_bench(
                     .into_iter()
                     .map(|b| b.with_axes(vec![firelink_board::plant::presets::unused_channel(); 4]))
                     .collect();
-                let p = match t {
+                let points = match t {
                     BenchTransport::Sim => {
                         let (port, _) = rig::sim_port(cfgs, true)?;
-                        point(port, t, proto, n, options)?
+                        vec![point(port, t, proto, n, options)?]
                     }
                     BenchTransport::Udp => {
                         let emu = rig::Emulator::start(cfgs)?;
-                        let p = point(emu.port()?, t, proto, n, options);
+                        let bridge = udp::Bridge {
+                            addr: emu.addr,
+                            emulator: Some(&emu),
+                        };
+                        let p = udp_raws(&bridge, "in-process emulator", proto, options);
                         emu.stop()?;
                         p?
                     }
                 };
-                last = Some(p.clone());
-                raws.push(p);
+                last.clone_from(&points);
+                raws.extend(points);
             }
         }
     }
@@ -458,6 +578,7 @@ pub fn run_bench(
         },
         firmware: profile_name(options.firmware),
         cycles: options.cycles,
+        udp_block_cycles: udp::BLOCK,
     })
 }
 
@@ -465,19 +586,23 @@ impl fmt::Display for BenchReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "I/O time per cycle (us), seed-000 PC model on the simulated bus (sim) and measured over loopback UDP (udp)"
+            "I/O time per cycle (us), seed-000 PC model on the simulated bus (sim) and measured over UDP (udp/WAIT: the host's reads block or spin)"
         )?;
         writeln!(
             f,
-            "{:<5} {:<32} {:>6} {:>9} {:>9} {:>9} {:>11} {:>10}  note",
+            "{:<9} {:<32} {:>6} {:>9} {:>9} {:>9} {:>11} {:>10}  note",
             "trans", "protocol", "boards", "median", "p99", "max", "max rate", "budget"
         )?;
         let num = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.1}"));
+        let transport = |r: &BenchPoint| match r.wait {
+            Some(w) => format!("{}/{w}", r.transport),
+            None => r.transport.to_string(),
+        };
         for r in &self.results {
             writeln!(
                 f,
-                "{:<5} {:<32} {:>6} {:>9} {:>9} {:>9} {:>8} Hz {:>10}  {}",
-                r.transport,
+                "{:<9} {:<32} {:>6} {:>9} {:>9} {:>9} {:>8} Hz {:>10}  {}",
+                transport(r),
                 r.protocol,
                 r.boards,
                 num(Some(r.io_time_us.median)),
@@ -498,6 +623,52 @@ impl fmt::Display for BenchReport {
             f,
             "paper (seed 000, 8 boards): sequential {} us measured, broadcast {} us",
             self.paper.sequential_8_us, self.paper.broadcast_8_us
-        )
+        )?;
+        let udp: Vec<(&BenchPoint, &UdpFigures)> = self
+            .results
+            .iter()
+            .filter_map(|r| r.udp.as_ref().map(|u| (r, u)))
+            .collect();
+        let Some((_, first)) = udp.first() else {
+            return Ok(());
+        };
+        writeln!(
+            f,
+            "\nUDP against {}: the floor (the same requests, sizes and host waits against a responder \
+             that answers at once) in blocks of {} cycles alternating with the point's own; \
+             CPU per cycle, us (host: the cycle's I/O; emulator: its server thread)",
+            first.target, self.udp_block_cycles
+        )?;
+        writeln!(
+            f,
+            "{:<9} {:<32} {:>6} {:>9} {:>9} {:>6} {:>9} {:>9} {:>8} {:>7}",
+            "trans",
+            "protocol",
+            "boards",
+            "median",
+            "floor",
+            "ratio",
+            "host cpu",
+            "floor cpu",
+            "emu cpu",
+            "calls"
+        )?;
+        for (r, u) in udp {
+            writeln!(
+                f,
+                "{:<9} {:<32} {:>6} {:>9} {:>9} {:>6.2} {:>9} {:>9} {:>8} {:>7.1}",
+                transport(r),
+                r.protocol,
+                r.boards,
+                num(Some(r.io_time_us.median)),
+                num(Some(u.floor_us.median)),
+                u.floor_ratio,
+                num(Some(u.host_cpu_us)),
+                num(Some(u.floor_host_cpu_us)),
+                num(u.emulator_cpu_us),
+                u.socket_calls_per_cycle
+            )?;
+        }
+        Ok(())
     }
 }
