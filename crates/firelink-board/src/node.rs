@@ -43,10 +43,6 @@ pub struct BoardNode {
     class: ArbitrationClass,
     next_token: u64,
     in_flight: Option<u64>,
-    /// When the watchdog timer is set for (re-armed lazily: a refreshed
-    /// watchdog moves its expiry later, and the timer, when it fires,
-    /// just sets itself again).
-    watchdog_timer: Option<SimTime>,
 }
 
 /// The node's PHY registers, reached through the callback context.
@@ -100,7 +96,6 @@ impl BoardNode {
             class: ArbitrationClass::Isochronous,
             next_token: 0,
             in_flight: None,
-            watchdog_timer: None,
         }
     }
 
@@ -139,24 +134,25 @@ impl BoardNode {
                 token: self.next_token,
             });
         }
-        match self.firmware.next_wakeup() {
-            Some(at) => ctx.set_timer(at.max(now), SLOT_TIMER),
-            None => ctx.cancel_timer(SLOT_TIMER),
+        // The slot timer at the waiting broadcast's slot; asked of the bus
+        // only when that moves.
+        let slot = self.firmware.next_wakeup().map(|at| at.max(now));
+        match (slot, ctx.timer(SLOT_TIMER)) {
+            (Some(at), Some(armed)) if armed == at => {}
+            (Some(at), _) => ctx.set_timer(at, SLOT_TIMER),
+            (None, Some(_)) => ctx.cancel_timer(SLOT_TIMER),
+            (None, None) => {}
         }
-        // One watchdog timer at a time, never later than the expiry.
+        // One watchdog timer at a time, never later than the expiry (a
+        // refreshed watchdog moves its expiry later; the timer, when it
+        // fires early, just sets itself again).
         let expiry = self.firmware.watchdog_expiry().map(|t| t.max(now));
-        let armed = self.watchdog_timer.filter(|t| *t > now);
+        let armed = ctx.timer(WATCHDOG_TIMER).filter(|t| *t > now);
         match (expiry, armed) {
             (Some(e), Some(t)) if t <= e => {}
-            (Some(e), _) => {
-                ctx.set_timer(e, WATCHDOG_TIMER);
-                self.watchdog_timer = Some(e);
-            }
-            (None, Some(_)) => {
-                ctx.cancel_timer(WATCHDOG_TIMER);
-                self.watchdog_timer = None;
-            }
-            (None, None) => self.watchdog_timer = None,
+            (Some(e), _) => ctx.set_timer(e, WATCHDOG_TIMER),
+            (None, Some(_)) => ctx.cancel_timer(WATCHDOG_TIMER),
+            (None, None) => {}
         }
     }
 }
@@ -204,7 +200,6 @@ impl Node for BoardNode {
 
     fn on_timer(&mut self, now: SimTime, token: u64, ctx: &mut NodeCtx<'_>) {
         if token == WATCHDOG_TIMER {
-            self.watchdog_timer = None;
             // Apply whatever is due now (the watchdog, if not refreshed).
             self.firmware.advance(now);
         }

@@ -250,6 +250,8 @@ pub struct NodeCtx<'a> {
     pub(crate) generation: u32,
     pub(crate) node_count: u8,
     pub(crate) bus_idle: bool,
+    /// The node's armed timers: (token, stamp, when).
+    pub(crate) timers: &'a [(u64, u64, SimTime)],
     pub(crate) regs: &'a mut PhyRegisters,
     pub(crate) cmds: &'a mut Commands,
 }
@@ -311,6 +313,12 @@ impl NodeCtx<'_> {
     /// the past). Setting a token again replaces its earlier timer.
     pub fn set_timer(&mut self, at: SimTime, token: u64) {
         self.cmds.timers.push(TimerCommand::Set { at, token });
+    }
+
+    /// When the timer with `token` fires, if it is armed (as of the start
+    /// of this callback).
+    pub fn timer(&self, token: u64) -> Option<SimTime> {
+        self.timers.iter().find(|t| t.0 == token).map(|t| t.2)
     }
 
     /// Cancel the timer with `token`, if any.

@@ -3,8 +3,11 @@
 //! Generator `0x04C11DB7`, processed most significant bit first over the
 //! big-endian wire bytes, initial value all ones, result complemented; not
 //! reflected. This is the catalogue algorithm CRC-32/BZIP2
-//! (`ieee1394.md`, "CRC"). The implementation is a slice-by-16 table from the
-//! `crc` crate, which runs at several GB/s on one core (see `BENCHMARKS.md`).
+//! (`ieee1394.md`, "CRC"). Headers and short blocks go through a
+//! slice-by-16 table (the `crc` crate); from [`SIMD_MIN_LEN`] bytes on, with
+//! the default feature `simd-crc`, the `crc-fast` crate folds the data with
+//! carry-less multiplication where the CPU has it (about 4x the table on a
+//! 1 KiB hub block, see `BENCHMARKS.md`), the table otherwise.
 //!
 //! ```
 //! use firelink_wire::crc::crc1394;
@@ -15,8 +18,16 @@ use crc::{CRC_32_BZIP2, Crc, Table};
 
 static CRC1394: Crc<u32, Table<16>> = Crc::<u32, Table<16>>::new(&CRC_32_BZIP2);
 
+/// Blocks at least this long use the carry-less multiplication (shorter
+/// ones are faster through the table: its set-up costs more than a header).
+pub const SIMD_MIN_LEN: usize = 64;
+
 /// The 1394 CRC of `bytes` (big-endian wire order).
 pub fn crc1394(bytes: &[u8]) -> u32 {
+    #[cfg(feature = "simd-crc")]
+    if bytes.len() >= SIMD_MIN_LEN {
+        return crc_fast::checksum(crc_fast::CrcAlgorithm::Crc32Bzip2, bytes) as u32;
+    }
     CRC1394.checksum(bytes)
 }
 
@@ -84,6 +95,40 @@ mod tests {
     fn check_value() {
         assert_eq!(crc1394(b"123456789"), 0xFC89_1918);
         assert_eq!(crc1394_bitwise(b"123456789"), 0xFC89_1918);
+    }
+
+    #[test]
+    fn every_length_matches_the_bit_serial_reference() {
+        // Both sides of the table/SIMD threshold and the SIMD fold widths.
+        let data: alloc_free::Bytes = alloc_free::Bytes::new();
+        for len in 0..=data.len() {
+            let bytes = data.get(..len).unwrap_or_default();
+            assert_eq!(crc1394(bytes), crc1394_bitwise(bytes), "{len} bytes");
+        }
+    }
+
+    /// A fixed pseudo-random block (no allocation: the crate is no_std).
+    mod alloc_free {
+        pub struct Bytes([u8; 1100]);
+        impl Bytes {
+            pub fn new() -> Bytes {
+                let mut b = [0u8; 1100];
+                let mut x = 0x1234_5678u32;
+                for v in &mut b {
+                    x ^= x << 13;
+                    x ^= x >> 17;
+                    x ^= x << 5;
+                    *v = x as u8;
+                }
+                Bytes(b)
+            }
+            pub fn len(&self) -> usize {
+                self.0.len()
+            }
+            pub fn get(&self, r: core::ops::RangeTo<usize>) -> Option<&[u8]> {
+                self.0.get(r)
+            }
+        }
     }
 
     #[test]

@@ -478,7 +478,9 @@ impl Firmware {
         }
         // The current check (section 7), at every safety tick.
         if now.0 % SAFETY_TICK.0 == 0 && self.axes.iter().any(|a| a.is_on(&self.power, now)) {
-            self.observe();
+            // The measured current is exact at the plant's clock without
+            // integrating the motion.
+            self.plant.pass_to(now);
             let threshold = power::mismatch_counts();
             for (i, a) in self.axes.iter_mut().enumerate() {
                 if !a.is_on(&self.power, now) {

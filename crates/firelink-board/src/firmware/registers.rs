@@ -8,7 +8,9 @@ use firelink_wire::board::broadcast::find_command_block;
 use firelink_wire::board::extras::{
     DallasControl, EthControl, ExpanderWrite, PromCommand, QlaPromCommand,
 };
-use firelink_wire::board::realtime::{BlockFormat, ReadBlock, WriteBlock};
+use firelink_wire::board::realtime::{
+    BlockFormat, EncoderReading, MotorReading, ReadBlock, WriteBlock,
+};
 use firelink_wire::board::registers::{
     AdcWord, DacWord, DigitalIn, DigitalOutWrite, DoutCtrl, ENC_NEUTRAL, EncPeriod, EncPosition,
     EncQuarter, EncRun, FpgaVersion, MotorConfig, MotorStatus, PhyData, PhyRequest, StatusCommand,
@@ -772,18 +774,23 @@ impl Firmware {
         for i in 0..n {
             let position = self.position_word(i);
             let f = self.velocity(i);
-            let adc = self.adc_word(i);
-            let motor_status = rev8.then(|| self.motor_status_word(i));
-            // Indices are within the layout: these cannot fail.
-            let _ = block.set_adc(i, adc);
-            let _ = block.set_enc_position(i, position);
-            let _ = block.set_enc_period(i, EncPeriod(period_word(f.period)));
-            let _ = block.set_enc_qtr1(i, EncQuarter(quarter_word(f.qtr1)));
-            let _ = block.set_enc_qtr5(i, EncQuarter(quarter_word(f.qtr5)));
-            let _ = block.set_enc_run(i, EncRun(run_word(f.run)));
-            if let Some(word) = motor_status {
-                let _ = block.set_motor_status(i, word);
-            }
+            let motor = MotorReading {
+                adc: self.adc_word(i),
+                status: if rev8 {
+                    self.motor_status_word(i)
+                } else {
+                    MotorStatus::default()
+                },
+            };
+            let encoder = EncoderReading {
+                position,
+                period: EncPeriod(period_word(f.period)),
+                qtr1: EncQuarter(quarter_word(f.qtr1)),
+                qtr5: EncQuarter(quarter_word(f.qtr5)),
+                run: EncRun(run_word(f.run)),
+            };
+            // The axis is within the layout: this cannot fail.
+            let _ = block.set_axis(i, motor, encoder);
         }
     }
 }

@@ -3,15 +3,16 @@
 //! motion.
 //!
 //! # Time
-//! The axis keeps its *committed* state at a grid point `k * step` and the
-//! inputs in effect there. An input set between grid points (a new DAC
-//! code, an amplifier turning on or off, an external torque) takes effect
-//! at that exact instant: the step that contains it is integrated in two
-//! spans. An observation between grid points (the plant was advanced to a
-//! time that is not on the grid) sees the state integrated exactly from the
-//! last grid point to that instant, without committing it. So how the
-//! caller splits time into calls never changes the committed motion, and
-//! nothing the caller sees is up to a step late.
+//! The axis keeps its state at one instant and is integrated forward, in
+//! spans of constant inputs at most one step long, whenever it is looked at
+//! (the plant advanced to a time) or its inputs change: an input set at the
+//! plant's clock (a new DAC code, an amplifier turning on or off, an
+//! external torque) takes effect at that exact instant, and an observation
+//! sees the state exactly at the time asked. The current loop is integrated
+//! exactly, so where the spans break changes the motion only through the
+//! load and friction held over each span (the tests bound it), and the
+//! current alone is known at any instant without integrating the motion
+//! (what the firmware's current check samples every 100 us).
 //!
 //! # One span of constant inputs
 //! [`Integrator::Exact`] (the default), per span of length `h`:
@@ -164,24 +165,23 @@ struct Model {
 #[derive(Debug, Clone)]
 pub struct Axis {
     model: Model,
-    /// The last partial span's constants (spans of the same length recur).
+    /// The last span's constants (spans of the same length recur).
     memo: Span,
-    /// The inputs in effect at the committed grid point.
+    /// The inputs since `time`.
     inputs: Inputs,
-    /// Inputs set later inside the current step: (ps after the grid
-    /// point, inputs from then on), in time order.
-    changes: Vec<(u64, Inputs)>,
-    /// The state at the committed grid point.
+    /// The state at `time`.
     state: State,
-    /// The state at `offset` after it, when `offset > 0` and it was asked.
-    view: Option<State>,
-    /// The plant's clock, ps after the committed grid point.
-    offset: u64,
+    /// The instant the state is at.
+    time: SimTime,
+    /// The plant's clock: inputs set now take effect then, and the state
+    /// is integrated up to it before they do (or when it is looked at).
+    clock: SimTime,
 }
 
 impl Axis {
     /// An axis at rest at its initial position, amplifier off, at ambient
-    /// temperature; `step_ps` is the grid step in picoseconds.
+    /// temperature; `step_ps` is the longest span integrated at once, in
+    /// picoseconds.
     pub fn new(params: &AxisParams, step_ps: u64, integrator: Integrator) -> Axis {
         let params = params.sanitized();
         let counts_per_rad = {
@@ -234,10 +234,9 @@ impl Axis {
                 enabled: false,
                 external_torque: 0.0,
             },
-            changes: Vec::new(),
             state,
-            view: None,
-            offset: 0,
+            time: SimTime::ZERO,
+            clock: SimTime::ZERO,
         }
     }
 
@@ -253,23 +252,17 @@ impl Axis {
 
     /// The inputs in effect at the plant's clock.
     fn latest(&self) -> Inputs {
-        self.changes.last().map_or(self.inputs, |c| c.1)
+        self.inputs
     }
 
-    /// Inputs `new` from the plant's clock on.
+    /// Inputs `new` from the plant's clock on: the motion up to the clock
+    /// is integrated with the inputs before.
     fn set_inputs(&mut self, new: Inputs) {
-        if new == self.latest() {
+        if new == self.inputs {
             return;
         }
-        if self.offset == 0 {
-            // At the grid point itself: the step integrates with them.
-            self.inputs = new;
-            return;
-        }
-        match self.changes.last_mut() {
-            Some(last) if last.0 == self.offset => last.1 = new,
-            _ => self.changes.push((self.offset, new)),
-        }
+        self.catch_up();
+        self.inputs = new;
     }
 
     /// Set the amplifier inputs, from the plant's clock on: DAC code and
@@ -308,9 +301,10 @@ impl Axis {
         self.model.commanded(self.latest().dac)
     }
 
-    /// The state at the plant's clock.
+    /// The state as last integrated (at the clock once the plant was
+    /// advanced there).
     fn observed(&self) -> &State {
-        self.view.as_ref().unwrap_or(&self.state)
+        &self.state
     }
 
     /// The true motor current, A.
@@ -380,103 +374,64 @@ impl Axis {
         )
     }
 
-    /// Whether the committed state is at rest with nothing to move it.
+    /// Whether the state is at rest with nothing to move it.
     #[cfg(test)]
     pub(crate) fn is_quiescent(&self) -> bool {
-        self.model.quiescent(&self.state, self.inputs) && self.changes.is_empty()
+        self.model.quiescent(&self.state, self.inputs)
     }
 
-    /// Commit `steps` grid steps of `step_ps` starting at grid time
-    /// `start`; the clock is then at the new grid point (nothing observed
-    /// there yet).
-    pub(crate) fn commit(&mut self, start: SimTime, step_ps: u64, steps: u64) {
-        self.view = None;
-        self.offset = 0;
-        let mut t = start;
-        for k in 0..steps {
-            if self.changes.is_empty() {
-                if self.model.quiescent(&self.state, self.inputs) {
-                    // Nothing moves until the inputs change: only the
-                    // temperature settles, over every remaining step.
-                    let n = (steps - k) as f64;
-                    let keep = (-n * self.model.grid.h * self.model.inv_tau_thermal).exp();
-                    let steady = steady_temperature(&self.model.params, 0.0, self.inputs.enabled);
-                    self.state.temperature += (steady - self.state.temperature) * (1.0 - keep);
-                    return;
-                }
-                let grid = self.model.grid;
-                self.model
-                    .integrate(&mut self.state, self.inputs, &grid, t, &mut self.memo);
-            } else {
-                let mut at = 0u64;
-                for c in 0..self.changes.len() {
-                    let Some(&(offset, next)) = self.changes.get(c) else {
-                        break;
-                    };
-                    if offset > at {
-                        let span = span_of(&self.model, &mut self.memo, offset - at);
-                        let from = SimTime(t.0.saturating_add(at));
-                        self.model.integrate_span(
-                            &mut self.state,
-                            self.inputs,
-                            &span,
-                            from,
-                            &mut self.memo,
-                        );
-                    }
-                    self.inputs = next;
-                    at = offset;
-                }
-                self.changes.clear();
-                if step_ps > at {
-                    let span = span_of(&self.model, &mut self.memo, step_ps - at);
-                    let from = SimTime(t.0.saturating_add(at));
-                    self.model.integrate_span(
-                        &mut self.state,
-                        self.inputs,
-                        &span,
-                        from,
-                        &mut self.memo,
-                    );
-                }
-            }
-            t = SimTime(t.0.saturating_add(step_ps));
+    /// Move the clock to `clock` (never back); the state follows when it
+    /// is looked at or the inputs change.
+    pub(crate) fn set_clock(&mut self, clock: SimTime) {
+        if clock > self.clock {
+            self.clock = clock;
         }
     }
 
-    /// Move the clock to `offset` ps after the committed grid point at
-    /// `grid_time` and, when `observe`, integrate the state there without
-    /// committing it.
-    pub(crate) fn set_clock(&mut self, grid_time: SimTime, offset: u64, observe: bool) {
-        let observed = self.view.is_some() || offset == 0;
-        if offset == self.offset && (observed || !observe) {
-            return;
-        }
-        self.offset = offset;
-        self.view = None;
-        if !observe || offset == 0 {
-            return;
-        }
-        let mut state = self.state.clone();
-        let mut inputs = self.inputs;
-        let mut at = 0u64;
-        for &(change, next) in self.changes.iter().take_while(|c| c.0 <= offset) {
-            if change > at {
-                let span = span_of(&self.model, &mut self.memo, change - at);
-                let from = SimTime(grid_time.0.saturating_add(at));
-                self.model
-                    .integrate_span(&mut state, inputs, &span, from, &mut self.memo);
+    /// Integrate the state from its instant up to the clock, in spans of
+    /// at most one step of constant inputs.
+    pub(crate) fn catch_up(&mut self) {
+        let step = self.model.grid.ps;
+        while self.time < self.clock {
+            let left = self.clock.0 - self.time.0;
+            let len = left.min(step);
+            if self.model.quiescent(&self.state, self.inputs) {
+                // Nothing moves until the inputs change: only the
+                // temperature settles, all the way to the clock at once.
+                let keep = (-(left as f64) * 1e-12 * self.model.inv_tau_thermal).exp();
+                let steady = steady_temperature(&self.model.params, 0.0, self.inputs.enabled);
+                self.state.temperature += (steady - self.state.temperature) * (1.0 - keep);
+                self.time = self.clock;
+                return;
             }
-            inputs = next;
-            at = change;
+            let span = span_of(&self.model, &mut self.memo, len);
+            self.model.integrate(
+                &mut self.state,
+                self.inputs,
+                &span,
+                self.time,
+                &mut self.memo,
+            );
+            self.time = SimTime(self.time.0 + len);
         }
-        if offset > at {
-            let span = span_of(&self.model, &mut self.memo, offset - at);
-            let from = SimTime(grid_time.0.saturating_add(at));
-            self.model
-                .integrate_span(&mut state, inputs, &span, from, &mut self.memo);
+    }
+
+    /// The true current at the clock, A, without integrating the motion:
+    /// the current loop's response from the state's instant (the supply's
+    /// headroom taken at the state's velocity).
+    pub(crate) fn current_at_clock(&self) -> f64 {
+        let i0 = self.state.current;
+        if self.time >= self.clock {
+            return i0;
         }
-        self.view = Some(state);
+        let target = self
+            .model
+            .target_current(self.inputs, self.state.motor_velocity);
+        if target == i0 {
+            return i0;
+        }
+        let dt = (self.clock.0 - self.time.0) as f64 * 1e-12;
+        target + (i0 - target) * (-dt / self.model.tau).exp()
     }
 
     /// Encoder counts per motor radian (signed by the encoder direction).
@@ -552,24 +507,6 @@ impl Model {
         push.abs() <= self.params.motor.coulomb_friction
             || (push < 0.0 && s.motor_angle <= self.motor_stops.0)
             || (push > 0.0 && s.motor_angle >= self.motor_stops.1)
-    }
-
-    /// Integrate a span, or only settle the temperature when nothing
-    /// would move.
-    fn integrate_span(
-        &self,
-        state: &mut State,
-        inputs: Inputs,
-        span: &Span,
-        start: SimTime,
-        memo: &mut Span,
-    ) {
-        if self.quiescent(state, inputs) {
-            let steady = steady_temperature(&self.params, 0.0, inputs.enabled);
-            state.temperature += (steady - state.temperature) * span.alpha_thermal;
-            return;
-        }
-        self.integrate(state, inputs, span, start, memo);
     }
 
     /// Integrate one span of constant `inputs` starting at `start`.

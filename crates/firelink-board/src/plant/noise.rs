@@ -46,9 +46,29 @@ impl Noise {
 
     /// A standard normal value for (axis, channel, sample).
     pub fn gaussian(&self, axis: usize, channel: NoiseChannel, sample: u64) -> f64 {
+        self.stream(axis, channel).gaussian(sample)
+    }
+
+    /// The stream of (axis, channel): the same values as
+    /// [`gaussian`](Self::gaussian), its start worked out once.
+    pub fn stream(&self, axis: usize, channel: NoiseChannel) -> NoiseStream {
         let stream = ((axis as u64) << 8) | channel as u64;
-        let start = mix(self.seed ^ mix(stream.wrapping_add(GAMMA)));
-        let bits = mix(start.wrapping_add(sample.wrapping_mul(GAMMA)));
+        NoiseStream {
+            start: mix(self.seed ^ mix(stream.wrapping_add(GAMMA))),
+        }
+    }
+}
+
+/// One (axis, channel) stream of a [`Noise`] generator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NoiseStream {
+    start: u64,
+}
+
+impl NoiseStream {
+    /// The standard normal value of sample `sample`.
+    pub fn gaussian(&self, sample: u64) -> f64 {
+        let bits = mix(self.start.wrapping_add(sample.wrapping_mul(GAMMA)));
         // Uniform in (0, 1) on the grid (k + 1/2) / 2^52: never 0 or 1 (so
         // the tails stay finite), and exact (52 bits and a half fit the
         // mantissa; so does 1 - p).

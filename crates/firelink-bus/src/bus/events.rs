@@ -112,35 +112,38 @@ impl Bus {
         let generation = self.generation;
         let node_count = self.tree.node_count().min(63) as u8;
         let bus_idle = matches!(self.medium, Medium::Idle { .. });
-        let slot = self.slots.get_mut(idx)?;
-        let mut node = slot.node.take()?;
-        let mut regs = slot.regs;
-        let phy_id = slot.phy.unwrap_or(NodeId::BROADCAST_PHY);
-        let mut cmds = std::mem::take(&mut self.scratch);
-        let result = {
+        let rx_crc = self.rx_crc;
+        // The node, its PHY registers, its timers and the command list are
+        // disjoint parts of the bus: borrowed side by side, nothing moves.
+        let (result, regs, asked) = {
+            let Bus { slots, scratch, .. } = self;
+            let slot = slots.get_mut(idx)?;
+            let node = slot.node.as_mut()?;
+            let mut regs = slot.regs;
+            let phy_id = slot.phy.unwrap_or(NodeId::BROADCAST_PHY);
             let mut ctx = NodeCtx {
                 now,
-                rx_crc: self.rx_crc,
+                rx_crc,
                 phy_id,
                 generation,
                 node_count,
                 bus_idle,
+                timers: &slot.timers,
                 regs: &mut regs,
-                cmds: &mut cmds,
+                cmds: scratch,
             };
-            f(node.as_mut(), &mut ctx)
+            let result = f(node.as_mut(), &mut ctx);
+            (result, regs, !scratch.is_empty() || regs != slot.regs)
         };
-        if let Some(slot) = self.slots.get_mut(idx) {
-            slot.node = Some(node);
-        }
-        if !cmds.is_empty() || regs != self.slots[idx].regs {
+        if asked {
+            let mut cmds = std::mem::take(&mut self.scratch);
             self.apply(idx, regs, &mut cmds);
+            cmds.transmits.clear();
+            cmds.timers.clear();
+            cmds.phy_writes.clear();
+            cmds.reports.clear();
+            self.scratch = cmds;
         }
-        cmds.transmits.clear();
-        cmds.timers.clear();
-        cmds.phy_writes.clear();
-        cmds.reports.clear();
-        self.scratch = cmds;
         Some(result)
     }
 
@@ -238,17 +241,22 @@ impl Bus {
                 let at = at.max(self.now);
                 // Set again for the same instant: the timer already armed
                 // stands (no second event).
-                if let Some(&(stamp, armed)) = self.slots[idx].timers.get(&token) {
+                let timers = &mut self.slots[idx].timers;
+                if let Some(i) = timers.iter().position(|t| t.0 == token) {
+                    let (_, stamp, armed) = timers.swap_remove(i);
                     if armed == at {
+                        timers.push((token, stamp, armed));
                         return;
                     }
                     self.events.cancel_timer(armed, stamp);
                 }
                 let stamp = self.events.push_timer(at, idx, token);
-                self.slots[idx].timers.insert(token, (stamp, at));
+                self.slots[idx].timers.push((token, stamp, at));
             }
             TimerCommand::Cancel { token } => {
-                if let Some((stamp, armed)) = self.slots[idx].timers.remove(&token) {
+                let timers = &mut self.slots[idx].timers;
+                if let Some(i) = timers.iter().position(|t| t.0 == token) {
+                    let (_, stamp, armed) = timers.swap_remove(i);
                     self.events.cancel_timer(armed, stamp);
                 }
             }
@@ -311,10 +319,14 @@ impl Bus {
         let Some(slot) = self.slots.get_mut(node) else {
             return;
         };
-        if slot.timers.get(&token).map(|t| t.0) != Some(stamp) {
+        let Some(i) = slot
+            .timers
+            .iter()
+            .position(|t| t.0 == token && t.1 == stamp)
+        else {
             return;
-        }
-        slot.timers.remove(&token);
+        };
+        slot.timers.swap_remove(i);
         let now = self.now;
         self.dispatch(node, |n, ctx| n.on_timer(now, token, ctx));
     }

@@ -41,7 +41,7 @@ mod reset;
 mod timed_fault;
 mod transmission;
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::VecDeque;
 use std::sync::Arc;
 
 use firelink_wire::crc::crc1394;
@@ -192,8 +192,8 @@ struct Slot {
     phy: Option<u8>,
     queue: VecDeque<Pending>,
     arb_enable: bool,
-    /// Armed timers: token -> (stamp of its event, when it fires).
-    timers: BTreeMap<u64, (u64, SimTime)>,
+    /// Armed timers: (token, stamp of its event, when it fires).
+    timers: Vec<(u64, u64, SimTime)>,
     muted: bool,
     mute_fault: Option<FaultId>,
     babble: Option<BabbleState>,
@@ -220,6 +220,47 @@ struct Sub {
     /// The CRC status of `bytes`, worked out once for every node that
     /// receives them.
     crc: Option<CrcStatus>,
+}
+
+/// The subactions in progress by packet ID (a few at a time: a sorted
+/// vector, which allocates nothing per packet, where a tree would).
+#[derive(Debug, Default)]
+struct SubTable(Vec<Sub>);
+
+impl SubTable {
+    fn position(&self, id: PacketId) -> Result<usize, usize> {
+        self.0.binary_search_by_key(&id, |s| s.id)
+    }
+
+    fn get(&self, id: &PacketId) -> Option<&Sub> {
+        self.position(*id).ok().and_then(|i| self.0.get(i))
+    }
+
+    fn get_mut(&mut self, id: &PacketId) -> Option<&mut Sub> {
+        self.position(*id).ok().and_then(|i| self.0.get_mut(i))
+    }
+
+    /// Insert (or replace) the subaction `sub` of packet `id`.
+    fn insert(&mut self, id: PacketId, mut sub: Sub) {
+        sub.id = id;
+        match self.position(id) {
+            Ok(i) => {
+                if let Some(slot) = self.0.get_mut(i) {
+                    *slot = sub;
+                }
+            }
+            Err(i) => self.0.insert(i, sub),
+        }
+    }
+
+    fn remove(&mut self, id: &PacketId) -> Option<Sub> {
+        self.position(*id).ok().map(|i| self.0.remove(i))
+    }
+
+    /// Every subaction, in packet order, leaving the table empty.
+    fn take_all(&mut self) -> Vec<Sub> {
+        std::mem::take(&mut self.0)
+    }
 }
 
 #[derive(Debug)]
@@ -287,7 +328,7 @@ pub struct Bus {
     events: EventQueue,
     epoch: u64,
     medium: Medium,
-    subs: BTreeMap<PacketId, Sub>,
+    subs: SubTable,
     next_id: PacketId,
     arb_at: Option<SimTime>,
     trace: Trace,
@@ -334,7 +375,7 @@ impl Bus {
             medium: Medium::Idle {
                 since: SimTime::ZERO,
             },
-            subs: BTreeMap::new(),
+            subs: SubTable::default(),
             next_id: 0,
             arb_at: None,
             trace: Trace::default(),
@@ -366,7 +407,7 @@ impl Bus {
             phy: None,
             queue: VecDeque::new(),
             arb_enable: true,
-            timers: BTreeMap::new(),
+            timers: Vec::new(),
             muted: false,
             mute_fault: None,
             babble: None,

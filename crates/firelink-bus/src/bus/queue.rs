@@ -17,7 +17,7 @@
 //! the one a single heap would give.
 
 use std::cmp::Reverse;
-use std::collections::{BTreeMap, BinaryHeap};
+use std::collections::BinaryHeap;
 
 use super::Ev;
 use crate::time::SimTime;
@@ -92,8 +92,10 @@ enum Source {
 #[derive(Debug, Default)]
 pub(super) struct EventQueue {
     heap: BinaryHeap<Reverse<Queued>>,
-    /// (time, number) -> (node, token).
-    timers: BTreeMap<(SimTime, u64), (usize, u64)>,
+    /// ((time, number), (node, token)), latest first: the next timer is
+    /// the last (a handful are armed at a time; a sorted vector beats a
+    /// tree there).
+    timers: Vec<((SimTime, u64), (usize, u64))>,
     waves: Vec<Wave>,
     /// Arrival buffers of finished waves, kept for the next ones.
     spare: Vec<Vec<Arrival>>,
@@ -122,13 +124,18 @@ impl EventQueue {
     /// event carries).
     pub fn push_timer(&mut self, time: SimTime, node: usize, token: u64) -> u64 {
         let seq = self.next_seq();
-        self.timers.insert((time, seq), (node, token));
+        let key = (time, seq);
+        let at = self.timers.partition_point(|t| t.0 > key);
+        self.timers.insert(at, (key, (node, token)));
         seq
     }
 
     /// Take a timer queued with [`push_timer`](Self::push_timer) out again.
     pub fn cancel_timer(&mut self, time: SimTime, seq: u64) {
-        self.timers.remove(&(time, seq));
+        let key = (time, seq);
+        if let Ok(i) = self.timers.binary_search_by(|t| key.cmp(&t.0)) {
+            self.timers.remove(i);
+        }
     }
 
     /// Queue the deliveries of packet `sub` (epoch `epoch`) to `arrivals`:
@@ -169,7 +176,7 @@ impl EventQueue {
                 best = Some((source, key.0, key.1));
             }
         };
-        if let Some((&key, _)) = self.timers.first_key_value() {
+        if let Some(&(key, _)) = self.timers.last() {
             consider(Source::Timer, key);
         }
         for (i, w) in self.waves.iter().enumerate() {
@@ -196,7 +203,7 @@ impl EventQueue {
             }),
             Source::Timer => self
                 .timers
-                .pop_first()
+                .pop()
                 .map(|((time, seq), (node, token))| Popped {
                     time,
                     epoch: None,

@@ -32,8 +32,7 @@ impl Bus {
         self.epoch += 1;
         self.arb_at = None;
         self.started = true;
-        let subs = std::mem::take(&mut self.subs);
-        for sub in subs.into_values() {
+        for sub in self.subs.take_all() {
             if sub.kind == PacketKind::Request && !sub.notified {
                 self.push(
                     now,

@@ -150,7 +150,7 @@ impl Bus {
         slot.muted = true;
         slot.mute_fault = Some(id);
         slot.queue.clear();
-        for (_, (stamp, at)) in std::mem::take(&mut slot.timers) {
+        for (_, stamp, at) in std::mem::take(&mut slot.timers) {
             self.events.cancel_timer(at, stamp);
         }
         if let Some(d) = duration {

@@ -457,6 +457,47 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> ReadBlock<T> {
     pub fn set_motor_status(&mut self, motor: usize, value: MotorStatus) -> Result<()> {
         self.set_entry(Section::MotorStatus, motor, value.0)
     }
+
+    /// Set every quadlet of axis `axis` (0-based: its motor's and its
+    /// encoder's) at once, the layout's section table worked out once;
+    /// the encoder sections it does not have (Rev 4) and MOTOR_STATUS
+    /// before Rev 8 are left alone.
+    ///
+    /// # Errors
+    /// [`Error::Index`] for an axis beyond the layout's motors or encoders.
+    pub fn set_axis(
+        &mut self,
+        axis: usize,
+        motor: MotorReading,
+        encoder: EncoderReading,
+    ) -> Result<()> {
+        let (m, e) = (self.layout.motors(), self.layout.encoders());
+        if axis >= m || axis >= e {
+            return Err(Error::Index {
+                what: "axis",
+                index: axis,
+                count: m.min(e),
+            });
+        }
+        let sections = self.layout.encoder_sections();
+        let encoder_start = field::READ_FIXED_QUADLETS + m;
+        let buf = self.buffer.as_mut();
+        write_quadlet(buf, field::READ_FIXED_QUADLETS + axis, motor.adc.0);
+        let words = [
+            encoder.position.0,
+            encoder.period.0,
+            encoder.qtr1.0,
+            encoder.qtr5.0,
+            encoder.run.0,
+        ];
+        for (k, word) in words.into_iter().enumerate().take(sections) {
+            write_quadlet(buf, encoder_start + k * e + axis, word);
+        }
+        if self.layout.format() == BlockFormat::Rev8 {
+            write_quadlet(buf, encoder_start + sections * e + axis, motor.status.0);
+        }
+        Ok(())
+    }
 }
 
 /// One motor's quadlets of the read block.
@@ -883,6 +924,48 @@ mod tests {
     const REV7: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev7);
     const REV8: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev8);
     const DQLA8: BoardLayout = BoardLayout::dqla(FirmwareRev::Rev8);
+
+    #[test]
+    fn set_axis_writes_what_the_setters_write() {
+        let odd = BoardLayout::new(FirmwareRev::Rev8, 2, 3).unwrap();
+        for layout in [REV4, REV7, REV8, DQLA8, odd] {
+            let mut one = [0xA5u8; 256];
+            let mut each = [0xA5u8; 256];
+            for axis in 0..layout.motors().min(layout.encoders()) {
+                let n = axis as u32 * 16;
+                let motor = MotorReading {
+                    adc: AdcWord(0x1000 + n),
+                    status: MotorStatus(0x2000 + n),
+                };
+                let encoder = EncoderReading {
+                    position: EncPosition(0x3000 + n),
+                    period: EncPeriod(0x4000 + n),
+                    qtr1: EncQuarter(0x5000 + n),
+                    qtr5: EncQuarter(0x6000 + n),
+                    run: EncRun(0x7000 + n),
+                };
+                let mut a = ReadBlock::new_unchecked(&mut one[..], layout);
+                a.set_axis(axis, motor, encoder).unwrap();
+                let mut b = ReadBlock::new_unchecked(&mut each[..], layout);
+                b.set_adc(axis, motor.adc).unwrap();
+                b.set_enc_position(axis, encoder.position).unwrap();
+                if layout.format() != BlockFormat::Rev4 {
+                    b.set_enc_period(axis, encoder.period).unwrap();
+                    b.set_enc_qtr1(axis, encoder.qtr1).unwrap();
+                    b.set_enc_qtr5(axis, encoder.qtr5).unwrap();
+                    b.set_enc_run(axis, encoder.run).unwrap();
+                }
+                if layout.format() == BlockFormat::Rev8 {
+                    b.set_motor_status(axis, motor.status).unwrap();
+                }
+            }
+            assert_eq!(one, each, "{layout:?}");
+            let beyond = layout.motors().min(layout.encoders());
+            let mut block = ReadBlock::new_unchecked(&mut one[..], layout);
+            let none = (MotorReading::default(), EncoderReading::default());
+            assert!(block.set_axis(beyond, none.0, none.1).is_err());
+        }
+    }
 
     #[test]
     fn block_sizes_from_the_spec() {
