@@ -426,7 +426,7 @@ impl<P: Port> IoSystem<P> {
     }
 
     /// The broadcast queries of one cycle for the boards of `scan`
-    /// ([`scan::broadcast_groups`]), each with its hub block, hub read and
+    /// ([`crate::scan::broadcast_groups`]), each with its hub block, hub read and
     /// wait.
     ///
     /// # Errors

@@ -34,7 +34,9 @@ pub enum Protocol {
     Sequential,
     /// One block read per board, then one broadcast write of all commands.
     SequentialReadBroadcastWrite,
-    /// Query, wait, one hub read, one broadcast write (seed 000).
+    /// Query, wait, one hub read, one broadcast write (seed 000); the
+    /// query, wait and hub read once per group when the boards' blocks
+    /// overflow one hub ([`broadcast_groups`]).
     Broadcast,
 }
 
