@@ -202,6 +202,57 @@ fn sixteen_rev8_boards_overflow_the_hub_memory() {
     }
 }
 
+/// The host's two broadcast groups for 16 QLA1 Rev 8 boards, as the
+/// firmware sees them: a query selecting boards 0-7, then one selecting
+/// 8-15. Only the selected boards answer, the lowest selected board of each
+/// query goes first (~3 us), and each query restarts every board's hub
+/// memory from its start: after each, every board (selected or not) holds
+/// exactly that group's hub block (8 x 33 + 1 = 265 quadlets) with the
+/// timing quadlet, and nothing of the other group's answers.
+#[test]
+fn two_masked_queries_in_a_row_each_restart_the_hub() {
+    let ids: Vec<u8> = (0..16).collect();
+    let mut wire = Wire::new(Profile::Rev8, Hardware::Qla1, &ids);
+    let all = wire.slots();
+    for (seq, mask) in [(0x0101u16, 0x00FFu16), (0x0102, 0xFF00)] {
+        wire.log.clear();
+        wire.query(NodeId::BROADCAST, seq, mask);
+        let t_query = wire.now;
+        wire.run();
+        let answered: Vec<u8> = wire.log.iter().map(|(n, _)| *n).collect();
+        let selected: Vec<u8> = ids
+            .iter()
+            .copied()
+            .filter(|id| mask & (1 << id) != 0)
+            .collect();
+        assert_eq!(answered, selected, "query {seq:#x}");
+        let first = wire.log[0].1 - t_query;
+        assert!((first.as_micros_f64() - 150.0 / 49.152).abs() < 0.01);
+        let slots: Vec<BoardSlot> = all
+            .iter()
+            .copied()
+            .filter(|s| mask & (1 << s.id) != 0)
+            .collect();
+        let quadlets = hub_block_quadlets(slots.iter().map(|s| s.layout));
+        assert_eq!(quadlets, 265);
+        for b in &mut wire.boards {
+            b.now = wire.now + SimDuration::from_micros(5);
+            assert_eq!(b.read(0x1800), (u32::from(seq) << 16) | u32::from(mask));
+            assert_eq!(b.read(0x1802) as usize, quadlets, "board {}", b.node);
+            let hub = bytes(&b.read_block(0x1000, quadlets));
+            let block = HubBlock::new_checked(&hub[..], &slots).unwrap();
+            block.check_sequences(SeqRule::Rev8LowByte, seq).unwrap();
+            let named: Vec<u8> = block
+                .entries()
+                .map(|e| e.block.status().board_id())
+                .collect();
+            assert_eq!(named, selected, "board {}", b.node);
+            let timing = block.timing();
+            assert!(timing.read_start > 0 && timing.now >= timing.read_start);
+        }
+    }
+}
+
 #[test]
 fn query_with_1_to_16_boards_rev7() {
     for n in 1..=16 {

@@ -203,7 +203,8 @@ pub enum ProtocolArg {
     /// One block read per board, then one broadcast write of all commands.
     #[value(alias = "seq-bc", alias = "seqrbw")]
     SequentialReadBroadcastWrite,
-    /// Query, status broadcasts, one hub read, one broadcast write.
+    /// Query, status broadcasts, one hub read (each per broadcast group when
+    /// the boards overflow one hub), one broadcast write.
     #[value(alias = "bcast", alias = "bc")]
     Broadcast,
 }

@@ -6,7 +6,7 @@ use clap::Args;
 use serde::Serialize;
 
 use firelink_host::board::BoardInfo;
-use firelink_host::scan::{ScanReport, scan};
+use firelink_host::scan::{ScanReport, mask_boards, scan};
 use firelink_host::{Dest, Port};
 use firelink_wire::board::address::{AxisRegister, BoardRegister, Register};
 use firelink_wire::board::registers::{StatusRead, Temperature, Watchdog};
@@ -40,6 +40,8 @@ struct ScanJson {
     boards: Vec<BoardJson>,
     protocol: &'static str,
     protocol_reason: &'static str,
+    /// Broadcast protocol: the board IDs each query of a cycle selects.
+    broadcast_groups: Vec<Vec<u8>>,
     silent_nodes: Vec<u8>,
     unsupported_nodes: Vec<u8>,
     bridge_board: Option<u8>,
@@ -67,6 +69,11 @@ fn scan_json(port: &str, r: &ScanReport) -> ScanJson {
         boards: r.boards.iter().map(board_json).collect(),
         protocol: r.protocol.name(),
         protocol_reason: r.protocol_reason,
+        broadcast_groups: r
+            .broadcast_groups
+            .iter()
+            .map(|&mask| (0..16u8).filter(|id| mask & (1 << id) != 0).collect())
+            .collect(),
         silent_nodes: r.silent_nodes.clone(),
         unsupported_nodes: r.unsupported.iter().map(|u| u.node).collect(),
         bridge_board: r.bridge_board,
@@ -113,9 +120,17 @@ pub fn run_scan(args: &ScanArgs, out: &mut impl Write) -> Result<(), CliError> {
     writeln!(
         out,
         "protocol: {} ({})",
-        report.protocol.name(),
+        report.protocol_label(),
         report.protocol_reason
     )?;
+    if report.broadcast_groups.len() > 1 {
+        let groups: Vec<String> = report
+            .broadcast_groups
+            .iter()
+            .map(|&m| format!("boards {}", mask_boards(m)))
+            .collect();
+        writeln!(out, "broadcast groups: {}", groups.join(" | "))?;
+    }
     Ok(())
 }
 

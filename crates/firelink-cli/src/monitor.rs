@@ -55,11 +55,20 @@ pub fn render<P: Port>(io: &IoSystem<P>, f: &MonitorFigures) -> String {
     use std::fmt::Write as _;
     let mut s = String::new();
     let stats = io.stats();
+    let groups: Vec<String> = io
+        .broadcast_groups()
+        .map(|m| format!("boards {}", firelink_host::scan::mask_boards(m)))
+        .collect();
     let _ = writeln!(
         s,
-        "firelink monitor  port {}  protocol {}  hub board {}",
+        "firelink monitor  port {}  protocol {}{}  hub board {}",
         io.port().name(),
-        io.protocol().name(),
+        io.protocol_label(),
+        if groups.len() > 1 {
+            format!(" ({})", groups.join(" | "))
+        } else {
+            String::new()
+        },
         io.hub_board()
     );
     let _ = writeln!(

@@ -209,6 +209,46 @@ fn sim_port_strings_work_everywhere() {
     fails(&["scan", "--port", "sim:99"], "sim:99");
 }
 
+/// 16 QLA1 Rev 8 boards: the scan and the monitor name the broadcast
+/// protocol in two groups and the boards of each; `firelink sim`, whose
+/// phase table is for one query per cycle, says why it cannot tabulate it.
+#[test]
+fn sixteen_rev8_boards_are_named_as_two_broadcast_groups() {
+    let v = json(&["scan", "--port", "sim:16:8", "--json"]);
+    assert_eq!(v["boards"].as_array().unwrap().len(), 16);
+    assert_eq!(v["protocol"], "broadcast");
+    let groups: Vec<Vec<u64>> = serde_json::from_value(v["broadcast_groups"].clone()).unwrap();
+    assert_eq!(
+        groups,
+        vec![(0..8).collect::<Vec<u64>>(), (8..16).collect()]
+    );
+    let text = ok(&["scan", "--port", "sim:16:8"]);
+    assert!(text.contains("protocol: broadcast, 2 groups ("), "{text}");
+    assert!(
+        text.contains("broadcast groups: boards 0-7 | boards 8-15"),
+        "{text}"
+    );
+    let text = ok(&["monitor", "--port", "sim:16:8", "--once", "20"]);
+    assert!(
+        text.contains("protocol broadcast, 2 groups (boards 0-7 | boards 8-15)"),
+        "{text}"
+    );
+    assert!(text.contains("cycles 20"), "{text}");
+    assert!(text.contains("errors 0"), "{text}");
+    fails(
+        &[
+            "sim",
+            "--boards",
+            "16",
+            "--profile",
+            "rev8",
+            "--protocol",
+            "broadcast",
+        ],
+        "2 groups",
+    );
+}
+
 /// Per-board settings: companion board type and serials from the command
 /// line (and, with --config, the arms' serial numbers), shown at start;
 /// settings the boards cannot hold are refused with the reason.

@@ -1,6 +1,8 @@
 //! Issue 13, item 2: the broadcast protocol over loopback UDP never sees a
 //! hub that still holds the previous cycle, at any board count and however
-//! the host's and the emulator's threads are scheduled.
+//! the host's and the emulator's threads are scheduled. 16 QLA1 Rev 8
+//! boards overflow one hub and run in two broadcast groups: two queries
+//! and two hub reads per cycle, each of which must see its own query.
 //!
 //! On real boards the status broadcasts of every selected board are on the
 //! bus within a few microseconds of the query, long before a host can get a
@@ -27,10 +29,10 @@ use firelink_emulate::BridgeStats;
 use firelink_host::io::{IoOptions, IoStats, IoSystem};
 use firelink_host::scan::Protocol;
 
-/// Run `cycles` broadcast cycles (query, hub read, command write) against
-/// `boards` emulated boards; the host does not wait between query and hub
-/// read.
-fn run(boards: u8, profile: Profile, cycles: u64) -> (IoStats, BridgeStats) {
+/// Run `cycles` broadcast cycles (query and hub read per group, command
+/// write) against `boards` emulated boards; the host does not wait between
+/// a query and its hub read. Returns the broadcast groups too.
+fn run(boards: u8, profile: Profile, cycles: u64) -> (IoStats, BridgeStats, usize) {
     let server = Server::start(qla1s(boards, profile));
     let port = server.port(Duration::from_millis(100));
     let config = IoOptions {
@@ -41,6 +43,7 @@ fn run(boards: u8, profile: Profile, cycles: u64) -> (IoStats, BridgeStats) {
     let (mut io, scan) = IoSystem::open(port, config).unwrap();
     assert_eq!(scan.boards.len(), usize::from(boards));
     assert_eq!(io.protocol(), Protocol::Broadcast);
+    let groups = io.broadcast_groups().len();
     // Generous once discovery is done (absent nodes cost discovery one
     // time-out each): a time-out here would be a scheduling stall, not a
     // hub that missed its cycle, and must not turn into a later mismatch.
@@ -50,26 +53,33 @@ fn run(boards: u8, profile: Profile, cycles: u64) -> (IoStats, BridgeStats) {
     }
     let stats = *io.stats();
     drop(io);
-    (stats, server.stop())
+    (stats, server.stop(), groups)
 }
 
 #[test]
 fn broadcast_cycles_over_udp_never_miss_their_query() {
-    // 16 QLA1 boards fit the 512-quadlet hub only with Rev 7 blocks.
+    // 16 QLA1 boards fit the 512-quadlet hub in one group with Rev 7
+    // blocks; with Rev 8 blocks they take two groups.
     let runs: Vec<(u8, IoStats, BridgeStats)> = [
-        (1u8, Profile::Rev8),
-        (2, Profile::Rev8),
-        (4, Profile::Rev8),
-        (8, Profile::Rev8),
-        (16, Profile::Rev7),
+        (1u8, Profile::Rev8, 1),
+        (2, Profile::Rev8, 1),
+        (4, Profile::Rev8, 1),
+        (8, Profile::Rev8, 1),
+        (16, Profile::Rev7, 1),
+        (16, Profile::Rev8, 2),
     ]
     .into_iter()
-    .map(|(boards, profile)| {
-        let (io, bridge) = run(boards, profile, 2000);
+    .map(|(boards, profile, expected_groups)| {
+        let (io, bridge, groups) = run(boards, profile, 2000);
         eprintln!(
-            "{boards:2} boards: {} sequence errors, {} time-outs, {} clean of {} cycles; bridge: {bridge}",
-            io.sequence_errors, io.timeouts, io.clean_cycles, io.cycles
+            "{boards:2} boards ({}, {groups} group(s)): {} sequence errors, {} time-outs, {} clean of {} cycles; bridge: {bridge}",
+            profile.name(),
+            io.sequence_errors,
+            io.timeouts,
+            io.clean_cycles,
+            io.cycles
         );
+        assert_eq!(groups, expected_groups, "{boards} boards {profile:?}");
         (boards, io, bridge)
     })
     .collect();

@@ -15,6 +15,7 @@ use firelink_emulate::Handled;
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
 use firelink_host::{Dest, Port};
+use firelink_wire::board::address::{AxisRegister, Register};
 use firelink_wire::bridge::split_board_datagram;
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
 
@@ -71,6 +72,49 @@ fn every_protocol_runs_over_udp() {
         }
         io.cycle();
     }
+}
+
+/// 16 QLA1 Rev 8 boards (529 quadlets of status blocks, more than one
+/// 512-quadlet hub) run the broadcast protocol over UDP in two groups:
+/// every cycle clean, the hub read from the bridge board, and the one
+/// command block reaching every board of both groups.
+#[test]
+fn sixteen_rev8_boards_run_two_broadcast_groups_over_udp() {
+    let server = Server::start(qla1s(16, Profile::Rev8));
+    let p = server.port(TIMEOUT);
+    let (mut io, scan) = IoSystem::open(p, IoOptions::default()).unwrap();
+    assert_eq!(scan.boards.len(), 16);
+    assert_eq!(scan.protocol, Protocol::Broadcast);
+    assert_eq!(scan.broadcast_groups, vec![0x00FF, 0xFF00]);
+    assert_eq!(io.protocol_label(), "broadcast, 2 groups");
+    assert_eq!(io.hub_board(), scan.bridge_board.unwrap());
+    // Generous once discovery is done: a time-out would be a scheduling
+    // stall of this loaded machine, not a protocol error.
+    io.port_mut().set_timeout(Duration::from_secs(2));
+    for _ in 0..200 {
+        let r = *io.cycle();
+        assert!(r.all_ok(), "{r:?}");
+        assert_ne!(r.query_seq[0], r.query_seq[15]);
+    }
+    // A different current command on axis 1 of every board, and power.
+    let dac = |id: u8| 0x8000 + 0x100 * u16::from(id) + 0x21;
+    for b in io.boards_mut() {
+        let id = b.board_id();
+        b.set_power(true);
+        b.set_dac(0, dac(id)).unwrap();
+    }
+    io.cycle();
+    std::thread::sleep(Duration::from_millis(20));
+    io.cycle();
+    let offset = Register::axis(1, AxisRegister::Dac).offset().unwrap();
+    for id in 0..16u8 {
+        assert!(io.board(id).unwrap().power_enabled(), "board {id}");
+        let word = io.read_register(id, offset).unwrap();
+        assert_eq!(word & 0xFFFF, u32::from(dac(id)), "board {id}");
+    }
+    let stats = *io.stats();
+    assert_eq!(stats.total_errors(), 0, "{stats:?}");
+    assert_eq!(stats.clean_cycles, stats.cycles);
 }
 
 #[test]

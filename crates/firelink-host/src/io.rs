@@ -8,6 +8,10 @@
 //! - [`Protocol::Broadcast`] (seed 000): a broadcast query, a wait while the
 //!   boards broadcast their status, one block read of the hub memory from one
 //!   board, one broadcast write of all commands (`T = TQ + wait + TR + TW`).
+//!   Boards whose blocks together overflow the hub memory run in broadcast
+//!   groups ([`crate::scan::broadcast_groups`]): query, wait and hub read
+//!   once per group, each query with its own sequence number and the
+//!   group's board mask, then the one command write to all boards.
 //!
 //! Every cycle checks that each expected board answered: its block size,
 //! its board ID and (broadcast) the sequence number. A board that misses a
@@ -41,14 +45,15 @@ pub struct IoOptions {
     pub protocol: Option<Protocol>,
     /// Board to read the hub from; `None`: the bridge board, else the lowest ID.
     pub hub_board: Option<u8>,
-    /// Wait between the query and the hub read; `None`: 10 + 5 x boards us,
-    /// as the reference host waits.
+    /// Wait between a query and its hub read (with broadcast groups,
+    /// after each group's query); `None`: 10 + 5 x the boards the query
+    /// selects, in us, as the reference host waits.
     pub broadcast_wait: Option<Duration>,
     /// Sequence rule; `None`: the rule of the boards' firmware.
     pub seq_rule: Option<SeqRule>,
-    /// Quadlets the hub read asks for (at least the hub block's); `None`:
-    /// the hub block, or for Rev 4 boards the fixed 16-board block the
-    /// hosts of seed 000's era read.
+    /// Quadlets each hub read asks for (at least the largest group's hub
+    /// block); `None`: the group's hub block, or for Rev 4 boards the fixed
+    /// 16-board block the hosts of seed 000's era read.
     pub hub_read_quadlets: Option<usize>,
     /// Where the broadcast protocol's query and commands go.
     pub broadcast_route: BroadcastRoute,
@@ -93,8 +98,12 @@ impl BroadcastRoute {
 pub struct CycleReport {
     /// Cycle number (from 1).
     pub cycle: u64,
-    /// Query sequence number (broadcast protocol), 0 otherwise.
+    /// Query sequence number (broadcast protocol: the cycle's first query;
+    /// each board's own in `query_seq`), 0 otherwise.
     pub seq: u16,
+    /// Broadcast protocol: the sequence number of the query that selected
+    /// each board this cycle (its group's), by board ID; 0 otherwise.
+    pub query_seq: [u16; MAX_BOARDS],
     /// Port time when the read phase started.
     pub started: Duration,
     /// Duration of the read phase (query + wait + hub read, or all reads).
@@ -106,7 +115,7 @@ pub struct CycleReport {
     /// Why each missed board missed, by board ID.
     pub reasons: [Option<MissReason>; MAX_BOARDS],
     /// Broadcast protocol: when each board's block reached the hub, in us
-    /// after the query (from the hub headers), by board ID.
+    /// after its query (from the hub headers), by board ID.
     pub update_time_us: [f32; MAX_BOARDS],
     /// The first port error of the cycle, if any.
     pub error: Option<HostError>,
@@ -120,6 +129,7 @@ impl CycleReport {
     pub const EMPTY: CycleReport = CycleReport {
         cycle: 0,
         seq: 0,
+        query_seq: [0; MAX_BOARDS],
         started: Duration::ZERO,
         read_time: Duration::ZERO,
         write_time: Duration::ZERO,
@@ -268,13 +278,10 @@ pub struct IoSystem<P: Port> {
     hub: usize,
     seq: u16,
     rule: SeqRule,
-    wait: Duration,
     config: IoOptions,
-    board_mask: u16,
-    /// Quadlets of the hub block the boards fill, and of the hub read
-    /// (more for Rev 4 boards: a fixed 16-board block).
-    hub_quadlets: usize,
-    hub_read_quadlets: usize,
+    /// Broadcast protocol: the queries of one cycle, in order (empty for
+    /// the other protocols).
+    groups: Vec<QueryGroup>,
     buf: Vec<u8>,
     cmd: Vec<u8>,
     report: CycleReport,
@@ -290,6 +297,24 @@ pub struct IoSystem<P: Port> {
 
 /// Finished cycles whose reports an [`IoSystem`] keeps.
 pub const HISTORY: usize = 1024;
+
+/// One broadcast query of a cycle and the hub block it fills.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct QueryGroup {
+    /// The query's board mask.
+    mask: u16,
+    /// The selected boards' indices in the system (ascending board ID).
+    members: Vec<usize>,
+    /// Their slots, in the same order: the hub block's entries.
+    slots: Vec<BoardSlot>,
+    /// Quadlets of the hub block these boards fill ...
+    hub_quadlets: usize,
+    /// ... and of the hub read (more for Rev 4 boards: a fixed 16-board
+    /// block).
+    hub_read_quadlets: usize,
+    /// Between the query and the hub read.
+    wait: Duration,
+}
 
 /// Per board (index in the system): its block from the hub, or why it
 /// has none; `None` when no block came.
@@ -328,11 +353,8 @@ impl<P: Port> IoSystem<P> {
             hub: 0,
             seq: 0,
             rule: SeqRule::Rev8LowByte,
-            wait: Duration::ZERO,
             config,
-            board_mask: 0,
-            hub_quadlets: 0,
-            hub_read_quadlets: 0,
+            groups: Vec::new(),
             buf: Vec::new(),
             cmd: Vec::new(),
             report: CycleReport::EMPTY,
@@ -355,7 +377,9 @@ impl<P: Port> IoSystem<P> {
                 layout: b.layout,
             })
             .collect();
-        self.board_mask = scan.boards.iter().fold(0, |m, b| m | (1 << b.board_id));
+        // One hub board for every group: every board stores every status
+        // broadcast, selected or not, and the bridge board's own hub is one
+        // FireWire hop nearer.
         let hub_id = self
             .config
             .hub_board
@@ -375,17 +399,46 @@ impl<P: Port> IoSystem<P> {
                 .map(|b| SeqRule::for_firmware(b.info().layout.firmware()))
                 .unwrap_or(SeqRule::Rev8LowByte)
         });
-        self.wait = self
-            .config
-            .broadcast_wait
-            .unwrap_or(Duration::from_micros(10 + 5 * self.boards.len() as u64));
         let read_max = self
             .boards
             .iter()
             .map(|b| b.info().layout.read_block_len())
             .max()
             .unwrap_or(0);
-        self.hub_quadlets = hub_block_quadlets(self.slots.iter().map(|s| s.layout));
+        self.groups = match self.protocol {
+            Protocol::Broadcast => self.query_groups(scan)?,
+            Protocol::Sequential | Protocol::SequentialReadBroadcastWrite => Vec::new(),
+        };
+        let hub_read_max = self
+            .groups
+            .iter()
+            .map(|g| g.hub_read_quadlets)
+            .max()
+            .unwrap_or(0);
+        self.buf = vec![0; read_max.max(hub_read_max * 4)];
+        let cmd: usize = self
+            .boards
+            .iter()
+            .map(|b| b.info().layout.write_block_len())
+            .sum();
+        self.cmd = vec![0; cmd];
+        Ok(())
+    }
+
+    /// The broadcast queries of one cycle for the boards of `scan`
+    /// ([`crate::scan::broadcast_groups`]), each with its hub block, hub read and
+    /// wait.
+    ///
+    /// # Errors
+    /// [`HostError::InvalidRequest`] when these boards cannot run the
+    /// broadcast protocol, or the asked hub read is shorter than a group's
+    /// hub block.
+    fn query_groups(&self, scan: &ScanReport) -> Result<Vec<QueryGroup>> {
+        let masks =
+            crate::scan::broadcast_groups(&scan.boards).ok_or(HostError::InvalidRequest {
+                what: "the boards' hub blocks do not fit the hub memory",
+                value: scan.boards.len() as u32,
+            })?;
         // Hosts of seed 000's era read a fixed 16-board hub block.
         let rev4 = !self.slots.is_empty()
             && self
@@ -398,25 +451,48 @@ impl<P: Port> IoSystem<P> {
             .map(|s| s.layout.broadcast_quadlets())
             .max()
             .unwrap_or(0);
-        self.hub_read_quadlets = match self.config.hub_read_quadlets {
-            Some(q) if q < self.hub_quadlets => {
-                return Err(HostError::InvalidRequest {
-                    what: "hub read shorter than the hub block",
-                    value: q as u32,
-                });
-            }
-            Some(q) => q,
-            None if rev4 => self.hub_quadlets.max(MAX_BOARDS * per_board),
-            None => self.hub_quadlets,
-        };
-        self.buf = vec![0; read_max.max(self.hub_read_quadlets * 4)];
-        let cmd: usize = self
-            .boards
-            .iter()
-            .map(|b| b.info().layout.write_block_len())
-            .sum();
-        self.cmd = vec![0; cmd];
-        Ok(())
+        let mut groups = Vec::with_capacity(masks.len());
+        for mask in masks {
+            let members: Vec<usize> = self
+                .slots
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| {
+                    1u16.checked_shl(u32::from(s.id))
+                        .is_some_and(|bit| mask & bit != 0)
+                })
+                .map(|(i, _)| i)
+                .collect();
+            let slots: Vec<BoardSlot> = members
+                .iter()
+                .filter_map(|&i| self.slots.get(i).copied())
+                .collect();
+            let hub_quadlets = hub_block_quadlets(slots.iter().map(|s| s.layout));
+            let hub_read_quadlets = match self.config.hub_read_quadlets {
+                Some(q) if q < hub_quadlets => {
+                    return Err(HostError::InvalidRequest {
+                        what: "hub read shorter than the hub block",
+                        value: q as u32,
+                    });
+                }
+                Some(q) => q,
+                None if rev4 => hub_quadlets.max(MAX_BOARDS * per_board),
+                None => hub_quadlets,
+            };
+            let wait = self
+                .config
+                .broadcast_wait
+                .unwrap_or(Duration::from_micros(10 + 5 * members.len() as u64));
+            groups.push(QueryGroup {
+                mask,
+                members,
+                slots,
+                hub_quadlets,
+                hub_read_quadlets,
+                wait,
+            });
+        }
+        Ok(groups)
     }
 
     /// Scan again (after a bus reset) keeping the protocol; boards that
@@ -468,12 +544,25 @@ impl<P: Port> IoSystem<P> {
         self.protocol
     }
 
+    /// Broadcast protocol: the board mask of each query of a cycle, in
+    /// order (one when every board's block fits one hub block); empty for
+    /// the other protocols.
+    pub fn broadcast_groups(&self) -> impl ExactSizeIterator<Item = u16> + '_ {
+        self.groups.iter().map(|g| g.mask)
+    }
+
+    /// The protocol in use as reports name it: `broadcast, 2 groups` when
+    /// the broadcast protocol runs in groups ([`crate::scan::protocol_label`]).
+    pub fn protocol_label(&self) -> String {
+        crate::scan::protocol_label(self.protocol, self.groups.len())
+    }
+
     /// The sequence rule in use.
     pub fn seq_rule(&self) -> SeqRule {
         self.rule
     }
 
-    /// Board ID of the hub board.
+    /// Board ID of the hub board (every group's hub block is read from it).
     pub fn hub_board(&self) -> u8 {
         self.boards.get(self.hub).map_or(0, |b| b.board_id())
     }
@@ -727,20 +816,48 @@ impl<P: Port> IoSystem<P> {
         }
     }
 
-    /// The broadcast protocol's read: query, wait for the status
-    /// broadcasts, one hub read, each hub block taken for its board.
+    /// The broadcast protocol's read: per group, query, wait for the
+    /// status broadcasts, one hub read, each hub block taken for its board.
     fn read_broadcast(&mut self) {
-        if let Err(e) = self.send_query() {
-            self.note_error(e);
-            self.miss_all(MissReason::Transaction);
+        for g in 0..self.groups.len() {
+            self.read_group(g);
+        }
+    }
+
+    /// Group `g`'s query, wait and hub read. After a bus reset (in this
+    /// group or an earlier one) no request goes out: node numbers may
+    /// have moved.
+    fn read_group(&mut self, g: usize) {
+        if self.needs_rescan {
+            self.miss_group(g, MissReason::Transaction);
             return;
         }
-        self.await_broadcasts();
-        let hub_len = self.hub_quadlets * 4;
-        let read_len = self.hub_read_quadlets * 4;
+        let Some((mask, wait)) = self.groups.get(g).map(|q| (q.mask, q.wait)) else {
+            return;
+        };
+        let seq = match self.send_query(mask) {
+            Ok(seq) => seq,
+            Err(e) => {
+                self.note_error(e);
+                self.miss_group(g, MissReason::Transaction);
+                return;
+            }
+        };
+        if let Some(group) = self.groups.get(g) {
+            for slot in &group.slots {
+                if let Some(s) = self.report.query_seq.get_mut(usize::from(slot.id)) {
+                    *s = seq;
+                }
+            }
+        }
+        self.await_broadcasts(seq, mask, wait);
+        let (hub_len, read_len) = self
+            .groups
+            .get(g)
+            .map_or((0, 0), |q| (q.hub_quadlets * 4, q.hub_read_quadlets * 4));
         let hub_node = self.boards.get(self.hub).map_or(0, |b| b.info().node);
         let Some(buf) = self.buf.get_mut(..read_len) else {
-            self.miss_all(MissReason::Transaction);
+            self.miss_group(g, MissReason::Transaction);
             return;
         };
         if let Err(e) = self
@@ -748,56 +865,73 @@ impl<P: Port> IoSystem<P> {
             .read_block(Dest::node(hub_node), HUB_MEMORY_OFFSET, buf)
         {
             self.note_error(e);
-            self.miss_all(MissReason::Transaction);
+            self.miss_group(g, MissReason::Transaction);
             return;
         }
-        let outcomes = match self.hub_outcomes(hub_len) {
+        let outcomes = match self.hub_outcomes(g, hub_len, seq) {
             Ok(o) => o,
             Err(e) => {
                 let reason = miss_from_wire(e);
                 self.stats.count_error(&HostError::Wire(e));
-                self.miss_all(reason);
+                self.miss_group(g, reason);
                 return;
             }
         };
-        for (i, outcome) in outcomes.into_iter().enumerate() {
-            match outcome {
+        let members = self.groups.get(g).map_or(0, |q| q.members.len());
+        for k in 0..members {
+            let Some(i) = self.groups.get(g).and_then(|q| q.members.get(k)).copied() else {
+                break;
+            };
+            match outcomes.get(i).copied().flatten() {
                 Some(Ok(repr)) => {
                     if let Some(b) = self.boards.get_mut(i) {
                         b.latch(repr);
                     }
                 }
                 Some(Err(reason)) => self.miss(i, reason),
-                None if i < self.boards.len() => self.miss(i, MissReason::NotUpdated),
-                None => {}
+                None => self.miss(i, MissReason::NotUpdated),
             }
         }
     }
 
-    /// The next query, on its broadcast route (without waiting).
-    fn send_query(&mut self) -> Result<()> {
+    /// Every board of group `g` missed the cycle for `reason`.
+    fn miss_group(&mut self, g: usize, reason: MissReason) {
+        let members = self.groups.get(g).map_or(0, |q| q.members.len());
+        for k in 0..members {
+            if let Some(i) = self.groups.get(g).and_then(|q| q.members.get(k)).copied() {
+                self.miss(i, reason);
+            }
+        }
+    }
+
+    /// The next query, selecting the boards of `mask`, on its broadcast
+    /// route (without waiting); returns its sequence number.
+    fn send_query(&mut self, mask: u16) -> Result<u16> {
         self.seq = self.rule.next_seq(self.seq);
-        self.report.seq = self.seq;
+        if self.report.seq == 0 {
+            self.report.seq = self.seq;
+        }
         let query = Query {
             seq: self.seq,
-            board_mask: self.board_mask,
+            board_mask: mask,
         };
         let word = query.to_word()?;
         let route = self.config.broadcast_route;
         self.port
-            .start_write_quadlet(route.query(), HUB_QUERY_OFFSET, word)
+            .start_write_quadlet(route.query(), HUB_QUERY_OFFSET, word)?;
+        Ok(self.seq)
     }
 
-    /// Wait for the boards' status broadcasts: until every expected one
-    /// of this query was overheard (at most the wait), or the whole wait.
-    fn await_broadcasts(&mut self) {
+    /// Wait for the status broadcasts answering query `seq` of the boards
+    /// of `expected`: until every one was overheard (at most `wait`), or
+    /// the whole `wait`.
+    fn await_broadcasts(&mut self, seq: u16, expected: u16, wait: Duration) {
         if !self.config.listen_for_broadcasts {
-            self.port.wait(self.wait);
+            self.port.wait(wait);
             return;
         }
-        let (seq, expected) = (self.seq, self.board_mask);
         let mut heard = 0u16;
-        self.port.wait_until_heard(self.wait, &mut |bytes| {
+        self.port.wait_until_heard(wait, &mut |bytes| {
             if let Ok(packet) = Packet::new_checked(bytes)
                 && let Some((header, board)) = status_broadcast_board(&packet)
                 && header.seq == seq
@@ -808,39 +942,47 @@ impl<P: Port> IoSystem<P> {
         });
     }
 
-    /// Each board's outcome from the hub memory read into the buffer
-    /// (`hub_len` bytes): its block, or why it has none (`None`: no block
-    /// came); the update times go into the report.
+    /// Each board's outcome from group `g`'s hub memory read into the
+    /// buffer (`hub_len` bytes) after query `seq`, by index in the system:
+    /// its block, or why it has none (`None`: no block came, or the board
+    /// is not in the group); the update times go into the report.
     ///
     /// # Errors
     /// The hub memory does not decode.
     fn hub_outcomes(
         &mut self,
+        g: usize,
         hub_len: usize,
+        seq: u16,
     ) -> core::result::Result<HubOutcomes, firelink_wire::Error> {
-        let hub = HubBlock::new_checked(&self.buf[..hub_len], &self.slots)?;
+        let mut outcomes: HubOutcomes = [None; MAX_BOARDS];
+        let Some(group) = self.groups.get(g) else {
+            return Ok(outcomes);
+        };
+        let bytes = self.buf.get(..hub_len).unwrap_or(&[]);
+        let hub = HubBlock::new_checked(bytes, &group.slots)?;
         let clock_us = 1e6 / f64::from(SYSTEM_CLOCK_HZ);
         // The hub packs blocks in arrival order, which is board order for
         // the Rev 7+ chain but not always for TDMA slots (a late slot, fair
-        // arbitration): when every block has the same size, each one is
-        // taken for the board its STATUS names.
-        let uniform = self.slots.windows(2).all(|w| w[0].layout == w[1].layout);
-        let mut outcomes: HubOutcomes = [None; MAX_BOARDS];
+        // arbitration, a late answer to an earlier group's query): when
+        // every block has the same size, each one is taken for the board
+        // its STATUS names.
+        let uniform = group.slots.windows(2).all(|w| w[0].layout == w[1].layout);
         for (i, entry) in hub.entries().enumerate() {
             let named = entry.block.status().board_id();
-            let index = if uniform {
-                match self.slots.iter().position(|s| s.id == named) {
+            let k = if uniform {
+                match group.slots.iter().position(|s| s.id == named) {
                     Some(k) => k,
-                    // A block of a board not in use: no one's data.
+                    // A block of a board not in this query: no one's data.
                     None => continue,
                 }
             } else {
                 i
             };
-            let Some(slot) = self.slots.get(index) else {
+            let (Some(slot), Some(&index)) = (group.slots.get(k), group.members.get(k)) else {
                 continue;
             };
-            let outcome = match entry.validate(self.rule, self.seq) {
+            let outcome = match entry.validate(self.rule, seq) {
                 Err(e) => Err(miss_from_wire(e)),
                 Ok(()) => match ReadBlockRepr::parse(&entry.block) {
                     Ok(repr) if repr.status.board_id() != slot.id => {

@@ -42,8 +42,10 @@ fn scan_finds_1_8_and_16_boards() {
         (1, Profile::Rev8, Protocol::Broadcast),
         (8, Profile::Rev8, Protocol::Broadcast),
         (8, Profile::Rev7, Protocol::Broadcast),
-        // 16 QLA1 Rev 8 blocks (529 quadlets) do not fit the 512-quadlet hub.
-        (16, Profile::Rev8, Protocol::SequentialReadBroadcastWrite),
+        // 16 QLA1 Rev 8 blocks (529 quadlets) do not fit the 512-quadlet
+        // hub together: two broadcast groups (this used to fall back to
+        // sequential reads with a broadcast write).
+        (16, Profile::Rev8, Protocol::Broadcast),
         (16, Profile::Rev7, Protocol::Broadcast),
     ] {
         let mut p = port(n, profile);
@@ -60,6 +62,12 @@ fn scan_finds_1_8_and_16_boards() {
             assert_eq!(b.firmware, if profile == Profile::Rev8 { 8 } else { 7 });
         }
         assert_eq!(report.protocol, protocol, "{n} boards {profile:?}");
+        let groups = if (n, profile) == (16, Profile::Rev8) {
+            vec![0x00FF, 0xFF00]
+        } else {
+            vec![((1u32 << n) - 1) as u16]
+        };
+        assert_eq!(report.broadcast_groups, groups, "{n} boards {profile:?}");
         assert!(report.silent_nodes.is_empty());
     }
 }

@@ -374,10 +374,11 @@ pub fn run(options: &SimOptions) -> Result<SimRun, TestbedError> {
 ///
 /// # Errors
 /// [`TestbedError::Config`] for a board count outside 1..=16 or the
-/// sequential-read/broadcast-write protocol (not a phase table); the host
-/// library's errors when the protocol cannot run on these boards (16 Rev 8
-/// boards do not fit the hub memory; a hub block larger than one packet at
-/// the chosen speed).
+/// sequential-read/broadcast-write protocol (not a phase table), or boards
+/// that run the broadcast protocol in more than one group (16 Rev 8
+/// boards: two queries and hub reads per cycle, not the one-query phase
+/// table); the host library's errors when the protocol cannot run on these
+/// boards (a hub block larger than one packet at the chosen speed).
 pub fn prepare(options: &SimOptions) -> Result<PreparedSim, TestbedError> {
     let n = options.boards;
     if !(1..=16).contains(&n) {
@@ -451,6 +452,13 @@ pub fn prepare(options: &SimOptions) -> Result<PreparedSim, TestbedError> {
         listen_for_broadcasts: !options.host_overhead,
     };
     let (mut io, _) = IoSystem::open(TracingPort::new(port), config)?;
+    let groups = io.broadcast_groups().len();
+    if groups > 1 {
+        return Err(TestbedError::Config(format!(
+            "{n} boards run the broadcast protocol in {groups} groups (their hub blocks \
+             exceed one hub memory): the phase table is for one query per cycle"
+        )));
+    }
     // Start from a quiet bus.
     io.port_mut().wait(QUIET);
     io.port_mut().clear();

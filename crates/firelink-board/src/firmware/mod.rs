@@ -41,8 +41,12 @@
 //!   slot. The seed profile answers every query in its TDMA slot whatever
 //!   the mask ([`seed_slot`]: clock-exact on Rev 4, seed 000's firmware).
 //! - Hub memory holds 512 quadlets: entries that do not fit are dropped
-//!   (16 QLA1 Rev 8 boards need 529). A board that missed the query keeps
-//!   appending to the previous cycle. The timing quadlet reads
+//!   (16 QLA1 Rev 8 boards need 529, so hosts query them in two groups).
+//!   Every query restarts the hub from its start whatever its mask, and
+//!   every board, selected or not, stores the selected boards' broadcasts.
+//!   Quadlets past those written since the query read what the memory
+//!   last held there (as `hdl/` does), not 0. A board that missed the
+//!   query keeps appending to the previous cycle. The timing quadlet reads
 //!   `read_start` = clocks from the query to the hub read, `now` = clocks
 //!   from the query to the moment that quadlet goes out (4 clocks per
 //!   quadlet at S400).

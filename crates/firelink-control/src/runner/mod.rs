@@ -746,7 +746,12 @@ impl<R: RobotIo> Robot<R> {
             let kind = match reason {
                 Some(MissReason::CorruptQuery) => FaultKind::Sequence {
                     board_id: id,
-                    expected: report.seq,
+                    expected: report
+                        .query_seq
+                        .get(usize::from(id))
+                        .copied()
+                        .filter(|&s| s != 0)
+                        .unwrap_or(report.seq),
                     received: 0xFFFF,
                 },
                 _ => FaultKind::MissedBoard {

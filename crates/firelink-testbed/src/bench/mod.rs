@@ -82,8 +82,10 @@ pub struct BenchOptions {
     pub firmware: Profile,
     /// Control period for the budget check, us.
     pub period_us: f64,
-    /// Broadcast protocol: the host's wait between query and hub read, us
-    /// per board (seed 000's PC sleeps 5 us x N).
+    /// Broadcast protocol: the host's wait between a query and its hub
+    /// read, us per board the query selects (seed 000's PC sleeps 5 us x
+    /// N; boards in two broadcast groups wait 5 us x the larger group after
+    /// each query).
     pub wait_us_per_board: f64,
     /// Idle bus time between cycles, us (a paced loop leaves the bus idle).
     pub idle_us: f64,
@@ -200,6 +202,9 @@ pub struct BenchPoint {
     pub protocol: &'static str,
     /// The protocol asked for (the scan may refuse it: see `note`).
     pub protocol_asked: &'static str,
+    /// Broadcast protocol: queries per cycle (one per broadcast group:
+    /// 16 QLA1 Rev 8 boards take two); 0 for the other protocols.
+    pub broadcast_groups: usize,
     /// Boards.
     pub boards: usize,
     /// I/O time per cycle.
@@ -261,6 +266,7 @@ struct Raw {
     udp: Option<(String, udp::ModeRun)>,
     protocol: Protocol,
     asked: Protocol,
+    groups: usize,
     boards: usize,
     io: Percentiles,
     read: f64,
@@ -268,6 +274,73 @@ struct Raw {
     cycles: u64,
     errors: u64,
     note: Option<String>,
+}
+
+/// How a point runs the protocol asked on the boards a scan found.
+struct Plan {
+    /// The protocol used (the one asked, or the best the boards allow).
+    protocol: Protocol,
+    /// Broadcast groups (0 for the sequential protocols).
+    groups: usize,
+    /// Why the protocol or its groups are not the plain one asked.
+    note: Option<String>,
+    /// The host's wait after each query.
+    wait: Duration,
+}
+
+impl Plan {
+    fn of(
+        scan: &firelink_host::scan::ScanReport,
+        protocol: Protocol,
+        options: &BenchOptions,
+    ) -> Plan {
+        let used = protocol.min(scan.protocol);
+        let groups = match used {
+            Protocol::Broadcast => scan.broadcast_groups.len(),
+            _ => 0,
+        };
+        let note = if used != protocol {
+            Some(scan.protocol_reason.to_string())
+        } else if groups > 1 {
+            let masks: Vec<String> = scan
+                .broadcast_groups
+                .iter()
+                .map(|&m| firelink_host::scan::mask_boards(m))
+                .collect();
+            Some(format!(
+                "{groups} broadcast groups (boards {}): {}",
+                masks.join(" | "),
+                scan.protocol_reason
+            ))
+        } else {
+            None
+        };
+        // The wait after each query: per board it selects (the largest
+        // group).
+        let per_query = scan
+            .broadcast_groups
+            .iter()
+            .map(|m| m.count_ones() as usize)
+            .max()
+            .filter(|_| groups > 0)
+            .unwrap_or(scan.boards.len());
+        Plan {
+            protocol: used,
+            groups,
+            note,
+            wait: Duration::from_secs_f64(
+                options.wait_us_per_board.max(0.0) * per_query as f64 / 1e6,
+            ),
+        }
+    }
+
+    fn options(&self) -> IoOptions {
+        IoOptions {
+            protocol: Some(self.protocol),
+            broadcast_wait: Some(self.wait),
+            ..IoOptions::default()
+        }
+    }
 }
 
 /// Run `cycles` I/O cycles on an open system: I/O-time percentiles, mean
@@ -308,19 +381,9 @@ fn point<P: Port>(
     options: &BenchOptions,
 ) -> Result<Raw, TestbedError> {
     let scan = firelink_host::scan::scan(&mut port)?;
-    let used = protocol.min(scan.protocol);
-    let note = (used != protocol).then(|| scan.protocol_reason.to_string());
-    let io = IoSystem::with_scan(
-        port,
-        &scan,
-        IoOptions {
-            protocol: Some(used),
-            broadcast_wait: Some(Duration::from_secs_f64(
-                options.wait_us_per_board.max(0.0) * boards as f64 / 1e6,
-            )),
-            ..IoOptions::default()
-        },
-    )?;
+    let plan = Plan::of(&scan, protocol, options);
+    let (used, groups, note) = (plan.protocol, plan.groups, plan.note.clone());
+    let io = IoSystem::with_scan(port, &scan, plan.options())?;
     let idle = Duration::from_secs_f64(options.idle_us.max(0.0) / 1e6);
     let (io, read, write, errors) = measure(io, options.cycles.max(1), idle);
     Ok(Raw {
@@ -329,6 +392,7 @@ fn point<P: Port>(
         udp: None,
         protocol: used,
         asked: protocol,
+        groups,
         boards,
         io,
         read,
@@ -379,9 +443,12 @@ fn model(base: &Raw, boards: usize) -> Raw {
         Protocol::Sequential => base.io.median / n * m,
         // Per board: one read; one broadcast write.
         Protocol::SequentialReadBroadcastWrite => base.read / n * m + base.write,
-        // One bus holds 16 board IDs (15 per hub at Rev 8): groups of 15,
-        // each with its own query, wait, hub read and command broadcast.
-        Protocol::Broadcast => base.io.median * (m / 15.0).ceil(),
+        // Per board: its share of the measured cycle (its status broadcast
+        // and hub entry, and of its group's query, wait and hub read and of
+        // the command write). A bus holds 16 board IDs, in two broadcast
+        // groups at Rev 8, so more boards take more buses or groups of the
+        // same kind.
+        Protocol::Broadcast => base.io.median / n * m,
     };
     Raw {
         boards,
@@ -393,6 +460,8 @@ fn model(base: &Raw, boards: usize) -> Raw {
         },
         read: f64::NAN,
         write: f64::NAN,
+        // The same groups per board as measured.
+        groups: (base.groups as f64 * m / n).ceil() as usize,
         cycles: 0,
         errors: 0,
         note: Some(format!(
@@ -429,6 +498,7 @@ fn finish(raw: &Raw, compute: f64, period_us: f64) -> BenchPoint {
         transport: raw.transport.name(),
         protocol: raw.protocol.name(),
         protocol_asked: raw.asked.name(),
+        broadcast_groups: raw.groups,
         boards: raw.boards,
         io_time_us: IoTime {
             median: round2(raw.io.median),
@@ -482,6 +552,7 @@ fn udp_raws(
             wait: Some(m.wait),
             protocol: m.protocol,
             asked: protocol,
+            groups: m.groups,
             boards: m.boards,
             io: m.io,
             read: m.read,
@@ -603,7 +674,10 @@ impl fmt::Display for BenchReport {
                 f,
                 "{:<9} {:<32} {:>6} {:>9} {:>9} {:>9} {:>8} Hz {:>10}  {}",
                 transport(r),
-                r.protocol,
+                firelink_host::scan::protocol_label(
+                    Protocol::from_name(r.protocol).unwrap_or(Protocol::Sequential),
+                    r.broadcast_groups
+                ),
                 r.boards,
                 num(Some(r.io_time_us.median)),
                 num(Some(r.io_time_us.p99)),

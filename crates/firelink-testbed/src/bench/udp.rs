@@ -20,7 +20,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use firelink_control::runner::Percentiles;
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::io::IoSystem;
 use firelink_host::scan::Protocol;
 use firelink_host::transaction::LinkStats;
 use firelink_host::udp::{UdpPort, WaitMode, is_wait_over};
@@ -271,6 +271,8 @@ fn cpu_over<T>(clock: Option<ThreadCpuClock>, work: impl FnOnce() -> T) -> (T, D
 pub(super) struct ModeRun {
     pub wait: WaitMode,
     pub protocol: Protocol,
+    /// Broadcast groups (0: a sequential protocol).
+    pub groups: usize,
     pub boards: usize,
     pub note: Option<String>,
     pub io: Percentiles,
@@ -294,6 +296,7 @@ pub(super) struct ModeRun {
 struct Side {
     wait: WaitMode,
     protocol: Protocol,
+    groups: usize,
     boards: usize,
     note: Option<String>,
     io: IoSystem<Recorder<UdpPort>>,
@@ -334,20 +337,10 @@ impl Side {
         let scan = firelink_host::scan::scan(&mut port);
         port.inner.set_timeout(rig::UDP_TIMEOUT);
         let scan = scan?;
-        let used = protocol.min(scan.protocol);
-        let note = (used != protocol).then(|| scan.protocol_reason.to_string());
+        let plan = super::Plan::of(&scan, protocol, options);
+        let (used, groups, note) = (plan.protocol, plan.groups, plan.note.clone());
         let boards = scan.boards.len();
-        let mut io = IoSystem::with_scan(
-            port,
-            &scan,
-            IoOptions {
-                protocol: Some(used),
-                broadcast_wait: Some(Duration::from_secs_f64(
-                    options.wait_us_per_board.max(0.0) * boards as f64 / 1e6,
-                )),
-                ..IoOptions::default()
-            },
-        )?;
+        let mut io = IoSystem::with_scan(port, &scan, plan.options())?;
         for _ in 0..WARM_UP {
             io.cycle();
             io.port_mut().wait(idle);
@@ -370,6 +363,7 @@ impl Side {
         Ok(Side {
             wait,
             protocol: used,
+            groups,
             boards,
             note,
             io,
@@ -442,6 +436,7 @@ impl Side {
         ModeRun {
             wait: self.wait,
             protocol: self.protocol,
+            groups: self.groups,
             boards: self.boards,
             note: self.note,
             io: Percentiles::of(&mut self.times),
