@@ -43,6 +43,9 @@ pub struct BoardNode {
     class: ArbitrationClass,
     next_token: u64,
     in_flight: Option<u64>,
+    /// The watchdog's period and timed-out flag when its timer was last
+    /// set.
+    watchdog_settings: (u16, bool),
 }
 
 /// The node's PHY registers, reached through the callback context.
@@ -96,6 +99,7 @@ impl BoardNode {
             class: ArbitrationClass::Isochronous,
             next_token: 0,
             in_flight: None,
+            watchdog_settings: (0, false),
         }
     }
 
@@ -146,8 +150,18 @@ impl BoardNode {
         // One watchdog timer at a time, never later than the expiry (a
         // refreshed watchdog moves its expiry later; the timer, when it
         // fires early, just sets itself again).
-        let expiry = self.firmware.watchdog_expiry().map(|t| t.max(now));
         let armed = ctx.timer(WATCHDOG_TIMER).filter(|t| *t > now);
+        // Its period and whether it runs decide when it fires; a write
+        // only moves the expiry later. Armed and neither changed: as is.
+        let settings = (
+            self.firmware.watchdog_period_ticks(),
+            self.firmware.watchdog_timed_out(),
+        );
+        if armed.is_some() && settings == self.watchdog_settings {
+            return;
+        }
+        self.watchdog_settings = settings;
+        let expiry = self.firmware.watchdog_expiry().map(|t| t.max(now));
         match (expiry, armed) {
             (Some(e), Some(t)) if t <= e => {}
             (Some(e), _) => ctx.set_timer(e, WATCHDOG_TIMER),
@@ -160,6 +174,12 @@ impl BoardNode {
 impl Node for BoardNode {
     fn name(&self) -> &str {
         &self.name
+    }
+
+    /// The firmware takes packets addressed to its own node, to broadcast
+    /// and to node 0 (snooped); others' it ignores.
+    fn hears_others(&self) -> bool {
+        false
     }
 
     fn on_bus_reset(&mut self, now: SimTime, info: &ResetInfo, ctx: &mut NodeCtx<'_>) {

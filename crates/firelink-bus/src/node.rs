@@ -178,6 +178,15 @@ pub trait Node: Any + AsAny + Send {
     /// A short name for traces.
     fn name(&self) -> &str;
 
+    /// Whether [`on_receive`](Self::on_receive) must see unicast packets
+    /// addressed to another node (except node 0's, which everyone sees:
+    /// boards snoop them). A node that ignores them says `false` and the
+    /// bus does not call it for them (asked once, when the node is added).
+    /// Default `true`: every packet, as the wire repeats it.
+    fn hears_others(&self) -> bool {
+        true
+    }
+
     /// After every bus reset / self-ID: the node's new physical ID (as a PHY
     /// register-0 status transfer would report).
     fn on_bus_reset(&mut self, now: SimTime, info: &ResetInfo, ctx: &mut NodeCtx<'_>);

@@ -110,7 +110,7 @@ use firelink_wire::packet::{
 };
 
 use crate::config::{BoardConfig, Profile};
-use crate::plant::Plant;
+use crate::plant::{Plant, QLA_AMPS_PER_BIT};
 use crate::time::{SimDuration, SimTime};
 use dallas::Dallas;
 use dout::DigitalOutputs;
@@ -334,6 +334,11 @@ impl Firmware {
         self.watchdog.expiry()
     }
 
+    /// The watchdog period, in ticks of 256 clocks (0: off).
+    pub fn watchdog_period_ticks(&self) -> u16 {
+        self.watchdog.ticks
+    }
+
     /// Whether the watchdog has fired (STATUS bit 23).
     pub fn watchdog_timed_out(&self) -> bool {
         self.watchdog.timed_out
@@ -491,8 +496,19 @@ impl Firmware {
                     a.mismatch_since = None;
                     continue;
                 }
-                let measured = registers::current_to_counts(self.plant.measured_current(i));
-                let diff = (f64::from(measured) - f64::from(a.effective_command())).abs();
+                let command = f64::from(a.effective_command());
+                // Far enough within the threshold, whatever the noise: no
+                // need to draw it (rounding moves a code by half of one).
+                let (center, spread) = self.plant.measured_current_range(i);
+                let bound = (registers::current_to_codes(center) - command).abs()
+                    + spread / QLA_AMPS_PER_BIT
+                    + 1.0;
+                let diff = if bound <= threshold {
+                    0.0
+                } else {
+                    let measured = registers::current_to_counts(self.plant.measured_current(i));
+                    (f64::from(measured) - command).abs()
+                };
                 if diff <= threshold {
                     a.mismatch_since = None;
                     continue;

@@ -91,19 +91,32 @@ fn run_word(r: RunField) -> u32 {
 /// The current-sense ADC code of a current (section 3: amps =
 /// bits * 12.5 / 65536 - 6.25).
 pub(crate) fn current_to_counts(amps: f64) -> u16 {
-    ((amps + QLA_FULL_SCALE_AMPS) / QLA_AMPS_PER_BIT)
-        .round()
-        .clamp(0.0, 65535.0) as u16
+    round_to_code(current_to_codes(amps), 65535.0) as u16
+}
+
+/// [`current_to_counts`] before rounding, in ADC codes.
+pub(crate) fn current_to_codes(amps: f64) -> f64 {
+    (amps + QLA_FULL_SCALE_AMPS) / QLA_AMPS_PER_BIT
 }
 
 fn pot_to_counts(volts: f64) -> u16 {
-    (volts / POT_FULL_SCALE_VOLTS * 65535.0)
-        .round()
-        .clamp(0.0, 65535.0) as u16
+    round_to_code(volts / POT_FULL_SCALE_VOLTS * 65535.0, 65535.0) as u16
 }
 
 fn temperature_byte(celsius: f64) -> u8 {
-    celsius.round().clamp(0.0, 255.0) as u8
+    round_to_code(celsius, 255.0) as u8
+}
+
+/// `x` rounded to the nearest whole code in `0..=max` (halves away from
+/// zero; NaN reads 0): `round().clamp()` without a call into libm (the
+/// x86-64 baseline has no rounding instruction).
+fn round_to_code(x: f64, max: f64) -> f64 {
+    if x.is_nan() {
+        return 0.0;
+    }
+    // Clamped first, the value is non-negative: truncating x + 1/2 rounds
+    // it, halves up.
+    ((x.clamp(0.0, max) + 0.5) as u64) as f64
 }
 
 /// Big-endian quadlets of a byte block (a trailing partial quadlet is
@@ -792,5 +805,27 @@ impl Firmware {
             // The axis is within the layout: this cannot fail.
             let _ = block.set_axis(i, motor, encoder);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::round_to_code;
+
+    #[test]
+    fn codes_round_as_round_then_clamp() {
+        for x in [
+            -1e300, -3.5, -0.5, -0.49, 0.0, 0.49, 0.5, 1.5, 2.5, 254.4, 254.5, 255.5, 1e300,
+            65534.5, 65535.2, 12345.678,
+        ] {
+            for max in [255.0, 65535.0] {
+                assert_eq!(
+                    round_to_code(x, max),
+                    x.round().clamp(0.0, max),
+                    "{x} {max}"
+                );
+            }
+        }
+        assert_eq!(round_to_code(f64::NAN, 255.0), 0.0);
     }
 }

@@ -129,6 +129,19 @@ pub struct VelocityFields {
     pub run: RunField,
 }
 
+/// A full quadrature cycle from `clocks` over `quarters` (1..=4) quarter
+/// cycles: `clocks * 4 / quarters`, by constants (no division by a
+/// variable).
+fn quarters_to_cycle(clocks: u64, quarters: usize) -> u64 {
+    let x = clocks.saturating_mul(4);
+    match quarters {
+        1 => x,
+        2 => x / 2,
+        3 => x / 3,
+        _ => x / 4,
+    }
+}
+
 fn saturate(clocks: u64) -> (u32, bool) {
     if clocks > u64::from(PERIOD_MAX) {
         (PERIOD_MAX, true)
@@ -302,14 +315,17 @@ impl Encoder {
             (clock(0).zip(clock(4)).map(|(a, b)| a - b), false)
         } else if intervals > 0 {
             let oldest = clock(intervals as usize).unwrap_or(e0.clock);
-            (Some((e0.clock - oldest) * 4 / intervals), true)
+            (
+                Some(quarters_to_cycle(e0.clock - oldest, intervals as usize)),
+                true,
+            )
         } else {
             (None, true)
         };
         // Free-running counter of the next expected edge: it completes a
         // cycle with edge 3 (or an extrapolated one with fewer edges).
         let j = same.min(4) - 1;
-        let running = clock(j).map(|c| now_clk.saturating_sub(c) * 4 / (j as u64 + 1));
+        let running = clock(j).map(|c| quarters_to_cycle(now_clk.saturating_sub(c), j + 1));
         let period_clocks = match (latched, running) {
             (Some(l), Some(r)) => l.max(r),
             (None, Some(r)) => r.max(u64::from(PERIOD_MAX) + 1),

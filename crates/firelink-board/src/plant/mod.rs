@@ -185,6 +185,20 @@ impl Plant {
         }
     }
 
+    /// The measured motor current of an axis without its noise, A, and how
+    /// far the noise can take it (the noise's [`noise::MAX_DEVIATE`]
+    /// standard deviations): [`measured_current`](Self::measured_current)
+    /// is within that of it.
+    pub fn measured_current_range(&self, index: usize) -> (f64, f64) {
+        self.axes.get(index).map_or((0.0, 0.0), |a| {
+            let cs = &a.params().current_sense;
+            (
+                a.current_at_clock() + cs.offset_amps,
+                cs.noise_amps * noise::MAX_DEVIATE,
+            )
+        })
+    }
+
     /// The position the potentiometer of an axis measures: its own joint,
     /// or the weighted positions of the axes it is coupled to
     /// ([`PotParams::measures`]); joint units.

@@ -22,6 +22,12 @@ pub enum NoiseChannel {
     ForceTorque = 2,
 }
 
+/// No value this generator draws is further from 0 than this (the
+/// quantile of the most extreme uniform it uses, 2^-53, is about 8.2): a
+/// reading can be known within `MAX_DEVIATE` standard deviations without
+/// drawing its noise.
+pub const MAX_DEVIATE: f64 = 8.5;
+
 /// SplitMix64's increment (2^64 / golden ratio).
 const GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
 
@@ -177,9 +183,12 @@ mod tests {
             );
             assert!((inverse_normal(1.0 - p) + z).abs() <= 1.2e-9 * z.abs().max(1.0));
         }
-        // The extremes the generator can draw stay finite.
+        // The extremes the generator can draw stay finite, and within
+        // MAX_DEVIATE.
         let tiny = 0.5 / (1u64 << 52) as f64;
         assert!(1.0 - tiny < 1.0);
+        assert!(inverse_normal(tiny).abs() < MAX_DEVIATE);
+        assert!(inverse_normal(1.0 - tiny).abs() < MAX_DEVIATE);
         assert!(inverse_normal(tiny).is_finite() && inverse_normal(1.0 - tiny).is_finite());
     }
 

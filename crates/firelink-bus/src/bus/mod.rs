@@ -197,6 +197,9 @@ struct Slot {
     muted: bool,
     mute_fault: Option<FaultId>,
     babble: Option<BabbleState>,
+    /// The node wants unicast packets addressed to other nodes (see
+    /// [`Node::hears_others`]).
+    hears_others: bool,
 }
 
 #[derive(Debug)]
@@ -397,6 +400,7 @@ impl Bus {
     /// root unless [`set_root`](Self::set_root) says otherwise.
     pub fn add_node(&mut self, node: Box<dyn Node>, cfg: NodeConfig) -> NodeHandle {
         let name = node.name().to_string();
+        let hears_others = node.hears_others();
         let index = self.topo.add_node(cfg.ports);
         self.trace.names.push(name.clone());
         self.slots.push(Slot {
@@ -411,6 +415,7 @@ impl Bus {
             muted: false,
             mute_fault: None,
             babble: None,
+            hears_others,
         });
         if self.root.is_none() {
             self.root = Some(index);

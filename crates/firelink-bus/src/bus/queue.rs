@@ -16,6 +16,7 @@
 //! returns the smallest (time, number) of the three: the order is exactly
 //! the one a single heap would give.
 
+use std::cell::Cell;
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
@@ -82,6 +83,7 @@ pub(super) struct Popped {
 }
 
 /// Where the next event comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Source {
     Heap,
     Timer,
@@ -100,10 +102,19 @@ pub(super) struct EventQueue {
     /// Arrival buffers of finished waves, kept for the next ones.
     spare: Vec<Vec<Arrival>>,
     seq: u64,
+    /// The next event as last looked up, until the queue changes (a run
+    /// loop peeks at the time, then pops), and the first of the other
+    /// sources then (so a wave that goes on can often stay first without
+    /// looking at the others again).
+    next: Cell<Option<(Source, SimTime, u64)>>,
+    runner_up: Cell<Option<(SimTime, u64)>>,
 }
 
 impl EventQueue {
     fn next_seq(&mut self) -> u64 {
+        // Every change to the queue takes a number first: the next event
+        // must be looked up again.
+        self.next.set(None);
         self.seq += 1;
         self.seq
     }
@@ -135,6 +146,7 @@ impl EventQueue {
         let key = (time, seq);
         if let Ok(i) = self.timers.binary_search_by(|t| key.cmp(&t.0)) {
             self.timers.remove(i);
+            self.next.set(None);
         }
     }
 
@@ -167,15 +179,33 @@ impl EventQueue {
 
     /// The source of the next event and its (time, number).
     fn first(&self) -> Option<(Source, SimTime, u64)> {
-        let mut best = self
-            .heap
-            .peek()
-            .map(|Reverse(q)| (Source::Heap, q.time, q.seq));
-        let mut consider = |source: Source, key: (SimTime, u64)| {
-            if best.as_ref().is_none_or(|b| key < (b.1, b.2)) {
+        if let Some(next) = self.next.get() {
+            return Some(next);
+        }
+        let found = self.find_first();
+        self.next.set(found);
+        found
+    }
+
+    fn find_first(&self) -> Option<(Source, SimTime, u64)> {
+        let mut best: Option<(Source, SimTime, u64)> = None;
+        let mut second: Option<(SimTime, u64)> = None;
+        let mut consider = |source: Source, key: (SimTime, u64)| match best {
+            Some(b) if key >= (b.1, b.2) => {
+                if second.is_none_or(|s| key < s) {
+                    second = Some(key);
+                }
+            }
+            _ => {
+                if let Some(b) = best {
+                    second = Some((b.1, b.2));
+                }
                 best = Some((source, key.0, key.1));
             }
         };
+        if let Some(Reverse(q)) = self.heap.peek() {
+            consider(Source::Heap, (q.time, q.seq));
+        }
         if let Some(&(key, _)) = self.timers.last() {
             consider(Source::Timer, key);
         }
@@ -184,7 +214,19 @@ impl EventQueue {
                 consider(Source::Wave(i), key);
             }
         }
+        self.runner_up.set(second);
         best
+    }
+
+    /// After an event of wave `i` was taken (and the wave goes on): it
+    /// stays first if its next delivery comes before every other source.
+    fn wave_goes_on(&self, i: usize) {
+        let Some(head) = self.waves.get(i).and_then(Wave::head) else {
+            return;
+        };
+        if self.runner_up.get().is_none_or(|r| head < r) {
+            self.next.set(Some((Source::Wave(i), head.0, head.1)));
+        }
     }
 
     /// Time of the next event.
@@ -195,6 +237,7 @@ impl EventQueue {
     /// Take the next event.
     pub fn pop(&mut self) -> Option<Popped> {
         let (source, _, _) = self.first()?;
+        self.next.set(None);
         match source {
             Source::Heap => self.heap.pop().map(|Reverse(q)| Popped {
                 time: q.time,
@@ -221,6 +264,8 @@ impl EventQueue {
                 if wave.next >= wave.arrivals.len() {
                     let done = self.waves.swap_remove(i);
                     self.spare.push(done.arrivals);
+                } else {
+                    self.wave_goes_on(i);
                 }
                 Some(Popped {
                     time: a.time,

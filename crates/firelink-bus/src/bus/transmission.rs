@@ -176,6 +176,9 @@ impl Bus {
             }
             if Some(node) == dest_node {
                 dest_receives = true;
+            } else if shape.unicast && !slot.hears_others && shape.dest_phy != Some(0) {
+                // Addressed to another node, and this one ignores those.
+                continue;
             }
             let at =
                 shape.bits_end + t.hop_delay * u64::from(self.tree.hops(shape.sender_phy, phy));
