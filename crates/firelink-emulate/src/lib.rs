@@ -261,6 +261,15 @@ impl Bridge {
     /// A board that can no longer send (muted, unplugged) is not waited
     /// for once its slot has passed; the wait is bounded by
     /// [`SETTLE_LIMIT`].
+    /// Finish now, in virtual time, what the datagrams handled so far
+    /// started (the status broadcasts a query scheduled): the server calls
+    /// this while it waits for the next datagram, so the boards' work is
+    /// done while the host waits after its query, not when its hub read
+    /// arrives. [`handle`](Self::handle) does it first anyway.
+    pub fn finish_pending(&mut self) {
+        self.settle();
+    }
+
     fn settle(&mut self) {
         let deadline = self.bus.now() + SETTLE_LIMIT;
         let boards = &self.boards;
@@ -611,10 +620,27 @@ pub fn serve(
         }
         Ok(())
     };
+    // The loopback broadcast socket carries only discovery: it is looked
+    // at when the unicast socket is quiet, and at least this often.
+    const BROADCAST_EVERY: Duration = Duration::from_millis(2);
+    let mut broadcast_checked = Instant::now();
     while !stop.load(Ordering::Relaxed) {
-        // Everything that arrived before this moment is queued now: handle
-        // it at its arrival time, then let virtual time reach the moment.
+        // One system call per datagram: wait on the unicast socket (its
+        // time-out is short); datagrams come out in arrival order, each
+        // handled at its arrival stamp.
+        if let Some(r) = unicast_rx.receive(unicast, &mut buf, true)? {
+            handle(r, &buf, bridge, &mut on_event)?;
+            // While the host waits, the boards finish what it started.
+            bridge.finish_pending();
+            if broadcast_checked.elapsed() < BROADCAST_EVERY {
+                continue;
+            }
+        }
+        // Quiet (or time to look): everything that arrived before this
+        // moment is queued now: handle it at its arrival time, then let
+        // virtual time reach the moment.
         let wall = Instant::now();
+        broadcast_checked = wall;
         loop {
             let mut any = false;
             if let Some((b, rx)) = broadcast_rx.as_mut()
@@ -641,10 +667,6 @@ pub fn serve(
         if bridge.generation() != generation {
             generation = bridge.generation();
             on_event(Event::BusReset(generation));
-        }
-        // Sleep until the next datagram (or a little while).
-        if let Some(r) = unicast_rx.receive(unicast, &mut buf, true)? {
-            handle(r, &buf, bridge, &mut on_event)?;
         }
     }
     on_event(Event::Stopped(bridge.stats()));
