@@ -122,12 +122,18 @@ pub struct HostLink {
     completions: VecDeque<Completion>,
     received: VecDeque<Received>,
     received_limit: usize,
+    /// Buffers of packets forgotten, kept for the next ones (a link that
+    /// hears every broadcast allocates nothing per packet).
+    spare: Vec<Vec<u8>>,
     received_total: u64,
     split_timeout: SimDuration,
     phy_id: u8,
     generation: u32,
     resets: u32,
 }
+
+/// Received-packet buffers a link keeps for reuse.
+const SPARE_BUFFERS: usize = 64;
 
 /// Timer tokens of [`HostLink`] are the transaction tokens (split timeouts).
 impl HostLink {
@@ -142,6 +148,7 @@ impl HostLink {
             completions: VecDeque::new(),
             received: VecDeque::new(),
             received_limit: 4096,
+            spare: Vec::new(),
             received_total: 0,
             split_timeout: SimDuration::from_millis(100),
             phy_id: NodeId::BROADCAST_PHY,
@@ -254,7 +261,11 @@ impl HostLink {
     /// Forget every packet received that was not a response (a bridge has
     /// no use for other nodes' broadcasts).
     pub fn clear_received(&mut self) {
-        self.received.clear();
+        for r in self.received.drain(..) {
+            if self.spare.len() < SPARE_BUFFERS {
+                self.spare.push(r.bytes);
+            }
+        }
     }
 
     /// Take every finished transaction.
@@ -337,9 +348,21 @@ impl HostLink {
         });
     }
 
+    /// A buffer holding `packet` (a spare one when there is one).
+    fn copy_of(&mut self, packet: &[u8]) -> Vec<u8> {
+        let mut bytes = self.spare.pop().unwrap_or_default();
+        bytes.clear();
+        bytes.extend_from_slice(packet);
+        bytes
+    }
+
     fn keep(&mut self, received: Received) {
-        if self.received.len() >= self.received_limit {
-            self.received.pop_front();
+        if self.received.len() >= self.received_limit
+            && let Some(old) = self.received.pop_front()
+            && self.spare.len() < SPARE_BUFFERS
+        {
+            // The oldest goes; its buffer stays for the next packet.
+            self.spare.push(old.bytes);
         }
         self.received.push_back(received);
         self.received_total += 1;
@@ -426,9 +449,10 @@ impl Node for HostLink {
                 Ack::DataError
             });
         }
+        let bytes = self.copy_of(packet);
         self.keep(Received {
             at: now,
-            bytes: packet.to_vec(),
+            bytes,
             speed,
             crc_ok: status.all_ok(),
         });
