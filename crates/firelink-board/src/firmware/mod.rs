@@ -111,6 +111,7 @@ use firelink_wire::packet::{
 
 use crate::config::{BoardConfig, Profile};
 use crate::plant::{Plant, QLA_AMPS_PER_BIT};
+use firelink_wire::board::MAX_AXES;
 use crate::time::{SimDuration, SimTime};
 use dallas::Dallas;
 use dout::DigitalOutputs;
@@ -481,18 +482,25 @@ impl Firmware {
             }
             self.drive_stale = true;
         }
+        // When each amplifier drives (worked out once for this event).
+        let mut on_at = [None; MAX_AXES];
+        for (slot, a) in on_at.iter_mut().zip(&self.axes) {
+            *slot = a.on_at(&self.power);
+        }
+        // (A board has at most MAX_AXES axes: QLA1 4, DQLA 8.)
+        let on = |i: usize| on_at.get(i).copied().flatten().is_some_and(|t| now >= t);
         // An amplifier's enable delay ending now.
-        if self.axes.iter().any(|a| a.on_at(&self.power) == Some(now)) {
+        if on_at.contains(&Some(now)) {
             self.drive_stale = true;
         }
         // The current check (section 7), at every safety tick.
-        if now.0 % SAFETY_TICK.0 == 0 && self.axes.iter().any(|a| a.is_on(&self.power, now)) {
+        if now.0 % SAFETY_TICK.0 == 0 && (0..self.axes.len()).any(on) {
             // The measured current is exact at the plant's clock without
             // integrating the motion.
             self.plant.pass_to(now);
             let threshold = power::mismatch_counts();
             for (i, a) in self.axes.iter_mut().enumerate() {
-                if !a.is_on(&self.power, now) {
+                if !on(i) {
                     a.mismatch_since = None;
                     continue;
                 }
