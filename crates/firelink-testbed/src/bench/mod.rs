@@ -227,6 +227,12 @@ pub struct BenchPoint {
     pub note: Option<String>,
     /// A measured UDP point's floor and CPU figures.
     pub udp: Option<UdpFigures>,
+    /// A measured point on the simulated bus: CPU per cycle of simulating
+    /// it (host library, bus, boards and their plants; the idle bus time
+    /// between cycles included), us, and that per board.
+    pub sim_cpu_us: Option<f64>,
+    /// `sim_cpu_us` over the boards.
+    pub sim_cpu_per_board_us: Option<f64>,
 }
 
 /// The paper's figures the benchmark is compared with.
@@ -256,6 +262,9 @@ pub struct BenchReport {
     /// UDP points: cycles per block (the point's and its floor's blocks
     /// alternate).
     pub udp_block_cycles: u64,
+    /// The simulation cost per cycle against boards, per protocol measured
+    /// on the simulated bus at three or more board counts.
+    pub sim_cost: Vec<SimCostFit>,
 }
 
 /// A raw measurement, before rounding and the budget.
@@ -274,6 +283,8 @@ struct Raw {
     cycles: u64,
     errors: u64,
     note: Option<String>,
+    /// Simulated bus: CPU per cycle of simulating it, us.
+    sim_cpu: Option<f64>,
 }
 
 /// How a point runs the protocol asked on the boards a scan found.
@@ -349,11 +360,15 @@ fn measure<P: Port>(
     mut io: IoSystem<P>,
     cycles: u64,
     idle: Duration,
-) -> (Percentiles, f64, f64, u64) {
+) -> (Percentiles, f64, f64, u64, Option<f64>) {
     for _ in 0..20 {
         io.cycle();
         io.port_mut().wait(idle);
     }
+    // The thread's CPU over the measured cycles: on the simulated bus, the
+    // cost of simulating them (host library, bus, boards and plants).
+    let clock = crate::cpu::ThreadCpuClock::current();
+    let cpu_before = clock.and_then(|c| c.now());
     let mut t = Vec::with_capacity(cycles as usize);
     let (mut r, mut w) = (0.0, 0.0);
     for _ in 0..cycles {
@@ -365,11 +380,16 @@ fn measure<P: Port>(
         io.port_mut().wait(idle);
     }
     let n = cycles.max(1) as f64;
+    let cpu = match (cpu_before, clock.and_then(|c| c.now())) {
+        (Some(a), Some(b)) => Some(b.saturating_sub(a).as_secs_f64() * 1e6 / n),
+        _ => None,
+    };
     (
         Percentiles::of(&mut t),
         r / n,
         w / n,
         io.stats().total_errors(),
+        cpu,
     )
 }
 
@@ -385,11 +405,16 @@ fn point<P: Port>(
     let (used, groups, note) = (plan.protocol, plan.groups, plan.note.clone());
     let io = IoSystem::with_scan(port, &scan, plan.options())?;
     let idle = Duration::from_secs_f64(options.idle_us.max(0.0) / 1e6);
-    let (io, read, write, errors) = measure(io, options.cycles.max(1), idle);
+    let (io, read, write, errors, cpu) = measure(io, options.cycles.max(1), idle);
     Ok(Raw {
         transport,
         wait: None,
         udp: None,
+        sim_cpu: if transport == BenchTransport::Sim {
+            cpu
+        } else {
+            None
+        },
         protocol: used,
         asked: protocol,
         groups,
@@ -469,6 +494,7 @@ fn model(base: &Raw, boards: usize) -> Raw {
             base.boards
         )),
         udp: None,
+        sim_cpu: None,
         ..base.clone()
     }
 }
@@ -518,6 +544,8 @@ fn finish(raw: &Raw, compute: f64, period_us: f64) -> BenchPoint {
             fits: budget.total < budget.period,
         },
         note: raw.note.clone(),
+        sim_cpu_us: raw.sim_cpu.map(round2),
+        sim_cpu_per_board_us: raw.sim_cpu.map(|c| round2(c / raw.boards.max(1) as f64)),
         udp: raw.udp.as_ref().map(|(target, m)| UdpFigures {
             target: target.clone(),
             floor_us: IoTime {
@@ -561,6 +589,7 @@ fn udp_raws(
             errors: m.errors,
             note: m.note.clone(),
             udp: Some((target.to_string(), m)),
+            sim_cpu: None,
         })
         .collect())
 }
@@ -636,11 +665,12 @@ pub fn run_bench(
         }
     }
     let compute = compute_time_us();
-    Ok(BenchReport {
+    let mut report = BenchReport {
         results: raws
             .iter()
             .map(|r| finish(r, compute, options.period_us))
             .collect(),
+        sim_cost: Vec::new(),
         compute_us: round2(compute),
         paper: PaperFigures {
             sequential_8_us: 496.0,
@@ -650,7 +680,84 @@ pub fn run_bench(
         firmware: profile_name(options.firmware),
         cycles: options.cycles,
         udp_block_cycles: udp::BLOCK,
-    })
+    };
+    report.sim_cost = report.sim_cost_fits();
+    Ok(report)
+}
+
+/// A straight line through a protocol's simulation cost against boards.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SimCostFit {
+    /// The protocol.
+    pub protocol: &'static str,
+    /// Boards of the points fitted.
+    pub boards: Vec<usize>,
+    /// Cost of one more board, us per cycle.
+    pub per_board_us: f64,
+    /// Cost with no board (the host's share), us per cycle.
+    pub fixed_us: f64,
+    /// The largest distance of a point from the line, as a fraction of the
+    /// point's cost.
+    pub worst_deviation: f64,
+}
+
+impl fmt::Display for SimCostFit {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{}: cpu = {:.2} + {:.2} x boards us (least squares over {:?} boards; every point within {:.1} % of the line)",
+            self.protocol,
+            self.fixed_us,
+            self.per_board_us,
+            self.boards,
+            self.worst_deviation * 100.0
+        )
+    }
+}
+
+impl BenchReport {
+    /// For each protocol measured on the simulated bus at three or more
+    /// board counts: the least-squares line of its simulation cost.
+    pub fn sim_cost_fits(&self) -> Vec<SimCostFit> {
+        let mut fits = Vec::new();
+        let mut protocols: Vec<&'static str> = self
+            .results
+            .iter()
+            .filter(|r| r.sim_cpu_us.is_some())
+            .map(|r| r.protocol)
+            .collect();
+        protocols.dedup();
+        for protocol in protocols {
+            let points: Vec<(f64, f64)> = self
+                .results
+                .iter()
+                .filter(|r| r.protocol == protocol)
+                .filter_map(|r| r.sim_cpu_us.map(|c| (r.boards as f64, c)))
+                .collect();
+            if points.len() < 3 {
+                continue;
+            }
+            let n = points.len() as f64;
+            let mx = points.iter().map(|p| p.0).sum::<f64>() / n;
+            let my = points.iter().map(|p| p.1).sum::<f64>() / n;
+            let sxx: f64 = points.iter().map(|p| (p.0 - mx) * (p.0 - mx)).sum();
+            let sxy: f64 = points.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+            let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+            let intercept = my - slope * mx;
+            let worst = points
+                .iter()
+                .map(|&(x, y)| ((intercept + slope * x) - y).abs() / y.max(1e-9))
+                .fold(0.0, f64::max);
+            fits.push(SimCostFit {
+                protocol,
+                boards: points.iter().map(|p| p.0 as usize).collect(),
+                per_board_us: round2(slope),
+                fixed_us: round2(intercept),
+                worst_deviation: (worst * 1000.0).round() / 1000.0,
+            });
+        }
+        fits
+    }
 }
 
 impl fmt::Display for BenchReport {
@@ -698,6 +805,37 @@ impl fmt::Display for BenchReport {
             "paper (seed 000, 8 boards): sequential {} us measured, broadcast {} us",
             self.paper.sequential_8_us, self.paper.broadcast_8_us
         )?;
+        let sims: Vec<&BenchPoint> = self
+            .results
+            .iter()
+            .filter(|r| r.sim_cpu_us.is_some())
+            .collect();
+        if !sims.is_empty() {
+            writeln!(
+                f,
+                "\nSimulation cost (sim points: CPU per simulated cycle of host library, bus, \
+                 boards and plants, us)"
+            )?;
+            writeln!(
+                f,
+                "{:<9} {:<32} {:>6} {:>9} {:>10}",
+                "trans", "protocol", "boards", "cpu", "per board"
+            )?;
+            for r in &sims {
+                writeln!(
+                    f,
+                    "{:<9} {:<32} {:>6} {:>9} {:>10}",
+                    r.transport,
+                    r.protocol,
+                    r.boards,
+                    num(r.sim_cpu_us),
+                    num(r.sim_cpu_per_board_us)
+                )?;
+            }
+            for fit in &self.sim_cost {
+                writeln!(f, "{fit}")?;
+            }
+        }
         let udp: Vec<(&BenchPoint, &UdpFigures)> = self
             .results
             .iter()
