@@ -205,24 +205,39 @@ impl SafetyMonitor {
         // Time must be usable for the duration checks.
         let now_ok = now.is_finite();
         for (i, (lim, timers)) in self.limits.iter().zip(self.timers.iter_mut()).enumerate() {
-            let joint = lim.label;
+            // (The label is copied into a fault only.)
+            let joint = &lim.label;
             let stalling = self.any_stalling && self.stalling.get(i).copied().unwrap_or(false);
             let Some(s) = samples.get(i) else {
                 return Some(FaultKind::InvalidValue {
-                    joint,
+                    joint: *joint,
                     what: "sample (missing)",
                 });
             };
-            let invalid = |what| Some(FaultKind::InvalidValue { joint, what });
-            for (what, v) in [
-                ("setpoint", s.setpoint),
-                ("position", s.position),
-                ("velocity", s.velocity),
-                ("current command", s.current),
-                ("potentiometer", s.potentiometer.unwrap_or(0.0)),
-            ] {
-                if !v.is_finite() {
-                    return invalid(what);
+            let invalid = |what| {
+                Some(FaultKind::InvalidValue {
+                    joint: *joint,
+                    what,
+                })
+            };
+            let pot = s.potentiometer.unwrap_or(0.0);
+            // Every value finite, all at once: `x * 0` is ±0 for a finite
+            // `x` and NaN otherwise, and NaN spreads. Which one, only if
+            // not.
+            let probe = (s.setpoint * 0.0 + s.position * 0.0)
+                + (s.velocity * 0.0 + s.current * 0.0)
+                + pot * 0.0;
+            if probe != 0.0 {
+                for (what, v) in [
+                    ("setpoint", s.setpoint),
+                    ("position", s.position),
+                    ("velocity", s.velocity),
+                    ("current command", s.current),
+                    ("potentiometer", pot),
+                ] {
+                    if !v.is_finite() {
+                        return invalid(what);
+                    }
                 }
             }
             if !now_ok {
@@ -231,7 +246,7 @@ impl SafetyMonitor {
             if let Some((lower, upper, margin)) = lim.position.filter(|_| !stalling) {
                 if !(lower - margin <= s.position && s.position <= upper + margin) {
                     return Some(FaultKind::PositionLimit {
-                        joint,
+                        joint: *joint,
                         position: s.position,
                         lower,
                         upper,
@@ -240,7 +255,7 @@ impl SafetyMonitor {
             }
             if let Some(limit) = lim.velocity.filter(|&l| s.velocity.abs() > l) {
                 return Some(FaultKind::Velocity {
-                    joint,
+                    joint: *joint,
                     velocity: s.velocity,
                     limit,
                 });
@@ -256,7 +271,7 @@ impl SafetyMonitor {
                 .is_some()
                 {
                     return Some(FaultKind::FollowingError {
-                        joint,
+                        joint: *joint,
                         error,
                         limit,
                     });
@@ -267,7 +282,7 @@ impl SafetyMonitor {
                 if let Some(duration) = lasting(&mut timers.saturated_since, saturated, now, limit)
                 {
                     return Some(FaultKind::CurrentSaturation {
-                        joint,
+                        joint: *joint,
                         duration,
                         limit,
                     });
@@ -284,7 +299,7 @@ impl SafetyMonitor {
                 .is_some()
                 {
                     return Some(FaultKind::PotentiometerMismatch {
-                        joint,
+                        joint: *joint,
                         difference,
                         tolerance,
                     });
@@ -306,6 +321,7 @@ impl SafetyMonitor {
 /// Tracks how long `condition` has held. Returns how long it has lasted when
 /// that exceeds `allowed` seconds (so a 0 s allowance trips on the first
 /// cycle the condition is seen).
+#[inline]
 fn lasting(since: &mut Option<f64>, condition: bool, now: f64, allowed: f64) -> Option<f64> {
     if !condition {
         *since = None;
