@@ -53,8 +53,11 @@ pub struct HubReplay<P: Port> {
 
 /// The replay's state once frozen.
 struct Frozen {
-    /// Where each board's entry header is in the hub block, and its format.
-    entries: Vec<(usize, BlockFormat)>,
+    /// Where each board's entry header is in the hub block, its format and
+    /// the header as recorded (made valid).
+    entries: Vec<(usize, BlockFormat, u32)>,
+    /// The sequence of the last query.
+    seq: u16,
     /// The port's clock, advanced one period per query.
     now: Duration,
     period: Duration,
@@ -87,8 +90,17 @@ impl<P: Port> HubReplay<P> {
                 "hub replay: no hub block recorded to replay".into(),
             ));
         }
+        self.rewrite_headers(&entries, 1);
+        let entries = entries
+            .into_iter()
+            .filter_map(|(at, format)| {
+                let q = self.hub.get(at..at + 4)?;
+                Some((at, format, u32::from_be_bytes([q[0], q[1], q[2], q[3]])))
+            })
+            .collect();
         self.frozen = Some(Frozen {
             entries,
+            seq: 1,
             now: self.inner.now(),
             period,
         });
@@ -100,13 +112,43 @@ impl<P: Port> HubReplay<P> {
         &self.hub
     }
 
-    /// A new query: the recorded entries now answer `seq`.
+    /// A new query: the clock moves on a period and the hub answers `seq`.
     fn answer(&mut self, seq: u16) {
-        let Some(f) = self.frozen.as_mut() else {
-            return;
+        if let Some(f) = self.frozen.as_mut() {
+            f.now += f.period;
+            f.seq = seq;
+        }
+    }
+
+    /// The recorded hub block into `out`, each entry's header answering the
+    /// last query (its sequence bits replaced; whole quadlets written, as a
+    /// port's receive writes them).
+    fn replay_hub(&self, out: &mut [u8]) -> bool {
+        let (Some(f), Some(hub)) = (&self.frozen, self.hub.get(..out.len())) else {
+            return false;
         };
-        f.now += f.period;
-        for &(at, format) in &f.entries {
+        if hub.len() != self.hub.len() {
+            return false;
+        }
+        out.copy_from_slice(hub);
+        let seq = u32::from(f.seq);
+        for &(at, format, header) in &f.entries {
+            let word = match format {
+                // seq_low:8 in bits 23:16.
+                BlockFormat::Rev8 => (header & !0x00FF_0000) | (seq & 0xFF) << 16,
+                // seq:16 in bits 31:16.
+                BlockFormat::Rev4 | BlockFormat::Rev7 => (header & 0xFFFF) | seq << 16,
+            };
+            if let Some(q) = out.get_mut(at..at + 4) {
+                q.copy_from_slice(&word.to_be_bytes());
+            }
+        }
+        true
+    }
+
+    /// Each entry's header rewritten as a board that heard `seq` writes it.
+    fn rewrite_headers(&mut self, entries: &[(usize, BlockFormat)], seq: u16) {
+        for &(at, format) in entries {
             let Some(q) = self.hub.get_mut(at..at + 4) else {
                 continue;
             };
@@ -169,13 +211,10 @@ impl<P: Port> Port for HubReplay<P> {
 
     fn read_block(&mut self, dest: Dest, offset: u64, out: &mut [u8]) -> Result<()> {
         if self.frozen.is_some() {
-            let hub = self.hub.get(..out.len());
-            return match hub {
-                Some(hub) if offset == HUB_MEMORY_OFFSET && hub.len() == self.hub.len() => {
-                    out.copy_from_slice(hub);
-                    Ok(())
-                }
-                _ => Err(not_recorded(offset)),
+            return if offset == HUB_MEMORY_OFFSET && self.replay_hub(out) {
+                Ok(())
+            } else {
+                Err(not_recorded(offset))
             };
         }
         self.inner.read_block(dest, offset, out)?;
