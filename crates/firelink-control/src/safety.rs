@@ -91,6 +91,8 @@ struct Timers {
 #[derive(Debug, Clone, PartialEq)]
 pub struct SafetyMonitor {
     limits: Vec<JointLimits>,
+    /// The limits as the cycle compares with them, per joint.
+    bounds: Vec<Bounds>,
     timers: Vec<Timers>,
     /// Per joint: following-error and saturation checks suspended (a
     /// stop search pushes a joint into its stop on purpose).
@@ -98,6 +100,32 @@ pub struct SafetyMonitor {
     /// Whether any joint may stall (the common case, none, costs nothing).
     any_stalling: bool,
     latched: Option<FaultReport>,
+}
+
+/// What a joint's sample is compared with, worked out from its
+/// [`JointLimits`] once: a check that is off compares with an infinite
+/// bound (the sample is finite by then).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Bounds {
+    /// The soft limits widened by the margin.
+    lowest: f64,
+    highest: f64,
+    /// Largest |velocity|.
+    velocity: f64,
+}
+
+impl Bounds {
+    fn of(l: &JointLimits) -> Bounds {
+        let (lowest, highest) = l.position.map_or(
+            (f64::NEG_INFINITY, f64::INFINITY),
+            |(lower, upper, margin)| (lower - margin, upper + margin),
+        );
+        Bounds {
+            lowest,
+            highest,
+            velocity: l.velocity.unwrap_or(f64::INFINITY),
+        }
+    }
 }
 
 /// Tolerance for "at the maximum current" (commands are clamped to exactly
@@ -109,8 +137,10 @@ impl SafetyMonitor {
     pub fn new(limits: Vec<JointLimits>) -> SafetyMonitor {
         let timers = vec![Timers::default(); limits.len()];
         let stalling = vec![false; limits.len()];
+        let bounds = limits.iter().map(Bounds::of).collect();
         SafetyMonitor {
             limits,
+            bounds,
             timers,
             stalling,
             any_stalling: false,
@@ -204,7 +234,8 @@ impl SafetyMonitor {
     fn first_fault(&mut self, now: f64, samples: &[JointSample]) -> Option<FaultKind> {
         // Time must be usable for the duration checks.
         let now_ok = now.is_finite();
-        for (i, (lim, timers)) in self.limits.iter().zip(self.timers.iter_mut()).enumerate() {
+        let joints = self.limits.iter().zip(&self.bounds);
+        for (i, ((lim, b), timers)) in joints.zip(self.timers.iter_mut()).enumerate() {
             // (The label is copied into a fault only.)
             let joint = &lim.label;
             let stalling = self.any_stalling && self.stalling.get(i).copied().unwrap_or(false);
@@ -243,8 +274,10 @@ impl SafetyMonitor {
             if !now_ok {
                 return invalid("time");
             }
-            if let Some((lower, upper, margin)) = lim.position.filter(|_| !stalling) {
-                if !(lower - margin <= s.position && s.position <= upper + margin) {
+            // (Off: infinite bounds, never out of them.)
+            let within = b.lowest <= s.position && s.position <= b.highest;
+            if !stalling && !within {
+                if let Some((lower, upper, _)) = lim.position {
                     return Some(FaultKind::PositionLimit {
                         joint: *joint,
                         position: s.position,
@@ -253,11 +286,11 @@ impl SafetyMonitor {
                     });
                 }
             }
-            if let Some(limit) = lim.velocity.filter(|&l| s.velocity.abs() > l) {
+            if s.velocity.abs() > b.velocity {
                 return Some(FaultKind::Velocity {
                     joint: *joint,
                     velocity: s.velocity,
-                    limit,
+                    limit: b.velocity,
                 });
             }
             if let Some(limit) = lim.following_error.filter(|_| !stalling) {

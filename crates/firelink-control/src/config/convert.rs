@@ -47,12 +47,24 @@ fn round_clamped(x: f64, lo: f64, hi: f64, nan_value: impl FnOnce() -> i64) -> i
 /// as 0, a NaN `x` as 0.
 #[inline]
 fn clamp_symmetric(x: f64, limit: f64) -> f64 {
-    // (Finite and above 0; false for NaN.)
-    let l = if limit > 0.0 && limit < f64::INFINITY {
+    clamp_within(x, usable_limit(limit))
+}
+
+/// `limit` if it is finite and above 0, else 0.
+#[inline]
+fn usable_limit(limit: f64) -> f64 {
+    // (False for NaN.)
+    if limit > 0.0 && limit < f64::INFINITY {
         limit
     } else {
         0.0
-    };
+    }
+}
+
+/// `x` limited to `[-l, l]` for a usable limit `l` ([`usable_limit`]), a
+/// NaN `x` as 0.
+#[inline]
+fn clamp_within(x: f64, l: f64) -> f64 {
     // (`max` and `min` without their NaN cases.)
     if x.is_nan() {
         0.0
@@ -95,7 +107,22 @@ impl DriveConfig {
     /// 0 A. The result is always a valid 16-bit code.
     #[inline]
     pub fn current_to_bits(&self, amps: f64) -> u16 {
-        let a = clamp_symmetric(amps, self.maximum_current);
+        self.current_to_bits_within(amps, self.current_limit())
+    }
+
+    /// What [`current_to_bits`](Self::current_to_bits) limits a current
+    /// to: `maximum_current` when it is finite and above 0, else 0.
+    #[inline]
+    pub(crate) fn current_limit(&self) -> f64 {
+        usable_limit(self.maximum_current)
+    }
+
+    /// [`current_to_bits`](Self::current_to_bits) with its
+    /// [`current_limit`](Self::current_limit) worked out beforehand (the
+    /// servo cycle keeps it per joint).
+    #[inline]
+    pub(crate) fn current_to_bits_within(&self, amps: f64, limit: f64) -> u16 {
+        let a = clamp_within(amps, limit);
         let zero = || round_clamped(self.current_to_bits.offset, 0.0, 65535.0, || 32768);
         round_clamped(self.current_to_bits.apply(a), 0.0, 65535.0, zero) as u16
     }

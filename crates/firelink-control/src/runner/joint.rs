@@ -24,6 +24,8 @@ pub(crate) struct Joint {
     /// The I/O system's axis (over all boards).
     pub axis: usize,
     pub drive: DriveConfig,
+    /// `drive.current_limit()`, kept.
+    pub current_limit: f64,
     pub encoder: EncoderConfig,
     pub pot: Option<PotentiometerConfig>,
     pub prismatic: bool,
@@ -49,6 +51,7 @@ impl Joint {
             board,
             axis,
             drive: a.drive,
+            current_limit: a.drive.current_limit(),
             encoder: a.encoder,
             pot: a.potentiometer,
             prismatic: a.joint_type == Some(JointType::Prismatic),
@@ -138,7 +141,7 @@ impl Joint {
     /// reading).
     #[inline]
     pub fn pot_position(&self, bits: Option<u16>) -> f64 {
-        match (self.pot, bits) {
+        match (&self.pot, bits) {
             (Some(p), Some(bits)) => p.bits_to_position(bits),
             _ => f64::NAN,
         }
@@ -148,7 +151,8 @@ impl Joint {
     #[inline]
     pub fn command(&self, active: bool) -> u16 {
         if active {
-            self.drive.current_to_bits(self.current)
+            self.drive
+                .current_to_bits_within(self.current, self.current_limit)
         } else {
             self.drive.zero_current_bits()
         }

@@ -48,7 +48,7 @@ impl VelocityEstimator {
             let p0 = self.positions.get(slot).copied().unwrap_or(position);
             let span = time - t0;
             // (Finite and above 0; false for NaN.)
-            if span > 0.0 && span < f64::INFINITY {
+            if span > 0.0 && span <= f64::MAX {
                 let v = (position - p0) / span;
                 self.velocity += 0.5 * (v - self.velocity);
                 // At rest the filter halves towards 0 and sticks at the

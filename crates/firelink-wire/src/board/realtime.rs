@@ -106,10 +106,15 @@ impl FirmwareRev {
     /// not describe) the Rev 7 format.
     #[inline]
     pub fn block_format(self) -> BlockFormat {
-        match self.number() {
-            n if n >= 8 => BlockFormat::Rev8,
-            4 => BlockFormat::Rev4,
-            _ => BlockFormat::Rev7,
+        // (The named revisions without turning them into numbers first:
+        // every cycle asks, several times per board.)
+        match self {
+            FirmwareRev::Rev8 => BlockFormat::Rev8,
+            FirmwareRev::Rev7 => BlockFormat::Rev7,
+            FirmwareRev::Rev4 => BlockFormat::Rev4,
+            FirmwareRev::Unknown(n) if n >= 8 => BlockFormat::Rev8,
+            FirmwareRev::Unknown(4) => BlockFormat::Rev4,
+            FirmwareRev::Unknown(_) => BlockFormat::Rev7,
         }
     }
 }
@@ -1031,6 +1036,20 @@ mod tests {
     const REV7: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev7);
     const REV8: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev8);
     const DQLA8: BoardLayout = BoardLayout::dqla(FirmwareRev::Rev8);
+
+    /// The format by the revision's number, named or not.
+    #[test]
+    fn block_format_follows_the_number() {
+        let by_number = |n: u32| match n {
+            n if n >= 8 => BlockFormat::Rev8,
+            4 => BlockFormat::Rev4,
+            _ => BlockFormat::Rev7,
+        };
+        for n in (0..20).chain([u32::MAX]) {
+            assert_eq!(FirmwareRev::from(n).block_format(), by_number(n), "{n}");
+            assert_eq!(FirmwareRev::Unknown(n).block_format(), by_number(n), "{n}");
+        }
+    }
 
     #[test]
     fn block_sizes_from_the_spec() {
