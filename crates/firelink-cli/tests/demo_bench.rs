@@ -123,6 +123,36 @@ fn bench_sim_reproduces_the_shape_of_fig_11() {
         assert_eq!(results[0]["transport"], "sim");
     }
     assert!(get("sequential", 4) > 1.8 * get("sequential", 2));
+    // The host's own CPU per 28-axis cycle, measured in the same run
+    // (figures are the machine's: only that they are there is checked).
+    let h = &r["host_cpu_per_cycle_us"];
+    assert_eq!(h["axes"], 28);
+    assert_eq!(h["boards"], 8);
+    assert!(h["cycles"].as_u64().unwrap() > 0);
+    for stat in ["median", "p99", "mean"] {
+        assert!(h[stat].as_f64().unwrap() > 0.0, "{stat}: {h}");
+    }
+    assert!(r["compute_us"].as_f64().is_some());
+}
+
+#[test]
+fn bench_text_shows_the_host_cpu_per_cycle() {
+    let text = common::ok(&[
+        "bench",
+        "--cycles",
+        "20",
+        "--boards",
+        "2",
+        "--transport",
+        "sim",
+        "--protocol",
+        "broadcast",
+    ]);
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("host CPU per 28-axis cycle (parse, PID, build commands): median"))
+        .unwrap_or_else(|| panic!("no host CPU line in:\n{text}"));
+    assert!(line.contains("p99"), "{line}");
 }
 
 #[test]

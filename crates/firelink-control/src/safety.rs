@@ -91,6 +91,8 @@ struct Timers {
 #[derive(Debug, Clone, PartialEq)]
 pub struct SafetyMonitor {
     limits: Vec<JointLimits>,
+    /// The limits as the cycle compares with them, per joint.
+    bounds: Vec<Bounds>,
     timers: Vec<Timers>,
     /// Per joint: following-error and saturation checks suspended (a
     /// stop search pushes a joint into its stop on purpose).
@@ -98,6 +100,32 @@ pub struct SafetyMonitor {
     /// Whether any joint may stall (the common case, none, costs nothing).
     any_stalling: bool,
     latched: Option<FaultReport>,
+}
+
+/// What a joint's sample is compared with, worked out from its
+/// [`JointLimits`] once: a check that is off compares with an infinite
+/// bound (the sample is finite by then).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Bounds {
+    /// The soft limits widened by the margin.
+    lowest: f64,
+    highest: f64,
+    /// Largest |velocity|.
+    velocity: f64,
+}
+
+impl Bounds {
+    fn of(l: &JointLimits) -> Bounds {
+        let (lowest, highest) = l.position.map_or(
+            (f64::NEG_INFINITY, f64::INFINITY),
+            |(lower, upper, margin)| (lower - margin, upper + margin),
+        );
+        Bounds {
+            lowest,
+            highest,
+            velocity: l.velocity.unwrap_or(f64::INFINITY),
+        }
+    }
 }
 
 /// Tolerance for "at the maximum current" (commands are clamped to exactly
@@ -109,8 +137,10 @@ impl SafetyMonitor {
     pub fn new(limits: Vec<JointLimits>) -> SafetyMonitor {
         let timers = vec![Timers::default(); limits.len()];
         let stalling = vec![false; limits.len()];
+        let bounds = limits.iter().map(Bounds::of).collect();
         SafetyMonitor {
             limits,
+            bounds,
             timers,
             stalling,
             any_stalling: false,
@@ -204,45 +234,63 @@ impl SafetyMonitor {
     fn first_fault(&mut self, now: f64, samples: &[JointSample]) -> Option<FaultKind> {
         // Time must be usable for the duration checks.
         let now_ok = now.is_finite();
-        for (i, (lim, timers)) in self.limits.iter().zip(self.timers.iter_mut()).enumerate() {
-            let joint = lim.label;
+        let joints = self.limits.iter().zip(&self.bounds);
+        for (i, ((lim, b), timers)) in joints.zip(self.timers.iter_mut()).enumerate() {
+            // (The label is copied into a fault only.)
+            let joint = &lim.label;
             let stalling = self.any_stalling && self.stalling.get(i).copied().unwrap_or(false);
             let Some(s) = samples.get(i) else {
                 return Some(FaultKind::InvalidValue {
-                    joint,
+                    joint: *joint,
                     what: "sample (missing)",
                 });
             };
-            let invalid = |what| Some(FaultKind::InvalidValue { joint, what });
-            for (what, v) in [
-                ("setpoint", s.setpoint),
-                ("position", s.position),
-                ("velocity", s.velocity),
-                ("current command", s.current),
-                ("potentiometer", s.potentiometer.unwrap_or(0.0)),
-            ] {
-                if !v.is_finite() {
-                    return invalid(what);
+            let invalid = |what| {
+                Some(FaultKind::InvalidValue {
+                    joint: *joint,
+                    what,
+                })
+            };
+            let pot = s.potentiometer.unwrap_or(0.0);
+            // Every value finite, all at once: `x * 0` is ±0 for a finite
+            // `x` and NaN otherwise, and NaN spreads. Which one, only if
+            // not.
+            let probe = (s.setpoint * 0.0 + s.position * 0.0)
+                + (s.velocity * 0.0 + s.current * 0.0)
+                + pot * 0.0;
+            if probe != 0.0 {
+                for (what, v) in [
+                    ("setpoint", s.setpoint),
+                    ("position", s.position),
+                    ("velocity", s.velocity),
+                    ("current command", s.current),
+                    ("potentiometer", pot),
+                ] {
+                    if !v.is_finite() {
+                        return invalid(what);
+                    }
                 }
             }
             if !now_ok {
                 return invalid("time");
             }
-            if let Some((lower, upper, margin)) = lim.position.filter(|_| !stalling) {
-                if !(lower - margin <= s.position && s.position <= upper + margin) {
+            // (Off: infinite bounds, never out of them.)
+            let within = b.lowest <= s.position && s.position <= b.highest;
+            if !stalling && !within {
+                if let Some((lower, upper, _)) = lim.position {
                     return Some(FaultKind::PositionLimit {
-                        joint,
+                        joint: *joint,
                         position: s.position,
                         lower,
                         upper,
                     });
                 }
             }
-            if let Some(limit) = lim.velocity.filter(|&l| s.velocity.abs() > l) {
+            if s.velocity.abs() > b.velocity {
                 return Some(FaultKind::Velocity {
-                    joint,
+                    joint: *joint,
                     velocity: s.velocity,
-                    limit,
+                    limit: b.velocity,
                 });
             }
             if let Some(limit) = lim.following_error.filter(|_| !stalling) {
@@ -256,7 +304,7 @@ impl SafetyMonitor {
                 .is_some()
                 {
                     return Some(FaultKind::FollowingError {
-                        joint,
+                        joint: *joint,
                         error,
                         limit,
                     });
@@ -267,7 +315,7 @@ impl SafetyMonitor {
                 if let Some(duration) = lasting(&mut timers.saturated_since, saturated, now, limit)
                 {
                     return Some(FaultKind::CurrentSaturation {
-                        joint,
+                        joint: *joint,
                         duration,
                         limit,
                     });
@@ -284,7 +332,7 @@ impl SafetyMonitor {
                 .is_some()
                 {
                     return Some(FaultKind::PotentiometerMismatch {
-                        joint,
+                        joint: *joint,
                         difference,
                         tolerance,
                     });
@@ -306,6 +354,7 @@ impl SafetyMonitor {
 /// Tracks how long `condition` has held. Returns how long it has lasted when
 /// that exceeds `allowed` seconds (so a 0 s allowance trips on the first
 /// cycle the condition is seen).
+#[inline]
 fn lasting(since: &mut Option<f64>, condition: bool, now: f64, allowed: f64) -> Option<f64> {
     if !condition {
         *since = None;

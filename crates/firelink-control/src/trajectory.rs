@@ -181,6 +181,7 @@ impl PointToPoint {
     }
 
     /// The setpoint at time `t` since the start.
+    #[inline]
     pub fn sample(&self, t: f64) -> Sample {
         let t = match phase(t, self.duration) {
             Phase::Before => return Sample::at_rest(self.start),
@@ -313,6 +314,7 @@ impl Quintic {
     }
 
     /// The setpoint at time `t` since the start.
+    #[inline]
     pub fn sample(&self, t: f64) -> Sample {
         let t = match phase(t, self.duration) {
             Phase::Before => return Sample::at_rest(self.start),
@@ -399,6 +401,7 @@ impl Sinusoid {
 
     /// The setpoint at time `t` since the start. Before the start (or for a
     /// NaN time) it holds the starting position at rest.
+    #[inline]
     pub fn sample(&self, t: f64) -> Sample {
         let t = if t.is_nan() || t < 0.0 {
             return Sample::at_rest(self.position_at(0.0));
@@ -490,6 +493,7 @@ impl ServoPoint {
     }
 
     /// The setpoint `t` seconds after the point arrived.
+    #[inline]
     pub fn sample(&self, t: f64) -> Sample {
         if t < self.horizon {
             Sample {
@@ -505,6 +509,7 @@ impl ServoPoint {
 
 impl Motion {
     /// The setpoint at time `t` since the motion started.
+    #[inline]
     pub fn sample(&self, t: f64) -> Sample {
         match self {
             Motion::Hold(p) => Sample::at_rest(*p),

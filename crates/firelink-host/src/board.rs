@@ -8,7 +8,9 @@
 //! by the QLA hardware; robot-specific scaling lives in the control layer.
 
 use firelink_wire::board::MAX_AXES;
-use firelink_wire::board::realtime::{BlockFormat, BoardLayout, ReadBlockRepr, WriteBlockRepr};
+use firelink_wire::board::realtime::{
+    BlockFormat, BoardLayout, ReadBlock, ReadBlockRepr, WriteBlockRepr,
+};
 use firelink_wire::board::registers::{
     AmpCommand, DAC_ZERO, DacWord, DigitalIn, FpgaVersion, GitDesc, HardwareVersion,
     SYSTEM_CLOCK_HZ, StatusCommand, StatusRead,
@@ -69,16 +71,19 @@ impl BoardIo {
     }
 
     /// Identity of the board.
+    #[inline]
     pub fn info(&self) -> &BoardInfo {
         &self.info
     }
 
     /// Board ID.
+    #[inline]
     pub fn board_id(&self) -> u8 {
         self.info.board_id
     }
 
     /// Number of motor axes.
+    #[inline]
     pub fn axes(&self) -> usize {
         self.info.layout.motors()
     }
@@ -89,28 +94,42 @@ impl BoardIo {
         self.input_valid = true;
     }
 
+    /// Parse a read block straight into the inputs and latch it (no block
+    /// built and moved per board and cycle); on an error nothing changes.
+    #[inline]
+    pub(crate) fn latch_block(&mut self, block: &ReadBlock<&[u8]>) -> firelink_wire::Result<()> {
+        self.input.parse_into(block)?;
+        self.input_valid = true;
+        Ok(())
+    }
+
     /// Mark this cycle's inputs as missing: the old values are kept for
     /// display but [`is_valid`](Self::is_valid) turns false.
+    #[inline]
     pub(crate) fn invalidate(&mut self) {
         self.input_valid = false;
     }
 
     /// Whether the inputs were latched in the last cycle.
+    #[inline]
     pub fn is_valid(&self) -> bool {
         self.input_valid
     }
 
     /// The whole last read block.
+    #[inline]
     pub fn input(&self) -> &ReadBlockRepr {
         &self.input
     }
 
     /// STATUS from the last read.
+    #[inline]
     pub fn status(&self) -> StatusRead {
         self.input.status
     }
 
     /// 49.152 MHz clocks between the last two real-time reads.
+    #[inline]
     pub fn timestamp(&self) -> u32 {
         self.input.timestamp
     }
@@ -121,21 +140,25 @@ impl BoardIo {
     }
 
     /// Whether motor power is enabled.
+    #[inline]
     pub fn power_enabled(&self) -> bool {
         self.input.status.motor_power_enabled()
     }
 
     /// Whether the safety relay is on.
+    #[inline]
     pub fn relay_on(&self) -> bool {
         self.input.status.relay_on()
     }
 
     /// Whether the board's watchdog has expired.
+    #[inline]
     pub fn watchdog_expired(&self) -> bool {
         self.input.status.watchdog_timeout()
     }
 
     /// Whether the amplifier of `axis` (0-based) is on.
+    #[inline]
     pub fn amp_enabled(&self, axis: usize) -> bool {
         match self.info.layout.format() {
             BlockFormat::Rev8 => self
@@ -149,7 +172,30 @@ impl BoardIo {
         }
     }
 
+    /// The amplifiers that are on, bit i = axis i (as
+    /// [`amp_enabled`](Self::amp_enabled) for each axis; axes from 64 on
+    /// are not reported).
+    #[inline]
+    pub fn amp_mask(&self) -> u64 {
+        match self.info.layout.format() {
+            BlockFormat::Rev8 => self
+                .input
+                .motors()
+                .iter()
+                .take(64)
+                .enumerate()
+                .fold(0, |mask, (axis, m)| {
+                    mask | u64::from(m.status.amp_on()) << axis
+                }),
+            BlockFormat::Rev4 | BlockFormat::Rev7 => {
+                let axes = self.axes().min(4);
+                u64::from(self.input.status.amp_enabled()) & ((1 << axes) - 1)
+            }
+        }
+    }
+
     /// Signed encoder counts of `axis`.
+    #[inline]
     pub fn encoder_counts(&self, axis: usize) -> Option<i32> {
         self.input.encoders().get(axis).map(|e| e.position.counts())
     }
@@ -168,11 +214,13 @@ impl BoardIo {
     }
 
     /// Potentiometer ADC bits of `axis`.
+    #[inline]
     pub fn pot_bits(&self, axis: usize) -> Option<u16> {
         self.input.motors().get(axis).map(|m| m.adc.pot())
     }
 
     /// Motor current ADC bits of `axis`.
+    #[inline]
     pub fn current_bits(&self, axis: usize) -> Option<u16> {
         self.input.motors().get(axis).map(|m| m.adc.current())
     }
@@ -186,6 +234,7 @@ impl BoardIo {
     ///
     /// # Errors
     /// [`HostError::InvalidRequest`] for an axis the board does not have.
+    #[inline]
     pub fn set_dac(&mut self, axis: usize, bits: u16) -> Result<()> {
         let axes = self.axes();
         let word = self
@@ -202,6 +251,7 @@ impl BoardIo {
     }
 
     /// The DAC command that will be applied to `axis`.
+    #[inline]
     pub fn dac(&self, axis: usize) -> Option<u16> {
         self.output.dacs().get(axis).map(|d| d.command())
     }
@@ -261,6 +311,7 @@ impl BoardIo {
     }
 
     /// The write block as it will be sent (control quadlet included).
+    #[inline]
     pub fn output(&self) -> WriteBlockRepr {
         let mut out = self.output;
         out.control = self.control.to_word();
@@ -272,11 +323,13 @@ impl BoardIo {
     /// The power, relay and amplifier changes asked for since the last
     /// write, when the board's write block cannot carry them (Rev 4 has
     /// no control quadlet): the STATUS word to write by register, once.
+    #[inline]
     pub(crate) fn pending_status_write(&self) -> Option<u32> {
         (self.info.layout.format() == BlockFormat::Rev4 && self.control != StatusCommand::NONE)
             .then(|| self.control.to_word().raw())
     }
 
+    #[inline]
     pub(crate) fn outputs_applied(&mut self) {
         self.control = StatusCommand::NONE;
         for d in self.output.dac.iter_mut() {
@@ -297,6 +350,7 @@ impl BoardIo {
 mod tests {
     use super::*;
     use firelink_wire::board::realtime::FirmwareRev;
+    use firelink_wire::board::registers::MotorStatus;
 
     fn info(fw: FirmwareRev) -> BoardInfo {
         BoardInfo {
@@ -337,6 +391,26 @@ mod tests {
         b.set_amp_enable(3, false).unwrap();
         let out = b.output();
         assert_eq!(out.control.raw() & 0xF0F, (0b1010 << 8) | 0b0010);
+    }
+
+    /// The mask says what `amp_enabled` says, axis by axis.
+    #[test]
+    fn amp_mask_is_amp_enabled_per_axis() {
+        for fw in [FirmwareRev::Rev4, FirmwareRev::Rev7, FirmwareRev::Rev8] {
+            for bits in [0u32, 0b0101, 0b1111, 0b1010] {
+                let mut b = BoardIo::new(info(fw));
+                let mut input = ReadBlockRepr::new(b.info().layout);
+                input.status = StatusRead::default().with_amp_enabled(bits as u8);
+                for (i, m) in input.motor.iter_mut().enumerate() {
+                    m.status = MotorStatus::default().with_amp_on(bits >> i & 1 == 1);
+                }
+                b.latch(input);
+                let want = (0..b.axes())
+                    .filter(|&a| b.amp_enabled(a))
+                    .fold(0u64, |m, a| m | 1 << a);
+                assert_eq!(b.amp_mask(), want, "{fw:?} {bits:#b}");
+            }
+        }
     }
 
     #[test]

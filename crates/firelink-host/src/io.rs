@@ -273,6 +273,10 @@ fn miss_from_wire(e: firelink_wire::Error) -> MissReason {
 pub struct IoSystem<P: Port> {
     port: P,
     boards: Vec<BoardIo>,
+    /// Per board ID: its index in `boards` (`u8::MAX`: none), and per axis
+    /// over all boards: (index in `boards`, axis on it), both worked out
+    /// once at each scan so that the per-axis calls of a cycle index.
+    lookup: AxisLookup,
     slots: Vec<BoardSlot>,
     protocol: Protocol,
     hub: usize,
@@ -293,6 +297,45 @@ pub struct IoSystem<P: Port> {
     /// A bus reset was seen: node numbers may have moved; the caller
     /// rescans between cycles ([`IoSystem::recover`]).
     needs_rescan: bool,
+}
+
+/// Where boards and axes are in an [`IoSystem`]'s board list.
+#[derive(Debug, Clone, Default)]
+struct AxisLookup {
+    /// Per board ID: index in the board list, `u8::MAX` for none.
+    by_id: [u8; MAX_BOARDS],
+    /// Per axis over all boards: (board index, axis on that board).
+    axes: Vec<(u8, u8)>,
+}
+
+impl AxisLookup {
+    fn of(boards: &[BoardIo]) -> AxisLookup {
+        let mut by_id = [u8::MAX; MAX_BOARDS];
+        let mut axes = Vec::new();
+        for (i, b) in boards.iter().enumerate() {
+            let i = u8::try_from(i).unwrap_or(u8::MAX);
+            if let Some(slot) = by_id.get_mut(usize::from(b.board_id())) {
+                if *slot == u8::MAX {
+                    *slot = i;
+                }
+            }
+            axes.extend((0..b.axes()).map(|a| (i, u8::try_from(a).unwrap_or(u8::MAX))));
+        }
+        AxisLookup { by_id, axes }
+    }
+
+    fn board(&self, id: u8) -> Option<usize> {
+        self.by_id
+            .get(usize::from(id))
+            .filter(|&&i| i != u8::MAX)
+            .map(|&i| usize::from(i))
+    }
+
+    fn axis(&self, axis: usize) -> Option<(usize, usize)> {
+        self.axes
+            .get(axis)
+            .map(|&(b, a)| (usize::from(b), usize::from(a)))
+    }
 }
 
 /// Finished cycles whose reports an [`IoSystem`] keeps.
@@ -316,9 +359,9 @@ struct QueryGroup {
     wait: Duration,
 }
 
-/// Per board (index in the system): its block from the hub, or why it
-/// has none; `None` when no block came.
-type HubOutcomes = [Option<core::result::Result<ReadBlockRepr, MissReason>>; MAX_BOARDS];
+/// Per board (index in the system): its block from the hub was latched,
+/// or why it has none; `None` when no block came.
+type HubOutcomes = [Option<core::result::Result<(), MissReason>>; MAX_BOARDS];
 
 impl<P: Port> IoSystem<P> {
     /// Scan the port and set up every board found.
@@ -348,6 +391,7 @@ impl<P: Port> IoSystem<P> {
         let mut system = IoSystem {
             port,
             boards: Vec::new(),
+            lookup: AxisLookup::default(),
             slots: Vec::new(),
             protocol,
             hub: 0,
@@ -369,6 +413,7 @@ impl<P: Port> IoSystem<P> {
 
     fn adopt(&mut self, scan: &ScanReport) -> Result<()> {
         self.boards = scan.boards.iter().map(|b| BoardIo::new(*b)).collect();
+        self.lookup = AxisLookup::of(&self.boards);
         self.slots = scan
             .boards
             .iter()
@@ -579,12 +624,28 @@ impl<P: Port> IoSystem<P> {
 
     /// One board by ID.
     pub fn board(&self, id: u8) -> Option<&BoardIo> {
-        self.boards.iter().find(|b| b.board_id() == id)
+        match self.lookup.board(id).and_then(|i| self.boards.get(i)) {
+            Some(b) if b.board_id() == id => Some(b),
+            // (Boards reordered through `boards_mut`.)
+            _ => self.boards.iter().find(|b| b.board_id() == id),
+        }
     }
 
     /// One board by ID, mutable.
     pub fn board_mut(&mut self, id: u8) -> Option<&mut BoardIo> {
-        self.boards.iter_mut().find(|b| b.board_id() == id)
+        let at = self
+            .lookup
+            .board(id)
+            .filter(|&i| self.boards.get(i).is_some_and(|b| b.board_id() == id))
+            .or_else(|| self.boards.iter().position(|b| b.board_id() == id))?;
+        self.boards.get_mut(at)
+    }
+
+    /// Axis `axis` over all boards (numbered in the order of
+    /// [`boards`](Self::boards) at the last scan, when the table was made):
+    /// (index in `boards`, axis on that board).
+    pub(crate) fn axis_slot(&self, axis: usize) -> Option<(usize, usize)> {
+        self.lookup.axis(axis)
     }
 
     /// The last cycle's report.
@@ -883,11 +944,8 @@ impl<P: Port> IoSystem<P> {
                 break;
             };
             match outcomes.get(i).copied().flatten() {
-                Some(Ok(repr)) => {
-                    if let Some(b) = self.boards.get_mut(i) {
-                        b.latch(repr);
-                    }
-                }
+                // Latched as it was parsed.
+                Some(Ok(())) => {}
                 Some(Err(reason)) => self.miss(i, reason),
                 None => self.miss(i, MissReason::NotUpdated),
             }
@@ -944,8 +1002,9 @@ impl<P: Port> IoSystem<P> {
 
     /// Each board's outcome from group `g`'s hub memory read into the
     /// buffer (`hub_len` bytes) after query `seq`, by index in the system:
-    /// its block, or why it has none (`None`: no block came, or the board
-    /// is not in the group); the update times go into the report.
+    /// its block parsed straight into the board's inputs and latched, or
+    /// why it has none (`None`: no block came, or the board is not in the
+    /// group); the update times go into the report.
     ///
     /// # Errors
     /// The hub memory does not decode.
@@ -982,17 +1041,24 @@ impl<P: Port> IoSystem<P> {
             let (Some(slot), Some(&index)) = (group.slots.get(k), group.members.get(k)) else {
                 continue;
             };
-            let outcome = match entry.validate(self.rule, seq) {
-                Err(e) => Err(miss_from_wire(e)),
-                Ok(()) => match ReadBlockRepr::parse(&entry.block) {
-                    Ok(repr) if repr.status.board_id() != slot.id => {
-                        Err(MissReason::WrongBoardId {
-                            found: repr.status.board_id(),
-                        })
-                    }
-                    Ok(repr) => Ok(repr),
-                    Err(e) => Err(miss_from_wire(e)),
-                },
+            // A board's first block counts; a repeat does not replace it
+            // (nor is it parsed).
+            let first = outcomes.get(index).is_some_and(Option::is_none);
+            let outcome = if !first {
+                None
+            } else if let Err(e) = entry.validate(self.rule, seq) {
+                Some(Err(miss_from_wire(e)))
+            } else if let Err(e) = entry.block.check_len() {
+                Some(Err(miss_from_wire(e)))
+            } else if named != slot.id {
+                // (The STATUS a parse reads is the one named above.)
+                Some(Err(MissReason::WrongBoardId { found: named }))
+            } else {
+                let latched = match self.boards.get_mut(index) {
+                    Some(b) => b.latch_block(&entry.block),
+                    None => Ok(()),
+                };
+                Some(latched.map_err(miss_from_wire))
             };
             let time = match entry.header {
                 HubHeader::Rev7 { time, .. } => u32::from(time & 0x7FFF),
@@ -1001,8 +1067,7 @@ impl<P: Port> IoSystem<P> {
             if let Some(t) = self.report.update_time_us.get_mut(usize::from(slot.id)) {
                 *t = (f64::from(time) * clock_us) as f32;
             }
-            // A board's first block counts; a repeat does not replace it.
-            if let Some(o) = outcomes.get_mut(index).filter(|o| o.is_none()) {
+            if let (Some(o), Some(outcome)) = (outcomes.get_mut(index), outcome) {
                 *o = Some(outcome);
             }
         }

@@ -54,4 +54,4 @@ pub mod udp;
 
 pub use error::{HostError, MissReason, Result};
 pub use port::{Dest, LinkFilter, Port};
-pub use robot_io::RobotIo;
+pub use robot_io::{BoardStatus, RobotIo};

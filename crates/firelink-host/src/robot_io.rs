@@ -117,6 +117,25 @@ pub trait RobotIo {
     /// # Errors
     /// See the trait docs.
     fn amplifier_enabled(&self, axis: usize) -> Result<bool>;
+    /// Board `board_id` at the last latch, what the cycle's checks read of
+    /// it in one call: [`board_answered`](Self::board_answered),
+    /// [`powered`](Self::powered), [`watchdog_expired`](Self::watchdog_expired),
+    /// [`timestamp`](Self::timestamp) and the amplifiers of its axes that
+    /// were on. The default asks each of those, and
+    /// [`amplifier_enabled`](Self::amplifier_enabled) axis by axis.
+    fn board_status(&self, board_id: u8) -> BoardStatus {
+        let amplifiers = (0..64u8)
+            .map_while(|a| Some((a, self.axis_index(board_id, a)?)))
+            .filter(|&(_, axis)| self.amplifier_enabled(axis).unwrap_or(false))
+            .fold(0, |mask, (a, _)| mask | 1 << a);
+        BoardStatus {
+            answered: self.board_answered(board_id),
+            powered: self.powered(board_id),
+            watchdog_expired: self.watchdog_expired(board_id),
+            timestamp: self.timestamp(board_id),
+            amplifiers,
+        }
+    }
     /// `SetMotorVoltage` / the motor command: the DAC code the next apply
     /// writes.
     ///
@@ -133,6 +152,23 @@ pub trait RobotIo {
     fn set_all_safe(&mut self);
 }
 
+/// One board at the last latch ([`RobotIo::board_status`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct BoardStatus {
+    /// It answered the last latch.
+    pub answered: bool,
+    /// Its motor power was on (see [`RobotIo::powered`]).
+    pub powered: bool,
+    /// Its watchdog had expired.
+    pub watchdog_expired: bool,
+    /// 49.152 MHz clocks between its last two samples (`None` if it did
+    /// not answer; 0 if it does not say).
+    pub timestamp: Option<u32>,
+    /// Its amplifiers that were on, bit i = axis i on the board (none when
+    /// it did not answer; axes from 64 on are not reported).
+    pub amplifiers: u64,
+}
+
 /// The error for an axis a system does not have.
 pub fn bad_axis(axis: usize) -> HostError {
     HostError::InvalidRequest {
@@ -144,14 +180,7 @@ pub fn bad_axis(axis: usize) -> HostError {
 impl<P: Port> IoSystem<P> {
     /// (index in `boards()`, axis on it) of a flat axis number.
     fn locate(&self, axis: usize) -> Result<(usize, usize)> {
-        let mut rest = axis;
-        for (i, b) in self.boards().iter().enumerate() {
-            if rest < b.axes() {
-                return Ok((i, rest));
-            }
-            rest -= b.axes();
-        }
-        Err(bad_axis(axis))
+        self.axis_slot(axis).ok_or_else(|| bad_axis(axis))
     }
 
     fn board_at(&self, axis: usize) -> Result<(&crate::board::BoardIo, usize)> {
@@ -275,6 +304,22 @@ impl<P: Port> RobotIo for IoSystem<P> {
     fn amplifier_enabled(&self, axis: usize) -> Result<bool> {
         let (b, a) = self.board_at(axis)?;
         Ok(b.is_valid() && b.amp_enabled(a))
+    }
+
+    #[inline]
+    fn board_status(&self, board_id: u8) -> BoardStatus {
+        // One look-up for all (the per-call methods each find the board).
+        let Some(b) = self.board(board_id) else {
+            return BoardStatus::default();
+        };
+        let answered = b.is_valid();
+        BoardStatus {
+            answered,
+            powered: answered && b.power_enabled(),
+            watchdog_expired: b.watchdog_expired(),
+            timestamp: answered.then(|| b.timestamp()),
+            amplifiers: if answered { b.amp_mask() } else { 0 },
+        }
     }
 
     fn set_motor_command(&mut self, axis: usize, code: u16) -> Result<()> {

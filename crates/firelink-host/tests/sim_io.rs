@@ -10,7 +10,7 @@ use firelink_bus::{FaultRule, HostModel, PacketFault, PacketMatch, SimDuration, 
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
 use firelink_host::sim::SimPort;
-use firelink_host::{HostError, MissReason, Port};
+use firelink_host::{BoardStatus, HostError, MissReason, Port, RobotIo};
 use firelink_wire::board::address::HUB_QUERY_OFFSET;
 use firelink_wire::packet::Tcode;
 
@@ -326,4 +326,67 @@ fn broadcast_cycles_leave_nothing_in_the_link() {
     let link = io.port().host_link().unwrap();
     assert_eq!(link.pending_count(), 0);
     assert_eq!(link.completions().count(), 0);
+}
+
+/// What the trait's default `board_status` composes from the per-call
+/// methods.
+fn composed<R: RobotIo>(io: &R, id: u8) -> BoardStatus {
+    let amplifiers = (0..8u8)
+        .filter_map(|a| Some((a, io.axis_index(id, a)?)))
+        .filter(|&(_, axis)| io.amplifier_enabled(axis).unwrap_or(false))
+        .fold(0, |m, (a, _)| m | 1u64 << a);
+    BoardStatus {
+        answered: io.board_answered(id),
+        powered: io.powered(id),
+        watchdog_expired: io.watchdog_expired(id),
+        timestamp: io.timestamp(id),
+        amplifiers,
+    }
+}
+
+/// `board_status` (one look-up per board) says what the per-call methods
+/// say: boards powered with some amplifiers on, one absent, one that
+/// stopped answering.
+#[test]
+fn board_status_is_the_per_call_methods() {
+    let mut r = rig(3, Hardware::Qla1, Profile::Rev8);
+    let when = r.bus.now() + SimDuration::from_micros(200_000);
+    r.bus.schedule_fault(
+        when,
+        TimedFault::StopAnswering {
+            node: r.boards[2],
+            duration: None,
+        },
+    );
+    let p = SimPort::new(r.bus, r.host);
+    let config = IoOptions {
+        protocol: Some(Protocol::Sequential),
+        ..IoOptions::default()
+    };
+    let (mut io, _) = IoSystem::open(p, config).unwrap();
+    power_up(&mut io);
+    for (axis, on) in [(0, true), (2, true), (5, true), (9, true)] {
+        RobotIo::set_amplifier_enable(&mut io, axis, on).unwrap();
+    }
+    for _ in 0..3 {
+        io.cycle();
+        io.port_mut().wait(Duration::from_millis(2));
+    }
+    let check = |io: &IoSystem<SimPort>| {
+        for id in 0..16 {
+            assert_eq!(io.board_status(id), composed(io, id), "board {id}");
+        }
+    };
+    check(&io);
+    assert_eq!(io.board_status(0).amplifiers, 0b0101);
+    assert_eq!(io.board_status(1).amplifiers, 0b0010);
+    assert!(io.board_status(2).answered && io.board_status(2).powered);
+    assert_eq!(io.board_status(7), BoardStatus::default());
+    // A board that stops answering: not answered, no timestamp, no
+    // amplifiers, its old watchdog bit as the per-call method reads it.
+    io.port_mut().wait(Duration::from_millis(200));
+    io.cycle();
+    check(&io);
+    assert!(!io.board_status(2).answered);
+    assert!(io.board_status(0).answered);
 }

@@ -18,6 +18,7 @@ macro_rules! open_enum {
         }
 
         impl From<$ty> for $name {
+            #[inline]
             fn from(value: $ty) -> Self {
                 match value {
                     $( v if v == $value => $name::$variant, )+
@@ -27,6 +28,7 @@ macro_rules! open_enum {
         }
 
         impl From<$name> for $ty {
+            #[inline]
             fn from(value: $name) -> Self {
                 match value {
                     $( $name::$variant => $value, )+

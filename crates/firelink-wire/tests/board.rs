@@ -641,6 +641,58 @@ proptest! {
         prop_assert_eq!(&out[..len], &bytes[..len]);
     }
 
+    /// Every layout's parse, the QLA1's and DQLA's fast ones included,
+    /// reads what the checked view's accessors read, and 0 past the
+    /// layout.
+    #[test]
+    fn read_block_parse_matches_the_view(
+        layout in prop_oneof![
+            Just(BoardLayout::qla1(FirmwareRev::Rev8)),
+            Just(BoardLayout::qla1(FirmwareRev::Rev7)),
+            Just(BoardLayout::qla1(FirmwareRev::Rev4)),
+            Just(BoardLayout::dqla(FirmwareRev::Rev8)),
+            Just(BoardLayout::dqla(FirmwareRev::Rev7)),
+            layout(),
+        ],
+        bytes in proptest::collection::vec(any::<u8>(), 240),
+    ) {
+        let view = ReadBlock::new_checked(&bytes[..layout.read_block_len()], layout).unwrap();
+        let repr = ReadBlockRepr::parse(&view).unwrap();
+        prop_assert_eq!(repr.timestamp, view.timestamp());
+        prop_assert_eq!(repr.status, view.status());
+        for i in 0..8 {
+            let m = repr.motor[i];
+            prop_assert_eq!(m.adc, view.adc(i).unwrap_or_default());
+            prop_assert_eq!(m.status, view.motor_status(i).unwrap_or_default());
+            let e = repr.encoder[i];
+            prop_assert_eq!(e.position, view.enc_position(i).unwrap_or_default());
+            prop_assert_eq!(e.period, view.enc_period(i).unwrap_or_default());
+            prop_assert_eq!(e.qtr1, view.enc_qtr1(i).unwrap_or_default());
+            prop_assert_eq!(e.qtr5, view.enc_qtr5(i).unwrap_or_default());
+            prop_assert_eq!(e.run, view.enc_run(i).unwrap_or_default());
+        }
+    }
+
+    /// Parsing in place over whatever block was there before (another
+    /// layout included) gives what a fresh parse gives; a block of the
+    /// wrong length leaves the old one untouched.
+    #[test]
+    fn read_block_parse_into_equals_parse(
+        before in read_repr(),
+        layout in layout(),
+        bytes in proptest::collection::vec(any::<u8>(), 240),
+    ) {
+        let len = layout.read_block_len();
+        let view = ReadBlock::new_checked(&bytes[..len], layout).unwrap();
+        let mut repr = before;
+        repr.parse_into(&view).unwrap();
+        prop_assert_eq!(repr, ReadBlockRepr::parse(&view).unwrap());
+        let mut kept = before;
+        let short = ReadBlock::new_unchecked(&bytes[..len - 4], layout);
+        prop_assert!(kept.parse_into(&short).is_err());
+        prop_assert_eq!(kept, before);
+    }
+
     #[test]
     fn write_block_emit_then_parse(repr in write_repr()) {
         let mut buf = [0xA5u8; 64];

@@ -111,12 +111,12 @@ use firelink_wire::packet::{
 
 use crate::config::{BoardConfig, Profile};
 use crate::plant::{Plant, QLA_AMPS_PER_BIT};
-use firelink_wire::board::MAX_AXES;
 use crate::time::{SimDuration, SimTime};
 use dallas::Dallas;
 use dout::DigitalOutputs;
 use ethernet::Ethernet;
 use expander::Expander;
+use firelink_wire::board::MAX_AXES;
 use hub::{Hub, Pending};
 use power::{AxisState, Power, Watchdog};
 use prom::{FpgaProm, QlaProm};

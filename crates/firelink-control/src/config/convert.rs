@@ -10,24 +10,71 @@
 
 use super::{DriveConfig, EncoderConfig, Limits, LinearFunction, PotentiometerConfig};
 
-/// Rounds `x` to the nearest integer in `[lo, hi]`; NaN gives `nan_value`.
-fn round_clamped(x: f64, lo: f64, hi: f64, nan_value: f64) -> f64 {
+/// Rounds `x` to the nearest integer (halves away from zero, as
+/// [`f64::round`]) in `[lo, hi]`, whole bounds within ±2^52; NaN gives
+/// `nan_value()`.
+///
+/// Clamping to whole bounds and then rounding is rounding and then
+/// clamping, and a clamped value rounds exactly through its truncation:
+/// no call to the software `round` of the baseline x86-64 target (the
+/// servo cycle converts every joint's current with it).
+#[inline]
+fn round_clamped(x: f64, lo: f64, hi: f64, nan_value: impl FnOnce() -> i64) -> i64 {
     if x.is_nan() {
-        nan_value
+        return nan_value();
+    }
+    // (`max` and `min` without their NaN cases.)
+    let x = if x < lo {
+        lo
+    } else if x > hi {
+        hi
     } else {
-        x.round().max(lo).min(hi)
+        x
+    };
+    // Exact: `x` and its truncation are both within ±2^52.
+    let whole = x as i64;
+    let fraction = x - whole as f64;
+    if fraction >= 0.5 {
+        whole + 1
+    } else if fraction <= -0.5 {
+        whole - 1
+    } else {
+        whole
     }
 }
 
 /// `x` limited to `[-limit, limit]`; a non-finite or negative `limit` counts
 /// as 0, a NaN `x` as 0.
+#[inline]
 fn clamp_symmetric(x: f64, limit: f64) -> f64 {
-    let l = if limit.is_finite() && limit > 0.0 {
+    clamp_within(x, usable_limit(limit))
+}
+
+/// `limit` if it is finite and above 0, else 0.
+#[inline]
+fn usable_limit(limit: f64) -> f64 {
+    // (False for NaN.)
+    if limit > 0.0 && limit < f64::INFINITY {
         limit
     } else {
         0.0
-    };
-    if x.is_nan() { 0.0 } else { x.max(-l).min(l) }
+    }
+}
+
+/// `x` limited to `[-l, l]` for a usable limit `l` ([`usable_limit`]), a
+/// NaN `x` as 0.
+#[inline]
+fn clamp_within(x: f64, l: f64) -> f64 {
+    // (`max` and `min` without their NaN cases.)
+    if x.is_nan() {
+        0.0
+    } else if x < -l {
+        -l
+    } else if x > l {
+        l
+    } else {
+        x
+    }
 }
 
 impl LinearFunction {
@@ -38,6 +85,7 @@ impl LinearFunction {
     };
 
     /// `scale * x + offset`.
+    #[inline]
     pub fn apply(&self, x: f64) -> f64 {
         self.scale.mul_add(x, self.offset)
     }
@@ -57,13 +105,30 @@ impl DriveConfig {
     /// DAC code of a current command (`fpga-board.md` §3, DAC register bits
     /// 15:0). The current is first limited to `±maximum_current`; NaN means
     /// 0 A. The result is always a valid 16-bit code.
+    #[inline]
     pub fn current_to_bits(&self, amps: f64) -> u16 {
-        let a = clamp_symmetric(amps, self.maximum_current);
-        let zero = round_clamped(self.current_to_bits.offset, 0.0, 65535.0, 32768.0);
+        self.current_to_bits_within(amps, self.current_limit())
+    }
+
+    /// What [`current_to_bits`](Self::current_to_bits) limits a current
+    /// to: `maximum_current` when it is finite and above 0, else 0.
+    #[inline]
+    pub(crate) fn current_limit(&self) -> f64 {
+        usable_limit(self.maximum_current)
+    }
+
+    /// [`current_to_bits`](Self::current_to_bits) with its
+    /// [`current_limit`](Self::current_limit) worked out beforehand (the
+    /// servo cycle keeps it per joint).
+    #[inline]
+    pub(crate) fn current_to_bits_within(&self, amps: f64, limit: f64) -> u16 {
+        let a = clamp_within(amps, limit);
+        let zero = || round_clamped(self.current_to_bits.offset, 0.0, 65535.0, || 32768);
         round_clamped(self.current_to_bits.apply(a), 0.0, 65535.0, zero) as u16
     }
 
     /// DAC code for zero current (the amplifier's neutral command).
+    #[inline]
     pub fn zero_current_bits(&self) -> u16 {
         self.current_to_bits(0.0)
     }
@@ -83,7 +148,7 @@ impl DriveConfig {
     /// [`bits_to_current`](Self::bits_to_current), for emulators); saturates
     /// at the 16-bit range, NaN gives the code of 0 A.
     pub fn current_to_feedback_bits(&self, amps: f64) -> u16 {
-        let zero = round_clamped(self.bits_to_current.invert(0.0), 0.0, 65535.0, 32768.0);
+        let zero = || round_clamped(self.bits_to_current.invert(0.0), 0.0, 65535.0, || 32768);
         round_clamped(self.bits_to_current.invert(amps), 0.0, 65535.0, zero) as u16
     }
 
@@ -125,12 +190,14 @@ impl EncoderConfig {
     }
 
     /// Joint position from the ENC_POSITION register.
+    #[inline]
     pub fn bits_to_position(&self, bits: u32) -> f64 {
         self.counts_to_position(i64::from(Self::counts_from_bits(bits)))
     }
 
     /// Joint position of a signed count (any width: the host may unwrap
     /// overflows).
+    #[inline]
     pub fn counts_to_position(&self, counts: i64) -> f64 {
         self.bits_to_position.apply(counts as f64)
     }
@@ -143,7 +210,7 @@ impl EncoderConfig {
             c,
             f64::from(Self::MIN_COUNT),
             f64::from(Self::MAX_COUNT),
-            0.0,
+            || 0,
         ) as i32
     }
 
@@ -195,16 +262,19 @@ impl Limits {
 
 impl PotentiometerConfig {
     /// Volts at the ADC from the potentiometer field (ADC register bits 31:16).
+    #[inline]
     pub fn bits_to_voltage(&self, bits: u16) -> f64 {
         self.bits_to_voltage.apply(f64::from(bits))
     }
 
     /// Joint position for a pot voltage.
+    #[inline]
     pub fn voltage_to_position(&self, volts: f64) -> f64 {
         self.voltage_to_position.apply(volts)
     }
 
     /// Joint position from the potentiometer field.
+    #[inline]
     pub fn bits_to_position(&self, bits: u16) -> f64 {
         self.voltage_to_position(self.bits_to_voltage(bits))
     }
@@ -213,13 +283,59 @@ impl PotentiometerConfig {
     /// the 16-bit range, NaN gives 0.
     pub fn position_to_bits(&self, position: f64) -> u16 {
         let volts = self.voltage_to_position.invert(position);
-        round_clamped(self.bits_to_voltage.invert(volts), 0.0, 65535.0, 0.0) as u16
+        round_clamped(self.bits_to_voltage.invert(volts), 0.0, 65535.0, || 0) as u16
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// What `round_clamped` computes without the shortcut.
+    fn by_round(x: f64, lo: f64, hi: f64) -> f64 {
+        x.round().max(lo).min(hi)
+    }
+
+    #[test]
+    fn round_clamped_is_round_then_clamp() {
+        let mut xs = vec![
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.5,
+            2.5,
+            -2.5,
+            0.499_999_999_999_999_94,
+            -0.499_999_999_999_999_94,
+            32767.5,
+            32768.49999,
+            65534.5,
+            65535.4,
+            65535.5,
+            -1e300,
+            1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            4_503_599_627_370_495.5,
+            -4_503_599_627_370_495.5,
+            9.1e15,
+            -8_388_608.5,
+            8_388_607.5,
+        ];
+        // A sweep over both ranges in steps that hit halves and near-halves.
+        xs.extend((-40_000..140_000).map(|k| f64::from(k) * 0.499_7));
+        xs.extend((-20_000..20_000).map(|k| f64::from(k) * 0.25));
+        let wide = 4_503_599_627_370_496.0;
+        for (lo, hi) in [(0.0, 65535.0), (-8_388_608.0, 8_388_607.0), (-wide, wide)] {
+            for &x in &xs {
+                let got = round_clamped(x, lo, hi, || i64::MIN);
+                let want = by_round(x, lo, hi);
+                assert!(got as f64 == want, "{x} in [{lo}, {hi}]: {got} != {want}");
+            }
+            assert_eq!(round_clamped(f64::NAN, lo, hi, || 7), 7);
+        }
+    }
 
     fn qla_drive(direction: f64) -> DriveConfig {
         // The QLA1 factors: 16-bit DAC, +-6.25 A full scale (fpga-board.md §3).

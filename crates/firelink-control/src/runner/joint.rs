@@ -24,6 +24,8 @@ pub(crate) struct Joint {
     /// The I/O system's axis (over all boards).
     pub axis: usize,
     pub drive: DriveConfig,
+    /// `drive.current_limit()`, kept.
+    pub current_limit: f64,
     pub encoder: EncoderConfig,
     pub pot: Option<PotentiometerConfig>,
     pub prismatic: bool,
@@ -33,18 +35,9 @@ pub(crate) struct Joint {
     pub position: f64,
     pub velocity: VelocityEstimator,
     pub setpoint: f64,
+    /// The setpoint's velocity (0 unless Active), rad/s or m/s.
+    pub setpoint_velocity: f64,
     pub current: f64,
-}
-
-/// What one joint's cycle measured, for homing and the safety monitor.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct JointUpdate {
-    /// Encoder position before the homing offset.
-    pub raw: f64,
-    /// Potentiometer position (NaN without one).
-    pub pot: f64,
-    /// The safety monitor's sample.
-    pub sample: JointSample,
 }
 
 impl Joint {
@@ -58,6 +51,7 @@ impl Joint {
             board,
             axis,
             drive: a.drive,
+            current_limit: a.drive.current_limit(),
             encoder: a.encoder,
             pot: a.potentiometer,
             prismatic: a.joint_type == Some(JointType::Prismatic),
@@ -67,84 +61,98 @@ impl Joint {
             position: 0.0,
             velocity: VelocityEstimator::default(),
             setpoint: 0.0,
+            setpoint_velocity: 0.0,
             current: 0.0,
         }
     }
 
-    /// One cycle: the encoder `counts` and pot `pot_bits` latched, the
-    /// boards' sample clock `sampled` (s), the port's time `now` and the
-    /// period `dt`. Active: the trajectory's setpoint, the PID's current
-    /// and the tracking error into `acc`; otherwise the joint follows its
-    /// position with no current. Allocation-free.
-    #[allow(clippy::too_many_arguments)]
-    pub fn update(
-        &mut self,
-        counts: i32,
-        pot_bits: Option<u16>,
-        sampled: f64,
-        now: f64,
-        dt: f64,
-        active: bool,
-        pid: Option<&mut Pid>,
-        acc: Option<&mut ArmAcc>,
-    ) -> JointUpdate {
+    /// One cycle's measurement, the first half of the joint's cycle: the
+    /// encoder `counts` latched and the boards' sample clock `sampled`
+    /// (s) give the position (homed) and the velocity, into the joint and
+    /// its safety `sample`. Returns the encoder position before the homing
+    /// offset. Allocation-free.
+    #[inline]
+    pub fn measure(&mut self, counts: i32, sampled: f64, sample: &mut JointSample) -> f64 {
         let raw = self.encoder.counts_to_position(i64::from(counts));
         let pos = raw + self.offset;
-        let pot = self.pot_position(pot_bits);
         let velocity = self.velocity.update(sampled, pos);
         self.position = pos;
-        let mut amps = 0.0;
+        sample.position = pos;
+        sample.velocity = velocity;
+        raw
+    }
+
+    /// Then the setpoint: Active, the trajectory's at the port's time
+    /// `now`; otherwise the joint's position, at rest.
+    #[inline]
+    pub fn plan(&mut self, now: f64, active: bool) {
         if active {
             let sp = self.motion.sample(now - self.motion_start);
             self.setpoint = sp.position;
+            self.setpoint_velocity = sp.velocity;
+        } else {
+            self.setpoint = self.position;
+            self.setpoint_velocity = 0.0;
+        }
+    }
+
+    /// Last, after [`plan`](Self::plan): Active, the PID's current over the
+    /// period `dt` and the tracking error into `acc`; otherwise no current.
+    /// `pot` is the joint's pot position in actuator space (NaN: none).
+    /// The rest of the safety `sample`. Allocation-free.
+    #[inline]
+    pub fn control(
+        &mut self,
+        dt: f64,
+        active: bool,
+        pot: f64,
+        pid: Option<&mut Pid>,
+        acc: Option<&mut ArmAcc>,
+        sample: &mut JointSample,
+    ) {
+        let pos = self.position;
+        let mut amps = 0.0;
+        if active {
             if let Some(pid) = pid {
                 amps = pid.update(
                     Setpoint {
-                        position: sp.position,
-                        velocity: sp.velocity,
+                        position: self.setpoint,
+                        velocity: self.setpoint_velocity,
                         feedforward: 0.0,
                     },
                     Measurement {
                         position: pos,
-                        velocity,
+                        velocity: sample.velocity,
                     },
                     dt,
                 );
             }
             if let Some(acc) = acc {
-                acc.add((sp.position - pos).abs(), self.prismatic);
+                acc.add((self.setpoint - pos).abs(), self.prismatic);
             }
-        } else {
-            self.setpoint = pos;
         }
         self.current = amps;
-        JointUpdate {
-            raw,
-            pot,
-            sample: JointSample {
-                setpoint: self.setpoint,
-                position: pos,
-                velocity,
-                current: amps,
-                potentiometer: (self.pot.is_some() && active && pot.is_finite()).then_some(pot),
-            },
-        }
+        sample.setpoint = self.setpoint;
+        sample.current = amps;
+        sample.potentiometer = (self.pot.is_some() && active && pot.is_finite()).then_some(pot);
     }
 
     /// The pot position from the pot's ADC bits (NaN without a pot or a
     /// reading).
     #[inline]
     pub fn pot_position(&self, bits: Option<u16>) -> f64 {
-        match (self.pot, bits) {
+        match (&self.pot, bits) {
             (Some(p), Some(bits)) => p.bits_to_position(bits),
             _ => f64::NAN,
         }
     }
 
     /// The DAC code to write: the current while active, else zero current.
+    #[inline]
     pub fn command(&self, active: bool) -> u16 {
         if active {
-            self.drive.current_to_bits(self.current)
+            self.drive
+                .current_to_bits_within(self.current, self.current_limit)
         } else {
             self.drive.zero_current_bits()
         }

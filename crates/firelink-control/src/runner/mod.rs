@@ -47,7 +47,7 @@ use joint::{Joint, Pacer};
 use std::time::{Duration, Instant};
 
 use firelink_host::io::{CycleReport, IoStats};
-use firelink_host::{HostError, MissReason, RobotIo};
+use firelink_host::{BoardStatus, HostError, MissReason, RobotIo};
 use firelink_wire::board::MAX_BOARDS;
 use firelink_wire::board::registers::SYSTEM_CLOCK_HZ;
 
@@ -148,6 +148,10 @@ pub struct Robot<R: RobotIo> {
     /// Every joint's `(board ID, axis on the board, joint)`, in that
     /// order: the order the per-board checks report in.
     by_board: Vec<(u8, u8, usize)>,
+    /// Per board ID: the axes its joints use (bit i = axis i), to check
+    /// their amplifiers with one call per board; `None` when an axis is
+    /// beyond 63 (then joint by joint).
+    used_amps: Option<[u64; MAX_BOARDS]>,
     expected: BoardSet,
     life: Lifecycle,
     safety: SafetyMonitor,
@@ -159,6 +163,9 @@ pub struct Robot<R: RobotIo> {
     /// when the encoders were sampled, whatever the host's or the
     /// network's jitter.
     sample_clock: [f64; MAX_BOARDS],
+    /// Per board ID: the expected boards as the last latch found them
+    /// (read once per cycle for the clock and the checks).
+    board_status: [BoardStatus; MAX_BOARDS],
     /// Per joint: the pot position as read (where the pot is mounted).
     raw_pot: Vec<f64>,
     /// Pots in actuator space: `pot[t] += w * raw_pot[s]` for each
@@ -253,6 +260,14 @@ impl<R: RobotIo> Robot<R> {
             joints.push(Joint::new(&j, usize::from(a.board_id), axis));
         }
         by_board.sort_unstable();
+        let used_amps =
+            by_board
+                .iter()
+                .try_fold([0u64; MAX_BOARDS], |mut used, &(board, axis, _)| {
+                    let bit = 1u64.checked_shl(u32::from(axis))?;
+                    *used.get_mut(usize::from(board))? |= bit;
+                    Some(used)
+                });
         let n = joints.len();
         let arm_names: Vec<String> = config.robots.iter().map(|r| r.name.clone()).collect();
         Ok(Robot {
@@ -263,12 +278,14 @@ impl<R: RobotIo> Robot<R> {
             arm_acc: vec![ArmAcc::default(); arm_names.len()],
             arm_names,
             by_board,
+            used_amps,
             expected: config.board_set(),
             life: Lifecycle::from_config(config),
             safety: SafetyMonitor::from_config(config),
             homing: Homing::from_config(config, settings.homing),
             samples: vec![JointSample::default(); n],
             sample_clock: [0.0; MAX_BOARDS],
+            board_status: [BoardStatus::default(); MAX_BOARDS],
             raw_pot: vec![0.0; n],
             pot_mix: pot_mix(config),
             stop_searches: config
@@ -685,8 +702,14 @@ impl<R: RobotIo> Robot<R> {
         }
         .clamp(0.1 * self.period(), 10.0 * self.period());
         self.last_start = Some(report.started);
-        for (id, clock) in self.sample_clock.iter_mut().enumerate() {
-            if let Some(ts) = self.io.timestamp(id as u8) {
+        // (Only the boards the joints are on: no other clock is read.)
+        for id in self.expected.iter() {
+            let status = self.io.board_status(id);
+            if let Some(s) = self.board_status.get_mut(usize::from(id)) {
+                *s = status;
+            }
+            let clock = self.sample_clock.get_mut(usize::from(id));
+            if let (Some(clock), Some(ts)) = (clock, status.timestamp) {
                 // A board that reports no timestamp: the host's interval.
                 *clock += if ts == 0 {
                     dt
@@ -711,9 +734,9 @@ impl<R: RobotIo> Robot<R> {
                 self.disabled_acknowledged |= self.io.disable_amplifiers_acknowledged(pending);
             }
         }
-        let report = *self.io.apply_all_outputs();
-        self.last_report = Some(report);
-        self.times.record(report.io_time(), compute);
+        let report = self.last_report.insert(*self.io.apply_all_outputs());
+        let io_time = report.io_time();
+        self.times.record(io_time, compute);
         match self.fault {
             Some(f) => Err(f),
             None => Ok(()),
@@ -777,11 +800,20 @@ impl<R: RobotIo> Robot<R> {
     /// off while Active (its lowest axis).
     fn board_fault(&self) -> Option<FaultKind> {
         let active = self.life.state() == State::Active;
-        for id in (0..MAX_BOARDS as u8).filter(|id| self.expected.contains(*id)) {
-            let powered = self.io.powered(id);
+        // `by_board` is sorted by board ID: each board's joints are the
+        // next run of it (walked once per cycle, not once per board).
+        let mut joints = self.by_board.as_slice();
+        for id in self.expected.iter() {
+            // (As the cycle's latch found it.)
+            let status = self
+                .board_status
+                .get(usize::from(id))
+                .copied()
+                .unwrap_or_default();
+            let powered = status.powered;
             // Before power is on a timed-out watchdog is harmless (nothing
             // to turn off); from power on, it is a fault.
-            if self.io.watchdog_expired(id) && (active || powered) {
+            if status.watchdog_expired && (active || powered) {
                 return Some(FaultKind::Watchdog { board_id: id });
             }
             if !active {
@@ -790,10 +822,24 @@ impl<R: RobotIo> Robot<R> {
             if !powered {
                 return Some(FaultKind::Power { board_id: id });
             }
-            let off = self
-                .by_board
-                .iter()
-                .find(|&&(board, _, i)| board == id && !self.amplifier_on(i));
+            if let Some(used) = &self.used_amps {
+                let used = used.get(usize::from(id)).copied().unwrap_or(0);
+                let off = used & !status.amplifiers;
+                if off != 0 {
+                    let axis_id = off.trailing_zeros() as u8;
+                    return Some(FaultKind::Amplifier {
+                        board_id: id,
+                        axis_id,
+                    });
+                }
+                continue;
+            }
+            let below = joints.iter().take_while(|&&(board, ..)| board < id).count();
+            let from = joints.get(below..).unwrap_or_default();
+            let on = from.iter().take_while(|&&(board, ..)| board == id).count();
+            let (of_board, rest) = from.split_at(on);
+            joints = rest;
+            let off = of_board.iter().find(|&&(_, _, i)| !self.amplifier_on(i));
             if let Some(&(board_id, axis_id, _)) = off {
                 return Some(FaultKind::Amplifier { board_id, axis_id });
             }
@@ -801,12 +847,10 @@ impl<R: RobotIo> Robot<R> {
         None
     }
 
-    /// Pots mounted on joints: every joint's pot position read, then
-    /// turned into actuator space through the robots' pot couplings.
-    fn read_coupled_pots(&mut self) {
-        for (raw, j) in self.raw_pot.iter_mut().zip(&self.joints) {
-            *raw = j.pot_position(self.io.analog_position(j.axis).ok());
-        }
+    /// Pots mounted on joints: every joint's pot position as read
+    /// (`raw_pot`) turned into actuator space through the robots' pot
+    /// couplings.
+    fn mix_pots(&mut self) {
         self.pot.fill(0.0);
         for &(t, s, w) in &self.pot_mix {
             if let (Some(p), Some(r)) = (self.pot.get_mut(t), self.raw_pot.get(s)) {
@@ -818,37 +862,36 @@ impl<R: RobotIo> Robot<R> {
     fn compute(&mut self, now: f64, dt: f64) {
         let active = self.life.state() == State::Active;
         let coupled = !self.pot_mix.is_empty();
-        if coupled {
-            self.read_coupled_pots();
-        }
-        for (i, j) in self.joints.iter_mut().enumerate() {
+        // Every joint measured, then every joint's setpoint, then every
+        // joint controlled: each joint's arithmetic (a division for the
+        // velocity, a sine for a sinusoid, the PID on both) depends on no
+        // other joint's, and in separate passes the joints overlap.
+        let joints = self.joints.iter_mut().zip(&mut self.samples);
+        let pots = self
+            .enc
+            .iter_mut()
+            .zip(&mut self.pot)
+            .zip(&mut self.raw_pot);
+        for ((j, s), ((e, p), raw)) in joints.zip(pots) {
             let counts = self.io.encoder_position(j.axis).unwrap_or(0);
             let sampled = self.sample_clock.get(j.board).copied().unwrap_or(now);
-            let mut u = j.update(
-                counts,
-                self.io.analog_position(j.axis).ok(),
-                sampled,
-                now,
-                dt,
-                active,
-                self.pids.get_mut(i),
-                self.arm_acc.get_mut(j.arm),
-            );
-            if let Some(e) = self.enc.get_mut(i) {
-                *e = u.raw;
-            }
-            if coupled {
-                // The pot reads the joint; the safety monitor compares the
-                // encoder with it in actuator space.
-                let pot = self.pot.get(i).copied().unwrap_or(f64::NAN);
-                u.sample.potentiometer =
-                    (j.pot.is_some() && active && pot.is_finite()).then_some(pot);
-            } else if let Some(p) = self.pot.get_mut(i) {
-                *p = u.pot;
-            }
-            if let Some(s) = self.samples.get_mut(i) {
-                *s = u.sample;
-            }
+            *e = j.measure(counts, sampled, s);
+            let pot = j.pot_position(self.io.analog_position(j.axis).ok());
+            // Pots on joints are read where they are, then mixed.
+            if coupled { *raw = pot } else { *p = pot }
+        }
+        if coupled {
+            // The pot reads the joint; the safety monitor compares the
+            // encoder with it in actuator space.
+            self.mix_pots();
+        }
+        for j in self.joints.iter_mut() {
+            j.plan(now, active);
+        }
+        let joints = self.joints.iter_mut().zip(&mut self.samples);
+        for (i, ((j, s), p)) in joints.zip(&self.pot).enumerate() {
+            let (pid, acc) = (self.pids.get_mut(i), self.arm_acc.get_mut(j.arm));
+            j.control(dt, active, *p, pid, acc, s);
         }
         if active {
             if let Some(r) = self.safety.check(now, self.cycle, &self.samples) {

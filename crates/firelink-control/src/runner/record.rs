@@ -34,6 +34,7 @@ pub(crate) struct ArmAcc {
 
 impl ArmAcc {
     /// Add one joint's |setpoint - position|.
+    #[inline]
     pub(crate) fn add(&mut self, err: f64, prismatic: bool) {
         if prismatic {
             self.sum_m += err * err;
@@ -133,6 +134,7 @@ impl CycleTimes {
 
     /// Record one cycle (allocation-free: beyond the capacity it is only
     /// counted).
+    #[inline]
     pub(crate) fn record(&mut self, io: Duration, compute: Duration) {
         let io_us = io.as_secs_f64() * 1e6;
         let c_us = compute.as_secs_f64() * 1e6;

@@ -36,17 +36,29 @@ impl VelocityEstimator {
     /// Add the sample taken at `time` (seconds, any origin, increasing) and
     /// return the new estimate. A sample whose time does not advance past
     /// the oldest one in the window leaves the estimate unchanged.
+    #[inline]
     pub fn update(&mut self, time: f64, position: f64) -> f64 {
         if self.backfill {
             self.date_the_rest_samples(time);
         }
+        // (Always `oldest`; the remainder only shows it is in the window.)
+        let slot = self.oldest % WINDOW;
         if self.primed {
-            let t0 = self.times.get(self.oldest).copied().unwrap_or(time);
-            let p0 = self.positions.get(self.oldest).copied().unwrap_or(position);
+            let t0 = self.times.get(slot).copied().unwrap_or(time);
+            let p0 = self.positions.get(slot).copied().unwrap_or(position);
             let span = time - t0;
-            if span > 0.0 && span.is_finite() {
+            // (Finite and above 0; false for NaN.)
+            if span > 0.0 && span <= f64::MAX {
                 let v = (position - p0) / span;
                 self.velocity += 0.5 * (v - self.velocity);
+                // At rest the filter halves towards 0 and sticks at the
+                // smallest subnormal (half of it rounds to 0): a joint at
+                // rest would carry ±5e-324 rad/s for ever, and every
+                // operation on a subnormal costs the CPU a slow assist,
+                // every cycle. Below the normal range it is 0.
+                if self.velocity.abs() < f64::MIN_POSITIVE {
+                    self.velocity = 0.0;
+                }
             }
         } else {
             // A joint at rest until now: every slot holds this sample.
@@ -56,14 +68,11 @@ impl VelocityEstimator {
             self.primed = true;
             self.backfill = true;
         }
-        if let (Some(t), Some(p)) = (
-            self.times.get_mut(self.oldest),
-            self.positions.get_mut(self.oldest),
-        ) {
+        if let (Some(t), Some(p)) = (self.times.get_mut(slot), self.positions.get_mut(slot)) {
             *t = time;
             *p = position;
         }
-        self.oldest = (self.oldest + 1) % WINDOW;
+        self.oldest = (slot + 1) % WINDOW;
         self.velocity
     }
 
@@ -147,6 +156,25 @@ mod tests {
         let v = est.update(1e-3, 1.0 + 8e-3);
         // (8e-3 over 8 periods of 1e-3) = 1.0, halved by the filter.
         assert!((v - 0.5).abs() < 1e-9, "{v}");
+    }
+
+    /// A joint coming to rest reads exactly 0, not a subnormal the
+    /// filter's halving would otherwise stick at.
+    #[test]
+    fn at_rest_the_estimate_reaches_zero() {
+        let mut est = VelocityEstimator::default();
+        let period = 1.0 / 6000.0;
+        for k in 0..50 {
+            est.update(f64::from(k) * period, 0.1 * f64::from(k) * period);
+        }
+        assert!(est.velocity() > 0.09);
+        let mut t = 50.0 * period;
+        for _ in 0..3000 {
+            let v = est.update(t, 0.5);
+            assert!(v == 0.0 || v.abs() >= f64::MIN_POSITIVE, "{v:e}");
+            t += period;
+        }
+        assert_eq!(est.velocity(), 0.0);
     }
 
     #[test]

@@ -14,9 +14,14 @@
 //! thread and of the emulator's server thread. The UDP points can also
 //! run against any bridge ([`BenchOptions::udp_target`]).
 //!
+//! Beside the I/O, the host's own CPU per 28-axis dVRK cycle (parse,
+//! PID, build commands) is measured over a recorded cycle with no I/O
+//! ([`host_cpu`]).
+//!
 //! The library behind `firelink bench` and the Python package's
 //! `run_bench`; [`BenchReport`] serialises to `firelink bench --json`.
 
+pub mod host_cpu;
 pub mod udp;
 
 use std::fmt;
@@ -253,6 +258,10 @@ pub struct BenchReport {
     pub results: Vec<BenchPoint>,
     /// Compute time of the 28-axis dVRK cycle (median), us.
     pub compute_us: f64,
+    /// The host's own CPU per 28-axis dVRK cycle: the hub block parsed,
+    /// the runner's check and compute, the command block built, timed
+    /// over a recorded cycle with no I/O; absent when it could not run.
+    pub host_cpu_per_cycle_us: Option<HostCpu>,
     /// The paper's figures.
     pub paper: PaperFigures,
     /// Firmware of the emulated boards.
@@ -265,6 +274,52 @@ pub struct BenchReport {
     /// The simulation cost per cycle against boards, per protocol measured
     /// on the simulated bus at three or more board counts.
     pub sim_cost: Vec<SimCostFit>,
+}
+
+/// The host's CPU per 28-axis cycle (parse, PID, build commands), us per
+/// cycle over a recorded cycle replayed without I/O
+/// ([`host_cpu::RecordedCycle`]), each cycle timed on the monotonic clock.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct HostCpu {
+    /// Median.
+    pub median: f64,
+    /// 99th percentile (on a shared machine: preemption included).
+    pub p99: f64,
+    /// Mean.
+    pub mean: f64,
+    /// Cycles timed.
+    pub cycles: u64,
+    /// Axes computed per cycle.
+    pub axes: usize,
+    /// Boards whose blocks are parsed per cycle.
+    pub boards: usize,
+}
+
+/// Cycles timed for [`HostCpu`], after [`HOST_CPU_WARM_UP`] untimed ones.
+pub const HOST_CPU_CYCLES: usize = 20_000;
+/// Untimed cycles before [`HOST_CPU_CYCLES`].
+pub const HOST_CPU_WARM_UP: u64 = 2_000;
+
+/// Measure the host's CPU per 28-axis cycle ([`HostCpu`]).
+///
+/// # Errors
+/// The recorded cycle could not be set up or one of its cycles failed.
+pub fn host_cpu_per_cycle() -> Result<HostCpu, TestbedError> {
+    let mut recorded = host_cpu::RecordedCycle::record()?;
+    let p = recorded.measure(HOST_CPU_WARM_UP, HOST_CPU_CYCLES)?;
+    let robot = recorded.robot();
+    Ok(HostCpu {
+        median: round3(p.median),
+        p99: round3(p.p99),
+        mean: round3(p.mean),
+        cycles: HOST_CPU_CYCLES as u64,
+        axes: robot.joint_count(),
+        boards: robot.io().boards().len(),
+    })
+}
+
+fn round3(x: f64) -> f64 {
+    (x * 1000.0).round() / 1000.0
 }
 
 /// A raw measurement, before rounding and the budget.
@@ -665,6 +720,7 @@ pub fn run_bench(
         }
     }
     let compute = compute_time_us();
+    let host_cpu = host_cpu_per_cycle().ok();
     let mut report = BenchReport {
         results: raws
             .iter()
@@ -672,6 +728,7 @@ pub fn run_bench(
             .collect(),
         sim_cost: Vec::new(),
         compute_us: round2(compute),
+        host_cpu_per_cycle_us: host_cpu,
         paper: PaperFigures {
             sequential_8_us: 496.0,
             broadcast_8_us: 115.77,
@@ -800,6 +857,18 @@ impl fmt::Display for BenchReport {
             "compute (28-axis dVRK cycle, median): {:.1} us; budget = seed 002's t(Te)+t(Tf)+t(Tg) < {period:.1} us",
             self.compute_us
         )?;
+        match &self.host_cpu_per_cycle_us {
+            Some(h) => writeln!(
+                f,
+                "host CPU per {}-axis cycle (parse, PID, build commands): median {:.2} us, p99 {:.2} us \
+                 ({} boards' blocks parsed; {} recorded cycles replayed with no I/O)",
+                h.axes, h.median, h.p99, h.boards, h.cycles
+            )?,
+            None => writeln!(
+                f,
+                "host CPU per 28-axis cycle (parse, PID, build commands): not measured"
+            )?,
+        }
         writeln!(
             f,
             "paper (seed 000, 8 boards): sequential {} us measured, broadcast {} us",

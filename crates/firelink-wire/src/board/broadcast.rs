@@ -337,6 +337,7 @@ pub enum HubHeader {
 
 impl HubHeader {
     /// Decode a hub header quadlet in the given format.
+    #[inline]
     pub fn from_word(word: u32, format: BlockFormat) -> HubHeader {
         match format {
             BlockFormat::Rev4 | BlockFormat::Rev7 => HubHeader::Rev7 {
@@ -467,6 +468,7 @@ impl SeqRule {
 
     /// The sequence to query with after `seq`: never 0, and under
     /// [`SeqRule::Seed000`] never [`CORRUPT_QUERY_SEQ`].
+    #[inline]
     pub fn next_seq(self, seq: u16) -> u16 {
         let mut next = seq.wrapping_add(1);
         while next == 0 || (self == SeqRule::Seed000 && next == CORRUPT_QUERY_SEQ) {
@@ -481,6 +483,7 @@ impl SeqRule {
     /// # Errors
     /// [`Error::CorruptQuery`] (seed 000, `0xFFFF`), else
     /// [`Error::Sequence`] on a mismatch.
+    #[inline]
     pub fn check_seq(self, query_seq: u16, received: u16, board: u8) -> Result<()> {
         if self == SeqRule::Seed000 && received == CORRUPT_QUERY_SEQ {
             return Err(Error::CorruptQuery { board });
@@ -504,6 +507,7 @@ impl SeqRule {
     /// # Errors
     /// [`Error::SequenceFlagged`], [`Error::CorruptQuery`] or
     /// [`Error::Sequence`] (with the low bytes for a Rev 8 header).
+    #[inline]
     pub fn check(self, query_seq: u16, header: HubHeader, board: u8) -> Result<()> {
         match header {
             HubHeader::Rev7 { seq, .. } => self.check_seq(query_seq, seq, board),
@@ -541,6 +545,7 @@ pub struct BoardSlot {
 /// Rev 7 `29 * boards + 1`). Rev 4 hubs have no timing quadlet: boards
 /// that are all Rev 4 give the sum alone (`13 * boards` for QLA1); no
 /// boards at all give the timing quadlet alone.
+#[inline]
 pub fn hub_block_quadlets<I: IntoIterator<Item = BoardLayout>>(layouts: I) -> usize {
     let (mut sum, mut all_rev4) = (0, true);
     for layout in layouts {
@@ -552,6 +557,7 @@ pub fn hub_block_quadlets<I: IntoIterator<Item = BoardLayout>>(layouts: I) -> us
 
 /// Whether a hub of this format appends the timing quadlet after the last
 /// entry (Rev 7 and later).
+#[inline]
 pub fn has_hub_timing(format: BlockFormat) -> bool {
     format != BlockFormat::Rev4
 }
@@ -610,6 +616,7 @@ impl<'b, T: AsRef<[u8]>> HubBlock<'b, T> {
     }
 
     /// The entries, one per expected board.
+    #[inline]
     pub fn entries(&self) -> HubEntries<'_> {
         HubEntries {
             bytes: self.buffer.as_ref(),
@@ -667,6 +674,7 @@ impl HubEntry<'_> {
     /// # Errors
     /// [`Error::BlockSize`] for a Rev 8 size mismatch; the errors of
     /// [`SeqRule::check`].
+    #[inline]
     pub fn validate(&self, rule: SeqRule, query_seq: u16) -> Result<()> {
         if let HubHeader::Rev8 { quadlets, .. } = self.header {
             let expected = self.slot.layout.broadcast_quadlets();
@@ -693,6 +701,7 @@ pub struct HubEntries<'a> {
 impl<'a> Iterator for HubEntries<'a> {
     type Item = HubEntry<'a>;
 
+    #[inline]
     fn next(&mut self) -> Option<HubEntry<'a>> {
         let (&slot, rest) = self.boards.split_first()?;
         let len = slot.layout.broadcast_quadlets() * 4;
@@ -866,6 +875,7 @@ impl<'a> CommandBlockWriter<'a> {
     }
 
     /// Bytes written so far.
+    #[inline]
     pub fn len(&self) -> usize {
         self.len
     }
@@ -880,6 +890,7 @@ impl<'a> CommandBlockWriter<'a> {
     /// # Errors
     /// [`Error::BoardOrder`] unless the board ID is above the previous one;
     /// [`Error::BufferTooSmall`]; the errors of [`WriteBlockRepr::emit`].
+    #[inline]
     pub fn push(&mut self, block: &WriteBlockRepr) -> Result<()> {
         if let Some(previous) = self.last {
             if block.board_id <= previous {

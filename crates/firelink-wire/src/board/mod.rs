@@ -48,36 +48,44 @@ pub(crate) trait Bits: Copy {
 }
 
 impl Bits for bool {
+    #[inline]
     fn from_bits(bits: u32) -> Self {
         bits != 0
     }
+    #[inline]
     fn to_bits(self) -> u32 {
         u32::from(self)
     }
 }
 
 impl Bits for u8 {
+    #[inline]
     fn from_bits(bits: u32) -> Self {
         bits as u8
     }
+    #[inline]
     fn to_bits(self) -> u32 {
         u32::from(self)
     }
 }
 
 impl Bits for u16 {
+    #[inline]
     fn from_bits(bits: u32) -> Self {
         bits as u16
     }
+    #[inline]
     fn to_bits(self) -> u32 {
         u32::from(self)
     }
 }
 
 impl Bits for u32 {
+    #[inline]
     fn from_bits(bits: u32) -> Self {
         bits
     }
+    #[inline]
     fn to_bits(self) -> u32 {
         self
     }
@@ -102,18 +110,21 @@ macro_rules! quadlet_register {
 
         impl $name {
             /// The raw quadlet.
+            #[inline]
             pub const fn raw(self) -> u32 {
                 self.0
             }
 
             $(
                 $(#[$fattr])*
+                #[inline]
                 pub fn $get(self) -> $ty {
                     <$ty as $crate::board::Bits>::from_bits($field.extract(self.0))
                 }
 
                 #[doc = concat!("Set [`", stringify!($get), "`](Self::", stringify!($get),
                     ") (truncated to the field width).")]
+                #[inline]
                 pub fn $set(&mut self, value: $ty) {
                     self.0 = $field.insert(self.0, $crate::board::Bits::to_bits(value));
                 }
@@ -122,6 +133,7 @@ macro_rules! quadlet_register {
                     stringify!($get), ") replaced (builder form of [`", stringify!($set),
                     "`](Self::", stringify!($set), ")).")]
                 #[must_use]
+                #[inline]
                 pub fn $with(mut self, value: $ty) -> Self {
                     self.$set(value);
                     self
@@ -130,12 +142,14 @@ macro_rules! quadlet_register {
         }
 
         impl From<u32> for $name {
+            #[inline]
             fn from(raw: u32) -> Self {
                 $name(raw)
             }
         }
 
         impl From<$name> for u32 {
+            #[inline]
             fn from(value: $name) -> u32 {
                 value.0
             }
@@ -192,6 +206,7 @@ macro_rules! layout_view {
             /// # Errors
             /// [`Error::NotQuadletAligned`](crate::Error::NotQuadletAligned) or
             /// [`Error::BlockSize`](crate::Error::BlockSize).
+            #[inline]
             pub fn check_len(&self) -> $crate::Result<()> {
                 $crate::board::check_exact(
                     $what,
@@ -221,6 +236,7 @@ macro_rules! layout_view {
 pub(crate) use layout_view;
 
 /// Check that the buffer is exactly `quadlets` quadlets long.
+#[inline]
 pub(crate) fn check_exact(what: &'static str, len: usize, quadlets: usize) -> crate::Result<()> {
     if len % 4 != 0 {
         return Err(crate::Error::NotQuadletAligned { what, len });

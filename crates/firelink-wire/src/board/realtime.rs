@@ -96,6 +96,7 @@ pub enum BlockFormat {
 
 impl FirmwareRev {
     /// The revision number.
+    #[inline]
     pub fn number(self) -> u32 {
         u32::from(self)
     }
@@ -103,11 +104,17 @@ impl FirmwareRev {
     /// The block format of this revision: Rev 8 and later use the Rev 8
     /// format, Rev 4 its own; other earlier revisions (which the spec does
     /// not describe) the Rev 7 format.
+    #[inline]
     pub fn block_format(self) -> BlockFormat {
-        match self.number() {
-            n if n >= 8 => BlockFormat::Rev8,
-            4 => BlockFormat::Rev4,
-            _ => BlockFormat::Rev7,
+        // (The named revisions without turning them into numbers first:
+        // every cycle asks, several times per board.)
+        match self {
+            FirmwareRev::Rev8 => BlockFormat::Rev8,
+            FirmwareRev::Rev7 => BlockFormat::Rev7,
+            FirmwareRev::Rev4 => BlockFormat::Rev4,
+            FirmwareRev::Unknown(n) if n >= 8 => BlockFormat::Rev8,
+            FirmwareRev::Unknown(4) => BlockFormat::Rev4,
+            FirmwareRev::Unknown(_) => BlockFormat::Rev7,
         }
     }
 }
@@ -149,6 +156,7 @@ impl Section {
 
 impl BoardLayout {
     /// A QLA1 board: 4 motors, 4 encoders.
+    #[inline]
     pub const fn qla1(firmware: FirmwareRev) -> BoardLayout {
         BoardLayout {
             firmware,
@@ -158,6 +166,7 @@ impl BoardLayout {
     }
 
     /// A DQLA board: 8 motors, 8 encoders.
+    #[inline]
     pub const fn dqla(firmware: FirmwareRev) -> BoardLayout {
         BoardLayout {
             firmware,
@@ -170,6 +179,7 @@ impl BoardLayout {
     ///
     /// # Errors
     /// [`Error::OutOfRange`] unless 1 <= motors, encoders <= [`MAX_AXES`].
+    #[inline]
     pub fn new(firmware: FirmwareRev, motors: u8, encoders: u8) -> Result<BoardLayout> {
         for (what, n) in [("motors", motors), ("encoders", encoders)] {
             if n == 0 || usize::from(n) > MAX_AXES {
@@ -189,6 +199,7 @@ impl BoardLayout {
     }
 
     /// The layout of a known companion board (QLA1, DQLA); `None` otherwise.
+    #[inline]
     pub fn for_hardware(hardware: HardwareVersion, firmware: FirmwareRev) -> Option<BoardLayout> {
         match hardware {
             HardwareVersion::Qla1 => Some(Self::qla1(firmware)),
@@ -198,27 +209,32 @@ impl BoardLayout {
     }
 
     /// The firmware revision.
+    #[inline]
     pub const fn firmware(self) -> FirmwareRev {
         self.firmware
     }
 
     /// The block format of the firmware.
+    #[inline]
     pub fn format(self) -> BlockFormat {
         self.firmware.block_format()
     }
 
     /// Number of motors (ADC, DAC and MOTOR_STATUS entries).
+    #[inline]
     pub const fn motors(self) -> usize {
         self.motors as usize
     }
 
     /// Number of encoders.
+    #[inline]
     pub const fn encoders(self) -> usize {
         self.encoders as usize
     }
 
     /// Encoder sections of the read block: ENC_POSITION only on Rev 4,
     /// all five (position, period, QTR1, QTR5, run) later.
+    #[inline]
     fn encoder_sections(self) -> usize {
         match self.format() {
             BlockFormat::Rev4 => 1,
@@ -228,6 +244,7 @@ impl BoardLayout {
 
     /// Start quadlet and entry count of a section (0 entries: the layout
     /// has no such section).
+    #[inline]
     fn section(self, section: Section) -> (usize, usize) {
         let m = self.motors();
         let e = self.encoders();
@@ -255,6 +272,7 @@ impl BoardLayout {
     }
 
     /// The quadlet of entry `index` of a section, or the error naming it.
+    #[inline]
     fn quadlet(self, section: Section, index: usize) -> Result<usize> {
         let (start, count) = self.section(section);
         if index < count {
@@ -271,18 +289,21 @@ impl BoardLayout {
     /// Quadlets of the real-time read block: Rev 7 `4 + M + 5E` (QLA1 28),
     /// Rev 8 `4 + 2M + 5E` (QLA1 32, DQLA 60), `fpga-board.md` §4; Rev 4
     /// `4 + M + E` (QLA1 12).
+    #[inline]
     pub fn read_block_quadlets(self) -> usize {
         let (start, count) = self.section(Section::MotorStatus);
         start + count
     }
 
     /// Bytes of the real-time read block.
+    #[inline]
     pub fn read_block_len(self) -> usize {
         self.read_block_quadlets() * 4
     }
 
     /// Quadlets of the real-time write block: Rev 8 `1 + M + 1` (QLA1 6),
     /// Rev 7 `M + 1` (QLA1 5), `fpga-board.md` §5; Rev 4 `M` (QLA1 4).
+    #[inline]
     pub fn write_block_quadlets(self) -> usize {
         match self.format() {
             BlockFormat::Rev4 => self.motors(),
@@ -292,12 +313,14 @@ impl BoardLayout {
     }
 
     /// Bytes of the real-time write block.
+    #[inline]
     pub fn write_block_len(self) -> usize {
         self.write_block_quadlets() * 4
     }
 
     /// Quadlets of one status broadcast: header plus read block
     /// (`fpga-board.md` §6.2: QLA1 Rev 8 33, Rev 7 29).
+    #[inline]
     pub fn broadcast_quadlets(self) -> usize {
         self.read_block_quadlets() + 1
     }
@@ -547,6 +570,26 @@ pub struct ReadBlockRepr {
     pub encoder: [EncoderReading; MAX_AXES],
 }
 
+/// A big-endian quadlet (0 for a short chunk).
+#[inline]
+fn be_quadlet(q: &[u8]) -> u32 {
+    match *q {
+        [a, b, c, d] => u32::from_be_bytes([a, b, c, d]),
+        _ => 0,
+    }
+}
+
+/// The first `Q` quadlets of `bytes`, if it holds them.
+#[inline]
+fn words<const Q: usize>(bytes: &[u8]) -> Option<[u32; Q]> {
+    let mut out = [0; Q];
+    let bytes = bytes.get(..Q * 4)?;
+    for (o, q) in out.iter_mut().zip(bytes.chunks_exact(4)) {
+        *o = be_quadlet(q);
+    }
+    Some(out)
+}
+
 impl ReadBlockRepr {
     /// A block of all zeros.
     pub fn new(layout: BoardLayout) -> ReadBlockRepr {
@@ -562,11 +605,13 @@ impl ReadBlockRepr {
     }
 
     /// The motors the layout has.
+    #[inline]
     pub fn motors(&self) -> &[MotorReading] {
         self.motor.get(..self.layout.motors()).unwrap_or(&[])
     }
 
     /// The encoders the layout has.
+    #[inline]
     pub fn encoders(&self) -> &[EncoderReading] {
         self.encoder.get(..self.layout.encoders()).unwrap_or(&[])
     }
@@ -576,48 +621,142 @@ impl ReadBlockRepr {
     /// # Errors
     /// Length errors of [`ReadBlock::check_len`].
     pub fn parse<T: AsRef<[u8]>>(block: &ReadBlock<T>) -> Result<ReadBlockRepr> {
-        block.check_len()?;
-        let layout = block.layout;
-        let mut repr = ReadBlockRepr::new(layout);
-        repr.timestamp = block.timestamp();
-        repr.status = block.status();
-        repr.digital_in = block.digital_in();
-        repr.temperature = block.temperature();
-        // Section starts once, then straight reads: the length check above
-        // guarantees every quadlet of the layout is in the buffer. Slots
-        // beyond the layout's axes keep their defaults.
-        let bytes = block.as_bytes();
-        let (adc, _) = layout.section(Section::Adc);
-        let (status, with_status) = layout.section(Section::MotorStatus);
-        for (i, m) in repr.motor.iter_mut().take(layout.motors()).enumerate() {
-            m.adc = AdcWord(read_quadlet(bytes, adc + i));
-            if i < with_status {
-                m.status = MotorStatus(read_quadlet(bytes, status + i));
-            }
-        }
-        let (position, _) = layout.section(Section::EncPosition);
-        let e_count = layout.encoders();
-        let sections = layout.encoder_sections();
-        for (i, e) in repr.encoder.iter_mut().take(e_count).enumerate() {
-            // The encoder sections follow each other, `e_count` apart;
-            // those the layout lacks read 0.
-            let q = |k: usize| {
-                if k < sections {
-                    read_quadlet(bytes, position + k * e_count + i)
-                } else {
-                    0
-                }
-            };
-            e.position = EncPosition(q(0));
-            e.period = EncPeriod(q(1));
-            e.qtr1 = EncQuarter(q(2));
-            e.qtr5 = EncQuarter(q(3));
-            e.run = EncRun(q(4));
-        }
+        let mut repr = ReadBlockRepr::new(block.layout);
+        repr.parse_into(block)?;
         Ok(repr)
     }
 
+    /// Parse a read block into `self`, which then equals what
+    /// [`parse`](Self::parse) returns (layout included), without a new
+    /// block built and moved: the host's cycle parses every board's block
+    /// in place. On an error `self` is left as it was.
+    ///
+    /// # Errors
+    /// Length errors of [`ReadBlock::check_len`].
+    #[inline]
+    pub fn parse_into<T: AsRef<[u8]>>(&mut self, block: &ReadBlock<T>) -> Result<()> {
+        block.check_len()?;
+        let layout = block.layout;
+        self.layout = layout;
+        self.timestamp = block.timestamp();
+        self.status = block.status();
+        self.digital_in = block.digital_in();
+        self.temperature = block.temperature();
+        // Each section read straight from its start (worked out once): the
+        // length check above guarantees every quadlet of the layout is in
+        // the buffer. Slots beyond the layout's axes, and the sections the
+        // layout lacks, read 0. The QLA1 at Rev 7 and 8 and the DQLA at Rev
+        // 8 from quadlets at places known when compiling.
+        let bytes = block.as_bytes();
+        let filled = match (layout.format(), layout.motors(), layout.encoders()) {
+            (BlockFormat::Rev8, 4, 4) => words::<32>(bytes).map(|w| self.fill_from::<4, 32>(&w)),
+            (BlockFormat::Rev7, 4, 4) => words::<28>(bytes).map(|w| self.fill_from::<4, 28>(&w)),
+            (BlockFormat::Rev8, 8, 8) => words::<60>(bytes).map(|w| self.fill_from::<8, 60>(&w)),
+            _ => None,
+        };
+        if filled.is_none() {
+            self.fill_sections_any(bytes, layout);
+        }
+        Ok(())
+    }
+
+    /// [`parse_into`](Self::parse_into)'s sections from the `Q` quadlets
+    /// of a Rev 7 or 8 block with `N` motors and `N` encoders (MOTOR_STATUS
+    /// when `Q` holds it).
+    #[inline]
+    fn fill_from<const N: usize, const Q: usize>(&mut self, words: &[u32; Q]) {
+        let at = |q: usize| words.get(q).copied().unwrap_or(0);
+        let adc = field::READ_FIXED_QUADLETS;
+        let encoders = adc + N;
+        let status = encoders + 5 * N;
+        let with_status = status + N <= Q;
+        for (i, slot) in self.motor.iter_mut().enumerate() {
+            *slot = if i < N {
+                MotorReading {
+                    adc: AdcWord(at(adc + i)),
+                    status: MotorStatus(if with_status { at(status + i) } else { 0 }),
+                }
+            } else {
+                MotorReading::default()
+            };
+        }
+        for (i, slot) in self.encoder.iter_mut().enumerate() {
+            let q = encoders + i;
+            *slot = if i < N {
+                EncoderReading {
+                    position: EncPosition(at(q)),
+                    period: EncPeriod(at(q + N)),
+                    qtr1: EncQuarter(at(q + 2 * N)),
+                    qtr5: EncQuarter(at(q + 3 * N)),
+                    run: EncRun(at(q + 4 * N)),
+                }
+            } else {
+                EncoderReading::default()
+            };
+        }
+    }
+
+    /// [`parse_into`](Self::parse_into)'s sections for any layout.
+    fn fill_sections_any(&mut self, bytes: &[u8], layout: BoardLayout) {
+        let section = |(start, count): (usize, usize)| {
+            let quadlets = bytes.get(start * 4..(start + count) * 4);
+            quadlets.unwrap_or_default().chunks_exact(4).map(be_quadlet)
+        };
+        self.motor = [MotorReading::default(); MAX_AXES];
+        for (slot, q) in self
+            .motor
+            .iter_mut()
+            .zip(section(layout.section(Section::Adc)))
+        {
+            slot.adc = AdcWord(q);
+        }
+        for (slot, q) in self
+            .motor
+            .iter_mut()
+            .zip(section(layout.section(Section::MotorStatus)))
+        {
+            slot.status = MotorStatus(q);
+        }
+        self.encoder = [EncoderReading::default(); MAX_AXES];
+        for (slot, q) in self
+            .encoder
+            .iter_mut()
+            .zip(section(layout.section(Section::EncPosition)))
+        {
+            slot.position = EncPosition(q);
+        }
+        for (slot, q) in self
+            .encoder
+            .iter_mut()
+            .zip(section(layout.section(Section::EncPeriod)))
+        {
+            slot.period = EncPeriod(q);
+        }
+        for (slot, q) in self
+            .encoder
+            .iter_mut()
+            .zip(section(layout.section(Section::EncQtr1)))
+        {
+            slot.qtr1 = EncQuarter(q);
+        }
+        for (slot, q) in self
+            .encoder
+            .iter_mut()
+            .zip(section(layout.section(Section::EncQtr5)))
+        {
+            slot.qtr5 = EncQuarter(q);
+        }
+        for (slot, q) in self
+            .encoder
+            .iter_mut()
+            .zip(section(layout.section(Section::EncRun)))
+        {
+            slot.run = EncRun(q);
+        }
+    }
+
     /// Bytes [`emit`](Self::emit) writes.
+    #[inline]
     pub fn buffer_len(&self) -> usize {
         self.layout.read_block_len()
     }
@@ -626,6 +765,7 @@ impl ReadBlockRepr {
     ///
     /// # Errors
     /// [`Error::BufferTooSmall`].
+    #[inline]
     pub fn emit(&self, buf: &mut [u8]) -> Result<usize> {
         let len = self.buffer_len();
         let available = buf.len();
@@ -826,6 +966,7 @@ impl WriteBlockRepr {
     }
 
     /// The DAC quadlets of the layout's motors.
+    #[inline]
     pub fn dacs(&self) -> &[DacWord] {
         self.dac.get(..self.layout.motors()).unwrap_or(&[])
     }
@@ -875,6 +1016,7 @@ impl WriteBlockRepr {
     }
 
     /// Bytes [`emit`](Self::emit) writes.
+    #[inline]
     pub fn buffer_len(&self) -> usize {
         self.layout.write_block_len()
     }
@@ -884,6 +1026,7 @@ impl WriteBlockRepr {
     /// # Errors
     /// [`Error::FieldRange`] for a board ID above 15;
     /// [`Error::BufferTooSmall`].
+    #[inline]
     pub fn emit(&self, buf: &mut [u8]) -> Result<usize> {
         check_board_id(self.board_id)?;
         let len = self.buffer_len();
@@ -895,22 +1038,32 @@ impl WriteBlockRepr {
                 available,
             });
         };
-        let mut block = WriteBlock::new_unchecked(out, self.layout);
+        // Whole quadlets in wire order (what `WriteBlock`'s setters write,
+        // each once): the Rev 8 header, the DACs (Rev 4 and 7: with the
+        // board ID), the control quadlet last (none on Rev 4).
         let format = self.layout.format();
+        let mut quadlets = out.chunks_exact_mut(4);
+        let mut put = |word: u32| {
+            if let Some(q) = quadlets.next() {
+                q.copy_from_slice(&word.to_be_bytes());
+            }
+        };
         if format == BlockFormat::Rev8 {
-            block.set_header(WriteHeader {
+            put(WriteHeader {
                 board_id: self.board_id,
                 quadlets: self.layout.write_block_quadlets() as u8,
-            })?;
+            }
+            .to_word());
         }
-        for (i, &dac) in self.dacs().iter().enumerate() {
-            let dac = match format {
-                BlockFormat::Rev4 | BlockFormat::Rev7 => dac.with_board_id(self.board_id),
-                BlockFormat::Rev8 => dac,
-            };
-            block.set_dac(i, dac)?;
+        for &dac in self.dacs() {
+            put(match format {
+                BlockFormat::Rev4 | BlockFormat::Rev7 => dac.with_board_id(self.board_id).0,
+                BlockFormat::Rev8 => dac.0,
+            });
         }
-        block.set_control(self.control);
+        if format != BlockFormat::Rev4 {
+            put(self.control.0);
+        }
         Ok(len)
     }
 }
@@ -924,6 +1077,20 @@ mod tests {
     const REV7: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev7);
     const REV8: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev8);
     const DQLA8: BoardLayout = BoardLayout::dqla(FirmwareRev::Rev8);
+
+    /// The format by the revision's number, named or not.
+    #[test]
+    fn block_format_follows_the_number() {
+        let by_number = |n: u32| match n {
+            n if n >= 8 => BlockFormat::Rev8,
+            4 => BlockFormat::Rev4,
+            _ => BlockFormat::Rev7,
+        };
+        for n in (0..20).chain([u32::MAX]) {
+            assert_eq!(FirmwareRev::from(n).block_format(), by_number(n), "{n}");
+            assert_eq!(FirmwareRev::Unknown(n).block_format(), by_number(n), "{n}");
+        }
+    }
 
     #[test]
     fn set_axis_writes_what_the_setters_write() {

@@ -369,6 +369,7 @@ impl StatusCommand {
     }
 
     /// Encode as the STATUS write word.
+    #[inline]
     pub fn to_word(self) -> StatusWrite {
         let mut w = StatusWrite(0);
         if let Some(on) = self.power {
@@ -830,17 +831,20 @@ quadlet_register! {
 
 impl DacWord {
     /// A valid command word (other bits zero).
+    #[inline]
     pub fn valid_command(command: u16) -> DacWord {
         DacWord::default().with_valid(true).with_command(command)
     }
 
     /// Rev 8: the amplifier state requested, `None` when bit 29 is clear.
+    #[inline]
     pub fn amp_request(self) -> Option<bool> {
         self.amp_enable_mask().then_some(self.amp_enable())
     }
 
     /// Rev 8: this word requesting `request` (`None` clears bits 29 and 28).
     #[must_use]
+    #[inline]
     pub fn with_amp_request(self, request: Option<bool>) -> DacWord {
         self.with_amp_enable_mask(request.is_some())
             .with_amp_enable(request.unwrap_or(false))
@@ -859,6 +863,7 @@ pub const ENC_COUNTS_MIN: i32 = -(ENC_NEUTRAL as i32);
 pub const ENC_COUNTS_MAX: i32 = ENC_NEUTRAL as i32 - 1;
 
 /// Signed counts of a 24-bit offset-binary count (bits above 23 ignored).
+#[inline]
 pub fn counts_from_offset_binary(raw: u32) -> i32 {
     field::ENC_COUNT.extract(raw) as i32 - ENC_NEUTRAL as i32
 }
@@ -926,6 +931,7 @@ quadlet_register! {
 
 impl EncPosition {
     /// The count as signed counts around the neutral value.
+    #[inline]
     pub fn counts(self) -> i32 {
         counts_from_offset_binary(self.count())
     }
