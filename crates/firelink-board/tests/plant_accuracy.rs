@@ -1,5 +1,6 @@
-//! The plant's exact integration at its 50 us grid against the reference:
-//! the semi-implicit integration at 5 us that the plant used before
+//! The plant's exact integration in spans of at most 100 us
+//! (`DEFAULT_STEP`) against the reference: the semi-implicit integration
+//! at 5 us that the plant used before
 //! (`Integrator::SemiImplicitEuler`, `REFERENCE_STEP`). Both are driven
 //! with the same DAC codes at the same instants, open loop, and compared
 //! at every millisecond.

@@ -87,7 +87,7 @@ impl LinearFunction {
     /// `scale * x + offset`.
     #[inline]
     pub fn apply(&self, x: f64) -> f64 {
-        self.scale.mul_add(x, self.offset)
+        self.scale * x + self.offset
     }
 
     /// The `x` with `apply(x) == y`: `(y - offset) / scale` (NaN if the
