@@ -459,7 +459,12 @@ fn replay(rig: &BoardRig, stream: &[Event]) -> (String, usize) {
             Event::Receive {
                 bytes, speed, live, ..
             } => {
-                let sensors = inputs(&mut fw, at);
+                // The sensors are read from a copy: reading them would make
+                // the plant integrate up to this instant, which the board on
+                // the bus did only when a packet read them (the split of the
+                // integration moves the motion in its last digits, enough to
+                // move a code now and then).
+                let sensors = inputs(&mut fw.clone(), at);
                 let reply = fw.receive(at, bytes, &mut phy);
                 if &reply != live {
                     mismatches += 1;
@@ -484,7 +489,7 @@ fn replay(rig: &BoardRig, stream: &[Event]) -> (String, usize) {
                 );
                 // Motor power switched on here: the supply comparator says
                 // good `supply_rise` later (first clock at or after).
-                let on = fw.read_quadlet(at, 0) & (1 << 18) != 0;
+                let on = fw.clone().read_quadlet(at, 0) & (1 << 18) != 0;
                 if on && !power_on {
                     let good = at + supply_rise;
                     let mut k = good.clocks();

@@ -220,8 +220,9 @@ impl Node for BoardNode {
 
     fn on_timer(&mut self, now: SimTime, token: u64, ctx: &mut NodeCtx<'_>) {
         if token == WATCHDOG_TIMER {
-            // Apply whatever is due now (the watchdog, if not refreshed).
-            self.firmware.advance(now);
+            // Apply whatever is due now (the watchdog, if not refreshed);
+            // the plant is left to be integrated when something reads it.
+            self.firmware.pass_time(now);
         }
         self.pump(now, ctx);
     }

@@ -406,6 +406,15 @@ impl Firmware {
         self.observe();
     }
 
+    /// Let time pass up to `now` for the board's own events only (the
+    /// watchdog, amplifier enables, the current check at every safety
+    /// tick), without looking at the plant: where the plant's integration
+    /// is split then depends only on the packets the board handles, as on
+    /// the real board, whose sensors are sampled only when read.
+    pub fn pass_time(&mut self, now: SimTime) {
+        self.catch_up(now);
+    }
+
     /// Let time pass up to `now` for the board's own events (the
     /// watchdog, amplifier enables, the current check at every safety
     /// tick), each at its exact time; the plant follows lazily: it is
