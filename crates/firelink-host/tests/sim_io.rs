@@ -28,6 +28,27 @@ fn port(n: u8, profile: Profile) -> SimPort {
 
 /// Power every board on (one cycle carries the request) and wait 60 ms for
 /// the motor supply to come up, amplifiers still off.
+/// `n` QLA1 Rev 8 boards run with the sequential protocol; board `victim`
+/// stops answering `after_us` into the run, for good.
+fn sequential_io_with_a_silent_board(n: u8, victim: usize, after_us: u64) -> IoSystem<SimPort> {
+    let mut r = rig(n, Hardware::Qla1, Profile::Rev8);
+    let when = r.bus.now() + SimDuration::from_micros(after_us);
+    r.bus.schedule_fault(
+        when,
+        TimedFault::StopAnswering {
+            node: r.boards[victim],
+            duration: None,
+        },
+    );
+    let config = IoOptions {
+        protocol: Some(Protocol::Sequential),
+        ..IoOptions::default()
+    };
+    IoSystem::open(SimPort::new(r.bus, r.host), config)
+        .unwrap()
+        .0
+}
+
 fn power_up(io: &mut IoSystem<SimPort>) {
     for b in io.boards_mut() {
         b.set_power(true);
@@ -199,23 +220,7 @@ fn board_removed_mid_run_is_reported_and_the_loop_goes_on() {
 
 #[test]
 fn board_that_stops_answering_is_named_every_cycle() {
-    let mut r = rig(3, Hardware::Qla1, Profile::Rev8);
-    let victim = r.boards[1];
-    let p_bus = &mut r.bus;
-    let when = p_bus.now() + SimDuration::from_micros(3_000);
-    p_bus.schedule_fault(
-        when,
-        TimedFault::StopAnswering {
-            node: victim,
-            duration: None,
-        },
-    );
-    let p = SimPort::new(r.bus, r.host);
-    let config = IoOptions {
-        protocol: Some(Protocol::Sequential),
-        ..IoOptions::default()
-    };
-    let (mut io, _) = IoSystem::open(p, config).unwrap();
+    let mut io = sequential_io_with_a_silent_board(3, 1, 3_000);
     io.port_mut().wait(Duration::from_millis(4));
     let rep = *io.cycle();
     assert_eq!(rep.missed, 0b010, "{rep:?}");
@@ -349,21 +354,7 @@ fn composed<R: RobotIo>(io: &R, id: u8) -> BoardStatus {
 /// stopped answering.
 #[test]
 fn board_status_is_the_per_call_methods() {
-    let mut r = rig(3, Hardware::Qla1, Profile::Rev8);
-    let when = r.bus.now() + SimDuration::from_micros(200_000);
-    r.bus.schedule_fault(
-        when,
-        TimedFault::StopAnswering {
-            node: r.boards[2],
-            duration: None,
-        },
-    );
-    let p = SimPort::new(r.bus, r.host);
-    let config = IoOptions {
-        protocol: Some(Protocol::Sequential),
-        ..IoOptions::default()
-    };
-    let (mut io, _) = IoSystem::open(p, config).unwrap();
+    let mut io = sequential_io_with_a_silent_board(3, 2, 200_000);
     power_up(&mut io);
     for (axis, on) in [(0, true), (2, true), (5, true), (9, true)] {
         RobotIo::set_amplifier_enable(&mut io, axis, on).unwrap();

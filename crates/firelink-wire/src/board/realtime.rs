@@ -702,57 +702,57 @@ impl ReadBlockRepr {
             let quadlets = bytes.get(start * 4..(start + count) * 4);
             quadlets.unwrap_or_default().chunks_exact(4).map(be_quadlet)
         };
-        self.motor = [MotorReading::default(); MAX_AXES];
-        for (slot, q) in self
-            .motor
-            .iter_mut()
-            .zip(section(layout.section(Section::Adc)))
-        {
-            slot.adc = AdcWord(q);
+        // Each section's quadlets into one field of each axis.
+        fn fill<T>(slots: &mut [T], quadlets: impl Iterator<Item = u32>, set: fn(&mut T, u32)) {
+            for (slot, q) in slots.iter_mut().zip(quadlets) {
+                set(slot, q);
+            }
         }
-        for (slot, q) in self
-            .motor
-            .iter_mut()
-            .zip(section(layout.section(Section::MotorStatus)))
-        {
-            slot.status = MotorStatus(q);
-        }
-        self.encoder = [EncoderReading::default(); MAX_AXES];
-        for (slot, q) in self
-            .encoder
-            .iter_mut()
-            .zip(section(layout.section(Section::EncPosition)))
-        {
-            slot.position = EncPosition(q);
-        }
-        for (slot, q) in self
-            .encoder
-            .iter_mut()
-            .zip(section(layout.section(Section::EncPeriod)))
-        {
-            slot.period = EncPeriod(q);
-        }
-        for (slot, q) in self
-            .encoder
-            .iter_mut()
-            .zip(section(layout.section(Section::EncQtr1)))
-        {
-            slot.qtr1 = EncQuarter(q);
-        }
-        for (slot, q) in self
-            .encoder
-            .iter_mut()
-            .zip(section(layout.section(Section::EncQtr5)))
-        {
-            slot.qtr5 = EncQuarter(q);
-        }
-        for (slot, q) in self
-            .encoder
-            .iter_mut()
-            .zip(section(layout.section(Section::EncRun)))
-        {
-            slot.run = EncRun(q);
-        }
+        let motor = &mut self.motor;
+        *motor = [MotorReading::default(); MAX_AXES];
+        fill(motor, section(layout.section(Section::Adc)), |m, q| {
+            m.adc = AdcWord(q);
+        });
+        fill(
+            motor,
+            section(layout.section(Section::MotorStatus)),
+            |m, q| {
+                m.status = MotorStatus(q);
+            },
+        );
+        let encoder = &mut self.encoder;
+        *encoder = [EncoderReading::default(); MAX_AXES];
+        fill(
+            encoder,
+            section(layout.section(Section::EncPosition)),
+            |e, q| {
+                e.position = EncPosition(q);
+            },
+        );
+        fill(
+            encoder,
+            section(layout.section(Section::EncPeriod)),
+            |e, q| {
+                e.period = EncPeriod(q);
+            },
+        );
+        fill(
+            encoder,
+            section(layout.section(Section::EncQtr1)),
+            |e, q| {
+                e.qtr1 = EncQuarter(q);
+            },
+        );
+        fill(
+            encoder,
+            section(layout.section(Section::EncQtr5)),
+            |e, q| {
+                e.qtr5 = EncQuarter(q);
+            },
+        );
+        fill(encoder, section(layout.section(Section::EncRun)), |e, q| {
+            e.run = EncRun(q);
+        });
     }
 
     /// Bytes [`emit`](Self::emit) writes.
