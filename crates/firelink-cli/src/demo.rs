@@ -245,8 +245,10 @@ pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
     })
 }
 
-pub(crate) fn realtime_setup() -> RealtimeStatus {
-    let s = rt::setup(80);
+/// The real-time settings for the thread that runs the cycles;
+/// `spinning`: its port's reads spin (see [`rt::setup`]).
+pub(crate) fn realtime_setup(spinning: bool) -> RealtimeStatus {
+    let s = rt::setup(80, spinning);
     RealtimeStatus {
         requested: true,
         sched_fifo_priority: s.sched_fifo,
@@ -269,7 +271,10 @@ pub(crate) fn with_progress<T>(
     if let Some(w) = args.watchdog.warning() {
         eprintln!("demo: {w}");
     }
-    let setup: &dyn Fn() -> RealtimeStatus = &realtime_setup;
+    // The port's reads spin over UDP with `--udp-wait spin`.
+    let spinning = args.udp_wait == UdpWaitArg::Spin && args.port != DemoPort::Sim;
+    let setup_spinning = move || realtime_setup(spinning);
+    let setup: &dyn Fn() -> RealtimeStatus = &setup_spinning;
     let mut ticking = false;
     let report = run((!args.no_rt).then_some(setup), &mut |event| {
         if !quiet {
