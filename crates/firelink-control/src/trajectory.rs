@@ -423,7 +423,7 @@ impl Sinusoid {
             (1.0, 0.0, 0.0)
         };
         let angle = self.omega * t + self.phase;
-        let (sin, cos) = angle.sin_cos();
+        let (sin, cos) = libm::sincos(angle);
         let a = self.amplitude;
         let w = self.omega;
         let s = Sample {
