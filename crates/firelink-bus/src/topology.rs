@@ -187,6 +187,7 @@ impl Topology {
             port_status: vec![Vec::new(); n],
             hops: Vec::new(),
             path_speed: Vec::new(),
+            by_distance: Vec::new(),
         };
         if root >= n {
             return tree;
@@ -251,6 +252,15 @@ impl Topology {
                 tree.path_speed[src_phy * m + dst_phy] = slow[dst];
             }
         }
+        // Each physical ID's listeners, nearest first: a packet's
+        // arrivals, listed in this order, come out in time order.
+        tree.by_distance = (0..m)
+            .flat_map(|src| {
+                let mut order: Vec<u8> = (0..m).map(|d| d as u8).collect();
+                order.sort_by_key(|&d| (tree.hops[src * m + usize::from(d)], d));
+                order
+            })
+            .collect();
         tree
     }
 }
@@ -272,6 +282,8 @@ pub struct Tree {
     pub port_status: Vec<Vec<PortStatus>>,
     hops: Vec<u8>,
     path_speed: Vec<Speed>,
+    /// Row `a`: every physical ID by (hops from `a`, ID).
+    by_distance: Vec<u8>,
 }
 
 impl Tree {
@@ -288,6 +300,23 @@ impl Tree {
             return 0;
         }
         u32::from(self.hops[a * m + b])
+    }
+
+    /// Every physical ID as a packet from `a` reaches it: nearest first
+    /// (ties by ID) when `nearest_first`, else by ID; by ID for an unknown
+    /// `a`.
+    pub fn listeners(&self, a: u8, nearest_first: bool) -> impl Iterator<Item = u8> + '_ {
+        let m = self.by_phy.len();
+        let a = usize::from(a);
+        let row = self
+            .by_distance
+            .get(a * m..(a + 1) * m)
+            .filter(|_| nearest_first && a < m);
+        let by_id = row.is_none();
+        row.into_iter()
+            .flatten()
+            .copied()
+            .chain((0..m).map(|d| d as u8).filter(move |_| by_id))
     }
 
     /// Fastest speed every PHY on the path between two physical IDs supports.
@@ -348,6 +377,32 @@ mod tests {
         assert_eq!(tree.diameter(), 3);
         assert_eq!(tree.port_status[a][0], PortStatus::Parent);
         assert_eq!(tree.port_status[a][1], PortStatus::Child);
+    }
+
+    #[test]
+    fn listeners_come_nearest_first_with_ties_by_id() {
+        // Root with two chains: port 0 -> x0 -> x1, port 1 -> y0; physical
+        // IDs x1 0, x0 1, y0 2, root 3.
+        let mut t = Topology::default();
+        let root = t.add_node(3);
+        let x0 = t.add_node(2);
+        let x1 = t.add_node(2);
+        let y0 = t.add_node(2);
+        t.connect(root, x0).unwrap();
+        t.connect(root, y0).unwrap();
+        t.connect(x0, x1).unwrap();
+        let tree = t.tree(root, &speeds(4));
+        let from = |a: u8, nearest: bool| tree.listeners(a, nearest).collect::<Vec<u8>>();
+        // From y0 (2): itself, the root (1 hop), x0 (2), x1 (3).
+        assert_eq!(from(2, true), vec![2, 3, 1, 0]);
+        // From the root: itself, then x0 and y0 tie at 1 hop (by ID).
+        assert_eq!(from(3, true), vec![3, 1, 2, 0]);
+        assert_eq!(from(2, false), vec![0, 1, 2, 3]);
+        assert_eq!(from(9, true), vec![0, 1, 2, 3]);
+        for a in 0..4u8 {
+            let hops: Vec<u32> = from(a, true).iter().map(|&b| tree.hops(a, b)).collect();
+            assert!(hops.is_sorted(), "from {a}: {hops:?}");
+        }
     }
 
     #[test]

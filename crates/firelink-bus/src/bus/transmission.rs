@@ -158,9 +158,14 @@ impl Bus {
         let mut mute_fault = None;
         let mut arrivals = std::mem::take(&mut self.arrivals);
         arrivals.clear();
-        for phy in 0..self.tree.by_phy.len() {
-            let node = self.tree.by_phy[phy];
-            let phy = phy as u8;
+        // Nearest first (with a hop delay): the arrivals are listed in time
+        // order, and the queue numbers them in this order; equal times keep
+        // ID order, as when listed by ID.
+        let nearest_first = t.hop_delay > SimDuration::ZERO;
+        for phy in self.tree.listeners(shape.sender_phy, nearest_first) {
+            let Some(&node) = self.tree.by_phy.get(usize::from(phy)) else {
+                continue;
+            };
             if node == shape.sender {
                 continue;
             }
