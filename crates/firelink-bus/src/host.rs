@@ -315,7 +315,14 @@ impl HostLink {
         token: u64,
         deadline: SimTime,
     ) -> Option<Completion> {
+        // The link's state changes only when the bus calls into it.
+        let mut looked_at = None;
         bus.run_until_with(deadline, |b| {
+            let calls = Some(b.dispatch_count(link));
+            if calls == looked_at {
+                return false;
+            }
+            looked_at = calls;
             b.node::<HostLink>(link)
                 .is_some_and(|l| !l.is_pending(token))
         });

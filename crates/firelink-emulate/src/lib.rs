@@ -156,6 +156,9 @@ pub struct Bridge {
     /// Every emulated board on the bus (their status slots are completed
     /// before the next datagram is handled).
     boards: Vec<NodeHandle>,
+    /// Per board, while settling: (its dispatch count when looked at, its
+    /// next status slot then).
+    wakeups: Vec<(Option<u64>, Option<SimTime>)>,
     stats: BridgeStats,
     timeout: SimDuration,
     /// The host library's transaction engine, judging what comes back
@@ -211,6 +214,7 @@ impl Bridge {
             link,
             bridge_board,
             boards,
+            wakeups: Vec::new(),
             stats: BridgeStats::default(),
             timeout: SimDuration::from_micros(10_000),
             transactions: Transactions::new(),
@@ -273,13 +277,24 @@ impl Bridge {
     fn settle(&mut self) {
         let deadline = self.bus.now() + SETTLE_LIMIT;
         let boards = &self.boards;
+        // Each board's next status slot, looked up again only after the
+        // bus called into the board (nothing else changes it meanwhile).
+        let wakeups = &mut self.wakeups;
+        wakeups.clear();
+        wakeups.resize(boards.len(), (None, None));
         self.bus.run_until_with(deadline, |bus| {
             let now = bus.now();
-            let owed = boards.iter().any(|h| {
-                bus.node::<BoardNode>(*h)
-                    .and_then(|b| b.firmware().next_wakeup())
-                    .is_some_and(|due| due >= now)
-            });
+            let mut owed = false;
+            for (h, (looked_at, due)) in boards.iter().zip(wakeups.iter_mut()) {
+                let calls = Some(bus.dispatch_count(*h));
+                if calls != *looked_at {
+                    *looked_at = calls;
+                    *due = bus
+                        .node::<BoardNode>(*h)
+                        .and_then(|b| b.firmware().next_wakeup());
+                }
+                owed |= due.is_some_and(|due| due >= now);
+            }
             !owed && !bus.has_pending_traffic()
         });
         self.forget_received();

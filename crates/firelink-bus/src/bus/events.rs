@@ -119,6 +119,7 @@ impl Bus {
             let Bus { slots, scratch, .. } = self;
             let slot = slots.get_mut(idx)?;
             let node = slot.node.as_mut()?;
+            slot.dispatches += 1;
             let mut regs = slot.regs;
             let phy_id = slot.phy.unwrap_or(NodeId::BROADCAST_PHY);
             let mut ctx = NodeCtx {
@@ -398,6 +399,23 @@ mod tests {
             probe(&bus, nodes[0]).timers,
             vec![(t0 + SimDuration::from_micros(8), 4)]
         );
+    }
+
+    #[test]
+    fn dispatch_counts_move_only_when_the_bus_calls_into_the_node() {
+        let (mut bus, nodes) = chain(2, BusConfig::default());
+        let (a, b) = (nodes[0], nodes[1]);
+        let before = (bus.dispatch_count(a), bus.dispatch_count(b));
+        let at = bus.now() + SimDuration::from_micros(5);
+        bus.with_node::<Probe, _>(a, |_, ctx| ctx.set_timer(at, 1))
+            .unwrap();
+        assert_eq!(bus.dispatch_count(a), before.0 + 1);
+        bus.run_for(SimDuration::from_micros(3));
+        assert_eq!(bus.dispatch_count(a), before.0 + 1, "nothing due yet");
+        bus.run_for(SimDuration::from_micros(10));
+        assert_eq!(bus.dispatch_count(a), before.0 + 2, "the timer fired");
+        assert_eq!(bus.dispatch_count(b), before.1, "b was never called");
+        assert_eq!(bus.dispatch_count(NodeHandle(99)), 0);
     }
 
     #[test]

@@ -200,6 +200,8 @@ struct Slot {
     /// The node wants unicast packets addressed to other nodes (see
     /// [`Node::hears_others`]).
     hears_others: bool,
+    /// Calls into the node so far ([`Bus::dispatch_count`]).
+    dispatches: u64,
 }
 
 #[derive(Debug)]
@@ -416,6 +418,7 @@ impl Bus {
             mute_fault: None,
             babble: None,
             hears_others,
+            dispatches: 0,
         });
         if self.root.is_none() {
             self.root = Some(index);
@@ -594,6 +597,15 @@ impl Bus {
     /// A node's gap count.
     pub fn gap_count(&self, node: NodeHandle) -> Option<u8> {
         self.phy_registers(node).map(PhyRegisters::gap_count)
+    }
+
+    /// How many times the bus has called into the node (its callbacks and
+    /// [`with_node`](Self::with_node)): a node's state changes only then
+    /// (or through [`node_mut`](Self::node_mut)), so a caller that watches
+    /// it while the bus runs (a [`run_until_with`](Self::run_until_with)
+    /// condition) need look again only when this moved. 0 for no node.
+    pub fn dispatch_count(&self, node: NodeHandle) -> u64 {
+        self.slots.get(node.0).map_or(0, |s| s.dispatches)
     }
 
     /// The node's name.
