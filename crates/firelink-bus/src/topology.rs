@@ -357,6 +357,20 @@ mod tests {
         vec![Speed::S400; n]
     }
 
+    /// A root with two chains, port 0 -> x0 -> x1 and port 1 -> y0: its
+    /// tree and the nodes [root, x0, x1, y0].
+    fn root_with_two_chains() -> (Tree, [usize; 4]) {
+        let mut t = Topology::default();
+        let root = t.add_node(3);
+        let x0 = t.add_node(2);
+        let x1 = t.add_node(2);
+        let y0 = t.add_node(2);
+        t.connect(root, x0).unwrap();
+        t.connect(root, y0).unwrap();
+        t.connect(x0, x1).unwrap();
+        (t.tree(root, &speeds(4)), [root, x0, x1, y0])
+    }
+
     #[test]
     fn daisy_chain_numbering() {
         let mut t = Topology::default();
@@ -381,17 +395,8 @@ mod tests {
 
     #[test]
     fn listeners_come_nearest_first_with_ties_by_id() {
-        // Root with two chains: port 0 -> x0 -> x1, port 1 -> y0; physical
-        // IDs x1 0, x0 1, y0 2, root 3.
-        let mut t = Topology::default();
-        let root = t.add_node(3);
-        let x0 = t.add_node(2);
-        let x1 = t.add_node(2);
-        let y0 = t.add_node(2);
-        t.connect(root, x0).unwrap();
-        t.connect(root, y0).unwrap();
-        t.connect(x0, x1).unwrap();
-        let tree = t.tree(root, &speeds(4));
+        // Physical IDs: x1 0, x0 1, y0 2, root 3.
+        let (tree, _) = root_with_two_chains();
         let from = |a: u8, nearest: bool| tree.listeners(a, nearest).collect::<Vec<u8>>();
         // From y0 (2): itself, the root (1 hop), x0 (2), x1 (3).
         assert_eq!(from(2, true), vec![2, 3, 1, 0]);
@@ -407,16 +412,7 @@ mod tests {
 
     #[test]
     fn tree_numbering_visits_ports_in_order() {
-        // Root with two chains: port 0 -> x0 -> x1, port 1 -> y0.
-        let mut t = Topology::default();
-        let root = t.add_node(3);
-        let x0 = t.add_node(2);
-        let x1 = t.add_node(2);
-        let y0 = t.add_node(2);
-        t.connect(root, x0).unwrap();
-        t.connect(root, y0).unwrap();
-        t.connect(x0, x1).unwrap();
-        let tree = t.tree(root, &speeds(4));
+        let (tree, [root, x0, x1, y0]) = root_with_two_chains();
         assert_eq!(tree.by_phy, vec![x1, x0, y0, root]);
         assert_eq!(tree.hops(0, 2), 3);
     }

@@ -703,56 +703,31 @@ impl ReadBlockRepr {
             quadlets.unwrap_or_default().chunks_exact(4).map(be_quadlet)
         };
         // Each section's quadlets into one field of each axis.
-        fn fill<T>(slots: &mut [T], quadlets: impl Iterator<Item = u32>, set: fn(&mut T, u32)) {
+        type Set<T> = fn(&mut T, u32);
+        fn fill<T>(slots: &mut [T], quadlets: impl Iterator<Item = u32>, set: Set<T>) {
             for (slot, q) in slots.iter_mut().zip(quadlets) {
                 set(slot, q);
             }
         }
-        let motor = &mut self.motor;
-        *motor = [MotorReading::default(); MAX_AXES];
-        fill(motor, section(layout.section(Section::Adc)), |m, q| {
-            m.adc = AdcWord(q);
-        });
-        fill(
-            motor,
-            section(layout.section(Section::MotorStatus)),
-            |m, q| {
-                m.status = MotorStatus(q);
-            },
-        );
-        let encoder = &mut self.encoder;
-        *encoder = [EncoderReading::default(); MAX_AXES];
-        fill(
-            encoder,
-            section(layout.section(Section::EncPosition)),
-            |e, q| {
-                e.position = EncPosition(q);
-            },
-        );
-        fill(
-            encoder,
-            section(layout.section(Section::EncPeriod)),
-            |e, q| {
-                e.period = EncPeriod(q);
-            },
-        );
-        fill(
-            encoder,
-            section(layout.section(Section::EncQtr1)),
-            |e, q| {
-                e.qtr1 = EncQuarter(q);
-            },
-        );
-        fill(
-            encoder,
-            section(layout.section(Section::EncQtr5)),
-            |e, q| {
-                e.qtr5 = EncQuarter(q);
-            },
-        );
-        fill(encoder, section(layout.section(Section::EncRun)), |e, q| {
-            e.run = EncRun(q);
-        });
+        let motor_fields: [(Section, Set<MotorReading>); 2] = [
+            (Section::Adc, |m, q| m.adc = AdcWord(q)),
+            (Section::MotorStatus, |m, q| m.status = MotorStatus(q)),
+        ];
+        let encoder_fields: [(Section, Set<EncoderReading>); 5] = [
+            (Section::EncPosition, |e, q| e.position = EncPosition(q)),
+            (Section::EncPeriod, |e, q| e.period = EncPeriod(q)),
+            (Section::EncQtr1, |e, q| e.qtr1 = EncQuarter(q)),
+            (Section::EncQtr5, |e, q| e.qtr5 = EncQuarter(q)),
+            (Section::EncRun, |e, q| e.run = EncRun(q)),
+        ];
+        self.motor = [MotorReading::default(); MAX_AXES];
+        for (s, set) in motor_fields {
+            fill(&mut self.motor, section(layout.section(s)), set);
+        }
+        self.encoder = [EncoderReading::default(); MAX_AXES];
+        for (s, set) in encoder_fields {
+            fill(&mut self.encoder, section(layout.section(s)), set);
+        }
     }
 
     /// Bytes [`emit`](Self::emit) writes.
