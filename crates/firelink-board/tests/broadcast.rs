@@ -253,6 +253,46 @@ fn two_masked_queries_in_a_row_each_restart_the_hub() {
     }
 }
 
+/// A board left out of a query sends nothing but still latches its block
+/// (the firmware samples on every query): the timestamp in its next
+/// answer counts from the query that left it out, not from its last
+/// answer.
+#[test]
+fn a_query_that_leaves_a_board_out_still_restarts_its_timestamp() {
+    let ids: Vec<u8> = (0..16).collect();
+    let mut wire = Wire::new(Profile::Rev8, Hardware::Qla1, &ids);
+    let group_a = wire
+        .slots()
+        .into_iter()
+        .filter(|s| s.id < 8)
+        .collect::<Vec<_>>();
+    let mut query_times = Vec::new();
+    for (seq, mask) in [(0x0101u16, 0x00FFu16), (0x0102, 0xFF00), (0x0103, 0x00FF)] {
+        wire.log.clear();
+        wire.query(NodeId::BROADCAST, seq, mask);
+        query_times.push(wire.now);
+        wire.run();
+        // Time between the queries, as a host's cycle would leave.
+        wire.now += SimDuration::from_micros(50);
+    }
+    let b = &mut wire.boards[0];
+    b.now = wire.now;
+    let quadlets = hub_block_quadlets(group_a.iter().map(|s| s.layout));
+    let hub = bytes(&b.read_block(0x1000, quadlets));
+    let block = HubBlock::new_checked(&hub[..], &group_a).unwrap();
+    let since = |k: usize| (query_times[2] - query_times[k]).as_secs_f64() * 49.152e6;
+    for e in block.entries() {
+        let ts = f64::from(e.block.timestamp());
+        let id = e.block.status().board_id();
+        assert!(
+            (ts - since(1)).abs() <= 1.0,
+            "board {id}: {ts} clocks, want {}",
+            since(1)
+        );
+        assert!((ts - since(0)).abs() > 100.0, "board {id}");
+    }
+}
+
 #[test]
 fn query_with_1_to_16_boards_rev7() {
     for n in 1..=16 {

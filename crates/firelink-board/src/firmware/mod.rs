@@ -789,6 +789,13 @@ impl Firmware {
     /// A broadcast query at `now`: `Some(word)`, or `None` for a query
     /// known only to be corrupt (seed profile). A word with sequence 0 is
     /// not a query (hosts never send one) and is ignored.
+    ///
+    /// The firmware latches its real-time block on every query, named in
+    /// the board mask or not (FireWire.v starts the sampler on any hub
+    /// query); a board the query leaves out never sends that sample, and a
+    /// block read samples afresh, so of its latch only the restarted
+    /// timestamp can be seen: that is all such a board does here (no plant
+    /// integrated, no block built).
     fn query(&mut self, now: SimTime, word: Option<u32>) {
         let seq = match word {
             Some(w) => {
@@ -801,6 +808,28 @@ impl Firmware {
             None => CORRUPT_QUERY_SEQ,
         };
         self.hub.start_cycle(now);
+        let id = self.cfg.board_id;
+        // When this board's status broadcast may go, and the boards it
+        // waits for, if the query asks for it.
+        let schedule = match self.cfg.profile {
+            Profile::Seed => self.phy_id.map(|node| {
+                let at = now + seed_slot(self.cfg.firmware, node);
+                (at, 0, at)
+            }),
+            Profile::Rev7 | Profile::Rev8 => {
+                let mask = self.hub.mask();
+                (mask & (1 << id) != 0).then(|| {
+                    let before = mask & ((1u16 << id) - 1);
+                    let earliest = now + SimDuration::from_clocks(FIRST_SLOT_CLOCKS);
+                    let chain = CHAIN_TIMEOUT_PER_BOARD.0 * u64::from(before.count_ones());
+                    (earliest, before, earliest + SimDuration(chain))
+                })
+            }
+        };
+        let Some((earliest, wait_for, deadline)) = schedule else {
+            self.last_sample = now;
+            return;
+        };
         let len = self.cfg.layout().read_block_len();
         let header = BroadcastHeader {
             seq,
@@ -813,37 +842,12 @@ impl Firmware {
         if let Some(block) = payload.get_mut(4..) {
             self.sample_block_into(now, block);
         }
-        let id = self.cfg.board_id;
-        let pending = match self.cfg.profile {
-            Profile::Seed => {
-                let Some(node) = self.phy_id else {
-                    return;
-                };
-                let at = now + seed_slot(self.cfg.firmware, node);
-                Pending {
-                    payload,
-                    earliest: at,
-                    wait_for: 0,
-                    deadline: at,
-                }
-            }
-            Profile::Rev7 | Profile::Rev8 => {
-                let mask = self.hub.mask();
-                if mask & (1 << id) == 0 {
-                    return;
-                }
-                let before = mask & ((1u16 << id) - 1);
-                let earliest = now + SimDuration::from_clocks(FIRST_SLOT_CLOCKS);
-                Pending {
-                    payload,
-                    earliest,
-                    wait_for: before,
-                    deadline: earliest
-                        + SimDuration(CHAIN_TIMEOUT_PER_BOARD.0 * u64::from(before.count_ones())),
-                }
-            }
-        };
-        self.hub.pending = Some(pending);
+        self.hub.pending = Some(Pending {
+            payload,
+            earliest,
+            wait_for,
+            deadline,
+        });
     }
 }
 
