@@ -9,7 +9,7 @@ mod common;
 use common::*;
 use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::firmware::Reply;
-use firelink_board::time::{SimDuration, SimTime};
+use firelink_board::time::{SYSTEM_CLOCK_HZ, SimDuration, SimTime};
 use firelink_wire::Error;
 use firelink_wire::board::broadcast::{
     BoardSlot, HubBlock, HubHeader, SeqRule, emit_command_block, hub_block_quadlets,
@@ -280,7 +280,7 @@ fn a_query_that_leaves_a_board_out_still_restarts_its_timestamp() {
     let quadlets = hub_block_quadlets(group_a.iter().map(|s| s.layout));
     let hub = bytes(&b.read_block(0x1000, quadlets));
     let block = HubBlock::new_checked(&hub[..], &group_a).unwrap();
-    let since = |k: usize| (query_times[2] - query_times[k]).as_secs_f64() * 49.152e6;
+    let since = |k: usize| (query_times[2] - query_times[k]).as_secs_f64() * SYSTEM_CLOCK_HZ as f64;
     for e in block.entries() {
         let ts = f64::from(e.block.timestamp());
         let id = e.block.status().board_id();

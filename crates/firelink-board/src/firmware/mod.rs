@@ -791,8 +791,8 @@ impl Firmware {
     /// not a query (hosts never send one) and is ignored.
     ///
     /// The firmware latches its real-time block on every query, named in
-    /// the board mask or not (FireWire.v starts the sampler on any hub
-    /// query); a board the query leaves out never sends that sample, and a
+    /// the board mask or not (the JHU firmware's FireWire.v starts its
+    /// sampler on any hub query); a board the query leaves out never sends that sample, and a
     /// block read samples afresh, so of its latch only the restarted
     /// timestamp can be seen: that is all such a board does here (no plant
     /// integrated, no block built).
