@@ -792,10 +792,10 @@ impl Firmware {
     ///
     /// The firmware latches its real-time block on every query, named in
     /// the board mask or not (the JHU firmware's FireWire.v starts its
-    /// sampler on any hub query); a board the query leaves out never sends that sample, and a
-    /// block read samples afresh, so of its latch only the restarted
-    /// timestamp can be seen: that is all such a board does here (no plant
-    /// integrated, no block built).
+    /// sampler on any hub query); a board the query leaves out never sends
+    /// that sample, and a block read samples afresh, so of its latch only
+    /// the restarted timestamp can be seen: that is all such a board does
+    /// here (no plant integrated, no block built).
     fn query(&mut self, now: SimTime, word: Option<u32>) {
         let seq = match word {
             Some(w) => {
