@@ -318,13 +318,9 @@ impl HostLink {
         // The link's state changes only when the bus calls into it.
         let mut looked_at = None;
         bus.run_until_with(deadline, |b| {
-            let calls = Some(b.dispatch_count(link));
-            if calls == looked_at {
-                return false;
-            }
-            looked_at = calls;
-            b.node::<HostLink>(link)
-                .is_some_and(|l| !l.is_pending(token))
+            b.called_since(link, &mut looked_at)
+                && b.node::<HostLink>(link)
+                    .is_some_and(|l| !l.is_pending(token))
         });
         let l = bus.node_mut::<HostLink>(link)?;
         let done = l.take_completion(token);

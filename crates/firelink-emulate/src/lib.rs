@@ -286,9 +286,7 @@ impl Bridge {
             let now = bus.now();
             let mut owed = false;
             for (h, (looked_at, due)) in boards.iter().zip(wakeups.iter_mut()) {
-                let calls = Some(bus.dispatch_count(*h));
-                if calls != *looked_at {
-                    *looked_at = calls;
+                if bus.called_since(*h, looked_at) {
                     *due = bus
                         .node::<BoardNode>(*h)
                         .and_then(|b| b.firmware().next_wakeup());

@@ -416,6 +416,9 @@ mod tests {
         assert_eq!(bus.dispatch_count(a), before.0 + 2, "the timer fired");
         assert_eq!(bus.dispatch_count(b), before.1, "b was never called");
         assert_eq!(bus.dispatch_count(NodeHandle(99)), 0);
+        let mut seen = None;
+        assert!(bus.called_since(a, &mut seen), "never looked at");
+        assert!(!bus.called_since(a, &mut seen), "no call since");
     }
 
     #[test]

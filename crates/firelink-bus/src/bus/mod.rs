@@ -608,6 +608,17 @@ impl Bus {
         self.slots.get(node.0).map_or(0, |s| s.dispatches)
     }
 
+    /// Whether the bus called into the node since `seen` was last
+    /// updated here (`None`: never looked at, so yes); updates `seen`. For
+    /// a watcher that looks at a node's state again only when it may have
+    /// changed ([`dispatch_count`](Self::dispatch_count)).
+    pub fn called_since(&self, node: NodeHandle, seen: &mut Option<u64>) -> bool {
+        let calls = Some(self.dispatch_count(node));
+        let moved = calls != *seen;
+        *seen = calls;
+        moved
+    }
+
     /// The node's name.
     pub fn name(&self, node: NodeHandle) -> Option<&str> {
         self.slots.get(node.0).map(|s| s.name.as_str())
