@@ -212,7 +212,12 @@ fn bench_udp_short_run() {
         assert!(x["io_time_us"]["p99"].as_f64().is_some());
         let u = &x["udp"];
         assert_eq!(u["target"], "in-process emulator");
-        for key in ["floor_ratio", "host_cpu_us", "emulator_cpu_us"] {
+        for key in [
+            "floor_ratio",
+            "host_cpu_us",
+            "emulator_cpu_us",
+            "floor_server_cpu_us",
+        ] {
             assert!(u[key].as_f64().unwrap() > 0.0, "{key}: {x}");
         }
         assert!(u["floor_us"]["median"].as_f64().unwrap() > 0.0, "{x}");

@@ -283,6 +283,12 @@ impl Bridge {
         wakeups.clear();
         wakeups.resize(boards.len(), (None, None));
         self.bus.run_until_with(deadline, |bus| {
+            // Not done while a packet is on the wire or waiting to go (most
+            // of the events of a broadcast phase): the boards are looked
+            // at only when the bus falls quiet.
+            if bus.has_pending_traffic() {
+                return false;
+            }
             let now = bus.now();
             let mut owed = false;
             for (h, (looked_at, due)) in boards.iter().zip(wakeups.iter_mut()) {
@@ -291,9 +297,10 @@ impl Bridge {
                         .node::<BoardNode>(*h)
                         .and_then(|b| b.firmware().next_wakeup());
                 }
+                // A broadcast whose slot has not passed yet.
                 owed |= due.is_some_and(|due| due >= now);
             }
-            !owed && !bus.has_pending_traffic()
+            !owed
         });
         self.forget_received();
     }

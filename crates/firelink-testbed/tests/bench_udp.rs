@@ -33,6 +33,8 @@ fn each_wait_mode_is_a_point_with_its_floor_and_cpu() {
         assert!(u.floor_ratio > 0.0, "{u:?}");
         assert!(u.host_cpu_us > 0.0 && u.floor_host_cpu_us > 0.0, "{u:?}");
         assert!(u.emulator_cpu_us.is_some_and(|c| c > 0.0), "{u:?}");
+        // The floor's responder answered the floor's reads: its thread ran.
+        assert!(u.floor_server_cpu_us.is_some_and(|c| c > 0.0), "{u:?}");
         // Query, hub read and its answer, commands: at least four calls.
         assert!(u.socket_calls_per_cycle >= 4.0, "{u:?}");
     }
@@ -77,6 +79,8 @@ fn a_bridge_given_by_address_is_measured_with_the_boards_it_has() {
         let u = p.udp.as_ref().unwrap();
         assert_eq!(u.target, format!("udp:{addr}"));
         assert_eq!(u.emulator_cpu_us, None);
+        // The floor's responder is in this process whatever the target.
+        assert!(u.floor_server_cpu_us.is_some_and(|c| c > 0.0), "{u:?}");
         assert!(u.floor_us.median > 0.0 && u.floor_ratio > 0.0, "{u:?}");
     }
 }

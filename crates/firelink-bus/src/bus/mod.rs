@@ -604,6 +604,7 @@ impl Bus {
     /// (or through [`node_mut`](Self::node_mut)), so a caller that watches
     /// it while the bus runs (a [`run_until_with`](Self::run_until_with)
     /// condition) need look again only when this moved. 0 for no node.
+    #[inline]
     pub fn dispatch_count(&self, node: NodeHandle) -> u64 {
         self.slots.get(node.0).map_or(0, |s| s.dispatches)
     }
@@ -612,6 +613,7 @@ impl Bus {
     /// updated here (`None`: never looked at, so yes); updates `seen`. For
     /// a watcher that looks at a node's state again only when it may have
     /// changed ([`dispatch_count`](Self::dispatch_count)).
+    #[inline]
     pub fn called_since(&self, node: NodeHandle, seen: &mut Option<u64>) -> bool {
         let calls = Some(self.dispatch_count(node));
         let moved = calls != *seen;
@@ -699,6 +701,7 @@ impl Bus {
 
     /// Whether any packet is in progress or waiting to be sent, or a reset
     /// is under way.
+    #[inline]
     pub fn has_pending_traffic(&self) -> bool {
         !matches!(self.medium, Medium::Idle { .. })
             || self.slots.iter().any(|s| !s.queue.is_empty())

@@ -194,6 +194,12 @@ pub struct UdpFigures {
     /// the idle time between cycles included), us; absent for a bridge
     /// given by address or where thread clocks cannot be read.
     pub emulator_cpu_us: Option<f64>,
+    /// CPU time of the floor's responder thread per floor cycle (user and
+    /// system, the idle time between cycles included), us: what receiving
+    /// and answering the same datagrams costs a server that emulates
+    /// nothing, on this machine. The part of `emulator_cpu_us` above it is
+    /// the emulation's; absent where thread clocks cannot be read.
+    pub floor_server_cpu_us: Option<f64>,
 }
 
 /// One point of the benchmark.
@@ -615,6 +621,7 @@ fn finish(raw: &Raw, compute: f64, period_us: f64) -> BenchPoint {
             floor_host_cpu_us: round2(m.floor_host_cpu),
             socket_calls_per_cycle: round2(m.socket_calls),
             emulator_cpu_us: m.emulator_cpu.map(round2),
+            floor_server_cpu_us: m.floor_server_cpu.map(round2),
         }),
         wait: raw.wait.map(WaitMode::name),
     }
@@ -917,12 +924,13 @@ impl fmt::Display for BenchReport {
             f,
             "\nUDP against {}: the floor (the same requests, sizes and host waits against a responder \
              that answers at once) in blocks of {} cycles alternating with the point's own; \
-             CPU per cycle, us (host: the cycle's I/O; emulator: its server thread)",
+             CPU per cycle, us (host: the cycle's I/O; emulator: its server thread; \
+             floor srv: the responder's thread, a server that emulates nothing)",
             first.target, self.udp_block_cycles
         )?;
         writeln!(
             f,
-            "{:<9} {:<32} {:>6} {:>9} {:>9} {:>6} {:>9} {:>9} {:>8} {:>7}",
+            "{:<9} {:<32} {:>6} {:>9} {:>9} {:>6} {:>9} {:>9} {:>8} {:>9} {:>7}",
             "trans",
             "protocol",
             "boards",
@@ -932,12 +940,13 @@ impl fmt::Display for BenchReport {
             "host cpu",
             "floor cpu",
             "emu cpu",
+            "floor srv",
             "calls"
         )?;
         for (r, u) in udp {
             writeln!(
                 f,
-                "{:<9} {:<32} {:>6} {:>9} {:>9} {:>6.2} {:>9} {:>9} {:>8} {:>7.1}",
+                "{:<9} {:<32} {:>6} {:>9} {:>9} {:>6.2} {:>9} {:>9} {:>8} {:>9} {:>7.1}",
                 transport(r),
                 r.protocol,
                 r.boards,
@@ -947,6 +956,7 @@ impl fmt::Display for BenchReport {
                 num(Some(u.host_cpu_us)),
                 num(Some(u.floor_host_cpu_us)),
                 num(u.emulator_cpu_us),
+                num(u.floor_server_cpu_us),
                 u.socket_calls_per_cycle
             )?;
         }

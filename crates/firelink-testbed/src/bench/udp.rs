@@ -184,6 +184,9 @@ struct Responder {
     addr: SocketAddr,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
+    /// Its thread's CPU clock: what receiving and answering the floor's
+    /// datagrams costs a server that emulates nothing.
+    cpu: Option<ThreadCpuClock>,
 }
 
 impl Responder {
@@ -210,11 +213,19 @@ impl Responder {
                 }
             }
         });
+        let cpu = ThreadCpuClock::of(&thread);
         Ok(Responder {
             addr,
             stop,
             thread: Some(thread),
+            cpu,
         })
+    }
+
+    /// CPU time its thread has used so far, while it runs.
+    fn cpu_time(&self) -> Option<Duration> {
+        let running = self.thread.as_ref().is_some_and(|t| !t.is_finished());
+        self.cpu.filter(|_| running).and_then(|c| c.now())
     }
 }
 
@@ -290,6 +301,8 @@ pub(super) struct ModeRun {
     pub socket_calls: f64,
     /// Per cycle, us.
     pub emulator_cpu: Option<f64>,
+    /// The floor responder's thread, per floor cycle, us.
+    pub floor_server_cpu: Option<f64>,
 }
 
 /// One wait mode's side of a UDP point while it runs.
@@ -311,6 +324,7 @@ struct Side {
     floor_errors: u64,
     socket_calls: u64,
     emulator_cpu: Option<Duration>,
+    floor_server_cpu: Option<Duration>,
 }
 
 /// Where the boards of a UDP point are.
@@ -324,7 +338,7 @@ pub(super) struct Bridge<'a> {
 impl Side {
     fn open(
         bridge: &Bridge<'_>,
-        floor_addr: SocketAddr,
+        responder: &Responder,
         wait: WaitMode,
         protocol: Protocol,
         options: &super::BenchOptions,
@@ -350,7 +364,7 @@ impl Side {
         io.cycle();
         let script = io.port_mut().script.take().unwrap_or_default();
         io.port_mut().wait(idle);
-        let mut floor = rig::udp_port_with(floor_addr, wait)?;
+        let mut floor = rig::udp_port_with(responder.addr, wait)?;
         let mut buf = vec![0u8; 2048];
         for _ in 0..WARM_UP {
             let _ = replay(&mut floor, &script, &mut buf);
@@ -360,6 +374,7 @@ impl Side {
             .emulator
             .and_then(rig::Emulator::server_cpu_time)
             .map(|_| Duration::ZERO);
+        let floor_server_cpu = responder.cpu_time().map(|_| Duration::ZERO);
         Ok(Side {
             wait,
             protocol: used,
@@ -378,6 +393,7 @@ impl Side {
             floor_errors: 0,
             socket_calls: 0,
             emulator_cpu,
+            floor_server_cpu,
         })
     }
 
@@ -415,8 +431,10 @@ impl Side {
         n: u64,
         idle: Duration,
         host: Option<ThreadCpuClock>,
+        responder: &Responder,
         buf: &mut [u8],
     ) {
+        let server_before = responder.cpu_time();
         for _ in 0..n {
             let ((took, ok), cpu) = cpu_over(host, || {
                 let started = Instant::now();
@@ -428,11 +446,17 @@ impl Side {
             self.floor_times.push(us(took) as f32);
             self.floor.wait(idle);
         }
+        let server_after = responder.cpu_time();
+        self.floor_server_cpu = match (self.floor_server_cpu, server_before, server_after) {
+            (Some(total), Some(a), Some(b)) => Some(total + b.saturating_sub(a)),
+            _ => None,
+        };
     }
 
     fn finish(mut self) -> ModeRun {
         let cycles = self.times.len().max(1) as u64;
         let per = |d: Duration| us(d) / cycles as f64;
+        let floor_cycles = self.floor_times.len().max(1);
         ModeRun {
             wait: self.wait,
             protocol: self.protocol,
@@ -450,6 +474,7 @@ impl Side {
             floor_host_cpu: per(self.floor_host_cpu),
             socket_calls: self.socket_calls as f64 / cycles as f64,
             emulator_cpu: self.emulator_cpu.map(per),
+            floor_server_cpu: self.floor_server_cpu.map(|d| us(d) / floor_cycles as f64),
         }
     }
 }
@@ -469,7 +494,7 @@ pub(super) fn measure_point(
     }
     let mut sides = waits
         .iter()
-        .map(|&w| Side::open(bridge, responder.addr, w, protocol, options, idle))
+        .map(|&w| Side::open(bridge, &responder, w, protocol, options, idle))
         .collect::<Result<Vec<Side>, TestbedError>>()?;
     let host = ThreadCpuClock::current();
     let cycles = options.cycles.max(1);
@@ -479,7 +504,7 @@ pub(super) fn measure_point(
         let n = BLOCK.min(cycles - done);
         for side in &mut sides {
             side.own_block(n, idle, host, bridge.emulator);
-            side.floor_block(n, idle, host, &mut buf);
+            side.floor_block(n, idle, host, &responder, &mut buf);
         }
         done += n;
     }
