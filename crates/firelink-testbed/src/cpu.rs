@@ -65,6 +65,18 @@ impl ThreadCpuClock {
     }
 }
 
+impl ThreadCpuClock {
+    /// [`now`](Self::now), for the clock of the thread behind `thread`
+    /// (see [`of`](Self::of)), read only while that thread runs: `None`
+    /// once it has ended or been joined (`thread` is `None`).
+    pub fn now_while_running<T>(&self, thread: Option<&JoinHandle<T>>) -> Option<Duration> {
+        thread
+            .is_some_and(|t| !t.is_finished())
+            .then(|| self.now())
+            .flatten()
+    }
+}
+
 #[cfg(target_os = "linux")]
 mod linux {
     use std::time::Duration;
@@ -129,12 +141,15 @@ mod tests {
         });
         let clock = ThreadCpuClock::of(&idle).unwrap();
         assert!(clock.now().is_some());
+        assert!(clock.now_while_running(Some(&idle)).is_some());
         assert_ne!(clock, me);
         drop(tx);
         while !idle.is_finished() {
             std::thread::yield_now();
         }
         assert_eq!(ThreadCpuClock::of(&idle), None);
+        assert_eq!(clock.now_while_running(Some(&idle)), None, "ended");
         idle.join().unwrap();
+        assert_eq!(clock.now_while_running::<()>(None), None, "joined");
     }
 }

@@ -328,8 +328,8 @@ impl Emulator {
     /// it runs; `None` once it has stopped or where thread clocks cannot
     /// be read.
     pub fn server_cpu_time(&self) -> Option<std::time::Duration> {
-        let running = self.thread.as_ref().is_some_and(|t| !t.is_finished());
-        self.cpu.filter(|_| running).and_then(|c| c.now())
+        self.cpu
+            .and_then(|c| c.now_while_running(self.thread.as_ref()))
     }
 
     /// Stop the server and return its counters.

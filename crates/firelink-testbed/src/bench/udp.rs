@@ -224,8 +224,8 @@ impl Responder {
 
     /// CPU time its thread has used so far, while it runs.
     fn cpu_time(&self) -> Option<Duration> {
-        let running = self.thread.as_ref().is_some_and(|t| !t.is_finished());
-        self.cpu.filter(|_| running).and_then(|c| c.now())
+        self.cpu
+            .and_then(|c| c.now_while_running(self.thread.as_ref()))
     }
 }
 
