@@ -7,12 +7,12 @@ import pytest
 import firelink
 
 
-def test_the_context_manager_always_stops_the_server():
+def test_the_context_manager_always_stops_the_server(udp_timeout):
     threads_before = threading.active_count()
     with firelink.Emulator(boards=2) as emu:
         assert emu.running
         assert emu.address.startswith("udp:127.0.0.1:")
-        assert len(firelink.IoSystem(emu.port()).boards) == 2
+        assert len(firelink.IoSystem(emu.port(timeout=udp_timeout)).boards) == 2
     assert not emu.running
     with pytest.raises(firelink.EmulatorClosed):
         emu.port()
@@ -27,9 +27,9 @@ def test_an_exception_inside_the_block_still_stops_it():
     assert not emu.running
 
 
-def test_stop_reports_the_counters():
+def test_stop_reports_the_counters(udp_timeout):
     emu = firelink.Emulator(boards=1, firmware="7")
-    port = emu.port()
+    port = emu.port(timeout=udp_timeout)
     assert [b.firmware for b in port.scan()] == [7]
     stats = emu.stop()
     assert stats is not None
@@ -44,8 +44,8 @@ def test_bad_emulator_options(kwargs):
 
 
 @pytest.mark.parametrize("timeout", [0.0, -1.0, float("nan"), 1e9])
-def test_a_bad_port_timeout_is_refused(timeout):
+def test_a_bad_port_timeout_is_refused(timeout, udp_timeout):
     with firelink.Emulator(boards=1) as emu:
         with pytest.raises(firelink.InvalidRequest, match="timeout"):
             emu.port(timeout=timeout)
-        assert len(emu.port(timeout=0.5).scan()) == 1
+        assert len(emu.port(timeout=udp_timeout).scan()) == 1

@@ -98,9 +98,9 @@ def test_registers_through_the_io_system():
         firelink.IoSystem("sim:1", protocol="smoke-signals")
 
 
-def test_a_thousand_cycles_against_the_in_process_emulator_without_error():
+def test_a_thousand_cycles_against_the_in_process_emulator_without_error(udp_timeout):
     with firelink.Emulator(boards=4) as emu:
-        io = firelink.IoSystem(emu.port())
+        io = firelink.IoSystem(emu.port(timeout=udp_timeout))
         assert io.protocol == "broadcast"
         ok = sum(io.read_all() & io.write_all() for _ in range(1000))
         stats = io.stats()

@@ -215,14 +215,14 @@ def test_bad_ports_raise_port_error():
         firelink.Emulator(robot="octopus")
 
 
-def test_snake_nodes_behind_the_in_process_emulator_over_udp():
+def test_snake_nodes_behind_the_in_process_emulator_over_udp(udp_timeout):
     with firelink.Emulator(robot="snake") as emu:
-        snake = firelink.SnakeSystem(emu.port())
+        snake = firelink.SnakeSystem(emu.port(timeout=udp_timeout))
         assert [n.board_id for n in snake.nodes] == SNAKE_CONFIG_IDS
         ok = sum(snake.latch_all_inputs() & snake.apply_all_outputs() for _ in range(200))
         snake.set_digital_pot_wiper(4, 7, 512)
         assert snake.digital_pot_wiper(4, 7) == 512
-        port_system = firelink.SnakeSystem(emu.port())
+        port_system = firelink.SnakeSystem(emu.port(timeout=udp_timeout))
         assert len(port_system.nodes) == 6
         stats = snake.stats()
     assert ok == 200, stats
