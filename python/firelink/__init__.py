@@ -152,22 +152,22 @@ def run_demo(
     firmware: str = "8",
     fault: str = "none",
     pacing: Optional[str] = None,
-    watchdog_ms: Optional[float] = 20.0,
+    watchdog_ms: Union[float, str] = 20.0,
     config: Optional[Union[Config, str, PathLike[str]]] = None,
 ) -> Report:
     """Run the demo (``firelink demo``) and return its report.
 
     ``port``: ``sim``, ``emulate`` or ``udp:HOST[:PORT]``;
     ``fault``: ``none``, ``stop-host``, ``corrupt-query``, ``board-loss`` or
-    ``following-error``; ``watchdog_ms=None`` turns the boards' watchdogs
-    off; ``config``: a ``Config`` or a configuration file (default: seed
+    ``following-error``; ``watchdog_ms="off"`` turns the boards' watchdogs
+    off (with a warning); ``config``: a ``Config`` or a configuration file (default: seed
     000's dVRK). ``report.verdict`` is ``"ok"`` or says what went wrong.
     """
     if config is not None and not isinstance(config, Config):
         config = load_config(config)
     text = _firelink.run_demo_json(
         port, float(duration), float(rate), protocol, firmware, fault, pacing,
-        None if watchdog_ms is None else float(watchdog_ms), config,
+        watchdog_ms, config,
     )
     return Report(json.loads(text))
 

@@ -27,7 +27,7 @@ use firelink_host::packet_json::{self, PacketJson};
 use firelink_host::port::Dest;
 use firelink_host::scan::Protocol;
 use firelink_host::udp::{UdpPort, WaitMode};
-use firelink_host::{HostError, Port as HostPort};
+use firelink_host::{HostError, Port as HostPort, WatchdogSetting};
 use firelink_testbed::TestbedError;
 use firelink_testbed::bench::{BenchOptions, BenchTransport};
 use firelink_testbed::demo::{DemoFault, DemoOptions, DemoPort};
@@ -95,6 +95,41 @@ fn config_error(py: Python<'_>, e: &ConfigErrors) -> PyErr {
 
 fn bad(py: Python<'_>, text: impl Into<String>) -> PyErr {
     error(py, "InvalidRequest", text.into())
+}
+
+/// Issue a Python `UserWarning` (e.g. the watchdog is off).
+pub(crate) fn warn(py: Python<'_>, text: &str) -> PyResult<()> {
+    let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+    let text = std::ffi::CString::new(text).unwrap_or_default();
+    PyErr::warn(py, &category, &text, 1)
+}
+
+/// A watchdog argument: a period in ms (int or float) or the string
+/// `"off"`; the one rule is `WatchdogSetting` (one tick to 65535 ticks).
+pub(crate) fn watchdog_setting(
+    py: Python<'_>,
+    value: &Bound<'_, PyAny>,
+) -> PyResult<WatchdogSetting> {
+    if let Ok(text) = value.extract::<String>() {
+        return WatchdogSetting::parse(&text)
+            .map_err(|e| bad(py, format!("watchdog {text:?}: {e}")));
+    }
+    if value.is_instance_of::<pyo3::types::PyBool>() {
+        return Err(bad(py, "watchdog: a period in ms or \"off\", not a bool"));
+    }
+    match value.extract::<f64>() {
+        Ok(ms) => WatchdogSetting::from_ms(ms).map_err(|e| bad(py, e.to_string())),
+        Err(_) => Err(bad(
+            py,
+            format!(
+                "watchdog: a period in ms or \"off\", not {}",
+                value
+                    .get_type()
+                    .name()
+                    .map_or_else(|_| "this".to_string(), |n| n.to_string())
+            ),
+        )),
+    }
 }
 
 // ------------------------------------------------------------- ports ---
@@ -644,13 +679,16 @@ impl IoSystem {
         Ok(())
     }
 
-    /// Set every board's watchdog period, milliseconds (0 < ms <= 341).
-    fn set_watchdog(&mut self, py: Python<'_>, ms: f64) -> PyResult<()> {
-        if !(ms.is_finite() && ms > 0.0 && ms <= 341.0) {
-            return Err(bad(py, format!("watchdog {ms} ms: must be 0 < ms <= 341")));
+    /// Set every board's watchdog: a period in milliseconds (one 5.208 us
+    /// tick to 341.33 ms) or `"off"` (a lost host then leaves the
+    /// amplifiers on: a warning is issued).
+    fn set_watchdog(&mut self, py: Python<'_>, ms: &Bound<'_, PyAny>) -> PyResult<()> {
+        let setting = watchdog_setting(py, ms)?;
+        if let Some(w) = setting.warning() {
+            warn(py, w)?;
         }
         let io = exclusive(&mut self.io);
-        py.detach(|| io.set_watchdog(Duration::from_secs_f64(ms / 1e3)))
+        py.detach(|| io.set_watchdog(setting))
             .map_err(|e| host_error(py, e))
     }
 
@@ -951,21 +989,13 @@ fn run_demo_json(
     firmware: &str,
     fault: &str,
     pacing: Option<&str>,
-    watchdog_ms: Option<f64>,
+    watchdog_ms: &Bound<'_, PyAny>,
     config: Option<&Config>,
 ) -> PyResult<String> {
-    let watchdog = match watchdog_ms {
-        None => None,
-        Some(ms) if ms.is_finite() && ms > 0.0 && ms <= 341.0 => {
-            Some(Duration::from_secs_f64(ms / 1e3))
-        }
-        Some(ms) => {
-            return Err(bad(
-                py,
-                format!("watchdog_ms = {ms}: must be 0 < ms <= 341, or None for off"),
-            ));
-        }
-    };
+    let watchdog = watchdog_setting(py, watchdog_ms)?;
+    if let Some(w) = watchdog.warning() {
+        warn(py, w)?;
+    }
     let options = DemoOptions {
         config: config.map_or_else(presets::dvrk_seed000, |c| c.inner.clone()),
         rate_hz: rate,

@@ -11,7 +11,6 @@
 //! naming it (never `OverflowError`, never a panic).
 
 use std::sync::Mutex;
-use std::time::Duration;
 
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::{PyOverflowError, PyValueError};
@@ -627,14 +626,15 @@ impl SnakeSystem {
             .map(|d| d.as_secs_f64() * 1e3)
     }
 
-    /// Program every node's watchdog, milliseconds (0 <= ms <= 341; 0 turns
-    /// it off). A node whose watchdog expires disables its amplifiers.
-    fn set_watchdog(&mut self, py: Python<'_>, ms: f64) -> PyResult<()> {
-        if !(ms.is_finite() && (0.0..=341.0).contains(&ms)) {
-            return Err(bad(py, format!("watchdog {ms} ms: must be 0 <= ms <= 341")));
+    /// Program every node's watchdog: a period in milliseconds (one 5.208
+    /// us tick to 341.33 ms) or `"off"` (with a warning). A node whose
+    /// watchdog expires disables its amplifiers.
+    fn set_watchdog(&mut self, py: Python<'_>, ms: &Bound<'_, PyAny>) -> PyResult<()> {
+        let setting = crate::watchdog_setting(py, ms)?;
+        if let Some(w) = setting.warning() {
+            crate::warn(py, w)?;
         }
-        let period = Duration::from_secs_f64(ms / 1e3);
-        self.at_once(py, |s| s.set_watchdog(period))
+        self.at_once(py, |s| s.set_watchdog(setting))
     }
 
     /// Per node, from the last latch: a dict with board_id, valid (the

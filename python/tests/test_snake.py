@@ -127,8 +127,11 @@ def test_pot_wiper_gain_and_analog_switches_round_trip(snake):
 def test_watchdog_round_trip(snake):
     snake.set_watchdog(20)
     assert all(snake.watchdog(b) == pytest.approx(20, abs=0.01) for b in SNAKE_CONFIG_IDS)
-    snake.set_watchdog(0)
+    snake.set_watchdog("off")
     assert snake.watchdog(0) == 0
+    for sub_tick in (0, 1e-9, 0.005):
+        with pytest.raises(firelink.InvalidRequest, match="one firmware tick"):
+            snake.set_watchdog(sub_tick)
 
 
 def test_eeprom_raw_and_float_round_trip_and_write_protection():

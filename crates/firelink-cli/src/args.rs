@@ -7,13 +7,11 @@
 //! downstream can then panic building a `Duration` from `1e300`, wrap a node
 //! ID modulo 64 into a broadcast, or turn a watchdog off by accident.
 
-use std::time::Duration;
-
 use clap::ValueEnum;
 use firelink_board::config::{Hardware, Profile};
+pub use firelink_host::WatchdogSetting;
 use firelink_host::scan::Protocol;
 use firelink_host::udp::WaitMode;
-use firelink_wire::board::registers::Watchdog;
 
 /// A finite number in `lo..=hi` (or `lo < x` when `open_low`).
 fn bounded(s: &str, lo: f64, hi: f64, open_low: bool, unit: &str) -> Result<f64, String> {
@@ -111,44 +109,12 @@ pub fn timeout_ms(s: &str) -> Result<u64, String> {
     integer(s, 1, 60_000, "time-out (ms)")
 }
 
-/// The boards' watchdog: a period, or off (which must be asked for by
-/// name: it means a lost host leaves the amplifiers running).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum WatchdogSetting {
-    /// Off: boards keep their outputs when the host stops.
-    Off,
-    /// This period (a whole number of 5.2 us ticks, at most ~341 ms).
-    Period(Duration),
-}
-
-impl WatchdogSetting {
-    /// The period to program (zero when off).
-    pub fn period(self) -> Duration {
-        match self {
-            WatchdogSetting::Off => Duration::ZERO,
-            WatchdogSetting::Period(d) => d,
-        }
-    }
-
-    /// The warning to print when the watchdog is off, or `None`.
-    pub fn warning(self) -> Option<&'static str> {
-        (self == WatchdogSetting::Off).then_some(
-            "WARNING: board watchdogs are OFF: if this host stops, the amplifiers stay \
-             enabled with the last command",
-        )
-    }
-}
-
-/// `off`, or a period in milliseconds above 0 that the WATCHDOG register
-/// can hold. 0 and negative values are rejected: they used to turn the
-/// watchdog off silently.
+/// `--watchdog-ms`: `off`, or a period in milliseconds the WATCHDOG
+/// register can hold (one 5.208 us tick to 65535 ticks). 0, negative values
+/// and periods under one tick are refused: they used to turn the watchdog
+/// off silently. The one rule is `WatchdogSetting::parse`.
 pub fn watchdog(s: &str) -> Result<WatchdogSetting, String> {
-    if s.trim().eq_ignore_ascii_case("off") {
-        return Ok(WatchdogSetting::Off);
-    }
-    let max_ms = Watchdog(0xFFFF).period().as_secs_f64() * 1e3;
-    let ms = bounded(s, 0.0, max_ms, true, " ms (or `off`)")?;
-    Ok(WatchdogSetting::Period(Duration::from_secs_f64(ms / 1e3)))
+    WatchdogSetting::parse(s).map_err(|e| format!("{s:?}: {e}"))
 }
 
 /// `--firmware` (and `sim --profile`): the emulated boards' firmware.
@@ -248,6 +214,7 @@ pub fn quiet() -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::time::Duration;
 
     #[test]
     fn numbers_out_of_range_are_rejected_with_the_range() {
@@ -288,12 +255,16 @@ mod tests {
     fn watchdog_off_is_explicit() {
         assert_eq!(watchdog("off").unwrap(), WatchdogSetting::Off);
         assert!(WatchdogSetting::Off.warning().is_some());
-        for bad in ["0", "-5", "NaN", "1e300", "342"] {
+        for bad in ["0", "-5", "NaN", "1e300", "342", "zero"] {
             assert!(watchdog(bad).is_err(), "{bad}");
         }
         let w = watchdog("20").unwrap();
-        assert_eq!(w.period(), Duration::from_millis(20));
+        assert_eq!(w.period(), Some(Duration::from_millis(20)));
         assert!(w.warning().is_none());
         assert!(watchdog("341").is_ok());
+        for sub_tick in ["1e-7", "1e-9", "0.005"] {
+            let e = watchdog(sub_tick).unwrap_err();
+            assert!(e.contains("one firmware tick"), "{e}");
+        }
     }
 }

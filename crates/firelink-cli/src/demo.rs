@@ -7,7 +7,6 @@
 use std::fmt;
 use std::io::Write;
 use std::path::PathBuf;
-use std::time::Duration;
 
 use clap::{Args, ValueEnum};
 use serde::Serialize;
@@ -152,7 +151,7 @@ impl Default for DemoArgs {
             firmware: FirmwareArg::Rev8,
             fault: FaultArg::None,
             pacing: None,
-            watchdog: crate::args::WatchdogSetting::Period(Duration::from_millis(20)),
+            watchdog: crate::args::WatchdogSetting::default(),
             no_rt: false,
             config: None,
             json: false,
@@ -230,7 +229,7 @@ pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
         Some(path) => IoConfig::load(path)?,
         None => presets::dvrk_seed000(),
     };
-    let watchdog = args.watchdog.period();
+    let watchdog = args.watchdog;
     Ok(DemoOptions {
         config,
         rate_hz: args.rate.unwrap_or(6000.0),
@@ -240,7 +239,7 @@ pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
         firmware: args.firmware.into(),
         fault: args.fault.into(),
         pacing: args.pacing.map(Pacing::from),
-        watchdog: (!watchdog.is_zero()).then_some(watchdog),
+        watchdog,
         udp_wait: args.udp_wait.into(),
     })
 }

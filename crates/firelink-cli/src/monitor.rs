@@ -8,9 +8,9 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 
-use firelink_host::Port;
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
+use firelink_host::{Port, WatchdogSetting};
 
 use crate::CliError;
 use crate::ports::{PortArgs, open_port};
@@ -166,7 +166,7 @@ pub fn run(args: &MonitorArgs, out: &mut impl Write) -> Result<(), CliError> {
         if let Some(warning) = w.warning() {
             eprintln!("monitor: {warning}");
         }
-        io.set_watchdog(w.period())?;
+        io.set_watchdog(w)?;
     }
     let period = if args.rate > 0.0 {
         Duration::from_secs_f64(1.0 / args.rate)
@@ -269,13 +269,15 @@ fn interactive<P: Port>(
                         KeyCode::Char('w') => {
                             watchdog = !watchdog;
                             let p = if watchdog {
-                                Duration::from_millis(50)
+                                WatchdogSetting::from_ms(50.0).unwrap_or_default()
                             } else {
-                                Duration::ZERO
+                                WatchdogSetting::Off
                             };
                             f.message = match io.set_watchdog(p) {
                                 Ok(()) => {
-                                    format!("watchdog {}", if watchdog { "50 ms" } else { "off" })
+                                    let warn =
+                                        p.warning().map_or(String::new(), |w| format!(" ({w})"));
+                                    format!("watchdog {p}{warn}")
                                 }
                                 Err(e) => format!("watchdog: {e}"),
                             };

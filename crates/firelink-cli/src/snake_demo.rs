@@ -32,7 +32,7 @@ pub fn wanted(args: &DemoArgs) -> Result<bool, CliError> {
 /// The Snake demo's options from the command line.
 pub fn options(args: &DemoArgs) -> Result<SnakeDemoOptions, CliError> {
     let config = config(args)?.unwrap_or_else(presets::snake_seed001);
-    let watchdog = args.watchdog.period();
+    let watchdog = args.watchdog;
     Ok(SnakeDemoOptions {
         config,
         rate_hz: args.rate.unwrap_or(1000.0),
@@ -40,7 +40,7 @@ pub fn options(args: &DemoArgs) -> Result<SnakeDemoOptions, CliError> {
         port: args.port.clone(),
         fault: args.fault.into(),
         pacing: args.pacing.map(Pacing::from),
-        watchdog: (!watchdog.is_zero()).then_some(watchdog),
+        watchdog,
         find_max_rate: !args.no_rate_search,
         udp_wait: args.udp_wait.into(),
         ..SnakeDemoOptions::default()

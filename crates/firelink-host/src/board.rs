@@ -337,6 +337,18 @@ impl BoardIo {
         }
     }
 
+    /// Whether the next write asks for motor power or an amplifier on.
+    #[inline]
+    pub(crate) fn asks_for_energy(&self) -> bool {
+        self.control.power == Some(true)
+            || self.control.amps.enable() & self.control.amps.mask() != 0
+            || self
+                .output
+                .dac
+                .iter()
+                .any(|d| d.amp_request() == Some(true))
+    }
+
     /// Command zero current on every axis and request amplifiers off.
     pub fn safe_outputs(&mut self) {
         for axis in 0..self.axes() {

@@ -30,7 +30,9 @@ use firelink_wire::board::broadcast::{
     status_broadcast_board,
 };
 use firelink_wire::board::realtime::{BlockFormat, ReadBlock, ReadBlockRepr};
-use firelink_wire::board::registers::{AmpCommand, SYSTEM_CLOCK_HZ, StatusCommand, Watchdog};
+use firelink_wire::board::registers::{
+    AmpCommand, SYSTEM_CLOCK_HZ, StatusCommand, WatchdogSetting,
+};
 use firelink_wire::packet::Packet;
 
 use crate::board::BoardIo;
@@ -297,6 +299,12 @@ pub struct IoSystem<P: Port> {
     /// A bus reset was seen: node numbers may have moved; the caller
     /// rescans between cycles ([`IoSystem::recover`]).
     needs_rescan: bool,
+    /// Boards this system asked for power or an amplifier since the last
+    /// power-down (bit i = board ID i): dropping the system powers them
+    /// down.
+    energised: u16,
+    /// The watchdog this system last programmed.
+    watchdog: Option<WatchdogSetting>,
 }
 
 /// Where boards and axes are in an [`IoSystem`]'s board list.
@@ -406,6 +414,8 @@ impl<P: Port> IoSystem<P> {
             stats: IoStats::default(),
             bridge_board: scan.bridge_board,
             needs_rescan: false,
+            energised: 0,
+            watchdog: None,
         };
         system.adopt(scan)?;
         Ok(system)
@@ -717,17 +727,14 @@ impl<P: Port> IoSystem<P> {
         self.outside_cycle(r)
     }
 
-    /// Set the watchdog period of every board (0 disables it).
+    /// Program every board's watchdog (off only as
+    /// [`WatchdogSetting::Off`]: no period turns it off).
     ///
     /// # Errors
-    /// Port errors; [`HostError::InvalidRequest`] for a period too long for
-    /// the 16-bit counter.
-    pub fn set_watchdog(&mut self, period: Duration) -> Result<()> {
-        let word = if period.is_zero() {
-            Watchdog::DISABLED
-        } else {
-            Watchdog::from_period(period).map_err(HostError::Wire)?
-        };
+    /// Port errors.
+    pub fn set_watchdog(&mut self, setting: WatchdogSetting) -> Result<()> {
+        let word = setting.register();
+        self.watchdog = Some(setting);
         let offset = Register::board(BoardRegister::Watchdog).offset()?;
         if self.needs_rescan {
             return Err(HostError::BusReset {
@@ -1088,6 +1095,9 @@ impl<P: Port> IoSystem<P> {
             self.write_status_registers();
         }
         for b in self.boards.iter_mut() {
+            if b.asks_for_energy() {
+                self.energised |= 1 << (b.board_id() & 0xF);
+            }
             b.outputs_applied();
         }
         self.report.write_time = self.port.now().saturating_sub(started);
@@ -1169,9 +1179,37 @@ impl<P: Port> IoSystem<P> {
         }
     }
 
+    /// Boards this system asked for motor power or an amplifier since the
+    /// last power-down (bit i = board ID i).
+    pub fn energised(&self) -> u16 {
+        self.energised
+    }
+
+    /// Forget what was energised (after a power-down, or to leave the
+    /// boards as they are on purpose: a test of a crashed host).
+    pub fn clear_energised(&mut self) {
+        self.energised = 0;
+    }
+
+    /// The watchdog this system last programmed, if it did.
+    pub fn watchdog_programmed(&self) -> Option<WatchdogSetting> {
+        self.watchdog
+    }
+
     /// One full cycle: read all, then write all.
     pub fn cycle(&mut self) -> &CycleReport {
         self.read_all();
         self.write_all()
+    }
+}
+
+/// A program that powered boards and ends without powering them down (an
+/// error return, a panic unwinding, a stop request) powers them down here:
+/// [`RobotIo::power_down`], the one rule.
+impl<P: Port> Drop for IoSystem<P> {
+    fn drop(&mut self) {
+        if self.energised != 0 {
+            let _ = crate::RobotIo::power_down(self);
+        }
     }
 }

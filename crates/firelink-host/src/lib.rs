@@ -25,6 +25,8 @@
 //!   inputs, per-axis get/set, apply all outputs, the same for every
 //!   kind of board (implemented for [`io::IoSystem`] and
 //!   [`snake::SnakeSystem`]).
+//! - [`stop`]: stop requests (signals, a caller) that end a robot loop
+//!   with the robot powered down.
 //! - [`snake`]: seed 001's Snake robot nodes: the node layer over block
 //!   buffers with valid bits, and every Get/Set of the seed's API.
 //! - [`mahru`]: seed 002's MotionController for the MAHRU humanoid's
@@ -48,10 +50,12 @@ pub mod scan;
 #[cfg(feature = "sim")]
 pub mod sim;
 pub mod snake;
+pub mod stop;
 pub mod trace;
 pub mod transaction;
 pub mod udp;
 
 pub use error::{HostError, MissReason, Result};
+pub use firelink_wire::board::registers::WatchdogSetting;
 pub use port::{Dest, LinkFilter, Port};
-pub use robot_io::{BoardStatus, RobotIo};
+pub use robot_io::{BoardStatus, PowerDown, RobotIo};

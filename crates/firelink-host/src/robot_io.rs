@@ -27,6 +27,8 @@
 
 use std::time::Duration;
 
+use firelink_wire::board::registers::WatchdogSetting;
+
 use crate::error::{HostError, Result};
 use crate::io::{CycleReport, IoStats, IoSystem};
 use crate::port::Port;
@@ -77,11 +79,12 @@ pub trait RobotIo {
     /// `boards` (bit i = board ID i; boards without a switched motor
     /// supply: off disables every amplifier, on does nothing).
     fn set_power(&mut self, boards: u16, on: bool);
-    /// Program every board's watchdog (zero turns it off).
+    /// Program every board's watchdog (off only by
+    /// [`WatchdogSetting::Off`]).
     ///
     /// # Errors
-    /// Port errors; a period the boards cannot hold.
-    fn set_watchdog(&mut self, period: Duration) -> Result<()>;
+    /// Port errors.
+    fn set_watchdog(&mut self, setting: WatchdogSetting) -> Result<()>;
     /// The fault path's backstop: tell each board in `boards` directly to
     /// turn every amplifier off; returns those that acknowledged.
     fn disable_amplifiers_acknowledged(&mut self, boards: u16) -> u16;
@@ -150,6 +153,139 @@ pub trait RobotIo {
     /// Every axis to its neutral command and every amplifier off with the
     /// next apply.
     fn set_all_safe(&mut self);
+
+    /// Boards this program asked for motor power or an amplifier since
+    /// the last [`power_down`](Self::power_down) (bit i = board ID i).
+    fn energised(&self) -> u16;
+    /// Forget [`energised`](Self::energised) (after a power-down).
+    fn clear_energised(&mut self);
+    /// The watchdog this program last programmed, if it did.
+    fn watchdog_programmed(&self) -> Option<WatchdogSetting>;
+    /// Whether [`powered`](Self::powered) reports a switched motor supply
+    /// (false for boards that answer "powered" whenever they answer).
+    fn switches_power(&self) -> bool {
+        true
+    }
+
+    /// The one power-down rule, for every way a program that powered a
+    /// robot can end: every amplifier off (zero command, then each board
+    /// told directly), then motor power and relay off, then the watchdog
+    /// left running (a program that had turned it off sets the default
+    /// period again, so a lost write still ends with the amplifiers off).
+    /// Then one latch to see what the boards say. The I/O systems run it
+    /// when dropped if they energised anything; a robot's shutdown runs
+    /// it. Bounded: a handful of transactions, each with the port's
+    /// time-out.
+    fn power_down(&mut self) -> PowerDown {
+        let all = self.boards();
+        // After a bus reset nothing is written until the boards are found
+        // again; try once.
+        let _ = self.recover();
+        self.set_all_safe();
+        self.apply_all_outputs();
+        self.disable_amplifiers_acknowledged(all);
+        self.set_power(all, false);
+        self.apply_all_outputs();
+        let watchdog_restored = self.watchdog_programmed() == Some(WatchdogSetting::Off)
+            && self.set_watchdog(WatchdogSetting::default()).is_ok();
+        self.latch_all_inputs();
+        let mut found = PowerDown {
+            watchdog_restored,
+            ..PowerDown::default()
+        };
+        for id in (0..16u8).filter(|id| all & (1 << id) != 0) {
+            let s = self.board_status(id);
+            let bit = 1u16 << id;
+            if !s.answered {
+                found.unknown |= bit;
+            } else if s.amplifiers != 0 || (s.powered && self.switches_power()) {
+                found.still_on |= bit;
+            } else {
+                found.off |= bit;
+            }
+        }
+        self.clear_energised();
+        found
+    }
+}
+
+/// What [`RobotIo::power_down`] found afterwards, per board (bit i = board
+/// ID i).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PowerDown {
+    /// Answered with motor power and every amplifier off.
+    pub off: u16,
+    /// Did not answer: their state is unknown (their own watchdog turns
+    /// their amplifiers off, if it runs).
+    pub unknown: u16,
+    /// Answered still powered or with an amplifier on.
+    pub still_on: u16,
+    /// The watchdog had been turned off and was set to the default period.
+    pub watchdog_restored: bool,
+}
+
+impl PowerDown {
+    /// Every board answered with everything off.
+    pub fn all_off(&self) -> bool {
+        self.unknown == 0 && self.still_on == 0
+    }
+}
+
+/// Board IDs of a mask as `0-3, 6`.
+pub fn board_list(mask: u16) -> String {
+    let mut out = String::new();
+    let mut id = 0u8;
+    while id < 16 {
+        if mask & (1 << id) == 0 {
+            id += 1;
+            continue;
+        }
+        let start = id;
+        while id < 16 && mask & (1 << id) != 0 {
+            id += 1;
+        }
+        if !out.is_empty() {
+            out.push_str(", ");
+        }
+        let end = id - 1;
+        out.push_str(&match end - start {
+            0 => format!("{start}"),
+            1 => format!("{start}, {end}"),
+            _ => format!("{start}-{end}"),
+        });
+    }
+    out
+}
+
+impl std::fmt::Display for PowerDown {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut parts = Vec::new();
+        if self.off != 0 {
+            parts.push(format!(
+                "amplifiers and motor power off on boards {}",
+                board_list(self.off)
+            ));
+        }
+        if self.still_on != 0 {
+            parts.push(format!(
+                "boards {} still report power or an amplifier on",
+                board_list(self.still_on)
+            ));
+        }
+        if self.unknown != 0 {
+            parts.push(format!(
+                "boards {} did not answer: state unknown",
+                board_list(self.unknown)
+            ));
+        }
+        if parts.is_empty() {
+            parts.push("no boards".into());
+        }
+        if self.watchdog_restored {
+            parts.push("watchdog set back to its default period".into());
+        }
+        f.write_str(&parts.join("; "))
+    }
 }
 
 /// One board at the last latch ([`RobotIo::board_status`]).
@@ -269,8 +405,20 @@ impl<P: Port> RobotIo for IoSystem<P> {
         }
     }
 
-    fn set_watchdog(&mut self, period: Duration) -> Result<()> {
-        IoSystem::set_watchdog(self, period)
+    fn set_watchdog(&mut self, setting: WatchdogSetting) -> Result<()> {
+        IoSystem::set_watchdog(self, setting)
+    }
+
+    fn energised(&self) -> u16 {
+        IoSystem::energised(self)
+    }
+
+    fn clear_energised(&mut self) {
+        IoSystem::clear_energised(self);
+    }
+
+    fn watchdog_programmed(&self) -> Option<WatchdogSetting> {
+        IoSystem::watchdog_programmed(self)
     }
 
     fn disable_amplifiers_acknowledged(&mut self, boards: u16) -> u16 {

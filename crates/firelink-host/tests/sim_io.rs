@@ -269,7 +269,8 @@ fn corrupt_query_is_detected_as_a_sequence_error() {
 fn watchdog_expires_when_the_host_stops() {
     let p = port(2, Profile::Rev8);
     let (mut io, _) = IoSystem::open(p, IoOptions::default()).unwrap();
-    io.set_watchdog(Duration::from_millis(10)).unwrap();
+    io.set_watchdog(firelink_host::WatchdogSetting::from_ms(10.0).unwrap())
+        .unwrap();
     power_up(&mut io);
     for b in io.boards_mut() {
         b.set_all_amps(true);

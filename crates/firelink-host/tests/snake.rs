@@ -158,7 +158,8 @@ fn immediate_gets_and_sets() {
     s.latch_all_inputs();
     assert!(s.node(2).unwrap().amplifier_enabled(6).unwrap());
     // Watchdog.
-    s.set_watchdog(Duration::from_millis(10)).unwrap();
+    s.set_watchdog(firelink_host::WatchdogSetting::from_ms(10.0).unwrap())
+        .unwrap();
     let w = s.watchdog(2).unwrap();
     assert!((w.as_secs_f64() - 0.010).abs() < 6e-6, "{w:?}");
 }
@@ -229,7 +230,8 @@ fn bad_inputs_are_refused_with_clear_errors() {
 #[test]
 fn a_silent_host_lets_the_watchdog_disable_the_amplifiers() {
     let mut s = system(&[0], false);
-    s.set_watchdog(Duration::from_millis(2)).unwrap();
+    s.set_watchdog(firelink_host::WatchdogSetting::from_ms(2.0).unwrap())
+        .unwrap();
     s.node_mut(0).unwrap().set_all_amplifiers(true);
     s.latch_all_inputs();
     s.apply_all_outputs();

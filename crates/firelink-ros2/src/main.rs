@@ -8,6 +8,7 @@ use std::time::Duration;
 use clap::Parser;
 
 use firelink_control::config::{IoConfig, presets};
+use firelink_host::WatchdogSetting;
 use firelink_ros2::{NodeSettings, domain_from_env, run_node, run_without_dds};
 use firelink_testbed::demo::DemoPort;
 use firelink_testbed::service::Service;
@@ -32,9 +33,10 @@ struct Args {
     /// DDS domain (default: ROS_DOMAIN_ID, else 0).
     #[arg(long)]
     domain: Option<u16>,
-    /// Board watchdog period, ms (0 < ms <= 341).
-    #[arg(long = "watchdog-ms", default_value_t = 20.0)]
-    watchdog_ms: f64,
+    /// Board watchdog period, ms (one 5.208 us tick to 341.33 ms), or
+    /// `off` (with a warning).
+    #[arg(long = "watchdog-ms", default_value = "20", value_parser = watchdog)]
+    watchdog_ms: WatchdogSetting,
     /// Stop after this many seconds (default: at Ctrl-C or SIGTERM).
     #[arg(long)]
     seconds: Option<f64>,
@@ -42,6 +44,11 @@ struct Args {
     /// time (the comparison for "with ROS 2 attached").
     #[arg(long = "no-dds")]
     no_dds: bool,
+}
+
+/// `--watchdog-ms`: a period or `off`, refused out of range.
+fn watchdog(s: &str) -> Result<WatchdogSetting, String> {
+    WatchdogSetting::parse(s).map_err(|e| format!("{s:?}: {e}"))
 }
 
 fn main() {
@@ -52,8 +59,8 @@ fn main() {
 }
 
 fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
-    if !(args.watchdog_ms.is_finite() && args.watchdog_ms > 0.0 && args.watchdog_ms <= 341.0) {
-        return Err(format!("--watchdog-ms {}: must be 0 < ms <= 341", args.watchdog_ms).into());
+    if let Some(w) = args.watchdog_ms.warning() {
+        eprintln!("firelink ros2: {w}");
     }
     if !(args.publish_hz.is_finite() && args.publish_hz >= 1.0 && args.publish_hz <= 10_000.0) {
         return Err(format!("--publish-hz {}: must be 1..=10000", args.publish_hz).into());
@@ -68,12 +75,7 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
         None => presets::dvrk_seed000(),
     };
     let port: DemoPort = args.port.parse()?;
-    let service = Service::start(
-        &port,
-        config.clone(),
-        args.rate,
-        Duration::from_secs_f64(args.watchdog_ms / 1e3),
-    )?;
+    let service = Service::start(&port, config.clone(), args.rate, args.watchdog_ms)?;
     let stop = Arc::new(AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(signal, Arc::clone(&stop))?;

@@ -30,7 +30,7 @@ use firelink_host::io::{IoOptions, IoStats, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
 use firelink_host::udp::{UdpPort, WaitMode};
-use firelink_host::{Port, RobotIo};
+use firelink_host::{Port, RobotIo, WatchdogSetting};
 use firelink_wire::packet::Tcode;
 
 use crate::TestbedError;
@@ -167,8 +167,8 @@ pub struct DemoOptions {
     pub fault: DemoFault,
     /// Pacing; `None`: the port's default.
     pub pacing: Option<Pacing>,
-    /// Board watchdog period; `None` turns the watchdogs off.
-    pub watchdog: Option<Duration>,
+    /// Board watchdog.
+    pub watchdog: WatchdogSetting,
     /// How the UDP port's reads wait for their answer (emulate, udp).
     pub udp_wait: WaitMode,
 }
@@ -184,7 +184,7 @@ impl Default for DemoOptions {
             firmware: Profile::Rev8,
             fault: DemoFault::None,
             pacing: None,
-            watchdog: Some(Duration::from_millis(20)),
+            watchdog: WatchdogSetting::default(),
             udp_wait: WaitMode::Blocking,
         }
     }
@@ -763,8 +763,8 @@ pub struct DemoPlan<'a> {
     pub duration_s: f64,
     /// The fault to inject half way.
     pub fault: DemoFault,
-    /// Board watchdog period; `None`: off.
-    pub watchdog: Option<Duration>,
+    /// Board watchdog.
+    pub watchdog: WatchdogSetting,
     /// Pacing.
     pub pacing: Pacing,
 }
@@ -774,7 +774,7 @@ impl DemoPlan<'_> {
     pub fn settings(&self) -> RobotSettings {
         RobotSettings {
             rate_hz: self.rate_hz,
-            watchdog: self.watchdog.unwrap_or(Duration::ZERO),
+            watchdog: self.watchdog,
             ..RobotSettings::default()
         }
     }
@@ -807,7 +807,7 @@ pub fn run_program<R: DemoIo>(
     wall: Instant,
     progress: &mut dyn FnMut(DemoProgress),
 ) -> Result<DemoRun, TestbedError> {
-    if plan.watchdog.is_none() {
+    if plan.watchdog.is_off() {
         progress(DemoProgress::WatchdogOff);
     }
     bring_up(&mut robot, plan.config, progress)?;
@@ -864,7 +864,7 @@ fn run_motion<R: DemoIo>(
     progress: &mut dyn FnMut(DemoProgress),
 ) -> Result<Option<FaultReport>, TestbedError> {
     let (pacing, rate, inject) = (plan.pacing, plan.rate_hz, plan.fault);
-    let watchdog = plan.watchdog.unwrap_or(Duration::ZERO);
+    let watchdog = plan.watchdog.period_or_zero();
     let total = (plan.duration_s * rate).round() as u64;
     let every = (rate / 4.0).max(1.0) as u64;
     let half = total / 2;
@@ -970,7 +970,7 @@ fn demo_report<R: DemoIo>(robot: &Robot<R>, plan: &DemoPlan<'_>, run: FinishedRu
     }
     let port_time_s = robot.now();
     let wall_s = run.wall_s;
-    let watchdog = plan.watchdog.unwrap_or(Duration::ZERO);
+    let watchdog = plan.watchdog.period_or_zero();
     DemoReport {
         port: run.port_name,
         boards: run.after.boards,

@@ -21,6 +21,7 @@ use firelink_control::config::IoConfig;
 use firelink_control::lifecycle::State;
 use firelink_control::runner::{Pacing, Robot, RobotSettings};
 use firelink_control::trajectory::{Motion, PointToPoint, ServoPoint};
+use firelink_host::WatchdogSetting;
 use firelink_host::io::{IoOptions, IoSystem};
 use std::thread::JoinHandle;
 
@@ -192,8 +193,8 @@ pub enum Command {
     /// Request every amplifier on or off (outside the lifecycle: turning
     /// them off while Active is a fault, as on a real robot).
     Amplifiers(bool),
-    /// Set every board's watchdog period.
-    Watchdog(Duration),
+    /// Set every board's watchdog (off only by name).
+    Watchdog(WatchdogSetting),
     /// Configured -> Active, every joint holding where it is.
     Activate,
     /// Inject a fault on the port.
@@ -288,8 +289,8 @@ pub struct LoopOptions {
     pub config: IoConfig,
     /// Control rate, Hz.
     pub rate_hz: f64,
-    /// Board watchdog period.
-    pub watchdog: Duration,
+    /// Board watchdog.
+    pub watchdog: WatchdogSetting,
     /// `Virtual` on the simulated bus (then paced to the wall clock by the
     /// loop so the browser sees real time), `WallClock` over UDP.
     pub pacing: Pacing,
@@ -390,7 +391,7 @@ fn execute<P: Injector>(
     match command {
         Command::Configure => {
             shared.homed.store(false, Ordering::Relaxed);
-            robot.configure().map_err(|e| text(&e))
+            robot.configure().map(|_| ()).map_err(|e| text(&e))
         }
         Command::PowerOn => robot
             .power_on_observed(&mut |r| publish(shared, r))
@@ -411,7 +412,7 @@ fn execute<P: Injector>(
             Ok(())
         }
         Command::Activate => robot.activate().map_err(|e| text(&e)),
-        Command::Disable => robot.shutdown().map_err(|e| text(&e)),
+        Command::Disable => robot.shutdown().map(|_| ()).map_err(|e| text(&e)),
         Command::ClearFault => robot.clear_fault().map(|_| ()).map_err(|e| text(&e)),
         Command::Relay(on) => {
             for b in robot.io_mut().boards_mut() {
@@ -483,7 +484,7 @@ fn execute<P: Injector>(
             Ok(())
         }
         Command::Inject(fault) => {
-            let watchdog = options.watchdog;
+            let watchdog = options.watchdog.period_or_zero();
             robot
                 .io_mut()
                 .port_mut()
@@ -599,7 +600,7 @@ impl Service {
         port: &DemoPort,
         config: IoConfig,
         rate_hz: f64,
-        watchdog: Duration,
+        watchdog: WatchdogSetting,
     ) -> Result<Service, crate::TestbedError> {
         if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 20_000.0) {
             return Err(crate::TestbedError::Config(format!(

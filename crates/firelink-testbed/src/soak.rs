@@ -50,7 +50,7 @@ use firelink_control::trajectory::{Motion, Sinusoid};
 use firelink_host::io::{CycleReport, IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
-use firelink_host::{HostError, MissReason};
+use firelink_host::{HostError, MissReason, WatchdogSetting};
 use firelink_wire::board::address::HUB_QUERY_OFFSET;
 use firelink_wire::packet::Tcode;
 use rand::{Rng, SeedableRng};
@@ -475,7 +475,7 @@ pub fn bring_up_robot(
     )?;
     let robot_settings = RobotSettings {
         rate_hz: settings.rate_hz,
-        watchdog: Duration::from_millis(20),
+        watchdog: WatchdogSetting::default(),
         max_samples: 1,
         ..RobotSettings::default()
     };

@@ -46,7 +46,7 @@ fn commands_drive_the_lifecycle_and_motion_waits_for_homing() {
         &DemoPort::Sim,
         presets::bench_1board(),
         500.0,
-        Duration::from_millis(20),
+        firelink_host::WatchdogSetting::default(),
     )
     .unwrap();
     let shared = &service.shared;

@@ -59,7 +59,7 @@ fn the_36_axis_system_runs_at_1_khz_without_errors() {
 fn exercise<R: RobotIo>(io: R, config: &IoConfig, cycles: u64) -> (Vec<(String, f64)>, u64) {
     let settings = RobotSettings {
         rate_hz: 1000.0,
-        watchdog: Duration::from_millis(20),
+        watchdog: firelink_host::WatchdogSetting::default(),
         ..RobotSettings::default()
     };
     let mut servo = Robot::new(io, config, settings).unwrap();

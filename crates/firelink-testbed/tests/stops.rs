@@ -53,7 +53,8 @@ fn drive(config: &IoConfig, joints: &[(usize, f64)], seconds: f64) -> Vec<Driven
     let boards = rig::board_configs(config, Profile::Rev8, config.board_slots());
     let (port, handles) = rig::sim_port(boards, false).unwrap();
     let (mut io, _) = IoSystem::open(port, IoOptions::default()).unwrap();
-    io.set_watchdog(Duration::from_millis(50)).unwrap();
+    io.set_watchdog(firelink_host::WatchdogSetting::from_ms(50.0).unwrap())
+        .unwrap();
     let refs: Vec<_> = joints
         .iter()
         .map(|&(i, _)| config.joints().nth(i).unwrap())

@@ -25,7 +25,6 @@ use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
-use std::time::Duration;
 
 use firelink_control::config::{IoConfig, presets};
 use firelink_testbed::demo::DemoPort;
@@ -54,8 +53,8 @@ pub struct WebOptions {
     pub config: Option<PathBuf>,
     /// Control rate, Hz.
     pub rate_hz: f64,
-    /// Board watchdog period.
-    pub watchdog: Duration,
+    /// Board watchdog.
+    pub watchdog: firelink_host::WatchdogSetting,
     /// Address to listen on.
     pub listen: SocketAddr,
 }

@@ -1,8 +1,8 @@
 //! `firelink-web` (also run as `firelink web`): the web console.
 
+use firelink_host::WatchdogSetting;
 use std::net::SocketAddr;
 use std::path::PathBuf;
-use std::time::Duration;
 
 use clap::Parser;
 
@@ -27,9 +27,15 @@ struct Args {
     /// Control rate, Hz.
     #[arg(long, default_value_t = 1000.0)]
     rate: f64,
-    /// Board watchdog period, ms (0 < ms <= 341).
-    #[arg(long = "watchdog-ms", default_value_t = 20.0)]
-    watchdog_ms: f64,
+    /// Board watchdog period, ms (one 5.208 us tick to 341.33 ms), or
+    /// `off` (with a warning).
+    #[arg(long = "watchdog-ms", default_value = "20", value_parser = watchdog)]
+    watchdog_ms: WatchdogSetting,
+}
+
+/// `--watchdog-ms`: a period or `off`, refused out of range.
+fn watchdog(s: &str) -> Result<WatchdogSetting, String> {
+    WatchdogSetting::parse(s).map_err(|e| format!("{s:?}: {e}"))
 }
 
 fn main() {
@@ -41,8 +47,8 @@ fn main() {
 }
 
 fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
-    if !(args.watchdog_ms.is_finite() && args.watchdog_ms > 0.0 && args.watchdog_ms <= 341.0) {
-        return Err(format!("--watchdog-ms {}: must be 0 < ms <= 341", args.watchdog_ms).into());
+    if let Some(w) = args.watchdog_ms.warning() {
+        eprintln!("firelink web: {w}");
     }
     if !args.listen.ip().is_loopback() {
         eprintln!(
@@ -55,7 +61,7 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
         port: args.port.parse()?,
         config: args.config,
         rate_hz: args.rate,
-        watchdog: Duration::from_secs_f64(args.watchdog_ms / 1e3),
+        watchdog: args.watchdog_ms,
         listen: args.listen,
     };
     let runtime = tokio::runtime::Builder::new_multi_thread()

@@ -23,6 +23,7 @@ use serde::Deserialize;
 use serde_json::{Value, json};
 use tokio::sync::broadcast;
 
+use firelink_host::WatchdogSetting;
 use firelink_testbed::demo::DemoFault;
 
 use firelink_testbed::service::{Command, CommandOutcome, Frame, Shared};
@@ -252,8 +253,9 @@ struct CommandRequest {
     on: Option<bool>,
     #[serde(default)]
     fault: Option<String>,
+    /// A period in ms, or `"off"`.
     #[serde(default)]
-    watchdog_ms: Option<f64>,
+    watchdog_ms: Option<Value>,
 }
 
 fn parse_command(c: &Console, r: &CommandRequest) -> Result<Command, String> {
@@ -270,11 +272,19 @@ fn parse_command(c: &Console, r: &CommandRequest) -> Result<Command, String> {
         "relay" => Command::Relay(on()?),
         "amplifiers" => Command::Amplifiers(on()?),
         "watchdog" => {
-            let ms = r.watchdog_ms.unwrap_or(f64::NAN);
-            if !(ms.is_finite() && ms > 0.0 && ms <= 341.0) {
-                return Err(format!("watchdog_ms {ms}: must be 0 < ms <= 341"));
-            }
-            Command::Watchdog(Duration::from_secs_f64(ms / 1e3))
+            let setting = match &r.watchdog_ms {
+                Some(Value::String(s)) if s.trim().eq_ignore_ascii_case("off") => {
+                    WatchdogSetting::Off
+                }
+                Some(Value::Number(n)) => n
+                    .as_f64()
+                    .ok_or_else(|| format!("watchdog_ms {n}: not a number"))
+                    .and_then(|ms| WatchdogSetting::from_ms(ms).map_err(|e| e.to_string()))?,
+                _ => {
+                    return Err("watchdog: needs \"watchdog_ms\": a period in ms or \"off\"".into());
+                }
+            };
+            Command::Watchdog(setting)
         }
         "inject" => {
             let name = r.fault.as_deref().unwrap_or("");

@@ -60,7 +60,7 @@ async fn only_the_token_and_this_origin_can_change_the_robot() {
         port: DemoPort::Sim,
         config: None,
         rate_hz: 500.0,
-        watchdog: Duration::from_millis(20),
+        watchdog: firelink_host::WatchdogSetting::default(),
         listen: "127.0.0.1:0".parse().unwrap(),
     };
     let (running, listener) = start(&options).await.unwrap();

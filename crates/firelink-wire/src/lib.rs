@@ -48,6 +48,7 @@ pub mod bridge;
 pub mod crc;
 mod error;
 pub mod field;
+pub mod human;
 pub mod mahru;
 mod open_enum;
 pub mod packet;

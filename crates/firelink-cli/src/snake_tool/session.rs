@@ -11,8 +11,8 @@ use std::time::Duration;
 use serde::{Deserialize, Serialize};
 
 use firelink_control::config::{IoConfig, JointType};
-use firelink_host::Port;
 use firelink_host::snake::SnakeSystem;
+use firelink_host::{Port, WatchdogSetting};
 use firelink_wire::snake::analog;
 use firelink_wire::snake::registers::{
     DAC_MIDPOINT, PotOutputs, PowerControl, Wiper, adc_api_to_volts,
@@ -800,18 +800,13 @@ impl<P: Port> Session<P> {
         let (b, ch) = (self.board, self.channel);
         match verb {
             "watchdog" => {
-                let period = match arg {
-                    Some("off") => Duration::ZERO,
-                    _ => {
-                        Duration::from_secs_f64(parse_f64(arg, "watchdog (ms)", 0.01, 341.0)? / 1e3)
-                    }
-                };
-                self.system.set_watchdog(period)?;
-                let _ = writeln!(
-                    out,
-                    "watchdog {:.3} ms on every node",
-                    period.as_secs_f64() * 1e3
-                );
+                let setting = WatchdogSetting::parse(arg.unwrap_or(""))
+                    .map_err(|e| bad(format!("watchdog {}: {e}", arg.unwrap_or(""))))?;
+                self.system.set_watchdog(setting)?;
+                let _ = writeln!(out, "watchdog {setting} on every node");
+                if let Some(w) = setting.warning() {
+                    let _ = writeln!(out, "{w}");
+                }
             }
             "wait" => {
                 let ms = parse_f64(arg, "wait (ms)", 0.0, 60_000.0)?;

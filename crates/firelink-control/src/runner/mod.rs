@@ -47,7 +47,8 @@ use joint::{Joint, Pacer};
 use std::time::{Duration, Instant};
 
 use firelink_host::io::{CycleReport, IoStats};
-use firelink_host::{BoardStatus, HostError, MissReason, RobotIo};
+use firelink_host::stop::{StopReason, StopRequest};
+use firelink_host::{BoardStatus, HostError, MissReason, PowerDown, RobotIo, WatchdogSetting};
 use firelink_wire::board::MAX_BOARDS;
 use firelink_wire::board::registers::SYSTEM_CLOCK_HZ;
 
@@ -76,8 +77,8 @@ pub enum Pacing {
 pub struct RobotSettings {
     /// Control rate, Hz.
     pub rate_hz: f64,
-    /// Board watchdog period (zero disables it).
-    pub watchdog: Duration,
+    /// Board watchdog.
+    pub watchdog: WatchdogSetting,
     /// Homing sample counts.
     pub homing: HomingSettings,
     /// Cycles to wait for power and amplifiers before giving up.
@@ -91,7 +92,7 @@ impl Default for RobotSettings {
     fn default() -> Self {
         RobotSettings {
             rate_hz: 1000.0,
-            watchdog: Duration::from_millis(20),
+            watchdog: WatchdogSetting::default(),
             homing: HomingSettings {
                 averaging_samples: 20,
                 verify_samples: 20,
@@ -134,6 +135,10 @@ pub enum RunnerError {
     /// Something did not happen in time.
     #[error("timed out waiting for {0}")]
     Timeout(&'static str),
+    /// A stop was requested (a signal, the caller): the loop returned
+    /// between cycles.
+    #[error("stopped by {0}")]
+    Stopped(StopReason),
 }
 
 /// One robot program: configuration, I/O, lifecycle, controllers.
@@ -186,6 +191,78 @@ pub struct Robot<R: RobotIo> {
     disabled_acknowledged: u16,
     fault: Option<FaultReport>,
     pacer: Pacer,
+    /// Checked between cycles by every loop of the runner.
+    stop: StopRequest,
+    /// What [`configure`](Robot::configure) found left by an earlier
+    /// program.
+    found_at_configure: Option<LeftOver>,
+    /// The last power-down's findings.
+    last_power_down: Option<PowerDown>,
+}
+
+/// What [`Robot::configure`] found on the expected boards before taking
+/// them over (bit i = board ID i): the state an earlier program that did
+/// not power down (a crash, a `kill -9`, a lost link) left them in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct LeftOver {
+    /// Boards with motor power on.
+    pub powered: u16,
+    /// Boards with an amplifier on.
+    pub amplifiers: u16,
+    /// Boards whose watchdog had timed out (STATUS bit 23; it clears when
+    /// motor power is next switched on, as the firmware allows).
+    pub watchdog_timed_out: u16,
+    /// Expected boards that did not answer.
+    pub silent: u16,
+    /// The power-down this took, if any board was powered.
+    pub powered_down: Option<PowerDown>,
+}
+
+impl LeftOver {
+    /// Whether the boards were found as a clean start leaves them.
+    pub fn is_clean(&self) -> bool {
+        self.powered == 0 && self.amplifiers == 0 && self.watchdog_timed_out == 0
+    }
+}
+
+impl core::fmt::Display for LeftOver {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        use firelink_host::robot_io::board_list;
+        if self.is_clean() {
+            return f.write_str("boards found powered off");
+        }
+        let mut parts = Vec::new();
+        if self.powered != 0 {
+            parts.push(format!(
+                "motor power on at boards {}",
+                board_list(self.powered)
+            ));
+        }
+        if self.amplifiers != 0 {
+            parts.push(format!(
+                "amplifiers on at boards {}",
+                board_list(self.amplifiers)
+            ));
+        }
+        if self.watchdog_timed_out != 0 {
+            parts.push(format!(
+                "watchdog timed out at boards {}",
+                board_list(self.watchdog_timed_out)
+            ));
+        }
+        write!(
+            f,
+            "found {} (left by an earlier program that did not power down)",
+            parts.join(", ")
+        )?;
+        if let Some(p) = &self.powered_down {
+            write!(f, "; powered down: {p}")?;
+        }
+        if self.watchdog_timed_out != 0 {
+            f.write_str("; the watchdog flag clears at the next power-on")?;
+        }
+        Ok(())
+    }
 }
 
 /// The joint-to-joint pot mixing of `config`'s robots (pots mounted on
@@ -306,6 +383,9 @@ impl<R: RobotIo> Robot<R> {
             disabled_acknowledged: 0,
             fault: None,
             pacer: Pacer::default(),
+            stop: StopRequest::process(),
+            found_at_configure: None,
+            last_power_down: None,
         })
     }
 
@@ -472,16 +552,85 @@ impl<R: RobotIo> Robot<R> {
         (0..self.joints.len()).any(|i| self.amplifier_on(i))
     }
 
-    /// Unconfigured -> Configured: every expected board was found; sets the
-    /// board watchdogs.
+    /// Unconfigured -> Configured: every expected board was found; the
+    /// boards are read once, and any an earlier program left powered or
+    /// with an amplifier on (a crash, a `kill -9`) are powered down first
+    /// ([`LeftOver`], also kept in
+    /// [`found_at_configure`](Self::found_at_configure)); then the board
+    /// watchdogs are set. A watchdog flag latched by that earlier program
+    /// is harmless while power is off and clears at power-on.
     ///
     /// # Errors
     /// The lifecycle's refusal (the first missing board, with its robot);
     /// port errors setting the watchdog.
-    pub fn configure(&mut self) -> Result<(), RunnerError> {
+    pub fn configure(&mut self) -> Result<LeftOver, RunnerError> {
+        self.check_stop()?;
         self.life.configure(self.found())?;
+        let left = self.take_over();
         self.io.set_watchdog(self.settings.watchdog)?;
-        Ok(())
+        Ok(left)
+    }
+
+    /// Read the expected boards once; power down any left energised.
+    fn take_over(&mut self) -> LeftOver {
+        self.io.latch_all_inputs();
+        let mut left = LeftOver::default();
+        for id in self.expected.iter() {
+            let s = self.io.board_status(id);
+            let bit = 1u16 << id;
+            if !s.answered {
+                left.silent |= bit;
+                continue;
+            }
+            if s.powered && self.io.switches_power() {
+                left.powered |= bit;
+            }
+            if s.amplifiers != 0 {
+                left.amplifiers |= bit;
+            }
+            if s.watchdog_expired {
+                left.watchdog_timed_out |= bit;
+            }
+        }
+        if left.powered | left.amplifiers != 0 {
+            let done = self.io.power_down();
+            self.last_power_down = Some(done);
+            left.powered_down = Some(done);
+        }
+        self.found_at_configure = Some(left);
+        left
+    }
+
+    /// What [`configure`](Self::configure) found left by an earlier program.
+    pub fn found_at_configure(&self) -> Option<&LeftOver> {
+        self.found_at_configure.as_ref()
+    }
+
+    /// The request every loop of this robot obeys (by default the
+    /// process's own, which [`firelink_host::stop::install_signal_handlers`]
+    /// sets on SIGINT, SIGTERM and SIGHUP).
+    pub fn stop_request(&self) -> &StopRequest {
+        &self.stop
+    }
+
+    /// Obey `stop` instead of the process's request.
+    pub fn set_stop_request(&mut self, stop: StopRequest) {
+        self.stop = stop;
+    }
+
+    /// [`RunnerError::Stopped`] once a stop was requested.
+    fn check_stop(&self) -> Result<(), RunnerError> {
+        match self.stop.reason() {
+            Some(reason) => Err(RunnerError::Stopped(reason)),
+            None => Ok(()),
+        }
+    }
+
+    /// A cycle, unless a stop was requested: the loops' step (the check is
+    /// one atomic load).
+    pub(crate) fn step_unless_stopped(&mut self, pacing: Pacing) -> Result<(), RunnerError> {
+        self.check_stop()?;
+        self.step(pacing)
     }
 
     /// Motor power on the expected boards, then every used amplifier,
@@ -524,7 +673,7 @@ impl<R: RobotIo> Robot<R> {
         done: impl Fn(&PowerStatus) -> bool,
     ) -> Result<(), RunnerError> {
         for _ in 0..self.settings.power_timeout_cycles {
-            let r = self.step(Pacing::Virtual);
+            let r = self.step_unless_stopped(Pacing::Virtual);
             each(self);
             r?;
             if done(&self.power_status()) {
@@ -543,7 +692,7 @@ impl<R: RobotIo> Robot<R> {
         let h = self.settings.homing;
         let limit = 10 * (h.averaging_samples + h.verify_samples) + 10;
         for _ in 0..limit {
-            self.step(Pacing::Virtual)?;
+            self.step_unless_stopped(Pacing::Virtual)?;
             match self.homing.step(&self.pot, &self.enc) {
                 HomingStep::PreloadReady => self
                     .homing
@@ -623,24 +772,26 @@ impl<R: RobotIo> Robot<R> {
         self.set_motion(i, Motion::Hold(sp + delta))
     }
 
-    /// Active -> Configured (if Active), then every output safe and power
-    /// off on every board found; a few cycles to apply it. Also the way
-    /// out after a fault.
+    /// Active -> Configured (if Active), then the one power-down rule on
+    /// every board found ([`RobotIo::power_down`]: amplifiers off, then
+    /// motor power off, the watchdog left running); returns what the
+    /// boards said afterwards. Also the way out after a fault. Runs
+    /// whatever the stop request says.
     ///
     /// # Errors
-    /// Port errors are in the cycle reports; this only fails if cycling
-    /// cannot go on (never today).
-    pub fn shutdown(&mut self) -> Result<(), RunnerError> {
+    /// Never today (the findings say which boards did not answer).
+    pub fn shutdown(&mut self) -> Result<PowerDown, RunnerError> {
         if self.life.state() == State::Active {
             self.life.deactivate()?;
         }
-        self.io.set_all_safe();
-        self.io.set_power(self.io.boards(), false);
-        for _ in 0..3 {
-            // Faults during shutdown are expected (power going off).
-            let _ = self.step(Pacing::Virtual);
-        }
-        Ok(())
+        let done = self.io.power_down();
+        self.last_power_down = Some(done);
+        Ok(done)
+    }
+
+    /// The last power-down's findings (shutdown, or configure's take-over).
+    pub fn last_power_down(&self) -> Option<&PowerDown> {
+        self.last_power_down.as_ref()
     }
 
     /// Run `cycles` cycles with `pacing`, calling `progress` every
@@ -657,7 +808,7 @@ impl<R: RobotIo> Robot<R> {
     ) -> Result<(), RunnerError> {
         self.pacer.restart();
         for k in 0..cycles {
-            self.step(pacing)?;
+            self.step_unless_stopped(pacing)?;
             if progress_every > 0 && (k + 1) % progress_every == 0 {
                 progress(self);
             }

@@ -157,7 +157,7 @@ impl<R: RobotIo> Robot<R> {
         // Past the end of the travel, give the joint a moment to catch up.
         let give_up = horizon + 1.0;
         loop {
-            let r = self.step(Pacing::Virtual);
+            let r = self.step_unless_stopped(Pacing::Virtual);
             each(self);
             r?;
             let Some(j) = self.joints.get(i) else {

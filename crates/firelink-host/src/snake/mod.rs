@@ -38,7 +38,7 @@ pub use node::{EepromIndex, SnakeNodeInfo, SnakeNodeIo, channel, float_to_words,
 
 use std::time::Duration;
 
-use firelink_wire::board::registers::Watchdog;
+use firelink_wire::board::registers::{Watchdog, WatchdogSetting};
 use firelink_wire::packet::Ack;
 use firelink_wire::snake::address::{ChannelDevice, GlobalRegister, SnakeRegister};
 use firelink_wire::snake::block::{READ_BLOCK_LEN, ReadBlock, ReadBlockRepr, WRITE_BLOCK_LEN};
@@ -70,6 +70,10 @@ pub struct SnakeSystem<P: Port> {
     buf: [u8; READ_BLOCK_LEN],
     cmd: [u8; WRITE_BLOCK_LEN],
     needs_rescan: bool,
+    /// Nodes this system asked for an amplifier since the last power-down.
+    energised: u16,
+    /// The watchdog this system last programmed.
+    watchdog: Option<WatchdogSetting>,
 }
 
 /// Find the Snake nodes behind `port`: every candidate node whose version
@@ -129,6 +133,8 @@ impl<P: Port> SnakeSystem<P> {
             buf: [0; READ_BLOCK_LEN],
             cmd: [0; WRITE_BLOCK_LEN],
             needs_rescan: false,
+            energised: 0,
+            watchdog: None,
         })
     }
 
@@ -279,6 +285,9 @@ impl<P: Port> SnakeSystem<P> {
             }
             let dest = Dest::node(node.info().node);
             let power = node.pending_power();
+            if power.is_some_and(|p| p.enable() & p.mask() != 0) {
+                self.energised |= 1 << (node.board_id() & 0xF);
+            }
             let emitted = node.output().emit(&mut self.cmd);
             if let Some(p) = power {
                 if let Err(e) = self.port.write_quadlet(dest, status, p.raw()) {
@@ -574,16 +583,14 @@ impl<P: Port> SnakeSystem<P> {
         Ok(Watchdog(w & 0xFFFF).period())
     }
 
-    /// Program every node's watchdog (zero turns it off).
+    /// Program every node's watchdog (off only as
+    /// [`WatchdogSetting::Off`]).
     ///
     /// # Errors
-    /// A period above the register's 16 bits (about 341 ms); port errors.
-    pub fn set_watchdog(&mut self, period: Duration) -> Result<()> {
-        let word = if period.is_zero() {
-            Watchdog::DISABLED
-        } else {
-            Watchdog::from_period(period).map_err(HostError::Wire)?
-        };
+    /// Port errors.
+    pub fn set_watchdog(&mut self, setting: WatchdogSetting) -> Result<()> {
+        let word = setting.register();
+        self.watchdog = Some(setting);
         let register = SnakeRegister::Global(GlobalRegister::WatchdogPeriod);
         for i in 0..self.nodes.len() {
             let Some(id) = self.nodes.get(i).map(|n| n.board_id()) else {
@@ -715,8 +722,24 @@ impl<P: Port> RobotIo for SnakeSystem<P> {
         }
     }
 
-    fn set_watchdog(&mut self, period: Duration) -> Result<()> {
-        SnakeSystem::set_watchdog(self, period)
+    fn set_watchdog(&mut self, setting: WatchdogSetting) -> Result<()> {
+        SnakeSystem::set_watchdog(self, setting)
+    }
+
+    fn energised(&self) -> u16 {
+        self.energised
+    }
+
+    fn clear_energised(&mut self) {
+        self.energised = 0;
+    }
+
+    fn watchdog_programmed(&self) -> Option<WatchdogSetting> {
+        self.watchdog
+    }
+
+    fn switches_power(&self) -> bool {
+        false
     }
 
     fn disable_amplifiers_acknowledged(&mut self, boards: u16) -> u16 {
@@ -768,6 +791,17 @@ impl<P: Port> RobotIo for SnakeSystem<P> {
     fn set_all_safe(&mut self) {
         for n in &mut self.nodes {
             n.safe_outputs();
+        }
+    }
+}
+
+/// As [`IoSystem`](crate::io::IoSystem)'s: a program that enabled
+/// amplifiers and ends without a power-down gets one
+/// ([`RobotIo::power_down`]).
+impl<P: Port> Drop for SnakeSystem<P> {
+    fn drop(&mut self) {
+        if self.energised != 0 {
+            let _ = RobotIo::power_down(self);
         }
     }
 }

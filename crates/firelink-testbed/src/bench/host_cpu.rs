@@ -28,6 +28,7 @@ use firelink_board::config::Profile;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, Percentiles, Robot, RobotSettings};
 use firelink_control::trajectory::{Motion, PointToPoint, Sinusoid};
+use firelink_host::WatchdogSetting;
 use firelink_host::error::{HostError, Result};
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::port::{Dest, LinkFilter, Port};
@@ -340,7 +341,7 @@ impl RecordedCycle {
         }
         let settings = RobotSettings {
             rate_hz: 6000.0,
-            watchdog: Duration::from_millis(20),
+            watchdog: WatchdogSetting::default(),
             // The timing record is not what is measured here.
             max_samples: 1 << 16,
             ..RobotSettings::default()

@@ -8,12 +8,13 @@
 //! search.
 
 use std::fmt;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use serde::Serialize;
 
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, Robot};
+use firelink_host::WatchdogSetting;
 use firelink_host::snake::SnakeSystem;
 use firelink_host::udp::WaitMode;
 
@@ -41,8 +42,8 @@ pub struct SnakeDemoOptions {
     pub fault: DemoFault,
     /// Pacing; `None`: the port's default.
     pub pacing: Option<Pacing>,
-    /// Node watchdog period; `None` turns the watchdogs off.
-    pub watchdog: Option<Duration>,
+    /// Node watchdog.
+    pub watchdog: WatchdogSetting,
     /// After the run, search for the highest rate that holds (simulated
     /// bus only).
     pub find_max_rate: bool,
@@ -61,7 +62,7 @@ impl Default for SnakeDemoOptions {
             port: DemoPort::Sim,
             fault: DemoFault::None,
             pacing: None,
-            watchdog: Some(Duration::from_millis(20)),
+            watchdog: WatchdogSetting::default(),
             find_max_rate: true,
             seed: 1,
             udp_wait: WaitMode::Blocking,

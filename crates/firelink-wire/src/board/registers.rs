@@ -522,6 +522,148 @@ impl Watchdog {
     }
 }
 
+/// A watchdog setting as a person asks for it: a period the WATCHDOG
+/// register can hold (one tick, 5.208 us, to 65535 ticks, about 341 ms), or
+/// off, which only the word `off` gives. Every front end (flags, web API,
+/// configuration files, Python) goes through [`WatchdogSetting::parse`] or
+/// [`WatchdogSetting::from_ms`]: a period too short for one tick used to
+/// become register value 0, which turns the watchdog off without a word.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum WatchdogSetting {
+    /// Off: a host that stops leaves the amplifiers on with the last
+    /// command. Say so loudly ([`WatchdogSetting::OFF_WARNING`]).
+    Off,
+    /// This register word (never 0 ticks).
+    Period(Watchdog),
+}
+
+/// A watchdog period that the register cannot hold (or is not a number).
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error(
+    "watchdog period {} ms is out of range: from {:.4} ms (one firmware tick of 5.208 us) to {:.2} ms (65535 ticks), or `off`",
+    crate::human::Number(*asked_ms),
+    WatchdogSetting::MIN_MS,
+    WatchdogSetting::MAX_MS
+)]
+pub struct WatchdogRangeError {
+    /// What was asked for, ms.
+    pub asked_ms: f64,
+}
+
+/// The text given for a watchdog is neither `off` nor a number.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum WatchdogParseError {
+    /// Not `off` and not a number.
+    #[error("a watchdog is a period in ms or `off`")]
+    NotANumber,
+    /// A number out of range.
+    #[error(transparent)]
+    Range(#[from] WatchdogRangeError),
+}
+
+impl WatchdogSetting {
+    /// The shortest period, ms: one tick (256 / 49.152 MHz).
+    pub const MIN_MS: f64 = 256.0 / 49_152.0;
+    /// The longest period, ms: 65535 ticks.
+    pub const MAX_MS: f64 = 65_535.0 * 256.0 / 49_152.0;
+    /// What to print when the watchdog is off.
+    pub const OFF_WARNING: &'static str = "WARNING: board watchdogs are OFF: if this host \
+        stops, the amplifiers stay enabled with the last command";
+
+    /// A period in milliseconds, rounded to the nearest tick.
+    ///
+    /// # Errors
+    /// Below one tick, above 65535 ticks, or not finite.
+    pub fn from_ms(ms: f64) -> core::result::Result<WatchdogSetting, WatchdogRangeError> {
+        let err = WatchdogRangeError { asked_ms: ms };
+        // (The comparisons are false for NaN.)
+        if !(ms >= Self::MIN_MS && ms <= Self::MAX_MS) {
+            return Err(err);
+        }
+        let ticks = (ms / Self::MIN_MS).round();
+        if !(1.0..=65_535.0).contains(&ticks) {
+            return Err(err);
+        }
+        Ok(WatchdogSetting::Period(
+            Watchdog::default().with_ticks(ticks as u16),
+        ))
+    }
+
+    /// A period as a duration, rounded to the nearest tick.
+    ///
+    /// # Errors
+    /// Below one tick (zero included: off is [`WatchdogSetting::Off`]),
+    /// above 65535 ticks.
+    pub fn from_period(
+        period: Duration,
+    ) -> core::result::Result<WatchdogSetting, WatchdogRangeError> {
+        Self::from_ms(period.as_secs_f64() * 1e3)
+    }
+
+    /// `off` (any case) or a period in milliseconds.
+    ///
+    /// # Errors
+    /// Not a number, or out of range.
+    pub fn parse(text: &str) -> core::result::Result<WatchdogSetting, WatchdogParseError> {
+        let t = text.trim();
+        if t.eq_ignore_ascii_case("off") {
+            return Ok(WatchdogSetting::Off);
+        }
+        let ms: f64 = t.parse().map_err(|_| WatchdogParseError::NotANumber)?;
+        Ok(Self::from_ms(ms)?)
+    }
+
+    /// The register word to program (0 ticks only when off).
+    pub fn register(self) -> Watchdog {
+        match self {
+            WatchdogSetting::Off => Watchdog::DISABLED,
+            WatchdogSetting::Period(w) => w,
+        }
+    }
+
+    /// The period, or `None` when off.
+    pub fn period(self) -> Option<Duration> {
+        match self {
+            WatchdogSetting::Off => None,
+            WatchdogSetting::Period(w) => Some(w.period()),
+        }
+    }
+
+    /// The period, zero when off (for arithmetic on waits).
+    pub fn period_or_zero(self) -> Duration {
+        self.period().unwrap_or(Duration::ZERO)
+    }
+
+    /// Whether it is off.
+    pub fn is_off(self) -> bool {
+        self == WatchdogSetting::Off
+    }
+
+    /// The warning to print, or `None` when a period is set.
+    pub fn warning(self) -> Option<&'static str> {
+        self.is_off().then_some(Self::OFF_WARNING)
+    }
+}
+
+impl Default for WatchdogSetting {
+    /// 20 ms, the dVRK's and the demo's period.
+    fn default() -> Self {
+        WatchdogSetting::Period(Watchdog::default().with_ticks(3840))
+    }
+}
+
+impl core::fmt::Display for WatchdogSetting {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            WatchdogSetting::Off => f.write_str("off"),
+            WatchdogSetting::Period(w) => {
+                let ms = w.period().as_secs_f64() * 1e3;
+                write!(f, "{} ms", crate::human::Number((ms * 1e4).round() / 1e4))
+            }
+        }
+    }
+}
+
 // ----------------------------------------------------------- HW_VERSION ---
 
 open_enum! {
@@ -1146,6 +1288,47 @@ mod tests {
         let d = PhyData(0x0000_013F);
         assert_eq!((d.register(), d.data()), (1, 0x3F));
         assert_eq!(PhyData::default().with_register(1).with_data(0x3F), d);
+    }
+
+    #[test]
+    fn watchdog_settings_refuse_what_the_register_cannot_hold() {
+        use std::string::ToString;
+        // Under one tick used to become 0 ticks: the watchdog off.
+        for ms in [
+            1e-7,
+            1e-9,
+            0.0,
+            -5.0,
+            0.005,
+            f64::NAN,
+            f64::INFINITY,
+            341.4,
+            1e300,
+        ] {
+            let e = WatchdogSetting::from_ms(ms).unwrap_err();
+            assert!(e.to_string().contains("out of range"), "{e}");
+        }
+        assert!(
+            WatchdogSetting::from_ms(1e300)
+                .unwrap_err()
+                .to_string()
+                .contains("1e300 ms")
+        );
+        assert!(WatchdogSetting::from_period(Duration::ZERO).is_err());
+        assert!(WatchdogSetting::from_period(Duration::from_nanos(5000)).is_err());
+        let one = WatchdogSetting::from_ms(WatchdogSetting::MIN_MS).unwrap();
+        assert_eq!(one.register().ticks(), 1);
+        let max = WatchdogSetting::from_ms(WatchdogSetting::MAX_MS).unwrap();
+        assert_eq!(max.register().ticks(), 0xFFFF);
+        let twenty = WatchdogSetting::parse(" 20 ").unwrap();
+        assert_eq!(twenty, WatchdogSetting::default());
+        assert_eq!(twenty.to_string(), "20 ms");
+        assert_eq!(twenty.register().ticks(), 3840);
+        assert_eq!(WatchdogSetting::parse("OFF").unwrap(), WatchdogSetting::Off);
+        assert!(WatchdogSetting::Off.warning().is_some());
+        assert_eq!(WatchdogSetting::Off.register(), Watchdog::DISABLED);
+        assert!(WatchdogSetting::parse("zero").is_err());
+        assert!(WatchdogSetting::parse("0").is_err());
     }
 
     #[test]
