@@ -1021,6 +1021,7 @@ fn run_demo_json(
         },
         watchdog,
         udp_wait: WaitMode::Blocking,
+        stop: None,
     };
     let report = py
         .detach(|| firelink_testbed::demo::run_demo(&options, None, |_| {}))

@@ -241,6 +241,7 @@ pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
         pacing: args.pacing.map(Pacing::from),
         watchdog,
         udp_wait: args.udp_wait.into(),
+        stop: None,
     })
 }
 

@@ -262,14 +262,6 @@ pub enum CliError {
         /// Where it was looked for.
         path: String,
     },
-    /// A companion program failed.
-    #[error("{name} exited with {status}")]
-    CompanionFailed {
-        /// Its name.
-        name: String,
-        /// Its exit status.
-        status: std::process::ExitStatus,
-    },
     /// The host library failed.
     #[error(transparent)]
     Host(#[from] firelink_host::HostError),
@@ -290,12 +282,37 @@ pub enum CliError {
     Io(#[from] std::io::Error),
 }
 
+impl CliError {
+    /// The stop request (a signal) that ended a robot program, if that is
+    /// what this error is.
+    fn stopped_by(&self) -> Option<firelink_host::stop::StopReason> {
+        match self {
+            CliError::Testbed(e) => e.stopped_by(),
+            _ => None,
+        }
+    }
+}
+
+/// Commands that power a robot turn SIGINT, SIGTERM and SIGHUP into a stop
+/// request: the loop returns between cycles, the robot is powered down,
+/// and the process exits with 128 + the signal's number. (A second signal
+/// ends it at once; the boards' watchdogs then turn the amplifiers off.)
+fn drives_a_robot(command: &Command) -> bool {
+    matches!(
+        command,
+        Command::Demo(_) | Command::Monitor(_) | Command::SnakeTool(_) | Command::Soak(_)
+    )
+}
+
 fn run(cli: Cli) -> Result<(), CliError> {
     let mut out = std::io::stdout().lock();
-    match cli
+    let command = cli
         .command
-        .unwrap_or(Command::Demo(demo::DemoArgs::default()))
-    {
+        .unwrap_or(Command::Demo(demo::DemoArgs::default()));
+    if drives_a_robot(&command) {
+        firelink_host::stop::install_signal_handlers()?;
+    }
+    match command {
         Command::Packet(PacketCommand::Decode { bridge, hex }) => {
             let json = packet_cmd::decode(&hex.join(" "), bridge)?;
             writeln!(out, "{}", serde_json::to_string(&json)?)?;
@@ -360,7 +377,10 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
             eprintln!("firelink: {err}");
-            ExitCode::FAILURE
+            match err.stopped_by() {
+                Some(reason) => ExitCode::from(u8::try_from(reason.exit_status()).unwrap_or(1)),
+                None => ExitCode::FAILURE,
+            }
         }
     }
 }

@@ -188,7 +188,14 @@ pub fn run(args: &MonitorArgs, out: &mut impl Write) -> Result<(), CliError> {
         write!(out, "{}", render(&io, &f))?;
         return Ok(());
     }
-    interactive(&mut io, period, out)
+    let result = interactive(&mut io, period, out);
+    // Power the boards down if this session switched anything on (the
+    // one rule, RobotIo::power_down; dropping `io` would do it silently).
+    if io.energised() != 0 {
+        let done = firelink_host::RobotIo::power_down(&mut io);
+        eprintln!("monitor: powered down: {done}");
+    }
+    result
 }
 
 fn pace(start: Instant, cycles: u64, period: Duration) {
@@ -217,7 +224,11 @@ fn interactive<P: Port>(
         let mut relay = false;
         let mut amps = false;
         let mut watchdog = false;
+        let stop = firelink_host::stop::StopRequest::process();
         loop {
+            if stop.is_requested() {
+                return Ok(());
+            }
             let r = *io.cycle();
             let _ = io.recover();
             f.cycles += 1;
@@ -242,8 +253,11 @@ fn interactive<P: Port>(
             f.max_io_us = 0.0;
             while event::poll(Duration::ZERO)? {
                 if let Event::Key(key) = event::read()? {
+                    // In raw mode Ctrl-C is a key, not a signal.
+                    let ctrl = key.modifiers.contains(event::KeyModifiers::CONTROL);
                     match key.code {
                         KeyCode::Char('q') | KeyCode::Esc => return Ok(()),
+                        KeyCode::Char('c') if ctrl => return Ok(()),
                         KeyCode::Char('p') => {
                             power = !power;
                             io.boards_mut().iter_mut().for_each(|b| b.set_power(power));

@@ -30,7 +30,8 @@ use firelink_host::io::{IoOptions, IoStats, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
 use firelink_host::udp::{UdpPort, WaitMode};
-use firelink_host::{Port, RobotIo, WatchdogSetting};
+use firelink_host::stop::StopRequest;
+use firelink_host::{Port, PowerDown, RobotIo, WatchdogSetting};
 use firelink_wire::packet::Tcode;
 
 use crate::TestbedError;
@@ -171,6 +172,10 @@ pub struct DemoOptions {
     pub watchdog: WatchdogSetting,
     /// How the UDP port's reads wait for their answer (emulate, udp).
     pub udp_wait: WaitMode,
+    /// The stop request the robot obeys between cycles (`None`: the
+    /// process's own, which signals set once
+    /// `firelink_host::stop::install_signal_handlers` ran).
+    pub stop: Option<StopRequest>,
 }
 
 impl Default for DemoOptions {
@@ -186,6 +191,7 @@ impl Default for DemoOptions {
             pacing: None,
             watchdog: WatchdogSetting::default(),
             udp_wait: WaitMode::Blocking,
+            stop: None,
         }
     }
 }
@@ -308,6 +314,47 @@ pub struct WatchdogReport {
     pub period_ms: f64,
     /// Boards whose watchdog had expired at the end of the motion.
     pub expired_boards: Vec<u8>,
+    /// Boards that did not answer at the end of the motion: whether their
+    /// watchdog expired is not known.
+    pub unknown_boards: Vec<u8>,
+}
+
+/// What the boards said after the final power-down (board IDs).
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct PowerDownReport {
+    /// Answered with motor power and every amplifier off.
+    pub off: Vec<u8>,
+    /// Did not answer: state unknown.
+    pub unknown: Vec<u8>,
+    /// Answered still powered or with an amplifier on.
+    pub still_on: Vec<u8>,
+    /// The watchdog had been off and was set back to its default period.
+    pub watchdog_restored: bool,
+}
+
+fn ids(mask: u16) -> Vec<u8> {
+    (0..16u8).filter(|id| mask & (1 << id) != 0).collect()
+}
+
+impl From<&PowerDown> for PowerDownReport {
+    fn from(p: &PowerDown) -> Self {
+        PowerDownReport {
+            off: ids(p.off),
+            unknown: ids(p.unknown),
+            still_on: ids(p.still_on),
+            watchdog_restored: p.watchdog_restored,
+        }
+    }
+}
+
+/// Board IDs for people: `0-3, 6`, or `none`.
+fn board_ids(ids: &[u8]) -> String {
+    let mask = ids.iter().fold(0u16, |m, id| m | 1u16.checked_shl(u32::from(*id)).unwrap_or(0));
+    if mask == 0 {
+        "none".into()
+    } else {
+        firelink_host::robot_io::board_list(mask)
+    }
 }
 
 /// The fault the robot raised.
@@ -400,10 +447,14 @@ pub struct DemoReport {
     pub fault: Option<FaultSummary>,
     /// State at the end of the motion.
     pub state_after_run: String,
-    /// After a fault: whether any amplifier was still on.
+    /// After a fault: whether any amplifier of the boards that answered
+    /// was still on (those in `boards_not_answering` cannot say).
     pub amplifiers_on_after_fault: Option<bool>,
-    /// Boards not answering at the end of the motion.
+    /// Boards not answering at the end of the motion: their amplifier and
+    /// watchdog state is unknown.
     pub boards_not_answering: Vec<u8>,
+    /// What the boards said after the final power-down.
+    pub power_down: PowerDownReport,
     /// Final state (after power-off).
     pub state: String,
 }
@@ -423,6 +474,10 @@ impl DemoReport {
             (Some(_), true) if self.amplifiers_on_after_fault == Some(true) => {
                 Err("amplifiers still on after the fault".into())
             }
+            _ if !self.power_down.still_on.is_empty() => Err(format!(
+                "boards {} still report power or an amplifier on after the power-down",
+                board_ids(&self.power_down.still_on)
+            )),
             _ => Ok(()),
         }
     }
@@ -488,25 +543,69 @@ impl fmt::Display for DemoReport {
             e.bad_packets,
             e.nacks
         )?;
-        writeln!(
+        let watchdog = if self.watchdog.period_ms > 0.0 {
+            format!("{} ms", firelink_wire::human::Number(self.watchdog.period_ms))
+        } else {
+            "OFF".into()
+        };
+        write!(
             f,
-            "  watchdog: {} ms, expired on boards {:?}",
-            self.watchdog.period_ms, self.watchdog.expired_boards
+            "  watchdog: {watchdog}, expired on boards {}",
+            board_ids(&self.watchdog.expired_boards)
         )?;
-        match &self.fault {
-            None => writeln!(f, "  faults: none; final state {}", self.state),
-            Some(fl) => writeln!(
+        if !self.watchdog.unknown_boards.is_empty() {
+            write!(
                 f,
-                "  FAULT ({} injected): {}\n  safety chain: left active, amplifiers {}",
-                self.fault_injected,
-                fl.text,
-                if self.amplifiers_on_after_fault == Some(true) {
-                    "STILL ON"
-                } else {
-                    "off"
-                }
-            ),
+                "; boards {} not answering: unknown",
+                board_ids(&self.watchdog.unknown_boards)
+            )?;
         }
+        writeln!(f)?;
+        match &self.fault {
+            None => writeln!(f, "  faults: none; final state {}", self.state)?,
+            Some(fl) => {
+                let answering = if self.boards_not_answering.is_empty() {
+                    String::new()
+                } else {
+                    " on the boards that answer".into()
+                };
+                writeln!(
+                    f,
+                    "  FAULT ({} injected): {}\n  safety chain: left active, amplifiers {}{answering}",
+                    self.fault_injected,
+                    fl.text,
+                    if self.amplifiers_on_after_fault == Some(true) {
+                        "STILL ON"
+                    } else {
+                        "off"
+                    }
+                )?;
+                if !self.boards_not_answering.is_empty() {
+                    writeln!(
+                        f,
+                        "  boards {} not answering: amplifier state unknown (their own watchdog {})",
+                        board_ids(&self.boards_not_answering),
+                        if self.watchdog.period_ms > 0.0 {
+                            "turns their amplifiers off if they are powered and running"
+                        } else {
+                            "is OFF: nothing turns their amplifiers off"
+                        }
+                    )?;
+                }
+            }
+        }
+        let p = &self.power_down;
+        write!(f, "  powered down: off on boards {}", board_ids(&p.off))?;
+        if !p.unknown.is_empty() {
+            write!(f, "; boards {} did not answer: state unknown", board_ids(&p.unknown))?;
+        }
+        if !p.still_on.is_empty() {
+            write!(f, "; boards {} STILL ON", board_ids(&p.still_on))?;
+        }
+        if p.watchdog_restored {
+            write!(f, "; watchdog set back to its default period")?;
+        }
+        writeln!(f)
     }
 }
 
@@ -747,7 +846,10 @@ fn run_robot<P: Injector>(
         watchdog: options.watchdog,
         pacing,
     };
-    let robot = Robot::new(io, config, plan.settings())?;
+    let mut robot = Robot::new(io, config, plan.settings())?;
+    if let Some(stop) = &options.stop {
+        robot.set_stop_request(stop.clone());
+    }
     let done = run_program(robot, &plan, port_name, rt, wall, progress)?;
     Ok(done.report)
 }
@@ -810,12 +912,27 @@ pub fn run_program<R: DemoIo>(
     if plan.watchdog.is_off() {
         progress(DemoProgress::WatchdogOff);
     }
-    bring_up(&mut robot, plan.config, progress)?;
-    let setup_cycles = robot.cycles();
-    let fault = run_motion(&mut robot, plan, progress)?;
+    let mut setup_cycles = 0;
+    let ran = bring_up(&mut robot, plan.config, progress).and_then(|()| {
+        setup_cycles = robot.cycles();
+        run_motion(&mut robot, plan, progress)
+    });
+    let fault = match ran {
+        Ok(fault) => fault,
+        // Whatever ended the program (an error in bring-up or motion, a
+        // stop request), the robot is powered down before it returns.
+        Err(error) => {
+            let power_down = robot.shutdown()?;
+            progress(DemoProgress::PoweredOff(wall.elapsed().as_secs_f64()));
+            return Err(TestbedError::PoweredDown {
+                error: Box::new(error),
+                power_down,
+            });
+        }
+    };
     let after = AfterRun::of(&robot);
     let motion_cycles = robot.cycles() - setup_cycles;
-    robot.shutdown()?;
+    let power_down = robot.shutdown()?;
     let wall_s = wall.elapsed().as_secs_f64();
     progress(DemoProgress::PoweredOff(wall_s));
     let run = FinishedRun {
@@ -825,6 +942,7 @@ pub fn run_program<R: DemoIo>(
         motion_cycles,
         fault,
         after,
+        power_down,
     };
     Ok(DemoRun {
         report: demo_report(&robot, plan, run),
@@ -943,6 +1061,7 @@ struct FinishedRun {
     motion_cycles: u64,
     fault: Option<FaultReport>,
     after: AfterRun,
+    power_down: PowerDown,
 }
 
 /// The demo's report of a finished run.
@@ -1004,12 +1123,14 @@ fn demo_report<R: DemoIo>(robot: &Robot<R>, plan: &DemoPlan<'_>, run: FinishedRu
         watchdog: WatchdogReport {
             period_ms: watchdog.as_secs_f64() * 1e3,
             expired_boards: run.after.expired,
+            unknown_boards: run.after.silent.clone(),
         },
         fault_injected: plan.fault.name(),
         fault: run.fault.as_ref().map(FaultSummary::from),
         state_after_run: run.after.state,
         amplifiers_on_after_fault: run.fault.map(|_| run.after.amplifiers_on),
         boards_not_answering: run.after.silent,
+        power_down: PowerDownReport::from(&run.power_down),
         state: robot.state().to_string(),
     }
 }

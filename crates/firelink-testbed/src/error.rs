@@ -21,4 +21,26 @@ pub enum TestbedError {
     /// Sockets.
     #[error("I/O: {0}")]
     Io(#[from] std::io::Error),
+    /// A robot program failed (or was stopped) after it had started to
+    /// power the robot; the robot was powered down before this was
+    /// returned, and `power_down` says what the boards reported.
+    #[error("{error}; then powered down: {power_down}")]
+    PoweredDown {
+        /// What ended the program.
+        error: Box<TestbedError>,
+        /// What the boards said after the power-down.
+        power_down: firelink_host::PowerDown,
+    },
+}
+
+impl TestbedError {
+    /// The stop request that ended the program, if a signal or the caller
+    /// stopped it (not a failure).
+    pub fn stopped_by(&self) -> Option<firelink_host::stop::StopReason> {
+        match self {
+            TestbedError::Runner(firelink_control::runner::RunnerError::Stopped(r)) => Some(*r),
+            TestbedError::PoweredDown { error, .. } => error.stopped_by(),
+            _ => None,
+        }
+    }
 }

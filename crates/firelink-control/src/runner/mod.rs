@@ -571,11 +571,18 @@ impl<R: RobotIo> Robot<R> {
         Ok(left)
     }
 
-    /// Read the expected boards once; power down any left energised.
+    /// Read the expected boards once; power down any left energised by
+    /// another program (boards this program energised itself, e.g. before
+    /// a fault it is now configuring out of, are its own business: not
+    /// read, not reported).
     fn take_over(&mut self) -> LeftOver {
-        self.io.latch_all_inputs();
         let mut left = LeftOver::default();
-        for id in self.expected.iter() {
+        let others = self.expected.0 & !self.io.energised();
+        if others == 0 {
+            return left;
+        }
+        self.io.latch_all_inputs();
+        for id in self.expected.iter().filter(|id| others & (1 << id) != 0) {
             let s = self.io.board_status(id);
             let bit = 1u16 << id;
             if !s.answered {
