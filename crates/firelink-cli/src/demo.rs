@@ -169,6 +169,7 @@ fn progress_line(event: &DemoProgress) -> Option<String> {
             protocol,
         } => format!("found {boards} boards on {port} ({reason}), protocol {protocol}"),
         DemoProgress::WatchdogOff => return None,
+        DemoProgress::TookOver(text) => text.clone(),
         DemoProgress::Configured => "configured; powering on".into(),
         DemoProgress::Powered(t) => format!("powered at t = {t:.3} s; homing"),
         DemoProgress::Homed(t) => format!("homed and active at t = {t:.3} s; moving every arm"),

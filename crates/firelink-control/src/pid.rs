@@ -99,7 +99,7 @@ impl PidGains {
 
 /// A gain or limit that is negative, NaN or infinite.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
-#[error("PID {field} = {value} must be finite and >= 0")]
+#[error("PID {field} = {} must be finite and >= 0", firelink_wire::human::Number(*value))]
 pub struct PidError {
     /// The field.
     pub field: &'static str,

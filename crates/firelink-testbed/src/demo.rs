@@ -29,8 +29,8 @@ use firelink_control::{FaultKind, FaultReport};
 use firelink_host::io::{IoOptions, IoStats, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
-use firelink_host::udp::{UdpPort, WaitMode};
 use firelink_host::stop::StopRequest;
+use firelink_host::udp::{UdpPort, WaitMode};
 use firelink_host::{Port, PowerDown, RobotIo, WatchdogSetting};
 use firelink_wire::packet::Tcode;
 
@@ -212,6 +212,10 @@ pub enum DemoProgress {
     },
     /// The watchdog is off: the caller should say so loudly.
     WatchdogOff,
+    /// The boards were found as an earlier program left them (powered,
+    /// amplifiers on, watchdog timed out) and taken over: what was found
+    /// and done.
+    TookOver(String),
     /// Boards configured.
     Configured,
     /// Power is on, at this port time (s).
@@ -349,7 +353,9 @@ impl From<&PowerDown> for PowerDownReport {
 
 /// Board IDs for people: `0-3, 6`, or `none`.
 fn board_ids(ids: &[u8]) -> String {
-    let mask = ids.iter().fold(0u16, |m, id| m | 1u16.checked_shl(u32::from(*id)).unwrap_or(0));
+    let mask = ids.iter().fold(0u16, |m, id| {
+        m | 1u16.checked_shl(u32::from(*id)).unwrap_or(0)
+    });
     if mask == 0 {
         "none".into()
     } else {
@@ -544,7 +550,10 @@ impl fmt::Display for DemoReport {
             e.nacks
         )?;
         let watchdog = if self.watchdog.period_ms > 0.0 {
-            format!("{} ms", firelink_wire::human::Number(self.watchdog.period_ms))
+            format!(
+                "{} ms",
+                firelink_wire::human::Number(self.watchdog.period_ms)
+            )
         } else {
             "OFF".into()
         };
@@ -597,7 +606,11 @@ impl fmt::Display for DemoReport {
         let p = &self.power_down;
         write!(f, "  powered down: off on boards {}", board_ids(&p.off))?;
         if !p.unknown.is_empty() {
-            write!(f, "; boards {} did not answer: state unknown", board_ids(&p.unknown))?;
+            write!(
+                f,
+                "; boards {} did not answer: state unknown",
+                board_ids(&p.unknown)
+            )?;
         }
         if !p.still_on.is_empty() {
             write!(f, "; boards {} STILL ON", board_ids(&p.still_on))?;
@@ -958,7 +971,10 @@ fn bring_up<R: DemoIo>(
     config: &IoConfig,
     progress: &mut dyn FnMut(DemoProgress),
 ) -> Result<(), TestbedError> {
-    robot.configure()?;
+    let left = robot.configure()?;
+    if !left.is_clean() {
+        progress(DemoProgress::TookOver(left.to_string()));
+    }
     progress(DemoProgress::Configured);
     robot.power_on()?;
     progress(DemoProgress::Powered(robot.now()));

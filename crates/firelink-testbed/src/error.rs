@@ -34,6 +34,14 @@ pub enum TestbedError {
 }
 
 impl TestbedError {
+    /// What ended the program, under a [`TestbedError::PoweredDown`].
+    pub fn cause(&self) -> &TestbedError {
+        match self {
+            TestbedError::PoweredDown { error, .. } => error.cause(),
+            other => other,
+        }
+    }
+
     /// The stop request that ended the program, if a signal or the caller
     /// stopped it (not a failure).
     pub fn stopped_by(&self) -> Option<firelink_host::stop::StopReason> {

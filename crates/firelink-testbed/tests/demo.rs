@@ -49,6 +49,28 @@ fn a_lost_board_is_named_and_every_amplifier_ends_off() {
     assert_eq!(fault.board, Some(4), "{fault:?}");
     assert_eq!(r.amplifiers_on_after_fault, Some(false));
     assert!(r.boards_not_answering.contains(&4));
+    // What the host cannot see is reported as unknown, not as "off" or
+    // "not expired".
+    assert_eq!(r.watchdog.unknown_boards, r.boards_not_answering);
+    assert!(
+        r.watchdog
+            .expired_boards
+            .iter()
+            .all(|b| !r.boards_not_answering.contains(b))
+    );
+    assert!(r.power_down.unknown.contains(&4), "{:?}", r.power_down);
+    assert!(r.power_down.still_on.is_empty());
+    let text = r.to_string();
+    assert!(
+        text.contains("amplifiers off on the boards that answer"),
+        "{text}"
+    );
+    assert!(
+        text.contains("not answering: amplifier state unknown"),
+        "{text}"
+    );
+    assert!(text.contains("did not answer: state unknown"), "{text}");
+    assert!(!text.contains("expired on boards []"), "{text}");
 }
 
 #[test]

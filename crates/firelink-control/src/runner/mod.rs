@@ -113,13 +113,13 @@ pub enum RunnerError {
     #[error("host: {0}")]
     Host(#[from] HostError),
     /// A refused lifecycle transition.
-    #[error("lifecycle: {0:?}")]
+    #[error("lifecycle: {0}")]
     Lifecycle(#[from] LifecycleError),
     /// Homing failed.
-    #[error("homing: {0:?}")]
+    #[error("homing: {0}")]
     Homing(HomingError),
     /// Invalid PID gains in the configuration.
-    #[error("PID gains: {0:?}")]
+    #[error("{0}")]
     Pid(PidError),
     /// A fault while running.
     #[error("{0}")]
@@ -209,8 +209,11 @@ pub struct LeftOver {
     pub powered: u16,
     /// Boards with an amplifier on.
     pub amplifiers: u16,
-    /// Boards whose watchdog had timed out (STATUS bit 23; it clears when
-    /// motor power is next switched on, as the firmware allows).
+    /// Of the boards found powered, those whose watchdog had timed out
+    /// (STATUS bit 23: the earlier program stopped writing; it clears when
+    /// motor power is next switched on, as the firmware allows). On an
+    /// unpowered board the flag is the normal idle state (nobody writes to
+    /// it) and is not reported.
     pub watchdog_timed_out: u16,
     /// Expected boards that did not answer.
     pub silent: u16,
@@ -219,9 +222,10 @@ pub struct LeftOver {
 }
 
 impl LeftOver {
-    /// Whether the boards were found as a clean start leaves them.
+    /// Whether the boards were found as a clean start leaves them (power
+    /// and amplifiers off).
     pub fn is_clean(&self) -> bool {
-        self.powered == 0 && self.amplifiers == 0 && self.watchdog_timed_out == 0
+        self.powered == 0 && self.amplifiers == 0
     }
 }
 
@@ -595,7 +599,7 @@ impl<R: RobotIo> Robot<R> {
             if s.amplifiers != 0 {
                 left.amplifiers |= bit;
             }
-            if s.watchdog_expired {
+            if s.watchdog_expired && (s.powered || s.amplifiers != 0) {
                 left.watchdog_timed_out |= bit;
             }
         }
