@@ -369,6 +369,13 @@ pub fn run(
     let mut next_progress = first_cycle + 50_000;
     let mut next_adjust = first_cycle + 10_000;
     while robot.cycles() < target {
+        // A signal (the process's stop request) ends the soak between
+        // cycles; the robot is powered down as the I/O system is dropped.
+        if let Some(reason) = robot.stop_request().reason() {
+            return Err(TestbedError::Runner(
+                firelink_control::runner::RunnerError::Stopped(reason),
+            ));
+        }
         if robot.state() == State::Active {
             let _ = robot.step(Pacing::Virtual);
             soak.observe(&robot);

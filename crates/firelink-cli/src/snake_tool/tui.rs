@@ -30,7 +30,13 @@ fn ui<P: Port>(session: &mut Session<P>, out: &mut impl Write) -> Result<(), Cli
     let mut message = String::from("type : then help for every command");
     let mut prompt: Option<String> = None;
     let mut last = Instant::now() - Duration::from_secs(1);
+    // SIGTERM / SIGHUP end the tool; the nodes are powered down as the
+    // session's Snake system is dropped.
+    let stop = firelink_host::stop::StopRequest::process();
     loop {
+        if stop.is_requested() {
+            return Ok(());
+        }
         if last.elapsed() >= Duration::from_millis(100) {
             let elapsed = last.elapsed().min(Duration::from_millis(500));
             last = Instant::now();
@@ -60,9 +66,16 @@ fn ui<P: Port>(session: &mut Session<P>, out: &mut impl Write) -> Result<(), Cli
         if !event::poll(Duration::from_millis(20))? {
             continue;
         }
-        let Event::Key(KeyEvent { code, .. }) = event::read()? else {
+        let Event::Key(KeyEvent {
+            code, modifiers, ..
+        }) = event::read()?
+        else {
             continue;
         };
+        // In raw mode Ctrl-C is a key, not a signal.
+        if code == KeyCode::Char('c') && modifiers.contains(event::KeyModifiers::CONTROL) {
+            return Ok(());
+        }
         last = Instant::now() - Duration::from_secs(1);
         if let Some(p) = prompt.as_mut() {
             match code {
