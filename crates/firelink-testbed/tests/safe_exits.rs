@@ -16,11 +16,11 @@ use firelink_board::config::Profile;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::lifecycle::State;
 use firelink_control::runner::{Robot, RobotSettings, RunnerError};
+use firelink_host::WatchdogSetting;
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::ScanReport;
 use firelink_host::stop::{StopReason, StopRequest};
 use firelink_host::udp::UdpPort;
-use firelink_host::{RobotIo, WatchdogSetting};
 use firelink_testbed::TestbedError;
 use firelink_testbed::demo::{DemoOptions, DemoPort, DemoProgress, run_demo};
 use firelink_testbed::rig::{self, Emulator};
@@ -106,15 +106,14 @@ fn scan_of(emu: &Emulator) -> ScanReport {
         .iter()
         .find(|(a, _)| *a == emu.addr)
         .map(|(_, s)| s.clone());
-    let scan = known.unwrap_or_else(|| {
+    known.unwrap_or_else(|| {
         // Absent node IDs cost a time-out each: short here.
         let mut p = port(emu);
         p.set_timeout(Duration::from_millis(50));
         let scan = firelink_host::scan::scan(&mut p).expect("scan");
         SCANS.lock().expect("scans").push((emu.addr, scan.clone()));
         scan
-    });
-    scan
+    })
 }
 
 fn assert_all_off(seen: &[Seen]) {

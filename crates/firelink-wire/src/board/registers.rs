@@ -540,10 +540,8 @@ pub enum WatchdogSetting {
 /// A watchdog period that the register cannot hold (or is not a number).
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 #[error(
-    "watchdog period {} ms is out of range: from {:.4} ms (one firmware tick of 5.208 us) to {:.2} ms (65535 ticks), or `off`",
-    crate::human::Number(*asked_ms),
-    WatchdogSetting::MIN_MS,
-    WatchdogSetting::MAX_MS
+    "watchdog period {} ms is out of range: from 0.00521 ms (one firmware tick of 5.208 us) to 341.32 ms (65535 ticks), or `off`",
+    crate::human::Number(*asked_ms)
 )]
 pub struct WatchdogRangeError {
     /// What was asked for, ms.
@@ -576,8 +574,8 @@ impl WatchdogSetting {
     /// Below one tick, above 65535 ticks, or not finite.
     pub fn from_ms(ms: f64) -> core::result::Result<WatchdogSetting, WatchdogRangeError> {
         let err = WatchdogRangeError { asked_ms: ms };
-        // (The comparisons are false for NaN.)
-        if !(ms >= Self::MIN_MS && ms <= Self::MAX_MS) {
+        // (False for NaN.)
+        if !(Self::MIN_MS..=Self::MAX_MS).contains(&ms) {
             return Err(err);
         }
         let ticks = (ms / Self::MIN_MS).round();
@@ -1316,6 +1314,9 @@ mod tests {
         );
         assert!(WatchdogSetting::from_period(Duration::ZERO).is_err());
         assert!(WatchdogSetting::from_period(Duration::from_nanos(5000)).is_err());
+        // The bounds the message shows are accepted.
+        assert!(WatchdogSetting::from_ms(0.00521).is_ok());
+        assert!(WatchdogSetting::from_ms(341.32).is_ok());
         let one = WatchdogSetting::from_ms(WatchdogSetting::MIN_MS).unwrap();
         assert_eq!(one.register().ticks(), 1);
         let max = WatchdogSetting::from_ms(WatchdogSetting::MAX_MS).unwrap();
