@@ -28,6 +28,7 @@ Port descriptions: ``"sim"`` (8 boards, firmware Rev 8), ``"sim:N"`` or
 from __future__ import annotations
 
 import json
+import operator
 from collections.abc import Iterable, Iterator, Mapping
 from os import PathLike
 from typing import Any, Optional, Union
@@ -157,17 +158,18 @@ def run_demo(
 ) -> Report:
     """Run the demo (``firelink demo``) and return its report.
 
-    ``port``: ``sim``, ``emulate`` or ``udp:HOST[:PORT]``;
-    ``fault``: ``none``, ``stop-host``, ``corrupt-query``, ``board-loss`` or
-    ``following-error``; ``watchdog_ms="off"`` turns the boards' watchdogs
-    off (with a warning); ``config``: a ``Config`` or a configuration file (default: seed
-    000's dVRK). ``report.verdict`` is ``"ok"`` or says what went wrong.
+    ``port``: ``sim``, ``emulate`` or ``udp:HOST[:PORT]``; ``duration``:
+    seconds of motion, above 0 and at most 86400; ``rate``: Hz, 1 to
+    100000; ``fault``: ``none``, ``stop-host``, ``corrupt-query``,
+    ``board-loss`` or ``following-error``; ``watchdog_ms``: 0.0052 to
+    341.33 ms, or ``"off"`` (with a ``UserWarning``); ``config``: a
+    ``Config`` or a configuration file (default: seed 000's dVRK).
+    ``report.verdict`` is ``"ok"`` or says what went wrong. Ctrl-C stops
+    the robot at its next cycle, powers down the boards it powered and
+    raises ``KeyboardInterrupt``.
     """
-    if config is not None and not isinstance(config, Config):
-        config = load_config(config)
     text = _firelink.run_demo_json(
-        port, float(duration), float(rate), protocol, firmware, fault, pacing,
-        watchdog_ms, config,
+        port, duration, rate, protocol, firmware, fault, pacing, watchdog_ms, config,
     )
     return Report(json.loads(text))
 
@@ -182,12 +184,15 @@ def run_bench(
     plot: Optional[Union[str, PathLike[str]]] = None,
 ) -> Report:
     """Run the benchmark of seed 000's Fig. 11 (``firelink bench``); with
-    ``plot``, also draw the figure into that PNG file."""
-    text = _firelink.run_bench_json(
-        [str(t) for t in transports], [int(b) for b in boards],
-        [str(p) for p in protocols], int(cycles), firmware,
-        None if plot is None else str(plot),
-    )
+    ``plot``, also draw the figure into that PNG file.
+
+    ``transports``: ``sim`` and/or ``udp``; ``boards``: counts 1 to 62
+    (above 16: modelled from a measured count before it), at most 64 of
+    them; ``cycles``: per point, 1 to 1000000. Ctrl-C raises
+    ``KeyboardInterrupt`` at once (the benchmark, on emulated boards only,
+    finishes its current work in a background thread).
+    """
+    text = _firelink.run_bench_json(transports, boards, protocols, cycles, firmware, plot)
     return Report(json.loads(text))
 
 
@@ -203,12 +208,19 @@ def encode_packet(fields: Optional[Mapping[str, Any]] = None, *, bridge: bool = 
     """Build a packet from its fields (the keys ``decode_packet`` gives, as a
     mapping and/or keywords); raises ``PacketError`` naming a missing or
     out-of-range field."""
-    merged = dict(fields or {})
+    if fields is None:
+        merged: dict[Any, Any] = {}
+    elif isinstance(fields, Mapping):
+        merged = dict(fields)
+    else:
+        raise PacketError(f"encode_packet takes a mapping of fields, not {type(fields).__name__}")
     merged.update(kw)
     for key in ("header_crc_ok", "data_crc_ok", "packet_length"):
         merged.pop(key, None)
     try:
-        text = json.dumps(merged)
-    except TypeError as e:
-        raise PacketError(f"packet fields must be numbers and strings: {e}") from None
+        # Integers of any kind (numpy's too) become JSON numbers; NaN and
+        # other objects are refused here.
+        text = json.dumps(merged, allow_nan=False, default=operator.index)
+    except (TypeError, ValueError, RecursionError) as e:
+        raise PacketError(f"packet fields must be integers and strings: {e}") from None
     return _firelink.encode_packet_json(text, bridge)
