@@ -3,7 +3,15 @@
 The package sits on the Rust library: the host library (ports, discovery,
 the I/O protocols, register access), the testbed (emulated boards on the
 simulated bus, the in-process emulator, the demo and the benchmark) and the
-configuration loader. Calls that do I/O or simulation release the GIL.
+configuration loader. Calls that do I/O or simulation release the GIL;
+long ones (the demo, the benchmark, ``run_cycles``, long waits, opening an
+``IoSystem`` or ``SnakeSystem``) end
+with ``KeyboardInterrupt`` on Ctrl-C, the demo powering down the boards it
+powered. Every argument is checked: a wrong type or an out-of-range value
+raises ``InvalidRequest`` (``PortError`` for ports and firmware,
+``ConfigError``, ``PacketError``) saying what was given and what is
+allowed; a call with a missing or unknown argument is Python's own
+``TypeError``, as for any function.
 
 Quick start::
 
@@ -88,7 +96,9 @@ __all__ = [
 
 
 def open(port: str) -> Port:  # noqa: A001 - the natural name, as in io.open
-    """Open a port from its description (see the module docstring)."""
+    """Open a port from its description (see the module docstring); a
+    description that is not a string, or names no port, raises
+    ``PortError``."""
     if not isinstance(port, str):
         raise PortError(f"a port description is a string, not {type(port).__name__}")
     return Port(port)
@@ -150,7 +160,7 @@ def run_demo(
     duration: float = 3.0,
     rate: float = 6000.0,
     protocol: str = "broadcast",
-    firmware: str = "8",
+    firmware: Union[str, int] = "8",
     fault: str = "none",
     pacing: Optional[str] = None,
     watchdog_ms: Union[float, str] = 20.0,
@@ -176,11 +186,11 @@ def run_demo(
 
 def run_bench(
     *,
-    transports: Iterable[str] = ("sim", "udp"),
+    transports: Union[str, Iterable[str]] = ("sim", "udp"),
     boards: Iterable[int] = (2, 4, 8, 16, 32, 62),
-    protocols: Iterable[str] = ("sequential", "broadcast"),
+    protocols: Union[str, Iterable[str]] = ("sequential", "broadcast"),
     cycles: int = 1000,
-    firmware: str = "8",
+    firmware: Union[str, int] = "8",
     plot: Optional[Union[str, PathLike[str]]] = None,
 ) -> Report:
     """Run the benchmark of seed 000's Fig. 11 (``firelink bench``); with

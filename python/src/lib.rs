@@ -432,7 +432,7 @@ impl Port {
         quadlets: &Bound<'_, PyAny>,
     ) -> PyResult<Bound<'py, PyBytes>> {
         let (dest, offset) = (self::node(node)?, self::offset(address)?);
-        let quadlets: usize = args::int_as(quadlets, "quadlets (of a block read)", 1, 512)?;
+        let quadlets: usize = args::int_as(quadlets, "quadlets", 1, 512)?;
         let port = self.get(py)?;
         let mut out = vec![0u8; quadlets * 4];
         py.detach(|| port.read_block(dest, offset, &mut out))
@@ -908,7 +908,8 @@ struct Emulator {
 #[pymethods]
 impl Emulator {
     /// Start `boards` (1..=16) emulated QLA1 boards with `firmware` (7, 8
-    /// or seed) for the robots of `config` (default: seed 000's dVRK);
+    /// or seed) for the robots of `config` (a `Config` or a configuration
+    /// file; default: seed 000's dVRK);
     /// with `robot="snake"`, one Snake node per board of `config`
     /// (default: the six of `configs/snake-seed001.json`) instead, for
     /// `SnakeSystem` (`boards` and `firmware` do not apply).

@@ -17,6 +17,7 @@ import faulthandler
 import math
 import numbers
 import random
+import warnings
 from pathlib import Path
 from typing import Any, Callable, Optional
 
@@ -79,7 +80,9 @@ class Sweep:
     def call(self, label: str, f: Callable[..., Any], kwargs: dict[str, Any]) -> None:
         self.calls += 1
         try:
-            f(**kwargs)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)  # "watchdogs are OFF", on purpose
+                f(**kwargs)
         except firelink.FirelinkError as e:
             message = str(e)
             if not message or "\n" in message:
