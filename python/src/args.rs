@@ -12,6 +12,11 @@
 //! The functions take the argument as PyO3 hands it over (`&Bound<PyAny>`),
 //! so the class methods declare no Rust types that PyO3 would check first
 //! with its own `TypeError`.
+//!
+//! Python strings become Rust strings through [`string`], never through
+//! `Display` (`to_string()`): CPython's `str()` runs pending signal handlers
+//! first, and PyO3's `Display` reports their exception as "unraisable" and
+//! drops it, which loses a Ctrl-C that arrives while arguments are checked.
 
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
@@ -21,12 +26,22 @@ use firelink_wire::human::Number;
 
 use crate::bad;
 
+/// A Python string as a Rust string (without `str()`: see the module's
+/// docs).
+///
+/// # Errors
+/// The string cannot be encoded (a lone surrogate).
+pub(crate) fn string(s: &Bound<'_, PyString>) -> PyResult<String> {
+    Ok(s.to_cow()?.into_owned())
+}
+
 /// The name of `value`'s type, for messages (`str`, `float`, `NoneType`).
 pub(crate) fn type_name(value: &Bound<'_, PyAny>) -> String {
     value
         .get_type()
         .name()
-        .map_or_else(|_| "object".to_string(), |n| n.to_string())
+        .and_then(|n| string(&n))
+        .unwrap_or_else(|_| "object".to_string())
 }
 
 /// Whether `value` is a bool: Python's, or numpy's `bool_`.
@@ -42,6 +57,15 @@ enum Integer {
     Huge(String),
     /// Not an integer at all (a bool counts as none).
     Not,
+    /// Asking raised what is not an `Exception` (a `KeyboardInterrupt`
+    /// from a signal handler that ran meanwhile): passed on as it is.
+    Raised(PyErr),
+}
+
+/// Whether `e` must be passed on rather than reported as a bad argument:
+/// `KeyboardInterrupt`, `SystemExit` and the like.
+fn passes_through(py: Python<'_>, e: &PyErr) -> bool {
+    !e.is_instance_of::<pyo3::exceptions::PyException>(py)
 }
 
 /// `value` as an integer: a Python int or anything with `__index__`
@@ -55,21 +79,28 @@ fn integer(value: &Bound<'_, PyAny>) -> Integer {
         Err(e) if e.is_instance_of::<pyo3::exceptions::PyOverflowError>(value.py()) => {
             Integer::Huge(huge(value))
         }
+        Err(e) if passes_through(value.py(), &e) => Integer::Raised(e),
         Err(_) => Integer::Not,
     }
 }
 
-/// An integer beyond 64 bits, shown whole while that stays readable.
+/// An integer beyond 64 bits, shown whole while that stays readable (its
+/// size in bits otherwise; no `str()`, which runs signal handlers and
+/// refuses ints over 4300 digits).
 pub(crate) fn huge(value: &Bound<'_, PyAny>) -> String {
-    match value.str() {
-        Ok(text) if text.len().is_ok_and(|n| n <= 24) => text.to_string(),
-        _ => {
-            let bits = value
-                .call_method0("bit_length")
-                .and_then(|b| b.extract::<u64>())
-                .map_or_else(|_| "many".to_string(), |b| b.to_string());
-            format!("(an integer of {bits} bits)")
+    let bits = value
+        .call_method0("bit_length")
+        .and_then(|b| b.extract::<u64>())
+        .unwrap_or(u64::MAX);
+    if bits <= 127 {
+        if let Ok(v) = value.extract::<i128>() {
+            return v.to_string();
         }
+    }
+    if bits == u64::MAX {
+        "(a very large integer)".to_string()
+    } else {
+        format!("(an integer of {bits} bits)")
     }
 }
 
@@ -108,6 +139,7 @@ pub(crate) fn int(value: &Bound<'_, PyAny>, what: &str, lo: i64, hi: i64) -> PyR
                 type_name(value)
             ),
         )),
+        Integer::Raised(e) => Err(e),
     }
 }
 
@@ -239,6 +271,7 @@ pub(crate) fn real(value: &Bound<'_, PyAny>, what: &str, span: Span) -> PyResult
                 huge(value)
             ),
         )),
+        Err(e) if passes_through(py, &e) => Err(e),
         Err(_) => Err(bad(
             py,
             format!("{what} must be a number {span}, not {}", type_name(value)),
@@ -269,7 +302,7 @@ pub(crate) fn flag(value: &Bound<'_, PyAny>, what: &str) -> PyResult<bool> {
 /// `InvalidRequest` naming `what`.
 pub(crate) fn text(value: &Bound<'_, PyAny>, what: &str, choices: &str) -> PyResult<String> {
     match value.cast::<PyString>() {
-        Ok(s) => Ok(s.to_string()),
+        Ok(s) => string(s),
         Err(_) => Err(bad(
             value.py(),
             format!(
@@ -303,8 +336,9 @@ pub(crate) fn opt_text(
 pub(crate) fn firmware(value: &Bound<'_, PyAny>) -> PyResult<firelink_board::config::Profile> {
     let name = match integer(value) {
         Integer::Fits(v) => v.to_string(),
+        Integer::Raised(e) => return Err(e),
         _ => match value.cast::<PyString>() {
-            Ok(s) => s.to_string(),
+            Ok(s) => string(s)?,
             Err(_) => {
                 return Err(crate::error(
                     value.py(),
@@ -380,15 +414,19 @@ fn array<'py>(
         )
     };
     let numpy = py.import("numpy")?;
-    let arr = numpy
-        .call_method1("asarray", (value,))
-        .map_err(|_| not_array())?;
+    let arr = numpy.call_method1("asarray", (value,)).map_err(|e| {
+        if passes_through(py, &e) {
+            e
+        } else {
+            not_array()
+        }
+    })?;
     let ndim: usize = arr.getattr("ndim")?.extract()?;
     if ndim != 1 {
         if ndim == 0 {
             return Err(not_array());
         }
-        let shape = arr.getattr("shape")?.str()?.to_string();
+        let shape = string(&arr.getattr("shape")?.str()?)?;
         return Err(bad(
             py,
             format!(
@@ -402,7 +440,7 @@ fn array<'py>(
     }
     let dtype = arr.getattr("dtype")?;
     let code: String = dtype.getattr("kind")?.extract()?;
-    let name = dtype.str()?.to_string();
+    let name = string(&dtype.str()?)?;
     let target = match (kind, code.as_str()) {
         (Values::Integers, "i") => "int64",
         (Values::Integers, "u") => "uint64",

@@ -126,7 +126,7 @@ pub(crate) fn watchdog_setting(
 ) -> PyResult<WatchdogSetting> {
     let range = watchdog_range();
     if let Ok(text) = value.cast::<PyString>() {
-        let text = text.to_string();
+        let text = args::string(text)?;
         return WatchdogSetting::parse(&text).map_err(|e| match e {
             firelink_wire::board::registers::WatchdogParseError::NotANumber => bad(
                 py,
@@ -359,7 +359,7 @@ impl Port {
                 ),
             ));
         };
-        let (inner, name) = open_port(py, &spec.to_string())?;
+        let (inner, name) = open_port(py, &args::string(spec)?)?;
         Ok(Port {
             inner: Mutex::new(Some(inner)),
             name,
@@ -499,7 +499,7 @@ fn port_arg(
     open: impl FnOnce(&str) -> PyResult<AnyPort>,
 ) -> PyResult<AnyPort> {
     match port.cast::<PyString>() {
-        Ok(text) => open(&text.to_string()),
+        Ok(text) => open(&args::string(text)?),
         Err(_) => take_port(py, port, what),
     }
 }
@@ -1332,8 +1332,13 @@ fn decode_packet_json(
     data: &Bound<'_, PyAny>,
     bridge: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<String> {
-    let data =
-        args::bytes(data, "data").map_err(|e| error(py, "PacketError", e.value(py).to_string()))?;
+    let Ok(data) = args::bytes(data, "data") else {
+        return Err(error(
+            py,
+            "PacketError",
+            format!("decode_packet takes bytes, not {}", args::type_name(data)),
+        ));
+    };
     let bridge = bridge.map_or(Ok(false), |b| args::flag(b, "bridge"))?;
     let record =
         packet_json::decode(&data, bridge).map_err(|e| error(py, "PacketError", e.to_string()))?;
