@@ -1,10 +1,12 @@
 """Ctrl-C: a long call ends with KeyboardInterrupt, and a robot it powered
 is powered down first.
 
-Each test runs the call in a child Python that prints "started" just before
-it, sends SIGINT once the call runs, and waits (a generous bound, never a
-tight one) for the child to end. The traceback must end inside the call:
-an interrupt that landed before it would prove nothing.
+Each test runs the call in a child Python whose watcher thread prints
+"started" once the main thread is in the call (the line marked "# the long
+call"; the call releases the GIL, so the watcher runs), sends SIGINT and
+waits (a generous bound, never a tight one) for the child to end. The
+traceback must end inside the call: an interrupt that landed before it
+would prove nothing.
 """
 
 from __future__ import annotations
@@ -32,15 +34,36 @@ BOUND_S = 60.0
 POWER_ENABLED = 1 << 18
 AMPLIFIERS = 0xF
 
+#: Put before each child's code: print "started" once the main thread runs
+#: the line marked "# the long call".
+PRELUDE = """
+import sys, threading, time
+
+def _announce():
+    script = __file__
+    line = next(i for i, text in enumerate(open(script), 1) if text.rstrip().endswith("# the long call"))
+    main = threading.main_thread().ident
+    while True:
+        frame = sys._current_frames().get(main)
+        while frame is not None and frame.f_code.co_filename != script:
+            frame = frame.f_back
+        if frame is not None and frame.f_lineno == line:
+            print("started", flush=True)
+            return
+        time.sleep(0.01)
+
+threading.Thread(target=_announce, daemon=True).start()
+"""
+
 pytestmark = pytest.mark.skipif(not hasattr(signal, "SIGINT") or os.name != "posix",
                                 reason="POSIX signals")
 
 
 def start(code: str, *args: str, tmp: Path) -> subprocess.Popen[str]:
-    """A child running `code` (which prints "started" before its long call)
-    from a file, so that its traceback shows the lines."""
+    """A child running `code` from a file (its traceback shows the lines);
+    returns once the child is in its long call."""
     script = tmp / "child.py"
-    script.write_text(textwrap.dedent(code))
+    script.write_text(PRELUDE + textwrap.dedent(code))
     child = subprocess.Popen(
         [sys.executable, str(script), *args],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -57,12 +80,11 @@ def start(code: str, *args: str, tmp: Path) -> subprocess.Popen[str]:
 
 def interrupt(child: subprocess.Popen[str], inside: str,
               running: Optional[Callable[[], bool]] = None) -> str:
-    """Send SIGINT once `running()` says the call runs (or after a second),
-    wait for the child to end; its stderr. The traceback names `inside`."""
+    """Send SIGINT once `running()` says the call got going (by default: it
+    is in it), wait for the child to end; its stderr. The traceback names
+    `inside`."""
     deadline = time.monotonic() + BOUND_S
-    if running is None:
-        time.sleep(1.0)
-    else:
+    if running is not None:
         while not running():
             assert child.poll() is None, child.communicate()
             assert time.monotonic() < deadline, "the call never got going"
@@ -85,25 +107,21 @@ def interrupt(child: subprocess.Popen[str], inside: str,
     [
         ("""
          import firelink
-         print("started", flush=True)
-         firelink.run_demo(port="sim", duration=600)
+         firelink.run_demo(port="sim", duration=600)  # the long call
          """, "run_demo_json"),
         ("""
          import firelink
          io = firelink.IoSystem("sim:2")
-         print("started", flush=True)
-         io.run_cycles(10**9)
+         io.run_cycles(10**9)  # the long call
          """, "io.run_cycles"),
         ("""
          import firelink
          port = firelink.open("udp:127.0.0.1:9")  # a UDP port waits in real time; no traffic
-         print("started", flush=True)
-         port.wait(86400)
+         port.wait(86400)  # the long call
          """, "port.wait"),
         ("""
          import firelink
-         print("started", flush=True)
-         firelink.run_bench(transports=["sim"], boards=[1], protocols=["broadcast"], cycles=10**6)
+         firelink.run_bench(transports=["sim"], boards=[1], protocols=["broadcast"], cycles=10**6)  # the long call
          """, "run_bench_json"),
     ],
     ids=["run_demo", "run_cycles", "wait", "run_bench"],
@@ -119,8 +137,7 @@ def test_ctrl_c_powers_down_the_boards_the_demo_powered(udp_timeout, tmp_path):
         import sys, warnings
         import firelink
         warnings.simplefilter("ignore")  # the watchdog is off on purpose
-        print("started", flush=True)
-        firelink.run_demo(port=sys.argv[1], duration=600, rate=500, watchdog_ms="off", config=sys.argv[2])
+        firelink.run_demo(port=sys.argv[1], duration=600, rate=500, watchdog_ms="off", config=sys.argv[2])  # the long call
         """
     with firelink.Emulator(boards=1) as emu:
         port = emu.port(timeout=udp_timeout)
