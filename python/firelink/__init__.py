@@ -3,7 +3,15 @@
 The package sits on the Rust library: the host library (ports, discovery,
 the I/O protocols, register access), the testbed (emulated boards on the
 simulated bus, the in-process emulator, the demo and the benchmark) and the
-configuration loader. Calls that do I/O or simulation release the GIL.
+configuration loader. Calls that do I/O or simulation release the GIL;
+long ones (the demo, the benchmark, ``run_cycles``, long waits, opening an
+``IoSystem`` or ``SnakeSystem``) end
+with ``KeyboardInterrupt`` on Ctrl-C, the demo powering down the boards it
+powered. Every argument is checked: a wrong type or an out-of-range value
+raises ``InvalidRequest`` (``PortError`` for ports and firmware,
+``ConfigError``, ``PacketError``) saying what was given and what is
+allowed; a call with a missing or unknown argument is Python's own
+``TypeError``, as for any function.
 
 Quick start::
 
@@ -28,6 +36,7 @@ Port descriptions: ``"sim"`` (8 boards, firmware Rev 8), ``"sim:N"`` or
 from __future__ import annotations
 
 import json
+import operator
 from collections.abc import Iterable, Iterator, Mapping
 from os import PathLike
 from typing import Any, Optional, Union
@@ -87,7 +96,9 @@ __all__ = [
 
 
 def open(port: str) -> Port:  # noqa: A001 - the natural name, as in io.open
-    """Open a port from its description (see the module docstring)."""
+    """Open a port from its description (see the module docstring); a
+    description that is not a string, or names no port, raises
+    ``PortError``."""
     if not isinstance(port, str):
         raise PortError(f"a port description is a string, not {type(port).__name__}")
     return Port(port)
@@ -149,7 +160,7 @@ def run_demo(
     duration: float = 3.0,
     rate: float = 6000.0,
     protocol: str = "broadcast",
-    firmware: str = "8",
+    firmware: Union[str, int] = "8",
     fault: str = "none",
     pacing: Optional[str] = None,
     watchdog_ms: Union[float, str] = 20.0,
@@ -157,37 +168,41 @@ def run_demo(
 ) -> Report:
     """Run the demo (``firelink demo``) and return its report.
 
-    ``port``: ``sim``, ``emulate`` or ``udp:HOST[:PORT]``;
-    ``fault``: ``none``, ``stop-host``, ``corrupt-query``, ``board-loss`` or
-    ``following-error``; ``watchdog_ms="off"`` turns the boards' watchdogs
-    off (with a warning); ``config``: a ``Config`` or a configuration file (default: seed
-    000's dVRK). ``report.verdict`` is ``"ok"`` or says what went wrong.
+    ``port``: ``sim``, ``emulate`` or ``udp:HOST[:PORT]``; ``duration``:
+    seconds of motion, above 0 and at most 86400; ``rate``: Hz, 1 to
+    100000; ``fault``: ``none``, ``stop-host``, ``corrupt-query``,
+    ``board-loss`` or ``following-error``; ``watchdog_ms``: 0.0052 to
+    341.33 ms, or ``"off"`` (with a ``UserWarning``); ``config``: a
+    ``Config`` or a configuration file (default: seed 000's dVRK).
+    ``report.verdict`` is ``"ok"`` or says what went wrong. Ctrl-C stops
+    the robot at its next cycle, powers down the boards it powered and
+    raises ``KeyboardInterrupt``.
     """
-    if config is not None and not isinstance(config, Config):
-        config = load_config(config)
     text = _firelink.run_demo_json(
-        port, float(duration), float(rate), protocol, firmware, fault, pacing,
-        watchdog_ms, config,
+        port, duration, rate, protocol, firmware, fault, pacing, watchdog_ms, config,
     )
     return Report(json.loads(text))
 
 
 def run_bench(
     *,
-    transports: Iterable[str] = ("sim", "udp"),
+    transports: Union[str, Iterable[str]] = ("sim", "udp"),
     boards: Iterable[int] = (2, 4, 8, 16, 32, 62),
-    protocols: Iterable[str] = ("sequential", "broadcast"),
+    protocols: Union[str, Iterable[str]] = ("sequential", "broadcast"),
     cycles: int = 1000,
-    firmware: str = "8",
+    firmware: Union[str, int] = "8",
     plot: Optional[Union[str, PathLike[str]]] = None,
 ) -> Report:
     """Run the benchmark of seed 000's Fig. 11 (``firelink bench``); with
-    ``plot``, also draw the figure into that PNG file."""
-    text = _firelink.run_bench_json(
-        [str(t) for t in transports], [int(b) for b in boards],
-        [str(p) for p in protocols], int(cycles), firmware,
-        None if plot is None else str(plot),
-    )
+    ``plot``, also draw the figure into that PNG file.
+
+    ``transports``: ``sim`` and/or ``udp``; ``boards``: counts 1 to 62
+    (above 16: modelled from a measured count before it), at most 64 of
+    them; ``cycles``: per point, 1 to 1000000. Ctrl-C raises
+    ``KeyboardInterrupt`` at once (the benchmark, on emulated boards only,
+    finishes its current work in a background thread).
+    """
+    text = _firelink.run_bench_json(transports, boards, protocols, cycles, firmware, plot)
     return Report(json.loads(text))
 
 
@@ -203,12 +218,19 @@ def encode_packet(fields: Optional[Mapping[str, Any]] = None, *, bridge: bool = 
     """Build a packet from its fields (the keys ``decode_packet`` gives, as a
     mapping and/or keywords); raises ``PacketError`` naming a missing or
     out-of-range field."""
-    merged = dict(fields or {})
+    if fields is None:
+        merged: dict[Any, Any] = {}
+    elif isinstance(fields, Mapping):
+        merged = dict(fields)
+    else:
+        raise PacketError(f"encode_packet takes a mapping of fields, not {type(fields).__name__}")
     merged.update(kw)
     for key in ("header_crc_ok", "data_crc_ok", "packet_length"):
         merged.pop(key, None)
     try:
-        text = json.dumps(merged)
-    except TypeError as e:
-        raise PacketError(f"packet fields must be numbers and strings: {e}") from None
+        # Integers of any kind (numpy's too) become JSON numbers; NaN and
+        # other objects are refused here.
+        text = json.dumps(merged, allow_nan=False, default=operator.index)
+    except (TypeError, ValueError, RecursionError) as e:
+        raise PacketError(f"packet fields must be integers and strings: {e}") from None
     return _firelink.encode_packet_json(text, bridge)

@@ -58,7 +58,9 @@ class NoBoardsError(BusError):
 
 
 class InvalidRequest(FirelinkError, ValueError):
-    """An argument is out of range (node, axis, board, length, value...)."""
+    """An argument is of the wrong type or out of range (node, axis, board,
+    length, duration, count, value...); the message names the argument,
+    what was given and what is allowed."""
 
 
 class EmulatorClosed(FirelinkError):

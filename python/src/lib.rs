@@ -7,17 +7,20 @@
 //! records ([`firelink_host::packet_json`]). Every call that does I/O or
 //! simulation releases the GIL; every error becomes one of the package's
 //! exceptions (defined in `firelink/_errors.py`) with the library's
-//! one-line message. Bad input raises; it never panics.
+//! one-line message. Bad input raises; it never panics: every argument is
+//! converted with its name and range first ([`args`]), and long calls
+//! return on Ctrl-C ([`interrupt`]).
 
+mod args;
+mod interrupt;
 mod snake;
 
 use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
-use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
-use pyo3::exceptions::PyValueError;
+use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict};
+use pyo3::types::{PyBytes, PyDict, PyString};
 
 use firelink_board::config::Profile;
 use firelink_control::config::{ConfigErrors, IoConfig, presets};
@@ -32,6 +35,8 @@ use firelink_testbed::TestbedError;
 use firelink_testbed::bench::{BenchOptions, BenchTransport};
 use firelink_testbed::demo::{DemoFault, DemoOptions, DemoPort};
 use firelink_testbed::rig;
+
+use args::Span;
 
 /// Any port, movable between threads (the GIL is released around I/O).
 type AnyPort = Box<dyn HostPort + Send>;
@@ -104,37 +109,61 @@ pub(crate) fn warn(py: Python<'_>, text: &str) -> PyResult<()> {
     PyErr::warn(py, &category, &text, 1)
 }
 
+/// The periods a watchdog may have, for messages.
+fn watchdog_range() -> String {
+    format!(
+        "from {:.4} ms (one firmware tick of 5.208 us) to {:.2} ms (65535 ticks)",
+        WatchdogSetting::MIN_MS,
+        WatchdogSetting::MAX_MS
+    )
+}
+
 /// A watchdog argument: a period in ms (int or float) or the string
 /// `"off"`; the one rule is `WatchdogSetting` (one tick to 65535 ticks).
 pub(crate) fn watchdog_setting(
     py: Python<'_>,
     value: &Bound<'_, PyAny>,
 ) -> PyResult<WatchdogSetting> {
-    if let Ok(text) = value.extract::<String>() {
-        return WatchdogSetting::parse(&text)
-            .map_err(|e| bad(py, format!("watchdog {text:?}: {e}")));
+    let range = watchdog_range();
+    if let Ok(text) = value.cast::<PyString>() {
+        let text = args::string(text)?;
+        return WatchdogSetting::parse(&text).map_err(|e| match e {
+            firelink_wire::board::registers::WatchdogParseError::NotANumber => bad(
+                py,
+                format!("watchdog {text:?} is neither \"off\" nor a period in ms {range}"),
+            ),
+            range_error => bad(py, range_error.to_string()),
+        });
     }
-    if value.is_instance_of::<pyo3::types::PyBool>() {
-        return Err(bad(py, "watchdog: a period in ms or \"off\", not a bool"));
-    }
-    match value.extract::<f64>() {
-        Ok(ms) => WatchdogSetting::from_ms(ms).map_err(|e| bad(py, e.to_string())),
-        Err(_) => Err(bad(
+    let not_a_period = || {
+        bad(
             py,
             format!(
-                "watchdog: a period in ms or \"off\", not {}",
-                value
-                    .get_type()
-                    .name()
-                    .map_or_else(|_| "this".to_string(), |n| n.to_string())
+                "watchdog must be a period in ms {range} or \"off\", not {}",
+                args::type_name(value)
+            ),
+        )
+    };
+    if args::is_bool(value) {
+        return Err(not_a_period());
+    }
+    match value.extract::<f64>() {
+        // NaN and every out-of-range period: the setting's own message.
+        Ok(ms) => WatchdogSetting::from_ms(ms).map_err(|e| bad(py, e.to_string())),
+        Err(e) if e.is_instance_of::<pyo3::exceptions::PyOverflowError>(py) => Err(bad(
+            py,
+            format!(
+                "watchdog period {} ms is out of range: {range}, or \"off\"",
+                args::huge(value)
             ),
         )),
+        Err(_) => Err(not_a_period()),
     }
 }
 
 // ------------------------------------------------------------- ports ---
 
-fn profile(py: Python<'_>, name: &str) -> PyResult<Profile> {
+pub(crate) fn profile(py: Python<'_>, name: &str) -> PyResult<Profile> {
     match name {
         "7" | "rev7" => Ok(Profile::Rev7),
         "8" | "rev8" => Ok(Profile::Rev8),
@@ -196,21 +225,60 @@ fn open_port(py: Python<'_>, spec: &str) -> PyResult<(AnyPort, String)> {
     Ok((Box::new(port), spec.to_string()))
 }
 
-fn node(py: Python<'_>, node: u32) -> PyResult<Dest> {
-    if node > 63 {
-        return Err(bad(
-            py,
-            format!("node {node}: node IDs are 0..=63 (63: broadcast)"),
-        ));
-    }
-    Ok(Dest::node(node as u8))
+/// A physical node ID, 0..=63 (63: broadcast).
+fn node(value: &Bound<'_, PyAny>) -> PyResult<Dest> {
+    args::int_as(value, "node", 0, 63).map(Dest::node)
 }
 
-fn offset(py: Python<'_>, address: u64) -> PyResult<u64> {
-    if address > firelink_wire::packet::MAX_OFFSET {
-        return Err(bad(py, format!("address {address:#x} is beyond 48 bits")));
+/// An address in a node's 48-bit space.
+fn offset(value: &Bound<'_, PyAny>) -> PyResult<u64> {
+    args::int_as(
+        value,
+        "address",
+        0,
+        firelink_wire::packet::MAX_OFFSET as i64,
+    )
+}
+
+/// A quadlet's value, 32 bits.
+fn quadlet(value: &Bound<'_, PyAny>) -> PyResult<u32> {
+    args::int_as(value, "value", 0, i64::from(u32::MAX))
+}
+
+/// A board ID (rotary switch), 0..=15.
+fn board_id(value: &Bound<'_, PyAny>) -> PyResult<u8> {
+    args::int_as(value, "board ID", 0, 15)
+}
+
+/// The longest wait one call may ask for: a day.
+const MAX_WAIT_S: f64 = 86_400.0;
+
+/// How much port time one step of a long wait covers (a stop request is
+/// checked between steps).
+const WAIT_STEP: Duration = Duration::from_millis(50);
+
+/// A wait argument, seconds (0 to a day).
+fn wait_arg(value: &Bound<'_, PyAny>) -> PyResult<Duration> {
+    let s = args::real(value, "wait", Span::closed(0.0, MAX_WAIT_S, " s"))?;
+    Ok(Duration::from_secs_f64(s))
+}
+
+/// Let `d` pass on `port`: at once when short, otherwise in steps that
+/// Ctrl-C interrupts (a UDP port sleeps in real time; the simulated bus
+/// runs its boards).
+fn wait_on<P: HostPort + Send + ?Sized>(py: Python<'_>, port: &mut P, d: Duration) -> PyResult<()> {
+    if d <= interrupt::POLL {
+        py.detach(|| port.wait(d));
+        return Ok(());
     }
-    Ok(address)
+    interrupt::until_interrupted(py, |stop| {
+        let mut left = d;
+        while !left.is_zero() && !stop.is_requested() {
+            let step = left.min(WAIT_STEP);
+            port.wait(step);
+            left -= step;
+        }
+    })
 }
 
 /// A board found by a scan.
@@ -280,8 +348,18 @@ impl Port {
 impl Port {
     /// Open a port: see `firelink.open`.
     #[new]
-    fn new(py: Python<'_>, spec: &str) -> PyResult<Port> {
-        let (inner, name) = open_port(py, spec)?;
+    fn new(py: Python<'_>, spec: &Bound<'_, PyAny>) -> PyResult<Port> {
+        let Ok(spec) = spec.cast::<PyString>() else {
+            return Err(error(
+                py,
+                "PortError",
+                format!(
+                    "a port description is a string (sim, sim:BOARDS[:FIRMWARE] or udp:HOST[:PORT]), not {}",
+                    args::type_name(spec)
+                ),
+            ));
+        };
+        let (inner, name) = open_port(py, &args::string(spec)?)?;
         Ok(Port {
             inner: Mutex::new(Some(inner)),
             name,
@@ -300,12 +378,12 @@ impl Port {
         Ok(self.get(py)?.now().as_secs_f64())
     }
 
-    /// Let `seconds` pass (virtual time on the simulated bus).
-    fn wait(&mut self, py: Python<'_>, seconds: f64) -> PyResult<()> {
-        let d = duration(py, seconds, "seconds")?;
+    /// Let `seconds` pass (virtual time on the simulated bus), at most a
+    /// day; Ctrl-C interrupts a long wait.
+    fn wait(&mut self, py: Python<'_>, seconds: &Bound<'_, PyAny>) -> PyResult<()> {
+        let d = wait_arg(seconds)?;
         let port = self.get(py)?;
-        py.detach(|| port.wait(d));
-        Ok(())
+        wait_on(py, port.as_mut(), d)
     }
 
     /// Discover the boards; a list of `Board`, sorted by board ID.
@@ -318,8 +396,13 @@ impl Port {
     }
 
     /// Read one quadlet at `address` of physical node `node`.
-    fn read_quadlet(&mut self, py: Python<'_>, node: u32, address: u64) -> PyResult<u32> {
-        let (dest, offset) = (self::node(py, node)?, self::offset(py, address)?);
+    fn read_quadlet(
+        &mut self,
+        py: Python<'_>,
+        node: &Bound<'_, PyAny>,
+        address: &Bound<'_, PyAny>,
+    ) -> PyResult<u32> {
+        let (dest, offset) = (self::node(node)?, self::offset(address)?);
         let port = self.get(py)?;
         py.detach(|| port.read_quadlet(dest, offset))
             .map_err(|e| host_error(py, e))
@@ -329,11 +412,12 @@ impl Port {
     fn write_quadlet(
         &mut self,
         py: Python<'_>,
-        node: u32,
-        address: u64,
-        value: u32,
+        node: &Bound<'_, PyAny>,
+        address: &Bound<'_, PyAny>,
+        value: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        let (dest, offset) = (self::node(py, node)?, self::offset(py, address)?);
+        let (dest, offset) = (self::node(node)?, self::offset(address)?);
+        let value = quadlet(value)?;
         let port = self.get(py)?;
         py.detach(|| port.write_quadlet(dest, offset, value))
             .map_err(|e| host_error(py, e))
@@ -343,17 +427,12 @@ impl Port {
     fn read_block<'py>(
         &mut self,
         py: Python<'py>,
-        node: u32,
-        address: u64,
-        quadlets: usize,
+        node: &Bound<'_, PyAny>,
+        address: &Bound<'_, PyAny>,
+        quadlets: &Bound<'_, PyAny>,
     ) -> PyResult<Bound<'py, PyBytes>> {
-        let (dest, offset) = (self::node(py, node)?, self::offset(py, address)?);
-        if !(1..=512).contains(&quadlets) {
-            return Err(bad(
-                py,
-                format!("{quadlets} quadlets: a block read is 1..=512 quadlets"),
-            ));
-        }
+        let (dest, offset) = (self::node(node)?, self::offset(address)?);
+        let quadlets: usize = args::int_as(quadlets, "quadlets", 1, 512)?;
         let port = self.get(py)?;
         let mut out = vec![0u8; quadlets * 4];
         py.detach(|| port.read_block(dest, offset, &mut out))
@@ -365,22 +444,23 @@ impl Port {
     fn write_block(
         &mut self,
         py: Python<'_>,
-        node: u32,
-        address: u64,
-        data: &[u8],
+        node: &Bound<'_, PyAny>,
+        address: &Bound<'_, PyAny>,
+        data: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        let (dest, offset) = (self::node(py, node)?, self::offset(py, address)?);
+        let (dest, offset) = (self::node(node)?, self::offset(address)?);
+        let data = args::bytes(data, "data")?;
         if data.is_empty() || data.len() % 4 != 0 || data.len() > 2048 {
             return Err(bad(
                 py,
                 format!(
-                    "{} bytes: a block write is 4..=2048 bytes, whole quadlets",
+                    "a block write of {} bytes is refused: it must be 4 to 2048 bytes, whole quadlets",
                     data.len()
                 ),
             ));
         }
         let port = self.get(py)?;
-        py.detach(|| port.write_block(dest, offset, data))
+        py.detach(|| port.write_block(dest, offset, &data))
             .map_err(|e| host_error(py, e))
     }
 
@@ -410,11 +490,18 @@ fn take_port(py: Python<'_>, port: &Bound<'_, PyAny>, what: &str) -> PyResult<An
     })
 }
 
-fn duration(py: Python<'_>, seconds: f64, what: &str) -> PyResult<Duration> {
-    if !(seconds.is_finite() && (0.0..=86_400.0).contains(&seconds)) {
-        return Err(bad(py, format!("{what} = {seconds}: must be 0..=86400 s")));
+/// The port a system takes: a description (opened here with `open`) or a
+/// `Port` (taken from it).
+fn port_arg(
+    py: Python<'_>,
+    port: &Bound<'_, PyAny>,
+    what: &str,
+    open: impl FnOnce(&str) -> PyResult<AnyPort>,
+) -> PyResult<AnyPort> {
+    match port.cast::<PyString>() {
+        Ok(text) => open(&args::string(text)?),
+        Err(_) => take_port(py, port, what),
     }
-    Ok(Duration::from_secs_f64(seconds))
 }
 
 // --------------------------------------------------------- I/O system ---
@@ -428,21 +515,28 @@ struct IoSystem {
     axes: Vec<(usize, usize)>,
 }
 
-fn protocol(py: Python<'_>, name: Option<&str>) -> PyResult<Option<Protocol>> {
-    name.map(|n| {
-        Protocol::from_name(n).ok_or_else(|| {
-            bad(
-                py,
-                format!("unknown protocol {n:?}: sequential, sequential-read-broadcast-write or broadcast"),
-            )
-        })
-    })
-    .transpose()
+/// The protocols' names, for messages.
+const PROTOCOLS: &str = "sequential, sequential-read-broadcast-write or broadcast";
+
+fn protocol(py: Python<'_>, name: &str) -> PyResult<Protocol> {
+    Protocol::from_name(name)
+        .ok_or_else(|| bad(py, format!("unknown protocol {name:?}: {PROTOCOLS}")))
+}
+
+/// An optional protocol argument (`None`: the best the boards support).
+fn protocol_arg(py: Python<'_>, value: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Protocol>> {
+    args::opt_text(value, "protocol", PROTOCOLS)?
+        .map(|n| protocol(py, &n))
+        .transpose()
 }
 
 impl IoSystem {
-    fn board_index(&mut self, py: Python<'_>, board_id: Option<u8>) -> PyResult<Vec<usize>> {
-        match board_id {
+    fn board_index(
+        &mut self,
+        py: Python<'_>,
+        board: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Vec<usize>> {
+        match args::opt_int_as::<u8>(board, "board ID", 0, 15)? {
             None => Ok((0..exclusive(&mut self.io).boards().len()).collect()),
             Some(id) => exclusive(&mut self.io)
                 .boards()
@@ -468,16 +562,6 @@ impl IoSystem {
             })
             .collect()
     }
-
-    fn check_len(&mut self, py: Python<'_>, n: usize, what: &str) -> PyResult<()> {
-        if n != self.axes.len() {
-            return Err(bad(
-                py,
-                format!("{what}: {n} values for {} axes", self.axes.len()),
-            ));
-        }
-        Ok(())
-    }
 }
 
 #[pymethods]
@@ -486,20 +570,22 @@ impl IoSystem {
     /// protocol (the best the boards support, or `protocol`).
     #[new]
     #[pyo3(signature = (port, protocol=None))]
-    fn new(py: Python<'_>, port: &Bound<'_, PyAny>, protocol: Option<&str>) -> PyResult<IoSystem> {
-        let chosen = self::protocol(py, protocol)?;
-        let inner: AnyPort = if let Ok(text) = port.extract::<String>() {
-            open_port(py, &text)?.0
-        } else {
-            take_port(py, port, "IoSystem")?
-        };
+    fn new(
+        py: Python<'_>,
+        port: &Bound<'_, PyAny>,
+        protocol: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<IoSystem> {
+        let chosen = protocol_arg(py, protocol)?;
+        let inner = port_arg(py, port, "IoSystem", |text| Ok(open_port(py, text)?.0))?;
         let config = IoOptions {
             protocol: chosen,
             ..IoOptions::default()
         };
-        let (io, _) = py
-            .detach(|| HostIoSystem::open(inner, config))
-            .map_err(|e| host_error(py, e))?;
+        // A scan waits out a time-out per absent node: Ctrl-C returns at
+        // once (the scan ends on its own and drops the port).
+        let (io, _) =
+            interrupt::abandon_on_interrupt(py, move || HostIoSystem::open(inner, config))?
+                .map_err(|e| host_error(py, e))?;
         let axes = io
             .boards()
             .iter()
@@ -540,12 +626,12 @@ impl IoSystem {
         exclusive(&mut self.io).port().now().as_secs_f64()
     }
 
-    /// Let `seconds` pass (virtual time on the simulated bus).
-    fn wait(&mut self, py: Python<'_>, seconds: f64) -> PyResult<()> {
-        let d = duration(py, seconds, "seconds")?;
+    /// Let `seconds` pass (virtual time on the simulated bus), at most a
+    /// day; Ctrl-C interrupts a long wait.
+    fn wait(&mut self, py: Python<'_>, seconds: &Bound<'_, PyAny>) -> PyResult<()> {
+        let d = wait_arg(seconds)?;
         let io = exclusive(&mut self.io);
-        py.detach(|| io.port_mut().wait(d));
-        Ok(())
+        wait_on(py, io.port_mut().as_mut(), d)
     }
 
     /// Read every board; True when every board answered.
@@ -566,14 +652,18 @@ impl IoSystem {
         py.detach(|| io.cycle().all_ok())
     }
 
-    /// Run `cycles` read+write cycles in Rust with the GIL released; the
-    /// wall time they took, seconds (the baseline of the Python overhead
-    /// benchmark).
-    fn run_cycles(&mut self, py: Python<'_>, cycles: u64) -> f64 {
+    /// Run `cycles` (0 to 10^9) read+write cycles in Rust with the GIL
+    /// released; the wall time they took, seconds (the baseline of the
+    /// Python overhead benchmark). Ctrl-C stops them.
+    fn run_cycles(&mut self, py: Python<'_>, cycles: &Bound<'_, PyAny>) -> PyResult<f64> {
+        let cycles: u64 = args::int_as(cycles, "cycles", 0, MAX_CYCLES)?;
         let io = exclusive(&mut self.io);
-        py.detach(|| {
+        interrupt::until_interrupted(py, |stop| {
             let start = Instant::now();
             for _ in 0..cycles {
+                if stop.is_requested() {
+                    break;
+                }
                 io.read_all();
                 io.write_all();
             }
@@ -613,18 +703,16 @@ impl IoSystem {
     }
 
     /// Set every axis's DAC command (bits, 0..=65535) for the next write.
-    fn set_dac(&mut self, py: Python<'_>, bits: PyReadonlyArray1<'_, i64>) -> PyResult<()> {
-        let bits = bits
-            .as_slice()
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        self.check_len(py, bits.len(), "set_dac")?;
+    /// Any array of integers (numpy of any integer type, a list).
+    fn set_dac(&mut self, py: Python<'_>, bits: &Bound<'_, PyAny>) -> PyResult<()> {
+        let bits = args::int_array(bits, "set_dac", self.axes.len())?;
         if let Some(v) = bits.iter().find(|v| !(0..=65535).contains(*v)) {
             return Err(bad(
                 py,
-                format!("set_dac: {v} is not a DAC value (0..=65535)"),
+                format!("set_dac: DAC value {v} is out of range: it must be 0 to 65535"),
             ));
         }
-        for (&(b, a), &v) in self.axes.iter().zip(bits) {
+        for (&(b, a), &v) in self.axes.iter().zip(&bits) {
             if let Some(board) = exclusive(&mut self.io).boards_mut().get_mut(b) {
                 board.set_dac(a, v as u16).map_err(|e| host_error(py, e))?;
             }
@@ -634,16 +722,20 @@ impl IoSystem {
 
     /// Set every axis's motor current command, amps, with the QLA's
     /// nominal scaling (bits = (amps + 6.25) * 65536 / 12.5), for the next
-    /// write. Values outside +-6.25 A are refused.
-    fn set_current(&mut self, py: Python<'_>, amps: PyReadonlyArray1<'_, f64>) -> PyResult<()> {
-        let amps = amps
-            .as_slice()
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        self.check_len(py, amps.len(), "set_current")?;
+    /// write. Values outside +-6.25 A are refused. Any array of numbers
+    /// (numpy of any float or integer type, a list).
+    fn set_current(&mut self, py: Python<'_>, amps: &Bound<'_, PyAny>) -> PyResult<()> {
+        let amps = args::real_array(amps, "set_current", self.axes.len())?;
         if let Some(v) = amps.iter().find(|v| !(v.is_finite() && v.abs() <= 6.25)) {
-            return Err(bad(py, format!("set_current: {v} A is outside +-6.25 A")));
+            return Err(bad(
+                py,
+                format!(
+                    "set_current: {} A is out of range: it must be from -6.25 to 6.25 A",
+                    firelink_wire::human::Number(*v)
+                ),
+            ));
         }
-        for (&(b, a), &v) in self.axes.iter().zip(amps) {
+        for (&(b, a), &v) in self.axes.iter().zip(&amps) {
             let bits = ((v + 6.25) * 65536.0 / 12.5).round().clamp(0.0, 65535.0) as u16;
             if let Some(board) = exclusive(&mut self.io).boards_mut().get_mut(b) {
                 board.set_dac(a, bits).map_err(|e| host_error(py, e))?;
@@ -654,7 +746,13 @@ impl IoSystem {
 
     /// Request motor power on or off (every board, or `board`) with the next write.
     #[pyo3(signature = (on, board=None))]
-    fn set_power(&mut self, py: Python<'_>, on: bool, board: Option<u8>) -> PyResult<()> {
+    fn set_power(
+        &mut self,
+        py: Python<'_>,
+        on: &Bound<'_, PyAny>,
+        board: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let on = args::flag(on, "on")?;
         for i in self.board_index(py, board)? {
             exclusive(&mut self.io).boards_mut()[i].set_power(on);
         }
@@ -663,7 +761,13 @@ impl IoSystem {
 
     /// Request the safety relay on or off with the next write.
     #[pyo3(signature = (on, board=None))]
-    fn set_relay(&mut self, py: Python<'_>, on: bool, board: Option<u8>) -> PyResult<()> {
+    fn set_relay(
+        &mut self,
+        py: Python<'_>,
+        on: &Bound<'_, PyAny>,
+        board: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let on = args::flag(on, "on")?;
         for i in self.board_index(py, board)? {
             exclusive(&mut self.io).boards_mut()[i].set_relay(on);
         }
@@ -672,7 +776,13 @@ impl IoSystem {
 
     /// Request every amplifier (of every board, or `board`) on or off.
     #[pyo3(signature = (on, board=None))]
-    fn set_amplifiers(&mut self, py: Python<'_>, on: bool, board: Option<u8>) -> PyResult<()> {
+    fn set_amplifiers(
+        &mut self,
+        py: Python<'_>,
+        on: &Bound<'_, PyAny>,
+        board: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let on = args::flag(on, "on")?;
         for i in self.board_index(py, board)? {
             exclusive(&mut self.io).boards_mut()[i].set_all_amps(on);
         }
@@ -709,7 +819,13 @@ impl IoSystem {
     }
 
     /// Read a register of board `board_id` (quadlet address `offset`).
-    fn read_register(&mut self, py: Python<'_>, board_id: u8, offset: u64) -> PyResult<u32> {
+    fn read_register(
+        &mut self,
+        py: Python<'_>,
+        board_id: &Bound<'_, PyAny>,
+        offset: &Bound<'_, PyAny>,
+    ) -> PyResult<u32> {
+        let (board_id, offset) = (self::board_id(board_id)?, self::offset(offset)?);
         let io = exclusive(&mut self.io);
         py.detach(|| io.read_register(board_id, offset))
             .map_err(|e| host_error(py, e))
@@ -719,10 +835,12 @@ impl IoSystem {
     fn write_register(
         &mut self,
         py: Python<'_>,
-        board_id: u8,
-        offset: u64,
-        value: u32,
+        board_id: &Bound<'_, PyAny>,
+        offset: &Bound<'_, PyAny>,
+        value: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
+        let (board_id, offset) = (self::board_id(board_id)?, self::offset(offset)?);
+        let value = quadlet(value)?;
         let io = exclusive(&mut self.io);
         py.detach(|| io.write_register(board_id, offset, value))
             .map_err(|e| host_error(py, e))
@@ -790,31 +908,34 @@ struct Emulator {
 #[pymethods]
 impl Emulator {
     /// Start `boards` (1..=16) emulated QLA1 boards with `firmware` (7, 8
-    /// or seed) for the robots of `config` (default: seed 000's dVRK);
+    /// or seed) for the robots of `config` (a `Config` or a configuration
+    /// file; default: seed 000's dVRK);
     /// with `robot="snake"`, one Snake node per board of `config`
     /// (default: the six of `configs/snake-seed001.json`) instead, for
     /// `SnakeSystem` (`boards` and `firmware` do not apply).
     #[new]
-    #[pyo3(signature = (boards=8, firmware="8", *, robot="qla", config=None))]
+    #[pyo3(signature = (boards=None, firmware=None, *, robot=None, config=None))]
     fn new(
         py: Python<'_>,
-        boards: usize,
-        firmware: &str,
-        robot: &str,
-        config: Option<&Config>,
+        boards: Option<&Bound<'_, PyAny>>,
+        firmware: Option<&Bound<'_, PyAny>>,
+        robot: Option<&Bound<'_, PyAny>>,
+        config: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Emulator> {
-        let start = match robot {
+        let boards: usize = args::opt_int_as(boards, "boards", 1, 16)?.unwrap_or(8);
+        let firmware = firmware
+            .filter(|f| !f.is_none())
+            .map_or(Ok(Profile::Rev8), args::firmware)?;
+        let robot = args::opt_text(robot, "robot", "qla or snake")?;
+        let config = config_arg(py, config)?;
+        let start = match robot.as_deref().unwrap_or("qla") {
             "qla" => {
-                if !(1..=16).contains(&boards) {
-                    return Err(bad(py, format!("{boards} boards: an emulator has 1..=16")));
-                }
-                let profile = profile(py, firmware)?;
-                let dvrk = config.map_or_else(presets::dvrk_seed000, |c| c.inner.clone());
-                let configs = rig::board_configs(&dvrk, profile, boards);
+                let dvrk = config.unwrap_or_else(presets::dvrk_seed000);
+                let configs = rig::board_configs(&dvrk, firmware, boards);
                 rig::qla_nodes(configs)
             }
             "snake" => {
-                let snake = snake::snake_config(config);
+                let snake = config.unwrap_or_else(presets::snake_seed001);
                 let configs = firelink_testbed::snake::node_configs(&snake, 1)
                     .map_err(|e| testbed_error(py, e))?;
                 firelink_testbed::snake::nodes(configs)
@@ -850,19 +971,16 @@ impl Emulator {
     /// process, so a late answer means the machine stalled the thread, not
     /// that a packet was lost (`firelink.open(emu.address)` keeps the UDP
     /// port's real-time default of 20 ms).
-    #[pyo3(signature = (timeout = 1.0))]
-    fn port(&self, py: Python<'_>, timeout: f64) -> PyResult<Port> {
+    #[pyo3(signature = (timeout = None))]
+    fn port(&self, py: Python<'_>, timeout: Option<&Bound<'_, PyAny>>) -> PyResult<Port> {
         let emu = self
             .inner
             .as_ref()
             .ok_or_else(|| error(py, "EmulatorClosed", "the emulator is stopped".to_string()))?;
-        if !(timeout.is_finite() && timeout > 0.0 && timeout <= 60.0) {
-            return Err(error(
-                py,
-                "InvalidRequest",
-                format!("timeout {timeout} s: must be above 0 and at most 60"),
-            ));
-        }
+        let timeout = match timeout.filter(|t| !t.is_none()) {
+            None => 1.0,
+            Some(t) => args::real(t, "timeout", Span::above(0.0, 60.0, " s"))?,
+        };
         let mut port = emu.port().map_err(|e| testbed_error(py, e))?;
         port.set_timeout(std::time::Duration::from_secs_f64(timeout));
         Ok(Port {
@@ -953,19 +1071,74 @@ impl Config {
     }
 }
 
+/// A path argument: a `str` or an `os.PathLike`.
+fn path_arg(value: &Bound<'_, PyAny>, what: &str) -> PyResult<std::path::PathBuf> {
+    if value.is_instance_of::<PyBytes>() {
+        return Err(bad(
+            value.py(),
+            format!("{what} must be a str or os.PathLike, not bytes"),
+        ));
+    }
+    value.extract::<std::path::PathBuf>().map_err(|_| {
+        bad(
+            value.py(),
+            format!(
+                "{what} must be a str or os.PathLike, not {}",
+                args::type_name(value)
+            ),
+        )
+    })
+}
+
+/// A configuration argument: a `Config`, or a file's path (loaded here,
+/// `ConfigError` when invalid); `None`: absent.
+pub(crate) fn config_arg(
+    py: Python<'_>,
+    value: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Option<IoConfig>> {
+    let Some(value) = value.filter(|v| !v.is_none()) else {
+        return Ok(None);
+    };
+    if let Ok(c) = value.cast::<Config>() {
+        return Ok(Some(c.get().inner.clone()));
+    }
+    let path = path_arg(value, "config (a firelink.Config or a configuration file)")?;
+    IoConfig::load(&path)
+        .map(Some)
+        .map_err(|e| config_error(py, &e))
+}
+
 /// Load and validate a configuration file; raises `ConfigError`.
 #[pyfunction]
-fn load_config(py: Python<'_>, path: std::path::PathBuf) -> PyResult<Config> {
+fn load_config(py: Python<'_>, path: &Bound<'_, PyAny>) -> PyResult<Config> {
+    let path = path_arg(path, "path")?;
     IoConfig::load(&path)
         .map(|inner| Config { inner })
         .map_err(|e| config_error(py, &e))
 }
 
-/// Parse and validate configuration text; raises `ConfigError`.
+/// Parse and validate configuration text (a `str`, or UTF-8 `bytes`);
+/// raises `ConfigError`.
 #[pyfunction]
-#[pyo3(signature = (text, file="<string>"))]
-fn parse_config(py: Python<'_>, text: &str, file: &str) -> PyResult<Config> {
-    IoConfig::from_json_str(text, file)
+#[pyo3(signature = (text, file=None))]
+fn parse_config(
+    py: Python<'_>,
+    text: &Bound<'_, PyAny>,
+    file: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Config> {
+    let file = args::opt_text(file, "file", "the name errors give")?
+        .unwrap_or_else(|| "<string>".to_string());
+    let text = match text.cast::<PyBytes>() {
+        Ok(b) => String::from_utf8(b.as_bytes().to_vec()).map_err(|e| {
+            error(
+                py,
+                "ConfigError",
+                format!("{file}: the configuration is not UTF-8 text ({e})"),
+            )
+        })?,
+        Err(_) => args::text(text, "text", "the configuration's JSON")?,
+    };
+    IoConfig::from_json_str(&text, &file)
         .map(|inner| Config { inner })
         .map_err(|e| config_error(py, &e))
 }
@@ -976,56 +1149,77 @@ fn to_json_text(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<Strin
     serde_json::to_string(value).map_err(|e| error(py, "FirelinkError", e.to_string()))
 }
 
+/// The longest demo, seconds of motion (as the command line's).
+const MAX_DEMO_S: f64 = 86_400.0;
+
+/// The most cycles one call runs or measures (as the command line's).
+const MAX_CYCLES: i64 = 1_000_000_000;
+
+/// The most cycles per benchmark point.
+const MAX_BENCH_CYCLES: i64 = 1_000_000;
+
 /// Run the demo; the report as JSON text (wrapped by `firelink.run_demo`).
+/// Ctrl-C stops the robot at its next cycle (the boards it powered are
+/// powered down) and raises `KeyboardInterrupt`.
 #[pyfunction]
 #[pyo3(signature = (port, duration, rate, protocol, firmware, fault, pacing, watchdog_ms, config))]
 #[allow(clippy::too_many_arguments)]
 fn run_demo_json(
     py: Python<'_>,
-    port: &str,
-    duration: f64,
-    rate: f64,
-    protocol: &str,
-    firmware: &str,
-    fault: &str,
-    pacing: Option<&str>,
+    port: &Bound<'_, PyAny>,
+    duration: &Bound<'_, PyAny>,
+    rate: &Bound<'_, PyAny>,
+    protocol: &Bound<'_, PyAny>,
+    firmware: &Bound<'_, PyAny>,
+    fault: &Bound<'_, PyAny>,
+    pacing: Option<&Bound<'_, PyAny>>,
     watchdog_ms: &Bound<'_, PyAny>,
-    config: Option<&Config>,
+    config: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<String> {
+    let port = args::text(port, "port", "sim, emulate or udp:HOST[:PORT]")?;
+    let duration_s = args::real(duration, "duration", Span::above(0.0, MAX_DEMO_S, " s"))?;
+    let rate_hz = args::real(rate, "rate", Span::closed(1.0, 100_000.0, " Hz"))?;
+    let protocol = self::protocol(py, &args::text(protocol, "protocol", PROTOCOLS)?)?;
+    let firmware = args::firmware(firmware)?;
+    let faults = "none, stop-host, corrupt-query, board-loss or following-error";
+    let fault = args::text(fault, "fault", faults)?
+        .parse::<DemoFault>()
+        .map_err(|e| bad(py, e.to_string()))?;
+    let pacing = match args::opt_text(pacing, "pacing", "virtual or realtime")?.as_deref() {
+        None => None,
+        Some("virtual") => Some(Pacing::Virtual),
+        Some("realtime") => Some(Pacing::WallClock),
+        Some(p) => {
+            return Err(bad(
+                py,
+                format!("unknown pacing {p:?}: virtual or realtime"),
+            ));
+        }
+    };
     let watchdog = watchdog_setting(py, watchdog_ms)?;
+    let config = config_arg(py, config)?;
+    let options = DemoOptions {
+        config: config.unwrap_or_else(presets::dvrk_seed000),
+        rate_hz,
+        protocol,
+        duration_s,
+        port: port
+            .trim()
+            .parse::<DemoPort>()
+            .map_err(|e| error(py, "PortError", e.to_string()))?,
+        firmware,
+        fault,
+        pacing,
+        watchdog,
+        udp_wait: WaitMode::Blocking,
+    };
     if let Some(w) = watchdog.warning() {
         warn(py, w)?;
     }
-    let options = DemoOptions {
-        config: config.map_or_else(presets::dvrk_seed000, |c| c.inner.clone()),
-        rate_hz: rate,
-        protocol: self::protocol(py, Some(protocol))?.unwrap_or(Protocol::Broadcast),
-        duration_s: duration,
-        port: port
-            .parse::<DemoPort>()
-            .map_err(|e| error(py, "PortError", e.to_string()))?,
-        firmware: profile(py, firmware)?,
-        fault: fault
-            .parse::<DemoFault>()
-            .map_err(|e| bad(py, e.to_string()))?,
-        pacing: match pacing {
-            None => None,
-            Some("virtual") => Some(Pacing::Virtual),
-            Some("realtime") => Some(Pacing::WallClock),
-            Some(p) => {
-                return Err(bad(
-                    py,
-                    format!("unknown pacing {p:?}: virtual or realtime"),
-                ));
-            }
-        },
-        watchdog,
-        udp_wait: WaitMode::Blocking,
-        stop: None,
-    };
-    let report = py
-        .detach(|| firelink_testbed::demo::run_demo(&options, None, |_| {}))
-        .map_err(|e| testbed_error(py, e))?;
+    let report = interrupt::until_interrupted(py, |stop| {
+        firelink_testbed::demo::run_demo_until(&options, stop, None, |_| {})
+    })?
+    .map_err(|e| testbed_error(py, e))?;
     let mut value =
         serde_json::to_value(&report).map_err(|e| error(py, "FirelinkError", e.to_string()))?;
     if let Some(map) = value.as_object_mut() {
@@ -1035,48 +1229,96 @@ fn run_demo_json(
     to_json_text(py, &value)
 }
 
+/// The items of a list argument (any iterable but a string; a string is
+/// one item), at most `max` of them: an endless iterator is refused, not
+/// followed.
+fn items<'py>(
+    value: &Bound<'py, PyAny>,
+    what: &str,
+    max: usize,
+) -> PyResult<Vec<Bound<'py, PyAny>>> {
+    if value.is_instance_of::<PyString>() {
+        return Ok(vec![value.clone()]);
+    }
+    let iter = value.try_iter().map_err(|_| {
+        bad(
+            value.py(),
+            format!("{what} must be a list, not {}", args::type_name(value)),
+        )
+    })?;
+    let mut out = Vec::new();
+    for item in iter {
+        if out.len() == max {
+            return Err(bad(
+                value.py(),
+                format!("{what} has more than {max} entries"),
+            ));
+        }
+        out.push(item?);
+    }
+    Ok(out)
+}
+
 /// Run the benchmark; the report as JSON text (wrapped by `firelink.run_bench`).
+/// Ctrl-C returns at once with `KeyboardInterrupt` (the benchmark's thread,
+/// on emulated boards only, finishes its work on its own).
 #[pyfunction]
 #[pyo3(signature = (transports, boards, protocols, cycles, firmware, plot))]
 fn run_bench_json(
     py: Python<'_>,
-    transports: Vec<String>,
-    boards: Vec<usize>,
-    protocols: Vec<String>,
-    cycles: u64,
-    firmware: &str,
-    plot: Option<std::path::PathBuf>,
+    transports: &Bound<'_, PyAny>,
+    boards: &Bound<'_, PyAny>,
+    protocols: &Bound<'_, PyAny>,
+    cycles: &Bound<'_, PyAny>,
+    firmware: &Bound<'_, PyAny>,
+    plot: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<String> {
-    let transports = transports
+    let transports = items(transports, "transports", 8)?
         .iter()
         .map(|t| {
-            BenchTransport::from_name(t)
-                .ok_or_else(|| bad(py, format!("unknown transport {t:?}: sim or udp")))
+            let name = args::text(t, "a transport", "sim or udp")?;
+            BenchTransport::from_name(&name)
+                .ok_or_else(|| bad(py, format!("unknown transport {name:?}: sim or udp")))
         })
         .collect::<PyResult<Vec<_>>>()?;
-    let protocols = protocols
+    let boards = items(boards, "boards", 64)?
         .iter()
-        .map(|p| self::protocol(py, Some(p)).map(|p| p.unwrap_or(Protocol::Broadcast)))
+        .map(|b| args::int_as::<usize>(b, "a board count", 1, 62))
         .collect::<PyResult<Vec<_>>>()?;
-    if cycles == 0 || cycles > 1_000_000 {
-        return Err(bad(py, format!("cycles = {cycles}: must be 1..=1000000")));
-    }
+    let protocols = items(protocols, "protocols", 8)?
+        .iter()
+        .map(|p| protocol(py, &args::text(p, "a protocol", PROTOCOLS)?))
+        .collect::<PyResult<Vec<_>>>()?;
+    let cycles: u64 = args::int_as(cycles, "cycles", 1, MAX_BENCH_CYCLES)?;
+    let plot = match plot.filter(|p| !p.is_none()) {
+        None => None,
+        Some(p) => Some(path_arg(p, "plot")?),
+    };
     let options = BenchOptions {
         transports,
         boards,
         protocols,
         cycles,
-        firmware: profile(py, firmware)?,
+        firmware: args::firmware(firmware)?,
         ..BenchOptions::default()
     };
-    let report = py
-        .detach(|| firelink_testbed::bench::run_bench(&options, |_, _, _| {}))
-        .map_err(|e| testbed_error(py, e))?;
-    if let Some(path) = plot {
-        py.detach(|| firelink_plot::fig11(&report, &path))
-            .map_err(|e| error(py, "FirelinkError", e.to_string()))?;
+    // Checked here too, so that a refusal is not left to the worker.
+    firelink_testbed::bench::check_board_counts(&options.boards).map_err(|e| bad(py, e))?;
+    if options.transports.is_empty() || options.protocols.is_empty() {
+        return Err(bad(
+            py,
+            "run_bench needs at least one transport and one protocol",
+        ));
     }
-    to_json_text(py, &report)
+    let outcome = interrupt::abandon_on_interrupt(py, move || {
+        let report = firelink_testbed::bench::run_bench(&options, |_, _, _| {})
+            .map_err(|e| e.to_string())?;
+        if let Some(path) = plot {
+            firelink_plot::fig11(&report, &path).map_err(|e| e.to_string())?;
+        }
+        serde_json::to_string(&report).map_err(|e| e.to_string())
+    })?;
+    outcome.map_err(|e| error(py, "FirelinkError", e))
 }
 
 // ------------------------------------------------------------ packets ---
@@ -1084,32 +1326,46 @@ fn run_bench_json(
 /// Decode one packet (with `bridge`, a host->bridge datagram): JSON text of
 /// its fields (wrapped by `firelink.decode_packet`).
 #[pyfunction]
-#[pyo3(signature = (data, bridge=false))]
-fn decode_packet_json(py: Python<'_>, data: &[u8], bridge: bool) -> PyResult<String> {
+#[pyo3(signature = (data, bridge=None))]
+fn decode_packet_json(
+    py: Python<'_>,
+    data: &Bound<'_, PyAny>,
+    bridge: Option<&Bound<'_, PyAny>>,
+) -> PyResult<String> {
+    let Ok(data) = args::bytes(data, "data") else {
+        return Err(error(
+            py,
+            "PacketError",
+            format!("decode_packet takes bytes, not {}", args::type_name(data)),
+        ));
+    };
+    let bridge = bridge.map_or(Ok(false), |b| args::flag(b, "bridge"))?;
     let record =
-        packet_json::decode(data, bridge).map_err(|e| error(py, "PacketError", e.to_string()))?;
+        packet_json::decode(&data, bridge).map_err(|e| error(py, "PacketError", e.to_string()))?;
     to_json_text(py, &record)
 }
 
 /// Encode the packet whose fields are `json` (JSON text): its bytes.
 #[pyfunction]
-#[pyo3(signature = (json, bridge=false))]
+#[pyo3(signature = (json, bridge=None))]
 fn encode_packet_json<'py>(
     py: Python<'py>,
-    json: &str,
-    bridge: bool,
+    json: &Bound<'py, PyAny>,
+    bridge: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyBytes>> {
+    let json = args::text(json, "the packet's fields", "JSON text")?;
+    let bridge = bridge.map_or(Ok(false), |b| args::flag(b, "bridge"))?;
     let record: PacketJson =
-        serde_json::from_str(json).map_err(|e| error(py, "PacketError", e.to_string()))?;
+        serde_json::from_str(&json).map_err(|e| error(py, "PacketError", e.to_string()))?;
     let bytes = packet_json::encode(&record, bridge)
         .map_err(|e| error(py, "PacketError", e.to_string()))?;
     Ok(PyBytes::new(py, &bytes))
 }
 
-/// The IEEE 1394 CRC-32 of `data`.
+/// The IEEE 1394 CRC-32 of `data` (bytes, bytearray or memoryview).
 #[pyfunction]
-fn crc1394(data: &[u8]) -> u32 {
-    firelink_wire::crc::crc1394(data)
+fn crc1394(data: &Bound<'_, PyAny>) -> PyResult<u32> {
+    Ok(firelink_wire::crc::crc1394(&args::bytes(data, "data")?))
 }
 
 /// The native module.

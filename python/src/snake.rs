@@ -6,14 +6,13 @@
 //! `"udp:HOST[:PORT]"`) or a `Port`; the GIL released around every bus
 //! transaction; per-axis data as numpy arrays (seven axes per node,
 //! channels 1..=7 of each node in board-ID order); every error one of the
-//! package's exceptions. Integer arguments arrive as Python ints and are
-//! range-checked here, so an out-of-range value raises `InvalidRequest`
-//! naming it (never `OverflowError`, never a panic).
+//! package's exceptions. Arguments are converted by [`crate::args`], so a
+//! wrong type or an out-of-range value raises `InvalidRequest` naming it
+//! (never `TypeError`, never `OverflowError`, never a panic).
 
 use std::sync::Mutex;
 
-use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
-use pyo3::exceptions::{PyOverflowError, PyValueError};
+use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -22,56 +21,51 @@ use firelink_host::snake::{EepromIndex, SnakeNodeIo, SnakeSystem as HostSnakeSys
 use firelink_wire::snake::CHANNELS;
 use firelink_wire::snake::registers::{PotOutputs, PowerControl, Wiper};
 
+use crate::args::{self, Span};
 use crate::{
-    AnyPort, Config, bad, cycle_result, duration, error, exclusive, host_error, open_udp,
-    stats_dict, take_port, testbed_error,
+    AnyPort, bad, cycle_result, error, exclusive, host_error, interrupt, open_udp, stats_dict,
+    testbed_error,
 };
 
-/// An integer argument: any Python int; one beyond 64 bits raises
-/// `InvalidRequest` (not `OverflowError`), a non-int `TypeError`.
-#[derive(Debug, Clone, Copy)]
-struct Int(i64);
+/// An argument as given, converted (with its name and range) where it is
+/// used: its extraction never fails, so PyO3 raises no `TypeError` first.
+struct Arg<'py>(Bound<'py, PyAny>);
 
-impl<'a, 'py> FromPyObject<'a, 'py> for Int {
+impl<'a, 'py> FromPyObject<'a, 'py> for Arg<'py> {
     type Error = PyErr;
 
-    fn extract(obj: pyo3::Borrowed<'a, 'py, PyAny>) -> PyResult<Int> {
-        match obj.extract::<i64>() {
-            Ok(v) => Ok(Int(v)),
-            Err(e) if e.is_instance_of::<PyOverflowError>(obj.py()) => Err(bad(
-                obj.py(),
-                format!(
-                    "{}: beyond any register (must fit in 64 bits)",
-                    obj.as_any()
-                ),
-            )),
-            Err(e) => Err(e),
-        }
+    fn extract(obj: pyo3::Borrowed<'a, 'py, PyAny>) -> PyResult<Arg<'py>> {
+        Ok(Arg(obj.to_owned()))
     }
 }
 
-/// `v` as a `T` when it lies in `lo..=hi`; otherwise `InvalidRequest`
-/// naming `what` and the range.
-fn ranged<T: TryFrom<i64>>(py: Python<'_>, v: Int, lo: i64, hi: i64, what: &str) -> PyResult<T> {
-    let Int(v) = v;
-    if (lo..=hi).contains(&v) {
-        if let Ok(t) = T::try_from(v) {
-            return Ok(t);
-        }
-    }
-    Err(bad(py, format!("{what} {v}: must be {lo}..={hi}")))
+/// `v` as a `T` when it is an integer in `lo..=hi`; otherwise
+/// `InvalidRequest` naming `what` and the range.
+fn ranged<T: TryFrom<i64>>(
+    _py: Python<'_>,
+    v: Arg<'_>,
+    lo: i64,
+    hi: i64,
+    what: &str,
+) -> PyResult<T> {
+    args::int_as(&v.0, what, lo, hi)
 }
 
-fn board_id(py: Python<'_>, v: Int) -> PyResult<u8> {
+fn board_id(py: Python<'_>, v: Arg<'_>) -> PyResult<u8> {
     ranged(py, v, 0, 15, "board ID")
 }
 
-fn channel(py: Python<'_>, v: Int) -> PyResult<u8> {
+fn channel(py: Python<'_>, v: Arg<'_>) -> PyResult<u8> {
     ranged(py, v, 1, CHANNELS as i64, "Snake channel")
 }
 
-fn code(py: Python<'_>, v: Int, what: &str) -> PyResult<u16> {
+fn code(py: Python<'_>, v: Arg<'_>, what: &str) -> PyResult<u16> {
     ranged(py, v, 0, 0xFFFF, what)
+}
+
+/// A flag argument (`True`/`False` only).
+fn flag(v: Arg<'_>, what: &str) -> PyResult<bool> {
+    args::flag(&v.0, what)
 }
 
 /// Open the Snake nodes' port: `"sim"` builds `config`'s nodes (default:
@@ -94,11 +88,6 @@ fn open_snake_port(py: Python<'_>, spec: &str, config: &IoConfig) -> PyResult<(A
         .detach(|| firelink_testbed::snake::sim_port(nodes, false, None))
         .map_err(|e| testbed_error(py, e))?;
     Ok((Box::new(port), spec.to_string()))
-}
-
-/// The configuration a Snake rig emulates (default: seed 001's).
-pub(crate) fn snake_config(config: Option<&Config>) -> IoConfig {
-    config.map_or_else(presets::snake_seed001, |c| c.inner.clone())
 }
 
 /// A Snake node found by discovery.
@@ -179,8 +168,8 @@ impl SnakeSystem {
             .ok_or_else(|| bad(py, format!("no Snake node {board} in this system")))
     }
 
-    fn board_ids(&mut self, py: Python<'_>, board: Option<Int>) -> PyResult<Vec<u8>> {
-        match board {
+    fn board_ids(&mut self, py: Python<'_>, board: Option<Arg<'_>>) -> PyResult<Vec<u8>> {
+        match board.filter(|b| !b.0.is_none()) {
             None => Ok(self
                 .sys()
                 .nodes()
@@ -206,17 +195,18 @@ impl SnakeSystem {
     fn new(
         py: Python<'_>,
         port: Option<&Bound<'_, PyAny>>,
-        config: Option<&Config>,
+        config: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<SnakeSystem> {
-        let inner: AnyPort = match port {
-            None => open_snake_port(py, "sim", &snake_config(config))?.0,
-            Some(p) => match p.extract::<String>() {
-                Ok(text) => open_snake_port(py, &text, &snake_config(config))?.0,
-                Err(_) => take_port(py, p, "SnakeSystem")?,
-            },
+        let config = crate::config_arg(py, config)?.unwrap_or_else(presets::snake_seed001);
+        let inner: AnyPort = match port.filter(|p| !p.is_none()) {
+            None => open_snake_port(py, "sim", &config)?.0,
+            Some(p) => crate::port_arg(py, p, "SnakeSystem", |text| {
+                Ok(open_snake_port(py, text, &config)?.0)
+            })?,
         };
-        let sys = py
-            .detach(|| HostSnakeSystem::open(inner))
+        // Discovery waits out a time-out per absent node: Ctrl-C returns
+        // at once (discovery ends on its own and drops the port).
+        let sys = interrupt::abandon_on_interrupt(py, move || HostSnakeSystem::open(inner))?
             .map_err(|e| host_error(py, e))?;
         Ok(SnakeSystem {
             sys: Mutex::new(sys),
@@ -241,12 +231,12 @@ impl SnakeSystem {
         self.sys().port().now().as_secs_f64()
     }
 
-    /// Let `seconds` pass (virtual time on the simulated bus).
-    fn wait(&mut self, py: Python<'_>, seconds: f64) -> PyResult<()> {
-        let d = duration(py, seconds, "seconds")?;
+    /// Let `seconds` pass (virtual time on the simulated bus), at most a
+    /// day; Ctrl-C interrupts a long wait.
+    fn wait(&mut self, py: Python<'_>, seconds: &Bound<'_, PyAny>) -> PyResult<()> {
+        let d = crate::wait_arg(seconds)?;
         let sys = self.sys();
-        py.detach(|| sys.port_mut().wait(d));
-        Ok(())
+        crate::wait_on(py, sys.port_mut().as_mut(), d)
     }
 
     /// Find the nodes again (after a bus reset); buffers are kept.
@@ -332,20 +322,19 @@ impl SnakeSystem {
 
     /// `SetMotorVoltage` for every axis (DAC codes 0..=65535, 32768 = 0 V)
     /// for the next apply; marks every channel valid.
-    fn set_dac(&mut self, py: Python<'_>, codes: PyReadonlyArray1<'_, i64>) -> PyResult<()> {
-        let codes = codes
-            .as_slice()
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    /// Any array of integers (numpy of any integer type, a list).
+    fn set_dac(&mut self, py: Python<'_>, codes: &Bound<'_, PyAny>) -> PyResult<()> {
         let axes = self.axes();
-        if codes.len() != axes {
-            return Err(bad(
-                py,
-                format!("set_dac: {} values for {axes} axes", codes.len()),
-            ));
-        }
-        let codes = codes
-            .iter()
-            .map(|&v| code(py, Int(v), "set_dac: DAC code"))
+        let codes = args::int_array(codes, "set_dac", axes)?
+            .into_iter()
+            .map(|v| {
+                u16::try_from(v).map_err(|_| {
+                    bad(
+                        py,
+                        format!("set_dac: DAC code {v} is out of range: it must be 0 to 65535"),
+                    )
+                })
+            })
             .collect::<PyResult<Vec<u16>>>()?;
         let ids = self.board_ids(py, None)?;
         for (id, node_codes) in ids.into_iter().zip(codes.chunks(CHANNELS)) {
@@ -363,9 +352,9 @@ impl SnakeSystem {
     fn set_motor_voltage(
         &mut self,
         py: Python<'_>,
-        board: Int,
-        channel: Int,
-        code: Int,
+        board: Arg<'_>,
+        channel: Arg<'_>,
+        code: Arg<'_>,
     ) -> PyResult<()> {
         let (b, ch, c) = (
             board_id(py, board)?,
@@ -382,8 +371,8 @@ impl SnakeSystem {
     fn pending_motor_voltage(
         &mut self,
         py: Python<'_>,
-        board: Int,
-        channel: Int,
+        board: Arg<'_>,
+        channel: Arg<'_>,
     ) -> PyResult<Option<u16>> {
         let (b, ch) = (board_id(py, board)?, self::channel(py, channel)?);
         Ok(self.node_mut(py, b)?.pending_motor_voltage(ch))
@@ -394,9 +383,9 @@ impl SnakeSystem {
     fn set_motor_current(
         &mut self,
         py: Python<'_>,
-        board: Int,
-        channel: Int,
-        code: Int,
+        board: Arg<'_>,
+        channel: Arg<'_>,
+        code: Arg<'_>,
     ) -> PyResult<()> {
         let (b, ch, c) = (
             board_id(py, board)?,
@@ -407,7 +396,7 @@ impl SnakeSystem {
     }
 
     /// A channel's DAC as read back now: (motor command, current limit).
-    fn dac(&mut self, py: Python<'_>, board: Int, channel: Int) -> PyResult<(u16, u16)> {
+    fn dac(&mut self, py: Python<'_>, board: Arg<'_>, channel: Arg<'_>) -> PyResult<(u16, u16)> {
         let (b, ch) = (board_id(py, board)?, self::channel(py, channel)?);
         let d = self.at_once(py, |s| s.dac(b, ch))?;
         Ok((d.motor_voltage(), d.current_limit()))
@@ -417,11 +406,12 @@ impl SnakeSystem {
     fn set_amplifier(
         &mut self,
         py: Python<'_>,
-        board: Int,
-        channel: Int,
-        on: bool,
+        board: Arg<'_>,
+        channel: Arg<'_>,
+        on: Arg<'_>,
     ) -> PyResult<()> {
         let (b, ch) = (board_id(py, board)?, self::channel(py, channel)?);
+        let on = flag(on, "on")?;
         self.node_mut(py, b)?
             .set_amplifier_enable(ch, on)
             .map_err(|e| host_error(py, e))
@@ -430,7 +420,13 @@ impl SnakeSystem {
     /// Ask for every amplifier (of every node, or `board`) on or off with
     /// the next apply.
     #[pyo3(signature = (on, board=None))]
-    fn set_amplifiers(&mut self, py: Python<'_>, on: bool, board: Option<Int>) -> PyResult<()> {
+    fn set_amplifiers(
+        &mut self,
+        py: Python<'_>,
+        on: Arg<'_>,
+        board: Option<Arg<'_>>,
+    ) -> PyResult<()> {
+        let on = flag(on, "on")?;
         for id in self.board_ids(py, board)? {
             self.node_mut(py, id)?.set_all_amplifiers(on);
         }
@@ -443,9 +439,9 @@ impl SnakeSystem {
     fn set_power_control(
         &mut self,
         py: Python<'_>,
-        board: Int,
-        mask: Int,
-        enable: Int,
+        board: Arg<'_>,
+        mask: Arg<'_>,
+        enable: Arg<'_>,
     ) -> PyResult<()> {
         let b = board_id(py, board)?;
         let mask: u8 = ranged(py, mask, 0, 0x7F, "power-control mask")?;
@@ -459,9 +455,9 @@ impl SnakeSystem {
     fn set_encoder_preload(
         &mut self,
         py: Python<'_>,
-        board: Int,
-        channel: Int,
-        count: Int,
+        board: Arg<'_>,
+        channel: Arg<'_>,
+        count: Arg<'_>,
     ) -> PyResult<()> {
         let (b, ch) = (board_id(py, board)?, self::channel(py, channel)?);
         let count: u32 = ranged(py, count, 0, 0xFF_FFFF, "encoder preload")?;
@@ -469,13 +465,18 @@ impl SnakeSystem {
     }
 
     /// Reset a channel's encoder to the midpoint (0x800000), at once.
-    fn reset_encoder(&mut self, py: Python<'_>, board: Int, channel: Int) -> PyResult<()> {
+    fn reset_encoder(&mut self, py: Python<'_>, board: Arg<'_>, channel: Arg<'_>) -> PyResult<()> {
         let (b, ch) = (board_id(py, board)?, self::channel(py, channel)?);
         self.at_once(py, |s| s.reset_encoder(b, ch))
     }
 
     /// `GetDigitalPotWiper`: a channel's wiper, 0..=1023.
-    fn digital_pot_wiper(&mut self, py: Python<'_>, board: Int, channel: Int) -> PyResult<u16> {
+    fn digital_pot_wiper(
+        &mut self,
+        py: Python<'_>,
+        board: Arg<'_>,
+        channel: Arg<'_>,
+    ) -> PyResult<u16> {
         let (b, ch) = (board_id(py, board)?, self::channel(py, channel)?);
         self.at_once(py, |s| s.digital_pot_wiper(b, ch))
             .map(Wiper::value)
@@ -485,9 +486,9 @@ impl SnakeSystem {
     fn set_digital_pot_wiper(
         &mut self,
         py: Python<'_>,
-        board: Int,
-        channel: Int,
-        wiper: Int,
+        board: Arg<'_>,
+        channel: Arg<'_>,
+        wiper: Arg<'_>,
     ) -> PyResult<()> {
         let (b, ch) = (board_id(py, board)?, self::channel(py, channel)?);
         let w: u16 = ranged(py, wiper, 0, 1023, "digital pot wiper")?;
@@ -496,7 +497,7 @@ impl SnakeSystem {
 
     /// The motor-current feedback gain a channel's wiper sets now (seed
     /// 001, eq. 1).
-    fn feedback_gain(&mut self, py: Python<'_>, board: Int, channel: Int) -> PyResult<f64> {
+    fn feedback_gain(&mut self, py: Python<'_>, board: Arg<'_>, channel: Arg<'_>) -> PyResult<f64> {
         let (b, ch) = (board_id(py, board)?, self::channel(py, channel)?);
         self.at_once(py, |s| s.digital_pot_wiper(b, ch))
             .map(Wiper::feedback_gain)
@@ -504,7 +505,7 @@ impl SnakeSystem {
 
     /// The feedback gain wiper position `wiper` (0..=1023) sets.
     #[staticmethod]
-    fn wiper_gain(py: Python<'_>, wiper: Int) -> PyResult<f64> {
+    fn wiper_gain(py: Python<'_>, wiper: Arg<'_>) -> PyResult<f64> {
         let w: u16 = ranged(py, wiper, 0, 1023, "digital pot wiper")?;
         Wiper::new(w)
             .map(Wiper::feedback_gain)
@@ -516,8 +517,8 @@ impl SnakeSystem {
     fn analog_switches(
         &mut self,
         py: Python<'_>,
-        board: Int,
-        channel: Int,
+        board: Arg<'_>,
+        channel: Arg<'_>,
     ) -> PyResult<(bool, bool)> {
         let (b, ch) = (board_id(py, board)?, self::channel(py, channel)?);
         self.at_once(py, |s| s.analog_switches(b, ch))
@@ -526,22 +527,29 @@ impl SnakeSystem {
 
     /// `SetAnalogSwitches`: speed (True) or torque (False) control, and
     /// the spare output O2.
-    #[pyo3(signature = (board, channel, speed_mode, o2=false))]
+    #[pyo3(signature = (board, channel, speed_mode, o2=None))]
     fn set_analog_switches(
         &mut self,
         py: Python<'_>,
-        board: Int,
-        channel: Int,
-        speed_mode: bool,
-        o2: bool,
+        board: Arg<'_>,
+        channel: Arg<'_>,
+        speed_mode: Arg<'_>,
+        o2: Option<Arg<'_>>,
     ) -> PyResult<()> {
         let (b, ch) = (board_id(py, board)?, self::channel(py, channel)?);
+        let speed_mode = flag(speed_mode, "speed_mode")?;
+        let o2 = o2.map_or(Ok(false), |o| flag(o, "o2"))?;
         let outputs = PotOutputs { speed_mode, o2 };
         self.at_once(py, |s| s.set_analog_switches(b, ch, outputs))
     }
 
     /// Whether a channel's EEPROM is write-protected.
-    fn write_protect(&mut self, py: Python<'_>, board: Int, channel: Int) -> PyResult<bool> {
+    fn write_protect(
+        &mut self,
+        py: Python<'_>,
+        board: Arg<'_>,
+        channel: Arg<'_>,
+    ) -> PyResult<bool> {
         let (b, ch) = (board_id(py, board)?, self::channel(py, channel)?);
         self.at_once(py, |s| s.write_protect(b, ch))
     }
@@ -550,18 +558,19 @@ impl SnakeSystem {
     fn set_write_protect(
         &mut self,
         py: Python<'_>,
-        board: Int,
-        channel: Int,
-        on: bool,
+        board: Arg<'_>,
+        channel: Arg<'_>,
+        on: Arg<'_>,
     ) -> PyResult<()> {
         let (b, ch) = (board_id(py, board)?, self::channel(py, channel)?);
+        let on = flag(on, "on")?;
         self.at_once(py, |s| s.set_write_protect(b, ch, on))
     }
 
     /// The seed's EEPROM index of (`channel` 1..=7, `word` 0..=13):
     /// channel in bits 7-4, word in bits 3-0.
     #[staticmethod]
-    fn eeprom_index(py: Python<'_>, channel: Int, word: Int) -> PyResult<u32> {
+    fn eeprom_index(py: Python<'_>, channel: Arg<'_>, word: Arg<'_>) -> PyResult<u32> {
         let ch = self::channel(py, channel)?;
         let word: u8 = ranged(py, word, 0, 13, "EEPROM word")?;
         EepromIndex::new(ch, word)
@@ -570,7 +579,7 @@ impl SnakeSystem {
     }
 
     /// `GetEepromDataRaw`: the word at `index` (see `eeprom_index`).
-    fn eeprom_raw(&mut self, py: Python<'_>, board: Int, index: Int) -> PyResult<u16> {
+    fn eeprom_raw(&mut self, py: Python<'_>, board: Arg<'_>, index: Arg<'_>) -> PyResult<u16> {
         let b = board_id(py, board)?;
         let index: u32 = ranged(py, index, 0, 0xFF, "EEPROM index")?;
         self.at_once(py, |s| s.eeprom_raw(b, index))
@@ -581,9 +590,9 @@ impl SnakeSystem {
     fn set_eeprom_raw(
         &mut self,
         py: Python<'_>,
-        board: Int,
-        index: Int,
-        value: Int,
+        board: Arg<'_>,
+        index: Arg<'_>,
+        value: Arg<'_>,
     ) -> PyResult<()> {
         let b = board_id(py, board)?;
         let index: u32 = ranged(py, index, 0, 0xFF, "EEPROM index")?;
@@ -593,7 +602,7 @@ impl SnakeSystem {
 
     /// `GetEepromDataFloat`: the float (32-bit) in words `index` and
     /// `index + 1` (the first word at most 12).
-    fn eeprom_float(&mut self, py: Python<'_>, board: Int, index: Int) -> PyResult<f32> {
+    fn eeprom_float(&mut self, py: Python<'_>, board: Arg<'_>, index: Arg<'_>) -> PyResult<f32> {
         let b = board_id(py, board)?;
         let index: u32 = ranged(py, index, 0, 0xFF, "EEPROM index")?;
         self.at_once(py, |s| s.eeprom_float(b, index))
@@ -603,24 +612,32 @@ impl SnakeSystem {
     fn set_eeprom_float(
         &mut self,
         py: Python<'_>,
-        board: Int,
-        index: Int,
-        value: f64,
+        board: Arg<'_>,
+        index: Arg<'_>,
+        value: Arg<'_>,
     ) -> PyResult<()> {
         let b = board_id(py, board)?;
         let index: u32 = ranged(py, index, 0, 0xFF, "EEPROM index")?;
+        let value = args::real(
+            &value.0,
+            "EEPROM float",
+            Span::closed(f64::NEG_INFINITY, f64::INFINITY, ""),
+        )?;
         let v = value as f32;
-        if value.is_finite() && !v.is_finite() {
+        if !v.is_finite() {
             return Err(bad(
                 py,
-                format!("EEPROM float {value}: beyond 32-bit float range"),
+                format!(
+                    "EEPROM float {} is out of range: a 32-bit float is finite, at most about 3.4e38 in size",
+                    firelink_wire::human::Number(value)
+                ),
             ));
         }
         self.at_once(py, |s| s.set_eeprom_float(b, index, v))
     }
 
     /// One node's watchdog period, milliseconds (0: off).
-    fn watchdog(&mut self, py: Python<'_>, board: Int) -> PyResult<f64> {
+    fn watchdog(&mut self, py: Python<'_>, board: Arg<'_>) -> PyResult<f64> {
         let b = board_id(py, board)?;
         self.at_once(py, |s| s.watchdog(b))
             .map(|d| d.as_secs_f64() * 1e3)
@@ -629,7 +646,8 @@ impl SnakeSystem {
     /// Program every node's watchdog: a period in milliseconds (one 5.208
     /// us tick to 341.33 ms) or `"off"` (with a warning). A node whose
     /// watchdog expires disables its amplifiers.
-    fn set_watchdog(&mut self, py: Python<'_>, ms: &Bound<'_, PyAny>) -> PyResult<()> {
+    fn set_watchdog(&mut self, py: Python<'_>, ms: Arg<'_>) -> PyResult<()> {
+        let ms = &ms.0;
         let setting = crate::watchdog_setting(py, ms)?;
         if let Some(w) = setting.warning() {
             crate::warn(py, w)?;

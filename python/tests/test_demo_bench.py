@@ -1,8 +1,13 @@
 """The demo and the benchmark from Python, with typed reports."""
 
+import itertools
+from pathlib import Path
+
 import pytest
 
 import firelink
+
+ONE_BOARD = Path(__file__).resolve().parents[2] / "configs" / "bench-1board.json"
 
 
 def test_the_demo_runs_and_reports():
@@ -48,6 +53,40 @@ def test_bad_demo_options_raise(kwargs):
         firelink.run_demo(duration=0.05, **kwargs)
 
 
+def test_a_sub_tick_watchdog_is_refused_not_run_with_the_watchdog_off():
+    # 1e-7 ms used to become 0 ticks: the watchdog off without a word, and
+    # a stopped host never detected.
+    with pytest.raises(firelink.InvalidRequest, match="one firmware tick"):
+        firelink.run_demo(duration=0.05, watchdog_ms=1e-7, fault="stop-host")
+
+
+def test_the_demo_with_the_watchdog_off_warns():
+    with pytest.warns(UserWarning, match="watchdogs are OFF"):
+        r = firelink.run_demo(duration=0.05, watchdog_ms="off", config=ONE_BOARD)
+    assert r.watchdog.period_ms == 0
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"duration": 1e300}, "duration 1e300 s is out of range: it must be above 0 s and at most 86400 s"),
+        ({"duration": 86400.5}, "duration 86400.5 s is out of range"),
+        ({"duration": 0}, "duration 0 s is out of range"),
+        ({"duration": float("inf")}, "duration inf s"),
+        ({"duration": "3"}, "duration must be a number above 0 s and at most 86400 s, not str"),
+        ({"rate": 1e6}, "rate 1000000 Hz is out of range: it must be from 1 to 100000 Hz"),
+        ({"rate": 0.5}, "rate 0.5 Hz is out of range"),
+        ({"rate": None}, "rate must be a number"),
+        ({"watchdog_ms": 1e300}, "watchdog period 1e300 ms is out of range"),
+        ({"config": 3}, "config .* must be a str or os.PathLike, not int"),
+        ({"pacing": 1}, "pacing must be a string"),
+    ],
+)
+def test_demo_numbers_are_bounded_and_named(kwargs, match):
+    with pytest.raises(firelink.InvalidRequest, match=match):
+        firelink.run_demo(**{"duration": 0.05, **kwargs})
+
+
 def test_the_bench_and_its_figure(tmp_path):
     png = tmp_path / "fig11.png"
     r = firelink.run_bench(transports=["sim"], boards=[2, 8, 32], cycles=20, plot=png)
@@ -58,9 +97,23 @@ def test_the_bench_and_its_figure(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "kwargs",
-    [{"transports": ["carrier"]}, {"boards": [0]}, {"boards": [32]}, {"cycles": 0}, {"protocols": ["x"]}],
+    "kwargs, match",
+    [
+        ({"transports": ["carrier"]}, "unknown transport"),
+        ({"transports": []}, "at least one transport"),
+        ({"boards": [0]}, "board count 0 is out of range"),
+        ({"boards": [32]}, "extrapolated"),
+        ({"boards": [2.5]}, "board count must be an integer"),
+        ({"boards": [2] * 65}, "more than 64"),
+        ({"boards": itertools.count(1)}, "more than 64"),  # endless: refused, not followed
+        ({"cycles": 0}, "cycles 0 is out of range: it must be 1 to 1000000"),
+        ({"cycles": 10**7}, "cycles 10000000 is out of range"),
+        ({"cycles": 5.0}, "cycles must be an integer"),
+        ({"protocols": ["x"]}, "unknown protocol"),
+        ({"protocols": 5}, "protocols must be a list"),
+        ({"plot": 5}, "plot must be a str or os.PathLike"),
+    ],
 )
-def test_bad_bench_options_raise(kwargs):
-    with pytest.raises(firelink.FirelinkError):
+def test_bad_bench_options_raise(kwargs, match):
+    with pytest.raises(firelink.InvalidRequest, match=match):
         firelink.run_bench(**{"transports": ["sim"], "boards": [2], "cycles": 5, **kwargs})

@@ -79,11 +79,36 @@ def test_bad_commands_are_refused_and_change_nothing():
         io.set_current(np.array([0.0, 0.0, 9.0, 0.0]))
     with pytest.raises(firelink.InvalidRequest, match="6.25"):
         io.set_current(np.array([0.0, np.nan, 0.0, 0.0]))
-    with pytest.raises(firelink.InvalidRequest, match="watchdog"):
-        io.set_watchdog(0)
-    with pytest.raises(TypeError):
-        io.set_dac([1, 2, 3, 4])  # type: ignore[arg-type]
+    with pytest.raises(firelink.InvalidRequest, match="integers, not float64"):
+        io.set_dac(np.zeros(4))
+    with pytest.raises(firelink.InvalidRequest, match="on must be True or False"):
+        io.set_power("off")
     assert (io.dac() == before).all()
+    io.set_dac([1, 2, 3, 4])  # a list is an array too
+    assert list(io.dac()) == [1, 2, 3, 4]
+
+
+WATCHDOG_RANGE = r"from 0\.0052 ms \(one firmware tick of 5\.208 us\) to 341\.33 ms"
+
+
+@pytest.mark.parametrize("ms", [1e-9, 0, -1, 400, float("nan"), True, "x", None, [20], 2**70])
+def test_a_watchdog_off_the_register_or_not_a_period_is_refused_naming_the_range(ms):
+    io = firelink.IoSystem("sim:1")
+    with pytest.raises(firelink.InvalidRequest, match=WATCHDOG_RANGE):
+        io.set_watchdog(ms)
+
+
+def test_only_the_word_off_turns_the_watchdog_off_and_it_warns():
+    io = firelink.IoSystem("sim:1")
+    io.set_watchdog(20)
+    assert io.read_register(0, 3) & 0xFFFF == 3840  # 20 ms in 5.208 us ticks
+    with pytest.warns(UserWarning, match="watchdogs are OFF"):
+        io.set_watchdog("off")
+    assert io.read_register(0, 3) & 0xFFFF == 0
+    io.set_watchdog(0.00521)  # one tick (5.208 us): the shortest period, not off
+    assert io.read_register(0, 3) & 0xFFFF == 1
+    io.set_watchdog("20")  # a period as text, as on the command line
+    assert io.read_register(0, 3) & 0xFFFF == 3840
 
 
 def test_registers_through_the_io_system():

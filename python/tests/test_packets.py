@@ -13,7 +13,12 @@ def test_decode_then_encode_is_identity():
     fields = firelink.decode_packet(READ_QUADLET)
     assert fields["tcode_name"] == "read_request_quadlet"
     assert fields["destination_id"] == 0xFFC1
-    assert fields["offset"] == 0xFFC2_0000_0000 | 7 or fields["offset"]
+    # Header quadlets: ffc1 1540 | ffc2 0000 | 0000 0007: the source is
+    # node 2 of the local bus, the offset's high 16 bits are 0, its low 32
+    # bits 7 (quadlet register 7, FW_VERSION).
+    assert fields["source_id"] == 0xFFC2
+    assert fields["offset"] == 7
+    assert (fields["tl"], fields["rt"], fields["pri"]) == (5, 1, 0)
     assert fields["header_crc_ok"] is True
     assert firelink.encode_packet(fields) == READ_QUADLET
 

@@ -127,11 +127,13 @@ def test_pot_wiper_gain_and_analog_switches_round_trip(snake):
 def test_watchdog_round_trip(snake):
     snake.set_watchdog(20)
     assert all(snake.watchdog(b) == pytest.approx(20, abs=0.01) for b in SNAKE_CONFIG_IDS)
-    snake.set_watchdog("off")
+    with pytest.warns(UserWarning, match="watchdogs are OFF"):
+        snake.set_watchdog("off")
     assert snake.watchdog(0) == 0
-    for sub_tick in (0, 1e-9, 0.005):
+    for refused in (0, 1e-9, 0.005, -1, 400, float("nan"), True, "x"):
         with pytest.raises(firelink.InvalidRequest, match="one firmware tick"):
-            snake.set_watchdog(sub_tick)
+            snake.set_watchdog(refused)
+    assert snake.watchdog(0) == 0  # the refusals changed nothing
 
 
 def test_eeprom_raw_and_float_round_trip_and_write_protection():
@@ -172,7 +174,7 @@ def test_eeprom_raw_and_float_round_trip_and_write_protection():
         (lambda s: s.set_eeprom_raw(0, 0x10, 70000), "EEPROM value"),
         (lambda s: s.set_eeprom_float(0, 0x10, 1e300), "32-bit float"),
         (lambda s: firelink.SnakeSystem.eeprom_index(1, 14), "EEPROM word"),
-        (lambda s: s.set_motor_voltage(0, 1, 1 << 70), "64 bits"),
+        (lambda s: s.set_motor_voltage(0, 1, 1 << 70), "1180591620717411303424 is out of range"),
         (lambda s: s.set_motor_current(0, 1, 65536), "current limit"),
         (lambda s: s.set_encoder_preload(0, 1, 1 << 24), "encoder preload"),
         (lambda s: s.set_power_control(0, 0x80, 0), "mask"),
@@ -191,18 +193,25 @@ def test_bad_arguments_raise_invalid_request(snake, call, match):
         call(snake)
 
 
-def test_wrong_types_raise_type_error_and_change_nothing():
+def test_wrong_types_raise_invalid_request_and_change_nothing():
     snake = firelink.SnakeSystem("sim")
-    with pytest.raises(TypeError):
+    with pytest.raises(firelink.InvalidRequest, match="wiper must be an integer from 0 to 1023, not str"):
         snake.set_digital_pot_wiper(0, 1, "375")  # type: ignore[arg-type]
-    with pytest.raises(TypeError):
+    with pytest.raises(firelink.InvalidRequest, match="channel must be an integer from 1 to 7, not float"):
         snake.set_motor_voltage(0, 1.5, 0x8000)  # type: ignore[arg-type]
-    with pytest.raises(TypeError):
-        snake.set_dac([0x8000] * 42)  # type: ignore[arg-type]
-    with pytest.raises(TypeError):
+    with pytest.raises(firelink.InvalidRequest, match="board ID must be an integer from 0 to 15, not bool"):
+        snake.set_motor_voltage(True, 1, 0x8000)  # type: ignore[arg-type]
+    with pytest.raises(firelink.InvalidRequest, match="integers, not float64"):
         snake.set_dac(np.full(42, 0x8000, dtype=np.float64))  # type: ignore[arg-type]
+    with pytest.raises(firelink.InvalidRequest, match="on must be True or False"):
+        snake.set_amplifiers(1)  # type: ignore[arg-type]
+    with pytest.raises(firelink.InvalidRequest, match="EEPROM float is NaN"):
+        snake.set_eeprom_float(1, 0x10, float("nan"))
     assert snake.digital_pot_wiper(0, 1) == 375
     assert snake.pending_motor_voltage(0, 1) is None
+    snake.set_dac([0x8000] * 42)  # a list, or any integer array, is taken
+    snake.set_dac(np.full(42, 0x8000, dtype=np.uint16))
+    assert snake.pending_motor_voltage(0, 1) == 0x8000
 
 
 def test_bad_ports_raise_port_error():

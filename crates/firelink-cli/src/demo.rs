@@ -242,7 +242,6 @@ pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
         pacing: args.pacing.map(Pacing::from),
         watchdog,
         udp_wait: args.udp_wait.into(),
-        stop: None,
     })
 }
 

@@ -172,10 +172,6 @@ pub struct DemoOptions {
     pub watchdog: WatchdogSetting,
     /// How the UDP port's reads wait for their answer (emulate, udp).
     pub udp_wait: WaitMode,
-    /// The stop request the robot obeys between cycles (`None`: the
-    /// process's own, which signals set once
-    /// `firelink_host::stop::install_signal_handlers` ran).
-    pub stop: Option<StopRequest>,
 }
 
 impl Default for DemoOptions {
@@ -191,7 +187,6 @@ impl Default for DemoOptions {
             pacing: None,
             watchdog: WatchdogSetting::default(),
             udp_wait: WaitMode::Blocking,
-            stop: None,
         }
     }
 }
@@ -744,9 +739,25 @@ pub(crate) fn realtime_status(
 
 /// Run the demo. `realtime` is called once the port is open, on the
 /// calling thread, when the pacing is wall-clock (the CLI passes its
-/// SCHED_FIFO/mlockall setup; `None`: no real-time settings).
+/// SCHED_FIFO/mlockall setup; `None`: no real-time settings). The robot
+/// obeys the process's stop request ([`StopRequest::process`]).
 pub fn run_demo(
     options: &DemoOptions,
+    realtime: Option<&dyn Fn() -> RealtimeStatus>,
+    progress: impl FnMut(DemoProgress),
+) -> Result<DemoReport, TestbedError> {
+    run_demo_until(options, &StopRequest::process(), realtime, progress)
+}
+
+/// [`run_demo`], the robot obeying `stop` (e.g. Python's Ctrl-C): once it
+/// is set, the loop returns [`RunnerError::Stopped`] at its next cycle and
+/// the boards the run energised are powered down as the robot is dropped.
+///
+/// # Errors
+/// As [`run_demo`]; [`RunnerError::Stopped`] once `stop` is set.
+pub fn run_demo_until(
+    options: &DemoOptions,
+    stop: &StopRequest,
     realtime: Option<&dyn Fn() -> RealtimeStatus>,
     mut progress: impl FnMut(DemoProgress),
 ) -> Result<DemoReport, TestbedError> {
@@ -761,13 +772,21 @@ pub fn run_demo(
         DemoPort::Sim => {
             let (port, _) =
                 rig::sim_port(rig::board_configs(config, options.firmware, boards), false)?;
-            run_robot(port, options, "sim".into(), pacing, realtime, &mut progress)
+            run_robot(
+                port,
+                options,
+                "sim".into(),
+                pacing,
+                stop,
+                realtime,
+                &mut progress,
+            )
         }
         DemoPort::Emulate => {
             let emu = rig::Emulator::start(rig::board_configs(config, options.firmware, boards))?;
             let name = format!("udp:{} (in-process firelink emulate)", emu.addr);
             let port = emu.port_with(options.udp_wait)?;
-            let report = run_robot(port, options, name, pacing, realtime, &mut progress);
+            let report = run_robot(port, options, name, pacing, stop, realtime, &mut progress);
             emu.stop()?;
             report
         }
@@ -778,6 +797,7 @@ pub fn run_demo(
                 options,
                 format!("udp:{addr}"),
                 pacing,
+                stop,
                 realtime,
                 &mut progress,
             )
@@ -832,6 +852,7 @@ fn run_robot<P: Injector>(
     options: &DemoOptions,
     port_name: String,
     pacing: Pacing,
+    stop: &StopRequest,
     realtime: Option<&dyn Fn() -> RealtimeStatus>,
     progress: &mut dyn FnMut(DemoProgress),
 ) -> Result<DemoReport, TestbedError> {
@@ -860,9 +881,7 @@ fn run_robot<P: Injector>(
         pacing,
     };
     let mut robot = Robot::new(io, config, plan.settings())?;
-    if let Some(stop) = &options.stop {
-        robot.set_stop_request(stop.clone());
-    }
+    robot.set_stop_request(stop.clone());
     let done = run_program(robot, &plan, port_name, rt, wall, progress)?;
     Ok(done.report)
 }

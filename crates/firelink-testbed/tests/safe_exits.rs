@@ -22,7 +22,7 @@ use firelink_host::scan::ScanReport;
 use firelink_host::stop::{StopReason, StopRequest};
 use firelink_host::udp::UdpPort;
 use firelink_testbed::TestbedError;
-use firelink_testbed::demo::{DemoOptions, DemoPort, DemoProgress, run_demo};
+use firelink_testbed::demo::{DemoOptions, DemoPort, DemoProgress, run_demo_until};
 use firelink_testbed::rig::{self, Emulator};
 
 /// The bench robot: one QLA board, four gentle axes.
@@ -208,11 +208,10 @@ fn a_stop_request_during_bring_up_ends_the_demo_powered_down() {
         duration_s: 60.0,
         port: DemoPort::Udp(emu.addr),
         watchdog: WatchdogSetting::from_ms(300.0).expect("300 ms"),
-        stop: Some(stop),
         ..DemoOptions::default()
     };
     // As SIGTERM would, the moment power is on (homing comes next).
-    let err = run_demo(&options, None, |event| {
+    let err = run_demo_until(&options, &stop, None, |event| {
         if matches!(event, DemoProgress::Powered(_)) {
             asks.request();
         }
