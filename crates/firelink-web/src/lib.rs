@@ -124,7 +124,18 @@ pub async fn start(options: &WebOptions) -> Result<(Running, tokio::net::TcpList
     let listener = tokio::net::TcpListener::bind(options.listen).await?;
     let addr = listener.local_addr()?;
     let token = token()?;
-    let url = format!("http://{addr}/?token={token}");
+    // Listening on every address: the URL names this machine's loopback
+    // one (a browser elsewhere uses an address of this machine instead).
+    let shown = match addr.ip() {
+        std::net::IpAddr::V4(ip) if ip.is_unspecified() => {
+            SocketAddr::from((std::net::Ipv4Addr::LOCALHOST, addr.port()))
+        }
+        std::net::IpAddr::V6(ip) if ip.is_unspecified() => {
+            SocketAddr::from((std::net::Ipv6Addr::LOCALHOST, addr.port()))
+        }
+        _ => addr,
+    };
+    let url = format!("http://{shown}/?token={token}");
     Ok((
         Running {
             addr,

@@ -62,6 +62,11 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
              and has the token can switch motor power on and move the robot",
             args.listen
         );
+        eprintln!(
+            "firelink web: from another machine, open the printed URL with this machine's \
+             address in it; to open it by a name, add --allow-origin http://NAME:{}",
+            args.listen.port()
+        );
     }
     // SIGINT, SIGTERM and SIGHUP ask the robot loop to power down and end
     // (it watches the process's stop request); a second one ends the

@@ -167,8 +167,9 @@ fn split_host(host: &str) -> Option<(&str, u16)> {
 
 /// Whether `host` (a request's `Host` header) names this server as the
 /// client reached it at `local`: the same port, and the same address, or
-/// on loopback any loopback address or `localhost`. Names that resolve to
-/// this machine are not known here (give them with `--allow-origin`).
+/// on loopback any loopback address, `0.0.0.0` or `localhost`. Names that
+/// resolve to this machine are not known here (give them with
+/// `--allow-origin`).
 pub fn host_is_own(host: &str, local: SocketAddr) -> bool {
     let Some((name, port)) = split_host(host) else {
         return false;
@@ -183,7 +184,9 @@ pub fn host_is_own(host: &str, local: SocketAddr) -> bool {
     match name.parse::<IpAddr>() {
         Ok(ip) => {
             let ip = ip.to_canonical();
-            ip == here || (ip.is_loopback() && here.is_loopback())
+            // (0.0.0.0 in a URL reaches this machine over loopback.)
+            let local_alias = ip.is_loopback() || ip.is_unspecified();
+            ip == here || (local_alias && here.is_loopback())
         }
         Err(_) => false,
     }
