@@ -53,7 +53,8 @@ pub struct EmulateArgs {
     /// Seed of the measurement noise and the fault injector.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Address to listen on (loopback unless you ask otherwise).
+    /// Address to listen on (loopback unless you ask otherwise: any other
+    /// address prints a warning).
     #[arg(long, default_value = "127.0.0.1:1394")]
     pub listen: SocketAddr,
     /// Do not also listen on the loopback broadcast address.
@@ -218,6 +219,14 @@ fn assemble(
 
 /// `firelink emulate`.
 pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
+    if !args.listen.ip().is_loopback() {
+        eprintln!(
+            "firelink emulate: WARNING: listening on udp {}, not loopback: anyone who can \
+             reach it can switch the emulated boards' motor power on and move their motors \
+             (the boards' protocol has no token)",
+            args.listen
+        );
+    }
     let (mut bridge, ids, boards) = build_bridge(args)?;
     let config = ServeConfig {
         listen: args.listen,

@@ -9,6 +9,7 @@ use clap::Parser;
 
 use firelink_control::config::{IoConfig, presets};
 use firelink_host::WatchdogSetting;
+use firelink_host::stop::install_signal_handlers;
 use firelink_ros2::{NodeSettings, domain_from_env, run_node, run_without_dds};
 use firelink_testbed::demo::DemoPort;
 use firelink_testbed::service::Service;
@@ -37,7 +38,7 @@ struct Args {
     /// `off` (with a warning).
     #[arg(long = "watchdog-ms", default_value = "20", value_parser = watchdog)]
     watchdog_ms: WatchdogSetting,
-    /// Stop after this many seconds (default: at Ctrl-C or SIGTERM).
+    /// Stop after this many seconds (default: at Ctrl-C, SIGTERM or SIGHUP).
     #[arg(long)]
     seconds: Option<f64>,
     /// Run the robot without DDS for `--seconds` and report its compute
@@ -75,16 +76,35 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
         None => presets::dvrk_seed000(),
     };
     let port: DemoPort = args.port.parse()?;
-    let service = Service::start(&port, config.clone(), args.rate, args.watchdog_ms)?;
+    // SIGINT, SIGTERM and SIGHUP: the robot loop powers down and ends (it
+    // watches the process's stop request), and so does the node (its own
+    // flag, set by the same signals); a second signal ends the process at
+    // once (the boards' watchdogs then turn the amplifiers off).
+    let stop_request = install_signal_handlers()?;
     let stop = Arc::new(AtomicBool::new(false));
-    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+    for signal in [
+        signal_hook::consts::SIGINT,
+        signal_hook::consts::SIGTERM,
+        signal_hook::consts::SIGHUP,
+    ] {
         signal_hook::flag::register(signal, Arc::clone(&stop))?;
     }
+    let service = Service::start(&port, config.clone(), args.rate, args.watchdog_ms)?;
     let report = if args.no_dds {
         let d = duration.ok_or("--no-dds needs --seconds")?;
         run_without_dds(&service, d)
     } else {
         let domain = args.domain.unwrap_or_else(domain_from_env);
+        let base = 7400 + 250 * u32::from(domain);
+        eprintln!(
+            "firelink ros2: WARNING: DDS is not restricted to loopback: RustDDS listens on \
+             UDP 0.0.0.0 (every interface) and joins multicast 239.255.0.1, and does not read \
+             ROS_LOCALHOST_ONLY: anyone who can reach this machine in DDS domain {domain} can \
+             switch motor power on and move the robot (DDS has no token); to keep it on this \
+             machine, run it in a network namespace that has only loopback, or firewall UDP \
+             ports {base}-{}",
+            base + 249
+        );
         eprintln!(
             "firelink ros2: node /firelink on domain {domain}, arms {}",
             config
@@ -108,7 +128,14 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
         )?
     };
     stop.store(true, Ordering::Relaxed);
-    service.stop();
+    if let Some(reason) = stop_request.reason() {
+        eprintln!("firelink ros2: stopping: {reason}");
+    }
+    let exit = service.stop();
+    eprintln!("firelink ros2: stopped: {exit}");
     println!("{}", serde_json::to_string(&report)?);
+    if exit.panic.is_some() {
+        return Err("the robot loop panicked".into());
+    }
     Ok(())
 }

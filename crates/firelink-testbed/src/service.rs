@@ -9,20 +9,40 @@
 //! full; the consumer drains full frames and gives them back. Commands from
 //! the browser arrive on a third queue the loop polls once per cycle and
 //! carries out between cycles.
+//!
+//! Commands go through the robot's lifecycle: what powers anything (motor
+//! power, the relay, amplifiers) is refused, with the reason, in a state
+//! that does not allow it, and reaches only the boards and axes the
+//! robot's joints use; what turns things off is always allowed. Each
+//! command's [`CommandOutcome`] says whether it was done, refused or
+//! failed, and what it found. A command queued with an id
+//! ([`Shared::requests`]) gets an outcome with that id, so a consumer can
+//! wait for the outcome of *its* command.
+//!
+//! The loop powers the robot down on every way out: a stop
+//! ([`Service::stop`], or the process's stop request that
+//! [`firelink_host::stop::install_signal_handlers`] sets on a signal) and a
+//! panic inside the loop, which is caught, powered down after and reported
+//! in the [`LoopExit`] that [`Service::stop`] returns.
 
-use std::sync::Arc;
+use std::fmt;
+use std::panic::AssertUnwindSafe;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
 use crossbeam_queue::ArrayQueue;
 
-use firelink_control::FaultReport;
 use firelink_control::config::IoConfig;
 use firelink_control::lifecycle::State;
-use firelink_control::runner::{Pacing, Robot, RobotSettings};
+use firelink_control::runner::{Pacing, Robot, RobotSettings, RunnerError};
 use firelink_control::trajectory::{Motion, PointToPoint, ServoPoint};
+use firelink_control::{BoardSet, FaultReport};
+use firelink_host::PowerDown;
 use firelink_host::WatchdogSetting;
 use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::robot_io::board_list;
+use firelink_host::stop::StopReason;
 use std::thread::JoinHandle;
 
 use firelink_board::config::Profile;
@@ -178,20 +198,27 @@ impl Frame {
 pub enum Command {
     /// Unconfigured -> Configured (boards found, watchdogs set).
     Configure,
-    /// Power, relay and amplifiers on.
+    /// Motor power and relay on the robot's boards, then the amplifiers
+    /// its joints use (from Configured only).
     PowerOn,
-    /// Home every joint against its potentiometer.
+    /// Home every joint against its potentiometer (from Configured only:
+    /// homing while Active would move every setpoint).
     Home,
     /// Configured -> Active, then the demo's motions on every joint.
     Enable,
-    /// Active -> Configured, then amplifiers, power and relay off.
+    /// Active -> Configured, then amplifiers, power and relay off (always
+    /// allowed).
     Disable,
     /// Acknowledge a fault (-> Unconfigured).
     ClearFault,
-    /// Request the safety relay of every board (outside the lifecycle).
+    /// The safety relay: on only where power-on is allowed (Configured or
+    /// Active) and only on the robot's boards; off on every board, always
+    /// allowed.
     Relay(bool),
-    /// Request every amplifier on or off (outside the lifecycle: turning
-    /// them off while Active is a fault, as on a real robot).
+    /// The amplifiers: on only from Configured with motor power on every
+    /// robot board, or Active, and only those of the axes the joints use;
+    /// off on every axis of every board, always allowed (while Active that
+    /// is a fault, as on a real robot).
     Amplifiers(bool),
     /// Set every board's watchdog (off only by name).
     Watchdog(WatchdogSetting),
@@ -235,13 +262,124 @@ pub const MAX_ARM_JOINTS: usize = 16;
 /// joint holds (a stream that stops leaves the joint still), seconds.
 pub const SERVO_HORIZON: f64 = 0.05;
 
-/// What happened to the last command.
+impl fmt::Display for Command {
+    /// A short name for reports: `configure`, `amplifiers on`, ...
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let on_off = |on: bool| if on { "on" } else { "off" };
+        match self {
+            Command::Configure => f.write_str("configure"),
+            Command::PowerOn => f.write_str("power on"),
+            Command::Home => f.write_str("home"),
+            Command::Enable => f.write_str("enable"),
+            Command::Disable => f.write_str("disable"),
+            Command::ClearFault => f.write_str("clear fault"),
+            Command::Relay(on) => write!(f, "relay {}", on_off(*on)),
+            Command::Amplifiers(on) => write!(f, "amplifiers {}", on_off(*on)),
+            Command::Watchdog(w) => match w.period() {
+                Some(p) => write!(f, "watchdog {:.3} ms", p.as_secs_f64() * 1e3),
+                None => f.write_str("watchdog off"),
+            },
+            Command::Activate => f.write_str("activate"),
+            Command::Inject(fault) => write!(f, "inject {fault}"),
+            Command::ServoJoints { .. } => f.write_str("servo_jp"),
+            Command::MoveJoints { .. } => f.write_str("move_jp"),
+        }
+    }
+}
+
+/// A command queued with the id its outcome will carry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Request {
+    /// From [`Shared::new_id`]; never 0.
+    pub id: u64,
+    /// What to do.
+    pub command: Command,
+}
+
+/// How a command ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Verdict {
+    /// Done.
+    Ok,
+    /// Refused: the robot's state does not allow it (or its arguments are
+    /// wrong); nothing was changed.
+    Refused,
+    /// Tried and not done (a time-out, a fault or a port error on the
+    /// way): the frames show where the robot is.
+    Failed,
+}
+
+impl fmt::Display for Verdict {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Verdict::Ok => "ok",
+            Verdict::Refused => "refused",
+            Verdict::Failed => "failed",
+        })
+    }
+}
+
+/// What happened to a command.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct CommandOutcome {
-    /// The command, as text.
+    /// The id it was queued with ([`Shared::requests`]); 0 for a command
+    /// queued without one ([`Shared::commands`]).
+    pub id: u64,
+    /// The command, as text (`configure`, `amplifiers on`, ...).
     pub command: String,
-    /// `ok` or the error.
-    pub result: String,
+    /// Done, refused or failed.
+    pub result: Verdict,
+    /// What it found when done (configure: boards an earlier program left
+    /// powered; disable: what the power-down found) or why it was refused
+    /// or failed.
+    pub detail: String,
+}
+
+impl fmt::Display for CommandOutcome {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.command, self.result)?;
+        if !self.detail.is_empty() {
+            write!(f, ": {}", self.detail)?;
+        }
+        Ok(())
+    }
+}
+
+/// How the robot loop ended: [`Service::stop`] returns it; it is also in
+/// [`Shared::exit`] once the loop has ended (a panic ends it early).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LoopExit {
+    /// What the final power-down found (`None` if the power-down itself
+    /// panicked: then the I/O system's own drop powered the boards down
+    /// without reporting).
+    pub power_down: Option<PowerDown>,
+    /// The loop's panic, if it panicked.
+    pub panic: Option<String>,
+    /// The signal (or caller) whose stop request ended the loop, if one did.
+    pub stopped_by: Option<StopReason>,
+}
+
+impl LoopExit {
+    /// Whether the loop ended without a panic and every board answered the
+    /// power-down with everything off.
+    pub fn is_clean(&self) -> bool {
+        self.panic.is_none() && self.power_down.is_some_and(|p| p.all_off())
+    }
+}
+
+impl fmt::Display for LoopExit {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if let Some(p) = &self.panic {
+            write!(f, "the robot loop panicked ({p}); ")?;
+        }
+        match &self.power_down {
+            Some(p) => write!(f, "{p}"),
+            None => f.write_str(
+                "the power-down did not finish: the boards' watchdogs turn their amplifiers off",
+            ),
+        }
+    }
 }
 
 /// The queues and flags shared by the loop and the consumer.
@@ -250,10 +388,21 @@ pub struct Shared {
     pub full: ArrayQueue<Box<Frame>>,
     /// Frames the loop may fill.
     pub free: ArrayQueue<Box<Frame>>,
-    /// Commands for the loop.
+    /// Commands for the loop, without an id (a servo stream; their
+    /// outcomes carry id 0, and a servo point that is applied reports
+    /// none).
     pub commands: ArrayQueue<Command>,
-    /// Outcomes of commands (the consumer reads them).
+    /// Commands for the loop whose outcome someone waits for: each carries
+    /// an id from [`new_id`](Self::new_id) and its outcome the same id.
+    /// Taken after [`commands`](Self::commands) in each cycle.
+    pub requests: ArrayQueue<Request>,
+    /// Outcomes of commands (the consumer reads them; when it does not,
+    /// the oldest are dropped).
     pub outcomes: ArrayQueue<CommandOutcome>,
+    /// The last id handed out.
+    pub last_id: AtomicU64,
+    /// How the loop ended, once it has (set once, after the power-down).
+    pub exit: OnceLock<LoopExit>,
     /// Frames skipped because none was free.
     pub skipped: AtomicU64,
     /// Commands the consumer accepted and queued.
@@ -277,6 +426,30 @@ pub struct Shared {
     /// The last applied servo command's stamp-to-applied latency, ns.
     pub servo_latency_ns: AtomicU64,
 }
+
+impl Shared {
+    /// A fresh id for a [`Request`] (never 0).
+    pub fn new_id(&self) -> u64 {
+        self.last_id.fetch_add(1, Ordering::Relaxed) + 1
+    }
+
+    /// Queue `command` with a fresh id; returns the id.
+    ///
+    /// # Errors
+    /// [`QueueFull`]: the loop is that far behind (or has ended).
+    pub fn submit(&self, command: Command) -> Result<u64, QueueFull> {
+        let id = self.new_id();
+        self.requests
+            .push(Request { id, command })
+            .map(|()| id)
+            .map_err(|_| QueueFull)
+    }
+}
+
+/// The command queue is full.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("the command queue is full")]
+pub struct QueueFull;
 
 /// Frames in the pool: a second of cycles at 1 kHz lets the consumer be late
 /// by that much without a skipped frame.
@@ -331,7 +504,10 @@ pub fn prepare<P: Injector>(
         full: ArrayQueue::new(POOL),
         free: ArrayQueue::new(POOL),
         commands: ArrayQueue::new(64),
+        requests: ArrayQueue::new(64),
         outcomes: ArrayQueue::new(64),
+        last_id: AtomicU64::new(0),
+        exit: OnceLock::new(),
         skipped: AtomicU64::new(0),
         queued: AtomicU64::new(0),
         stop: AtomicBool::new(false),
@@ -369,16 +545,105 @@ fn publish<P: firelink_host::Port>(shared: &Shared, robot: &Robot<IoSystem<P>>) 
     }
 }
 
-fn outcome(shared: &Shared, command: Command, result: Result<(), String>) {
-    // A full outcome queue drops the oldest: the browser only shows the last.
-    let entry = CommandOutcome {
-        command: format!("{command:?}"),
-        result: result.err().unwrap_or_else(|| "ok".into()),
+fn outcome(shared: &Shared, id: u64, command: Command, result: Result<String, Refusal>) {
+    let (result, detail) = match result {
+        Ok(found) => (Verdict::Ok, found),
+        Err(Refusal(verdict, why)) => (verdict, why),
     };
+    let entry = CommandOutcome {
+        id,
+        command: command.to_string(),
+        result,
+        detail,
+    };
+    // A full outcome queue drops the oldest: the consumer is not reading.
     if let Err(entry) = shared.outcomes.push(entry) {
         let _ = shared.outcomes.pop();
         let _ = shared.outcomes.push(entry);
     }
+}
+
+/// Why a command was not done: [`Verdict::Refused`] or
+/// [`Verdict::Failed`], and the reason.
+#[derive(Debug)]
+struct Refusal(Verdict, String);
+
+fn refused(why: impl Into<String>) -> Refusal {
+    Refusal(Verdict::Refused, why.into())
+}
+
+fn failed(why: impl Into<String>) -> Refusal {
+    Refusal(Verdict::Failed, why.into())
+}
+
+/// A lifecycle refusal is a refusal; the rest (time-outs, faults, port
+/// errors) are failures.
+fn runner(e: RunnerError) -> Refusal {
+    match e {
+        RunnerError::Lifecycle(l) => refused(l.to_string()),
+        RunnerError::Stopped(reason) => refused(format!("stopping: {reason}")),
+        other => failed(other.to_string()),
+    }
+}
+
+/// Why powering anything is refused in `robot`'s state, if it is:
+/// `needs` says what the command needs ("power on needs ...").
+fn power_refusal<P: Injector>(robot: &Robot<IoSystem<P>>, what: &str) -> Option<Refusal> {
+    match robot.state() {
+        State::Configured | State::Active => None,
+        State::Unconfigured => Some(refused(format!(
+            "{what} needs a configured robot: it is unconfigured (configure first)"
+        ))),
+        State::Fault => Some(refused(format!(
+            "{what} is refused in fault{}: clear the fault, configure and power on again",
+            robot.fault().map(|f| format!(" ({f})")).unwrap_or_default()
+        ))),
+    }
+}
+
+/// The boards found, as a set.
+fn all_boards<P: Injector>(robot: &Robot<IoSystem<P>>) -> BoardSet {
+    robot.io().boards().iter().map(|b| b.board_id()).collect()
+}
+
+/// Cycle (publishing every frame) until `done` says so, at most half a
+/// second of the robot's cycles; a fault on the way is latched and shown
+/// in the frames like any other.
+fn settle<P: Injector>(
+    robot: &mut Robot<IoSystem<P>>,
+    shared: &Shared,
+    options: &LoopOptions,
+    done: impl Fn(&Robot<IoSystem<P>>) -> bool,
+) -> bool {
+    let cycles = (options.rate_hz * SETTLE_SECONDS).ceil().max(10.0) as u64;
+    for _ in 0..cycles {
+        let _ = robot.step(options.pacing);
+        publish(shared, robot);
+        if done(robot) {
+            return true;
+        }
+    }
+    false
+}
+
+/// How long a relay or amplifier change may take to show, seconds of the
+/// robot's clock (the firmware's enable delay is 2.5 ms).
+const SETTLE_SECONDS: f64 = 0.5;
+
+/// Boards of `set` that answered the last latch with `state` wrong, as a
+/// mask (the ones that did not answer included).
+fn boards_not<P: Injector>(
+    robot: &Robot<IoSystem<P>>,
+    set: BoardSet,
+    ok: impl Fn(&firelink_host::board::BoardIo) -> bool,
+) -> u16 {
+    robot
+        .io()
+        .boards()
+        .iter()
+        .filter(|b| set.contains(b.board_id()))
+        .filter(|b| !(b.is_valid() && ok(b)))
+        .fold(0, |m, b| m | 1 << (b.board_id() & 0xF))
 }
 
 fn execute<P: Injector>(
@@ -386,47 +651,145 @@ fn execute<P: Injector>(
     shared: &Shared,
     command: Command,
     options: &LoopOptions,
-) -> Result<(), String> {
-    let text = |e: &dyn std::fmt::Display| e.to_string();
+) -> Result<String, Refusal> {
+    let robot_boards = options.config.board_set();
     match command {
         Command::Configure => {
+            let left = robot.configure().map_err(runner)?;
             shared.homed.store(false, Ordering::Relaxed);
-            robot.configure().map(|_| ()).map_err(|e| text(&e))
+            Ok(left.to_string())
         }
-        Command::PowerOn => robot
-            .power_on_observed(&mut |r| publish(shared, r))
-            .map_err(|e| text(&e)),
+        Command::PowerOn => {
+            if robot.state() != State::Configured {
+                return Err(refused(format!(
+                    "power on needs a configured robot: it is {}",
+                    robot.state()
+                )));
+            }
+            robot
+                .power_on_observed(&mut |r| publish(shared, r))
+                .map_err(runner)?;
+            Ok(format!(
+                "motor power, relay and the joints' amplifiers on at boards {}",
+                board_list(robot_boards.0)
+            ))
+        }
         Command::Home => {
-            robot.home().map_err(|e| text(&e))?;
+            match robot.state() {
+                State::Configured => {}
+                State::Active => {
+                    return Err(refused(
+                        "home while active would move every setpoint: disable first",
+                    ));
+                }
+                state => {
+                    return Err(refused(format!(
+                        "home needs a configured robot: it is {state}"
+                    )));
+                }
+            }
+            robot.home().map_err(runner)?;
             shared.homed.store(true, Ordering::Relaxed);
-            Ok(())
+            Ok(String::new())
         }
         Command::Enable => {
-            robot.activate().map_err(|e| text(&e))?;
+            robot.activate().map_err(runner)?;
             for i in 0..robot.joint_count() {
                 let here = robot.position(i).unwrap_or(0.0);
                 robot
                     .set_motion(i, motion_for(&options.config, i, here))
-                    .map_err(|e| text(&e))?;
+                    .map_err(runner)?;
             }
-            Ok(())
+            Ok(String::new())
         }
-        Command::Activate => robot.activate().map_err(|e| text(&e)),
-        Command::Disable => robot.shutdown().map(|_| ()).map_err(|e| text(&e)),
-        Command::ClearFault => robot.clear_fault().map(|_| ()).map_err(|e| text(&e)),
-        Command::Relay(on) => {
+        Command::Activate => robot.activate().map(|()| String::new()).map_err(runner),
+        Command::Disable => robot.shutdown().map(|p| p.to_string()).map_err(runner),
+        Command::ClearFault => robot
+            .clear_fault()
+            .map(|r| format!("cleared: {r}"))
+            .map_err(runner),
+        Command::Relay(true) => {
+            if let Some(r) = power_refusal(robot, "relay on") {
+                return Err(r);
+            }
             for b in robot.io_mut().boards_mut() {
-                b.set_relay(on);
+                if robot_boards.contains(b.board_id()) {
+                    b.set_relay(true);
+                }
             }
-            Ok(())
+            let closed = |r: &Robot<IoSystem<P>>| {
+                boards_not(r, robot_boards, firelink_host::board::BoardIo::relay_on) == 0
+            };
+            if !settle(robot, shared, options, closed) {
+                let open = boards_not(robot, robot_boards, firelink_host::board::BoardIo::relay_on);
+                return Err(failed(format!(
+                    "the relay of boards {} did not report closed",
+                    board_list(open)
+                )));
+            }
+            Ok(format!(
+                "relay closed at boards {}",
+                board_list(robot_boards.0)
+            ))
         }
-        Command::Amplifiers(on) => {
+        Command::Relay(false) => {
             for b in robot.io_mut().boards_mut() {
-                b.set_all_amps(on);
+                b.set_relay(false);
             }
-            Ok(())
+            let all = all_boards(robot);
+            let open = |r: &Robot<IoSystem<P>>| boards_not(r, all, |b| !b.relay_on()) == 0;
+            if !settle(robot, shared, options, open) {
+                let closed = boards_not(robot, all, |b| !b.relay_on());
+                return Err(failed(format!(
+                    "boards {} did not report their relay open (or did not answer)",
+                    board_list(closed)
+                )));
+            }
+            Ok(format!("relay open at boards {}", board_list(all.0)))
         }
-        Command::Watchdog(period) => robot.io_mut().set_watchdog(period).map_err(|e| text(&e)),
+        Command::Amplifiers(true) => {
+            if let Some(r) = power_refusal(robot, "amplifiers on") {
+                return Err(r);
+            }
+            robot
+                .enable_amplifiers_observed(&mut |r| publish(shared, r))
+                .map_err(|e| match runner(e) {
+                    Refusal(Verdict::Refused, why) => refused(format!(
+                        "amplifiers on needs motor power (power on first): {why}"
+                    )),
+                    other => other,
+                })?;
+            Ok(format!(
+                "amplifiers on for the {} axes the joints use, at boards {}; the other axes stay off",
+                robot.joint_count(),
+                board_list(robot_boards.0)
+            ))
+        }
+        Command::Amplifiers(false) => {
+            for b in robot.io_mut().boards_mut() {
+                b.set_all_amps(false);
+            }
+            let all = all_boards(robot);
+            let any_on =
+                |b: &firelink_host::board::BoardIo| (0..b.axes()).any(|a| b.amp_enabled(a));
+            let off = |r: &Robot<IoSystem<P>>| boards_not(r, all, |b| !any_on(b)) == 0;
+            if !settle(robot, shared, options, off) {
+                let on = boards_not(robot, all, |b| !any_on(b));
+                return Err(failed(format!(
+                    "boards {} still report an amplifier on (or did not answer)",
+                    board_list(on)
+                )));
+            }
+            Ok(format!(
+                "every amplifier off at boards {}",
+                board_list(all.0)
+            ))
+        }
+        Command::Watchdog(period) => robot
+            .io_mut()
+            .set_watchdog(period)
+            .map(|()| String::new())
+            .map_err(|e| failed(e.to_string())),
         Command::ServoJoints {
             first,
             count,
@@ -441,10 +804,9 @@ fn execute<P: Injector>(
                     .copied()
                     .filter(|v| v.is_finite())
                     .unwrap_or(0.0);
-                let point = ServoPoint::new(p, v, SERVO_HORIZON).map_err(|e| text(&e))?;
-                robot
-                    .set_motion(k, Motion::Servo(point))
-                    .map_err(|e| text(&e))?;
+                let point =
+                    ServoPoint::new(p, v, SERVO_HORIZON).map_err(|e| refused(e.to_string()))?;
+                robot.set_motion(k, Motion::Servo(point)).map_err(runner)?;
             }
             // Applied: the next write block carries it.
             if stamp_ns > 0 {
@@ -456,7 +818,8 @@ fn execute<P: Injector>(
                     .store(now.saturating_sub(stamp_ns), Ordering::Relaxed);
             }
             shared.servo_applied.fetch_add(1, Ordering::Relaxed);
-            Ok(())
+            // (An empty String does not allocate.)
+            Ok(String::new())
         }
         Command::MoveJoints {
             first,
@@ -474,14 +837,15 @@ fn execute<P: Injector>(
                     .nth(k)
                     .and_then(|j| j.actuator.limits)
                     .map_or((0.5, 2.0), |l| (l.velocity, l.acceleration.unwrap_or(2.0)));
-                let p2p = PointToPoint::new(here, goal, v, a).map_err(|e| text(&e))?;
+                let p2p =
+                    PointToPoint::new(here, goal, v, a).map_err(|e| refused(e.to_string()))?;
                 ends = ends.max(robot.now() + p2p.duration());
                 robot
                     .set_motion(k, Motion::PointToPoint(p2p))
-                    .map_err(|e| text(&e))?;
+                    .map_err(runner)?;
             }
             shared.move_ends.store(ends.to_bits(), Ordering::Relaxed);
-            Ok(())
+            Ok(String::new())
         }
         Command::Inject(fault) => {
             let watchdog = options.watchdog.period_or_zero();
@@ -489,11 +853,11 @@ fn execute<P: Injector>(
                 .io_mut()
                 .port_mut()
                 .inject(fault, watchdog)
-                .map_err(|e| text(&e))?;
+                .map_err(|e| refused(e.to_string()))?;
             if fault == DemoFault::FollowingError {
-                robot.step_setpoint(0, 0.5).map_err(|e| text(&e))?;
+                robot.step_setpoint(0, 0.5).map_err(runner)?;
             }
-            Ok(())
+            Ok(String::new())
         }
     }
 }
@@ -502,15 +866,15 @@ fn execute<P: Injector>(
 fn ready_for_motion<P: Injector>(
     robot: &Robot<IoSystem<P>>,
     shared: &Shared,
-) -> Result<(), String> {
+) -> Result<(), Refusal> {
     if robot.state() != State::Active {
-        return Err(format!(
-            "refused: the robot is {}, not active",
+        return Err(refused(format!(
+            "motion needs an active robot: it is {}",
             robot.state()
-        ));
+        )));
     }
     if !shared.homed.load(Ordering::Relaxed) {
-        return Err("refused: not homed".into());
+        return Err(refused("motion needs homed joints: home first"));
     }
     Ok(())
 }
@@ -521,18 +885,18 @@ fn joints<'a, P: Injector>(
     first: u16,
     count: u8,
     positions: &'a [f64; MAX_ARM_JOINTS],
-) -> Result<impl Iterator<Item = (usize, &'a f64)> + 'a, String> {
+) -> Result<impl Iterator<Item = (usize, &'a f64)> + 'a, Refusal> {
     let first = usize::from(first);
     let count = usize::from(count);
     if count > MAX_ARM_JOINTS || first + count > robot.joint_count() {
-        return Err(format!(
+        return Err(refused(format!(
             "joints {first}..{} do not exist ({} joints)",
             first + count,
             robot.joint_count()
-        ));
+        )));
     }
     if let Some(p) = positions[..count].iter().find(|p| !p.is_finite()) {
-        return Err(format!("position {p} is not a number"));
+        return Err(refused(format!("position {p} is not a number")));
     }
     Ok(positions[..count]
         .iter()
@@ -540,13 +904,65 @@ fn joints<'a, P: Injector>(
         .map(move |(i, p)| (first + i, p)))
 }
 
-/// Run the robot until `shared.stop`; then power off. Call on the thread
-/// that owns the robot.
-pub fn run<P: Injector>(mut robot: Robot<IoSystem<P>>, shared: Arc<Shared>, options: LoopOptions) {
+/// Run the robot until `shared.stop` or the robot's stop request (by
+/// default the process's: a signal); then power down, whatever ended the
+/// loop, a panic inside it included, and record how in [`Shared::exit`].
+/// Call on the thread that owns the robot.
+pub fn run<P: Injector>(
+    mut robot: Robot<IoSystem<P>>,
+    shared: Arc<Shared>,
+    options: LoopOptions,
+) -> LoopExit {
+    let looped = std::panic::catch_unwind(AssertUnwindSafe(|| {
+        cycle_until_stopped(&mut robot, &shared, &options);
+    }));
+    let panic = looped.err().map(|p| panic_text(p.as_ref()));
+    let stopped_by = robot.stop_request().reason();
+    // The power-down rule needs only the I/O system, so it runs after a
+    // panic too. (Should it panic itself, this thread unwinds, the I/O
+    // system's drop runs the rule once more, and `Service::stop` reports
+    // the panic.)
+    let power_down = robot.shutdown().ok();
+    publish(&shared, &robot);
+    let exit = LoopExit {
+        power_down,
+        panic,
+        stopped_by,
+    };
+    let _ = shared.exit.set(exit.clone());
+    // Whoever waits for a command still queued is told it never ran.
+    let why = format!("not run: the robot loop has ended ({exit})");
+    while let Some(command) = shared.commands.pop() {
+        outcome(&shared, 0, command, Err(refused(why.clone())));
+    }
+    while let Some(Request { id, command }) = shared.requests.pop() {
+        outcome(&shared, id, command, Err(refused(why.clone())));
+    }
+    exit
+}
+
+/// A panic's message.
+fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| (*s).to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "a panic without a message".into())
+}
+
+/// The loop proper: commands between cycles, a frame after each.
+fn cycle_until_stopped<P: Injector>(
+    robot: &mut Robot<IoSystem<P>>,
+    shared: &Shared,
+    options: &LoopOptions,
+) {
     let period = Duration::from_secs_f64(1.0 / options.rate_hz);
     let wall_start = Instant::now();
     let port_start = robot.now();
-    while !shared.stop.load(Ordering::Relaxed) {
+    // (The stop request is the process's unless the robot was given
+    // another: a signal stops the loop at once, whatever its consumer
+    // does.)
+    while !shared.stop.load(Ordering::Relaxed) && !robot.stop_request().is_requested() {
         // Every command waiting is taken before the cycle (at most what the
         // queue holds, so a cycle's work stays bounded): a servo stream
         // faster than this loop (a slow machine, a debug build) then never
@@ -555,17 +971,24 @@ pub fn run<P: Injector>(mut robot: Robot<IoSystem<P>>, shared: Arc<Shared>, opti
             let Some(command) = shared.commands.pop() else {
                 break;
             };
-            let r = execute(&mut robot, &shared, command, &options);
+            let r = execute(robot, shared, command, options);
             // Servo commands stream at the publisher's rate: only their
             // refusals are reported (the success path allocates nothing).
             if r.is_err() || !matches!(command, Command::ServoJoints { .. }) {
-                outcome(&shared, command, r);
+                outcome(shared, 0, command, r);
             }
+        }
+        for _ in 0..shared.requests.capacity() {
+            let Some(Request { id, command }) = shared.requests.pop() else {
+                break;
+            };
+            let r = execute(robot, shared, command, options);
+            outcome(shared, id, command, r);
         }
         // A fault is latched in the robot and shown in the frames; the
         // loop keeps cycling (outputs safe) until it is cleared.
         let _ = robot.step(options.pacing);
-        publish(&shared, &robot);
+        publish(shared, robot);
         if options.pacing == Pacing::Virtual {
             // Keep virtual time in step with the wall clock so the browser
             // sees the robot move at its real speed.
@@ -575,8 +998,6 @@ pub fn run<P: Injector>(mut robot: Robot<IoSystem<P>>, shared: Arc<Shared>, opti
             }
         }
     }
-    let _ = robot.shutdown();
-    publish(&shared, &robot);
 }
 
 /// A robot service running in its own thread.
@@ -585,8 +1006,17 @@ pub struct Service {
     pub shared: Arc<Shared>,
     /// The faults this port can inject.
     pub faults: Vec<DemoFault>,
-    thread: Option<JoinHandle<()>>,
+    thread: Option<JoinHandle<LoopExit>>,
     emulator: Option<rig::Emulator>,
+}
+
+fn check_rate(rate_hz: f64) -> Result<(), crate::TestbedError> {
+    if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 20_000.0) {
+        return Err(crate::TestbedError::Config(format!(
+            "rate {rate_hz} Hz: must be 0 < rate <= 20000"
+        )));
+    }
+    Ok(())
 }
 
 impl Service {
@@ -602,11 +1032,7 @@ impl Service {
         rate_hz: f64,
         watchdog: WatchdogSetting,
     ) -> Result<Service, crate::TestbedError> {
-        if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 20_000.0) {
-            return Err(crate::TestbedError::Config(format!(
-                "rate {rate_hz} Hz: must be 0 < rate <= 20000"
-            )));
-        }
+        check_rate(rate_hz)?;
         let boards = config.board_slots();
         let options = |pacing| LoopOptions {
             config: config.clone(),
@@ -648,25 +1074,71 @@ impl Service {
         })
     }
 
-    /// Stop the loop (it powers the robot off first) and the emulator.
-    pub fn stop(mut self) {
-        self.shutdown();
+    /// The robot of `options` on a port of the caller's (a test's port
+    /// that misbehaves on purpose, say): the same loop as
+    /// [`start`](Self::start); no fault is offered for injection
+    /// ([`faults`](Self::faults) is empty).
+    ///
+    /// # Errors
+    /// A bad rate, a failed scan or configuration, the thread.
+    pub fn on_port<P: Injector + Send + 'static>(
+        port: P,
+        name: String,
+        options: LoopOptions,
+    ) -> Result<Service, crate::TestbedError> {
+        check_rate(options.rate_hz)?;
+        let (shared, thread) = spawn(port, name, options)?;
+        Ok(Service {
+            shared,
+            faults: Vec::new(),
+            thread: Some(thread),
+            emulator: None,
+        })
     }
 
-    fn shutdown(&mut self) {
+    /// Stop the loop (it powers the robot down first) and the emulator;
+    /// returns how the loop ended and what the power-down found.
+    pub fn stop(mut self) -> LoopExit {
+        self.shutdown()
+    }
+
+    fn shutdown(&mut self) -> LoopExit {
         self.shared.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
+        let exit = match self.thread.take() {
+            Some(t) => match t.join() {
+                Ok(exit) => exit,
+                // The power-down itself panicked (the loop's own panics are
+                // caught and powered down after).
+                Err(p) => LoopExit {
+                    power_down: None,
+                    panic: Some(panic_text(p.as_ref())),
+                    stopped_by: None,
+                },
+            },
+            None => self.shared.exit.get().cloned().unwrap_or(LoopExit {
+                power_down: None,
+                panic: None,
+                stopped_by: None,
+            }),
+        };
         if let Some(e) = self.emulator.take() {
             let _ = e.stop();
         }
+        exit
     }
 }
 
 impl Drop for Service {
+    /// A service dropped without [`stop`](Service::stop) still powers the
+    /// robot down; a panic of its loop is reported on stderr, since no one
+    /// else can.
     fn drop(&mut self) {
-        self.shutdown();
+        if self.thread.is_some() {
+            let exit = self.shutdown();
+            if exit.panic.is_some() {
+                eprintln!("firelink: robot service: {exit}");
+            }
+        }
     }
 }
 
@@ -674,7 +1146,7 @@ fn spawn<P: Injector + Send + 'static>(
     port: P,
     name: String,
     options: LoopOptions,
-) -> Result<(Arc<Shared>, JoinHandle<()>), crate::TestbedError> {
+) -> Result<(Arc<Shared>, JoinHandle<LoopExit>), crate::TestbedError> {
     let (robot, shared) = prepare(port, name, &options)?;
     let loop_shared = Arc::clone(&shared);
     let handle = std::thread::Builder::new()

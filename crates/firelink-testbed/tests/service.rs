@@ -1,32 +1,73 @@
 //! The robot service: frames flow without waiting for anyone, commands run
-//! between cycles, motion is refused until the robot is active and homed.
+//! between cycles and go through the lifecycle (what powers anything is
+//! refused, with its reason, where the state does not allow it, and reaches
+//! only the axes the joints use), each outcome carries its command's id,
+//! and the loop powers down on every way out, a panic included.
+//!
+//! Nothing here is timed: waits are bounded only to end a hung test.
 
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use firelink_control::config::presets;
+use firelink_board::config::Profile;
+use firelink_control::config::{IoConfig, presets};
 use firelink_control::lifecycle::State;
-use firelink_testbed::demo::DemoPort;
-use firelink_testbed::service::{Command, CommandOutcome, MAX_ARM_JOINTS, Service, Shared};
+use firelink_control::runner::Pacing;
+use firelink_host::sim::SimPort;
+use firelink_host::{Dest, Port};
+use firelink_testbed::TestbedError;
+use firelink_testbed::demo::{DemoFault, DemoPort, Injector};
+use firelink_testbed::rig;
+use firelink_testbed::service::{
+    Command, CommandOutcome, Frame, LoopOptions, MAX_ARM_JOINTS, Service, Shared, Verdict,
+};
 
-/// Wait (bounded, generously) for the outcome of the next command.
-fn outcome(shared: &Shared) -> CommandOutcome {
+/// Bounded only so that a broken build fails instead of hanging.
+const HANG: Duration = Duration::from_secs(300);
+
+/// Queue `c` with an id and wait for the outcome with that id (others,
+/// and frames, are dropped on the way).
+fn run(shared: &Shared, c: Command) -> CommandOutcome {
+    let id = shared.submit(c).unwrap();
     let start = Instant::now();
     loop {
         while let Some(f) = shared.full.pop() {
             let _ = shared.free.push(f);
         }
-        if let Some(o) = shared.outcomes.pop() {
-            return o;
+        while let Some(o) = shared.outcomes.pop() {
+            if o.id == id {
+                assert_eq!(o.command, c.to_string());
+                return o;
+            }
         }
-        assert!(start.elapsed() < Duration::from_secs(120), "no outcome");
+        assert!(start.elapsed() < HANG, "no outcome for {c}");
         std::thread::sleep(Duration::from_millis(2));
     }
 }
 
-fn run(shared: &Shared, c: Command) -> CommandOutcome {
-    shared.commands.push(c).unwrap();
-    outcome(shared)
+/// The next frame the loop publishes from now on (frames queued before are
+/// dropped).
+fn next_frame(shared: &Shared) -> Box<Frame> {
+    while let Some(f) = shared.full.pop() {
+        let _ = shared.free.push(f);
+    }
+    let start = Instant::now();
+    loop {
+        if let Some(f) = shared.full.pop() {
+            return f;
+        }
+        assert!(start.elapsed() < HANG, "no frame");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+fn ok(o: &CommandOutcome) {
+    assert_eq!(o.result, Verdict::Ok, "{o}");
+}
+
+fn refused(o: &CommandOutcome, why: &str) {
+    assert_eq!(o.result, Verdict::Refused, "{o}");
+    assert!(o.detail.contains(why), "{o}: expected {why:?}");
 }
 
 /// A servo point for joints `first..first + count`: all at 0, at rest.
@@ -51,41 +92,253 @@ fn commands_drive_the_lifecycle_and_motion_waits_for_homing() {
     .unwrap();
     let shared = &service.shared;
     let servo = servo_at_zero(0, 1);
-    assert!(run(shared, servo).result.contains("not active"));
-    assert_eq!(run(shared, Command::Configure).result, "ok");
-    assert_eq!(run(shared, Command::PowerOn).result, "ok");
-    assert_eq!(run(shared, Command::Activate).result, "ok");
-    assert!(run(shared, servo).result.contains("not homed"));
-    assert_eq!(run(shared, Command::Disable).result, "ok");
-    assert!(
-        run(shared, Command::Configure)
-            .result
-            .contains("cannot configure from state configured")
+    refused(&run(shared, servo), "needs an active robot");
+    let configured = run(shared, Command::Configure);
+    ok(&configured);
+    assert_eq!(configured.detail, "boards found powered off");
+    ok(&run(shared, Command::PowerOn));
+    ok(&run(shared, Command::Activate));
+    refused(&run(shared, servo), "home first");
+    refused(&run(shared, Command::Home), "disable first");
+    let disabled = run(shared, Command::Disable);
+    ok(&disabled);
+    assert_eq!(
+        disabled.detail,
+        "amplifiers and motor power off on boards 0"
     );
-    assert_eq!(run(shared, Command::PowerOn).result, "ok");
-    assert_eq!(run(shared, Command::Home).result, "ok");
-    assert_eq!(run(shared, Command::Activate).result, "ok");
+    refused(
+        &run(shared, Command::Configure),
+        "cannot configure from state configured",
+    );
+    ok(&run(shared, Command::PowerOn));
+    ok(&run(shared, Command::Home));
+    ok(&run(shared, Command::Activate));
     // A successful servo point reports no outcome (its path allocates
     // nothing); it is counted as applied.
     shared.commands.push(servo).unwrap();
     let start = Instant::now();
     while shared.servo_applied.load(Ordering::Relaxed) == 0 {
-        assert!(start.elapsed() < Duration::from_secs(120));
+        assert!(start.elapsed() < HANG);
         std::thread::sleep(Duration::from_millis(2));
     }
-    let bad = servo_at_zero(3, 4);
-    assert!(run(shared, bad).result.contains("do not exist"));
+    refused(&run(shared, servo_at_zero(3, 4)), "do not exist");
     // Frames keep coming and say Active.
+    assert_eq!(next_frame(shared).state, State::Active);
+    let exit = service.stop();
+    assert!(exit.is_clean(), "{exit}");
+    assert_eq!(
+        exit.to_string(),
+        "amplifiers and motor power off on boards 0"
+    );
+}
+
+/// Every amplifier of every board, as a frame shows them: (on, of).
+fn amps_on(frame: &Frame) -> Vec<(u8, u8)> {
+    frame
+        .axes
+        .iter()
+        .filter(|a| a.amp)
+        .map(|a| (a.board, a.axis))
+        .collect()
+}
+
+/// (board ID, axis) of every joint of `config`.
+fn used_axes(config: &IoConfig) -> Vec<(u8, u8)> {
+    let mut used: Vec<(u8, u8)> = config
+        .joints()
+        .map(|j| (j.actuator.board_id, j.actuator.axis_id))
+        .collect();
+    used.sort_unstable();
+    used
+}
+
+#[test]
+fn power_commands_follow_the_lifecycle_and_reach_only_the_used_axes() {
+    // Seed 000's dVRK: 8 boards of 4 axes, 28 joints; 4 axes unused.
+    let config = presets::dvrk_seed000();
+    let used = used_axes(&config);
+    assert_eq!(used.len(), 28);
+    let service = Service::start(
+        &DemoPort::Sim,
+        config,
+        1000.0,
+        firelink_host::WatchdogSetting::default(),
+    )
+    .unwrap();
+    let shared = &service.shared;
+
+    // Unconfigured: nothing may be switched on; off is always allowed.
+    refused(&run(shared, Command::Amplifiers(true)), "unconfigured");
+    refused(&run(shared, Command::Relay(true)), "unconfigured");
+    refused(&run(shared, Command::PowerOn), "unconfigured");
+    ok(&run(shared, Command::Amplifiers(false)));
+    ok(&run(shared, Command::Relay(false)));
+    let frame = next_frame(shared);
+    assert!(amps_on(&frame).is_empty(), "{:?}", amps_on(&frame));
+    assert!(frame.boards.iter().all(|b| !b.power && !b.relay));
+    let _ = shared.free.push(frame);
+
+    // Configured, no power yet: amplifiers need power; the relay may close.
+    ok(&run(shared, Command::Configure));
+    refused(&run(shared, Command::Amplifiers(true)), "no motor power");
+    ok(&run(shared, Command::Relay(true)));
+    assert!(next_frame(shared).boards.iter().all(|b| b.relay));
+
+    // Powered, amplifiers off, then on again: only the joints' axes.
+    ok(&run(shared, Command::PowerOn));
+    ok(&run(shared, Command::Amplifiers(false)));
+    let frame = next_frame(shared);
+    assert_eq!(frame.state, State::Configured);
+    assert!(frame.boards.iter().all(|b| b.power));
+    assert!(amps_on(&frame).is_empty(), "{:?}", amps_on(&frame));
+    let on = run(shared, Command::Amplifiers(true));
+    ok(&on);
+    assert!(on.detail.contains("the 28 axes the joints use"), "{on}");
+    let mut shown = amps_on(&next_frame(shared));
+    shown.sort_unstable();
+    assert_eq!(shown, used);
+
+    // Fault (a host that stops writing: the watchdogs expire): refused,
+    // with the fault named; off still allowed.
+    ok(&run(shared, Command::Inject(DemoFault::StopHost)));
     let start = Instant::now();
-    let state = loop {
-        if let Some(f) = shared.full.pop() {
-            let s = f.state;
-            let _ = shared.free.push(f);
-            break s;
+    while next_frame(shared).state != State::Fault {
+        assert!(start.elapsed() < HANG);
+    }
+    refused(&run(shared, Command::Amplifiers(true)), "fault");
+    refused(&run(shared, Command::Relay(true)), "fault");
+    ok(&run(shared, Command::Amplifiers(false)));
+    ok(&run(shared, Command::ClearFault));
+    // Configure says what it found on the boards.
+    let again = run(shared, Command::Configure);
+    ok(&again);
+    assert!(again.detail.contains("watchdog timed out"), "{again}");
+    let exit = service.stop();
+    assert!(exit.is_clean(), "{exit}");
+    assert_eq!(exit.panic, None);
+    assert_eq!(
+        exit.to_string(),
+        "amplifiers and motor power off on boards 0-7"
+    );
+}
+
+/// The simulated port, but injecting a fault panics: a bug inside the
+/// robot loop.
+struct PanickingPort(SimPort);
+
+impl Port for PanickingPort {
+    fn name(&self) -> &str {
+        self.0.name()
+    }
+    fn read_quadlet(&mut self, dest: Dest, offset: u64) -> firelink_host::Result<u32> {
+        self.0.read_quadlet(dest, offset)
+    }
+    fn write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> firelink_host::Result<()> {
+        self.0.write_quadlet(dest, offset, value)
+    }
+    fn read_block(&mut self, dest: Dest, offset: u64, out: &mut [u8]) -> firelink_host::Result<()> {
+        self.0.read_block(dest, offset, out)
+    }
+    fn write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> firelink_host::Result<()> {
+        self.0.write_block(dest, offset, data)
+    }
+    fn start_write_quadlet(
+        &mut self,
+        dest: Dest,
+        offset: u64,
+        value: u32,
+    ) -> firelink_host::Result<()> {
+        self.0.start_write_quadlet(dest, offset, value)
+    }
+    fn start_write_block(
+        &mut self,
+        dest: Dest,
+        offset: u64,
+        data: &[u8],
+    ) -> firelink_host::Result<()> {
+        self.0.start_write_block(dest, offset, data)
+    }
+    fn wait(&mut self, duration: Duration) {
+        self.0.wait(duration);
+    }
+    fn wait_until_heard(&mut self, limit: Duration, heard: &mut dyn FnMut(&[u8]) -> bool) -> bool {
+        self.0.wait_until_heard(limit, heard)
+    }
+    fn now(&self) -> Duration {
+        self.0.now()
+    }
+    fn now_ps(&self) -> u64 {
+        self.0.now_ps()
+    }
+    fn generation(&self) -> u32 {
+        self.0.generation()
+    }
+    fn acknowledges_writes(&self) -> bool {
+        self.0.acknowledges_writes()
+    }
+    fn link_stats(&self) -> firelink_host::transaction::LinkStats {
+        self.0.link_stats()
+    }
+    fn candidate_nodes(&self) -> core::ops::Range<u8> {
+        self.0.candidate_nodes()
+    }
+}
+
+impl Injector for PanickingPort {
+    fn inject(&mut self, _: DemoFault, _: Duration) -> Result<(), TestbedError> {
+        panic!("a bug in the robot loop");
+    }
+}
+
+#[test]
+fn a_panic_in_the_loop_powers_down_and_is_reported() {
+    let config = presets::bench_1board();
+    let boards = rig::board_configs(&config, Profile::Rev8, config.board_slots());
+    let (port, _) = rig::sim_port(boards, false).unwrap();
+    let service = Service::on_port(
+        PanickingPort(port),
+        "sim".into(),
+        LoopOptions {
+            config,
+            rate_hz: 500.0,
+            watchdog: firelink_host::WatchdogSetting::default(),
+            pacing: Pacing::Virtual,
+        },
+    )
+    .unwrap();
+    let shared = &service.shared;
+    ok(&run(shared, Command::Configure));
+    ok(&run(shared, Command::PowerOn));
+    assert!(next_frame(shared).boards.iter().all(|b| b.power));
+    // The panicking command gets no outcome of its own; the loop ends.
+    let id = shared.submit(Command::Inject(DemoFault::StopHost)).unwrap();
+    let start = Instant::now();
+    let exit = loop {
+        if let Some(exit) = shared.exit.get() {
+            break exit.clone();
         }
-        assert!(start.elapsed() < Duration::from_secs(120));
+        assert!(start.elapsed() < HANG);
         std::thread::sleep(Duration::from_millis(2));
     };
-    assert_eq!(state, State::Active);
-    service.stop();
+    assert_eq!(exit.panic.as_deref(), Some("a bug in the robot loop"));
+    assert!(exit.power_down.is_some_and(|p| p.all_off()), "{exit}");
+    assert!(
+        exit.to_string()
+            .starts_with("the robot loop panicked (a bug in the robot loop); amplifiers and motor power off on boards 0"),
+        "{exit}"
+    );
+    // The last frame shows the boards powered down.
+    let mut last = None;
+    while let Some(f) = shared.full.pop() {
+        last = Some(f);
+    }
+    assert!(last.unwrap().boards.iter().all(|b| !b.power));
+    // A command queued after the end is answered, not left waiting: the
+    // loop is gone, so nothing takes it (the consumer sees `exit`).
+    assert!(
+        shared.outcomes.pop().is_none_or(|o| o.id != id),
+        "the panicking command has no outcome"
+    );
+    let stopped = service.stop();
+    assert_eq!(stopped, exit);
 }

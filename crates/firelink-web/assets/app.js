@@ -1,25 +1,46 @@
 // Firelink console: one WebSocket for live data, fetch() for commands.
-// The token comes from this page's URL (the server prints it); every
-// request carries it, and the server also checks the Origin.
+// The token never appears here: opening the URL the server printed set an
+// HttpOnly cookie that the browser sends with every request of this page
+// (the server also checks the Origin). Each command is answered with its
+// outcome: ok, refused (HTTP 409, with the reason) or failed.
 "use strict";
 
-const token = new URLSearchParams(location.search).get("token") || "";
 const $ = (id) => document.getElementById(id);
-const live = { info: null, state: null, paused: false, frames: 0, lastFps: performance.now() };
+const live = { info: null, state: null, paused: false, frames: 0, lastFps: performance.now(), shown: { id: 0, result: null } };
 const MAX_POINTS = 30 * 1000; // 30 s at 1 kHz
 let series = null; // per joint: {t, sp, pos, cur}
 let selected = 0;
 let charts = null;
 
-function post(body) {
-  return fetch("/api/command?token=" + encodeURIComponent(token), {
-    method: "POST",
-    headers: { "Content-Type": "application/json" },
-    body: JSON.stringify(body),
-  }).then(async (r) => {
-    const text = await r.text();
-    $("last-command").textContent = r.ok ? "sent " + body.action : "refused: " + text;
-  });
+// Show a command's outcome ({command, result, detail}) as what it is.
+function showOutcome(o) {
+  const el = $("last-command");
+  const result = o.result || "error";
+  el.dataset.result = result;
+  el.className = "outcome " + result;
+  const what = o.command ? o.command + ": " : "";
+  const label = result === "refused" ? "REFUSED" : result === "failed" ? "FAILED" : result;
+  el.textContent = what + label + (o.detail ? " \u2014 " + o.detail : "");
+  live.shown = { id: typeof o.id === "number" ? o.id : live.shown.id, result };
+}
+
+async function post(body) {
+  let r;
+  try {
+    r = await fetch("/api/command", {
+      method: "POST",
+      headers: { "Content-Type": "application/json" },
+      body: JSON.stringify(body),
+    });
+  } catch (e) {
+    showOutcome({ command: body.action, result: "error", detail: "the console did not answer: " + e });
+    return;
+  }
+  let o;
+  try { o = await r.json(); } catch (e) { o = { detail: "HTTP " + r.status }; }
+  if (!o.command) o.command = body.action;
+  if (r.status === 403) o.result = "forbidden";
+  showOutcome(o);
 }
 
 function makeCharts() {
@@ -86,7 +107,11 @@ function showState(st) {
   $("summary").textContent = `${st.boards.length} boards, ${st.joints.length} axes, ${info ? info.port : ""}, t = ${fmt(st.t, 2)} s, I/O ${fmt(st.io_us, 1)} us, errors ${st.errors}`;
   if (st.fault) { $("fault").hidden = false; $("fault").textContent = "FAULT: " + st.fault.text; }
   else { $("fault").hidden = true; $("fault").textContent = ""; }
-  if (st.last_command) $("last-command").textContent = `${st.last_command.command}: ${st.last_command.result}`;
+  // The latest outcome (a command that was still running when its POST
+  // answered shows here once done).
+  const lc = st.last_command;
+  if (lc && (lc.id > live.shown.id || (lc.id === live.shown.id && live.shown.result === "running"))) showOutcome(lc);
+  if (st.loop_exit) { $("fault").hidden = false; $("fault").textContent = "ROBOT LOOP ENDED: " + st.loop_exit; }
   const byId = {};
   if (info) for (const b of info.boards) byId[b.id] = b;
   $("boards").tBodies[0].innerHTML = st.boards.map((b) => {
@@ -108,7 +133,7 @@ function showState(st) {
 }
 
 function connect() {
-  const ws = new WebSocket(`ws://${location.host}/ws?token=${encodeURIComponent(token)}`);
+  const ws = new WebSocket(`ws://${location.host}/ws`);
   ws.onopen = () => { $("link").textContent = "live"; $("link").className = "link live"; };
   ws.onclose = () => { $("link").textContent = "offline (retrying)"; $("link").className = "link"; setTimeout(connect, 1000); };
   ws.onmessage = (ev) => {
@@ -119,7 +144,13 @@ function connect() {
 }
 
 async function start() {
-  live.info = await (await fetch("/api/info")).json();
+  const r = await fetch("/api/info");
+  if (!r.ok) {
+    $("summary").textContent = "not authorised";
+    showOutcome({ result: "forbidden", detail: "open the URL with the token that this run of firelink web printed (it sets this console's cookie)" });
+    return;
+  }
+  live.info = await r.json();
   series = live.info.joints.map(() => ({ t: [], sp: [], pos: [], cur: [] }));
   $("joint").innerHTML = live.info.joints.map((l, i) => `<option value="${i}">${l}</option>`).join("");
   $("joint").onchange = () => { selected = parseInt($("joint").value, 10); };
@@ -140,11 +171,11 @@ async function start() {
   $("pause").onclick = () => { live.paused = !live.paused; $("pause").textContent = live.paused ? "Resume" : "Pause"; };
   $("csv").onclick = (e) => {
     e.preventDefault();
-    location.href = `/api/csv?token=${encodeURIComponent(token)}&seconds=${$("csv-seconds").value}`;
+    location.href = `/api/csv?seconds=${encodeURIComponent($("csv-seconds").value)}`;
   };
   $("fig11-button").onclick = () => {
     $("fig11").hidden = false;
-    $("fig11").src = `/api/fig11.png?token=${encodeURIComponent(token)}&t=${Date.now()}`;
+    $("fig11").src = `/api/fig11.png?t=${Date.now()}`;
   };
   makeCharts();
   connect();

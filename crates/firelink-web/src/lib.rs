@@ -12,12 +12,14 @@
 //!   it hands frames to the server through lock-free queues of preallocated
 //!   frames and takes commands the same way;
 //! - [`server`]: axum on tokio; drains the frames every 20 ms, keeps the
-//!   last seconds for CSV, streams to browsers over a WebSocket, and checks
-//!   the per-run token and the `Origin` of everything that can change the
-//!   robot.
+//!   last seconds for CSV, streams to browsers over a WebSocket, answers
+//!   each command with its outcome, and checks the per-run token (header or
+//!   cookie, never the URL) on everything that reveals or changes the
+//!   robot and the `Origin` of everything that changes it.
 //!
 //! Losing the browser changes nothing: the loop goes on, and the boards'
-//! watchdogs stay armed.
+//! watchdogs stay armed. The loop ending (a signal, a panic) ends the
+//! server; [`Running::stop`] says what the power-down found.
 
 pub mod server;
 
@@ -28,7 +30,7 @@ use std::sync::atomic::Ordering;
 
 use firelink_control::config::{IoConfig, presets};
 use firelink_testbed::demo::DemoPort;
-use firelink_testbed::service::Service;
+use firelink_testbed::service::{LoopExit, Service};
 
 /// Why the console could not start.
 #[derive(Debug, thiserror::Error)]
@@ -57,14 +59,21 @@ pub struct WebOptions {
     pub watchdog: firelink_host::WatchdogSetting,
     /// Address to listen on.
     pub listen: SocketAddr,
+    /// Origins accepted besides the console's own (from
+    /// [`server::parse_origin`]): a name the machine is reached by, a
+    /// proxy.
+    pub allow_origins: Vec<String>,
 }
 
 /// A running console.
 pub struct Running {
     /// The address it listens on.
     pub addr: SocketAddr,
-    /// The URL with the token, to open in a browser.
+    /// The URL with the token, to open in a browser (once: it sets the
+    /// console's cookie and redirects to `/`).
     pub url: String,
+    token: String,
+    allow_origins: Vec<String>,
     service: Service,
 }
 
@@ -75,9 +84,22 @@ impl Running {
         self.service.shared.queued.load(Ordering::Relaxed)
     }
 
-    /// Stop the robot loop (it powers off first) and the emulator.
-    pub fn stop(self) {
-        self.service.stop();
+    /// This run's token (for the `X-Firelink-Token` header).
+    pub fn token(&self) -> &str {
+        &self.token
+    }
+
+    /// How the robot loop ended, once it has (before [`stop`](Self::stop):
+    /// a panic, or the process's stop request).
+    pub fn loop_exit(&self) -> Option<LoopExit> {
+        self.service.shared.exit.get().cloned()
+    }
+
+    /// Stop the robot loop (it powers the robot down first) and the
+    /// emulator; returns what the power-down found (and the loop's panic,
+    /// if it panicked).
+    pub fn stop(self) -> LoopExit {
+        self.service.stop()
     }
 }
 
@@ -101,11 +123,33 @@ pub async fn start(options: &WebOptions) -> Result<(Running, tokio::net::TcpList
     let service = Service::start(&options.port, config, options.rate_hz, options.watchdog)?;
     let listener = tokio::net::TcpListener::bind(options.listen).await?;
     let addr = listener.local_addr()?;
-    let url = format!("http://{addr}/?token={}", token()?);
-    Ok((Running { addr, url, service }, listener))
+    let token = token()?;
+    // Listening on every address: the URL names this machine's loopback
+    // one (a browser elsewhere uses an address of this machine instead).
+    let shown = match addr.ip() {
+        std::net::IpAddr::V4(ip) if ip.is_unspecified() => {
+            SocketAddr::from((std::net::Ipv4Addr::LOCALHOST, addr.port()))
+        }
+        std::net::IpAddr::V6(ip) if ip.is_unspecified() => {
+            SocketAddr::from((std::net::Ipv6Addr::LOCALHOST, addr.port()))
+        }
+        _ => addr,
+    };
+    let url = format!("http://{shown}/?token={token}");
+    Ok((
+        Running {
+            addr,
+            url,
+            token,
+            allow_origins: options.allow_origins.clone(),
+            service,
+        },
+        listener,
+    ))
 }
 
-/// Serve `running`'s console on `listener` until `shutdown` completes.
+/// Serve `running`'s console on `listener` until `shutdown` completes or
+/// the robot loop ends (see [`Running::loop_exit`]).
 ///
 /// # Errors
 /// The server failed.
@@ -114,23 +158,28 @@ pub async fn serve(
     listener: tokio::net::TcpListener,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> Result<(), WebError> {
-    let token = running
-        .url
-        .split("token=")
-        .nth(1)
-        .unwrap_or_default()
-        .to_string();
     let console = Arc::new(server::Console::new(
         Arc::clone(&running.service.shared),
-        token,
+        running.token.clone(),
         running.addr,
+        running.allow_origins.clone(),
         running.service.faults.clone(),
     ));
     let drain = tokio::spawn(server::drain_forever(Arc::clone(&console)));
+    let ended = Arc::clone(&console);
     let app = server::router(console);
-    let r = axum::serve(listener, app)
-        .with_graceful_shutdown(shutdown)
-        .await;
+    let stop = async move {
+        tokio::select! {
+            () = shutdown => {}
+            () = ended.ended.notified() => {}
+        }
+    };
+    let r = axum::serve(
+        listener,
+        app.into_make_service_with_connect_info::<server::Peer>(),
+    )
+    .with_graceful_shutdown(stop)
+    .await;
     drain.abort();
     r.map_err(WebError::Io)
 }

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use clap::Parser;
 
+use firelink_host::stop::install_signal_handlers;
 use firelink_web::{WebOptions, serve, start};
 
 /// Watch and drive the boards and the robot in a browser.
@@ -24,6 +25,11 @@ struct Args {
     /// for explicitly and prints a warning: the page can enable motor power.
     #[arg(long, default_value = "127.0.0.1:8080")]
     listen: SocketAddr,
+    /// Also accept requests from pages of this origin (repeatable), e.g.
+    /// http://robot-pc.lab:8080 when the console is opened by a name of
+    /// this machine (its own addresses are accepted as they are reached).
+    #[arg(long = "allow-origin", value_name = "ORIGIN", value_parser = firelink_web::server::parse_origin)]
+    allow_origin: Vec<String>,
     /// Control rate, Hz.
     #[arg(long, default_value_t = 1000.0)]
     rate: f64,
@@ -52,17 +58,27 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
     }
     if !args.listen.ip().is_loopback() {
         eprintln!(
-            "firelink web: WARNING: listening on {}: anyone who can reach it and has the \
-             token can drive the robot",
+            "firelink web: WARNING: listening on {}, not loopback: anyone who can reach it \
+             and has the token can switch motor power on and move the robot",
             args.listen
         );
+        eprintln!(
+            "firelink web: from another machine, open the printed URL with this machine's \
+             address in it; to open it by a name, add --allow-origin http://NAME:{}",
+            args.listen.port()
+        );
     }
+    // SIGINT, SIGTERM and SIGHUP ask the robot loop to power down and end
+    // (it watches the process's stop request); a second one ends the
+    // process at once (the boards' watchdogs then turn the amplifiers off).
+    let stop = install_signal_handlers()?;
     let options = WebOptions {
         port: args.port.parse()?,
         config: args.config,
         rate_hz: args.rate,
         watchdog: args.watchdog_ms,
         listen: args.listen,
+        allow_origins: args.allow_origin,
     };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -72,27 +88,38 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
         let (running, listener) = start(&options).await?;
         println!("firelink web: {}", running.url);
         eprintln!(
-            "firelink web: open the URL above; Ctrl-C stops the robot (power off) and the server"
+            "firelink web: open the URL above (once: it sets this console's cookie); \
+             Ctrl-C stops the robot (power off) and the server"
         );
-        let shutdown = async {
-            let _ = tokio::signal::ctrl_c().await;
-        };
-        let terminate = async {
-            if let Ok(mut s) =
-                tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
-            {
-                s.recv().await;
-            }
-        };
-        let both = async move {
+        // The same signals, to end the server (the robot loop ends by itself).
+        let signalled = async {
+            use tokio::signal::unix::{SignalKind, signal};
+            let wait = |kind| async move {
+                match signal(kind) {
+                    Ok(mut s) => {
+                        s.recv().await;
+                    }
+                    // (The robot loop still obeys the process's stop
+                    // request, and its end ends the server.)
+                    Err(_) => std::future::pending::<()>().await,
+                }
+            };
             tokio::select! {
-                () = shutdown => {},
-                () = terminate => {},
+                () = wait(SignalKind::interrupt()) => {}
+                () = wait(SignalKind::terminate()) => {}
+                () = wait(SignalKind::hangup()) => {}
             }
         };
-        let served = serve(&running, listener, both).await;
-        running.stop();
-        eprintln!("firelink web: stopped; amplifiers and power off");
-        served.map_err(|e| Box::new(e) as Box<dyn std::error::Error>)
+        let served = serve(&running, listener, signalled).await;
+        if let Some(reason) = stop.reason() {
+            eprintln!("firelink web: stopping: {reason}");
+        }
+        let exit = running.stop();
+        eprintln!("firelink web: stopped: {exit}");
+        served?;
+        if exit.panic.is_some() {
+            return Err("the robot loop panicked".into());
+        }
+        Ok(())
     })
 }

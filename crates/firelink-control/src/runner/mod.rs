@@ -677,6 +677,43 @@ impl<R: RobotIo> Robot<R> {
         })
     }
 
+    /// The amplifiers of the axes the joints use on (no other axis),
+    /// waiting (cycling, calling `each` after every cycle) until the
+    /// boards report them: from Configured once every expected board has
+    /// motor power, or from Active (where they are on already).
+    ///
+    /// # Errors
+    /// [`LifecycleError::NotPowered`] (the first expected board without
+    /// motor power) in Configured; [`LifecycleError::NotActive`] in
+    /// Unconfigured or Fault; a fault or [`RunnerError::Timeout`] while
+    /// waiting.
+    pub fn enable_amplifiers_observed(
+        &mut self,
+        each: &mut dyn FnMut(&Self),
+    ) -> Result<(), RunnerError> {
+        match self.life.state() {
+            State::Active => {}
+            State::Configured => {
+                if let Some(id) = self.expected.minus(self.power_status().powered).first() {
+                    let robot = self.life.board_owner(id);
+                    return Err(LifecycleError::NotPowered {
+                        board_id: id,
+                        robot,
+                    }
+                    .into());
+                }
+            }
+            state => return Err(LifecycleError::NotActive { state }.into()),
+        }
+        for j in &self.joints {
+            let _ = self.io.set_amplifier_enable(j.axis, true);
+        }
+        let expected = self.expected;
+        self.wait_for("amplifiers", each, |s| {
+            expected.minus(s.amplifiers_enabled).is_empty()
+        })
+    }
+
     fn wait_for(
         &mut self,
         what: &'static str,

@@ -1,7 +1,11 @@
 """The web console in a real browser (Playwright driving Debian's Chromium):
-the page loads against the simulated bus, shows 8 boards and 28 axes, the
-charts update, the lifecycle buttons change the state the server reports,
-an injected board loss shows the fault; a screenshot is saved.
+opening the printed URL sets the console's cookie and leaves an address
+without the token; the page loads against the simulated bus, shows 8
+boards and 28 axes, the charts update, a command the robot's state refuses
+shows as refused (HTTP 409, with the reason), the lifecycle buttons change
+the state the server reports, an injected board loss shows the fault; a
+page without the cookie is told it is not authorised; screenshots are
+saved.
 
 Needs FIRELINK_WEB_BIN (the firelink-web binary) and, optionally,
 CHROMIUM (default /usr/bin/chromium) and SCREENSHOT_DIR.
@@ -22,6 +26,7 @@ BIN = os.environ.get("FIRELINK_WEB_BIN", "target/debug/firelink-web")
 CHROMIUM = os.environ.get("CHROMIUM", "/usr/bin/chromium")
 SHOTS = Path(os.environ.get("SCREENSHOT_DIR", "target/web-screenshots"))
 WAIT_MS = 60_000  # generous: the machine may be loaded; nothing here is timed
+SHOTS.mkdir(parents=True, exist_ok=True)
 
 
 @pytest.fixture(scope="module")
@@ -44,20 +49,53 @@ def console():
 
 
 @pytest.fixture(scope="module")
-def page(console):
+def browser():
     with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox", "--disable-gpu"])
-        pg = browser.new_page(viewport={"width": 1400, "height": 1000})
-        pg.set_default_timeout(WAIT_MS)
-        pg.goto(console)
-        yield pg
-        browser.close()
+        b = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox", "--disable-gpu"])
+        yield b
+        b.close()
+
+
+@pytest.fixture(scope="module")
+def page(browser, console):
+    pg = browser.new_page(viewport={"width": 1400, "height": 1000})
+    pg.set_default_timeout(WAIT_MS)
+    pg.goto(console)
+    yield pg
+    pg.close()
+
+
+def base_and_token(url: str) -> tuple[str, str]:
+    base, query = url.split("/?", 1)
+    return base, query.split("token=", 1)[1]
 
 
 def server_state(url: str) -> dict:
-    base = url.split("/?", 1)[0]
-    with urllib.request.urlopen(base + "/api/state", timeout=30) as r:
+    base, token = base_and_token(url)
+    req = urllib.request.Request(base + "/api/state", headers={"X-Firelink-Token": token})
+    with urllib.request.urlopen(req, timeout=30) as r:
         return json.load(r)
+
+
+def test_the_printed_url_leaves_a_cookie_and_an_address_without_the_token(page: Page, console):
+    base, token = base_and_token(console)
+    assert page.url == base + "/", page.url
+    cookies = [c for c in page.context.cookies() if c["value"] == token]
+    assert len(cookies) == 1, page.context.cookies()
+    assert cookies[0]["httpOnly"] and cookies[0]["sameSite"] == "Strict", cookies
+    # The token is nowhere the page's scripts can read.
+    assert page.evaluate("() => document.cookie") == ""
+    assert token not in page.content()
+
+
+def test_a_page_without_the_cookie_is_not_authorised(browser, console):
+    base, _ = base_and_token(console)
+    pg = browser.new_page()
+    pg.set_default_timeout(WAIT_MS)
+    pg.goto(base + "/")
+    expect(pg.locator("#summary")).to_have_text("not authorised")
+    expect(pg.locator("#last-command")).to_contain_text("open the URL with the token")
+    pg.close()
 
 
 def test_the_page_shows_8_boards_and_28_axes(page: Page):
@@ -74,21 +112,38 @@ def test_the_charts_update(page: Page):
     page.wait_for_function(f"() => charts.position.data[0].at(-1) > {first}")
 
 
+def test_a_refused_command_shows_as_refused(page: Page, console):
+    # Unconfigured: "Amplifiers on" is refused by the robot's state.
+    with page.expect_response("**/api/command") as answer:
+        page.click("button[data-action=amplifiers][data-on=true]")
+    assert answer.value.status == 409
+    shown = page.locator("#last-command")
+    expect(shown).to_have_attribute("data-result", "refused")
+    expect(shown).to_contain_text("amplifiers on: REFUSED")
+    expect(shown).to_contain_text("unconfigured")
+    page.screenshot(path=str(SHOTS / "console-refused.png"), full_page=True)
+    st = server_state(console)
+    assert st["state"] == "unconfigured"
+    assert not any(a["amp"] for a in st["axes"])
+
+
 def test_lifecycle_buttons_change_the_server_state(page: Page, console):
-    page.click("button[data-action=configure]")
+    with page.expect_response("**/api/command") as answer:
+        page.click("button[data-action=configure]")
+    assert answer.value.status == 200
+    expect(page.locator("#last-command")).to_contain_text("configure: ok \u2014 boards found powered off")
     expect(page.locator("#state")).to_have_text("configured")
     page.click("button[data-action=power_on]")
     page.wait_for_function(
         "() => [...document.querySelectorAll('#boards tbody tr')].every(r => r.cells[4].textContent === 'on')"
     )
     page.click("button[data-action=home]")
-    expect(page.locator("#last-command")).to_contain_text("Home: ok")
+    expect(page.locator("#last-command")).to_contain_text("home: ok")
     page.click("button[data-action=enable]")
     expect(page.locator("#state")).to_have_text("active")
     st = server_state(console)
     assert st["state"] == "active"
     assert all(b["power"] for b in st["boards"])
-    SHOTS.mkdir(parents=True, exist_ok=True)
     page.screenshot(path=str(SHOTS / "console-active.png"), full_page=True)
 
 
