@@ -121,6 +121,12 @@ pub enum LifecycleError {
         /// Current state.
         state: State,
     },
+    /// Motor power and amplifiers are switched on only from Configured.
+    #[error("power on refused: the robot is {state}, not configured")]
+    NotConfigured {
+        /// Current state.
+        state: State,
+    },
 }
 
 /// Evidence for [`Lifecycle::activate`]: which boards report motor power and

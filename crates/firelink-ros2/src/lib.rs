@@ -535,12 +535,13 @@ pub fn run_node(
 }
 
 /// Run the robot service alone (no DDS) for `duration`, draining its frames
-/// as the node would: the control loop's compute time without ROS 2.
-pub fn run_without_dds(service: &Service, duration: Duration) -> NodeReport {
+/// as the node would: the control loop's compute time without ROS 2;
+/// a stop request (`stop`, set by the signals) ends it early.
+pub fn run_without_dds(service: &Service, duration: Duration, stop: &AtomicBool) -> NodeReport {
     let start = Instant::now();
     let mut compute = Vec::new();
     let mut cycle = Vec::new();
-    while start.elapsed() < duration {
+    while start.elapsed() < duration && !stop.load(Ordering::Relaxed) {
         while let Some(frame) = service.shared.full.pop() {
             compute.push(frame.compute_us);
             cycle.push(frame.io_us + frame.compute_us);

@@ -92,7 +92,7 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
     let service = Service::start(&port, config.clone(), args.rate, args.watchdog_ms)?;
     let report = if args.no_dds {
         let d = duration.ok_or("--no-dds needs --seconds")?;
-        run_without_dds(&service, d)
+        run_without_dds(&service, d, &stop)
     } else {
         let domain = args.domain.unwrap_or_else(domain_from_env);
         let base = 7400 + 250 * u32::from(domain);

@@ -660,7 +660,7 @@ impl<R: RobotIo> Robot<R> {
     /// As [`power_on`](Self::power_on).
     pub fn power_on_observed(&mut self, each: &mut dyn FnMut(&Self)) -> Result<(), RunnerError> {
         if self.life.state() != State::Configured {
-            return Err(RunnerError::Lifecycle(LifecycleError::NotActive {
+            return Err(RunnerError::Lifecycle(LifecycleError::NotConfigured {
                 state: self.life.state(),
             }));
         }
@@ -703,7 +703,7 @@ impl<R: RobotIo> Robot<R> {
                     .into());
                 }
             }
-            state => return Err(LifecycleError::NotActive { state }.into()),
+            state => return Err(LifecycleError::NotConfigured { state }.into()),
         }
         for j in &self.joints {
             let _ = self.io.set_amplifier_enable(j.axis, true);

@@ -1,0 +1,166 @@
+//! `firelink web` as a supervisor runs it: the binary drives emulated
+//! boards behind an in-process `firelink emulate` (loopback UDP), the robot
+//! is powered through the API, then the process gets SIGTERM, SIGINT or
+//! SIGHUP; afterwards a second client reads the boards. Waits are on the
+//! program's own output and on board state, bounded; nothing is timed.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+use firelink_board::config::Profile;
+use firelink_control::config::presets;
+use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::scan::Protocol;
+use firelink_testbed::rig::{self, Emulator};
+
+const BENCH: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../configs/bench-1board.json"
+);
+
+/// The running console: the process, where it listens, its token.
+struct Web {
+    child: Child,
+    addr: SocketAddr,
+    token: String,
+    stderr: std::io::Lines<BufReader<std::process::ChildStderr>>,
+}
+
+impl Web {
+    fn start(emu: &Emulator) -> Web {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_firelink-web"))
+            .args(["--port", &format!("udp:{}", emu.addr), "--config", BENCH])
+            .args(["--listen", "127.0.0.1:0", "--watchdog-ms", "300"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start firelink-web");
+        let stdout = child.stdout.take().expect("stdout");
+        let stderr = BufReader::new(child.stderr.take().expect("stderr")).lines();
+        // "firelink web: http://127.0.0.1:PORT/?token=T"
+        let url = BufReader::new(stdout)
+            .lines()
+            .map_while(Result::ok)
+            .find_map(|l| {
+                l.split_whitespace()
+                    .find(|w| w.starts_with("http://"))
+                    .map(str::to_string)
+            })
+            .expect("the console prints its URL");
+        let rest = url.trim_start_matches("http://");
+        let (host, query) = rest.split_once('/').expect("a path");
+        let token = query.split("token=").nth(1).expect("a token").to_string();
+        Web {
+            child,
+            addr: host.parse().expect("an address"),
+            token,
+            stderr,
+        }
+    }
+
+    /// POST a command with the token in the header and this console's
+    /// Origin; the outcome's status and body.
+    fn command(&self, body: &str) -> (u16, String) {
+        let mut s = TcpStream::connect(self.addr).expect("connect");
+        s.set_read_timeout(Some(Duration::from_secs(120)))
+            .expect("timeout");
+        let request = format!(
+            "POST /api/command HTTP/1.1\r\nHost: {a}\r\nOrigin: http://{a}\r\n\
+             X-Firelink-Token: {t}\r\nContent-Type: application/json\r\n\
+             Content-Length: {n}\r\nConnection: close\r\n\r\n{body}",
+            a = self.addr,
+            t = self.token,
+            n = body.len()
+        );
+        s.write_all(request.as_bytes()).expect("send");
+        let mut reply = String::new();
+        let _ = s.read_to_string(&mut reply);
+        let status = reply
+            .split_whitespace()
+            .nth(1)
+            .and_then(|c| c.parse().ok())
+            .unwrap_or(0);
+        let body = reply
+            .split_once("\r\n\r\n")
+            .map_or("", |(_, b)| b)
+            .to_string();
+        (status, body)
+    }
+
+    /// Run `action` to completion (a 202 "still running" is followed up).
+    fn must(&self, action: &str) {
+        let (status, body) = self.command(&format!(r#"{{"action":"{action}","on":true}}"#));
+        assert_eq!(status, 200, "{action}: {body}");
+    }
+
+    fn signal(mut self, signal: &str) -> (std::process::ExitStatus, String) {
+        let ok = Command::new("kill")
+            .args([&format!("-{signal}"), &self.child.id().to_string()])
+            .status()
+            .expect("kill");
+        assert!(ok.success());
+        let said: Vec<String> = self.stderr.by_ref().map_while(Result::ok).collect();
+        (self.child.wait().expect("exit"), said.join("\n"))
+    }
+}
+
+/// Board 0 as a second client reads it: (motor power, amplifiers on).
+fn board0(emu: &Emulator, scan: &firelink_host::scan::ScanReport) -> (bool, usize) {
+    let mut port = emu.port().expect("port");
+    port.set_timeout(Duration::from_millis(500));
+    // Block reads of each board: no broadcast query that would cut into
+    // the running console's own cycles.
+    let options = IoOptions {
+        protocol: Some(Protocol::Sequential),
+        ..IoOptions::default()
+    };
+    let mut io = IoSystem::with_scan(port, scan, options).expect("second client");
+    io.read_all();
+    let b = io.boards().first().expect("board 0");
+    (
+        b.power_enabled(),
+        (0..b.axes()).filter(|&a| b.amp_enabled(a)).count(),
+    )
+}
+
+fn stopping_the_console_powers_the_robot_down(signal: &str) {
+    let config = presets::bench_1board();
+    let emu = Emulator::start(rig::board_configs(&config, Profile::Rev8, 1)).expect("emulator");
+    let scan = {
+        let mut p = emu.port().expect("port");
+        p.set_timeout(Duration::from_millis(50));
+        firelink_host::scan::scan(&mut p).expect("scan")
+    };
+    let web = Web::start(&emu);
+    web.must("configure");
+    web.must("power_on");
+    let (powered, amps) = board0(&emu, &scan);
+    let (status, said) = web.signal(signal);
+    assert!(
+        powered && amps > 0,
+        "powered: {powered}, amplifiers {amps}\n{said}"
+    );
+    assert!(status.success(), "SIG{signal}: {status:?}\n{said}");
+    assert!(
+        said.contains("amplifiers and motor power off on boards 0"),
+        "SIG{signal}: {said}"
+    );
+    assert_eq!(board0(&emu, &scan), (false, 0), "after SIG{signal}: {said}");
+}
+
+#[test]
+fn sigterm_powers_the_robot_down() {
+    stopping_the_console_powers_the_robot_down("TERM");
+}
+
+#[test]
+fn sigint_powers_the_robot_down() {
+    stopping_the_console_powers_the_robot_down("INT");
+}
+
+#[test]
+fn sighup_powers_the_robot_down() {
+    stopping_the_console_powers_the_robot_down("HUP");
+}
