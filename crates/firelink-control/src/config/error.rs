@@ -2,6 +2,8 @@
 
 use core::fmt;
 
+use firelink_wire::human::Number;
+
 /// One problem in a configuration file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ConfigError {
@@ -80,6 +82,17 @@ pub enum Problem {
         /// The allowed range, in words.
         expected: String,
     },
+    /// A value makes a move the configuration implies (homing, a stop
+    /// search, a move across the soft limits) last longer than
+    /// [`bounds::MOVE_SECONDS`](super::bounds::MOVE_SECONDS).
+    TooLong {
+        /// The value found.
+        value: f64,
+        /// The move, in words.
+        what: String,
+        /// How long it would take, seconds.
+        seconds: f64,
+    },
     /// `lower >= upper`.
     EmptyRange {
         /// Lower bound found.
@@ -123,11 +136,25 @@ impl fmt::Display for Problem {
             Problem::NotFinite => write!(f, "not a finite number"),
             Problem::ZeroScale => write!(f, "zero scale (the conversion cannot be inverted)"),
             Problem::OutOfRange { value, expected } => {
-                write!(f, "out of range: {value} (expected {expected})")
+                write!(f, "out of range: {} (expected {expected})", Number(*value))
             }
-            Problem::EmptyRange { lower, upper } => {
-                write!(f, "empty range: lower {lower} is not below upper {upper}")
-            }
+            Problem::TooLong {
+                value,
+                what,
+                seconds,
+            } => write!(
+                f,
+                "out of range: {} makes {what} take {} s (at most {} s)",
+                Number(*value),
+                Number(*seconds),
+                Number(super::bounds::MOVE_SECONDS)
+            ),
+            Problem::EmptyRange { lower, upper } => write!(
+                f,
+                "empty range: lower {} is not below upper {}",
+                Number(*lower),
+                Number(*upper)
+            ),
             Problem::Duplicate { what, first } => {
                 write!(f, "duplicate {what} (first used at {first})")
             }
