@@ -183,7 +183,9 @@ impl ConfigErrors {
         ConfigErrors(vec![e])
     }
 
-    pub(crate) fn from_vec(v: Vec<ConfigError>) -> Option<Self> {
+    /// The errors of `v`, or `None` when it is empty (other configuration
+    /// formats, such as MAHRU's, report through this type too).
+    pub fn from_vec(v: Vec<ConfigError>) -> Option<Self> {
         if v.is_empty() {
             None
         } else {
