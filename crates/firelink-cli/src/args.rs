@@ -12,6 +12,7 @@ use firelink_board::config::{Hardware, Profile};
 pub use firelink_host::WatchdogSetting;
 use firelink_host::scan::Protocol;
 use firelink_host::udp::WaitMode;
+use firelink_wire::human::Number;
 
 /// A finite number in `lo..=hi` (or `lo < x` when `open_low`).
 fn bounded(s: &str, lo: f64, hi: f64, open_low: bool, unit: &str) -> Result<f64, String> {
@@ -22,7 +23,12 @@ fn bounded(s: &str, lo: f64, hi: f64, open_low: bool, unit: &str) -> Result<f64,
     let low_ok = if open_low { x > lo } else { x >= lo };
     if !x.is_finite() || !low_ok || x > hi {
         let low = if open_low { "above" } else { "from" };
-        return Err(format!("{s} is out of range: {low} {lo} to {hi}{unit}"));
+        return Err(format!(
+            "{} is out of range: {low} {} to {}{unit}",
+            s.trim(),
+            Number(lo),
+            Number(hi)
+        ));
     }
     Ok(x)
 }
@@ -94,9 +100,37 @@ pub fn board_count(s: &str) -> Result<u8, String> {
     Ok(n as u8)
 }
 
-/// Cycles to run or measure: 1 to 10^9.
+/// Cycles to run: 1 to 10^9.
 pub fn cycles(s: &str) -> Result<u64, String> {
     integer(s, 1, 1_000_000_000, "number of cycles")
+}
+
+/// Cycles, periods or reads whose every time is kept (a benchmark's
+/// measured cycles, `budget --periods` and `--reads`): 1 to 10^7, tens of
+/// megabytes of samples at most.
+pub fn measured(s: &str) -> Result<u64, String> {
+    integer(s, 1, 10_000_000, "number of measured cycles")
+}
+
+/// `budget --samples`: timings per transaction type and module, 1 to
+/// [`MAX_TIMINGS`](firelink_testbed::mahru::budget::MAX_TIMINGS).
+pub fn timings(s: &str) -> Result<u64, String> {
+    let hi = u64::from(firelink_testbed::mahru::budget::MAX_TIMINGS);
+    integer(s, 1, hi, "number of timings")
+}
+
+/// `budget --can-cycles`: 1 to
+/// [`MAX_CAN_CYCLES`](firelink_testbed::mahru::can::MAX_CAN_CYCLES).
+pub fn can_cycles(s: &str) -> Result<u64, String> {
+    let hi = u64::from(firelink_testbed::mahru::can::MAX_CAN_CYCLES);
+    integer(s, 1, hi, "number of CAN cycles")
+}
+
+/// MAHRU's control period in microseconds: the configuration's bounds,
+/// 100 us to 1 s.
+pub fn mahru_period_us(s: &str) -> Result<f64, String> {
+    let (lo, hi) = firelink_testbed::mahru::config::bounds::PERIOD_US;
+    bounded(s, lo, hi, false, " us")
 }
 
 /// Quadlets of one register access: 1..=512 (a block of 2048 bytes).

@@ -88,8 +88,9 @@ pub struct DemoArgs {
     /// Snake robot: skip the search for the highest rate that holds.
     #[arg(long = "no-rate-search")]
     pub no_rate_search: bool,
-    /// MAHRU: the control period in us (default: its configuration's 2000).
-    #[arg(long = "period-us", value_parser = crate::args::period_us)]
+    /// MAHRU: the control period in us, 100 to 1000000 (default: its
+    /// configuration's 2000).
+    #[arg(long = "period-us", value_parser = crate::args::mahru_period_us)]
     pub period_us: Option<f64>,
     /// I/O protocol.
     #[arg(long, value_enum, default_value_t = ProtocolArg::Broadcast)]
