@@ -4,6 +4,30 @@ use core::fmt;
 
 use firelink_wire::human::Number;
 
+/// A computed or measured figure in a message: 4 significant digits,
+/// written as a person writes it through [`Number`] (`0.01734`, `2e300`,
+/// `-1.5e-7`), never a 300-digit integer or 17 digits of noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Measured(pub f64);
+
+impl fmt::Display for Measured {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let x = round_sig(self.0);
+        if f.sign_plus() && x >= 0.0 {
+            f.write_str("+")?;
+        }
+        write!(f, "{}", Number(x))
+    }
+}
+
+/// `x` to 4 significant digits (non-finite values unchanged).
+pub(crate) fn round_sig(x: f64) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    format!("{x:.3e}").parse().unwrap_or(x)
+}
+
 /// One problem in a configuration file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ConfigError {
@@ -229,5 +253,22 @@ impl IntoIterator for ConfigErrors {
     type IntoIter = std::vec::IntoIter<ConfigError>;
     fn into_iter(self) -> Self::IntoIter {
         self.0.into_iter()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn measured_figures_read_as_written() {
+        let shown = |x: f64| Measured(x).to_string();
+        assert_eq!(shown(0.0017337178605651982), "0.001734");
+        assert_eq!(shown(2.5249096380004967e301), "2.525e301");
+        assert_eq!(shown(6.25), "6.25");
+        assert_eq!(shown(-1.487016908477783e-7), "-1.487e-7");
+        assert_eq!(shown(f64::NAN), "NaN");
+        assert_eq!(format!("{:+}", Measured(0.0123)), "+0.0123");
+        assert_eq!(format!("{:+}", Measured(-0.0123)), "-0.0123");
     }
 }

@@ -78,7 +78,7 @@ mod validate;
 #[cfg(test)]
 mod props;
 
-pub use error::{ConfigError, ConfigErrors, Problem};
+pub use error::{ConfigError, ConfigErrors, Measured, Problem};
 pub use validate::bounds;
 
 use crate::label::{BoardSet, Label};

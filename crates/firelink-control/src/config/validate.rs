@@ -10,6 +10,7 @@
 
 use firelink_wire::human::Number;
 
+use super::error::round_sig;
 use super::{
     ConfigError, ConfigErrors, DriveConfig, EncoderConfig, HardwareVersion, IoConfig, Limits,
     LimitsConfig, LinearFunction, PotentiometerConfig, Problem, RobotConfig, RobotSimulation,
@@ -225,15 +226,6 @@ fn bounded_move(
             seconds: round_sig(t),
         },
     );
-}
-
-/// `x` to 4 significant digits, for figures a message computes (shown
-/// through [`Number`]: `2e300`, `6.25`).
-fn round_sig(x: f64) -> f64 {
-    if x == 0.0 || !x.is_finite() {
-        return x;
-    }
-    format!("{x:.3e}").parse().unwrap_or(x)
 }
 
 /// The index of the first of `items[..index]` for which `same` holds: where

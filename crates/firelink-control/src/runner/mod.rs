@@ -113,13 +113,13 @@ pub enum RunnerError {
     #[error("host: {0}")]
     Host(#[from] HostError),
     /// A refused lifecycle transition.
-    #[error("lifecycle: {0:?}")]
+    #[error("lifecycle: {0}")]
     Lifecycle(#[from] LifecycleError),
     /// Homing failed.
-    #[error("homing: {0:?}")]
+    #[error("homing: {0}")]
     Homing(HomingError),
     /// Invalid PID gains in the configuration.
-    #[error("PID gains: {0:?}")]
+    #[error("PID gains: {0}")]
     Pid(PidError),
     /// A fault while running.
     #[error("{0}")]
