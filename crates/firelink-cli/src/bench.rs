@@ -18,7 +18,7 @@ use std::path::PathBuf;
 use clap::{Args, ValueEnum};
 
 use firelink_host::scan::Protocol;
-use firelink_host::udp::{UdpPort, WaitMode};
+use firelink_host::udp::WaitMode;
 use firelink_testbed::bench::{BenchOptions, BenchTransport, check_board_counts, run_bench};
 
 use crate::CliError;
@@ -50,7 +50,7 @@ fn bridge_address(text: &str) -> Result<SocketAddr, CliError> {
             expected: "udp:HOST or udp:HOST:PORT",
         });
     }
-    Ok(UdpPort::parse_address(text)?)
+    crate::ports::udp_address(text)
 }
 
 /// The `--boards` list: each count 1..=62; counts above 16 (the board-ID

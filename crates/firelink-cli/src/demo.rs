@@ -68,6 +68,11 @@ impl From<PacingArg> for Pacing {
 
 /// `--port`: `sim`, `emulate` or `udp:HOST[:PORT]` (clap).
 fn parse_port(text: &str) -> Result<DemoPort, String> {
+    if text.starts_with("udp") {
+        return crate::ports::udp_address(text)
+            .map(DemoPort::Udp)
+            .map_err(|e| e.to_string());
+    }
     text.parse()
         .map_err(|e: firelink_testbed::TestbedError| e.to_string())
 }

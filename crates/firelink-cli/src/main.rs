@@ -211,6 +211,22 @@ pub enum CliError {
         /// What is accepted.
         expected: &'static str,
     },
+    /// A `--port udp:...` address that cannot be used.
+    #[error("port {port:?}: {error}")]
+    PortAddress {
+        /// What was given.
+        port: String,
+        /// Why it cannot be used.
+        error: firelink_host::HostError,
+    },
+    /// A register address outside the board's map.
+    #[error("address {address:#x}: {problem}")]
+    Address {
+        /// The address given.
+        address: u64,
+        /// Why it cannot be used.
+        problem: String,
+    },
     /// A register name that is not on the board.
     #[error("register {name:?}: {problem}")]
     Register {
