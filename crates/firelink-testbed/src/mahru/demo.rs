@@ -397,7 +397,7 @@ pub fn run_mahru_demo(
         r.modules.len(),
         r.diameter,
         period.as_secs_f64() * 1e6,
-        options.duration_s
+        Number(options.duration_s)
     ));
     let n = r.controller.layout().modules.len();
     let periods = (options.duration_s.max(0.0) / period.as_secs_f64()).round() as u64;
