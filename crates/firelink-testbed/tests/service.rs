@@ -60,7 +60,7 @@ fn commands_drive_the_lifecycle_and_motion_waits_for_homing() {
     assert!(
         run(shared, Command::Configure)
             .result
-            .contains("InvalidTransition")
+            .contains("lifecycle: cannot configure from state")
     );
     assert_eq!(run(shared, Command::PowerOn).result, "ok");
     assert_eq!(run(shared, Command::Home).result, "ok");

@@ -408,6 +408,6 @@ mod tests {
         assert!(!t.held);
         assert_eq!(t.rate_hz, 100.0);
         let fault = t.fault.unwrap_or_default();
-        assert!(fault.contains("PotUnsteady"), "{fault}");
+        assert!(fault.contains("the potentiometer moved"), "{fault}");
     }
 }
