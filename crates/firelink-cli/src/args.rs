@@ -12,6 +12,7 @@ use firelink_board::config::{Hardware, Profile};
 pub use firelink_host::WatchdogSetting;
 use firelink_host::scan::Protocol;
 use firelink_host::udp::WaitMode;
+use firelink_wire::human::Number;
 
 /// A finite number in `lo..=hi` (or `lo < x` when `open_low`).
 fn bounded(s: &str, lo: f64, hi: f64, open_low: bool, unit: &str) -> Result<f64, String> {
@@ -22,7 +23,12 @@ fn bounded(s: &str, lo: f64, hi: f64, open_low: bool, unit: &str) -> Result<f64,
     let low_ok = if open_low { x > lo } else { x >= lo };
     if !x.is_finite() || !low_ok || x > hi {
         let low = if open_low { "above" } else { "from" };
-        return Err(format!("{s} is out of range: {low} {lo} to {hi}{unit}"));
+        return Err(format!(
+            "{} is out of range: {low} {} to {}{unit}",
+            s.trim(),
+            Number(lo),
+            Number(hi)
+        ));
     }
     Ok(x)
 }
@@ -94,9 +100,37 @@ pub fn board_count(s: &str) -> Result<u8, String> {
     Ok(n as u8)
 }
 
-/// Cycles to run or measure: 1 to 10^9.
+/// Cycles to run: 1 to 10^9.
 pub fn cycles(s: &str) -> Result<u64, String> {
     integer(s, 1, 1_000_000_000, "number of cycles")
+}
+
+/// Cycles, periods or reads whose every time is kept (a benchmark's
+/// measured cycles, `budget --periods` and `--reads`): 1 to 10^7, tens of
+/// megabytes of samples at most.
+pub fn measured(s: &str) -> Result<u64, String> {
+    integer(s, 1, 10_000_000, "number of measured cycles")
+}
+
+/// `budget --samples`: timings per transaction type and module, 1 to
+/// [`MAX_TIMINGS`](firelink_testbed::mahru::budget::MAX_TIMINGS).
+pub fn timings(s: &str) -> Result<u64, String> {
+    let hi = u64::from(firelink_testbed::mahru::budget::MAX_TIMINGS);
+    integer(s, 1, hi, "number of timings")
+}
+
+/// `budget --can-cycles`: 1 to
+/// [`MAX_CAN_CYCLES`](firelink_testbed::mahru::can::MAX_CAN_CYCLES).
+pub fn can_cycles(s: &str) -> Result<u64, String> {
+    let hi = u64::from(firelink_testbed::mahru::can::MAX_CAN_CYCLES);
+    integer(s, 1, hi, "number of CAN cycles")
+}
+
+/// MAHRU's control period in microseconds: the configuration's bounds,
+/// 100 us to 1 s.
+pub fn mahru_period_us(s: &str) -> Result<f64, String> {
+    let (lo, hi) = firelink_testbed::mahru::config::bounds::PERIOD_US;
+    bounded(s, lo, hi, false, " us")
 }
 
 /// Quadlets of one register access: 1..=512 (a block of 2048 bytes).
@@ -265,6 +299,136 @@ mod tests {
         for sub_tick in ["1e-7", "1e-9", "0.005"] {
             let e = watchdog(sub_tick).unwrap_err();
             assert!(e.contains("one firmware tick"), "{e}");
+        }
+    }
+
+    mod props {
+        use super::*;
+        use proptest::prelude::*;
+
+        /// Every float parser: (parser, lowest accepted, highest, whether
+        /// the low end is open, whether 0 is accepted besides the range).
+        type FloatParser = fn(&str) -> Result<f64, String>;
+        const FLOATS: &[(FloatParser, f64, f64, bool, bool)] = &[
+            (rate_hz, 1.0, 1e5, false, false),
+            (rate_hz_or_max, 1.0, 1e5, false, true),
+            (run_seconds, 0.0, 86_400.0, true, false),
+            (seconds_or_forever, 0.0, 31_536_000.0, false, false),
+            (wait_us, 0.0, 1e6, false, false),
+            (period_us, 0.0, 1e6, true, false),
+            (mahru_period_us, 100.0, 1e6, false, false),
+            (probability, 0.0, 1.0, false, false),
+        ];
+
+        /// Every integer parser with its range.
+        type IntParser = fn(&str) -> Result<u64, String>;
+        const INTEGERS: &[(IntParser, u64, u64)] = &[
+            (cycles, 1, 1_000_000_000),
+            (measured, 1, 10_000_000),
+            (timings, 1, 100_000),
+            (can_cycles, 1, 1_000_000),
+            (timeout_ms, 1, 60_000),
+        ];
+
+        fn float_text() -> impl Strategy<Value = String> {
+            prop_oneof![
+                any::<f64>().prop_map(|x| x.to_string()),
+                any::<f64>().prop_map(|x| format!("{x:e}")),
+                (-400i32..400).prop_map(|e| format!("1e{e}")),
+                (-400i32..400).prop_map(|e| format!("-2.5e{e}")),
+                Just("NaN".to_string()),
+                Just("inf".to_string()),
+                Just("-inf".to_string()),
+                "[ 0-9eE.+-]{0,12}",
+                ".{0,8}",
+            ]
+        }
+
+        fn integer_text() -> impl Strategy<Value = String> {
+            prop_oneof![
+                any::<u64>().prop_map(|x| x.to_string()),
+                any::<u64>().prop_map(|x| format!("{x:#x}")),
+                any::<i64>().prop_map(|x| x.to_string()),
+                (0u64..2_000_000_000).prop_map(|x| x.to_string()),
+                "[0-9xa-f_]{0,24}",
+                ".{0,8}",
+            ]
+        }
+
+        proptest! {
+            /// A float parser accepts only finite numbers in its range,
+            /// refuses the rest with one line that echoes the text as
+            /// given (never 300 digits), and never panics.
+            #[test]
+            fn float_parsers_accept_only_their_range(text in float_text()) {
+                for &(parse, lo, hi, open_low, zero) in FLOATS {
+                    match parse(&text) {
+                        Ok(x) => {
+                            prop_assert!(x.is_finite(), "{} -> {}", text, x);
+                            let low_ok = if open_low { x > lo } else { x >= lo };
+                            prop_assert!((low_ok && x <= hi) || (zero && x == 0.0), "{} -> {}", text, x);
+                            // What the value becomes downstream cannot panic.
+                            if x > 0.0 {
+                                let _ = Duration::from_secs_f64(x / 1e6);
+                                let _ = Duration::from_secs_f64(x);
+                                let _ = Duration::from_secs_f64(1.0 / x.max(1e-9));
+                            }
+                        }
+                        Err(e) => {
+                            // The text is echoed as typed; nothing else
+                            // in the line is a number written out in full.
+                            let rest = e.replace(text.trim(), "");
+                            prop_assert!(!e.contains('\n'), "{}", e);
+                            prop_assert!(rest.len() < 200, "{}", e);
+                            prop_assert!(!rest.contains("0000000000000"), "{}", e);
+                        }
+                    }
+                }
+            }
+
+            /// An integer parser accepts only its range (no wrapping), and
+            /// says the range when it refuses.
+            #[test]
+            fn integer_parsers_accept_only_their_range(text in integer_text()) {
+                for &(parse, lo, hi) in INTEGERS {
+                    match parse(&text) {
+                        Ok(n) => prop_assert!((lo..=hi).contains(&n), "{} -> {}", text, n),
+                        Err(e) => prop_assert!(
+                            e.contains("out of range") || e.contains("not a number"),
+                            "{}",
+                            e
+                        ),
+                    }
+                }
+                match node_id(&text) {
+                    Ok(n) => prop_assert!(n <= 63),
+                    Err(e) => prop_assert!(!e.is_empty()),
+                }
+                match board_id(&text) {
+                    Ok(n) => prop_assert!(n <= 15),
+                    Err(e) => prop_assert!(!e.is_empty()),
+                }
+                match board_count(&text) {
+                    Ok(n) => prop_assert!((1..=16).contains(&n)),
+                    Err(e) => prop_assert!(!e.is_empty()),
+                }
+                match quadlets(&text) {
+                    Ok(n) => prop_assert!((1..=512).contains(&n)),
+                    Err(e) => prop_assert!(!e.is_empty()),
+                }
+            }
+
+            /// The watchdog parser gives `off` only for the word, and a
+            /// period the register holds otherwise.
+            #[test]
+            fn watchdog_is_off_only_by_name(text in float_text()) {
+                if let Ok(w) = watchdog(&text) {
+                    match w.period() {
+                        None => prop_assert_eq!(text.trim(), "off"),
+                        Some(p) => prop_assert!(p > Duration::ZERO && p <= Duration::from_millis(342)),
+                    }
+                }
+            }
         }
     }
 }

@@ -18,7 +18,7 @@ use std::path::PathBuf;
 use clap::{Args, ValueEnum};
 
 use firelink_host::scan::Protocol;
-use firelink_host::udp::{UdpPort, WaitMode};
+use firelink_host::udp::WaitMode;
 use firelink_testbed::bench::{BenchOptions, BenchTransport, check_board_counts, run_bench};
 
 use crate::CliError;
@@ -50,7 +50,7 @@ fn bridge_address(text: &str) -> Result<SocketAddr, CliError> {
             expected: "udp:HOST or udp:HOST:PORT",
         });
     }
-    Ok(UdpPort::parse_address(text)?)
+    crate::ports::udp_address(text)
 }
 
 /// The `--boards` list: each count 1..=62; counts above 16 (the board-ID
@@ -100,8 +100,8 @@ pub struct BenchArgs {
     /// Protocols (comma-separated).
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ProtocolArg::Sequential, ProtocolArg::Broadcast])]
     pub protocol: Vec<ProtocolArg>,
-    /// Measured cycles per point (after 20 warm-up cycles), at least 1.
-    #[arg(long, default_value_t = 1000, value_parser = crate::args::cycles)]
+    /// Measured cycles per point (after 20 warm-up cycles), 1 to 10^7.
+    #[arg(long, default_value_t = 1000, value_parser = crate::args::measured)]
     pub cycles: u64,
     /// Firmware of the emulated boards.
     #[arg(long, value_enum, default_value_t = FirmwareArg::Rev8)]
@@ -127,8 +127,9 @@ pub struct BenchArgs {
     /// Snake node with its PC's model (the other options do not apply).
     #[arg(long, value_enum)]
     pub seed: Option<crate::seed001_bench::SeedPaper>,
-    /// With `--seed 001`: quadlet reads and writes each (the paper: 9000).
-    #[arg(long, default_value_t = 9000, value_parser = crate::args::cycles)]
+    /// With `--seed 001`: quadlet reads and writes each (the paper: 9000;
+    /// 1 to 10^7).
+    #[arg(long, default_value_t = 9000, value_parser = crate::args::measured)]
     pub iterations: u64,
     /// Print JSON on stdout.
     #[arg(long)]

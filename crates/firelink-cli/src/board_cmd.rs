@@ -216,9 +216,11 @@ impl TargetArgs {
 pub struct ReadArgs {
     #[command(flatten)]
     pub target: TargetArgs,
-    /// Register address: a number (0x10 = axis 1 ADC) or a name such as
-    /// status, hw_version, axis2.enc_position.
-    pub address: String,
+    /// Register address: a number (0x10 = axis 1 ADC; the board's map is
+    /// 0x0000..=0xffff) or a name such as status, hw_version,
+    /// axis2.enc_position.
+    #[arg(value_parser = address_arg)]
+    pub address: u64,
     /// Quadlets to read, 1..=512 (more than 1 uses one block read).
     #[arg(long, default_value_t = 1, value_parser = crate::args::quadlets)]
     pub count: usize,
@@ -230,7 +232,8 @@ pub struct WriteArgs {
     #[command(flatten)]
     pub target: TargetArgs,
     /// Register address (number or name, as for `read`).
-    pub address: String,
+    #[arg(value_parser = address_arg)]
+    pub address: u64,
     /// Quadlets to write (more than one uses one block write).
     #[arg(required = true, num_args = 1.., value_parser = crate::parse_number)]
     pub values: Vec<u64>,
@@ -272,6 +275,48 @@ pub fn parse_address(text: &str) -> Result<u64, CliError> {
     Ok(register.offset()?)
 }
 
+/// A register address on the command line (clap): a number or a name, in
+/// the board's map.
+fn address_arg(text: &str) -> Result<u64, String> {
+    let address = parse_address(text).map_err(|e| e.to_string())?;
+    check_address(address, 1).map_err(|e| e.to_string())?;
+    Ok(address)
+}
+
+/// The largest 1394 offset: 48 bits.
+const MAX_1394_OFFSET: u64 = 0xFFFF_FFFF_FFFF;
+
+/// The board decodes the low 16 bits of an offset (`fpga-board.md` §1):
+/// its whole address map, every space, is `0x0000..=0xFFFF`.
+const MAX_BOARD_ADDRESS: u64 = 0xFFFF;
+
+/// `quadlets` quadlets from `address` must lie in the board's map: an
+/// address beyond it would silently alias to the low 16 bits (the board
+/// ignores the rest), one beyond 48 bits is no 1394 offset at all.
+///
+/// # Errors
+/// [`CliError::Address`] saying which limit and what it would have read.
+pub fn check_address(address: u64, quadlets: usize) -> Result<(), CliError> {
+    let last = address.saturating_add(quadlets.saturating_sub(1) as u64);
+    let problem = if address > MAX_1394_OFFSET {
+        format!("beyond the 48-bit 1394 offset space (at most {MAX_1394_OFFSET:#x})")
+    } else if address > MAX_BOARD_ADDRESS {
+        format!(
+            "beyond the board's address map 0x0000..=0xffff (the board decodes only the \
+             low 16 bits of an offset: this would reach {:#06x})",
+            address & MAX_BOARD_ADDRESS
+        )
+    } else if last > MAX_BOARD_ADDRESS {
+        format!(
+            "{quadlets} quadlets from here run past the end of the board's address map \
+             (0xffff)"
+        )
+    } else {
+        return Ok(());
+    };
+    Err(CliError::Address { address, problem })
+}
+
 fn resolve(port: &mut dyn Port, board: u8, node: Option<u8>) -> Result<Dest, CliError> {
     if let Some(node) = node {
         return Ok(Dest::node(node));
@@ -289,7 +334,8 @@ fn resolve(port: &mut dyn Port, board: u8, node: Option<u8>) -> Result<Dest, Cli
 
 /// `firelink read`.
 pub fn run_read(args: &ReadArgs, out: &mut impl Write) -> Result<(), CliError> {
-    let address = parse_address(&args.address)?;
+    let address = args.address;
+    check_address(address, args.count)?;
     let (mut port, dest) = args.target.open()?;
     if args.count <= 1 {
         let v = port.read_quadlet(dest, address)?;
@@ -307,7 +353,8 @@ pub fn run_read(args: &ReadArgs, out: &mut impl Write) -> Result<(), CliError> {
 
 /// `firelink write`.
 pub fn run_write(args: &WriteArgs, out: &mut impl Write) -> Result<(), CliError> {
-    let address = parse_address(&args.address)?;
+    let address = args.address;
+    check_address(address, args.values.len())?;
     let mut values = Vec::with_capacity(args.values.len());
     for v in &args.values {
         values.push(u32::try_from(*v).map_err(|_| CliError::Range {
@@ -363,5 +410,25 @@ mod tests {
         assert_eq!(parse_address("0x1000").unwrap(), 0x1000);
         assert!(parse_address("bogus").is_err());
         assert!(parse_address("axis2.bogus").is_err());
+    }
+
+    #[test]
+    fn addresses_beyond_the_map_are_refused() {
+        assert!(check_address(0, 1).is_ok());
+        assert!(check_address(0x1000, 512).is_ok());
+        assert!(check_address(0xFFFF, 1).is_ok());
+        let e = check_address(0x1_0000_0000, 1).unwrap_err().to_string();
+        assert!(
+            e.starts_with("address 0x100000000: beyond the board's address map"),
+            "{e}"
+        );
+        assert!(e.contains("0x0000"), "{e}");
+        let e = check_address(0x1_0000_0000_0000, 1)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("48-bit"), "{e}");
+        let e = check_address(0xFFFF, 2).unwrap_err().to_string();
+        assert!(e.contains("run past the end"), "{e}");
+        assert!(check_address(u64::MAX, 512).is_err());
     }
 }

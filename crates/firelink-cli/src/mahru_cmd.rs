@@ -10,10 +10,11 @@ use std::time::Duration;
 use clap::{Args, ValueEnum};
 
 use firelink_host::mahru::rtos::Rtos;
-use firelink_testbed::mahru::budget::{BudgetOptions, run_budget};
+use firelink_testbed::mahru::budget::{BudgetOptions, BudgetReport, run_budget};
 use firelink_testbed::mahru::can::{Table4Options, run_table4};
 use firelink_testbed::mahru::table3::{Table3Options, run_table3};
 use firelink_testbed::mahru::{MahruConfig, MahruDemoOptions, run_mahru_demo};
+use firelink_wire::human::Number;
 
 use crate::CliError;
 use crate::demo::DemoArgs;
@@ -62,7 +63,7 @@ pub struct BudgetArgs {
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// The control period, us (default: the configuration's, 2000).
-    #[arg(long = "period-us", value_parser = crate::args::period_us)]
+    #[arg(long = "period-us", value_parser = crate::args::mahru_period_us)]
     pub period_us: Option<f64>,
     /// Real-time systems.
     #[arg(long, value_enum, default_value_t = RtosChoice::Both)]
@@ -70,18 +71,18 @@ pub struct BudgetArgs {
     /// Tables to produce (comma-separated): 1, 3, 4.
     #[arg(long, value_enum, value_delimiter = ',', default_value = "1,3,4")]
     pub tables: Vec<Table>,
-    /// Table I: timings per transaction type and module.
-    #[arg(long, default_value_t = 200, value_parser = crate::args::cycles)]
+    /// Table I: timings per transaction type and module (1 to 100000).
+    #[arg(long, default_value_t = 200, value_parser = crate::args::timings)]
     pub samples: u64,
-    /// Table I: periods walked end to end.
-    #[arg(long, default_value_t = 5000, value_parser = crate::args::cycles)]
+    /// Table I: periods walked end to end (1 to 10^7).
+    #[arg(long, default_value_t = 5000, value_parser = crate::args::measured)]
     pub periods: u64,
     /// Table III: simulated reads per payload and system (the seed: more
-    /// than a million).
-    #[arg(long, default_value_t = 1_000_000, value_parser = crate::args::cycles)]
+    /// than a million; 1 to 10^7).
+    #[arg(long, default_value_t = 1_000_000, value_parser = crate::args::measured)]
     pub reads: u64,
-    /// Table IV: CAN cycles.
-    #[arg(long = "can-cycles", default_value_t = 2000, value_parser = crate::args::cycles)]
+    /// Table IV: CAN cycles (1 to 10^6).
+    #[arg(long = "can-cycles", default_value_t = 2000, value_parser = crate::args::can_cycles)]
     pub can_cycles: u64,
     /// Table IV: chance of a bit error per CAN frame (0 to 1).
     #[arg(long = "can-errors", default_value_t = 0.0, value_parser = crate::args::probability)]
@@ -138,6 +139,7 @@ pub fn run_budget_cmd(args: &BudgetArgs, out: &mut impl Write) -> Result<(), Cli
     let config = config(args.config.as_deref())?;
     let systems = args.rtos.systems();
     let mut json = serde_json::Map::new();
+    let mut does_not_fit = Vec::new();
     if args.tables.contains(&Table::Budget) {
         let report = run_budget(
             &BudgetOptions {
@@ -149,6 +151,7 @@ pub fn run_budget_cmd(args: &BudgetArgs, out: &mut impl Write) -> Result<(), Cli
             },
             say,
         )?;
+        does_not_fit = misfits(&report);
         if args.json {
             json.insert("table_i".into(), serde_json::to_value(&report)?);
         } else {
@@ -199,5 +202,43 @@ pub fn run_budget_cmd(args: &BudgetArgs, out: &mut impl Write) -> Result<(), Cli
     if args.json {
         writeln!(out, "{}", serde_json::Value::Object(json))?;
     }
-    Ok(())
+    if does_not_fit.is_empty() {
+        Ok(())
+    } else {
+        Err(CliError::DoesNotFit(format!(
+            "the budget does not fit: {}",
+            does_not_fit.join("; ")
+        )))
+    }
+}
+
+/// What in Table I's analysis does not fit the period, one phrase per
+/// real-time system (none when everything fits).
+fn misfits(report: &BudgetReport) -> Vec<String> {
+    report
+        .per_rtos
+        .iter()
+        .filter_map(|r| {
+            let mut what = Vec::new();
+            for (name, q) in [
+                ("as the seed adds it", r.seed_arithmetic),
+                ("with Table I literally", r.literal),
+            ] {
+                if !q.fits {
+                    what.push(format!(
+                        "(1) {name} needs {:.1} us of the {} us period",
+                        q.total_us,
+                        Number(q.period_us)
+                    ));
+                }
+            }
+            if r.end_to_end.overruns > 0 {
+                what.push(format!(
+                    "{} of {} periods overran end to end",
+                    r.end_to_end.overruns, r.end_to_end.periods
+                ));
+            }
+            (!what.is_empty()).then(|| format!("{}: {}", r.rtos, what.join(", ")))
+        })
+        .collect()
 }

@@ -2,7 +2,8 @@
 //!
 //! Each subcommand is a thin layer over the library crates; this file only
 //! parses arguments, prints results and maps errors to one line on stderr
-//! with a non-zero exit status.
+//! with a non-zero exit status: 1 for an error, 2 for a usage error (clap),
+//! 3 for a run that finished but failed its check ([`EXIT_STATUS`]).
 
 mod args;
 mod bench;
@@ -31,7 +32,7 @@ use clap::{Args, Parser, Subcommand};
 /// Firelink: real-time robot control over IEEE 1394 and its Ethernet bridge,
 /// with the bus and the boards emulated in software.
 #[derive(Parser)]
-#[command(name = "firelink", version, about, long_about = None)]
+#[command(name = "firelink", version, about, long_about = None, after_help = EXIT_STATUS)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
@@ -210,6 +211,22 @@ pub enum CliError {
         /// What is accepted.
         expected: &'static str,
     },
+    /// A `--port udp:...` address that cannot be used.
+    #[error("port {port:?}: {error}")]
+    PortAddress {
+        /// What was given.
+        port: String,
+        /// Why it cannot be used.
+        error: firelink_host::HostError,
+    },
+    /// A register address outside the board's map.
+    #[error("address {address:#x}: {problem}")]
+    Address {
+        /// The address given.
+        address: u64,
+        /// Why it cannot be used.
+        problem: String,
+    },
     /// A register name that is not on the board.
     #[error("register {name:?}: {problem}")]
     Register {
@@ -271,6 +288,10 @@ pub enum CliError {
     /// A run finished and its verdict is "failed" (the report says why).
     #[error("{0}")]
     Failed(String),
+    /// `firelink budget`: the cycle does not fit its period (the report
+    /// says by how much).
+    #[error("{0}")]
+    DoesNotFit(String),
     /// Assembling or running an emulated robot failed.
     #[error(transparent)]
     Testbed(#[from] firelink_testbed::TestbedError),
@@ -291,6 +312,20 @@ impl CliError {
             _ => None,
         }
     }
+
+    /// The exit status for this error (see [`EXIT_STATUS`]): 128 + the
+    /// signal's number when a signal stopped a robot program (powered
+    /// down), 3 when the command ran to the end and its result failed its
+    /// check, else 1.
+    pub fn exit_code(&self) -> u8 {
+        if let Some(reason) = self.stopped_by() {
+            return u8::try_from(reason.exit_status()).unwrap_or(1);
+        }
+        match self {
+            CliError::Failed(_) | CliError::DoesNotFit(_) => 3,
+            _ => 1,
+        }
+    }
 }
 
 /// Commands that power a robot turn SIGINT, SIGTERM and SIGHUP into a stop
@@ -303,6 +338,13 @@ fn drives_a_robot(command: &Command) -> bool {
         Command::Demo(_) | Command::Monitor(_) | Command::SnakeTool(_) | Command::Soak(_)
     )
 }
+
+/// The exit statuses, as `firelink --help` shows them.
+pub const EXIT_STATUS: &str = "Exit status: 0 done (and every check passed); 1 error (a file, \
+a port or the boards could not be used); 2 usage (an option or value refused); 3 the run \
+finished but failed its check (`demo`: a fault, errors or overruns; `budget`: the cycle does \
+not fit its period); 128 + N stopped by signal N (SIGINT 130, SIGTERM 143, SIGHUP 129) \
+with the robot powered down.";
 
 fn run(cli: Cli) -> Result<(), CliError> {
     let mut out = std::io::stdout().lock();
@@ -377,10 +419,7 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
             eprintln!("firelink: {err}");
-            match err.stopped_by() {
-                Some(reason) => ExitCode::from(u8::try_from(reason.exit_status()).unwrap_or(1)),
-                None => ExitCode::FAILURE,
-            }
+            ExitCode::from(err.exit_code())
         }
     }
 }

@@ -12,6 +12,10 @@ use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::{Port, WatchdogSetting};
 
+use firelink_wire::board::address::{BoardRegister, Register};
+use firelink_wire::board::registers::{StatusRead, Watchdog};
+use firelink_wire::human::Number;
+
 use crate::CliError;
 use crate::ports::{PortArgs, open_port};
 
@@ -48,6 +52,56 @@ pub struct MonitorFigures {
     pub max_io_us: f64,
     /// A one-line message from the last key action.
     pub message: String,
+    /// Each board's watchdog period as read from its WATCHDOG register,
+    /// ms (0: off), by board ID; absent when it could not be read.
+    pub watchdog_ms: Vec<(u8, f64)>,
+}
+
+/// Every board's watchdog period from its WATCHDOG register, ms (0: off);
+/// boards whose register cannot be read are left out.
+pub fn watchdog_periods<P: Port>(io: &mut IoSystem<P>) -> Vec<(u8, f64)> {
+    let Ok(offset) = Register::board(BoardRegister::Watchdog).offset() else {
+        return Vec::new();
+    };
+    let ids: Vec<u8> = io.boards().iter().map(|b| b.board_id()).collect();
+    ids.into_iter()
+        .filter_map(|id| {
+            let raw = io.read_register(id, offset).ok()?;
+            Some((id, Watchdog(raw).period().as_secs_f64() * 1e3))
+        })
+        .collect()
+}
+
+/// What a board's STATUS says about its motor supply and its watchdog,
+/// in words, for the lines under the board (none when all is well):
+/// why the supply is not good, and what an expired watchdog means.
+fn explain(st: StatusRead, watchdog_ms: Option<f64>) -> Vec<String> {
+    let mut lines = Vec::new();
+    if !st.motor_supply_good() {
+        lines.push(if !st.motor_power_enabled() {
+            "supply off: motor power is not enabled (normal for idle boards)".to_string()
+        } else if st.motor_supply_fault() {
+            "supply FAULT: motor power is enabled but no motor supply is present".to_string()
+        } else {
+            "supply BAD: motor power is enabled but the motor supply is not up (still rising, \
+             or too low)"
+                .to_string()
+        });
+    }
+    if st.watchdog_timeout() {
+        let period = match watchdog_ms {
+            Some(ms) if ms > 0.0 => {
+                format!("its {} ms period", Number((ms * 1000.0).round() / 1000.0))
+            }
+            _ => "its period".to_string(),
+        };
+        lines.push(format!(
+            "watchdog expired: at some point the host wrote nothing for longer than {period} \
+             (normal for idle boards); it turned the amplifiers off and stays set until power \
+             or an amplifier is enabled"
+        ));
+    }
+    lines
 }
 
 /// Render one frame as text.
@@ -114,6 +168,8 @@ pub fn render<P: Port>(io: &IoSystem<P>, f: &MonitorFigures) -> String {
             on_off(st.relay_on()),
             if st.motor_supply_good() {
                 "good"
+            } else if !st.motor_power_enabled() {
+                "off "
             } else {
                 "BAD "
             },
@@ -124,6 +180,14 @@ pub fn render<P: Port>(io: &IoSystem<P>, f: &MonitorFigures) -> String {
             },
             st.raw()
         );
+        let period = f
+            .watchdog_ms
+            .iter()
+            .find(|(id, _)| *id == b.board_id())
+            .map(|&(_, ms)| ms);
+        for line in explain(st, period) {
+            let _ = writeln!(s, "  {line}");
+        }
         let _ = writeln!(
             s,
             "  axis  encoder      vel c/s   pot    current A   amp  dac"
@@ -168,13 +232,17 @@ pub fn run(args: &MonitorArgs, out: &mut impl Write) -> Result<(), CliError> {
         }
         io.set_watchdog(w)?;
     }
+    let watchdog_ms = watchdog_periods(&mut io);
     let period = if args.rate > 0.0 {
         Duration::from_secs_f64(1.0 / args.rate)
     } else {
         Duration::ZERO
     };
     if let Some(cycles) = args.once {
-        let mut f = MonitorFigures::default();
+        let mut f = MonitorFigures {
+            watchdog_ms,
+            ..MonitorFigures::default()
+        };
         let start = Instant::now();
         for _ in 0..cycles.max(1) {
             let r = *io.cycle();
@@ -188,7 +256,7 @@ pub fn run(args: &MonitorArgs, out: &mut impl Write) -> Result<(), CliError> {
         write!(out, "{}", render(&io, &f))?;
         return Ok(());
     }
-    let result = interactive(&mut io, period, out);
+    let result = interactive(&mut io, period, watchdog_ms, out);
     // Power the boards down if this session switched anything on (the
     // one rule, RobotIo::power_down; dropping `io` would do it silently).
     if io.energised() != 0 {
@@ -208,6 +276,7 @@ fn pace(start: Instant, cycles: u64, period: Duration) {
 fn interactive<P: Port>(
     io: &mut IoSystem<P>,
     period: Duration,
+    watchdog_ms: Vec<(u8, f64)>,
     out: &mut impl Write,
 ) -> Result<(), CliError> {
     use crossterm::event::{self, Event, KeyCode};
@@ -216,7 +285,10 @@ fn interactive<P: Port>(
     terminal::enable_raw_mode()?;
     execute!(out, terminal::EnterAlternateScreen, cursor::Hide)?;
     let result = (|| -> Result<(), CliError> {
-        let mut f = MonitorFigures::default();
+        let mut f = MonitorFigures {
+            watchdog_ms,
+            ..MonitorFigures::default()
+        };
         let start = Instant::now();
         let mut last_draw = Instant::now();
         let mut window_cycles = 0u64;
@@ -289,6 +361,7 @@ fn interactive<P: Port>(
                             };
                             f.message = match io.set_watchdog(p) {
                                 Ok(()) => {
+                                    f.watchdog_ms = watchdog_periods(io);
                                     let warn =
                                         p.warning().map_or(String::new(), |w| format!(" ({w})"));
                                     format!("watchdog {p}{warn}")
@@ -305,4 +378,35 @@ fn interactive<P: Port>(
     let _ = execute!(out, cursor::Show, terminal::LeaveAlternateScreen);
     let _ = terminal::disable_raw_mode();
     result
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn idle_boards_are_explained() {
+        // Power off, watchdog expired: what an idle board reports.
+        let idle = StatusRead::default().with_watchdog_timeout(true);
+        let lines = explain(idle, Some(20.0));
+        assert_eq!(lines.len(), 2, "{lines:?}");
+        assert!(lines[0].starts_with("supply off: motor power is not enabled"));
+        assert!(
+            lines[1].contains("longer than its 20 ms period"),
+            "{lines:?}"
+        );
+        assert!(lines[1].contains("turned the amplifiers off"), "{lines:?}");
+        // Power on without a supply, and a supply still rising.
+        let no_supply = StatusRead::default()
+            .with_motor_power_enabled(true)
+            .with_motor_supply_fault(true);
+        assert!(explain(no_supply, None)[0].starts_with("supply FAULT"));
+        let rising = StatusRead::default().with_motor_power_enabled(true);
+        assert!(explain(rising, None)[0].starts_with("supply BAD"));
+        // All well: nothing to explain.
+        let good = StatusRead::default()
+            .with_motor_power_enabled(true)
+            .with_motor_supply_good(true);
+        assert!(explain(good, Some(20.0)).is_empty());
+    }
 }

@@ -56,9 +56,21 @@ fn parse_port(text: &str) -> Result<PortSpec, CliError> {
         return Ok(PortSpec::Sim { boards, firmware });
     }
     if text.starts_with("udp") {
-        return Ok(PortSpec::Udp(UdpPort::parse_address(text)?));
+        return Ok(PortSpec::Udp(udp_address(text)?));
     }
     Err(bad())
+}
+
+/// `udp:HOST` or `udp:HOST:PORT` as a socket address: HOST an IP address
+/// or a name (resolved, IPv4 preferred: `udp:localhost` is 127.0.0.1).
+///
+/// # Errors
+/// [`CliError::PortAddress`] naming the text and what is wrong with it.
+pub fn udp_address(text: &str) -> Result<SocketAddr, CliError> {
+    UdpPort::parse_address(text).map_err(|error| CliError::PortAddress {
+        port: text.to_string(),
+        error,
+    })
 }
 
 /// The `--port` option shared by every command that talks to boards.

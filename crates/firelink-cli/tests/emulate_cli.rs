@@ -319,3 +319,16 @@ fn emulate_board_settings() {
         );
     }
 }
+
+#[test]
+fn a_host_name_reaches_the_emulator() {
+    // `udp:localhost:PORT` resolves (IPv4 first, where the emulator
+    // listens) instead of failing with "(value 0)".
+    let emu = Emulate::start(&["--boards", "2"]);
+    let by_name = emu.port.replace("127.0.0.1", "localhost");
+    assert!(by_name.starts_with("udp:localhost:"), "{by_name}");
+    let r = scan(&by_name);
+    assert_eq!(r["boards"].as_array().map(Vec::len), Some(2), "{r}");
+    assert!(r["port"].as_str().unwrap().contains("127.0.0.1"), "{r}");
+    emu.terminate();
+}

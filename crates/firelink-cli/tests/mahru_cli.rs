@@ -88,3 +88,111 @@ fn budget_refuses_bad_options() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent.json"));
 }
+
+/// The seed's configuration with one top-level number replaced, written
+/// to a temporary file named `name`.
+fn mahru_config_with(name: &str, edit: impl FnOnce(&mut serde_json::Value)) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../configs/mahru-seed002.json"
+    ))
+    .unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    edit(&mut v);
+    let dir = std::env::temp_dir().join(format!("firelink-mahru-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, v.to_string()).unwrap();
+    path
+}
+
+#[test]
+fn huge_numbers_in_the_configuration_are_refused_not_a_panic_or_a_hang() {
+    for (name, field, value) in [
+        ("period.json", "period_us", 1e300),
+        ("slack.json", "slack_us", 1e300),
+        ("compute.json", "compute_us", 1e300),
+        ("period12.json", "period_us", 1e12),
+    ] {
+        let path = mahru_config_with(name, |v| v[field] = value.into());
+        let path = path.to_str().unwrap();
+        for args in [
+            &["budget", "--tables", "1", "--config", path][..],
+            &[
+                "demo",
+                "--robot",
+                "mahru",
+                "--duration",
+                "0.1",
+                "--config",
+                path,
+            ],
+        ] {
+            let out = firelink(args);
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+            let shown = if value == 1e300 { "1e300" } else { "1e12" };
+            assert!(
+                err.contains(&format!("{name}: {field}: out of range: {shown}")),
+                "{err}"
+            );
+            assert!(err.contains("100 to 1000000 us") || err.contains("0 to 1000000 us"));
+            assert_eq!(err.lines().count(), 1, "{err}");
+        }
+    }
+    let path = mahru_config_with("servo.json", |v| {
+        v["chains"][0]["modules"][0]["device"]["motor"]["servo_hz"] = 1e300.into();
+    });
+    let out = firelink(&["budget", "--config", path.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("chains[0].modules[0].device.motor.servo_hz: out of range: 1e300"),
+        "{err}"
+    );
+    if let Some(dir) = path.parent() {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}
+
+#[test]
+fn periods_beyond_the_bounds_are_usage_errors() {
+    for args in [
+        &["demo", "--robot", "mahru", "--period-us", "0.001"][..],
+        &["demo", "--robot", "mahru", "--period-us", "1e300"],
+        &["budget", "--period-us", "1e12"],
+        &["budget", "--reads", "1000000000"],
+        &["budget", "--samples", "1000000000"],
+        &["budget", "--can-cycles", "4000000000"],
+    ] {
+        let out = firelink(args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("out of range"), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn a_budget_that_does_not_fit_exits_3() {
+    let args = [
+        "budget",
+        "--tables",
+        "1",
+        "--rtos",
+        "xenomai",
+        "--samples",
+        "5",
+        "--periods",
+        "20",
+        "--period-us",
+        "1000",
+    ];
+    let out = firelink(&args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{err}");
+    assert!(String::from_utf8_lossy(&out.stdout).contains("does NOT fit"));
+    assert!(err.contains("the budget does not fit: xenomai"), "{err}");
+    // The same at the seed's 2 ms fits: 0.
+    let out = firelink(&args[..args.len() - 2]);
+    assert_eq!(out.status.code(), Some(0));
+}

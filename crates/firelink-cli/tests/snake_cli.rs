@@ -166,6 +166,13 @@ fn snake_tool_refuses_bad_inputs_clearly() {
         fails(&["snake-tool", "exec", script], needle);
     }
     fails(&["snake-tool", "--port", "tcp:x", "show"], "unknown port");
+    // Numbers are echoed as typed, never written out in 300 digits.
+    let err = fails(&["snake-tool", "exec", "wait 1e300"], "out of range");
+    assert!(
+        err.contains("wait (ms): 1e300 is out of range: 0 to 60000"),
+        "{err}"
+    );
+    assert!(!err.contains("00000000000"), "{err}");
 }
 
 #[test]

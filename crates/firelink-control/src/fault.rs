@@ -5,6 +5,7 @@
 //! can print it later. Joints and boards are named by [`Label`]s taken from
 //! the configuration at setup.
 
+use crate::config::Measured;
 use crate::label::Label;
 use core::fmt;
 
@@ -161,7 +162,9 @@ impl fmt::Display for FaultKind {
                 limit,
             } => write!(
                 f,
-                "{joint} following error {error:+.6} exceeds limit {limit:.6}"
+                "{joint} following error {:+} exceeds its limit of {} (rad or m)",
+                Measured(*error),
+                Measured(*limit)
             ),
             FaultKind::Velocity {
                 joint,
@@ -169,7 +172,9 @@ impl fmt::Display for FaultKind {
                 limit,
             } => write!(
                 f,
-                "{joint} velocity {velocity:+.6} exceeds limit {limit:.6}"
+                "{joint} velocity {:+} exceeds its limit of {} (rad/s or m/s)",
+                Measured(*velocity),
+                Measured(*limit)
             ),
             FaultKind::CurrentSaturation {
                 joint,
@@ -177,7 +182,9 @@ impl fmt::Display for FaultKind {
                 limit,
             } => write!(
                 f,
-                "{joint} current saturated for {duration:.4} s (limit {limit:.4} s)"
+                "{joint} current sat at the maximum for {} s, longer than the {} s allowed",
+                Measured(*duration),
+                Measured(*limit)
             ),
             FaultKind::PositionLimit {
                 joint,
@@ -186,7 +193,10 @@ impl fmt::Display for FaultKind {
                 upper,
             } => write!(
                 f,
-                "{joint} position {position:+.6} outside [{lower:.6}, {upper:.6}]"
+                "{joint} position {:+} is outside its limits [{}, {}]",
+                Measured(*position),
+                Measured(*lower),
+                Measured(*upper)
             ),
             FaultKind::PotentiometerMismatch {
                 joint,
@@ -194,7 +204,9 @@ impl fmt::Display for FaultKind {
                 tolerance,
             } => write!(
                 f,
-                "{joint} potentiometer and encoder differ by {difference:+.6} (tolerance {tolerance:.6})"
+                "{joint} potentiometer and encoder differ by {:+}, more than the tolerance of {} (rad or m)",
+                Measured(*difference),
+                Measured(*tolerance)
             ),
             FaultKind::InvalidValue { joint, what } => {
                 write!(f, "{joint} {what} is not a finite number")
@@ -220,12 +232,29 @@ mod tests {
         );
         let s = r.to_string();
         assert!(s.contains("PSM1[2]"), "{s}");
-        assert!(s.contains("+0.012300"), "{s}");
+        assert!(
+            s.contains("following error +0.0123 exceeds its limit of 0.01"),
+            "{s}"
+        );
         assert!(s.contains("cycle 1500"), "{s}");
         let m = FaultKind::MissedBoard {
             board_id: 5,
             robot: Label::new("PSM1"),
         };
         assert_eq!(m.to_string(), "board 5 (PSM1) did not answer");
+    }
+
+    #[test]
+    fn huge_values_read_as_written() {
+        let k = FaultKind::PositionLimit {
+            joint: Label::joint("MTML", 0),
+            position: 1e300,
+            lower: -1.0,
+            upper: 1.0,
+        };
+        assert_eq!(
+            k.to_string(),
+            "MTML[0] position +1e300 is outside its limits [-1, 1]"
+        );
     }
 }

@@ -28,7 +28,7 @@
 //!
 //! [`EncoderConfig::position_to_preload_bits`]: crate::config::EncoderConfig::position_to_preload_bits
 
-use crate::config::IoConfig;
+use crate::config::{IoConfig, Measured};
 use crate::label::Label;
 
 /// One joint as homing sees it.
@@ -66,7 +66,9 @@ impl Default for HomingSettings {
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum HomingError {
     /// The slices passed to [`Homing::step`] do not have one entry per joint.
-    #[error("homing expects {expected} joints, got {pot} pot and {encoder} encoder values")]
+    #[error(
+        "homing expects one reading per joint ({expected}), got {pot} potentiometer and {encoder} encoder readings"
+    )]
     WrongJointCount {
         /// Joints configured.
         expected: usize,
@@ -85,7 +87,11 @@ pub enum HomingError {
     },
     /// The pot moved too much while averaging: the joint is not still or the
     /// pot is noisy.
-    #[error("{joint}: potentiometer moved {spread:.6} while averaging (tolerance {tolerance:.6})")]
+    #[error(
+        "{joint}: the potentiometer moved {} while homing averaged it, more than its tolerance of {} (rad or m): the joint is not still, or its potentiometer is noisy",
+        Measured(*.spread),
+        Measured(*.tolerance)
+    )]
     PotUnsteady {
         /// The joint.
         joint: Label,
@@ -96,7 +102,11 @@ pub enum HomingError {
     },
     /// After homing, pot and encoder still disagree.
     #[error(
-        "{joint}: potentiometer {potentiometer:.6} and encoder {encoder:.6} differ by {difference:+.6} (tolerance {tolerance:.6})"
+        "{joint}: after homing the potentiometer reads {} and the encoder {}: they differ by {:+}, more than the tolerance of {} (rad or m)",
+        Measured(*.potentiometer),
+        Measured(*.encoder),
+        Measured(*.difference),
+        Measured(*.tolerance)
     )]
     Mismatch {
         /// The joint.
@@ -111,7 +121,7 @@ pub enum HomingError {
         tolerance: f64,
     },
     /// A method was called in the wrong phase.
-    #[error("homing: {action} is not possible while {phase:?}")]
+    #[error("homing: {action} is not possible while {phase}")]
     OutOfOrder {
         /// What was asked.
         action: &'static str,
@@ -120,7 +130,7 @@ pub enum HomingError {
     },
 }
 
-/// Where homing is.
+/// Where homing is (shown in words: `averaging`, ...).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum HomingPhase {
     /// Not started.
@@ -135,6 +145,19 @@ pub enum HomingPhase {
     Done,
     /// Failed; see the error returned by `step`.
     Failed,
+}
+
+impl core::fmt::Display for HomingPhase {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            HomingPhase::Idle => "not started",
+            HomingPhase::Averaging => "averaging",
+            HomingPhase::PreloadReady => "waiting for the encoder preload",
+            HomingPhase::Verifying => "verifying",
+            HomingPhase::Done => "done",
+            HomingPhase::Failed => "failed",
+        })
+    }
 }
 
 /// What [`Homing::step`] says after each cycle.
@@ -616,5 +639,46 @@ mod tests {
                 encoder: 3
             })
         ));
+    }
+
+    #[test]
+    fn errors_read_as_sentences() {
+        // What `firelink demo` printed as `homing: PotUnsteady { joint:
+        // "BENCH[0]", spread: ... }`.
+        let e = crate::runner::RunnerError::Homing(HomingError::PotUnsteady {
+            joint: Label::joint("BENCH", 0),
+            spread: 0.0017337178605651982,
+            tolerance: 1e-300,
+        });
+        assert_eq!(
+            e.to_string(),
+            "homing: BENCH[0]: the potentiometer moved 0.001734 while homing averaged it, \
+             more than its tolerance of 1e-300 (rad or m): the joint is not still, or its \
+             potentiometer is noisy"
+        );
+        let m = HomingError::Mismatch {
+            joint: Label::joint("MTML", 0),
+            potentiometer: 1.0000000000000003e300,
+            encoder: 1.0000000000000005e300,
+            difference: -1.487016908477783e284,
+            tolerance: 0.0872664626,
+        };
+        let shown = m.to_string();
+        assert!(
+            shown.contains("reads 1e300 and the encoder 1e300"),
+            "{shown}"
+        );
+        assert!(shown.contains("differ by -1.487e284"), "{shown}");
+        let o = HomingError::OutOfOrder {
+            action: "preload_written",
+            phase: HomingPhase::Averaging,
+        };
+        assert_eq!(
+            o.to_string(),
+            "homing: preload_written is not possible while averaging"
+        );
+        for shown in [e.to_string(), shown, o.to_string()] {
+            assert!(!shown.contains('{') && !shown.contains('"'), "{shown}");
+        }
     }
 }

@@ -17,7 +17,7 @@ pub enum HostError {
         waited_us: u32,
     },
     /// The responder acknowledged with something other than complete/pending.
-    #[error("node {node} answered ack {ack:?}")]
+    #[error("node {node} answered with ack {}", ack_words(*.ack))]
     Ack {
         /// Destination node.
         node: u8,
@@ -25,7 +25,7 @@ pub enum HostError {
         ack: Ack,
     },
     /// The response carried an error rcode.
-    #[error("node {node} answered rcode {rcode:?}")]
+    #[error("node {node} answered with rcode {}", rcode_words(*.rcode))]
     Rcode {
         /// Responding node.
         node: u8,
@@ -45,8 +45,11 @@ pub enum HostError {
     #[error("bad packet from the port: {0}")]
     Wire(#[from] firelink_wire::Error),
     /// The operating system refused a socket operation.
-    #[error("socket error: {0:?}")]
+    #[error("socket error: {0}")]
     Io(std::io::ErrorKind),
+    /// A port address (`udp:HOST[:PORT]`) that is not one.
+    #[error("{0}")]
+    Address(AddressProblem),
     /// A request that cannot be expressed (size, destination).
     #[error("invalid request: {what} (value {value})")]
     InvalidRequest {
@@ -73,6 +76,44 @@ pub enum HostError {
     /// A board ID is not present in the current configuration.
     #[error("board {0} is not on the bus")]
     UnknownBoard(u8),
+}
+
+/// What is wrong with a port address (`udp:HOST` or `udp:HOST:PORT`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum AddressProblem {
+    /// Not `udp:HOST` or `udp:HOST:PORT`.
+    #[error("expected udp:HOST or udp:HOST:PORT (an IPv6 address in brackets: udp:[::1]:1394)")]
+    Syntax,
+    /// The text after the last `:` is not a UDP port.
+    #[error("the UDP port must be a number from 1 to 65535")]
+    Port,
+    /// The host name does not resolve to an address.
+    #[error("the host name does not resolve to an address")]
+    Unresolved,
+}
+
+/// An ack code in words.
+fn ack_words(ack: Ack) -> String {
+    match ack {
+        Ack::Complete => "complete".into(),
+        Ack::Pending => "pending".into(),
+        Ack::BusyX | Ack::BusyA | Ack::BusyB => "busy (the node could not take the request)".into(),
+        Ack::DataError => "data error (CRC or length error in the data block)".into(),
+        Ack::TypeError => "type error (unsupported transaction or bad header field)".into(),
+        Ack::Unknown(code) => format!("{code:#x} (not a defined ack code)"),
+    }
+}
+
+/// A response code in words.
+fn rcode_words(rcode: Rcode) -> String {
+    match rcode {
+        Rcode::Complete => "complete".into(),
+        Rcode::ConflictError => "conflict error (a resource conflict; it may be retried)".into(),
+        Rcode::DataError => "data error (data not available or corrupt)".into(),
+        Rcode::TypeError => "type error (the operation is not supported at that address)".into(),
+        Rcode::AddressError => "address error (the address is not accessible)".into(),
+        Rcode::Unknown(code) => format!("{code:#x} (not a defined response code)"),
+    }
 }
 
 impl From<std::io::Error> for HostError {
@@ -130,3 +171,43 @@ impl core::fmt::Display for MissReason {
 
 /// Result alias of the host layer.
 pub type Result<T> = core::result::Result<T, HostError>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn errors_read_as_sentences() {
+        let e = HostError::Ack {
+            node: 3,
+            ack: Ack::BusyA,
+        };
+        assert_eq!(
+            e.to_string(),
+            "node 3 answered with ack busy (the node could not take the request)"
+        );
+        let e = HostError::Rcode {
+            node: 1,
+            rcode: Rcode::AddressError,
+        };
+        assert!(
+            e.to_string()
+                .ends_with("address error (the address is not accessible)")
+        );
+        let e = HostError::Io(std::io::ErrorKind::ConnectionRefused);
+        assert_eq!(e.to_string(), "socket error: connection refused");
+        for e in [
+            HostError::Ack {
+                node: 0,
+                ack: Ack::Unknown(9),
+            },
+            HostError::Address(AddressProblem::Port),
+        ] {
+            let shown = e.to_string();
+            assert!(
+                !shown.contains('{') && !shown.contains("Unknown("),
+                "{shown}"
+            );
+        }
+    }
+}

@@ -26,14 +26,14 @@
 //! the calls.
 
 use std::io;
-use std::net::{IpAddr, Ipv4Addr, SocketAddr, UdpSocket};
+use std::net::{IpAddr, Ipv4Addr, SocketAddr, ToSocketAddrs, UdpSocket};
 use std::time::{Duration, Instant};
 
 use firelink_wire::board::address::{BoardRegister, Register};
 use firelink_wire::bridge::{ControlWord, EXTRA_DATA_LEN, ExtraData};
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
 
-use crate::error::{HostError, Result};
+use crate::error::{AddressProblem, HostError, Result};
 use crate::port::{Dest, LinkFilter, LinkFilters, Port, Verdict};
 use crate::transaction::{CrcCheck, Expect, LinkStats, Transactions, copy_answer};
 
@@ -223,20 +223,57 @@ impl UdpPort {
         })
     }
 
-    /// Parse a port string: `udp:HOST` (port 1394) or `udp:HOST:PORT`.
+    /// Parse a port string: `udp:HOST` (port 1394) or `udp:HOST:PORT`,
+    /// HOST an IPv4 address, an IPv6 address (in brackets with a port:
+    /// `udp:[::1]:1394`) or a host name. A name is resolved, and its IPv4
+    /// address preferred (`udp:localhost` is 127.0.0.1, where `firelink
+    /// emulate` listens).
     ///
     /// # Errors
-    /// [`HostError::InvalidRequest`] for text that is not such an address.
+    /// [`HostError::Address`]: the text is not such an address, the port
+    /// is not 1..=65535, or the name does not resolve.
     pub fn parse_address(text: &str) -> Result<SocketAddr> {
-        let rest = text.strip_prefix("udp:").unwrap_or(text);
-        let bad = HostError::InvalidRequest {
-            what: "port string (expected udp:HOST or udp:HOST:PORT)",
-            value: 0,
-        };
+        let bad = |p| HostError::Address(p);
+        let rest = text.trim().strip_prefix("udp:").unwrap_or(text.trim());
         if let Ok(ip) = rest.parse::<IpAddr>() {
             return Ok(SocketAddr::new(ip, firelink_wire::bridge::BRIDGE_UDP_PORT));
         }
-        rest.parse::<SocketAddr>().map_err(|_| bad)
+        if let Ok(addr) = rest.parse::<SocketAddr>() {
+            if addr.port() == 0 {
+                return Err(bad(AddressProblem::Port));
+            }
+            return Ok(addr);
+        }
+        // A host name, with or without a port.
+        let (host, port) = match rest.rsplit_once(':') {
+            Some((host, port)) => {
+                let port = port
+                    .parse::<u16>()
+                    .ok()
+                    .filter(|&p| p != 0)
+                    .ok_or(bad(AddressProblem::Port))?;
+                (host, port)
+            }
+            None => (rest, firelink_wire::bridge::BRIDGE_UDP_PORT),
+        };
+        let name_ok = !host.is_empty()
+            && host.len() <= 253
+            && host
+                .bytes()
+                .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'.' || b == b'_');
+        if !name_ok {
+            return Err(bad(AddressProblem::Syntax));
+        }
+        let addrs: Vec<SocketAddr> = (host, port)
+            .to_socket_addrs()
+            .map_err(|_| bad(AddressProblem::Unresolved))?
+            .collect();
+        addrs
+            .iter()
+            .find(|a| a.is_ipv4())
+            .or_else(|| addrs.first())
+            .copied()
+            .ok_or(bad(AddressProblem::Unresolved))
     }
 
     /// Set the read time-out. A blocking port gives it to its socket at
@@ -624,6 +661,34 @@ mod tests {
             UdpPort::parse_address("udp:127.0.0.1:4000").unwrap(),
             "127.0.0.1:4000".parse().unwrap()
         );
-        assert!(UdpPort::parse_address("udp:nowhere").is_err());
+        // Host names resolve, IPv4 first (the hosts file: no DNS).
+        assert_eq!(
+            UdpPort::parse_address("udp:localhost").unwrap(),
+            "127.0.0.1:1394".parse().unwrap()
+        );
+        assert_eq!(
+            UdpPort::parse_address("udp:localhost:4000").unwrap(),
+            "127.0.0.1:4000".parse().unwrap()
+        );
+        assert_eq!(
+            UdpPort::parse_address("udp:[::1]:4000").unwrap(),
+            "[::1]:4000".parse().unwrap()
+        );
+        for (text, problem) in [
+            ("udp:", AddressProblem::Syntax),
+            ("udp:a b", AddressProblem::Syntax),
+            ("udp:localhost:99999", AddressProblem::Port),
+            ("udp:localhost:0", AddressProblem::Port),
+            ("udp:127.0.0.1:0", AddressProblem::Port),
+            ("udp:localhost:http", AddressProblem::Port),
+        ] {
+            assert_eq!(
+                UdpPort::parse_address(text),
+                Err(HostError::Address(problem)),
+                "{text}"
+            );
+        }
+        let shown = UdpPort::parse_address("udp:").unwrap_err().to_string();
+        assert!(!shown.contains("value 0"), "{shown}");
     }
 }

@@ -482,7 +482,7 @@ fn move_to(
         });
     let here = robot.setpoint(i).unwrap_or(0.0);
     let motion = PointToPoint::new(here, target, speed * v, speed * a)
-        .map_err(|e| TestbedError::Config(format!("{label}: move to {target}: {e:?}")))?;
+        .map_err(|e| TestbedError::Config(format!("{label}: move to {target}: {e}")))?;
     let cycles = ((motion.duration() + SETTLE_S) / robot.period()).ceil() as u64;
     robot.set_motion(i, Motion::PointToPoint(motion))?;
     for _ in 0..cycles {

@@ -47,7 +47,7 @@ fn parse_tool_port(text: &str) -> Result<ToolPort, CliError> {
         return Ok(ToolPort::Sim);
     }
     if text.starts_with("udp") {
-        return Ok(ToolPort::Udp(UdpPort::parse_address(text)?));
+        return Ok(ToolPort::Udp(crate::ports::udp_address(text)?));
     }
     Err(CliError::Port {
         port: text.to_string(),

@@ -232,7 +232,12 @@ fn parse_num<T: std::str::FromStr>(word: Option<&str>, what: &str) -> Result<T, 
 fn parse_f64(word: Option<&str>, what: &str, lo: f64, hi: f64) -> Result<f64, CliError> {
     let x: f64 = parse_num(word, what)?;
     if !(x.is_finite() && (lo..=hi).contains(&x)) {
-        return Err(bad(format!("{what}: {x} is out of range {lo}..={hi}")));
+        return Err(bad(format!(
+            "{what}: {} is out of range: {} to {}",
+            word.unwrap_or("").trim(),
+            firelink_wire::human::Number(lo),
+            firelink_wire::human::Number(hi)
+        )));
     }
     Ok(x)
 }

@@ -2,6 +2,32 @@
 
 use core::fmt;
 
+use firelink_wire::human::Number;
+
+/// A computed or measured figure in a message: 4 significant digits,
+/// written as a person writes it through [`Number`] (`0.01734`, `2e300`,
+/// `-1.5e-7`), never a 300-digit integer or 17 digits of noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Measured(pub f64);
+
+impl fmt::Display for Measured {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let x = round_sig(self.0);
+        if f.sign_plus() && x >= 0.0 {
+            f.write_str("+")?;
+        }
+        write!(f, "{}", Number(x))
+    }
+}
+
+/// `x` to 4 significant digits (non-finite values unchanged).
+pub(crate) fn round_sig(x: f64) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    format!("{x:.3e}").parse().unwrap_or(x)
+}
+
 /// One problem in a configuration file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ConfigError {
@@ -80,6 +106,17 @@ pub enum Problem {
         /// The allowed range, in words.
         expected: String,
     },
+    /// A value makes a move the configuration implies (homing, a stop
+    /// search, a move across the soft limits) last longer than
+    /// [`bounds::MOVE_SECONDS`](super::bounds::MOVE_SECONDS).
+    TooLong {
+        /// The value found.
+        value: f64,
+        /// The move, in words.
+        what: String,
+        /// How long it would take, seconds.
+        seconds: f64,
+    },
     /// `lower >= upper`.
     EmptyRange {
         /// Lower bound found.
@@ -123,11 +160,25 @@ impl fmt::Display for Problem {
             Problem::NotFinite => write!(f, "not a finite number"),
             Problem::ZeroScale => write!(f, "zero scale (the conversion cannot be inverted)"),
             Problem::OutOfRange { value, expected } => {
-                write!(f, "out of range: {value} (expected {expected})")
+                write!(f, "out of range: {} (expected {expected})", Number(*value))
             }
-            Problem::EmptyRange { lower, upper } => {
-                write!(f, "empty range: lower {lower} is not below upper {upper}")
-            }
+            Problem::TooLong {
+                value,
+                what,
+                seconds,
+            } => write!(
+                f,
+                "out of range: {} makes {what} take {} s (at most {} s)",
+                Number(*value),
+                Number(*seconds),
+                Number(super::bounds::MOVE_SECONDS)
+            ),
+            Problem::EmptyRange { lower, upper } => write!(
+                f,
+                "empty range: lower {} is not below upper {}",
+                Number(*lower),
+                Number(*upper)
+            ),
             Problem::Duplicate { what, first } => {
                 write!(f, "duplicate {what} (first used at {first})")
             }
@@ -156,7 +207,9 @@ impl ConfigErrors {
         ConfigErrors(vec![e])
     }
 
-    pub(crate) fn from_vec(v: Vec<ConfigError>) -> Option<Self> {
+    /// The errors of `v`, or `None` when it is empty (other configuration
+    /// formats, such as MAHRU's, report through this type too).
+    pub fn from_vec(v: Vec<ConfigError>) -> Option<Self> {
         if v.is_empty() {
             None
         } else {
@@ -200,5 +253,22 @@ impl IntoIterator for ConfigErrors {
     type IntoIter = std::vec::IntoIter<ConfigError>;
     fn into_iter(self) -> Self::IntoIter {
         self.0.into_iter()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn measured_figures_read_as_written() {
+        let shown = |x: f64| Measured(x).to_string();
+        assert_eq!(shown(0.0017337178605651982), "0.001734");
+        assert_eq!(shown(2.5249096380004967e301), "2.525e301");
+        assert_eq!(shown(6.25), "6.25");
+        assert_eq!(shown(-1.487016908477783e-7), "-1.487e-7");
+        assert_eq!(shown(f64::NAN), "NaN");
+        assert_eq!(format!("{:+}", Measured(0.0123)), "+0.0123");
+        assert_eq!(format!("{:+}", Measured(-0.0123)), "-0.0123");
     }
 }

@@ -64,14 +64,22 @@
 //! [`IoConfig::load`] and [`IoConfig::from_json_str`] parse with serde,
 //! report type errors with their JSON path (`robots[1].actuators[3].drive`),
 //! then [`IoConfig::validate`] checks every rule and reports *all* broken
-//! ones, each naming the file, the path and the problem.
+//! ones, each naming the file, the path and the problem. Every number has
+//! an upper bound ([`bounds`]) besides its lower one, so nothing a file
+//! holds can overflow a duration, hang a move or a loop, or saturate a
+//! conversion; an error echoes the number as it was written (`1e300`, not
+//! 301 digits) and names the field the value breaks.
 
 mod convert;
 mod error;
 pub mod presets;
 mod validate;
 
-pub use error::{ConfigError, ConfigErrors, Problem};
+#[cfg(test)]
+mod props;
+
+pub use error::{ConfigError, ConfigErrors, Measured, Problem};
+pub use validate::bounds;
 
 use crate::label::{BoardSet, Label};
 use crate::pid::PidGains;

@@ -109,7 +109,7 @@ impl<R: RobotIo> Robot<R> {
             search.velocity,
             search.acceleration,
         )
-        .map_err(|e| RunnerError::Config(format!("{}: stop search: {e:?}", j.label)))?;
+        .map_err(|e| RunnerError::Config(format!("{}: stop search: {e}", j.label)))?;
         let horizon = search_move.duration();
         let started = self.now();
         self.safety.allow_stall(i, true);

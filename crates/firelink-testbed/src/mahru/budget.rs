@@ -29,11 +29,16 @@ use firelink_wire::mahru::{
     Command, FtBlock, JointBlock, ModMask, ModuleKind, ParameterRecord, QWRITE_LEN,
 };
 
-use super::config::MahruConfig;
-use super::demo::{PhaseSamples, PhaseStats, Stat, bring_up, motion};
+use super::can::MAX_PERIODS;
+use super::config::{MahruConfig, bounds, duration_us};
+use super::demo::{PhaseSamples, PhaseStats, Stat, bring_up, check_period, motion};
 use super::main_loop::MainLoop;
 use super::rig::robot_port;
 use crate::TestbedError;
+
+/// The most timings per transaction type and module (each module's are
+/// kept, 14 modules by 6 types).
+pub const MAX_TIMINGS: u32 = 100_000;
 
 /// What to measure.
 #[derive(Debug, Clone, PartialEq)]
@@ -119,8 +124,10 @@ fn us(d: Duration) -> f64 {
     (d.as_secs_f64() * 1e8).round() / 100.0
 }
 
+/// A budget term of `us` microseconds (validated figures; anything else is
+/// clamped to 0..=1 s, never a panic).
 fn dur(us: f64) -> Duration {
-    Duration::from_secs_f64(us.max(0.0) / 1e6)
+    duration_us(us, bounds::PHASE_US)
 }
 
 impl Inequality {
@@ -342,7 +349,19 @@ pub fn run_budget(
 ) -> Result<BudgetReport, TestbedError> {
     let base = &options.config;
     base.validate()?;
-    let period = options.period.unwrap_or_else(|| base.period());
+    if !(1..=MAX_PERIODS).contains(&options.periods) {
+        return Err(TestbedError::Config(format!(
+            "Table I: {} periods is out of range: 1 to {MAX_PERIODS}",
+            options.periods
+        )));
+    }
+    if !(1..=MAX_TIMINGS).contains(&options.samples) {
+        return Err(TestbedError::Config(format!(
+            "Table I: {} timings per transaction type and module is out of range: 1 to {MAX_TIMINGS}",
+            options.samples
+        )));
+    }
+    let period = check_period(options.period.unwrap_or_else(|| base.period()))?;
     let layout = base.layout()?;
     let nm = layout
         .modules

@@ -60,6 +60,12 @@ pub const PAPER_1394: [(Rtos, [f64; 3]); 2] = [
     (Rtos::Xenomai, [29.0, 32.0, 61.0]),
 ];
 
+/// The most CAN cycles a run times (each one's three times are kept).
+pub const MAX_CAN_CYCLES: u32 = 1_000_000;
+
+/// The most 1394 periods walked per system (each one's I/O time is kept).
+pub const MAX_PERIODS: u64 = 10_000_000;
+
 /// What to run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Table4Options {
@@ -350,13 +356,27 @@ fn wire_cycle_us(config: &MahruConfig) -> Result<f64, TestbedError> {
 /// Run Table IV.
 ///
 /// # Errors
-/// A configuration that cannot be built or run.
+/// A configuration that cannot be built or run; cycles beyond
+/// [`MAX_CAN_CYCLES`], periods beyond [`MAX_PERIODS`], an error
+/// probability outside 0..=1.
 pub fn run_table4(
     options: &Table4Options,
     mut progress: impl FnMut(&str),
 ) -> Result<Table4Report, TestbedError> {
     let config = &options.config;
     config.validate()?;
+    if options.cycles > MAX_CAN_CYCLES || options.periods > MAX_PERIODS {
+        return Err(TestbedError::Config(format!(
+            "Table IV: {} CAN cycles and {} periods: at most {MAX_CAN_CYCLES} and {MAX_PERIODS}",
+            options.cycles, options.periods
+        )));
+    }
+    if !(0.0..=1.0).contains(&options.error_probability) {
+        return Err(TestbedError::Config(format!(
+            "Table IV: error probability {} is out of range: 0 to 1",
+            firelink_wire::human::Number(options.error_probability)
+        )));
+    }
     progress("CAN: the 14-module cycle at 1 Mb/s");
     let can = can_cycles(options)?;
     let wire = wire_cycle_us(config)?;

@@ -16,6 +16,9 @@ use firelink_host::mahru::{ModuleSpec, RobotLayout};
 use firelink_wire::mahru::{ModId, ModuleKind, ParameterRecord, QWRITE_SLOTS};
 use firelink_wire::packet::Speed;
 
+use firelink_control::config::{ConfigError, ConfigErrors, Problem};
+use firelink_wire::human::Number;
+
 use crate::TestbedError;
 
 /// The whole robot.
@@ -197,12 +200,122 @@ pub enum FtLoadJson {
     },
 }
 
+/// The bounds of a MAHRU configuration's numbers. Every number that
+/// becomes a duration, a rate, a loop count or a parameter the modules
+/// take is bounded above as well as below, so a file cannot make the
+/// simulation hang (a servo tick of a picosecond, a period of days) or a
+/// conversion panic.
+pub mod bounds {
+    /// Control period, us: 100 us to 1 s (the seed: 2000).
+    pub const PERIOD_US: (f64, f64) = (100.0, 1e6);
+    /// Computation and slack per period, us: at most 1 s.
+    pub const PHASE_US: f64 = 1e6;
+    /// The DSP's polling period and fixed work per answer, us.
+    pub const RESPONDER_US: f64 = 1e4;
+    /// The DSP's work per byte of an answer, us.
+    pub const PER_BYTE_US: f64 = 100.0;
+    /// A module's servo rate, Hz (the seed: 5000).
+    pub const SERVO_HZ: (f64, f64) = (100.0, 20_000.0);
+    /// A module's watchdog, ms (the seed: 10).
+    pub const WATCHDOG_MS: (f64, f64) = (0.1, 10_000.0);
+    /// The robot's mass, kg.
+    pub const MASS_KG: f64 = 1e3;
+    /// The hand's mass, kg.
+    pub const HAND_MASS_KG: f64 = 100.0;
+    /// Lengths of the body model, m.
+    pub const LENGTH_M: f64 = 10.0;
+    /// Gait times (stride, ramp), s.
+    pub const GAIT_S: f64 = 60.0;
+    /// Joint angles (limits, amplitudes, start), rad.
+    pub const ANGLE_RAD: f64 = 100.0;
+    /// Gear ratio.
+    pub const GEAR_RATIO: f64 = 1e4;
+    /// PID gains (as PARAMETER carries them, f32).
+    pub const GAIN: f64 = 1e6;
+    /// Torques (limit, gravity), N m.
+    pub const TORQUE_NM: f64 = 1e5;
+    /// Inertia at the joint, kg m².
+    pub const INERTIA: f64 = 1e3;
+    /// Viscous friction, N m s/rad.
+    pub const DAMPING: f64 = 1e4;
+    /// Motor torque constant, N m/A.
+    pub const TORQUE_CONSTANT: f64 = 100.0;
+    /// A force/torque sensor's zero error (N or N m) and noise.
+    pub const SENSOR: f64 = 1e4;
+}
+
+/// `x` microseconds as simulated time (negative and NaN: zero; beyond
+/// the bounds: saturated, never a panic).
 fn us(x: f64) -> SimDuration {
     SimDuration::from_micros_f64(x.max(0.0))
 }
 
+/// `x` microseconds as a duration, 0 to `max_us` (NaN: zero): the
+/// conversions of validated numbers, safe for unvalidated ones too.
+pub(crate) fn duration_us(x: f64, max_us: f64) -> std::time::Duration {
+    let x = if x.is_nan() {
+        0.0
+    } else {
+        x.clamp(0.0, max_us)
+    };
+    std::time::Duration::from_secs_f64(x / 1e6)
+}
+
 fn bad(what: impl Into<String>) -> TestbedError {
     TestbedError::Config(what.into())
+}
+
+/// Collects a file's problems, each with its JSON path.
+struct Checker {
+    errors: Vec<(String, Problem)>,
+}
+
+impl Checker {
+    fn push(&mut self, path: impl Into<String>, problem: Problem) {
+        self.errors.push((path.into(), problem));
+    }
+
+    /// A finite `x` in `lo..=hi` (`lo < x` when `open_low`).
+    fn range(
+        &mut self,
+        path: impl Into<String>,
+        x: f64,
+        lo: f64,
+        hi: f64,
+        open_low: bool,
+        unit: &str,
+    ) {
+        if !x.is_finite() {
+            self.push(path, Problem::NotFinite);
+            return;
+        }
+        let low_ok = if open_low { x > lo } else { x >= lo };
+        if !low_ok || x > hi {
+            let low = if open_low { "above" } else { "from" };
+            self.push(
+                path,
+                Problem::OutOfRange {
+                    value: x,
+                    expected: format!("{low} {} to {}{unit}", Number(lo), Number(hi)),
+                },
+            );
+        }
+    }
+
+    /// Above 0, at most `hi`.
+    fn positive(&mut self, path: impl Into<String>, x: f64, hi: f64, unit: &str) {
+        self.range(path, x, 0.0, hi, true, unit);
+    }
+
+    /// 0 to `hi`.
+    fn not_negative(&mut self, path: impl Into<String>, x: f64, hi: f64, unit: &str) {
+        self.range(path, x, 0.0, hi, false, unit);
+    }
+
+    /// `-hi` to `hi`.
+    fn magnitude(&mut self, path: impl Into<String>, x: f64, hi: f64, unit: &str) {
+        self.range(path, x, -hi, hi, false, unit);
+    }
 }
 
 impl MahruConfig {
@@ -210,7 +323,7 @@ impl MahruConfig {
     ///
     /// # Errors
     /// [`TestbedError::Config`] naming the file, the JSON path and the
-    /// problem.
+    /// problem (every problem, one per line).
     pub fn load(path: impl AsRef<Path>) -> Result<MahruConfig, TestbedError> {
         let path = path.as_ref();
         let file = path.display().to_string();
@@ -229,134 +342,183 @@ impl MahruConfig {
             bad(format!("{file}: {path}: {}", e.into_inner()))
         })?;
         de.end().map_err(|e| bad(format!("{file}: {e}")))?;
-        config.validate().map_err(|e| {
-            bad(format!(
-                "{file}: {}",
-                e.to_string().trim_start_matches("configuration: ")
-            ))
-        })?;
+        config.check(file).map_err(|e| bad(e.to_string()))?;
         Ok(config)
     }
 
-    /// Check the rules the types cannot: finite positive numbers, at most
-    /// three chains, module IDs, parameters PARAMETER can carry, sensors
-    /// naming joints that exist.
+    /// Check the rules the types cannot: every number finite and within
+    /// its [`bounds`], at most three chains, module IDs, parameters
+    /// PARAMETER can carry, sensors naming joints that exist.
     ///
     /// # Errors
-    /// [`TestbedError::Config`] naming the first problem.
+    /// [`TestbedError::Config`] naming every problem.
     pub fn validate(&self) -> Result<(), TestbedError> {
-        let positive = |what: &str, x: f64| {
-            if x.is_finite() && x > 0.0 {
-                Ok(())
-            } else {
-                Err(bad(format!(
-                    "{what} = {x}: must be a finite number above 0"
-                )))
+        self.check("the MAHRU configuration")
+            .map_err(|e| bad(e.to_string()))
+    }
+
+    /// [`validate`](Self::validate), the errors naming `file` and each
+    /// problem's JSON path.
+    ///
+    /// # Errors
+    /// Every problem found, in file order.
+    pub fn check(&self, file: &str) -> Result<(), ConfigErrors> {
+        let mut c = Checker { errors: Vec::new() };
+        self.check_numbers(&mut c);
+        match self.rtos() {
+            Ok(_) => {}
+            Err(_) => c.push(
+                "rtos",
+                Problem::Mismatch(format!("{:?}: xenomai or rtlinux", self.rtos)),
+            ),
+        }
+        if self.broadcast_speed().is_err() {
+            c.push(
+                "broadcast_mbps",
+                Problem::OutOfRange {
+                    value: f64::from(self.broadcast_mbps),
+                    expected: "100, 200 or 400 (Mb/s)".into(),
+                },
+            );
+        }
+        if self.chains.is_empty() || self.chains.len() > 3 {
+            c.push(
+                "chains",
+                Problem::Mismatch(format!(
+                    "{} chains: the computer's card has 3 ports (1 to 3 chains)",
+                    self.chains.len()
+                )),
+            );
+        }
+        for (ci, chain) in self.chains.iter().enumerate() {
+            if chain.modules.is_empty() {
+                c.push(format!("chains[{ci}].modules"), Problem::Empty);
             }
-        };
-        let not_negative = |what: &str, x: f64| {
-            if x.is_finite() && x >= 0.0 {
-                Ok(())
-            } else {
-                Err(bad(format!(
-                    "{what} = {x}: must be a finite number, 0 or more"
-                )))
+        }
+        let all_ok = c.errors.is_empty();
+        if all_ok {
+            match self.layout().map(|l| l.validate()) {
+                Ok(Ok(())) => {}
+                Ok(Err(e)) => c.push("chains", Problem::Mismatch(e.to_string())),
+                Err(e) => c.push("chains", Problem::Mismatch(e.to_string())),
             }
-        };
-        positive("period_us", self.period_us)?;
-        not_negative("compute_us", self.compute_us)?;
-        not_negative("slack_us", self.slack_us)?;
-        self.rtos()?;
-        self.broadcast_speed()?;
-        not_negative("responder.poll_us", self.responder.poll_us)?;
-        not_negative("responder.fixed_us", self.responder.fixed_us)?;
-        not_negative("responder.per_byte_us", self.responder.per_byte_us)?;
+            self.check_loads(&mut c);
+        }
+        let errors = c
+            .errors
+            .into_iter()
+            .map(|(path, problem)| ConfigError::new(file, path, problem))
+            .collect();
+        match ConfigErrors::from_vec(errors) {
+            None => Ok(()),
+            Some(e) => Err(e),
+        }
+    }
+
+    /// Every number within its bounds.
+    fn check_numbers(&self, c: &mut Checker) {
+        let (lo, hi) = bounds::PERIOD_US;
+        c.range("period_us", self.period_us, lo, hi, false, " us");
+        c.not_negative("compute_us", self.compute_us, bounds::PHASE_US, " us");
+        c.not_negative("slack_us", self.slack_us, bounds::PHASE_US, " us");
+        let r = &self.responder;
+        c.not_negative("responder.poll_us", r.poll_us, bounds::RESPONDER_US, " us");
+        c.not_negative(
+            "responder.fixed_us",
+            r.fixed_us,
+            bounds::RESPONDER_US,
+            " us",
+        );
+        c.not_negative(
+            "responder.per_byte_us",
+            r.per_byte_us,
+            bounds::PER_BYTE_US,
+            " us",
+        );
         let b = &self.body;
-        for (what, x) in [
-            ("body.mass_kg", b.mass_kg),
+        c.positive("body.mass_kg", b.mass_kg, bounds::MASS_KG, " kg");
+        c.positive(
+            "body.hand_mass_kg",
+            b.hand_mass_kg,
+            bounds::HAND_MASS_KG,
+            " kg",
+        );
+        for (path, x) in [
             ("body.leg_length_m", b.leg_length_m),
-            ("body.hand_mass_kg", b.hand_mass_kg),
             ("body.forearm_length_m", b.forearm_length_m),
             ("body.hand_offset_m", b.hand_offset_m),
-            ("gait.stride_s", self.gait.stride_s),
         ] {
-            positive(what, x)?;
+            c.positive(path, x, bounds::LENGTH_M, " m");
         }
         let g = &self.gait;
-        for (what, x) in [
-            ("gait.ramp_s", g.ramp_s),
+        c.positive("gait.stride_s", g.stride_s, bounds::GAIT_S, " s");
+        c.not_negative("gait.ramp_s", g.ramp_s, bounds::GAIT_S, " s");
+        for (path, x) in [
             ("gait.hip_rad", g.hip_rad),
             ("gait.knee_rad", g.knee_rad),
             ("gait.shoulder_rad", g.shoulder_rad),
             ("gait.elbow_rad", g.elbow_rad),
             ("gait.hand_rad", g.hand_rad),
         ] {
-            not_negative(what, x)?;
+            c.not_negative(path, x, bounds::ANGLE_RAD, " rad");
         }
-        if self.chains.is_empty() || self.chains.len() > 3 {
-            return Err(bad(format!(
-                "{} chains: the computer's card has 3 ports (1 to 3 chains)",
-                self.chains.len()
-            )));
-        }
-        for (c, chain) in self.chains.iter().enumerate() {
-            if chain.modules.is_empty() {
-                return Err(bad(format!("chains[{c}] ({}) has no modules", chain.name)));
-            }
-            for m in &chain.modules {
-                if let ModuleKindJson::Motor(j) = &m.device {
-                    let at = format!("module {} ({})", m.mod_id, m.name);
-                    for (what, x) in [
-                        ("inertia", j.inertia),
-                        ("torque_constant", j.torque_constant),
-                        ("servo_hz", j.servo_hz),
-                        ("watchdog_ms", j.watchdog_ms),
-                    ] {
-                        positive(&format!("{at}: {what}"), x)?;
-                    }
-                    for (what, x) in [
-                        ("damping", j.damping),
-                        ("gravity_torque_nm", j.gravity_torque_nm),
-                    ] {
-                        not_negative(&format!("{at}: {what}"), x)?;
-                    }
-                    let [lo, hi] = j.position_limits_rad;
-                    if !(lo..=hi).contains(&j.initial_position_rad) {
-                        return Err(bad(format!(
-                            "{at}: initial_position_rad {} is outside the position limits",
-                            j.initial_position_rad
-                        )));
+        for (ci, chain) in self.chains.iter().enumerate() {
+            for (mi, m) in chain.modules.iter().enumerate() {
+                let at = format!("chains[{ci}].modules[{mi}].device");
+                match &m.device {
+                    ModuleKindJson::Motor(j) => check_motor(c, &format!("{at}.motor"), j),
+                    ModuleKindJson::ForceTorque(f) => {
+                        let fp = format!("{at}.force_torque");
+                        for (i, x) in f.offset.iter().enumerate() {
+                            c.magnitude(format!("{fp}.offset[{i}]"), *x, bounds::SENSOR, "");
+                        }
+                        for (i, x) in f.noise.iter().enumerate() {
+                            c.not_negative(format!("{fp}.noise[{i}]"), *x, bounds::SENSOR, "");
+                        }
                     }
                 }
             }
         }
-        let layout = self.layout()?;
-        layout.validate().map_err(|e| bad(e.to_string()))?;
-        for m in self.modules() {
-            if let ModuleKindJson::ForceTorque(f) = &m.device {
-                let joints: Vec<u8> = match f.load {
+    }
+
+    /// Each sensor's load model names motor controllers that exist.
+    fn check_loads(&self, c: &mut Checker) {
+        for (ci, chain) in self.chains.iter().enumerate() {
+            for (mi, m) in chain.modules.iter().enumerate() {
+                let ModuleKindJson::ForceTorque(f) = &m.device else {
+                    continue;
+                };
+                let joints: Vec<(&str, u8)> = match f.load {
                     FtLoadJson::Foot {
                         hip,
                         knee,
                         other_knee,
                         ..
-                    } => vec![hip, knee, other_knee],
-                    FtLoadJson::Wrist { shoulder, elbow } => vec![shoulder, elbow],
+                    } => vec![
+                        ("foot.hip", hip),
+                        ("foot.knee", knee),
+                        ("foot.other_knee", other_knee),
+                    ],
+                    FtLoadJson::Wrist { shoulder, elbow } => {
+                        vec![("wrist.shoulder", shoulder), ("wrist.elbow", elbow)]
+                    }
                 };
-                for j in joints {
+                for (name, j) in joints {
                     let is_motor = self
                         .modules()
                         .any(|o| o.mod_id == j && matches!(o.device, ModuleKindJson::Motor(_)));
                     if !is_motor {
-                        return Err(bad(format!(
-                            "module {} ({}): its load model names joint {j}, not a motor controller",
-                            m.mod_id, m.name
-                        )));
+                        c.push(
+                            format!("chains[{ci}].modules[{mi}].device.force_torque.load.{name}"),
+                            Problem::Mismatch(format!(
+                                "module {} ({}): its load model names joint {j}, not a motor controller",
+                                m.mod_id, m.name
+                            )),
+                        );
                     }
                 }
             }
         }
-        Ok(())
     }
 
     /// Every module, chain by chain.
@@ -388,7 +550,7 @@ impl MahruConfig {
 
     /// The period.
     pub fn period(&self) -> std::time::Duration {
-        std::time::Duration::from_secs_f64(self.period_us.max(0.0) / 1e6)
+        duration_us(self.period_us, bounds::PERIOD_US.1)
     }
 
     /// The modules' DSP timing.
@@ -670,6 +832,102 @@ impl MahruConfig {
                 },
             ],
         }
+    }
+}
+
+/// A motor controller's numbers: PARAMETER's (f32 on the wire) and the
+/// joint's physics.
+fn check_motor(c: &mut Checker, mp: &str, j: &MotorJson) {
+    c.positive(
+        format!("{mp}.gear_ratio"),
+        j.gear_ratio,
+        bounds::GEAR_RATIO,
+        "",
+    );
+    for (name, x) in [("kp", j.kp), ("ki", j.ki), ("kd", j.kd)] {
+        c.not_negative(format!("{mp}.{name}"), x, bounds::GAIN, "");
+    }
+    let [lo, hi] = j.position_limits_rad;
+    for (i, x) in [lo, hi].into_iter().enumerate() {
+        c.magnitude(
+            format!("{mp}.position_limits_rad[{i}]"),
+            x,
+            bounds::ANGLE_RAD,
+            " rad",
+        );
+    }
+    if lo.is_finite() && hi.is_finite() && lo >= hi {
+        c.push(
+            format!("{mp}.position_limits_rad"),
+            Problem::EmptyRange {
+                lower: lo,
+                upper: hi,
+            },
+        );
+    }
+    c.positive(
+        format!("{mp}.torque_limit_nm"),
+        j.torque_limit_nm,
+        bounds::TORQUE_NM,
+        " N m",
+    );
+    c.positive(
+        format!("{mp}.inertia"),
+        j.inertia,
+        bounds::INERTIA,
+        " kg m²",
+    );
+    c.not_negative(
+        format!("{mp}.damping"),
+        j.damping,
+        bounds::DAMPING,
+        " N m s/rad",
+    );
+    c.not_negative(
+        format!("{mp}.gravity_torque_nm"),
+        j.gravity_torque_nm,
+        bounds::TORQUE_NM,
+        " N m",
+    );
+    c.positive(
+        format!("{mp}.torque_constant"),
+        j.torque_constant,
+        bounds::TORQUE_CONSTANT,
+        " N m/A",
+    );
+    let (lo_hz, hi_hz) = bounds::SERVO_HZ;
+    c.range(
+        format!("{mp}.servo_hz"),
+        j.servo_hz,
+        lo_hz,
+        hi_hz,
+        false,
+        " Hz",
+    );
+    let (lo_ms, hi_ms) = bounds::WATCHDOG_MS;
+    c.range(
+        format!("{mp}.watchdog_ms"),
+        j.watchdog_ms,
+        lo_ms,
+        hi_ms,
+        false,
+        " ms",
+    );
+    let ip = format!("{mp}.initial_position_rad");
+    if !j.initial_position_rad.is_finite() {
+        c.push(ip, Problem::NotFinite);
+    } else if !(lo..=hi).contains(&j.initial_position_rad) {
+        c.push(
+            ip,
+            Problem::OutOfRange {
+                value: j.initial_position_rad,
+                expected: format!(
+                    "inside position_limits_rad [{}, {}]",
+                    Number(lo),
+                    Number(hi)
+                ),
+            },
+        );
     }
 }
 

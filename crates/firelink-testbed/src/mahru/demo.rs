@@ -16,10 +16,42 @@ use firelink_host::mahru::{MotionController, MotionError};
 use firelink_host::sim::SimPort;
 use firelink_wire::mahru::{ModuleKind, ModuleState};
 
-use super::config::MahruConfig;
+use firelink_wire::human::Number;
+
+use super::config::{MahruConfig, bounds};
 use super::main_loop::{MainLoop, PeriodTimes};
 use super::rig::{PlacedModule, robot_port};
 use crate::TestbedError;
+
+/// The most periods whose timings a run keeps per series (about 35 minutes
+/// of walking at 2 ms); later periods are run and counted, not recorded.
+pub const MAX_SAMPLES: usize = 1 << 20;
+
+/// The most periods the search for the fastest period runs at each
+/// candidate.
+const FASTEST_PERIODS: u64 = 10_000;
+
+/// The longest walk a demo runs, seconds (one day).
+pub const MAX_DURATION_S: f64 = 86_400.0;
+
+/// `period` if it is within [`bounds::PERIOD_US`].
+///
+/// # Errors
+/// [`TestbedError::Config`] with the range.
+pub(crate) fn check_period(period: Duration) -> Result<Duration, TestbedError> {
+    let us = period.as_secs_f64() * 1e6;
+    let (lo, hi) = bounds::PERIOD_US;
+    if (lo..=hi).contains(&us) {
+        Ok(period)
+    } else {
+        Err(TestbedError::Config(format!(
+            "MAHRU: period {} us is out of range: {} to {} us",
+            Number(us),
+            Number(lo),
+            Number(hi)
+        )))
+    }
+}
 
 /// What to run.
 #[derive(Debug, Clone, PartialEq)]
@@ -98,7 +130,12 @@ pub(crate) struct PhaseSamples {
 }
 
 impl PhaseSamples {
+    /// Record one period (beyond [`MAX_SAMPLES`] periods, only the first
+    /// ones are kept: the statistics are theirs).
     pub(crate) fn push(&mut self, t: &PeriodTimes) {
+        if self.read.len() >= MAX_SAMPLES {
+            return;
+        }
         self.read.push(t.read_us as f32);
         self.compute.push(t.compute_us as f32);
         self.write.push(t.write_us as f32);
@@ -343,11 +380,16 @@ pub fn run_mahru_demo(
 ) -> Result<MahruDemoReport, TestbedError> {
     let config = &options.config;
     config.validate()?;
-    let period = options.period.unwrap_or_else(|| config.period());
-    if period.is_zero() {
-        return Err(TestbedError::Config(
-            "MAHRU demo: the period must be above 0".into(),
-        ));
+    let period = check_period(options.period.unwrap_or_else(|| config.period()))?;
+    if !(options.duration_s.is_finite()
+        && options.duration_s > 0.0
+        && options.duration_s <= MAX_DURATION_S)
+    {
+        return Err(TestbedError::Config(format!(
+            "MAHRU demo: duration {} s is out of range: above 0 to {} s",
+            Number(options.duration_s),
+            Number(MAX_DURATION_S)
+        )));
     }
     let mut r = bring_up(config)?;
     progress(&format!(
@@ -355,13 +397,14 @@ pub fn run_mahru_demo(
         r.modules.len(),
         r.diameter,
         period.as_secs_f64() * 1e6,
-        options.duration_s
+        Number(options.duration_s)
     ));
     let n = r.controller.layout().modules.len();
     let periods = (options.duration_s.max(0.0) / period.as_secs_f64()).round() as u64;
     let mut main = MainLoop::new(config, period);
     let mut phases = PhaseSamples::default();
-    let mut reads: Vec<Vec<f32>> = vec![Vec::with_capacity(periods as usize); n];
+    let room = usize::try_from(periods).map_or(MAX_SAMPLES, |p| p.min(MAX_SAMPLES));
+    let mut reads: Vec<Vec<f32>> = vec![Vec::with_capacity(room); n];
     let mut tracking: Vec<(f64, f64, u64)> = vec![(0.0, 0.0, 0); n];
     let mut ft: Vec<FtAccum> = vec![FtAccum::default(); n];
     let mut samples = 0u64;
@@ -380,7 +423,9 @@ pub fn run_mahru_demo(
         let result = main.period_once(&mut r.controller, |fb| {
             samples += 1;
             for i in 0..n {
-                reads[i].push((fb.read_times[i].as_secs_f64() * 1e6) as f32);
+                if reads[i].len() < MAX_SAMPLES {
+                    reads[i].push((fb.read_times[i].as_secs_f64() * 1e6) as f32);
+                }
                 if let Some(j) = fb.joints[i] {
                     let e = f64::from(j.target_urad) - f64::from(j.position_urad);
                     let t = &mut tracking[i];
@@ -467,7 +512,11 @@ pub fn run_mahru_demo(
     let timing = phases.stats();
     let fastest = if options.find_fastest && errors.total == 0 {
         progress("searching the fastest period that holds");
-        Some(fastest_period(config, timing.busy.max, periods.max(500))?)
+        Some(fastest_period(
+            config,
+            timing.busy.max,
+            periods.clamp(500, FASTEST_PERIODS),
+        )?)
     } else {
         None
     };

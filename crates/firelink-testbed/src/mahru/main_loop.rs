@@ -20,7 +20,7 @@ use firelink_host::Port;
 use firelink_host::mahru::{Feedback, MotionController, MotionError, Setpoints};
 use firelink_wire::mahru::ModId;
 
-use super::config::MahruConfig;
+use super::config::{MahruConfig, bounds, duration_us};
 use super::gait::Gait;
 
 /// The phases of one period, as measured on the port's clock.
@@ -70,8 +70,8 @@ impl MainLoop {
             gait: Gait::new(config),
             motors,
             period,
-            compute: Duration::from_secs_f64(config.compute_us.max(0.0) / 1e6),
-            slack: Duration::from_secs_f64(config.slack_us.max(0.0) / 1e6),
+            compute: duration_us(config.compute_us, bounds::PHASE_US),
+            slack: duration_us(config.slack_us, bounds::PHASE_US),
             setpoints: Setpoints::default(),
             started: None,
             periods: 0,

@@ -49,6 +49,10 @@ pub fn paper_wcet(rtos: Rtos, payload: usize) -> Option<f64> {
         .map(|p| if rtos == Rtos::Xenomai { p.1 } else { p.2 })
 }
 
+/// The most reads per payload and system (each read's times are kept:
+/// three series of `f32`).
+pub const MAX_READS: u64 = 10_000_000;
+
 /// What to measure.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Table3Options {
@@ -147,7 +151,7 @@ fn point(rtos: Rtos, payload: usize, options: &Table3Options) -> Result<Table3Po
     // Each point its own jitter stream.
     let seed = options.seed ^ (payload as u64) << 8 ^ rtos as u64;
     let mut port = sbc_port(b.bus, b.pc, rtos, seed, Speed::S400);
-    let n = options.reads.max(1) as usize;
+    let n = usize::try_from(options.reads.clamp(1, MAX_READS)).unwrap_or(1);
     let (mut total, mut request, mut response) = (
         Vec::with_capacity(n),
         Vec::with_capacity(n),
@@ -182,12 +186,18 @@ fn point(rtos: Rtos, payload: usize, options: &Table3Options) -> Result<Table3Po
 /// Run the table; `progress` hears of each point as it finishes.
 ///
 /// # Errors
-/// A payload that is not whole quadlets of 4 to 2048 bytes; a read that
-/// fails.
+/// A payload that is not whole quadlets of 4 to 2048 bytes; reads not in
+/// `1..=`[`MAX_READS`]; a read that fails.
 pub fn run_table3(
     options: &Table3Options,
     progress: impl Fn(&Table3Point) + Sync,
 ) -> Result<Table3Report, TestbedError> {
+    if !(1..=MAX_READS).contains(&options.reads) {
+        return Err(TestbedError::Config(format!(
+            "Table III: {} reads per payload is out of range: 1 to {MAX_READS}",
+            options.reads
+        )));
+    }
     let jobs: Vec<(Rtos, usize)> = options
         .rtos
         .iter()

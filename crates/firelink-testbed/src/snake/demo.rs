@@ -408,7 +408,7 @@ mod tests {
         assert!(!t.held);
         assert_eq!(t.rate_hz, 100.0);
         let fault = t.fault.unwrap_or_default();
-        assert!(fault.contains("potentiometer moved"), "{fault}");
+        assert!(fault.contains("the potentiometer moved"), "{fault}");
         // The trial powered the nodes down before it gave up.
         assert!(fault.contains("then powered down"), "{fault}");
     }
