@@ -217,6 +217,9 @@ pub struct LeftOver {
     pub watchdog_timed_out: u16,
     /// Expected boards that did not answer.
     pub silent: u16,
+    /// Expected boards this program itself energised before (e.g. ahead
+    /// of a fault it is configuring out of): not read, not taken over.
+    pub own: u16,
     /// The power-down this took, if any board was powered.
     pub powered_down: Option<PowerDown>,
 }
@@ -233,7 +236,15 @@ impl core::fmt::Display for LeftOver {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         use firelink_host::robot_io::board_list;
         if self.is_clean() {
-            return f.write_str("boards found powered off");
+            return if self.own != 0 {
+                write!(
+                    f,
+                    "boards {} kept as this program left them (not taken over)",
+                    board_list(self.own)
+                )
+            } else {
+                f.write_str("boards found powered off")
+            };
         }
         let mut parts = Vec::new();
         if self.powered != 0 {
@@ -580,9 +591,13 @@ impl<R: RobotIo> Robot<R> {
     /// a fault it is now configuring out of, are its own business: not
     /// read, not reported).
     fn take_over(&mut self) -> LeftOver {
-        let mut left = LeftOver::default();
-        let others = self.expected.0 & !self.io.energised();
+        let mut left = LeftOver {
+            own: self.expected.0 & self.io.energised(),
+            ..LeftOver::default()
+        };
+        let others = self.expected.0 & !left.own;
         if others == 0 {
+            self.found_at_configure = Some(left);
             return left;
         }
         self.io.latch_all_inputs();
