@@ -524,7 +524,7 @@ async fn commands_are_answered_with_their_outcome_and_refusals_are_409() {
     ok(&c.command(r#"{"action":"clear_fault"}"#).await);
     let found = ok(&c.command(r#"{"action":"configure"}"#).await);
     assert!(
-        found.contains("watchdog timed out at boards 0-7"),
+        found.contains("boards 0-7 kept as this program left them"),
         "{found}"
     );
     // Disable says what the power-down found.
