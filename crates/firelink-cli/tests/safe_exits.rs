@@ -249,3 +249,61 @@ fn after_kill_9_the_watchdog_turns_the_amplifiers_off_and_the_next_run_takes_ove
     let off = emu.status();
     assert!(!off.powered() && off.amplifiers() == 0, "{off:?}");
 }
+
+/// `firelink web` and `firelink ros2` *become* their companion binaries:
+/// the process a supervisor started is the one that drives the robot, so
+/// its signal reaches that program and no wrapper is left to die while an
+/// orphan keeps the amplifiers on. Shown with a stand-in companion (a
+/// shell script next to a copy of `firelink`) that reports its PID and the
+/// signal it gets.
+#[test]
+fn web_and_ros2_become_their_companion_so_signals_reach_it() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = std::env::temp_dir().join(format!("firelink-companion-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let firelink = dir.join("firelink");
+    std::fs::copy(env!("CARGO_BIN_EXE_firelink"), &firelink).expect("copy firelink");
+    for (command, name) in [("web", "firelink-web"), ("ros2", "firelink-ros2")] {
+        let script = dir.join(name);
+        let marker = dir.join(format!("{name}.term"));
+        std::fs::write(
+            &script,
+            format!(
+                "#!/bin/sh\n\
+                 trap 'echo \"$*\" > {m}; exit 0' TERM\n\
+                 echo \"pid $$ args $*\"\n\
+                 while :; do sleep 0.05; done\n",
+                m = marker.display()
+            ),
+        )
+        .expect("write the stand-in");
+        std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).expect("chmod");
+        let mut child = Command::new(&firelink)
+            .args([command, "--port", "sim", "--listen", "127.0.0.1:0"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("start firelink");
+        let mut lines = BufReader::new(child.stdout.take().expect("stdout")).lines();
+        let first = lines
+            .next()
+            .and_then(Result::ok)
+            .expect("the companion's line");
+        // The same process: exec, not a child.
+        assert_eq!(
+            first,
+            format!("pid {} args --port sim --listen 127.0.0.1:0", child.id()),
+            "{command}"
+        );
+        let kill = Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status()
+            .expect("kill");
+        assert!(kill.success());
+        let status = child.wait().expect("exit");
+        assert!(status.success(), "{command}: {status:?}");
+        let got = std::fs::read_to_string(&marker).expect("the companion got SIGTERM");
+        assert_eq!(got.trim(), "--port sim --listen 127.0.0.1:0", "{command}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
