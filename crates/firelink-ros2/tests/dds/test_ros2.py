@@ -67,9 +67,13 @@ def client(ns: Netns, arm: str) -> dict:
 
 
 def stop(proc: subprocess.Popen) -> dict:
+    # SIGTERM, as a supervisor stops it: the node powers the robot down and
+    # says what the boards reported afterwards.
     proc.terminate()
     out, err = proc.communicate(timeout=120)
     assert proc.returncode == 0, err
+    assert "stopping: SIGTERM" in err, err
+    assert "stopped: amplifiers and motor power off on boards 0-7" in err, err
     return json.loads(out.strip().splitlines()[-1])
 
 
