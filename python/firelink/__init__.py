@@ -171,8 +171,8 @@ def run_demo(
     ``port``: ``sim``, ``emulate`` or ``udp:HOST[:PORT]``; ``duration``:
     seconds of motion, above 0 and at most 86400; ``rate``: Hz, 1 to
     100000; ``fault``: ``none``, ``stop-host``, ``corrupt-query``,
-    ``board-loss`` or ``following-error``; ``watchdog_ms``: 0.0052 to
-    341.33 ms, or ``"off"`` (with a ``UserWarning``); ``config``: a
+    ``board-loss`` or ``following-error``; ``watchdog_ms``: 0.00521 to
+    341.32 ms, or ``"off"`` (with a ``UserWarning``); ``config``: a
     ``Config`` or a configuration file (default: seed 000's dVRK).
     ``report.verdict`` is ``"ok"`` or says what went wrong. Ctrl-C stops
     the robot at its next cycle, powers down the boards it powered and

@@ -790,7 +790,7 @@ impl IoSystem {
     }
 
     /// Set every board's watchdog: a period in milliseconds (one 5.208 us
-    /// tick to 341.33 ms) or `"off"` (a lost host then leaves the
+    /// tick to 341.32 ms) or `"off"` (a lost host then leaves the
     /// amplifiers on: a warning is issued).
     fn set_watchdog(&mut self, py: Python<'_>, ms: &Bound<'_, PyAny>) -> PyResult<()> {
         let setting = watchdog_setting(py, ms)?;

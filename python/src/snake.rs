@@ -644,7 +644,7 @@ impl SnakeSystem {
     }
 
     /// Program every node's watchdog: a period in milliseconds (one 5.208
-    /// us tick to 341.33 ms) or `"off"` (with a warning). A node whose
+    /// us tick to 341.32 ms) or `"off"` (with a warning). A node whose
     /// watchdog expires disables its amplifiers.
     fn set_watchdog(&mut self, py: Python<'_>, ms: Arg<'_>) -> PyResult<()> {
         let ms = &ms.0;

@@ -88,7 +88,7 @@ def test_bad_commands_are_refused_and_change_nothing():
     assert list(io.dac()) == [1, 2, 3, 4]
 
 
-WATCHDOG_RANGE = r"from 0\.0052 ms \(one firmware tick of 5\.208 us\) to 341\.33 ms"
+WATCHDOG_RANGE = r"from 0\.00521 ms \(one firmware tick of 5\.208 us\) to 341\.32 ms"
 
 
 @pytest.mark.parametrize("ms", [1e-9, 0, -1, 400, float("nan"), True, "x", None, [20], 2**70])

@@ -34,7 +34,7 @@ struct Args {
     /// DDS domain (default: ROS_DOMAIN_ID, else 0).
     #[arg(long)]
     domain: Option<u16>,
-    /// Board watchdog period, ms (one 5.208 us tick to 341.33 ms), or
+    /// Board watchdog period, ms (one 5.208 us tick to 341.32 ms), or
     /// `off` (with a warning).
     #[arg(long = "watchdog-ms", default_value = "20", value_parser = watchdog)]
     watchdog_ms: WatchdogSetting,

@@ -33,7 +33,7 @@ struct Args {
     /// Control rate, Hz.
     #[arg(long, default_value_t = 1000.0)]
     rate: f64,
-    /// Board watchdog period, ms (one 5.208 us tick to 341.33 ms), or
+    /// Board watchdog period, ms (one 5.208 us tick to 341.32 ms), or
     /// `off` (with a warning).
     #[arg(long = "watchdog-ms", default_value = "20", value_parser = watchdog)]
     watchdog_ms: WatchdogSetting,
