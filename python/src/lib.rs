@@ -110,13 +110,6 @@ pub(crate) fn warn(py: Python<'_>, text: &str) -> PyResult<()> {
 }
 
 /// The periods a watchdog may have, for messages.
-fn watchdog_range() -> String {
-    format!(
-        "from {:.4} ms (one firmware tick of 5.208 us) to {:.2} ms (65535 ticks)",
-        WatchdogSetting::MIN_MS,
-        WatchdogSetting::MAX_MS
-    )
-}
 
 /// A watchdog argument: a period in ms (int or float) or the string
 /// `"off"`; the one rule is `WatchdogSetting` (one tick to 65535 ticks).
@@ -124,7 +117,7 @@ pub(crate) fn watchdog_setting(
     py: Python<'_>,
     value: &Bound<'_, PyAny>,
 ) -> PyResult<WatchdogSetting> {
-    let range = watchdog_range();
+    let range = WatchdogSetting::RANGE;
     if let Ok(text) = value.cast::<PyString>() {
         let text = args::string(text)?;
         return WatchdogSetting::parse(&text).map_err(|e| match e {

@@ -540,8 +540,9 @@ pub enum WatchdogSetting {
 /// A watchdog period that the register cannot hold (or is not a number).
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 #[error(
-    "watchdog period {} ms is out of range: from 0.00521 ms (one firmware tick of 5.208 us) to 341.32 ms (65535 ticks), or `off`",
-    crate::human::Number(*asked_ms)
+    "watchdog period {} ms is out of range: {}, or `off`",
+    crate::human::Number(*asked_ms),
+    WatchdogSetting::RANGE
 )]
 pub struct WatchdogRangeError {
     /// What was asked for, ms.
@@ -564,6 +565,9 @@ impl WatchdogSetting {
     pub const MIN_MS: f64 = 256.0 / 49_152.0;
     /// The longest period, ms: 65535 ticks.
     pub const MAX_MS: f64 = 65_535.0 * 256.0 / 49_152.0;
+    /// The range in words, with bounds that are themselves accepted.
+    pub const RANGE: &'static str =
+        "from 0.00521 ms (one firmware tick of 5.208 us) to 341.32 ms (65535 ticks)";
     /// What to print when the watchdog is off.
     pub const OFF_WARNING: &'static str = "WARNING: board watchdogs are OFF: if this host \
         stops, the amplifiers stay enabled with the last command";
