@@ -109,8 +109,6 @@ pub(crate) fn warn(py: Python<'_>, text: &str) -> PyResult<()> {
     PyErr::warn(py, &category, &text, 1)
 }
 
-/// The periods a watchdog may have, for messages.
-
 /// A watchdog argument: a period in ms (int or float) or the string
 /// `"off"`; the one rule is `WatchdogSetting` (one tick to 65535 ticks).
 pub(crate) fn watchdog_setting(
