@@ -37,7 +37,12 @@ AMPLIFIERS = 0xF
 #: Put before each child's code: print "started" once the main thread runs
 #: the line marked "# the long call".
 PRELUDE = """
-import sys, threading, time
+import signal, sys, threading, time
+
+# A shell that starts the test run in the background (`cmd &`, nohup, CI
+# runners) leaves SIGINT ignored, and Python then installs no
+# KeyboardInterrupt for it: give the child the handler a terminal gives.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 
 def _announce():
     script = __file__
