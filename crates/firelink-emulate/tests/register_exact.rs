@@ -174,9 +174,15 @@ impl UdpHost {
     }
 }
 
-/// Two Rev 8 QLA1 boards (IDs 0 and 1) behind the bridge.
+/// Two Rev 8 QLA1 boards (IDs 0 and 1) behind the bridge, their
+/// watchdogs off (virtual time follows the wall clock here: a slow run
+/// must not set STATUS bit 23 between two reads compared).
 fn two_boards() -> UdpHost {
-    UdpHost::start(qla1s(2, Profile::Rev8))
+    let mut host = UdpHost::start(qla1s(2, Profile::Rev8));
+    host.qwrite(63, 3, 0);
+    assert_eq!(host.qread(0, 3), 0);
+    assert_eq!(host.qread(1, 3), 0);
+    host
 }
 
 /// Row 1. EthernetIO.v: the IP address register (11) powers up
@@ -251,7 +257,7 @@ fn row04_hub_extra_word_and_quadlets_written() {
 /// (the LED select) with the 16-bit period.
 #[test]
 fn row05_watchdog_register_keeps_bit_31() {
-    let mut host = two_boards();
+    let mut host = UdpHost::start(qla1s(2, Profile::Rev8));
     assert_eq!(host.qread(1, 3), 0x1680);
     host.qwrite(1, 3, 0xFFFF_FFFF);
     assert_eq!(host.qread(1, 3), 0x8000_FFFF);
@@ -398,7 +404,10 @@ fn row12_main_space_block_read_at_an_offset() {
     // Offset 4: the first ADC quadlet, not HW_VERSION.
     let r = host.bread(1, 0x0004, 4);
     assert_ne!(r.quadlet(), 0x514C_4131);
-    assert_eq!(r.quadlet() >> 16, host.qread(1, 0x10) >> 16, "axis 1 pot");
+    // The pot reading carries measurement noise: close, not equal.
+    let pot = i64::from(r.quadlet() >> 16);
+    let again = i64::from(host.qread(1, 0x10) >> 16);
+    assert!((pot - again).abs() < 256, "axis 1 pot {pot} vs {again}");
 }
 
 /// Row 13. FireWire.v l.1162: a block read of any length up to the
