@@ -51,6 +51,7 @@ module board_power #(
     input  wire [AXES-1:0]    delay_written, // MOTOR_CONFIG written this clock
     input  wire [16*AXES-1:0] measured,      // ADC current codes
     input  wire [16*AXES-1:0] command,       // effective DAC commands
+    input  wire [AXES-1:0]    check_enable,  // current check on (MOTOR_CONFIG 31 clear, current control)
     // Pins.
     input  wire            supply_present,
     input  wire            supply_good,
@@ -204,7 +205,7 @@ module board_power #(
                 tick_on   <= amp_on;
                 scan      <= 3'd1;
             end else if (scan != 3'd0) begin
-                if (!tick_on[sax] || !m_over) begin
+                if (!tick_on[sax] || !m_over || !check_enable[sax]) begin
                     mismatching[sax] <= 1'b0;
                 end else if (!mismatching[sax]) begin
                     mismatching[sax]    <= 1'b1;

@@ -20,7 +20,6 @@ module board_regs #(
     // initialised (29), UDP mode (20), KSZ idle (18), link down (19 = 0),
     // no register read yet (15:0): what the software board answers.
     parameter [31:0] ETH_STATUS = 32'hA014_0000,
-    parameter [31:0] GIT_DESC   = 32'h0F1E_1140,
     parameter        HAS_ETHERNET = 1'b1
 ) (
     input  wire         clk,
@@ -88,7 +87,8 @@ module board_regs #(
 
     // ---- storage --------------------------------------------------------
     reg [31:0] phy_ctrl;
-    reg [11:0] phy_data;
+    reg [15:0] phy_data;         // host-writable (BoardRegs.v l.94)
+    reg        wdog_led;         // WATCHDOG bit 31, stored (BoardRegs.v l.79)
     reg        phy_read_pending;
     reg [3:0]  phy_read_reg;
     reg [7:0]  dout_r;
@@ -98,7 +98,10 @@ module board_regs #(
     reg [32:0] offset    [0:3];   // count = raw + offset
     reg [3:0]  overflow;
     reg [7:0]  en_delay  [0:3];
-    reg [15:0] cur_limit [0:3];
+    reg [14:0] cur_limit [0:3];   // MOTOR_CONFIG 14:0 (bit 15 always 0)
+    reg [3:0]  no_safety;         // MOTOR_CONFIG bit 31 per axis
+    reg [3:0]  force_dis;         // MOTOR_CONFIG bit 30 per axis
+    reg [3:0]  ctrl_mode [0:3];   // control mode of the last command
 
     // ---- STATUS and DAC writes go to board_power -------------------------
     wire status_wr = wr_board && wr_reg == 4'd0;
@@ -114,25 +117,22 @@ module board_regs #(
         end
     end
 
-    // Effective commands: the command within the current limit around
-    // 0x8000 (MOTOR_CONFIG 15:0), recomputed for the axis written (one
-    // write per clock, so one clamp serves the four axes).
+    // The command reaches the DAC as written: MOTOR_CONFIG's current
+    // limit is checked by the firmware only in voltage control, which is
+    // not modelled (MotorChannelQLA.v). A valid command is taken with its
+    // control mode (bits 27:24) when the mode is 0 (current) or 1 (voltage;
+    // the QLA 1.5 has an I/O expander) (l.180-191).
     wire        mcfg_wr  = wr_axis && wr_reg == 4'd11;
-    wire [15:0] new_cmd  = (dac_wr && wr_data[31]) ? wr_data[15:0] : dac_cmd[wr_ax];
-    wire [15:0] new_lim  = mcfg_wr ? wr_data[15:0] : cur_limit[wr_ax];
-    wire [16:0] c_off    = {1'b0, new_cmd} - 17'h08000;          // command - zero
-    wire [16:0] c_mag    = c_off[16] ? (17'd0 - c_off) : c_off;
-    // Beyond the limit: 0x8000 -/+ limit (never outside 0..0xFFFF, since
-    // |command - 0x8000| <= 0x8000).
-    wire [15:0] limited  = (c_mag <= {1'b0, new_lim}) ? new_cmd :
-                           (c_off[16] ? 16'h8000 - new_lim : 16'h8000 + new_lim);
-    reg  [15:0] dac_eff [0:3];
+    wire        mode_ok  = wr_data[27:25] == 3'd0;
+    wire        cmd_wr   = dac_wr && wr_data[31] && mode_ok;
     wire [63:0] measured;
+    wire [3:0]  cur_ctrl;         // current control (mode other than 1)
     genvar g;
     generate
         for (g = 0; g < 4; g = g + 1) begin : cmd
-            assign dac_out[16*g +: 16]  = dac_eff[g];
+            assign dac_out[16*g +: 16]  = dac_cmd[g];
             assign measured[16*g +: 16] = adc[32*g +: 16];
+            assign cur_ctrl[g]          = ctrl_mode[g] != 4'd1;
         end
     endgenerate
 
@@ -144,8 +144,9 @@ module board_regs #(
         .amp_req_valid(amp_req_valid), .amp_req_value(amp_req_value),
         .amp_req_time(wr_time), .watchdog_fire(watchdog_fire), .reboot(reboot),
         .enable_delay({en_delay[3], en_delay[2], en_delay[1], en_delay[0]}),
-        .delay_written({4{mcfg_wr}} & (4'd1 << wr_ax)),
+        .delay_written({4{mcfg_wr && wr_data[25]}} & (4'd1 << wr_ax)),
         .measured(measured), .command(dac_out),
+        .check_enable(~no_safety & cur_ctrl),
         .supply_present(supply_present), .supply_good(supply_good),
         .power_enabled(power_enabled), .relay(relay), .supply_fault(supply_fault),
         .requested(requested), .amp_on(amp_on), .safety_disabled(safety_disabled),
@@ -179,8 +180,11 @@ module board_regs #(
             assign pos_word[32*g +: 32] = {1'b0, enc_index[g], enc_b[g], enc_a[g],
                                            3'd0, overflow[g] | out_of_range,
                                            count[23:0]};
+            // MOTOR_STATUS (MotorChannelQLA.v l.172): control mode 27:24,
+            // current control 20.
             assign mstat_word[32*g +: 32] = {2'b00, amp_on[g], requested[g],
-                                             10'd0, safety_disabled[g], 1'b0,
+                                             ctrl_mode[g], 3'd0, cur_ctrl[g], 2'd0,
+                                             safety_disabled[g], 1'b0,
                                              dac_cmd[g]};
         end
     endgenerate
@@ -196,8 +200,8 @@ module board_regs #(
             case (rd_reg)
                 4'd0:  rd_data = status_word;
                 4'd1:  rd_data = phy_ctrl;
-                4'd2:  rd_data = {20'd0, phy_data};
-                4'd3:  rd_data = {16'd0, watchdog_period};
+                4'd2:  rd_data = {16'd0, phy_data};
+                4'd3:  rd_data = {wdog_led, 15'd0, watchdog_period};
                 4'd4:  rd_data = HW_VERSION;
                 4'd5:  rd_data = temp_word;
                 4'd6:  rd_data = {24'd0, dout_r};
@@ -205,7 +209,7 @@ module board_regs #(
                 4'd10: rd_data = din_word;
                 4'd11: rd_data = HAS_ETHERNET ? ip_addr : 32'd0;
                 4'd12: rd_data = ETH_STATUS;
-                4'd15: rd_data = GIT_DESC;
+                // 15: GIT_DESC exists from Rev 9 on; reads 0 here.
                 default: rd_data = 32'd0;
             endcase
         end else if (rd_main && rd_chan >= 4'd1 && rd_chan <= 4'd4) begin
@@ -218,7 +222,10 @@ module board_regs #(
                 4'd7:  rd_data = enc_qtr1[32*rd_ax +: 32];
                 4'd9:  rd_data = enc_qtr5[32*rd_ax +: 32];
                 4'd10: rd_data = enc_run[32*rd_ax +: 32];
-                4'd11: rd_data = {6'd0, 1'b1, 1'b1, en_delay[rd_ax], cur_limit[rd_ax]};
+                // MOTOR_CONFIG (MotorChannelQLA.v l.79): bits 31/30 as
+                // written, voltage (expander) and current control available.
+                4'd11: rd_data = {no_safety[rd_ax], force_dis[rd_ax], 4'd0, 1'b1, 1'b1,
+                                  en_delay[rd_ax], 1'b0, cur_limit[rd_ax]};
                 4'd12: rd_data = mstat_word[32*rd_ax +: 32];
                 default: rd_data = 32'd0;
             endcase
@@ -236,7 +243,10 @@ module board_regs #(
     always @(posedge clk) begin
         if (rst || reboot) begin
             phy_ctrl         <= 32'd0;
-            phy_data         <= 12'd0;
+            phy_data         <= 16'd0;
+            wdog_led         <= 1'b0;
+            no_safety        <= 4'd0;
+            force_dis        <= 4'd0;
             phy_read_pending <= 1'b0;
             phy_read_reg     <= 4'd0;
             phy_req_valid    <= 1'b0;
@@ -244,20 +254,20 @@ module board_regs #(
             phy_req_addr     <= 4'd0;
             phy_req_data     <= 8'd0;
             dout_r           <= 8'd0;
-            ip_addr          <= 32'd0;
+            ip_addr          <= 32'hFFFF_FFFF;   // IP_UNASSIGNED (EthernetIO.v)
             overflow         <= 4'd0;
             for (i = 0; i < 4; i = i + 1) begin
                 dac_cmd[i]   <= 16'h8000;
-                dac_eff[i]   <= 16'h8000;
+                ctrl_mode[i] <= 4'd0;
                 preload[i]   <= ENC_NEUTRAL;
                 offset[i]    <= {1'b0, ENC_NEUTRAL} - {enc_raw[32*i+31], enc_raw[32*i +: 32]};
                 en_delay[i]  <= 8'd120;
-                cur_limit[i] <= 16'hFFFF;
+                cur_limit[i] <= 15'h0418;   // 200 mA (MotorChannelQLA.v l.61)
             end
         end else begin
             if (phy_req_valid && phy_req_ready) phy_req_valid <= 1'b0;
             if (phy_rd_valid && phy_read_pending && phy_rd_addr == phy_read_reg) begin
-                phy_data         <= {phy_rd_addr, phy_rd_data};
+                phy_data         <= {4'd0, phy_rd_addr, phy_rd_data};
                 phy_read_pending <= 1'b0;
             end
             if (phy_ctrl_wr) begin
@@ -277,17 +287,25 @@ module board_regs #(
             if (wr_board && wr_reg == 4'd6)
                 dout_r <= (dout_r & ~wr_data[15:8]) | (wr_data[7:0] & wr_data[15:8]);
             if (wr_board && wr_reg == 4'd11 && HAS_ETHERNET) ip_addr <= wr_data;
-            if (dac_wr && wr_data[31]) dac_cmd[wr_ax] <= wr_data[15:0];
-            if ((dac_wr && wr_data[31]) || mcfg_wr) dac_eff[wr_ax] <= limited;
+            if (wr_board && wr_reg == 4'd2) phy_data <= wr_data[15:0];
+            if (watchdog_set) wdog_led <= wr_data[31];
+            if (cmd_wr) begin
+                dac_cmd[wr_ax]   <= wr_data[15:0];
+                ctrl_mode[wr_ax] <= wr_data[27:24];
+            end
             if (wr_axis && wr_reg == 4'd4) begin
                 preload[wr_ax]  <= {8'd0, wr_data[23:0]};
                 offset[wr_ax]   <= {9'd0, wr_data[23:0]} -
                                    {enc_raw[32*wr_ax+31], enc_raw[32*wr_ax +: 32]};
                 overflow[wr_ax] <= 1'b0;
             end
+            // MOTOR_CONFIG: bits 31/30 stored; 25/24 load the delay and
+            // the limit (MotorChannelQLA.v l.196-199).
             if (mcfg_wr) begin
-                en_delay[wr_ax]  <= wr_data[23:16];
-                cur_limit[wr_ax] <= wr_data[15:0];
+                no_safety[wr_ax] <= wr_data[31];
+                force_dis[wr_ax] <= wr_data[30];
+                if (wr_data[25]) en_delay[wr_ax]  <= wr_data[23:16];
+                if (wr_data[24]) cur_limit[wr_ax] <= wr_data[14:0];
             end
             // A read of ENC_POSITION latches an out-of-range count.
             if (rt_sample)

@@ -174,6 +174,7 @@ module firelink_node #(
     wire [9:0]  rt_index_a, rt_index_b;
     wire [15:0] rt_addr_a, rt_addr_b;
     wire        rt_stamp_a, rt_stamp_b, rt_zero_a, rt_zero_b;
+    wire [31:0] rt_extra_a, rt_extra_b;
     wire [31:0] rt_timestamp, rt_data_b;
     realtime_block rt_block (
         .clk(clk), .rst(rst),
@@ -181,8 +182,11 @@ module firelink_node #(
         .sample_time(hr_rt_sample ? hr_rt_time : bc_rt_time),
         .restart(reboot), .restart_time(wr_time), .timestamp(rt_timestamp),
         .index_a(rt_index_a), .addr_a(rt_addr_a), .stamp_a(rt_stamp_a), .zero_a(rt_zero_a),
-        .index_b(rt_index_b), .addr_b(rt_addr_b), .stamp_b(rt_stamp_b), .zero_b(rt_zero_b));
-    assign rt_data_b = rt_stamp_b ? rt_timestamp : (rt_zero_b ? 32'd0 : regs_rd_data);
+        .extra_a(rt_extra_a),
+        .index_b(rt_index_b), .addr_b(rt_addr_b), .stamp_b(rt_stamp_b), .zero_b(rt_zero_b),
+        .extra_b(rt_extra_b));
+    assign rt_data_b = rt_stamp_b ? rt_timestamp :
+                       (rt_zero_b ? 32'd0 : regs_rd_data | rt_extra_b);
 
     // Hub.
     wire        query_valid, query_event;
@@ -274,7 +278,7 @@ module firelink_node #(
         .hub_rd_data(hub_rd_data),
         .rt_sample(hr_rt_sample), .rt_sample_time(hr_rt_time),
         .rt_index(rt_index_a), .rt_addr(rt_addr_a), .rt_stamp(rt_stamp_a),
-        .rt_zero(rt_zero_a), .rt_timestamp(rt_timestamp),
+        .rt_zero(rt_zero_a), .rt_extra(rt_extra_a), .rt_timestamp(rt_timestamp),
         .sl_start(sl_start), .sl_len(sl_len), .sl_time(sl_time), .sl_busy(sl_busy),
         .sl_rd_addr(sl_rd_addr), .sl_wr_en(sl_wr_en), .sl_wr_addr(sl_wr_addr),
         .sl_wr_data(sl_wr_data), .sl_wr_time(sl_wr_time),

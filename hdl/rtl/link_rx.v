@@ -14,8 +14,8 @@
 // acted on before that point, so a packet whose header or data CRC fails
 // has no effect at all.
 //
-// early_for_me pulses once the first quadlet names this node (local bus,
-// this physical ID, a tcode with a header CRC): the node asks for the bus
+// early_for_me pulses once the first quadlet names this node (this
+// physical ID, whatever the bus ID; a tcode with a header CRC): the node asks for the bus
 // with an immediate request then, so its ack can follow the packet at once.
 `default_nettype none
 
@@ -181,7 +181,6 @@ module link_rx (
                         q0   <= shift_next;
                         hlen <= hl_now;
                         if (phy_id_valid && hl_now != 3'd0 &&
-                            shift_next[31:22] == 10'h3FF &&
                             shift_next[21:16] == phy_id && phy_id != 6'h3F) begin
                             early_for_me <= 1'b1;
                             early_fired  <= 1'b1;

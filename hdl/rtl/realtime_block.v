@@ -23,11 +23,17 @@ module realtime_block (
     output wire [15:0]  addr_a,          // register to read for it
     output wire         stamp_a,         // it is the timestamp
     output wire         zero_a,          // it reads 0
+    output wire [31:0]  extra_a,         // OR'ed into the register word
     input  wire [9:0]   index_b,
     output wire [15:0]  addr_b,
     output wire         stamp_b,
-    output wire         zero_b
+    output wire         zero_b,
+    output wire [31:0]  extra_b
 );
+    // The temperature quadlet (3) carries the data buffer's status in bits
+    // 31:16 during a real-time read (Rev 8 QLA.v, DataBuffer.v): not
+    // collecting, channel 1, address 0.
+    localparam [31:0] DATABUF_STATUS = 32'h0400_0000;
     reg [31:0] last_sample;
 
     always @(posedge clk) begin
@@ -67,9 +73,11 @@ module realtime_block (
     assign addr_a  = address(index_a[4:0]);
     assign stamp_a = (index_a == 10'd0);
     assign zero_a  = (index_a >= 10'd32);
+    assign extra_a = (index_a == 10'd3) ? DATABUF_STATUS : 32'd0;
     assign addr_b  = address(index_b[4:0]);
     assign stamp_b = (index_b == 10'd0);
     assign zero_b  = (index_b >= 10'd32);
+    assign extra_b = (index_b == 10'd3) ? DATABUF_STATUS : 32'd0;
 endmodule
 
 `default_nettype wire

@@ -2,11 +2,13 @@
 // what it answers (shared/spec/fpga-board.md; shared/spec/ieee1394.md).
 //
 // A packet is looked at only once it has ended and both its CRCs are
-// known (link_rx). It is taken when it is on the local bus and addressed to
-// this node, to broadcast (63), or to node 0 at the snooped query (quadlet
-// write to 0x1800) or command (block write to 0xFFFF_FFFF_0000) addresses;
-// only packets addressed to this node are acknowledged.
-// - A truncated packet or a header CRC error: nothing, no ack.
+// known (link_rx). It is taken when it is addressed to this node (the
+// physical ID; the bus ID is not compared), to broadcast (63), or to node 0
+// at the snooped query (quadlet write to 0x1800) or command (block write
+// to 0xFFFF_FFFF_0000) addresses; only packets addressed to this node are
+// acknowledged.
+// - A truncated packet: nothing, no ack. A header CRC error: nothing, and
+//   a read or write request for this node is acknowledged ack_data_error.
 // - Quadlet write: the register, the query, or nothing (unmapped);
 //   ack_complete.
 // - Block write: a data CRC error is answered ack_data_error and changes
@@ -23,7 +25,7 @@
 //   length of 0 or not whole quadlets gets rcode type_error, above 2048
 //   bytes address_error, with no data.
 // - Responses to requests the board never makes: ack_complete; a lock
-//   request: ack_type_error.
+//   request: no ack.
 // - A packet for this node that arrives while an earlier one still keeps
 //   the handler busy is answered ack_busy_X by link_ctrl and dropped here
 //   (drop_early): the requester sends it again.
@@ -83,6 +85,7 @@ module request_handler (
     input  wire [15:0] rt_addr,       // the register holding that quadlet
     input  wire        rt_stamp,      // ... or the timestamp
     input  wire        rt_zero,       // ... or 0
+    input  wire [31:0] rt_extra,      // ... or'ed with this
     input  wire [31:0] rt_timestamp,
     // Command slicer.
     output reg         sl_start,
@@ -111,9 +114,9 @@ module request_handler (
 );
     localparam [3:0] TC_WQ = 4'h0, TC_WB = 4'h1, TC_WRESP = 4'h2, TC_RQ = 4'h4,
                      TC_RB = 4'h5, TC_RQRESP = 4'h6, TC_RBRESP = 4'h7,
-                     TC_LOCK = 4'h9, TC_LOCKRESP = 4'hB;
+                     TC_LOCKRESP = 4'hB;
     localparam [3:0] ACK_COMPLETE = 4'h1, ACK_PENDING = 4'h2,
-                     ACK_DATA_ERROR = 4'hD, ACK_TYPE_ERROR = 4'hE;
+                     ACK_DATA_ERROR = 4'hD;
     localparam [3:0] RC_COMPLETE = 4'h0, RC_TYPE_ERROR = 4'h6,
                      RC_ADDRESS_ERROR = 4'h7;
     localparam [1:0] K_NONE = 2'd0, K_ACK = 2'd1, K_RESP = 2'd2;
@@ -133,18 +136,23 @@ module request_handler (
     reg         dropped;      // a packet answered busy still to be skipped
 
     // ---- header fields -----------------------------------------------------
-    wire [15:0] dest    = q0[31:16];
+    wire [5:0]  dest_phy = q0[21:16];   // the bus ID (31:22) is not compared
     wire [5:0]  tl      = q0[15:10];
     wire [3:0]  tcode   = q0[7:4];
     wire [15:0] source  = q1[31:16];
     wire [15:0] addr16  = q2[15:0];
     wire [47:0] offset  = {q1[15:0], q2};
     wire [15:0] dlen    = q3[31:16];
-    wire        local_bus = (dest[15:6] == 10'h3FF);
-    wire        to_me   = phy_id_valid && (dest[5:0] == phy_id);
-    wire        bcast   = (dest[5:0] == 6'h3F);
-    wire        node0   = !to_me && (dest[5:0] == 6'd0);
-    wire        taken   = len_ok && hdr_ok && local_bus && (to_me || bcast || node0);
+    // Only the physical ID is compared, not the bus ID (FireWire.v l.891).
+    wire        to_me   = phy_id_valid && (dest_phy == phy_id);
+    wire        bcast   = (dest_phy == 6'h3F);
+    wire        node0   = !to_me && (dest_phy == 6'd0);
+    wire        taken   = len_ok && hdr_ok && (to_me || bcast || node0);
+    // A request for this node whose header CRC fails: ack_data_error, no
+    // response, no effect (FireWire.v l.1090).
+    wire        is_request = (tcode == TC_WQ) || (tcode == TC_WB) ||
+                             (tcode == TC_RQ) || (tcode == TC_RB);
+    wire        hdr_bad_for_me = len_ok && !hdr_ok && to_me && is_request;
     wire        is_main = (addr16[15:8] == 8'h00);
     wire        is_hub_mem = (addr16[15:12] == 4'h1) && (addr16[11:0] < 12'h200);
     wire        is_query   = (addr16 == 16'h1800);
@@ -179,7 +187,7 @@ module request_handler (
         else if (p1_addr[15:12] == 4'h1) p2_sel <= 2'd2;
         else                           p2_sel <= 2'd1;
         p2_word <= (pl_src != P_RT) ? regs_rd_data :
-                   rt_stamp ? rt_timestamp : (rt_zero ? 32'd0 : regs_rd_data);
+                   rt_stamp ? rt_timestamp : (rt_zero ? 32'd0 : regs_rd_data | rt_extra);
     end
     assign pl_data       = (p2_sel == 2'd3) ? snap_rd_data :
                            (p2_sel == 2'd2) ? hub_rd_data : p2_word;
@@ -290,9 +298,13 @@ module request_handler (
                             TC_WRESP, TC_RQRESP, TC_RBRESP, TC_LOCKRESP: begin
                                 reply_kind <= K_ACK; reply_ack <= ACK_COMPLETE;
                             end
-                            TC_LOCK: begin reply_kind <= K_ACK; reply_ack <= ACK_TYPE_ERROR; end
+                            // A lock request gets no ack (FireWire.v l.893-919).
                             default: ;
                         endcase
+                    end
+                    if (hdr_bad_for_me && early) begin
+                        reply_kind <= K_ACK;
+                        reply_ack  <= ACK_DATA_ERROR;
                     end
                     // Reads.
                     if (taken && to_me && tcode == TC_RQ) begin

@@ -49,6 +49,7 @@ async def start(dut, delay_units=1):
                  "delay_written", "supply_good"):
         getattr(dut, name).value = 0
     dut.supply_present.value = 1
+    dut.check_enable.value = 0xF
     dut.cmd_word.value = 0
     dut.cmd_time.value = 0
     dut.amp_req_time.value = 0

@@ -208,7 +208,7 @@ fn session() -> BoardRig {
     pc.write(NodeId::BROADCAST, 0, 0x0003_0000);
     for axis in 1..=4u64 {
         pc.write(dut, 0x10 * axis + 4, 0x0080_0000 + 0x100 * axis as u32);
-        pc.write(dut, 0x10 * axis + 0xB, 0x0028_2000);
+        pc.write(dut, 0x10 * axis + 0xB, 0x0328_2000);
     }
     pc.read_block(dut, 0, 128);
     // Broadcast cycles at 1 kHz until the supply is good and the

@@ -120,6 +120,8 @@ pub struct BoardConfig {
     /// FPGA generation.
     pub fpga: FpgaVersion,
     /// GIT_DESC register: short commit id in bits 31:4, dirty in bit 3.
+    /// The register exists from firmware Rev 9 on (BoardRegs.v): Rev 4,
+    /// 7 and 8 boards read 0 at register 15 whatever this says.
     pub git_desc: u32,
     /// One parameter set per axis; missing ones are generic motors, extra
     /// ones are ignored.
@@ -150,6 +152,20 @@ pub struct BoardConfig {
     pub qla_serials: Vec<String>,
     /// The instrument on the 1-wire line (a tool's DS2505), if any.
     pub instrument: Option<Instrument>,
+    /// A MAX7317 I/O expander on the QLA (QLA 1.5+, the default): STATUS
+    /// bit 12, voltage control available (MOTOR_CONFIG bit 25, control
+    /// mode 1), the amplifier enable delay. Without one (older QLAs) a
+    /// mode-1 DAC write is refused and amplifiers enable at once
+    /// (MotorChannelQLA.v).
+    pub io_expander: bool,
+    /// Commit writes that arrive damaged, as the Rev 8 firmware does: a
+    /// quadlet write whose header CRC fails (acknowledged `ack_data_error`
+    /// and written all the same, FireWire.v) and a real-time block write
+    /// whose data CRC fails (written quadlet by quadlet as it arrives).
+    /// Off by default: Firelink's boards acknowledge such packets as the
+    /// firmware does but commit nothing. Turn it on only to test a host's
+    /// robustness against what real boards do.
+    pub commit_corrupt_writes: bool,
 }
 
 /// The default FPGA serial number of board `board_id`: unique per board ID
@@ -233,7 +249,23 @@ impl BoardConfig {
             fpga_serial: default_fpga_serial(board_id),
             qla_serials: Vec::new(),
             instrument: None,
+            io_expander: true,
+            commit_corrupt_writes: false,
         }
+    }
+
+    /// The same board with or without an I/O expander on its QLA (see
+    /// [`BoardConfig::io_expander`]).
+    pub fn with_io_expander(mut self, present: bool) -> BoardConfig {
+        self.io_expander = present;
+        self
+    }
+
+    /// The same board committing damaged writes as the firmware does, or
+    /// not (see [`BoardConfig::commit_corrupt_writes`]).
+    pub fn with_commit_corrupt_writes(mut self, commit: bool) -> BoardConfig {
+        self.commit_corrupt_writes = commit;
+        self
     }
 
     /// The same board with this FPGA serial number.

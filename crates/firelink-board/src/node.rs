@@ -24,7 +24,7 @@
 use firelink_bus::{ArbitrationClass, Node, NodeCtx, ResetInfo, RxReply, SimTime, TransmitRequest};
 use firelink_wire::packet::{Ack, Speed};
 
-use crate::config::BoardConfig;
+use crate::config::{BoardConfig, Profile};
 use crate::firmware::{Firmware, PhyAccess, Reply};
 
 /// Timer token of the broadcast slot.
@@ -87,16 +87,27 @@ pub(crate) fn report_rx_error(
     }
 }
 
+/// How a board running `profile` asks for the bus for its status
+/// broadcast: with an isochronous-class request (seed 000's bus
+/// arbitration acceleration; the Rev 7 and Rev 8 FireWire.v request the
+/// broadcast's block write that way). Rev 9 asks with a priority-class
+/// request instead (not a profile here).
+pub fn status_broadcast_class(profile: Profile) -> ArbitrationClass {
+    match profile {
+        Profile::Seed | Profile::Rev7 | Profile::Rev8 => ArbitrationClass::Isochronous,
+    }
+}
+
 impl BoardNode {
     /// A board named `board <id>` whose status broadcasts go out at S400
-    /// with isochronous-style arbitration (seed 000's bus arbitration
-    /// acceleration).
+    /// with its profile's bus request ([`status_broadcast_class`]).
     pub fn new(config: BoardConfig) -> BoardNode {
+        let class = status_broadcast_class(config.profile);
         BoardNode {
             name: format!("board {}", config.board_id),
             firmware: Firmware::new(config),
             speed: Speed::S400,
-            class: ArbitrationClass::Isochronous,
+            class,
             next_token: 0,
             in_flight: None,
             watchdog_settings: (0, false),
@@ -114,6 +125,11 @@ impl BoardNode {
         self.speed = speed;
         self.class = class;
         self
+    }
+
+    /// How its status broadcasts ask for the bus.
+    pub fn broadcast_class(&self) -> ArbitrationClass {
+        self.class
     }
 
     /// The firmware (registers, plant).

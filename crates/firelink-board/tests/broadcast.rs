@@ -12,7 +12,7 @@ use firelink_board::firmware::Reply;
 use firelink_board::time::{SYSTEM_CLOCK_HZ, SimDuration, SimTime};
 use firelink_wire::Error;
 use firelink_wire::board::broadcast::{
-    BoardSlot, HubBlock, HubHeader, SeqRule, emit_command_block, hub_block_quadlets,
+    BoardSlot, HubBlock, HubHeader, SeqRule, emit_command_block, has_hub_timing, hub_block_quadlets,
 };
 use firelink_wire::board::realtime::{BoardLayout, WriteBlockRepr};
 use firelink_wire::board::registers::{DacWord, StatusRead};
@@ -148,7 +148,14 @@ fn cycle_checks(profile: Profile, hw: Hardware, n: usize, via_node0: bool) {
     let mut entries_seen: Option<Vec<Vec<u8>>> = None;
     for b in &mut wire.boards {
         b.now = wire.now + SimDuration::from_micros(5);
-        assert_eq!(b.read(0x1802) as usize, quadlets, "quadlets written");
+        // 0x1802 counts the blocks, not the extra timing word after them
+        // (HubReg.v l.64-65, `is_extra`).
+        let extra = usize::from(has_hub_timing(layout.format()));
+        assert_eq!(
+            b.read(0x1802) as usize,
+            quadlets - extra,
+            "quadlets written"
+        );
         assert_eq!(b.read(0x1800), (0x1234 << 16) | u32::from(mask));
         let hub = bytes(&b.read_block(0x1000, quadlets));
         let block = HubBlock::new_checked(&hub[..], &slots).unwrap();
@@ -238,7 +245,7 @@ fn two_masked_queries_in_a_row_each_restart_the_hub() {
         for b in &mut wire.boards {
             b.now = wire.now + SimDuration::from_micros(5);
             assert_eq!(b.read(0x1800), (u32::from(seq) << 16) | u32::from(mask));
-            assert_eq!(b.read(0x1802) as usize, quadlets, "board {}", b.node);
+            assert_eq!(b.read(0x1802) as usize, quadlets - 1, "board {}", b.node);
             let hub = bytes(&b.read_block(0x1000, quadlets));
             let block = HubBlock::new_checked(&hub[..], &slots).unwrap();
             block.check_sequences(SeqRule::Rev8LowByte, seq).unwrap();
@@ -378,10 +385,11 @@ fn sequence_error_on_a_mismatched_query() {
     let layout = wire.boards[0].fw.config().layout();
     let slots = [BoardSlot { id: 0, layout }];
     // Board 1 (no new cycle: it missed the query) appended board 0's
-    // seq-5 answer after the previous cycle's 67 quadlets, error bit set.
+    // seq-5 answer after the previous cycle's 66 quadlets of blocks (where
+    // the extra timing word was read), error bit set.
     let b1 = &mut wire.boards[1];
     b1.now = wire.now;
-    assert_eq!(b1.read(0x1802), 67 + 33);
+    assert_eq!(b1.read(0x1802), 66 + 33);
     // A host reading board 1 as the hub sees last cycle's sequence.
     let stale = bytes(&b1.read_block(0x1000, 34));
     assert!(matches!(
@@ -390,7 +398,7 @@ fn sequence_error_on_a_mismatched_query() {
             .check_sequences(SeqRule::Rev8LowByte, 5),
         Err(Error::Sequence { board: 0, .. })
     ));
-    let words = b1.read_block(0x1000 + 67, 33);
+    let words = b1.read_block(0x1000 + 66, 33);
     let header = HubHeader::from_word(words[0], layout.format());
     assert_eq!(
         header,

@@ -349,11 +349,17 @@ fn missing_motor_supply() {
     assert!(!r.fw.amplifier_on(0));
 }
 
+/// MOTOR_CONFIG: bits 25/24 load the delay and the limit
+/// (MotorChannelQLA.v l.196-199); in current control the limit is only
+/// stored (the firmware checks it in voltage control), so the command
+/// reaches the amplifier whole.
 #[test]
 fn motor_config_delay_and_current_limit() {
     let mut r = damped_board(Profile::Rev8);
-    // No enable delay, current limit 0x400 counts (about 78 mA).
-    r.write(0x1B, 0x0400);
+    // No enable delay, current limit 0x400 counts (about 78 mA), both
+    // loaded.
+    r.write(0x1B, 0x0300_0400);
+    assert_eq!(r.read(0x1B), 0x0300_0400);
     r.write(STATUS, POWER_ON);
     r.write(0x11, 0xB000_0000 | u32::from(amps_to_dac(1.0)));
     servo_until(
@@ -368,7 +374,7 @@ fn motor_config_delay_and_current_limit() {
     assert!(r.fw.amplifier_on(0), "on right after the 40 ms hold");
     r.wait(SimDuration::from_millis(2));
     let i = r.fw.plant().axis(0).unwrap().current();
-    assert!((i - 0x400 as f64 * 12.5 / 65536.0).abs() < 0.01, "{i}");
+    assert!((i - 1.0).abs() < 0.02, "{i}");
 }
 
 /// A scripted session; returns per-millisecond (position, period, ADC).

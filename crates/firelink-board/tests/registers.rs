@@ -29,7 +29,8 @@ fn identity_reads() {
                 assert_eq!(r.read(4), code, "HW_VERSION");
                 assert_eq!(r.read(7), fw, "FW_VERSION");
                 assert_eq!(r.read(12) & 0x8000_0000, eth, "ETH_STATUS");
-                assert_eq!(r.read(15), 0x1234_5678, "GIT_DESC");
+                // GIT_DESC exists from Rev 9 on (BoardRegs.v).
+                assert_eq!(r.read(15), 0, "GIT_DESC");
                 let status = r.read(0);
                 assert_eq!(status >> 28, axes, "number of axes");
                 assert_eq!((status >> 24) & 0xF, 9, "board ID");
@@ -75,8 +76,14 @@ fn board_registers() {
     r.write(11, 0x6400_FEA9);
     assert_eq!(r.read(11), 0x6400_FEA9);
     // Unmapped addresses (and spaces not modelled) read 0.
-    for offset in [0x0100u64, 0x0F00, 0x3000, 0x5000, 0x7000, 0x9000, 0xF000] {
+    for offset in [0x3000u64, 0x7000, 0x4100] {
         assert_eq!(r.read(offset), 0, "offset {offset:#x}");
+    }
+    // The main space decodes bits 7:0 only, and at Rev 8 spaces 9-15 read
+    // as the main space (FPGA1394V2.v l.187-191).
+    let status = r.read(0);
+    for offset in [0x0100u64, 0x0F00, 0x9000, 0xC000, 0xF000] {
+        assert_eq!(r.read(offset), status, "offset {offset:#x}");
     }
     // Channel 5 on a 4-axis board is unmapped.
     assert_eq!(r.read(0x50), 0);
@@ -131,18 +138,16 @@ fn axis_registers_at_rest() {
         assert_eq!(pos & 0x0100_0000, 0, "no overflow");
         // Rev 8: lines in bits 30:28 (index high at count 0).
         assert_eq!(pos >> 28, 0b100);
-        // No edge yet: period and quarters overflow.
-        assert_ne!(r.read(ch | 6) & 0x8000_0000, 0);
-        assert_ne!(r.read(ch | 7) & 0x8000_0000, 0);
-        assert_ne!(r.read(ch | 9) & 0x8000_0000, 0);
-        let run = r.read(ch | 10);
-        assert_eq!(run & 0x8000_0000, 0);
-        // MOTOR_CONFIG: current mode and voltage mode available, 2.5 ms delay.
-        let cfg = r.read(ch | 11);
-        assert_eq!(cfg >> 24, 0b11);
-        assert_eq!((cfg >> 16) & 0xFF, 120);
-        // MOTOR_STATUS: off, command 0x8000.
-        assert_eq!(r.read(ch | 12), 0x8000);
+        // No edge yet: the firmware's power-up words (EncPeriod.v).
+        assert_eq!(r.read(ch | 6), 0xCBFF_FFFF);
+        assert_eq!(r.read(ch | 7), 0x43FF_FFFF);
+        assert_eq!(r.read(ch | 9), 0x43FF_FFFF);
+        assert_eq!(r.read(ch | 10), 0x83FF_FFFF);
+        // MOTOR_CONFIG: current mode and voltage mode available, 2.5 ms
+        // delay, 200 mA limit (MotorChannelQLA.v l.61).
+        assert_eq!(r.read(ch | 11), 0x0378_0418);
+        // MOTOR_STATUS: off, current control, command 0x8000.
+        assert_eq!(r.read(ch | 12), 0x0010_8000);
         // Unmapped axis offsets.
         for off in [2u64, 3, 8, 13, 14, 15] {
             assert_eq!(r.read(ch | off), 0);
@@ -157,8 +162,11 @@ fn axis_registers_at_rest() {
     r.write(0x14, 0x12_3456);
     assert_eq!(r.read(0x14), 0x12_3456);
     assert_eq!(r.read(0x15) & 0x00FF_FFFF, 0x12_3456);
+    // MOTOR_CONFIG: bits 25/24 load the delay and the limit.
     r.write(0x1B, (60 << 16) | 0x1000);
-    assert_eq!(r.read(0x1B) & 0x00FF_FFFF, (60 << 16) | 0x1000);
+    assert_eq!(r.read(0x1B), 0x0378_0418, "nothing loaded");
+    r.write(0x1B, 0x0300_0000 | (60 << 16) | 0x1000);
+    assert_eq!(r.read(0x1B), 0x0300_0000 | (60 << 16) | 0x1000);
 }
 
 #[test]
@@ -190,15 +198,26 @@ fn realtime_block_layouts() {
         assert!((f64::from(ts) - 100e-6 * 49.152e6).abs() < 2.0, "{ts}");
         assert_eq!(block[1], r.read(0), "STATUS");
         assert_eq!(block[2], r.read(10), "DIGITAL_IN");
-        assert_eq!(block[3], r.read(5), "TEMPERATURE");
+        // Rev 8 QLA1: the data buffer's status in bits 31:16 (QLA.v).
+        let databuf = if profile.is_rev8() && m == 4 {
+            0x0400_0000
+        } else {
+            0
+        };
+        assert_eq!(block[3], r.read(5) | databuf, "TEMPERATURE");
         assert_eq!(block[4 + m] & 0x00FF_FFFF, 0x80_0010, "first ENC_POSITION");
         for k in 0..m {
-            assert_eq!(block[4 + 5 * m + k] & 0x8000_0000, 0, "RUN no overflow");
-            assert_ne!(
-                block[4 + 4 * m + k] & 0x8000_0000,
-                0,
-                "QTR5 overflow at rest"
-            );
+            if profile.is_rev8() {
+                assert_eq!(block[4 + 5 * m + k], 0x83FF_FFFF, "RUN before any edge");
+                assert_eq!(block[4 + 4 * m + k], 0x43FF_FFFF, "QTR5 before any edge");
+            } else {
+                assert_eq!(block[4 + 5 * m + k] & 0x8000_0000, 0, "RUN no overflow");
+                assert_ne!(
+                    block[4 + 4 * m + k] & 0x8000_0000,
+                    0,
+                    "QTR5 overflow at rest"
+                );
+            }
         }
         if profile.is_rev8() {
             assert_eq!(block[4 + 6 * m] & 0xFFFF, 0x8123, "MOTOR_STATUS command");
@@ -217,9 +236,15 @@ fn link_rules() {
     let p = quadlet_write(NodeId::local(7), 1, 0x11, 0x8000_9999);
     assert_eq!(r.deliver(&p), Reply::Silent);
     assert_eq!(r.read(0x11), 0x8000);
-    // To another bus: silent.
-    let p = quadlet_write(NodeId((0x123 << 6) | 2), 1, 0x11, 0x8000_9999);
-    assert_eq!(r.deliver(&p), Reply::Silent);
+    // To another bus: only the physical ID counts (FireWire.v l.891).
+    let p = quadlet_write(
+        NodeId((0x123 << 6) | u16::from(r.node)),
+        1,
+        0x11,
+        0x8000_9998,
+    );
+    assert_eq!(r.deliver(&p), Reply::Ack(Ack::Complete));
+    assert_eq!(r.read(0x11), 0x9998);
     // Broadcast write: taken, never acknowledged.
     let p = quadlet_write(NodeId::BROADCAST, 2, 0x11, 0x8000_9999);
     assert_eq!(r.deliver(&p), Reply::Silent);
@@ -231,7 +256,7 @@ fn link_rules() {
     // Reads to broadcast get nothing.
     let p = quadlet_read(NodeId::BROADCAST, 4, 0);
     assert_eq!(r.deliver(&p), Reply::Silent);
-    // Lock requests are not supported.
+    // Lock requests get no acknowledge at all (FireWire.v l.893-919).
     let lock = {
         let mut p = block_write(r.dest(), 5, 0x11, &[1, 2]);
         p[3] = (p[3] & 0x0F) | 0x90;
@@ -239,7 +264,7 @@ fn link_rules() {
         pk.fill_header_crc();
         p
     };
-    assert_eq!(r.deliver(&lock), Reply::Ack(Ack::TypeError));
+    assert_eq!(r.deliver(&lock), Reply::Silent);
     // A response addressed to the board is taken and ignored.
     let resp = emit(&PacketRepr::WriteResponse {
         header: AsyncHeader::new(r.dest(), NodeId::local(HOST_PHY), 6),
@@ -254,12 +279,19 @@ fn link_rules() {
 #[test]
 fn block_read_lengths() {
     let mut r = rig(Profile::Rev8);
-    assert_eq!(r.read_block_rcode(0, 0).0, Rcode::TypeError);
+    let (rcode, data) = r.read_block_rcode(0, 0);
+    assert_eq!((rcode, data.len()), (Rcode::Complete, 0));
     assert_eq!(r.read_block_rcode(0, 513).0, Rcode::AddressError);
-    // A block read elsewhere reads register by register.
+    // A block read of the main space elsewhere reads the real-time block
+    // from there (FireWire.v l.1306, l.1407): quadlet 4 on, the ADCs.
+    let rt = r.read_block(0, 32);
     let regs = r.read_block(4, 4);
-    assert_eq!(regs, vec![0x514C_4131, 0x1919, 0, 8]);
-    // A non-aligned length is refused.
+    assert_eq!(regs[0] & 0xFFFF_0000, rt[4] & 0xFFFF_0000, "axis 1 pot");
+    // Other spaces read register by register.
+    r.write(0x8000, 0x1234_5678);
+    assert_eq!(r.read_block(0x8000, 2), vec![0x1234_5678, 0]);
+    // A length that is not whole quadlets is answered with that many
+    // bytes (FireWire.v l.1162).
     let tl = 9;
     let p = emit(&PacketRepr::ReadBlockRequest {
         header: AsyncHeader::new(r.dest(), NodeId::local(HOST_PHY), tl),
@@ -271,13 +303,10 @@ fn block_read_lengths() {
         panic!()
     };
     let repr = PacketRepr::parse_verified(&response).unwrap();
-    assert!(matches!(
-        repr,
-        PacketRepr::ReadBlockResponse {
-            rcode: Rcode::TypeError,
-            ..
-        }
-    ));
+    let PacketRepr::ReadBlockResponse { rcode, data, .. } = repr else {
+        panic!("{repr:?}")
+    };
+    assert_eq!((rcode, data.len()), (Rcode::Complete, 6));
 }
 
 #[test]
@@ -299,16 +328,18 @@ fn corrupted_packets_are_not_committed() {
     assert_eq!(r.fw.take_rx_error(), Some(RxError::DataCrc));
     assert_eq!(r.fw.take_rx_error(), None);
     assert_eq!(r.read(0x11), 0x8000, "nothing committed");
-    // Flip a header bit of a quadlet write: silently dropped.
+    // Flip a header bit of a quadlet write: acknowledged ack_data_error
+    // as the firmware does (FireWire.v l.1090), not written (the firmware
+    // writes it, l.1097; Firelink does only when told to).
     let mut p = quadlet_write(r.dest(), 2, 0x11, 0x8000_9000);
     p[15] ^= 0x10;
-    assert_eq!(r.deliver(&p), Reply::Silent);
+    assert_eq!(r.deliver(&p), Reply::Ack(Ack::DataError));
     assert_eq!(r.fw.take_rx_error(), Some(RxError::HeaderCrc));
     assert_eq!(r.read(0x11), 0x8000);
     // Corrupt the CRC itself.
     let mut p = quadlet_write(r.dest(), 3, 0x11, 0x8000_9000);
     p[16] ^= 0x80;
-    assert_eq!(r.deliver(&p), Reply::Silent);
+    assert_eq!(r.deliver(&p), Reply::Ack(Ack::DataError));
     assert_eq!(r.read(0x11), 0x8000);
     // The intact packet is applied.
     let p = block_write(r.dest(), 4, 0, &block);

@@ -69,6 +69,14 @@ pub struct EmulateArgs {
     /// Fault: flip a bit in each packet on the bus with this probability (0..=1).
     #[arg(long = "corrupt-rate", default_value_t = 0.0, value_parser = crate::args::probability)]
     pub corrupt_rate: f64,
+    /// Commit damaged writes as real Rev 8 boards do: a quadlet write whose
+    /// header CRC fails and a real-time block write whose data CRC fails
+    /// are acknowledged ack_data_error and written all the same. Off by
+    /// default (the emulated boards acknowledge them alike but commit
+    /// nothing); for testing a host's robustness against real boards,
+    /// e.g. with --corrupt-rate.
+    #[arg(long = "commit-corrupt-writes")]
+    pub commit_corrupt_writes: bool,
     /// Fault: unplug this board's cable (bus reset) after `--fault-at-ms`.
     #[arg(long = "unplug-board", value_parser = crate::args::board_id)]
     pub unplug_board: Option<u8>,
@@ -132,6 +140,9 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>, Vec<BoardCon
                 board: set.board_id,
             })?;
         *board = set.apply(board.clone());
+    }
+    for b in &mut boards {
+        b.commit_corrupt_writes = args.commit_corrupt_writes;
     }
     for b in &boards {
         b.check()?;

@@ -73,13 +73,26 @@ impl Pending {
     }
 }
 
+/// The hub's timers (`bcTimer`, `bcReadStart`) count 14 bits at Rev 7
+/// and 8 and wrap (HubReg.v; Rev 9 widened them to 16).
+const TIMER_MASK: u64 = 0x3FFF;
+
 /// Hub registers and memory.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) struct Hub {
     /// Hub memory, packed in arrival order (512 quadlets, wire order).
     pub memory: Vec<u8>,
-    /// Quadlets written since the query (register 0x1802).
+    /// Quadlets written since the query (register 0x1802 once a query
+    /// came).
     pub count: usize,
+    /// The block format (which timers and registers the hub has).
+    format: BlockFormat,
+    /// Power-up (or reboot): where the timer counts from until the first
+    /// query.
+    power_up: SimTime,
+    /// `bcReadStart`: the timer when a read last addressed hub quadlet 0
+    /// (HubReg.v), 0 from power-up.
+    read_start: u16,
     /// The last query taken.
     pub query: Option<Query>,
     /// When it arrived.
@@ -88,8 +101,6 @@ pub(crate) struct Hub {
     pub seen: u16,
     /// When every selected board had been heard.
     pub complete_at: Option<SimTime>,
-    /// Where the timing quadlet sits.
-    pub timing_index: Option<usize>,
     /// This board's broadcast waiting for its slot.
     pub pending: Option<Pending>,
     /// This board's broadcast handed to the bus, stored once sent.
@@ -100,15 +111,18 @@ pub(crate) struct Hub {
 }
 
 impl Hub {
-    pub fn new() -> Hub {
+    /// The hub of a board of block `format` powered up at `now`.
+    pub fn new(now: SimTime, format: BlockFormat) -> Hub {
         Hub {
             memory: vec![0; HUB_MEMORY_QUADLETS * 4],
             count: 0,
+            format,
+            power_up: now,
+            read_start: 0,
             query: None,
             query_at: None,
             seen: 0,
             complete_at: None,
-            timing_index: None,
             pending: None,
             in_flight: None,
             spare: Vec::new(),
@@ -141,7 +155,6 @@ impl Hub {
         self.count = 0;
         self.seen = 0;
         self.complete_at = None;
-        self.timing_index = None;
         self.pending = None;
         self.in_flight = None;
     }
@@ -161,11 +174,14 @@ impl Hub {
         if self.seen & bit != 0 && self.query.is_some_and(|q| q.seq == seq) {
             return false;
         }
-        let update = self.query_at.map_or(0, |q| now.clocks_since(q));
+        // The update time is the hub timer's (14 bits, wrapping) at Rev 7
+        // and 8; Rev 4 counts 16 bits, held at the top.
         let update = match format {
-            BlockFormat::Rev4 | BlockFormat::Rev7 => update.min(0xFFFF),
-            BlockFormat::Rev8 => update.min(0x7FFF),
-        } as u16;
+            BlockFormat::Rev4 => {
+                self.query_at.map_or(0, |q| now.clocks_since(q)).min(0xFFFF) as u16
+            }
+            BlockFormat::Rev7 | BlockFormat::Rev8 => self.timer(now),
+        };
         let seq = self.query.map_or(0, |q| q.seq);
         let Some(free) = self.memory.get_mut(self.count * 4..) else {
             return true;
@@ -179,64 +195,98 @@ impl Hub {
         }
         self.count += packer.quadlets();
         self.seen |= bit;
-        let mask = self.mask();
-        if self.complete_at.is_none() && mask != 0 && mask & !self.seen == 0 {
+        if self.complete_at.is_none() && self.updated() {
             self.complete_at = Some(now);
-            if !has_hub_timing(format) {
-                return true;
-            }
-            let Some(free) = self.memory.get_mut(self.count * 4..) else {
-                return true;
-            };
-            let done = self.query_at.map_or(0, |q| now.clocks_since(q));
-            let timing = HubTiming {
-                read_start: 0,
-                now: done.min(0xFFFF) as u16,
-            };
-            if HubPacker::new(free).finish(timing).is_ok() {
-                self.timing_index = Some(self.count);
-                self.count += 1;
-            }
         }
         true
+    }
+
+    /// The hub timer (`bcTimer`) at `now`: clocks since the last query, or
+    /// since power-up before any, 14 bits wrapping.
+    fn timer(&self, now: SimTime) -> u16 {
+        let since = self.query_at.unwrap_or(self.power_up);
+        (now.clocks_since(since) & TIMER_MASK) as u16
+    }
+
+    /// Every board the query selected has stored its block (before any
+    /// query, or after one with an empty mask, that is every board).
+    fn updated(&self) -> bool {
+        self.mask() & !self.seen == 0
+    }
+
+    /// Register `0x1802`: the quadlets written since the query (HubReg.v
+    /// l.64-65: the last write address plus one). At Rev 8 that address
+    /// powers up at 0, so the register reads 1 until the first query (Rev
+    /// 9 reads 0).
+    pub fn num_written(&self) -> u32 {
+        if self.query_at.is_none() && self.format == BlockFormat::Rev8 {
+            1
+        } else {
+            self.count as u32
+        }
+    }
+
+    /// Whether quadlet `index` reads the extra timing word: once every
+    /// selected board has updated, at the quadlet after the last board's
+    /// block (HubReg.v `is_extra`); before any query, quadlet 1 at Rev 8.
+    fn is_extra(&self, index: usize) -> bool {
+        has_hub_timing(self.format)
+            && self.updated()
+            && index as u64 == u64::from(self.num_written())
+    }
+
+    /// A read addressed hub quadlet 0 at `at`: `bcReadStart` takes the
+    /// timer (HubReg.v l.134).
+    pub fn latch_read_start(&mut self, at: SimTime) {
+        self.read_start = self.timer(at);
     }
 
     /// Hub memory quadlets from `start` on, as read by a read that started
     /// at `read_start`, into `out` (wire order) as far as the memory goes;
     /// returns how many quadlets that was.
-    pub fn read_into(&self, start: usize, read_start: SimTime, out: &mut [u8]) -> usize {
+    pub fn read_into(&mut self, start: usize, read_start: SimTime, out: &mut [u8]) -> usize {
+        if start == 0 {
+            self.latch_read_start(read_start);
+        }
         let end = HUB_MEMORY_QUADLETS.min(start.saturating_add(out.len() / 4));
         let n = end.saturating_sub(start);
         if let (Some(src), Some(dst)) = (self.memory.get(start * 4..end * 4), out.get_mut(..n * 4))
         {
             dst.copy_from_slice(src);
         }
-        if let Some(t) = self.timing_index.filter(|t| (start..end).contains(t)) {
-            let k = (t - start) * 4;
+        let extra = self.num_written() as usize;
+        if (start..end).contains(&extra) && self.is_extra(extra) {
+            let k = (extra - start) * 4;
+            let word = self.timing_word(extra, read_start);
             if let Some(dst) = out.get_mut(k..k + 4) {
-                dst.copy_from_slice(&self.read(t, read_start).to_be_bytes());
+                dst.copy_from_slice(&word.to_be_bytes());
             }
         }
         n
     }
 
-    /// Hub memory quadlet `index` as read by a read that started at
-    /// `read_start`. The timing quadlet is latched as it is read: the
-    /// clocks from the query to the start of the read, and to the moment
-    /// the quadlet goes out (4 clocks per quadlet at S400 after a 5-quadlet
-    /// response header).
-    pub fn read(&self, index: usize, read_start: SimTime) -> u32 {
-        if Some(index) == self.timing_index
-            && let Some(q) = self.query_at
-        {
-            let start = read_start.clocks_since(q);
-            let now = start + 4 * (5 + index as u64);
-            return HubTiming {
-                read_start: start.min(0xFFFF) as u16,
-                now: now.min(0xFFFF) as u16,
-            }
-            .to_word();
+    /// Hub quadlet `index` as a quadlet read at `at` reads it (a read of
+    /// quadlet 0 latches `bcReadStart`).
+    pub fn read(&mut self, index: usize, at: SimTime) -> u32 {
+        if index == 0 {
+            self.latch_read_start(at);
+        }
+        if self.is_extra(index) {
+            return self.timing_word(index, at);
         }
         read_quadlet(&self.memory, index)
+    }
+
+    /// The extra timing word `{bcReadStart, bcTimer}` as quadlet `index`
+    /// of a read that started at `read_start` sends it: the timer when
+    /// that quadlet goes out (4 clocks per quadlet at S400 after a
+    /// 5-quadlet response header), both 14 bits.
+    fn timing_word(&self, index: usize, read_start: SimTime) -> u32 {
+        let now = u64::from(self.timer(read_start)) + 4 * (5 + index as u64);
+        HubTiming {
+            read_start: self.read_start,
+            now: (now & TIMER_MASK) as u16,
+        }
+        .to_word()
     }
 }

@@ -10,19 +10,30 @@
 //! state between calls is computed exactly (the watchdog fires at its
 //! exact expiry even if nothing is received then).
 //!
-//! Link behaviour (`fpga-board.md`, `ieee1394.md`):
+//! Link behaviour (`fpga-board.md`, `ieee1394.md`, the Rev 8 FireWire.v):
 //! - A packet is taken when addressed to this node, to broadcast (63), or
 //!   to node 0 at the snooped query (`0x1800`) or command
-//!   (`0xFFFF_FFFF_0000`) addresses. Only packets addressed to this node
-//!   are acknowledged: writes *unified* with `ack_complete`, reads
-//!   *concatenated* with `ack_pending` and the response at once.
-//! - A header CRC error drops the packet (nothing can be trusted); a data
-//!   CRC error is answered `ack_data_error` and nothing is committed.
-//!   (The reference firmware commits first; not committing is our
-//!   deliberate improvement.) In the seed profile a query whose header CRC
-//!   fails is still recognised and answered with sequence `0xFFFF`.
-//! - Unmapped addresses read 0; writes to them are acknowledged and
-//!   ignored (they still refresh the watchdog).
+//!   (`0xFFFF_FFFF_0000`) addresses; only the physical ID is compared,
+//!   whatever the bus ID. Only packets addressed to this node are
+//!   acknowledged: writes *unified* with `ack_complete`, reads
+//!   *concatenated* with `ack_pending` and the response at once. Only
+//!   quadlet and block reads and writes are taken: a lock request gets no
+//!   acknowledge.
+//! - A request for this node whose header CRC fails is acknowledged
+//!   `ack_data_error` and gets no response; a data CRC error is answered
+//!   `ack_data_error`. Nothing damaged is committed: the firmware writes
+//!   such a quadlet write, and a real-time block write as it arrives,
+//!   before it knows; Firelink does that only with
+//!   [`BoardConfig::commit_corrupt_writes`]. In the seed profile a query
+//!   whose header CRC fails is still recognised and answered with
+//!   sequence `0xFFFF`.
+//! - Every block read up to 2048 bytes is answered complete with exactly
+//!   the bytes asked for (0 and part-quadlet lengths included); a block
+//!   read of the main space, at any offset, reads the real-time block.
+//! - Reads decode the main space from bits 7:0 only (Rev 8: spaces 9-15
+//!   read as the main space); `0xFFFF_F000_0400-042C` is the
+//!   configuration ROM (Rev 8). Unmapped addresses read 0; writes to them
+//!   are acknowledged and ignored (they still refresh the watchdog).
 //!
 //! Modelling choices where the spec leaves room (each is deliberate):
 //! - The watchdog runs from power-up: with no write for 30 ms STATUS bit 23
@@ -34,8 +45,10 @@
 //! - STATUS's 4-bit amplifier fields cover axes 1-4; on a DQLA, axes 5-8
 //!   are enabled and reported through the Rev 8 DAC word and MOTOR_STATUS.
 //!   A DQLA reports its second pair of temperature sensors in bits 31:16.
-//! - MOTOR_CONFIG's current limit caps `|command - 0x8000|` in DAC counts
-//!   (power-up `0xFFFF`: no cap); its delay unit is 1024 clocks (20.83 us).
+//! - MOTOR_CONFIG's current limit (power-up `0x0418`) is stored, not
+//!   applied: the firmware checks it only in voltage control, and voltage
+//!   control is not modelled (the plant is driven by current either way);
+//!   its delay unit is 1024 clocks (20.83 us).
 //! - Rev 7+ chain: a board whose predecessors stay silent transmits anyway
 //!   [`CHAIN_TIMEOUT_PER_BOARD`] per missing predecessor after its first
 //!   slot. The seed profile answers every query in its TDMA slot whatever
@@ -46,10 +59,12 @@
 //!   every board, selected or not, stores the selected boards' broadcasts.
 //!   Quadlets past those written since the query read what the memory
 //!   last held there (as `hdl/` does), not 0. A board that missed the
-//!   query keeps appending to the previous cycle. The timing quadlet reads
-//!   `read_start` = clocks from the query to the hub read, `now` = clocks
-//!   from the query to the moment that quadlet goes out (4 clocks per
-//!   quadlet at S400).
+//!   query keeps appending to the previous cycle. Once every selected
+//!   board has updated (and before any query), the quadlet after the last
+//!   block (register `0x1802`, the quadlets written) reads the timing word
+//!   `{bcReadStart, bcTimer}` (HubReg.v): the hub timer, 14 bits wrapping,
+//!   when a read last addressed hub quadlet 0, and when that quadlet goes
+//!   out (4 clocks per quadlet at S400).
 //! - A query with sequence 0 is ignored.
 //!
 //! ```
@@ -98,8 +113,8 @@ pub use power::{
 };
 
 use firelink_wire::board::address::{
-    COMMAND_SNOOP_OFFSET, HUB_MEMORY_QUADLETS, HUB_QUERY_OFFSET, STATUS_BROADCAST_OFFSET,
-    STATUS_BROADCAST_PRIORITY,
+    COMMAND_SNOOP_OFFSET, HUB_MEMORY_QUADLETS, HUB_QUERY_OFFSET, REALTIME_BLOCK_OFFSET,
+    STATUS_BROADCAST_OFFSET, STATUS_BROADCAST_PRIORITY,
 };
 use firelink_wire::board::broadcast::{
     BroadcastHeader, CORRUPT_QUERY_SEQ, Query, status_broadcast_offset,
@@ -121,6 +136,9 @@ use hub::{Hub, Pending};
 use power::{AxisState, Power, Watchdog};
 use prom::{FpgaProm, QlaProm};
 
+/// IP_ADDR at power-up: no address assigned (EthernetIO.v `IP_UNASSIGNED`).
+pub const IP_UNASSIGNED: u32 = 0xFFFF_FFFF;
+
 /// Largest block read served, bytes (one S400 payload; the firmware's
 /// 10-bit quadlet counters; `fpga-board-extras.md` §8). Longer reads are
 /// answered with rcode `address_error` and no data.
@@ -136,6 +154,35 @@ pub const SLOT_GRACE: SimDuration = SimDuration::from_micros(2);
 /// writes more: 2024 bytes on FireWire and over loopback UDP). A longer
 /// write is refused with `ack_type_error` and nothing is committed.
 pub const MAX_BLOCK_WRITE: usize = 2024;
+
+/// Quadlets of the link's received-packet memory (FPGA1394V2.v: space 5
+/// reads it).
+const PACKET_MEMORY_QUADLETS: usize = 512;
+
+/// The memory the link writes every packet it receives into, from its
+/// first quadlet on, header and CRCs included; what a packet does not
+/// reach keeps what earlier packets left.
+#[derive(Debug, Clone)]
+struct PacketMemory(Vec<u8>);
+
+impl PacketMemory {
+    fn new() -> PacketMemory {
+        PacketMemory(vec![0; PACKET_MEMORY_QUADLETS * 4])
+    }
+
+    /// Store a received packet (whole quadlets, as far as the memory goes).
+    fn store(&mut self, bytes: &[u8]) {
+        let n = (bytes.len() / 4 * 4).min(self.0.len());
+        if let (Some(dst), Some(src)) = (self.0.get_mut(..n), bytes.get(..n)) {
+            dst.copy_from_slice(src);
+        }
+    }
+
+    /// Quadlet `index` (address bits 8:0).
+    fn quadlet(&self, index: u16) -> u32 {
+        firelink_wire::field::read_quadlet(&self.0, usize::from(index) % PACKET_MEMORY_QUADLETS)
+    }
+}
 
 /// How the board's link answers a packet.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -159,10 +206,17 @@ pub enum Reply {
 /// evidence); see [`Firmware::take_rx_error`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum RxError {
-    /// A header CRC failed: the packet was dropped.
+    /// A header CRC failed: `ack_data_error` if the packet was a request
+    /// for this node, otherwise nothing; nothing committed.
     HeaderCrc,
     /// A data CRC failed: `ack_data_error`, nothing committed.
     DataCrc,
+    /// A quadlet write whose header CRC failed, committed all the same
+    /// ([`BoardConfig::commit_corrupt_writes`](crate::config::BoardConfig::commit_corrupt_writes)).
+    HeaderCrcCommitted,
+    /// A real-time block write whose data CRC failed, committed all the
+    /// same ([`BoardConfig::commit_corrupt_writes`](crate::config::BoardConfig::commit_corrupt_writes)).
+    DataCrcCommitted,
     /// A query with a failed header CRC, answered with sequence `0xFFFF`
     /// (seed profile).
     CorruptQuery,
@@ -180,8 +234,14 @@ pub enum RxError {
 impl core::fmt::Display for RxError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str(match self {
-            RxError::HeaderCrc => "header CRC error: packet dropped",
+            RxError::HeaderCrc => "header CRC error: not committed",
             RxError::DataCrc => "data CRC error: ack_data_error, not committed",
+            RxError::HeaderCrcCommitted => {
+                "header CRC error: ack_data_error, quadlet written as the firmware does"
+            }
+            RxError::DataCrcCommitted => {
+                "data CRC error: ack_data_error, real-time block written as the firmware does"
+            }
             RxError::CorruptQuery => "corrupt query: answered with sequence 0xFFFF",
             RxError::DuplicateBroadcast => "duplicate status broadcast: stored once",
             RxError::LateBroadcast => "status broadcast arrived after its slot",
@@ -217,6 +277,8 @@ pub struct Firmware {
     last_sample: SimTime,
     hub: Hub,
     rx_error: Option<RxError>,
+    /// The link's received-packet memory (space 5).
+    rx_memory: PacketMemory,
     /// A buffer kept for block reads (no allocation per read).
     scratch: Vec<u8>,
     /// The next internal event, or earlier: every write moves the
@@ -245,6 +307,7 @@ impl Firmware {
         let qla_proms = cfg.qla_serials().iter().map(|s| QlaProm::new(s)).collect();
         let dallas = Dallas::new(cfg.instrument.as_ref());
         let ethernet = Ethernet::new(cfg.board_id);
+        let hub = Hub::new(SimTime::ZERO, cfg.layout().format());
         Firmware {
             power: Power::new(cfg.motor_supply_present, cfg.supply_rise),
             cfg,
@@ -255,7 +318,7 @@ impl Firmware {
             phy_ctrl: 0,
             phy_data: PhyData::default(),
             dout: DigitalOutputs::new(),
-            ip_addr: 0,
+            ip_addr: IP_UNASSIGNED,
             fpga_prom,
             qla_proms,
             dallas,
@@ -264,8 +327,9 @@ impl Firmware {
             watchdog: Watchdog::new(SimTime::ZERO),
             axes,
             last_sample: SimTime::ZERO,
-            hub: Hub::new(),
+            hub,
             rx_error: None,
+            rx_memory: PacketMemory::new(),
             scratch: Vec::new(),
             next_event: None,
             events_stale: true,
@@ -314,7 +378,7 @@ impl Firmware {
     pub fn amplifier_on(&self, axis: usize) -> bool {
         self.axes
             .get(axis)
-            .is_some_and(|a| a.is_on(&self.power, self.now))
+            .is_some_and(|a| a.is_on(&self.power, self.now, self.cfg.io_expander))
     }
 
     /// The current command of `axis` as applied (DAC code, MOTOR_STATUS
@@ -475,7 +539,7 @@ impl Firmware {
         let mut next = self.watchdog.expiry().filter(|t| *t > now);
         let mut any_on = false;
         for a in &self.axes {
-            if let Some(on) = a.on_at(&self.power) {
+            if let Some(on) = a.on_at(&self.power, self.cfg.io_expander) {
                 if on > now {
                     next = Some(next.map_or(on, |n| n.min(on)));
                 } else {
@@ -507,7 +571,7 @@ impl Firmware {
         // When each amplifier drives (worked out once for this event).
         let mut on_at = [None; MAX_AXES];
         for (slot, a) in on_at.iter_mut().zip(&self.axes) {
-            *slot = a.on_at(&self.power);
+            *slot = a.on_at(&self.power, self.cfg.io_expander);
         }
         // (A board has at most MAX_AXES axes: QLA1 4, DQLA 8.)
         let on = |i: usize| on_at.get(i).copied().flatten().is_some_and(|t| now >= t);
@@ -521,8 +585,12 @@ impl Firmware {
             // integrating the motion.
             self.plant.pass_to(now);
             let threshold = power::mismatch_counts();
+            let expander = self.cfg.io_expander;
             for (i, a) in self.axes.iter_mut().enumerate() {
-                if !on(i) {
+                // The check runs in current control unless MOTOR_CONFIG
+                // bit 31 turned it off (MotorChannelQLA.v).
+                let checked = !a.disable_safety && a.current_control(expander);
+                if !on(i) || !checked {
                     a.mismatch_since = None;
                     continue;
                 }
@@ -565,7 +633,7 @@ impl Firmware {
         let now = self.now;
         let mut clock_set = false;
         for (i, a) in self.axes.iter().enumerate() {
-            let on = a.is_on(&self.power, now);
+            let on = a.is_on(&self.power, now, self.cfg.io_expander);
             let dac = a.effective_command();
             let changed = self
                 .plant
@@ -615,10 +683,12 @@ impl Firmware {
         if !tcode.has_header_crc() {
             return Reply::Silent;
         }
+        // The link stores every packet it receives in its packet memory
+        // (space 5), whole quadlets as they arrive.
+        self.rx_memory.store(bytes);
+        // Only the physical ID is compared, not the bus ID (FireWire.v
+        // l.891): a request to bus 0 or 0x3EF reaches the node as well.
         let dest = packet.destination_id();
-        if dest.bus() != NodeId::LOCAL_BUS {
-            return Reply::Silent;
-        }
         let to_me = self.phy_id == Some(dest.phy());
         let broadcast = dest.is_broadcast();
         let to_node0 = !to_me && dest.phy() == 0;
@@ -645,6 +715,13 @@ impl Firmware {
     ) -> Reply {
         let tcode = packet.tcode();
         let offset = packet.offset();
+        let request = matches!(
+            tcode,
+            Tcode::WriteQuadletRequest
+                | Tcode::WriteBlockRequest
+                | Tcode::ReadQuadletRequest
+                | Tcode::ReadBlockRequest
+        );
         if crc.header_ok != Some(true) {
             self.rx_error = Some(RxError::HeaderCrc);
             if self.cfg.profile == Profile::Seed
@@ -653,8 +730,20 @@ impl Firmware {
             {
                 self.rx_error = Some(RxError::CorruptQuery);
                 self.query(now, None);
+                return Reply::Silent;
             }
-            return Reply::Silent;
+            // A request for this node whose header CRC fails is
+            // acknowledged ack_data_error and gets no response (FireWire.v
+            // l.1090). The firmware writes a quadlet write all the same
+            // (l.1097); Firelink does only when told to.
+            if !(to_me && request) {
+                return Reply::Silent;
+            }
+            if tcode == Tcode::WriteQuadletRequest && self.cfg.commit_corrupt_writes {
+                self.rx_error = Some(RxError::HeaderCrcCommitted);
+                self.write_quadlet(now, offset, packet.quadlet_data(), phy);
+            }
+            return Reply::Ack(Ack::DataError);
         }
         let ack = |a: Ack| if to_me { Reply::Ack(a) } else { Reply::Silent };
         match tcode {
@@ -669,11 +758,23 @@ impl Firmware {
                 if to_node0 && offset != COMMAND_SNOOP_OFFSET {
                     return Reply::Silent;
                 }
+                let too_long = usize::from(packet.data_length()) > MAX_BLOCK_WRITE;
                 if crc.data_ok == Some(false) {
                     self.rx_error = Some(RxError::DataCrc);
+                    // The firmware writes a real-time block (address 0)
+                    // quadlet by quadlet as it arrives, before the data
+                    // CRC is known (FireWire.v l.855); Firelink does only
+                    // when told to.
+                    if self.cfg.commit_corrupt_writes
+                        && offset & 0xFFFF == REALTIME_BLOCK_OFFSET
+                        && !too_long
+                    {
+                        self.rx_error = Some(RxError::DataCrcCommitted);
+                        self.write_block_from(now, offset, packet.data(), to_me && !broadcast, phy);
+                    }
                     return ack(Ack::DataError);
                 }
-                if usize::from(packet.data_length()) > MAX_BLOCK_WRITE {
+                if too_long {
                     self.rx_error = Some(RxError::WriteTooLong);
                     return ack(Ack::TypeError);
                 }
@@ -711,7 +812,9 @@ impl Firmware {
             | Tcode::ReadQuadletResponse
             | Tcode::ReadBlockResponse
             | Tcode::LockResponse => ack(Ack::Complete),
-            Tcode::LockRequest => ack(Ack::TypeError),
+            // The link takes quadlet and block reads and writes only: a
+            // lock request (or any other) gets no acknowledge at all
+            // (FireWire.v l.893-919).
             _ => Reply::Silent,
         }
     }
@@ -724,13 +827,19 @@ impl Firmware {
         length: u16,
     ) -> Vec<u8> {
         let length = usize::from(length);
-        if let Some(rcode) = block_read_refusal(length, MAX_BLOCK_READ) {
-            return block_response_packet(header, rcode, &[]);
+        // Every length up to the largest is answered complete with exactly
+        // that many bytes, 0 and lengths that are not whole quadlets
+        // included (FireWire.v l.1162); a length of 0 reads nothing.
+        if length > MAX_BLOCK_READ {
+            return block_response_packet(header, Rcode::AddressError, &[]);
         }
         let mut data = core::mem::take(&mut self.scratch);
         data.clear();
-        data.resize(length, 0);
-        self.read_block_into(now, offset, &mut data);
+        data.resize(length.div_ceil(4) * 4, 0);
+        if length > 0 {
+            self.read_block_into(now, offset, &mut data);
+        }
+        data.truncate(length);
         let response = block_response_packet(header, Rcode::Complete, &data);
         self.scratch = data;
         response

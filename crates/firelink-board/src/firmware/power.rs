@@ -34,6 +34,11 @@ pub const ENABLE_DELAY_UNIT_CLOCKS: u64 = 1024;
 /// Default enable delay: 120 units, 2.5 ms (section 7).
 pub const DEFAULT_ENABLE_DELAY: u8 = 120;
 
+/// MOTOR_CONFIG's current limit at power-up: `0x0418` DAC counts, 200 mA
+/// (Rev 8 MotorChannelQLA.v l.61). The firmware applies it only in voltage
+/// control; in current control it is stored and read back.
+pub const DEFAULT_CURRENT_LIMIT: u16 = 0x0418;
+
 /// The mismatch threshold in ADC/DAC counts.
 pub(crate) fn mismatch_counts() -> f64 {
     MISMATCH_AMPS / QLA_AMPS_PER_BIT
@@ -98,6 +103,9 @@ impl Power {
 pub(crate) struct Watchdog {
     /// Period in ticks of 256 clocks; 0 disables.
     pub ticks: u16,
+    /// Register bit 31, the LED select: stored and read back, nothing
+    /// else here (BoardRegs.v).
+    pub led_select: bool,
     /// The last write to the board.
     pub last_write: SimTime,
     /// STATUS bit 23.
@@ -108,6 +116,7 @@ impl Watchdog {
     pub fn new(now: SimTime) -> Watchdog {
         Watchdog {
             ticks: WATCHDOG_POWER_UP_TICKS,
+            led_select: false,
             last_write: now,
             timed_out: false,
         }
@@ -139,8 +148,20 @@ pub(crate) struct AxisState {
     pub overflow: bool,
     /// Enable delay, 48 kHz units.
     pub enable_delay: u8,
-    /// Largest |command - 0x8000| passed to the amplifier, DAC counts.
+    /// MOTOR_CONFIG 15:0 (bit 15 always 0): stored and read back; the
+    /// firmware checks it only in voltage control.
     pub current_limit: u16,
+    /// MOTOR_CONFIG bit 31: the current safety check is off for this axis.
+    pub disable_safety: bool,
+    /// MOTOR_CONFIG bit 30: the follower op amp forced on (stored).
+    pub force_disable: bool,
+    /// Rev 8 control mode (DAC bits 27:24 of the last accepted command):
+    /// 0 current control, 1 voltage control (with an I/O expander).
+    pub control_mode: u8,
+    /// The plant encoder's edge count when the firmware's period
+    /// measurement last started (power-up or reboot): until it moves on,
+    /// the velocity words read their power-up values.
+    pub edges_at_reset: u64,
     /// The host's amplifier request (cleared by safety events).
     pub requested: bool,
     /// When the request was made.
@@ -159,7 +180,11 @@ impl AxisState {
             count_offset: i64::from(ENC_NEUTRAL) - raw_count,
             overflow: false,
             enable_delay: DEFAULT_ENABLE_DELAY,
-            current_limit: 0xFFFF,
+            current_limit: DEFAULT_CURRENT_LIMIT,
+            disable_safety: false,
+            force_disable: false,
+            control_mode: 0,
+            edges_at_reset: 0,
             requested: false,
             requested_since: SimTime::ZERO,
             safety_disabled: false,
@@ -169,27 +194,34 @@ impl AxisState {
 
     /// When this axis's amplifier turns (or turned) on, given the power
     /// state; `None` while it is not requested or the supply is off.
-    pub fn on_at(&self, power: &Power) -> Option<SimTime> {
+    /// Without an I/O expander (`delayed` false) the enable is not delayed
+    /// (MotorChannelQLA.v).
+    pub fn on_at(&self, power: &Power, delayed: bool) -> Option<SimTime> {
         if !self.requested {
             return None;
         }
         let allowed = power.drive_allowed_from()?;
-        let delay =
-            SimDuration::from_clocks(u64::from(self.enable_delay) * ENABLE_DELAY_UNIT_CLOCKS);
+        let units = if delayed { self.enable_delay } else { 0 };
+        let delay = SimDuration::from_clocks(u64::from(units) * ENABLE_DELAY_UNIT_CLOCKS);
         Some(self.requested_since.max(allowed) + delay)
     }
 
     /// Whether the amplifier drives the motor at `t`.
-    pub fn is_on(&self, power: &Power, t: SimTime) -> bool {
-        self.on_at(power).is_some_and(|on| t >= on)
+    pub fn is_on(&self, power: &Power, t: SimTime, delayed: bool) -> bool {
+        self.on_at(power, delayed).is_some_and(|on| t >= on)
     }
 
-    /// The DAC code reaching the amplifier: the command within the
-    /// configured current limit.
+    /// The DAC code reaching the amplifier: the command as written (the
+    /// firmware passes it straight to the DAC; MOTOR_CONFIG's limit is no
+    /// clamp).
     pub fn effective_command(&self) -> u16 {
-        let zero = i32::from(crate::plant::DAC_ZERO);
-        let limit = i32::from(self.current_limit);
-        (i32::from(self.command).clamp(zero - limit, zero + limit)).clamp(0, 0xFFFF) as u16
+        self.command
+    }
+
+    /// Current control (MOTOR_STATUS bit 20): any mode but 1, and mode 1
+    /// only with an I/O expander (MotorChannelQLA.v l.87).
+    pub fn current_control(&self, expander: bool) -> bool {
+        !(expander && self.control_mode == 1)
     }
 }
 
@@ -217,13 +249,13 @@ mod tests {
         let mut a = AxisState::new(0);
         a.requested = true;
         a.requested_since = SimTime::from_millis(1);
-        let on = a.on_at(&p).unwrap();
+        let on = a.on_at(&p, true).unwrap();
         // 1 + 5 + 40 ms, then 2.5 ms delay.
         assert!((on.as_secs_f64() - 0.0485).abs() < 1e-6, "{on:?}");
-        assert!(!a.is_on(&p, SimTime::from_millis(48)));
-        assert!(a.is_on(&p, SimTime::from_millis(49)));
+        assert!(!a.is_on(&p, SimTime::from_millis(48), true));
+        assert!(a.is_on(&p, SimTime::from_millis(49), true));
         p.enabled = false;
         p.update_supply(SimTime::from_millis(50));
-        assert!(!a.is_on(&p, SimTime::from_millis(51)));
+        assert!(!a.is_on(&p, SimTime::from_millis(51), true));
     }
 }

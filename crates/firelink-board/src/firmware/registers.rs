@@ -14,7 +14,7 @@ use firelink_wire::board::realtime::{
 use firelink_wire::board::registers::{
     AdcWord, DacWord, DigitalIn, DigitalOutWrite, DoutCtrl, ENC_NEUTRAL, EncPeriod, EncPosition,
     EncQuarter, EncRun, FpgaVersion, MotorConfig, MotorStatus, PhyData, PhyRequest, StatusCommand,
-    StatusRead, StatusWrite, Temperature,
+    StatusRead, StatusWrite, Temperature, Watchdog as WatchdogWord,
 };
 
 use super::dout::OUTPUTS;
@@ -55,6 +55,62 @@ fn decode(offset: u64) -> Target {
         space => Target::Space(space, address.index),
     }
 }
+
+/// A read's target as the firmware decodes it: in the main space only
+/// bits 7:0 (channel and register) count, so `0x0400` and
+/// `0xFFFF_0000_0400` read STATUS (FPGA1394V2.v, QLA.v); at Rev 8 a space
+/// the FPGA leaves unused (9-15) falls through to the QLA's register mux
+/// and reads as the main space does (FPGA1394V2.v l.187-191: `0xC000`
+/// reads STATUS). Writes decode the whole 16 bits ([`decode`]).
+fn decode_read(offset: u64, rev8: bool) -> Target {
+    let low = offset & 0xFFFF;
+    let space = low >> 12;
+    if space == 0 || (rev8 && space >= 9) {
+        decode(low & 0xFF)
+    } else {
+        decode(low)
+    }
+}
+
+/// The configuration ROM's bus-information block and root directory at
+/// Rev 8, quadlet by quadlet from `0xFFFF_F000_0400` (FireWire.v l.351,
+/// l.443-470): 12 quadlets, quadlet 4 the firmware version.
+const CONFIG_ROM_REV8: [u32; 12] = [
+    0x0404_8496,
+    0x3133_3934,
+    0x00FF_A000,
+    0xFA61_0E0E,
+    0x0000_0008,
+    0x0005_9395,
+    0x0C00_83C0,
+    0x03FA_610E,
+    0x8100_0003,
+    0x1700_0002,
+    0x8100_0006,
+    0x0004_56C4,
+];
+
+/// Where the configuration ROM starts (a byte address, as the IEEE 1212
+/// CSR space counts).
+const CONFIG_ROM_BASE: u64 = 0xFFFF_F000_0400;
+
+/// The upper half of the temperature quadlet in a real-time block: the
+/// data collection buffer's status (Rev 8 QLA.v, DataBuffer.v): not
+/// collecting (bit 15), channel 1 (bits 13:10), write address 0 (9:0).
+/// Data collection is not modelled, so it stays at its power-up value.
+pub(crate) const DATA_BUFFER_STATUS: u16 = 0x0400;
+
+/// Space 7's status register (DataBuffer.v: `0x7800`).
+const DATA_BUFFER_STATUS_INDEX: u16 = 0x800;
+
+/// The velocity words of an encoder that has not moved since power-up
+/// (Rev 8 EncPeriod.v l.74-82, l.162-164, l.188): every counter at its
+/// largest value; the period overflowed, direction 1, partial; the quarter
+/// cycles direction 1 without the overflow bit; the running counter
+/// overflowed.
+const PERIOD_BEFORE_ANY_EDGE: u32 = 0xCBFF_FFFF;
+const QUARTER_BEFORE_ANY_EDGE: u32 = 0x43FF_FFFF;
+const RUN_BEFORE_ANY_EDGE: u32 = 0x83FF_FFFF;
 
 /// Volts per DAC count at the motor-supply comparator: the axis-4 DAC's
 /// 2.5 V full scale over 16 bits, times the divider of 21
@@ -143,12 +199,20 @@ impl Firmware {
     /// What a quadlet read of `offset` returns now (time caught up and the
     /// plant observed by the caller).
     fn read_register(&mut self, now: SimTime, offset: u64) -> u32 {
-        match decode(offset) {
+        let rev8 = self.cfg.profile.is_rev8();
+        if rev8
+            && let Some(k) = offset.checked_sub(CONFIG_ROM_BASE)
+            && k % 4 == 0
+            && let Some(&q) = CONFIG_ROM_REV8.get((k / 4) as usize)
+        {
+            return q;
+        }
+        match decode_read(offset, rev8) {
             Target::Board(r) => self.read_board_register(r),
             Target::Axis(i, r) => self.read_axis_register(i, r),
             Target::Hub(HubAddress::Memory(i)) => self.hub.read(usize::from(i), now),
             Target::Hub(HubAddress::Query) => self.hub.query_word(),
-            Target::Hub(HubAddress::QuadletsWritten) => self.hub.count as u32,
+            Target::Hub(HubAddress::QuadletsWritten) => self.hub.num_written(),
             Target::Space(space, index) => self.read_space(space, index),
             Target::Hub(HubAddress::Unmapped(_)) | Target::Unmapped => 0,
         }
@@ -175,6 +239,14 @@ impl Firmware {
             }
             AddressSpace::OneWire => self.dallas.buffer_quadlet(index),
             AddressSpace::Waveform => self.dout.read_table(now, index),
+            AddressSpace::FirewirePacket if self.cfg.profile.is_rev8() => {
+                self.rx_memory.quadlet(index)
+            }
+            AddressSpace::DataCollection
+                if self.cfg.profile.is_rev8() && index == DATA_BUFFER_STATUS_INDEX =>
+            {
+                u32::from(DATA_BUFFER_STATUS)
+            }
             _ => 0,
         }
     }
@@ -229,9 +301,9 @@ impl Firmware {
     }
 
     /// Read `quadlets` quadlets from `offset` at `now`, as a block read
-    /// would: address 0 is the real-time block (and restarts its
-    /// timestamp), hub memory reads in arrival order, other addresses
-    /// read register by register.
+    /// would: a block read of the main space is a real-time block read
+    /// (and restarts its timestamp), hub memory reads in arrival order,
+    /// other addresses read register by register.
     pub fn read_block(&mut self, now: SimTime, offset: u64, quadlets: usize) -> Vec<u32> {
         let mut out = vec![0u8; quadlets * 4];
         self.read_block_into(now, offset, &mut out);
@@ -243,16 +315,28 @@ impl Firmware {
     pub(crate) fn read_block_into(&mut self, now: SimTime, offset: u64, out: &mut [u8]) {
         self.catch_up(now);
         let addr = (offset & 0xFFFF) as u16;
-        if u64::from(addr) == REALTIME_BLOCK_OFFSET {
+        if Address::from_offset(u64::from(addr)).space == AddressSpace::Main {
+            // Any block read of the main space samples the real-time block
+            // and answers from it, starting at the quadlet the offset names
+            // (FireWire.v l.1306, l.1407); quadlets past the block read 0.
             let len = self.cfg.layout().read_block_len();
-            if let Some((block, rest)) = out.split_at_mut_checked(len) {
+            let start = usize::from(addr) * 4;
+            if start == 0
+                && let Some((block, rest)) = out.split_at_mut_checked(len)
+            {
                 self.sample_block_into(now, block);
                 rest.fill(0);
             } else {
                 let mut block = vec![0u8; len];
                 self.sample_block_into(now, &mut block);
-                let n = out.len();
-                out.copy_from_slice(block.get(..n).unwrap_or_default());
+                let from = block.get(start..).unwrap_or_default();
+                let n = from.len().min(out.len());
+                if let (Some(dst), Some(src)) = (out.get_mut(..n), from.get(..n)) {
+                    dst.copy_from_slice(src);
+                }
+                if let Some(rest) = out.get_mut(n..) {
+                    rest.fill(0);
+                }
             }
             return;
         }
@@ -389,7 +473,10 @@ impl Firmware {
             BoardRegister::Status => self.status_word().raw(),
             BoardRegister::PhyCtrl => self.phy_ctrl,
             BoardRegister::PhyData => self.phy_data.raw(),
-            BoardRegister::Watchdog => u32::from(self.watchdog.ticks),
+            BoardRegister::Watchdog => WatchdogWord::default()
+                .with_ticks(self.watchdog.ticks)
+                .with_led_select(self.watchdog.led_select)
+                .raw(),
             BoardRegister::HwVersion => u32::from(self.cfg.hardware.hardware_version()),
             BoardRegister::Temperature => self.temperature_word(),
             BoardRegister::DigitalOut => self.dout.read(self.now).raw(),
@@ -404,7 +491,9 @@ impl Firmware {
             BoardRegister::EthStatus => self.cfg.fpga.eth_status_bits(),
             BoardRegister::DallasStatus => self.dallas.status(self.now, true).raw(),
             BoardRegister::IoExpander => self.expander.read(),
-            BoardRegister::GitDesc => self.cfg.git_desc,
+            // GIT_DESC exists from Rev 9 on (BoardRegs.v); before, register
+            // 15 reads 0.
+            BoardRegister::GitDesc if self.cfg.firmware.number() >= 9 => self.cfg.git_desc,
             _ => 0,
         }
     }
@@ -431,7 +520,17 @@ impl Firmware {
                     Err(_) => {}
                 }
             }
-            BoardRegister::Watchdog => self.watchdog.ticks = value as u16,
+            BoardRegister::Watchdog => {
+                let w = WatchdogWord(value);
+                self.watchdog.ticks = w.ticks();
+                // Rev 8 stores bit 31, the LED select (BoardRegs.v l.79).
+                self.watchdog.led_select = self.cfg.profile.is_rev8() && w.led_select();
+            }
+            // Rev 8: PHY_DATA's 16 bits are host-writable (BoardRegs.v
+            // l.94); a PHY read lands there too.
+            BoardRegister::PhyData if self.cfg.profile.is_rev8() => {
+                self.phy_data = PhyData(value & 0xFFFF);
+            }
             BoardRegister::DigitalOut => self.dout.write(now, DigitalOutWrite::parse(value)),
             BoardRegister::PromCmd => self.fpga_prom.command(now, PromCommand(value)),
             BoardRegister::IpAddr if self.cfg.fpga.has_ethernet() => self.ip_addr = value,
@@ -458,16 +557,16 @@ impl Firmware {
             return 0;
         }
         let rev8 = self.cfg.profile.is_rev8();
-        let fields = || self.velocity(i);
+        let words = || self.velocity_words(i);
         match r {
             AxisRegister::Adc => self.adc_word(i).raw(),
             AxisRegister::Dac => self.axes.get(i).map_or(0, |a| u32::from(a.command)),
             AxisRegister::EncPreload => self.axes.get(i).map_or(0, |a| a.preload),
             AxisRegister::EncPosition => self.position_word(i).raw(),
-            AxisRegister::EncPeriod => period_word(fields().period),
-            AxisRegister::EncQtr1 => quarter_word(fields().qtr1),
-            AxisRegister::EncQtr5 => quarter_word(fields().qtr5),
-            AxisRegister::EncRun => run_word(fields().run),
+            AxisRegister::EncPeriod => words().0.raw(),
+            AxisRegister::EncQtr1 => words().1.raw(),
+            AxisRegister::EncQtr5 => words().2.raw(),
+            AxisRegister::EncRun => words().3.raw(),
             AxisRegister::MotorConfig if rev8 => self.motor_config_word(i).raw(),
             AxisRegister::MotorStatus if rev8 => self.motor_status_word(i).raw(),
             _ => 0,
@@ -496,11 +595,20 @@ impl Firmware {
                     a.overflow = false;
                 }
             }
+            // Bits 31 and 30 are stored; bits 25 and 24 say whether to
+            // load the delay and the limit; the limit's bit 15 is always 0
+            // (MotorChannelQLA.v l.196-199).
             AxisRegister::MotorConfig if rev8 => {
                 let c = MotorConfig(value);
                 if let Some(a) = self.axes.get_mut(i) {
-                    a.enable_delay = c.enable_delay();
-                    a.current_limit = c.current_limit();
+                    a.disable_safety = c.disable_safety();
+                    a.force_disable = c.force_disable();
+                    if c.load_delay() {
+                        a.enable_delay = c.enable_delay();
+                    }
+                    if c.load_limit() {
+                        a.current_limit = c.current_limit() & 0x7FFF;
+                    }
                 }
             }
             _ => {}
@@ -508,16 +616,24 @@ impl Firmware {
     }
 
     /// A DAC word (register or write block): command if valid, and on
-    /// Rev 8 the amplifier request of bits 29:28.
+    /// Rev 8 the amplifier request of bits 29:28. At Rev 8 the command
+    /// and its control mode (bits 27:24) are taken only for a mode the
+    /// board has: 0 (current), or 1 (voltage) with an I/O expander
+    /// (MotorChannelQLA.v l.180-191).
     fn dac_write(&mut self, now: SimTime, i: usize, word: DacWord) {
+        let rev8 = self.cfg.profile.is_rev8();
+        let mode = word.control_mode();
+        let mode_ok = !rev8 || mode == 0 || (mode == 1 && self.cfg.io_expander);
         if let Some(a) = self.axes.get_mut(i)
             && word.valid()
+            && mode_ok
         {
             a.command = word.command();
+            if rev8 {
+                a.control_mode = mode;
+            }
         }
-        if self.cfg.profile.is_rev8()
-            && let Some(enable) = word.amp_request()
-        {
+        if rev8 && let Some(enable) = word.amp_request() {
             self.request_amplifier(now, i, enable);
         }
     }
@@ -592,12 +708,15 @@ impl Firmware {
             .plant
             .axes()
             .iter()
-            .map(|a| AxisState::new(a.encoder().count()))
+            .map(|a| AxisState {
+                edges_at_reset: a.encoder().edge_count(),
+                ..AxisState::new(a.encoder().count())
+            })
             .collect();
         self.phy_ctrl = 0;
         self.phy_data = PhyData::default();
         self.dout = super::DigitalOutputs::new();
-        self.ip_addr = 0;
+        self.ip_addr = super::IP_UNASSIGNED;
         self.fpga_prom.reboot();
         for p in &mut self.qla_proms {
             p.reboot();
@@ -608,7 +727,7 @@ impl Firmware {
         self.ethernet = super::Ethernet::new(self.cfg.board_id);
         self.ethernet.set_link(link);
         self.last_sample = now;
-        self.hub = super::Hub::new();
+        self.hub = super::Hub::new(now, self.cfg.layout().format());
     }
 
     fn raw_count(&self, i: usize) -> i64 {
@@ -622,14 +741,42 @@ impl Firmware {
             .unwrap_or_default()
     }
 
+    /// ENC_PERIOD, ENC_QTR1, ENC_QTR5 and ENC_RUN of axis `i` now. At Rev 8
+    /// an encoder without an edge since power-up (or reboot) reads the
+    /// firmware's power-up words.
+    fn velocity_words(&self, i: usize) -> (EncPeriod, EncQuarter, EncQuarter, EncRun) {
+        let still = self.cfg.profile.is_rev8()
+            && self
+                .plant
+                .axis(i)
+                .zip(self.axes.get(i))
+                .is_some_and(|(p, a)| p.encoder().edge_count() == a.edges_at_reset);
+        if still {
+            return (
+                EncPeriod(PERIOD_BEFORE_ANY_EDGE),
+                EncQuarter(QUARTER_BEFORE_ANY_EDGE),
+                EncQuarter(QUARTER_BEFORE_ANY_EDGE),
+                EncRun(RUN_BEFORE_ANY_EDGE),
+            );
+        }
+        let f = self.velocity(i);
+        (
+            EncPeriod(period_word(f.period)),
+            EncQuarter(quarter_word(f.qtr1)),
+            EncQuarter(quarter_word(f.qtr5)),
+            EncRun(run_word(f.run)),
+        )
+    }
+
     fn status_word(&self) -> StatusRead {
         let now = self.now;
         let mut amp_enabled = 0u8;
         let mut amp_on = 0u8;
         let mut safety = 0u8;
+        let expander = self.cfg.io_expander;
         for (i, a) in self.axes.iter().take(4).enumerate() {
             amp_enabled |= u8::from(a.requested) << i;
-            amp_on |= u8::from(a.is_on(&self.power, now)) << i;
+            amp_on |= u8::from(a.is_on(&self.power, now, expander)) << i;
             safety |= u8::from(a.safety_disabled) << i;
         }
         StatusRead::default()
@@ -645,7 +792,7 @@ impl Firmware {
             .with_relay_on(self.power.relay)
             .with_motor_supply_fault(self.power.supply_fault())
             .with_safety_feedback(self.power.relay)
-            .with_io_expander(true)
+            .with_io_expander(self.cfg.io_expander)
             .with_amp_fault(if self.cfg.profile.is_rev8() {
                 0
             } else {
@@ -741,10 +888,15 @@ impl Firmware {
         }
     }
 
+    /// MOTOR_CONFIG (MotorChannelQLA.v l.79): bits 31 and 30 as written,
+    /// 25 voltage control available (an I/O expander), 24 current control
+    /// (always), the delay and the limit.
     fn motor_config_word(&self, i: usize) -> MotorConfig {
         let a = self.axes.get(i);
         MotorConfig::default()
-            .with_voltage_mode(true)
+            .with_disable_safety(a.is_some_and(|a| a.disable_safety))
+            .with_force_disable(a.is_some_and(|a| a.force_disable))
+            .with_voltage_mode(self.cfg.io_expander)
             .with_current_mode(true)
             .with_enable_delay(a.map_or(0, |a| a.enable_delay))
             .with_current_limit(a.map_or(0, |a| a.current_limit))
@@ -754,9 +906,14 @@ impl Firmware {
         let Some(a) = self.axes.get(i) else {
             return MotorStatus::default();
         };
+        // Bits 27:24 the control mode, 20 current control (MotorChannelQLA.v
+        // l.172).
+        let expander = self.cfg.io_expander;
         MotorStatus::default()
-            .with_amp_on(a.is_on(&self.power, self.now))
+            .with_amp_on(a.is_on(&self.power, self.now, expander))
             .with_amp_requested(a.requested)
+            .with_control_mode(a.control_mode)
+            .with_current_control(a.current_control(expander))
             .with_safety_disable(a.safety_disabled)
             .with_amp_fault(false)
             .with_current_command(a.command)
@@ -773,8 +930,17 @@ impl Firmware {
         let n = self.n_axes().min(layout.motors()).min(layout.encoders());
         let status = self.status_word();
         let digital_in = self.digital_in();
-        let temperature = Temperature(self.temperature_word());
         let rev8 = self.cfg.profile.is_rev8();
+        // At Rev 8 the block's temperature quadlet carries the data
+        // buffer's status in bits 31:16 (QLA.v: `temp_sense` with
+        // `reg_databuf` while `blk_rt_rd`); a DQLA keeps its second pair
+        // of sensors there.
+        let upper = if rev8 && self.n_axes() <= 4 {
+            u32::from(DATA_BUFFER_STATUS) << 16
+        } else {
+            0
+        };
+        let temperature = Temperature(self.temperature_word() | upper);
         let Some(buf) = buf.get_mut(..layout.read_block_len()) else {
             return;
         };
@@ -786,7 +952,7 @@ impl Firmware {
         block.set_temperature(temperature);
         for i in 0..n {
             let position = self.position_word(i);
-            let f = self.velocity(i);
+            let (period, qtr1, qtr5, run) = self.velocity_words(i);
             let motor = MotorReading {
                 adc: self.adc_word(i),
                 status: if rev8 {
@@ -797,10 +963,10 @@ impl Firmware {
             };
             let encoder = EncoderReading {
                 position,
-                period: EncPeriod(period_word(f.period)),
-                qtr1: EncQuarter(quarter_word(f.qtr1)),
-                qtr5: EncQuarter(quarter_word(f.qtr5)),
-                run: EncRun(run_word(f.run)),
+                period,
+                qtr1,
+                qtr5,
+                run,
             };
             // The axis is within the layout: this cannot fail.
             let _ = block.set_axis(i, motor, encoder);

@@ -187,6 +187,7 @@ impl SnakeFirmware {
             phy_data: PhyData::default(),
             watchdog: Watchdog {
                 ticks: 0,
+                led_select: false,
                 last_write: SimTime::ZERO,
                 timed_out: false,
             },

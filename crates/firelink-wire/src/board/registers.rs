@@ -67,6 +67,7 @@ mod field {
 
     // WATCHDOG (§2).
     pub const WATCHDOG_TICKS: Field = Field::new(0, 15, 0);
+    pub const WATCHDOG_LED: Field = Field::new(0, 31, 31);
 
     // TEMPERATURE (§2).
     pub const TEMPERATURE_UPPER: Field = Field::new(0, 15, 8);
@@ -119,6 +120,7 @@ mod field {
     pub const DAC_AMP_ENABLE_MASK: Field = Field::new(0, 29, 29);
     pub const DAC_AMP_ENABLE: Field = Field::new(0, 28, 28);
     pub const DAC_BOARD_ID: Field = Field::new(0, 27, 24);
+    pub const DAC_CONTROL_MODE: Field = Field::new(0, 27, 24);
     pub const DAC_COMMAND: Field = Field::new(0, 15, 0);
 
     // ENC_PRELOAD / ENC_POSITION (§3).
@@ -138,6 +140,8 @@ mod field {
     pub const ENC_EDGES: Field = Field::new(0, 29, 26);
 
     // MOTOR_CONFIG (§3).
+    pub const MCFG_DISABLE_SAFETY: Field = Field::new(0, 31, 31);
+    pub const MCFG_FORCE_DISABLE: Field = Field::new(0, 30, 30);
     pub const MCFG_VOLTAGE_MODE: Field = Field::new(0, 25, 25);
     pub const MCFG_CURRENT_MODE: Field = Field::new(0, 24, 24);
     pub const MCFG_ENABLE_DELAY: Field = Field::new(0, 23, 16);
@@ -146,6 +150,8 @@ mod field {
     // MOTOR_STATUS (§3).
     pub const MSTAT_AMP_ON: Field = Field::new(0, 29, 29);
     pub const MSTAT_AMP_REQUESTED: Field = Field::new(0, 28, 28);
+    pub const MSTAT_CONTROL_MODE: Field = Field::new(0, 27, 24);
+    pub const MSTAT_CURRENT_CONTROL: Field = Field::new(0, 20, 20);
     pub const MSTAT_SAFETY_DISABLE: Field = Field::new(0, 17, 17);
     pub const MSTAT_AMP_FAULT: Field = Field::new(0, 16, 16);
     pub const MSTAT_CURRENT_COMMAND: Field = Field::new(0, 15, 0);
@@ -474,6 +480,9 @@ quadlet_register! {
     pub struct Watchdog {
         /// The period in ticks, bits 15:0.
         ticks, set_ticks, with_ticks: u16 = field::WATCHDOG_TICKS;
+        /// Rev 8: which status the board's LED shows (the watchdog period
+        /// when set), bit 31; stored and read back (BoardRegs.v).
+        led_select, set_led_select, with_led_select: bool = field::WATCHDOG_LED;
     }
 }
 
@@ -968,6 +977,9 @@ quadlet_register! {
         amp_enable, set_amp_enable, with_amp_enable: bool = field::DAC_AMP_ENABLE;
         /// Rev 7 real-time write block only: the board ID, bits 27:24.
         board_id, set_board_id, with_board_id: u8 = field::DAC_BOARD_ID;
+        /// Rev 8: the control mode, bits 27:24 (0 current, 1 voltage with
+        /// an I/O expander; MotorChannelQLA.v).
+        control_mode, set_control_mode, with_control_mode: u8 = field::DAC_CONTROL_MODE;
         /// Current command, bits 15:0 ([`DAC_ZERO`] = zero current).
         command, set_command, with_command: u16 = field::DAC_COMMAND;
     }
@@ -1142,12 +1154,23 @@ quadlet_register! {
 // ---------------------------------------------------------------- Motor ---
 
 quadlet_register! {
-    /// MOTOR_CONFIG (`fpga-board.md` §3).
+    /// MOTOR_CONFIG (`fpga-board.md` §3; Rev 8 MotorChannelQLA.v). Bits
+    /// 25 and 24 read as what the board can do and, written, say which of
+    /// the delay and the limit to load.
     pub struct MotorConfig {
-        /// Voltage mode available, bit 25.
+        /// Read and write: the current safety check is off, bit 31.
+        disable_safety, set_disable_safety, with_disable_safety: bool =
+            field::MCFG_DISABLE_SAFETY;
+        /// Read and write: the follower op amp is forced on, bit 30.
+        force_disable, set_force_disable, with_force_disable: bool = field::MCFG_FORCE_DISABLE;
+        /// Read: voltage mode available (an I/O expander), bit 25.
         voltage_mode, set_voltage_mode, with_voltage_mode: bool = field::MCFG_VOLTAGE_MODE;
-        /// Current mode available, bit 24.
+        /// Read: current mode available, bit 24.
         current_mode, set_current_mode, with_current_mode: bool = field::MCFG_CURRENT_MODE;
+        /// Write: load the enable delay (bits 23:16), bit 25.
+        load_delay, set_load_delay, with_load_delay: bool = field::MCFG_VOLTAGE_MODE;
+        /// Write: load the current limit (bits 14:0), bit 24.
+        load_limit, set_load_limit, with_load_limit: bool = field::MCFG_CURRENT_MODE;
         /// Amplifier enable delay, bits 23:16.
         enable_delay, set_enable_delay, with_enable_delay: u8 = field::MCFG_ENABLE_DELAY;
         /// Current limit, bits 15:0.
@@ -1162,6 +1185,11 @@ quadlet_register! {
         amp_on, set_amp_on, with_amp_on: bool = field::MSTAT_AMP_ON;
         /// Amplifier requested on, bit 28.
         amp_requested, set_amp_requested, with_amp_requested: bool = field::MSTAT_AMP_REQUESTED;
+        /// The control mode in effect, bits 27:24.
+        control_mode, set_control_mode, with_control_mode: u8 = field::MSTAT_CONTROL_MODE;
+        /// Current control (not voltage control), bit 20.
+        current_control, set_current_control, with_current_control: bool =
+            field::MSTAT_CURRENT_CONTROL;
         /// Disabled by the safety chain, bit 17.
         safety_disable, set_safety_disable, with_safety_disable: bool =
             field::MSTAT_SAFETY_DISABLE;
