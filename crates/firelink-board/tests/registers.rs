@@ -47,8 +47,8 @@ fn board_registers() {
     assert_eq!(r.read(3), 0x1680);
     assert_eq!(r.write(3, 0x0100), Some(Ack::Complete));
     assert_eq!(r.read(3), 0x0100);
-    // TEMPERATURE: both sensors at ambient (25 C) at power-up.
-    assert_eq!(r.read(5), 0x1919);
+    // TEMPERATURE: both sensors at ambient (25 C, 0.5 C per bit) at power-up.
+    assert_eq!(r.read(5), 0x3232);
     // DIGITAL_OUT stores the raw bits written (extras §3): register 6 and
     // DIGITAL_IN 15:12 read them unmodified. The host means levels and
     // sends their complement (mask<<8 | (~bits & mask)).
@@ -258,7 +258,7 @@ fn block_read_lengths() {
     assert_eq!(r.read_block_rcode(0, 513).0, Rcode::AddressError);
     // A block read elsewhere reads register by register.
     let regs = r.read_block(4, 4);
-    assert_eq!(regs, vec![0x514C_4131, 0x1919, 0, 8]);
+    assert_eq!(regs, vec![0x514C_4131, 0x3232, 0, 8]);
     // A non-aligned length is refused.
     let tl = 9;
     let p = emit(&PacketRepr::ReadBlockRequest {
