@@ -17,7 +17,7 @@ use firelink_wire::board::registers::HardwareVersion;
 
 use firelink_wire::board::extras::{fpga_serial_image, qla_serial_image};
 
-pub use crate::firmware::Instrument;
+pub use crate::firmware::{BrakeLine, BrakeWire, Instrument};
 use crate::plant::{AxisParams, DEFAULT_STEP, presets};
 use crate::time::SimDuration;
 
@@ -150,6 +150,9 @@ pub struct BoardConfig {
     pub qla_serials: Vec<String>,
     /// The instrument on the 1-wire line (a tool's DS2505), if any.
     pub instrument: Option<Instrument>,
+    /// Brakes this board drives or whose joints it carries (see
+    /// [`BrakeWire`]).
+    pub brakes: Vec<BrakeWire>,
 }
 
 /// The default FPGA serial number of board `board_id`: unique per board ID
@@ -233,7 +236,14 @@ impl BoardConfig {
             fpga_serial: default_fpga_serial(board_id),
             qla_serials: Vec::new(),
             instrument: None,
+            brakes: Vec::new(),
         }
+    }
+
+    /// The same board with this brake wire added.
+    pub fn with_brake(mut self, wire: BrakeWire) -> BoardConfig {
+        self.brakes.push(wire);
+        self
     }
 
     /// The same board with this FPGA serial number.
