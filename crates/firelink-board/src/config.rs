@@ -17,7 +17,7 @@ use firelink_wire::board::registers::HardwareVersion;
 
 use firelink_wire::board::extras::{fpga_serial_image, qla_serial_image};
 
-pub use crate::firmware::Instrument;
+pub use crate::firmware::{BrakeLine, BrakeWire, Instrument};
 use crate::plant::{AxisParams, DEFAULT_STEP, presets};
 use crate::time::SimDuration;
 
@@ -166,6 +166,9 @@ pub struct BoardConfig {
     /// firmware does but commit nothing. Turn it on only to test a host's
     /// robustness against what real boards do.
     pub commit_corrupt_writes: bool,
+    /// Brakes this board drives or whose joints it carries (see
+    /// [`BrakeWire`]).
+    pub brakes: Vec<BrakeWire>,
 }
 
 /// The default FPGA serial number of board `board_id`: unique per board ID
@@ -251,6 +254,7 @@ impl BoardConfig {
             instrument: None,
             io_expander: true,
             commit_corrupt_writes: false,
+            brakes: Vec::new(),
         }
     }
 
@@ -265,6 +269,12 @@ impl BoardConfig {
     /// not (see [`BoardConfig::commit_corrupt_writes`]).
     pub fn with_commit_corrupt_writes(mut self, commit: bool) -> BoardConfig {
         self.commit_corrupt_writes = commit;
+        self
+    }
+
+    /// The same board with this brake wire added.
+    pub fn with_brake(mut self, wire: BrakeWire) -> BoardConfig {
+        self.brakes.push(wire);
         self
     }
 

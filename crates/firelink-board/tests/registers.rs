@@ -48,8 +48,8 @@ fn board_registers() {
     assert_eq!(r.read(3), 0x1680);
     assert_eq!(r.write(3, 0x0100), Some(Ack::Complete));
     assert_eq!(r.read(3), 0x0100);
-    // TEMPERATURE: both sensors at ambient (25 C) at power-up.
-    assert_eq!(r.read(5), 0x1919);
+    // TEMPERATURE: both sensors at ambient (25 C, 0.5 C per bit) at power-up.
+    assert_eq!(r.read(5), 0x3232);
     // DIGITAL_OUT stores the raw bits written (extras §3): register 6 and
     // DIGITAL_IN 15:12 read them unmodified. The host means levels and
     // sends their complement (mask<<8 | (~bits & mask)).

@@ -161,6 +161,9 @@ pub fn run_info(args: &ScanArgs, out: &mut impl Write) -> Result<(), CliError> {
                 "current_bits": adc & 0xFFFF,
             }));
         }
+        // The QLA's sensors read 0.5 degree C per bit (0xFF: out of range).
+        let celsius = [temperature.upper(), temperature.lower()]
+            .map(|b| (b != 0xFF).then_some(f64::from(b) / 2.0));
         let entry = serde_json::json!({
             "board": board_json(b),
             "status": format!("{:#010x}", status.raw()),
@@ -170,7 +173,7 @@ pub fn run_info(args: &ScanArgs, out: &mut impl Write) -> Result<(), CliError> {
             "watchdog_expired": status.watchdog_timeout(),
             "amp_enabled_mask": status.amp_enabled(),
             "watchdog_period_ms": watchdog.period().as_secs_f64() * 1e3,
-            "temperature_c": [temperature.upper(), temperature.lower()],
+            "temperature_c": celsius,
             "axes": axes,
         });
         all.push(entry);

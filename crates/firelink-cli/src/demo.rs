@@ -228,13 +228,26 @@ pub(crate) fn show(event: &DemoProgress, ticking: &mut bool) {
     }
 }
 
+/// Load a configuration file, printing what its loader warns about (keys
+/// Firelink ignores, what the dVRK console would refuse) once, to stderr.
+///
+/// # Errors
+/// The file could not be read, parsed or validated.
+pub(crate) fn load_config(path: &std::path::Path) -> Result<IoConfig, CliError> {
+    let loaded = IoConfig::load_with_warnings(path)?;
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(loaded.config)
+}
+
 /// The demo's options from the command line.
 ///
 /// # Errors
 /// The configuration file could not be loaded.
 pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
     let config = match &args.config {
-        Some(path) => IoConfig::load(path)?,
+        Some(path) => load_config(path)?,
         None => presets::dvrk_seed000(),
     };
     let watchdog = args.watchdog;

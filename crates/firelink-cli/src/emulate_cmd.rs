@@ -14,7 +14,7 @@ use firelink_board::config::{BoardConfig, BoardSettings, Profile};
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::Node;
 use firelink_bus::{FaultRule, PacketFault, PacketMatch, SimDuration, TimedFault};
-use firelink_control::config::{IoConfig, presets};
+use firelink_control::config::presets;
 use firelink_emulate::{Bridge, Event, ServeConfig};
 
 use crate::CliError;
@@ -45,9 +45,9 @@ pub struct EmulateArgs {
     pub hardware: HardwareArg,
     /// One board's settings (repeatable): `ID:key=value,...` with keys
     /// hardware (QLA1, DQLA), fpga-serial, qla-serial, qla2-serial,
-    /// supply-volts, instrument (MODEL/VERSION/NAME). Serials default to
-    /// unique ones per board ID (with --config: the QLA serial is the
-    /// arm's serial_number).
+    /// supply-volts, instrument (MODEL/VERSION/NAME). Serials are the
+    /// board's own: with --config a robot's simulation.boards, else
+    /// unique defaults per board ID (never the arm's serial_number).
     #[arg(long = "board-set", value_name = "ID:KEY=VALUE,...")]
     pub board_set: Vec<BoardSettings>,
     /// Seed of the measurement noise and the fault injector.
@@ -96,7 +96,7 @@ pub struct EmulateArgs {
 /// QLA boards (none for Snake nodes).
 pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>, Vec<BoardConfig>), CliError> {
     let config = match (&args.config, args.robot) {
-        (Some(path), _) => Some(IoConfig::load(path)?),
+        (Some(path), _) => Some(crate::demo::load_config(path)?),
         (None, Some(crate::demo::DemoRobot::Snake)) => Some(presets::snake_seed001()),
         (None, Some(crate::demo::DemoRobot::Dvrk)) => Some(presets::dvrk_seed000()),
         (None, Some(crate::demo::DemoRobot::Mahru)) => {

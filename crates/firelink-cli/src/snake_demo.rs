@@ -16,7 +16,7 @@ use crate::demo::{DemoArgs, DemoRobot, print_report, with_progress};
 fn config(args: &DemoArgs) -> Result<Option<IoConfig>, CliError> {
     args.config
         .as_ref()
-        .map(|path| IoConfig::load(path).map_err(CliError::from))
+        .map(|path| crate::demo::load_config(path))
         .transpose()
 }
 

@@ -79,9 +79,10 @@ fn emulate_serves_each_stock_arm_configuration() {
     let configs = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs");
     // (file, boards on the bus, (board, DIGIN bits 11:0 expected)).
     for (file, boards, digin) in [
-        // PSM1 on boards 6-7: sterile adapter in (bit 10), no instrument
-        // (bit 7), as the file's simulation section says.
-        ("dvrk-psm1-28007.json", 8, Some((7, 0x400))),
+        // PSM1 on boards 6-7: sterile adapter in (its contact closed: bit
+        // 10 low, the dVRK reads pressed_value true as pressed when low),
+        // no instrument (bit 7 high: released), as the file says.
+        ("dvrk-psm1-28007.json", 8, Some((7, 0x080))),
         ("dvrk-mtmr-28247.json", 4, None),
         ("dvrk-ecm-29738.json", 6, None),
     ] {
@@ -106,6 +107,31 @@ fn emulate_serves_each_stock_arm_configuration() {
         emu.server.kill().unwrap();
         emu.server.wait().unwrap();
     }
+}
+
+/// Files shaped like the stock dVRK arm and foot-pedal files (Firelink's
+/// own values, `firelink-control/tests/data/stock`) are served unmodified.
+#[test]
+fn emulate_serves_stock_shaped_files() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../firelink-control/tests/data/stock");
+    let mut served = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let text = ok(&[
+            "emulate",
+            "--config",
+            path.to_str().unwrap(),
+            "--listen",
+            "127.0.0.1:0",
+            "--no-broadcast",
+            "--duration-s",
+            "0.1",
+        ]);
+        assert!(text.contains("emulating"), "{}: {text}", path.display());
+        served += 1;
+    }
+    assert_eq!(served, 7);
 }
 
 /// The commands that open a UDP port take `--udp-wait`; `firelink bench
@@ -250,7 +276,7 @@ fn sixteen_rev8_boards_are_named_as_two_broadcast_groups() {
 }
 
 /// Per-board settings: companion board type and serials from the command
-/// line (and, with --config, the arms' serial numbers), shown at start;
+/// line (with --config, each board's own serials), shown at start;
 /// settings the boards cannot hold are refused with the reason.
 #[test]
 fn emulate_board_settings() {
@@ -278,7 +304,9 @@ fn emulate_board_settings() {
     assert_eq!(v["boards"][1]["hardware"], "DQLA");
     emu.terminate();
 
-    // The stock dVRK configuration: each arm's boards carry its serial.
+    // Every board carries its own serials, never the arm's: seed 000's
+    // file names none (the defaults), the stock ECM names both of its
+    // boards (the brake board too).
     let config = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../configs/dvrk-seed000.json"
@@ -294,9 +322,30 @@ fn emulate_board_settings() {
         "0.2",
     ]);
     assert!(
-        text.contains("board 0: QLA1, FPGA serial 8801-01, QLA serial 22723"),
+        text.contains("board 0: QLA1, FPGA serial 8801-01, QLA serial 8802-01,"),
         "{text}"
     );
+    assert!(!text.contains("QLA serial 22723"), "{text}");
+    let ecm = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../configs/dvrk-ecm-29738.json"
+    );
+    let text = ok(&[
+        "emulate",
+        "--config",
+        ecm,
+        "--listen",
+        "127.0.0.1:0",
+        "--no-broadcast",
+        "--duration-s",
+        "0.2",
+    ]);
+    for board in [
+        "board 4: QLA1, FPGA serial 3985-01, QLA serial 3984-01,",
+        "board 5: QLA1, FPGA serial 3985-02, QLA serial 3984-02,",
+    ] {
+        assert!(text.contains(board), "{text}");
+    }
 
     for (setting, words) in [
         ("1:qla-serial=123456789", "QLA serial number"),

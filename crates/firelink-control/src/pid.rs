@@ -26,7 +26,6 @@ use serde::{Deserialize, Serialize};
 
 /// PID gains. Position in rad (or m), current in A.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct PidGains {
     /// Proportional gain, A/rad.
     pub kp: f64,

@@ -221,12 +221,28 @@ fn missing_field_names_the_object() {
 }
 
 #[test]
-fn unknown_fields_and_values_are_refused() {
+fn unknown_keys_are_warned_about_and_bad_values_refused() {
+    // A key Firelink does not use: loaded, one warning naming its path.
+    let text = with("/robots/0/actuators/0/drive/maximum_curent", json!(0.5));
+    let loaded = IoConfig::from_json_str_with_warnings(&text, "typo.json").unwrap();
+    let ignored: Vec<String> = loaded
+        .warnings
+        .iter()
+        .filter(|w| w.warning == firelink_control::config::Warning::Ignored)
+        .map(|w| w.to_string())
+        .collect();
+    assert_eq!(
+        ignored,
+        [
+            "typo.json: robots[0].actuators[0].drive.maximum_curent: ignored (a key Firelink does not use)"
+        ]
+    );
+    // The typo instead of the key: the key is missing.
     let text = base()
         .to_string()
         .replacen("\"maximum_current\"", "\"maximum_curent\"", 1);
-    let (_, shown) = single(&text, "robots[0].actuators[0].drive.maximum_curent");
-    assert!(shown.contains("unknown field `maximum_curent`"), "{shown}");
+    let (_, shown) = single(&text, "robots[0].actuators[0].drive");
+    assert!(shown.contains("missing field `maximum_current`"), "{shown}");
     let (_, shown) = single(
         &with(
             "/robots/0/actuators/0/encoder/velocity_source",
@@ -409,8 +425,11 @@ fn schema_id_and_version() {
             expected: "6"
         }
     );
-    let (_, shown) = single(&with("/$version", json!(6)), "$version");
-    assert!(shown.contains("expected a string"), "{shown}");
+    // A number reads as the console reads it (jsoncpp's asString).
+    let c = IoConfig::from_json_str(&with("/$version", json!(6)), "six.json").unwrap();
+    assert_eq!(c.version, "6");
+    let (_, shown) = single(&with("/$version", json!([6])), "$version");
+    assert!(shown.contains("a string (or a number)"), "{shown}");
     let (p, _) = single(&with("/$id", json!("x.json")), "$id");
     assert!(matches!(p, Problem::Unsupported { .. }));
     let (p, _) = single(&with("/robots", json!([])), "robots");
@@ -527,8 +546,12 @@ fn stock_arm_files_load_with_their_dvrk_facts() {
     assert_eq!(r.dvrk_arm(), Some(DvrkArm::Psm));
     // The dVRK's board IDs for PSM1, its adapter and tool inputs.
     assert_eq!(psm.board_set().0, 0b1100_0000);
-    assert_eq!(psm.digital_input("PSM1_adapter"), Some((7, 10, true)));
-    assert_eq!(psm.digital_input("PSM1_tool"), Some((7, 7, true)));
+    let contact = |name: &str| {
+        let d = psm.digital_input(name).unwrap();
+        (d.board_id, d.bit_id, d.pressed_value)
+    };
+    assert_eq!(contact("PSM1_adapter"), (7, 10, true));
+    assert_eq!(contact("PSM1_tool"), (7, 7, true));
     assert_eq!(psm.board_slots(), 8);
     let serial = psm.board_serial(6).unwrap();
     assert_eq!(
@@ -568,8 +591,12 @@ fn stock_arm_files_load_with_their_dvrk_facts() {
     let ecm = load("dvrk-ecm-29738.json");
     let r = &ecm.robots[0];
     assert_eq!((r.actuators.len(), r.number_of_brakes), (4, Some(3)));
-    // The brakes' board (5) is on the bus even though no actuator uses it.
-    assert_eq!(ecm.board_set().0, 0b1_0000);
+    // The brakes' board (5) is one the robot drives, though no actuator
+    // uses it.
+    assert_eq!(ecm.board_set().0, 0b11_0000);
+    let brakes = r.brakes.as_ref().unwrap();
+    assert_eq!((brakes[2].board_id, brakes[2].axis_id), (5, 2));
+    assert!(r.actuators[0].brake.is_some() && r.actuators[3].brake.is_none());
     assert_eq!(ecm.board_slots(), 6);
 }
 

@@ -72,7 +72,13 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
         None => None,
     };
     let config = match &args.config {
-        Some(p) => IoConfig::load(p)?,
+        Some(p) => {
+            let loaded = IoConfig::load_with_warnings(p)?;
+            for w in &loaded.warnings {
+                eprintln!("warning: {w}");
+            }
+            loaded.config
+        }
         None => presets::dvrk_seed000(),
     };
     let port: DemoPort = args.port.parse()?;

@@ -2,6 +2,9 @@
 //! after power-on, through the host library against emulated boards on the
 //! simulated bus, with every cycle watched.
 //!
+//! 0. Read the arm's digital inputs (buttons, clutches, the PSM's sterile
+//!    adapter and instrument contacts) as the console does: each DIGIN bit
+//!    through its `pressed_value`. Power on, which releases the brakes.
 //! 1. Bias the encoders from the pots ([`Robot::home`]).
 //! 2. Home every joint that needs a stop search the way the console homes
 //!    the MTM roll ([`Robot::search_stop_observed`]): a constant-velocity
@@ -133,6 +136,9 @@ pub struct ArmHoming {
     pub joints: Vec<JointHoming>,
     /// Every stop search.
     pub stop_searches: Vec<StopSearchRecord>,
+    /// The arm's digital inputs (those named after it) as the console
+    /// reads them once the boards are read: (name, pressed).
+    pub inputs: Vec<(String, bool)>,
 }
 
 impl ArmHoming {
@@ -198,6 +204,13 @@ impl fmt::Display for ConsoleHomingReport {
                     j.stops.0,
                     j.stops.1,
                     j.beyond_stop
+                )?;
+            }
+            for (name, pressed) in &arm.inputs {
+                writeln!(
+                    f,
+                    "  input {name}: {}",
+                    if *pressed { "pressed" } else { "released" }
                 )?;
             }
             for s in &arm.stop_searches {
@@ -341,6 +354,25 @@ pub fn run_console_homing(
         stall: None,
     };
     robot.configure()?;
+    // The inputs as the console reads them: DIGIN through the
+    // configuration's rule (`pressed_value`), as sawRobotIO1394 does.
+    let inputs: Vec<(usize, String, bool)> = config
+        .digital_inputs
+        .iter()
+        .flatten()
+        .filter_map(|d| {
+            let arm = config
+                .robots
+                .iter()
+                .position(|r| d.name.starts_with(r.name.as_str()))?;
+            let board = robot
+                .io()
+                .boards()
+                .iter()
+                .find(|b| b.board_id() == d.board_id)?;
+            Some((arm, d.name.clone(), d.is_pressed(board.digital_in().raw())))
+        })
+        .collect();
     robot.power_on()?;
     robot.home()?;
     watch.homed = true;
@@ -419,8 +451,14 @@ pub fn run_console_homing(
             serial_number: r.serial_number.clone(),
             joints: Vec::new(),
             stop_searches: Vec::new(),
+            inputs: Vec::new(),
         })
         .collect();
+    for (arm, name, pressed) in inputs {
+        if let Some(a) = arms.get_mut(arm) {
+            a.inputs.push((name, pressed));
+        }
+    }
     for j in config.joints() {
         let i = j.index;
         let tolerance = j.potentiometer_tolerance().map_or(0.0, |t| t.distance);

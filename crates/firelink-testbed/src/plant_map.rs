@@ -12,26 +12,29 @@
 //! **Stops.** Each joint stops at the configuration's
 //! `simulation.hard_stops`; without them, at the arm's physical range where
 //! Firelink knows it (the MTM wrist roll: -480 to +456 degrees, from the
-//! dVRK console), else 3 degrees (3 mm) beyond the soft limits. A stop the
-//! pot could not see (past the end of its electrical range through the
-//! configuration's pot conversion) is moved inside that range, so pot and
-//! encoder agree at the stops too; [`notes`] says when that happens.
+//! dVRK console), else 3 degrees (3 mm) beyond the soft limits. The stops
+//! stay where the arm has them whatever the pot can read: past the end of
+//! its electrical range (0 to 4.5 V through the configuration's pot
+//! conversion) the pot saturates, as a real one does (the MTM roll's pot
+//! reads about half a turn of the roll's 2.6). [`notes`] says where a pot
+//! the configuration checks saturates before a stop.
 //!
 //! **Coupled pots.** Where a robot's `potentiometers.coupling` says its
 //! pots sit on joints that several actuators move (the dVRK MTM), each pot
 //! measures its joint, `inverse(JointToActuatorPosition) x actuators`, as
 //! the real arm's do; the host turns them back into actuator space.
 
-use firelink_board::config::Instrument;
+use firelink_board::config::{BrakeLine, BrakeWire, Instrument};
 use firelink_board::plant::presets;
 use firelink_board::plant::{AxisParams, HardStops, POT_FULL_SCALE_VOLTS};
 use firelink_control::config::presets::{STOP_MARGIN_M, STOP_MARGIN_RAD};
 use firelink_control::config::{
-    ActuatorConfig, DvrkArm, IoConfig, JointRef, JointType, PlantPreset, RobotConfig,
+    ActuatorConfig, DigitalInputConfig, DvrkArm, IoConfig, JointRef, JointType, PlantPreset,
+    RobotConfig,
 };
 
-/// How far inside the end of its electrical range a pot must still be at a
-/// stop, V: well above its noise (0.5 mV) and an ADC count (69 uV).
+/// How far inside the end of its electrical range a pot still reads its
+/// joint, V: well above its noise (0.5 mV) and an ADC count (69 uV).
 const POT_END_GUARD_VOLTS: f64 = 0.005;
 
 /// The plant an actuator gets: its `simulation.plant`, else what its
@@ -95,14 +98,8 @@ fn pot_is_own(joint: &JointRef<'_>) -> bool {
 /// set by the caller).
 pub fn apply(joint: &JointRef<'_>, p: &mut AxisParams) {
     let a = joint.actuator;
-    // Stops, pulled inside what the pot can see.
-    let (mut lo, mut hi) = stated_stops(joint);
-    if a.potentiometer.is_some() && pot_is_own(joint) {
-        if let Some((pot_lo, pot_hi)) = pot_visible_range(p) {
-            lo = lo.max(pot_lo);
-            hi = hi.min(pot_hi);
-        }
-    }
+    // Stops where the arm has them; the pot saturates where it must.
+    let (lo, hi) = stated_stops(joint);
     if lo < hi {
         p.stops = HardStops::new(lo, hi);
     }
@@ -121,7 +118,8 @@ pub fn apply(joint: &JointRef<'_>, p: &mut AxisParams) {
 }
 
 /// The positions the pot reads between the ends of its electrical range,
-/// kept [`POT_END_GUARD_VOLTS`] inside them.
+/// [`POT_END_GUARD_VOLTS`] inside them (where it still reads the joint
+/// through its noise).
 fn pot_visible_range(p: &AxisParams) -> Option<(f64, f64)> {
     let k = p.pot.volts_per_unit.abs();
     let (lo, hi) = p.pot_position_range()?;
@@ -166,42 +164,76 @@ pub fn gripper_params() -> AxisParams {
     presets::mtm_joint(8).unwrap_or_else(presets::unused_channel)
 }
 
-/// Per board ID, the digital input lines held high (DIGIN bits 11:0): for
-/// every v6 digital input, its level given what is plugged in (the PSM's
-/// sterile adapter and instrument contacts, named `<robot>_adapter` and
-/// `<robot>_tool`, read pressed when the robot's simulation section puts
-/// them in; every other input reads released).
+/// Whether the switch behind a v6 digital input is pressed: the PSM's
+/// sterile adapter and instrument contacts (`<robot>_adapter`,
+/// `<robot>_tool`) as the robot's simulation section puts them in; every
+/// other input as its own `simulation.pressed` says, released unless told.
+pub fn input_pressed(config: &IoConfig, input: &DigitalInputConfig) -> bool {
+    let name = input.name.as_str();
+    let contact = config.robots.iter().find_map(|r| {
+        let sim = r.simulation.as_ref();
+        let tool = sim.is_some_and(|s| s.tool.is_some());
+        let adapter = tool || sim.is_some_and(|s| s.adapter);
+        if name == format!("{}_adapter", r.name) {
+            Some(adapter)
+        } else if name == format!("{}_tool", r.name) {
+            Some(tool)
+        } else {
+            None
+        }
+    });
+    contact.unwrap_or_else(|| input.simulation.is_some_and(|s| s.pressed))
+}
+
+/// Per board ID, the digital input lines held high (DIGIN bits 11:0).
+///
+/// Each v6 digital input is a switch on its line: pressed or released
+/// ([`input_pressed`]), it puts the level on the line that the dVRK reads
+/// as that state: low for pressed when `pressed_value` is true (every
+/// stock button, pedal and contact), high for pressed when it is false
+/// ([`DigitalInputConfig::line_level`]). A line no input names stays low.
 pub fn input_lines(config: &IoConfig) -> [u16; 16] {
     let mut lines = [0u16; 16];
-    let Some(inputs) = config
-        .digital_inputs
-        .as_ref()
-        .and_then(serde_json::Value::as_array)
-    else {
-        return lines;
-    };
-    for name in inputs
-        .iter()
-        .filter_map(|d| d.get("name").and_then(serde_json::Value::as_str))
-    {
-        let Some((board, bit, pressed_value)) = config.digital_input(name) else {
-            continue;
-        };
-        let pressed = config.robots.iter().any(|r| {
-            let sim = r.simulation.as_ref();
-            let adapter = sim.is_some_and(|s| s.adapter || s.tool.is_some());
-            let tool = sim.is_some_and(|s| s.tool.is_some());
-            (adapter && name == format!("{}_adapter", r.name))
-                || (tool && name == format!("{}_tool", r.name))
-        });
-        let level = pressed == pressed_value;
-        if let Some(l) = lines.get_mut(usize::from(board)) {
-            if level && bit < 12 {
-                *l |= 1 << bit;
+    for input in config.digital_inputs.iter().flatten() {
+        let high = input.line_level(input_pressed(config, input));
+        if let Some(l) = lines.get_mut(usize::from(input.board_id)) {
+            if high && input.bit_id < 12 {
+                *l |= 1 << input.bit_id;
             }
         }
     }
     lines
+}
+
+/// The brakes of every robot, as (board ID, wire) pairs: brake `i` of a
+/// robot's `brakes` holds its actuator `i` (the dVRK's order: the ECM's
+/// three brakes hold its first three joints) and is driven by the channel
+/// the entry names. The brake opens at the middle of its holding
+/// (`released_current`) and release (`release_current`) currents and
+/// closes below half the holding current.
+pub fn brake_wires(config: &IoConfig) -> Vec<(u8, BrakeWire)> {
+    let mut out = Vec::new();
+    for robot in &config.robots {
+        for (brake, actuator) in robot.brakes.iter().flatten().zip(&robot.actuators) {
+            let (Some(open), Some(hold)) = (brake.opening_current(), brake.holding_current())
+            else {
+                continue;
+            };
+            let line = BrakeLine::new();
+            out.push((
+                brake.board_id,
+                BrakeWire::drives(usize::from(brake.axis_id), line.clone(), open, hold),
+            ));
+            out.push((
+                actuator.board_id,
+                BrakeWire::Holds {
+                    axis: usize::from(actuator.axis_id),
+                    line,
+                },
+            ));
+        }
+    }
+    out
 }
 
 /// Per board ID, the instrument whose 1-wire memory it reads: a robot's
@@ -239,8 +271,9 @@ pub fn instruments(config: &IoConfig) -> Vec<(u8, Instrument)> {
 }
 
 /// What the emulated robot cannot make agree with the configuration, one
-/// sentence each: stops pulled inside the soft limits by a pot that cannot
-/// see that far, pots coupled to actuators on another board.
+/// sentence each: a pot the configuration checks (pot tolerance above 0)
+/// that saturates before the joint's stops, pots coupled to actuators on
+/// another board.
 pub fn notes(config: &IoConfig) -> Vec<String> {
     let mut out = Vec::new();
     for j in config.joints() {
@@ -249,16 +282,19 @@ pub fn notes(config: &IoConfig) -> Vec<String> {
         };
         let soft = j.actuator.encoder.position_limits_soft;
         let (lo, hi) = stated_stops(&j);
-        if pot_is_own(&j) && j.actuator.potentiometer.is_some() {
+        let checked = j
+            .potentiometer_tolerance()
+            .is_some_and(|t| t.distance > 0.0);
+        if checked && pot_is_own(&j) && j.actuator.potentiometer.is_some() {
             if let Some((pot_lo, pot_hi)) = pot_visible_range(&p) {
                 if pot_lo > lo || pot_hi < hi {
                     out.push(format!(
                         "{}: the pot conversion reads only [{pot_lo:.4}, {pot_hi:.4}] within \
-                         0..{POT_FULL_SCALE_VOLTS} V: the stops [{lo:.4}, {hi:.4}] are moved \
-                         inside it{}",
+                         0..{POT_FULL_SCALE_VOLTS} V, the stops are at [{lo:.4}, {hi:.4}]: past \
+                         it the pot saturates and disagrees with the encoder{}",
                         j.label,
                         if pot_lo > soft.lower || pot_hi < soft.upper {
-                            ", inside the soft limits (the arm cannot reach them)"
+                            ", inside the soft limits (the pot check faults there)"
                         } else {
                             ""
                         }
@@ -287,11 +323,40 @@ mod tests {
     use firelink_board::config::Profile;
     use firelink_control::config::{ToolConfig, presets};
 
+    /// How sawRobotIO1394 reads a digital input (`mtsDigitalInput1394::
+    /// PollState`), written here from its source, apart from Firelink's
+    /// own reader: the masked DIGIN bit set reads `!pressed_value`, clear
+    /// reads `pressed_value`.
+    fn dvrk_reads_pressed(digin: u32, bit_id: u8, pressed_value: bool) -> bool {
+        if digin & (1u32 << bit_id) != 0 {
+            !pressed_value
+        } else {
+            pressed_value
+        }
+    }
+
+    /// What the console reads for input `name` from the emulated boards.
+    fn console_reads(config: &IoConfig, name: &str) -> bool {
+        let input = config.digital_input(name).unwrap();
+        let boards = crate::rig::board_configs(config, Profile::Rev8, 16);
+        let digin = u32::from(boards[usize::from(input.board_id)].input_lines);
+        let pressed = dvrk_reads_pressed(digin, input.bit_id, input.pressed_value);
+        // Firelink's own host side reads it by the same rule.
+        assert_eq!(config.input_pressed(name, digin), Some(pressed), "{name}");
+        pressed
+    }
+
     #[test]
-    fn a_tool_in_the_configuration_reaches_the_psm_board() {
+    fn the_console_reads_the_psm_contacts_and_clutches_as_plugged_in() {
         let mut config = presets::stock_psm1();
-        // As shipped: the sterile adapter on (bit 10), no instrument.
-        assert_eq!(input_lines(&config)[7], 1 << 10);
+        // As shipped: the sterile adapter on, no instrument, clutches
+        // released. Every input has pressed_value true: pressed is low.
+        assert!(console_reads(&config, "PSM1_adapter"));
+        assert!(!console_reads(&config, "PSM1_tool"));
+        assert!(!console_reads(&config, "PSM1_arm_clutch"));
+        assert!(!console_reads(&config, "PSM1_SUJ_clutch"));
+        assert_eq!(input_lines(&config)[7], 1 << 7, "adapter low, tool high");
+        assert_eq!(input_lines(&config)[6], (1 << 0) | (1 << 2));
         assert!(instruments(&config).is_empty());
         if let Some(sim) = config.robots[0].simulation.as_mut() {
             sim.tool = Some(ToolConfig {
@@ -300,24 +365,72 @@ mod tests {
                 version: 12,
             });
         }
-        assert_eq!(input_lines(&config)[7], (1 << 10) | (1 << 7));
+        assert!(console_reads(&config, "PSM1_adapter"));
+        assert!(console_reads(&config, "PSM1_tool"));
         let boards = crate::rig::board_configs(&config, Profile::Rev8, 8);
         let b7 = &boards[7];
-        assert_eq!(b7.input_lines, (1 << 10) | (1 << 7));
+        assert_eq!(b7.input_lines, 0, "both contacts closed: both lines low");
         let tool = b7.instrument.as_ref().unwrap();
         assert_eq!((tool.model, tool.version), (400_006, 12));
         assert_eq!(&tool.memory()[0x80..0x83], b"997");
         assert!(boards[6].instrument.is_none());
-        // An input pressed when low reads high when its part is out.
-        config.digital_inputs = Some(serde_json::json!([
-            { "name": "PSM1_adapter", "board_id": 7, "bit_id": 10, "pressed_value": false },
-            { "name": "PSM1_tool", "board_id": 7, "bit_id": 7, "pressed_value": false }
-        ]));
+        // Nothing plugged in: neither contact reads pressed.
         if let Some(sim) = config.robots[0].simulation.as_mut() {
             sim.tool = None;
             sim.adapter = false;
         }
-        assert_eq!(input_lines(&config)[7], (1 << 10) | (1 << 7));
+        assert!(!console_reads(&config, "PSM1_adapter"));
+        assert!(!console_reads(&config, "PSM1_tool"));
+        // The other polarity: pressed is high.
+        for d in config.digital_inputs.iter_mut().flatten() {
+            d.pressed_value = false;
+        }
+        assert_eq!(input_lines(&config)[7], 0, "released contacts low");
+        if let Some(sim) = config.robots[0].simulation.as_mut() {
+            sim.adapter = true;
+        }
+        assert!(console_reads(&config, "PSM1_adapter"));
+        assert!(!console_reads(&config, "PSM1_tool"));
+        assert_eq!(input_lines(&config)[7], 1 << 10);
+    }
+
+    #[test]
+    fn pedals_and_buttons_rest_as_the_configuration_says() {
+        // A foot-pedal file as the dVRK lays them out (its own values):
+        // every pedal released unless its simulation section says pressed.
+        let text = serde_json::json!({
+            "$id": "saw-robot-io.schema.json", "$version": "6",
+            "robots": [],
+            "digital_inputs": [
+                { "name": "Clutch", "board_id": 1, "bit_id": 3, "pressed_value": true,
+                  "trigger_when_pressed": true, "trigger_when_released": true },
+                { "name": "Camera", "board_id": 1, "bit_id": 2, "pressed_value": true,
+                  "trigger_when_pressed": true, "trigger_when_released": true },
+                { "name": "Coag", "board_id": 1, "bit_id": 0, "pressed_value": true,
+                  "trigger_when_pressed": true, "trigger_when_released": true,
+                  "simulation": { "pressed": true } },
+                { "name": "HeadSensor", "board_id": 1, "bit_id": 5, "pressed_value": false,
+                  "trigger_when_pressed": true, "trigger_when_released": true },
+                { "name": "Door", "board_id": 1, "bit_id": 6, "pressed_value": false,
+                  "trigger_when_pressed": true, "trigger_when_released": true,
+                  "simulation": { "pressed": true } }
+            ]
+        });
+        let mut config = presets::stock_psm1();
+        let pedals: IoConfig = serde_json::from_value(text).unwrap();
+        config.digital_inputs = pedals.digital_inputs;
+        for (name, pressed) in [
+            ("Clutch", false),
+            ("Camera", false),
+            ("Coag", true),
+            ("HeadSensor", false),
+            ("Door", true),
+        ] {
+            assert_eq!(console_reads(&config, name), pressed, "{name}");
+        }
+        // Released pressed-low pedals hold their lines high; a pressed
+        // pressed-high input too; the rest low.
+        assert_eq!(input_lines(&config)[1], (1 << 3) | (1 << 2) | (1 << 6));
     }
 
     #[test]
@@ -332,7 +445,7 @@ mod tests {
     }
 
     #[test]
-    fn a_stop_the_pot_cannot_see_is_moved_inside_and_noted() {
+    fn stops_stay_where_the_arm_has_them_and_the_pot_saturates() {
         // A pot calibration that reads only to 1.5 degrees past the PSM
         // tool actuators' soft limits (as in the report that asked for
         // stops: -3.049 rad against -3.037).
@@ -345,11 +458,24 @@ mod tests {
         pot.voltage_to_position.offset = -reach;
         let p = crate::rig::plant_for(&config, 4).unwrap();
         let (lo, hi) = (p.stops.lower.unwrap(), p.stops.upper.unwrap());
-        assert!(soft.lower > lo && lo > -reach, "{lo}");
-        assert!(soft.upper < hi && hi < reach, "{hi}");
+        let margin = 3f64.to_radians();
+        assert!((lo - (soft.lower - margin)).abs() < 1e-12, "{lo}");
+        assert!((hi - (soft.upper + margin)).abs() < 1e-12, "{hi}");
+        // At the stops the pot reads the end of its range, not the joint.
+        let volts = |q: f64| p.pot_volts_at(q);
+        assert_eq!(volts(hi), volts(reach + 0.01));
+        assert!(volts(soft.upper) < volts(hi));
         let notes = notes(&config);
         assert_eq!(notes.len(), 1, "{notes:?}");
         assert!(notes[0].starts_with("PSM1[4]: the pot conversion reads only"));
+        assert!(notes[0].contains("saturates"));
         assert!(!notes[0].contains("inside the soft limits"));
+        // The MTM roll: a pot of about half a turn, unchecked, stops at
+        // -480 and +456 degrees: nothing to note.
+        let mtmr = presets::stock_mtmr();
+        let roll = crate::rig::plant_for(&mtmr, 6).unwrap();
+        assert!((roll.stops.lower.unwrap() - (-480f64).to_radians()).abs() < 1e-9);
+        assert!((roll.stops.upper.unwrap() - 456f64.to_radians()).abs() < 1e-9);
+        assert_eq!(super::notes(&mtmr), Vec::<String>::new());
     }
 }

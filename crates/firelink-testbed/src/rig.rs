@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 
-use firelink_board::config::{BoardConfig, Hardware, Profile};
+use firelink_board::config::{BoardConfig, BrakeWire, Hardware, Profile};
 use firelink_board::node::BoardNode;
 use firelink_board::plant::AxisParams;
 use firelink_board::plant::presets;
@@ -114,9 +114,17 @@ pub fn preset_params(preset: PlantPreset) -> AxisParams {
 /// Each board is the companion board its robot names (`QLA1` or `DQLA`;
 /// a `dRA1` is emulated as a QLA1) and carries its plants (an MTM's
 /// gripper on the axis after its last actuator) and what is plugged into
-/// it (a PSM's sterile adapter and instrument). Its PROMs hold the serial
-/// numbers the robot's `simulation.boards` gives it, else the QLA PROM(s)
-/// hold the robot's `serial_number`, as the boards of a dVRK arm do. A
+/// it (a PSM's sterile adapter and instrument).
+///
+/// **Serial numbers**, one rule for every board of every file: a board's
+/// PROMs hold that *board's* own serial numbers, as a real FPGA board's
+/// and QLA's do (printed on their labels, `3791-14`), never the arm's
+/// `serial_number` (which names the arm, not its controller boards). They
+/// are what a robot's `simulation.boards` gives the board; a board it does
+/// not name (every board of a dVRK file without Firelink's sections, or a
+/// brake board) keeps the emulator's default, unique per board ID
+/// ([`default_fpga_serial`](firelink_board::config::default_fpga_serial),
+/// [`default_qla_serial`](firelink_board::config::default_qla_serial)). A
 /// serial the PROM cannot hold (more than 8 characters) stays in the
 /// configuration and is reported by [`BoardConfig::check`]; its PROM is
 /// left erased.
@@ -134,6 +142,7 @@ pub fn board_configs_starting_at(
     let uses = config.boards();
     let mut out: Vec<BoardConfig> = Vec::new();
     let lines = plant_map::input_lines(config);
+    let brakes = plant_map::brake_wires(config);
     let instruments = plant_map::instruments(config);
     let grippers: Vec<(u8, u8)> = config
         .robots
@@ -176,17 +185,17 @@ pub fn board_configs_starting_at(
         if let Some((_, instrument)) = instruments.iter().find(|(board, _)| *board == id) {
             b = b.with_instrument(instrument.clone());
         }
-        let robot_serial = board_use.and_then(|u| {
-            config
-                .robots
-                .iter()
-                .find(|r| r.name == u.robot.as_str())
-                .map(|r| r.serial_number.trim())
-        });
+        for wire in brakes.iter().filter(|(board, _)| *board == id) {
+            if let BrakeWire::Drives { axis, .. } = &wire.1 {
+                if let Some(slot) = b.axes.get_mut(*axis) {
+                    *slot = presets::brake_coil();
+                }
+            }
+            b = b.with_brake(wire.1.clone());
+        }
         let board_serial = config.board_serial(id);
         let qla_serial = board_serial
             .and_then(|s| s.qla.as_deref())
-            .or(robot_serial)
             .filter(|s| !s.is_empty());
         if let Some(serial) = qla_serial {
             for q in 0..b.qla_count() {
@@ -393,24 +402,43 @@ mod tests {
     use super::*;
     use firelink_control::config::presets;
 
-    /// Each arm's boards carry its serial number in their QLA PROMs and
-    /// are the companion board its configuration names.
+    /// Every board's PROMs hold the board's own serial numbers (the
+    /// configuration's `simulation.boards`, else the unique default),
+    /// never its arm's; each board is the companion board its
+    /// configuration names.
     #[test]
-    fn boards_carry_their_robots_serial_and_hardware() {
+    fn boards_carry_their_own_serials_and_hardware() {
+        use firelink_board::config::{default_fpga_serial, default_qla_serial};
         let dvrk = presets::dvrk_seed000();
         let boards = board_configs(&dvrk, Profile::Rev8, 9);
-        for robot in &dvrk.robots {
-            for a in &robot.actuators {
-                let b = &boards[usize::from(a.board_id)];
-                assert_eq!(b.qla_serials(), std::slice::from_ref(&robot.serial_number));
-                assert_eq!(b.check(), Ok(()));
+        for b in &boards {
+            assert_eq!(b.qla_serials(), [default_qla_serial(b.board_id, 0)]);
+            assert_eq!(b.fpga_serial, default_fpga_serial(b.board_id));
+            assert_eq!(b.check(), Ok(()));
+        }
+        // The stock files name every board of their arm, the ECM's brake
+        // board too.
+        for (config, ids) in [
+            (presets::stock_ecm(), [4u8, 5]),
+            (presets::stock_psm1(), [6, 7]),
+            (presets::stock_mtmr(), [2, 3]),
+        ] {
+            let boards = board_configs(&config, Profile::Rev8, config.board_slots());
+            for id in ids {
+                let given = config.board_serial(id).unwrap();
+                let b = &boards[usize::from(id)];
+                assert_eq!(Some(&b.qla_serials()[0]), given.qla.as_ref());
+                assert_eq!(Some(&b.fpga_serial), given.fpga.as_ref());
+                assert_ne!(b.qla_serials()[0], config.robots[0].serial_number);
             }
         }
-        // A board no robot uses keeps its unique default.
-        assert_eq!(
-            boards[8].qla_serials(),
-            [firelink_board::config::default_qla_serial(8, 0)]
-        );
+        // Without Firelink's sections (a dVRK file as generated): every
+        // board its own default, all different.
+        let mut plain = presets::stock_ecm();
+        plain.robots[0].simulation = None;
+        let boards = board_configs(&plain, Profile::Rev8, plain.board_slots());
+        assert_eq!(boards[4].qla_serials(), [default_qla_serial(4, 0)]);
+        assert_eq!(boards[5].qla_serials(), [default_qla_serial(5, 0)]);
         let snake = presets::snake_36axes();
         let boards = board_configs(&snake, Profile::Rev8, 8);
         assert_eq!(boards[0].hardware, Hardware::Dqla);

@@ -64,6 +64,12 @@ fn stock_psm1_homes_with_pots_and_encoders_agreeing() {
     assert_eq!(psm.joints.len(), 7);
     assert!(psm.joints.iter().all(|j| j.checked));
     assert!(psm.stop_searches.is_empty());
+    // The console reads the contacts as plugged in: the sterile adapter
+    // on, no instrument, clutches released.
+    let read = |name: &str| psm.inputs.iter().find(|(n, _)| n == name).unwrap().1;
+    assert!(read("PSM1_adapter"));
+    assert!(!read("PSM1_tool"));
+    assert!(!read("PSM1_arm_clutch") && !read("PSM1_SUJ_clutch"));
 }
 
 #[test]
@@ -90,7 +96,13 @@ fn stock_mtmr_homes_its_roll_by_a_stop_search() {
         .pot
         .measures;
     assert_eq!(pot3.len(), 3, "{pot3:?}");
-    // The roll: found its lower stop by stalling against it.
+    // The roll's pot reads about half a turn and saturates beyond (as the
+    // arm's): the stops are far outside what it can read.
+    let roll = firelink_testbed::rig::plant_for(&config, 6).unwrap();
+    let (pot_lo, pot_hi) = roll.pot_position_range().unwrap();
+    assert!(pot_lo > -2.0 && pot_hi < 2.0, "{pot_lo} {pot_hi}");
+    assert!(mtm.joints[6].stops.0 < pot_lo - 6.0 && mtm.joints[6].stops.1 > pot_hi + 6.0);
+    // The roll: found its lower stop (-480 degrees) by stalling against it.
     assert_eq!(mtm.stop_searches.len(), 1);
     let s = &mtm.stop_searches[0];
     assert_eq!(s.joint, "MTMR[6]");

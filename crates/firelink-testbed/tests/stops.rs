@@ -207,3 +207,59 @@ fn a_stock_dvrk_file_without_firelink_sections_gets_the_arm_it_names() {
     assert!((r.truth - r.stops.0).abs() < 1e-12, "{r:?}");
     assert!((r.pot - r.encoder).abs() < 0.01, "{r:?}");
 }
+
+/// The ECM's brakes (board 5, channels 0-2) hold joints 1-3: a current on
+/// a braked joint moves nothing; once its brake's channel carries the
+/// release current the same current moves it, and its brake engages again
+/// when the channel is turned off.
+#[test]
+fn an_engaged_brake_holds_its_joint_until_its_channel_releases_it() {
+    let config = presets::stock_ecm();
+    let boards = rig::board_configs(&config, Profile::Rev8, config.board_slots());
+    let (port, handles) = rig::sim_port(boards, false).unwrap();
+    let (mut io, _) = IoSystem::open(port, IoOptions::default()).unwrap();
+    io.set_watchdog(firelink_host::WatchdogSetting::from_ms(50.0).unwrap())
+        .unwrap();
+    let slot = |id: u8, io: &IoSystem<SimPort>| {
+        io.boards().iter().position(|b| b.board_id() == id).unwrap()
+    };
+    let tick = |io: &mut IoSystem<SimPort>, ms: usize| {
+        for _ in 0..ms {
+            io.read_all();
+            io.write_all();
+            io.port_mut().wait(Duration::from_millis(1));
+        }
+    };
+    for b in io.boards_mut() {
+        b.set_power(true);
+        b.set_relay(true);
+    }
+    tick(&mut io, 100);
+    let j1 = &config.robots[0].actuators[0];
+    let brake = config.robots[0].brakes.as_ref().unwrap()[0];
+    let q = |io: &IoSystem<SimPort>| plant_axis(io, &handles, 4, 0).joint_position();
+    let (k4, k5) = (slot(4, &io), slot(5, &io));
+    let start = q(&io);
+    let push = j1.drive.current_to_bits(0.3 * j1.drive.maximum_current);
+    io.boards_mut()[k4].set_amp_enable(0, true).unwrap();
+    io.boards_mut()[k4].set_dac(0, push).unwrap();
+    tick(&mut io, 300);
+    assert_eq!(q(&io), start, "braked: not a count of motion");
+    assert!(plant_axis(&io, &handles, 4, 0).braked());
+    // Release: the console's release current on board 5's channel 0.
+    let f = brake.drive.current_to_bits;
+    let code = (f.scale * brake.release_current.unwrap() + f.offset).round() as u16;
+    io.boards_mut()[k5].set_amp_enable(0, true).unwrap();
+    io.boards_mut()[k5].set_dac(0, code).unwrap();
+    tick(&mut io, 300);
+    assert!(!plant_axis(&io, &handles, 4, 0).braked());
+    let moved = q(&io);
+    assert!((moved - start).abs() > 0.01, "released: {start} -> {moved}");
+    // Channel off: engaged again, the joint stops where it is.
+    io.boards_mut()[k5].set_amp_enable(0, false).unwrap();
+    tick(&mut io, 5);
+    let held = q(&io);
+    tick(&mut io, 200);
+    assert!(plant_axis(&io, &handles, 4, 0).braked());
+    assert_eq!(q(&io), held);
+}

@@ -117,7 +117,14 @@ fn token() -> Result<String, WebError> {
 /// Bad options, a failed scan, an address already in use.
 pub async fn start(options: &WebOptions) -> Result<(Running, tokio::net::TcpListener), WebError> {
     let config: IoConfig = match &options.config {
-        Some(path) => IoConfig::load(path).map_err(|e| WebError::Options(e.to_string()))?,
+        Some(path) => {
+            let loaded =
+                IoConfig::load_with_warnings(path).map_err(|e| WebError::Options(e.to_string()))?;
+            for w in &loaded.warnings {
+                eprintln!("warning: {w}");
+            }
+            loaded.config
+        }
         None => presets::dvrk_seed000(),
     };
     let service = Service::start(&options.port, config, options.rate_hz, options.watchdog)?;

@@ -91,6 +91,7 @@
 //! assert_eq!(resp.quadlet_data(), 8);
 //! ```
 
+mod brake;
 mod dallas;
 mod dout;
 mod ethernet;
@@ -101,6 +102,7 @@ pub(crate) mod power;
 mod prom;
 mod registers;
 
+pub use brake::{BrakeLine, BrakeWire};
 pub use dallas::Instrument;
 pub use dout::{OUTPUTS as DIGITAL_OUTPUTS, WAVEFORM_ENTRIES};
 pub use hub::{
@@ -308,7 +310,7 @@ impl Firmware {
         let dallas = Dallas::new(cfg.instrument.as_ref());
         let ethernet = Ethernet::new(cfg.board_id);
         let hub = Hub::new(SimTime::ZERO, cfg.layout().format());
-        Firmware {
+        let mut fw = Firmware {
             power: Power::new(cfg.motor_supply_present, cfg.supply_rise),
             cfg,
             plant,
@@ -334,7 +336,10 @@ impl Firmware {
             next_event: None,
             events_stale: true,
             drive_stale: true,
-        }
+        };
+        // Brakes are engaged until their channels release them.
+        fw.hold_braked_joints();
+        fw
     }
 
     /// The configuration.
@@ -530,7 +535,36 @@ impl Firmware {
 
     /// Bring the plant to `self.now`, to read what it measures.
     fn observe(&mut self) {
+        self.hold_braked_joints();
         self.plant.advance_to(self.now);
+    }
+
+    /// The joints this board carries take their brakes' states (see
+    /// [`brake`]): from the plant's clock on, where they changed.
+    fn hold_braked_joints(&mut self) {
+        for wire in &self.cfg.brakes {
+            if let BrakeWire::Holds { axis, line } = wire {
+                let engaged = !line.released();
+                if let Some(a) = self.plant.axis_mut(*axis) {
+                    if a.braked() != engaged {
+                        a.set_brake(engaged);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The brakes this board's channels drive follow their amplifiers.
+    fn drive_brakes(&mut self) {
+        for wire in &self.cfg.brakes {
+            if let BrakeWire::Drives { axis, .. } = wire {
+                // The plant's amplifier has the inputs just handed to it
+                // (its calibrated zero included).
+                if let Some(a) = self.plant.axis(*axis) {
+                    wire.drive(a.enabled(), a.commanded_current());
+                }
+            }
+        }
     }
 
     /// The earliest internal event strictly after `self.now`.
@@ -649,6 +683,10 @@ impl Firmware {
             if let Some(axis) = self.plant.axis_mut(i) {
                 axis.set_drive(dac, on);
             }
+        }
+        if !self.cfg.brakes.is_empty() {
+            self.drive_brakes();
+            self.hold_braked_joints();
         }
     }
 

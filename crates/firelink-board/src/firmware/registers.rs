@@ -159,8 +159,18 @@ fn pot_to_counts(volts: f64) -> u16 {
     round_to_code(volts / POT_FULL_SCALE_VOLTS * 65535.0, 65535.0) as u16
 }
 
+/// What a QLA's MAX6576 sensor reads through the firmware: the sensor's
+/// period is 10 us per kelvin, counted at 400 kHz (4 counts per degree)
+/// from -273 degrees C; the firmware reports half the count, 0.5 degree C
+/// per bit (the dVRK divides the byte by 2), truncated, and `0xFF` when the
+/// count is out of its range (below 0 or from 128 degrees C on).
 fn temperature_byte(celsius: f64) -> u8 {
-    round_to_code(celsius, 255.0) as u8
+    if !(0.0..128.0).contains(&celsius) {
+        return 0xFF;
+    }
+    // Truncation: the counter holds whole quarter degrees and the
+    // firmware drops its last bit; 127.5 up to 128 reads 0xFF in range.
+    (celsius * 2.0) as u8
 }
 
 /// `x` rounded to the nearest whole code in `0..=max` (halves away from
@@ -976,7 +986,23 @@ impl Firmware {
 
 #[cfg(test)]
 mod tests {
-    use super::round_to_code;
+    use super::{round_to_code, temperature_byte};
+
+    /// The MAX6576 byte as the dVRK reads it (sawRobotIO1394: the byte
+    /// divided by 2 is degrees C).
+    #[test]
+    fn temperatures_read_half_a_degree_per_bit() {
+        let dvrk = |c: f64| f64::from(temperature_byte(c)) / 2.0;
+        assert_eq!(temperature_byte(25.0), 50);
+        assert_eq!(dvrk(25.0), 25.0);
+        assert_eq!(dvrk(31.74), 31.5, "truncated to the half degree");
+        assert_eq!(temperature_byte(0.0), 0);
+        assert_eq!(temperature_byte(127.4), 254);
+        // Outside the counter's range: 0xFF.
+        for c in [-0.1, -40.0, 128.0, 200.0, f64::NAN, f64::INFINITY] {
+            assert_eq!(temperature_byte(c), 0xFF, "{c}");
+        }
+    }
 
     #[test]
     fn codes_round_as_round_then_clamp() {

@@ -68,6 +68,8 @@ struct Inputs {
     dac: u16,
     enabled: bool,
     external_torque: f64,
+    /// A brake holds the joint: it does not move, whatever drives it.
+    braked: bool,
 }
 
 /// What changes as the axis moves.
@@ -233,6 +235,7 @@ impl Axis {
                 dac: DAC_ZERO,
                 enabled: false,
                 external_torque: 0.0,
+                braked: false,
             },
             state,
             time: SimTime::ZERO,
@@ -284,6 +287,22 @@ impl Axis {
             external_torque: if torque.is_finite() { torque } else { 0.0 },
             ..latest
         });
+    }
+
+    /// Engage (`true`) or release a brake on the joint, from the plant's
+    /// clock on: an engaged brake holds the joint where it is (the motor
+    /// still carries its current; the emulated brake never slips).
+    pub fn set_brake(&mut self, engaged: bool) {
+        let latest = self.latest();
+        self.set_inputs(Inputs {
+            braked: engaged,
+            ..latest
+        });
+    }
+
+    /// Whether a brake holds the joint.
+    pub fn braked(&self) -> bool {
+        self.latest().braked
     }
 
     /// The DAC code currently applied.
@@ -503,6 +522,9 @@ impl Model {
         if s.current != 0.0 || s.motor_velocity != 0.0 || self.target_current(inputs, 0.0) != 0.0 {
             return false;
         }
+        if inputs.braked {
+            return true;
+        }
         let push = self.load_torque(s.motor_angle, inputs.external_torque) * self.inv_gear;
         push.abs() <= self.params.motor.coulomb_friction
             || (push < 0.0 && s.motor_angle <= self.motor_stops.0)
@@ -527,6 +549,14 @@ impl Model {
             i1 = 0.0;
         }
         let load = self.load_torque(angle0, inputs.external_torque) * self.inv_gear;
+        if inputs.braked {
+            // Held: the current flows, nothing moves.
+            s.current = i1;
+            s.motor_velocity = 0.0;
+            let steady = steady_temperature(&self.params, i1, inputs.enabled);
+            s.temperature += (steady - s.temperature) * span.alpha_thermal;
+            return;
+        }
         let (w1, angle1) = match self.integrator {
             Integrator::SemiImplicitEuler => self.euler(w0, angle0, i1, load, span.h),
             Integrator::Exact => self.exact(w0, angle0, i0, target, i1, load, span, memo),

@@ -371,6 +371,39 @@ mod tests {
         assert!(p.axis(0).unwrap().temperature() > t0 + 0.5);
     }
 
+    #[test]
+    fn temperature_follows_the_first_order_model() {
+        // 1 A held in a stalled motor with the default amplifier: 2.5 W
+        // (2 ohm of heat, 0.5 W idle) through 4 K/W, 60 s: after one time
+        // constant 25 + 10 (1 - 1/e); the same however the time is split.
+        let t = ThermalParams::default();
+        let expected = |s: f64| {
+            let steady = t.ambient_c + (2.0 * 1.0 + 0.5) * t.thermal_resistance;
+            steady + (t.ambient_c - steady) * (-s / t.time_constant).exp()
+        };
+        let mut a = Plant::new(vec![locked()], 0, DEFAULT_STEP);
+        a.axis_mut(0).unwrap().set_drive(amps_to_dac(1.0), true);
+        let mut b = a.clone();
+        a.advance_to(SimTime::from_millis(60_000));
+        for k in 1..=600u64 {
+            b.advance_to(SimTime::from_millis(100 * k));
+        }
+        let (ta, tb) = (
+            a.axis(0).unwrap().temperature(),
+            b.axis(0).unwrap().temperature(),
+        );
+        assert!(
+            (ta - expected(60.0)).abs() < 0.01,
+            "{ta} {}",
+            expected(60.0)
+        );
+        assert!((ta - tb).abs() < 1e-9, "{ta} {tb}");
+        // Power off: back towards ambient.
+        a.axis_mut(0).unwrap().set_drive(DAC_ZERO, false);
+        a.advance_to(SimTime::from_millis(600_000));
+        assert!((a.axis(0).unwrap().temperature() - t.ambient_c).abs() < 0.01);
+    }
+
     /// A free-running generic motor with stops at +-0.3 rad.
     fn stopped(gear: f64) -> AxisParams {
         let mut p = presets::generic_motor();

@@ -162,7 +162,14 @@ pub struct CurrentSenseParams {
     pub noise_amps: f64,
 }
 
-/// Amplifier temperature: a first-order thermal model of the amplifier.
+/// Amplifier temperature: a first-order thermal model of one amplifier
+/// (a QLA channel's linear power op amp on its heat sink). The power it
+/// dissipates, `i^2 heat_resistance` plus `idle_power` while enabled,
+/// drives its temperature towards `ambient_c + power x
+/// thermal_resistance` with time constant `time_constant`, integrated
+/// exactly over the time the plant is advanced by (no clock of its own).
+/// The board's sensors (one MAX6576 per pair of channels) read the hotter
+/// of their two.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ThermalParams {
     /// Ambient temperature, deg C.
@@ -253,7 +260,17 @@ impl Default for CurrentSenseParams {
 }
 
 impl Default for ThermalParams {
-    /// A small heat-sinked linear amplifier at 25 deg C ambient.
+    /// A QLA channel in a ventilated dVRK controller box:
+    /// - 25 deg C inside the box (the dVRK's QLA test expects 20 to 40 deg C
+    ///   at rest);
+    /// - 0.5 W while enabled: the power op amp's quiescent current (some
+    ///   20 mA) across the supply;
+    /// - 2 ohm: a linear stage drops the supply less the motor's voltage at
+    ///   the motor's current; for a stalled or slow dVRK motor on a 12-36 V
+    ///   supply that is a few volts per ampere, lumped as a resistance;
+    /// - 4 K/W to the air (its share of the heat sink with the box's fan):
+    ///   1 A held for minutes warms the amplifier by about 10 K;
+    /// - 60 s: the heat sink's time constant.
     fn default() -> Self {
         ThermalParams {
             ambient_c: 25.0,

@@ -161,6 +161,18 @@ pub fn unused_channel() -> AxisParams {
     p
 }
 
+/// A brake's coil on an amplifier channel: the amplifier drives current
+/// into it (resistance and inductance of a small motor), nothing turns.
+/// Which joint the brake holds is the board's wiring
+/// ([`BrakeWire`](crate::config::BrakeWire)).
+pub fn brake_coil() -> AxisParams {
+    let mut p = generic_motor();
+    p.name = "brake coil".into();
+    // Nothing to turn: a rotor held by friction no current can overcome.
+    p.motor.coulomb_friction = 1.0e9;
+    p
+}
+
 /// A da Vinci Research Kit master tool manipulator (MTM) joint, 1..=7; 8
 /// is the gripper (a Hall-effect sensor on the analog input, no motor).
 /// `None` for other numbers.

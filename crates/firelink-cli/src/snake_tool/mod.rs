@@ -107,7 +107,7 @@ pub enum ToolCommand {
 
 fn open(args: &SnakeToolArgs) -> Result<(Box<dyn Port>, Option<IoConfig>), CliError> {
     let config = match &args.config {
-        Some(path) => IoConfig::load(path)?,
+        Some(path) => crate::demo::load_config(path)?,
         None => presets::snake_seed001(),
     };
     match args.port {

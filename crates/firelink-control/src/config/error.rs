@@ -28,6 +28,55 @@ pub(crate) fn round_sig(x: f64) -> f64 {
     format!("{x:.3e}").parse().unwrap_or(x)
 }
 
+/// Something a configuration file says that the loader accepted but its
+/// user should hear about.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConfigWarning {
+    /// The file, as given to the loader.
+    pub file: String,
+    /// JSON path inside it.
+    pub path: String,
+    /// What it is.
+    pub warning: Warning,
+}
+
+/// Kinds of [`ConfigWarning`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum Warning {
+    /// A key Firelink does not use: read past, nothing done with it.
+    Ignored,
+    /// The file has no `$id` (the dVRK console refuses it; Firelink reads
+    /// it as a v6 file).
+    NoSchemaId,
+    /// What the dVRK console's configuration reader would refuse.
+    Console(super::console::ConsoleProblem),
+}
+
+impl ConfigWarning {
+    /// A warning at `path` in `file`.
+    pub fn new(file: &str, path: impl Into<String>, warning: Warning) -> ConfigWarning {
+        ConfigWarning {
+            file: file.to_string(),
+            path: path.into(),
+            warning,
+        }
+    }
+}
+
+impl fmt::Display for ConfigWarning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}: ", self.file, self.path)?;
+        match &self.warning {
+            Warning::Ignored => write!(f, "ignored (a key Firelink does not use)"),
+            Warning::NoSchemaId => write!(
+                f,
+                "missing: read as saw-robot-io v6 (the dVRK console refuses a file without \"$id\": \"saw-robot-io.schema.json\")"
+            ),
+            Warning::Console(p) => write!(f, "{p} (the dVRK console's reader refuses this)"),
+        }
+    }
+}
+
 /// One problem in a configuration file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ConfigError {

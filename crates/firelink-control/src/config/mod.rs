@@ -13,10 +13,18 @@
 //! A robot's v6 `potentiometers.coupling` (pots mounted on joints, as on
 //! the dVRK MTM) is used: pot positions are turned into actuator space with
 //! its `JointToActuatorPosition` matrix, as sawRobotIO1394 does. A file may
-//! also carry v6's `digital_inputs`, `digital_outputs`, `dallas_chips` and a
-//! robot's `brakes`: they are accepted and kept as JSON (the emulator reads
-//! the PSM's adapter and tool inputs from `digital_inputs`); brakes are not
-//! driven.
+//! also carry v6's `digital_inputs` (typed: the emulator puts each switch's
+//! level on its line, the dVRK's rule reads it back,
+//! [`DigitalInputConfig::is_pressed`]), a robot's `number_of_brakes` and
+//! `brakes` and an actuator's `brake` calibration (typed: the emulator
+//! models the brakes, the runner releases them as it powers the arm), and
+//! `digital_outputs` and `dallas_chips` (kept as JSON).
+//!
+//! Keys Firelink does not know are read past and reported as warnings
+//! ([`IoConfig::load_with_warnings`]), as the dVRK console reads past
+//! them; a malformed value of a known key is refused with its path. What
+//! the console's own reader would refuse (a required key missing, a wrong
+//! type) is a warning too ([`console`]).
 //!
 //! Older sawRobotIO1394 names are accepted as aliases: `amps_to_bits` for
 //! `current_to_bits`, `bits_to_feedback_amps` for `bits_to_current`,
@@ -70,6 +78,7 @@
 //! conversion; an error echoes the number as it was written (`1e300`, not
 //! 301 digits) and names the field the value breaks.
 
+pub mod console;
 mod convert;
 mod error;
 pub mod presets;
@@ -78,7 +87,7 @@ mod validate;
 #[cfg(test)]
 mod props;
 
-pub use error::{ConfigError, ConfigErrors, Measured, Problem};
+pub use error::{ConfigError, ConfigErrors, ConfigWarning, Measured, Problem, Warning};
 pub use validate::bounds;
 
 use crate::label::{BoardSet, Label};
@@ -93,24 +102,60 @@ pub const SCHEMA_VERSION: &str = "6";
 /// Board IDs are set by a 4-bit rotary switch.
 pub use firelink_wire::board::MAX_BOARD_ID;
 
+/// `robots[0].actuators[1].brake`: an ignored key's path as the loader's
+/// errors write paths.
+fn json_path(path: &serde_ignored::Path<'_>) -> String {
+    use serde_ignored::Path;
+    match path {
+        Path::Root => String::new(),
+        Path::Seq { parent, index } => format!("{}[{index}]", json_path(parent)),
+        Path::Map { parent, key } => {
+            let p = json_path(parent);
+            if p.is_empty() {
+                key.clone()
+            } else {
+                format!("{p}.{key}")
+            }
+        }
+        Path::Some { parent }
+        | Path::NewtypeStruct { parent }
+        | Path::NewtypeVariant { parent } => json_path(parent),
+    }
+}
+
+/// A configuration as loaded, with what its loader accepted but its user
+/// should hear about once: keys Firelink does not use (ignored), and what
+/// would make the dVRK console refuse the file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Loaded {
+    /// The configuration.
+    pub config: IoConfig,
+    /// The warnings, in file order (ignored keys first).
+    pub warnings: Vec<ConfigWarning>,
+}
+
 /// A whole configuration file: one or more robots sharing one bus.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct IoConfig {
-    /// Must be [`SCHEMA_ID`].
-    #[serde(rename = "$id")]
+    /// Must be [`SCHEMA_ID`]; empty when the file has none (a warning:
+    /// the dVRK console refuses such a file).
+    #[serde(rename = "$id", default)]
     pub id: String,
-    /// Must be [`SCHEMA_VERSION`] (a string, as in the dVRK files).
-    #[serde(rename = "$version")]
+    /// Must be [`SCHEMA_VERSION`]: a string, as in the dVRK files (a
+    /// number is read as the console reads it, `6` as `"6"`).
+    #[serde(rename = "$version", deserialize_with = "string_or_number")]
     pub version: String,
     /// Free text (Firelink extension): where the numbers came from.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub description: Option<String>,
-    /// The robots (arms) on this bus.
+    /// The robots (arms) on this bus (none in a file of inputs only, such
+    /// as the foot pedals').
+    #[serde(default)]
     pub robots: Vec<RobotConfig>,
-    /// v6 digital inputs (accepted, not used yet).
+    /// v6 digital inputs: buttons, pedals and contacts on the boards'
+    /// DIGIN lines.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub digital_inputs: Option<serde_json::Value>,
+    pub digital_inputs: Option<Vec<DigitalInputConfig>>,
     /// v6 digital outputs (accepted, not used yet).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub digital_outputs: Option<serde_json::Value>,
@@ -121,7 +166,6 @@ pub struct IoConfig {
 
 /// One robot (arm): a named list of actuators.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct RobotConfig {
     /// Robot name, unique in the file (`MTML`, `PSM1`, ...).
     pub name: String,
@@ -129,7 +173,9 @@ pub struct RobotConfig {
     /// axes a board has. Defaults to `QLA1`.
     #[serde(default)]
     pub hardware_version: HardwareVersion,
-    /// Serial number of the arm (a string in v6).
+    /// Serial number of the arm (a string in v6; a number is read as
+    /// the console reads it).
+    #[serde(deserialize_with = "string_or_number")]
     pub serial_number: String,
     /// Must equal the number of entries in `actuators`.
     pub number_of_actuators: usize,
@@ -144,12 +190,14 @@ pub struct RobotConfig {
     /// v6: whether encoders are preloaded from the potentiometers.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub has_encoder_preload: Option<bool>,
-    /// v6 number of brakes (accepted, not used yet).
+    /// v6 number of brakes: equals the entries of `brakes` (the dVRK
+    /// console requires the key, 0 for an arm without brakes).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub number_of_brakes: Option<usize>,
-    /// v6 brakes (accepted, not used yet).
+    /// v6 brakes: brake `i` holds actuator `i` while its amplifier channel
+    /// carries no release current.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub brakes: Option<serde_json::Value>,
+    pub brakes: Option<Vec<BrakeConfig>>,
     /// v6 potentiometer settings shared by the robot (tolerances used by
     /// homing and the safety monitor).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -212,7 +260,6 @@ impl DvrkArm {
 
 /// What the emulator puts behind one robot (Firelink extension).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct RobotSimulation {
     /// Which dVRK arm the robot is, for the plants of actuators whose
     /// `simulation` names none; by default the robot's name says
@@ -239,7 +286,6 @@ fn is_false(b: &bool) -> bool {
 
 /// An instrument as its 1-wire memory describes it.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct ToolConfig {
     /// Name, as the dVRK tool index spells it (`LARGE_NEEDLE_DRIVER`).
     pub name: String,
@@ -252,7 +298,6 @@ pub struct ToolConfig {
 
 /// One board of a robot, as the emulator presents it.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct BoardSimulation {
     /// Board ID (rotary switch).
     pub board_id: u8,
@@ -264,7 +309,6 @@ pub struct BoardSimulation {
 /// on their labels (`1234-56` or `1234-567`; the PROMs add the `FPGA ` and
 /// `QLA ` prefixes).
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct BoardSerial {
     /// The FPGA board's serial number.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -334,7 +378,6 @@ impl HardwareVersion {
 
 /// One actuator: where it is wired and how its raw values convert.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct ActuatorConfig {
     /// Index of the actuator in its robot; if present it must equal its
     /// position in the list.
@@ -354,6 +397,11 @@ pub struct ActuatorConfig {
     /// Analog potentiometer conversion, if the joint has one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub potentiometer: Option<PotentiometerConfig>,
+    /// The current calibration of this actuator's brake channel, as the
+    /// dVRK's calibration tools write it beside the drive (the stock ECM);
+    /// the brake itself is the robot's `brakes` entry of the same index.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub brake: Option<ActuatorBrakeCalibration>,
     /// Safety limits (Firelink extension).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub limits: Option<LimitsConfig>,
@@ -380,7 +428,6 @@ pub enum JointType {
 
 /// `y = scale * x + offset`, the v6 `linear_function`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct LinearFunction {
     /// Slope; must be finite and non-zero.
     pub scale: f64,
@@ -393,9 +440,181 @@ fn is_zero(x: &f64) -> bool {
     *x == 0.0
 }
 
+/// A string the console reads with jsoncpp's `asString`: a JSON string,
+/// or a number or boolean written as text (`6` reads `"6"`).
+fn string_or_number<'de, D: serde::Deserializer<'de>>(d: D) -> Result<String, D::Error> {
+    match serde_json::Value::deserialize(d)? {
+        serde_json::Value::String(s) => Ok(s),
+        serde_json::Value::Number(n) => Ok(n.to_string()),
+        serde_json::Value::Bool(b) => Ok(b.to_string()),
+        other => Err(serde::de::Error::invalid_type(
+            match &other {
+                serde_json::Value::Null => serde::de::Unexpected::Unit,
+                serde_json::Value::Array(_) => serde::de::Unexpected::Seq,
+                _ => serde::de::Unexpected::Map,
+            },
+            &"a string (or a number)",
+        )),
+    }
+}
+
+/// A v6 brake (`robots[].brakes[]`): an amplifier channel whose current
+/// releases a spring-applied brake. The console releases the brakes as it
+/// powers the arm (`release_current` for `release_time`, then
+/// `released_current` to hold them open) and engages them
+/// (`engaged_current`) as it powers it down.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BrakeConfig {
+    /// Board ID of the brake's amplifier channel.
+    pub board_id: u8,
+    /// Axis (amplifier channel) on that board.
+    pub axis_id: u8,
+    /// The channel's current command and feedback conversions.
+    pub drive: BrakeDrive,
+    /// Current that releases the brake, A.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub release_current: Option<f64>,
+    /// How long the console holds `release_current`, s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub release_time: Option<f64>,
+    /// Current that keeps a released brake open, A.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub released_current: Option<f64>,
+    /// Current while the brake is engaged, A (0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub engaged_current: Option<f64>,
+}
+
+/// A brake channel's conversions (a drive without an effort).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BrakeDrive {
+    /// Amperes to the 16-bit DAC command.
+    pub current_to_bits: LinearFunction,
+    /// 16-bit ADC current feedback to amperes.
+    pub bits_to_current: LinearFunction,
+    /// Largest current ever commanded, A.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub maximum_current: Option<f64>,
+}
+
+/// `actuators[].brake`: offsets of the actuator's brake channel from a
+/// current calibration (the scales are the brake's drive's).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ActuatorBrakeCalibration {
+    /// Offset of the current command.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub current_to_bits: Option<OffsetOnly>,
+    /// Offset of the current feedback.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bits_to_current: Option<OffsetOnly>,
+}
+
+/// A linear function's offset alone (its scale, if given, is kept).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct OffsetOnly {
+    /// Intercept.
+    #[serde(default)]
+    pub offset: f64,
+    /// Slope, if the file gives one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale: Option<f64>,
+}
+
+impl BrakeConfig {
+    /// The current that opens the brake, A: `release_current`, else
+    /// `released_current`, else the drive's `maximum_current`.
+    pub fn opening_current(&self) -> Option<f64> {
+        self.release_current
+            .or(self.released_current)
+            .or(self.drive.maximum_current)
+    }
+
+    /// The current that keeps it open, A: `released_current`, else the
+    /// opening current.
+    pub fn holding_current(&self) -> Option<f64> {
+        self.released_current.or_else(|| self.opening_current())
+    }
+}
+
+/// A v6 digital input: a switch on one of a board's DIGIN lines.
+///
+/// The dVRK reads it (sawRobotIO1394 `mtsDigitalInput1394::PollState`) as
+/// pressed when its line is *low* if `pressed_value` is true, when it is
+/// high if `pressed_value` is false: [`DigitalInputConfig::is_pressed`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DigitalInputConfig {
+    /// Name (`PSM1_adapter`, `Clutch`, ...).
+    pub name: String,
+    /// Board ID.
+    pub board_id: u8,
+    /// Bit of DIGIN (0..=31; the switch lines are 11:0).
+    pub bit_id: u8,
+    /// Which reading means pressed (see the type's docs).
+    #[serde(default, deserialize_with = "bool_or_number")]
+    pub pressed_value: bool,
+    /// v6: emit an event when pressed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trigger_when_pressed: Option<bool>,
+    /// v6: emit an event when released.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trigger_when_released: Option<bool>,
+    /// v6: skip the first reading's event.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skip_first_run: Option<bool>,
+    /// v6 debounce time, s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub debounce_time: Option<f64>,
+    /// v6 debounce time of a click, s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub debounce_time_click: Option<f64>,
+    /// What the emulated switch does (Firelink extension).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub simulation: Option<InputSimulation>,
+}
+
+/// The emulated switch behind a digital input (Firelink extension).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct InputSimulation {
+    /// Whether it rests pressed (a pedal held down, a contact closed);
+    /// released when absent.
+    #[serde(default)]
+    pub pressed: bool,
+}
+
+impl DigitalInputConfig {
+    /// DIGIN's mask of this input.
+    pub fn mask(&self) -> u32 {
+        1u32.checked_shl(u32::from(self.bit_id)).unwrap_or(0)
+    }
+
+    /// Whether the input reads pressed in DIGIN word `digin`, by the
+    /// dVRK's rule: a set bit reads `!pressed_value`, a clear bit
+    /// `pressed_value`.
+    pub fn is_pressed(&self, digin: u32) -> bool {
+        if digin & self.mask() != 0 {
+            !self.pressed_value
+        } else {
+            self.pressed_value
+        }
+    }
+
+    /// The level (true: high) a switch puts on the line to read `pressed`.
+    pub fn line_level(&self, pressed: bool) -> bool {
+        pressed != self.pressed_value
+    }
+}
+
+/// A boolean the console reads with jsoncpp's `asBool` (a number: not 0).
+fn bool_or_number<'de, D: serde::Deserializer<'de>>(d: D) -> Result<bool, D::Error> {
+    match serde_json::Value::deserialize(d)? {
+        serde_json::Value::Bool(b) => Ok(b),
+        serde_json::Value::Number(n) => Ok(n.as_f64().is_some_and(|x| x != 0.0)),
+        _ => Err(serde::de::Error::custom("expected a boolean")),
+    }
+}
+
 /// The amplifier: current command and feedback conversions.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct DriveConfig {
     /// Amperes to the 16-bit DAC command (`offset` ~ 0 A, e.g. 32768).
     #[serde(alias = "amps_to_bits")]
@@ -424,7 +643,6 @@ pub enum VelocitySource {
 
 /// The quadrature encoder.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct EncoderConfig {
     /// Signed counts (around the `0x800000` midpoint) to position (rad or m).
     pub bits_to_position: LinearFunction,
@@ -441,7 +659,6 @@ pub struct EncoderConfig {
 
 /// A closed interval `[lower, upper]`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct Limits {
     /// Smallest allowed value.
     pub lower: f64,
@@ -451,7 +668,6 @@ pub struct Limits {
 
 /// The analog potentiometer of one joint.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct PotentiometerConfig {
     /// 16-bit ADC bits to volts (QLA: 4.5 V / 65536).
     pub bits_to_voltage: LinearFunction,
@@ -462,7 +678,6 @@ pub struct PotentiometerConfig {
 
 /// v6 robot-level potentiometer settings.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct PotentiometersConfig {
     /// `ANALOG`, `DIGITAL`, ...
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -485,7 +700,6 @@ pub struct PotentiometersConfig {
 /// `JointToActuatorPosition` (or the inverse of `ActuatorToJointPosition`
 /// when only that is given); the effort matrices are kept.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct ActuatorJointCoupling {
     /// Actuator positions from joint positions.
     #[serde(
@@ -628,7 +842,6 @@ pub enum PotentiometersType {
 
 /// How far pot and encoder may disagree, and for how long (v6).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct PotentiometerTolerance {
     /// Actuator index in the robot (v6 calls it `axis_id`).
     pub axis_id: usize,
@@ -642,7 +855,6 @@ pub struct PotentiometerTolerance {
 /// `encoder.position_limits_soft` and the current limit is
 /// `drive.maximum_current`; this section adds what v6 lacks.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct LimitsConfig {
     /// Largest allowed speed (rad/s or m/s); also the default trajectory
     /// velocity limit.
@@ -674,7 +886,6 @@ fn default_saturation_time() -> f64 {
 
 /// Simulation and control defaults for one actuator (Firelink extension).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct SimulationConfig {
     /// Which emulated plant drives this axis.
     pub plant: PlantPreset,
@@ -695,7 +906,6 @@ pub struct SimulationConfig {
 
 /// After the encoders agree with the pots, move here.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct HomingDefaults {
     /// Home position (rad or m), inside the soft limits.
     #[serde(default)]
@@ -726,7 +936,6 @@ pub enum StopSide {
 /// `stall_error`), declare the encoder to read `stop_position` there, then
 /// move freely back.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct StopSearchConfig {
     /// Which stop.
     pub side: StopSide,
@@ -905,12 +1114,21 @@ impl IoConfig {
     /// missing field (only the first such error: parsing stops there), or
     /// any number of validation failures.
     pub fn load(path: impl AsRef<Path>) -> Result<IoConfig, ConfigErrors> {
+        Self::load_with_warnings(path).map(|l| l.config)
+    }
+
+    /// [`IoConfig::load`], with what the loader accepted but the program
+    /// should tell its user once (see [`Loaded`]).
+    ///
+    /// # Errors
+    /// As [`IoConfig::load`].
+    pub fn load_with_warnings(path: impl AsRef<Path>) -> Result<Loaded, ConfigErrors> {
         let path = path.as_ref();
         let file = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|e| {
             ConfigErrors::one(ConfigError::new(&file, "", Problem::Io(e.to_string())))
         })?;
-        Self::from_json_str(&text, &file)
+        Self::from_json_str_with_warnings(&text, &file)
     }
 
     /// Parses and validates `text`; `file` names it in errors.
@@ -918,9 +1136,17 @@ impl IoConfig {
     /// # Errors
     /// As [`IoConfig::load`], without the read error.
     pub fn from_json_str(text: &str, file: &str) -> Result<IoConfig, ConfigErrors> {
-        let config = Self::parse_unvalidated(text, file)?;
-        config.validate(file)?;
-        Ok(config)
+        Self::from_json_str_with_warnings(text, file).map(|l| l.config)
+    }
+
+    /// [`IoConfig::from_json_str`] with its warnings.
+    ///
+    /// # Errors
+    /// As [`IoConfig::from_json_str`].
+    pub fn from_json_str_with_warnings(text: &str, file: &str) -> Result<Loaded, ConfigErrors> {
+        let loaded = Self::parse_with_warnings(text, file)?;
+        loaded.config.validate(file)?;
+        Ok(loaded)
     }
 
     /// Parses `text` without the validation rules (for tools that want to
@@ -929,13 +1155,40 @@ impl IoConfig {
     /// # Errors
     /// The first syntax or type error, with its JSON path.
     pub fn parse_unvalidated(text: &str, file: &str) -> Result<IoConfig, ConfigErrors> {
-        let mut de = serde_json::Deserializer::from_str(text);
-        let config: IoConfig = serde_path_to_error::deserialize(&mut de)
-            .map_err(|e| ConfigErrors::one(ConfigError::from_serde(file, e)))?;
-        de.end().map_err(|e| {
+        Self::parse_with_warnings(text, file).map(|l| l.config)
+    }
+
+    /// Parses `text`: the keys Firelink knows into the configuration
+    /// (a malformed value is an error naming its path), every other key
+    /// into a warning, and whatever the dVRK console's reader would refuse
+    /// ([`console::check`]) into warnings too.
+    fn parse_with_warnings(text: &str, file: &str) -> Result<Loaded, ConfigErrors> {
+        let syntax = |e: serde_json::Error| {
             ConfigErrors::one(ConfigError::new(file, "", Problem::Syntax(e.to_string())))
-        })?;
-        Ok(config)
+        };
+        // The document as JSON first: a syntax error is reported as one,
+        // and the console's schema is checked on what the file says.
+        let value: serde_json::Value = serde_json::from_str(text).map_err(syntax)?;
+        let mut ignored: Vec<String> = Vec::new();
+        let mut de = serde_json::Deserializer::from_str(text);
+        let config: IoConfig = {
+            let mut note = |path: serde_ignored::Path<'_>| ignored.push(json_path(&path));
+            let tracked = serde_ignored::Deserializer::new(&mut de, &mut note);
+            serde_path_to_error::deserialize(tracked)
+                .map_err(|e| ConfigErrors::one(ConfigError::from_serde(file, e)))?
+        };
+        de.end().map_err(syntax)?;
+        let mut warnings: Vec<ConfigWarning> = ignored
+            .into_iter()
+            .map(|path| ConfigWarning::new(file, path, Warning::Ignored))
+            .collect();
+        if value.get("$id").is_none() {
+            warnings.push(ConfigWarning::new(file, "$id", Warning::NoSchemaId));
+        }
+        warnings.extend(console::check(&value).into_iter().map(|issue| {
+            ConfigWarning::new(file, issue.path.clone(), Warning::Console(issue.problem))
+        }));
+        Ok(Loaded { config, warnings })
     }
 
     /// Checks every rule; see [`Problem`] for the list.
@@ -1005,18 +1258,25 @@ impl IoConfig {
     /// Board IDs the v6 sections kept as JSON name (brakes, digital inputs
     /// and outputs, Dallas chips), in file order, repeats included.
     fn other_boards(&self) -> impl Iterator<Item = u8> + '_ {
-        let lists = self
+        let brakes = self
             .robots
             .iter()
             .filter_map(|r| r.brakes.as_ref())
-            .chain(self.digital_inputs.as_ref())
-            .chain(self.digital_outputs.as_ref())
+            .flatten()
+            .map(|b| b.board_id);
+        let inputs = self.digital_inputs.iter().flatten().map(|d| d.board_id);
+        let lists = self
+            .digital_outputs
+            .iter()
             .chain(self.dallas_chips.as_ref());
-        lists
+        let others = lists
             .filter_map(serde_json::Value::as_array)
             .flatten()
             .filter_map(|item| item.get("board_id")?.as_u64())
-            .filter_map(|id| u8::try_from(id).ok())
+            .filter_map(|id| u8::try_from(id).ok());
+        brakes
+            .chain(inputs)
+            .chain(others)
             .filter(|&id| id <= MAX_BOARD_ID)
     }
 
@@ -1031,22 +1291,19 @@ impl IoConfig {
             .map(|b| &b.serial)
     }
 
-    /// The v6 digital input named `name`: (board ID, bit, level when
-    /// pressed).
-    pub fn digital_input(&self, name: &str) -> Option<(u8, u8, bool)> {
-        let item = self
-            .digital_inputs
-            .as_ref()?
-            .as_array()?
+    /// The v6 digital input named `name`.
+    pub fn digital_input(&self, name: &str) -> Option<&DigitalInputConfig> {
+        self.digital_inputs
             .iter()
-            .find(|d| d.get("name").and_then(serde_json::Value::as_str) == Some(name))?;
-        let board = u8::try_from(item.get("board_id")?.as_u64()?).ok()?;
-        let bit = u8::try_from(item.get("bit_id")?.as_u64()?).ok()?;
-        let pressed = match item.get("pressed_value")? {
-            serde_json::Value::Bool(b) => *b,
-            v => v.as_u64()? != 0,
-        };
-        Some((board, bit, pressed))
+            .flatten()
+            .find(|d| d.name == name)
+    }
+
+    /// Whether the digital input named `name` reads pressed in its
+    /// board's DIGIN word `digin` (the dVRK's rule,
+    /// [`DigitalInputConfig::is_pressed`]); `None` for no such input.
+    pub fn input_pressed(&self, name: &str, digin: u32) -> Option<bool> {
+        self.digital_input(name).map(|d| d.is_pressed(digin))
     }
 
     /// The boards in use, by ascending ID.
@@ -1070,9 +1327,19 @@ impl IoConfig {
         boards
     }
 
-    /// The boards in use as a mask (the broadcast query's board mask).
+    /// The boards the robots drive as a mask (the broadcast query's board
+    /// mask): their actuators' and their brakes' boards.
     pub fn board_set(&self) -> BoardSet {
-        self.joints().map(|j| j.actuator.board_id).collect()
+        let brakes = self
+            .robots
+            .iter()
+            .flat_map(|r| r.brakes.iter().flatten())
+            .map(|b| b.board_id);
+        self.joints()
+            .map(|j| j.actuator.board_id)
+            .chain(brakes)
+            .filter(|&id| id <= MAX_BOARD_ID)
+            .collect()
     }
 
     /// The robot named `name`.

@@ -18,9 +18,10 @@
 //! are plausible choices, not a calibrated robot's.
 
 use super::{
-    ActuatorConfig, ActuatorJointCoupling, BoardSerial, BoardSimulation, DriveConfig, DvrkArm,
-    EncoderConfig, HardwareVersion, HomingDefaults, IoConfig, JointType, Limits, LimitsConfig,
-    LinearFunction, PlantPreset, PotentiometerConfig, PotentiometerTolerance, PotentiometersConfig,
+    ActuatorBrakeCalibration, ActuatorConfig, ActuatorJointCoupling, BoardSerial, BoardSimulation,
+    BrakeConfig, BrakeDrive, DigitalInputConfig, DriveConfig, DvrkArm, EncoderConfig,
+    HardwareVersion, HomingDefaults, IoConfig, JointType, Limits, LimitsConfig, LinearFunction,
+    PlantPreset, PotentiometerConfig, PotentiometerTolerance, PotentiometersConfig,
     PotentiometersType, RobotConfig, RobotSimulation, SCHEMA_ID, SCHEMA_VERSION, SimulationConfig,
     StopSearchConfig, StopSide, VelocitySource,
 };
@@ -200,6 +201,7 @@ impl Axis {
             drive: self.drive(),
             encoder: self.encoder(),
             potentiometer: Some(self.potentiometer()),
+            brake: None,
             limits: Some(LimitsConfig {
                 velocity: self.velocity_limit,
                 acceleration: Some(round_sig(4.0 * self.velocity_limit, 3)),
@@ -273,8 +275,9 @@ fn robot(
         robot_type: None,
         only_io: None,
         has_encoder_preload: Some(true),
-        number_of_brakes: None,
-        brakes: None,
+        // The dVRK console requires the count, 0 without brakes.
+        number_of_brakes: Some(0),
+        brakes: Some(Vec::new()),
         potentiometers: Some(PotentiometersConfig {
             potentiometers_type: Some(PotentiometersType::Analog),
             tolerances,
@@ -668,7 +671,8 @@ fn mtm_coupling() -> Vec<Vec<f64>> {
 
 /// A stock Classic MTMR: JHU's research kit MTMR (serial 28247) on boards
 /// 2-3 as the dVRK numbers them, its pots on the joints (coupling), the
-/// wrist roll homed by a stop search against its lower stop at -480
+/// wrist roll's pot reading only about half a turn (unchecked, as in the
+/// dVRK's files), the roll homed by a stop search against its lower stop at -480
 /// degrees, as the dVRK console does (360 degrees/s reached at 360
 /// degrees/s², stall declared at half a turn of following error, at most
 /// 3.25 turns of travel).
@@ -707,6 +711,12 @@ pub fn stock_mtmr() -> IoConfig {
             a.pot_span = Some((lo - widen, hi + widen));
         }
     }
+    // The wrist roll's pot reads about half a turn, as the arm's does:
+    // from +1.4 rad at 0 V to -1.8 rad at 4.5 V, saturating beyond (the
+    // console homes the roll by its stop and does not check its pot).
+    if let Some(roll) = axes.get_mut(6) {
+        roll.pot_span = Some((1.40, -1.80));
+    }
     let mut mtmr = robot("MTMR", "28247", HardwareVersion::Qla1, &[2, 3], &axes);
     if let Some(p) = mtmr.potentiometers.as_mut() {
         p.coupling = Some(ActuatorJointCoupling {
@@ -725,10 +735,11 @@ pub fn stock_mtmr() -> IoConfig {
          sawRobotIO1394-MTMR-28247.json: public gear ratios, encoder counts, torque constants, \
          maximum currents, directions, soft limits, pot tolerances and pot coupling (pots on \
          the joints); board serial numbers from JHU's public hardware status page. Pot and \
-         current calibrations are plausible values. Firelink sections: stops 3 degrees beyond \
-         the soft limits (roll: -480 and +456 degrees), the roll homed by a stop search as the \
-         console does (stall at a following error of half a turn, encoder set to -480 \
-         degrees).",
+         current calibrations are plausible values; the wrist roll's pot reads about half a \
+         turn (-1.8 to 1.4 rad) and saturates beyond, its check off. Firelink sections: stops \
+         3 degrees beyond the soft limits (roll: -480 and +456 degrees), the roll homed by a \
+         stop search as the console does (stall at a following error of half a turn, encoder \
+         set to -480 degrees).",
         vec![mtmr],
     )
 }
@@ -773,8 +784,8 @@ pub fn stock_psm1() -> IoConfig {
 }
 
 /// A stock Classic ECM: JHU's ECM (serial 29738) on boards 4-5 as the
-/// dVRK numbers them, its three brakes on the second board (listed, not
-/// driven: the emulator does not model brakes).
+/// dVRK numbers them, its three brakes on the second board's channels 0-2
+/// (each holds the actuator of its index until released).
 pub fn stock_ecm() -> IoConfig {
     let mut ecm = robot(
         "ECM",
@@ -783,28 +794,45 @@ pub fn stock_ecm() -> IoConfig {
         &[4, 5],
         &stock(ecm_axes()),
     );
-    let brakes: Vec<serde_json::Value> =
-        [(0.25, 0.25, 0.08), (0.22, 0.22, 0.07), (0.90, 0.90, 0.20)]
-            .iter()
-            .enumerate()
-            .map(|(axis, &(max, release, released))| {
-                json!({
-                    "axis_id": axis,
-                    "board_id": 5,
-                    "drive": {
-                        "current_to_bits": { "scale": 5242.88, "offset": 32768.0 },
-                        "bits_to_current": { "scale": round_to(1.0 / 5242.88, 9), "offset": -6.25 },
-                        "maximum_current": max
-                    },
-                    "release_current": release,
-                    "release_time": 2.0,
-                    "released_current": released,
-                    "engaged_current": 0.0
-                })
-            })
-            .collect();
+    let brakes: Vec<BrakeConfig> = [(0.25, 0.25, 0.08), (0.22, 0.22, 0.07), (0.90, 0.90, 0.20)]
+        .iter()
+        .enumerate()
+        .map(|(axis, &(max, release, released))| BrakeConfig {
+            board_id: 5,
+            axis_id: axis as u8,
+            drive: BrakeDrive {
+                current_to_bits: LinearFunction {
+                    scale: 5242.88,
+                    offset: 32768.0 + BRAKE_DAC_OFFSETS[axis],
+                },
+                bits_to_current: LinearFunction {
+                    scale: round_to(1.0 / 5242.88, 9),
+                    offset: -6.25,
+                },
+                maximum_current: Some(max),
+            },
+            release_current: Some(release),
+            release_time: Some(2.0),
+            released_current: Some(released),
+            engaged_current: Some(0.0),
+        })
+        .collect();
+    // The calibration tool's brake offsets beside each braked actuator's
+    // drive, as in the dVRK's ECM files.
+    for (a, offset) in ecm.actuators.iter_mut().zip(BRAKE_SENSE_OFFSETS) {
+        a.brake = Some(ActuatorBrakeCalibration {
+            current_to_bits: Some(super::OffsetOnly {
+                offset: 0.0,
+                scale: None,
+            }),
+            bits_to_current: Some(super::OffsetOnly {
+                offset,
+                scale: None,
+            }),
+        });
+    }
     ecm.number_of_brakes = Some(brakes.len());
-    ecm.brakes = Some(serde_json::Value::Array(brakes));
+    ecm.brakes = Some(brakes);
     ecm.simulation = Some(RobotSimulation {
         arm: Some(DvrkArm::Ecm),
         boards: serials(&[(4, "3985-01", "3984-01"), (5, "3985-02", "3984-02")]),
@@ -815,10 +843,10 @@ pub fn stock_ecm() -> IoConfig {
          4-5, as the dVRK's configuration generator lays out sawRobotIO1394-ECM-29738.json: \
          public gear ratios, encoder counts, torque constants, maximum currents, directions, \
          soft limits, pot tolerances, brakes (board 5, axes 0-2) and digital inputs (arm and \
-         SUJ clutch). Pot and current calibrations are plausible values; the board serial \
-         numbers have the public format but are not a documented ECM's. Firelink sections: \
-         stops 3 degrees (3 mm) beyond the soft limits. Brakes are not modelled by the \
-         emulator (the joints are free, and carry no gravity load).",
+         SUJ clutch). Pot, current and brake calibrations are plausible values; the board \
+         serial numbers have the public format but are not a documented ECM's. Firelink \
+         sections: stops 3 degrees (3 mm) beyond the soft limits. The brakes hold joints 1-3 \
+         until their channels carry the release current.",
         vec![ecm],
     );
     c.digital_inputs = Some(digital_inputs(&[
@@ -827,6 +855,13 @@ pub fn stock_ecm() -> IoConfig {
     ]));
     c
 }
+
+/// The ECM brake channels' calibrated DAC offsets (code of 0 A minus
+/// 32768).
+const BRAKE_DAC_OFFSETS: [f64; 3] = [19.0, -27.0, 33.0];
+/// The ECM brakes' feedback offsets the calibration tool writes beside the
+/// actuators' drives, A.
+const BRAKE_SENSE_OFFSETS: [f64; 3] = [-0.0612, -0.0284, -0.0935];
 
 /// Board serial numbers: (board ID, FPGA, QLA).
 fn serials(boards: &[(u8, &str, &str)]) -> Vec<BoardSimulation> {
@@ -842,25 +877,25 @@ fn serials(boards: &[(u8, &str, &str)]) -> Vec<BoardSimulation> {
         .collect()
 }
 
-/// v6 digital inputs: (name, board ID, bit), pressed when high, 0.2 s
-/// debounce, events both ways (the Classic arms' settings).
-fn digital_inputs(inputs: &[(&str, u8, u8)]) -> serde_json::Value {
-    serde_json::Value::Array(
-        inputs
-            .iter()
-            .map(|&(name, board_id, bit_id)| {
-                json!({
-                    "bit_id": bit_id,
-                    "board_id": board_id,
-                    "debounce_time": 0.2,
-                    "name": name,
-                    "pressed_value": true,
-                    "trigger_when_pressed": true,
-                    "trigger_when_released": true
-                })
-            })
-            .collect(),
-    )
+/// v6 digital inputs: (name, board ID, bit), `pressed_value` true (the
+/// dVRK reads them pressed when their line is low), 0.2 s debounce, events
+/// both ways (the Classic arms' settings).
+fn digital_inputs(inputs: &[(&str, u8, u8)]) -> Vec<DigitalInputConfig> {
+    inputs
+        .iter()
+        .map(|&(name, board_id, bit_id)| DigitalInputConfig {
+            name: name.to_string(),
+            board_id,
+            bit_id,
+            pressed_value: true,
+            trigger_when_pressed: Some(true),
+            trigger_when_released: Some(true),
+            skip_first_run: None,
+            debounce_time: Some(0.2),
+            debounce_time_click: None,
+            simulation: None,
+        })
+        .collect()
 }
 
 /// The Snake robot's own axes (two three-axis SLUs, a gripper, a

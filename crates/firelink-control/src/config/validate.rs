@@ -239,7 +239,8 @@ pub(super) fn validate(config: &IoConfig, file: &str) -> Result<(), ConfigErrors
         file,
         errors: Vec::new(),
     };
-    if config.id != SCHEMA_ID {
+    // No `$id` at all is a warning (the loader's); another one is not v6.
+    if !config.id.is_empty() && config.id != SCHEMA_ID {
         c.push(
             "$id",
             Problem::Unsupported {
@@ -257,8 +258,28 @@ pub(super) fn validate(config: &IoConfig, file: &str) -> Result<(), ConfigErrors
             },
         );
     }
-    if config.robots.is_empty() {
+    // A file may hold only inputs (the foot pedals'), not nothing.
+    if config.robots.is_empty() && config.digital_inputs.as_ref().is_none_or(Vec::is_empty) {
         c.push("robots", Problem::Empty);
+    }
+    for (i, d) in config.digital_inputs.iter().flatten().enumerate() {
+        let dp = format!("digital_inputs[{i}]");
+        c.board_id(format!("{dp}.board_id"), d.board_id);
+        if d.bit_id >= 32 {
+            c.out_of_range(
+                format!("{dp}.bit_id"),
+                f64::from(d.bit_id),
+                "0..=31 (a bit of DIGITAL_IN)",
+            );
+        }
+        for (key, t) in [
+            ("debounce_time", d.debounce_time),
+            ("debounce_time_click", d.debounce_time_click),
+        ] {
+            if let Some(t) = t {
+                c.non_negative(&format!("{dp}.{key}"), t, bounds::CHECK_SECONDS, " s");
+            }
+        }
     }
 
     // (board_id, axis_id) -> first path; board_id -> (hardware, robot path).
@@ -367,6 +388,7 @@ fn check_robot(c: &mut Checker<'_>, rp: &str, robot: &RobotConfig) {
     if let Some(sim) = &robot.simulation {
         check_robot_simulation(c, &format!("{rp}.simulation"), sim);
     }
+    check_brakes(c, rp, robot);
     let Some(pots) = &robot.potentiometers else {
         return;
     };
@@ -451,6 +473,49 @@ fn check_robot(c: &mut Checker<'_>, rp: &str, robot: &RobotConfig) {
             bounds::CHECK_SECONDS,
             " s",
         );
+    }
+}
+
+/// A robot's brakes: as many as `number_of_brakes` says, each on a board
+/// the switch can set, with currents the QLA can drive and a release time
+/// that ends.
+fn check_brakes(c: &mut Checker<'_>, rp: &str, robot: &RobotConfig) {
+    let brakes = robot.brakes.as_deref().unwrap_or(&[]);
+    if let Some(n) = robot.number_of_brakes {
+        if n != brakes.len() {
+            c.push(
+                format!("{rp}.number_of_brakes"),
+                Problem::Mismatch(format!(
+                    "number_of_brakes is {n} but {} brakes are listed",
+                    brakes.len()
+                )),
+            );
+        }
+    }
+    for (bi, b) in brakes.iter().enumerate() {
+        let bp = format!("{rp}.brakes[{bi}]");
+        c.board_id(format!("{bp}.board_id"), b.board_id);
+        for (key, f) in [
+            ("current_to_bits", b.drive.current_to_bits),
+            ("bits_to_current", b.drive.bits_to_current),
+        ] {
+            let p = format!("{bp}.drive.{key}");
+            c.finite(&format!("{p}.scale"), f.scale);
+            c.finite(&format!("{p}.offset"), f.offset);
+        }
+        for (key, v) in [
+            ("drive.maximum_current", b.drive.maximum_current),
+            ("release_current", b.release_current),
+            ("released_current", b.released_current),
+            ("engaged_current", b.engaged_current),
+        ] {
+            if let Some(v) = v {
+                c.non_negative(&format!("{bp}.{key}"), v, bounds::CURRENT, " A");
+            }
+        }
+        if let Some(t) = b.release_time {
+            c.non_negative(&format!("{bp}.release_time"), t, bounds::MOVE_SECONDS, " s");
+        }
     }
 }
 

@@ -198,6 +198,10 @@ pub struct Robot<R: RobotIo> {
     found_at_configure: Option<LeftOver>,
     /// The last power-down's findings.
     last_power_down: Option<PowerDown>,
+    /// The robots' brakes, as the console drives them.
+    brakes: Vec<BrakeChannel>,
+    /// When the brakes were last released (power on), seconds.
+    brakes_released_at: Option<f64>,
 }
 
 /// What [`Robot::configure`] found on the expected boards before taking
@@ -305,6 +309,41 @@ fn pot_mix(config: &IoConfig) -> Vec<(usize, usize, f64)> {
     mix
 }
 
+/// One brake's amplifier channel and the commands the console gives it:
+/// `release` for `release_time` after power on, then `hold`; `engaged`
+/// whenever the robot is not powered and running.
+#[derive(Debug, Clone, Copy)]
+struct BrakeChannel {
+    axis: usize,
+    release: u16,
+    hold: u16,
+    engaged: u16,
+    release_time: f64,
+}
+
+impl BrakeChannel {
+    /// The brake `b` on I/O axis `axis`.
+    fn new(axis: usize, b: &crate::config::BrakeConfig) -> BrakeChannel {
+        let f = b.drive.current_to_bits;
+        let code = |amps: f64| {
+            let c = (f.scale * amps + f.offset).round();
+            if c.is_finite() {
+                c.clamp(0.0, 65535.0) as u16
+            } else {
+                0x8000
+            }
+        };
+        let release = b.opening_current().unwrap_or(0.0);
+        BrakeChannel {
+            axis,
+            release: code(release),
+            hold: code(b.holding_current().unwrap_or(release)),
+            engaged: code(b.engaged_current.unwrap_or(0.0)),
+            release_time: b.release_time.unwrap_or(0.0).max(0.0),
+        }
+    }
+}
+
 impl<R: RobotIo> Robot<R> {
     /// A robot for `config` over the axes of `io`.
     ///
@@ -351,15 +390,30 @@ impl<R: RobotIo> Robot<R> {
             by_board.push((a.board_id, a.axis_id, joints.len()));
             joints.push(Joint::new(&j, usize::from(a.board_id), axis));
         }
+        let mut brakes = Vec::new();
+        let mut brake_amps = Vec::new();
+        for r in &config.robots {
+            for (bi, b) in r.brakes.iter().flatten().enumerate() {
+                let Some(axis) = io.axis_index(b.board_id, b.axis_id) else {
+                    return Err(RunnerError::Config(format!(
+                        "{}: brake {bi}: board {} axis {} is not on the bus",
+                        r.name, b.board_id, b.axis_id
+                    )));
+                };
+                brake_amps.push((b.board_id, b.axis_id));
+                brakes.push(BrakeChannel::new(axis, b));
+            }
+        }
         by_board.sort_unstable();
-        let used_amps =
-            by_board
-                .iter()
-                .try_fold([0u64; MAX_BOARDS], |mut used, &(board, axis, _)| {
-                    let bit = 1u64.checked_shl(u32::from(axis))?;
-                    *used.get_mut(usize::from(board))? |= bit;
-                    Some(used)
-                });
+        let used_amps = by_board
+            .iter()
+            .map(|&(board, axis, _)| (board, axis))
+            .chain(brake_amps.iter().copied())
+            .try_fold([0u64; MAX_BOARDS], |mut used, (board, axis)| {
+                let bit = 1u64.checked_shl(u32::from(axis))?;
+                *used.get_mut(usize::from(board))? |= bit;
+                Some(used)
+            });
         let n = joints.len();
         let arm_names: Vec<String> = config.robots.iter().map(|r| r.name.clone()).collect();
         Ok(Robot {
@@ -401,6 +455,8 @@ impl<R: RobotIo> Robot<R> {
             stop: StopRequest::process(),
             found_at_configure: None,
             last_power_down: None,
+            brakes,
+            brakes_released_at: None,
         })
     }
 
@@ -687,6 +743,11 @@ impl<R: RobotIo> Robot<R> {
         for j in &self.joints {
             let _ = self.io.set_amplifier_enable(j.axis, true);
         }
+        // The brakes are released as the arm is powered.
+        for b in &self.brakes {
+            let _ = self.io.set_amplifier_enable(b.axis, true);
+        }
+        self.brakes_released_at = Some(self.now());
         self.wait_for("amplifiers", each, |s| {
             expected.minus(s.amplifiers_enabled).is_empty()
         })
@@ -1116,6 +1177,16 @@ impl<R: RobotIo> Robot<R> {
         let active = self.life.state() == State::Active;
         for j in &self.joints {
             let _ = self.io.set_motor_command(j.axis, j.command(active));
+        }
+        let running = matches!(self.life.state(), State::Active | State::Configured);
+        let since = self.brakes_released_at.filter(|_| running).map(|t| now - t);
+        for b in &self.brakes {
+            let code = match since {
+                Some(t) if t < b.release_time => b.release,
+                Some(_) => b.hold,
+                None => b.engaged,
+            };
+            let _ = self.io.set_motor_command(b.axis, code);
         }
     }
 }
