@@ -21,6 +21,9 @@
 //! - [`fault`]: the fault report ([`FaultReport`]), `Copy` and
 //!   allocation-free.
 //! - [`homing`]: make the encoders agree with the potentiometers.
+//! - [`kinematics`]: the dVRK MTM's and PSM's forward and inverse
+//!   kinematics from their public DH tables, and the PSM instrument's
+//!   coupling.
 //! - [`safety`]: the per-cycle safety monitor (following error, velocity,
 //!   current saturation, position, pot/encoder agreement).
 //! - [`budget`]: does the cycle fit its period (seed 002, Table I).
@@ -77,6 +80,7 @@ pub mod budget;
 pub mod config;
 pub mod fault;
 pub mod homing;
+pub mod kinematics;
 mod label;
 pub mod lifecycle;
 pub mod pid;
