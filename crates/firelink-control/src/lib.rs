@@ -26,6 +26,8 @@
 //!   coupling.
 //! - [`safety`]: the per-cycle safety monitor (following error, velocity,
 //!   current saturation, position, pot/encoder agreement).
+//! - [`teleop`]: an MTM teleoperating a PSM as the dVRK console does
+//!   (alignment, scale, clutch, gripper to jaw).
 //! - [`budget`]: does the cycle fit its period (seed 002, Table I).
 //! - [`runner`]: [`Robot`](runner::Robot), a configuration over the host
 //!   library's abstract robot I/O (`firelink_host::RobotIo`, seed 001's
@@ -86,6 +88,7 @@ pub mod lifecycle;
 pub mod pid;
 pub mod runner;
 pub mod safety;
+pub mod teleop;
 pub mod trajectory;
 
 pub use fault::{FaultKind, FaultReport};
