@@ -284,7 +284,7 @@ pub const MTM_GRIPPER_SPRING: f64 = 0.02;
 /// [`MTM_GRIPPER_REST`]; the levers stop 10 degrees past closed (squeezed
 /// hard) and at 65 degrees. A hand pinches it with an external torque
 /// ([`Axis::set_external_torque`](super::Axis::set_external_torque));
-/// viscous friction makes the levers settle in about 0.1 s.
+/// viscous friction makes the levers settle in about 50 ms.
 pub fn mtm_gripper() -> AxisParams {
     let mut p = unused_channel();
     p.name = "MTM gripper".into();
@@ -293,7 +293,7 @@ pub fn mtm_gripper() -> AxisParams {
     p.pot.volts_per_unit = volts_per_rad;
     p.pot.offset_volts = -MTM_GRIPPER_DEG_AT_ZERO_VOLTS / MTM_GRIPPER_DEG_PER_VOLT;
     p.motor.rotor_inertia = 1.0e-6;
-    p.motor.viscous_friction = 2.0e-3;
+    p.motor.viscous_friction = 1.0e-3;
     p.motor.coulomb_friction = 2.0e-4;
     p.load = LoadParams {
         gear_ratio: 1.0,

@@ -34,7 +34,10 @@ const fn revolute(alpha: f64, a: f64, d: f64, offset: f64, limits: (f64, f64)) -
 }
 
 /// The MTM's links, standard DH (`share/kinematic/mtmr.json`; the file's
-/// 1.5708 read as pi/2), with its joint limits.
+/// 1.5708 read as pi/2), with its joint limits as the file writes them
+/// (`qmin`, `qmax`: its rounded numbers kept, so the limits are the
+/// console's to the last digit).
+#[allow(clippy::approx_constant)]
 pub const MTM_LINKS: [DhLink; MTM_JOINTS] = [
     // outer yaw: -65 to 40 degrees
     revolute(FRAC_PI_2, 0.0, 0.0, -FRAC_PI_2, (-1.13446, 0.698132)),
