@@ -501,17 +501,8 @@ impl Session {
 /// does not finish within 10 s, a configuration the rig cannot build.
 pub fn run_teleop(options: &TeleopOptions) -> Result<TeleopReport, TestbedError> {
     let config = mtmr_psm1();
-    let used = config.board_set();
-    let boards: Vec<_> = rig::board_configs(&config, options.firmware, config.board_slots())
-        .into_iter()
-        .filter(|b| used.contains(b.board_id))
-        .collect();
-    let ids: Vec<u8> = boards.iter().map(|b| b.board_id).collect();
-    let (port, handles) = rig::sim_port(boards, false)?;
-    let gripper_board = ids
-        .iter()
-        .position(|&id| id == 3)
-        .and_then(|k| handles.get(k).copied());
+    let (port, boards) = rig::sim_port_of_used(&config, options.firmware)?;
+    let gripper_board = boards.iter().find(|(id, _)| *id == 3).map(|(_, h)| *h);
     let gripper_axis = config
         .robots
         .first()

@@ -3,6 +3,7 @@
 //! `D`, a joint `offset` added to the joint value, a type and the joint
 //! limits, under the file's convention.
 
+use super::KinematicsError;
 use super::frame::{Frame, Rotation};
 
 /// How a link's four parameters compose.
@@ -44,6 +45,32 @@ pub struct DhLink {
 }
 
 impl DhLink {
+    /// A revolute link (`theta` 0).
+    pub const fn revolute(alpha: f64, a: f64, d: f64, offset: f64, limits: (f64, f64)) -> DhLink {
+        DhLink {
+            alpha,
+            a,
+            theta: 0.0,
+            d,
+            offset,
+            kind: JointKind::Revolute,
+            limits,
+        }
+    }
+
+    /// A prismatic link (`theta` 0).
+    pub const fn prismatic(alpha: f64, a: f64, d: f64, offset: f64, limits: (f64, f64)) -> DhLink {
+        DhLink {
+            alpha,
+            a,
+            theta: 0.0,
+            d,
+            offset,
+            kind: JointKind::Prismatic,
+            limits,
+        }
+    }
+
     /// The link's transform at joint value `q`.
     pub fn frame(&self, convention: Convention, q: f64) -> Frame {
         let (theta, d) = match self.kind {
@@ -70,6 +97,22 @@ impl DhLink {
     pub fn allows(&self, q: f64, slack: f64) -> bool {
         self.limits.0 - slack <= q && q <= self.limits.1 + slack
     }
+}
+
+/// The first joint of `q` outside its link's limits (widened by 1e-9),
+/// as the error an inverse returns.
+pub fn out_of_limits(links: &[DhLink], q: &[f64]) -> Option<KinematicsError> {
+    links
+        .iter()
+        .zip(q)
+        .enumerate()
+        .find(|(_, (l, q))| !l.allows(**q, 1e-9))
+        .map(|(joint, (l, &value))| KinematicsError::JointLimit {
+            joint,
+            value,
+            lower: l.limits.0,
+            upper: l.limits.1,
+        })
 }
 
 /// The transform of a chain of links at joint values `q` (as many links as

@@ -14,24 +14,12 @@
 //! platform faces the operator's hand.
 
 use super::KinematicsError;
-use super::dh::{Convention, DhLink, JointKind, chain};
+use super::dh::{Convention, DhLink, chain};
 use super::frame::{Frame, Rotation, Vec3, norm, sub};
 use core::f64::consts::{FRAC_PI_2, PI};
 
 /// Joints of the MTM.
 pub const MTM_JOINTS: usize = 7;
-
-const fn revolute(alpha: f64, a: f64, d: f64, offset: f64, limits: (f64, f64)) -> DhLink {
-    DhLink {
-        alpha,
-        a,
-        theta: 0.0,
-        d,
-        offset,
-        kind: JointKind::Revolute,
-        limits,
-    }
-}
 
 /// The MTM's links, standard DH (`share/kinematic/mtmr.json`; the file's
 /// 1.5708 read as pi/2), with its joint limits as the file writes them
@@ -40,19 +28,19 @@ const fn revolute(alpha: f64, a: f64, d: f64, offset: f64, limits: (f64, f64)) -
 #[allow(clippy::approx_constant)]
 pub const MTM_LINKS: [DhLink; MTM_JOINTS] = [
     // outer yaw: -65 to 40 degrees
-    revolute(FRAC_PI_2, 0.0, 0.0, -FRAC_PI_2, (-1.13446, 0.698132)),
+    DhLink::revolute(FRAC_PI_2, 0.0, 0.0, -FRAC_PI_2, (-1.13446, 0.698132)),
     // shoulder pitch: -15 to 50 degrees
-    revolute(0.0, 0.2794, 0.0, -FRAC_PI_2, (-0.261799, 0.872665)),
+    DhLink::revolute(0.0, 0.2794, 0.0, -FRAC_PI_2, (-0.261799, 0.872665)),
     // elbow pitch: -50 to 35 degrees
-    revolute(-FRAC_PI_2, 0.3645, 0.0, FRAC_PI_2, (-0.872665, 0.610865)),
+    DhLink::revolute(-FRAC_PI_2, 0.3645, 0.0, FRAC_PI_2, (-0.872665, 0.610865)),
     // wrist platform: -70 to 230 degrees
-    revolute(FRAC_PI_2, 0.0, 0.1506, 0.0, (-1.22173, 4.01426)),
+    DhLink::revolute(FRAC_PI_2, 0.0, 0.1506, 0.0, (-1.22173, 4.01426)),
     // wrist pitch: -90 to 180 degrees
-    revolute(-FRAC_PI_2, 0.0, 0.0, 0.0, (-1.5708, 3.14159)),
+    DhLink::revolute(-FRAC_PI_2, 0.0, 0.0, 0.0, (-1.5708, 3.14159)),
     // wrist yaw: -45 to 45 degrees
-    revolute(FRAC_PI_2, 0.0, 0.0, -FRAC_PI_2, (-0.785398, 0.785398)),
+    DhLink::revolute(FRAC_PI_2, 0.0, 0.0, -FRAC_PI_2, (-0.785398, 0.785398)),
     // wrist roll: -480 to 450 degrees
-    revolute(0.0, 0.0, 0.0, FRAC_PI_2, (-8.37758, 7.85398)),
+    DhLink::revolute(0.0, 0.0, 0.0, FRAC_PI_2, (-8.37758, 7.85398)),
 ];
 
 /// Actuator positions to joint positions
@@ -197,17 +185,7 @@ pub fn nearest_turn(angle: f64, near: f64) -> f64 {
 
 /// The first joint out of its limits (widened by 1e-9), if any.
 fn out_of_limits(q: &[f64; MTM_JOINTS]) -> Option<KinematicsError> {
-    MTM_LINKS
-        .iter()
-        .zip(q)
-        .enumerate()
-        .find(|(_, (l, q))| !l.allows(**q, 1e-9))
-        .map(|(joint, (l, &value))| KinematicsError::JointLimit {
-            joint,
-            value,
-            lower: l.limits.0,
-            upper: l.limits.1,
-        })
+    super::dh::out_of_limits(&MTM_LINKS, q)
 }
 
 /// The joints that orient the gripper as `goal` (in the base frame),

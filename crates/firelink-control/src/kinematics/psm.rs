@@ -22,7 +22,7 @@
 //! taken the turn nearest the seed.
 
 use super::KinematicsError;
-use super::dh::{Convention, DhLink, JointKind, chain};
+use super::dh::{Convention, DhLink, chain};
 use super::frame::{Frame, Rotation, cross, dot, norm, scale, sub};
 use super::mtm::nearest_turn;
 use core::f64::consts::FRAC_PI_2;
@@ -37,65 +37,17 @@ pub const PSM_ACTUATORS: usize = 7;
 /// (arm: `psm.json`; instrument: the Large Needle Driver's file).
 pub const PSM_LINKS: [DhLink; PSM_JOINTS] = [
     // outer yaw: the file's +-270 degrees
-    DhLink {
-        alpha: FRAC_PI_2,
-        a: 0.0,
-        theta: 0.0,
-        d: 0.0,
-        offset: FRAC_PI_2,
-        kind: JointKind::Revolute,
-        limits: (-4.71239, 4.71239),
-    },
+    DhLink::revolute(FRAC_PI_2, 0.0, 0.0, FRAC_PI_2, (-4.71239, 4.71239)),
     // outer pitch: +-53 degrees
-    DhLink {
-        alpha: -FRAC_PI_2,
-        a: 0.0,
-        theta: 0.0,
-        d: 0.0,
-        offset: -FRAC_PI_2,
-        kind: JointKind::Revolute,
-        limits: (-0.925025, 0.925025),
-    },
+    DhLink::revolute(-FRAC_PI_2, 0.0, 0.0, -FRAC_PI_2, (-0.925025, 0.925025)),
     // insertion: 0 to 240 mm; the shaft's frame 431.8 mm back at 0
-    DhLink {
-        alpha: FRAC_PI_2,
-        a: 0.0,
-        theta: 0.0,
-        d: 0.0,
-        offset: -0.4318,
-        kind: JointKind::Prismatic,
-        limits: (0.0, 0.24),
-    },
+    DhLink::prismatic(FRAC_PI_2, 0.0, 0.0, -0.4318, (0.0, 0.24)),
     // instrument roll: +-260 degrees; the wrist 416.2 mm down the shaft
-    DhLink {
-        alpha: 0.0,
-        a: 0.0,
-        theta: 0.0,
-        d: 0.4162,
-        offset: 0.0,
-        kind: JointKind::Revolute,
-        limits: (-4.53786, 4.53786),
-    },
+    DhLink::revolute(0.0, 0.0, 0.4162, 0.0, (-4.53786, 4.53786)),
     // wrist pitch: +-80 degrees
-    DhLink {
-        alpha: -FRAC_PI_2,
-        a: 0.0,
-        theta: 0.0,
-        d: 0.0,
-        offset: -FRAC_PI_2,
-        kind: JointKind::Revolute,
-        limits: (-1.39626, 1.39626),
-    },
+    DhLink::revolute(-FRAC_PI_2, 0.0, 0.0, -FRAC_PI_2, (-1.39626, 1.39626)),
     // wrist yaw: +-80 degrees, 9.1 mm past the pitch axis
-    DhLink {
-        alpha: -FRAC_PI_2,
-        a: 0.0091,
-        theta: 0.0,
-        d: 0.0,
-        offset: -FRAC_PI_2,
-        kind: JointKind::Revolute,
-        limits: (-1.39626, 1.39626),
-    },
+    DhLink::revolute(-FRAC_PI_2, 0.0091, 0.0, -FRAC_PI_2, (-1.39626, 1.39626)),
 ];
 
 /// The jaw's range, rad: -40 to 80 degrees (the dVRK's override of the
@@ -160,17 +112,7 @@ pub fn psm_forward(q: &[f64; PSM_JOINTS]) -> Frame {
 
 /// The first joint out of its limits (widened by 1e-9), if any.
 fn out_of_limits(q: &[f64; PSM_JOINTS]) -> Option<KinematicsError> {
-    PSM_LINKS
-        .iter()
-        .zip(q)
-        .enumerate()
-        .find(|(_, (l, q))| !l.allows(**q, 1e-9))
-        .map(|(joint, (l, &value))| KinematicsError::JointLimit {
-            joint,
-            value,
-            lower: l.limits.0,
-            upper: l.limits.1,
-        })
+    super::dh::out_of_limits(&PSM_LINKS, q)
 }
 
 /// The joints that put the tip frame at `goal` (base frame), the roll the
