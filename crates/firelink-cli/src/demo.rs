@@ -136,6 +136,12 @@ pub struct DemoArgs {
     /// 000's dVRK (`configs/dvrk-seed000.json`).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Instead of the trajectories: a teleoperation session, MTMR
+    /// driving PSM1 (Large Needle Driver) through the console's
+    /// teleoperation for 60 s of virtual time, the clutch pressed from 30
+    /// to 33 s (uses --json).
+    #[arg(long)]
+    pub teleop: bool,
     /// Print the report as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -161,6 +167,7 @@ impl Default for DemoArgs {
             watchdog: crate::args::WatchdogSetting::default(),
             no_rt: false,
             config: None,
+            teleop: false,
             json: false,
             quiet: false,
         }
@@ -323,6 +330,9 @@ pub(crate) fn print_report(
 
 /// Run `firelink demo`.
 pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
+    if args.teleop {
+        return run_teleop(args, out);
+    }
     if args.robot == DemoRobot::Mahru {
         return crate::mahru_cmd::run_demo(args, out);
     }
@@ -351,6 +361,30 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
         write!(out, "{}", render(&report, &options.config))?;
     }
     report.verdict().map_err(CliError::Failed)
+}
+
+/// `firelink demo --teleop`: the teleoperation session and its report.
+fn run_teleop(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
+    use firelink_testbed::teleop::TeleopOptions;
+    if !(args.quiet || crate::args::quiet()) {
+        eprintln!(
+            "demo: teleoperation MTMR -> PSM1, 60 s of virtual time on the simulated bus \
+             (the clutch pressed from 30 to 33 s)"
+        );
+    }
+    let options = TeleopOptions {
+        firmware: args.firmware.into(),
+        ..TeleopOptions::default()
+    };
+    let report = firelink_testbed::teleop::run_teleop(&options)?;
+    if args.json {
+        serde_json::to_writer_pretty(&mut *out, &report)
+            .map_err(|e| CliError::Failed(e.to_string()))?;
+        writeln!(out)?;
+    } else {
+        write!(out, "{report}")?;
+    }
+    Ok(())
 }
 
 /// A time in microseconds as a person reads it: `183.4 us`, `24.1 ms`.

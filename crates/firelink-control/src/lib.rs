@@ -21,8 +21,13 @@
 //! - [`fault`]: the fault report ([`FaultReport`]), `Copy` and
 //!   allocation-free.
 //! - [`homing`]: make the encoders agree with the potentiometers.
+//! - [`kinematics`]: the dVRK MTM's and PSM's forward and inverse
+//!   kinematics from their public DH tables, and the PSM instrument's
+//!   coupling.
 //! - [`safety`]: the per-cycle safety monitor (following error, velocity,
 //!   current saturation, position, pot/encoder agreement).
+//! - [`teleop`]: an MTM teleoperating a PSM as the dVRK console does
+//!   (alignment, scale, clutch, gripper to jaw).
 //! - [`budget`]: does the cycle fit its period (seed 002, Table I).
 //! - [`runner`]: [`Robot`](runner::Robot), a configuration over the host
 //!   library's abstract robot I/O (`firelink_host::RobotIo`, seed 001's
@@ -77,11 +82,13 @@ pub mod budget;
 pub mod config;
 pub mod fault;
 pub mod homing;
+pub mod kinematics;
 mod label;
 pub mod lifecycle;
 pub mod pid;
 pub mod runner;
 pub mod safety;
+pub mod teleop;
 pub mod trajectory;
 
 pub use fault::{FaultKind, FaultReport};

@@ -113,6 +113,22 @@ fn homing_finds_the_joint_positions() {
     }
 }
 
+/// Right after activation, before any cycle, every joint's setpoint is
+/// where it holds (its homed position), so a move planned from the
+/// setpoint starts where the joint is: no step (a stale setpoint from
+/// before homing stepped the first move and tripped the velocity or
+/// following-error check).
+#[test]
+fn the_setpoint_after_activation_is_the_held_position() {
+    let r = active(Protocol::Broadcast);
+    for i in 0..r.joint_count() {
+        let (p, sp) = (r.position(i).unwrap(), r.setpoint(i).unwrap());
+        assert_eq!(sp, p, "joint {i}");
+        // Away from the encoders' zero: the check means something.
+        assert!(p != 0.0, "joint {i}");
+    }
+}
+
 /// Tolerance: RMS tracking error below 0.01 rad (revolute) and 1 mm
 /// (prismatic) for 0.1 rad / 10 mm, 0.5 Hz sinusoids at 2 kHz.
 #[test]

@@ -320,22 +320,14 @@ pub fn run_console_homing(
     config: &IoConfig,
     options: &ConsoleHomingOptions,
 ) -> Result<ConsoleHomingReport, TestbedError> {
-    // Only the boards the arms use (a dVRK bus with just this arm's
-    // controller), in board-ID order.
-    let used = config.board_set();
-    let boards: Vec<_> = rig::board_configs(config, options.firmware, config.board_slots())
-        .into_iter()
-        .filter(|b| used.contains(b.board_id))
-        .collect();
-    let ids: Vec<u8> = boards.iter().map(|b| b.board_id).collect();
-    let (port, handles) = rig::sim_port(boards, false)?;
+    let (port, boards) = rig::sim_port_of_used(config, options.firmware)?;
     let plant = config
         .joints()
         .map(|j| {
-            let handle = ids
+            let handle = boards
                 .iter()
-                .position(|&id| id == j.actuator.board_id)
-                .and_then(|k| handles.get(k).copied());
+                .find(|(id, _)| *id == j.actuator.board_id)
+                .map(|(_, h)| *h);
             (handle, usize::from(j.actuator.axis_id))
         })
         .collect::<Vec<_>>();

@@ -19,6 +19,8 @@
 //! - [`console_homing`]: what the dVRK console does to an arm after power-on
 //!   (bias from pots, stop searches, every joint to both software limits and
 //!   back), with pot/encoder agreement and the stops watched every cycle;
+//! - [`teleop`]: a teleoperation session: a hand moves the MTMR, PSM1
+//!   follows through the console's teleoperation, 60 s of virtual time;
 //! - [`soak`]: the fault soak: a million servo cycles with one packet in a
 //!   hundred faulted, every fault accounted for, amplifiers proven off
 //!   whenever the safety chain says so;
@@ -47,6 +49,7 @@ pub mod service;
 pub mod sim;
 pub mod snake;
 pub mod soak;
+pub mod teleop;
 pub mod watchdog;
 
 pub use error::TestbedError;

@@ -264,6 +264,26 @@ pub fn sim_port(
     Ok((port, handles))
 }
 
+/// Only the boards `config`'s robots use (a dVRK bus with just these
+/// arms' controllers), in board-ID order, on the simulated bus with the PC
+/// at the root: the port and each board's (ID, node).
+///
+/// # Errors
+/// As [`sim_port`].
+pub fn sim_port_of_used(
+    config: &IoConfig,
+    profile: Profile,
+) -> Result<(SimPort, Vec<(u8, NodeHandle)>), TestbedError> {
+    let used = config.board_set();
+    let boards: Vec<_> = board_configs(config, profile, config.board_slots())
+        .into_iter()
+        .filter(|b| used.contains(b.board_id))
+        .collect();
+    let ids: Vec<u8> = boards.iter().map(|b| b.board_id).collect();
+    let (port, handles) = sim_port(boards, false)?;
+    Ok((port, ids.into_iter().zip(handles).collect()))
+}
+
 /// An in-process `firelink emulate`: the boards behind the UDP bridge on
 /// 127.0.0.1 (an ephemeral port), served by a thread until stopped or
 /// dropped.

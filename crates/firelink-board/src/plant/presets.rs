@@ -242,13 +242,7 @@ pub fn mtm_joint(joint: u8) -> Option<AxisParams> {
             0.0,
             (-7.7, 7.7),
         ),
-        8 => {
-            let mut p = unused_channel();
-            p.name = "MTM gripper".into();
-            p.pot.volts_per_unit = 2.0;
-            p.pot.offset_volts = 1.0;
-            return Some(p);
-        }
+        8 => return Some(mtm_gripper()),
         _ => return None,
     };
     let current_limit = if class == Re25 { 0.8 } else { 0.4 };
@@ -267,6 +261,53 @@ pub fn mtm_joint(joint: u8) -> Option<AxisParams> {
         p.stops = HardStops::new(MTM_ROLL_LOWER_STOP, MTM_ROLL_UPPER_STOP);
     }
     Some(p)
+}
+
+/// The MTM gripper's Hall-effect sensor, degrees per volt and degrees at
+/// 0 V: the conversion the dVRK's configuration generator writes for every
+/// MTM gripper (`VoltsToPosSI`, scale -23.1788, offset 91.4238), so the
+/// sensor reads 3.94 V closed and 1.36 V at 60 degrees.
+pub const MTM_GRIPPER_DEG_PER_VOLT: f64 = -23.1788;
+/// See [`MTM_GRIPPER_DEG_PER_VOLT`].
+pub const MTM_GRIPPER_DEG_AT_ZERO_VOLTS: f64 = 91.4238;
+/// Where the MTM gripper's spring holds it when nobody squeezes it, rad:
+/// fully open, the top of the 0 to 60 degrees the dVRK console maps onto
+/// the PSM's jaw (`mtsTeleOperationPSM`'s `gripper.max`).
+pub const MTM_GRIPPER_REST: f64 = 60.0 * core::f64::consts::PI / 180.0;
+/// The stiffness of the MTM gripper's opening spring, N m/rad.
+pub const MTM_GRIPPER_SPRING: f64 = 0.02;
+
+/// The MTM gripper: two spring-loaded levers the operator pinches, the
+/// angle between them read by a Hall-effect sensor on the QLA channel's
+/// analog input (no motor, no encoder). Joint units are radians of
+/// opening: 0 is closed (a closed PSM jaw), the spring holds it open at
+/// [`MTM_GRIPPER_REST`]; the levers stop 10 degrees past closed (squeezed
+/// hard) and at 65 degrees. A hand pinches it with an external torque
+/// ([`Axis::set_external_torque`](super::Axis::set_external_torque));
+/// viscous friction makes the levers settle in about 50 ms.
+pub fn mtm_gripper() -> AxisParams {
+    let mut p = unused_channel();
+    p.name = "MTM gripper".into();
+    let rad_per_deg = core::f64::consts::PI / 180.0;
+    let volts_per_rad = 1.0 / (MTM_GRIPPER_DEG_PER_VOLT * rad_per_deg);
+    p.pot.volts_per_unit = volts_per_rad;
+    p.pot.offset_volts = -MTM_GRIPPER_DEG_AT_ZERO_VOLTS / MTM_GRIPPER_DEG_PER_VOLT;
+    p.motor.rotor_inertia = 1.0e-6;
+    p.motor.viscous_friction = 1.0e-3;
+    p.motor.coulomb_friction = 2.0e-4;
+    p.load = LoadParams {
+        gear_ratio: 1.0,
+        inertia: 2.0e-5,
+        gravity: None,
+        spring: Some(SpringParams {
+            stiffness: MTM_GRIPPER_SPRING,
+            rest: MTM_GRIPPER_REST,
+        }),
+        bias: 0.0,
+        initial_position: MTM_GRIPPER_REST,
+    };
+    p.stops = HardStops::new(-10.0 * rad_per_deg, 65.0 * rad_per_deg);
+    p
 }
 
 /// The MTM wrist roll's lower mechanical stop, rad: -480 degrees, where
@@ -501,5 +542,43 @@ mod tests {
         assert_eq!(board2[0].name, "PSM J5 tool pitch");
         assert!(!board2[3].has_motor);
         assert_eq!(arm_axes(Arm::Mtm, 0, 8)[7].name, "MTM gripper");
+    }
+
+    #[test]
+    fn the_mtm_gripper_rests_open_and_closes_when_pinched() {
+        use crate::plant::{DEFAULT_STEP, Plant};
+        use firelink_bus::time::{SimDuration, SimTime};
+        // The dVRK's conversion of the sensor's voltage, degrees.
+        let read = |volts: f64| MTM_GRIPPER_DEG_PER_VOLT * volts + MTM_GRIPPER_DEG_AT_ZERO_VOLTS;
+        let mut plant = Plant::new(vec![mtm_gripper()], 7, DEFAULT_STEP);
+        plant.advance_to(SimTime::ZERO + SimDuration::from_millis(500));
+        // At rest, open: 60 degrees, 1.36 V (not 0 V, not a rail).
+        let v = plant.pot_voltage(0);
+        assert!((v - 1.3557).abs() < 1e-3, "{v}");
+        assert!((read(v) - 60.0).abs() < 1e-6);
+        // Pinched to 20 degrees: the force that holds the levers there
+        // against the spring; they settle within 0.5 s (to within the
+        // levers' dry friction, 0.6 degrees).
+        let target = 20f64.to_radians();
+        let force = MTM_GRIPPER_SPRING * (target - MTM_GRIPPER_REST);
+        if let Some(a) = plant.axis_mut(0) {
+            a.set_external_torque(force);
+        }
+        plant.advance_to(SimTime::ZERO + SimDuration::from_millis(1000));
+        let pinched = read(plant.pot_voltage(0));
+        assert!((pinched - 20.0).abs() < 1.0, "{pinched}");
+        // Squeezed hard: it stops 10 degrees past closed.
+        if let Some(a) = plant.axis_mut(0) {
+            a.set_external_torque(-1.0);
+        }
+        plant.advance_to(SimTime::ZERO + SimDuration::from_millis(1500));
+        assert!((read(plant.pot_voltage(0)) + 10.0).abs() < 1e-6);
+        // Let go: back open.
+        if let Some(a) = plant.axis_mut(0) {
+            a.set_external_torque(0.0);
+        }
+        plant.advance_to(SimTime::ZERO + SimDuration::from_millis(3000));
+        let open = read(plant.pot_voltage(0));
+        assert!((open - 60.0).abs() < 1.0, "{open}");
     }
 }

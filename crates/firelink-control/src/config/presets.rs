@@ -380,7 +380,13 @@ fn psm_axes() -> Vec<Axis> {
         (2.0, 0.1, 0.05),
         (2.0, 0.1, 0.05),
     ];
-    let vmax = [1.5, 1.5, 0.2, 6.0, 6.0, 6.0, 6.0];
+    // The instrument's disks: 12 rad/s. The console's teleoperation moves
+    // a Large Needle Driver's jaw at up to 720 degrees/s
+    // (`TeleOperationPSM::JawRate`), 5.2 rad/s on each of the last two
+    // disks (jaw = 1.2177 x their difference), and a hand-speed wrist yaw
+    // and pitch add 2 to 3 rad/s; the disks' motors (11.71:1, 24 V) turn
+    // them at up to about 45 rad/s.
+    let vmax = [1.5, 1.5, 0.2, 12.0, 12.0, 12.0, 12.0];
     patient_side_axes(PatientSideArm {
         direction: &direction,
         counts_per_turn: &cpt,

@@ -165,6 +165,11 @@ pub(crate) fn hold_all(joints: &mut [Joint], pids: &mut [Pid], now: f64) {
     for (j, pid) in joints.iter_mut().zip(pids.iter_mut()) {
         j.motion = Motion::Hold(j.position);
         j.motion_start = now;
+        // The setpoint is the hold from now on, not what the last cycle
+        // planned (a move planned from the setpoint before the next cycle
+        // would start from a stale one and step).
+        j.setpoint = j.position;
+        j.setpoint_velocity = 0.0;
         pid.reset();
     }
 }
@@ -175,6 +180,9 @@ pub(crate) fn apply_offsets(joints: &mut [Joint], offsets: &[f64], raw: &[f64]) 
     for ((j, off), raw) in joints.iter_mut().zip(offsets).zip(raw) {
         j.offset = *off;
         j.position = raw + off;
+        // Not active: the setpoint follows the (now homed) position.
+        j.setpoint = j.position;
+        j.setpoint_velocity = 0.0;
         j.velocity.reset();
     }
 }

@@ -885,6 +885,24 @@ impl<R: RobotIo> Robot<R> {
         Ok(())
     }
 
+    /// Stream one servo point to joint `i` (CRTK `servo_jp`): the point
+    /// replaces the joint's motion, but unlike
+    /// [`set_motion`](Self::set_motion) the safety monitor's grace timers
+    /// keep running: a stream of points is one motion, and a following
+    /// error that lasts across points trips as it would in one move.
+    ///
+    /// # Errors
+    /// As [`set_motion`](Self::set_motion).
+    pub fn servo_point(
+        &mut self,
+        i: usize,
+        point: crate::trajectory::ServoPoint,
+    ) -> Result<(), RunnerError> {
+        self.life.require_motion()?;
+        let now = self.now();
+        joint::start_motion(&mut self.joints, i, Motion::Servo(point), now)
+    }
+
     /// Add `delta` (rad or m) to joint `i`'s setpoint offset: its motion is
     /// replaced by a hold at the current setpoint plus `delta` (fault
     /// injection: a following-error step).
