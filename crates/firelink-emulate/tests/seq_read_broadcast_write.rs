@@ -87,7 +87,7 @@ fn broadcast_write_adds_no_wait_and_the_virtual_cycle_is_unimodal() {
         .map(|c| u32::from_be_bytes(c.try_into().unwrap()))
         .collect();
 
-    let mut rng = ChaCha8Rng::seed_from_u64(29_8);
+    let mut rng = ChaCha8Rng::seed_from_u64(298);
     let mut cycles = Vec::with_capacity(CYCLES);
     let mut next_gap = SimDuration::from_micros(100);
     let mut next_at = host.bridge.bus().now() + next_gap;

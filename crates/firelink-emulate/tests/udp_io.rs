@@ -313,7 +313,8 @@ fn a_fresh_port_learns_the_generation_before_forwarding() {
 #[test]
 fn every_reply_is_counted_in_the_answer_latency() {
     let server = Server::start(qla1s(2, Profile::Rev8));
-    let mut p = server.port(TIMEOUT);
+    // Long: a time-out here would only lose a read, but say nothing.
+    let mut p = server.port(Duration::from_secs(2));
     let register = Register::axis(1, AxisRegister::EncPosition)
         .offset()
         .unwrap();
@@ -332,7 +333,6 @@ fn every_reply_is_counted_in_the_answer_latency() {
     assert_eq!(a.answers, stats.replies, "{stats}");
     assert!(a.answers >= read, "{stats}");
     assert!(a.p50 <= a.p99 && a.p99 <= a.max, "{a:?}");
-    assert!(a.max > Duration::ZERO, "{a:?}");
     assert!(a.later_than_20ms <= a.later_than_1ms && a.later_than_1ms <= a.answers);
     let line = stats.to_string();
     assert!(
