@@ -211,8 +211,22 @@ fn emulate_scan_read_and_clean_shutdown() {
 
     // SIGTERM: the server says it stopped, with its counters, and exits 0.
     let rest = emu.terminate();
-    assert!(rest.iter().any(|l| l.starts_with("stopped:")), "{rest:?}");
+    let stopped = rest
+        .iter()
+        .find(|l| l.starts_with("stopped:"))
+        .unwrap_or_else(|| panic!("no stop line: {rest:?}"));
     assert!(rest.iter().any(|l| l.starts_with("host 127.0.0.1")));
+    // Issue 29 item 9: the stop line says how late the replies left (the
+    // scan and the read above were answered, so there are some).
+    for part in [
+        "answer latency (arrival to reply sent) p50 ",
+        ", p99 ",
+        ", max ",
+        " later than 1 ms, ",
+        " later than 20 ms",
+    ] {
+        assert!(stopped.contains(part), "{part:?} missing: {stopped}");
+    }
 }
 
 #[test]

@@ -13,6 +13,8 @@
 //! - [`serve`]: the server loop: sockets bound to loopback (and the loopback
 //!   broadcast address, for the reference host's discovery), virtual time
 //!   paced to the wall clock, clean stop on a flag.
+//! - [`latency`]: how late the server answers, from each datagram's
+//!   arrival to its reply sent (the counters on the stop line).
 //!
 //! ## Model
 //! The bridge board's link onto FireWire is a [`HostLink`] node at the root
@@ -29,6 +31,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 mod arrival;
+pub mod latency;
 
 use arrival::{Received, Receiver};
 use firelink_board::node::BoardNode;
@@ -38,6 +41,7 @@ use firelink_host::transaction::{CrcCheck, Expect, LinkStats, Transactions};
 use firelink_host::{Dest, HostError};
 use firelink_wire::bridge::{ExtraData, ExtraFlags, split_host_datagram};
 use firelink_wire::packet::{NodeId, Packet, Speed, Tcode};
+use latency::{AnswerLatency, LatencySummary};
 
 /// What the bridge did with one datagram.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -91,6 +95,9 @@ pub struct BridgeStats {
     /// the bridge board (counted as local) and also forwarded onto
     /// FireWire, where every board ignores them.
     pub broadcast_reads: u64,
+    /// How late the replies left, from each datagram's arrival to its
+    /// reply sent (recorded by the server, [`Bridge::record_answer`]).
+    pub answers: LatencySummary,
 }
 
 impl BridgeStats {
@@ -132,7 +139,7 @@ impl core::fmt::Display for BridgeStats {
             f,
             "{} datagrams, {} replies, {} forwarded, {} local ({} broadcast reads), \
              {} dropped: {} malformed, {} bad CRC, {} unsupported tcode, \
-             {} stale generation, {} bus failures",
+             {} stale generation, {} bus failures; {}",
             self.datagrams,
             self.replies,
             self.forwarded,
@@ -143,7 +150,8 @@ impl core::fmt::Display for BridgeStats {
             self.bad_crc,
             self.unsupported,
             self.stale_generation,
-            self.bus_failures
+            self.bus_failures,
+            self.answers
         )
     }
 }
@@ -164,6 +172,8 @@ pub struct Bridge {
     /// The host library's transaction engine, judging what comes back
     /// from the bus for each forwarded request.
     transactions: Transactions,
+    /// Every reply's latency, as the server measured it.
+    answers: AnswerLatency,
 }
 
 /// The longest a datagram waits, in virtual time, for the boards to finish
@@ -218,6 +228,7 @@ impl Bridge {
             stats: BridgeStats::default(),
             timeout: SimDuration::from_micros(10_000),
             transactions: Transactions::new(),
+            answers: AnswerLatency::new(),
         }
     }
 
@@ -231,9 +242,19 @@ impl Bridge {
         &mut self.bus
     }
 
-    /// Counters so far.
+    /// Counters so far, the answer latency's included.
     pub fn stats(&self) -> BridgeStats {
-        self.stats
+        BridgeStats {
+            answers: self.answers.summary(),
+            ..self.stats
+        }
+    }
+
+    /// A reply left `latency` after its datagram arrived (the server
+    /// measures it: from the kernel's receive stamp to the send's return).
+    /// Allocates nothing.
+    pub fn record_answer(&mut self, latency: Duration) {
+        self.answers.record(latency);
     }
 
     /// What the bridge's link sent onto the bus and what came back, by
@@ -545,7 +566,7 @@ pub enum Event {
     /// Virtual time fell behind the wall clock by more than 10 ms (the
     /// machine is too busy to run the emulation in real time).
     Lagging(Duration),
-    /// The server stopped.
+    /// The server stopped: its counters, the answer latency included.
     Stopped(BridgeStats),
 }
 
@@ -626,16 +647,19 @@ pub fn serve(
         }
         bridge.advance_to(virtual_at(r.at));
         if let Handled::Reply(n) = bridge.handle(buf.get(..r.len).unwrap_or(buf), &mut reply) {
-            // A host that went away is not the server's failure.
-            if let Err(e) = unicast.send_to(&reply[..n], r.from)
-                && !matches!(
-                    e.kind(),
-                    std::io::ErrorKind::ConnectionRefused
-                        | std::io::ErrorKind::WouldBlock
-                        | std::io::ErrorKind::Interrupted
-                )
-            {
-                return Err(e);
+            match unicast.send_to(&reply[..n], r.from) {
+                // Counted from the datagram's arrival stamp: the time it
+                // waited in the socket's queue is the server's lateness too.
+                Ok(_) => bridge.record_answer(Instant::now().saturating_duration_since(r.at)),
+                // A host that went away is not the server's failure.
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::ConnectionRefused
+                            | std::io::ErrorKind::WouldBlock
+                            | std::io::ErrorKind::Interrupted
+                    ) => {}
+                Err(e) => return Err(e),
             }
         }
         Ok(())

@@ -305,3 +305,39 @@ fn a_fresh_port_learns_the_generation_before_forwarding() {
     assert_eq!(p.read_quadlet(Dest::node(3), 3).unwrap(), 0x0123);
     assert_eq!(p.stats().timeouts, 0);
 }
+
+/// Issue 29 item 9: every reply the server sends is counted in its answer
+/// latency (arrival stamp to reply sent), and the counters are coherent.
+/// Only counts and orderings are asserted, never a duration: the machine
+/// may be loaded.
+#[test]
+fn every_reply_is_counted_in_the_answer_latency() {
+    let server = Server::start(qla1s(2, Profile::Rev8));
+    // Long: a time-out here would only lose a read, but say nothing.
+    let mut p = server.port(Duration::from_secs(2));
+    let register = Register::axis(1, AxisRegister::EncPosition)
+        .offset()
+        .unwrap();
+    let dac = Register::axis(1, AxisRegister::Dac).offset().unwrap();
+    let mut read = 0u64;
+    for _ in 0..50 {
+        if p.read_quadlet(Dest::node(1), register).is_ok() {
+            read += 1;
+        }
+    }
+    // A write gets no reply and is not counted.
+    let _ = p.write_quadlet(Dest::node(1), dac, 0x8000);
+    let stats = server.stop();
+    let a = stats.answers;
+    assert!(read > 0);
+    assert_eq!(a.answers, stats.replies, "{stats}");
+    assert!(a.answers >= read, "{stats}");
+    assert!(a.p50 <= a.p99 && a.p99 <= a.max, "{a:?}");
+    assert!(a.later_than_20ms <= a.later_than_1ms && a.later_than_1ms <= a.answers);
+    let line = stats.to_string();
+    assert!(
+        line.contains("answer latency (arrival to reply sent) p50 "),
+        "{line}"
+    );
+    assert!(line.contains("later than 20 ms"), "{line}");
+}

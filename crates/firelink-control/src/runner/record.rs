@@ -68,11 +68,14 @@ impl ArmAcc {
     }
 }
 
-/// Median, p99 and max of a set of durations, microseconds.
+/// Median, p90, p99 and max of a set of durations, microseconds.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Percentiles {
     /// Median.
     pub median: f64,
+    /// 90th percentile (with the median and p99: the shape of the
+    /// distribution, e.g. two modes).
+    pub p90: f64,
     /// 99th percentile.
     pub p99: f64,
     /// Maximum.
@@ -95,6 +98,7 @@ impl Percentiles {
         let mean = samples.iter().map(|&x| f64::from(x)).sum::<f64>() / samples.len() as f64;
         Percentiles {
             median: at(0.5),
+            p90: at(0.9),
             p99: at(0.99),
             max: at(1.0),
             mean,

@@ -149,6 +149,8 @@ pub fn check_board_counts(counts: &[usize]) -> Result<(), String> {
 pub struct IoTime {
     /// Median.
     pub median: f64,
+    /// 90th percentile.
+    pub p90: f64,
     /// 99th percentile.
     pub p99: f64,
     /// Maximum (measured points only).
@@ -540,6 +542,7 @@ fn model(base: &Raw, boards: usize) -> Raw {
         boards,
         io: Percentiles {
             median: io,
+            p90: io * base.io.p90 / base.io.median.max(1e-9),
             p99: io * base.io.p99 / base.io.median.max(1e-9),
             max: f64::NAN,
             mean: io,
@@ -589,6 +592,7 @@ fn finish(raw: &Raw, compute: f64, period_us: f64) -> BenchPoint {
         boards: raw.boards,
         io_time_us: IoTime {
             median: round2(raw.io.median),
+            p90: round2(raw.io.p90),
             p99: round2(raw.io.p99),
             max: finite(raw.io.max),
             mean: round2(raw.io.mean),
@@ -611,6 +615,7 @@ fn finish(raw: &Raw, compute: f64, period_us: f64) -> BenchPoint {
             target: target.clone(),
             floor_us: IoTime {
                 median: round2(m.floor.median),
+                p90: round2(m.floor.p90),
                 p99: round2(m.floor.p99),
                 max: finite(m.floor.max),
                 mean: round2(m.floor.mean),
