@@ -13,6 +13,9 @@
 //! - [`serve`]: the server loop: sockets bound to loopback (and the loopback
 //!   broadcast address, for the reference host's discovery), virtual time
 //!   paced to the wall clock, clean stop on a flag.
+//! - [`fw_cdev`]: the other front end: the Linux kernel's /dev/fw* side
+//!   (firewire-cdev) over the same simulated bus, served on a unix socket
+//!   to the preloaded twin library (`firelink emulate --fw-cdev`).
 //!
 //! ## Model
 //! The bridge board's link onto FireWire is a [`HostLink`] node at the root
@@ -29,6 +32,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 mod arrival;
+#[cfg(target_os = "linux")]
+pub mod fw_cdev;
 
 use arrival::{Received, Receiver};
 use firelink_board::node::BoardNode;
