@@ -26,7 +26,7 @@ use firelink_testbed::rig::{board_configs, generic_boards, qla_nodes};
 use firelink_testbed::snake;
 
 /// Options of `firelink emulate`.
-#[derive(Args, Debug)]
+#[derive(Args, Debug, Clone)]
 pub struct EmulateArgs {
     /// Number of boards (IDs 0..N, 1..=16) with generic motors.
     #[arg(long, default_value_t = 8, conflicts_with = "config", value_parser = crate::args::board_count)]
@@ -89,15 +89,31 @@ pub struct EmulateArgs {
     /// When the timed faults happen, in ms of emulated time.
     #[arg(long = "fault-at-ms", default_value_t = 5000)]
     pub fault_at_ms: u64,
+    /// With --fw-cdev (and fw-run): start the timed faults when the twin
+    /// has taken this many requests instead of at --fault-at-ms (a fault
+    /// at a point of the program's run, however long it took to start).
+    #[arg(long = "fault-after-requests", value_name = "N")]
+    pub fault_after_requests: Option<u64>,
     /// Serve the emulated boards as Linux /dev/fw* devices instead of the
     /// Ethernet bridge: the kernel's firewire-cdev side on this unix
     /// socket, for programs run with the twin preloaded (`firelink fw-run`
     /// does both). The PC's card is /dev/fw0, the boards /dev/fw1...
     #[arg(long = "fw-cdev", value_name = "SOCKET")]
     pub fw_cdev: Option<PathBuf>,
+    /// Set by `fw-run` (which serves the twin itself).
+    #[arg(skip)]
+    pub twin: bool,
     /// Stop by itself after this many seconds (0: run until a signal).
     #[arg(long = "duration-s", default_value_t = 0.0, value_parser = crate::args::seconds_or_forever)]
     pub duration_s: f64,
+}
+
+impl EmulateArgs {
+    /// Whether these options serve the /dev/fw* twin (`--fw-cdev`, or
+    /// `fw-run`, which sets it).
+    fn fw_cdev_twin(&self) -> bool {
+        self.fw_cdev.is_some() || self.twin
+    }
 }
 
 /// The boards of `args` on a simulated bus with the faults asked for.
@@ -110,6 +126,8 @@ pub struct EmulatedBus {
     pub boards: Vec<firelink_bus::NodeHandle>,
     /// Their board IDs.
     pub ids: Vec<u8>,
+    /// Timed faults held back for `--fault-after-requests`.
+    pub deferred: Vec<TimedFault>,
     /// The configurations of its QLA boards (none for Snake nodes).
     pub configs: Vec<BoardConfig>,
 }
@@ -234,31 +252,35 @@ fn assemble(
             .and_then(|i| rig.boards.get(i).copied())
             .ok_or(CliError::NoSuchBoard { option, board: id })
     };
+    let mut timed = Vec::new();
     if let Some(id) = args.unplug_board {
         let node = handle_of("--unplug-board", id)?;
-        rig.bus.schedule_fault(
-            at,
-            TimedFault::Disconnect {
-                node,
-                reconnect_after: None,
-            },
-        );
+        timed.push(TimedFault::Disconnect {
+            node,
+            reconnect_after: None,
+        });
     }
     if let Some(id) = args.mute_board {
         let node = handle_of("--mute-board", id)?;
-        rig.bus.schedule_fault(
-            at,
-            TimedFault::StopAnswering {
-                node,
-                duration: None,
-            },
-        );
+        timed.push(TimedFault::StopAnswering {
+            node,
+            duration: None,
+        });
     }
+    let deferred = if args.fault_after_requests.is_some() && args.fw_cdev_twin() {
+        timed
+    } else {
+        for f in timed {
+            rig.bus.schedule_fault(at, f);
+        }
+        Vec::new()
+    };
     Ok(EmulatedBus {
         bus: rig.bus,
         host: rig.host,
         boards: rig.boards,
         ids,
+        deferred,
         configs,
     })
 }
@@ -266,7 +288,11 @@ fn assemble(
 /// The /dev/fw* twin of `args` (the boards and faults of `build_bus`).
 pub fn build_twin(args: &EmulateArgs) -> Result<(Twin, Vec<u8>), CliError> {
     let e = build_bus(args)?;
-    Ok((Twin::new(e.bus, e.host), e.ids))
+    let mut twin = Twin::new(e.bus, e.host);
+    if let Some(n) = args.fault_after_requests {
+        twin.defer_faults(n, e.deferred);
+    }
+    Ok((twin, e.ids))
 }
 
 /// `firelink emulate --fw-cdev SOCKET`: serve the twin until SIGINT,

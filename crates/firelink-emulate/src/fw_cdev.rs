@@ -35,7 +35,7 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use firelink_bus::host::{Completion, Outcome};
-use firelink_bus::{Bus, HostLink, NodeHandle, SimDuration, SimTime};
+use firelink_bus::{Bus, HostLink, NodeHandle, SimDuration, SimTime, TimedFault};
 use firelink_wire::fw_cdev::{
     self, BusResetRecord, KERNEL_ABI_VERSION, SendRequestArgs, errno, rcode,
 };
@@ -165,6 +165,8 @@ pub struct Twin {
     stats: TwinStats,
     /// The card index GET_INFO reports.
     card: u32,
+    /// Faults to start when this many requests have been accepted.
+    deferred: Option<(u64, Vec<TimedFault>)>,
 }
 
 /// STATE_CLEAR's cycle-master bit (`CSR_STATE_BIT_CMSTR`).
@@ -200,9 +202,18 @@ impl Twin {
             state: STATE_CMSTR,
             stats: TwinStats::default(),
             card: 0,
+            deferred: None,
         };
         twin.refresh_devices();
         twin
+    }
+
+    /// Start `faults` (unplugging, muting, bus resets) at the moment the
+    /// `after_requests`-th request is accepted, rather than at a time: a
+    /// test or a user can then fault a running program wherever it is in
+    /// its run, however long it took to start.
+    pub fn defer_faults(&mut self, after_requests: u64, faults: Vec<TimedFault>) {
+        self.deferred = Some((after_requests, faults));
     }
 
     /// The bus.
@@ -366,6 +377,16 @@ impl Twin {
         };
         self.stats.requests += 1;
         let at = self.bus.now();
+        if self
+            .deferred
+            .as_ref()
+            .is_some_and(|(n, _)| self.stats.requests >= *n)
+            && let Some((_, faults)) = self.deferred.take()
+        {
+            for f in faults {
+                self.bus.schedule_fault(at, f);
+            }
+        }
         if !broadcast && args.generation != self.bus.generation() {
             self.complete(connection, args.closure, rcode::GENERATION, &[], at);
             return Answer::default();
