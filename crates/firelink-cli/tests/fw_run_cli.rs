@@ -51,3 +51,43 @@ fn the_programs_exit_status_is_fw_runs() {
     assert_eq!(out.status.code(), Some(1), "{out:?}");
     assert!(String::from_utf8_lossy(&out.stderr).contains("cannot run"));
 }
+
+#[test]
+fn scan_through_the_twin_finds_eight_boards() {
+    let out = fw_run(&[
+        "--boards",
+        "8",
+        "--",
+        env!("CARGO_BIN_EXE_firelink"),
+        "scan",
+        "--port",
+        "fw",
+    ]);
+    assert!(out.status.success(), "{out:?}");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.starts_with("8 board(s) on fw:"), "{text}");
+    assert!(text.contains("protocol: broadcast"), "{text}");
+}
+
+#[test]
+fn a_pcap_of_a_fw_session_holds_the_synthesised_packets() {
+    let dir = std::env::temp_dir().join(format!("fw-pcap-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let pcap = dir.join("fw.pcap");
+    let out = fw_run(&[
+        "--boards",
+        "2",
+        "--",
+        env!("CARGO_BIN_EXE_firelink"),
+        "scan",
+        "--port",
+        "fw",
+        "--pcap",
+        pcap.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{out:?}");
+    let bytes = std::fs::read(&pcap).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    // A pcap header and, for a scan of two boards, dozens of packets.
+    assert!(bytes.len() > 24 + 40 * 16, "{} bytes", bytes.len());
+}

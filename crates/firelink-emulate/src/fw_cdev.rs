@@ -825,11 +825,18 @@ mod tests {
 
     #[test]
     fn rom_crc_matches_the_boards_bus_info_block() {
-        // The Rev 8 board's ROM (FireWire.v): header 0x0404_8496 covers the
-        // next four quadlets; the root directory header 0x0005_9395 its five.
+        // The board's ROM (FireWire.v): the root directory header
+        // 0x0005_9395 covers its five entries. The header 0x0404_8496 is
+        // the CRC of the bus information block with quadlet 4 = 7: at
+        // Rev 8 that quadlet holds 8 and the carried CRC (0x8496) no
+        // longer matches it (0x7579), as the emulated board answers.
+        assert_eq!(
+            rom_crc16(&[0x3133_3934, 0x00FF_A000, 0xFA61_0E0E, 0x0000_0007]),
+            0x8496
+        );
         assert_eq!(
             rom_crc16(&[0x3133_3934, 0x00FF_A000, 0xFA61_0E0E, 0x0000_0008]),
-            0x8496
+            0x7579
         );
         assert_eq!(
             rom_crc16(&[

@@ -386,7 +386,13 @@ fn twin_ioctl(device: &Device, request: c_ulong, arg: *mut c_void) -> Result<c_i
             let a = SendRequestArgs::parse(&read_arg(arg, fw_cdev::SEND_REQUEST_LEN)?)
                 .map_err(|_| errno::EFAULT)?;
             a.check(broadcast, 5)?;
-            let payload = read_arg(a.data as *const c_void, a.payload_len())?;
+            // The kernel copies the payload only when `data` is set (a read
+            // may pass none, as libraw1394's asynchronous reads do).
+            let payload = if a.data == 0 {
+                vec![0u8; a.payload_len()]
+            } else {
+                read_arg(a.data as *const c_void, a.payload_len())?
+            };
             let len = round_trip(
                 device.control,
                 &TwinRequest::SendRequest {
