@@ -223,7 +223,6 @@ pub fn run(args: &MonitorArgs, out: &mut impl Write) -> Result<(), CliError> {
     let port = open_port(&args.port)?;
     let config = IoOptions {
         protocol: args.protocol.map(Protocol::from),
-        broadcast_route: args.port.port.broadcast_route(),
         ..IoOptions::default()
     };
     let (mut io, _scan) = IoSystem::open(port, config)?;

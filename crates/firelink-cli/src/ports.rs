@@ -9,7 +9,6 @@ use clap::{Args, ValueEnum};
 use firelink_board::config::{Hardware, Profile};
 use firelink_host::Port;
 use firelink_host::firewire::{FirewirePort, FwOptions};
-use firelink_host::io::BroadcastRoute;
 use firelink_host::trace::PcapWriter;
 use firelink_host::udp::UdpPort;
 
@@ -32,19 +31,6 @@ pub enum PortSpec {
     /// `fw` or `fw:N`: FireWire card N (0 by default) through Linux
     /// /dev/fw* (or the twin of `firelink fw-run`).
     Fw(u32),
-}
-
-impl PortSpec {
-    /// Where the broadcast protocol sends its query and commands on this
-    /// port: to node 0 for the boards to snoop on FireWire (the kernel
-    /// refuses broadcast writes below the units space), to node 63
-    /// elsewhere.
-    pub fn broadcast_route(&self) -> BroadcastRoute {
-        match self {
-            PortSpec::Fw(_) => BroadcastRoute::SnoopedNode0,
-            PortSpec::Sim { .. } | PortSpec::Udp(_) => BroadcastRoute::Node63,
-        }
-    }
 }
 
 const EXPECTED: &str = "sim[:N[:7|8|seed]] (N 1..=16), udp:HOST, udp:HOST:PORT, fw or fw:N";

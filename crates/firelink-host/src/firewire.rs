@@ -359,16 +359,23 @@ impl FirewirePort {
     fn refresh(&mut self) -> Result<()> {
         let local_device = self.nodes.get(self.local).map(|n| n.device);
         let mut kept = Vec::with_capacity(self.nodes.len());
+        // The generation the devices report now (queued events only tell
+        // what is past).
+        let mut generation = None;
         for mut n in std::mem::take(&mut self.nodes) {
-            if !drain(&mut n, &mut self.scratch, &mut self.generation) {
+            let mut seen = 0;
+            if !drain(&mut n, &mut self.scratch, &mut seen) {
                 continue;
             }
             let Ok((_, record)) = get_info(&n.file) else {
                 continue;
             };
             n.node_id = record.node_id;
-            self.generation = self.generation.max(record.generation);
+            generation = generation.max(Some(record.generation));
             kept.push(n);
+        }
+        if let Some(g) = generation {
+            self.generation = g;
         }
         self.nodes = kept;
         self.local = self
@@ -461,7 +468,16 @@ impl FirewirePort {
             unsafe { ioctl_send_request(file, &a) }
         };
         self.stats.sent += 1;
-        sent.map_err(|e| errno_error("SEND_REQUEST", e))?;
+        match sent {
+            Ok(_) => {}
+            // The node left the bus (its device is shut down): a bus reset
+            // came with it.
+            Err(Errno::ENODEV) => {
+                let new = self.generation.wrapping_add(1);
+                return self.take_reset(new);
+            }
+            Err(e) => return Err(errno_error("SEND_REQUEST", e)),
+        }
         let started = Instant::now();
         let (rc, len) = self.wait_for(index, closure, node, tl, started)?;
         if !self.filters.is_empty() {
@@ -502,9 +518,12 @@ impl FirewirePort {
     /// Report a bus reset once and take the new generation and nodes.
     fn take_reset(&mut self, new: u32) -> Result<()> {
         let old = self.generation;
-        self.generation = self.generation.max(new);
         self.stats.bus_resets += 1;
         self.refresh()?;
+        if self.generation == old {
+            // No device told a newer generation (none left to ask).
+            self.generation = self.generation.max(new);
+        }
         Err(HostError::BusReset {
             old,
             new: self.generation,
@@ -810,6 +829,10 @@ impl Port for FirewirePort {
 
     fn link_stats(&self) -> LinkStats {
         self.stats
+    }
+
+    fn refuses_broadcast_registers(&self) -> bool {
+        true
     }
 
     fn candidate_nodes(&self) -> core::ops::Range<u8> {
