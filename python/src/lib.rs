@@ -210,7 +210,9 @@ fn open_port(py: Python<'_>, spec: &str) -> PyResult<(AnyPort, String)> {
         return Err(error(
             py,
             "PortError",
-            format!("unknown port {spec:?}: sim[:BOARDS[:FIRMWARE]], udp:HOST[:PORT], fw or fw:CARD"),
+            format!(
+                "unknown port {spec:?}: sim[:BOARDS[:FIRMWARE]], udp:HOST[:PORT], fw or fw:CARD"
+            ),
         ));
     }
     let boards = match parts.next() {
