@@ -30,7 +30,9 @@ Seed 001's Snake nodes (seven channels each, the seed's Get/Set list)::
 
 Port descriptions: ``"sim"`` (8 boards, firmware Rev 8), ``"sim:N"`` or
 ``"sim:N:FW"`` (N boards 1..16, FW 7, 8 or seed), ``"udp:HOST[:PORT]"``
-(a running ``firelink emulate`` or a real bridge board).
+(a running ``firelink emulate`` or a real bridge board), ``"fw"`` or
+``"fw:CARD"`` (a FireWire card through Linux /dev/fw*, or the emulated
+boards under ``firelink fw-run``).
 """
 
 from __future__ import annotations

@@ -174,6 +174,27 @@ fn open_udp(py: Python<'_>, spec: &str) -> PyResult<(AnyPort, String)> {
     Ok((Box::new(port), format!("udp:{addr}")))
 }
 
+/// Open `fw` or `fw:CARD`: a FireWire card through Linux /dev/fw* (or the
+/// twin of `firelink fw-run`).
+fn open_fw(py: Python<'_>, spec: &str) -> PyResult<(AnyPort, String)> {
+    let card = match spec.strip_prefix("fw:") {
+        None => 0,
+        Some(n) => n.parse::<u32>().map_err(|_| {
+            error(
+                py,
+                "PortError",
+                format!("port {spec:?}: the card is a number, not {n:?}"),
+            )
+        })?,
+    };
+    let port = firelink_host::firewire::FirewirePort::open(firelink_host::firewire::FwOptions {
+        card,
+        ..Default::default()
+    })
+    .map_err(|e| host_error(py, e))?;
+    Ok((Box::new(port), spec.to_string()))
+}
+
 /// Open a port from its description (see `firelink.open`).
 fn open_port(py: Python<'_>, spec: &str) -> PyResult<(AnyPort, String)> {
     let spec = spec.trim();
@@ -181,12 +202,17 @@ fn open_port(py: Python<'_>, spec: &str) -> PyResult<(AnyPort, String)> {
     if spec.starts_with("udp") {
         return open_udp(py, spec);
     }
+    if spec == "fw" || spec.starts_with("fw:") {
+        return open_fw(py, spec);
+    }
     let mut parts = spec.split(':');
     if parts.next() != Some("sim") {
         return Err(error(
             py,
             "PortError",
-            format!("unknown port {spec:?}: sim[:BOARDS[:FIRMWARE]] or udp:HOST[:PORT]"),
+            format!(
+                "unknown port {spec:?}: sim[:BOARDS[:FIRMWARE]], udp:HOST[:PORT], fw or fw:CARD"
+            ),
         ));
     }
     let boards = match parts.next() {

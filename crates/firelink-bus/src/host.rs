@@ -169,6 +169,12 @@ impl HostLink {
         self
     }
 
+    /// Change the split time-out of later transactions (the Linux
+    /// kernel's is 2 s; the /dev/fw* twin sets it on a built bus).
+    pub fn set_split_timeout(&mut self, timeout: SimDuration) {
+        self.split_timeout = timeout;
+    }
+
     /// Keep at most `limit` received packets (older ones are dropped).
     pub fn with_received_limit(mut self, limit: usize) -> HostLink {
         self.received_limit = limit;

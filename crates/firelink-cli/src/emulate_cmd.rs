@@ -1,9 +1,11 @@
-//! `firelink emulate`: emulated boards behind an Ethernet bridge on UDP,
-//! paced to wall-clock time, until SIGINT or SIGTERM.
+//! `firelink emulate`: emulated boards behind an Ethernet bridge on UDP
+//! (or, with `--fw-cdev`, as the kernel's /dev/fw* devices on a unix
+//! socket for the preloaded twin), paced to wall-clock time, until SIGINT
+//! or SIGTERM.
 
 use std::io::Write;
 use std::net::SocketAddr;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
@@ -15,6 +17,7 @@ use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::Node;
 use firelink_bus::{FaultRule, PacketFault, PacketMatch, SimDuration, TimedFault};
 use firelink_control::config::presets;
+use firelink_emulate::fw_cdev::{self, Twin};
 use firelink_emulate::{Bridge, Event, ServeConfig};
 
 use crate::CliError;
@@ -23,7 +26,7 @@ use firelink_testbed::rig::{board_configs, generic_boards, qla_nodes};
 use firelink_testbed::snake;
 
 /// Options of `firelink emulate`.
-#[derive(Args, Debug)]
+#[derive(Args, Debug, Clone)]
 pub struct EmulateArgs {
     /// Number of boards (IDs 0..N, 1..=16) with generic motors.
     #[arg(long, default_value_t = 8, conflicts_with = "config", value_parser = crate::args::board_count)]
@@ -86,15 +89,79 @@ pub struct EmulateArgs {
     /// When the timed faults happen, in ms of emulated time.
     #[arg(long = "fault-at-ms", default_value_t = 5000)]
     pub fault_at_ms: u64,
+    /// With --fw-cdev (and fw-run): start the timed faults when the twin
+    /// has taken this many requests instead of at --fault-at-ms (a fault
+    /// at a point of the program's run, however long it took to start).
+    #[arg(long = "fault-after-requests", value_name = "N")]
+    pub fault_after_requests: Option<u64>,
+    /// Serve the emulated boards as Linux /dev/fw* devices instead of the
+    /// Ethernet bridge: the kernel's firewire-cdev side on this unix
+    /// socket, for programs run with the twin preloaded (`firelink fw-run`
+    /// does both). The PC's card is /dev/fw0, the boards /dev/fw1...
+    #[arg(long = "fw-cdev", value_name = "SOCKET")]
+    pub fw_cdev: Option<PathBuf>,
+    /// Set by `fw-run` (which serves the twin itself).
+    #[arg(skip)]
+    pub twin: bool,
     /// Stop by itself after this many seconds (0: run until a signal).
     #[arg(long = "duration-s", default_value_t = 0.0, value_parser = crate::args::seconds_or_forever)]
     pub duration_s: f64,
+}
+
+impl EmulateArgs {
+    /// Whether these options serve the /dev/fw* twin (`--fw-cdev`, or
+    /// `fw-run`, which sets it).
+    fn fw_cdev_twin(&self) -> bool {
+        self.fw_cdev.is_some() || self.twin
+    }
+}
+
+/// The boards of `args` on a simulated bus with the faults asked for.
+pub struct EmulatedBus {
+    /// The bus.
+    pub bus: firelink_bus::Bus,
+    /// The PC's link on it (at the root, the highest node ID).
+    pub host: firelink_bus::NodeHandle,
+    /// The boards' nodes, in the order of `ids`.
+    pub boards: Vec<firelink_bus::NodeHandle>,
+    /// Their board IDs.
+    pub ids: Vec<u8>,
+    /// Timed faults held back for `--fault-after-requests`.
+    pub deferred: Vec<TimedFault>,
+    /// The configurations of its QLA boards (none for Snake nodes).
+    pub configs: Vec<BoardConfig>,
 }
 
 /// Build the bridge of `args`: the boards on a simulated bus with the
 /// faults asked for, the board IDs on it and the configurations of its
 /// QLA boards (none for Snake nodes).
 pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>, Vec<BoardConfig>), CliError> {
+    let e = build_bus(args)?;
+    let bridge_index = match args.bridge_board {
+        Some(id) => e
+            .ids
+            .iter()
+            .position(|b| *b == id)
+            .ok_or(CliError::NoSuchBoard {
+                option: "--bridge-board",
+                board: id,
+            })?,
+        None => 0,
+    };
+    let bridge_node = e
+        .boards
+        .get(bridge_index)
+        .copied()
+        .ok_or(CliError::NoSuchBoard {
+            option: "--bridge-board",
+            board: bridge_index as u8,
+        })?;
+    Ok((Bridge::new(e.bus, e.host, bridge_node), e.ids, e.configs))
+}
+
+/// The boards of `args` on a simulated bus with the faults asked for (the
+/// one place `emulate`'s board options are read, for both front ends).
+pub fn build_bus(args: &EmulateArgs) -> Result<EmulatedBus, CliError> {
     let config = match (&args.config, args.robot) {
         (Some(path), _) => Some(crate::demo::load_config(path)?),
         (None, Some(crate::demo::DemoRobot::Snake)) => Some(presets::snake_seed001()),
@@ -111,8 +178,7 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>, Vec<BoardCon
     if let Some(c) = config.as_ref().filter(|c| snake::is_snake_config(c)) {
         let nodes = snake::node_configs(c, args.seed)?;
         let ids = nodes.iter().map(|n| n.board_id).collect();
-        let (bridge, ids) = assemble(args, snake::nodes(nodes), ids)?;
-        return Ok((bridge, ids, Vec::new()));
+        return assemble(args, snake::nodes(nodes), ids, Vec::new());
     }
     let boards = match &config {
         Some(config) => {
@@ -148,27 +214,16 @@ pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>, Vec<BoardCon
         b.check()?;
     }
     let ids: Vec<u8> = boards.iter().map(|b| b.board_id).collect();
-    let (bridge, ids) = assemble(args, qla_nodes(boards.clone()), ids)?;
-    Ok((bridge, ids, boards))
+    assemble(args, qla_nodes(boards.clone()), ids, boards)
 }
 
-/// The bus of `nodes` (board IDs `ids`) with the faults `args` ask for,
-/// behind the bridge.
+/// The bus of `nodes` (board IDs `ids`) with the faults `args` ask for.
 fn assemble(
     args: &EmulateArgs,
     nodes: Vec<Box<dyn Node>>,
     ids: Vec<u8>,
-) -> Result<(Bridge, Vec<u8>), CliError> {
-    let bridge_index = match args.bridge_board {
-        Some(id) => ids
-            .iter()
-            .position(|b| *b == id)
-            .ok_or(CliError::NoSuchBoard {
-                option: "--bridge-board",
-                board: id,
-            })?,
-        None => 0,
-    };
+    configs: Vec<BoardConfig>,
+) -> Result<EmulatedBus, CliError> {
     let mut rig = BoardRig::daisy_chain_nodes(
         nodes,
         &RigOptions {
@@ -197,39 +252,105 @@ fn assemble(
             .and_then(|i| rig.boards.get(i).copied())
             .ok_or(CliError::NoSuchBoard { option, board: id })
     };
+    let mut timed = Vec::new();
     if let Some(id) = args.unplug_board {
         let node = handle_of("--unplug-board", id)?;
-        rig.bus.schedule_fault(
-            at,
-            TimedFault::Disconnect {
-                node,
-                reconnect_after: None,
-            },
-        );
+        timed.push(TimedFault::Disconnect {
+            node,
+            reconnect_after: None,
+        });
     }
     if let Some(id) = args.mute_board {
         let node = handle_of("--mute-board", id)?;
-        rig.bus.schedule_fault(
-            at,
-            TimedFault::StopAnswering {
-                node,
-                duration: None,
-            },
-        );
+        timed.push(TimedFault::StopAnswering {
+            node,
+            duration: None,
+        });
     }
-    let bridge_node = rig
-        .boards
-        .get(bridge_index)
-        .copied()
-        .ok_or(CliError::NoSuchBoard {
-            option: "--bridge-board",
-            board: bridge_index as u8,
-        })?;
-    Ok((Bridge::new(rig.bus, rig.host, bridge_node), ids))
+    let deferred = if args.fault_after_requests.is_some() && args.fw_cdev_twin() {
+        timed
+    } else {
+        for f in timed {
+            rig.bus.schedule_fault(at, f);
+        }
+        Vec::new()
+    };
+    Ok(EmulatedBus {
+        bus: rig.bus,
+        host: rig.host,
+        boards: rig.boards,
+        ids,
+        deferred,
+        configs,
+    })
+}
+
+/// The /dev/fw* twin of `args` (the boards and faults of `build_bus`).
+pub fn build_twin(args: &EmulateArgs) -> Result<(Twin, Vec<u8>), CliError> {
+    let e = build_bus(args)?;
+    let mut twin = Twin::new(e.bus, e.host);
+    if let Some(n) = args.fault_after_requests {
+        twin.defer_faults(n, e.deferred);
+    }
+    Ok((twin, e.ids))
+}
+
+/// `firelink emulate --fw-cdev SOCKET`: serve the twin until SIGINT,
+/// SIGTERM or `--duration-s`.
+fn run_twin(args: &EmulateArgs, path: &Path, out: &mut impl Write) -> Result<(), CliError> {
+    let (mut twin, ids) = build_twin(args)?;
+    let listener = fw_cdev::bind(path)?;
+    let stop = stop_flag(args)?;
+    writeln!(
+        out,
+        "emulating {} board(s) {:?} as /dev/fw1..fw{} (the PC's card: /dev/fw0); bus generation {}",
+        ids.len(),
+        ids,
+        ids.len(),
+        twin.bus().generation()
+    )?;
+    out.flush()?;
+    let mut log = |e: fw_cdev::ServeEvent| {
+        let line = match e {
+            fw_cdev::ServeEvent::Listening(p) => {
+                format!("firewire-cdev twin listening on {}", p.display())
+            }
+            fw_cdev::ServeEvent::Opened { device, connection } => {
+                format!("/dev/fw{device} opened (connection {connection})")
+            }
+            fw_cdev::ServeEvent::BusReset(g) => format!("bus reset: generation {g}"),
+            fw_cdev::ServeEvent::Stopped(s) => format!("stopped: {s}"),
+        };
+        let _ = writeln!(out, "{line}");
+        let _ = out.flush();
+    };
+    let served = fw_cdev::serve(&mut twin, &listener, &stop, &mut log);
+    let _ = std::fs::remove_file(path);
+    served?;
+    Ok(())
+}
+
+/// A flag set by SIGINT, SIGTERM, or after `--duration-s`.
+fn stop_flag(args: &EmulateArgs) -> Result<Arc<AtomicBool>, CliError> {
+    let stop = Arc::new(AtomicBool::new(false));
+    signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))?;
+    signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))?;
+    if args.duration_s > 0.0 {
+        let stop = Arc::clone(&stop);
+        let d = Duration::from_secs_f64(args.duration_s);
+        std::thread::spawn(move || {
+            std::thread::sleep(d);
+            stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        });
+    }
+    Ok(stop)
 }
 
 /// `firelink emulate`.
 pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
+    if let Some(path) = &args.fw_cdev {
+        return run_twin(args, path, out);
+    }
     if !args.listen.ip().is_loopback() {
         eprintln!(
             "firelink emulate: WARNING: listening on udp {}, not loopback: anyone who can \
@@ -244,17 +365,7 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
         loopback_broadcast: !args.no_broadcast,
     };
     let (unicast, broadcast) = firelink_emulate::bind(&config)?;
-    let stop = Arc::new(AtomicBool::new(false));
-    signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))?;
-    signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))?;
-    if args.duration_s > 0.0 {
-        let stop = Arc::clone(&stop);
-        let d = Duration::from_secs_f64(args.duration_s);
-        std::thread::spawn(move || {
-            std::thread::sleep(d);
-            stop.store(true, std::sync::atomic::Ordering::Relaxed);
-        });
-    }
+    let stop = stop_flag(args)?;
     let snake = bridge
         .bus()
         .node::<firelink_board::snake::SnakeNode>(firelink_bus::NodeHandle(1))

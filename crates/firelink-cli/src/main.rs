@@ -11,6 +11,7 @@ mod board_cmd;
 mod companion;
 mod demo;
 mod emulate_cmd;
+mod fw_run;
 mod hex;
 mod mahru_cmd;
 mod monitor;
@@ -72,8 +73,13 @@ enum Command {
     /// budget, from simulated transactions and end to end), Table III
     /// (read time by payload, Xenomai and RTLinux), Table IV (CAN vs 1394).
     Budget(Box<mahru_cmd::BudgetArgs>),
-    /// Emulated boards behind an Ethernet bridge on UDP (127.0.0.1:1394).
+    /// Emulated boards behind an Ethernet bridge on UDP (127.0.0.1:1394),
+    /// or as /dev/fw* devices (`--fw-cdev SOCKET`).
     Emulate(Box<emulate_cmd::EmulateArgs>),
+    /// Run a program with the emulated boards as /dev/fw* devices (the
+    /// firewire-cdev twin preloaded): `firelink fw-run --boards 8 --
+    /// firelink scan --port fw`.
+    FwRun(Box<fw_run::FwRunArgs>),
     /// Fault soak: millions of servo cycles with faulted packets, every
     /// fault accounted for; then the watchdog proof.
     Soak(soak_cmd::SoakArgs),
@@ -271,7 +277,15 @@ pub enum CliError {
         /// Why the read-back failed.
         error: firelink_host::HostError,
     },
-    /// A companion program (`firelink-web`, `firelink-ros2`) is not built.
+    /// The preloaded /dev/fw* twin library (`fw-run`) is not built.
+    #[error(
+        "the /dev/fw* twin library is not built: run `cargo build -p firelink-fwcdev` or set FIRELINK_FWCDEV_LIB (looked for {path})"
+    )]
+    TwinLibraryMissing {
+        /// Where it was looked for.
+        path: String,
+    },
+    /// A companion binary (`firelink-web`, `firelink-ros2`) is not built.
     #[error("{name} is not built: run `cargo build --release -p {name}` (looked for {path})")]
     CompanionMissing {
         /// Its name.
@@ -401,6 +415,8 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Write(args) => board_cmd::run_write(&args, &mut out)?,
         Command::Monitor(args) => monitor::run(&args, &mut out)?,
         Command::Emulate(args) => emulate_cmd::run(&args, &mut out)?,
+        // Handled in main (it exits with the program's status).
+        Command::FwRun(_) => {}
         Command::Sim(args) => sim::run(&args, &mut out)?,
         Command::Demo(args) => demo::run(&args, &mut out)?,
         Command::Bench(args) => bench::run(&args, &mut out)?,
@@ -415,6 +431,15 @@ fn run(cli: Cli) -> Result<(), CliError> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Some(Command::FwRun(args)) = &cli.command {
+        return match fw_run::run(args) {
+            Ok(code) => ExitCode::from(code),
+            Err(err) => {
+                eprintln!("firelink fw-run: {err}");
+                ExitCode::from(err.exit_code())
+            }
+        };
+    }
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {

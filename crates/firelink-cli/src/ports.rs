@@ -1,5 +1,6 @@
-//! Opening a port from the strings users know: `udp:HOST[:PORT]` or
-//! `sim[:N[:FIRMWARE]]`, checked by clap ([`PortSpec`]).
+//! Opening a port from the strings users know: `udp:HOST[:PORT]`,
+//! `sim[:N[:FIRMWARE]]` or `fw[:N]` (FireWire card N), checked by clap
+//! ([`PortSpec`]).
 
 use std::net::SocketAddr;
 
@@ -7,6 +8,7 @@ use clap::{Args, ValueEnum};
 
 use firelink_board::config::{Hardware, Profile};
 use firelink_host::Port;
+use firelink_host::firewire::{FirewirePort, FwOptions};
 use firelink_host::trace::PcapWriter;
 use firelink_host::udp::UdpPort;
 
@@ -26,9 +28,12 @@ pub enum PortSpec {
     },
     /// `udp:HOST[:PORT]`: a bridge board (or `firelink emulate`).
     Udp(SocketAddr),
+    /// `fw` or `fw:N`: FireWire card N (0 by default) through Linux
+    /// /dev/fw* (or the twin of `firelink fw-run`).
+    Fw(u32),
 }
 
-const EXPECTED: &str = "sim[:N[:7|8|seed]] (N 1..=16), udp:HOST or udp:HOST:PORT";
+const EXPECTED: &str = "sim[:N[:7|8|seed]] (N 1..=16), udp:HOST, udp:HOST:PORT, fw or fw:N";
 
 /// `--port` (clap).
 fn parse_port(text: &str) -> Result<PortSpec, CliError> {
@@ -58,6 +63,12 @@ fn parse_port(text: &str) -> Result<PortSpec, CliError> {
     if text.starts_with("udp") {
         return Ok(PortSpec::Udp(udp_address(text)?));
     }
+    if text == "fw" {
+        return Ok(PortSpec::Fw(0));
+    }
+    if let Some(card) = text.strip_prefix("fw:") {
+        return card.parse().map(PortSpec::Fw).map_err(|_| bad());
+    }
     Err(bad())
 }
 
@@ -77,10 +88,16 @@ pub fn udp_address(text: &str) -> Result<SocketAddr, CliError> {
 #[derive(Args, Debug, Clone)]
 pub struct PortArgs {
     /// Where the boards are: `udp:HOST` (bridge board on UDP port 1394),
-    /// `udp:HOST:PORT`, or `sim[:N[:7|8|seed]]` (N emulated QLA1 boards on
-    /// an in-process simulated bus; default 8 at firmware Rev 8).
+    /// `udp:HOST:PORT`, `sim[:N[:7|8|seed]]` (N emulated QLA1 boards on
+    /// an in-process simulated bus; default 8 at firmware Rev 8), or
+    /// `fw` / `fw:N` (FireWire card 0 / N through /dev/fw*).
     #[arg(long, default_value = "udp:127.0.0.1", value_parser = parse_port)]
     pub port: PortSpec,
+    /// FireWire (`fw`): leave the PC's cycle-start packets on (by default
+    /// the card's STATE_CLEAR is written at open to stop them, as the
+    /// dVRK's host does).
+    #[arg(long = "keep-cycle-master")]
+    pub keep_cycle_master: bool,
     /// Read time-out in milliseconds (1..=60000).
     #[arg(long = "timeout-ms", default_value_t = 20, value_parser = crate::args::timeout_ms)]
     pub timeout_ms: u64,
@@ -109,6 +126,11 @@ pub fn open_port(args: &PortArgs) -> Result<Box<dyn Port>, CliError> {
             port.set_wait_mode(args.udp_wait.into());
             Box::new(port)
         }
+        PortSpec::Fw(card) => Box::new(FirewirePort::open(FwOptions {
+            card,
+            stop_cycle_master: !args.keep_cycle_master,
+            timeout: std::time::Duration::from_millis(args.timeout_ms),
+        })?),
     };
     if let Some(path) = &args.pcap {
         let file = std::io::BufWriter::new(std::fs::File::create(path)?);

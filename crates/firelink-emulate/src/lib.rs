@@ -15,6 +15,9 @@
 //!   paced to the wall clock, clean stop on a flag.
 //! - [`latency`]: how late the server answers, from each datagram's
 //!   arrival to its reply sent (the counters on the stop line).
+//! - [`fw_cdev`]: the other front end: the Linux kernel's /dev/fw* side
+//!   (firewire-cdev) over the same simulated bus, served on a unix socket
+//!   to the preloaded twin library (`firelink emulate --fw-cdev`).
 //!
 //! ## Model
 //! The bridge board's link onto FireWire is a [`HostLink`] node at the root
@@ -31,6 +34,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 mod arrival;
+#[cfg(target_os = "linux")]
+pub mod fw_cdev;
 pub mod latency;
 
 use arrival::{Received, Receiver};

@@ -41,6 +41,23 @@ pub enum HostError {
         /// Generation now on the bus.
         new: u32,
     },
+    /// The Linux FireWire driver completed a request without the node's
+    /// answer (its pseudo rcodes: no ack, busy, cancelled, send error).
+    #[error("node {node}: {}", driver_rcode_words(*.rcode))]
+    Driver {
+        /// Destination node.
+        node: u8,
+        /// The driver's rcode (`firelink_wire::fw_cdev::rcode`).
+        rcode: u32,
+    },
+    /// A FireWire device call failed in the operating system (errno).
+    #[error("FireWire device: {what}: errno {errno}")]
+    Device {
+        /// The call.
+        what: &'static str,
+        /// Its errno.
+        errno: i32,
+    },
     /// Bytes from the port did not decode.
     #[error("bad packet from the port: {0}")]
     Wire(#[from] firelink_wire::Error),
@@ -166,6 +183,19 @@ impl core::fmt::Display for MissReason {
             }
             MissReason::Transaction => write!(f, "transaction failed"),
         }
+    }
+}
+
+/// The Linux FireWire driver's pseudo rcode in words.
+fn driver_rcode_words(rcode: u32) -> &'static str {
+    use firelink_wire::fw_cdev::rcode as r;
+    match rcode {
+        r::NO_ACK => "no acknowledgement (no such node, or it is not answering)",
+        r::BUSY => "busy (the node stayed busy through the retries)",
+        r::CANCELLED => "cancelled (no response within the split time-out)",
+        r::SEND_ERROR => "send error (the request could not be sent)",
+        r::GENERATION => "stale bus generation (a bus reset came first)",
+        _ => "an rcode the driver does not document",
     }
 }
 

@@ -389,6 +389,11 @@ impl<P: Port> IoSystem<P> {
     /// [`HostError::InvalidRequest`] when the asked protocol is better than
     /// what the boards support, or the hub board is unknown.
     pub fn with_scan(port: P, scan: &ScanReport, config: IoOptions) -> Result<IoSystem<P>> {
+        let mut config = config;
+        if port.refuses_broadcast_registers() {
+            // The query at 0x1800 cannot go to node 63 on this port.
+            config.broadcast_route = BroadcastRoute::SnoopedNode0;
+        }
         let protocol = config.protocol.unwrap_or(scan.protocol);
         if protocol > scan.protocol {
             return Err(HostError::InvalidRequest {

@@ -12,6 +12,8 @@
 //!   every link.
 //! - [`udp`]: the Ethernet bridge port.
 //! - `sim`: the simulated-bus port (cargo feature `sim`, on by default).
+//! - `firewire`: a PC's FireWire card through Linux firewire-cdev
+//!   (cargo feature `firewire`, on by default; Linux only).
 //! - [`trace`] and [`fault`]: port wrappers that record every call and
 //!   packet (pcap of any port), and that lose and damage packets;
 //!   [`replay`]: a port answering from such a recording.
@@ -39,6 +41,8 @@ pub mod board;
 pub mod error;
 pub mod extras;
 pub mod fault;
+#[cfg(all(feature = "firewire", target_os = "linux"))]
+pub mod firewire;
 pub mod io;
 pub mod mahru;
 pub mod pacing;

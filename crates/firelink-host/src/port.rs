@@ -119,6 +119,15 @@ pub trait Port {
     fn acknowledges_writes(&self) -> bool {
         true
     }
+    /// Whether broadcast writes to register space (below
+    /// `0xFFFF_F000_0800`) are refused on this port, as Linux's FireWire
+    /// driver refuses them: the broadcast protocol then sends its query and
+    /// commands to node 0 for the boards to snoop
+    /// ([`BroadcastRoute::SnoopedNode0`](crate::io::BroadcastRoute), which
+    /// [`IoSystem`](crate::io::IoSystem) takes by itself on such a port).
+    fn refuses_broadcast_registers(&self) -> bool {
+        false
+    }
     /// What the port's link sent and received, refusals by reason.
     fn link_stats(&self) -> crate::transaction::LinkStats {
         crate::transaction::LinkStats::default()
@@ -208,6 +217,10 @@ macro_rules! forward_port {
         fn link_stats(&self) -> crate::transaction::LinkStats {
             let $s = self;
             $e.link_stats()
+        }
+        fn refuses_broadcast_registers(&self) -> bool {
+            let $s = self;
+            $e.refuses_broadcast_registers()
         }
         fn candidate_nodes(&self) -> core::ops::Range<u8> {
             let $s = self;

@@ -384,6 +384,10 @@ impl<P: Port> Port for TracingPort<P> {
         self.inner.link_stats()
     }
 
+    fn refuses_broadcast_registers(&self) -> bool {
+        self.inner.refuses_broadcast_registers()
+    }
+
     fn candidate_nodes(&self) -> core::ops::Range<u8> {
         self.inner.candidate_nodes()
     }

@@ -10,6 +10,8 @@
 //!   [`PacketRepr`](packet::PacketRepr) meaning type.
 //! - [`phy`]: PHY packets (self-ID, PHY configuration, link-on).
 //! - [`bridge`]: the Ethernet/UDP bridge framing (control word, extra data).
+//! - [`fw_cdev`]: Linux firewire-cdev ioctl arguments and events, and the
+//!   /dev/fw* twin's request/reply framing.
 //! - [`board`]: the FPGA1394/QLA board protocol: address spaces and the
 //!   register map, register quadlet codecs, the real-time read and write
 //!   blocks, and the broadcast protocol (query, status broadcasts, hub
@@ -48,6 +50,7 @@ pub mod bridge;
 pub mod crc;
 mod error;
 pub mod field;
+pub mod fw_cdev;
 pub mod human;
 pub mod mahru;
 mod open_enum;

@@ -1,0 +1,280 @@
+//! Firelink's own FireWire port (`--port fw`, `FirewirePort`) against the
+//! emulated boards through the /dev/fw* twin (`firelink fw-run`): the
+//! program under test is this test executable run again as a child, with
+//! the twin preloaded, driving the boards through glibc as it would a real
+//! card. Nothing here depends on timing: faults are started by the twin
+//! after a number of requests, waits are bounded, no duration is asserted.
+
+use std::path::PathBuf;
+use std::process::Command;
+use std::time::Duration;
+
+use firelink_host::firewire::{FirewirePort, FwOptions};
+use firelink_host::io::{BroadcastRoute, IoOptions, IoSystem};
+use firelink_host::scan::Protocol;
+use firelink_host::{Port, RobotIo, WatchdogSetting};
+
+const CHILD_ENV: &str = "FW_PORT_TEST_CHILD";
+
+/// Run `scenario` of this file as a child of `firelink fw-run` with
+/// `emulate` options; it must exit 0.
+fn run_under_twin(scenario: &str, emulate: &[&str]) {
+    if std::env::var_os(CHILD_ENV).is_some() {
+        return;
+    }
+    let lib = PathBuf::from(env!("CARGO_BIN_EXE_firelink")).with_file_name("libfirelink_fwcdev.so");
+    assert!(
+        lib.exists(),
+        "{} is missing: run `cargo build -p firelink-fwcdev` (cargo test --workspace builds it)",
+        lib.display()
+    );
+    let me = std::env::current_exe().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_firelink"))
+        .arg("fw-run")
+        .args(emulate)
+        .arg("--")
+        .arg(&me)
+        .args([scenario, "--exact", "--nocapture", "--test-threads=1"])
+        .env(CHILD_ENV, scenario)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{scenario} failed ({}):\n{}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn in_child(name: &str) -> bool {
+    std::env::var(CHILD_ENV).is_ok_and(|c| c == name)
+}
+
+fn open_io() -> IoSystem<FirewirePort> {
+    let port = FirewirePort::open(FwOptions {
+        timeout: Duration::from_millis(200),
+        ..FwOptions::default()
+    })
+    .expect("open fw");
+    // The default options: the system takes the snooped-node-0 route by
+    // itself, as the port refuses broadcast register writes.
+    let (io, scan) = IoSystem::open(port, IoOptions::default()).expect("scan over fw");
+    assert_eq!(scan.protocol, Protocol::Broadcast);
+    io
+}
+
+#[test]
+fn ten_thousand_broadcast_cycles_of_28_axes_without_an_error() {
+    run_under_twin(
+        "ten_thousand_broadcast_cycles_of_28_axes_without_an_error",
+        &["--boards", "7"],
+    );
+    if !in_child("ten_thousand_broadcast_cycles_of_28_axes_without_an_error") {
+        return;
+    }
+    let mut io = open_io();
+    assert_eq!(io.boards().len(), 7);
+    assert_eq!(RobotIo::axis_count(&io), 28);
+    for _ in 0..10_000 {
+        io.cycle();
+    }
+    let stats = *io.stats();
+    assert_eq!(stats.cycles, 10_000);
+    assert_eq!(stats.total_errors(), 0, "{stats:?}");
+    assert_eq!(stats.clean_cycles, 10_000, "{stats:?}");
+}
+
+#[test]
+fn a_bus_reset_mid_run_is_reported_once_and_recovered() {
+    run_under_twin(
+        "a_bus_reset_mid_run_is_reported_once_and_recovered",
+        &["--boards", "4"],
+    );
+    if !in_child("a_bus_reset_mid_run_is_reported_once_and_recovered") {
+        return;
+    }
+    let mut io = open_io();
+    for _ in 0..200 {
+        io.cycle();
+    }
+    assert_eq!(io.stats().total_errors(), 0);
+    let generation = io.port().generation();
+    io.port_mut().initiate_bus_reset(false).unwrap();
+    // Cycles go on failing (a reset seen) until the program recovers.
+    let mut seen = false;
+    for _ in 0..1000 {
+        io.cycle();
+        if io.needs_rescan() {
+            seen = true;
+            break;
+        }
+    }
+    assert!(seen, "no cycle met the bus reset");
+    let scan = io.recover().unwrap().expect("a rescan");
+    assert_eq!(scan.boards.len(), 4);
+    assert!(io.port().generation() > generation);
+    let before = *io.stats();
+    for _ in 0..200 {
+        io.cycle();
+    }
+    let after = *io.stats();
+    assert_eq!(after.total_errors(), before.total_errors(), "{after:?}");
+    assert_eq!(after.clean_cycles - before.clean_cycles, 200);
+}
+
+#[test]
+fn an_unplugged_board_is_named_and_the_others_still_served() {
+    // Board 0 is the far end of the daisy chain: unplugged, only it leaves.
+    run_under_twin(
+        "an_unplugged_board_is_named_and_the_others_still_served",
+        &[
+            "--boards",
+            "5",
+            "--unplug-board",
+            "0",
+            "--fault-after-requests",
+            "2000",
+        ],
+    );
+    if !in_child("an_unplugged_board_is_named_and_the_others_still_served") {
+        return;
+    }
+    let mut io = open_io();
+    let before: Vec<u8> = io.boards().iter().map(|b| b.board_id()).collect();
+    assert_eq!(before, [0, 1, 2, 3, 4]);
+    let mut cycles = 0;
+    while !io.needs_rescan() {
+        let report = io.cycle();
+        let error = report.error;
+        cycles += 1;
+        assert!(cycles < 100_000, "the unplug never showed: {error:?}");
+    }
+    let scan = io.recover().unwrap().expect("a rescan");
+    let after: Vec<u8> = scan.boards.iter().map(|b| b.board_id).collect();
+    let gone: Vec<u8> = before
+        .iter()
+        .copied()
+        .filter(|b| !after.contains(b))
+        .collect();
+    println!("boards gone from the bus: {gone:?}");
+    assert_eq!(gone, [0]);
+    let start = *io.stats();
+    for _ in 0..200 {
+        let report = io.cycle();
+        assert!(report.all_ok(), "{:?}", report.error);
+    }
+    let end = *io.stats();
+    assert_eq!(end.clean_cycles - start.clean_cycles, 200, "{end:?}");
+}
+
+#[test]
+fn the_watchdog_turns_the_amplifiers_off_when_the_host_stops() {
+    run_under_twin(
+        "the_watchdog_turns_the_amplifiers_off_when_the_host_stops",
+        &["--boards", "2"],
+    );
+    if !in_child("the_watchdog_turns_the_amplifiers_off_when_the_host_stops") {
+        return;
+    }
+    let mut io = open_io();
+    io.set_watchdog(WatchdogSetting::from_ms(20.0).unwrap())
+        .unwrap();
+    let axes = RobotIo::axis_count(&io);
+    // Power on and enable every amplifier; cycle until the boards show it
+    // (bounded).
+    RobotIo::set_power(&mut io, 0b11, true);
+    io.cycle();
+    // The supply is good some milliseconds after power is enabled; cycle
+    // (feeding the watchdog) until the boards say they are powered.
+    for _ in 0..20_000 {
+        io.cycle();
+        if [0, 1].iter().all(|b| io.powered(*b)) {
+            break;
+        }
+    }
+    for axis in 0..axes {
+        io.set_amplifier_enable(axis, true).unwrap();
+    }
+    let mut on = false;
+    for _ in 0..20_000 {
+        io.latch_all_inputs();
+        io.apply_all_outputs();
+        if (0..axes).all(|a| io.amplifier_enabled(a).unwrap_or(false)) {
+            on = true;
+            break;
+        }
+    }
+    assert!(
+        on,
+        "the amplifiers never came on: {:?} {:?} {:?}",
+        io.board_status(0),
+        io.report().error,
+        io.stats()
+    );
+    // The host stops (no writes) for well over the watchdog period.
+    std::thread::sleep(Duration::from_millis(200));
+    let mut off = false;
+    for _ in 0..100 {
+        io.latch_all_inputs();
+        if (0..axes).all(|a| !io.amplifier_enabled(a).unwrap_or(true))
+            && [0, 1].iter().all(|b| io.watchdog_expired(*b))
+        {
+            off = true;
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(off, "amplifiers still on after the host stopped");
+}
+
+#[test]
+fn packets_lost_on_the_bus_are_counted_and_nothing_hangs() {
+    // One packet in 200 lost on the bus, from the start (seeded): lost
+    // requests end in no-ack, lost responses in the port's own deadline
+    // (the twin cancels them 2 s later; those late completions are dropped
+    // by closure). Every cycle ends, every failure is counted.
+    run_under_twin(
+        "packets_lost_on_the_bus_are_counted_and_nothing_hangs",
+        &["--boards", "4", "--drop-rate", "0.005", "--seed", "7"],
+    );
+    if !in_child("packets_lost_on_the_bus_are_counted_and_nothing_hangs") {
+        return;
+    }
+    // A scan can lose a packet too: try again (bounded) until it sees all
+    // four boards.
+    let mut io = None;
+    for _ in 0..20 {
+        let port = FirewirePort::open(FwOptions {
+            timeout: Duration::from_millis(50),
+            ..FwOptions::default()
+        })
+        .expect("open fw");
+        let options = IoOptions {
+            broadcast_route: BroadcastRoute::SnoopedNode0,
+            ..IoOptions::default()
+        };
+        if let Ok((sys, scan)) = IoSystem::open(port, options)
+            && scan.boards.len() == 4
+        {
+            io = Some(sys);
+            break;
+        }
+    }
+    let mut io = io.expect("no complete scan in 20 tries");
+    for _ in 0..3000 {
+        io.cycle();
+        if io.needs_rescan() {
+            let _ = io.recover();
+        }
+    }
+    let stats = *io.stats();
+    assert_eq!(stats.cycles, 3000);
+    assert!(stats.total_errors() > 0, "no loss seen: {stats:?}");
+    assert!(stats.clean_cycles > 2000, "{stats:?}");
+    // Each cycle either ran clean or counted what went wrong.
+    let missed: u64 = stats.missed_by_board.iter().sum();
+    assert!(stats.cycles - stats.clean_cycles <= missed + stats.total_errors());
+    let link = io.port().link_stats();
+    assert!(link.timeouts > 0 || link.late > 0 || stats.nacks + stats.other > 0);
+}
