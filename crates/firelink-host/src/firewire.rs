@@ -778,23 +778,13 @@ fn drain(n: &mut NodeFile, buf: &mut [u8], generation: &mut u32) -> bool {
     }
 }
 
-fn no_broadcast_reads(dest: Dest) -> Result<()> {
-    if dest.is_broadcast() {
-        return Err(HostError::InvalidRequest {
-            what: "reads cannot be broadcast on a 1394 bus",
-            value: u32::from(dest.node),
-        });
-    }
-    Ok(())
-}
-
 impl Port for FirewirePort {
     fn name(&self) -> &str {
         &self.name
     }
 
     fn read_quadlet(&mut self, dest: Dest, offset: u64) -> Result<u32> {
-        no_broadcast_reads(dest)?;
+        crate::port::refuse_broadcast_read(dest)?;
         let mut q = [0u8; 4];
         self.transact(dest.node, false, 4, offset, &[], &mut q)?;
         Ok(u32::from_be_bytes(q))
@@ -806,7 +796,7 @@ impl Port for FirewirePort {
 
     fn read_block(&mut self, dest: Dest, offset: u64, out: &mut [u8]) -> Result<()> {
         crate::port::check_block(out.len())?;
-        no_broadcast_reads(dest)?;
+        crate::port::refuse_broadcast_read(dest)?;
         self.transact(dest.node, false, 5, offset, &[], out)
     }
 

@@ -41,6 +41,25 @@ impl Dest {
     }
 }
 
+/// Refuse a read addressed to the broadcast node: a 1394 bus has no
+/// broadcast read (ports that reach a bus call this before sending).
+///
+/// # Errors
+/// [`HostError::InvalidRequest`](crate::HostError::InvalidRequest).
+#[cfg_attr(
+    not(any(feature = "sim", all(target_os = "linux", feature = "firewire"))),
+    allow(dead_code)
+)]
+pub(crate) fn refuse_broadcast_read(dest: Dest) -> Result<()> {
+    if dest.is_broadcast() {
+        return Err(crate::HostError::InvalidRequest {
+            what: "reads cannot be broadcast on a 1394 bus",
+            value: u32::from(dest.node),
+        });
+    }
+    Ok(())
+}
+
 /// Check a block transfer size: 4..=2048 bytes (the S400 maximum payload)
 /// in whole quadlets. Ports call this before sending anything.
 ///

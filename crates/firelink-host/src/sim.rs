@@ -433,23 +433,13 @@ fn no_response(tl: u8) -> HostError {
     })
 }
 
-fn no_broadcast_reads(dest: Dest) -> Result<()> {
-    if dest.is_broadcast() {
-        return Err(HostError::InvalidRequest {
-            what: "reads cannot be broadcast on a 1394 bus",
-            value: u32::from(dest.node),
-        });
-    }
-    Ok(())
-}
-
 impl Port for SimPort {
     fn name(&self) -> &str {
         "sim"
     }
 
     fn read_quadlet(&mut self, dest: Dest, offset: u64) -> Result<u32> {
-        no_broadcast_reads(dest)?;
+        crate::port::refuse_broadcast_read(dest)?;
         let header = self.header(dest);
         let response = self.transact(
             Expect::quadlet(dest, header.tl),
@@ -470,7 +460,7 @@ impl Port for SimPort {
 
     fn read_block(&mut self, dest: Dest, offset: u64, out: &mut [u8]) -> Result<()> {
         crate::port::check_block(out.len())?;
-        no_broadcast_reads(dest)?;
+        crate::port::refuse_broadcast_read(dest)?;
         let header = self.header(dest);
         let response = self.transact(
             Expect::block(dest, header.tl, out.len()),

@@ -4,7 +4,7 @@
  * generation, the generation checks, STATE_CLEAR to stop cycle start,
  * quadlet and block reads and quadlet writes to every board, then the fd
  * and loop_iterate to pick up events. Prints one line per board:
- *   node N hw HHHHHHHH fw FFFFFFFF wd WWWWWWWW block XXXXXXXX,XXXXXXXX
+ *   node <n> hw <hex> fw <hex> wd <hex> block <hex>,<hex>   (hex: 8 digits)
  * Exit status 0 when every call worked. */
 #include <arpa/inet.h>
 #include <errno.h>
