@@ -895,4 +895,23 @@ mod tests {
         assert_eq!(TwinReply::parse(&out[..n]).unwrap(), reply);
         assert!(TwinReply::parse(&out[..10]).is_err());
     }
+
+    proptest::proptest! {
+        /// Any bytes from a client or the server, of any length: every
+        /// parser answers Ok or a named error, never a panic; what parses
+        /// as a twin request emits back within its own length.
+        #[test]
+        fn any_bytes_parse_or_fail_cleanly(bytes in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..200)) {
+            let _ = GetInfoArgs::parse(&bytes);
+            let _ = SendRequestArgs::parse(&bytes);
+            let _ = BusResetRecord::parse(&bytes);
+            let _ = ResponseEvent::parse(&bytes);
+            let _ = TwinReply::parse(&bytes);
+            if let Ok(request) = TwinRequest::parse(&bytes) {
+                let mut out = [0u8; 4096];
+                let n = request.emit(&mut out).unwrap();
+                proptest::prop_assert!(n <= bytes.len());
+            }
+        }
+    }
 }
