@@ -46,9 +46,9 @@ local firelink = Proto("firelink", "Firelink IEEE 1394")
 
 local TWO32 = 4294967296
 
--- Bits hi..lo of a 32-bit value.
+-- Bits hi..lo of a 32-bit value (an integer on Lua 5.3+ too).
 local function bits(v, hi, lo)
-    return math.floor(v / 2 ^ lo) % 2 ^ (hi - lo + 1)
+    return math.floor(v / 2 ^ lo) % math.floor(2 ^ (hi - lo + 1))
 end
 
 local bxor, lshift, rshift
@@ -436,16 +436,31 @@ end
 ---------------------------------------------------------------------------
 -- dVRK.
 
-local function board_status(tvb, at, tree, label)
+-- Add the fields named by `keys` over the same bytes `r`.
+local function add_all(tree, keys, r)
+    for _, k in ipairs(keys) do
+        tree:add(F[k], r)
+    end
+end
+
+local STATUS_BITS = { "bs_axes", "bs_id", "bs_wdog", "bs_qdac", "bs_supply", "bs_power", "bs_relay_state",
+    "bs_relay_on", "bs_fault", "bs_feedback", "bs_ioexp", "bs_ampfault", "bs_safety", "bs_amp" }
+-- The fields of a board register's and an axis register's quadlet (by
+-- register offset); the others get the plain value field.
+local BOARD_REG_FIELDS = { [3] = { "b_wdog" }, [5] = { "b_temp" }, [10] = { "b_din" } }
+local AXIS_REG_FIELDS = {
+    [0] = { "a_pot", "a_cur" }, [5] = { "a_enc", "a_enc_raw" }, [6] = { "a_period" },
+    [7] = { "a_qtr1" }, [9] = { "a_qtr5" }, [10] = { "a_run" }, [12] = { "a_mstatus" },
+}
+-- The per-axis sections of the real-time read block, in wire order, as
+-- the axis registers they copy.
+local SECTIONS_REV4 = { 0, 5 }
+local SECTIONS_REV7 = { 0, 5, 6, 7, 9, 10 }
+local SECTIONS_REV8 = { 0, 5, 6, 7, 9, 10, 12 }
+
+local function board_status(tvb, at, tree)
     local r = tvb(at, 4)
-    local t = tree:add(F.b_status, r)
-    if label then
-        t:prepend_text(label .. " ")
-    end
-    for _, k in ipairs({ "bs_axes", "bs_id", "bs_wdog", "bs_qdac", "bs_supply", "bs_power", "bs_relay_state",
-        "bs_relay_on", "bs_fault", "bs_feedback", "bs_ioexp", "bs_ampfault", "bs_safety", "bs_amp" }) do
-        t:add(F[k], r)
-    end
+    add_all(tree:add(F.b_status, r), STATUS_BITS, r)
     return r:uint()
 end
 
@@ -453,9 +468,7 @@ local function dac_word(tvb, at, tree, motor)
     local r = tvb(at, 4)
     local t = tree:add(F.a_dac, r)
     t:prepend_text("Motor " .. motor .. " ")
-    for _, k in ipairs({ "a_dac_valid", "a_dac_mask", "a_dac_en", "a_dac_board", "a_dac_cmd" }) do
-        t:add(F[k], r)
-    end
+    add_all(t, { "a_dac_valid", "a_dac_mask", "a_dac_en", "a_dac_board", "a_dac_cmd" }, r)
 end
 
 local function fourcc(v)
@@ -502,34 +515,11 @@ local function rt_read_block(tvb, at, n, tree)
         return
     end
     tree:append_text(" (" .. fmt .. ", " .. axes .. " axes)")
-    local sections = { "adc", "enc" }
-    if fmt ~= "rev4" then
-        sections = { "adc", "enc", "period", "qtr1", "qtr5", "run" }
-    end
-    if fmt == "rev8" then
-        sections[#sections + 1] = "mstatus"
-    end
+    local sections = (fmt == "rev8" and SECTIONS_REV8) or (fmt == "rev7" and SECTIONS_REV7) or SECTIONS_REV4
     for a = 0, axes - 1 do
         local t = tree:add(F.axis, tvb(at + 16 + 4 * a, 4), a + 1)
-        for s, name in ipairs(sections) do
-            local r = tvb(at + 16 + 4 * ((s - 1) * axes + a), 4)
-            if name == "adc" then
-                t:add(F.a_pot, r)
-                t:add(F.a_cur, r)
-            elseif name == "enc" then
-                t:add(F.a_enc, r)
-                t:add(F.a_enc_raw, r)
-            elseif name == "period" then
-                t:add(F.a_period, r)
-            elseif name == "qtr1" then
-                t:add(F.a_qtr1, r)
-            elseif name == "qtr5" then
-                t:add(F.a_qtr5, r)
-            elseif name == "run" then
-                t:add(F.a_run, r)
-            else
-                t:add(F.a_mstatus, r)
-            end
+        for s, reg in ipairs(sections) do
+            add_all(t, AXIS_REG_FIELDS[reg], tvb(at + 16 + 4 * ((s - 1) * axes + a), 4))
         end
     end
 end
@@ -700,11 +690,7 @@ local function dvrk_quadlet(offset, write, tvbr, tree)
                 tree:add(F.b_status_write, tvbr)
                 return ""
             end
-            local t = tree:add(F.b_status, tvbr)
-            for _, k in ipairs({ "bs_axes", "bs_id", "bs_wdog", "bs_qdac", "bs_supply", "bs_power", "bs_relay_state",
-                "bs_relay_on", "bs_fault", "bs_feedback", "bs_ioexp", "bs_ampfault", "bs_safety", "bs_amp" }) do
-                t:add(F[k], tvbr)
-            end
+            add_all(tree:add(F.b_status, tvbr), STATUS_BITS, tvbr)
             return " board " .. bits(v, 27, 24)
         elseif reg == 4 then
             tree:add(F.b_hw, tvbr, fourcc(v))
@@ -712,34 +698,18 @@ local function dvrk_quadlet(offset, write, tvbr, tree)
         elseif reg == 7 then
             tree:add(F.b_fw, tvbr)
             return " Rev " .. v
-        elseif reg == 3 then
-            tree:add(F.b_wdog, tvbr)
-        elseif reg == 10 then
-            tree:add(F.b_din, tvbr)
-        elseif reg == 5 then
-            tree:add(F.b_temp, tvbr)
         elseif reg == 11 then
             tree:add_le(F.b_ip, tvbr)
         else
-            tree:add(F.b_reg, tvbr)
+            add_all(tree, BOARD_REG_FIELDS[reg] or { "b_reg" }, tvbr)
         end
         return ""
     end
     local t = tree:add(F.axis, channel)
-    if reg == 0 then
-        t:add(F.a_pot, tvbr)
-        t:add(F.a_cur, tvbr)
-    elseif reg == 1 and write then
+    if reg == 1 and write then
         dac_word(tvbr:tvb(), 0, t, channel)
-    elseif reg == 5 then
-        t:add(F.a_enc, tvbr)
-        t:add(F.a_enc_raw, tvbr)
-    elseif reg == 6 then
-        t:add(F.a_period, tvbr)
-    elseif reg == 12 then
-        t:add(F.a_mstatus, tvbr)
     else
-        t:add(F.a_reg, tvbr)
+        add_all(t, AXIS_REG_FIELDS[reg] or { "a_reg" }, tvbr)
     end
     return ""
 end
@@ -794,10 +764,7 @@ local function snake_name(offset)
 end
 
 local function snake_status(tvbr, tree)
-    local t = tree:add(F.s_status, tvbr)
-    for _, k in ipairs({ "ss_id", "ss_wdog", "ss_fault", "ss_mask", "ss_amp" }) do
-        t:add(F[k], tvbr)
-    end
+    add_all(tree:add(F.s_status, tvbr), { "ss_id", "ss_wdog", "ss_fault", "ss_mask", "ss_amp" }, tvbr)
 end
 
 local function snake_quadlet(offset, write, tvbr, tree)
@@ -993,9 +960,7 @@ local function phy_packet(tvb, tree)
         t:add(F.phy_gap, r)
         info = info .. " gap_count=" .. bits(v, 21, 16)
     elseif kind == 2 then
-        for _, k in ipairs({ "phy_link", "phy_gap", "phy_speed", "phy_contender", "phy_ports", "phy_initiated", "phy_more" }) do
-            t:add(F[k], r)
-        end
+        add_all(t, { "phy_link", "phy_gap", "phy_speed", "phy_contender", "phy_ports", "phy_initiated", "phy_more" }, r)
     end
     local c = tree:add(F.phy_check, tvb(8, 4))
     if bxor(v, tvb(8, 4):uint()) ~= 0xFFFFFFFF then
@@ -1086,7 +1051,7 @@ local function packet(tvb, pinfo, tree, bridge_response)
     local total = hlen + 4
     local data
     if HAS_DATA[tcode] and dlen and dlen > 0 then
-        local padded = math.ceil(dlen / 4) * 4
+        local padded = math.floor((dlen + 3) / 4) * 4
         if not need(tvb, hlen + 4, padded + 4, t, dlen .. " bytes of data and the data CRC") then
             if tvb:len() > hlen + 4 then
                 t:add(F.data, tvb(hlen + 4))
@@ -1242,10 +1207,7 @@ function firelink.dissector(tvb, pinfo, tree)
                 xt:add_proto_expert_info(E.truncated, "Truncated: bridge extra data is 8 bytes, " .. rest .. " here")
             else
                 local fr = tvb(used, 1)
-                local ft = xt:add(F.x_flags, fr)
-                for _, k in ipairs({ "x_reset", "x_dropped", "x_internal", "x_summary", "x_nf", "x_port" }) do
-                    ft:add(F[k], fr)
-                end
+                add_all(xt:add(F.x_flags, fr), { "x_reset", "x_dropped", "x_internal", "x_summary", "x_nf", "x_port" }, fr)
                 xt:add(F.x_gen, tvb(used + 1, 1))
                 xt:add(F.x_invalid, tvb(used + 2, 1))
                 xt:add(F.x_errors, tvb(used + 3, 1))
