@@ -328,7 +328,13 @@ field("m_slot", U8("firelink.mahru.slot", "QWRITE slot", D))
 field("m_valid", U8("firelink.mahru.valid", "Slot flags (bit 0 valid)", H))
 field("m_force", ProtoField.int32("firelink.mahru.force", "Force (mN)", D))
 field("m_ftorque", ProtoField.int32("firelink.mahru.ft_torque", "Torque (mNm)", D))
-field("m_param", ProtoField.float("firelink.mahru.parameter", "Parameter"))
+local MAHRU_PARAMS = {
+    { "gear", "Gear ratio" }, { "kp", "kp (Nm/rad)" }, { "ki", "ki (Nm/(rad s))" }, { "kd", "kd (Nm s/rad)" },
+    { "position_min", "Position min (rad)" }, { "position_max", "Position max (rad)" }, { "torque_max", "Torque max (Nm)" },
+}
+for _, p in ipairs(MAHRU_PARAMS) do
+    field("m_" .. p[1], ProtoField.float("firelink.mahru." .. p[1], p[2]))
+end
 field("m_trace", ProtoField.bytes("firelink.mahru.trace", "Trace buffer"))
 
 local fields = {}
@@ -906,14 +912,12 @@ local function mahru_block(offset, tcode, data, tree)
         if len % 32 ~= 0 then
             tree:add_proto_expert_info(E.size, "PARAMETER of " .. len .. " bytes (whole 32-byte records expected)")
         end
-        local names = { "gear ratio", "kp (Nm/rad)", "ki (Nm/(rad s))", "kd (Nm s/rad)",
-            "position min (rad)", "position max (rad)", "torque max (Nm)" }
         for s = 0, math.floor(len / 32) - 1 do
             local r = data(32 * s, 32)
             local t = tree:add(firelink, r, "Parameter record, ModID " .. r(0, 1):uint())
             t:add(F.m_mod, r(0, 1))
-            for i = 1, 7 do
-                t:add(F.m_param, r(4 * i, 4)):prepend_text(names[i] .. ": ")
+            for i, p in ipairs(MAHRU_PARAMS) do
+                t:add(F["m_" .. p[1]], r(4 * i, 4))
             end
         end
     elseif offset == MAHRU_TRACE then

@@ -485,6 +485,41 @@ fn mahru_session_commands_and_qwrite_slots() {
     assert_eq!(ids.len(), 14);
     assert_eq!(ids[0], row(&["1", "3"]));
     assert!(ids.contains(&row(&["2", "13"])), "{ids:?}");
+    // Answers decoded by the request they answer: QREAD's joint block,
+    // FTREAD's wrench; PARAMETER's records.
+    let joints = fields(
+        f,
+        "firelink.register == \"QREAD\" && firelink.tcode == 7",
+        &[
+            "firelink.mahru.mod_id",
+            "firelink.mahru.state",
+            "firelink.mahru.servo_ticks",
+        ],
+    );
+    assert_eq!(joints.len(), 20, "{joints:?}");
+    assert!(joints.iter().all(|r| r[1] == "3"), "{joints:?}");
+    let wrenches = fields(
+        f,
+        "firelink.register == \"FTREAD\" && firelink.tcode == 7",
+        &["firelink.mahru.force", "firelink.mahru.ft_torque"],
+    );
+    assert_eq!(wrenches.len(), 8, "{wrenches:?}");
+    assert!(
+        wrenches
+            .iter()
+            .all(|r| r[0].split(',').count() == 3 && r[1].split(',').count() == 3)
+    );
+    let gears = fields(
+        f,
+        "firelink.register == \"PARAMETER\"",
+        &[
+            "firelink.mahru.mod_id",
+            "firelink.mahru.gear",
+            "firelink.mahru.torque_max",
+        ],
+    );
+    assert_eq!(gears.len(), 10, "{gears:?}");
+    assert_eq!(gears[0], row(&["0", "160", "200"]));
     // The preference overrides the detection: as a dVRK, offset 18 is no
     // command; as MAHRU in one pass, the first request is IDREQUEST.
     let as_dvrk = fields_with(
