@@ -7,10 +7,17 @@
 //! that programs (the CLI, the Python package, the web console, tests)
 //! can run without hardware:
 //!
+//! - [`emulated`]: the emulated hardware's types front ends name (board
+//!   configurations, firmware profiles, the bus's fault rules);
+//! - [`port_spec`]: where the robot is: the one grammar of port strings
+//!   (`sim[:N[:FW]]`, `emulate`, `udp:HOST[:PORT]`, `fw[:N]`) every front
+//!   end parses, and opening what it names ([`ports`]);
 //! - [`rig`]: a robot configuration's boards, with the plant each actuator's
-//!   configuration names, on the simulated bus behind a
-//!   [`SimPort`](firelink_host::sim::SimPort), or behind an in-process
-//!   Ethernet-bridge emulator on loopback UDP ([`rig::Emulator`]);
+//!   configuration names, built by one [`RigBuilder`](rig::RigBuilder)
+//!   (boards by ID, seed, faults by board ID, the bridge board) on the
+//!   simulated bus behind a [`SimPort`](firelink_host::sim::SimPort), or
+//!   behind an in-process Ethernet-bridge emulator on loopback UDP
+//!   ([`rig::Emulator`]);
 //! - [`sim`]: one I/O cycle of N boards on the simulated bus, measured
 //!   phase by phase (the wire times of the seed papers; `firelink sim`);
 //! - [`plant_map`]: how an actuator of a configuration becomes an emulated
@@ -41,9 +48,12 @@ pub mod bench;
 pub mod console_homing;
 pub mod cpu;
 pub mod demo;
+pub mod emulated;
 pub mod error;
 pub mod mahru;
 pub mod plant_map;
+pub mod port_spec;
+pub mod ports;
 pub mod rig;
 pub mod service;
 pub mod sim;
