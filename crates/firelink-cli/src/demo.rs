@@ -254,7 +254,7 @@ pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
         rate_hz: args.rate.unwrap_or(6000.0),
         protocol: args.protocol.into(),
         duration_s: args.duration,
-        port: args.port.clone(),
+        port: args.port,
         firmware: args.firmware.into(),
         fault: args.fault.into(),
         pacing: args.pacing.map(Pacing::from),

@@ -236,8 +236,9 @@ fn firmware_name(profile: Profile) -> &'static str {
     }
 }
 
-/// A firmware named in a port string.
-fn firmware_of(name: &str) -> Option<Profile> {
+/// A firmware named in a port string (`7` or `rev7`, `8` or `rev8`,
+/// `seed`).
+pub fn firmware_of(name: &str) -> Option<Profile> {
     match name {
         "7" | "rev7" => Some(Profile::Rev7),
         "8" | "rev8" => Some(Profile::Rev8),
