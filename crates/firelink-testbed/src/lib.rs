@@ -40,9 +40,14 @@
 //!   on the generic servo, and the reproduction of the seed's bus
 //!   measurements with its PC model.
 //!
-//! Everything here runs in virtual time and is seeded: the same inputs give
-//! the same report, bit for bit. Only [`rig::Emulator`] touches sockets and
-//! the wall clock (its server paces virtual time to it).
+//! On the simulated bus everything runs in virtual time and is seeded: the
+//! same inputs give the same report, bit for bit. Sockets and device files
+//! are opened only where a port string asks for them: [`rig::Emulator`]
+//! (its server paces virtual time to the wall clock), the UDP and FireWire
+//! ports of [`ports`], and the programs that run over them with wall-clock
+//! pacing and measure wall-clock or CPU time (the demo and Snake demo on
+//! `emulate`, `udp:` or `fw`, the [`service`] loop, the benchmark's UDP
+//! points and host-CPU figures).
 
 pub mod bench;
 pub mod console_homing;
