@@ -28,11 +28,15 @@ Seed 001's Snake nodes (seven channels each, the seed's Get/Set list)::
     snake.latch_all_inputs(); snake.analog_position()
     snake.set_digital_pot_wiper(0, 1, 375); snake.apply_all_outputs()
 
-Port descriptions: ``"sim"`` (8 boards, firmware Rev 8), ``"sim:N"`` or
-``"sim:N:FW"`` (N boards 1..16, FW 7, 8 or seed), ``"udp:HOST[:PORT]"``
-(a running ``firelink emulate`` or a real bridge board), ``"fw"`` or
-``"fw:CARD"`` (a FireWire card through Linux /dev/fw*, or the emulated
-boards under ``firelink fw-run``).
+Port descriptions, as every Firelink front end reads them
+(``firelink.parse_port`` writes one back): ``"sim"`` (the robot's emulated
+boards on the simulated bus; for ``open``, ``Port`` and ``IoSystem``, seed
+000's dVRK: 8 QLA1 boards at firmware Rev 8), ``"sim:N"`` or ``"sim:N:FW"``
+(boards 0..N of it, N 1..16, FW 7, 8 or seed), ``"emulate"`` (the same
+boards behind an in-process emulator; ``run_demo`` only),
+``"udp:HOST[:PORT]"`` (a running ``firelink emulate`` or a real bridge
+board), ``"fw"`` or ``"fw:CARD"`` (a FireWire card through Linux /dev/fw*,
+or the emulated boards under ``firelink fw-run``).
 """
 
 from __future__ import annotations
@@ -66,6 +70,7 @@ from ._firelink import (
     crc1394,
     load_config,
     parse_config,
+    parse_port,
 )
 
 __all__ = [
@@ -92,6 +97,7 @@ __all__ = [
     "load_config",
     "open",
     "parse_config",
+    "parse_port",
     "run_bench",
     "run_demo",
 ]

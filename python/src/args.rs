@@ -333,7 +333,7 @@ pub(crate) fn opt_text(
 ///
 /// # Errors
 /// `PortError` for anything else.
-pub(crate) fn firmware(value: &Bound<'_, PyAny>) -> PyResult<firelink_board::config::Profile> {
+pub(crate) fn firmware(value: &Bound<'_, PyAny>) -> PyResult<firelink_testbed::emulated::Profile> {
     let name = match integer(value) {
         Integer::Fits(v) => v.to_string(),
         Integer::Raised(e) => return Err(e),

@@ -22,18 +22,20 @@ use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyString};
 
-use firelink_board::config::Profile;
 use firelink_control::config::{ConfigErrors, IoConfig, presets};
 use firelink_control::runner::Pacing;
 use firelink_host::io::{IoOptions, IoSystem as HostIoSystem};
 use firelink_host::packet_json::{self, PacketJson};
 use firelink_host::port::Dest;
 use firelink_host::scan::Protocol;
-use firelink_host::udp::{UdpPort, WaitMode};
+use firelink_host::udp::WaitMode;
 use firelink_host::{HostError, Port as HostPort, WatchdogSetting};
 use firelink_testbed::TestbedError;
 use firelink_testbed::bench::{BenchOptions, BenchTransport};
-use firelink_testbed::demo::{DemoFault, DemoOptions, DemoPort};
+use firelink_testbed::demo::{DemoFault, DemoOptions};
+use firelink_testbed::emulated::Profile;
+use firelink_testbed::port_spec::{self, PortSpec, PortSpecError};
+use firelink_testbed::ports::{PortOptions, open_bus_port};
 use firelink_testbed::rig;
 
 use args::Span;
@@ -75,6 +77,9 @@ fn testbed_error(py: Python<'_>, e: TestbedError) -> PyErr {
     match e {
         TestbedError::Host(h) => host_error(py, h),
         TestbedError::Config(text) => error(py, "FirelinkError", text),
+        e @ (TestbedError::PortSpec(_) | TestbedError::PortRefused(_)) => {
+            error(py, "PortError", e.to_string())
+        }
         other => error(py, "FirelinkError", other.to_string()),
     }
 }
@@ -155,91 +160,48 @@ pub(crate) fn watchdog_setting(
 // ------------------------------------------------------------- ports ---
 
 pub(crate) fn profile(py: Python<'_>, name: &str) -> PyResult<Profile> {
-    match name {
-        "7" | "rev7" => Ok(Profile::Rev7),
-        "8" | "rev8" => Ok(Profile::Rev8),
-        "seed" => Ok(Profile::Seed),
-        _ => Err(error(
+    port_spec::firmware_of(name).ok_or_else(|| {
+        error(
             py,
             "PortError",
             format!("unknown firmware {name:?}: expected 7, 8 or seed"),
-        )),
-    }
-}
-
-/// Open a `udp:HOST[:PORT]` port.
-fn open_udp(py: Python<'_>, spec: &str) -> PyResult<(AnyPort, String)> {
-    let addr = UdpPort::parse_address(spec).map_err(|e| error(py, "PortError", e.to_string()))?;
-    let port = rig::udp_port(addr).map_err(|e| testbed_error(py, e))?;
-    Ok((Box::new(port), format!("udp:{addr}")))
-}
-
-/// Open `fw` or `fw:CARD`: a FireWire card through Linux /dev/fw* (or the
-/// twin of `firelink fw-run`).
-fn open_fw(py: Python<'_>, spec: &str) -> PyResult<(AnyPort, String)> {
-    let card = match spec.strip_prefix("fw:") {
-        None => 0,
-        Some(n) => n.parse::<u32>().map_err(|_| {
-            error(
-                py,
-                "PortError",
-                format!("port {spec:?}: the card is a number, not {n:?}"),
-            )
-        })?,
-    };
-    let port = firelink_host::firewire::FirewirePort::open(firelink_host::firewire::FwOptions {
-        card,
-        ..Default::default()
+        )
     })
-    .map_err(|e| host_error(py, e))?;
-    Ok((Box::new(port), spec.to_string()))
+}
+
+/// Parse a port description with the one grammar every front end shares
+/// (`firelink_testbed::port_spec`); `PortError` with the parser's message.
+pub(crate) fn parse_port_spec(py: Python<'_>, spec: &str) -> PyResult<PortSpec> {
+    spec.parse()
+        .map_err(|e: PortSpecError| error(py, "PortError", e.to_string()))
+}
+
+/// Open a port for `command` (a Python call that runs no robot of its own:
+/// `firelink.open`, `Port`, `IoSystem`): `sim` is seed 000's dVRK.
+pub(crate) fn open_port_for(
+    py: Python<'_>,
+    command: &str,
+    spec: &str,
+) -> PyResult<(AnyPort, String)> {
+    let spec = parse_port_spec(py, spec)?;
+    let port = py
+        .detach(|| open_bus_port(command, &spec, &PortOptions::default()))
+        .map_err(|e| testbed_error(py, e))?;
+    Ok((port, spec.to_string()))
 }
 
 /// Open a port from its description (see `firelink.open`).
 fn open_port(py: Python<'_>, spec: &str) -> PyResult<(AnyPort, String)> {
-    let spec = spec.trim();
-    let dvrk = presets::dvrk_seed000();
-    if spec.starts_with("udp") {
-        return open_udp(py, spec);
-    }
-    if spec == "fw" || spec.starts_with("fw:") {
-        return open_fw(py, spec);
-    }
-    let mut parts = spec.split(':');
-    if parts.next() != Some("sim") {
-        return Err(error(
-            py,
-            "PortError",
-            format!(
-                "unknown port {spec:?}: sim[:BOARDS[:FIRMWARE]], udp:HOST[:PORT], fw or fw:CARD"
-            ),
-        ));
-    }
-    let boards = match parts.next() {
-        None => 8,
-        Some(n) => n
-            .parse::<usize>()
-            .ok()
-            .filter(|n| (1..=16).contains(n))
-            .ok_or_else(|| {
-                error(
-                    py,
-                    "PortError",
-                    format!("port {spec:?}: the board count is 1..=16, not {n:?}"),
-                )
-            })?,
-    };
-    let firmware = profile(py, parts.next().unwrap_or("8"))?;
-    if let Some(extra) = parts.next() {
-        return Err(error(
-            py,
-            "PortError",
-            format!("port {spec:?}: unexpected {extra:?} after the firmware"),
-        ));
-    }
-    let configs = rig::board_configs(&dvrk, firmware, boards);
-    let (port, _) = rig::sim_port(configs, false).map_err(|e| testbed_error(py, e))?;
-    Ok((Box::new(port), spec.to_string()))
+    open_port_for(py, "firelink.open", spec)
+}
+
+/// `firelink.parse_port`: a port description as every front end reads it,
+/// written back (`"fw"` is `"fw:0"`, `"udp:localhost"` is
+/// `"udp:127.0.0.1:1394"`); opens nothing.
+#[pyfunction]
+fn parse_port(py: Python<'_>, text: &Bound<'_, PyAny>) -> PyResult<String> {
+    let text = args::text(text, "port", port_spec::EXPECTED)?;
+    Ok(parse_port_spec(py, &text)?.to_string())
 }
 
 /// A physical node ID, 0..=63 (63: broadcast).
@@ -371,7 +333,8 @@ impl Port {
                 py,
                 "PortError",
                 format!(
-                    "a port description is a string (sim, sim:BOARDS[:FIRMWARE] or udp:HOST[:PORT]), not {}",
+                    "a port description is a string ({}), not {}",
+                    port_spec::EXPECTED,
                     args::type_name(spec)
                 ),
             ));
@@ -593,7 +556,9 @@ impl IoSystem {
         protocol: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<IoSystem> {
         let chosen = protocol_arg(py, protocol)?;
-        let inner = port_arg(py, port, "IoSystem", |text| Ok(open_port(py, text)?.0))?;
+        let inner = port_arg(py, port, "IoSystem", |text| {
+            Ok(open_port_for(py, "firelink.IoSystem", text)?.0)
+        })?;
         let config = IoOptions {
             protocol: chosen,
             ..IoOptions::default()
@@ -948,21 +913,20 @@ impl Emulator {
         let start = match robot.as_deref().unwrap_or("qla") {
             "qla" => {
                 let dvrk = config.unwrap_or_else(presets::dvrk_seed000);
-                let configs = rig::board_configs(&dvrk, firmware, boards);
-                rig::qla_nodes(configs)
+                rig::RigBuilder::qla(rig::board_configs(&dvrk, firmware, boards))
             }
             "snake" => {
                 let snake = config.unwrap_or_else(presets::snake_seed001);
                 let configs = firelink_testbed::snake::node_configs(&snake, 1)
                     .map_err(|e| testbed_error(py, e))?;
-                firelink_testbed::snake::nodes(configs)
+                rig::RigBuilder::snake(configs)
             }
             other => {
                 return Err(bad(py, format!("unknown robot {other:?}: qla or snake")));
             }
         };
         let emu = py
-            .detach(|| rig::Emulator::start_nodes(start))
+            .detach(|| rig::Emulator::start_rig(start))
             .map_err(|e| testbed_error(py, e))?;
         let address = format!("udp:{}", emu.addr);
         Ok(Emulator {
@@ -1193,7 +1157,7 @@ fn run_demo_json(
     watchdog_ms: &Bound<'_, PyAny>,
     config: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<String> {
-    let port = args::text(port, "port", "sim, emulate or udp:HOST[:PORT]")?;
+    let port = args::text(port, "port", port_spec::EXPECTED)?;
     let duration_s = args::real(duration, "duration", Span::above(0.0, MAX_DEMO_S, " s"))?;
     let rate_hz = args::real(rate, "rate", Span::closed(1.0, 100_000.0, " Hz"))?;
     let protocol = self::protocol(py, &args::text(protocol, "protocol", PROTOCOLS)?)?;
@@ -1220,10 +1184,7 @@ fn run_demo_json(
         rate_hz,
         protocol,
         duration_s,
-        port: port
-            .trim()
-            .parse::<DemoPort>()
-            .map_err(|e| error(py, "PortError", e.to_string()))?,
+        port: parse_port_spec(py, &port)?,
         firmware,
         fault,
         pacing,
@@ -1395,6 +1356,7 @@ fn _firelink(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Config>()?;
     snake::register(m)?;
     m.add_function(wrap_pyfunction!(load_config, m)?)?;
+    m.add_function(wrap_pyfunction!(parse_port, m)?)?;
     m.add_function(wrap_pyfunction!(parse_config, m)?)?;
     m.add_function(wrap_pyfunction!(run_demo_json, m)?)?;
     m.add_function(wrap_pyfunction!(run_bench_json, m)?)?;

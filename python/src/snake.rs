@@ -18,13 +18,13 @@ use pyo3::types::PyDict;
 
 use firelink_control::config::{IoConfig, presets};
 use firelink_host::snake::{EepromIndex, SnakeNodeIo, SnakeSystem as HostSnakeSystem};
+use firelink_testbed::port_spec::PortKind;
 use firelink_wire::snake::CHANNELS;
 use firelink_wire::snake::registers::{PotOutputs, PowerControl, Wiper};
 
 use crate::args::{self, Span};
 use crate::{
-    AnyPort, bad, cycle_result, error, exclusive, host_error, interrupt, open_udp, stats_dict,
-    testbed_error,
+    AnyPort, bad, cycle_result, error, exclusive, host_error, interrupt, stats_dict, testbed_error,
 };
 
 /// An argument as given, converted (with its name and range) where it is
@@ -68,26 +68,32 @@ fn flag(v: Arg<'_>, what: &str) -> PyResult<bool> {
     args::flag(&v.0, what)
 }
 
-/// Open the Snake nodes' port: `"sim"` builds `config`'s nodes (default:
-/// seed 001's six) on the simulated bus; `"udp:..."` as everywhere else.
+/// Open the Snake nodes' port: plain `"sim"` builds `config`'s nodes
+/// (default: seed 001's six) on the simulated bus; `"udp:..."` and `"fw"`
+/// as everywhere else; `sim:N[:FW]` and `emulate` refused.
 fn open_snake_port(py: Python<'_>, spec: &str, config: &IoConfig) -> PyResult<(AnyPort, String)> {
-    let spec = spec.trim();
-    if spec.starts_with("udp") {
-        return open_udp(py, spec);
+    const COMMAND: &str = "firelink.SnakeSystem";
+    let parsed = crate::parse_port_spec(py, spec)?;
+    let refused = parsed
+        .refuse_unless(COMMAND, &[PortKind::Sim, PortKind::Udp, PortKind::Fw])
+        .and_then(|()| {
+            parsed.refuse_board_count(
+                COMMAND,
+                "Snake nodes come from the configuration and have no QLA firmware",
+            )
+        });
+    if let Err(r) = refused {
+        return Err(error(py, "PortError", r.to_string()));
     }
-    if spec != "sim" {
-        return Err(error(
-            py,
-            "PortError",
-            format!("unknown Snake port {spec:?}: sim or udp:HOST[:PORT]"),
-        ));
+    if !parsed.is_sim() {
+        return crate::open_port_for(py, COMMAND, spec);
     }
     let nodes =
         firelink_testbed::snake::node_configs(config, 1).map_err(|e| testbed_error(py, e))?;
     let port = py
         .detach(|| firelink_testbed::snake::sim_port(nodes, false, None))
         .map_err(|e| testbed_error(py, e))?;
-    Ok((Box::new(port), spec.to_string()))
+    Ok((Box::new(port), parsed.to_string()))
 }
 
 /// A Snake node found by discovery.

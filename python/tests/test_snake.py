@@ -215,7 +215,7 @@ def test_wrong_types_raise_invalid_request_and_change_nothing():
 
 
 def test_bad_ports_raise_port_error():
-    with pytest.raises(firelink.PortError, match="unknown Snake port"):
+    with pytest.raises(firelink.PortError, match="firelink.SnakeSystem: port sim:8 cannot be used"):
         firelink.SnakeSystem("sim:8")
     with pytest.raises(firelink.PortError):
         firelink.SnakeSystem("udp:not a host:x")

@@ -8,10 +8,10 @@
 //! ID modulo 64 into a broadcast, or turn a watchdog off by accident.
 
 use clap::ValueEnum;
-use firelink_board::config::{Hardware, Profile};
 pub use firelink_host::WatchdogSetting;
 use firelink_host::scan::Protocol;
 use firelink_host::udp::WaitMode;
+use firelink_testbed::emulated::{Hardware, Profile};
 use firelink_wire::human::Number;
 
 /// A finite number in `lo..=hi` (or `lo < x` when `open_low`).

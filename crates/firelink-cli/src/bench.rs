@@ -42,15 +42,19 @@ impl From<TransportArg> for BenchTransport {
     }
 }
 
-/// `--port`: `udp:HOST` (port 1394) or `udp:HOST:PORT`.
+/// `--port`: the port grammar, of which the benchmark takes `udp:HOST`
+/// (port 1394) or `udp:HOST:PORT`.
 fn bridge_address(text: &str) -> Result<SocketAddr, CliError> {
-    if !text.starts_with("udp:") {
-        return Err(CliError::Port {
-            port: text.to_string(),
-            expected: "udp:HOST or udp:HOST:PORT",
-        });
+    match crate::ports::parse_port_for(
+        text,
+        "firelink bench --port",
+        &[firelink_testbed::port_spec::PortKind::Udp],
+    )? {
+        crate::ports::PortSpec::Udp(addr) => Ok(addr),
+        other => Err(other
+            .refused("firelink bench --port", "it takes udp".into())
+            .into()),
     }
-    crate::ports::udp_address(text)
 }
 
 /// The `--boards` list: each count 1..=62; counts above 16 (the board-ID

@@ -83,7 +83,7 @@ fn scan_json(port: &str, r: &ScanReport) -> ScanJson {
 
 /// `firelink scan`.
 pub fn run_scan(args: &ScanArgs, out: &mut impl Write) -> Result<(), CliError> {
-    let mut port = open_port(&args.port)?;
+    let mut port = open_port(&args.port, "firelink scan")?;
     let report = scan(port.as_mut())?;
     if args.json {
         writeln!(
@@ -136,7 +136,7 @@ pub fn run_scan(args: &ScanArgs, out: &mut impl Write) -> Result<(), CliError> {
 
 /// `firelink info`: identity and live state of every board.
 pub fn run_info(args: &ScanArgs, out: &mut impl Write) -> Result<(), CliError> {
-    let mut port = open_port(&args.port)?;
+    let mut port = open_port(&args.port, "firelink info")?;
     let report = scan(port.as_mut())?;
     let mut all = Vec::new();
     for b in &report.boards {
@@ -208,7 +208,7 @@ pub struct TargetArgs {
 impl TargetArgs {
     /// The port, opened, and the destination on it.
     fn open(&self) -> Result<(Box<dyn Port>, Dest), CliError> {
-        let mut port = open_port(&self.port)?;
+        let mut port = open_port(&self.port, "firelink read/write")?;
         let dest = resolve(port.as_mut(), self.board, self.node)?;
         Ok((port, dest))
     }

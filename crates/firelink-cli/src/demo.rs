@@ -14,7 +14,7 @@ use serde::Serialize;
 use firelink_control::config::{IoConfig, JointType, presets};
 use firelink_control::runner::Pacing;
 use firelink_testbed::demo::{
-    DemoFault, DemoOptions, DemoPort, DemoProgress, DemoReport, RealtimeStatus, run_demo,
+    DemoFault, DemoOptions, DemoProgress, DemoReport, PortSpec, RealtimeStatus, run_demo,
 };
 use firelink_wire::human::Number;
 
@@ -67,17 +67,6 @@ impl From<PacingArg> for Pacing {
     }
 }
 
-/// `--port`: `sim`, `emulate` or `udp:HOST[:PORT]` (clap).
-fn parse_port(text: &str) -> Result<DemoPort, String> {
-    if text.starts_with("udp") {
-        return crate::ports::udp_address(text)
-            .map(DemoPort::Udp)
-            .map_err(|e| e.to_string());
-    }
-    text.parse()
-        .map_err(|e: firelink_testbed::TestbedError| e.to_string())
-}
-
 /// Options of `firelink demo`.
 #[derive(Args, Debug, Clone)]
 pub struct DemoArgs {
@@ -104,12 +93,14 @@ pub struct DemoArgs {
     /// Seconds of motion after homing (above 0, at most a day).
     #[arg(long, default_value_t = 3.0, value_parser = crate::args::run_seconds)]
     pub duration: f64,
-    /// Where the boards are: `sim` (emulated boards on the simulated bus,
-    /// in-process), `emulate` (the same boards behind an in-process
-    /// `firelink emulate`, over loopback UDP) or `udp:HOST[:PORT]` (a
-    /// running `firelink emulate` or a real bridge board).
-    #[arg(long, default_value = "sim", value_parser = parse_port)]
-    pub port: DemoPort,
+    /// Where the boards are: `sim` (the robot's emulated boards on the
+    /// simulated bus, in-process; `sim:N[:FW]`: boards 0..N at firmware
+    /// FW), `emulate` (the same boards behind an in-process `firelink
+    /// emulate`, over loopback UDP), `udp:HOST[:PORT]` (a running
+    /// `firelink emulate` or a real bridge board) or `fw` / `fw:N`
+    /// (FireWire card 0 / N). MAHRU runs on plain `sim` only.
+    #[arg(long, default_value = "sim", value_parser = crate::ports::parse_port)]
+    pub port: PortSpec,
     /// Over UDP (`emulate`, `udp:...`): how the port's reads wait for the
     /// answer, `block` (sleep in the kernel, low CPU) or `spin` (poll the
     /// socket, low latency, one core busy while waiting).
@@ -159,7 +150,7 @@ impl Default for DemoArgs {
             period_us: None,
             protocol: ProtocolArg::Broadcast,
             duration: 3.0,
-            port: DemoPort::Sim,
+            port: PortSpec::SIM,
             udp_wait: UdpWaitArg::Block,
             firmware: FirmwareArg::Rev8,
             fault: FaultArg::None,
@@ -263,7 +254,7 @@ pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
         rate_hz: args.rate.unwrap_or(6000.0),
         protocol: args.protocol.into(),
         duration_s: args.duration,
-        port: args.port.clone(),
+        port: args.port,
         firmware: args.firmware.into(),
         fault: args.fault.into(),
         pacing: args.pacing.map(Pacing::from),
@@ -299,7 +290,7 @@ pub(crate) fn with_progress<T>(
         eprintln!("demo: {w}");
     }
     // The port's reads spin over UDP with `--udp-wait spin`.
-    let spinning = args.udp_wait == UdpWaitArg::Spin && args.port != DemoPort::Sim;
+    let spinning = args.udp_wait == UdpWaitArg::Spin && !args.port.is_sim();
     let setup_spinning = move || realtime_setup(spinning);
     let setup: &dyn Fn() -> RealtimeStatus = &setup_spinning;
     let mut ticking = false;

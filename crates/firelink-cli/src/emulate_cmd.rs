@@ -12,18 +12,20 @@ use std::time::Duration;
 
 use clap::Args;
 
-use firelink_board::config::{BoardConfig, BoardSettings, Profile};
-use firelink_board::rig::{BoardRig, RigOptions};
-use firelink_bus::Node;
-use firelink_bus::{FaultRule, PacketFault, PacketMatch, SimDuration, TimedFault};
-use firelink_control::config::presets;
+use firelink_control::config::{IoConfig, presets};
 use firelink_emulate::fw_cdev::{self, Twin};
 use firelink_emulate::{Bridge, Event, ServeConfig};
+use firelink_testbed::TestbedError;
+use firelink_testbed::emulated::{
+    BoardConfig, BoardSettings, FaultRule, PacketFault, PacketMatch, Profile, SimDuration,
+};
+use firelink_testbed::rig::{
+    BoardFault, Rig, RigBuilder, RobotKind, board_configs, generic_boards,
+};
+use firelink_testbed::snake;
 
 use crate::CliError;
 use crate::args::{FirmwareArg, HardwareArg};
-use firelink_testbed::rig::{board_configs, generic_boards, qla_nodes};
-use firelink_testbed::snake;
 
 /// Options of `firelink emulate`.
 #[derive(Args, Debug, Clone)]
@@ -100,68 +102,36 @@ pub struct EmulateArgs {
     /// does both). The PC's card is /dev/fw0, the boards /dev/fw1...
     #[arg(long = "fw-cdev", value_name = "SOCKET")]
     pub fw_cdev: Option<PathBuf>,
-    /// Set by `fw-run` (which serves the twin itself).
-    #[arg(skip)]
-    pub twin: bool,
     /// Stop by itself after this many seconds (0: run until a signal).
     #[arg(long = "duration-s", default_value_t = 0.0, value_parser = crate::args::seconds_or_forever)]
     pub duration_s: f64,
 }
 
-impl EmulateArgs {
-    /// Whether these options serve the /dev/fw* twin (`--fw-cdev`, or
-    /// `fw-run`, which sets it).
-    fn fw_cdev_twin(&self) -> bool {
-        self.fw_cdev.is_some() || self.twin
-    }
-}
-
-/// The boards of `args` on a simulated bus with the faults asked for.
-pub struct EmulatedBus {
-    /// The bus.
-    pub bus: firelink_bus::Bus,
-    /// The PC's link on it (at the root, the highest node ID).
-    pub host: firelink_bus::NodeHandle,
-    /// The boards' nodes, in the order of `ids`.
-    pub boards: Vec<firelink_bus::NodeHandle>,
-    /// Their board IDs.
-    pub ids: Vec<u8>,
-    /// Timed faults held back for `--fault-after-requests`.
-    pub deferred: Vec<TimedFault>,
-    /// The configurations of its QLA boards (none for Snake nodes).
-    pub configs: Vec<BoardConfig>,
-}
-
 /// Build the bridge of `args`: the boards on a simulated bus with the
-/// faults asked for, the board IDs on it and the configurations of its
-/// QLA boards (none for Snake nodes).
-pub fn build_bridge(args: &EmulateArgs) -> Result<(Bridge, Vec<u8>, Vec<BoardConfig>), CliError> {
-    let e = build_bus(args)?;
-    let bridge_index = match args.bridge_board {
-        Some(id) => e
-            .ids
-            .iter()
-            .position(|b| *b == id)
-            .ok_or(CliError::NoSuchBoard {
-                option: "--bridge-board",
-                board: id,
-            })?,
-        None => 0,
-    };
-    let bridge_node = e
-        .boards
-        .get(bridge_index)
-        .copied()
-        .ok_or(CliError::NoSuchBoard {
+/// faults asked for, its Ethernet port on `--bridge-board`; with the rig's
+/// robot kind, board IDs and the configurations of its QLA boards (none
+/// for Snake nodes).
+pub fn build_bridge(
+    args: &EmulateArgs,
+) -> Result<(Bridge, RobotKind, Vec<u8>, Vec<BoardConfig>), CliError> {
+    let mut rig = build_rig(args)?;
+    let at = SimDuration::from_micros(args.fault_at_ms.saturating_mul(1000));
+    rig.schedule_pending(at);
+    let (kind, ids, configs) = (rig.kind, rig.ids(), rig.configs.clone());
+    let bridge = rig.bridge(args.bridge_board).map_err(|e| match e {
+        TestbedError::NoSuchBoard { board, .. } => CliError::NoSuchBoard {
             option: "--bridge-board",
-            board: bridge_index as u8,
-        })?;
-    Ok((Bridge::new(e.bus, e.host, bridge_node), e.ids, e.configs))
+            board,
+        },
+        other => other.into(),
+    })?;
+    Ok((bridge, kind, ids, configs))
 }
 
 /// The boards of `args` on a simulated bus with the faults asked for (the
-/// one place `emulate`'s board options are read, for both front ends).
-pub fn build_bus(args: &EmulateArgs) -> Result<EmulatedBus, CliError> {
+/// one place `emulate`'s board options are read, for both front ends);
+/// the timed faults not yet scheduled.
+pub fn build_rig(args: &EmulateArgs) -> Result<Rig, CliError> {
     let config = match (&args.config, args.robot) {
         (Some(path), _) => Some(crate::demo::load_config(path)?),
         (None, Some(crate::demo::DemoRobot::Snake)) => Some(presets::snake_seed001()),
@@ -175,12 +145,50 @@ pub fn build_bus(args: &EmulateArgs) -> Result<EmulatedBus, CliError> {
         }
         (None, None) => None,
     };
-    if let Some(c) = config.as_ref().filter(|c| snake::is_snake_config(c)) {
-        let nodes = snake::node_configs(c, args.seed)?;
-        let ids = nodes.iter().map(|n| n.board_id).collect();
-        return assemble(args, snake::nodes(nodes), ids, Vec::new());
+    let builder = match &config {
+        Some(c) if RobotKind::of_config(c) == RobotKind::Snake => {
+            RigBuilder::snake(snake::node_configs(c, args.seed)?)
+        }
+        _ => RigBuilder::qla(qla_boards(args, config.as_ref())?),
+    };
+    let mut builder = builder.seed(args.seed);
+    if args.drop_rate > 0.0 {
+        builder = builder.fault_rule(FaultRule::random(
+            PacketMatch::any(),
+            PacketFault::Drop,
+            args.drop_rate.min(1.0),
+        ));
     }
-    let boards = match &config {
+    if args.corrupt_rate > 0.0 {
+        builder = builder.fault_rule(FaultRule::random(
+            PacketMatch::any(),
+            PacketFault::FlipBits { count: 1 },
+            args.corrupt_rate.min(1.0),
+        ));
+    }
+    if let Some(id) = args.unplug_board {
+        builder = builder.board_fault(BoardFault::Unplug(id));
+    }
+    if let Some(id) = args.mute_board {
+        builder = builder.board_fault(BoardFault::Mute(id));
+    }
+    builder.build().map_err(|e| match e {
+        TestbedError::NoSuchBoard { role, board } => CliError::NoSuchBoard {
+            option: if role == BoardFault::Mute(board).role() {
+                "--mute-board"
+            } else {
+                "--unplug-board"
+            },
+            board,
+        },
+        other => other.into(),
+    })
+}
+
+/// The QLA boards of `args`: `config`'s (or generic ones), with
+/// `--board-set` and `--commit-corrupt-writes` applied and checked.
+fn qla_boards(args: &EmulateArgs, config: Option<&IoConfig>) -> Result<Vec<BoardConfig>, CliError> {
+    let mut boards = match config {
         Some(config) => {
             for note in firelink_testbed::plant_map::notes(config) {
                 eprintln!("note: {note}");
@@ -196,7 +204,6 @@ pub fn build_bus(args: &EmulateArgs) -> Result<EmulatedBus, CliError> {
             args.seed,
         ),
     };
-    let mut boards = boards;
     for set in &args.board_set {
         let board = boards
             .iter_mut()
@@ -213,86 +220,27 @@ pub fn build_bus(args: &EmulateArgs) -> Result<EmulatedBus, CliError> {
     for b in &boards {
         b.check()?;
     }
-    let ids: Vec<u8> = boards.iter().map(|b| b.board_id).collect();
-    assemble(args, qla_nodes(boards.clone()), ids, boards)
-}
-
-/// The bus of `nodes` (board IDs `ids`) with the faults `args` ask for.
-fn assemble(
-    args: &EmulateArgs,
-    nodes: Vec<Box<dyn Node>>,
-    ids: Vec<u8>,
-    configs: Vec<BoardConfig>,
-) -> Result<EmulatedBus, CliError> {
-    let mut rig = BoardRig::daisy_chain_nodes(
-        nodes,
-        &RigOptions {
-            seed: args.seed,
-            ..RigOptions::default()
-        },
-    );
-    if args.drop_rate > 0.0 {
-        rig.bus.add_fault_rule(FaultRule::random(
-            PacketMatch::any(),
-            PacketFault::Drop,
-            args.drop_rate.min(1.0),
-        ));
-    }
-    if args.corrupt_rate > 0.0 {
-        rig.bus.add_fault_rule(FaultRule::random(
-            PacketMatch::any(),
-            PacketFault::FlipBits { count: 1 },
-            args.corrupt_rate.min(1.0),
-        ));
-    }
-    let at = rig.bus.now() + SimDuration::from_micros(args.fault_at_ms.saturating_mul(1000));
-    let handle_of = |option: &'static str, id: u8| -> Result<_, CliError> {
-        ids.iter()
-            .position(|b| *b == id)
-            .and_then(|i| rig.boards.get(i).copied())
-            .ok_or(CliError::NoSuchBoard { option, board: id })
-    };
-    let mut timed = Vec::new();
-    if let Some(id) = args.unplug_board {
-        let node = handle_of("--unplug-board", id)?;
-        timed.push(TimedFault::Disconnect {
-            node,
-            reconnect_after: None,
-        });
-    }
-    if let Some(id) = args.mute_board {
-        let node = handle_of("--mute-board", id)?;
-        timed.push(TimedFault::StopAnswering {
-            node,
-            duration: None,
-        });
-    }
-    let deferred = if args.fault_after_requests.is_some() && args.fw_cdev_twin() {
-        timed
-    } else {
-        for f in timed {
-            rig.bus.schedule_fault(at, f);
-        }
-        Vec::new()
-    };
-    Ok(EmulatedBus {
-        bus: rig.bus,
-        host: rig.host,
-        boards: rig.boards,
-        ids,
-        deferred,
-        configs,
-    })
+    Ok(boards)
 }
 
 /// The /dev/fw* twin of `args` (the boards and faults of `build_bus`).
 pub fn build_twin(args: &EmulateArgs) -> Result<(Twin, Vec<u8>), CliError> {
-    let e = build_bus(args)?;
-    let mut twin = Twin::new(e.bus, e.host);
-    if let Some(n) = args.fault_after_requests {
-        twin.defer_faults(n, e.deferred);
+    let mut rig = build_rig(args)?;
+    let ids = rig.ids();
+    let deferred = match args.fault_after_requests {
+        Some(n) => Some((n, rig.take_pending())),
+        None => {
+            rig.schedule_pending(SimDuration::from_micros(
+                args.fault_at_ms.saturating_mul(1000),
+            ));
+            None
+        }
+    };
+    let mut twin = Twin::new(rig.bus, rig.host);
+    if let Some((n, faults)) = deferred {
+        twin.defer_faults(n, faults);
     }
-    Ok((twin, e.ids))
+    Ok((twin, ids))
 }
 
 /// `firelink emulate --fw-cdev SOCKET`: serve the twin until SIGINT,
@@ -359,19 +307,15 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
             args.listen
         );
     }
-    let (mut bridge, ids, boards) = build_bridge(args)?;
+    let (mut bridge, kind, ids, boards) = build_bridge(args)?;
     let config = ServeConfig {
         listen: args.listen,
         loopback_broadcast: !args.no_broadcast,
     };
     let (unicast, broadcast) = firelink_emulate::bind(&config)?;
     let stop = stop_flag(args)?;
-    let snake = bridge
-        .bus()
-        .node::<firelink_board::snake::SnakeNode>(firelink_bus::NodeHandle(1))
-        .is_some();
     let firmware = match Profile::from(args.firmware) {
-        _ if snake => "seed 001 Snake node",
+        _ if kind == RobotKind::Snake => "seed 001 Snake node",
         Profile::Rev7 => "Rev 7",
         Profile::Rev8 => "Rev 8",
         Profile::Seed => "seed 000",

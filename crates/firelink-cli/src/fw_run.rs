@@ -70,9 +70,7 @@ pub fn library_path() -> Result<PathBuf, CliError> {
 /// The twin could not be built or bound, or PROGRAM not started.
 pub fn run(args: &FwRunArgs) -> Result<u8, CliError> {
     let library = library_path()?;
-    let mut emulate = args.emulate.clone();
-    emulate.twin = true;
-    let (mut twin, _ids) = build_twin(&emulate)?;
+    let (mut twin, _ids) = build_twin(&args.emulate)?;
     let dir = temp_dir()?;
     let socket = dir.join("fw-cdev.sock");
     let listener = fw_cdev::bind(&socket)?;

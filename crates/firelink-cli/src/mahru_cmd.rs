@@ -108,6 +108,13 @@ fn period(us: Option<f64>) -> Option<Duration> {
 
 /// `firelink demo --robot mahru`.
 pub fn run_demo(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
+    const COMMAND: &str = "firelink demo --robot mahru";
+    args.port
+        .refuse_unless(COMMAND, &[firelink_testbed::port_spec::PortKind::Sim])?;
+    args.port.refuse_board_count(
+        COMMAND,
+        "the MAHRU modules come from its configuration (seed 002's own protocol)",
+    )?;
     let quiet = args.quiet || crate::args::quiet();
     let options = MahruDemoOptions {
         config: config(args.config.as_deref())?,

@@ -16,6 +16,8 @@ mod hex;
 mod mahru_cmd;
 mod monitor;
 mod packet_cmd;
+#[cfg(test)]
+mod port_strings_test;
 mod ports;
 mod rt;
 mod seed001_bench;
@@ -209,22 +211,12 @@ pub enum CliError {
     /// A robot configuration file is invalid (every problem, with its path).
     #[error(transparent)]
     Config(#[from] firelink_control::config::ConfigErrors),
-    /// A `--port` the command line does not know.
-    #[error("unknown port {port:?}: expected {expected}")]
-    Port {
-        /// What was given.
-        port: String,
-        /// What is accepted.
-        expected: &'static str,
-    },
-    /// A `--port udp:...` address that cannot be used.
-    #[error("port {port:?}: {error}")]
-    PortAddress {
-        /// What was given.
-        port: String,
-        /// Why it cannot be used.
-        error: firelink_host::HostError,
-    },
+    /// A `--port` that is not a port string.
+    #[error(transparent)]
+    PortSpec(#[from] firelink_testbed::port_spec::PortSpecError),
+    /// A `--port` this command cannot use.
+    #[error(transparent)]
+    PortRefused(#[from] firelink_testbed::port_spec::PortRefused),
     /// A register address outside the board's map.
     #[error("address {address:#x}: {problem}")]
     Address {
@@ -259,7 +251,7 @@ pub enum CliError {
     },
     /// An emulated board's settings are inconsistent (`--board-set`).
     #[error(transparent)]
-    BoardSettings(#[from] firelink_board::config::ConfigError),
+    BoardSettings(#[from] firelink_testbed::emulated::ConfigError),
     /// A `snake-tool` command was refused (the message names the command
     /// and what was wrong).
     #[error("{0}")]

@@ -220,7 +220,7 @@ fn on_off(b: bool) -> &'static str {
 
 /// `firelink monitor`.
 pub fn run(args: &MonitorArgs, out: &mut impl Write) -> Result<(), CliError> {
-    let port = open_port(&args.port)?;
+    let port = open_port(&args.port, "firelink monitor")?;
     let config = IoOptions {
         protocol: args.protocol.map(Protocol::from),
         ..IoOptions::default()

@@ -9,8 +9,12 @@
 //! the rest of each period, 50 ms at a time, longer than the boards'
 //! watchdog. It runs at normal priority instead and says why.
 //!
-//! The only unsafe code of the workspace: three libc calls with plain
-//! integer arguments and a pointer to a local struct.
+//! The CLI's only unsafe code: three libc calls with plain integer
+//! arguments and a pointer to a local struct. (The workspace denies unsafe
+//! code; the other modules that allow it, each for the system calls it
+//! names, are the testbed's thread CPU clocks (`cpu.rs`), the host's
+//! FireWire port (`firewire.rs`), the /dev/fw* twin's server and the
+//! preloaded twin library (`firelink-fwcdev`).)
 
 /// What took effect.
 #[derive(Debug, Clone, Default)]

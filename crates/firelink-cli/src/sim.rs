@@ -11,7 +11,7 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
-use firelink_bus::ArbitrationClass;
+use firelink_testbed::emulated::ArbitrationClass;
 use firelink_testbed::sim::SimOptions;
 use firelink_wire::packet::Speed;
 

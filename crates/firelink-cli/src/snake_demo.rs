@@ -37,7 +37,7 @@ pub fn options(args: &DemoArgs) -> Result<SnakeDemoOptions, CliError> {
         config,
         rate_hz: args.rate.unwrap_or(1000.0),
         duration_s: args.duration,
-        port: args.port.clone(),
+        port: args.port,
         fault: args.fault.into(),
         pacing: args.pacing.map(Pacing::from),
         watchdog,

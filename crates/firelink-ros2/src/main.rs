@@ -11,16 +11,18 @@ use firelink_control::config::{IoConfig, presets};
 use firelink_host::WatchdogSetting;
 use firelink_host::stop::install_signal_handlers;
 use firelink_ros2::{NodeSettings, domain_from_env, run_node, run_without_dds};
-use firelink_testbed::demo::DemoPort;
+use firelink_testbed::port_spec::{PortSpec, PortSpecError};
 use firelink_testbed::service::Service;
 
 /// Run the robot and speak ROS 2 (CRTK topics per arm) over DDS.
 #[derive(Parser, Debug)]
 #[command(name = "firelink ros2", version)]
 struct Args {
-    /// Where the boards are: sim, emulate or udp:HOST[:PORT].
-    #[arg(long, default_value = "sim")]
-    port: String,
+    /// Where the boards are: sim (the robot's emulated boards on the
+    /// simulated bus; sim:N[:FW]: boards 0..N at firmware FW), emulate,
+    /// udp:HOST[:PORT], or fw / fw:N (FireWire card 0 / N).
+    #[arg(long, default_value = "sim", value_parser = parse_port)]
+    port: PortSpec,
     /// Robot configuration (default: seed 000's dVRK: MTML, MTMR, PSM1, PSM2).
     #[arg(long)]
     config: Option<PathBuf>,
@@ -45,6 +47,11 @@ struct Args {
     /// time (the comparison for "with ROS 2 attached").
     #[arg(long = "no-dds")]
     no_dds: bool,
+}
+
+/// `--port`: the port grammar every front end shares.
+fn parse_port(s: &str) -> Result<PortSpec, PortSpecError> {
+    s.parse()
 }
 
 /// `--watchdog-ms`: a period or `off`, refused out of range.
@@ -81,7 +88,7 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
         }
         None => presets::dvrk_seed000(),
     };
-    let port: DemoPort = args.port.parse()?;
+    let port = args.port;
     // SIGINT, SIGTERM and SIGHUP: the robot loop powers down and ends (it
     // watches the process's stop request), and so does the node (its own
     // flag, set by the same signals); a second signal ends the process at
@@ -128,7 +135,7 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
                 publish_hz: args.publish_hz,
                 domain_id: domain,
                 duration,
-                sim_time: matches!(port, DemoPort::Sim),
+                sim_time: port.is_sim(),
             },
             &stop,
         )?
@@ -144,4 +151,23 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
         return Err("the robot loop panicked".into());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firelink_testbed::port_spec::disagreements_with_table;
+
+    /// The shared table of port strings through this program's `--port`:
+    /// the same meaning as every other front end, or the same refusal.
+    #[test]
+    fn port_strings_mean_what_the_table_says() {
+        let parse = |text: &str| {
+            Args::try_parse_from(["firelink", "--port", text])
+                .map(|a| a.port)
+                .map_err(|e| e.to_string())
+        };
+        let wrong = disagreements_with_table(parse, |_| true);
+        assert!(wrong.is_empty(), "{wrong:#?}");
+    }
 }

@@ -4,14 +4,13 @@
 //! way, power off, and return a typed [`DemoReport`].
 //!
 //! This is the library behind `firelink demo` and the Python package's
-//! `run_demo`: callers choose the port ([`DemoPort`]), the options
+//! `run_demo`: callers choose the port ([`PortSpec`]), the options
 //! ([`DemoOptions`]) and what to do with progress ([`DemoProgress`]); the
 //! report serialises to the JSON `firelink demo --json` prints, and
 //! [`DemoReport::verdict`] says whether the run did what it was asked.
 
 use std::collections::BTreeMap;
 use std::fmt;
-use std::net::SocketAddr;
 use std::str::FromStr;
 use std::time::{Duration, Instant};
 
@@ -35,6 +34,8 @@ use firelink_host::{Port, PowerDown, RobotIo, WatchdogSetting};
 use firelink_wire::packet::Tcode;
 
 use crate::TestbedError;
+pub use crate::port_spec::PortSpec;
+use crate::ports::{self, PortOptions};
 use crate::rig;
 
 /// The fault the demo injects half way through its motion.
@@ -95,43 +96,6 @@ impl FromStr for DemoFault {
     }
 }
 
-/// Where the demo's boards are.
-#[derive(Debug, Clone, PartialEq, Eq, Default)]
-pub enum DemoPort {
-    /// Emulated boards on the simulated bus, in process, virtual time.
-    #[default]
-    Sim,
-    /// The same boards behind an in-process Ethernet-bridge emulator, over
-    /// loopback UDP, wall-clock time.
-    Emulate,
-    /// A running `firelink emulate` or a real bridge board.
-    Udp(SocketAddr),
-}
-
-impl DemoPort {
-    /// The pacing that suits the port when the caller does not choose.
-    pub fn default_pacing(&self) -> Pacing {
-        match self {
-            DemoPort::Sim => Pacing::Virtual,
-            DemoPort::Emulate | DemoPort::Udp(_) => Pacing::WallClock,
-        }
-    }
-}
-
-impl FromStr for DemoPort {
-    type Err = TestbedError;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "sim" => Ok(DemoPort::Sim),
-            "emulate" => Ok(DemoPort::Emulate),
-            p if p.starts_with("udp") => Ok(DemoPort::Udp(UdpPort::parse_address(p)?)),
-            p => Err(TestbedError::Config(format!(
-                "unknown port {p:?}: sim, emulate or udp:HOST[:PORT]"
-            ))),
-        }
-    }
-}
-
 /// What the real-time setup of the calling thread achieved (the CLI does
 /// it; the library only reports it).
 #[derive(Debug, Clone, PartialEq, Default, Serialize)]
@@ -160,9 +124,10 @@ pub struct DemoOptions {
     pub protocol: Protocol,
     /// Seconds of motion after homing.
     pub duration_s: f64,
-    /// Where the boards are.
-    pub port: DemoPort,
-    /// Firmware of the emulated boards (sim, emulate).
+    /// Where the boards are (`sim:N[:FW]`: boards 0..N of the robot, at FW).
+    pub port: PortSpec,
+    /// Firmware of the emulated boards (sim, emulate; `sim:N:FW` names its
+    /// own).
     pub firmware: Profile,
     /// The fault to inject half way.
     pub fault: DemoFault,
@@ -181,7 +146,7 @@ impl Default for DemoOptions {
             rate_hz: 6000.0,
             protocol: Protocol::Broadcast,
             duration_s: 3.0,
-            port: DemoPort::Sim,
+            port: PortSpec::SIM,
             firmware: Profile::Rev8,
             fault: DemoFault::None,
             pacing: None,
@@ -667,19 +632,33 @@ impl Injector for SimPort {
     }
 }
 
+/// A fault on a port whose bus the host cannot reach into (UDP, FireWire):
+/// a stopped host sleeps on the wall clock; a corrupted query and a lost
+/// board need the simulated bus.
+fn inject_from_outside(fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError> {
+    match fault {
+        DemoFault::StopHost => std::thread::sleep(watchdog * 3),
+        DemoFault::CorruptQuery | DemoFault::BoardLoss => {
+            return Err(TestbedError::Config(format!(
+                "fault {} needs the sim port (the bus is in another process)",
+                fault.name()
+            )));
+        }
+        DemoFault::None | DemoFault::FollowingError => {}
+    }
+    Ok(())
+}
+
 impl Injector for UdpPort {
     fn inject(&mut self, fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError> {
-        match fault {
-            DemoFault::StopHost => std::thread::sleep(watchdog * 3),
-            DemoFault::CorruptQuery | DemoFault::BoardLoss => {
-                return Err(TestbedError::Config(format!(
-                    "fault {} needs the sim port (the bus is in another process)",
-                    fault.name()
-                )));
-            }
-            DemoFault::None | DemoFault::FollowingError => {}
-        }
-        Ok(())
+        inject_from_outside(fault, watchdog)
+    }
+}
+
+#[cfg(target_os = "linux")]
+impl Injector for firelink_host::firewire::FirewirePort {
+    fn inject(&mut self, fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError> {
+        inject_from_outside(fault, watchdog)
     }
 }
 
@@ -769,9 +748,9 @@ pub fn run_demo_until(
         .pacing
         .unwrap_or_else(|| options.port.default_pacing());
     match &options.port {
-        DemoPort::Sim => {
-            let (port, _) =
-                rig::sim_port(rig::board_configs(config, options.firmware, boards), false)?;
+        PortSpec::Sim(_) => {
+            let boards = ports::sim_boards(&options.port, config, options.firmware);
+            let (port, _) = rig::sim_port(boards, false)?;
             run_robot(
                 port,
                 options,
@@ -782,7 +761,7 @@ pub fn run_demo_until(
                 &mut progress,
             )
         }
-        DemoPort::Emulate => {
+        PortSpec::Emulate => {
             let emu = rig::Emulator::start(rig::board_configs(config, options.firmware, boards))?;
             let name = format!("udp:{} (in-process firelink emulate)", emu.addr);
             let port = emu.port_with(options.udp_wait)?;
@@ -790,7 +769,7 @@ pub fn run_demo_until(
             emu.stop()?;
             report
         }
-        DemoPort::Udp(addr) => {
+        PortSpec::Udp(addr) => {
             let port = rig::udp_port_with(*addr, options.udp_wait)?;
             run_robot(
                 port,
@@ -801,6 +780,11 @@ pub fn run_demo_until(
                 realtime,
                 &mut progress,
             )
+        }
+        PortSpec::Fw(card) => {
+            let port = ports::fw_port(*card, &PortOptions::default())?;
+            let name = options.port.to_string();
+            run_robot(port, options, name, pacing, stop, realtime, &mut progress)
         }
     }
 }

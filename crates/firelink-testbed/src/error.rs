@@ -6,6 +6,20 @@ pub enum TestbedError {
     /// The rig has no boards to emulate.
     #[error("no boards to emulate")]
     NoBoards,
+    /// A fault or the bridge names a board ID the rig does not have.
+    #[error("{role} {board}: no such board on the rig")]
+    NoSuchBoard {
+        /// What the board was to be (`muted board`, `bridge board`).
+        role: &'static str,
+        /// The board ID given.
+        board: u8,
+    },
+    /// A port string that is not one.
+    #[error(transparent)]
+    PortSpec(#[from] crate::port_spec::PortSpecError),
+    /// A well-formed port this program cannot use.
+    #[error(transparent)]
+    PortRefused(#[from] crate::port_spec::PortRefused),
     /// The host library failed (scan, I/O).
     #[error(transparent)]
     Host(#[from] firelink_host::HostError),

@@ -7,10 +7,17 @@
 //! that programs (the CLI, the Python package, the web console, tests)
 //! can run without hardware:
 //!
+//! - [`emulated`]: the emulated hardware's types front ends name (board
+//!   configurations, firmware profiles, the bus's fault rules);
+//! - [`port_spec`]: where the robot is: the one grammar of port strings
+//!   (`sim[:N[:FW]]`, `emulate`, `udp:HOST[:PORT]`, `fw[:N]`) every front
+//!   end parses, and opening what it names ([`ports`]);
 //! - [`rig`]: a robot configuration's boards, with the plant each actuator's
-//!   configuration names, on the simulated bus behind a
-//!   [`SimPort`](firelink_host::sim::SimPort), or behind an in-process
-//!   Ethernet-bridge emulator on loopback UDP ([`rig::Emulator`]);
+//!   configuration names, built by one [`RigBuilder`](rig::RigBuilder)
+//!   (boards by ID, seed, faults by board ID, the bridge board) on the
+//!   simulated bus behind a [`SimPort`](firelink_host::sim::SimPort), or
+//!   behind an in-process Ethernet-bridge emulator on loopback UDP
+//!   ([`rig::Emulator`]);
 //! - [`sim`]: one I/O cycle of N boards on the simulated bus, measured
 //!   phase by phase (the wire times of the seed papers; `firelink sim`);
 //! - [`plant_map`]: how an actuator of a configuration becomes an emulated
@@ -33,17 +40,25 @@
 //!   on the generic servo, and the reproduction of the seed's bus
 //!   measurements with its PC model.
 //!
-//! Everything here runs in virtual time and is seeded: the same inputs give
-//! the same report, bit for bit. Only [`rig::Emulator`] touches sockets and
-//! the wall clock (its server paces virtual time to it).
+//! On the simulated bus everything runs in virtual time and is seeded: the
+//! same inputs give the same report, bit for bit. Sockets and device files
+//! are opened only where a port string asks for them: [`rig::Emulator`]
+//! (its server paces virtual time to the wall clock), the UDP and FireWire
+//! ports of [`ports`], and the programs that run over them with wall-clock
+//! pacing and measure wall-clock or CPU time (the demo and Snake demo on
+//! `emulate`, `udp:` or `fw`, the [`service`] loop, the benchmark's UDP
+//! points and host-CPU figures).
 
 pub mod bench;
 pub mod console_homing;
 pub mod cpu;
 pub mod demo;
+pub mod emulated;
 pub mod error;
 pub mod mahru;
 pub mod plant_map;
+pub mod port_spec;
+pub mod ports;
 pub mod rig;
 pub mod service;
 pub mod sim;

@@ -47,7 +47,8 @@ use std::thread::JoinHandle;
 
 use firelink_board::config::Profile;
 
-use crate::demo::{DemoFault, DemoPort, Injector, motion_for};
+use crate::demo::{DemoFault, Injector, motion_for};
+use crate::port_spec::PortSpec;
 use crate::rig;
 
 /// One axis of one board, as read this cycle.
@@ -1021,13 +1022,13 @@ fn check_rate(rate_hz: f64) -> Result<(), crate::TestbedError> {
 
 impl Service {
     /// Start the robot of `config` on `port` (emulated boards at firmware
-    /// Rev 8 for `sim` and `emulate`) at `rate_hz`; the loop runs until
-    /// [`stop`](Self::stop).
+    /// Rev 8 for `sim` and `emulate`, unless `sim:N:FW` names one) at
+    /// `rate_hz`; the loop runs until [`stop`](Self::stop).
     ///
     /// # Errors
     /// A bad rate, a failed scan or configuration, sockets, the thread.
     pub fn start(
-        port: &DemoPort,
+        port: &PortSpec,
         config: IoConfig,
         rate_hz: f64,
         watchdog: WatchdogSetting,
@@ -1048,21 +1049,27 @@ impl Service {
         let remote = vec![DemoFault::StopHost, DemoFault::FollowingError];
         let configs = || rig::board_configs(&config, Profile::Rev8, boards);
         let (shared, thread, emulator, faults) = match port {
-            DemoPort::Sim => {
-                let (port, _) = rig::sim_port(configs(), false)?;
+            PortSpec::Sim(_) => {
+                let boards = crate::ports::sim_boards(port, &config, Profile::Rev8);
+                let (port, _) = rig::sim_port(boards, false)?;
                 let (s, h) = spawn(port, "sim".into(), options(Pacing::Virtual))?;
                 (s, h, None, all)
             }
-            DemoPort::Emulate => {
+            PortSpec::Emulate => {
                 let emu = rig::Emulator::start(configs())?;
                 let name = format!("udp:{} (in-process emulator)", emu.addr);
                 let port = emu.port()?;
                 let (s, h) = spawn(port, name, options(Pacing::WallClock))?;
                 (s, h, Some(emu), remote)
             }
-            DemoPort::Udp(addr) => {
+            PortSpec::Udp(addr) => {
                 let port = rig::udp_port(*addr)?;
                 let (s, h) = spawn(port, format!("udp:{addr}"), options(Pacing::WallClock))?;
+                (s, h, None, remote)
+            }
+            PortSpec::Fw(card) => {
+                let fw = crate::ports::fw_port(*card, &crate::ports::PortOptions::default())?;
+                let (s, h) = spawn(fw, port.to_string(), options(Pacing::WallClock))?;
                 (s, h, None, remote)
             }
         };

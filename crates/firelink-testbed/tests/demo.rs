@@ -3,7 +3,7 @@
 
 use firelink_host::scan::Protocol;
 use firelink_testbed::bench::{BenchOptions, BenchTransport, check_board_counts, run_bench};
-use firelink_testbed::demo::{DemoFault, DemoOptions, DemoPort, DemoProgress, run_demo};
+use firelink_testbed::demo::{DemoFault, DemoOptions, DemoProgress, PortSpec, run_demo};
 
 fn short(fault: DemoFault) -> DemoOptions {
     DemoOptions {
@@ -77,7 +77,7 @@ fn a_lost_board_is_named_and_every_amplifier_ends_off() {
 fn a_verdict_fails_when_an_injected_fault_goes_unseen() {
     let mut r = run_demo(
         &DemoOptions {
-            port: DemoPort::Sim,
+            port: PortSpec::SIM,
             ..short(DemoFault::None)
         },
         None,
@@ -102,7 +102,7 @@ fn bad_demo_options_are_refused_with_the_reason() {
     .unwrap_err();
     assert!(e.to_string().contains("rate"), "{e}");
     assert!("meteor".parse::<DemoFault>().is_err());
-    assert!("nowhere".parse::<DemoPort>().is_err());
+    assert!("nowhere".parse::<PortSpec>().is_err());
     assert_eq!(
         "board-loss".parse::<DemoFault>().unwrap(),
         DemoFault::BoardLoss

@@ -22,7 +22,7 @@ use firelink_host::scan::ScanReport;
 use firelink_host::stop::{StopReason, StopRequest};
 use firelink_host::udp::UdpPort;
 use firelink_testbed::TestbedError;
-use firelink_testbed::demo::{DemoOptions, DemoPort, DemoProgress, run_demo_until};
+use firelink_testbed::demo::{DemoOptions, DemoProgress, PortSpec, run_demo_until};
 use firelink_testbed::rig::{self, Emulator};
 
 /// The bench robot: one QLA board, four gentle axes.
@@ -206,7 +206,7 @@ fn a_stop_request_during_bring_up_ends_the_demo_powered_down() {
         config: config.clone(),
         rate_hz: 1000.0,
         duration_s: 60.0,
-        port: DemoPort::Udp(emu.addr),
+        port: PortSpec::Udp(emu.addr),
         watchdog: WatchdogSetting::from_ms(300.0).expect("300 ms"),
         ..DemoOptions::default()
     };

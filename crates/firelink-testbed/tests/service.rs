@@ -16,7 +16,7 @@ use firelink_control::runner::Pacing;
 use firelink_host::sim::SimPort;
 use firelink_host::{Dest, Port};
 use firelink_testbed::TestbedError;
-use firelink_testbed::demo::{DemoFault, DemoPort, Injector};
+use firelink_testbed::demo::{DemoFault, Injector, PortSpec};
 use firelink_testbed::rig;
 use firelink_testbed::service::{
     Command, CommandOutcome, Frame, LoopOptions, MAX_ARM_JOINTS, Service, Shared, Verdict,
@@ -84,7 +84,7 @@ fn servo_at_zero(first: u16, count: u8) -> Command {
 #[test]
 fn commands_drive_the_lifecycle_and_motion_waits_for_homing() {
     let service = Service::start(
-        &DemoPort::Sim,
+        &PortSpec::SIM,
         presets::bench_1board(),
         500.0,
         firelink_host::WatchdogSetting::default(),
@@ -159,7 +159,7 @@ fn power_commands_follow_the_lifecycle_and_reach_only_the_used_axes() {
     let used = used_axes(&config);
     assert_eq!(used.len(), 28);
     let service = Service::start(
-        &DemoPort::Sim,
+        &PortSpec::SIM,
         config,
         1000.0,
         firelink_host::WatchdogSetting::default(),

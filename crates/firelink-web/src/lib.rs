@@ -29,7 +29,7 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering;
 
 use firelink_control::config::{IoConfig, presets};
-use firelink_testbed::demo::DemoPort;
+use firelink_testbed::port_spec::PortSpec;
 use firelink_testbed::service::{LoopExit, Service};
 
 /// Why the console could not start.
@@ -50,7 +50,7 @@ pub enum WebError {
 #[derive(Debug, Clone)]
 pub struct WebOptions {
     /// Where the boards are (`sim`, `emulate` or `udp:HOST[:PORT]`).
-    pub port: DemoPort,
+    pub port: PortSpec,
     /// The robot configuration (default: seed 000's dVRK).
     pub config: Option<PathBuf>,
     /// Control rate, Hz.

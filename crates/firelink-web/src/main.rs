@@ -7,17 +7,20 @@ use std::path::PathBuf;
 use clap::Parser;
 
 use firelink_host::stop::install_signal_handlers;
+use firelink_testbed::port_spec::{PortSpec, PortSpecError};
 use firelink_web::{WebOptions, serve, start};
 
 /// Watch and drive the boards and the robot in a browser.
 #[derive(Parser, Debug)]
 #[command(name = "firelink web", version)]
 struct Args {
-    /// Where the boards are: sim (emulated boards on the simulated bus,
-    /// paced to the wall clock), emulate (the same behind an in-process
-    /// `firelink emulate`, over UDP) or udp:HOST[:PORT].
-    #[arg(long, default_value = "sim")]
-    port: String,
+    /// Where the boards are: sim (the robot's emulated boards on the
+    /// simulated bus, paced to the wall clock; sim:N[:FW]: boards 0..N at
+    /// firmware FW), emulate (the same behind an in-process `firelink
+    /// emulate`, over UDP), udp:HOST[:PORT], or fw / fw:N (FireWire card
+    /// 0 / N).
+    #[arg(long, default_value = "sim", value_parser = parse_port)]
+    port: PortSpec,
     /// Robot configuration (default: seed 000's dVRK, 28 axes).
     #[arg(long)]
     config: Option<PathBuf>,
@@ -37,6 +40,11 @@ struct Args {
     /// `off` (with a warning).
     #[arg(long = "watchdog-ms", default_value = "20", value_parser = watchdog)]
     watchdog_ms: WatchdogSetting,
+}
+
+/// `--port`: the port grammar every front end shares.
+fn parse_port(s: &str) -> Result<PortSpec, PortSpecError> {
+    s.parse()
 }
 
 /// `--watchdog-ms`: a period or `off`, refused out of range.
@@ -73,7 +81,7 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
     // process at once (the boards' watchdogs then turn the amplifiers off).
     let stop = install_signal_handlers()?;
     let options = WebOptions {
-        port: args.port.parse()?,
+        port: args.port,
         config: args.config,
         rate_hz: args.rate,
         watchdog: args.watchdog_ms,
@@ -122,4 +130,23 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
         }
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firelink_testbed::port_spec::disagreements_with_table;
+
+    /// The shared table of port strings through this program's `--port`:
+    /// the same meaning as every other front end, or the same refusal.
+    #[test]
+    fn port_strings_mean_what_the_table_says() {
+        let parse = |text: &str| {
+            Args::try_parse_from(["firelink", "--port", text])
+                .map(|a| a.port)
+                .map_err(|e| e.to_string())
+        };
+        let wrong = disagreements_with_table(parse, |_| true);
+        assert!(wrong.is_empty(), "{wrong:#?}");
+    }
 }

@@ -13,7 +13,7 @@ use serde_json::Value;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 
-use firelink_testbed::demo::DemoPort;
+use firelink_testbed::port_spec::PortSpec;
 use firelink_testbed::service::LoopExit;
 use firelink_web::server::cookie_name;
 use firelink_web::{Running, WebOptions, serve, start};
@@ -93,7 +93,7 @@ struct Console {
 impl Console {
     async fn start(allow_origins: Vec<String>) -> Console {
         let options = WebOptions {
-            port: DemoPort::Sim,
+            port: PortSpec::SIM,
             config: None,
             rate_hz: 1000.0,
             watchdog: firelink_host::WatchdogSetting::default(),

@@ -18,7 +18,6 @@ mod session;
 mod tui;
 
 use std::io::Write;
-use std::net::SocketAddr;
 use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
@@ -26,44 +25,37 @@ use clap::{Args, Subcommand};
 use firelink_control::config::{IoConfig, presets};
 use firelink_host::Port;
 use firelink_host::snake::SnakeSystem;
-use firelink_host::udp::UdpPort;
+use firelink_testbed::port_spec::{PortKind, PortSpec};
+use firelink_testbed::ports::{PortOptions, open_bus_port};
 use firelink_testbed::snake::{node_configs, sim_port};
 
 use crate::CliError;
 pub use session::Session;
 
-/// Where the tool finds the nodes (`--port`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ToolPort {
-    /// The configuration's nodes on an in-process simulated bus.
-    Sim,
-    /// A bridge (`firelink emulate --robot snake`, or real nodes).
-    Udp(SocketAddr),
-}
-
-/// `--port` (clap): `sim` or `udp:HOST[:PORT]`.
-fn parse_tool_port(text: &str) -> Result<ToolPort, CliError> {
-    if text == "sim" {
-        return Ok(ToolPort::Sim);
-    }
-    if text.starts_with("udp") {
-        return Ok(ToolPort::Udp(crate::ports::udp_address(text)?));
-    }
-    Err(CliError::Port {
-        port: text.to_string(),
-        expected: "sim, udp:HOST or udp:HOST:PORT",
-    })
+/// `--port` (clap): the port grammar; plain `sim` (the configuration's
+/// nodes), `udp:` or `fw`.
+fn parse_tool_port(text: &str) -> Result<PortSpec, CliError> {
+    let spec = crate::ports::parse_port_for(
+        text,
+        "firelink snake-tool",
+        &[PortKind::Sim, PortKind::Udp, PortKind::Fw],
+    )?;
+    spec.refuse_board_count(
+        "firelink snake-tool",
+        "Snake nodes come from the configuration and have no QLA firmware",
+    )?;
+    Ok(spec)
 }
 
 /// Options of `firelink snake-tool`.
 #[derive(Args, Debug)]
 pub struct SnakeToolArgs {
     /// Where the nodes are: `sim` (the configuration's nodes on an
-    /// in-process simulated bus; the state lasts one invocation) or
+    /// in-process simulated bus; the state lasts one invocation),
     /// `udp:HOST[:PORT]` (a running `firelink emulate --robot snake`, or a
-    /// bridge to real nodes).
+    /// bridge to real nodes) or `fw` / `fw:N` (FireWire card 0 / N).
     #[arg(long, default_value = "sim", value_parser = parse_tool_port)]
-    pub port: ToolPort,
+    pub port: PortSpec,
     /// The robot configuration: nodes to simulate, and the conversion
     /// factors of the channels it maps (default: configs/snake-seed001.json).
     #[arg(long)]
@@ -110,17 +102,20 @@ fn open(args: &SnakeToolArgs) -> Result<(Box<dyn Port>, Option<IoConfig>), CliEr
         Some(path) => crate::demo::load_config(path)?,
         None => presets::snake_seed001(),
     };
+    let options = PortOptions {
+        timeout: std::time::Duration::from_millis(args.timeout_ms),
+        udp_wait: args.udp_wait.into(),
+        ..PortOptions::default()
+    };
     match args.port {
-        ToolPort::Sim => {
+        PortSpec::Sim(_) => {
             let nodes = node_configs(&config, 1)?;
             Ok((Box::new(sim_port(nodes, false, None)?), Some(config)))
         }
-        ToolPort::Udp(addr) => {
-            let mut port = UdpPort::open(addr)?;
-            port.set_timeout(std::time::Duration::from_millis(args.timeout_ms));
-            port.set_wait_mode(args.udp_wait.into());
-            Ok((Box::new(port), Some(config)))
-        }
+        other => Ok((
+            open_bus_port("firelink snake-tool", &other, &options)?,
+            Some(config),
+        )),
     }
 }
 

@@ -20,7 +20,7 @@ use firelink_host::udp::WaitMode;
 
 use crate::TestbedError;
 use crate::demo::{
-    DemoFault, DemoIo, DemoPlan, DemoPort, DemoProgress, DemoReport, Injector, RealtimeStatus,
+    DemoFault, DemoIo, DemoPlan, DemoProgress, DemoReport, Injector, PortSpec, RealtimeStatus,
     TimeStats, check_run, realtime_status, run_program,
 };
 use crate::rig;
@@ -35,8 +35,9 @@ pub struct SnakeDemoOptions {
     pub rate_hz: f64,
     /// Seconds of motion after homing.
     pub duration_s: f64,
-    /// Where the nodes are.
-    pub port: DemoPort,
+    /// Where the nodes are (plain `sim`: the nodes come from the
+    /// configuration).
+    pub port: PortSpec,
     /// The fault to inject half way (a corrupt query needs the broadcast
     /// protocol, which the Snake nodes do not have: refused).
     pub fault: DemoFault,
@@ -59,7 +60,7 @@ impl Default for SnakeDemoOptions {
             config: presets::snake_seed001(),
             rate_hz: 1000.0,
             duration_s: 3.0,
-            port: DemoPort::Sim,
+            port: PortSpec::SIM,
             fault: DemoFault::None,
             pacing: None,
             watchdog: WatchdogSetting::default(),
@@ -190,12 +191,16 @@ pub fn run_snake_demo(
                 .into(),
         ));
     }
+    options.port.refuse_board_count(
+        "the Snake demo",
+        "Snake nodes come from the configuration and have no QLA firmware",
+    )?;
     let nodes = node_configs(&options.config, options.seed)?;
     let pacing = options
         .pacing
         .unwrap_or_else(|| options.port.default_pacing());
     let out = match &options.port {
-        DemoPort::Sim => {
+        PortSpec::Sim(_) => {
             let port = sim_port(nodes, true, None)?;
             run_on(
                 port,
@@ -206,7 +211,7 @@ pub fn run_snake_demo(
                 &mut progress,
             )?
         }
-        DemoPort::Emulate => {
+        PortSpec::Emulate => {
             let emu = emulator(nodes)?;
             let name = format!("udp:{} (in-process firelink emulate)", emu.addr);
             let port = emu.port_with(options.udp_wait)?;
@@ -214,16 +219,20 @@ pub fn run_snake_demo(
             emu.stop()?;
             r?
         }
-        DemoPort::Udp(addr) => {
+        PortSpec::Udp(addr) => {
             let port = rig::udp_port_with(*addr, options.udp_wait)?;
             let name = format!("udp:{addr}");
             run_on(port, options, name, pacing, realtime, &mut progress)?
         }
+        PortSpec::Fw(card) => {
+            let port = crate::ports::fw_port(*card, &crate::ports::PortOptions::default())?;
+            let name = options.port.to_string();
+            run_on(port, options, name, pacing, realtime, &mut progress)?
+        }
     };
-    let max_rate =
-        (options.find_max_rate && options.port == DemoPort::Sim && out.report.fault.is_none())
-            .then(|| search_max_rate(options, &out))
-            .transpose()?;
+    let max_rate = (options.find_max_rate && options.port.is_sim() && out.report.fault.is_none())
+        .then(|| search_max_rate(options, &out))
+        .transpose()?;
     Ok(SnakeDemoReport {
         demo: out.report,
         nodes: out.ids,
@@ -319,7 +328,7 @@ fn trial(options: &SnakeDemoOptions, rate_hz: f64) -> Result<RateTrial, TestbedE
     let run = SnakeDemoOptions {
         rate_hz,
         duration_s: TRIAL_SECONDS,
-        port: crate::demo::DemoPort::Sim,
+        port: PortSpec::SIM,
         fault: DemoFault::None,
         pacing: Some(Pacing::Virtual),
         find_max_rate: false,

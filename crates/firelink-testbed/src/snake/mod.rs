@@ -9,8 +9,8 @@ pub mod bench;
 pub mod demo;
 
 use firelink_board::plant::{AxisParams, presets};
-use firelink_board::snake::{SnakeNode, SnakeNodeConfig};
-use firelink_bus::{HostModel, Node};
+use firelink_board::snake::SnakeNodeConfig;
+use firelink_bus::HostModel;
 use firelink_control::config::IoConfig;
 use firelink_host::Port;
 use firelink_host::sim::SimPort;
@@ -20,7 +20,7 @@ use firelink_wire::snake::analog::limit_code;
 use firelink_wire::snake::registers::{ENCODER_MIDPOINT, PotOutputs, Wiper};
 
 use crate::TestbedError;
-use crate::rig::{Emulator, build_bus_of, plant_for};
+use crate::rig::{Emulator, RigBuilder, plant_for};
 
 /// The current limit programmed on a channel, relative to the largest
 /// current the servo commands (headroom for the PID's transients).
@@ -67,14 +67,6 @@ pub fn node_configs(config: &IoConfig, seed: u64) -> Result<Vec<SnakeNodeConfig>
     Ok(out)
 }
 
-/// The nodes as bus nodes.
-pub fn nodes(configs: Vec<SnakeNodeConfig>) -> Vec<Box<dyn Node>> {
-    configs
-        .into_iter()
-        .map(|c| Box::new(SnakeNode::new(c)) as Box<dyn Node>)
-        .collect()
-}
-
 /// The nodes on a simulated bus behind the PC's link, with seed 001's PC
 /// model when `pc_model` (and its spread when `jitter` is `Some(seed)`).
 ///
@@ -85,12 +77,12 @@ pub fn sim_port(
     pc_model: bool,
     jitter: Option<u64>,
 ) -> Result<SimPort, TestbedError> {
-    let (bus, pc, _) = build_bus_of(nodes(configs))?;
-    let mut model = HostModel::seed001(bus.timing());
+    let rig = RigBuilder::snake(configs).build()?;
+    let mut model = HostModel::seed001(rig.bus.timing());
     if let Some(seed) = jitter {
         model = model.with_jitter(seed);
     }
-    let port = SimPort::new(bus, pc);
+    let port = rig.sim_port();
     Ok(if pc_model {
         port.with_host_model(model)
     } else {
@@ -102,9 +94,9 @@ pub fn sim_port(
 /// Ethernet-connected one).
 ///
 /// # Errors
-/// As [`Emulator::start_nodes`].
+/// As [`Emulator::start_rig`].
 pub fn emulator(configs: Vec<SnakeNodeConfig>) -> Result<Emulator, TestbedError> {
-    Emulator::start_nodes(nodes(configs))
+    Emulator::start_rig(RigBuilder::snake(configs))
 }
 
 /// What a program sets on each node before servoing, as the seed

@@ -1,7 +1,13 @@
 //! Rigs: a robot configuration's boards, each actuator driving the plant its
 //! configuration names (`simulation.plant`), on a simulated bus with the
 //! PC's link ([`SimPort`]), or behind an in-process `firelink emulate`
-//! bridge on loopback UDP ([`Emulator`]).
+//! bridge on loopback UDP ([`Emulator`]). Every bus of boards is built by
+//! the one [`RigBuilder`] ([`builder`]): boards by ID, seed, faults by
+//! board ID, the bridge board.
+
+pub mod builder;
+
+pub use builder::{BoardFault, Rig, RigBuilder, RobotKind};
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::sync::Arc;
@@ -12,10 +18,9 @@ use firelink_board::config::{BoardConfig, BrakeWire, Hardware, Profile};
 use firelink_board::node::BoardNode;
 use firelink_board::plant::AxisParams;
 use firelink_board::plant::presets;
-use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::{Bus, HostModel, Node, NodeHandle};
 use firelink_control::config::{HardwareVersion, IoConfig, PlantPreset};
-use firelink_emulate::{Bridge, BridgeStats, ServeConfig};
+use firelink_emulate::{BridgeStats, ServeConfig};
 use firelink_host::sim::SimPort;
 use firelink_host::udp::{UdpPort, WaitMode};
 
@@ -211,33 +216,26 @@ pub fn board_configs_starting_at(
 }
 
 /// A bus: the PC's (or the bridge's) link at the root, then the boards
-/// daisy-chained, reset, with the gap count Linux would set for its hops.
+/// daisy-chained, reset, with the gap count Linux would set for its hops
+/// ([`RigBuilder::qla`] with no faults).
+///
+/// # Errors
+/// [`TestbedError::NoBoards`].
 pub fn build_bus(
     boards: Vec<BoardConfig>,
 ) -> Result<(Bus, NodeHandle, Vec<NodeHandle>), TestbedError> {
-    build_bus_of(qla_nodes(boards))
+    let rig = RigBuilder::qla(boards).build()?;
+    Ok((
+        rig.bus,
+        rig.host,
+        rig.boards.into_iter().map(|(_, h)| h).collect(),
+    ))
 }
 
-/// The boards of `boards` as bus nodes (emulated QLA-family boards).
-pub fn qla_nodes(boards: Vec<BoardConfig>) -> Vec<Box<dyn Node>> {
-    boards
-        .into_iter()
-        .map(|cfg| {
-            let name = format!("board{}", cfg.board_id);
-            Box::new(BoardNode::new(cfg).with_name(name)) as Box<dyn Node>
-        })
-        .collect()
-}
-
-/// [`build_bus`] with any nodes (Snake nodes, a mix of kinds).
-pub fn build_bus_of(
-    nodes: Vec<Box<dyn Node>>,
-) -> Result<(Bus, NodeHandle, Vec<NodeHandle>), TestbedError> {
-    if nodes.is_empty() {
-        return Err(TestbedError::NoBoards);
-    }
-    let rig = BoardRig::daisy_chain_nodes(nodes, &RigOptions::default());
-    Ok((rig.bus, rig.host, rig.boards))
+/// An emulated QLA-family board as a bus node, named `board<ID>`.
+pub fn qla_node(cfg: BoardConfig) -> Box<dyn Node> {
+    let name = format!("board{}", cfg.board_id);
+    Box::new(BoardNode::new(cfg).with_name(name))
 }
 
 /// `n` boards with generic motors, IDs 0..n.
@@ -301,18 +299,15 @@ impl Emulator {
     /// # Errors
     /// [`TestbedError::NoBoards`]; socket errors binding loopback.
     pub fn start(boards: Vec<BoardConfig>) -> Result<Emulator, TestbedError> {
-        Emulator::start_nodes(qla_nodes(boards))
+        Emulator::start_rig(RigBuilder::qla(boards))
     }
 
-    /// Start serving any nodes (Snake nodes, a mix of kinds); the first is
-    /// the Ethernet-connected one.
+    /// Start serving the rig `rig` builds (QLA boards or Snake nodes); the
+    /// first board is the Ethernet-connected one.
     ///
     /// # Errors
-    /// As [`start`](Self::start).
-    pub fn start_nodes(nodes: Vec<Box<dyn Node>>) -> Result<Emulator, TestbedError> {
-        if nodes.is_empty() {
-            return Err(TestbedError::NoBoards);
-        }
+    /// As [`start`](Self::start); what [`RigBuilder::build`] refuses.
+    pub fn start_rig(rig: RigBuilder) -> Result<Emulator, TestbedError> {
         let (unicast, _) = firelink_emulate::bind(&ServeConfig {
             listen: SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0),
             loopback_broadcast: false,
@@ -323,25 +318,20 @@ impl Emulator {
         let (ready, started) = std::sync::mpsc::channel();
         // The bus is built on the server thread.
         let thread = std::thread::spawn(move || {
-            let (bus, link, handles) = match build_bus_of(nodes) {
+            let mut bridge = match rig.build().and_then(|r| r.bridge(None)) {
                 Ok(b) => b,
                 Err(e) => {
-                    let _ = ready.send(Err(e.to_string()));
+                    let _ = ready.send(Err(e));
                     return Ok(BridgeStats::default());
                 }
             };
-            let Some(&first) = handles.first() else {
-                let _ = ready.send(Err("no boards".into()));
-                return Ok(BridgeStats::default());
-            };
-            let mut bridge = Bridge::new(bus, link, first);
             let _ = ready.send(Ok(()));
             firelink_emulate::serve(&mut bridge, &unicast, None, &flag, |_| {})?;
             Ok(bridge.stats())
         });
         match started.recv() {
             Ok(Ok(())) => {}
-            Ok(Err(e)) => return Err(TestbedError::Emulator(e)),
+            Ok(Err(e)) => return Err(e),
             Err(_) => return Err(TestbedError::Emulator("the server thread failed".into())),
         }
         let cpu = ThreadCpuClock::of(&thread);
