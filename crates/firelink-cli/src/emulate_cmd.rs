@@ -15,10 +15,12 @@ use clap::Args;
 use firelink_board::config::{BoardConfig, BoardSettings, Profile};
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::Node;
+use firelink_bus::trace::PacketKind;
 use firelink_bus::{FaultRule, PacketFault, PacketMatch, SimDuration, TimedFault};
 use firelink_control::config::presets;
 use firelink_emulate::fw_cdev::{self, Twin};
 use firelink_emulate::{Bridge, Event, ServeConfig};
+use firelink_wire::packet::Tcode;
 
 use crate::CliError;
 use crate::args::{FirmwareArg, HardwareArg};
@@ -69,6 +71,27 @@ pub struct EmulateArgs {
     /// Fault: drop each packet on the bus with this probability (0..=1).
     #[arg(long = "drop-rate", default_value_t = 0.0, value_parser = crate::args::probability)]
     pub drop_rate: f64,
+    /// Fault: drop each response a board sends (quadlet and block read
+    /// responses) with this probability (0..=1): the host's request is
+    /// answered by nothing (over --fw-cdev: RCODE_CANCELLED after the
+    /// split time-out).
+    #[arg(long = "drop-response-rate", default_value_t = 0.0, value_parser = crate::args::probability)]
+    pub drop_response_rate: f64,
+    /// Fault: the addressed board is busy for each request the host sends
+    /// with this probability (0..=1): it takes nothing and acknowledges
+    /// ack_busy_X (over --fw-cdev: RCODE_BUSY).
+    #[arg(long = "busy-rate", default_value_t = 0.0, value_parser = crate::args::probability)]
+    pub busy_rate: f64,
+    /// Fault: this many bus resets in a row, 1 ms apart, from
+    /// `--fault-at-ms` (or `--fault-after-requests`).
+    #[arg(long = "reset-storm", value_name = "N", default_value_t = 0)]
+    pub reset_storm: u32,
+    /// With --fw-cdev (and fw-run): the split time-out, ms of emulated
+    /// time: a request whose response is lost completes with
+    /// RCODE_CANCELLED this long after it was sent (the kernel's default:
+    /// 2000; a short one keeps tests of lost responses short).
+    #[arg(long = "split-timeout-ms", value_name = "MS", default_value_t = 2000, value_parser = clap::value_parser!(u64).range(1..=60_000))]
+    pub split_timeout_ms: u64,
     /// Fault: flip a bit in each packet on the bus with this probability (0..=1).
     #[arg(long = "corrupt-rate", default_value_t = 0.0, value_parser = crate::args::probability)]
     pub corrupt_rate: f64,
@@ -127,7 +150,7 @@ pub struct EmulatedBus {
     /// Their board IDs.
     pub ids: Vec<u8>,
     /// Timed faults held back for `--fault-after-requests`.
-    pub deferred: Vec<TimedFault>,
+    pub deferred: Vec<(SimDuration, TimedFault)>,
     /// The configurations of its QLA boards (none for Snake nodes).
     pub configs: Vec<BoardConfig>,
 }
@@ -252,6 +275,22 @@ fn assemble(
             .and_then(|i| rig.boards.get(i).copied())
             .ok_or(CliError::NoSuchBoard { option, board: id })
     };
+    if args.drop_response_rate > 0.0 {
+        for tcode in [Tcode::ReadQuadletResponse, Tcode::ReadBlockResponse] {
+            rig.bus.add_fault_rule(FaultRule::random(
+                PacketMatch::any().tcode(tcode),
+                PacketFault::Drop,
+                args.drop_response_rate.min(1.0),
+            ));
+        }
+    }
+    if args.busy_rate > 0.0 {
+        rig.bus.add_fault_rule(FaultRule::random(
+            PacketMatch::any().from(rig.host).kind(PacketKind::Request),
+            PacketFault::AckBusy,
+            args.busy_rate.min(1.0),
+        ));
+    }
     let mut timed = Vec::new();
     if let Some(id) = args.unplug_board {
         let node = handle_of("--unplug-board", id)?;
@@ -267,11 +306,18 @@ fn assemble(
             duration: None,
         });
     }
+    // The timed faults at their moment; a storm's resets 1 ms apart
+    // (each is over, and its generation counted, before the next).
+    let mut timed: Vec<(SimDuration, TimedFault)> =
+        timed.into_iter().map(|f| (SimDuration::ZERO, f)).collect();
+    for k in 0..args.reset_storm {
+        timed.push((SimDuration::from_millis(u64::from(k)), TimedFault::BusReset));
+    }
     let deferred = if args.fault_after_requests.is_some() && args.fw_cdev_twin() {
         timed
     } else {
-        for f in timed {
-            rig.bus.schedule_fault(at, f);
+        for (after, f) in timed {
+            rig.bus.schedule_fault(at + after, f);
         }
         Vec::new()
     };
@@ -289,6 +335,7 @@ fn assemble(
 pub fn build_twin(args: &EmulateArgs) -> Result<(Twin, Vec<u8>), CliError> {
     let e = build_bus(args)?;
     let mut twin = Twin::new(e.bus, e.host);
+    twin.set_split_timeout(SimDuration::from_millis(args.split_timeout_ms));
     if let Some(n) = args.fault_after_requests {
         twin.defer_faults(n, e.deferred);
     }
