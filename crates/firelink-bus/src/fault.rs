@@ -160,6 +160,10 @@ pub enum PacketFault {
     DropAck,
     /// The packet arrives but its ack is corrupted (fails its check).
     CorruptAck,
+    /// The addressee is busy: it does not take the packet (no write, no
+    /// response) and acknowledges `ack_busy_X`, as a link whose receive
+    /// FIFO is full does. Other nodes still hear the packet.
+    AckBusy,
     /// The packet ends early: only its first `quadlets` quadlets reach the
     /// receivers (a PHY that stopped mid-packet).
     Truncate {
@@ -399,6 +403,7 @@ pub(crate) struct Decision {
     pub duplicate: bool,
     pub drop_ack: bool,
     pub corrupt_ack: bool,
+    pub busy: bool,
     /// Keep only this many bytes (the smallest truncation wins).
     pub truncate: Option<usize>,
     /// (fault description, mutation) pairs, applied in order.
@@ -553,6 +558,10 @@ impl FaultInjector {
                 PacketFault::CorruptAck => {
                     d.corrupt_ack = true;
                     "corrupt ack".to_string()
+                }
+                PacketFault::AckBusy => {
+                    d.busy = true;
+                    "ack busy".to_string()
                 }
                 PacketFault::Truncate { quadlets } => {
                     let keep = quadlets.saturating_mul(4);

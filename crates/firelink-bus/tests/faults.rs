@@ -10,7 +10,7 @@ use firelink_bus::fault::{EvidenceKind, FaultPlan, PacketFault, PacketMatch, Tim
 use firelink_bus::host::{HostLink, Outcome};
 use firelink_bus::trace::PacketKind;
 use firelink_bus::{Bus, BusConfig, NodeConfig, NodeHandle, SimDuration};
-use firelink_wire::packet::{Speed, Tcode};
+use firelink_wire::packet::{Ack, Speed, Tcode};
 
 /// PC (HostLink) and `n` responders (writes acked, quadlet reads answered
 /// concatenated) in a chain.
@@ -146,6 +146,37 @@ fn duplicates_are_noticed() {
         .filter(|p| p.kind == PacketKind::Duplicate)
         .count();
     assert_eq!(dups, 1);
+}
+
+/// A quadlet write of `value` from the PC to `node`, the bus run 50 us:
+/// its outcome.
+fn write_outcome(bus: &mut Bus, pc: NodeHandle, node: NodeHandle, value: u32) -> Outcome {
+    let me = bus.phy_id(pc).unwrap();
+    let dst = bus.phy_id(node).unwrap();
+    let t = host_send(bus, pc, qwrite(me, dst, 0, value));
+    bus.run_for(SimDuration::from_micros(50));
+    outcome(bus, pc, t)
+}
+
+#[test]
+fn a_busy_addressee_takes_nothing_and_acknowledges_busy() {
+    let (mut bus, pc, nodes) = boards(1, 0);
+    bus.set_fault_plan(FaultPlan::new().once(PacketMatch::any().from(pc), PacketFault::AckBusy));
+    assert_eq!(write_outcome(&mut bus, pc, nodes[0], 1), Outcome::Busy);
+    // The board never took the write; the sender heard ack_busy_X.
+    assert_eq!(rec(&bus, nodes[0]).writes(), 0);
+    let acks: Vec<Option<Ack>> = bus
+        .trace()
+        .packets()
+        .iter()
+        .filter(|p| p.kind == PacketKind::Ack)
+        .map(|p| p.ack())
+        .collect();
+    assert_eq!(acks, [Some(Ack::BusyX)]);
+    assert!(only_fault(&bus).detected());
+    // The next write (no fault left) is taken.
+    assert_eq!(write_outcome(&mut bus, pc, nodes[0], 2), Outcome::Complete);
+    assert_eq!(rec(&bus, nodes[0]).writes(), 1);
 }
 
 #[test]

@@ -5,7 +5,9 @@
 //! `--port udp:HOST[:PORT]`), side by side. Plus the maximum sustainable
 //! control rate and seed 002's time budget; for UDP, each wait mode
 //! (`--udp-wait block,spin`), the floor of the same exchange and the CPU
-//! time per cycle.
+//! time per cycle; for `fw` (FirewirePort through the /dev/fw* twin, the
+//! command re-runs itself with the twin preloaded), the floor of bare
+//! request/event round trips and the host CPU against `sim`'s.
 
 //!
 //! The measurement is [`firelink_testbed::bench`], the figure
@@ -31,6 +33,9 @@ pub enum TransportArg {
     Sim,
     /// Loopback UDP to an in-process bridge emulator (wall clock).
     Udp,
+    /// FirewirePort through the /dev/fw* twin, served in-process (wall
+    /// clock).
+    Fw,
 }
 
 impl From<TransportArg> for BenchTransport {
@@ -38,6 +43,7 @@ impl From<TransportArg> for BenchTransport {
         match t {
             TransportArg::Sim => BenchTransport::Sim,
             TransportArg::Udp => BenchTransport::Udp,
+            TransportArg::Fw => BenchTransport::Fw,
         }
     }
 }
@@ -177,6 +183,9 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
         return crate::seed001_bench::run(args, out);
     }
     let options = options(args)?;
+    if options.transports.contains(&BenchTransport::Fw) && std::env::var_os(UNDER_TWIN).is_none() {
+        return rerun_under_twin(out);
+    }
     let quiet = crate::args::quiet();
     let report = run_bench(&options, |t, proto, n| {
         if quiet {
@@ -196,6 +205,40 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
         writeln!(out, "{}", serde_json::to_string(&report)?)?;
     } else {
         write!(out, "{report}")?;
+    }
+    Ok(())
+}
+
+/// Set in the re-run of `firelink bench` that has the twin preloaded.
+const UNDER_TWIN: &str = "FIRELINK_BENCH_UNDER_TWIN";
+
+/// The `fw` points need `libfirelink_fwcdev.so` in this process, which
+/// only the loader can put there: run this same command again with it
+/// preloaded and a fresh socket path for the benchmark's own twin server,
+/// and pass its table on.
+fn rerun_under_twin(out: &mut impl Write) -> Result<(), CliError> {
+    let library = crate::fw_run::library_path()?;
+    let dir = crate::fw_run::temp_dir()?;
+    let mut preload = library.into_os_string();
+    if let Some(old) = std::env::var_os("LD_PRELOAD").filter(|o| !o.is_empty()) {
+        preload.push(" ");
+        preload.push(old);
+    }
+    let output = std::process::Command::new(std::env::current_exe()?)
+        .args(std::env::args_os().skip(1))
+        .env("LD_PRELOAD", preload)
+        .env(crate::fw_run::SOCKET_ENV, dir.join("fw-cdev.sock"))
+        .env(UNDER_TWIN, "1")
+        .stderr(std::process::Stdio::inherit())
+        .output();
+    let _ = std::fs::remove_dir_all(&dir);
+    let output = output?;
+    out.write_all(&output.stdout)?;
+    if !output.status.success() {
+        return Err(CliError::Failed(format!(
+            "bench: the run with the /dev/fw* twin preloaded failed ({})",
+            output.status
+        )));
     }
     Ok(())
 }

@@ -82,6 +82,27 @@ pub struct EmulateArgs {
     /// e.g. with --corrupt-rate.
     #[arg(long = "commit-corrupt-writes")]
     pub commit_corrupt_writes: bool,
+    /// Fault: drop each response a board sends (quadlet and block read
+    /// responses) with this probability (0..=1): the host's request is
+    /// answered by nothing (over --fw-cdev: RCODE_CANCELLED after the
+    /// split time-out).
+    #[arg(long = "drop-response-rate", default_value_t = 0.0, value_parser = crate::args::probability)]
+    pub drop_response_rate: f64,
+    /// Fault: the addressed board is busy for each request the host sends
+    /// with this probability (0..=1): it takes nothing and acknowledges
+    /// ack_busy_X (over --fw-cdev: RCODE_BUSY).
+    #[arg(long = "busy-rate", default_value_t = 0.0, value_parser = crate::args::probability)]
+    pub busy_rate: f64,
+    /// Fault: this many bus resets in a row, 1 ms apart, from
+    /// `--fault-at-ms` (or `--fault-after-requests`).
+    #[arg(long = "reset-storm", value_name = "N", default_value_t = 0)]
+    pub reset_storm: u32,
+    /// With --fw-cdev (and fw-run): the split time-out, ms of emulated
+    /// time: a request whose response is lost completes with
+    /// RCODE_CANCELLED this long after it was sent (the kernel's default:
+    /// 2000; a short one keeps tests of lost responses short).
+    #[arg(long = "split-timeout-ms", value_name = "MS", default_value_t = 2000, value_parser = clap::value_parser!(u64).range(1..=60_000))]
+    pub split_timeout_ms: u64,
     /// Fault: unplug this board's cable (bus reset) after `--fault-at-ms`.
     #[arg(long = "unplug-board", value_parser = crate::args::board_id)]
     pub unplug_board: Option<u8>,
@@ -166,6 +187,13 @@ pub fn build_rig(args: &EmulateArgs) -> Result<Rig, CliError> {
             args.corrupt_rate.min(1.0),
         ));
     }
+    if args.drop_response_rate > 0.0 {
+        builder = builder.drop_responses(args.drop_response_rate);
+    }
+    if args.busy_rate > 0.0 {
+        builder = builder.busy_requests(args.busy_rate);
+    }
+    builder = builder.reset_storm(args.reset_storm);
     if let Some(id) = args.unplug_board {
         builder = builder.board_fault(BoardFault::Unplug(id));
     }
@@ -237,6 +265,7 @@ pub fn build_twin(args: &EmulateArgs) -> Result<(Twin, Vec<u8>), CliError> {
         }
     };
     let mut twin = Twin::new(rig.bus, rig.host);
+    twin.set_split_timeout(SimDuration::from_millis(args.split_timeout_ms));
     if let Some((n, faults)) = deferred {
         twin.defer_faults(n, faults);
     }

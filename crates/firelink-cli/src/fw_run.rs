@@ -125,7 +125,7 @@ pub fn run(args: &FwRunArgs) -> Result<u8, CliError> {
 }
 
 /// A new private directory for the socket.
-fn temp_dir() -> Result<PathBuf, CliError> {
+pub(crate) fn temp_dir() -> Result<PathBuf, CliError> {
     let base = std::env::temp_dir();
     for n in 0..1000u32 {
         let dir = base.join(format!("firelink-fw-{}-{n}", std::process::id()));

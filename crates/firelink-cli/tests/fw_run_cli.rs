@@ -91,3 +91,44 @@ fn a_pcap_of_a_fw_session_holds_the_synthesised_packets() {
     // A pcap header and, for a scan of two boards, dozens of packets.
     assert!(bytes.len() > 24 + 40 * 16, "{} bytes", bytes.len());
 }
+
+#[test]
+fn bench_measures_the_fw_port_beside_its_floor_and_sim() {
+    // `--transport fw` runs the command again with the twin preloaded.
+    library();
+    let out = Command::new(env!("CARGO_BIN_EXE_firelink"))
+        .args([
+            "bench",
+            "--transport",
+            "sim,fw",
+            "--boards",
+            "2",
+            "--protocol",
+            "broadcast",
+            "--cycles",
+            "60",
+            "--json",
+        ])
+        .output()
+        .expect("run firelink bench");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let results = report["results"].as_array().expect("results");
+    let fw = results
+        .iter()
+        .find(|r| r["transport"] == "fw")
+        .expect("an fw point");
+    assert_eq!(fw["boards"], 2);
+    assert_eq!(fw["cycles"], 60);
+    assert_eq!(fw["errors"], 0, "{fw}");
+    let figures = &fw["fw"];
+    // The snooped-node-0 route: query, hub read, command write.
+    assert_eq!(figures["round_trips"], 3.0, "{figures}");
+    assert_eq!(figures["floor_errors"], 0);
+    assert!(figures["floor_us"]["median"].as_f64().unwrap() > 0.0);
+    assert!(figures["host_cpu_vs_sim"].as_f64().is_some(), "{figures}");
+}

@@ -27,10 +27,21 @@
 //!   from the PC's link, and complete with the rcode the kernel derives
 //!   from the ack, the response or their absence. Every accepted request
 //!   completes exactly once: a response lost or damaged on the bus ends in
-//!   RCODE_CANCELLED after the split time-out (2 s, the kernel's default).
+//!   RCODE_CANCELLED after the split time-out (2 s, the kernel's default;
+//!   [`Twin::set_split_timeout`] shortens it for tests), and an
+//!   `ack_busy` from a board completes with RCODE_BUSY.
 //!   Lock requests go nowhere: the boards do not acknowledge them, so they
 //!   complete with RCODE_NO_ACK (the card's CSRs: RCODE_TYPE).
 //! - A node that leaves the bus hangs up every connection of its device.
+//! - Bus resets: every connection that asked GET_INFO gets one BUS_RESET
+//!   event per reset, generations rising by one each, also when several
+//!   resets (a storm) happen between two looks at the bus; the records of
+//!   the resets of one storm carry the topology found after its last.
+//!
+//! Faults come from the simulated bus's seeded fault plan
+//! (`firelink_bus::FaultRule`, `TimedFault`): lost responses
+//! (`PacketFault::Drop`), busy acks (`PacketFault::AckBusy`), bus resets
+//! and unplugged boards, as `firelink emulate` sets them up.
 
 use std::collections::{BTreeMap, VecDeque};
 
@@ -165,8 +176,11 @@ pub struct Twin {
     stats: TwinStats,
     /// The card index GET_INFO reports.
     card: u32,
-    /// Faults to start when this many requests have been accepted.
-    deferred: Option<(u64, Vec<TimedFault>)>,
+    /// Faults to start when this many requests have been accepted, each
+    /// this long after that moment.
+    deferred: Option<(u64, Vec<(SimDuration, TimedFault)>)>,
+    /// How long a request waits for its response before it is cancelled.
+    split_timeout: SimDuration,
 }
 
 /// STATE_CLEAR's cycle-master bit (`CSR_STATE_BIT_CMSTR`).
@@ -203,17 +217,31 @@ impl Twin {
             stats: TwinStats::default(),
             card: 0,
             deferred: None,
+            split_timeout: SPLIT_TIMEOUT,
         };
         twin.refresh_devices();
         twin
     }
 
-    /// Start `faults` (unplugging, muting, bus resets) at the moment the
-    /// `after_requests`-th request is accepted, rather than at a time: a
-    /// test or a user can then fault a running program wherever it is in
-    /// its run, however long it took to start.
-    pub fn defer_faults(&mut self, after_requests: u64, faults: Vec<TimedFault>) {
+    /// Start `faults` (unplugging, muting, bus resets), each the given
+    /// time after the moment the `after_requests`-th request is accepted,
+    /// rather than at a time: a test or a user can then fault a running
+    /// program wherever it is in its run, however long it took to start.
+    pub fn defer_faults(&mut self, after_requests: u64, faults: Vec<(SimDuration, TimedFault)>) {
         self.deferred = Some((after_requests, faults));
+    }
+
+    /// The split time-out: a request whose response does not come (lost,
+    /// damaged) completes with RCODE_CANCELLED this long after it was
+    /// sent, in the bus's virtual time (the kernel's default, and this
+    /// twin's, is [`SPLIT_TIMEOUT`]; a short one keeps tests of lost
+    /// responses short).
+    pub fn set_split_timeout(&mut self, timeout: SimDuration) {
+        self.split_timeout = timeout;
+        let link = self.link;
+        if let Some(l) = self.bus.node_mut::<HostLink>(link) {
+            l.set_split_timeout(timeout);
+        }
     }
 
     /// The bus.
@@ -383,8 +411,8 @@ impl Twin {
             .is_some_and(|(n, _)| self.stats.requests >= *n)
             && let Some((_, faults)) = self.deferred.take()
         {
-            for f in faults {
-                self.bus.schedule_fault(at, f);
+            for (after, f) in faults {
+                self.bus.schedule_fault(at + after, f);
             }
         }
         if !broadcast && args.generation != self.bus.generation() {
@@ -558,21 +586,33 @@ impl Twin {
                 continue;
             };
             let f = self.in_flight.swap_remove(i);
-            let (rc, data, due) = judge(&c, f.tcode, f.length);
+            let (rc, data, due) = judge(&c, f.tcode, f.length, self.split_timeout);
             self.complete(f.connection, f.closure, rc, &data, due);
         }
     }
 
-    /// After a bus reset: devices come and go, every connection that asked
-    /// for GET_INFO gets a BUS_RESET event.
+    /// After bus resets: devices come and go, every connection that asked
+    /// for GET_INFO gets a BUS_RESET event for each reset, in order.
     fn check_reset(&mut self) {
         let generation = self.bus.generation();
         if generation == self.generation {
             return;
         }
+        // One event per reset (a storm's count bounded: a client that
+        // missed more learns the newest generation all the same).
+        let resets = generation.wrapping_sub(self.generation).clamp(1, 256);
+        let first = generation.wrapping_sub(resets - 1);
         self.generation = generation;
-        self.stats.bus_resets += 1;
         self.refresh_devices();
+        for k in 0..resets {
+            self.stats.bus_resets += 1;
+            self.queue_bus_reset(first.wrapping_add(k));
+        }
+    }
+
+    /// Queue the BUS_RESET event of `generation` on every connection (a
+    /// connection whose node is gone is hung up instead).
+    fn queue_bus_reset(&mut self, generation: u32) {
         let at = self.bus.now();
         let ids: Vec<u64> = self.connections.keys().copied().collect();
         for id in ids {
@@ -588,7 +628,8 @@ impl Twin {
             if version.is_none() {
                 continue;
             }
-            if let Some(record) = self.record_of(device) {
+            if let Some(mut record) = self.record_of(device) {
+                record.generation = generation;
                 let mut bytes = vec![0u8; fw_cdev::BUS_RESET_EVENT_LEN];
                 let _ = record.emit(closure, &mut bytes);
                 self.ready.push_back(Outgoing::Event {
@@ -746,7 +787,12 @@ impl Twin {
 
 /// The rcode, data and due time the kernel derives from a finished
 /// transaction.
-fn judge(c: &Completion, tcode: u32, length: u32) -> (u32, Vec<u8>, SimTime) {
+fn judge(
+    c: &Completion,
+    tcode: u32,
+    length: u32,
+    split_timeout: SimDuration,
+) -> (u32, Vec<u8>, SimTime) {
     let at = c.completed_at;
     match c.outcome {
         Outcome::Complete => {}
@@ -764,7 +810,7 @@ fn judge(c: &Completion, tcode: u32, length: u32) -> (u32, Vec<u8>, SimTime) {
         // The card's controller drops a response with a bad CRC: the
         // transaction is cancelled when the split time-out runs out.
         Outcome::ResponseCorrupt => {
-            return (rcode::CANCELLED, Vec::new(), c.submitted_at + SPLIT_TIMEOUT);
+            return (rcode::CANCELLED, Vec::new(), c.submitted_at + split_timeout);
         }
         Outcome::BusReset => return (rcode::GENERATION, Vec::new(), at),
     }
@@ -773,7 +819,7 @@ fn judge(c: &Completion, tcode: u32, length: u32) -> (u32, Vec<u8>, SimTime) {
         return (rcode::COMPLETE, Vec::new(), at);
     };
     let Ok(p) = Packet::new_checked(response) else {
-        return (rcode::CANCELLED, Vec::new(), c.submitted_at + SPLIT_TIMEOUT);
+        return (rcode::CANCELLED, Vec::new(), c.submitted_at + split_timeout);
     };
     let rc = u32::from(u8::from(p.rcode()));
     if rc != rcode::COMPLETE {

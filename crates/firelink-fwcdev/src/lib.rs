@@ -126,12 +126,18 @@ fn no_symbol() -> c_int {
 
 // ---- the twin's fds ----
 
-/// One open twin device: the private control socket and a lock so that
-/// one ioctl's request and reply are not interleaved with another's.
+/// One open twin device: the private control socket, and behind a lock
+/// (so that one ioctl's request and reply are not interleaved with
+/// another's) the buffer its messages are written and read in, made once
+/// at open rather than at every ioctl.
 struct Device {
     control: c_int,
-    io: Mutex<()>,
+    io: Mutex<Vec<u8>>,
 }
+
+/// Bytes of a device's message buffer: the largest request, or the
+/// largest reply (a GET_INFO with its ROM).
+const DEVICE_BUFFER: usize = fw_cdev::TWIN_MAX_MESSAGE + 4096;
 
 fn devices() -> &'static Mutex<BTreeMap<c_int, Arc<Device>>> {
     static DEVICES: OnceLock<Mutex<BTreeMap<c_int, Arc<Device>>>> = OnceLock::new();
@@ -218,13 +224,12 @@ fn close_fd(fd: c_int) {
     }
 }
 
-/// Send one twin request on `fd` and wait for its reply into `buf`;
-/// returns the reply's length.
+/// Send one twin request on `fd` and wait for its reply; `buf` holds the
+/// request, then the reply. Returns the reply's length.
 fn round_trip(fd: c_int, request: &TwinRequest<'_>, buf: &mut [u8]) -> Result<usize, c_int> {
-    let mut out = vec![0u8; fw_cdev::TWIN_MAX_MESSAGE];
-    let n = request.emit(&mut out).map_err(|_| libc::EINVAL)?;
-    // SAFETY: out[..n] is initialised memory.
-    let sent = unsafe { libc::send(fd, out.as_ptr().cast(), n, libc::MSG_NOSIGNAL) };
+    let n = request.emit(buf).map_err(|_| libc::EINVAL)?;
+    // SAFETY: buf[..n] is initialised memory.
+    let sent = unsafe { libc::send(fd, buf.as_ptr().cast(), n, libc::MSG_NOSIGNAL) };
     if sent < 0 {
         return Err(gone(last_errno()));
     }
@@ -300,7 +305,7 @@ fn open_twin_inner(n: u32, flags: c_int) -> Result<c_int, c_int> {
             event,
             Arc::new(Device {
                 control,
-                io: Mutex::new(()),
+                io: Mutex::new(vec![0u8; DEVICE_BUFFER]),
             }),
         );
     }
@@ -349,8 +354,8 @@ fn write_arg(ptr: *mut c_void, bytes: &[u8]) -> Result<(), c_int> {
 
 fn twin_ioctl(device: &Device, request: c_ulong, arg: *mut c_void) -> Result<c_int, c_int> {
     let ioctl = Ioctl::from_request(request).ok_or(errno::ENOTTY)?;
-    let _one_at_a_time = device.io.lock().map_err(|_| libc::EIO)?;
-    let mut buf = vec![0u8; fw_cdev::TWIN_MAX_MESSAGE + 4096];
+    let mut buf = device.io.lock().map_err(|_| libc::EIO)?;
+    let buf = buf.as_mut_slice();
     match ioctl {
         Ioctl::GetInfo => {
             let mut a = GetInfoArgs::parse(&read_arg(arg, fw_cdev::GET_INFO_LEN)?)
@@ -362,7 +367,7 @@ fn twin_ioctl(device: &Device, request: c_ulong, arg: *mut c_void) -> Result<c_i
                     rom_length: if a.rom != 0 { a.rom_length } else { 0 },
                     bus_reset_closure: a.bus_reset_closure,
                 },
-                &mut buf,
+                buf,
             )?;
             let r = reply(&buf[..len])?;
             let (card, rom_length, record, rom) =
@@ -400,7 +405,7 @@ fn twin_ioctl(device: &Device, request: c_ulong, arg: *mut c_void) -> Result<c_i
                     args: a,
                     payload: &payload,
                 },
-                &mut buf,
+                buf,
             )?;
             reply(&buf[..len])?;
             Ok(0)
@@ -414,7 +419,7 @@ fn twin_ioctl(device: &Device, request: c_ulong, arg: *mut c_void) -> Result<c_i
             let len = round_trip(
                 device.control,
                 &TwinRequest::InitiateBusReset { short: kind == 1 },
-                &mut buf,
+                buf,
             )?;
             reply(&buf[..len])?;
             Ok(0)
@@ -430,7 +435,7 @@ fn twin_ioctl(device: &Device, request: c_ulong, arg: *mut c_void) -> Result<c_i
             } else {
                 libc::CLOCK_REALTIME
             };
-            let len = round_trip(device.control, &TwinRequest::CycleTimer, &mut buf)?;
+            let len = round_trip(device.control, &TwinRequest::CycleTimer, buf)?;
             let cycle_timer = reply(&buf[..len])?.value as u32;
             // SAFETY: a zeroed timespec is valid.
             let mut ts: libc::timespec = unsafe { std::mem::zeroed() };
@@ -455,7 +460,7 @@ fn twin_ioctl(device: &Device, request: c_ulong, arg: *mut c_void) -> Result<c_i
             Ok(0)
         }
         Ioctl::GetSpeed => {
-            let len = round_trip(device.control, &TwinRequest::GetSpeed, &mut buf)?;
+            let len = round_trip(device.control, &TwinRequest::GetSpeed, buf)?;
             Ok(reply(&buf[..len])?.value as c_int)
         }
     }
@@ -463,143 +468,94 @@ fn twin_ioctl(device: &Device, request: c_ulong, arg: *mut c_void) -> Result<c_i
 
 // ---- the interposed entry points ----
 
-/// `open(2)`: /dev/fw<N> through the twin, anything else passed on.
-///
-/// # Safety
-/// As `open(2)`: `path` a C string.
-#[unsafe(no_mangle)]
-pub unsafe extern "C" fn open(path: *const c_char, flags: c_int, mode: mode_t) -> c_int {
-    if let (Some(n), Some(_)) = (device_number(path), socket_path()) {
-        return open_twin(n, flags);
-    }
-    match next_open() {
-        // SAFETY: forwarding the caller's arguments.
-        Some(f) => unsafe { f(path, flags, mode as c_int) },
-        None => no_symbol(),
-    }
+/// Defines one member of the open family: a `/dev/fw<N>` path goes to the
+/// twin (when the program runs under one), anything else to the next
+/// definition with the caller's arguments unchanged. `$arg: $ty => $pass`
+/// lists the parameters after the path's and flags' and how each is passed
+/// on (the variadic `mode` travels as the `int` the caller promoted it to).
+macro_rules! interpose_open {
+    (
+        $(#[$doc:meta])*
+        $name:ident, $next:ident,
+        ($($before:ident: $before_ty:ty),*),
+        ($($after:ident: $after_ty:ty => $pass:expr),*)
+    ) => {
+        $(#[$doc])*
+        #[unsafe(no_mangle)]
+        pub unsafe extern "C" fn $name(
+            $($before: $before_ty,)*
+            path: *const c_char,
+            flags: c_int
+            $(, $after: $after_ty)*
+        ) -> c_int {
+            if let (Some(n), Some(_)) = (device_number(path), socket_path()) {
+                return open_twin(n, flags);
+            }
+            match $next() {
+                // SAFETY: forwarding the caller's arguments.
+                Some(f) => unsafe { f($($before,)* path, flags $(, $pass)*) },
+                None => no_symbol(),
+            }
+        }
+    };
 }
 
-/// `open64`: as [`open`].
-///
-/// # Safety
-/// As `open(2)`.
-#[unsafe(no_mangle)]
-pub unsafe extern "C" fn open64(path: *const c_char, flags: c_int, mode: mode_t) -> c_int {
-    if let (Some(n), Some(_)) = (device_number(path), socket_path()) {
-        return open_twin(n, flags);
-    }
-    match next_open64() {
-        // SAFETY: forwarding the caller's arguments.
-        Some(f) => unsafe { f(path, flags, mode as c_int) },
-        None => no_symbol(),
-    }
-}
-
-/// `openat`: an absolute /dev/fw<N> through the twin.
-///
-/// # Safety
-/// As `openat(2)`.
-#[unsafe(no_mangle)]
-pub unsafe extern "C" fn openat(
-    dirfd: c_int,
-    path: *const c_char,
-    flags: c_int,
-    mode: mode_t,
-) -> c_int {
-    if let (Some(n), Some(_)) = (device_number(path), socket_path()) {
-        return open_twin(n, flags);
-    }
-    match next_openat() {
-        // SAFETY: forwarding the caller's arguments.
-        Some(f) => unsafe { f(dirfd, path, flags, mode as c_int) },
-        None => no_symbol(),
-    }
-}
-
-/// `openat64`: as [`openat`].
-///
-/// # Safety
-/// As `openat(2)`.
-#[unsafe(no_mangle)]
-pub unsafe extern "C" fn openat64(
-    dirfd: c_int,
-    path: *const c_char,
-    flags: c_int,
-    mode: mode_t,
-) -> c_int {
-    if let (Some(n), Some(_)) = (device_number(path), socket_path()) {
-        return open_twin(n, flags);
-    }
-    match next_openat64() {
-        // SAFETY: forwarding the caller's arguments.
-        Some(f) => unsafe { f(dirfd, path, flags, mode as c_int) },
-        None => no_symbol(),
-    }
-}
-
-/// `__open_2` (what `open` becomes under `_FORTIFY_SOURCE`).
-///
-/// # Safety
-/// As `open(2)`.
-#[unsafe(no_mangle)]
-pub unsafe extern "C" fn __open_2(path: *const c_char, flags: c_int) -> c_int {
-    if let (Some(n), Some(_)) = (device_number(path), socket_path()) {
-        return open_twin(n, flags);
-    }
-    match next_open_2() {
-        // SAFETY: forwarding the caller's arguments.
-        Some(f) => unsafe { f(path, flags) },
-        None => no_symbol(),
-    }
-}
-
-/// `__open64_2`.
-///
-/// # Safety
-/// As `open(2)`.
-#[unsafe(no_mangle)]
-pub unsafe extern "C" fn __open64_2(path: *const c_char, flags: c_int) -> c_int {
-    if let (Some(n), Some(_)) = (device_number(path), socket_path()) {
-        return open_twin(n, flags);
-    }
-    match next_open64_2() {
-        // SAFETY: forwarding the caller's arguments.
-        Some(f) => unsafe { f(path, flags) },
-        None => no_symbol(),
-    }
-}
-
-/// `__openat_2`.
-///
-/// # Safety
-/// As `openat(2)`.
-#[unsafe(no_mangle)]
-pub unsafe extern "C" fn __openat_2(dirfd: c_int, path: *const c_char, flags: c_int) -> c_int {
-    if let (Some(n), Some(_)) = (device_number(path), socket_path()) {
-        return open_twin(n, flags);
-    }
-    match next_openat_2() {
-        // SAFETY: forwarding the caller's arguments.
-        Some(f) => unsafe { f(dirfd, path, flags) },
-        None => no_symbol(),
-    }
-}
-
-/// `__openat64_2`.
-///
-/// # Safety
-/// As `openat(2)`.
-#[unsafe(no_mangle)]
-pub unsafe extern "C" fn __openat64_2(dirfd: c_int, path: *const c_char, flags: c_int) -> c_int {
-    if let (Some(n), Some(_)) = (device_number(path), socket_path()) {
-        return open_twin(n, flags);
-    }
-    match next_openat64_2() {
-        // SAFETY: forwarding the caller's arguments.
-        Some(f) => unsafe { f(dirfd, path, flags) },
-        None => no_symbol(),
-    }
-}
+interpose_open!(
+    /// `open(2)`: /dev/fw<N> through the twin, anything else passed on.
+    ///
+    /// # Safety
+    /// As `open(2)`: `path` a C string.
+    open, next_open, (), (mode: mode_t => mode as c_int)
+);
+interpose_open!(
+    /// `open64`: as [`open`].
+    ///
+    /// # Safety
+    /// As `open(2)`.
+    open64, next_open64, (), (mode: mode_t => mode as c_int)
+);
+interpose_open!(
+    /// `openat`: an absolute /dev/fw<N> through the twin.
+    ///
+    /// # Safety
+    /// As `openat(2)`.
+    openat, next_openat, (dirfd: c_int), (mode: mode_t => mode as c_int)
+);
+interpose_open!(
+    /// `openat64`: as [`openat`].
+    ///
+    /// # Safety
+    /// As `openat(2)`.
+    openat64, next_openat64, (dirfd: c_int), (mode: mode_t => mode as c_int)
+);
+interpose_open!(
+    /// `__open_2` (what `open` becomes under `_FORTIFY_SOURCE`).
+    ///
+    /// # Safety
+    /// As `open(2)`.
+    __open_2, next_open_2, (), ()
+);
+interpose_open!(
+    /// `__open64_2`.
+    ///
+    /// # Safety
+    /// As `open(2)`.
+    __open64_2, next_open64_2, (), ()
+);
+interpose_open!(
+    /// `__openat_2`.
+    ///
+    /// # Safety
+    /// As `openat(2)`.
+    __openat_2, next_openat_2, (dirfd: c_int), ()
+);
+interpose_open!(
+    /// `__openat64_2`.
+    ///
+    /// # Safety
+    /// As `openat(2)`.
+    __openat64_2, next_openat64_2, (dirfd: c_int), ()
+);
 
 /// `ioctl`: the twin's fds answered by the twin, any other fd passed on.
 ///

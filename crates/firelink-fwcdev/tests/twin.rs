@@ -496,6 +496,29 @@ fn a_bus_reset_reaches_every_fd_and_an_unplugged_node_hangs_up() {
     // SAFETY: one pollfd.
     assert_eq!(unsafe { libc::poll(&mut p, 1, 30_000) }, 1);
     assert!(p.revents & libc::POLLHUP != 0, "revents {:#x}", p.revents);
+    // The device is gone: its ioctls fail with ENODEV, as the kernel's do
+    // on a shut-down device, and reading it ends (no event will come).
+    let mut a = [0u8; 40];
+    GetInfoArgs {
+        version: 4,
+        rom_length: 0,
+        rom: 0,
+        bus_reset: 0,
+        bus_reset_closure: 0,
+        card: 0,
+    }
+    .emit(&mut a)
+    .unwrap();
+    assert_eq!(ioctl(fds[1], IOC_GET_INFO, &mut a), Err(errno::ENODEV));
+    let mut q = [0u8; 4];
+    assert_eq!(
+        send(fds[1], false, 4, 0, &mut q, 9, generation),
+        Err(errno::ENODEV)
+    );
+    let mut buf = [0u8; 64];
+    // SAFETY: a read into a local buffer.
+    let n = unsafe { libc::read(fds[1], buf.as_mut_ptr().cast(), buf.len()) };
+    assert_eq!(n, 0, "a read after the hang-up ends");
     let e = next_event(fds[2]);
     let (_, rec) = BusResetRecord::parse(&e).unwrap();
     // One board left (phy 0) and the PC (phy 1, the root).

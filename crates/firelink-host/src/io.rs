@@ -299,6 +299,8 @@ pub struct IoSystem<P: Port> {
     /// A bus reset was seen: node numbers may have moved; the caller
     /// rescans between cycles ([`IoSystem::recover`]).
     needs_rescan: bool,
+    /// Board IDs the last rescan no longer found.
+    left: Vec<u8>,
     /// Boards this system asked for power or an amplifier since the last
     /// power-down (bit i = board ID i): dropping the system powers them
     /// down.
@@ -419,6 +421,7 @@ impl<P: Port> IoSystem<P> {
             stats: IoStats::default(),
             bridge_board: scan.bridge_board,
             needs_rescan: false,
+            left: Vec::new(),
             energised: 0,
             watchdog: None,
         };
@@ -564,9 +567,21 @@ impl<P: Port> IoSystem<P> {
         let report = scan(&mut self.port)?;
         self.protocol = self.protocol.min(report.protocol);
         self.bridge_board = report.bridge_board;
+        let before: Vec<u8> = self.boards.iter().map(BoardIo::board_id).collect();
         self.adopt(&report)?;
+        self.left = before
+            .into_iter()
+            .filter(|id| !report.boards.iter().any(|b| b.board_id == *id))
+            .collect();
         self.needs_rescan = false;
         Ok(report)
+    }
+
+    /// The boards (by ID) the last rescan no longer found: unplugged, or
+    /// silent since; the others go on being served. Empty before any
+    /// rescan.
+    pub fn boards_left(&self) -> &[u8] {
+        &self.left
     }
 
     /// Whether a bus reset was seen since the last scan (node numbers may

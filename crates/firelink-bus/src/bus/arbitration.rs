@@ -200,6 +200,7 @@ impl Bus {
             faults: pending.faults.clone(),
             drop_ack: false,
             corrupt_ack: false,
+            busy: false,
             dropped: false,
             notified: false,
             crc: None,

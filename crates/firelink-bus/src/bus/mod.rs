@@ -219,6 +219,8 @@ struct Sub {
     faults: Vec<FaultId>,
     drop_ack: bool,
     corrupt_ack: bool,
+    /// The addressee acknowledges ack_busy_X without taking the packet.
+    busy: bool,
     dropped: bool,
     notified: bool,
     answers: Option<PacketId>,

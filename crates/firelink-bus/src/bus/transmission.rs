@@ -43,6 +43,7 @@ impl Bus {
         }
         sub.drop_ack |= d.drop_ack;
         sub.corrupt_ack |= d.corrupt_ack;
+        sub.busy |= d.busy;
         sub.dropped |= d.drop;
         d.duplicate
     }
@@ -231,6 +232,11 @@ impl Bus {
         let bytes = sub.bytes.clone();
         let speed = sub.speed;
         let is_dest = sub.dest == Some(node);
+        if is_dest && sub.busy {
+            // A busy addressee takes nothing and says so.
+            sub.reply = Some(RxReply::Ack(Ack::BusyX));
+            return;
+        }
         let faults = sub.faults.clone();
         if self.cfg.trace >= TraceLevel::Verbose {
             self.log_event(TraceEvent::Deliver { packet: id, node });
@@ -495,6 +501,7 @@ impl Bus {
             faults: Vec::new(),
             drop_ack: false,
             corrupt_ack: false,
+            busy: false,
             dropped: false,
             notified: false,
             crc: None,

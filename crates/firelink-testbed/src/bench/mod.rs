@@ -14,6 +14,13 @@
 //! thread and of the emulator's server thread. The UDP points can also
 //! run against any bridge ([`BenchOptions::udp_target`]).
 //!
+//! Each `fw` point (FirewirePort through the preloaded /dev/fw* twin and
+//! an in-process twin server) is measured beside its floor: as many bare
+//! request -> completion-event round trips over the same kind of
+//! `SOCK_SEQPACKET` sockets against a responder that models nothing (see
+//! [`fw`]); its host CPU per cycle is set against the same point's
+//! simulation cost on `sim` when both were measured in the run.
+//!
 //! Beside the I/O, the host's own CPU per 28-axis dVRK cycle (parse,
 //! PID, build commands) is measured over a recorded cycle with no I/O
 //! ([`host_cpu`]).
@@ -21,7 +28,9 @@
 //! The library behind `firelink bench` and the Python package's
 //! `run_bench`; [`BenchReport`] serialises to `firelink bench --json`.
 
+pub mod fw;
 pub mod host_cpu;
+mod server_thread;
 pub mod udp;
 
 use std::fmt;
@@ -50,6 +59,8 @@ pub enum BenchTransport {
     /// UDP to a bridge: an in-process emulator on loopback, or
     /// [`BenchOptions::udp_target`] (wall clock).
     Udp,
+    /// `FirewirePort` through the /dev/fw* twin (wall clock; see [`fw`]).
+    Fw,
 }
 
 impl BenchTransport {
@@ -58,14 +69,16 @@ impl BenchTransport {
         match self {
             BenchTransport::Sim => "sim",
             BenchTransport::Udp => "udp",
+            BenchTransport::Fw => "fw",
         }
     }
 
-    /// Parse `sim` or `udp`.
+    /// Parse `sim`, `udp` or `fw`.
     pub fn from_name(name: &str) -> Option<BenchTransport> {
         match name {
             "sim" => Some(BenchTransport::Sim),
             "udp" => Some(BenchTransport::Udp),
+            "fw" => Some(BenchTransport::Fw),
             _ => None,
         }
     }
@@ -204,10 +217,40 @@ pub struct UdpFigures {
     pub floor_server_cpu_us: Option<f64>,
 }
 
+/// What a measured `fw` point adds: its floor, and CPU time per cycle.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FwFigures {
+    /// The floor: as many bare request -> completion-event round trips
+    /// (same payload sizes, same host waits) over a pair of
+    /// `SOCK_SEQPACKET` sockets against a responder that answers at once
+    /// and models nothing; measured in blocks alternating with the
+    /// point's own. Time per cycle, us.
+    pub floor_us: IoTime,
+    /// The point's I/O median over the floor's median: the port's, the
+    /// preloaded library's and the twin's overhead (and the simulated bus
+    /// time the twin paces its events to).
+    pub floor_ratio: f64,
+    /// Floor cycles that failed.
+    pub floor_errors: u64,
+    /// Request -> completion round trips per cycle.
+    pub round_trips: f64,
+    /// CPU time of the host's thread per cycle (the cycle's I/O), us.
+    pub host_cpu_us: f64,
+    /// The same for the floor's cycles, us.
+    pub floor_host_cpu_us: f64,
+    /// CPU of the twin server's thread per cycle (idle time included), us.
+    pub twin_cpu_us: Option<f64>,
+    /// CPU of the floor responder's thread per floor cycle, us.
+    pub floor_server_cpu_us: Option<f64>,
+    /// `host_cpu_us` over the simulation cost per cycle of the same
+    /// protocol and boards on `sim` in the same run (absent without one).
+    pub host_cpu_vs_sim: Option<f64>,
+}
+
 /// One point of the benchmark.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct BenchPoint {
-    /// `sim` or `udp`.
+    /// `sim`, `udp` or `fw`.
     pub transport: &'static str,
     /// UDP: how the host's reads waited, `block` or `spin`.
     pub wait: Option<&'static str>,
@@ -240,6 +283,8 @@ pub struct BenchPoint {
     pub note: Option<String>,
     /// A measured UDP point's floor and CPU figures.
     pub udp: Option<UdpFigures>,
+    /// A measured `fw` point's floor and CPU figures.
+    pub fw: Option<FwFigures>,
     /// A measured point on the simulated bus: CPU per cycle of simulating
     /// it (host library, bus, boards and their plants; the idle bus time
     /// between cycles included), us, and that per board.
@@ -336,6 +381,7 @@ struct Raw {
     transport: BenchTransport,
     wait: Option<WaitMode>,
     udp: Option<(String, udp::ModeRun)>,
+    fw: Option<fw::FwRun>,
     protocol: Protocol,
     asked: Protocol,
     groups: usize,
@@ -473,6 +519,7 @@ fn point<P: Port>(
         transport,
         wait: None,
         udp: None,
+        fw: None,
         sim_cpu: if transport == BenchTransport::Sim {
             cpu
         } else {
@@ -558,6 +605,7 @@ fn model(base: &Raw, boards: usize) -> Raw {
             base.boards
         )),
         udp: None,
+        fw: None,
         sim_cpu: None,
         ..base.clone()
     }
@@ -569,6 +617,23 @@ fn round2(x: f64) -> f64 {
 
 fn finite(x: f64) -> Option<f64> {
     x.is_finite().then(|| round2(x))
+}
+
+/// Measured percentiles as a report shows them (the maximum only where
+/// one was measured).
+fn io_time(p: &Percentiles) -> IoTime {
+    IoTime {
+        median: round2(p.median),
+        p90: round2(p.p90),
+        p99: round2(p.p99),
+        max: finite(p.max),
+        mean: round2(p.mean),
+    }
+}
+
+/// `a / b` to three decimals.
+fn ratio3(a: f64, b: f64) -> f64 {
+    (a / b.max(1e-9) * 1000.0).round() / 1000.0
 }
 
 fn finish(raw: &Raw, compute: f64, period_us: f64) -> BenchPoint {
@@ -590,13 +655,7 @@ fn finish(raw: &Raw, compute: f64, period_us: f64) -> BenchPoint {
         protocol_asked: raw.asked.name(),
         broadcast_groups: raw.groups,
         boards: raw.boards,
-        io_time_us: IoTime {
-            median: round2(raw.io.median),
-            p90: round2(raw.io.p90),
-            p99: round2(raw.io.p99),
-            max: finite(raw.io.max),
-            mean: round2(raw.io.mean),
-        },
+        io_time_us: io_time(&raw.io),
         read_us: finite(raw.read),
         write_us: finite(raw.write),
         cycles: raw.cycles,
@@ -613,20 +672,25 @@ fn finish(raw: &Raw, compute: f64, period_us: f64) -> BenchPoint {
         sim_cpu_per_board_us: raw.sim_cpu.map(|c| round2(c / raw.boards.max(1) as f64)),
         udp: raw.udp.as_ref().map(|(target, m)| UdpFigures {
             target: target.clone(),
-            floor_us: IoTime {
-                median: round2(m.floor.median),
-                p90: round2(m.floor.p90),
-                p99: round2(m.floor.p99),
-                max: finite(m.floor.max),
-                mean: round2(m.floor.mean),
-            },
-            floor_ratio: (raw.io.median / m.floor.median.max(1e-9) * 1000.0).round() / 1000.0,
+            floor_us: io_time(&m.floor),
+            floor_ratio: ratio3(raw.io.median, m.floor.median),
             floor_errors: m.floor_errors,
             host_cpu_us: round2(m.host_cpu),
             floor_host_cpu_us: round2(m.floor_host_cpu),
             socket_calls_per_cycle: round2(m.socket_calls),
             emulator_cpu_us: m.emulator_cpu.map(round2),
             floor_server_cpu_us: m.floor_server_cpu.map(round2),
+        }),
+        fw: raw.fw.as_ref().map(|m| FwFigures {
+            floor_us: io_time(&m.floor),
+            floor_ratio: ratio3(raw.io.median, m.floor.median),
+            floor_errors: m.floor_errors,
+            round_trips: round2(m.round_trips),
+            host_cpu_us: round2(m.host_cpu),
+            floor_host_cpu_us: round2(m.floor_host_cpu),
+            twin_cpu_us: m.twin_cpu.map(round2),
+            floor_server_cpu_us: m.floor_server_cpu.map(round2),
+            host_cpu_vs_sim: None,
         }),
         wait: raw.wait.map(WaitMode::name),
     }
@@ -656,6 +720,7 @@ fn udp_raws(
             errors: m.errors,
             note: m.note.clone(),
             udp: Some((target.to_string(), m)),
+            fw: None,
             sim_cpu: None,
         })
         .collect())
@@ -715,6 +780,9 @@ pub fn run_bench(
                         let (port, _) = rig::sim_port(cfgs, true)?;
                         vec![point(port, t, proto, n, options)?]
                     }
+                    BenchTransport::Fw => {
+                        vec![fw::measure_point(cfgs, proto, options)?]
+                    }
                     BenchTransport::Udp => {
                         let emu = rig::Emulator::start(cfgs)?;
                         let bridge = udp::Bridge {
@@ -751,7 +819,67 @@ pub fn run_bench(
         udp_block_cycles: udp::BLOCK,
     };
     report.sim_cost = report.sim_cost_fits();
+    report.compare_fw_with_sim();
     Ok(report)
+}
+
+impl BenchReport {
+    /// The `fw` points' floor and CPU table.
+    fn fmt_fw(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let fw: Vec<(&BenchPoint, &FwFigures)> = self
+            .results
+            .iter()
+            .filter_map(|r| r.fw.as_ref().map(|u| (r, u)))
+            .collect();
+        if fw.is_empty() {
+            return Ok(());
+        }
+        let num = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.2}"));
+        writeln!(
+            f,
+            "\nfw through the /dev/fw* twin: the floor (as many bare request -> completion-event \
+             round trips, same sizes and host waits, over SOCK_SEQPACKET sockets to a responder \
+             that models nothing) in blocks of {} cycles alternating with the point's own; \
+             CPU per cycle, us (host: the cycle's I/O; twin: its server thread; floor srv: the \
+             responder's thread; vs sim: host cpu over the same point's simulation cost)",
+            self.udp_block_cycles
+        )?;
+        writeln!(
+            f,
+            "{:<9} {:<32} {:>6} {:>9} {:>9} {:>6} {:>6} {:>9} {:>9} {:>9} {:>9} {:>7}",
+            "trans",
+            "protocol",
+            "boards",
+            "median",
+            "floor",
+            "ratio",
+            "trips",
+            "host cpu",
+            "floor cpu",
+            "twin cpu",
+            "floor srv",
+            "vs sim"
+        )?;
+        for (r, u) in fw {
+            writeln!(
+                f,
+                "{:<9} {:<32} {:>6} {:>9.1} {:>9.1} {:>6.2} {:>6.1} {:>9.2} {:>9.2} {:>9} {:>9} {:>7}",
+                r.transport,
+                r.protocol,
+                r.boards,
+                r.io_time_us.median,
+                u.floor_us.median,
+                u.floor_ratio,
+                u.round_trips,
+                u.host_cpu_us,
+                u.floor_host_cpu_us,
+                num(u.twin_cpu_us),
+                num(u.floor_server_cpu_us),
+                num(u.host_cpu_vs_sim)
+            )?;
+        }
+        Ok(())
+    }
 }
 
 /// A straight line through a protocol's simulation cost against boards.
@@ -785,6 +913,25 @@ impl fmt::Display for SimCostFit {
 }
 
 impl BenchReport {
+    /// Set each `fw` point's host CPU against the simulation cost of the
+    /// same protocol and boards on `sim`, where the run measured both.
+    fn compare_fw_with_sim(&mut self) {
+        let sims: Vec<(&'static str, usize, f64)> = self
+            .results
+            .iter()
+            .filter_map(|r| r.sim_cpu_us.map(|c| (r.protocol, r.boards, c)))
+            .collect();
+        for r in &mut self.results {
+            let (protocol, boards) = (r.protocol, r.boards);
+            if let Some(f) = &mut r.fw {
+                f.host_cpu_vs_sim = sims
+                    .iter()
+                    .find(|s| s.0 == protocol && s.1 == boards && s.2 > 0.0)
+                    .map(|s| ratio3(f.host_cpu_us, s.2));
+            }
+        }
+    }
+
     /// For each protocol measured on the simulated bus at three or more
     /// board counts: the least-squares line of its simulation cost.
     pub fn sim_cost_fits(&self) -> Vec<SimCostFit> {
@@ -833,7 +980,7 @@ impl fmt::Display for BenchReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "I/O time per cycle (us), seed-000 PC model on the simulated bus (sim) and measured over UDP (udp/WAIT: the host's reads block or spin)"
+            "I/O time per cycle (us), seed-000 PC model on the simulated bus (sim) and measured over UDP (udp/WAIT: the host's reads block or spin) and through the /dev/fw* twin (fw)"
         )?;
         writeln!(
             f,
@@ -917,6 +1064,7 @@ impl fmt::Display for BenchReport {
                 writeln!(f, "{fit}")?;
             }
         }
+        self.fmt_fw(f)?;
         let udp: Vec<(&BenchPoint, &UdpFigures)> = self
             .results
             .iter()

@@ -14,9 +14,7 @@
 //! included: virtual time runs on).
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, UdpSocket};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use firelink_control::runner::Percentiles;
@@ -28,6 +26,7 @@ use firelink_host::{Dest, LinkFilter, Port};
 use firelink_wire::bridge::{ExtraData, split_host_datagram};
 use firelink_wire::packet::{PacketRepr, Rcode};
 
+use super::server_thread::ServerThread;
 use crate::TestbedError;
 use crate::cpu::ThreadCpuClock;
 use crate::rig;
@@ -45,7 +44,7 @@ const SCAN_TIMEOUT: Duration = Duration::from_millis(100);
 
 /// One port call of a cycle, as the floor repeats it.
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum Step {
+pub(super) enum Step {
     ReadQuadlet(Dest, u64),
     WriteQuadlet(Dest, u64),
     ReadBlock(Dest, u64, usize),
@@ -56,12 +55,13 @@ enum Step {
 /// A port that writes down its calls while asked to (the script of one
 /// cycle, which the floor repeats); otherwise it only passes them on.
 pub(super) struct Recorder<P: Port> {
-    inner: P,
-    script: Option<Vec<Step>>,
+    pub(super) inner: P,
+    /// The calls written down while `Some`.
+    pub(super) script: Option<Vec<Step>>,
 }
 
 impl<P: Port> Recorder<P> {
-    fn new(inner: P) -> Recorder<P> {
+    pub(super) fn new(inner: P) -> Recorder<P> {
         Recorder {
             inner,
             script: None,
@@ -134,6 +134,11 @@ impl<P: Port> Port for Recorder<P> {
     fn acknowledges_writes(&self) -> bool {
         self.inner.acknowledges_writes()
     }
+    fn refuses_broadcast_registers(&self) -> bool {
+        // The system's broadcast route depends on it (the fw port's
+        // snooped-node-0 route).
+        self.inner.refuses_broadcast_registers()
+    }
     fn link_stats(&self) -> LinkStats {
         self.inner.link_stats()
     }
@@ -182,11 +187,9 @@ pub fn floor_answer(request: &[u8], reply: &mut [u8]) -> Option<usize> {
 /// emulator's server waits).
 struct Responder {
     addr: SocketAddr,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
-    /// Its thread's CPU clock: what receiving and answering the floor's
-    /// datagrams costs a server that emulates nothing.
-    cpu: Option<ThreadCpuClock>,
+    /// Its thread, whose CPU clock tells what receiving and answering the
+    /// floor's datagrams costs a server that emulates nothing.
+    server: ServerThread<()>,
 }
 
 impl Responder {
@@ -195,12 +198,10 @@ impl Responder {
         // Only to look at the stop flag now and then.
         socket.set_read_timeout(Some(Duration::from_millis(50)))?;
         let addr = socket.local_addr()?;
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
-        let thread = std::thread::spawn(move || {
+        let server = ServerThread::spawn(move |stop: &AtomicBool| {
             let mut rx = vec![0u8; 4096];
             let mut tx = vec![0u8; 4096];
-            while !flag.load(Ordering::Relaxed) {
+            while !stop.load(Ordering::Relaxed) {
                 match socket.recv_from(&mut rx) {
                     Ok((len, from)) => {
                         let request = rx.get(..len).unwrap_or(&[]);
@@ -213,28 +214,12 @@ impl Responder {
                 }
             }
         });
-        let cpu = ThreadCpuClock::of(&thread);
-        Ok(Responder {
-            addr,
-            stop,
-            thread: Some(thread),
-            cpu,
-        })
+        Ok(Responder { addr, server })
     }
 
     /// CPU time its thread has used so far, while it runs.
     fn cpu_time(&self) -> Option<Duration> {
-        self.cpu
-            .and_then(|c| c.now_while_running(self.thread.as_ref()))
-    }
-}
-
-impl Drop for Responder {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
+        self.server.cpu_time()
     }
 }
 

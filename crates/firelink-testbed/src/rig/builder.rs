@@ -14,9 +14,12 @@
 //!   the bridge board); its node handle is looked up, never computed;
 //! - a fault or bridge board naming an ID the rig does not have is an
 //!   error ([`TestbedError::NoSuchBoard`]), not ignored;
-//! - board faults are resolved to bus faults at build and held until the
+//! - board faults (and a bus-reset storm) are resolved to bus faults at
+//!   build and held, each at its offset from the fault moment, until the
 //!   caller schedules them ([`Rig::schedule_pending`]) or takes them
-//!   (a twin that starts them after N requests: [`Rig::take_pending`]).
+//!   (a twin that starts them after N requests: [`Rig::take_pending`]);
+//! - rules that name the PC's link (busy answers to its requests) are
+//!   added at build, when the link exists.
 
 use std::fmt;
 use std::str::FromStr;
@@ -24,10 +27,14 @@ use std::str::FromStr;
 use firelink_board::config::BoardConfig;
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_board::snake::SnakeNodeConfig;
-use firelink_bus::{Bus, FaultRule, Node, NodeHandle, SimDuration, TimedFault};
+use firelink_bus::trace::PacketKind;
+use firelink_bus::{
+    Bus, FaultRule, Node, NodeHandle, PacketFault, PacketMatch, SimDuration, TimedFault,
+};
 use firelink_control::config::IoConfig;
 use firelink_emulate::Bridge;
 use firelink_host::sim::SimPort;
+use firelink_wire::packet::Tcode;
 
 use crate::TestbedError;
 
@@ -136,6 +143,8 @@ pub struct RigBuilder {
     seed: u64,
     rules: Vec<FaultRule>,
     board_faults: Vec<BoardFault>,
+    busy_rate: f64,
+    reset_storm: u32,
 }
 
 /// A built rig: the bus, the PC's link at its root, and every board by ID.
@@ -150,8 +159,9 @@ pub struct Rig {
     pub boards: Vec<(u8, NodeHandle)>,
     /// The configurations of its QLA-family boards (none for Snake nodes).
     pub configs: Vec<BoardConfig>,
-    /// Board faults resolved to bus faults, not yet scheduled.
-    pending: Vec<TimedFault>,
+    /// Held faults (board faults resolved to their nodes, a reset storm),
+    /// each with its offset from the fault moment; not yet scheduled.
+    pending: Vec<(SimDuration, TimedFault)>,
 }
 
 impl RigBuilder {
@@ -191,6 +201,8 @@ impl RigBuilder {
             seed: 0,
             rules: Vec::new(),
             board_faults: Vec::new(),
+            busy_rate: 0.0,
+            reset_storm: 0,
         }
     }
 
@@ -209,6 +221,33 @@ impl RigBuilder {
     /// A fault on a board by its ID (held until scheduled).
     pub fn board_fault(mut self, fault: BoardFault) -> RigBuilder {
         self.board_faults.push(fault);
+        self
+    }
+
+    /// Drop each read response a board sends (quadlet and block) with
+    /// this probability: the PC's request is answered by nothing.
+    pub fn drop_responses(mut self, probability: f64) -> RigBuilder {
+        for tcode in [Tcode::ReadQuadletResponse, Tcode::ReadBlockResponse] {
+            self.rules.push(FaultRule::random(
+                PacketMatch::any().tcode(tcode),
+                PacketFault::Drop,
+                probability.clamp(0.0, 1.0),
+            ));
+        }
+        self
+    }
+
+    /// The addressed board is busy for each request the PC sends, with
+    /// this probability: it takes nothing and acknowledges ack_busy_X.
+    pub fn busy_requests(mut self, probability: f64) -> RigBuilder {
+        self.busy_rate = probability.clamp(0.0, 1.0);
+        self
+    }
+
+    /// `resets` bus resets in a row, 1 ms apart, from the fault moment
+    /// (held with the board faults).
+    pub fn reset_storm(mut self, resets: u32) -> RigBuilder {
+        self.reset_storm = resets;
         self
     }
 
@@ -233,6 +272,15 @@ impl RigBuilder {
         for rule in self.rules {
             built.bus.add_fault_rule(rule);
         }
+        if self.busy_rate > 0.0 {
+            built.bus.add_fault_rule(FaultRule::random(
+                PacketMatch::any()
+                    .from(built.host)
+                    .kind(PacketKind::Request),
+                PacketFault::AckBusy,
+                self.busy_rate,
+            ));
+        }
         let mut rig = Rig {
             kind: self.kind,
             bus: built.bus,
@@ -243,7 +291,12 @@ impl RigBuilder {
         };
         for fault in self.board_faults {
             let node = rig.node_of(fault.board_id(), fault.role())?;
-            rig.pending.push(fault.on(node));
+            rig.pending.push((SimDuration::ZERO, fault.on(node)));
+        }
+        // Each reset is over, and its generation counted, before the next.
+        for k in 0..self.reset_storm {
+            rig.pending
+                .push((SimDuration::from_millis(u64::from(k)), TimedFault::BusReset));
         }
         Ok(rig)
     }
@@ -271,17 +324,18 @@ impl Rig {
         })
     }
 
-    /// Schedule the board faults `after` the bus's present time.
+    /// Schedule the held faults: the fault moment is `after` the bus's
+    /// present time.
     pub fn schedule_pending(&mut self, after: SimDuration) {
         let at = self.bus.now() + after;
-        for fault in std::mem::take(&mut self.pending) {
-            self.bus.schedule_fault(at, fault);
+        for (offset, fault) in std::mem::take(&mut self.pending) {
+            self.bus.schedule_fault(at + offset, fault);
         }
     }
 
-    /// The board faults, unscheduled (for a caller that starts them
-    /// itself).
-    pub fn take_pending(&mut self) -> Vec<TimedFault> {
+    /// The held faults with their offsets from the fault moment,
+    /// unscheduled (for a caller that starts them itself).
+    pub fn take_pending(&mut self) -> Vec<(SimDuration, TimedFault)> {
         std::mem::take(&mut self.pending)
     }
 
@@ -349,12 +403,24 @@ mod tests {
         let one = rig.node(1).unwrap();
         assert_eq!(
             rig.take_pending(),
-            [TimedFault::Disconnect {
-                node: one,
-                reconnect_after: None
-            }]
+            [(
+                SimDuration::ZERO,
+                TimedFault::Disconnect {
+                    node: one,
+                    reconnect_after: None
+                }
+            )]
         );
         assert!(rig.take_pending().is_empty());
+        // A reset storm is held with them, its resets 1 ms apart.
+        let mut rig = RigBuilder::qla(boards(&[0]))
+            .reset_storm(3)
+            .build()
+            .unwrap();
+        assert_eq!(
+            rig.take_pending(),
+            [0, 1, 2].map(|ms| (SimDuration::from_millis(ms), TimedFault::BusReset))
+        );
         let rig = RigBuilder::qla(boards(&[0, 1])).build().unwrap();
         let e = rig.bridge(Some(3)).err().unwrap();
         assert_eq!(e.to_string(), "bridge board 3: no such board on the rig");
