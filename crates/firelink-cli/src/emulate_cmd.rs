@@ -21,7 +21,7 @@ use firelink_emulate::fw_cdev::{self, Twin};
 use firelink_emulate::{Bridge, Event, ServeConfig};
 
 use crate::CliError;
-use crate::args::{FirmwareArg, HardwareArg};
+use crate::args::{FirmwareArg, FpgaArg, HardwareArg};
 use firelink_testbed::rig::{board_configs, generic_boards, qla_nodes};
 use firelink_testbed::snake;
 
@@ -46,9 +46,14 @@ pub struct EmulateArgs {
     /// Companion board of every board.
     #[arg(long, value_enum, default_value_t = HardwareArg::Qla1)]
     pub hardware: HardwareArg,
+    /// FPGA board of every board (default: V2 for a QLA1, V3 for a DQLA,
+    /// the only FPGA the firmware builds a DQLA for; a V2 DQLA is refused).
+    #[arg(long, value_enum)]
+    pub fpga: Option<FpgaArg>,
     /// One board's settings (repeatable): `ID:key=value,...` with keys
-    /// hardware (QLA1, DQLA), fpga-serial, qla-serial, qla2-serial,
-    /// supply-volts, instrument (MODEL/VERSION/NAME). Serials are the
+    /// hardware (QLA1, DQLA), fpga (V2, V3), firmware (7, 8, 9),
+    /// fpga-serial, qla-serial, qla2-serial, supply-volts,
+    /// qla2-supply-volts, instrument (MODEL/VERSION/NAME). Serials are the
     /// board's own: with --config a robot's simulation.boards, else
     /// unique defaults per board ID (never the arm's serial_number).
     #[arg(long = "board-set", value_name = "ID:KEY=VALUE,...")]
@@ -197,6 +202,11 @@ pub fn build_bus(args: &EmulateArgs) -> Result<EmulatedBus, CliError> {
         ),
     };
     let mut boards = boards;
+    if let Some(fpga) = args.fpga {
+        for b in &mut boards {
+            b.fpga = fpga.into();
+        }
+    }
     for set in &args.board_set {
         let board = boards
             .iter_mut()
@@ -374,6 +384,7 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
         _ if snake => "seed 001 Snake node",
         Profile::Rev7 => "Rev 7",
         Profile::Rev8 => "Rev 8",
+        Profile::Rev9 => "Rev 9",
         Profile::Seed => "seed 000",
     };
     writeln!(

@@ -8,13 +8,13 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 
-use firelink_board::config::{BoardConfig, BrakeWire, Hardware, Profile};
+use firelink_board::config::{BoardConfig, BrakeWire, FpgaVersion, Hardware, Profile};
 use firelink_board::node::BoardNode;
 use firelink_board::plant::AxisParams;
 use firelink_board::plant::presets;
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::{Bus, HostModel, Node, NodeHandle};
-use firelink_control::config::{HardwareVersion, IoConfig, PlantPreset};
+use firelink_control::config::{FpgaGeneration, HardwareVersion, IoConfig, PlantPreset};
 use firelink_emulate::{Bridge, BridgeStats, ServeConfig};
 use firelink_host::sim::SimPort;
 use firelink_host::udp::{UdpPort, WaitMode};
@@ -204,6 +204,18 @@ pub fn board_configs_starting_at(
         }
         if let Some(fpga) = board_serial.and_then(|s| s.fpga.as_deref()) {
             b.fpga_serial = fpga.to_string();
+        }
+        // The board's own FPGA and firmware, where its robot names them.
+        if let Some(sim) = config.board_simulation(id) {
+            if let Some(g) = sim.fpga_version {
+                b.fpga = match g {
+                    FpgaGeneration::V2 => FpgaVersion::V2,
+                    FpgaGeneration::V3 => FpgaVersion::V3,
+                };
+            }
+            if let Some(p) = sim.firmware.and_then(Profile::from_number) {
+                b = b.with_profile(p);
+            }
         }
         out.push(b);
     }
