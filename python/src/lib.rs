@@ -158,6 +158,7 @@ pub(crate) fn profile(py: Python<'_>, name: &str) -> PyResult<Profile> {
     match name {
         "7" | "rev7" => Ok(Profile::Rev7),
         "8" | "rev8" => Ok(Profile::Rev8),
+        "9" | "rev9" => Ok(Profile::Rev9),
         "seed" => Ok(Profile::Seed),
         _ => Err(error(
             py,

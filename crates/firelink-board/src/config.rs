@@ -784,7 +784,12 @@ mod tests {
         let e = b.check().unwrap_err();
         assert_eq!(e, ConfigError::DqlaNeedsV3 { board: 3, fpga: 2 });
         assert!(e.to_string().contains("only on an FPGA V3"), "{e}");
-        for bad in ["3:fpga=V4", "3:firmware=10", "3:firmware=x", "3:qla2-supply-volts=no"] {
+        for bad in [
+            "3:fpga=V4",
+            "3:firmware=10",
+            "3:firmware=x",
+            "3:qla2-supply-volts=no",
+        ] {
             assert!(bad.parse::<BoardSettings>().is_err(), "{bad}");
         }
         // A serial the PROM cannot hold is reported by check().

@@ -397,9 +397,11 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
     for b in &boards {
         writeln!(
             out,
-            "  board {}: {}, FPGA serial {}, QLA serial {}, motor supply {} V{}",
+            "  board {}: {} on FPGA V{} at Rev {}, FPGA serial {}, QLA serial {}, motor supply {} V{}",
             b.board_id,
             b.hardware.hardware_version().name(),
+            b.fpga.number(),
+            b.firmware.number(),
             b.fpga_serial,
             b.qla_serials().join(" / "),
             b.motor_supply_volts,

@@ -257,11 +257,19 @@ mod tests {
         }
         // Page select, then PHYSR on page 0xA43: link, full duplex, 1000.
         e.set_link(true);
-        e.mdio_write(at_ms(2), PhyPort::Eth1, MdioRequest::write(1, 31, 0x0A43).raw());
+        e.mdio_write(
+            at_ms(2),
+            PhyPort::Eth1,
+            MdioRequest::write(1, 31, 0x0A43).raw(),
+        );
         e.mdio_write(at_ms(2), PhyPort::Eth1, MdioRequest::read(1, 26).raw());
         assert_eq!(e.mdio_read(PhyPort::Eth1), 0x001A_002C);
         e.mdio_write(at_ms(2), PhyPort::Eth2, MdioRequest::read(1, 31).raw());
-        assert_eq!(e.mdio_read(PhyPort::Eth2) & 0xFFFF, 0x0A42, "Eth2's own page");
+        assert_eq!(
+            e.mdio_read(PhyPort::Eth2) & 0xFFFF,
+            0x0A42,
+            "Eth2's own page"
+        );
     }
 
     /// Status bytes, the PS Ethernet bit by revision, and a PHY reset that
@@ -271,7 +279,11 @@ mod tests {
         let mut e = EthernetV3::new();
         e.set_link(true);
         assert_eq!(e.status(at_ms(1), true).raw(), 0x40B1_D1F1);
-        assert_eq!(e.status(at_ms(1), false).raw(), 0x40B0_D1F1, "no PSETH_EN before Rev 9");
+        assert_eq!(
+            e.status(at_ms(1), false).raw(),
+            0x40B0_D1F1,
+            "no PSETH_EN before Rev 9"
+        );
         e.control(at_ms(10), EthControlV3::phy_reset(1));
         let down = e.status(at_ms(11), true);
         assert_eq!(down.port(PhyPort::Eth1), EthPortStatusV3(0x51));

@@ -107,10 +107,10 @@ mod registers;
 pub use brake::{BrakeLine, BrakeWire};
 pub use dallas::Instrument;
 pub use dout::{OUTPUTS as DIGITAL_OUTPUTS, WAVEFORM_ENTRIES};
+pub use ethernet_v3::PHY_RESET_TIME;
 pub use hub::{
     CHAIN_TIMEOUT_PER_BOARD, FIRST_SLOT_CLOCKS, SEED_OFFSET, SEED_SLOT, SEED_SLOT_CLOCKS, seed_slot,
 };
-pub use ethernet_v3::PHY_RESET_TIME;
 pub use phy::{PhyAccess, PhyRegisters};
 pub use power::{
     DEFAULT_ENABLE_DELAY, ENABLE_DELAY_UNIT_CLOCKS, MISMATCH_AMPS, MISMATCH_TIME, SAFETY_TICK,

@@ -20,10 +20,10 @@ use firelink_wire::board::registers::{
 };
 
 use super::dout::OUTPUTS;
+use super::dqla_expander::{DqlaExpanders, PortLines};
 use super::expander::ExpanderInputs;
 use super::power::{AxisState, Watchdog};
 use super::{Firmware, PhyAccess, RxError};
-use super::dqla_expander::{DqlaExpanders, PortLines};
 use crate::config::Hardware;
 use crate::plant::encoder::{PeriodField, QuarterField, RunField, VelocityFields};
 use crate::plant::{POT_FULL_SCALE_VOLTS, QLA_AMPS_PER_BIT, QLA_FULL_SCALE_AMPS};
@@ -221,7 +221,11 @@ impl Firmware {
         {
             // Quadlet 4 is the firmware version (9 on a Rev 9 board; the
             // header CRC word stays Rev 8's, not checked against Rev 9).
-            return if k == 16 { self.cfg.firmware.number() } else { q };
+            return if k == 16 {
+                self.cfg.firmware.number()
+            } else {
+                q
+            };
         }
         match decode_read(offset, rev8) {
             Target::Board(r) => self.read_board_register(r),

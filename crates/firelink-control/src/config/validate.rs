@@ -12,9 +12,9 @@ use firelink_wire::human::Number;
 
 use super::error::round_sig;
 use super::{
-    ConfigError, ConfigErrors, DriveConfig, EncoderConfig, FpgaGeneration, HardwareVersion, IoConfig, Limits,
-    LimitsConfig, LinearFunction, PotentiometerConfig, Problem, RobotConfig, RobotSimulation,
-    SCHEMA_ID, SCHEMA_VERSION, SimulationConfig,
+    ConfigError, ConfigErrors, DriveConfig, EncoderConfig, FpgaGeneration, HardwareVersion,
+    IoConfig, Limits, LimitsConfig, LinearFunction, PotentiometerConfig, Problem, RobotConfig,
+    RobotSimulation, SCHEMA_ID, SCHEMA_VERSION, SimulationConfig,
 };
 use crate::config::MAX_BOARD_ID;
 use crate::pid::PidGains;
