@@ -180,11 +180,19 @@ impl EthernetV3 {
     }
 
     fn phy(&self, port: PhyPort) -> &Phy {
-        &self.phys[port.index()]
+        let [eth1, eth2] = &self.phys;
+        match port {
+            PhyPort::Eth1 => eth1,
+            PhyPort::Eth2 => eth2,
+        }
     }
 
     fn phy_mut(&mut self, port: PhyPort) -> &mut Phy {
-        &mut self.phys[port.index()]
+        let [eth1, eth2] = &mut self.phys;
+        match port {
+            PhyPort::Eth1 => eth1,
+            PhyPort::Eth2 => eth2,
+        }
     }
 
     /// Connect or disconnect the cable of Eth1 (the host's side).
