@@ -202,11 +202,6 @@ pub fn build_bus(args: &EmulateArgs) -> Result<EmulatedBus, CliError> {
         ),
     };
     let mut boards = boards;
-    if let Some(fpga) = args.fpga {
-        for b in &mut boards {
-            b.fpga = fpga.into();
-        }
-    }
     for set in &args.board_set {
         let board = boards
             .iter_mut()
@@ -216,6 +211,19 @@ pub fn build_bus(args: &EmulateArgs) -> Result<EmulatedBus, CliError> {
                 board: set.board_id,
             })?;
         *board = set.apply(board.clone());
+    }
+    // --fpga is every board's FPGA unless its --board-set names one (so a
+    // DQLA asked for on a V2 is refused by the check below).
+    if let Some(fpga) = args.fpga {
+        for b in &mut boards {
+            let own = args
+                .board_set
+                .iter()
+                .any(|s| s.board_id == b.board_id && s.fpga.is_some());
+            if !own {
+                b.fpga = fpga.into();
+            }
+        }
     }
     for b in &mut boards {
         b.commit_corrupt_writes = args.commit_corrupt_writes;
@@ -397,14 +405,14 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
     for b in &boards {
         writeln!(
             out,
-            "  board {}: {} on FPGA V{} at Rev {}, FPGA serial {}, QLA serial {}, motor supply {} V{}",
+            "  board {}: {}, FPGA serial {}, QLA serial {}, motor supply {} V, FPGA V{}, Rev {}{}",
             b.board_id,
             b.hardware.hardware_version().name(),
-            b.fpga.number(),
-            b.firmware.number(),
             b.fpga_serial,
             b.qla_serials().join(" / "),
             b.motor_supply_volts,
+            b.fpga.number(),
+            b.firmware.number(),
             b.instrument
                 .as_ref()
                 .map(|i| format!(", instrument {} ({})", i.model, i.name))
