@@ -373,6 +373,12 @@ impl BoardConfig {
         self
     }
 
+    /// The same board with another motor supply on a DQLA's second QLA.
+    pub fn with_qla2_supply_volts(mut self, volts: f64) -> BoardConfig {
+        self.qla2_supply_volts = volts;
+        self
+    }
+
     /// The same board with an instrument on its 1-wire line.
     pub fn with_instrument(mut self, instrument: Instrument) -> BoardConfig {
         self.instrument = Some(instrument);
