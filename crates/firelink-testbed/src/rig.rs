@@ -476,5 +476,32 @@ mod tests {
         assert_eq!(boards[0].hardware, Hardware::Dqla);
         assert_eq!(boards[0].qla_serials().len(), 2);
         assert_eq!(boards[7].hardware, Hardware::Qla1);
+        // A DQLA goes on its FPGA V3; a QLA1 on a V2 unless its robot's
+        // simulation names the FPGA and firmware.
+        assert_eq!(boards[0].fpga, FpgaVersion::V3);
+        assert_eq!(boards[7].fpga, FpgaVersion::V2);
+        let mut named = presets::snake_36axes();
+        named.robots[3].simulation = Some(firelink_control::config::RobotSimulation {
+            boards: vec![firelink_control::config::BoardSimulation {
+                board_id: 7,
+                serial: firelink_control::config::BoardSerial {
+                    fpga: None,
+                    qla: None,
+                },
+                fpga_version: Some(FpgaGeneration::V3),
+                firmware: Some(9),
+            }],
+            ..Default::default()
+        });
+        let boards = board_configs(&named, Profile::Rev8, 8);
+        assert_eq!(
+            (boards[7].fpga, boards[7].profile),
+            (FpgaVersion::V3, Profile::Rev9)
+        );
+        assert_eq!(boards[7].firmware.number(), 9);
+        assert_eq!(
+            (boards[6].fpga, boards[6].profile),
+            (FpgaVersion::V2, Profile::Rev8)
+        );
     }
 }
