@@ -14,10 +14,11 @@ fuzz_target!(|data: &[u8]| {
     let Some((&selector, mut rest)) = data.split_first() else {
         return;
     };
-    let profile = match selector % 3 {
+    let profile = match selector % 4 {
         0 => Profile::Seed,
         1 => Profile::Rev7,
-        _ => Profile::Rev8,
+        2 => Profile::Rev8,
+        _ => Profile::Rev9,
     };
     let hardware = if selector & 0x04 == 0 { Hardware::Qla1 } else { Hardware::Dqla };
     let board_id = (selector >> 4) & 0x0F;

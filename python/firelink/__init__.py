@@ -32,7 +32,7 @@ Port descriptions, as every Firelink front end reads them
 (``firelink.parse_port`` writes one back): ``"sim"`` (the robot's emulated
 boards on the simulated bus; for ``open``, ``Port`` and ``IoSystem``, seed
 000's dVRK: 8 QLA1 boards at firmware Rev 8), ``"sim:N"`` or ``"sim:N:FW"``
-(boards 0..N of it, N 1..16, FW 7, 8 or seed), ``"emulate"`` (the same
+(boards 0..N of it, N 1..16, FW 7, 8, 9 or seed), ``"emulate"`` (the same
 boards behind an in-process emulator; ``run_demo`` only),
 ``"udp:HOST[:PORT]"`` (a running ``firelink emulate`` or a real bridge
 board), ``"fw"`` or ``"fw:CARD"`` (a FireWire card through Linux /dev/fw*,

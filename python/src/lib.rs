@@ -164,7 +164,7 @@ pub(crate) fn profile(py: Python<'_>, name: &str) -> PyResult<Profile> {
         error(
             py,
             "PortError",
-            format!("unknown firmware {name:?}: expected 7, 8 or seed"),
+            format!("unknown firmware {name:?}: expected 7, 8, 9 or seed"),
         )
     })
 }

@@ -50,7 +50,7 @@ def test_virtual_time_advances_only_when_asked():
 
 @pytest.mark.parametrize(
     "spec",
-    ["nowhere", "sim:0", "sim:17", "sim:x", "sim:8:9", "sim:8:8:extra", "udp:not a host:99999"],
+    ["nowhere", "sim:0", "sim:17", "sim:x", "sim:8:10", "sim:8:8:extra", "udp:not a host:99999"],
 )
 def test_bad_port_descriptions_raise_port_error(spec):
     with pytest.raises(firelink.PortError):

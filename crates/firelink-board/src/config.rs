@@ -37,18 +37,26 @@ pub enum Profile {
     /// Firmware Rev 8: MOTOR_STATUS block, write-block header, amplifier
     /// enables in the DAC word, hub headers with a sequence-error bit.
     Rev8,
+    /// Firmware Rev 9 (`rev9-fpga-v3.md`): Rev 8's registers and block
+    /// layouts, plus GIT_DESC in register 15, the FPGA V3 Ethernet status
+    /// format with the PS Ethernet enable, ACCESS_ERR reading 0, and the
+    /// status broadcast asking for the bus with a priority-class request.
+    /// On an FPGA V2 the board keeps the FireWire bridge.
+    Rev9,
 }
 
 impl Profile {
     /// Every profile, oldest first.
-    pub const ALL: [Profile; 3] = [Profile::Seed, Profile::Rev7, Profile::Rev8];
+    pub const ALL: [Profile; 4] = [Profile::Seed, Profile::Rev7, Profile::Rev8, Profile::Rev9];
 
-    /// `seed`, `rev7` or `rev8`: the name on command lines and in reports.
+    /// `seed`, `rev7`, `rev8` or `rev9`: the name on command lines and in
+    /// reports.
     pub fn name(self) -> &'static str {
         match self {
             Profile::Seed => "seed",
             Profile::Rev7 => "rev7",
             Profile::Rev8 => "rev8",
+            Profile::Rev9 => "rev9",
         }
     }
 
@@ -58,12 +66,29 @@ impl Profile {
         match self {
             Profile::Seed | Profile::Rev7 => FirmwareRev::Rev7,
             Profile::Rev8 => FirmwareRev::Rev8,
+            Profile::Rev9 => FirmwareRev::Rev9,
         }
     }
 
-    /// Whether the Rev 8 layouts and registers apply.
+    /// Whether the Rev 8 layouts and registers apply (Rev 8 and Rev 9).
     pub fn is_rev8(self) -> bool {
-        self == Profile::Rev8
+        matches!(self, Profile::Rev8 | Profile::Rev9)
+    }
+
+    /// Whether what Rev 9 added applies.
+    pub fn is_rev9(self) -> bool {
+        self == Profile::Rev9
+    }
+
+    /// The profile of a firmware revision number: 7, 8 or 9 (the seed
+    /// profile has no number of its own).
+    pub fn from_number(n: u32) -> Option<Profile> {
+        match n {
+            7 => Some(Profile::Rev7),
+            8 => Some(Profile::Rev8),
+            9 => Some(Profile::Rev9),
+            _ => None,
+        }
     }
 }
 
@@ -92,6 +117,21 @@ impl Hardware {
             "DQLA" => Some(Hardware::Dqla),
             _ => None,
         }
+    }
+
+    /// The FPGA a board with this companion has unless told otherwise: V2
+    /// for a QLA1, V3 for a DQLA.
+    pub fn default_fpga(self) -> FpgaVersion {
+        match self {
+            Hardware::Qla1 => FpgaVersion::V2,
+            Hardware::Dqla => FpgaVersion::V3,
+        }
+    }
+
+    /// Whether the firmware is built for this companion on `fpga`: a DQLA
+    /// only on FPGA V3 (`FPGA1394V3-DQLA.v`; there is no V2 DQLA image).
+    pub fn fits(self, fpga: FpgaVersion) -> bool {
+        self != Hardware::Dqla || fpga == FpgaVersion::V3
     }
 
     /// The HW_VERSION register (`fpga-board.md` section 2).
@@ -141,8 +181,12 @@ pub struct BoardConfig {
     /// that tell a dVRK PSM its sterile adapter and instrument are in.
     pub input_lines: u16,
     /// Motor supply voltage, V (what `MeasureMotorSupplyVoltage` finds
-    /// through the comparator, `fpga-board-extras.md` §7).
+    /// through the comparator, `fpga-board-extras.md` §7); a DQLA's first
+    /// QLA.
     pub motor_supply_volts: f64,
+    /// A DQLA's second QLA's motor supply, V (dvrktest expects the nominal
+    /// of board ID + 1: the DQLA stands for two QLA1 boards).
+    pub qla2_supply_volts: f64,
     /// FPGA serial number in the configuration PROM (`1234-56`, at most 11
     /// characters; `fpga-board-extras.md` §1).
     pub fpga_serial: String,
@@ -169,6 +213,17 @@ pub struct BoardConfig {
     /// Brakes this board drives or whose joints it carries (see
     /// [`BrakeWire`]).
     pub brakes: Vec<BrakeWire>,
+}
+
+/// The FPGA generation of a name: `V1`, `V2`, `V3` (or the bare number),
+/// any case.
+pub fn fpga_from_name(name: &str) -> Option<FpgaVersion> {
+    match name.trim().trim_start_matches(['v', 'V']) {
+        "1" => Some(FpgaVersion::V1),
+        "2" => Some(FpgaVersion::V2),
+        "3" => Some(FpgaVersion::V3),
+        _ => None,
+    }
 }
 
 /// The default FPGA serial number of board `board_id`: unique per board ID
@@ -222,6 +277,18 @@ pub enum ConfigError {
         /// What is wrong with it.
         why: &'static str,
     },
+    /// A companion board on an FPGA the firmware is not built for (a DQLA
+    /// on anything but an FPGA V3).
+    #[error(
+        "board {board}: a DQLA exists only on an FPGA V3 (the firmware builds no FPGA V{fpga} \
+         DQLA image); give it --fpga V3 or hardware QLA1"
+    )]
+    DqlaNeedsV3 {
+        /// Board ID.
+        board: u8,
+        /// The FPGA version given.
+        fpga: u8,
+    },
     /// A motor supply voltage outside what the comparator can measure.
     #[error("board {board}: motor supply {volts} V is outside 0..=80 V")]
     SupplyVolts {
@@ -233,14 +300,16 @@ pub enum ConfigError {
 }
 
 impl BoardConfig {
-    /// A board with generic motors on every axis, FPGA V2, seed 0.
+    /// A board with generic motors on every axis, seed 0, on the FPGA its
+    /// companion board needs: V2 for a QLA1, V3 for a DQLA (the firmware
+    /// builds the DQLA only for FPGA V3, `rev9-fpga-v3.md`).
     pub fn new(board_id: u8, hardware: Hardware, profile: Profile) -> BoardConfig {
         BoardConfig {
             board_id: board_id & 0xF,
             hardware,
             profile,
             firmware: profile.firmware_rev(),
-            fpga: FpgaVersion::V2,
+            fpga: hardware.default_fpga(),
             git_desc: 0x0F1E_1140,
             axes: vec![presets::generic_motor(); hardware.axes()],
             seed: 0,
@@ -249,6 +318,7 @@ impl BoardConfig {
             supply_rise: SimDuration::from_millis(5),
             input_lines: 0,
             motor_supply_volts: nominal_motor_supply_volts(board_id),
+            qla2_supply_volts: nominal_motor_supply_volts(board_id.wrapping_add(1)),
             fpga_serial: default_fpga_serial(board_id),
             qla_serials: Vec::new(),
             instrument: None,
@@ -300,6 +370,12 @@ impl BoardConfig {
     /// The same board with another motor supply voltage.
     pub fn with_motor_supply_volts(mut self, volts: f64) -> BoardConfig {
         self.motor_supply_volts = volts;
+        self
+    }
+
+    /// The same board with another motor supply on a DQLA's second QLA.
+    pub fn with_qla2_supply_volts(mut self, volts: f64) -> BoardConfig {
+        self.qla2_supply_volts = volts;
         self
     }
 
@@ -356,11 +432,19 @@ impl BoardConfig {
         for s in self.qla_serials() {
             serial("QLA", &s, QLA_SERIAL_MAX, qla_serial_image(&s).is_ok())?;
         }
-        if !(0.0..=80.0).contains(&self.motor_supply_volts) {
-            return Err(ConfigError::SupplyVolts {
+        if !self.hardware.fits(self.fpga) {
+            return Err(ConfigError::DqlaNeedsV3 {
                 board: self.board_id,
-                volts: self.motor_supply_volts,
+                fpga: self.fpga.number(),
             });
+        }
+        for volts in [self.motor_supply_volts, self.qla2_supply_volts] {
+            if !(0.0..=80.0).contains(&volts) {
+                return Err(ConfigError::SupplyVolts {
+                    board: self.board_id,
+                    volts,
+                });
+            }
         }
         Ok(())
     }
@@ -384,6 +468,14 @@ impl BoardConfig {
     /// 000's own firmware, fixed TDMA slots and its 48-byte blocks.
     pub fn with_firmware(mut self, firmware: FirmwareRev) -> BoardConfig {
         self.firmware = firmware;
+        self
+    }
+
+    /// The same board running another firmware profile (and reporting its
+    /// revision).
+    pub fn with_profile(mut self, profile: Profile) -> BoardConfig {
+        self.profile = profile;
+        self.firmware = profile.firmware_rev();
         self
     }
 
@@ -449,9 +541,11 @@ impl BoardConfig {
 
 /// Settings of one board, as a command line gives them:
 /// `ID:key=value,key=value...` with the keys `hardware` (`QLA1`, `DQLA`),
-/// `fpga-serial`, `qla-serial` (every QLA of the board), `qla2-serial` (a
-/// DQLA's second), `supply-volts` and `instrument`
-/// (`MODEL/VERSION/NAME`).
+/// `fpga` (`V2`, `V3`), `firmware` (`7`, `8`, `9`), `fpga-serial`,
+/// `qla-serial` (every QLA of the board), `qla2-serial` (a DQLA's
+/// second), `supply-volts`, `qla2-supply-volts` (a DQLA's second QLA) and
+/// `instrument` (`MODEL/VERSION/NAME`). A DQLA without an `fpga` setting
+/// goes on an FPGA V3.
 ///
 /// ```
 /// use firelink_board::config::{BoardConfig, BoardSettings, Hardware, Profile};
@@ -467,6 +561,10 @@ pub struct BoardSettings {
     pub board_id: u8,
     /// Companion board.
     pub hardware: Option<Hardware>,
+    /// FPGA generation.
+    pub fpga: Option<FpgaVersion>,
+    /// Firmware profile (Rev 7, 8 or 9).
+    pub firmware: Option<Profile>,
     /// FPGA serial number.
     pub fpga_serial: Option<String>,
     /// Serial number of every QLA of the board.
@@ -475,6 +573,8 @@ pub struct BoardSettings {
     pub qla2_serial: Option<String>,
     /// Motor supply, V.
     pub supply_volts: Option<f64>,
+    /// A DQLA's second QLA's motor supply, V.
+    pub qla2_supply_volts: Option<f64>,
     /// Instrument on the 1-wire line.
     pub instrument: Option<Instrument>,
 }
@@ -512,17 +612,33 @@ impl core::str::FromStr for BoardSettings {
                             .ok_or_else(|| bad("hardware is QLA1 or DQLA"))?,
                     );
                 }
+                "fpga" => {
+                    s.fpga = Some(fpga_from_name(value).ok_or_else(|| bad("fpga is V2 or V3"))?);
+                }
+                "firmware" => {
+                    s.firmware = Some(
+                        value
+                            .trim_start_matches(['r', 'R', 'e', 'E', 'v', 'V'])
+                            .parse::<u32>()
+                            .ok()
+                            .and_then(Profile::from_number)
+                            .ok_or_else(|| bad("firmware is 7, 8 or 9"))?,
+                    );
+                }
                 "fpga-serial" => s.fpga_serial = Some(value.to_string()),
                 "qla-serial" => s.qla_serial = Some(value.to_string()),
                 "qla2-serial" => s.qla2_serial = Some(value.to_string()),
-                "supply-volts" => {
-                    s.supply_volts = Some(
-                        value
-                            .parse::<f64>()
-                            .ok()
-                            .filter(|v| v.is_finite())
-                            .ok_or_else(|| bad("supply-volts is a number of volts"))?,
-                    );
+                "supply-volts" | "qla2-supply-volts" => {
+                    let volts = value
+                        .parse::<f64>()
+                        .ok()
+                        .filter(|v| v.is_finite())
+                        .ok_or_else(|| bad("supply-volts is a number of volts"))?;
+                    if key.trim() == "supply-volts" {
+                        s.supply_volts = Some(volts);
+                    } else {
+                        s.qla2_supply_volts = Some(volts);
+                    }
                 }
                 "instrument" => {
                     let mut parts = value.splitn(3, '/');
@@ -542,8 +658,8 @@ impl core::str::FromStr for BoardSettings {
                 }
                 _ => {
                     return Err(bad(
-                        "unknown key: hardware, fpga-serial, qla-serial, qla2-serial, \
-                         supply-volts or instrument",
+                        "unknown key: hardware, fpga, firmware, fpga-serial, qla-serial, \
+                         qla2-serial, supply-volts, qla2-supply-volts or instrument",
                     ));
                 }
             }
@@ -558,6 +674,16 @@ impl BoardSettings {
     pub fn apply(&self, mut board: BoardConfig) -> BoardConfig {
         if let Some(h) = self.hardware {
             board.hardware = h;
+            // A DQLA implies an FPGA V3 unless the settings name one.
+            if self.fpga.is_none() && !h.fits(board.fpga) {
+                board.fpga = h.default_fpga();
+            }
+        }
+        if let Some(f) = self.fpga {
+            board.fpga = f;
+        }
+        if let Some(p) = self.firmware {
+            board = board.with_profile(p);
         }
         if let Some(s) = &self.fpga_serial {
             board.fpga_serial = s.clone();
@@ -572,6 +698,9 @@ impl BoardSettings {
         }
         if let Some(v) = self.supply_volts {
             board.motor_supply_volts = v;
+        }
+        if let Some(v) = self.qla2_supply_volts {
+            board.qla2_supply_volts = v;
         }
         if let Some(i) = &self.instrument {
             board.instrument = Some(i.clone());
@@ -591,6 +720,7 @@ mod tests {
             for hw in [Hardware::Qla1, Hardware::Dqla] {
                 let b = BoardConfig::new(id, hw, Profile::Rev8);
                 assert_eq!(b.check(), Ok(()));
+                assert_eq!(b.fpga, hw.default_fpga(), "a DQLA goes on a V3");
                 assert_eq!(b, BoardConfig::new(id, hw, Profile::Rev8));
                 if hw == Hardware::Dqla {
                     for s in b.qla_serials() {
@@ -646,6 +776,25 @@ mod tests {
             "4:instrument=1",
             "4:instrument=x/2/NAME",
             "4:qla-serial",
+        ] {
+            assert!(bad.parse::<BoardSettings>().is_err(), "{bad}");
+        }
+        // FPGA and firmware per board; a DQLA implies V3 unless told.
+        let s: BoardSettings = "3:hardware=DQLA,firmware=9".parse().unwrap();
+        let b = s.apply(BoardConfig::new(3, Hardware::Qla1, Profile::Rev8));
+        assert_eq!((b.fpga, b.profile), (FpgaVersion::V3, Profile::Rev9));
+        assert_eq!(b.firmware.number(), 9);
+        assert_eq!(b.check(), Ok(()));
+        let s: BoardSettings = "3:hardware=DQLA,fpga=v2".parse().unwrap();
+        let b = s.apply(BoardConfig::new(3, Hardware::Qla1, Profile::Rev8));
+        let e = b.check().unwrap_err();
+        assert_eq!(e, ConfigError::DqlaNeedsV3 { board: 3, fpga: 2 });
+        assert!(e.to_string().contains("only on an FPGA V3"), "{e}");
+        for bad in [
+            "3:fpga=V4",
+            "3:firmware=10",
+            "3:firmware=x",
+            "3:qla2-supply-volts=no",
         ] {
             assert!(bad.parse::<BoardSettings>().is_err(), "{bad}");
         }

@@ -91,10 +91,11 @@ pub(crate) fn report_rx_error(
 /// broadcast: with an isochronous-class request (seed 000's bus
 /// arbitration acceleration; the Rev 7 and Rev 8 FireWire.v request the
 /// broadcast's block write that way). Rev 9 asks with a priority-class
-/// request instead (not a profile here).
+/// request instead.
 pub fn status_broadcast_class(profile: Profile) -> ArbitrationClass {
     match profile {
         Profile::Seed | Profile::Rev7 | Profile::Rev8 => ArbitrationClass::Isochronous,
+        Profile::Rev9 => ArbitrationClass::Priority,
     }
 }
 

@@ -16,26 +16,39 @@ fn rig(profile: Profile) -> Rig {
 
 #[test]
 fn identity_reads() {
-    for (profile, fw) in [(Profile::Seed, 7), (Profile::Rev7, 7), (Profile::Rev8, 8)] {
-        for (hw, code, axes) in [
-            (Hardware::Qla1, 0x514C_4131, 4),
-            (Hardware::Dqla, 0x4451_4C41, 8),
+    let profiles = [
+        (Profile::Seed, 7),
+        (Profile::Rev7, 7),
+        (Profile::Rev8, 8),
+        (Profile::Rev9, 9),
+    ];
+    for (profile, fw) in profiles {
+        // A QLA1 on FPGA V1 or V2; a DQLA only on an FPGA V3, whose
+        // ETH_STATUS bits 31:30 read 01.
+        for (hw, code, axes, fpga, eth) in [
+            (Hardware::Qla1, 0x514C_4131, 4, FpgaVersion::V1, 0),
+            (Hardware::Qla1, 0x514C_4131, 4, FpgaVersion::V2, 0b10),
+            (Hardware::Qla1, 0x514C_4131, 4, FpgaVersion::V3, 0b01),
+            (Hardware::Dqla, 0x4451_4C41, 8, FpgaVersion::V3, 0b01),
         ] {
-            for (fpga, eth) in [(FpgaVersion::V1, 0), (FpgaVersion::V2, 0x8000_0000)] {
-                let cfg = BoardConfig::new(9, hw, profile)
-                    .with_fpga(fpga)
-                    .with_git_desc(0x1234_5678);
-                let mut r = Rig::new(cfg, 3);
-                assert_eq!(r.read(4), code, "HW_VERSION");
-                assert_eq!(r.read(7), fw, "FW_VERSION");
-                assert_eq!(r.read(12) & 0x8000_0000, eth, "ETH_STATUS");
-                // GIT_DESC exists from Rev 9 on (BoardRegs.v).
-                assert_eq!(r.read(15), 0, "GIT_DESC");
-                let status = r.read(0);
-                assert_eq!(status >> 28, axes, "number of axes");
-                assert_eq!((status >> 24) & 0xF, 9, "board ID");
-                // Power-up: power, relay and amplifiers off.
-                assert_eq!(status & 0x000F_000F, 0);
+            let cfg = BoardConfig::new(9, hw, profile)
+                .with_fpga(fpga)
+                .with_git_desc(0x1234_5678);
+            let mut r = Rig::new(cfg, 3);
+            assert_eq!(r.read(4), code, "HW_VERSION");
+            assert_eq!(r.read(7), fw, "FW_VERSION");
+            assert_eq!(r.read(12) >> 30, eth, "ETH_STATUS {profile:?} {fpga:?}");
+            // GIT_DESC exists from Rev 9 on (BoardRegs.v).
+            let git = if fw >= 9 { 0x1234_5678 } else { 0 };
+            assert_eq!(r.read(15), git, "GIT_DESC");
+            let status = r.read(0);
+            assert_eq!(status >> 28, axes, "number of axes");
+            assert_eq!((status >> 24) & 0xF, 9, "board ID");
+            // Power-up: power and relay off (bits 18, 16); a QLA1's
+            // amplifiers off (3:0; a DQLA has its expanders there).
+            assert_eq!(status & 0x0005_0000, 0);
+            if hw == Hardware::Qla1 {
+                assert_eq!(status & 0xF, 0);
             }
         }
     }

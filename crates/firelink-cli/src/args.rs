@@ -11,7 +11,7 @@ use clap::ValueEnum;
 pub use firelink_host::WatchdogSetting;
 use firelink_host::scan::Protocol;
 use firelink_host::udp::WaitMode;
-use firelink_testbed::emulated::{Hardware, Profile};
+use firelink_testbed::emulated::{FpgaVersion, Hardware, Profile};
 use firelink_wire::human::Number;
 
 /// A finite number in `lo..=hi` (or `lo < x` when `open_low`).
@@ -162,6 +162,9 @@ pub enum FirmwareArg {
     /// Firmware Rev 8: chained broadcasts, MOTOR_STATUS, write-block header.
     #[value(alias = "8")]
     Rev8,
+    /// Firmware Rev 9: Rev 8's blocks, GIT_DESC, the FPGA V3 Ethernet status.
+    #[value(alias = "9")]
+    Rev9,
 }
 
 impl From<FirmwareArg> for Profile {
@@ -170,6 +173,27 @@ impl From<FirmwareArg> for Profile {
             FirmwareArg::Seed => Profile::Seed,
             FirmwareArg::Rev7 => Profile::Rev7,
             FirmwareArg::Rev8 => Profile::Rev8,
+            FirmwareArg::Rev9 => Profile::Rev9,
+        }
+    }
+}
+
+/// `--fpga`: the FPGA board generation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FpgaArg {
+    /// FPGA V2: Spartan-6, one 100 Mb/s Ethernet port (the bridge).
+    #[value(name = "V2", alias = "v2", alias = "2")]
+    V2,
+    /// FPGA V3: Zynq, two 1 Gb/s Ethernet ports (RTL8211F PHYs).
+    #[value(name = "V3", alias = "v3", alias = "3")]
+    V3,
+}
+
+impl From<FpgaArg> for FpgaVersion {
+    fn from(f: FpgaArg) -> FpgaVersion {
+        match f {
+            FpgaArg::V2 => FpgaVersion::V2,
+            FpgaArg::V3 => FpgaVersion::V3,
         }
     }
 }

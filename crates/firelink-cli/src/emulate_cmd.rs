@@ -25,7 +25,7 @@ use firelink_testbed::rig::{
 use firelink_testbed::snake;
 
 use crate::CliError;
-use crate::args::{FirmwareArg, HardwareArg};
+use crate::args::{FirmwareArg, FpgaArg, HardwareArg};
 
 /// Options of `firelink emulate`.
 #[derive(Args, Debug, Clone)]
@@ -48,9 +48,14 @@ pub struct EmulateArgs {
     /// Companion board of every board.
     #[arg(long, value_enum, default_value_t = HardwareArg::Qla1)]
     pub hardware: HardwareArg,
+    /// FPGA board of every board (default: V2 for a QLA1, V3 for a DQLA,
+    /// the only FPGA the firmware builds a DQLA for; a V2 DQLA is refused).
+    #[arg(long, value_enum)]
+    pub fpga: Option<FpgaArg>,
     /// One board's settings (repeatable): `ID:key=value,...` with keys
-    /// hardware (QLA1, DQLA), fpga-serial, qla-serial, qla2-serial,
-    /// supply-volts, instrument (MODEL/VERSION/NAME). Serials are the
+    /// hardware (QLA1, DQLA), fpga (V2, V3), firmware (7, 8, 9),
+    /// fpga-serial, qla-serial, qla2-serial, supply-volts,
+    /// qla2-supply-volts, instrument (MODEL/VERSION/NAME). Serials are the
     /// board's own: with --config a robot's simulation.boards, else
     /// unique defaults per board ID (never the arm's serial_number).
     #[arg(long = "board-set", value_name = "ID:KEY=VALUE,...")]
@@ -242,6 +247,19 @@ fn qla_boards(args: &EmulateArgs, config: Option<&IoConfig>) -> Result<Vec<Board
             })?;
         *board = set.apply(board.clone());
     }
+    // --fpga is every board's FPGA unless its --board-set names one (so a
+    // DQLA asked for on a V2 is refused by the check below).
+    if let Some(fpga) = args.fpga {
+        for b in &mut boards {
+            let own = args
+                .board_set
+                .iter()
+                .any(|s| s.board_id == b.board_id && s.fpga.is_some());
+            if !own {
+                b.fpga = fpga.into();
+            }
+        }
+    }
     for b in &mut boards {
         b.commit_corrupt_writes = args.commit_corrupt_writes;
     }
@@ -347,6 +365,7 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
         _ if kind == RobotKind::Snake => "seed 001 Snake node",
         Profile::Rev7 => "Rev 7",
         Profile::Rev8 => "Rev 8",
+        Profile::Rev9 => "Rev 9",
         Profile::Seed => "seed 000",
     };
     writeln!(
@@ -359,12 +378,14 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
     for b in &boards {
         writeln!(
             out,
-            "  board {}: {}, FPGA serial {}, QLA serial {}, motor supply {} V{}",
+            "  board {}: {}, FPGA serial {}, QLA serial {}, motor supply {} V, FPGA V{}, Rev {}{}",
             b.board_id,
             b.hardware.hardware_version().name(),
             b.fpga_serial,
             b.qla_serials().join(" / "),
             b.motor_supply_volts,
+            b.fpga.number(),
+            b.firmware.number(),
             b.instrument
                 .as_ref()
                 .map(|i| format!(", instrument {} ({})", i.model, i.name))

@@ -44,7 +44,7 @@ pub fn parse_port_for(
 pub struct PortArgs {
     /// Where the boards are: `udp:HOST` (bridge board on UDP port 1394),
     /// `udp:HOST:PORT`, `sim` (seed 000's dVRK: 8 emulated QLA1 boards on
-    /// an in-process simulated bus, firmware Rev 8), `sim:N[:7|8|seed]`
+    /// an in-process simulated bus, firmware Rev 8), `sim:N[:7|8|9|seed]`
     /// (boards 0..N of it at that firmware), or `fw` / `fw:N` (FireWire
     /// card 0 / N through /dev/fw*).
     #[arg(long, default_value = "udp:127.0.0.1", value_parser = parse_port)]

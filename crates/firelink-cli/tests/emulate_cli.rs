@@ -235,7 +235,59 @@ fn emulate_refuses_bad_options() {
         &["emulate", "--boards", "17", "--listen", "127.0.0.1:0"],
         "between 1 and 16 boards",
     );
-    fails(&["emulate", "--firmware", "9"], "--firmware");
+    fails(&["emulate", "--firmware", "10"], "--firmware");
+    // A DQLA exists only on an FPGA V3: asked for on a V2, refused.
+    for args in [
+        &["emulate", "--hardware", "DQLA", "--fpga", "V2"][..],
+        &["emulate", "--fpga", "V2", "--board-set", "1:hardware=DQLA"][..],
+        &["emulate", "--board-set", "1:hardware=DQLA,fpga=V2"][..],
+    ] {
+        // (Were it not refused, it would serve for a second only.)
+        let quick = [
+            "--listen",
+            "127.0.0.1:0",
+            "--no-broadcast",
+            "--duration-s",
+            "1",
+        ];
+        let all: Vec<&str> = args.iter().chain(&quick).copied().collect();
+        fails(&all, "a DQLA exists only on an FPGA V3");
+    }
+}
+
+/// `emulate --fpga V3 --firmware 9 --hardware QLA1|DQLA`: the scan shows
+/// FPGA V3 boards at Rev 9; `--hardware DQLA` alone puts the DQLAs on V3.
+#[test]
+fn emulate_v3_rev9_boards() {
+    for (args, hardware) in [
+        (
+            &["--fpga", "V3", "--firmware", "9", "--hardware", "QLA1"][..],
+            "QLA1",
+        ),
+        (
+            &["--fpga", "V3", "--firmware", "9", "--hardware", "DQLA"][..],
+            "DQLA",
+        ),
+        (&["--firmware", "9", "--hardware", "DQLA"][..], "DQLA"),
+    ] {
+        let mut all = vec!["--boards", "2"];
+        all.extend_from_slice(args);
+        let emu = Emulate::start(&all);
+        let board1 = emu.start.iter().find(|l| l.contains("board 1:")).cloned();
+        let board1 = board1.unwrap_or_default();
+        assert!(
+            board1.contains(&format!("board 1: {hardware},")),
+            "{board1}"
+        );
+        assert!(board1.contains("FPGA V3, Rev 9"), "{board1}");
+        let v = scan(&emu.port);
+        for b in 0..2 {
+            assert_eq!(v["boards"][b]["hardware"], hardware, "{v}");
+            assert_eq!(v["boards"][b]["firmware"], 9, "{v}");
+            assert_eq!(v["boards"][b]["fpga"], 3, "{v}");
+        }
+        emu.terminate();
+    }
 }
 
 #[test]

@@ -107,7 +107,7 @@ fn table_pcap_and_errors() {
     for bad in [
         &["sim", "--boards", "0"][..],
         &["sim", "--speed", "800"],
-        &["sim", "--profile", "rev9"],
+        &["sim", "--profile", "rev10"],
         &["sim", "--gap-count", "64"],
         &["sim", "--jitter"],
     ] {

@@ -674,3 +674,49 @@ fn pot_couplings_must_fit_and_invert() {
     let inv = m.inverse().unwrap();
     assert_eq!((inv.get(1, 0), inv.get(1, 1)), (-1.0, 1.0));
 }
+
+/// A DQLA exists only on an FPGA V3 (the firmware builds no V2 DQLA
+/// image): a robot's `simulation.boards[].fpga_version` of "V2" under a
+/// DQLA robot is refused by name; "V3" or none loads; a firmware other
+/// than 7, 8 or 9 is refused.
+#[test]
+fn a_v2_dqla_is_refused_at_loading() {
+    use firelink_control::config::{BoardSerial, BoardSimulation, FpgaGeneration, RobotSimulation};
+    let with = |fpga: Option<FpgaGeneration>, firmware: Option<u32>| {
+        let mut c = presets::snake_36axes();
+        c.robots[0].simulation = Some(RobotSimulation {
+            boards: vec![BoardSimulation {
+                board_id: 0,
+                serial: BoardSerial {
+                    fpga: None,
+                    qla: None,
+                },
+                fpga_version: fpga,
+                firmware,
+            }],
+            ..RobotSimulation::default()
+        });
+        assert_eq!(c.robots[0].hardware_version, HardwareVersion::Dqla);
+        c.validate("snake.json")
+    };
+    assert!(with(None, None).is_ok());
+    assert!(with(Some(FpgaGeneration::V3), Some(9)).is_ok());
+    let e = with(Some(FpgaGeneration::V2), None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("fpga_version") && e.contains("only on an FPGA V3"),
+        "{e}"
+    );
+    let e = with(None, Some(10)).unwrap_err().to_string();
+    assert!(e.contains("firmware 10"), "{e}");
+    // The field as a file spells it.
+    let b: BoardSimulation = serde_json::from_str(
+        r#"{"board_id": 3, "serial": {}, "fpga_version": "V3", "firmware": 9}"#,
+    )
+    .unwrap();
+    assert_eq!(
+        (b.fpga_version, b.firmware),
+        (Some(FpgaGeneration::V3), Some(9))
+    );
+}

@@ -20,7 +20,7 @@ use firelink_host::extras::prom::{
     fpga_prom_id, fpga_serial_number, qla_serial_number, write_fpga_serial_number,
     write_qla_serial_number,
 };
-use firelink_host::extras::supply::measure_motor_supply_voltage;
+use firelink_host::extras::supply::{measure_dqla_supply_voltage, measure_motor_supply_voltage};
 use firelink_host::extras::{FeatureError, is_qla_expanded, read_phy_register};
 use firelink_host::scan::scan;
 use firelink_host::{Dest, HostError, Port};
@@ -168,6 +168,23 @@ fn motor_supply_measured_per_board() {
     assert!((v - 30.0).abs() < 0.1, "board 4: {v} V");
     // Power is off again.
     assert_eq!(p.read_quadlet(Dest::node(1), 0).unwrap() & (1 << 18), 0);
+}
+
+/// A DQLA (on its FPGA V3) measures each QLA's supply through STATUS
+/// (MotorVoltage.cpp with index 1 and 2); board 5 stands for boards 5 and
+/// 6: 36 V and 24 V by default, here QLA 2 at 30 V.
+#[test]
+fn dqla_motor_supplies_measured_per_qla() {
+    let server = Server::start(vec![
+        BoardConfig::new(5, Hardware::Dqla, Profile::Rev9).with_qla2_supply_volts(30.0),
+    ]);
+    let mut p = server.port(Duration::from_millis(500));
+    let v = measure_dqla_supply_voltage(&mut p, Dest::node(0), 1).unwrap();
+    assert!((v - 36.0).abs() < 0.1, "QLA 1: {v} V");
+    let v = measure_dqla_supply_voltage(&mut p, Dest::node(0), 2).unwrap();
+    assert!((v - 30.0).abs() < 0.1, "QLA 2: {v} V");
+    assert!(measure_dqla_supply_voltage(&mut p, Dest::node(0), 3).is_err());
+    assert_eq!(p.read_quadlet(Dest::node(0), 0).unwrap() & (1 << 18), 0);
 }
 
 #[test]

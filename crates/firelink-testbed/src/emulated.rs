@@ -6,7 +6,7 @@
 //! on one crate for emulated robots.
 
 pub use firelink_board::config::{
-    BoardConfig, BoardSettings, ConfigError, Hardware, Profile, default_fpga_serial,
+    BoardConfig, BoardSettings, ConfigError, FpgaVersion, Hardware, Profile, default_fpga_serial,
     default_qla_serial,
 };
 pub use firelink_bus::{ArbitrationClass, FaultRule, PacketFault, PacketMatch, SimDuration};

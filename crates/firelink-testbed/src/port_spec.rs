@@ -41,7 +41,7 @@ use firelink_host::udp::UdpPort;
 
 /// What every front end accepts, as its error messages say it.
 pub const EXPECTED: &str =
-    "sim, sim:N, sim:N:FW (N 1..=16, FW 7, 8 or seed), emulate, udp:HOST[:PORT], fw or fw:N";
+    "sim, sim:N, sim:N:FW (N 1..=16, FW 7, 8, 9 or seed), emulate, udp:HOST[:PORT], fw or fw:N";
 
 /// The largest board count of `sim:N` (the board-ID space of one bus).
 pub const MAX_SIM_BOARDS: u8 = 16;
@@ -232,6 +232,7 @@ fn firmware_name(profile: Profile) -> &'static str {
     match profile {
         Profile::Rev7 => "7",
         Profile::Rev8 => "8",
+        Profile::Rev9 => "9",
         Profile::Seed => "seed",
     }
 }
@@ -242,6 +243,7 @@ pub fn firmware_of(name: &str) -> Option<Profile> {
     match name {
         "7" | "rev7" => Some(Profile::Rev7),
         "8" | "rev8" => Some(Profile::Rev8),
+        "9" | "rev9" => Some(Profile::Rev9),
         "seed" => Some(Profile::Seed),
         _ => None,
     }
@@ -277,7 +279,7 @@ impl FromStr for PortSpec {
                 let firmware = match parts.next() {
                     None => None,
                     Some(f) => Some(firmware_of(f).ok_or_else(|| {
-                        malformed(format!("the firmware is 7, 8 or seed, not {f:?}"))
+                        malformed(format!("the firmware is 7, 8, 9 or seed, not {f:?}"))
                     })?),
                 };
                 if let Some(extra) = parts.next() {
@@ -417,6 +419,7 @@ mod tests {
             ("sim:16:8", sim(16, Some(Profile::Rev8)), "sim:16:8"),
             ("sim:5:rev7", sim(5, Some(Profile::Rev7)), "sim:5:7"),
             ("sim:3:seed", sim(3, Some(Profile::Seed)), "sim:3:seed"),
+            ("sim:2:rev9", sim(2, Some(Profile::Rev9)), "sim:2:9"),
             ("emulate", PortSpec::Emulate, "emulate"),
             ("udp:127.0.0.1", udp(1394), "udp:127.0.0.1:1394"),
             ("udp:localhost:1500", udp(1500), "udp:127.0.0.1:1500"),
@@ -444,7 +447,7 @@ mod tests {
             ("sim:0", "board count is 1..=16"),
             ("sim:17", "board count is 1..=16"),
             ("sim::7", "board count is 1..=16"),
-            ("sim:4:9", "firmware is 7, 8 or seed"),
+            ("sim:4:10", "firmware is 7, 8, 9 or seed"),
             ("sim:4:8:x", "unexpected \"x\""),
             ("emulate:2", "takes nothing after it"),
             ("fw:x", "the card is a number"),

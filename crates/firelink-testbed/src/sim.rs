@@ -124,7 +124,7 @@ impl SimOptions {
     fn route(&self) -> BroadcastRoute {
         match self.profile {
             Profile::Seed => BroadcastRoute::Node63,
-            Profile::Rev7 | Profile::Rev8 => BroadcastRoute::SnoopedNode0,
+            Profile::Rev7 | Profile::Rev8 | Profile::Rev9 => BroadcastRoute::SnoopedNode0,
         }
     }
 }

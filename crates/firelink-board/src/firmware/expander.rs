@@ -6,7 +6,9 @@
 //! are commanded (no output mismatch ever arises), port 8 is the safety
 //! line feedback (inverted STATUS bit 14) and port 9 the motor-supply
 //! comparator (DIGIN bit 28). The SPI bus is never busy: a command is
-//! answered by the time the next request arrives.
+//! answered by the time the next request arrives. A QLA1's expander has
+//! register-14 ID 0; a DQLA's two have IDs 1 and 2 (DQLA.v), and each
+//! takes only the writes that name its ID.
 
 use firelink_wire::board::extras::{
     EXPANDER_READ_MARKER, ExpanderDebug, ExpanderRead, ExpanderWrite,
@@ -22,6 +24,8 @@ pub const READ_PORTS_HIGH: u8 = 0x0F;
 /// Register 14 and the chip behind it.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) struct Expander {
+    /// Register-14 ID (bits 19:16 of a write).
+    id: u8,
     /// Port output registers (power-up 1: high impedance).
     outputs: [u8; PORTS],
     /// Register 14 reads 0 until the first write with expander ID 0.
@@ -41,8 +45,15 @@ pub(crate) struct ExpanderInputs {
 }
 
 impl Expander {
+    /// A QLA1's expander (ID 0).
     pub fn new() -> Expander {
+        Expander::with_id(0)
+    }
+
+    /// An expander answering to register-14 ID `id`.
+    pub fn with_id(id: u8) -> Expander {
         Expander {
+            id,
             outputs: [1; PORTS],
             spoken_to: false,
             debug: false,
@@ -60,9 +71,10 @@ impl Expander {
 
     /// A register-14 write.
     pub fn write(&mut self, w: ExpanderWrite, inputs: ExpanderInputs) {
-        if w.id() == 0 {
-            self.spoken_to = true;
+        if w.id() != self.id {
+            return;
         }
+        self.spoken_to = true;
         self.debug = w.debug();
         if !w.sends_command() {
             return;
@@ -137,5 +149,14 @@ mod tests {
         assert_eq!(e.read(), 0x0000_F7F7);
         e.write(ExpanderWrite(0x8000), inputs);
         assert_eq!(e.read(), 0x4000_8001);
+        // A write naming another expander is not this one's.
+        e.write(ExpanderWrite(0x0003_8300), inputs);
+        assert_eq!(e.read(), 0x4000_8001);
+        // A DQLA's QLA 2 expander (ID 2) ignores ID 0 and answers to 2.
+        let mut q2 = Expander::with_id(2);
+        q2.write(ExpanderWrite(0x8E00), inputs);
+        assert_eq!(q2.read(), 0, "not named");
+        q2.write(ExpanderWrite(0x0002_8E00), inputs);
+        assert_eq!(q2.read(), 0x4000_8EFF);
     }
 }

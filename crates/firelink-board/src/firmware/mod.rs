@@ -94,7 +94,9 @@
 mod brake;
 mod dallas;
 mod dout;
+mod dqla_expander;
 mod ethernet;
+mod ethernet_v3;
 mod expander;
 mod hub;
 mod phy;
@@ -105,6 +107,7 @@ mod registers;
 pub use brake::{BrakeLine, BrakeWire};
 pub use dallas::Instrument;
 pub use dout::{OUTPUTS as DIGITAL_OUTPUTS, WAVEFORM_ENTRIES};
+pub use ethernet_v3::PHY_RESET_TIME;
 pub use hub::{
     CHAIN_TIMEOUT_PER_BOARD, FIRST_SLOT_CLOCKS, SEED_OFFSET, SEED_SLOT, SEED_SLOT_CLOCKS, seed_slot,
 };
@@ -131,12 +134,26 @@ use crate::plant::{Plant, QLA_AMPS_PER_BIT};
 use crate::time::{SimDuration, SimTime};
 use dallas::Dallas;
 use dout::DigitalOutputs;
+use dqla_expander::DqlaExpanders;
 use ethernet::Ethernet;
+use ethernet_v3::EthernetV3;
 use expander::Expander;
 use firelink_wire::board::MAX_AXES;
 use hub::{Hub, Pending};
 use power::{AxisState, Power, Watchdog};
 use prom::{FpgaProm, QlaProm};
+
+/// The MAX7317 expanders of a companion board: ID 0 on a QLA1, IDs 1 and 2
+/// (QLA 1 and QLA 2) on a DQLA (DQLA.v).
+fn qla_expanders(hardware: &crate::config::Hardware) -> Vec<Expander> {
+    match hardware {
+        crate::config::Hardware::Qla1 => vec![Expander::new()],
+        crate::config::Hardware::Dqla => firelink_wire::board::dqla::DQLA_MAX7317_IDS
+            .iter()
+            .map(|&id| Expander::with_id(id))
+            .collect(),
+    }
+}
 
 /// IP_ADDR at power-up: no address assigned (EthernetIO.v `IP_UNASSIGNED`).
 pub const IP_UNASSIGNED: u32 = 0xFFFF_FFFF;
@@ -270,8 +287,16 @@ pub struct Firmware {
     /// One per QLA (a DQLA has two).
     qla_proms: Vec<QlaProm>,
     dallas: Dallas,
-    expander: Expander,
+    /// One MAX7317 per QLA: ID 0 on a QLA1, IDs 1 and 2 on a DQLA.
+    expanders: Vec<Expander>,
+    /// A DQLA's MAX7301 pair (IDs 3 and 4; unused on a QLA1).
+    dqla_expanders: DqlaExpanders,
+    /// The expander ID register 14 last named (the firmware's `chan_id`):
+    /// on a DQLA the one that answers register-14 reads.
+    expander_selected: u8,
     ethernet: Ethernet,
+    /// The Ethernet side of an FPGA V3 (unused on a V1 or V2).
+    ethernet_v3: EthernetV3,
     power: Power,
     watchdog: Watchdog,
     axes: Vec<AxisState>,
@@ -309,6 +334,7 @@ impl Firmware {
         let qla_proms = cfg.qla_serials().iter().map(|s| QlaProm::new(s)).collect();
         let dallas = Dallas::new(cfg.instrument.as_ref());
         let ethernet = Ethernet::new(cfg.board_id);
+        let cfg_hardware = cfg.hardware;
         let hub = Hub::new(SimTime::ZERO, cfg.layout().format());
         let mut fw = Firmware {
             power: Power::new(cfg.motor_supply_present, cfg.supply_rise),
@@ -324,8 +350,11 @@ impl Firmware {
             fpga_prom,
             qla_proms,
             dallas,
-            expander: Expander::new(),
+            expanders: qla_expanders(&cfg_hardware),
+            dqla_expanders: DqlaExpanders::new(),
+            expander_selected: 0,
             ethernet,
+            ethernet_v3: EthernetV3::new(),
             watchdog: Watchdog::new(SimTime::ZERO),
             axes,
             last_sample: SimTime::ZERO,
@@ -440,6 +469,7 @@ impl Firmware {
     /// port is connected is the bridge board: link up).
     pub fn set_ethernet_link(&mut self, up: bool) {
         self.ethernet.set_link(up);
+        self.ethernet_v3.set_link(up);
     }
 
     /// A FireWire packet arrived over this board's Ethernet port (the
@@ -976,7 +1006,7 @@ impl Firmware {
                 let at = now + seed_slot(self.cfg.firmware, node);
                 (at, 0, at)
             }),
-            Profile::Rev7 | Profile::Rev8 => {
+            Profile::Rev7 | Profile::Rev8 | Profile::Rev9 => {
                 let mask = self.hub.mask();
                 (mask & (1 << id) != 0).then(|| {
                     let before = mask & ((1u16 << id) - 1);

@@ -5,9 +5,11 @@ use firelink_wire::board::address::{
     Address, AddressSpace, AxisRegister, BoardRegister, HubAddress, REALTIME_BLOCK_OFFSET, Register,
 };
 use firelink_wire::board::broadcast::find_command_block;
+use firelink_wire::board::dqla::{DqlaDigitalIn, DqlaStatus};
 use firelink_wire::board::extras::{
     DallasControl, EthControl, ExpanderWrite, PromCommand, QlaPromCommand,
 };
+use firelink_wire::board::fpga_v3::{EthControlV3, mdio_port_of};
 use firelink_wire::board::realtime::{
     BlockFormat, EncoderReading, MotorReading, ReadBlock, WriteBlock,
 };
@@ -18,9 +20,11 @@ use firelink_wire::board::registers::{
 };
 
 use super::dout::OUTPUTS;
+use super::dqla_expander::{DqlaExpanders, PortLines};
 use super::expander::ExpanderInputs;
 use super::power::{AxisState, Watchdog};
 use super::{Firmware, PhyAccess, RxError};
+use crate::config::Hardware;
 use crate::plant::encoder::{PeriodField, QuarterField, RunField, VelocityFields};
 use crate::plant::{POT_FULL_SCALE_VOLTS, QLA_AMPS_PER_BIT, QLA_FULL_SCALE_AMPS};
 use crate::time::SimTime;
@@ -215,7 +219,13 @@ impl Firmware {
             && k % 4 == 0
             && let Some(&q) = CONFIG_ROM_REV8.get((k / 4) as usize)
         {
-            return q;
+            // Quadlet 4 is the firmware version (9 on a Rev 9 board; the
+            // header CRC word stays Rev 8's, not checked against Rev 9).
+            return if k == 16 {
+                self.cfg.firmware.number()
+            } else {
+                q
+            };
         }
         match decode_read(offset, rev8) {
             Target::Board(r) => self.read_board_register(r),
@@ -247,6 +257,9 @@ impl Firmware {
             AddressSpace::Ethernet if self.cfg.fpga == FpgaVersion::V2 => {
                 self.ethernet.window(index)
             }
+            AddressSpace::Ethernet if self.cfg.fpga == FpgaVersion::V3 => {
+                mdio_port_of(index).map_or(0, |port| self.ethernet_v3.mdio_read(port))
+            }
             AddressSpace::OneWire => self.dallas.buffer_quadlet(index),
             AddressSpace::Waveform => self.dout.read_table(now, index),
             AddressSpace::FirewirePacket if self.cfg.profile.is_rev8() => {
@@ -277,6 +290,11 @@ impl Firmware {
                 }
             }
             AddressSpace::Waveform => self.dout.write_table(now, index, value),
+            AddressSpace::Ethernet if self.cfg.fpga == FpgaVersion::V3 => {
+                if let Some(port) = mdio_port_of(index) {
+                    self.ethernet_v3.mdio_write(now, port, value);
+                }
+            }
             _ => {}
         }
     }
@@ -302,12 +320,23 @@ impl Firmware {
             .and_then(|i| self.qla_proms.get_mut(i))
     }
 
-    /// The motor-supply comparator (DIGIN bit 28): the axis-4 DAC's voltage
-    /// is below the motor supply, which is present only while it is good.
+    /// The motor-supply comparator of a QLA1 (DIGIN bit 28), or of a
+    /// DQLA's first QLA: see [`supply_comparator_of`](Self::supply_comparator_of).
     pub(crate) fn supply_comparator(&self) -> bool {
-        let command = self.axes.get(3).map_or(0, |a| a.command);
-        self.power.supply_good(self.now)
-            && f64::from(command) * COMPARATOR_VOLTS_PER_COUNT < self.cfg.motor_supply_volts
+        self.supply_comparator_of(0)
+    }
+
+    /// The motor-supply comparator of QLA `qla` (0, or 1 for a DQLA's
+    /// second): its last DAC's voltage (axis 4, or axis 8) is below its
+    /// motor supply, which is present only while it is good.
+    pub(crate) fn supply_comparator_of(&self, qla: usize) -> bool {
+        let command = self.axes.get(3 + 4 * qla).map_or(0, |a| a.command);
+        let volts = if qla == 0 {
+            self.cfg.motor_supply_volts
+        } else {
+            self.cfg.qla2_supply_volts
+        };
+        self.power.supply_good(self.now) && f64::from(command) * COMPARATOR_VOLTS_PER_COUNT < volts
     }
 
     /// Read `quadlets` quadlets from `offset` at `now`, as a block read
@@ -498,9 +527,13 @@ impl Firmware {
             BoardRegister::EthStatus if self.cfg.fpga == FpgaVersion::V2 => {
                 self.ethernet.status().raw()
             }
+            BoardRegister::EthStatus if self.cfg.fpga == FpgaVersion::V3 => self
+                .ethernet_v3
+                .status(self.now, self.cfg.profile.is_rev9())
+                .raw(),
             BoardRegister::EthStatus => self.cfg.fpga.eth_status_bits(),
             BoardRegister::DallasStatus => self.dallas.status(self.now, true).raw(),
-            BoardRegister::IoExpander => self.expander.read(),
+            BoardRegister::IoExpander => self.read_expander(),
             // GIT_DESC exists from Rev 9 on (BoardRegs.v); before, register
             // 15 reads 0.
             BoardRegister::GitDesc if self.cfg.firmware.number() >= 9 => self.cfg.git_desc,
@@ -547,14 +580,11 @@ impl Firmware {
             BoardRegister::EthStatus if self.cfg.fpga == FpgaVersion::V2 => {
                 self.ethernet.write(EthControl(value));
             }
-            BoardRegister::DallasStatus => self.dallas.write(now, DallasControl(value)),
-            BoardRegister::IoExpander => {
-                let inputs = ExpanderInputs {
-                    safety_feedback: self.power.relay,
-                    supply_comparator: self.supply_comparator(),
-                };
-                self.expander.write(ExpanderWrite(value), inputs);
+            BoardRegister::EthStatus if self.cfg.fpga == FpgaVersion::V3 => {
+                self.ethernet_v3.control(now, EthControlV3(value));
             }
+            BoardRegister::DallasStatus => self.dallas.write(now, DallasControl(value)),
+            BoardRegister::IoExpander => self.write_expander(ExpanderWrite(value)),
             _ => {}
         }
     }
@@ -732,12 +762,143 @@ impl Firmware {
             p.reboot();
         }
         self.dallas.reboot();
-        self.expander = super::Expander::new();
+        self.expanders = super::qla_expanders(&self.cfg.hardware);
+        self.dqla_expanders = super::DqlaExpanders::new();
+        self.expander_selected = 0;
         let link = self.ethernet.link();
         self.ethernet = super::Ethernet::new(self.cfg.board_id);
         self.ethernet.set_link(link);
+        // The FPGA V3's Ethernet side (its PHYs, the PS Ethernet) is not
+        // part of the reboot (FPGA1394V3.v: REBOOT reloads the PL only
+        // through the PS, which the model does not restart).
         self.last_sample = now;
         self.hub = super::Hub::new(now, self.cfg.layout().format());
+    }
+
+    /// Register 14 as read: a QLA1's expander; on a DQLA the expander the
+    /// last register-14 write named (DQLA.v's read mux; 0 when none).
+    fn read_expander(&self) -> u32 {
+        if self.cfg.hardware == Hardware::Qla1 {
+            return self.expanders.first().map_or(0, |e| e.read());
+        }
+        let id = self.expander_selected;
+        if let Some(chip) = DqlaExpanders::chip_of(id) {
+            return self.dqla_expanders.read(chip);
+        }
+        // IDs 1 and 2: QLA 1's and QLA 2's MAX7317.
+        match id {
+            1 | 2 => self
+                .expanders
+                .get(usize::from(id - 1))
+                .map_or(0, |e| e.read()),
+            _ => 0,
+        }
+    }
+
+    /// A register-14 write: every expander sees it and takes it if it
+    /// names its ID.
+    fn write_expander(&mut self, w: ExpanderWrite) {
+        self.expander_selected = w.id();
+        let inputs = [0, 1].map(|qla| ExpanderInputs {
+            safety_feedback: self.power.relay,
+            supply_comparator: self.supply_comparator_of(qla),
+        });
+        for (e, inputs) in self.expanders.iter_mut().zip(inputs) {
+            e.write(w, inputs);
+        }
+        if self.cfg.hardware == Hardware::Dqla
+            && let Some(chip) = DqlaExpanders::chip_of(w.id())
+        {
+            let lines = self.dqla_port_lines(chip);
+            self.dqla_expanders.write(chip, w, lines);
+        }
+    }
+
+    /// The lines QLA `qla`'s MAX7301 reads (DQLA.v's `IOP` mapping): 27
+    /// supply good, 26:23 home 1-4, 22:19 negative limits, 18:17 positive
+    /// limits 1-2, 16 power enable, 15:12 amplifier disables, 11:8 the
+    /// amplifier lines (1 = amplifier on), 7:4 index.
+    fn dqla_port_lines(&self, qla: usize) -> PortLines {
+        let mut lines: PortLines = 0;
+        let now = self.now;
+        let expander = self.cfg.io_expander;
+        if self.power.supply_good(now) {
+            lines |= 1 << 27;
+        }
+        if self.power.enabled {
+            lines |= 1 << 16;
+        }
+        let plugged = self.cfg.input_lines;
+        for k in 0..4usize {
+            let axis = 4 * qla + k;
+            let (neg, pos, home) = self
+                .plant
+                .axis(axis)
+                .map_or((false, false, false), |a| a.switches());
+            let index = self.plant.axis(axis).is_some_and(|a| a.encoder().index());
+            let on = self
+                .axes
+                .get(axis)
+                .is_some_and(|a| a.is_on(&self.power, now, expander));
+            // What is plugged in holds a QLA 1 line high (configured for
+            // axes 1-4 only, as on a QLA1).
+            let held = |group: usize| axis < 4 && (plugged >> (group + axis)) & 1 != 0;
+            // Port numbers count axis 1 from the high end of each group.
+            let bit = |top: u32, set: bool| if set { 1u32 << (top - k as u32) } else { 0 };
+            lines |= bit(26, home || held(0));
+            lines |= bit(22, neg || held(8));
+            if k < 2 {
+                lines |= bit(18, pos || held(4));
+            }
+            lines |= bit(15, !on);
+            lines |= bit(11, on);
+            lines |= bit(7, index);
+        }
+        lines
+    }
+
+    /// STATUS of a DQLA (BoardRegs-DQLA.v). Both QLAs share the power
+    /// enable and the relay; each has its own supply comparator.
+    fn dqla_status_word(&self) -> DqlaStatus {
+        let now = self.now;
+        let good = self.power.supply_good(now);
+        let both = |on: bool| if on { 0b11 } else { 0 };
+        let comparators =
+            u8::from(self.supply_comparator_of(0)) | u8::from(self.supply_comparator_of(1)) << 1;
+        DqlaStatus::default()
+            .with_axes(self.n_axes() as u8)
+            .with_board_id(self.cfg.board_id)
+            .with_watchdog_timeout(self.watchdog.timed_out)
+            .with_quad_dac(0b11)
+            .with_motor_supply_good(good)
+            .with_motor_power_enabled(self.power.enabled)
+            .with_relay_on(self.power.relay)
+            .with_supply_good_each(both(good))
+            .with_dqla_expanders_ok(0b11)
+            .with_dout_checked(0b11)
+            .with_dout_bidirectional(0b11)
+            .with_safety_feedback(both(self.power.relay))
+            .with_supply_comparators(comparators)
+            .with_waveform_active(self.dout.table_active(now))
+            .with_io_expanders(both(self.cfg.io_expander))
+    }
+
+    /// DIGIN of a DQLA (BoardRegs-DQLA.v): the raw outputs and eight of
+    /// each switch input.
+    fn dqla_digital_in(&self) -> DqlaDigitalIn {
+        let (mut neg, mut pos, mut home) = (0u8, 0u8, 0u8);
+        for (i, axis) in self.plant.axes().iter().take(8).enumerate() {
+            let (n, p, h) = axis.switches();
+            neg |= u8::from(n) << i;
+            pos |= u8::from(p) << i;
+            home |= u8::from(h) << i;
+        }
+        let plugged = self.cfg.input_lines;
+        DqlaDigitalIn::default()
+            .with_outputs(self.dout.raw_outputs(self.now))
+            .with_neg_limits(neg | ((plugged >> 8) & 0xF) as u8)
+            .with_pos_limits(pos | ((plugged >> 4) & 0xF) as u8)
+            .with_home(home | (plugged & 0xF) as u8)
     }
 
     fn raw_count(&self, i: usize) -> i64 {
@@ -779,6 +940,9 @@ impl Firmware {
     }
 
     fn status_word(&self) -> StatusRead {
+        if self.cfg.hardware == Hardware::Dqla {
+            return StatusRead(self.dqla_status_word().raw());
+        }
         let now = self.now;
         let mut amp_enabled = 0u8;
         let mut amp_on = 0u8;
@@ -840,6 +1004,9 @@ impl Firmware {
     }
 
     fn digital_in(&self) -> DigitalIn {
+        if self.cfg.hardware == Hardware::Dqla {
+            return DigitalIn(self.dqla_digital_in().raw());
+        }
         let mut lines = [0u8; 6];
         for (i, axis) in self.plant.axes().iter().take(4).enumerate() {
             let enc = axis.encoder();

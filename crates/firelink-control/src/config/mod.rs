@@ -303,6 +303,25 @@ pub struct BoardSimulation {
     pub board_id: u8,
     /// Serial numbers in the board's PROMs.
     pub serial: BoardSerial,
+    /// The FPGA board generation (default: V2 under a QLA1, V3 under a
+    /// DQLA, the only FPGA a DQLA exists on).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fpga_version: Option<FpgaGeneration>,
+    /// The firmware revision the board runs (7, 8 or 9; default: what the
+    /// emulator is asked for).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub firmware: Option<u32>,
+}
+
+/// An FPGA board generation, as a configuration names it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum FpgaGeneration {
+    /// FPGA V2 (Spartan-6, one Ethernet port: the bridge).
+    #[serde(rename = "V2")]
+    V2,
+    /// FPGA V3 (Zynq, two Ethernet ports).
+    #[serde(rename = "V3")]
+    V3,
 }
 
 /// The serial numbers of an FPGA board and its companion QLA, as printed
@@ -1289,6 +1308,15 @@ impl IoConfig {
             .flat_map(|s| &s.boards)
             .find(|b| b.board_id == board_id)
             .map(|b| &b.serial)
+    }
+
+    /// The simulation settings of board `board_id`, if a robot gives any.
+    pub fn board_simulation(&self, board_id: u8) -> Option<&BoardSimulation> {
+        self.robots
+            .iter()
+            .filter_map(|r| r.simulation.as_ref())
+            .flat_map(|s| &s.boards)
+            .find(|b| b.board_id == board_id)
     }
 
     /// The v6 digital input named `name`.

@@ -879,6 +879,8 @@ fn serials(boards: &[(u8, &str, &str)]) -> Vec<BoardSimulation> {
                 fpga: Some(fpga.to_string()),
                 qla: Some(qla.to_string()),
             },
+            fpga_version: None,
+            firmware: None,
         })
         .collect()
 }

@@ -12,9 +12,9 @@ use firelink_wire::human::Number;
 
 use super::error::round_sig;
 use super::{
-    ConfigError, ConfigErrors, DriveConfig, EncoderConfig, HardwareVersion, IoConfig, Limits,
-    LimitsConfig, LinearFunction, PotentiometerConfig, Problem, RobotConfig, RobotSimulation,
-    SCHEMA_ID, SCHEMA_VERSION, SimulationConfig,
+    ConfigError, ConfigErrors, DriveConfig, EncoderConfig, FpgaGeneration, HardwareVersion,
+    IoConfig, Limits, LimitsConfig, LinearFunction, PotentiometerConfig, Problem, RobotConfig,
+    RobotSimulation, SCHEMA_ID, SCHEMA_VERSION, SimulationConfig,
 };
 use crate::config::MAX_BOARD_ID;
 use crate::pid::PidGains;
@@ -386,7 +386,7 @@ fn check_robot(c: &mut Checker<'_>, rp: &str, robot: &RobotConfig) {
         );
     }
     if let Some(sim) = &robot.simulation {
-        check_robot_simulation(c, &format!("{rp}.simulation"), sim);
+        check_robot_simulation(c, &format!("{rp}.simulation"), sim, robot.hardware_version);
     }
     check_brakes(c, rp, robot);
     let Some(pots) = &robot.potentiometers else {
@@ -519,7 +519,12 @@ fn check_brakes(c: &mut Checker<'_>, rp: &str, robot: &RobotConfig) {
     }
 }
 
-fn check_robot_simulation(c: &mut Checker<'_>, sp: &str, sim: &RobotSimulation) {
+fn check_robot_simulation(
+    c: &mut Checker<'_>,
+    sp: &str,
+    sim: &RobotSimulation,
+    hardware: HardwareVersion,
+) {
     if let Some(t) = &sim.tool {
         if t.name.is_empty() {
             c.push(format!("{sp}.tool.name"), Problem::Empty);
@@ -533,6 +538,23 @@ fn check_robot_simulation(c: &mut Checker<'_>, sp: &str, sim: &RobotSimulation) 
                 format!("{bp}.board_id"),
                 format!("board {}", b.board_id),
                 format!("{sp}.boards[{first}]"),
+            );
+        }
+        // The firmware builds a DQLA only for an FPGA V3.
+        if hardware == HardwareVersion::Dqla && b.fpga_version == Some(FpgaGeneration::V2) {
+            c.push(
+                format!("{bp}.fpga_version"),
+                Problem::Mismatch(
+                    "a DQLA exists only on an FPGA V3 (the firmware builds no FPGA V2 DQLA \
+                     image): give \"V3\" or leave it out"
+                        .to_string(),
+                ),
+            );
+        }
+        if let Some(fw) = b.firmware.filter(|fw| !(7..=9).contains(fw)) {
+            c.push(
+                format!("{bp}.firmware"),
+                Problem::Mismatch(format!("firmware {fw}: the emulated boards run 7, 8 or 9")),
             );
         }
         // What the PROMs can hold after their "FPGA " and "QLA " prefixes.

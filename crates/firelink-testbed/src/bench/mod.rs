@@ -730,6 +730,7 @@ fn profile_name(p: Profile) -> &'static str {
     match p {
         Profile::Seed => "seed",
         Profile::Rev7 => "7",
+        Profile::Rev9 => "9",
         _ => "8",
     }
 }

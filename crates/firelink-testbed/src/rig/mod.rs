@@ -14,12 +14,12 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 
-use firelink_board::config::{BoardConfig, BrakeWire, Hardware, Profile};
+use firelink_board::config::{BoardConfig, BrakeWire, FpgaVersion, Hardware, Profile};
 use firelink_board::node::BoardNode;
 use firelink_board::plant::AxisParams;
 use firelink_board::plant::presets;
 use firelink_bus::{Bus, HostModel, Node, NodeHandle};
-use firelink_control::config::{HardwareVersion, IoConfig, PlantPreset};
+use firelink_control::config::{FpgaGeneration, HardwareVersion, IoConfig, PlantPreset};
 use firelink_emulate::{BridgeStats, ServeConfig};
 use firelink_host::sim::SimPort;
 use firelink_host::udp::{UdpPort, WaitMode};
@@ -209,6 +209,18 @@ pub fn board_configs_starting_at(
         }
         if let Some(fpga) = board_serial.and_then(|s| s.fpga.as_deref()) {
             b.fpga_serial = fpga.to_string();
+        }
+        // The board's own FPGA and firmware, where its robot names them.
+        if let Some(sim) = config.board_simulation(id) {
+            if let Some(g) = sim.fpga_version {
+                b.fpga = match g {
+                    FpgaGeneration::V2 => FpgaVersion::V2,
+                    FpgaGeneration::V3 => FpgaVersion::V3,
+                };
+            }
+            if let Some(p) = sim.firmware.and_then(Profile::from_number) {
+                b = b.with_profile(p);
+            }
         }
         out.push(b);
     }
@@ -454,5 +466,32 @@ mod tests {
         assert_eq!(boards[0].hardware, Hardware::Dqla);
         assert_eq!(boards[0].qla_serials().len(), 2);
         assert_eq!(boards[7].hardware, Hardware::Qla1);
+        // A DQLA goes on its FPGA V3; a QLA1 on a V2 unless its robot's
+        // simulation names the FPGA and firmware.
+        assert_eq!(boards[0].fpga, FpgaVersion::V3);
+        assert_eq!(boards[7].fpga, FpgaVersion::V2);
+        let mut named = presets::snake_36axes();
+        named.robots[3].simulation = Some(firelink_control::config::RobotSimulation {
+            boards: vec![firelink_control::config::BoardSimulation {
+                board_id: 7,
+                serial: firelink_control::config::BoardSerial {
+                    fpga: None,
+                    qla: None,
+                },
+                fpga_version: Some(FpgaGeneration::V3),
+                firmware: Some(9),
+            }],
+            ..Default::default()
+        });
+        let boards = board_configs(&named, Profile::Rev8, 8);
+        assert_eq!(
+            (boards[7].fpga, boards[7].profile),
+            (FpgaVersion::V3, Profile::Rev9)
+        );
+        assert_eq!(boards[7].firmware.number(), 9);
+        assert_eq!(
+            (boards[6].fpga, boards[6].profile),
+            (FpgaVersion::V2, Profile::Rev8)
+        );
     }
 }

@@ -15,6 +15,10 @@
 //!   concatenated command block.
 //! - [`extras`]: the PROMs and serial numbers, the 1-wire interface, the
 //!   I/O expander and the Ethernet status (`fpga-board-extras.md`).
+//! - [`fpga_v3`]: the FPGA V3's Ethernet status and control words and the
+//!   MDIO window to its RTL8211F PHYs (`rev9-fpga-v3.md`).
+//! - [`dqla`]: the DQLA's STATUS and DIGIN words and its MAX7301 I/O
+//!   expanders' register-14 read-out.
 //!
 //! ```
 //! use firelink_wire::board::realtime::{BoardLayout, FirmwareRev};
@@ -28,7 +32,9 @@
 
 pub mod address;
 pub mod broadcast;
+pub mod dqla;
 pub mod extras;
+pub mod fpga_v3;
 pub mod realtime;
 pub mod registers;
 

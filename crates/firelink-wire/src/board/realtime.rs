@@ -73,6 +73,9 @@ open_enum! {
         Rev7 = 7,
         /// Rev 8: MOTOR_STATUS block, write block with a header.
         Rev8 = 8,
+        /// Rev 9: the same block layouts as Rev 8 (`rev9-fpga-v3.md`);
+        /// GIT_DESC in register 15, the FPGA V3 Ethernet-only network.
+        Rev9 = 9,
     }
 }
 
@@ -109,7 +112,7 @@ impl FirmwareRev {
         // (The named revisions without turning them into numbers first:
         // every cycle asks, several times per board.)
         match self {
-            FirmwareRev::Rev8 => BlockFormat::Rev8,
+            FirmwareRev::Rev8 | FirmwareRev::Rev9 => BlockFormat::Rev8,
             FirmwareRev::Rev7 => BlockFormat::Rev7,
             FirmwareRev::Rev4 => BlockFormat::Rev4,
             FirmwareRev::Unknown(n) if n >= 8 => BlockFormat::Rev8,
@@ -1064,6 +1067,24 @@ mod tests {
         for n in (0..20).chain([u32::MAX]) {
             assert_eq!(FirmwareRev::from(n).block_format(), by_number(n), "{n}");
             assert_eq!(FirmwareRev::Unknown(n).block_format(), by_number(n), "{n}");
+        }
+    }
+
+    /// `rev9-fpga-v3.md`: the real-time blocks of Rev 8 and Rev 9 are the
+    /// same, read 4 + 2M + 5E quadlets (QLA1 32, DQLA 60), write M + 2
+    /// (QLA1 6, DQLA 10).
+    #[test]
+    fn rev9_blocks_are_rev8_blocks() {
+        for (rev, n) in [(FirmwareRev::Rev8, 8), (FirmwareRev::Rev9, 9)] {
+            assert_eq!(rev.number(), n);
+            assert_eq!(FirmwareRev::from(n), rev);
+            let (q, d) = (BoardLayout::qla1(rev), BoardLayout::dqla(rev));
+            assert_eq!(q.format(), BlockFormat::Rev8);
+            assert_eq!((q.read_block_quadlets(), q.write_block_quadlets()), (32, 6));
+            assert_eq!(
+                (d.read_block_quadlets(), d.write_block_quadlets()),
+                (60, 10)
+            );
         }
     }
 
