@@ -1,8 +1,9 @@
-//! # firelink-board: emulated FPGA1394 + QLA motor-controller boards
+//! # firelink-board: the emulated boards of the three seed systems
 //!
-//! Software boards that behave on the wire like the public FPGA1394 + QLA
-//! (and DQLA) firmware, revisions 7 and 8, and like the seed-000 era
-//! broadcast firmware, with a deterministic physical plant behind them.
+//! Software boards with a deterministic physical plant behind them: the
+//! dVRK's FPGA1394 (V2, V3) + QLA1/DQLA, which behave on the wire like the
+//! public firmware at revisions 7, 8 and 9 and like the seed-000 era
+//! broadcast firmware; seed 001's Snake node; seed 002's MAHRU modules.
 //! Facts: `shared/spec/fpga-board.md` (registers, blocks, broadcast,
 //! watchdog and safety) and `shared/spec/ieee1394.md` (packets, acks).
 //!
@@ -22,7 +23,6 @@
 //!   [`firelink_bus::Node`] on the simulated bus.
 //! - [`snake`]: seed 001's 7-channel Snake robot node, a board model of
 //!   its own beside the QLA (firmware, channels, bus node).
-
 //! - [`mahru`]: seed 002's MAHRU humanoid modules (DSP + FPGA motor
 //!   controllers and force/torque sensors) as bus nodes speaking the
 //!   module protocol of [`firelink_wire::mahru`].
