@@ -45,7 +45,7 @@ def test_the_demo_takes_a_configuration(configs_dir):
         {"port": "nowhere"},
         {"watchdog_ms": -5},
         {"pacing": "sometimes"},
-        {"firmware": "9"},
+        {"firmware": "10"},
     ],
 )
 def test_bad_demo_options_raise(kwargs):

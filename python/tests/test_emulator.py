@@ -37,7 +37,7 @@ def test_stop_reports_the_counters(udp_timeout):
     assert stats["malformed"] == 0
 
 
-@pytest.mark.parametrize("kwargs", [{"boards": 0}, {"boards": 17}, {"firmware": "9"}])
+@pytest.mark.parametrize("kwargs", [{"boards": 0}, {"boards": 17}, {"firmware": "10"}])
 def test_bad_emulator_options(kwargs):
     with pytest.raises(firelink.FirelinkError):
         firelink.Emulator(**kwargs)
