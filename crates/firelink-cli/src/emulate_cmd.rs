@@ -98,9 +98,9 @@ pub struct EmulateArgs {
     /// ack_busy_X (over --fw-cdev: RCODE_BUSY).
     #[arg(long = "busy-rate", default_value_t = 0.0, value_parser = crate::args::probability)]
     pub busy_rate: f64,
-    /// Fault: this many bus resets in a row, 1 ms apart, from
+    /// Fault: this many bus resets in a row (0..=1000), 1 ms apart, from
     /// `--fault-at-ms` (or `--fault-after-requests`).
-    #[arg(long = "reset-storm", value_name = "N", default_value_t = 0)]
+    #[arg(long = "reset-storm", value_name = "N", default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=1000))]
     pub reset_storm: u32,
     /// With --fw-cdev (and fw-run): the split time-out, ms of emulated
     /// time: a request whose response is lost completes with

@@ -236,6 +236,11 @@ fn emulate_refuses_bad_options() {
         "between 1 and 16 boards",
     );
     fails(&["emulate", "--firmware", "10"], "--firmware");
+    // Fault options out of range are refused before anything is built
+    // (a storm of 4e9 resets would be held in memory one by one).
+    fails(&["emulate", "--reset-storm", "4000000000"], "0..=1000");
+    fails(&["emulate", "--busy-rate", "1e300"], "from 0 to 1");
+    fails(&["emulate", "--split-timeout-ms", "0"], "1..=60000");
     // A DQLA exists only on an FPGA V3: asked for on a V2, refused.
     for args in [
         &["emulate", "--hardware", "DQLA", "--fpga", "V2"][..],
