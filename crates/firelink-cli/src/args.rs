@@ -71,6 +71,31 @@ pub fn probability(s: &str) -> Result<f64, String> {
     bounded(s, 0.0, 1.0, false, "")
 }
 
+/// `--cpu-latency`: hold the CPUs' wake-up latency at some microseconds,
+/// or do not hold it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CpuLatencyArg {
+    /// No request.
+    Off,
+    /// Hold this many microseconds.
+    Microseconds(u32),
+}
+
+/// `off`, or microseconds from 0 to 1 s (a request above that would ask
+/// for nothing the idle governor does not do anyway).
+pub fn cpu_latency(s: &str) -> Result<CpuLatencyArg, String> {
+    if s.eq_ignore_ascii_case("off") {
+        return Ok(CpuLatencyArg::Off);
+    }
+    if crate::parse_number(s).is_err() {
+        return Err(format!(
+            "a CPU latency is microseconds (0 to 1000000) or off, not {s:?}"
+        ));
+    }
+    integer(s, 0, 1_000_000, "CPU latency (us, or off)")
+        .map(|n| CpuLatencyArg::Microseconds(n as u32))
+}
+
 /// An unsigned integer in `lo..=hi` (decimal or 0x hex).
 fn integer(s: &str, lo: u64, hi: u64, what: &str) -> Result<u64, String> {
     let n = crate::parse_number(s)?;

@@ -15,6 +15,7 @@ use clap::Args;
 use firelink_control::config::{IoConfig, presets};
 use firelink_emulate::fw_cdev::{self, Twin};
 use firelink_emulate::{Bridge, Event, ServeConfig};
+use firelink_host::cpu_latency::CpuLatencyHold;
 use firelink_testbed::TestbedError;
 use firelink_testbed::emulated::{
     BoardConfig, BoardSettings, FaultRule, PacketFault, PacketMatch, Profile, SimDuration,
@@ -25,7 +26,7 @@ use firelink_testbed::rig::{
 use firelink_testbed::snake;
 
 use crate::CliError;
-use crate::args::{FirmwareArg, FpgaArg, HardwareArg};
+use crate::args::{CpuLatencyArg, FirmwareArg, FpgaArg, HardwareArg};
 
 /// Options of `firelink emulate`.
 #[derive(Args, Debug, Clone)]
@@ -128,6 +129,17 @@ pub struct EmulateArgs {
     /// does both). The PC's card is /dev/fw0, the boards /dev/fw1...
     #[arg(long = "fw-cdev", value_name = "SOCKET")]
     pub fw_cdev: Option<PathBuf>,
+    /// Hold every CPU's wake-up latency at this many microseconds while
+    /// serving (a PM QoS request on /dev/cpu_dma_latency; needs root), or
+    /// `off` (the default). With 0 idle CPUs poll instead of sleeping, so
+    /// a datagram handed from a host on one idle CPU to the emulator on
+    /// another is taken in microseconds, not the tens a sleeping (in a VM:
+    /// halted) CPU takes to wake; on a quiet machine a cycle of many round
+    /// trips otherwise has two speeds, by where the scheduler put the two
+    /// processes (BENCHMARKS.md). Idle CPUs then spin while this runs.
+    /// Not permitted: served all the same, with a note.
+    #[arg(long = "cpu-latency", value_name = "US|off", default_value = "off", value_parser = crate::args::cpu_latency)]
+    pub cpu_latency: CpuLatencyArg,
     /// Stop by itself after this many seconds (0: run until a signal).
     #[arg(long = "duration-s", default_value_t = 0.0, value_parser = crate::args::seconds_or_forever)]
     pub duration_s: f64,
@@ -296,6 +308,7 @@ fn run_twin(args: &EmulateArgs, path: &Path, out: &mut impl Write) -> Result<(),
     let (mut twin, ids) = build_twin(args)?;
     let listener = fw_cdev::bind(path)?;
     let stop = stop_flag(args)?;
+    let _cpu_latency = hold_cpu_latency(args, out)?;
     writeln!(
         out,
         "emulating {} board(s) {:?} as /dev/fw1..fw{} (the PC's card: /dev/fw0); bus generation {}",
@@ -323,6 +336,32 @@ fn run_twin(args: &EmulateArgs, path: &Path, out: &mut impl Write) -> Result<(),
     let _ = std::fs::remove_file(path);
     served?;
     Ok(())
+}
+
+/// The `--cpu-latency` request, held until the returned value drops;
+/// says on `out` what took effect (refused: served all the same).
+fn hold_cpu_latency(
+    args: &EmulateArgs,
+    out: &mut impl Write,
+) -> Result<Option<CpuLatencyHold>, CliError> {
+    let CpuLatencyArg::Microseconds(latency_us) = args.cpu_latency else {
+        return Ok(None);
+    };
+    match CpuLatencyHold::take(u64::from(latency_us)) {
+        Ok(hold) => {
+            writeln!(out, "{}", hold.describe())?;
+            Ok(Some(hold))
+        }
+        Err(e) => {
+            writeln!(
+                out,
+                "note: {e}; serving all the same (a host and the emulator on different \
+                 CPUs may then wait tens of microseconds per hand-over; --cpu-latency off \
+                 silences this)"
+            )?;
+            Ok(None)
+        }
+    }
 }
 
 /// A flag set by SIGINT, SIGTERM, or after `--duration-s`.
@@ -361,6 +400,7 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
     };
     let (unicast, broadcast) = firelink_emulate::bind(&config)?;
     let stop = stop_flag(args)?;
+    let _cpu_latency = hold_cpu_latency(args, out)?;
     let firmware = match Profile::from(args.firmware) {
         _ if kind == RobotKind::Snake => "seed 001 Snake node",
         Profile::Rev7 => "Rev 7",

@@ -241,6 +241,8 @@ fn emulate_refuses_bad_options() {
     fails(&["emulate", "--reset-storm", "4000000000"], "0..=1000");
     fails(&["emulate", "--busy-rate", "1e300"], "from 0 to 1");
     fails(&["emulate", "--split-timeout-ms", "0"], "1..=60000");
+    fails(&["emulate", "--cpu-latency", "2000000"], "0 to 1000000");
+    fails(&["emulate", "--cpu-latency", "never"], "CPU latency");
     // A DQLA exists only on an FPGA V3: asked for on a V2, refused.
     for args in [
         &["emulate", "--hardware", "DQLA", "--fpga", "V2"][..],
@@ -451,4 +453,39 @@ fn a_host_name_reaches_the_emulator() {
     assert_eq!(r["boards"].as_array().map(Vec::len), Some(2), "{r}");
     assert!(r["port"].as_str().unwrap().contains("127.0.0.1"), "{r}");
     emu.terminate();
+}
+
+/// `--cpu-latency 0`: the PM QoS request is held while serving (as root)
+/// or, where the device refuses, the emulator says why and serves all the
+/// same; `off` (the default) asks for nothing and says nothing.
+#[test]
+fn emulate_holds_or_explains_the_cpu_latency_request() {
+    let quick = [
+        "--listen",
+        "127.0.0.1:0",
+        "--no-broadcast",
+        "--duration-s",
+        "0.3",
+    ];
+    let asked: Vec<&str> = ["emulate", "--boards", "1", "--cpu-latency", "0"]
+        .iter()
+        .chain(&quick)
+        .copied()
+        .collect();
+    let out = ok(&asked);
+    assert!(
+        out.contains("holding CPU wake-up latency at 0 us (/dev/cpu_dma_latency)")
+            || out.contains("note: cannot hold a CPU latency request on /dev/cpu_dma_latency"),
+        "{out}"
+    );
+    let default: Vec<&str> = ["emulate", "--boards", "1"]
+        .iter()
+        .chain(&quick)
+        .copied()
+        .collect();
+    let out = ok(&default);
+    assert!(
+        !out.contains("CPU wake-up latency") && !out.contains("CPU latency"),
+        "{out}"
+    );
 }

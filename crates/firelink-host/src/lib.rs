@@ -27,6 +27,8 @@
 //!   inputs, per-axis get/set, apply all outputs, the same for every
 //!   kind of board (implemented for [`io::IoSystem`] and
 //!   [`snake::SnakeSystem`]).
+//! - [`cpu_latency`]: holding the CPUs awake (a PM QoS request) so that
+//!   hand-overs between processes do not wait for a sleeping CPU.
 //! - [`stop`]: stop requests (signals, a caller) that end a robot loop
 //!   with the robot powered down.
 //! - [`snake`]: seed 001's Snake robot nodes: the node layer over block
@@ -38,6 +40,7 @@
 //! emulated boards today and real boards over Ethernet tomorrow.
 
 pub mod board;
+pub mod cpu_latency;
 pub mod error;
 pub mod extras;
 pub mod fault;
