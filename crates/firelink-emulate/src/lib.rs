@@ -290,7 +290,7 @@ impl Bridge {
     /// emulator thread) would otherwise meet almost no virtual time apart.
     /// A board that can no longer send (muted, unplugged) is not waited
     /// for once its slot has passed; the wait is bounded by
-    /// [`SETTLE_LIMIT`].
+    /// `SETTLE_LIMIT`.
     /// Finish now, in virtual time, what the datagrams handled so far
     /// started (the status broadcasts a query scheduled): the server calls
     /// this while it waits for the next datagram, so the boards' work is

@@ -501,7 +501,7 @@ macro_rules! interpose_open {
 }
 
 interpose_open!(
-    /// `open(2)`: /dev/fw<N> through the twin, anything else passed on.
+    /// `open(2)`: `/dev/fw<N>` through the twin, anything else passed on.
     ///
     /// # Safety
     /// As `open(2)`: `path` a C string.
@@ -515,7 +515,7 @@ interpose_open!(
     open64, next_open64, (), (mode: mode_t => mode as c_int)
 );
 interpose_open!(
-    /// `openat`: an absolute /dev/fw<N> through the twin.
+    /// `openat`: an absolute `/dev/fw<N>` through the twin.
     ///
     /// # Safety
     /// As `openat(2)`.

@@ -1225,7 +1225,7 @@ impl<P: Port> IoSystem<P> {
 
 /// A program that powered boards and ends without powering them down (an
 /// error return, a panic unwinding, a stop request) powers them down here:
-/// [`RobotIo::power_down`], the one rule.
+/// [`RobotIo::power_down`](crate::RobotIo::power_down), the one rule.
 impl<P: Port> Drop for IoSystem<P> {
     fn drop(&mut self) {
         if self.energised != 0 {

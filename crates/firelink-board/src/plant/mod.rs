@@ -8,7 +8,7 @@
 //! the time it is advanced to, exactly at that time, in spans of at most
 //! one step ([`DEFAULT_STEP`], 100 us) that also break wherever an input
 //! changes (DAC code, amplifier enable, external torque take effect at the
-//! plant's clock, even between steps); [`axis`](self::axis) explains the
+//! plant's clock, even between steps); `axis` explains the
 //! integration. The same calls give the same motion bit for bit.
 //! Measurement noise is a pure function of (seed, axis, step index), see
 //! [`noise`].
@@ -134,7 +134,7 @@ impl Plant {
     }
 
     /// One axis, to set its inputs (they take effect at the plant's
-    /// [clock](Self::clock)).
+    /// clock).
     pub fn axis_mut(&mut self, index: usize) -> Option<&mut Axis> {
         self.axes.get_mut(index)
     }
