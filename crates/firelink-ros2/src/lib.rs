@@ -22,10 +22,15 @@
 //! operating state says which is missing.
 //!
 //! The control loop never waits on DDS: frames and commands cross between
-//! the robot thread and this node's thread through the service's lock-free
-//! queues; the node publishes at its own rate (default 1 kHz, decimated
-//! from the control rate) from the newest frame. `ROS_DOMAIN_ID` is
-//! honoured.
+//! the robot thread and this node's thread through the service's lock-free,
+//! allocation-free queues. The node's thread sleeps in one `poll` until a
+//! subscription has a sample (DDS readiness) or the robot loop hands over
+//! a frame to publish (it wakes the poll after such a cycle): a `servo_jp` is queued
+//! for the robot loop as soon as it arrives, and the next cycle's write
+//! block carries it. It publishes `measured_js` and `setpoint_js` from the
+//! frames of the cycles due at `--publish-hz` (default 1 kHz, decimated
+//! from the control rate by cycle number), each stamped with its own
+//! cycle's time. `ROS_DOMAIN_ID` is honoured.
 
 pub mod messages;
 
@@ -33,6 +38,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token, Waker};
 use ros2_client::{
     Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher,
     QosProfile, Subscription,
@@ -41,7 +47,9 @@ use ros2_client::{
 
 use firelink_control::config::IoConfig;
 use firelink_control::lifecycle::State;
-use firelink_testbed::service::{Command, Frame, MAX_ARM_JOINTS, Service, Shared};
+use firelink_testbed::service::{
+    Command, Frame, MAX_ARM_JOINTS, POOL, Service, ServoApplied, ServoTrace, Shared,
+};
 
 use messages::{Header, JointState, OperatingState, StringMsg, StringStamped, Time};
 
@@ -211,7 +219,8 @@ pub fn crtk_state(state: State) -> &'static str {
 /// Options of the node.
 #[derive(Debug, Clone)]
 pub struct NodeSettings {
-    /// Publications per second (decimated from the control rate).
+    /// Publications per second, decimated from the control rate by cycle
+    /// number (at 1 kHz control, 500 Hz publishes every second cycle).
     pub publish_hz: f64,
     /// DDS domain.
     pub domain_id: u16,
@@ -229,19 +238,48 @@ pub struct NodeReport {
     pub seconds: f64,
     /// measured_js messages published per arm and second.
     pub measured_js_hz: f64,
+    /// The publication rate asked for (`--publish-hz`, at most the control
+    /// rate).
+    pub measured_js_asked_hz: f64,
     /// servo_jp messages received.
     pub servo_jp_received: u64,
     /// servo_jp applied by the robot.
     pub servo_jp_applied: u64,
     /// Commands refused (reason published on `/<ARM>/error`).
     pub refused: u64,
-    /// servo_jp stamp to application by the robot loop, us: p50, p99, max.
+    /// servo_jp from its DDS source timestamp (the sender's wall clock) to
+    /// applied, us: p50, p99, max. Applied: the write block of the control
+    /// cycle that carried it has been sent.
     pub servo_latency_us: [f64; 3],
+    /// The first part of that: DDS source timestamp to queued for the
+    /// robot loop by this node (DDS delivery and this node's wake-up), us:
+    /// p50, p99, max.
+    pub servo_transit_us: [f64; 3],
+    /// The second part: queued to applied (the wait for the next control
+    /// cycle, and the cycle up to its write block), us: p50, p99, max.
+    pub servo_wait_us: [f64; 3],
+    /// Applied servo_jp by the cycle that carried them, counted from the
+    /// last cycle done when this node queued them: k + 1, k + 2, later.
+    pub servo_applied_by_cycle: [u64; 3],
+    /// Wake-ups with a subscription ready (servo_jp, move_jp or
+    /// state_command), and wake-ups at the time-out (nothing ready and no
+    /// frame: every subscription is read then too).
+    pub wakes_ready_timeout: [u64; 2],
     /// Control loop compute time per cycle (host CPU), us: median, p99.
     pub control_compute_us: [f64; 2],
     /// Control loop cycle time (I/O on the port's clock + compute), us:
     /// median, p99.
     pub control_cycle_us: [f64; 2],
+    /// Wall time the robot thread works per cycle (commands, the cycle,
+    /// the frame and the wake-up; not its pacing sleep), us: median, p99.
+    /// It includes the time the thread waited for a CPU (this node's
+    /// threads, other processes).
+    pub control_busy_us: [f64; 2],
+    /// The robot thread's own CPU time for the same work, us: median, p99
+    /// (0 where the platform has no thread CPU clock).
+    pub control_busy_cpu_us: [f64; 2],
+    /// Frames the robot loop skipped because this node had none free.
+    pub frames_skipped: u64,
 }
 
 fn percentile(sorted: &[f64], q: f64) -> f64 {
@@ -250,6 +288,112 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
     }
     let i = ((sorted.len() - 1) as f64 * q).round() as usize;
     sorted[i.min(sorted.len() - 1)]
+}
+
+/// p50, p99 and max of `samples` (sorted in place).
+fn p50_p99_max(samples: &mut [f64]) -> [f64; 3] {
+    samples.sort_by(f64::total_cmp);
+    [
+        percentile(samples, 0.5),
+        percentile(samples, 0.99),
+        samples.last().copied().unwrap_or(0.0),
+    ]
+}
+
+/// Median and p99 of `samples` (sorted in place).
+fn median_p99(samples: &mut [f64]) -> [f64; 2] {
+    samples.sort_by(f64::total_cmp);
+    [percentile(samples, 0.5), percentile(samples, 0.99)]
+}
+
+/// The robot loop's costs, per frame, for the report (at most 2^20 frames
+/// of each: about 17 minutes at 1 kHz).
+#[derive(Default)]
+struct LoopCosts {
+    compute: Vec<f64>,
+    cycle: Vec<f64>,
+    busy: Vec<f64>,
+    busy_cpu: Vec<f64>,
+}
+
+impl LoopCosts {
+    const MAX: usize = 1 << 20;
+
+    fn record(&mut self, frame: &Frame) {
+        if self.compute.len() < Self::MAX {
+            self.compute.push(frame.compute_us);
+            self.cycle.push(frame.io_us + frame.compute_us);
+        }
+        if let Some(b) = frame.busy
+            && self.busy.len() < Self::MAX
+        {
+            self.busy.push(b.wall_us);
+            self.busy_cpu.extend(b.cpu_us);
+        }
+    }
+
+    fn into_report(mut self, report: &mut NodeReport) {
+        report.control_compute_us = median_p99(&mut self.compute);
+        report.control_cycle_us = median_p99(&mut self.cycle);
+        report.control_busy_us = median_p99(&mut self.busy);
+        report.control_busy_cpu_us = median_p99(&mut self.busy_cpu);
+    }
+}
+
+/// The servo points the robot applied, as the loop logged them.
+#[derive(Default)]
+struct ServoLatencies {
+    total: Vec<f64>,
+    transit: Vec<f64>,
+    wait: Vec<f64>,
+    by_cycle: [u64; 3],
+}
+
+impl ServoLatencies {
+    fn record(&mut self, a: &ServoApplied) {
+        let us = |from: u64, to: u64| to.saturating_sub(from) as f64 / 1e3;
+        let lag = a.cycle.saturating_sub(a.trace.queued_after_cycle);
+        let slot = usize::try_from(lag.clamp(1, 3) - 1).unwrap_or(2);
+        self.by_cycle[slot] += 1;
+        if self.total.len() >= LoopCosts::MAX {
+            return;
+        }
+        if a.trace.source_ns != 0 {
+            self.total.push(us(a.trace.source_ns, a.applied_ns));
+            self.transit.push(us(a.trace.source_ns, a.trace.queued_ns));
+        }
+        self.wait.push(us(a.trace.queued_ns, a.applied_ns));
+    }
+
+    fn into_report(mut self, report: &mut NodeReport) {
+        report.servo_latency_us = p50_p99_max(&mut self.total);
+        report.servo_transit_us = p50_p99_max(&mut self.transit);
+        report.servo_wait_us = p50_p99_max(&mut self.wait);
+        report.servo_applied_by_cycle = self.by_cycle;
+    }
+}
+
+/// Which frames are published: at `publish_hz` of the control rate, by
+/// cycle number, so the rate holds however late this node reads them.
+#[derive(Debug, Clone, Copy)]
+struct Decimation {
+    /// Publications per control cycle, 0 < ratio <= 1.
+    ratio: f64,
+}
+
+impl Decimation {
+    fn new(publish_hz: f64, rate_hz: f64) -> Decimation {
+        Decimation {
+            ratio: (publish_hz / rate_hz).clamp(1e-9, 1.0),
+        }
+    }
+
+    /// Whether cycle `cycle`'s frame is published: where `cycle * ratio`
+    /// passes a whole number.
+    fn due(self, cycle: u64) -> bool {
+        let n = |c: u64| (c as f64 * self.ratio).floor();
+        cycle > 0 && n(cycle) > n(cycle - 1)
+    }
 }
 
 /// The arms of a configuration: (name, first joint, joint names).
@@ -291,8 +435,7 @@ fn lifecycle(text: &str, state: State) -> Result<Vec<Command>, String> {
 }
 
 /// Why a motion command is refused now, if it is.
-fn motion_refusal(frame: Option<&Frame>, homed: bool) -> Option<String> {
-    let state = frame.map_or(State::Unconfigured, |f| f.state);
+fn motion_refusal(state: State, homed: bool) -> Option<String> {
     if state != State::Active {
         return Some(format!(
             "refused: the arm is {} (not ENABLED)",
@@ -346,10 +489,49 @@ fn servo_velocities(
     v
 }
 
+/// The poll token of the robot loop's frame waker.
+const FRAME: Token = Token(usize::MAX);
+
+/// The subscriptions of an arm, in the order of their poll tokens.
+const SUBSCRIPTIONS: usize = 3;
+
+/// The poll token of subscription `which` (0 servo_jp, 1 move_jp,
+/// 2 state_command) of arm `arm`.
+fn subscription_token(arm: usize, which: usize) -> Token {
+    Token(arm * SUBSCRIPTIONS + which)
+}
+
+/// The wall clock, ns since the Unix epoch (0 before it).
+fn wall_ns() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
+}
+
+/// What the node knows of the newest frame.
+#[derive(Debug, Clone, Copy)]
+struct Newest {
+    /// Port time, s.
+    t: f64,
+    state: State,
+}
+
 /// Run the node on a started service until `stop` (or the duration).
 ///
+/// One thread (the caller's) does all of the node's DDS work and sleeps in
+/// one `poll` until something is there: a sample on a subscription (their
+/// readiness, registered with the poll), or a frame to publish from the
+/// robot loop (the loop wakes the poll after each cycle due for
+/// publication, through [`Shared::frame_waker`]); at the latest every
+/// 100 ms, to see `stop`.
+/// A command taken on a wake-up is queued for the robot loop before
+/// anything is published, so it is applied by the next cycle's write block
+/// (the one after, if the loop was already taking that cycle's commands).
+/// The robot loop never waits for this thread.
+///
 /// # Errors
-/// DDS entities could not be created.
+/// DDS entities or the poll could not be created, or another consumer
+/// already waits for this service's frames.
 pub fn run_node(
     service: &Service,
     config: &IoConfig,
@@ -369,47 +551,128 @@ pub fn run_node(
     for (name, first, joints) in arms_of(config, &shared.joint_labels) {
         arms.push(Arm::new(&mut node, &name, first, joints)?);
     }
-    let period = Duration::from_secs_f64(1.0 / settings.publish_hz.clamp(1.0, 10_000.0));
+    let mut poll = Poll::new().map_err(ros("poll"))?;
+    for (i, arm) in arms.iter_mut().enumerate() {
+        let registry = poll.registry();
+        registry
+            .register(&mut arm.servo, subscription_token(i, 0), Interest::READABLE)
+            .map_err(ros("servo_jp readiness"))?;
+        registry
+            .register(
+                &mut arm.move_jp,
+                subscription_token(i, 1),
+                Interest::READABLE,
+            )
+            .map_err(ros("move_jp readiness"))?;
+        registry
+            .register(
+                &mut arm.state_command,
+                subscription_token(i, 2),
+                Interest::READABLE,
+            )
+            .map_err(ros("state_command readiness"))?;
+    }
+    let waker = Waker::new(poll.registry(), FRAME).map_err(ros("frame waker"))?;
+    let decimation = Decimation::new(settings.publish_hz, shared.rate_hz);
+    shared
+        .frame_waker
+        .set(Box::new(move |cycle| {
+            // Woken for the frames it publishes (commands wake it by their
+            // own readiness). A failed wake leaves the 100 ms time-out.
+            if decimation.due(cycle) {
+                let _ = waker.wake();
+            }
+        }))
+        .map_err(|_| Ros2Error::Ros("another consumer already waits for these frames".into()))?;
+    // The frames of the cycles run while DDS started are not published.
+    while let Some(frame) = shared.full.pop() {
+        let _ = shared.free.push(frame);
+    }
+    let mut events = Events::with_capacity(64);
     let start = Instant::now();
-    let mut next = start;
-    let mut newest: Option<Box<Frame>> = None;
+    let mut newest: Option<Newest> = None;
+    let mut to_publish: Vec<Box<Frame>> = Vec::with_capacity(POOL);
+    let mut ready = vec![false; arms.len() * SUBSCRIPTIONS];
     let mut report = NodeReport::default();
     let mut published = 0u64;
-    let mut latencies: Vec<f64> = Vec::new();
-    let mut compute: Vec<f64> = Vec::new();
-    let mut cycle: Vec<f64> = Vec::new();
+    let mut costs = LoopCosts::default();
+    let mut servo = ServoLatencies::default();
     let mut last_state_publish = start;
-    let mut applied_seen = 0u64;
-    while !stop.load(Ordering::Relaxed) && settings.duration.is_none_or(|d| start.elapsed() < d) {
-        // Frames: keep the newest, give the rest back.
-        let mut fresh = false;
-        while let Some(frame) = shared.full.pop() {
-            if compute.len() < 1 << 20 {
-                compute.push(frame.compute_us);
-                cycle.push(frame.io_us + frame.compute_us);
-            }
-            if let Some(old) = newest.replace(frame) {
-                let _ = shared.free.push(old);
-            }
-            fresh = true;
+    while !stop.load(Ordering::Relaxed) {
+        let left = settings
+            .duration
+            .map_or(Duration::MAX, |d| d.saturating_sub(start.elapsed()));
+        if left.is_zero() {
+            break;
         }
+        match poll.poll(&mut events, Some(left.min(Duration::from_millis(100)))) {
+            Ok(()) => {}
+            // A signal: the loop's condition sees the stop flag.
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(ros("poll")(e)),
+        }
+        // Which subscriptions are ready (edge-triggered: each is read until
+        // empty); at the time-out, all of them.
+        ready.fill(events.is_empty());
+        let mut any_ready = false;
+        for event in &events {
+            if let Some(r) = ready.get_mut(event.token().0) {
+                *r = true;
+                any_ready = true;
+            }
+        }
+        report.wakes_ready_timeout[0] += u64::from(any_ready);
+        report.wakes_ready_timeout[1] += u64::from(events.is_empty());
+        // Frames: the due ones kept for publication, the rest given back.
+        while let Some(frame) = shared.full.pop() {
+            costs.record(&frame);
+            newest = Some(Newest {
+                t: frame.t,
+                state: frame.state,
+            });
+            if decimation.due(frame.cycle) && to_publish.len() < to_publish.capacity() {
+                to_publish.push(frame);
+            } else {
+                let _ = shared.free.push(frame);
+            }
+        }
+        let state = newest.map_or(State::Unconfigured, |n| n.state);
         let homed = shared.homed.load(Ordering::Relaxed);
-        let now = match (settings.sim_time, newest.as_deref()) {
-            (true, Some(f)) => Time::from_secs_f64(f.t),
+        // Commands first: they are what waits.
+        for (i, arm) in arms.iter_mut().enumerate() {
+            let ready_of = |which| ready.get(i * SUBSCRIPTIONS + which).copied() == Some(true);
+            if ready_of(2) {
+                take_state_commands(arm, shared, state, &mut report);
+            }
+            if ready_of(0) {
+                take_motion(arm, true, shared, state, homed, &mut report);
+            }
+            if ready_of(1) {
+                take_motion(arm, false, shared, state, homed, &mut report);
+            }
+        }
+        // Publications, each from its own cycle's frame.
+        for frame in to_publish.drain(..) {
+            let stamp = if settings.sim_time {
+                Time::from_secs_f64(frame.t)
+            } else {
+                Time::now()
+            };
+            for arm in &arms {
+                let _ = arm.measured.publish(arm.joint_state(&frame, false, stamp));
+                let _ = arm.setpoint.publish(arm.joint_state(&frame, true, stamp));
+            }
+            published += 1;
+            let _ = shared.free.push(frame);
+        }
+        // Operating state: at 10 Hz and whenever it changes.
+        let now = match (settings.sim_time, newest) {
+            (true, Some(n)) => Time::from_secs_f64(n.t),
             (true, None) => Time::default(),
             (false, _) => Time::now(),
         };
-        if let (true, Some(frame)) = (fresh, newest.as_deref()) {
-            for arm in &arms {
-                let _ = arm.measured.publish(arm.joint_state(frame, false, now));
-                let _ = arm.setpoint.publish(arm.joint_state(frame, true, now));
-            }
-            published += 1;
-        }
-        // Operating state: at 10 Hz and whenever it changes.
-        let state = newest.as_ref().map_or(State::Unconfigured, |f| f.state);
         let ends = f64::from_bits(shared.move_ends.load(Ordering::Relaxed));
-        let busy = newest.as_ref().is_some_and(|f| f.t < ends) || !shared.commands.is_empty();
+        let busy = newest.is_some_and(|n| n.t < ends) || !shared.commands.is_empty();
         let periodic = last_state_publish.elapsed() >= Duration::from_millis(100);
         for arm in &mut arms {
             let current = (crtk_state(state).to_string(), homed, busy);
@@ -429,134 +692,132 @@ pub fn run_node(
         if periodic {
             last_state_publish = Instant::now();
         }
-        // Commands.
-        for arm in &mut arms {
-            while let Ok(Some((msg, _))) = arm.state_command.take() {
-                match lifecycle(&msg.string, state) {
-                    Ok(commands) => {
-                        for c in commands {
-                            if shared.commands.push(c).is_err() {
-                                arm.report("refused: command queue full".into());
-                            }
-                        }
-                    }
-                    Err(e) => {
-                        report.refused += 1;
-                        arm.report(e);
-                    }
-                }
-            }
-            for (servo, sub) in [(true, &arm.servo), (false, &arm.move_jp)] {
-                while let Ok(Some((msg, info))) = sub.take() {
-                    if servo {
-                        report.servo_jp_received += 1;
-                    }
-                    let checked = match motion_refusal(newest.as_deref(), homed) {
-                        Some(why) => Err(why),
-                        None => positions(arm, &msg),
-                    };
-                    let positions = match checked {
-                        Ok(p) => p,
-                        Err(why) => {
-                            report.refused += 1;
-                            arm.report(why);
-                            continue;
-                        }
-                    };
-                    let (first, count) = (arm.first as u16, arm.count as u8);
-                    // Latency from the DDS source timestamp (the sender's
-                    // wall clock), whatever clock the header uses.
-                    let stamp_ns = info
-                        .source_timestamp()
-                        .map_or(0, |t| u64::try_from(t.to_nanos()).unwrap_or(0));
-                    let command = if servo {
-                        let t = msg.header.stamp.as_secs_f64();
-                        let velocities = servo_velocities(arm, &msg, t, &positions);
-                        arm.last_servo = Some((t, positions));
-                        Command::ServoJoints {
-                            first,
-                            count,
-                            positions,
-                            velocities,
-                            stamp_ns,
-                        }
-                    } else {
-                        Command::MoveJoints {
-                            first,
-                            count,
-                            positions,
-                        }
-                    };
-                    if shared.commands.push(command).is_err() {
-                        report.refused += 1;
-                        arm.report("refused: command queue full".into());
-                    }
-                }
-            }
-        }
-        // Servo commands the robot applied, and when.
-        let applied = shared.servo_applied.load(Ordering::Relaxed);
-        if applied != applied_seen {
-            applied_seen = applied;
-            let lat = shared.servo_latency_ns.load(Ordering::Relaxed) as f64 / 1e3;
-            if latencies.len() < 1 << 20 {
-                latencies.push(lat);
-            }
-        }
-        next += period;
-        let now_i = Instant::now();
-        if next > now_i {
-            std::thread::sleep(next - now_i);
-        } else {
-            next = now_i;
+        // Servo points the robot applied, and when.
+        while let Some(applied) = shared.servo_log.pop() {
+            servo.record(&applied);
         }
     }
-    if let Some(f) = newest {
-        let _ = shared.free.push(f);
-    }
-    let seconds = start.elapsed().as_secs_f64();
-    latencies.sort_by(f64::total_cmp);
-    compute.sort_by(f64::total_cmp);
-    cycle.sort_by(f64::total_cmp);
-    report.control_cycle_us = [percentile(&cycle, 0.5), percentile(&cycle, 0.99)];
-    report.seconds = seconds;
-    report.measured_js_hz = published as f64 / seconds.max(1e-9);
+    report.seconds = start.elapsed().as_secs_f64();
+    report.measured_js_hz = published as f64 / report.seconds.max(1e-9);
+    report.measured_js_asked_hz = settings.publish_hz.min(shared.rate_hz);
     report.servo_jp_applied = shared.servo_applied.load(Ordering::Relaxed);
-    report.servo_latency_us = [
-        percentile(&latencies, 0.5),
-        percentile(&latencies, 0.99),
-        latencies.last().copied().unwrap_or(0.0),
-    ];
-    report.control_compute_us = [percentile(&compute, 0.5), percentile(&compute, 0.99)];
+    report.frames_skipped = shared.skipped.load(Ordering::Relaxed);
+    costs.into_report(&mut report);
+    servo.into_report(&mut report);
     drop(arms);
     drop(node);
     drop(context);
     Ok(report)
 }
 
+/// Take every `state_command` waiting on `arm` and queue what it means.
+fn take_state_commands(arm: &Arm, shared: &Shared, state: State, report: &mut NodeReport) {
+    while let Ok(Some((msg, _))) = arm.state_command.take() {
+        match lifecycle(&msg.string, state) {
+            Ok(commands) => {
+                for c in commands {
+                    if shared.commands.push(c).is_err() {
+                        arm.report("refused: command queue full".into());
+                    }
+                }
+            }
+            Err(e) => {
+                report.refused += 1;
+                arm.report(e);
+            }
+        }
+    }
+}
+
+/// Take every `servo_jp` (`servo`) or `move_jp` waiting on `arm`, check it
+/// and queue it for the robot loop with its trace.
+fn take_motion(
+    arm: &mut Arm,
+    servo: bool,
+    shared: &Shared,
+    state: State,
+    homed: bool,
+    report: &mut NodeReport,
+) {
+    loop {
+        let taken = if servo {
+            arm.servo.take()
+        } else {
+            arm.move_jp.take()
+        };
+        let Ok(Some((msg, info))) = taken else {
+            break;
+        };
+        if servo {
+            report.servo_jp_received += 1;
+        }
+        let checked = match motion_refusal(state, homed) {
+            Some(why) => Err(why),
+            None => positions(arm, &msg),
+        };
+        let positions = match checked {
+            Ok(p) => p,
+            Err(why) => {
+                report.refused += 1;
+                arm.report(why);
+                continue;
+            }
+        };
+        let (first, count) = (arm.first as u16, arm.count as u8);
+        let command = if servo {
+            let t = msg.header.stamp.as_secs_f64();
+            let velocities = servo_velocities(arm, &msg, t, &positions);
+            arm.last_servo = Some((t, positions));
+            // Latency from the DDS source timestamp (the sender's wall
+            // clock), whatever clock the header uses.
+            let trace = ServoTrace {
+                source_ns: info
+                    .source_timestamp()
+                    .map_or(0, |t| u64::try_from(t.to_nanos()).unwrap_or(0)),
+                queued_ns: wall_ns(),
+                queued_after_cycle: shared.cycles_done.load(Ordering::SeqCst),
+            };
+            Command::ServoJoints {
+                first,
+                count,
+                positions,
+                velocities,
+                trace,
+            }
+        } else {
+            Command::MoveJoints {
+                first,
+                count,
+                positions,
+            }
+        };
+        if shared.commands.push(command).is_err() {
+            report.refused += 1;
+            arm.report("refused: command queue full".into());
+        }
+    }
+}
+
 /// Run the robot service alone (no DDS) for `duration`, draining its frames
-/// as the node would: the control loop's compute time without ROS 2;
-/// a stop request (`stop`, set by the signals) ends it early.
+/// as the node would: the control loop's costs without ROS 2; a stop
+/// request (`stop`, set by the signals) ends it early.
 pub fn run_without_dds(service: &Service, duration: Duration, stop: &AtomicBool) -> NodeReport {
     let start = Instant::now();
-    let mut compute = Vec::new();
-    let mut cycle = Vec::new();
+    let mut costs = LoopCosts::default();
     while start.elapsed() < duration && !stop.load(Ordering::Relaxed) {
         while let Some(frame) = service.shared.full.pop() {
-            compute.push(frame.compute_us);
-            cycle.push(frame.io_us + frame.compute_us);
+            costs.record(&frame);
             let _ = service.shared.free.push(frame);
         }
         std::thread::sleep(Duration::from_millis(1));
     }
-    compute.sort_by(f64::total_cmp);
-    cycle.sort_by(f64::total_cmp);
-    NodeReport {
+    let mut report = NodeReport {
         seconds: start.elapsed().as_secs_f64(),
-        control_compute_us: [percentile(&compute, 0.5), percentile(&compute, 0.99)],
-        control_cycle_us: [percentile(&cycle, 0.5), percentile(&cycle, 0.99)],
+        frames_skipped: service.shared.skipped.load(Ordering::Relaxed),
         ..NodeReport::default()
-    }
+    };
+    costs.into_report(&mut report);
+    report
 }
 
 #[cfg(test)]
@@ -588,7 +849,11 @@ mod tests {
 
     #[test]
     fn motion_is_refused_with_the_reason() {
-        assert!(motion_refusal(None, true).unwrap().contains("DISABLED"));
+        assert!(
+            motion_refusal(State::Unconfigured, true)
+                .unwrap()
+                .contains("DISABLED")
+        );
         assert_eq!(crtk_state(State::Active), "ENABLED");
         assert_eq!(crtk_state(State::Fault), "FAULT");
     }
@@ -603,6 +868,48 @@ mod tests {
         assert_eq!(arms[2].1, 14);
         assert_eq!(arms[2].2.len(), 7);
         assert_eq!(arms[3].2[0], "j21");
+    }
+
+    /// Publications are due by cycle number: a second of cycles gives the
+    /// asked rate exactly, whatever the ratio, and never more than one per
+    /// cycle.
+    #[test]
+    fn publications_are_decimated_by_cycle() {
+        let count = |publish_hz, rate_hz| {
+            let d = Decimation::new(publish_hz, rate_hz);
+            (1..=1000u64).filter(|&c| d.due(c)).count()
+        };
+        assert_eq!(count(500.0, 1000.0), 500);
+        assert_eq!(count(300.0, 1000.0), 300);
+        assert_eq!(count(1000.0, 1000.0), 1000);
+        assert_eq!(count(5000.0, 1000.0), 1000);
+        assert!(!Decimation::new(500.0, 1000.0).due(0));
+    }
+
+    /// Each applied point lands in the bucket of the cycle that carried it,
+    /// counted from the last cycle done when it was queued; the latency is
+    /// split at the queueing.
+    #[test]
+    fn applied_points_are_counted_by_cycle_and_split_at_the_queue() {
+        let mut servo = ServoLatencies::default();
+        let applied = |queued_after_cycle, cycle| ServoApplied {
+            trace: ServoTrace {
+                source_ns: 1_000_000,
+                queued_ns: 1_200_000,
+                queued_after_cycle,
+            },
+            cycle,
+            applied_ns: 1_900_000,
+        };
+        for (k, c) in [(10, 11), (10, 12), (10, 12), (10, 40)] {
+            servo.record(&applied(k, c));
+        }
+        let mut report = NodeReport::default();
+        servo.into_report(&mut report);
+        assert_eq!(report.servo_applied_by_cycle, [1, 2, 1]);
+        assert_eq!(report.servo_latency_us, [900.0, 900.0, 900.0]);
+        assert_eq!(report.servo_transit_us, [200.0, 200.0, 200.0]);
+        assert_eq!(report.servo_wait_us, [700.0, 700.0, 700.0]);
     }
 
     #[test]

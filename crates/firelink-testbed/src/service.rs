@@ -118,6 +118,12 @@ pub struct Frame {
     pub io_us: f64,
     /// Compute time of this cycle (the host's CPU), us.
     pub compute_us: f64,
+    /// What the robot thread's work on the cycle before this one cost: the
+    /// commands it took, the cycle itself (with the simulated boards on
+    /// the simulated bus), its frame handed over and the consumer woken;
+    /// not the pacing sleep. `None` for cycles run inside a command
+    /// (homing, power-on, settling), which are not paced the same way.
+    pub busy: Option<LoopCost>,
     /// I/O errors so far.
     pub errors: u64,
     /// Per joint, in configuration order.
@@ -137,6 +143,7 @@ impl Frame {
             fault: None,
             io_us: 0.0,
             compute_us: 0.0,
+            busy: None,
             errors: 0,
             joints: vec![JointSample::default(); joints],
             axes: vec![AxisSample::default(); axes],
@@ -145,8 +152,9 @@ impl Frame {
     }
 
     /// Fill from the robot after a cycle; no allocation.
-    fn fill<P: firelink_host::Port>(&mut self, robot: &Robot<IoSystem<P>>) {
+    fn fill<P: firelink_host::Port>(&mut self, robot: &Robot<IoSystem<P>>, busy: Option<LoopCost>) {
         self.t = robot.now();
+        self.busy = busy;
         self.cycle = robot.cycles();
         self.state = robot.state();
         self.fault = robot.fault().copied();
@@ -194,6 +202,16 @@ impl Frame {
     }
 }
 
+/// What one turn of the robot loop cost ([`Frame::busy`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoopCost {
+    /// Wall time, us (with the time the thread waited for a CPU).
+    pub wall_us: f64,
+    /// The robot thread's own CPU time, us (user and system), when the
+    /// platform has a thread CPU clock.
+    pub cpu_us: Option<f64>,
+}
+
 /// What the browser can ask of the robot.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Command {
@@ -239,9 +257,9 @@ pub enum Command {
         /// Velocities fed forward until the next point (at most
         /// [`SERVO_HORIZON`]), rad/s or m/s.
         velocities: [f64; MAX_ARM_JOINTS],
-        /// When the sender stamped it, ns since the Unix epoch (0: not
-        /// stamped); the loop records stamp-to-applied latency.
-        stamp_ns: u64,
+        /// Where the point came from and when; the loop reports it back in
+        /// [`Shared::servo_log`] once the write block carrying it is sent.
+        trace: ServoTrace,
     },
     /// Move joints `first .. first + count` to these positions with the
     /// configuration's velocity and acceleration limits (CRTK `move_jp`);
@@ -255,6 +273,45 @@ pub enum Command {
         positions: [f64; MAX_ARM_JOINTS],
     },
 }
+
+/// Where a servo point came from and when, as the consumer that queued it
+/// saw it; `Default` (all 0) for a point nobody traces.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ServoTrace {
+    /// When the sender stamped it (the DDS source timestamp), ns since the
+    /// Unix epoch; 0: not stamped.
+    pub source_ns: u64,
+    /// When the consumer took it and queued it, ns since the Unix epoch;
+    /// 0: not recorded.
+    pub queued_ns: u64,
+    /// [`Shared::cycles_done`] when it was queued: the last cycle whose
+    /// write block had been sent.
+    pub queued_after_cycle: u64,
+}
+
+/// A servo point the loop applied: its trace, and the cycle whose write
+/// block carried it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ServoApplied {
+    /// As queued.
+    pub trace: ServoTrace,
+    /// The cycle (the robot's cycle counter) whose write block carried the
+    /// point: the first run after the loop took it from the queue. That is
+    /// `trace.queued_after_cycle + 1`, or `+ 2` when the point was queued
+    /// while the loop was already taking that cycle's commands; later only
+    /// when it waited behind a command that runs cycles of its own
+    /// (power-on, homing, a relay or amplifier change).
+    pub cycle: u64,
+    /// When the write block of the loop's next cycle had been sent, ns
+    /// since the Unix epoch (the wall clock, read once after that cycle,
+    /// only when a traced point was applied in it): the point's own cycle
+    /// unless a command queued behind it ran cycles.
+    pub applied_ns: u64,
+}
+
+/// Applied servo points kept for the consumer ([`Shared::servo_log`]):
+/// more than a second of a 200 Hz stream it does not read.
+pub const SERVO_LOG: usize = 256;
 
 /// The most joints one servo or move command carries (one arm).
 pub const MAX_ARM_JOINTS: usize = 16;
@@ -424,9 +481,29 @@ pub struct Shared {
     pub move_ends: AtomicU64,
     /// Servo commands applied so far.
     pub servo_applied: AtomicU64,
-    /// The last applied servo command's stamp-to-applied latency, ns.
-    pub servo_latency_ns: AtomicU64,
+    /// Every traced servo point applied ([`ServoTrace::source_ns`] or
+    /// `queued_ns` not 0), with the cycle that carried it; when the
+    /// consumer does not read them, the newest are dropped (counted in
+    /// [`servo_log_dropped`](Self::servo_log_dropped)).
+    pub servo_log: ArrayQueue<ServoApplied>,
+    /// Applied servo points not logged because the log was full.
+    pub servo_log_dropped: AtomicU64,
+    /// The last cycle whose write block has been sent (the robot's cycle
+    /// counter; 0 before the first): a consumer reads it when it queues a
+    /// command, to count in cycles how long the command waited.
+    pub cycles_done: AtomicU64,
+    /// Called with the cycle's number after every frame is handed over
+    /// (from the robot thread: it must not block, lock or allocate), so a
+    /// consumer can sleep until a frame it wants is there; set at most
+    /// once.
+    pub frame_waker: OnceLock<FrameWaker>,
 }
+
+/// What the loop calls after handing over the frame of a cycle
+/// ([`Shared::frame_waker`]), with the cycle's number: e.g. a
+/// `mio::Waker`'s `wake` (one `eventfd` write) for the cycles the consumer
+/// publishes.
+pub type FrameWaker = Box<dyn Fn(u64) + Send + Sync>;
 
 impl Shared {
     /// A fresh id for a [`Request`] (never 0).
@@ -519,7 +596,10 @@ pub fn prepare<P: Injector>(
         homed: AtomicBool::new(false),
         move_ends: AtomicU64::new(0f64.to_bits()),
         servo_applied: AtomicU64::new(0),
-        servo_latency_ns: AtomicU64::new(0),
+        servo_log: ArrayQueue::new(SERVO_LOG),
+        servo_log_dropped: AtomicU64::new(0),
+        cycles_done: AtomicU64::new(0),
+        frame_waker: OnceLock::new(),
     };
     for _ in 0..POOL {
         let _ = shared.free.push(Box::new(Frame::sized(
@@ -531,10 +611,17 @@ pub fn prepare<P: Injector>(
     Ok((robot, Arc::new(shared)))
 }
 
-fn publish<P: firelink_host::Port>(shared: &Shared, robot: &Robot<IoSystem<P>>) {
+/// After a cycle: say it is done ([`Shared::cycles_done`]), hand its frame
+/// over and wake the consumer. `busy`: see [`Frame::busy`].
+fn publish<P: firelink_host::Port>(
+    shared: &Shared,
+    robot: &Robot<IoSystem<P>>,
+    busy: Option<LoopCost>,
+) {
+    shared.cycles_done.store(robot.cycles(), Ordering::SeqCst);
     match shared.free.pop() {
         Some(mut frame) => {
-            frame.fill(robot);
+            frame.fill(robot, busy);
             if let Err(frame) = shared.full.push(frame) {
                 let _ = shared.free.push(frame);
                 shared.skipped.fetch_add(1, Ordering::Relaxed);
@@ -543,6 +630,9 @@ fn publish<P: firelink_host::Port>(shared: &Shared, robot: &Robot<IoSystem<P>>) 
         None => {
             shared.skipped.fetch_add(1, Ordering::Relaxed);
         }
+    }
+    if let Some(wake) = shared.frame_waker.get() {
+        wake(robot.cycles());
     }
 }
 
@@ -619,7 +709,7 @@ fn settle<P: Injector>(
     let cycles = (options.rate_hz * SETTLE_SECONDS).ceil().max(10.0) as u64;
     for _ in 0..cycles {
         let _ = robot.step(options.pacing);
-        publish(shared, robot);
+        publish(shared, robot, None);
         if done(robot) {
             return true;
         }
@@ -668,7 +758,7 @@ fn execute<P: Injector>(
                 )));
             }
             robot
-                .power_on_observed(&mut |r| publish(shared, r))
+                .power_on_observed(&mut |r| publish(shared, r, None))
                 .map_err(runner)?;
             Ok(format!(
                 "motor power, relay and the joints' amplifiers on at boards {}",
@@ -753,7 +843,7 @@ fn execute<P: Injector>(
                 return Err(r);
             }
             robot
-                .enable_amplifiers_observed(&mut |r| publish(shared, r))
+                .enable_amplifiers_observed(&mut |r| publish(shared, r, None))
                 .map_err(|e| match runner(e) {
                     Refusal(Verdict::Refused, why) => refused(format!(
                         "amplifiers on needs motor power (power on first): {why}"
@@ -796,7 +886,7 @@ fn execute<P: Injector>(
             count,
             positions,
             velocities,
-            stamp_ns,
+            trace: _,
         } => {
             ready_for_motion(robot, shared)?;
             for (n, (k, &p)) in joints(robot, first, count, &positions)?.enumerate() {
@@ -809,15 +899,8 @@ fn execute<P: Injector>(
                     ServoPoint::new(p, v, SERVO_HORIZON).map_err(|e| refused(e.to_string()))?;
                 robot.set_motion(k, Motion::Servo(point)).map_err(runner)?;
             }
-            // Applied: the next write block carries it.
-            if stamp_ns > 0 {
-                let now = std::time::SystemTime::now()
-                    .duration_since(std::time::UNIX_EPOCH)
-                    .map_or(0, |d| d.as_nanos() as u64);
-                shared
-                    .servo_latency_ns
-                    .store(now.saturating_sub(stamp_ns), Ordering::Relaxed);
-            }
+            // Applied: the next write block carries it (the loop logs
+            // its trace once that block is sent).
             shared.servo_applied.fetch_add(1, Ordering::Relaxed);
             // (An empty String does not allocate.)
             Ok(String::new())
@@ -924,7 +1007,7 @@ pub fn run<P: Injector>(
     // system's drop runs the rule once more, and `Service::stop` reports
     // the panic.)
     let power_down = robot.shutdown().ok();
-    publish(&shared, &robot);
+    publish(&shared, &robot, None);
     let exit = LoopExit {
         power_down,
         panic,
@@ -960,10 +1043,20 @@ fn cycle_until_stopped<P: Injector>(
     let period = Duration::from_secs_f64(1.0 / options.rate_hz);
     let wall_start = Instant::now();
     let port_start = robot.now();
+    // The traces of the servo points taken for this cycle, with the cycle
+    // that carries each (the next one run: this loop's, or the first of a
+    // command queued behind it that runs cycles of its own), logged once
+    // this loop's cycle is done (sized here, once: the cycle does not
+    // allocate).
+    let mut traced: Vec<(ServoTrace, u64)> = Vec::with_capacity(shared.commands.capacity());
+    let mut busy = None;
+    let cpu_clock = crate::cpu::ThreadCpuClock::current();
     // (The stop request is the process's unless the robot was given
     // another: a signal stops the loop at once, whatever its consumer
     // does.)
     while !shared.stop.load(Ordering::Relaxed) && !robot.stop_request().is_requested() {
+        let work_start = Instant::now();
+        let cpu_start = cpu_clock.and_then(|c| c.now());
         // Every command waiting is taken before the cycle (at most what the
         // queue holds, so a cycle's work stays bounded): a servo stream
         // faster than this loop (a slow machine, a debug build) then never
@@ -975,8 +1068,15 @@ fn cycle_until_stopped<P: Injector>(
             let r = execute(robot, shared, command, options);
             // Servo commands stream at the publisher's rate: only their
             // refusals are reported (the success path allocates nothing).
-            if r.is_err() || !matches!(command, Command::ServoJoints { .. }) {
-                outcome(shared, 0, command, r);
+            match (command, &r) {
+                (Command::ServoJoints { trace, .. }, Ok(_)) => {
+                    if (trace.source_ns != 0 || trace.queued_ns != 0)
+                        && traced.len() < traced.capacity()
+                    {
+                        traced.push((trace, robot.cycles() + 1));
+                    }
+                }
+                _ => outcome(shared, 0, command, r),
             }
         }
         for _ in 0..shared.requests.capacity() {
@@ -989,7 +1089,15 @@ fn cycle_until_stopped<P: Injector>(
         // A fault is latched in the robot and shown in the frames; the
         // loop keeps cycling (outputs safe) until it is cleared.
         let _ = robot.step(options.pacing);
-        publish(shared, robot);
+        log_applied(shared, &mut traced);
+        publish(shared, robot, busy);
+        let cpu_end = cpu_clock.and_then(|c| c.now());
+        busy = Some(LoopCost {
+            wall_us: work_start.elapsed().as_secs_f64() * 1e6,
+            cpu_us: cpu_start
+                .zip(cpu_end)
+                .map(|(a, b)| b.saturating_sub(a).as_secs_f64() * 1e6),
+        });
         if options.pacing == Pacing::Virtual {
             // Keep virtual time in step with the wall clock so the browser
             // sees the robot move at its real speed.
@@ -999,6 +1107,31 @@ fn cycle_until_stopped<P: Injector>(
             }
         }
     }
+}
+
+/// The servo points of `traced` have been carried by the write blocks of
+/// their cycles, the last of them just sent: log them for the consumer
+/// (the wall clock is read once, and only when there is one), and empty
+/// `traced`.
+fn log_applied(shared: &Shared, traced: &mut Vec<(ServoTrace, u64)>) {
+    if traced.is_empty() {
+        return;
+    }
+    // The sender's stamps are on the wall clock; so is "applied".
+    let applied_ns = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX));
+    for &(trace, cycle) in traced.iter() {
+        let entry = ServoApplied {
+            trace,
+            cycle,
+            applied_ns,
+        };
+        if shared.servo_log.push(entry).is_err() {
+            shared.servo_log_dropped.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+    traced.clear();
 }
 
 /// A robot service running in its own thread.

@@ -19,7 +19,8 @@ use firelink_testbed::TestbedError;
 use firelink_testbed::demo::{DemoFault, Injector, PortSpec};
 use firelink_testbed::rig;
 use firelink_testbed::service::{
-    Command, CommandOutcome, Frame, LoopOptions, MAX_ARM_JOINTS, Service, Shared, Verdict,
+    Command, CommandOutcome, Frame, LoopOptions, MAX_ARM_JOINTS, Service, ServoTrace, Shared,
+    Verdict,
 };
 
 /// Bounded only so that a broken build fails instead of hanging.
@@ -72,12 +73,18 @@ fn refused(o: &CommandOutcome, why: &str) {
 
 /// A servo point for joints `first..first + count`: all at 0, at rest.
 fn servo_at_zero(first: u16, count: u8) -> Command {
+    traced_servo_at(first, count, 0.0, ServoTrace::default())
+}
+
+/// A servo point holding joints `first..first + count` at `position`, with
+/// a trace the loop logs when it applies it.
+fn traced_servo_at(first: u16, count: u8, position: f64, trace: ServoTrace) -> Command {
     Command::ServoJoints {
         first,
         count,
-        positions: [0.0; MAX_ARM_JOINTS],
+        positions: [position; MAX_ARM_JOINTS],
         velocities: [0.0; MAX_ARM_JOINTS],
-        stamp_ns: 0,
+        trace,
     }
 }
 
@@ -130,6 +137,74 @@ fn commands_drive_the_lifecycle_and_motion_waits_for_homing() {
         exit.to_string(),
         "amplifiers and motor power off on boards 0"
     );
+}
+
+/// A servo point queued after cycle k (as [`Shared::cycles_done`] said when
+/// it was queued) is carried by the write block of cycle k + 1, or k + 2
+/// when it was queued while the loop was taking cycle k + 1's commands;
+/// never later, however late the consumer or the loop runs (cycles are
+/// counted, not time). Each applied point is logged once, with its trace.
+#[test]
+fn a_servo_point_queued_after_cycle_k_is_written_by_cycle_k_plus_2() {
+    let service = Service::start(
+        &PortSpec::SIM,
+        presets::bench_1board(),
+        1000.0,
+        firelink_host::WatchdogSetting::default(),
+    )
+    .unwrap();
+    let shared = &service.shared;
+    for c in [
+        Command::Configure,
+        Command::PowerOn,
+        Command::Home,
+        Command::Activate,
+    ] {
+        ok(&run(shared, c));
+    }
+    // Held where homing left the joint (a jump would be a following error).
+    let here = next_frame(shared).joints[0].setpoint;
+    let mut lags = [0u32; 3];
+    for n in 1..=200u64 {
+        let k = shared.cycles_done.load(Ordering::SeqCst);
+        let trace = ServoTrace {
+            source_ns: 0,
+            queued_ns: n,
+            queued_after_cycle: k,
+        };
+        shared
+            .commands
+            .push(traced_servo_at(0, 1, here, trace))
+            .unwrap();
+        let start = Instant::now();
+        let applied = loop {
+            while let Some(f) = shared.full.pop() {
+                let _ = shared.free.push(f);
+            }
+            if let Some(a) = shared.servo_log.pop() {
+                break a;
+            }
+            // (An applied servo point reports no outcome; a refused one does.)
+            if let Some(o) = shared.outcomes.pop() {
+                panic!("servo point {n}: {o}");
+            }
+            assert!(start.elapsed() < HANG, "servo point {n} never applied");
+            std::thread::yield_now();
+        };
+        assert_eq!(applied.trace, trace, "one entry per point, in order");
+        let lag = applied.cycle - k;
+        assert!(
+            (1..=2).contains(&lag),
+            "queued after cycle {k}, written by cycle {}",
+            applied.cycle
+        );
+        lags[lag as usize] += 1;
+        assert!(applied.applied_ns > 0);
+    }
+    assert_eq!(shared.servo_log_dropped.load(Ordering::Relaxed), 0);
+    assert_eq!(shared.servo_applied.load(Ordering::Relaxed), 200);
+    assert_eq!(lags[1] + lags[2], 200, "{lags:?}");
+    assert!(service.stop().is_clean());
 }
 
 /// Every amplifier of every board, as a frame shows them: (on, of).

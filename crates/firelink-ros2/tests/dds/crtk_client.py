@@ -4,7 +4,9 @@ and topic name mangling: it watches `/<ARM>/measured_js` and
 `/<ARM>/operating_state`, checks that motion is refused before homing, sends
 `enable` and `home`, streams `servo_jp` (a sinusoid on the arm's first
 joint) for a few seconds and reports how well the arm tracked it, as one
-JSON object on stdout.
+JSON object on stdout. The stream runs at its own 200 Hz, or with
+`--react` one point per `measured_js` sample, sent as soon as the sample
+arrives (as a controller that closes its loop over ROS 2 does).
 
 Runs inside a network namespace the test made (DDS discovery multicasts).
 """
@@ -16,7 +18,7 @@ import math
 import time
 from dataclasses import dataclass
 
-from cyclonedds.core import Qos, Policy
+from cyclonedds.core import InstanceState, Qos, Policy, ReadCondition, SampleState, ViewState, WaitSet
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.idl import IdlStruct
 from cyclonedds.idl.types import float64, int32, sequence, uint32
@@ -76,6 +78,8 @@ def main() -> None:
     parser.add_argument("--arm", default="PSM1")
     parser.add_argument("--seconds", type=float, default=5.0, help="robot-clock seconds of servo stream")
     parser.add_argument("--timeout", type=float, default=120.0)
+    parser.add_argument("--react", action="store_true",
+                        help="one servo_jp per measured_js sample, as soon as it arrives (else 200 Hz)")
     args = parser.parse_args()
     arm = args.arm
     dp = DomainParticipant()
@@ -87,7 +91,9 @@ def main() -> None:
     errors = DataReader(dp, Topic(dp, f"rt/{arm}/error", String), qos=reliable)
     servo = DataWriter(dp, Topic(dp, f"rt/{arm}/servo_jp", JointState), qos=reliable)
     command = DataWriter(dp, Topic(dp, f"rt/{arm}/state_command", StringStamped), qos=reliable)
-    out = {"arm": arm}
+    fresh_js = WaitSet(dp)
+    fresh_js.attach(ReadCondition(measured, SampleState.NotRead | ViewState.Any | InstanceState.Any))
+    out = {"arm": arm, "react": args.react}
     deadline = time.time() + args.timeout
     latest = {"js": None, "state": None, "sp": None}
     error_texts = []
@@ -172,7 +178,11 @@ def main() -> None:
         if k % 100 == 0:
             out.setdefault("trace", []).append([round(t_robot, 3), round(target_at(t_robot), 4), round(js.position[0], 4)])
         k += 1
-        time.sleep(max(0.0, t0 + k / rate - time.time()))
+        if args.react:
+            # Until the next measured_js sample is there.
+            fresh_js.wait(duration(milliseconds=100))
+        else:
+            time.sleep(max(0.0, t0 + k / rate - time.time()))
     poll()
     recording[0] = False
     out["servo_sent"] = sent

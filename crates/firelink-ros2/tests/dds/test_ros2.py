@@ -48,19 +48,20 @@ class Netns:
         subprocess.run(["ip", "netns", "delete", self.name], check=False)
 
 
-def robot(ns: Netns) -> subprocess.Popen:
+def robot(ns: Netns, binary: str = BIN, publish_hz: int = 500) -> subprocess.Popen:
     env = {**os.environ, "ROS_DOMAIN_ID": "7"}
-    proc = ns.popen(BIN, "--port", "sim", "--rate", "1000", "--publish-hz", "500",
+    proc = ns.popen(binary, "--port", "sim", "--rate", "1000", "--publish-hz", str(publish_hz),
                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     line = proc.stdout.readline()
     assert line.strip() == "firelink ros2: ready", line + proc.stderr.read()
     return proc
 
 
-def client(ns: Netns, arm: str) -> dict:
+def client(ns: Netns, arm: str, react: bool = False) -> dict:
     env = {**os.environ, "ROS_DOMAIN_ID": "7", "CYCLONEDDS_URI":
            "<CycloneDDS><Domain><Id>7</Id></Domain></CycloneDDS>"}
-    out = subprocess.run(["ip", "netns", "exec", ns.name, sys.executable, CLIENT, "--arm", arm, "--seconds", "5"],
+    mode = ["--react"] if react else []
+    out = subprocess.run(["ip", "netns", "exec", ns.name, sys.executable, CLIENT, "--arm", arm, "--seconds", "5", *mode],
                          capture_output=True, text=True, env=env, timeout=300)
     assert out.returncode == 0, out.stdout + out.stderr
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -92,6 +93,18 @@ def check(result: dict, arm_joints: int) -> None:
     assert result["errors_after"] == [], result
 
 
+def check_handoff(report: dict) -> None:
+    """Counted in the robot's cycles, not timed: every servo_jp the node
+    queued after cycle k (as the loop had said when it was queued) was
+    carried by the write block of cycle k + 1 or k + 2, none later, and
+    the node took the points on its subscription's readiness (a node that
+    polled only at its time-out would show no wake-up with one ready)."""
+    by_cycle = report["servo_applied_by_cycle"]
+    assert by_cycle[2] == 0, report
+    assert by_cycle[0] + by_cycle[1] > 50, report
+    assert report["wakes_ready_timeout"][0] > 0, report
+
+
 def test_a_cyclone_client_enables_homes_and_servos_an_arm():
     ns = Netns()
     try:
@@ -108,6 +121,7 @@ def test_a_cyclone_client_enables_homes_and_servos_an_arm():
         assert report["servo_jp_applied"] >= result["servo_sent"] // 2 > 50, (report, result)
         assert report["refused"] >= 1, report
         assert report["measured_js_hz"] > 0, report
+        check_handoff(report)
         Path(os.environ.get("ROS2_REPORT", "target/ros2-report.json")).write_text(json.dumps({"client": result, "node": report}, indent=1))
     finally:
         ns.delete()
@@ -127,10 +141,12 @@ def test_across_machines_robot_and_client_in_two_namespaces():
             ns.multicast_on(dev)
         node = robot(robot_ns)
         try:
-            result = client(client_ns, "MTMR")
+            # This client answers each measured_js sample with a servo_jp.
+            result = client(client_ns, "MTMR", react=True)
         finally:
-            stop(node)
+            report = stop(node)
         check(result, 7)
+        check_handoff(report)
     finally:
         robot_ns.delete()
         client_ns.delete()
