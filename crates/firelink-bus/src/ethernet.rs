@@ -435,14 +435,9 @@ impl EthChain {
         arrivals
     }
 
-    /// The broadcast read as board `hub`'s memory sees it: the query
-    /// reached each board at the times in `query_at`; every board selected
-    /// by `mask` (and given a time) multicasts its `block_bytes`-byte
-    /// status block (raw frames) [`EthTiming::status_ready`] after. Returns
-    /// the boards in the order their blocks land in `hub`'s memory and
-    /// when each lands: its own first, then by arrival, one every
-    /// [`EthTiming::hub_block_interval`] at the soonest. The multicasts
-    /// occupy the links and teach the switches.
+    /// The broadcast read as board `hub`'s memory sees it (see
+    /// [`broadcast_read`](Self::broadcast_read)): the boards in the order
+    /// their blocks land in `hub`'s memory, and when each lands.
     pub fn hub_updates(
         &mut self,
         query_at: &[(u8, SimTime)],
@@ -450,34 +445,91 @@ impl EthChain {
         block_bytes: usize,
         hub: u8,
     ) -> Vec<(u8, SimTime)> {
-        let mut arrivals: Vec<(u8, SimTime)> = Vec::with_capacity(query_at.len());
+        self.broadcast_read(query_at, mask, block_bytes)
+            .landings
+            .into_iter()
+            .find(|l| l.board == hub)
+            .map(|l| l.entries)
+            .unwrap_or_default()
+    }
+
+    /// The broadcast read: the query reached each board at the times in
+    /// `query_at`; every board selected by `mask` (and given a time) takes
+    /// its `block_bytes`-byte status block [`EthTiming::status_ready`]
+    /// after and multicasts it (a raw frame). For every board of
+    /// `query_at`: the blocks in the order they land in its hub memory,
+    /// when each lands: its own first, then by arrival, one every
+    /// [`EthTiming::hub_block_interval`] at the soonest. The multicasts
+    /// occupy the links and teach the switches.
+    pub fn broadcast_read(
+        &mut self,
+        query_at: &[(u8, SimTime)],
+        mask: u16,
+        block_bytes: usize,
+    ) -> BroadcastPlan {
+        let selected = |id: u8| mask & 1u16.checked_shl(u32::from(id)).unwrap_or(0) != 0;
+        let mut ready = Vec::with_capacity(query_at.len());
+        let mut reached = Vec::with_capacity(query_at.len());
         for &(id, at) in query_at {
-            if mask & (1u16.checked_shl(u32::from(id)).unwrap_or(0)) == 0 {
+            if !selected(id) {
                 continue;
             }
-            let ready = at + self.timing.status_ready;
-            let reached = self.from_board(ready, Framing::Raw, block_bytes, id);
-            if id == hub {
-                arrivals.push((id, ready));
-            } else if let Some(&(_, t)) = reached.iter().find(|(to, _)| *to == hub) {
-                arrivals.push((id, t));
-            }
+            let t = at + self.timing.status_ready;
+            ready.push((id, t));
+            reached.push((id, self.from_board(t, Framing::Raw, block_bytes, id)));
         }
-        // The hub's own block first, then by arrival (distance breaks ties
-        // the way the wire does: nearer frames end sooner).
-        arrivals.sort_by_key(|&(id, t)| (id != hub, t));
-        let mut landed = Vec::with_capacity(arrivals.len());
-        let mut previous: Option<SimTime> = None;
-        for (id, t) in arrivals {
-            let at = match previous {
-                Some(p) => t.max(p + self.timing.hub_block_interval),
-                None => t,
-            };
-            landed.push((id, at));
-            previous = Some(at);
-        }
-        landed
+        let landings = query_at
+            .iter()
+            .map(|&(board, _)| {
+                let mut arrivals: Vec<(u8, SimTime)> = ready
+                    .iter()
+                    .zip(&reached)
+                    .filter_map(|(&(sender, t), (_, to))| {
+                        if sender == board {
+                            Some((sender, t))
+                        } else {
+                            to.iter()
+                                .find(|(r, _)| *r == board)
+                                .map(|&(_, at)| (sender, at))
+                        }
+                    })
+                    .collect();
+                // Its own block first, then by arrival.
+                arrivals.sort_by_key(|&(id, t)| (id != board, t));
+                let mut previous: Option<SimTime> = None;
+                for entry in &mut arrivals {
+                    if let Some(p) = previous {
+                        entry.1 = entry.1.max(p + self.timing.hub_block_interval);
+                    }
+                    previous = Some(entry.1);
+                }
+                HubLanding {
+                    board,
+                    entries: arrivals,
+                }
+            })
+            .collect();
+        BroadcastPlan { ready, landings }
     }
+}
+
+/// What one broadcast read does on the chain
+/// ([`EthChain::broadcast_read`]).
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct BroadcastPlan {
+    /// When each selected board takes its status block and multicasts it.
+    pub ready: Vec<(u8, SimTime)>,
+    /// Per board, the blocks landing in its hub memory.
+    pub landings: Vec<HubLanding>,
+}
+
+/// The blocks landing in one board's hub memory, in order.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct HubLanding {
+    /// The board whose hub it is.
+    pub board: u8,
+    /// (sender, when its block lands), in landing order.
+    pub entries: Vec<(u8, SimTime)>,
 }
 
 #[cfg(test)]

@@ -34,6 +34,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 mod arrival;
+pub mod eth_network;
 #[cfg(target_os = "linux")]
 pub mod fw_cdev;
 pub mod latency;
