@@ -15,6 +15,11 @@
 //!   paced to the wall clock, clean stop on a flag.
 //! - [`latency`]: how late the server answers, from each datagram's
 //!   arrival to its reply sent (the counters on the stop line).
+//! - [`eth_network`] and [`eth_serve`]: FPGA V3 boards at firmware Rev 9
+//!   on the Ethernet-only network (no bridge, no 1394 bus): each board its
+//!   own UDP address, the broadcast read answered unasked by the hub, the
+//!   chain's timing from `firelink_bus::ethernet` (`firelink emulate
+//!   --network eth`).
 //! - [`fw_cdev`]: the other front end: the Linux kernel's /dev/fw* side
 //!   (firewire-cdev) over the same simulated bus, served on a unix socket
 //!   to the preloaded twin library (`firelink emulate --fw-cdev`).
@@ -35,6 +40,7 @@ use std::time::{Duration, Instant};
 
 mod arrival;
 pub mod eth_network;
+pub mod eth_serve;
 #[cfg(target_os = "linux")]
 pub mod fw_cdev;
 pub mod latency;
