@@ -350,9 +350,11 @@ impl EthNetwork {
             Destination::Board(id) => self.chain.from_host(now, Framing::Udp, length, Some(id)),
             Destination::Group => self.chain.from_host(now, Framing::Udp, length, None),
         };
-        let takes = |id: u8, chain: &EthChain| {
+        // A broadcast read goes to every board; each decides whether it is
+        // the hub when it arrives (what its switch has learned by then).
+        let takes = |id: u8| {
             if broadcast {
-                is_write || (control.no_forward && chain.is_hub(id))
+                is_write || control.no_forward
             } else {
                 dest.phy() == id
             }
@@ -360,7 +362,7 @@ impl EthNetwork {
         let taken: Vec<(u8, SimTime)> = arrivals
             .iter()
             .copied()
-            .filter(|&(id, _)| takes(id, &self.chain))
+            .filter(|&(id, _)| takes(id))
             .collect();
         if taken.is_empty() {
             self.stats.not_addressed += 1;
@@ -561,9 +563,6 @@ impl EthNetwork {
     /// The host's packet reaches `d.board` at `at`.
     fn deliver(&mut self, at: SimTime, d: Delivery) {
         let board = d.board;
-        let Some(b) = self.board_mut(board) else {
-            return;
-        };
         let mut bytes = d.packet.to_vec();
         let ip_write;
         {
@@ -572,17 +571,24 @@ impl EthNetwork {
             };
             ip_write = packet.tcode() == Tcode::WriteQuadletRequest
                 && packet.offset() & 0xFFFF == IP_ADDRESS_OFFSET;
-            // A broadcast read the hub takes is answered as its own.
+            // A broadcast read is taken by the hub only (EthernetIO.v
+            // `isLocal`), and answered as its own.
             let read = matches!(
                 packet.tcode(),
                 Tcode::ReadQuadletRequest | Tcode::ReadBlockRequest
             );
             if read && packet.destination_id().phy() == NodeId::BROADCAST_PHY {
+                if !self.chain.is_hub(board) {
+                    return;
+                }
                 let mut p = Packet::new_unchecked(&mut bytes[..]);
                 p.set_destination_id(NodeId::local(board));
                 p.fill_header_crc();
             }
         }
+        let Some(b) = self.board_mut(board) else {
+            return;
+        };
         b.advanced = at;
         let reply = b.fw.receive(at, &bytes, &mut b.phy);
         if ip_write {
