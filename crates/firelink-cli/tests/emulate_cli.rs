@@ -459,111 +459,77 @@ fn a_host_name_reaches_the_emulator() {
 /// the chain's first board is the hub.
 #[test]
 fn emulate_network_eth() {
-    use firelink_wire::bridge::{ControlWord, split_board_datagram};
-    use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
-    let quick = ["--listen", "127.0.0.1:0", "--duration-s", "1"];
-    for (args, expected) in [
-        (&["--network", "eth"][..], "add --fpga V3 --firmware 9"),
-        (
-            &["--network", "eth", "--fpga", "V3"][..],
-            "add --fpga V3 --firmware 9",
-        ),
-        (
-            &["--network", "eth", "--firmware", "9"][..],
-            "add --fpga V3 --firmware 9",
-        ),
-        (
-            &[
-                "--network",
-                "eth",
-                "--fpga",
-                "V3",
-                "--firmware",
-                "9",
-                "--drop-rate",
-                "0.1",
-            ][..],
-            "--drop-rate: a fault of the simulated 1394 bus",
-        ),
-        (
-            &[
-                "--network",
-                "eth",
-                "--fpga",
-                "V3",
-                "--firmware",
-                "9",
-                "--bridge-board",
-                "1",
-            ][..],
-            "--bridge-board: the Ethernet-only network has no bridge",
-        ),
-        (
-            &["--multicast"][..],
-            "--multicast: belongs to the Ethernet-only network",
-        ),
-        (
-            &[
-                "--network",
-                "eth",
-                "--fpga",
-                "V3",
-                "--firmware",
-                "9",
-                "--boards",
-                "3",
-                "--chain",
-                "2,0",
-            ][..],
-            "--chain",
-        ),
-    ] {
-        let mut all = vec!["emulate"];
-        all.extend_from_slice(args);
-        all.extend_from_slice(&quick);
-        fails(&all, expected);
-    }
-    let emu = Emulate::start(&[
+    use firelink_wire::bridge::split_board_datagram;
+    let eth = [
+        "emulate",
         "--network",
         "eth",
         "--fpga",
         "V3",
         "--firmware",
         "9",
-        "--boards",
-        "3",
-        "--chain",
-        "2,0,1",
-    ]);
-    assert!(
-        emu.start
-            .iter()
-            .any(|l| l.contains("chain from the host [2, 0, 1] (hub: board 2)"))
-    );
-    // The listening line: "ID=ADDR" per board.
-    let addr_of = |id: u8| -> std::net::SocketAddr {
-        let p = emu.port.strip_prefix("udp:").unwrap();
-        let port: u16 = p.rsplit(':').next().unwrap().parse().unwrap();
-        std::net::SocketAddr::from(([127, 0, 0, 100 + id], port))
-    };
+    ];
+    let quick = ["--listen", "127.0.0.1:0", "--duration-s", "1"];
+    let needs = "add --fpga V3 --firmware 9";
+    for (args, expected) in [
+        (&eth[..3], needs),
+        (&eth[..5], needs),
+        (
+            &["emulate", "--network", "eth", "--firmware", "9"][..],
+            needs,
+        ),
+        (
+            &["emulate", "--multicast"][..],
+            "--multicast: belongs to the Ethernet-only network",
+        ),
+    ] {
+        fails(&[args, &quick[..]].concat(), expected);
+    }
+    for (extra, expected) in [
+        (
+            &["--drop-rate", "0.1"][..],
+            "--drop-rate: a fault of the simulated 1394 bus",
+        ),
+        (
+            &["--bridge-board", "1"][..],
+            "--bridge-board: the Ethernet-only network has no bridge",
+        ),
+        (&["--boards", "3", "--chain", "2,0"][..], "--chain"),
+    ] {
+        fails(&[&eth[..], extra, &quick[..]].concat(), expected);
+    }
+    let emu = Emulate::start(&[&eth[1..], &["--boards", "3", "--chain", "2,0,1"][..]].concat());
+    let hub = "chain from the host [2, 0, 1] (hub: board 2)";
+    assert!(emu.start.iter().any(|l| l.contains(hub)), "{:?}", emu.start);
+    // The listening line starts "ID=ADDR": every board on one port.
+    let port: u16 = emu.port.rsplit(':').next().unwrap().parse().unwrap();
+    let addr_of = |id: u8| std::net::SocketAddr::from(([127, 0, 0, 100 + id], port));
     let host = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
     host.set_read_timeout(Some(std::time::Duration::from_secs(5)))
         .unwrap();
     for id in [0u8, 1, 2] {
-        let repr = PacketRepr::ReadQuadletRequest {
-            header: AsyncHeader::new(NodeId(0xFFC0 | u16::from(id)), NodeId(0xFFD0), id + 1),
-            offset: 0,
-        };
-        let mut d = ControlWord {
-            no_forward: true,
-            generation: 0,
-        }
-        .to_bytes()
-        .to_vec();
-        let mut p = vec![0u8; repr.buffer_len()];
-        repr.emit(&mut p).unwrap();
-        d.extend_from_slice(&p);
-        host.send_to(&d, addr_of(id)).unwrap();
+        // The Rev 9 host's read of STATUS, as `firelink packet` builds it.
+        let destination = format!("{:#x}", 0xFFC0 | u16::from(id));
+        let hex = ok(&[
+            "packet",
+            "encode",
+            "--tcode",
+            "read_request_quadlet",
+            "--destination-id",
+            &destination,
+            "--tl",
+            "1",
+            "--offset",
+            "0",
+            "--bridge",
+            "--no-forward",
+        ]);
+        let hex = hex.trim();
+        let datagram: Vec<u8> = (0..hex.len())
+            .step_by(2)
+            .map(|i| u8::from_str_radix(&hex[i..i + 2], 16).unwrap())
+            .collect();
+        host.send_to(&datagram, addr_of(id)).unwrap();
         let mut buf = [0u8; 256];
         let (n, from) = host.recv_from(&mut buf).unwrap();
         assert_eq!(
@@ -577,9 +543,6 @@ fn emulate_network_eth() {
         assert!(extra.flags.no_forward);
     }
     let rest = emu.terminate();
-    assert!(
-        rest.iter()
-            .any(|l| l.starts_with("stopped: 3 datagrams, 3 replies")),
-        "{rest:?}"
-    );
+    let stopped = "stopped: 3 datagrams, 3 replies";
+    assert!(rest.iter().any(|l| l.starts_with(stopped)), "{rest:?}");
 }

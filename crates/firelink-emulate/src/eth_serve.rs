@@ -235,16 +235,7 @@ pub fn eth_serve(
                         let at = virtual_at(Instant::now());
                         net.handle(at, to, from, buf.get(..n).unwrap_or(&buf));
                     }
-                    Err(e)
-                        if matches!(
-                            e.kind(),
-                            std::io::ErrorKind::WouldBlock
-                                | std::io::ErrorKind::Interrupted
-                                | std::io::ErrorKind::ConnectionRefused
-                        ) =>
-                    {
-                        break;
-                    }
+                    Err(e) if crate::not_the_servers_failure(&e) => break,
                     Err(e) => return Err(e),
                 }
             }
@@ -266,13 +257,7 @@ pub fn eth_serve(
             match socket.send_to(&out.bytes, out.to) {
                 Ok(_) => {}
                 // A host that went away is not the server's failure.
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::ConnectionRefused
-                            | std::io::ErrorKind::WouldBlock
-                            | std::io::ErrorKind::Interrupted
-                    ) => {}
+                Err(e) if crate::not_the_servers_failure(&e) => {}
                 Err(e) => return Err(e),
             }
         }

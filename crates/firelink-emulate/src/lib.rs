@@ -537,6 +537,17 @@ impl Bridge {
     }
 }
 
+/// A socket error that is not the server's failure: the host went away
+/// (an ICMP refusal reported on the socket), or nothing to do right now.
+pub(crate) fn not_the_servers_failure(e: &std::io::Error) -> bool {
+    matches!(
+        e.kind(),
+        std::io::ErrorKind::ConnectionRefused
+            | std::io::ErrorKind::WouldBlock
+            | std::io::ErrorKind::Interrupted
+    )
+}
+
 /// Largest datagram the server reads whole (anything longer is cut, and
 /// then does not decode): more than any request the bridge takes.
 const MAX_DATAGRAM: usize = 8192;
@@ -664,13 +675,7 @@ pub fn serve(
                 // waited in the socket's queue is the server's lateness too.
                 Ok(_) => bridge.record_answer(Instant::now().saturating_duration_since(r.at)),
                 // A host that went away is not the server's failure.
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::ConnectionRefused
-                            | std::io::ErrorKind::WouldBlock
-                            | std::io::ErrorKind::Interrupted
-                    ) => {}
+                Err(e) if not_the_servers_failure(&e) => {}
                 Err(e) => return Err(e),
             }
         }

@@ -3,6 +3,7 @@
 //! the fallback hub read, the command block) as raw datagrams into
 //! [`EthNetwork`] in virtual time, every reply checked byte by byte.
 
+mod common;
 mod eth_common;
 
 use std::net::{Ipv4Addr, SocketAddr};

@@ -8,6 +8,7 @@
 //! network namespace the test makes itself (`unshare -n`, root); without
 //! root or `unshare` that test says so and skips.
 
+mod common;
 mod eth_common;
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, UdpSocket};

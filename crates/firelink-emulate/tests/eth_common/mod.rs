@@ -4,14 +4,17 @@
 //! transaction labels counting up; replies decoded with their extra data;
 //! the unsolicited hub block placed by the board ID in each entry's
 //! STATUS, as `BasePort` does when the blocks are not in board order.
+//! Replies are decoded by the bridge tests' `common::decode` (the same
+//! framing).
 #![allow(dead_code)]
 
 use firelink_board::config::{BoardConfig, FpgaVersion, Hardware, Profile};
 use firelink_wire::board::broadcast::emit_command_block;
 use firelink_wire::board::realtime::WriteBlockRepr;
 use firelink_wire::board::registers::DacWord;
-use firelink_wire::bridge::{ControlWord, ExtraData, split_board_datagram};
-use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr, Rcode, Tcode};
+use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
+
+pub use crate::common::{Answer, decode, request_datagram};
 
 /// The host's source ID.
 pub const HOST: NodeId = NodeId(0xFFD0);
@@ -40,40 +43,6 @@ pub fn v3_rev9(ids: &[u8]) -> Vec<BoardConfig> {
         .collect()
 }
 
-/// A reply, decoded.
-#[derive(Debug, Clone)]
-pub struct Answer {
-    pub source: NodeId,
-    pub destination: NodeId,
-    pub tcode: Tcode,
-    pub rcode: Rcode,
-    pub tl: u8,
-    pub quadlets: Vec<u32>,
-    pub extra: ExtraData,
-}
-
-/// Decode a reply datagram (response packet and extra data).
-pub fn decode(bytes: &[u8]) -> Answer {
-    let (p, extra) = split_board_datagram(bytes).expect("a reply with its extra data");
-    let quadlets = if p.tcode() == Tcode::ReadQuadletResponse {
-        vec![p.quadlet_data()]
-    } else {
-        p.payload()
-            .chunks_exact(4)
-            .map(|c| u32::from_be_bytes(c.try_into().unwrap()))
-            .collect()
-    };
-    Answer {
-        source: p.source_id(),
-        destination: p.destination_id(),
-        tcode: p.tcode(),
-        rcode: p.rcode(),
-        tl: p.tl(),
-        quadlets,
-        extra,
-    }
-}
-
 /// The Rev 9 host's request builder.
 #[derive(Debug, Default)]
 pub struct Rev9Host {
@@ -87,16 +56,7 @@ impl Rev9Host {
     }
 
     fn datagram(repr: &PacketRepr<'_>) -> Vec<u8> {
-        let mut d = ControlWord {
-            no_forward: true,
-            generation: 0,
-        }
-        .to_bytes()
-        .to_vec();
-        let mut p = vec![0u8; repr.buffer_len()];
-        repr.emit(&mut p).unwrap();
-        d.extend_from_slice(&p);
-        d
+        request_datagram(true, 0, repr)
     }
 
     pub fn qread(&mut self, node: u8, offset: u64) -> Vec<u8> {
