@@ -16,6 +16,9 @@
 //! - [`phy`]: PHY registers and PHY packets.
 //! - [`fault`]: fault plans, the injector and the fault log.
 //! - [`trace`] and [`pcap`]: what happened, as records, text and pcap.
+//! - [`ethernet`]: the timing model of the Ethernet-only network of FPGA
+//!   V3 boards at firmware Rev 9 (a chain of 1 Gb/s switches, learning,
+//!   the broadcast read's hub updates).
 //! - [`host`]: the PC's link ([`HostLink`]) and the PC software overhead
 //!   model ([`HostModel`]).
 //!
@@ -41,6 +44,7 @@
 
 pub mod bus;
 mod error;
+pub mod ethernet;
 pub mod fault;
 pub mod host;
 mod id;

@@ -1,18 +1,21 @@
 //! `firelink emulate`: emulated boards behind an Ethernet bridge on UDP
 //! (or, with `--fw-cdev`, as the kernel's /dev/fw* devices on a unix
-//! socket for the preloaded twin), paced to wall-clock time, until SIGINT
-//! or SIGTERM.
+//! socket for the preloaded twin; with `--network eth`, FPGA V3 boards at
+//! Rev 9 on the Ethernet-only network, each at its own address), paced to
+//! wall-clock time, until SIGINT or SIGTERM.
 
 use std::io::Write;
-use std::net::SocketAddr;
+use std::net::{Ipv4Addr, SocketAddr};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
-use clap::Args;
+use clap::{Args, ValueEnum};
 
 use firelink_control::config::{IoConfig, presets};
+use firelink_emulate::eth_network::EthNetwork;
+use firelink_emulate::eth_serve::{EthEvent, EthServeConfig, MULTICAST_GROUP, eth_bind, eth_serve};
 use firelink_emulate::fw_cdev::{self, Twin};
 use firelink_emulate::{Bridge, Event, ServeConfig};
 use firelink_host::cpu_latency::CpuLatencyHold;
@@ -143,6 +146,37 @@ pub struct EmulateArgs {
     /// Stop by itself after this many seconds (0: run until a signal).
     #[arg(long = "duration-s", default_value_t = 0.0, value_parser = crate::args::seconds_or_forever)]
     pub duration_s: f64,
+    /// The network the boards are on: `bridge` (one Ethernet board in
+    /// front of a FireWire bus, the FPGA V2 way; any FPGA and firmware) or
+    /// `eth` (the Ethernet-only network of FPGA V3 boards at firmware Rev
+    /// 9: every board its own address, --eth-base + board ID on --listen's
+    /// port; needs --fpga V3 --firmware 9).
+    #[arg(long, value_enum, default_value_t = NetworkArg::Bridge)]
+    pub network: NetworkArg,
+    /// With --network eth: board 0's address; board N listens at it + N
+    /// (loopback by default; 169.254.0.100 is the stock one).
+    #[arg(long = "eth-base", default_value = "127.0.0.100")]
+    pub eth_base: Ipv4Addr,
+    /// With --network eth: also join the multicast group 224.0.0.100
+    /// (needs a multicast route, e.g. on `lo` inside a network namespace;
+    /// without it the host's group requests reach the boards through the
+    /// loopback broadcast address).
+    #[arg(long)]
+    pub multicast: bool,
+    /// With --network eth: the boards' order along the chain from the host
+    /// (board IDs, comma-separated; default: as emulated, ascending). The
+    /// first is the hub; hub blocks arrive in this order.
+    #[arg(long, value_delimiter = ',', value_parser = crate::args::board_id)]
+    pub chain: Vec<u8>,
+}
+
+/// `--network`: what connects the host to the boards.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum NetworkArg {
+    /// The Ethernet/FireWire bridge (FPGA V2 style).
+    Bridge,
+    /// The Ethernet-only network (FPGA V3, firmware Rev 9).
+    Eth,
 }
 
 /// Build the bridge of `args`: the boards on a simulated bus with the
@@ -382,6 +416,19 @@ fn stop_flag(args: &EmulateArgs) -> Result<Arc<AtomicBool>, CliError> {
 
 /// `firelink emulate`.
 pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
+    if args.network == NetworkArg::Eth {
+        return run_eth(args, out);
+    }
+    if args.multicast || !args.chain.is_empty() {
+        return Err(CliError::NotSupported {
+            option: if args.multicast {
+                "--multicast"
+            } else {
+                "--chain"
+            },
+            reason: "belongs to the Ethernet-only network: add --network eth --fpga V3 --firmware 9",
+        });
+    }
     if let Some(path) = &args.fw_cdev {
         return run_twin(args, path, out);
     }
@@ -455,5 +502,152 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
         let _ = out.flush();
     };
     firelink_emulate::serve(&mut bridge, &unicast, broadcast.as_ref(), &stop, &mut log)?;
+    Ok(())
+}
+
+/// The options `--network eth` cannot take, with why.
+fn refuse_on_eth(args: &EmulateArgs) -> Result<(), CliError> {
+    let bus_fault = "a fault of the simulated 1394 bus; the Ethernet-only network has no 1394 bus";
+    let refusals: [(bool, &'static str, &'static str); 10] = [
+        (
+            args.fw_cdev.is_some(),
+            "--fw-cdev",
+            "the /dev/fw* twin is the FireWire front end, not the Ethernet-only network",
+        ),
+        (
+            args.bridge_board.is_some(),
+            "--bridge-board",
+            "the Ethernet-only network has no bridge: every board has its own address (the hub is the first of --chain)",
+        ),
+        (
+            args.robot == Some(crate::demo::DemoRobot::Snake),
+            "--robot snake",
+            "the Snake nodes are seed 001's FireWire nodes, not FPGA V3 boards",
+        ),
+        (args.drop_rate > 0.0, "--drop-rate", bus_fault),
+        (args.corrupt_rate > 0.0, "--corrupt-rate", bus_fault),
+        (
+            args.drop_response_rate > 0.0,
+            "--drop-response-rate",
+            bus_fault,
+        ),
+        (args.busy_rate > 0.0, "--busy-rate", bus_fault),
+        (args.reset_storm > 0, "--reset-storm", bus_fault),
+        (args.unplug_board.is_some(), "--unplug-board", bus_fault),
+        (args.mute_board.is_some(), "--mute-board", bus_fault),
+    ];
+    if let Some((_, option, reason)) = refusals.into_iter().find(|r| r.0) {
+        return Err(CliError::NotSupported { option, reason });
+    }
+    if args.fpga != Some(FpgaArg::V3) || args.firmware != FirmwareArg::Rev9 {
+        return Err(CliError::NotSupported {
+            option: "--network eth",
+            reason: "the Ethernet-only network is FPGA V3 boards at firmware Rev 9: add --fpga V3 --firmware 9",
+        });
+    }
+    Ok(())
+}
+
+/// `firelink emulate --network eth`: the boards on the Ethernet-only
+/// network until SIGINT, SIGTERM or `--duration-s`.
+fn run_eth(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
+    refuse_on_eth(args)?;
+    let config = match (&args.config, args.robot) {
+        (Some(path), _) => Some(crate::demo::load_config(path)?),
+        (None, Some(crate::demo::DemoRobot::Dvrk)) => Some(presets::dvrk_seed000()),
+        _ => None,
+    };
+    let mut boards = qla_boards(args, config.as_ref())?;
+    if !args.chain.is_empty() {
+        let mut ordered = Vec::with_capacity(boards.len());
+        for &id in &args.chain {
+            let i = boards
+                .iter()
+                .position(|b| b.board_id == id)
+                .ok_or(CliError::NoSuchBoard {
+                    option: "--chain",
+                    board: id,
+                })?;
+            ordered.push(boards.swap_remove(i));
+        }
+        if let Some(left) = boards.first() {
+            return Err(CliError::NoSuchBoard {
+                option: "--chain (every emulated board, once; missing)",
+                board: left.board_id,
+            });
+        }
+        boards = ordered;
+    }
+    if !args.eth_base.is_loopback() {
+        eprintln!(
+            "firelink emulate: WARNING: the boards listen on {} + ID, not loopback: anyone who can \
+             reach them can switch the emulated boards' motor power on and move their motors",
+            args.eth_base
+        );
+    }
+    let descriptions: Vec<String> = boards
+        .iter()
+        .map(|b| {
+            format!(
+                "  board {}: {}, FPGA serial {}, QLA serial {}, FPGA V{}, Rev {}",
+                b.board_id,
+                b.hardware.hardware_version().name(),
+                b.fpga_serial,
+                b.qla_serials().join(" / "),
+                b.fpga.number(),
+                b.firmware.number()
+            )
+        })
+        .collect();
+    let mut net = EthNetwork::new(boards, Default::default())?;
+    let ids = net.board_ids();
+    let serve_config = EthServeConfig {
+        base: args.eth_base,
+        port: args.listen.port(),
+        loopback_broadcast: !args.no_broadcast,
+        multicast: args.multicast.then_some(MULTICAST_GROUP),
+    };
+    let sockets = eth_bind(&serve_config, &ids)?;
+    let stop = stop_flag(args)?;
+    let _cpu_latency = hold_cpu_latency(args, out)?;
+    writeln!(
+        out,
+        "emulating {} board(s) on the Ethernet-only network, chain from the host {:?} (hub: board {})",
+        ids.len(),
+        ids,
+        ids.first().copied().unwrap_or(0)
+    )?;
+    for d in &descriptions {
+        writeln!(out, "{d}")?;
+    }
+    out.flush()?;
+    let mut log = |e: EthEvent| {
+        let line = match e {
+            EthEvent::Listening {
+                boards,
+                broadcast,
+                multicast,
+            } => {
+                let list: Vec<String> = boards.iter().map(|(id, a)| format!("{id}={a}")).collect();
+                let mut line = format!("listening on udp {}", list.join(" "));
+                if let Some(b) = broadcast {
+                    line.push_str(&format!(", broadcast {b}"));
+                }
+                if let Some(m) = multicast {
+                    line.push_str(&format!(", multicast {m}"));
+                }
+                line
+            }
+            EthEvent::HostSeen(from) => format!("host {from} connected"),
+            EthEvent::Lagging(d) => format!(
+                "emulation is {:.1} ms behind real time (machine busy)",
+                d.as_secs_f64() * 1e3
+            ),
+            EthEvent::Stopped(s) => format!("stopped: {s}"),
+        };
+        let _ = writeln!(out, "{line}");
+        let _ = out.flush();
+    };
+    eth_serve(&mut net, &sockets, &stop, &mut log)?;
     Ok(())
 }

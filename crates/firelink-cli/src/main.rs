@@ -249,6 +249,9 @@ pub enum CliError {
         /// Why, and what to do instead.
         reason: &'static str,
     },
+    /// Boards that cannot be on the Ethernet-only network.
+    #[error(transparent)]
+    EthNetwork(#[from] firelink_emulate::eth_network::NetworkError),
     /// An emulated board's settings are inconsistent (`--board-set`).
     #[error(transparent)]
     BoardSettings(#[from] firelink_testbed::emulated::ConfigError),

@@ -489,3 +489,97 @@ fn emulate_holds_or_explains_the_cpu_latency_request() {
         "{out}"
     );
 }
+
+/// `emulate --network eth`: only with `--fpga V3 --firmware 9`, bus faults
+/// and the bridge's options refused by name; served, each board answers
+/// at its own address (127.0.0.100 + ID) with its board ID as source, and
+/// the chain's first board is the hub.
+#[test]
+fn emulate_network_eth() {
+    use firelink_wire::bridge::split_board_datagram;
+    let eth = [
+        "emulate",
+        "--network",
+        "eth",
+        "--fpga",
+        "V3",
+        "--firmware",
+        "9",
+    ];
+    let quick = ["--listen", "127.0.0.1:0", "--duration-s", "1"];
+    let needs = "add --fpga V3 --firmware 9";
+    for (args, expected) in [
+        (&eth[..3], needs),
+        (&eth[..5], needs),
+        (
+            &["emulate", "--network", "eth", "--firmware", "9"][..],
+            needs,
+        ),
+        (
+            &["emulate", "--multicast"][..],
+            "--multicast: belongs to the Ethernet-only network",
+        ),
+    ] {
+        fails(&[args, &quick[..]].concat(), expected);
+    }
+    for (extra, expected) in [
+        (
+            &["--drop-rate", "0.1"][..],
+            "--drop-rate: a fault of the simulated 1394 bus",
+        ),
+        (
+            &["--bridge-board", "1"][..],
+            "--bridge-board: the Ethernet-only network has no bridge",
+        ),
+        (&["--boards", "3", "--chain", "2,0"][..], "--chain"),
+    ] {
+        fails(&[&eth[..], extra, &quick[..]].concat(), expected);
+    }
+    let emu = Emulate::start(&[&eth[1..], &["--boards", "3", "--chain", "2,0,1"][..]].concat());
+    let hub = "chain from the host [2, 0, 1] (hub: board 2)";
+    assert!(emu.start.iter().any(|l| l.contains(hub)), "{:?}", emu.start);
+    // The listening line starts "ID=ADDR": every board on one port.
+    let port: u16 = emu.port.rsplit(':').next().unwrap().parse().unwrap();
+    let addr_of = |id: u8| std::net::SocketAddr::from(([127, 0, 0, 100 + id], port));
+    let host = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    host.set_read_timeout(Some(std::time::Duration::from_secs(5)))
+        .unwrap();
+    for id in [0u8, 1, 2] {
+        // The Rev 9 host's read of STATUS, as `firelink packet` builds it.
+        let destination = format!("{:#x}", 0xFFC0 | u16::from(id));
+        let hex = ok(&[
+            "packet",
+            "encode",
+            "--tcode",
+            "read_request_quadlet",
+            "--destination-id",
+            &destination,
+            "--tl",
+            "1",
+            "--offset",
+            "0",
+            "--bridge",
+            "--no-forward",
+        ]);
+        let hex = hex.trim();
+        let datagram: Vec<u8> = (0..hex.len())
+            .step_by(2)
+            .map(|i| u8::from_str_radix(&hex[i..i + 2], 16).unwrap())
+            .collect();
+        host.send_to(&datagram, addr_of(id)).unwrap();
+        let mut buf = [0u8; 256];
+        let (n, from) = host.recv_from(&mut buf).unwrap();
+        assert_eq!(
+            from,
+            addr_of(id),
+            "the reply comes from the board's own address"
+        );
+        let (reply, extra) = split_board_datagram(&buf[..n]).unwrap();
+        assert_eq!(reply.source_id().phy(), id);
+        assert_eq!((reply.quadlet_data() >> 24) & 0xF, u32::from(id));
+        assert!(extra.flags.no_forward);
+    }
+    let rest = emu.terminate();
+    let stopped = "stopped: 3 datagrams, 3 replies";
+    assert!(rest.iter().any(|l| l.starts_with(stopped)), "{rest:?}");
+}

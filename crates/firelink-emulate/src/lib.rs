@@ -15,6 +15,11 @@
 //!   paced to the wall clock, clean stop on a flag.
 //! - [`latency`]: how late the server answers, from each datagram's
 //!   arrival to its reply sent (the counters on the stop line).
+//! - [`eth_network`] and [`eth_serve`]: FPGA V3 boards at firmware Rev 9
+//!   on the Ethernet-only network (no bridge, no 1394 bus): each board its
+//!   own UDP address, the broadcast read answered unasked by the hub, the
+//!   chain's timing from `firelink_bus::ethernet` (`firelink emulate
+//!   --network eth`).
 //! - [`fw_cdev`]: the other front end: the Linux kernel's /dev/fw* side
 //!   (firewire-cdev) over the same simulated bus, served on a unix socket
 //!   to the preloaded twin library (`firelink emulate --fw-cdev`).
@@ -34,6 +39,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 mod arrival;
+pub mod eth_network;
+pub mod eth_serve;
 #[cfg(target_os = "linux")]
 pub mod fw_cdev;
 pub mod latency;
@@ -530,6 +537,17 @@ impl Bridge {
     }
 }
 
+/// A socket error that is not the server's failure: the host went away
+/// (an ICMP refusal reported on the socket), or nothing to do right now.
+pub(crate) fn not_the_servers_failure(e: &std::io::Error) -> bool {
+    matches!(
+        e.kind(),
+        std::io::ErrorKind::ConnectionRefused
+            | std::io::ErrorKind::WouldBlock
+            | std::io::ErrorKind::Interrupted
+    )
+}
+
 /// Largest datagram the server reads whole (anything longer is cut, and
 /// then does not decode): more than any request the bridge takes.
 const MAX_DATAGRAM: usize = 8192;
@@ -657,13 +675,7 @@ pub fn serve(
                 // waited in the socket's queue is the server's lateness too.
                 Ok(_) => bridge.record_answer(Instant::now().saturating_duration_since(r.at)),
                 // A host that went away is not the server's failure.
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::ConnectionRefused
-                            | std::io::ErrorKind::WouldBlock
-                            | std::io::ErrorKind::Interrupted
-                    ) => {}
+                Err(e) if not_the_servers_failure(&e) => {}
                 Err(e) => return Err(e),
             }
         }

@@ -77,6 +77,21 @@ impl Pending {
 /// and 8 and wrap (HubReg.v; Rev 9 widened them to 16).
 const TIMER_MASK: u64 = 0x3FFF;
 
+/// The Ethernet hub of an FPGA V3 at Rev 9 (EthernetIO.v's `hub_eth`,
+/// clocked by the 125 MHz Ethernet clock): its timers count 16 bits; the
+/// hub header keeps 15 of them as the update time.
+const ETH_TIMER_MASK: u64 = 0xFFFF;
+
+/// Which clock the hub's timers count.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum HubClock {
+    /// The board's 49.152 MHz system clock, 14 bits (the FireWire hub).
+    System,
+    /// The 125 MHz Ethernet clock, 16 bits (the Ethernet-only network;
+    /// the host's `GetBroadcastReadClockPeriod` is 8 ns there).
+    Ethernet,
+}
+
 /// Hub registers and memory.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) struct Hub {
@@ -87,6 +102,8 @@ pub(crate) struct Hub {
     pub count: usize,
     /// The block format (which timers and registers the hub has).
     format: BlockFormat,
+    /// The clock of its timers.
+    pub clock: HubClock,
     /// Power-up (or reboot): where the timer counts from until the first
     /// query.
     power_up: SimTime,
@@ -117,6 +134,7 @@ impl Hub {
             memory: vec![0; HUB_MEMORY_QUADLETS * 4],
             count: 0,
             format,
+            clock: HubClock::System,
             power_up: now,
             read_start: 0,
             query: None,
@@ -205,7 +223,18 @@ impl Hub {
     /// since power-up before any, 14 bits wrapping.
     fn timer(&self, now: SimTime) -> u16 {
         let since = self.query_at.unwrap_or(self.power_up);
-        (now.clocks_since(since) & TIMER_MASK) as u16
+        match self.clock {
+            HubClock::System => (now.clocks_since(since) & TIMER_MASK) as u16,
+            HubClock::Ethernet => {
+                ((now.saturating_since(since).as_nanos() / 8) & ETH_TIMER_MASK) as u16
+            }
+        }
+    }
+
+    /// Whether every board the last query selected has stored its block
+    /// since (false before any query).
+    pub fn complete(&self) -> bool {
+        self.query_at.is_some() && self.updated()
     }
 
     /// Every board the query selected has stored its block (before any
@@ -282,10 +311,15 @@ impl Hub {
     /// that quadlet goes out (4 clocks per quadlet at S400 after a
     /// 5-quadlet response header), both 14 bits.
     fn timing_word(&self, index: usize, read_start: SimTime) -> u32 {
+        // A quadlet takes 4 clocks at S400 and 4 at 125 MHz on 1 Gb/s.
         let now = u64::from(self.timer(read_start)) + 4 * (5 + index as u64);
+        let mask = match self.clock {
+            HubClock::System => TIMER_MASK,
+            HubClock::Ethernet => ETH_TIMER_MASK,
+        };
         HubTiming {
             read_start: self.read_start,
-            now: (now & TIMER_MASK) as u16,
+            now: (now & mask) as u16,
         }
         .to_word()
     }

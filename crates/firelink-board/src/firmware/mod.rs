@@ -118,8 +118,8 @@ pub use power::{
 };
 
 use firelink_wire::board::address::{
-    COMMAND_SNOOP_OFFSET, HUB_MEMORY_QUADLETS, HUB_QUERY_OFFSET, REALTIME_BLOCK_OFFSET,
-    STATUS_BROADCAST_OFFSET, STATUS_BROADCAST_PRIORITY,
+    COMMAND_SNOOP_OFFSET, HUB_MEMORY_OFFSET, HUB_MEMORY_QUADLETS, HUB_QUERY_OFFSET,
+    REALTIME_BLOCK_OFFSET, STATUS_BROADCAST_OFFSET, STATUS_BROADCAST_PRIORITY,
 };
 use firelink_wire::board::broadcast::{
     BroadcastHeader, CORRUPT_QUERY_SEQ, Query, status_broadcast_offset,
@@ -139,7 +139,7 @@ use ethernet::Ethernet;
 use ethernet_v3::EthernetV3;
 use expander::Expander;
 use firelink_wire::board::MAX_AXES;
-use hub::{Hub, Pending};
+use hub::{Hub, HubClock, Pending};
 use power::{AxisState, Power, Watchdog};
 use prom::{FpgaProm, QlaProm};
 
@@ -959,6 +959,58 @@ impl Firmware {
     /// received packet too).
     pub fn next_wakeup(&self) -> Option<SimTime> {
         self.hub.pending.as_ref().map(|p| p.due(self.hub.seen))
+    }
+
+    /// Run the hub as the Ethernet-only network's (FPGA V3, Rev 9:
+    /// EthernetIO.v's `hub_eth`): its timers count the 125 MHz Ethernet
+    /// clock, 16 bits (the update time in each entry keeps 15).
+    pub fn use_ethernet_hub(&mut self) {
+        self.hub.clock = HubClock::Ethernet;
+    }
+
+    /// The Ethernet-only network: this board's status block (header and
+    /// real-time block, wire order), taken as soon as the query selected
+    /// it (EthernetIO.v `hubSend` multicasts it when the query arrives,
+    /// no slot to wait for). `None` if the last query did not select this
+    /// board, or the block was taken already.
+    pub fn take_status_block(&mut self, now: SimTime) -> Option<Vec<u8>> {
+        self.catch_up(now);
+        self.hub.pending.take().map(|p| p.payload)
+    }
+
+    /// Store a status block (as [`take_status_block`](Self::take_status_block)
+    /// gave it, this board's or another's) landing in this board's hub
+    /// memory at `now`, in arrival order. `false` if the hub refused it
+    /// (a second block of one board for one query, or one that does not
+    /// fit).
+    pub fn store_status_block(&mut self, now: SimTime, payload: &[u8]) -> bool {
+        self.catch_up(now);
+        self.hub.store(now, payload, self.cfg.layout().format())
+    }
+
+    /// Whether the hub holds every block the last query selected (false
+    /// before any query).
+    pub fn hub_complete(&self) -> bool {
+        self.hub.complete()
+    }
+
+    /// The broadcast read response the hub board sends the host unasked
+    /// once its hub is complete (EthernetIO.v `bcResp`): a block read
+    /// response with `header`, carrying the hub memory from its start, the
+    /// entries in arrival order and the timing quadlet after them
+    /// (HubReg.v's `bc_quads`). `None` while the hub is not complete.
+    pub fn broadcast_read_response(
+        &mut self,
+        now: SimTime,
+        header: AsyncHeader,
+    ) -> Option<Vec<u8>> {
+        if !self.hub.complete() {
+            return None;
+        }
+        self.catch_up(now);
+        let bytes = (self.hub.count + 1) * 4;
+        let length = u16::try_from(bytes).ok()?;
+        Some(self.block_read_response(now, header, HUB_MEMORY_OFFSET, length))
     }
 
     /// Seed profile: whether a status broadcast from node `sender`

@@ -24,7 +24,7 @@ use super::dqla_expander::{DqlaExpanders, PortLines};
 use super::expander::ExpanderInputs;
 use super::power::{AxisState, Watchdog};
 use super::{Firmware, PhyAccess, RxError};
-use crate::config::Hardware;
+use crate::config::{Hardware, Profile};
 use crate::plant::encoder::{PeriodField, QuarterField, RunField, VelocityFields};
 use crate::plant::{POT_FULL_SCALE_VOLTS, QLA_AMPS_PER_BIT, QLA_FULL_SCALE_AMPS};
 use crate::time::SimTime;
@@ -576,7 +576,9 @@ impl Firmware {
             }
             BoardRegister::DigitalOut => self.dout.write(now, DigitalOutWrite::parse(value)),
             BoardRegister::PromCmd => self.fpga_prom.command(now, PromCommand(value)),
-            BoardRegister::IpAddr if self.cfg.fpga.has_ethernet() => self.ip_addr = value,
+            BoardRegister::IpAddr if self.cfg.fpga.has_ethernet() => {
+                self.ip_addr = stored_ip_address(self.cfg.profile, self.cfg.board_id, value);
+            }
             BoardRegister::EthStatus if self.cfg.fpga == FpgaVersion::V2 => {
                 self.ethernet.write(EthControl(value));
             }
@@ -1186,5 +1188,42 @@ mod tests {
             }
         }
         assert_eq!(round_to_code(f64::NAN, 255.0), 0.0);
+    }
+}
+
+/// What a write of `value` to REG_IPADDR (11) stores: Rev 9 adds the board
+/// ID to the address's last byte, bits 31:24 as the host writes it
+/// (EthernetIO.v `desired_ip_address`: 169.254.0.100 becomes
+/// 169.254.0.{100 + ID}), except to the unassigned `0xFFFFFFFF`; earlier
+/// firmware stores the value as written.
+pub(crate) fn stored_ip_address(profile: Profile, board_id: u8, value: u32) -> u32 {
+    if profile != Profile::Rev9 || value == super::IP_UNASSIGNED {
+        return value;
+    }
+    let last = ((value >> 24) as u8).wrapping_add(board_id & 0xF);
+    (value & 0x00FF_FFFF) | (u32::from(last) << 24)
+}
+
+#[cfg(test)]
+mod ip_address_tests {
+    use super::*;
+
+    #[test]
+    fn rev9_adds_the_board_id_to_the_last_byte() {
+        // 169.254.0.100 as the host writes it (first byte lowest).
+        let base = u32::from_le_bytes([169, 254, 0, 100]);
+        let stored = stored_ip_address(Profile::Rev9, 5, base);
+        assert_eq!(stored.to_le_bytes(), [169, 254, 0, 105]);
+        assert_eq!(stored_ip_address(Profile::Rev8, 5, base), base);
+        assert_eq!(
+            stored_ip_address(Profile::Rev9, 5, super::super::IP_UNASSIGNED),
+            0xFFFF_FFFF
+        );
+        // The 8-bit sum wraps as the firmware's does.
+        let high = u32::from_le_bytes([10, 0, 0, 250]);
+        assert_eq!(
+            stored_ip_address(Profile::Rev9, 15, high).to_le_bytes(),
+            [10, 0, 0, 9]
+        );
     }
 }

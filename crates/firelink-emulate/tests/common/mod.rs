@@ -99,11 +99,36 @@ pub struct Answer {
     pub destination: NodeId,
     pub tcode: Tcode,
     pub rcode: Rcode,
+    /// The transaction label.
+    pub tl: u8,
     /// The quadlet (quadlet response) or the payload as quadlets.
     pub quadlets: Vec<u32>,
     pub extra: ExtraData,
     /// Whole reply datagram length.
     pub len: usize,
+}
+
+/// Decode a reply datagram: the response packet and the extra data.
+pub fn decode(bytes: &[u8]) -> Answer {
+    let (p, extra) = split_board_datagram(bytes).expect("a reply with its extra data");
+    let quadlets = if p.tcode() == Tcode::ReadQuadletResponse {
+        vec![p.quadlet_data()]
+    } else {
+        p.payload()
+            .chunks_exact(4)
+            .map(|c| u32::from_be_bytes(c.try_into().unwrap()))
+            .collect()
+    };
+    Answer {
+        source: p.source_id(),
+        destination: p.destination_id(),
+        tcode: p.tcode(),
+        rcode: p.rcode(),
+        tl: p.tl(),
+        quadlets,
+        extra,
+        len: bytes.len(),
+    }
 }
 
 /// A host-to-bridge datagram: the control word (`no_forward`, the bus
@@ -160,25 +185,9 @@ impl RefHost {
         let Handled::Reply(n) = handled else {
             return None;
         };
-        let (p, extra) = split_board_datagram(&self.reply[..n]).unwrap();
-        self.generation = extra.generation;
-        let quadlets = if p.tcode() == Tcode::ReadQuadletResponse {
-            vec![p.quadlet_data()]
-        } else {
-            p.payload()
-                .chunks_exact(4)
-                .map(|c| u32::from_be_bytes(c.try_into().unwrap()))
-                .collect()
-        };
-        Some(Answer {
-            source: p.source_id(),
-            destination: p.destination_id(),
-            tcode: p.tcode(),
-            rcode: p.rcode(),
-            quadlets,
-            extra,
-            len: n,
-        })
+        let answer = decode(&self.reply[..n]);
+        self.generation = answer.extra.generation;
+        Some(answer)
     }
 
     pub fn try_qread(&mut self, node: u8, no_forward: bool, offset: u64) -> Option<Answer> {
