@@ -39,7 +39,7 @@ use firelink_host::firewire::{FirewirePort, FwOptions};
 use firelink_host::io::IoSystem;
 use firelink_host::scan::Protocol;
 use firelink_wire::fw_cdev::{
-    KERNEL_ABI_VERSION, ResponseEvent, SendRequestArgs, TWIN_MAX_MESSAGE, TwinReply, TwinRequest,
+    KERNEL_ABI_VERSION, ResponseEvent, SendRequestArgs, TWIN_MAX_MESSAGE, TwinRequest,
     emit_response, rcode,
 };
 
@@ -124,9 +124,9 @@ impl Drop for TwinServer {
 }
 
 /// The floor: a control and an event socket (`SOCK_SEQPACKET` pairs), the
-/// far ends served by a thread that answers each SEND_REQUEST at once:
-/// a reply on the control socket, then a RESPONSE2 event of the length
-/// asked on the event socket.
+/// far ends served by a thread that answers each SEND_REQUEST at once
+/// with a RESPONSE2 event of the length asked on the event socket (as the
+/// twin does, nothing goes back on the control socket).
 struct Floor {
     control: OwnedFd,
     event: OwnedFd,
@@ -151,7 +151,6 @@ fn seqpacket_pair() -> Result<(OwnedFd, OwnedFd), TestbedError> {
 fn floor_server(control: OwnedFd, event: OwnedFd) {
     let mut rx = vec![0u8; TWIN_MAX_MESSAGE];
     let mut tx = vec![0u8; TWIN_MAX_MESSAGE];
-    let mut reply = [0u8; 16];
     let zeros = [0u8; 4096];
     loop {
         let n = match recv(control.as_raw_fd(), &mut rx, MsgFlags::empty()) {
@@ -161,15 +160,6 @@ fn floor_server(control: OwnedFd, event: OwnedFd) {
         let Ok(TwinRequest::SendRequest { args, .. }) = TwinRequest::parse(&rx[..n]) else {
             return;
         };
-        let ok = TwinReply {
-            errno: 0,
-            value: 0,
-            payload: &[],
-        };
-        let Ok(len) = ok.emit(&mut reply) else { return };
-        if send(control.as_raw_fd(), &reply[..len], MsgFlags::MSG_NOSIGNAL).is_err() {
-            return;
-        }
         let data = if matches!(args.tcode, 4 | 5) {
             zeros.get(..args.length as usize).unwrap_or(&[])
         } else {
@@ -213,8 +203,8 @@ impl Floor {
             .and_then(|c| c.now_while_running(self.thread.as_ref()))
     }
 
-    /// One bare round trip: the request and its reply on the control
-    /// socket, then poll and read of its completion event.
+    /// One bare round trip: the request on the control socket, then poll
+    /// and read of its completion event.
     fn round_trip(&mut self, tcode: u32, length: usize) -> Result<(), Errno> {
         static PAYLOAD: [u8; 2048] = [0; 2048];
         let closure = self.closure;
@@ -238,8 +228,6 @@ impl Floor {
             &self.request[..n],
             MsgFlags::MSG_NOSIGNAL,
         )?;
-        let got = recv(self.control.as_raw_fd(), &mut self.reply, MsgFlags::empty())?;
-        TwinReply::parse(&self.reply[..got]).map_err(|_| Errno::EIO)?;
         loop {
             let mut fds = [PollFd::new(self.event.as_fd(), PollFlags::POLLIN)];
             match poll(&mut fds, PollTimeout::from(1000u16)) {
