@@ -10,9 +10,18 @@
 //! - A request (SEND_REQUEST) goes to the target node's fd with a closure
 //!   and the port's bus generation; its completion is read from that fd,
 //!   one event per `read()`, after `poll`. Completions are matched by
-//!   closure: one that arrives after the port stopped waiting for it (its
-//!   per-call deadline, [`FirewirePort::set_timeout`], far shorter than the
-//!   kernel's 2 s split time-out) is dropped when it is read.
+//!   closure: one that arrives after the port stopped waiting for it is
+//!   dropped when it is read, and counted (`LinkStats::late`).
+//! - Two deadlines bound every wait, both far shorter than the kernel's
+//!   2 s split time-out: each call's own ([`FwOptions::timeout`], a
+//!   [`HostError::Timeout`]), and within a servo cycle (from
+//!   [`Port::begin_cycle`] to [`Port::end_cycle`], which `IoSystem` calls)
+//!   the cycle's budget for waiting ([`FwOptions::cycle_budget`]): the
+//!   time all the cycle's calls have waited for completions together. A
+//!   call that would wait past it ends the cycle's wait with
+//!   [`HostError::CycleDeadline`], so a transaction the kernel holds
+//!   until its split time-out never stalls a cycle by more than the
+//!   budget, however many requests the cycle makes.
 //! - A bus reset queues a BUS_RESET event on every fd. The call that meets
 //!   one (or a completion with RCODE_GENERATION) fails once with
 //!   [`HostError::BusReset`]; the port then takes the new generation,
@@ -108,6 +117,9 @@ pub struct FwOptions {
     pub stop_cycle_master: bool,
     /// How long one call waits for its completion.
     pub timeout: Duration,
+    /// How long the calls of one servo cycle may wait for their
+    /// completions together (see the module docs).
+    pub cycle_budget: Duration,
 }
 
 impl Default for FwOptions {
@@ -116,6 +128,7 @@ impl Default for FwOptions {
             card: 0,
             stop_cycle_master: true,
             timeout: Duration::from_millis(20),
+            cycle_budget: Duration::from_millis(20),
         }
     }
 }
@@ -147,6 +160,8 @@ pub struct FirewirePort {
     filters: LinkFilters,
     stats: LinkStats,
     said_node63: bool,
+    /// Time the current cycle's calls have waited, while a cycle is open.
+    cycle_waited: Option<Duration>,
     event: Vec<u8>,
     scratch: Vec<u8>,
 }
@@ -248,6 +263,7 @@ impl FirewirePort {
             filters: LinkFilters::default(),
             stats: LinkStats::default(),
             said_node63: false,
+            cycle_waited: None,
             event: vec![0u8; EVENT_BUFFER],
             scratch: vec![0u8; EVENT_BUFFER],
         };
@@ -269,6 +285,11 @@ impl FirewirePort {
     /// Each call's deadline for its completion.
     pub fn set_timeout(&mut self, timeout: Duration) {
         self.options.timeout = timeout;
+    }
+
+    /// The budget for waiting of each servo cycle.
+    pub fn set_cycle_budget(&mut self, budget: Duration) {
+        self.options.cycle_budget = budget;
     }
 
     /// The card's physical ID (the highest on a bus of boards).
@@ -530,10 +551,9 @@ impl FirewirePort {
         })
     }
 
-    /// Read events from node `index` until the completion with `closure`
-    /// (its rcode and data length; the data is in `self.event`), or the
-    /// deadline. Late completions of earlier calls are dropped; bus resets
-    /// are noted.
+    /// Wait for the completion with `closure` on node `index` until the
+    /// call's deadline or, in a cycle, the end of the cycle's budget,
+    /// whichever comes first; the time waited is charged to the cycle.
     fn wait_for(
         &mut self,
         index: usize,
@@ -542,7 +562,38 @@ impl FirewirePort {
         tl: u8,
         started: Instant,
     ) -> Result<(u32, usize)> {
-        let deadline = started + self.options.timeout;
+        let call = self.options.timeout;
+        let budget = self.options.cycle_budget;
+        let left_in_cycle = self.cycle_waited.map(|w| budget.saturating_sub(w));
+        let limit = left_in_cycle.map_or(call, |left| left.min(call));
+        let result = self.wait_until(index, closure, node, tl, started, started + limit);
+        if let Some(waited) = self.cycle_waited.as_mut() {
+            *waited += started.elapsed();
+        }
+        match result {
+            Err(HostError::Timeout { .. }) if left_in_cycle.is_some_and(|left| left < call) => {
+                Err(HostError::CycleDeadline {
+                    node,
+                    budget_us: u32::try_from(budget.as_micros()).unwrap_or(u32::MAX),
+                })
+            }
+            other => other,
+        }
+    }
+
+    /// Read events from node `index` until the completion with `closure`
+    /// (its rcode and data length; the data is in `self.event`), or
+    /// `deadline`. Late completions of earlier calls are dropped; bus
+    /// resets are noted.
+    fn wait_until(
+        &mut self,
+        index: usize,
+        closure: u64,
+        node: u8,
+        tl: u8,
+        started: Instant,
+        deadline: Instant,
+    ) -> Result<(u32, usize)> {
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
             let file = self
@@ -807,6 +858,14 @@ impl Port for FirewirePort {
 
     fn wait(&mut self, duration: Duration) {
         std::thread::sleep(duration);
+    }
+
+    fn begin_cycle(&mut self) {
+        self.cycle_waited = Some(Duration::ZERO);
+    }
+
+    fn end_cycle(&mut self) {
+        self.cycle_waited = None;
     }
 
     fn now(&self) -> Duration {

@@ -117,6 +117,12 @@ impl<P: Port> Port for Recorder<P> {
         self.note(Step::Wait(duration));
         self.inner.wait(duration);
     }
+    fn begin_cycle(&mut self) {
+        self.inner.begin_cycle();
+    }
+    fn end_cycle(&mut self) {
+        self.inner.end_cycle();
+    }
     fn wait_until_heard(&mut self, limit: Duration, heard: &mut dyn FnMut(&[u8]) -> bool) -> bool {
         // Over UDP nothing is overheard: the whole limit is waited.
         self.note(Step::Wait(limit));
