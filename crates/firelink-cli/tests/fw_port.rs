@@ -466,3 +466,50 @@ fn a_lost_response_ends_its_cycle_at_the_cycle_budget_and_its_late_completion_is
     assert_eq!(io.stats().cycles, cycles);
     assert!(io.stats().timeouts >= deadlines);
 }
+
+#[test]
+fn started_writes_return_at_once_and_a_failed_one_is_reported_by_the_next_call() {
+    run_under_twin(
+        "started_writes_return_at_once_and_a_failed_one_is_reported_by_the_next_call",
+        &["--boards", "1"],
+    );
+    if !in_child("started_writes_return_at_once_and_a_failed_one_is_reported_by_the_next_call") {
+        return;
+    }
+    let mut port = FirewirePort::open(FwOptions {
+        timeout: Duration::from_secs(2),
+        ..FwOptions::default()
+    })
+    .expect("open fw");
+    let card = firelink_host::Dest::node(port.local_phy());
+    const STATE_CLEAR: u64 = 0xFFFF_F000_0000;
+    let before = port.link_stats();
+    // Twenty writes the card takes, started one after the other: at most
+    // eight stay open, each completes exactly once, none is late.
+    for _ in 0..20 {
+        port.start_write_quadlet(card, STATE_CLEAR, 0x100).unwrap();
+    }
+    assert_eq!(port.read_quadlet(card, STATE_CLEAR).unwrap() & 0x100, 0);
+    let after = port.link_stats();
+    assert_eq!(after.sent - before.sent, 21);
+    assert_eq!(after.matched - before.matched, 21, "{after:?}");
+    assert_eq!(after.late, before.late);
+    // A write the card refuses (no register there): the start succeeds,
+    // the call that reads its completion keeps its own result, and the
+    // next call reports the failure, once.
+    port.start_write_quadlet(card, STATE_CLEAR + 0xF00, 0)
+        .unwrap();
+    port.read_quadlet(card, STATE_CLEAR).unwrap();
+    let failed = port.read_quadlet(card, STATE_CLEAR);
+    assert!(
+        matches!(
+            failed,
+            Err(HostError::Rcode {
+                rcode: firelink_wire::packet::Rcode::AddressError,
+                ..
+            })
+        ),
+        "{failed:?}"
+    );
+    port.read_quadlet(card, STATE_CLEAR).unwrap();
+}
