@@ -2,7 +2,9 @@
 //! arguments the preloaded library copies from a program, the events a
 //! client reads, and the twin's own messages, all bytes from outside.
 //! Every parser gives a value or a named error and never panics; a value
-//! written back with its `emit` parses to the same value; the kernel's
+//! written back with its `emit` parses to the same value (a one-way
+//! SEND_REQUEST message also when its head is written in front of a
+//! payload already in place, as the preloaded library does); the kernel's
 //! argument checks give Ok or one of the errnos the kernel uses.
 #![no_main]
 
@@ -57,6 +59,18 @@ fuzz_target!(|data: &[u8]| {
             if let Ok(r) = TwinRequest::parse(bytes) {
                 let n = r.emit(&mut out).expect("a parsed request fits");
                 assert_eq!(TwinRequest::parse(&out[..n]), Ok(r));
+                // SEND_REQUEST alone is one-way; its head written in front
+                // of a payload already in place gives the same message.
+                let one_way = matches!(r, TwinRequest::SendRequest { .. });
+                assert_eq!(r.expects_reply(), !one_way);
+                if let TwinRequest::SendRequest { broadcast, args, payload } = r {
+                    let mut again = vec![0x5Au8; n];
+                    let at = fw_cdev::SEND_REQUEST_PAYLOAD_AT;
+                    again[at..at + payload.len()].copy_from_slice(payload);
+                    let m = fw_cdev::emit_send_request_head(broadcast, &args, &mut again)
+                        .expect("the message fits");
+                    assert_eq!(&again[..m], &out[..n]);
+                }
             }
         }
         5 => {

@@ -65,7 +65,7 @@ fn error<'py>(py: Python<'py>, class: &str, args: impl IntoPyObject<'py>) -> PyE
 
 fn host_error(py: Python<'_>, e: HostError) -> PyErr {
     let class = match e {
-        HostError::Timeout { .. } => "BusTimeout",
+        HostError::Timeout { .. } | HostError::CycleDeadline { .. } => "BusTimeout",
         HostError::NoBoards { .. } => "NoBoardsError",
         HostError::InvalidRequest { .. } | HostError::UnknownBoard(_) => "InvalidRequest",
         _ => "BusError",

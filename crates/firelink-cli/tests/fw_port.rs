@@ -55,6 +55,7 @@ fn in_child(name: &str) -> bool {
 fn open_io() -> IoSystem<FirewirePort> {
     let port = FirewirePort::open(FwOptions {
         timeout: Duration::from_millis(200),
+        cycle_budget: Duration::from_millis(200),
         ..FwOptions::default()
     })
     .expect("open fw");
@@ -65,13 +66,14 @@ fn open_io() -> IoSystem<FirewirePort> {
     io
 }
 
-/// Open the port (each call's deadline `timeout`) and scan, again (at most
-/// 20 times) until the scan sees all `boards`: under a fault plan a scan
-/// can lose a packet too.
+/// Open the port (each call's deadline and each cycle's budget `timeout`)
+/// and scan, again (at most 20 times) until the scan sees all `boards`:
+/// under a fault plan a scan can lose a packet too.
 fn open_all(boards: usize, timeout: Duration, options: IoOptions) -> IoSystem<FirewirePort> {
     for _ in 0..20 {
         let port = FirewirePort::open(FwOptions {
             timeout,
+            cycle_budget: timeout,
             ..FwOptions::default()
         })
         .expect("open fw");
@@ -330,7 +332,7 @@ fn dropped_responses_and_busy_acks_end_every_cycle_in_a_named_outcome() {
             None => {}
             Some(HostError::Driver { rcode, .. }) if rcode == fw_rcode::CANCELLED => cancelled += 1,
             Some(HostError::Driver { rcode, .. }) if rcode == fw_rcode::BUSY => busy += 1,
-            Some(HostError::Timeout { .. }) => timeouts += 1,
+            Some(HostError::Timeout { .. } | HostError::CycleDeadline { .. }) => timeouts += 1,
             // Anything else is a named error too, but not one this plan
             // makes.
             Some(e) => panic!("unexpected error: {e}"),
@@ -395,4 +397,119 @@ fn a_storm_of_bus_resets_is_recovered() {
     assert!(resets_reported >= 1);
     assert_eq!(io.boards().len(), 4);
     assert_clean_cycles(&mut io, 200);
+}
+
+#[test]
+fn a_lost_response_ends_its_cycle_at_the_cycle_budget_and_its_late_completion_is_dropped() {
+    // One read response in 100 lost on the twin's bus; the twin cancels
+    // each after a 1 s split time-out of its virtual time (paced to the
+    // wall clock). Each call may wait 5 s, a cycle only 30 ms in all: a
+    // cycle whose hub read lost its response ends with the cycle's named
+    // deadline, not with the twin's CANCELLED a second later, and that
+    // completion, when it comes, is dropped by its closure and counted.
+    run_under_twin(
+        "a_lost_response_ends_its_cycle_at_the_cycle_budget_and_its_late_completion_is_dropped",
+        &[
+            "--boards",
+            "4",
+            "--drop-response-rate",
+            "0.01",
+            "--split-timeout-ms",
+            "1000",
+            "--seed",
+            "5",
+        ],
+    );
+    if !in_child(
+        "a_lost_response_ends_its_cycle_at_the_cycle_budget_and_its_late_completion_is_dropped",
+    ) {
+        return;
+    }
+    let mut io = open_all(4, Duration::from_secs(5), IoOptions::default());
+    io.port_mut().set_cycle_budget(Duration::from_millis(30));
+    let (mut clean, mut deadlines, mut cancelled) = (0u64, 0u64, 0u64);
+    let mut cycles = 0u64;
+    // Until a cycle met its deadline and a late completion was dropped;
+    // bounded by cycles, not by time.
+    while deadlines == 0 || io.port().link_stats().late == 0 {
+        cycles += 1;
+        assert!(
+            cycles < 200_000,
+            "deadlines {deadlines}, late {}",
+            io.port().link_stats().late
+        );
+        let report = *io.cycle();
+        match report.error {
+            None => clean += 1,
+            Some(HostError::CycleDeadline { budget_us, .. }) => {
+                assert_eq!(budget_us, 30_000);
+                deadlines += 1;
+            }
+            // Only a host thread kept off the CPU for the whole second
+            // could still be waiting when the twin cancels.
+            Some(HostError::Driver { rcode, .. }) if rcode == fw_rcode::CANCELLED => {
+                cancelled += 1;
+            }
+            // The call's own 5 s deadline never comes first.
+            Some(e) => panic!("unexpected error: {e}"),
+        }
+        if io.needs_rescan() {
+            let _ = io.recover();
+        }
+    }
+    let link = io.port().link_stats();
+    println!(
+        "{cycles} cycles: clean {clean}, cycle deadlines {deadlines}, cancelled {cancelled}, \
+         late completions dropped {}",
+        link.late
+    );
+    assert_eq!(io.stats().cycles, cycles);
+    assert!(io.stats().timeouts >= deadlines);
+}
+
+#[test]
+fn started_writes_return_at_once_and_a_failed_one_is_reported_by_the_next_call() {
+    run_under_twin(
+        "started_writes_return_at_once_and_a_failed_one_is_reported_by_the_next_call",
+        &["--boards", "1"],
+    );
+    if !in_child("started_writes_return_at_once_and_a_failed_one_is_reported_by_the_next_call") {
+        return;
+    }
+    let mut port = FirewirePort::open(FwOptions {
+        timeout: Duration::from_secs(2),
+        ..FwOptions::default()
+    })
+    .expect("open fw");
+    let card = firelink_host::Dest::node(port.local_phy());
+    const STATE_CLEAR: u64 = 0xFFFF_F000_0000;
+    let before = port.link_stats();
+    // Twenty writes the card takes, started one after the other: at most
+    // eight stay open, each completes exactly once, none is late.
+    for _ in 0..20 {
+        port.start_write_quadlet(card, STATE_CLEAR, 0x100).unwrap();
+    }
+    assert_eq!(port.read_quadlet(card, STATE_CLEAR).unwrap() & 0x100, 0);
+    let after = port.link_stats();
+    assert_eq!(after.sent - before.sent, 21);
+    assert_eq!(after.matched - before.matched, 21, "{after:?}");
+    assert_eq!(after.late, before.late);
+    // A write the card refuses (no register there): the start succeeds,
+    // the call that reads its completion keeps its own result, and the
+    // next call reports the failure, once.
+    port.start_write_quadlet(card, STATE_CLEAR + 0xF00, 0)
+        .unwrap();
+    port.read_quadlet(card, STATE_CLEAR).unwrap();
+    let failed = port.read_quadlet(card, STATE_CLEAR);
+    assert!(
+        matches!(
+            failed,
+            Err(HostError::Rcode {
+                rcode: firelink_wire::packet::Rcode::AddressError,
+                ..
+            })
+        ),
+        "{failed:?}"
+    );
+    port.read_quadlet(card, STATE_CLEAR).unwrap();
 }

@@ -376,7 +376,17 @@ impl Twin {
     }
 
     /// SEND_REQUEST (or SEND_BROADCAST_REQUEST) on `connection` at `now`.
-    /// On success the completion event follows (exactly one).
+    /// On success the completion event follows (exactly one), also for
+    /// what the kernel reports only by event: a stale generation
+    /// (RCODE_GENERATION), a node gone from the bus (RCODE_NO_ACK), a
+    /// packet that cannot be sent (RCODE_SEND_ERROR).
+    ///
+    /// # Errors
+    /// The kernel's synchronous refusals, which the preloaded library
+    /// makes itself before it sends anything (so through it they never
+    /// reach here): ENODEV for a closed connection, EINVAL/EIO/EACCES from
+    /// [`SendRequestArgs::check`], EFAULT for a payload of another length.
+    /// Nothing follows a refusal.
     pub fn send_request(
         &mut self,
         connection: u64,
@@ -384,25 +394,17 @@ impl Twin {
         args: &SendRequestArgs,
         payload: &[u8],
         now: SimTime,
-    ) -> Answer {
+    ) -> Result<(), i32> {
         self.advance(now);
         let Some(device) = self.connections.get(&connection).map(|c| c.device) else {
-            return self.refuse(errno::ENODEV);
+            return Err(self.refuse(errno::ENODEV).errno);
         };
         if let Err(e) = args.check(broadcast, SPEED_CODE) {
-            return self.refuse(e);
+            return Err(self.refuse(e).errno);
         }
         if payload.len() != args.payload_len() {
-            return self.refuse(errno::EFAULT);
+            return Err(self.refuse(errno::EFAULT).errno);
         }
-        let Some(phy) = self
-            .devices
-            .get(device)
-            .filter(|d| d.present)
-            .and_then(|d| self.bus.phy_id(d.handle))
-        else {
-            return self.refuse(errno::ENODEV);
-        };
         self.stats.requests += 1;
         let at = self.bus.now();
         if self
@@ -417,18 +419,28 @@ impl Twin {
         }
         if !broadcast && args.generation != self.bus.generation() {
             self.complete(connection, args.closure, rcode::GENERATION, &[], at);
-            return Answer::default();
+            return Ok(());
         }
+        let Some(phy) = self
+            .devices
+            .get(device)
+            .filter(|d| d.present)
+            .and_then(|d| self.bus.phy_id(d.handle))
+        else {
+            // Gone between the bus reset and the hang-up of its device.
+            self.complete(connection, args.closure, rcode::NO_ACK, &[], at);
+            return Ok(());
+        };
         let local = device == self.link.0;
         if local && !broadcast {
             let (rc, data) = self.local_csr(args, payload, at);
             self.complete(connection, args.closure, rc, &data, at);
-            return Answer::default();
+            return Ok(());
         }
         if matches!(args.tcode, 0x11..=0x17) {
             // The boards do not acknowledge lock requests.
             self.complete(connection, args.closure, rcode::NO_ACK, &[], at);
-            return Answer::default();
+            return Ok(());
         }
         let link_phy = self.bus.phy_id(self.link).unwrap_or(0);
         let tl = self.next_label();
@@ -469,12 +481,14 @@ impl Twin {
         };
         let mut bytes = vec![0u8; repr.buffer_len()];
         if repr.emit(&mut bytes).is_err() {
-            return self.refuse(errno::EINVAL);
+            self.complete(connection, args.closure, rcode::SEND_ERROR, &[], at);
+            return Ok(());
         }
         let speed = if broadcast { Speed::S100 } else { Speed::S400 };
         let link = self.link;
         let Ok(token) = HostLink::submit_on(&mut self.bus, link, &bytes, speed) else {
-            return self.refuse(errno::ENODEV);
+            self.complete(connection, args.closure, rcode::SEND_ERROR, &[], at);
+            return Ok(());
         };
         self.in_flight.push(InFlight {
             token,
@@ -494,7 +508,7 @@ impl Twin {
         });
         self.collect();
         self.check_reset();
-        Answer::default()
+        Ok(())
     }
 
     /// INITIATE_BUS_RESET at `now` (BUS_RESET events follow).
@@ -530,6 +544,11 @@ impl Twin {
             return self.refuse(errno::ENODEV);
         }
         Answer::value(u64::from(SPEED_CODE))
+    }
+
+    /// A message the server could not take (counted as refused).
+    fn note_refused(&mut self) {
+        self.stats.refused += 1;
     }
 
     fn refuse(&mut self, e: i32) -> Answer {

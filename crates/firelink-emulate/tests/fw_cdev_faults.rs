@@ -82,7 +82,7 @@ fn a_lost_response_completes_once_cancelled_at_the_split_timeout() {
         &[0; 4],
         sent,
     );
-    assert_eq!(a.errno, 0);
+    assert_eq!(a, Ok(()));
     // Nothing before the split time-out...
     assert!(events_of(&mut twin, c, sent + SimDuration::from_millis(4)).is_empty());
     // ...then exactly one completion, cancelled, and never another.
@@ -99,7 +99,8 @@ fn a_lost_response_completes_once_cancelled_at_the_split_timeout() {
         &read_quadlet(8, 0xFFFF_F000_0400, rec.generation),
         &[0; 4],
         now,
-    );
+    )
+    .unwrap();
     let got = events_of(&mut twin, c, now + SimDuration::from_millis(1));
     assert_eq!(got.len(), 1);
     let r = ResponseEvent::parse(&got[0]).unwrap();
@@ -125,7 +126,8 @@ fn a_busy_ack_completes_with_rcode_busy() {
             &read_quadlet(closure, 0, rec.generation),
             &[0; 4],
             now,
-        );
+        )
+        .unwrap();
         let got = events_of(&mut twin, c, now + SimDuration::from_millis(1));
         assert_eq!(got.len(), 1, "one completion per request");
         let r = ResponseEvent::parse(&got[0]).unwrap();
@@ -192,9 +194,8 @@ fn lock_requests_get_the_rcode_the_kernel_reports() {
     // The boards' link takes no lock request: no ack, RCODE_NO_ACK.
     let now = twin.bus().now();
     assert_eq!(
-        twin.send_request(board, false, &lock(1), &[0; 8], now)
-            .errno,
-        0
+        twin.send_request(board, false, &lock(1), &[0; 8], now),
+        Ok(())
     );
     let got = events_of(&mut twin, board, now + SimDuration::from_millis(1));
     let r = ResponseEvent::parse(&got[0]).unwrap();
@@ -202,8 +203,8 @@ fn lock_requests_get_the_rcode_the_kernel_reports() {
     // The card's own CSRs: a type error, as the kernel's core answers.
     let now = twin.bus().now();
     assert_eq!(
-        twin.send_request(card, false, &lock(2), &[0; 8], now).errno,
-        0
+        twin.send_request(card, false, &lock(2), &[0; 8], now),
+        Ok(())
     );
     let got = events_of(&mut twin, card, now + SimDuration::from_millis(1));
     let r = ResponseEvent::parse(&got[0]).unwrap();
@@ -215,8 +216,8 @@ fn lock_requests_get_the_rcode_the_kernel_reports() {
     };
     let now = twin.bus().now();
     assert_eq!(
-        twin.send_request(board, false, &raw, &[0; 8], now).errno,
-        errno::EINVAL
+        twin.send_request(board, false, &raw, &[0; 8], now),
+        Err(errno::EINVAL)
     );
     let s = twin.stats();
     assert_eq!(s.requests, s.completions, "{s}");

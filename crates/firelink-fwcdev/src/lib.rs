@@ -18,7 +18,18 @@
 //!   SEND_BROADCAST_REQUEST, INITIATE_BUS_RESET, GET_CYCLE_TIMER(2) and
 //!   GET_SPEED are forwarded; any other number fails with ENOTTY, as the
 //!   kernel's does for what it does not implement. The kernel's argument
-//!   checks (EINVAL, EIO, EACCES) are made here before anything is sent.
+//!   checks (EINVAL, EIO, EACCES, EFAULT) are made here before anything is
+//!   sent.
+//! - SEND_REQUEST and SEND_BROADCAST_REQUEST return as soon as the request
+//!   is sent, without waiting for the server, as the kernel's return once
+//!   the request is queued: their outcome is the completion event (a
+//!   stale generation too: RCODE_GENERATION, as the kernel reports it).
+//!   Their synchronous failures are the argument checks above and ENODEV
+//!   for a node that left the bus, which the library learns from the
+//!   socket: the server shuts a device's control connection down when it
+//!   hangs the device up (the send fails with EPIPE), and from then on
+//!   every ioctl on that fd fails with ENODEV at once. The other ioctls
+//!   wait for the server's one reply.
 //! - `close` of a twin fd closes both sockets.
 //!
 //! Everything else, and every other path and fd, goes to the next
@@ -56,6 +67,7 @@ compile_error!(
 
 use std::collections::BTreeMap;
 use std::ffi::{CStr, c_char, c_int, c_ulong, c_void};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 use firelink_wire::fw_cdev::{
@@ -126,13 +138,27 @@ fn no_symbol() -> c_int {
 
 // ---- the twin's fds ----
 
-/// One open twin device: the private control socket, and behind a lock
-/// (so that one ioctl's request and reply are not interleaved with
-/// another's) the buffer its messages are written and read in, made once
-/// at open rather than at every ioctl.
+/// One open twin device: the private control socket, the node's speed
+/// code (the kernel's length check depends on it), whether the node is
+/// known to have left the bus, and behind a lock (so that one ioctl's
+/// request and reply are not interleaved with another's) the buffer its
+/// messages are written and read in, made once at open rather than at
+/// every ioctl.
 struct Device {
     control: c_int,
+    speed: u8,
+    gone: AtomicBool,
     io: Mutex<Vec<u8>>,
+}
+
+impl Device {
+    /// ENODEV once the node is known to be gone (`e` is then noted).
+    fn note(&self, e: c_int) -> c_int {
+        if e == libc::ENODEV {
+            self.gone.store(true, Ordering::Relaxed);
+        }
+        e
+    }
 }
 
 /// Bytes of a device's message buffer: the largest request, or the
@@ -224,15 +250,34 @@ fn close_fd(fd: c_int) {
     }
 }
 
+/// Send the first `n` bytes of `buf` as one message on `fd`.
+fn send_message(fd: c_int, buf: &[u8], n: usize) -> Result<(), c_int> {
+    let message = buf.get(..n).ok_or(libc::EINVAL)?;
+    loop {
+        // SAFETY: `message` is initialised memory of its length.
+        let sent = unsafe {
+            libc::send(
+                fd,
+                message.as_ptr().cast(),
+                message.len(),
+                libc::MSG_NOSIGNAL,
+            )
+        };
+        if sent >= 0 {
+            return Ok(());
+        }
+        let e = last_errno();
+        if e != libc::EINTR {
+            return Err(gone(e));
+        }
+    }
+}
+
 /// Send one twin request on `fd` and wait for its reply; `buf` holds the
 /// request, then the reply. Returns the reply's length.
 fn round_trip(fd: c_int, request: &TwinRequest<'_>, buf: &mut [u8]) -> Result<usize, c_int> {
     let n = request.emit(buf).map_err(|_| libc::EINVAL)?;
-    // SAFETY: buf[..n] is initialised memory.
-    let sent = unsafe { libc::send(fd, buf.as_ptr().cast(), n, libc::MSG_NOSIGNAL) };
-    if sent < 0 {
-        return Err(gone(last_errno()));
-    }
+    send_message(fd, buf, n)?;
     loop {
         // SAFETY: buf is writable for its length.
         let got = unsafe { libc::recv(fd, buf.as_mut_ptr().cast(), buf.len(), 0) };
@@ -248,7 +293,10 @@ fn round_trip(fd: c_int, request: &TwinRequest<'_>, buf: &mut [u8]) -> Result<us
 
 /// A server that went away is a device that went away.
 fn gone(e: c_int) -> c_int {
-    if matches!(e, libc::EPIPE | libc::ECONNRESET | libc::ENOTCONN) {
+    if matches!(
+        e,
+        libc::EPIPE | libc::ECONNRESET | libc::ENOTCONN | libc::ECONNREFUSED
+    ) {
         libc::ENODEV
     } else {
         e
@@ -287,12 +335,15 @@ fn open_twin_inner(n: u32, flags: c_int) -> Result<c_int, c_int> {
         }
     };
     let attached = round_trip(control, &TwinRequest::Attach { connection }, &mut buf)
-        .and_then(|len| reply(&buf[..len]).map(|_| ()));
-    if let Err(e) = attached {
-        close_fd(event);
-        close_fd(control);
-        return Err(e);
-    }
+        .and_then(|len| reply(&buf[..len]).map(|r| r.value));
+    let speed = match attached {
+        Ok(speed) => u8::try_from(speed).unwrap_or(0),
+        Err(e) => {
+            close_fd(event);
+            close_fd(control);
+            return Err(e);
+        }
+    };
     if flags & libc::O_NONBLOCK != 0 {
         // SAFETY: fcntl on our own descriptor.
         unsafe {
@@ -305,6 +356,8 @@ fn open_twin_inner(n: u32, flags: c_int) -> Result<c_int, c_int> {
             event,
             Arc::new(Device {
                 control,
+                speed,
+                gone: AtomicBool::new(false),
                 io: Mutex::new(vec![0u8; DEVICE_BUFFER]),
             }),
         );
@@ -325,18 +378,25 @@ fn reply(b: &[u8]) -> Result<TwinReply<'_>, c_int> {
 
 /// Copy `len` bytes from the caller's `ptr` (EFAULT for null).
 fn read_arg(ptr: *const c_void, len: usize) -> Result<Vec<u8>, c_int> {
-    if len == 0 {
-        return Ok(Vec::new());
+    let mut v = vec![0u8; len];
+    copy_arg(ptr, &mut v)?;
+    Ok(v)
+}
+
+/// Fill `out` from the caller's `ptr` (EFAULT for null), without
+/// allocating.
+fn copy_arg(ptr: *const c_void, out: &mut [u8]) -> Result<(), c_int> {
+    if out.is_empty() {
+        return Ok(());
     }
     if ptr.is_null() {
         return Err(errno::EFAULT);
     }
-    let mut v = vec![0u8; len];
     // SAFETY: the caller's ioctl argument is readable for its size (the
     // kernel's contract; a bad pointer faults as the kernel's EFAULT would
     // not, which is the one difference).
-    unsafe { std::ptr::copy_nonoverlapping(ptr.cast::<u8>(), v.as_mut_ptr(), len) };
-    Ok(v)
+    unsafe { std::ptr::copy_nonoverlapping(ptr.cast::<u8>(), out.as_mut_ptr(), out.len()) };
+    Ok(())
 }
 
 /// Copy `bytes` to the caller's `ptr` (EFAULT for null).
@@ -354,6 +414,14 @@ fn write_arg(ptr: *mut c_void, bytes: &[u8]) -> Result<(), c_int> {
 
 fn twin_ioctl(device: &Device, request: c_ulong, arg: *mut c_void) -> Result<c_int, c_int> {
     let ioctl = Ioctl::from_request(request).ok_or(errno::ENOTTY)?;
+    // The kernel refuses every ioctl of a shut-down device first.
+    if device.gone.load(Ordering::Relaxed) {
+        return Err(errno::ENODEV);
+    }
+    twin_ioctl_on(device, ioctl, arg).map_err(|e| device.note(e))
+}
+
+fn twin_ioctl_on(device: &Device, ioctl: Ioctl, arg: *mut c_void) -> Result<c_int, c_int> {
     let mut buf = device.io.lock().map_err(|_| libc::EIO)?;
     let buf = buf.as_mut_slice();
     match ioctl {
@@ -388,26 +456,24 @@ fn twin_ioctl(device: &Device, request: c_ulong, arg: *mut c_void) -> Result<c_i
         }
         Ioctl::SendRequest | Ioctl::SendBroadcastRequest => {
             let broadcast = ioctl == Ioctl::SendBroadcastRequest;
-            let a = SendRequestArgs::parse(&read_arg(arg, fw_cdev::SEND_REQUEST_LEN)?)
-                .map_err(|_| errno::EFAULT)?;
-            a.check(broadcast, 5)?;
-            // The kernel copies the payload only when `data` is set (a read
-            // may pass none, as libraw1394's asynchronous reads do).
-            let payload = if a.data == 0 {
-                vec![0u8; a.payload_len()]
+            let mut raw = [0u8; fw_cdev::SEND_REQUEST_LEN];
+            copy_arg(arg, &mut raw)?;
+            let a = SendRequestArgs::parse(&raw).map_err(|_| errno::EFAULT)?;
+            a.check(broadcast, device.speed)?;
+            // The payload goes straight into the message. The kernel copies
+            // it only when `data` is set (a read may pass none, as
+            // libraw1394's asynchronous reads do).
+            let at = fw_cdev::SEND_REQUEST_PAYLOAD_AT;
+            let payload = buf.get_mut(at..at + a.payload_len()).ok_or(errno::EINVAL)?;
+            if a.data == 0 {
+                payload.fill(0);
             } else {
-                read_arg(a.data as *const c_void, a.payload_len())?
-            };
-            let len = round_trip(
-                device.control,
-                &TwinRequest::SendRequest {
-                    broadcast,
-                    args: a,
-                    payload: &payload,
-                },
-                buf,
-            )?;
-            reply(&buf[..len])?;
+                copy_arg(a.data as *const c_void, payload)?;
+            }
+            let n =
+                fw_cdev::emit_send_request_head(broadcast, &a, buf).map_err(|_| errno::EINVAL)?;
+            // Queued: the completion event follows on the device's fd.
+            send_message(device.control, buf, n)?;
             Ok(0)
         }
         Ioctl::InitiateBusReset => {

@@ -16,6 +16,16 @@ pub enum HostError {
         /// How long the host waited.
         waited_us: u32,
     },
+    /// A servo cycle spent its whole budget for waiting on answers (the
+    /// `fw` port's per-cycle deadline) before this request's answer came:
+    /// the cycle ends here; the answer, if it comes later, is dropped.
+    #[error("no response from node {node} within the cycle's budget of {budget_us} us")]
+    CycleDeadline {
+        /// Destination node.
+        node: u8,
+        /// The cycle's budget for waiting.
+        budget_us: u32,
+    },
     /// The responder acknowledged with something other than complete/pending.
     #[error("node {node} answered with ack {}", ack_words(*.ack))]
     Ack {

@@ -10,9 +10,25 @@
 //! - A request (SEND_REQUEST) goes to the target node's fd with a closure
 //!   and the port's bus generation; its completion is read from that fd,
 //!   one event per `read()`, after `poll`. Completions are matched by
-//!   closure: one that arrives after the port stopped waiting for it (its
-//!   per-call deadline, [`FirewirePort::set_timeout`], far shorter than the
-//!   kernel's 2 s split time-out) is dropped when it is read.
+//!   closure: one that arrives after the port stopped waiting for it is
+//!   dropped when it is read, and counted (`LinkStats::late`).
+//! - Started writes (`Port::start_write_quadlet`/`start_write_block`, the
+//!   broadcast protocol's query and commands) return once the kernel took
+//!   the request, as libraw1394's `raw1394_start_write` does for the
+//!   dVRK: their completions are read by later calls on the same fd (the
+//!   hub read that follows the query, the next cycle's), a failed one is
+//!   reported by the next call, a stale generation as a bus reset. At most
+//!   eight stay open; the ninth first waits for the oldest.
+//! - Two deadlines bound every wait, both far shorter than the kernel's
+//!   2 s split time-out: each call's own ([`FwOptions::timeout`], a
+//!   [`HostError::Timeout`]), and within a servo cycle (from
+//!   [`Port::begin_cycle`] to [`Port::end_cycle`], which `IoSystem` calls)
+//!   the cycle's budget for waiting ([`FwOptions::cycle_budget`]): the
+//!   time all the cycle's calls have waited for completions together. A
+//!   call that would wait past it ends the cycle's wait with
+//!   [`HostError::CycleDeadline`], so a transaction the kernel holds
+//!   until its split time-out never stalls a cycle by more than the
+//!   budget, however many requests the cycle makes.
 //! - A bus reset queues a BUS_RESET event on every fd. The call that meets
 //!   one (or a completion with RCODE_GENERATION) fails once with
 //!   [`HostError::BusReset`]; the port then takes the new generation,
@@ -97,6 +113,19 @@ const STATE_CLEAR: u64 = 0xFFFF_F000_0000;
 const STATE_CMSTR: u32 = 0x100;
 /// Largest event the port reads (a 2048-byte block plus the header).
 const EVENT_BUFFER: usize = 4096 + 64;
+/// Most writes started and not yet completed (`Port::start_write_*`):
+/// starting one more first waits for the oldest.
+const MAX_STARTED: usize = 8;
+
+/// A write started without waiting for it: its completion is taken from
+/// a later read of its node's fd.
+#[derive(Debug, Clone, Copy)]
+struct StartedWrite {
+    closure: u64,
+    /// Index in `nodes` of the fd it was sent on.
+    index: usize,
+    node: u8,
+}
 
 /// How to open a [`FirewirePort`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -108,6 +137,9 @@ pub struct FwOptions {
     pub stop_cycle_master: bool,
     /// How long one call waits for its completion.
     pub timeout: Duration,
+    /// How long the calls of one servo cycle may wait for their
+    /// completions together (see the module docs).
+    pub cycle_budget: Duration,
 }
 
 impl Default for FwOptions {
@@ -116,6 +148,7 @@ impl Default for FwOptions {
             card: 0,
             stop_cycle_master: true,
             timeout: Duration::from_millis(20),
+            cycle_budget: Duration::from_millis(20),
         }
     }
 }
@@ -147,6 +180,12 @@ pub struct FirewirePort {
     filters: LinkFilters,
     stats: LinkStats,
     said_node63: bool,
+    /// Time the current cycle's calls have waited, while a cycle is open.
+    cycle_waited: Option<Duration>,
+    /// Writes started and not completed (at most [`MAX_STARTED`]).
+    started: Vec<StartedWrite>,
+    /// The failure of a started write, reported by the next call.
+    started_failed: Option<HostError>,
     event: Vec<u8>,
     scratch: Vec<u8>,
 }
@@ -248,6 +287,9 @@ impl FirewirePort {
             filters: LinkFilters::default(),
             stats: LinkStats::default(),
             said_node63: false,
+            cycle_waited: None,
+            started: Vec::with_capacity(MAX_STARTED),
+            started_failed: None,
             event: vec![0u8; EVENT_BUFFER],
             scratch: vec![0u8; EVENT_BUFFER],
         };
@@ -269,6 +311,11 @@ impl FirewirePort {
     /// Each call's deadline for its completion.
     pub fn set_timeout(&mut self, timeout: Duration) {
         self.options.timeout = timeout;
+    }
+
+    /// The budget for waiting of each servo cycle.
+    pub fn set_cycle_budget(&mut self, budget: Duration) {
+        self.options.cycle_budget = budget;
     }
 
     /// The card's physical ID (the highest on a bus of boards).
@@ -357,6 +404,11 @@ impl FirewirePort {
     /// or not the reset's event has been queued on that fd yet), the nodes
     /// that left dropped, the ones that joined opened.
     fn refresh(&mut self) -> Result<()> {
+        // Started writes meet the reset (their completions are read below
+        // or never come; the fds are indexed anew), and the reset is what
+        // the program hears of them.
+        self.started.clear();
+        self.started_failed = None;
         let local_device = self.nodes.get(self.local).map(|n| n.device);
         let mut kept = Vec::with_capacity(self.nodes.len());
         // The generation the devices report now (queued events only tell
@@ -395,8 +447,80 @@ impl FirewirePort {
             .map(usize::from)
     }
 
-    /// Send one request to `node` (or a broadcast) and wait for its
-    /// completion; read data lands in `out`.
+    /// Send one write to `node` (or a broadcast) and return without
+    /// waiting for its completion, as libraw1394's `raw1394_start_write`
+    /// (the dVRK's query and commands): the completion is taken by a later
+    /// read of the same fd, or waited for when [`MAX_STARTED`] are open.
+    /// With link filters the write waits (the filters see its response).
+    fn start_write(
+        &mut self,
+        node: u8,
+        broadcast: bool,
+        tcode: u32,
+        offset: u64,
+        data: &[u8],
+    ) -> Result<()> {
+        let wait = !self.filters.is_empty();
+        if !wait && self.started.len() >= MAX_STARTED {
+            self.settle_oldest()?;
+        }
+        self.transact(node, broadcast, tcode, offset, data, &mut [], wait)
+    }
+
+    /// Wait for the oldest started write's completion (its failure is
+    /// reported at once; if none comes in time, it is given up and its
+    /// completion, if it comes later, is dropped as late).
+    fn settle_oldest(&mut self) -> Result<()> {
+        let Some(oldest) = self.started.first().copied() else {
+            return Ok(());
+        };
+        self.started.remove(0);
+        let tl = self.tl;
+        match self.wait_for(
+            oldest.index,
+            oldest.closure,
+            oldest.node,
+            tl,
+            Instant::now(),
+        ) {
+            Ok((rc, _)) => self.judge_started(oldest.node, rc),
+            // Given up: dropped as late if it comes.
+            Err(HostError::Timeout { .. } | HostError::CycleDeadline { .. }) => {}
+            Err(e) => return Err(e),
+        }
+        match self.started_failed.take() {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+
+    /// Note the completion of a started write: counted when complete, a
+    /// stale generation seen as a bus reset, any other failure kept for
+    /// the next call to report.
+    fn judge_started(&mut self, node: u8, rc: u32) {
+        match rc {
+            rcode::COMPLETE => self.stats.matched += 1,
+            rcode::GENERATION => {
+                self.reset_seen
+                    .get_or_insert(self.generation.wrapping_add(1));
+            }
+            1..=0xF => {
+                self.started_failed.get_or_insert(HostError::Rcode {
+                    node,
+                    rcode: Rcode::from(rc as u8),
+                });
+            }
+            other => {
+                self.started_failed
+                    .get_or_insert(HostError::Driver { node, rcode: other });
+            }
+        }
+    }
+
+    /// Send one request to `node` (or a broadcast); with `wait`, wait for
+    /// its completion (read data lands in `out`), else keep it as a
+    /// started write.
+    #[allow(clippy::too_many_arguments)]
     fn transact(
         &mut self,
         node: u8,
@@ -405,9 +529,13 @@ impl FirewirePort {
         offset: u64,
         data: &[u8],
         out: &mut [u8],
+        wait: bool,
     ) -> Result<()> {
         if let Some(new) = self.reset_seen.take() {
             return self.take_reset(new);
+        }
+        if let Some(e) = self.started_failed.take() {
+            return Err(e);
         }
         let index = if broadcast {
             self.local
@@ -478,6 +606,16 @@ impl FirewirePort {
             }
             Err(e) => return Err(errno_error("SEND_REQUEST", e)),
         }
+        if !wait {
+            if self.started.len() < MAX_STARTED {
+                self.started.push(StartedWrite {
+                    closure,
+                    index,
+                    node,
+                });
+            }
+            return Ok(());
+        }
         let started = Instant::now();
         let (rc, len) = self.wait_for(index, closure, node, tl, started)?;
         if !self.filters.is_empty() {
@@ -530,10 +668,9 @@ impl FirewirePort {
         })
     }
 
-    /// Read events from node `index` until the completion with `closure`
-    /// (its rcode and data length; the data is in `self.event`), or the
-    /// deadline. Late completions of earlier calls are dropped; bus resets
-    /// are noted.
+    /// Wait for the completion with `closure` on node `index` until the
+    /// call's deadline or, in a cycle, the end of the cycle's budget,
+    /// whichever comes first; the time waited is charged to the cycle.
     fn wait_for(
         &mut self,
         index: usize,
@@ -542,7 +679,38 @@ impl FirewirePort {
         tl: u8,
         started: Instant,
     ) -> Result<(u32, usize)> {
-        let deadline = started + self.options.timeout;
+        let call = self.options.timeout;
+        let budget = self.options.cycle_budget;
+        let left_in_cycle = self.cycle_waited.map(|w| budget.saturating_sub(w));
+        let limit = left_in_cycle.map_or(call, |left| left.min(call));
+        let result = self.wait_until(index, closure, node, tl, started, started + limit);
+        if let Some(waited) = self.cycle_waited.as_mut() {
+            *waited += started.elapsed();
+        }
+        match result {
+            Err(HostError::Timeout { .. }) if left_in_cycle.is_some_and(|left| left < call) => {
+                Err(HostError::CycleDeadline {
+                    node,
+                    budget_us: u32::try_from(budget.as_micros()).unwrap_or(u32::MAX),
+                })
+            }
+            other => other,
+        }
+    }
+
+    /// Read events from node `index` until the completion with `closure`
+    /// (its rcode and data length; the data is in `self.event`), or
+    /// `deadline`. Late completions of earlier calls are dropped; bus
+    /// resets are noted.
+    fn wait_until(
+        &mut self,
+        index: usize,
+        closure: u64,
+        node: u8,
+        tl: u8,
+        started: Instant,
+        deadline: Instant,
+    ) -> Result<(u32, usize)> {
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
             let file = self
@@ -603,7 +771,14 @@ impl FirewirePort {
                         continue;
                     };
                     if r.closure != closure {
-                        self.stats.late += 1;
+                        let rc = r.rcode;
+                        match self.started.iter().position(|w| w.closure == r.closure) {
+                            Some(k) => {
+                                let w = self.started.swap_remove(k);
+                                self.judge_started(w.node, rc);
+                            }
+                            None => self.stats.late += 1,
+                        }
                         continue;
                     }
                     let (rc, len) = (r.rcode, r.data.len());
@@ -727,7 +902,7 @@ impl FirewirePort {
             if self.file_of(node).is_none() {
                 continue;
             }
-            if let Err(e) = self.transact(node, false, tcode, offset, data, &mut []) {
+            if let Err(e) = self.transact(node, false, tcode, offset, data, &mut [], true) {
                 if matches!(e, HostError::BusReset { .. }) {
                     return Err(e);
                 }
@@ -737,14 +912,26 @@ impl FirewirePort {
         first_error.map_or(Ok(()), Err)
     }
 
-    fn write(&mut self, dest: Dest, offset: u64, tcode: u32, data: &[u8]) -> Result<()> {
-        if dest.is_broadcast() {
-            if offset < fw_cdev::BROADCAST_MIN_OFFSET {
-                return self.write_each_node(offset, tcode, data);
-            }
-            return self.transact(63, true, tcode, offset, data, &mut []);
+    /// A write to `dest`, waited for or only `started` (see
+    /// [`start_write`](Self::start_write)); node 63 below the units space
+    /// goes to each node in turn, waiting.
+    fn write(
+        &mut self,
+        dest: Dest,
+        offset: u64,
+        tcode: u32,
+        data: &[u8],
+        started: bool,
+    ) -> Result<()> {
+        if dest.is_broadcast() && offset < fw_cdev::BROADCAST_MIN_OFFSET {
+            return self.write_each_node(offset, tcode, data);
         }
-        self.transact(dest.node, false, tcode, offset, data, &mut [])
+        let broadcast = dest.is_broadcast();
+        if started {
+            self.start_write(dest.node, broadcast, tcode, offset, data)
+        } else {
+            self.transact(dest.node, broadcast, tcode, offset, data, &mut [], true)
+        }
     }
 }
 
@@ -786,27 +973,44 @@ impl Port for FirewirePort {
     fn read_quadlet(&mut self, dest: Dest, offset: u64) -> Result<u32> {
         crate::port::refuse_broadcast_read(dest)?;
         let mut q = [0u8; 4];
-        self.transact(dest.node, false, 4, offset, &[], &mut q)?;
+        self.transact(dest.node, false, 4, offset, &[], &mut q, true)?;
         Ok(u32::from_be_bytes(q))
     }
 
     fn write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> Result<()> {
-        self.write(dest, offset, 0, &value.to_be_bytes())
+        self.write(dest, offset, 0, &value.to_be_bytes(), false)
     }
 
     fn read_block(&mut self, dest: Dest, offset: u64, out: &mut [u8]) -> Result<()> {
         crate::port::check_block(out.len())?;
         crate::port::refuse_broadcast_read(dest)?;
-        self.transact(dest.node, false, 5, offset, &[], out)
+        self.transact(dest.node, false, 5, offset, &[], out, true)
     }
 
     fn write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
         crate::port::check_block(data.len())?;
-        self.write(dest, offset, 1, data)
+        self.write(dest, offset, 1, data, false)
+    }
+
+    fn start_write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> Result<()> {
+        self.write(dest, offset, 0, &value.to_be_bytes(), true)
+    }
+
+    fn start_write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
+        crate::port::check_block(data.len())?;
+        self.write(dest, offset, 1, data, true)
     }
 
     fn wait(&mut self, duration: Duration) {
         std::thread::sleep(duration);
+    }
+
+    fn begin_cycle(&mut self) {
+        self.cycle_waited = Some(Duration::ZERO);
+    }
+
+    fn end_cycle(&mut self) {
+        self.cycle_waited = None;
     }
 
     fn now(&self) -> Duration {

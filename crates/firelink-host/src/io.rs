@@ -234,7 +234,7 @@ impl IoStats {
     /// Count one error by its kind.
     pub fn count_error(&mut self, e: &HostError) {
         match e {
-            HostError::Timeout { .. } => self.timeouts += 1,
+            HostError::Timeout { .. } | HostError::CycleDeadline { .. } => self.timeouts += 1,
             HostError::BusReset { .. } => self.bus_resets += 1,
             HostError::Wire(_) => self.bad_packets += 1,
             HostError::Ack { .. } | HostError::Rcode { .. } => self.nacks += 1,
@@ -838,6 +838,7 @@ impl<P: Port> IoSystem<P> {
         self.report = CycleReport::EMPTY;
         self.report.cycle = cycle;
         self.stats.cycles += 1;
+        self.port.begin_cycle();
         let started = self.port.now();
         self.report.started = started;
         if self.needs_rescan {
@@ -1121,6 +1122,7 @@ impl<P: Port> IoSystem<P> {
             b.outputs_applied();
         }
         self.report.write_time = self.port.now().saturating_sub(started);
+        self.port.end_cycle();
         let slot = (self.report.cycle % HISTORY as u64) as usize;
         if let Some(h) = self.history.get_mut(slot) {
             *h = self.report;

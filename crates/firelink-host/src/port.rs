@@ -111,6 +111,15 @@ pub trait Port {
     }
     /// Let `duration` pass (virtual time on the simulated bus).
     fn wait(&mut self, duration: Duration);
+    /// A servo cycle's I/O begins ([`IoSystem::read_all`](crate::io::IoSystem::read_all)):
+    /// a port that bounds the time one cycle may spend waiting for its
+    /// answers (the `fw` port's cycle budget) starts that budget anew.
+    /// Other ports ignore it.
+    fn begin_cycle(&mut self) {}
+    /// The cycle's I/O is over ([`IoSystem::write_all`](crate::io::IoSystem::write_all)
+    /// returned): calls until the next [`begin_cycle`](Self::begin_cycle)
+    /// (a rescan, a register read) are bounded by their own time-outs only.
+    fn end_cycle(&mut self) {}
     /// Let time pass until `heard` accepts a packet the host's link
     /// received unasked (a broadcast it overheard), at most `limit`;
     /// returns whether `heard` accepted one. Ports that cannot overhear the
@@ -208,6 +217,14 @@ macro_rules! forward_port {
         fn wait(&mut self, duration: Duration) {
             let $s = self;
             $e.wait(duration)
+        }
+        fn begin_cycle(&mut self) {
+            let $s = self;
+            $e.begin_cycle()
+        }
+        fn end_cycle(&mut self) {
+            let $s = self;
+            $e.end_cycle()
         }
         fn wait_until_heard(
             &mut self,

@@ -345,6 +345,14 @@ impl<P: Port> Port for TracingPort<P> {
         })
     }
 
+    fn begin_cycle(&mut self) {
+        self.inner.begin_cycle();
+    }
+
+    fn end_cycle(&mut self) {
+        self.inner.end_cycle();
+    }
+
     fn wait(&mut self, duration: Duration) {
         let _ = self.record(CallKind::Wait, Dest::BROADCAST, 0, 0, |p| {
             p.wait(duration);

@@ -66,10 +66,12 @@ pub fn fw_port(
     options: &PortOptions,
 ) -> Result<firelink_host::firewire::FirewirePort, TestbedError> {
     use firelink_host::firewire::{FirewirePort, FwOptions};
+    // One time-out bounds a call and, in all, the waits of a servo cycle.
     Ok(FirewirePort::open(FwOptions {
         card,
         stop_cycle_master: options.stop_cycle_master,
         timeout: options.timeout,
+        cycle_budget: options.timeout,
     })?)
 }
 

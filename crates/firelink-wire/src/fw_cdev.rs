@@ -16,9 +16,25 @@
 //!   connection's ID in `value`); from then on it sends only kernel events,
 //!   exactly one per packet, each as `read()` returns it.
 //! - [`TwinRequest::Attach`] `{connection}`: the *control* connection of
-//!   that event connection. Each request on it (GET_INFO, SEND_REQUEST,
-//!   INITIATE_BUS_RESET, GET_CYCLE_TIMER, GET_SPEED) gets exactly one
-//!   [`TwinReply`]: an errno (0 for success), a value, and a payload.
+//!   that event connection. The server answers [`TwinReply`] once (errno 0
+//!   and the node's speed code in `value`: the library needs it for the
+//!   kernel's length check). Then each ioctl is one message on it:
+//!   - SEND_REQUEST and SEND_BROADCAST_REQUEST are one-way
+//!     ([`TwinRequest::expects_reply`] is false): the kernel only queues
+//!     the request and reports its outcome as an event, so the library
+//!     makes the kernel's synchronous checks itself, sends the request and
+//!     returns; the server sends nothing back on the control connection,
+//!     only the one completion event on the event connection. A request
+//!     whose node left is refused by the socket itself (the server shuts
+//!     the control connection down when it hangs up the device: EPIPE,
+//!     which the library reports as ENODEV).
+//!   - every other request (GET_INFO, INITIATE_BUS_RESET, GET_CYCLE_TIMER,
+//!     GET_SPEED) gets exactly one [`TwinReply`]: an errno (0 for
+//!     success), a value, and a payload.
+//!
+//!   A message the server cannot parse closes the control connection (the
+//!   library never sends one; answering it could be taken for the reply
+//!   to a later call).
 //! - [`TwinRequest::List`]: the device numbers present, as
 //!   [`TwinReply`] payload (u32 each); the server then closes.
 //!
@@ -558,7 +574,48 @@ pub enum TwinRequest<'a> {
 /// Bytes a twin request can take at most (header and a 4096-byte payload).
 pub const TWIN_MAX_MESSAGE: usize = 4096 + 64;
 
+/// Where a SEND_REQUEST message's payload starts (after its header).
+pub const SEND_REQUEST_PAYLOAD_AT: usize = 36;
+
+/// Write the header of a SEND_REQUEST message in front of the
+/// `args.length` payload bytes the caller already put at
+/// [`SEND_REQUEST_PAYLOAD_AT`] in `out` (so that a payload is copied once,
+/// straight from the program's buffer into the message). Returns the
+/// message's length.
+///
+/// # Errors
+/// [`Error::BufferTooSmall`] when `out` cannot hold header and payload.
+pub fn emit_send_request_head(
+    broadcast: bool,
+    args: &SendRequestArgs,
+    out: &mut [u8],
+) -> Result<usize> {
+    let total = SEND_REQUEST_PAYLOAD_AT + args.payload_len();
+    if out.len() < total {
+        return Err(Error::BufferTooSmall {
+            what: "twin send request",
+            needed: total,
+            available: out.len(),
+        });
+    }
+    put(out, 0, &OP_SEND_REQUEST.to_le_bytes())?;
+    put(out, 4, &u32::from(broadcast).to_le_bytes())?;
+    put(out, 8, &args.tcode.to_le_bytes())?;
+    put(out, 12, &args.length.to_le_bytes())?;
+    put(out, 16, &args.offset.to_le_bytes())?;
+    put(out, 24, &args.closure.to_le_bytes())?;
+    put(out, 32, &args.generation.to_le_bytes())?;
+    Ok(total)
+}
+
 impl<'a> TwinRequest<'a> {
+    /// Whether the server answers this message with a [`TwinReply`]:
+    /// every message but SEND_REQUEST's, whose outcome is its completion
+    /// event (see the module docs).
+    pub fn expects_reply(&self) -> bool {
+        !matches!(self, TwinRequest::SendRequest { .. })
+    }
+
     /// Parse one message.
     ///
     /// # Errors
@@ -589,7 +646,7 @@ impl<'a> TwinRequest<'a> {
                     data: 0,
                     generation: le32(b, 32).ok_or_else(t)?,
                 };
-                let payload = b.get(36..).unwrap_or(&[]);
+                let payload = b.get(SEND_REQUEST_PAYLOAD_AT..).unwrap_or(&[]);
                 if payload.len() != args.payload_len() {
                     return Err(Error::LengthExceedsBuffer {
                         what: "twin send request payload",
@@ -654,15 +711,12 @@ impl<'a> TwinRequest<'a> {
                 args,
                 payload,
             } => {
-                put(out, 0, &le(OP_SEND_REQUEST))?;
-                put(out, 4, &le(u32::from(broadcast)))?;
-                put(out, 8, &le(args.tcode))?;
-                put(out, 12, &le(payload.len() as u32))?;
-                put(out, 16, &args.offset.to_le_bytes())?;
-                put(out, 24, &args.closure.to_le_bytes())?;
-                put(out, 32, &le(args.generation))?;
-                put(out, 36, payload)?;
-                Ok(36 + payload.len())
+                put(out, SEND_REQUEST_PAYLOAD_AT, payload)?;
+                let args = SendRequestArgs {
+                    length: payload.len() as u32,
+                    ..args
+                };
+                emit_send_request_head(broadcast, &args, out)
             }
             TwinRequest::InitiateBusReset { short } => {
                 put(out, 0, &le(OP_BUS_RESET))?;
@@ -894,6 +948,50 @@ mod tests {
         let n = reply.emit(&mut out).unwrap();
         assert_eq!(TwinReply::parse(&out[..n]).unwrap(), reply);
         assert!(TwinReply::parse(&out[..10]).is_err());
+    }
+
+    #[test]
+    fn a_send_request_head_fronts_a_payload_already_in_place() {
+        let args = SendRequestArgs {
+            tcode: 1,
+            length: 8,
+            offset: 0xFFFF_FFFF_0000,
+            closure: 42,
+            data: 0,
+            generation: 3,
+        };
+        let payload = [9u8, 8, 7, 6, 5, 4, 3, 2];
+        let mut out = [0xA5u8; 64];
+        out[SEND_REQUEST_PAYLOAD_AT..SEND_REQUEST_PAYLOAD_AT + 8].copy_from_slice(&payload);
+        let n = emit_send_request_head(true, &args, &mut out).unwrap();
+        assert_eq!(n, 44);
+        let parsed = TwinRequest::parse(&out[..n]).unwrap();
+        assert_eq!(
+            parsed,
+            TwinRequest::SendRequest {
+                broadcast: true,
+                args,
+                payload: &payload,
+            }
+        );
+        // The same bytes as the message emitted whole.
+        let mut whole = [0x5Au8; 64];
+        assert_eq!(parsed.emit(&mut whole).unwrap(), n);
+        assert_eq!(whole[..n], out[..n]);
+        // No room for the payload the arguments declare.
+        let mut short = [0u8; 43];
+        assert!(emit_send_request_head(false, &args, &mut short).is_err());
+        // Only SEND_REQUEST goes without a reply.
+        assert!(!parsed.expects_reply());
+        assert!(TwinRequest::GetSpeed.expects_reply());
+        assert!(
+            TwinRequest::GetInfo {
+                version: 6,
+                rom_length: 0,
+                bus_reset_closure: 0
+            }
+            .expects_reply()
+        );
     }
 
     proptest::proptest! {

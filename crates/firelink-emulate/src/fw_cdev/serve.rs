@@ -245,17 +245,27 @@ fn deliver(twin: &mut Twin, now: SimTime, ready: &mut Vec<Outgoing>, conns: &mut
                 }
             }
             Outgoing::HangUp { connection } => {
-                for c in conns.iter_mut().filter(
-                    |c| matches!(c.role, Role::Event(id) | Role::Control(id) if id == connection),
-                ) {
-                    // The peer sees EPOLLHUP once what is queued is read.
-                    flush(c);
-                    let _ = shutdown(c.fd.as_raw_fd(), Shutdown::Both);
-                    c.closed = true;
+                // The control connection first: once the program sees
+                // EPOLLHUP on its fd, its ioctls already fail (ENODEV).
+                let control = |c: &Conn| matches!(c.role, Role::Control(id) if id == connection);
+                let event = |c: &Conn| matches!(c.role, Role::Event(id) if id == connection);
+                for c in conns.iter_mut().filter(|c| control(c)) {
+                    hang_up_conn(c);
+                }
+                for c in conns.iter_mut().filter(|c| event(c)) {
+                    hang_up_conn(c);
                 }
             }
         }
     }
+}
+
+/// Shut `c` down for good: the peer sees EPOLLHUP once what is queued is
+/// read, and its sends fail (EPIPE).
+fn hang_up_conn(c: &mut Conn) {
+    flush(c);
+    let _ = shutdown(c.fd.as_raw_fd(), Shutdown::Both);
+    c.closed = true;
 }
 
 /// Send what is queued, as far as the socket takes it.
@@ -306,10 +316,22 @@ fn receive(
         let message = buf.get(..n).unwrap_or(&[]);
         let answer = match TwinRequest::parse(message) {
             Ok(request) => answer(twin, c, request, now, on_event),
-            Err(_) => Some(Answer {
-                errno: errno::EINVAL,
-                ..Answer::default()
-            }),
+            // The library never sends a message it cannot parse. On a
+            // control connection no reply is safe (a request that expects
+            // none would take it for the next call's): the connection is
+            // closed, and the program's next ioctl on it fails (ENODEV).
+            Err(_) if matches!(c.role, Role::Control(_)) => {
+                twin.note_refused();
+                c.closed = true;
+                return;
+            }
+            Err(_) => {
+                c.close_after = true;
+                Some(Answer {
+                    errno: errno::EINVAL,
+                    ..Answer::default()
+                })
+            }
         };
         if let Some(a) = answer {
             let mut out = vec![0u8; 16 + a.payload.len()];
@@ -366,8 +388,14 @@ fn answer(
             }
         }
         (Role::New, TwinRequest::Attach { connection }) => {
-            c.role = Role::Control(connection);
-            Some(Answer::default())
+            // The reply's value is the node's speed code.
+            let a = twin.speed(connection);
+            if a.errno == 0 {
+                c.role = Role::Control(connection);
+            } else {
+                c.close_after = true;
+            }
+            Some(a)
         }
         (Role::New, TwinRequest::List) => {
             twin.advance(now);
@@ -397,7 +425,13 @@ fn answer(
                 args,
                 payload,
             },
-        ) => Some(twin.send_request(*id, broadcast, &args, payload, now)),
+        ) => {
+            // One-way: the outcome is the completion event (a refusal here
+            // is one the library already makes, so only a client that
+            // bypasses it meets one; it is counted and gets nothing).
+            let _ = twin.send_request(*id, broadcast, &args, payload, now);
+            None
+        }
         (Role::Control(id), TwinRequest::InitiateBusReset { short }) => {
             Some(twin.initiate_bus_reset(*id, short, now))
         }
@@ -405,6 +439,8 @@ fn answer(
         (Role::Control(id), TwinRequest::GetSpeed) => Some(twin.speed(*id)),
         // An event connection only receives; anything else is out of turn.
         (Role::Event(_), _) => None,
+        // A one-way message out of turn gets no reply either.
+        (_, TwinRequest::SendRequest { .. }) => None,
         _ => fail(errno::EINVAL),
     }
 }

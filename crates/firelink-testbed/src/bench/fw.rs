@@ -39,7 +39,7 @@ use firelink_host::firewire::{FirewirePort, FwOptions};
 use firelink_host::io::IoSystem;
 use firelink_host::scan::Protocol;
 use firelink_wire::fw_cdev::{
-    KERNEL_ABI_VERSION, ResponseEvent, SendRequestArgs, TWIN_MAX_MESSAGE, TwinReply, TwinRequest,
+    KERNEL_ABI_VERSION, ResponseEvent, SendRequestArgs, TWIN_MAX_MESSAGE, TwinRequest,
     emit_response, rcode,
 };
 
@@ -124,9 +124,9 @@ impl Drop for TwinServer {
 }
 
 /// The floor: a control and an event socket (`SOCK_SEQPACKET` pairs), the
-/// far ends served by a thread that answers each SEND_REQUEST at once:
-/// a reply on the control socket, then a RESPONSE2 event of the length
-/// asked on the event socket.
+/// far ends served by a thread that answers each SEND_REQUEST at once
+/// with a RESPONSE2 event of the length asked on the event socket (as the
+/// twin does, nothing goes back on the control socket).
 struct Floor {
     control: OwnedFd,
     event: OwnedFd,
@@ -135,6 +135,8 @@ struct Floor {
     request: Vec<u8>,
     reply: Vec<u8>,
     closure: u64,
+    /// Closures of started writes whose completions are not read yet.
+    started: Vec<u64>,
 }
 
 fn seqpacket_pair() -> Result<(OwnedFd, OwnedFd), TestbedError> {
@@ -151,7 +153,6 @@ fn seqpacket_pair() -> Result<(OwnedFd, OwnedFd), TestbedError> {
 fn floor_server(control: OwnedFd, event: OwnedFd) {
     let mut rx = vec![0u8; TWIN_MAX_MESSAGE];
     let mut tx = vec![0u8; TWIN_MAX_MESSAGE];
-    let mut reply = [0u8; 16];
     let zeros = [0u8; 4096];
     loop {
         let n = match recv(control.as_raw_fd(), &mut rx, MsgFlags::empty()) {
@@ -161,15 +162,6 @@ fn floor_server(control: OwnedFd, event: OwnedFd) {
         let Ok(TwinRequest::SendRequest { args, .. }) = TwinRequest::parse(&rx[..n]) else {
             return;
         };
-        let ok = TwinReply {
-            errno: 0,
-            value: 0,
-            payload: &[],
-        };
-        let Ok(len) = ok.emit(&mut reply) else { return };
-        if send(control.as_raw_fd(), &reply[..len], MsgFlags::MSG_NOSIGNAL).is_err() {
-            return;
-        }
         let data = if matches!(args.tcode, 4 | 5) {
             zeros.get(..args.length as usize).unwrap_or(&[])
         } else {
@@ -205,6 +197,7 @@ impl Floor {
             request: vec![0u8; TWIN_MAX_MESSAGE],
             reply: vec![0u8; TWIN_MAX_MESSAGE],
             closure: 1,
+            started: Vec::with_capacity(8),
         })
     }
 
@@ -213,9 +206,8 @@ impl Floor {
             .and_then(|c| c.now_while_running(self.thread.as_ref()))
     }
 
-    /// One bare round trip: the request and its reply on the control
-    /// socket, then poll and read of its completion event.
-    fn round_trip(&mut self, tcode: u32, length: usize) -> Result<(), Errno> {
+    /// Send one bare request on the control socket; its closure.
+    fn send_request(&mut self, tcode: u32, length: usize) -> Result<u64, Errno> {
         static PAYLOAD: [u8; 2048] = [0; 2048];
         let closure = self.closure;
         self.closure += 1;
@@ -238,22 +230,49 @@ impl Floor {
             &self.request[..n],
             MsgFlags::MSG_NOSIGNAL,
         )?;
-        let got = recv(self.control.as_raw_fd(), &mut self.reply, MsgFlags::empty())?;
-        TwinReply::parse(&self.reply[..got]).map_err(|_| Errno::EIO)?;
+        Ok(closure)
+    }
+
+    /// Poll and read completion events until the one of `closure`; those
+    /// of started writes on the way are taken, as the port takes them.
+    fn await_completion(&mut self, closure: u64) -> Result<(), Errno> {
         loop {
             let mut fds = [PollFd::new(self.event.as_fd(), PollFlags::POLLIN)];
             match poll(&mut fds, PollTimeout::from(1000u16)) {
                 Ok(0) => return Err(Errno::ETIMEDOUT),
-                Ok(_) => break,
+                Ok(_) => {}
                 Err(Errno::EINTR) => continue,
                 Err(e) => return Err(e),
             }
+            let got = recv(self.event.as_raw_fd(), &mut self.reply, MsgFlags::empty())?;
+            let r = ResponseEvent::parse(&self.reply[..got]).map_err(|_| Errno::EIO)?;
+            if r.closure == closure {
+                return Ok(());
+            }
+            match self.started.iter().position(|&c| c == r.closure) {
+                Some(k) => {
+                    self.started.swap_remove(k);
+                }
+                None => return Err(Errno::EIO),
+            }
         }
-        let got = recv(self.event.as_raw_fd(), &mut self.reply, MsgFlags::empty())?;
-        let r = ResponseEvent::parse(&self.reply[..got]).map_err(|_| Errno::EIO)?;
-        if r.closure != closure {
-            return Err(Errno::EIO);
+    }
+
+    /// One bare round trip: the request, then its completion event.
+    fn round_trip(&mut self, tcode: u32, length: usize) -> Result<(), Errno> {
+        let closure = self.send_request(tcode, length)?;
+        self.await_completion(closure)
+    }
+
+    /// A started write: the request alone (the oldest waited for first
+    /// when as many are open as the port keeps).
+    fn start_write(&mut self, tcode: u32, length: usize) -> Result<(), Errno> {
+        if self.started.len() >= 8 {
+            let oldest = self.started.remove(0);
+            self.await_completion(oldest)?;
         }
+        let closure = self.send_request(tcode, length)?;
+        self.started.push(closure);
         Ok(())
     }
 
@@ -265,6 +284,8 @@ impl Floor {
                 Step::WriteQuadlet(..) => self.round_trip(0, 4)?,
                 Step::ReadBlock(_, _, len) => self.round_trip(5, len)?,
                 Step::WriteBlock(_, _, len) => self.round_trip(1, len)?,
+                Step::StartWriteQuadlet(..) => self.start_write(0, 4)?,
+                Step::StartWriteBlock(_, _, len) => self.start_write(1, len)?,
                 Step::Wait(d) => std::thread::sleep(d),
             }
         }
@@ -412,10 +433,17 @@ mod tests {
             Step::WriteQuadlet(Dest::node(0), 0x1800),
             Step::ReadBlock(Dest::node(0), 0x1000, 268),
             Step::WriteBlock(Dest::node(0), 0xFFFF_FFFF_0000, 2048),
+            Step::StartWriteQuadlet(Dest::node(0), 0x1800),
+            Step::ReadBlock(Dest::node(0), 0x1000, 1060),
+            Step::StartWriteBlock(Dest::node(0), 0xFFFF_FFFF_0000, 192),
         ];
         for _ in 0..10 {
             floor.replay(&script).unwrap();
         }
-        assert_eq!(floor.closure, 41);
+        assert_eq!(floor.closure, 71);
+        // The last cycle's command write is still open (each earlier one
+        // was taken by the next cycle's first read, each query by the hub
+        // read after it).
+        assert_eq!(floor.started.len(), 1);
     }
 }

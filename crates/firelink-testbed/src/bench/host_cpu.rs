@@ -256,6 +256,14 @@ impl<P: Port> Port for HubReplay<P> {
         }
     }
 
+    fn begin_cycle(&mut self) {
+        self.inner.begin_cycle();
+    }
+
+    fn end_cycle(&mut self) {
+        self.inner.end_cycle();
+    }
+
     fn now(&self) -> Duration {
         match &self.frozen {
             Some(f) => f.now,

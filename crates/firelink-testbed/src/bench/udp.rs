@@ -49,6 +49,10 @@ pub(super) enum Step {
     WriteQuadlet(Dest, u64),
     ReadBlock(Dest, u64, usize),
     WriteBlock(Dest, u64, usize),
+    /// A write started without waiting for its completion.
+    StartWriteQuadlet(Dest, u64),
+    /// A block write started without waiting for its completion.
+    StartWriteBlock(Dest, u64, usize),
     Wait(Duration),
 }
 
@@ -101,7 +105,7 @@ impl<P: Port> Port for Recorder<P> {
         offset: u64,
         value: u32,
     ) -> firelink_host::Result<()> {
-        self.note(Step::WriteQuadlet(dest, offset));
+        self.note(Step::StartWriteQuadlet(dest, offset));
         self.inner.start_write_quadlet(dest, offset, value)
     }
     fn start_write_block(
@@ -110,12 +114,18 @@ impl<P: Port> Port for Recorder<P> {
         offset: u64,
         data: &[u8],
     ) -> firelink_host::Result<()> {
-        self.note(Step::WriteBlock(dest, offset, data.len()));
+        self.note(Step::StartWriteBlock(dest, offset, data.len()));
         self.inner.start_write_block(dest, offset, data)
     }
     fn wait(&mut self, duration: Duration) {
         self.note(Step::Wait(duration));
         self.inner.wait(duration);
+    }
+    fn begin_cycle(&mut self) {
+        self.inner.begin_cycle();
+    }
+    fn end_cycle(&mut self) {
+        self.inner.end_cycle();
     }
     fn wait_until_heard(&mut self, limit: Duration, heard: &mut dyn FnMut(&[u8]) -> bool) -> bool {
         // Over UDP nothing is overheard: the whole limit is waited.
@@ -232,12 +242,16 @@ fn replay(port: &mut UdpPort, script: &[Step], buf: &mut [u8]) -> firelink_host:
                 port.read_quadlet(dest, offset)?;
             }
             Step::WriteQuadlet(dest, offset) => port.write_quadlet(dest, offset, 0)?,
+            Step::StartWriteQuadlet(dest, offset) => port.start_write_quadlet(dest, offset, 0)?,
             Step::ReadBlock(dest, offset, len) => {
                 let out = buf.get_mut(..len).unwrap_or_default();
                 port.read_block(dest, offset, out)?;
             }
             Step::WriteBlock(dest, offset, len) => {
                 port.write_block(dest, offset, ZEROS.get(..len).unwrap_or_default())?;
+            }
+            Step::StartWriteBlock(dest, offset, len) => {
+                port.start_write_block(dest, offset, ZEROS.get(..len).unwrap_or_default())?;
             }
             Step::Wait(d) => port.wait(d),
         }
