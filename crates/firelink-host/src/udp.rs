@@ -120,15 +120,15 @@ impl SocketCalls {
 
 /// The port's socket: every call counted, and its settings remembered so
 /// that setting what it already has costs no system call.
-struct Socket {
-    udp: UdpSocket,
+pub(crate) struct Socket {
+    pub(crate) udp: UdpSocket,
     nonblocking: bool,
     read_timeout: Option<Duration>,
-    calls: SocketCalls,
+    pub(crate) calls: SocketCalls,
 }
 
 impl Socket {
-    fn new(udp: UdpSocket) -> Socket {
+    pub(crate) fn new(udp: UdpSocket) -> Socket {
         Socket {
             udp,
             nonblocking: false,
@@ -137,12 +137,12 @@ impl Socket {
         }
     }
 
-    fn send_to(&mut self, buf: &[u8], target: SocketAddr) -> io::Result<usize> {
+    pub(crate) fn send_to(&mut self, buf: &[u8], target: SocketAddr) -> io::Result<usize> {
         self.calls.sends += 1;
         self.udp.send_to(buf, target)
     }
 
-    fn recv_from(&mut self, buf: &mut [u8]) -> io::Result<(usize, SocketAddr)> {
+    pub(crate) fn recv_from(&mut self, buf: &mut [u8]) -> io::Result<(usize, SocketAddr)> {
         self.calls.receives += 1;
         let r = self.udp.recv_from(buf);
         if r.is_err() {
@@ -151,7 +151,7 @@ impl Socket {
         r
     }
 
-    fn set_nonblocking(&mut self, on: bool) -> io::Result<()> {
+    pub(crate) fn set_nonblocking(&mut self, on: bool) -> io::Result<()> {
         if self.nonblocking != on {
             self.calls.settings += 1;
             self.udp.set_nonblocking(on)?;
@@ -162,7 +162,7 @@ impl Socket {
 
     /// Set the receive time-out of a blocking socket (at least 1 us: the
     /// socket takes no zero).
-    fn set_read_timeout(&mut self, limit: Duration) -> io::Result<()> {
+    pub(crate) fn set_read_timeout(&mut self, limit: Duration) -> io::Result<()> {
         let limit = limit.max(Duration::from_micros(1));
         if self.read_timeout != Some(limit) {
             self.calls.settings += 1;
