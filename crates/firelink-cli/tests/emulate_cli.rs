@@ -26,10 +26,16 @@ struct Emulate {
 impl Emulate {
     /// Start `firelink emulate ARGS` and wait until it listens.
     fn start(args: &[&str]) -> Emulate {
+        Emulate::start_listening(args, &["--no-broadcast"])
+    }
+
+    /// The same with `more` options after `--listen 127.0.0.1:0`.
+    fn start_listening(args: &[&str], more: &[&str]) -> Emulate {
         let mut server = Command::new(env!("CARGO_BIN_EXE_firelink"))
             .arg("emulate")
             .args(args)
-            .args(["--listen", "127.0.0.1:0", "--no-broadcast"])
+            .args(["--listen", "127.0.0.1:0"])
+            .args(more)
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn()
@@ -582,4 +588,42 @@ fn emulate_network_eth() {
     let rest = emu.terminate();
     let stopped = "stopped: 3 datagrams, 3 replies";
     assert!(rest.iter().any(|l| l.starts_with(stopped)), "{rest:?}");
+}
+
+/// `firelink scan --port udp:127.255.255.255:PORT` on `firelink emulate
+/// --network eth` (the loopback broadcast address as the group, the
+/// boards at 127.0.0.100 + ID): `udp` chooses the Ethernet-only network
+/// and finds the four boards by ID, each at its own node (its ID).
+#[test]
+fn scan_over_the_ethernet_only_network() {
+    let emu = Emulate::start_listening(
+        &[
+            "--network",
+            "eth",
+            "--fpga",
+            "V3",
+            "--firmware",
+            "9",
+            "--boards",
+            "4",
+            "--chain",
+            "3,1,0,2",
+        ],
+        &[],
+    );
+    let port: u16 = emu.port.rsplit(':').next().unwrap().parse().unwrap();
+    let at = format!("udp:127.255.255.255:{port}");
+    // Each absent ID waits the time-out once; a present board on loopback
+    // answers in microseconds.
+    let found = json(&["scan", "--port", &at, "--json", "--timeout-ms", "1000"]);
+    let boards = found["boards"].as_array().expect("boards");
+    let ids: Vec<u64> = boards
+        .iter()
+        .map(|b| b["board_id"].as_u64().unwrap())
+        .collect();
+    assert_eq!(ids, vec![0, 1, 2, 3], "{found}");
+    for b in boards {
+        assert_eq!(b["node"], b["board_id"], "{b}");
+    }
+    emu.terminate();
 }

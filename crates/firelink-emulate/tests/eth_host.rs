@@ -259,3 +259,41 @@ fn probe_tells_the_ethernet_only_network_from_the_bridge() {
     assert_eq!(probe.firmware, 8);
     let _ = bridge.stop();
 }
+
+/// `udp:HOST` and `udpfw:HOST` as the port strings open them
+/// (`UdpNetPort`): at the Ethernet-only network's group address `udp`
+/// chooses that network and scans its boards by ID, `udpfw` the bridge,
+/// which finds no bridge there; at a V2 bridge at Rev 8 `udp` keeps the
+/// bridge and scans through it.
+#[test]
+fn udp_chooses_the_ethernet_only_network_and_udpfw_the_bridge() {
+    use firelink_host::eth::UdpNetPort;
+    use firelink_host::udp::WaitMode;
+    let chain = [1u8, 0];
+    let served = Served::start(&chain);
+    let group = std::net::SocketAddr::new(
+        std::net::IpAddr::V4(firelink_host::eth::LOOPBACK_BROADCAST),
+        served.port,
+    );
+    let mut port = UdpNetPort::open(group, false, SCAN_TIMEOUT, WaitMode::Blocking).unwrap();
+    assert!(port.is_ethernet_only());
+    let found: Vec<u8> = scan(&mut port)
+        .unwrap()
+        .boards
+        .iter()
+        .map(|b| b.board_id)
+        .collect();
+    assert_eq!(found, vec![0, 1]);
+    let forced = UdpNetPort::open(group, true, SCAN_TIMEOUT, WaitMode::Blocking).unwrap();
+    assert!(!forced.is_ethernet_only());
+    drop(forced);
+    let _ = served.stop();
+
+    let bridge = common::Server::start(common::qla1s(2, firelink_board::config::Profile::Rev8));
+    let mut port = UdpNetPort::open(bridge.addr, false, SCAN_TIMEOUT, WaitMode::Blocking).unwrap();
+    assert!(!port.is_ethernet_only());
+    let report = scan(&mut port).unwrap();
+    assert_eq!(report.boards.len(), 2);
+    assert_eq!(report.bridge_board, Some(0));
+    let _ = bridge.stop();
+}

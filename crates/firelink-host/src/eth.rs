@@ -38,7 +38,7 @@ use firelink_wire::bridge::{ControlWord, ExtraData};
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
 
 use crate::error::{HostError, Result};
-use crate::port::{Dest, Port};
+use crate::port::{Dest, LinkFilter, Port};
 use crate::transaction::{Expect, LinkStats, Transactions};
 use crate::udp::{HOST_SOURCE_ID, Socket, is_wait_over, judge_reply};
 
@@ -555,4 +555,68 @@ impl Port for EthPort {
     fn acknowledges_writes(&self) -> bool {
         false
     }
+}
+
+/// What a `udp:HOST` port string opens, chosen as the Rev 9 host chooses
+/// (`udp` = best for the hardware, `udpfw` = the bridge): the board
+/// answering at HOST is asked who it is ([`EthPort::probe`]); an FPGA V3 at
+/// Rev 9 or later means the Ethernet-only network ([`EthPort`], its
+/// addresses initialised), anything else, or no answer, the bridge
+/// ([`UdpPort`](crate::udp::UdpPort)). The choice follows the board that
+/// answers (the hub) alone, as EthBasePort's does.
+pub struct UdpNetPort {
+    inner: Box<dyn Port + Send>,
+    ethernet_only: bool,
+}
+
+impl UdpNetPort {
+    /// Open the port for `host`; `force_bridge` (`udpfw`) skips the probe.
+    /// `timeout` is every read's; `wait` how the bridge's reads wait.
+    ///
+    /// # Errors
+    /// Sockets that cannot be opened; the Ethernet-only network's IP write.
+    pub fn open(
+        host: SocketAddr,
+        force_bridge: bool,
+        timeout: Duration,
+        wait: crate::udp::WaitMode,
+    ) -> Result<UdpNetPort> {
+        let network = if force_bridge {
+            None
+        } else {
+            EthPort::probe(host, timeout)
+                .ok()
+                .filter(Probe::is_ethernet_only)
+                .and_then(|p| p.ethernet_only_addresses())
+        };
+        Ok(match network {
+            Some(addrs) => {
+                let mut port = EthPort::open(addrs)?;
+                port.set_timeout(timeout);
+                port.init()?;
+                UdpNetPort {
+                    inner: Box::new(port),
+                    ethernet_only: true,
+                }
+            }
+            None => {
+                let mut port = crate::udp::UdpPort::open(host)?;
+                port.set_timeout(timeout);
+                port.set_wait_mode(wait);
+                UdpNetPort {
+                    inner: Box::new(port),
+                    ethernet_only: false,
+                }
+            }
+        })
+    }
+
+    /// Whether the Ethernet-only network was chosen (else the bridge).
+    pub fn is_ethernet_only(&self) -> bool {
+        self.ethernet_only
+    }
+}
+
+impl Port for UdpNetPort {
+    crate::port::forward_port!(s => s.inner);
 }
