@@ -500,18 +500,21 @@ fn emulate_holds_or_explains_the_cpu_latency_request() {
 /// and the bridge's options refused by name; served, each board answers
 /// at its own address (127.0.0.100 + ID) with its board ID as source, and
 /// the chain's first board is the hub.
+/// `firelink emulate` on the Ethernet-only network.
+const ETH_NETWORK: [&str; 7] = [
+    "emulate",
+    "--network",
+    "eth",
+    "--fpga",
+    "V3",
+    "--firmware",
+    "9",
+];
+
 #[test]
 fn emulate_network_eth() {
     use firelink_wire::bridge::split_board_datagram;
-    let eth = [
-        "emulate",
-        "--network",
-        "eth",
-        "--fpga",
-        "V3",
-        "--firmware",
-        "9",
-    ];
+    let eth = ETH_NETWORK;
     let quick = ["--listen", "127.0.0.1:0", "--duration-s", "1"];
     let needs = "add --fpga V3 --firmware 9";
     for (args, expected) in [
@@ -596,21 +599,8 @@ fn emulate_network_eth() {
 /// and finds the four boards by ID, each at its own node (its ID).
 #[test]
 fn scan_over_the_ethernet_only_network() {
-    let emu = Emulate::start_listening(
-        &[
-            "--network",
-            "eth",
-            "--fpga",
-            "V3",
-            "--firmware",
-            "9",
-            "--boards",
-            "4",
-            "--chain",
-            "3,1,0,2",
-        ],
-        &[],
-    );
+    let args = [&ETH_NETWORK[1..], &["--boards", "4", "--chain", "3,1,0,2"]].concat();
+    let emu = Emulate::start_listening(&args, &[]);
     let port: u16 = emu.port.rsplit(':').next().unwrap().parse().unwrap();
     let at = format!("udp:127.255.255.255:{port}");
     // Each absent ID waits the time-out once; a present board on loopback

@@ -10,15 +10,10 @@ mod common;
 #[allow(unused_imports)]
 mod eth_common;
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::thread::JoinHandle;
 use std::time::Duration;
 
-use eth_common::v3_rev9;
-use firelink_bus::ethernet::EthTiming;
-use firelink_emulate::eth_network::{EthNetwork, NetworkStats};
-use firelink_emulate::eth_serve::{EthServeConfig, eth_bind, eth_serve};
+use eth_common::{ServedNetwork, shuffled};
+use firelink_emulate::eth_serve::EthServeConfig;
 use firelink_host::eth::{EthAddresses, EthPort};
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::port::Port;
@@ -33,64 +28,31 @@ const TIMEOUT: Duration = Duration::from_secs(5);
 /// microseconds, so a second is far beyond what load adds.
 const SCAN_TIMEOUT: Duration = Duration::from_secs(1);
 
-struct Served {
-    port: u16,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<NetworkStats>>,
-}
+/// The boards of `chain` (in chain order from the host), served on a
+/// free port.
+struct Served(ServedNetwork);
 
 impl Served {
-    /// The boards of `chain` (in chain order from the host), served on a
-    /// free port.
     fn start(chain: &[u8]) -> Served {
-        let mut net = EthNetwork::new(v3_rev9(chain), EthTiming::default()).unwrap();
         let config = EthServeConfig {
             port: 0,
             ..EthServeConfig::default()
         };
-        let sockets = eth_bind(&config, chain).unwrap();
-        let port = sockets.port;
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = Arc::clone(&stop);
-        let thread = std::thread::spawn(move || {
-            eth_serve(&mut net, &sockets, &flag, |_| {}).unwrap();
-            net.stats()
-        });
-        Served {
-            port,
-            stop,
-            thread: Some(thread),
-        }
+        Served(ServedNetwork::start(chain, &config))
     }
 
     /// An initialised host port on this network, with the scan's
     /// time-out.
     fn host(&self) -> EthPort {
-        let mut port = EthPort::open(EthAddresses::loopback(self.port)).unwrap();
+        let mut port = EthPort::open(EthAddresses::loopback(self.0.port)).unwrap();
         port.set_timeout(SCAN_TIMEOUT);
         port.init().unwrap();
         port
     }
 
-    fn stop(mut self) -> NetworkStats {
-        self.stop.store(true, Ordering::Relaxed);
-        self.thread.take().unwrap().join().unwrap()
+    fn stop(self) -> firelink_emulate::eth_network::NetworkStats {
+        self.0.stop()
     }
-}
-
-/// The chain for `n` boards, not in board order.
-fn shuffled(n: u8) -> Vec<u8> {
-    let (mut lo, mut hi) = (0u8, n);
-    let mut out = Vec::new();
-    while lo < hi {
-        hi -= 1;
-        out.push(hi);
-        if lo < hi {
-            out.push(lo);
-            lo += 1;
-        }
-    }
-    out
 }
 
 fn scan_finds(n: u8) {
@@ -241,14 +203,14 @@ fn probe_tells_the_ethernet_only_network_from_the_bridge() {
     let served = Served::start(&chain);
     let group = std::net::SocketAddr::new(
         std::net::IpAddr::V4(firelink_host::eth::LOOPBACK_BROADCAST),
-        served.port,
+        served.0.port,
     );
     let probe = EthPort::probe(group, TIMEOUT).unwrap();
     assert!(probe.is_ethernet_only(), "{probe:?}");
     assert_eq!(probe.board, 3, "the hub");
     assert_eq!(
         probe.ethernet_only_addresses(),
-        Some(EthAddresses::loopback(served.port))
+        Some(EthAddresses::loopback(served.0.port))
     );
     let _ = served.stop();
 
@@ -273,7 +235,7 @@ fn udp_chooses_the_ethernet_only_network_and_udpfw_the_bridge() {
     let served = Served::start(&chain);
     let group = std::net::SocketAddr::new(
         std::net::IpAddr::V4(firelink_host::eth::LOOPBACK_BROADCAST),
-        served.port,
+        served.0.port,
     );
     let mut port = UdpNetPort::open(group, false, SCAN_TIMEOUT, WaitMode::Blocking).unwrap();
     assert!(port.is_ethernet_only());

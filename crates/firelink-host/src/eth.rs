@@ -40,7 +40,10 @@ use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
 use crate::error::{HostError, Result};
 use crate::port::{Dest, LinkFilter, Port};
 use crate::transaction::{Expect, LinkStats, Transactions};
-use crate::udp::{HOST_SOURCE_ID, Socket, is_wait_over, judge_reply};
+use crate::udp::{
+    HOST_SOURCE_ID, Socket, fill_request, is_wait_over, judge_reply, read_block_request, time_left,
+    write_block_request, write_quadlet_request,
+};
 
 /// The Rev 9 host's multicast group (EthUdpPort's default).
 pub const MULTICAST_GROUP: Ipv4Addr = Ipv4Addr::new(224, 0, 0, 100);
@@ -367,15 +370,8 @@ impl EthPort {
             no_forward: true,
             generation: self.transactions.generation() as u8,
         };
-        let len = 2 + repr.buffer_len();
-        let Some(buf) = self.tx.get_mut(..len) else {
-            return Err(HostError::InvalidRequest {
-                what: "request larger than a datagram",
-                value: len as u32,
-            });
-        };
-        buf[..2].copy_from_slice(&control.to_bytes());
-        repr.emit(&mut buf[2..])?;
+        let len = fill_request(&mut self.tx, control, repr)?;
+        let buf = self.tx.get(..len).unwrap_or(&[]);
         loop {
             match self.socket.send_to(buf, target) {
                 Ok(_) => break,
@@ -438,14 +434,7 @@ impl EthPort {
                 self.last_extra = Some(extra);
                 return Ok(());
             }
-            let elapsed = started.elapsed();
-            match self.timeout.checked_sub(elapsed).filter(|d| !d.is_zero()) {
-                Some(remaining) => limit = remaining,
-                None => {
-                    let waited = elapsed.as_micros().min(u128::from(u32::MAX)) as u32;
-                    return Err(self.transactions.timed_out(&expect, waited));
-                }
-            }
+            limit = time_left(&mut self.transactions, &expect, started, self.timeout)?;
         }
     }
 }
@@ -472,14 +461,7 @@ impl Port for EthPort {
             self.flush()?;
         }
         let header = self.header(dest);
-        self.send(
-            dest,
-            &PacketRepr::WriteQuadletRequest {
-                header,
-                offset,
-                data: value,
-            },
-        )?;
+        self.send(dest, &write_quadlet_request(header, offset, value))?;
         if query {
             self.query_tl = Some(header.tl);
             self.stats.queries += 1;
@@ -491,15 +473,7 @@ impl Port for EthPort {
         crate::port::check_block(out.len())?;
         self.transactions.check_generation(dest)?;
         let header = self.header(dest);
-        self.send(
-            dest,
-            &PacketRepr::ReadBlockRequest {
-                header,
-                offset,
-                data_length: out.len() as u16,
-                extended_tcode: 0,
-            },
-        )?;
+        self.send(dest, &read_block_request(header, offset, out.len()))?;
         self.receive(Expect::block(dest, header.tl, out.len()), out)
     }
 
@@ -507,15 +481,7 @@ impl Port for EthPort {
         crate::port::check_block(data.len())?;
         self.transactions.check_generation(dest)?;
         let header = self.header(dest);
-        self.send(
-            dest,
-            &PacketRepr::WriteBlockRequest {
-                header,
-                offset,
-                extended_tcode: 0,
-                data,
-            },
-        )
+        self.send(dest, &write_block_request(header, offset, data))
     }
 
     fn receive_broadcast_response(&mut self, out: &mut [u8]) -> Option<Result<()>> {
@@ -536,25 +502,7 @@ impl Port for EthPort {
         Some(r)
     }
 
-    fn wait(&mut self, duration: Duration) {
-        crate::pacing::precise_sleep(duration);
-    }
-
-    fn now(&self) -> Duration {
-        self.opened.elapsed()
-    }
-
-    fn generation(&self) -> u32 {
-        self.transactions.generation()
-    }
-
-    fn link_stats(&self) -> LinkStats {
-        self.transactions.stats()
-    }
-
-    fn acknowledges_writes(&self) -> bool {
-        false
-    }
+    crate::udp::datagram_port_clock_and_counts!();
 }
 
 /// What a `udp:HOST` port string opens, chosen as the Rev 9 host chooses
