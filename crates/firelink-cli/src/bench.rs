@@ -14,7 +14,6 @@
 //! [`firelink_plot::fig11`]; this file parses the options and prints.
 
 use std::io::Write;
-use std::net::SocketAddr;
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
@@ -50,13 +49,14 @@ impl From<TransportArg> for BenchTransport {
 
 /// `--port`: the port grammar, of which the benchmark takes `udp:HOST`
 /// (port 1394) or `udp:HOST:PORT`.
-fn bridge_address(text: &str) -> Result<SocketAddr, CliError> {
+fn bridge_address(text: &str) -> Result<crate::ports::PortSpec, CliError> {
     match crate::ports::parse_port_for(
         text,
         "firelink bench --port",
         &[firelink_testbed::port_spec::PortKind::Udp],
     )? {
-        crate::ports::PortSpec::Udp(addr) => Ok(addr),
+        // The bench measures the bridge: `udp` and `udpfw` alike.
+        spec @ (crate::ports::PortSpec::Udp(_) | crate::ports::PortSpec::UdpFw(_)) => Ok(spec),
         other => Err(other
             .refused("firelink bench --port", "it takes udp".into())
             .into()),
@@ -96,7 +96,7 @@ pub struct BenchArgs {
     /// boards) instead of an in-process emulator: one point per protocol
     /// with the boards the scan finds; no emulator CPU.
     #[arg(long, value_parser = bridge_address)]
-    pub port: Option<SocketAddr>,
+    pub port: Option<crate::ports::PortSpec>,
     /// UDP points: how the host's reads wait (comma-separated, each
     /// measured side by side): `block` (sleep in the kernel) or `spin`
     /// (poll the socket).
@@ -173,7 +173,12 @@ pub fn options(args: &BenchArgs) -> Result<BenchOptions, CliError> {
         wait_us_per_board: args.wait_us,
         idle_us: args.idle_us,
         udp_waits,
-        udp_target: args.port,
+        udp_target: match args.port {
+            Some(crate::ports::PortSpec::Udp(addr) | crate::ports::PortSpec::UdpFw(addr)) => {
+                Some(addr)
+            }
+            _ => None,
+        },
     })
 }
 

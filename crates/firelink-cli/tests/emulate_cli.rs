@@ -26,10 +26,16 @@ struct Emulate {
 impl Emulate {
     /// Start `firelink emulate ARGS` and wait until it listens.
     fn start(args: &[&str]) -> Emulate {
+        Emulate::start_listening(args, &["--no-broadcast"])
+    }
+
+    /// The same with `more` options after `--listen 127.0.0.1:0`.
+    fn start_listening(args: &[&str], more: &[&str]) -> Emulate {
         let mut server = Command::new(env!("CARGO_BIN_EXE_firelink"))
             .arg("emulate")
             .args(args)
-            .args(["--listen", "127.0.0.1:0", "--no-broadcast"])
+            .args(["--listen", "127.0.0.1:0"])
+            .args(more)
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn()
@@ -262,8 +268,9 @@ fn emulate_refuses_bad_options() {
     }
 }
 
-/// `emulate --fpga V3 --firmware 9 --hardware QLA1|DQLA`: the scan shows
-/// FPGA V3 boards at Rev 9; `--hardware DQLA` alone puts the DQLAs on V3.
+/// `emulate --fpga V3 --firmware 9 --hardware QLA1|DQLA`: the scan through
+/// the bridge (`udpfw`) shows FPGA V3 boards at Rev 9; `--hardware DQLA`
+/// alone puts the DQLAs on V3.
 #[test]
 fn emulate_v3_rev9_boards() {
     for (args, hardware) in [
@@ -287,7 +294,10 @@ fn emulate_v3_rev9_boards() {
             "{board1}"
         );
         assert!(board1.contains("FPGA V3, Rev 9"), "{board1}");
-        let v = scan(&emu.port);
+        // The bridge emulator's V3 boards at Rev 9 are reached through the
+        // bridge: `udpfw` (`udp` would choose the Ethernet-only network, as
+        // the Rev 9 host does for such a hub).
+        let v = scan(&emu.port.replacen("udp:", "udpfw:", 1));
         for b in 0..2 {
             assert_eq!(v["boards"][b]["hardware"], hardware, "{v}");
             assert_eq!(v["boards"][b]["firmware"], 9, "{v}");
@@ -494,18 +504,21 @@ fn emulate_holds_or_explains_the_cpu_latency_request() {
 /// and the bridge's options refused by name; served, each board answers
 /// at its own address (127.0.0.100 + ID) with its board ID as source, and
 /// the chain's first board is the hub.
+/// `firelink emulate` on the Ethernet-only network.
+const ETH_NETWORK: [&str; 7] = [
+    "emulate",
+    "--network",
+    "eth",
+    "--fpga",
+    "V3",
+    "--firmware",
+    "9",
+];
+
 #[test]
 fn emulate_network_eth() {
     use firelink_wire::bridge::split_board_datagram;
-    let eth = [
-        "emulate",
-        "--network",
-        "eth",
-        "--fpga",
-        "V3",
-        "--firmware",
-        "9",
-    ];
+    let eth = ETH_NETWORK;
     let quick = ["--listen", "127.0.0.1:0", "--duration-s", "1"];
     let needs = "add --fpga V3 --firmware 9";
     for (args, expected) in [
@@ -582,4 +595,29 @@ fn emulate_network_eth() {
     let rest = emu.terminate();
     let stopped = "stopped: 3 datagrams, 3 replies";
     assert!(rest.iter().any(|l| l.starts_with(stopped)), "{rest:?}");
+}
+
+/// `firelink scan --port udp:127.255.255.255:PORT` on `firelink emulate
+/// --network eth` (the loopback broadcast address as the group, the
+/// boards at 127.0.0.100 + ID): `udp` chooses the Ethernet-only network
+/// and finds the four boards by ID, each at its own node (its ID).
+#[test]
+fn scan_over_the_ethernet_only_network() {
+    let args = [&ETH_NETWORK[1..], &["--boards", "4", "--chain", "3,1,0,2"]].concat();
+    let emu = Emulate::start_listening(&args, &[]);
+    let port: u16 = emu.port.rsplit(':').next().unwrap().parse().unwrap();
+    let at = format!("udp:127.255.255.255:{port}");
+    // Each absent ID waits the time-out once; a present board on loopback
+    // answers in microseconds.
+    let found = json(&["scan", "--port", &at, "--json", "--timeout-ms", "1000"]);
+    let boards = found["boards"].as_array().expect("boards");
+    let ids: Vec<u64> = boards
+        .iter()
+        .map(|b| b["board_id"].as_u64().unwrap())
+        .collect();
+    assert_eq!(ids, vec![0, 1, 2, 3], "{found}");
+    for b in boards {
+        assert_eq!(b["node"], b["board_id"], "{b}");
+    }
+    emu.terminate();
 }

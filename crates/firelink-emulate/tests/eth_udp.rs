@@ -12,59 +12,36 @@ mod common;
 mod eth_common;
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, UdpSocket};
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::thread::JoinHandle;
 use std::time::Duration;
 
 use eth_common::*;
-use firelink_bus::ethernet::EthTiming;
-use firelink_emulate::eth_network::{EthNetwork, NetworkStats};
-use firelink_emulate::eth_serve::{EthServeConfig, MULTICAST_GROUP, eth_bind, eth_serve};
+use firelink_emulate::eth_network::NetworkStats;
+use firelink_emulate::eth_serve::{EthServeConfig, MULTICAST_GROUP};
 use firelink_wire::packet::Tcode;
 
 /// Long enough never to fire on a loaded machine; no test measures time.
 const RECEIVE_TIMEOUT: Duration = Duration::from_secs(5);
 
-/// A served network and its thread.
+/// A served network and the address of its group requests.
 struct Served {
-    addrs: Vec<(u8, SocketAddr)>,
+    net: ServedNetwork,
     group: SocketAddr,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<NetworkStats>>,
 }
 
 impl Served {
     fn start(chain: &[u8], config: EthServeConfig, group: Option<Ipv4Addr>) -> Served {
-        let mut net = EthNetwork::new(v3_rev9(chain), EthTiming::default()).unwrap();
-        let sockets = eth_bind(&config, chain).unwrap();
-        let addrs = chain
-            .iter()
-            .map(|&id| (id, sockets.board_addr(id).unwrap()))
-            .collect();
+        let net = ServedNetwork::start(chain, &config);
         let group_ip = group.unwrap_or(Ipv4Addr::new(127, 255, 255, 255));
-        let group = SocketAddr::new(IpAddr::V4(group_ip), sockets.port);
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = Arc::clone(&stop);
-        let thread = std::thread::spawn(move || {
-            eth_serve(&mut net, &sockets, &flag, |_| {}).unwrap();
-            net.stats()
-        });
-        Served {
-            addrs,
-            group,
-            stop,
-            thread: Some(thread),
-        }
+        let group = SocketAddr::new(IpAddr::V4(group_ip), net.port);
+        Served { net, group }
     }
 
     fn addr(&self, id: u8) -> SocketAddr {
-        self.addrs.iter().find(|a| a.0 == id).unwrap().1
+        self.net.addr(id)
     }
 
-    fn stop(mut self) -> NetworkStats {
-        self.stop.store(true, Ordering::Relaxed);
-        self.thread.take().unwrap().join().unwrap()
+    fn stop(self) -> NetworkStats {
+        self.net.stop()
     }
 }
 
@@ -170,22 +147,6 @@ fn sequence_errors(a: &Answer, group: &[u8], seq: u16) -> u64 {
         seen |= 1 << board;
     }
     errors
-}
-
-/// The chain for `n` boards, not in board order: the highest ID first,
-/// then alternately from the bottom and the top.
-fn shuffled(n: u8) -> Vec<u8> {
-    let (mut lo, mut hi) = (0u8, n);
-    let mut out = Vec::with_capacity(usize::from(n));
-    while lo < hi {
-        hi -= 1;
-        out.push(hi);
-        if lo < hi {
-            out.push(lo);
-            lo += 1;
-        }
-    }
-    out
 }
 
 /// 2000 broadcast cycles of the Rev 9 host on `n` boards; every 50th

@@ -949,10 +949,17 @@ impl<P: Port> IoSystem<P> {
             self.miss_group(g, MissReason::Transaction);
             return;
         };
-        if let Err(e) = self
-            .port
-            .read_block(Dest::node(hub_node), HUB_MEMORY_OFFSET, buf)
-        {
+        // The Ethernet-only network's hub sends the hub memory unasked;
+        // when it does not come, the hub is read (the Rev 9 host's
+        // fallback; the port counts each).
+        let answered = matches!(self.port.receive_broadcast_response(buf), Some(Ok(())));
+        let read = if answered {
+            Ok(())
+        } else {
+            self.port
+                .read_block(Dest::node(hub_node), HUB_MEMORY_OFFSET, buf)
+        };
+        if let Err(e) = read {
             self.note_error(e);
             self.miss_group(g, MissReason::Transaction);
             return;

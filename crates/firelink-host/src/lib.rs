@@ -42,6 +42,7 @@
 pub mod board;
 pub mod cpu_latency;
 pub mod error;
+pub mod eth;
 pub mod extras;
 pub mod fault;
 #[cfg(all(feature = "firewire", target_os = "linux"))]

@@ -130,6 +130,18 @@ pub trait Port {
         self.wait(limit);
         false
     }
+    /// The Ethernet-only network of FPGA V3 boards at Rev 9: after a
+    /// broadcast query, the hub board sends the host one unsolicited block
+    /// read response holding every selected board's status block (the hub
+    /// memory). A port on that network waits for it (its read time-out)
+    /// and copies its payload into `out` (the hub read's length): `Some(Ok)`;
+    /// `Some(Err)` when it did not come or was damaged (the caller then
+    /// reads the hub, as the Rev 9 host falls back). `None` (every other
+    /// port): no such response, read the hub.
+    fn receive_broadcast_response(&mut self, out: &mut [u8]) -> Option<Result<()>> {
+        let _ = out;
+        None
+    }
     /// Time since the port was opened (virtual on the simulated bus).
     fn now(&self) -> Duration;
     /// [`now`](Self::now) in picoseconds, as finely as the port's clock
@@ -233,6 +245,10 @@ macro_rules! forward_port {
         ) -> bool {
             let $s = self;
             $e.wait_until_heard(limit, heard)
+        }
+        fn receive_broadcast_response(&mut self, out: &mut [u8]) -> Option<Result<()>> {
+            let $s = self;
+            $e.receive_broadcast_response(out)
         }
         fn now(&self) -> Duration {
             let $s = self;

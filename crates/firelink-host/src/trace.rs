@@ -372,6 +372,10 @@ impl<P: Port> Port for TracingPort<P> {
         done
     }
 
+    fn receive_broadcast_response(&mut self, out: &mut [u8]) -> Option<Result<()>> {
+        self.inner.receive_broadcast_response(out)
+    }
+
     fn now(&self) -> Duration {
         self.inner.now()
     }

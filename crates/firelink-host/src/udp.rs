@@ -120,15 +120,15 @@ impl SocketCalls {
 
 /// The port's socket: every call counted, and its settings remembered so
 /// that setting what it already has costs no system call.
-struct Socket {
-    udp: UdpSocket,
+pub(crate) struct Socket {
+    pub(crate) udp: UdpSocket,
     nonblocking: bool,
     read_timeout: Option<Duration>,
-    calls: SocketCalls,
+    pub(crate) calls: SocketCalls,
 }
 
 impl Socket {
-    fn new(udp: UdpSocket) -> Socket {
+    pub(crate) fn new(udp: UdpSocket) -> Socket {
         Socket {
             udp,
             nonblocking: false,
@@ -137,12 +137,12 @@ impl Socket {
         }
     }
 
-    fn send_to(&mut self, buf: &[u8], target: SocketAddr) -> io::Result<usize> {
+    pub(crate) fn send_to(&mut self, buf: &[u8], target: SocketAddr) -> io::Result<usize> {
         self.calls.sends += 1;
         self.udp.send_to(buf, target)
     }
 
-    fn recv_from(&mut self, buf: &mut [u8]) -> io::Result<(usize, SocketAddr)> {
+    pub(crate) fn recv_from(&mut self, buf: &mut [u8]) -> io::Result<(usize, SocketAddr)> {
         self.calls.receives += 1;
         let r = self.udp.recv_from(buf);
         if r.is_err() {
@@ -151,7 +151,7 @@ impl Socket {
         r
     }
 
-    fn set_nonblocking(&mut self, on: bool) -> io::Result<()> {
+    pub(crate) fn set_nonblocking(&mut self, on: bool) -> io::Result<()> {
         if self.nonblocking != on {
             self.calls.settings += 1;
             self.udp.set_nonblocking(on)?;
@@ -162,7 +162,7 @@ impl Socket {
 
     /// Set the receive time-out of a blocking socket (at least 1 us: the
     /// socket takes no zero).
-    fn set_read_timeout(&mut self, limit: Duration) -> io::Result<()> {
+    pub(crate) fn set_read_timeout(&mut self, limit: Duration) -> io::Result<()> {
         let limit = limit.max(Duration::from_micros(1));
         if self.read_timeout != Some(limit) {
             self.calls.settings += 1;
@@ -354,15 +354,7 @@ impl UdpPort {
             no_forward: dest.no_forward,
             generation: self.transactions.generation() as u8,
         };
-        let len = 2 + repr.buffer_len();
-        let Some(buf) = self.tx.get_mut(..len) else {
-            return Err(HostError::InvalidRequest {
-                what: "request larger than a datagram",
-                value: len as u32,
-            });
-        };
-        buf[..2].copy_from_slice(&control.to_bytes());
-        repr.emit(&mut buf[2..])?;
+        let len = fill_request(&mut self.tx, control, repr)?;
         let now_ps = self.now_ps();
         let Some(buf) = self.tx.get_mut(..len) else {
             return Ok(());
@@ -473,13 +465,11 @@ impl UdpPort {
                 self.last_extra = Some(extra);
                 return Ok(());
             }
-            let elapsed = started.elapsed();
-            match self.timeout.checked_sub(elapsed).filter(|d| !d.is_zero()) {
-                Some(remaining) => limit = remaining,
-                None => {
-                    let waited = elapsed.as_micros().min(u128::from(u32::MAX)) as u32;
+            match time_left(&mut self.transactions, &expect, started, self.timeout) {
+                Ok(remaining) => limit = remaining,
+                Err(e) => {
                     self.drain_before_read = true;
-                    return Err(self.transactions.timed_out(&expect, waited));
+                    return Err(e);
                 }
             }
         }
@@ -512,6 +502,83 @@ impl UdpPort {
         let mut out = [0u8; 4];
         self.receive(Expect::quadlet(dest, header.tl), &mut out)?;
         Ok(u32::from_be_bytes(out))
+    }
+}
+
+/// The quadlet write request of `value` (both datagram ports).
+pub(crate) fn write_quadlet_request(
+    header: AsyncHeader,
+    offset: u64,
+    value: u32,
+) -> PacketRepr<'static> {
+    PacketRepr::WriteQuadletRequest {
+        header,
+        offset,
+        data: value,
+    }
+}
+
+/// The block read request of `len` bytes (both datagram ports).
+pub(crate) fn read_block_request(
+    header: AsyncHeader,
+    offset: u64,
+    len: usize,
+) -> PacketRepr<'static> {
+    PacketRepr::ReadBlockRequest {
+        header,
+        offset,
+        data_length: len as u16,
+        extended_tcode: 0,
+    }
+}
+
+/// The block write request of `data` (both datagram ports).
+pub(crate) fn write_block_request(header: AsyncHeader, offset: u64, data: &[u8]) -> PacketRepr<'_> {
+    PacketRepr::WriteBlockRequest {
+        header,
+        offset,
+        extended_tcode: 0,
+        data,
+    }
+}
+
+/// Write `control` and `repr` into `tx` as one request datagram; its
+/// length.
+///
+/// # Errors
+/// The request does not fit a datagram, or does not encode.
+pub(crate) fn fill_request(
+    tx: &mut [u8],
+    control: ControlWord,
+    repr: &PacketRepr<'_>,
+) -> Result<usize> {
+    let len = 2 + repr.buffer_len();
+    let Some(buf) = tx.get_mut(..len) else {
+        return Err(HostError::InvalidRequest {
+            what: "request larger than a datagram",
+            value: len as u32,
+        });
+    };
+    buf[..2].copy_from_slice(&control.to_bytes());
+    repr.emit(&mut buf[2..])?;
+    Ok(len)
+}
+
+/// What is left of `timeout` since `started`, or the time-out error of
+/// `expect` (the wait in us) from the engine when nothing is.
+pub(crate) fn time_left(
+    transactions: &mut Transactions,
+    expect: &Expect,
+    started: Instant,
+    timeout: Duration,
+) -> Result<Duration> {
+    let elapsed = started.elapsed();
+    match timeout.checked_sub(elapsed).filter(|d| !d.is_zero()) {
+        Some(remaining) => Ok(remaining),
+        None => {
+            let waited = elapsed.as_micros().min(u128::from(u32::MAX)) as u32;
+            Err(transactions.timed_out(expect, waited))
+        }
     }
 }
 
@@ -566,6 +633,34 @@ pub fn judge_reply(
     Ok(Some(extra))
 }
 
+/// The [`Port`] methods a datagram port (the bridge's, the Ethernet-only
+/// network's) has in common: the wall clock since `opened`, the engine's
+/// generation and counts in `transactions`, writes never acknowledged.
+macro_rules! datagram_port_clock_and_counts {
+    () => {
+        fn wait(&mut self, duration: Duration) {
+            crate::pacing::precise_sleep(duration);
+        }
+
+        fn now(&self) -> Duration {
+            self.opened.elapsed()
+        }
+
+        fn generation(&self) -> u32 {
+            self.transactions.generation()
+        }
+
+        fn link_stats(&self) -> LinkStats {
+            self.transactions.stats()
+        }
+
+        fn acknowledges_writes(&self) -> bool {
+            false
+        }
+    };
+}
+pub(crate) use datagram_port_clock_and_counts;
+
 impl Port for UdpPort {
     fn name(&self) -> &str {
         &self.name
@@ -579,14 +674,7 @@ impl Port for UdpPort {
     fn write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> Result<()> {
         self.check_generation(dest)?;
         let header = self.header(dest);
-        self.send(
-            dest,
-            &PacketRepr::WriteQuadletRequest {
-                header,
-                offset,
-                data: value,
-            },
-        )
+        self.send(dest, &write_quadlet_request(header, offset, value))
     }
 
     fn read_block(&mut self, dest: Dest, offset: u64, out: &mut [u8]) -> Result<()> {
@@ -594,15 +682,7 @@ impl Port for UdpPort {
         self.check_generation(dest)?;
         self.drain_if_stale()?;
         let header = self.header(dest);
-        self.send(
-            dest,
-            &PacketRepr::ReadBlockRequest {
-                header,
-                offset,
-                data_length: out.len() as u16,
-                extended_tcode: 0,
-            },
-        )?;
+        self.send(dest, &read_block_request(header, offset, out.len()))?;
         self.receive(Expect::block(dest, header.tl, out.len()), out)
     }
 
@@ -610,36 +690,10 @@ impl Port for UdpPort {
         crate::port::check_block(data.len())?;
         self.check_generation(dest)?;
         let header = self.header(dest);
-        self.send(
-            dest,
-            &PacketRepr::WriteBlockRequest {
-                header,
-                offset,
-                extended_tcode: 0,
-                data,
-            },
-        )
+        self.send(dest, &write_block_request(header, offset, data))
     }
 
-    fn wait(&mut self, duration: Duration) {
-        crate::pacing::precise_sleep(duration);
-    }
-
-    fn now(&self) -> Duration {
-        self.opened.elapsed()
-    }
-
-    fn generation(&self) -> u32 {
-        self.transactions.generation()
-    }
-
-    fn link_stats(&self) -> LinkStats {
-        self.transactions.stats()
-    }
-
-    fn acknowledges_writes(&self) -> bool {
-        false
-    }
+    datagram_port_clock_and_counts!();
 
     fn add_link_filter(&mut self, filter: Box<dyn LinkFilter>) -> Result<()> {
         self.filters.add(filter);

@@ -655,6 +655,12 @@ impl Injector for UdpPort {
     }
 }
 
+impl Injector for firelink_host::eth::UdpNetPort {
+    fn inject(&mut self, fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError> {
+        inject_from_outside(fault, watchdog)
+    }
+}
+
 #[cfg(target_os = "linux")]
 impl Injector for firelink_host::firewire::FirewirePort {
     fn inject(&mut self, fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError> {
@@ -769,17 +775,11 @@ pub fn run_demo_until(
             emu.stop()?;
             report
         }
-        PortSpec::Udp(addr) => {
-            let port = rig::udp_port_with(*addr, options.udp_wait)?;
-            run_robot(
-                port,
-                options,
-                format!("udp:{addr}"),
-                pacing,
-                stop,
-                realtime,
-                &mut progress,
-            )
+        PortSpec::Udp(addr) | PortSpec::UdpFw(addr) => {
+            let force_bridge = matches!(options.port, PortSpec::UdpFw(_));
+            let port = rig::net_port_with(*addr, force_bridge, options.udp_wait)?;
+            let name = port.name().to_string();
+            run_robot(port, options, name, pacing, stop, realtime, &mut progress)
         }
         PortSpec::Fw(card) => {
             let port = ports::fw_port(*card, &PortOptions::default())?;

@@ -9,7 +9,8 @@
 //! | `sim:N`             | boards 0..N of that robot (N 1..=16) |
 //! | `sim:N:FW`          | the same at firmware FW: `7` (or `rev7`), `8` (or `rev8`), `seed` |
 //! | `emulate`           | the robot's boards behind an in-process `firelink emulate`, over loopback UDP |
-//! | `udp:HOST[:PORT]`   | a bridge board, or a running `firelink emulate` (port 1394 by default) |
+//! | `udp:HOST[:PORT]`   | the best way to the boards answering at HOST (port 1394 by default): the Ethernet-only network when the board answering is an FPGA V3 at Rev 9 or later (HOST a board's address or the group's: `udp:127.255.255.255` for `firelink emulate --network eth`), else the bridge (a bridge board, or a running `firelink emulate`) |
+//! | `udpfw:HOST[:PORT]` | the bridge protocol whatever answers (the dVRK's `udpfw`) |
 //! | `fw` / `fw:N`       | FireWire card 0 / N through Linux /dev/fw* (or the twin of `firelink fw-run`) |
 //!
 //! **What `sim` holds.** The boards of the robot the command runs: for a
@@ -26,8 +27,7 @@
 //! plain `sim`.
 //!
 //! The name of a transport is the text before the first `:`; an unknown
-//! one is refused with the list above (room for transports to come, e.g.
-//! `udpfw`). Leading and trailing spaces are ignored.
+//! one is refused with the list above. Leading and trailing spaces are ignored.
 //!
 //! A front end that cannot use a kind of port refuses it with
 //! [`PortSpec::refuse_unless`], naming the command and the port.
@@ -40,8 +40,7 @@ use firelink_board::config::Profile;
 use firelink_host::udp::UdpPort;
 
 /// What every front end accepts, as its error messages say it.
-pub const EXPECTED: &str =
-    "sim, sim:N, sim:N:FW (N 1..=16, FW 7, 8, 9 or seed), emulate, udp:HOST[:PORT], fw or fw:N";
+pub const EXPECTED: &str = "sim, sim:N, sim:N:FW (N 1..=16, FW 7, 8, 9 or seed), emulate, udp:HOST[:PORT], udpfw:HOST[:PORT], fw or fw:N";
 
 /// The largest board count of `sim:N` (the board-ID space of one bus).
 pub const MAX_SIM_BOARDS: u8 = 16;
@@ -62,8 +61,11 @@ pub enum PortSpec {
     Sim(Option<SimBoards>),
     /// `emulate`.
     Emulate,
-    /// `udp:HOST[:PORT]`, resolved.
+    /// `udp:HOST[:PORT]`, resolved: the Ethernet-only network or the
+    /// bridge, whichever the board answering calls for.
     Udp(SocketAddr),
+    /// `udpfw:HOST[:PORT]`, resolved: the bridge protocol.
+    UdpFw(SocketAddr),
     /// `fw` (card 0) or `fw:N`.
     Fw(u32),
 }
@@ -81,7 +83,7 @@ pub enum PortKind {
     Sim,
     /// `emulate`.
     Emulate,
-    /// `udp:...`.
+    /// `udp:...` and `udpfw:...`.
     Udp,
     /// `fw[:N]`.
     Fw,
@@ -148,7 +150,7 @@ impl PortSpec {
         match self {
             PortSpec::Sim(_) => PortKind::Sim,
             PortSpec::Emulate => PortKind::Emulate,
-            PortSpec::Udp(_) => PortKind::Udp,
+            PortSpec::Udp(_) | PortSpec::UdpFw(_) => PortKind::Udp,
             PortSpec::Fw(_) => PortKind::Fw,
         }
     }
@@ -299,6 +301,12 @@ impl FromStr for PortSpec {
                     port: text.to_string(),
                     error,
                 }),
+            ("udpfw", _) => UdpPort::parse_address(rest.unwrap_or(""))
+                .map(PortSpec::UdpFw)
+                .map_err(|error| PortSpecError::Address {
+                    port: text.to_string(),
+                    error,
+                }),
             ("fw", None) => Ok(PortSpec::Fw(0)),
             ("fw", Some(card)) => card
                 .parse::<u32>()
@@ -325,6 +333,7 @@ impl fmt::Display for PortSpec {
             })) => write!(f, "sim:{count}:{}", firmware_name(*fw)),
             PortSpec::Emulate => f.write_str("emulate"),
             PortSpec::Udp(addr) => write!(f, "udp:{addr}"),
+            PortSpec::UdpFw(addr) => write!(f, "udpfw:{addr}"),
             PortSpec::Fw(card) => write!(f, "fw:{card}"),
         }
     }
@@ -423,6 +432,11 @@ mod tests {
             ("emulate", PortSpec::Emulate, "emulate"),
             ("udp:127.0.0.1", udp(1394), "udp:127.0.0.1:1394"),
             ("udp:localhost:1500", udp(1500), "udp:127.0.0.1:1500"),
+            (
+                "udpfw:127.0.0.1",
+                PortSpec::UdpFw("127.0.0.1:1394".parse().unwrap()),
+                "udpfw:127.0.0.1:1394",
+            ),
             ("fw", PortSpec::Fw(0), "fw:0"),
             ("fw:3", PortSpec::Fw(3), "fw:3"),
         ] {
@@ -441,7 +455,7 @@ mod tests {
         for (text, says) in [
             ("", "unknown port"),
             ("tcp:x", "unknown port"),
-            ("udpfw:127.0.0.1", "unknown port"),
+            ("udpfw:", "expected udp:HOST"),
             ("sim4", "unknown port"),
             ("sim:", "board count is 1..=16"),
             ("sim:0", "board count is 1..=16"),

@@ -108,7 +108,15 @@ pub fn open_bus_port(
             let boards = sim_boards(spec, &presets::dvrk_seed000(), options.firmware);
             Box::new(rig::sim_port(boards, false)?.0)
         }
-        PortSpec::Udp(addr) => Box::new(udp_port(*addr, options)?),
+        PortSpec::Udp(addr) | PortSpec::UdpFw(addr) => {
+            let force_bridge = matches!(spec, PortSpec::UdpFw(_));
+            Box::new(firelink_host::eth::UdpNetPort::open(
+                *addr,
+                force_bridge,
+                options.timeout,
+                options.udp_wait,
+            )?)
+        }
         #[cfg(target_os = "linux")]
         PortSpec::Fw(card) => Box::new(fw_port(*card, options)?),
         _ => {

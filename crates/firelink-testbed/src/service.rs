@@ -1195,9 +1195,11 @@ impl Service {
                 let (s, h) = spawn(port, name, options(Pacing::WallClock))?;
                 (s, h, Some(emu), remote)
             }
-            PortSpec::Udp(addr) => {
-                let port = rig::udp_port(*addr)?;
-                let (s, h) = spawn(port, format!("udp:{addr}"), options(Pacing::WallClock))?;
+            PortSpec::Udp(addr) | PortSpec::UdpFw(addr) => {
+                let force_bridge = matches!(port, PortSpec::UdpFw(_));
+                let net = rig::net_port_with(*addr, force_bridge, Default::default())?;
+                let name = firelink_host::port::Port::name(&net).to_string();
+                let (s, h) = spawn(net, name, options(Pacing::WallClock))?;
                 (s, h, None, remote)
             }
             PortSpec::Fw(card) => {

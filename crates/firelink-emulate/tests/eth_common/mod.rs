@@ -146,3 +146,69 @@ pub fn place(hub: &[u32], n: usize, seq: u16) -> Vec<(u8, Vec<u32>)> {
         })
         .collect()
 }
+
+/// A network of V3 Rev 9 QLA1 boards (`chain` in chain order from the
+/// host) served by `eth_serve` on its own thread.
+pub struct ServedNetwork {
+    /// (board ID, its address).
+    pub addrs: Vec<(u8, std::net::SocketAddr)>,
+    /// The port every board listens on.
+    pub port: u16,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    thread: Option<std::thread::JoinHandle<firelink_emulate::eth_network::NetworkStats>>,
+}
+
+impl ServedNetwork {
+    /// Bind as `config` says and serve.
+    pub fn start(chain: &[u8], config: &firelink_emulate::eth_serve::EthServeConfig) -> Self {
+        use firelink_emulate::eth_network::EthNetwork;
+        use firelink_emulate::eth_serve::{eth_bind, eth_serve};
+        let mut net =
+            EthNetwork::new(v3_rev9(chain), firelink_bus::ethernet::EthTiming::default()).unwrap();
+        let sockets = eth_bind(config, chain).unwrap();
+        let addrs = chain
+            .iter()
+            .map(|&id| (id, sockets.board_addr(id).unwrap()))
+            .collect();
+        let port = sockets.port;
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let flag = std::sync::Arc::clone(&stop);
+        let thread = std::thread::spawn(move || {
+            eth_serve(&mut net, &sockets, &flag, |_| {}).unwrap();
+            net.stats()
+        });
+        ServedNetwork {
+            addrs,
+            port,
+            stop,
+            thread: Some(thread),
+        }
+    }
+
+    /// Board `id`'s address.
+    pub fn addr(&self, id: u8) -> std::net::SocketAddr {
+        self.addrs.iter().find(|a| a.0 == id).unwrap().1
+    }
+
+    /// Stop serving; the network's counters.
+    pub fn stop(mut self) -> firelink_emulate::eth_network::NetworkStats {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        self.thread.take().unwrap().join().unwrap()
+    }
+}
+
+/// The chain for `n` boards, not in board order: the highest ID first,
+/// then alternately from the bottom and the top.
+pub fn shuffled(n: u8) -> Vec<u8> {
+    let (mut lo, mut hi) = (0u8, n);
+    let mut out = Vec::with_capacity(usize::from(n));
+    while lo < hi {
+        hi -= 1;
+        out.push(hi);
+        if lo < hi {
+            out.push(lo);
+            lo += 1;
+        }
+    }
+    out
+}

@@ -419,6 +419,26 @@ pub fn udp_port_with(addr: std::net::SocketAddr, wait: WaitMode) -> Result<UdpPo
     Ok(p)
 }
 
+/// The port a `udp:` (`force_bridge` false: the Ethernet-only network
+/// when the board answering is an FPGA V3 at Rev 9 or later, else the
+/// bridge) or `udpfw:` (the bridge) string opens, with the rig's time-out
+/// and the bridge's reads waiting as `wait` says.
+///
+/// # Errors
+/// The sockets could not be opened; the Ethernet-only network's IP write.
+pub fn net_port_with(
+    addr: std::net::SocketAddr,
+    force_bridge: bool,
+    wait: WaitMode,
+) -> Result<firelink_host::eth::UdpNetPort, TestbedError> {
+    Ok(firelink_host::eth::UdpNetPort::open(
+        addr,
+        force_bridge,
+        UDP_TIMEOUT,
+        wait,
+    )?)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

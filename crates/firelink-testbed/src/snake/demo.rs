@@ -219,9 +219,10 @@ pub fn run_snake_demo(
             emu.stop()?;
             r?
         }
-        PortSpec::Udp(addr) => {
-            let port = rig::udp_port_with(*addr, options.udp_wait)?;
-            let name = format!("udp:{addr}");
+        PortSpec::Udp(addr) | PortSpec::UdpFw(addr) => {
+            let force_bridge = matches!(options.port, PortSpec::UdpFw(_));
+            let port = rig::net_port_with(*addr, force_bridge, options.udp_wait)?;
+            let name = firelink_host::port::Port::name(&port).to_string();
             run_on(port, options, name, pacing, realtime, &mut progress)?
         }
         PortSpec::Fw(card) => {
