@@ -133,15 +133,16 @@ pub struct EmulateArgs {
     #[arg(long = "fw-cdev", value_name = "SOCKET")]
     pub fw_cdev: Option<PathBuf>,
     /// Hold every CPU's wake-up latency at this many microseconds while
-    /// serving (a PM QoS request on /dev/cpu_dma_latency; needs root), or
-    /// `off` (the default). With 0 idle CPUs poll instead of sleeping, so
-    /// a datagram handed from a host on one idle CPU to the emulator on
-    /// another is taken in microseconds, not the tens a sleeping (in a VM:
-    /// halted) CPU takes to wake; on a quiet machine a cycle of many round
-    /// trips otherwise has two speeds, by where the scheduler put the two
-    /// processes (BENCHMARKS.md). Idle CPUs then spin while this runs.
-    /// Not permitted: served all the same, with a note.
-    #[arg(long = "cpu-latency", value_name = "US|off", default_value = "off", value_parser = crate::args::cpu_latency)]
+    /// serving (a PM QoS request on /dev/cpu_dma_latency, as real-time
+    /// Linux tools such as cyclictest hold; needs root), or `off`. With 0
+    /// (the default) idle CPUs poll instead of sleeping, so a datagram
+    /// handed from a host on one idle CPU to the emulator on another is
+    /// taken in microseconds, not the tens a sleeping (in a VM: halted)
+    /// CPU takes to wake: on a quiet 2-vCPU VM an 8-board SEQ_R_BC_W cycle
+    /// took 1028-1184 us without it and 196-264 us with it
+    /// (BENCHMARKS.md). Idle CPUs spin while the emulator runs. Not
+    /// permitted: served all the same, with a note.
+    #[arg(long = "cpu-latency", value_name = "US|off", default_value = "0", value_parser = crate::args::cpu_latency)]
     pub cpu_latency: CpuLatencyArg,
     /// Stop by itself after this many seconds (0: run until a signal).
     #[arg(long = "duration-s", default_value_t = 0.0, value_parser = crate::args::seconds_or_forever)]
@@ -342,7 +343,7 @@ fn run_twin(args: &EmulateArgs, path: &Path, out: &mut impl Write) -> Result<(),
     let (mut twin, ids) = build_twin(args)?;
     let listener = fw_cdev::bind(path)?;
     let stop = stop_flag(args)?;
-    let _cpu_latency = hold_cpu_latency(args, out)?;
+    let cpu_latency = CpuLatency::take(args);
     writeln!(
         out,
         "emulating {} board(s) {:?} as /dev/fw1..fw{} (the PC's card: /dev/fw0); bus generation {}",
@@ -351,6 +352,7 @@ fn run_twin(args: &EmulateArgs, path: &Path, out: &mut impl Write) -> Result<(),
         ids.len(),
         twin.bus().generation()
     )?;
+    cpu_latency.report(out)?;
     out.flush()?;
     let mut log = |e: fw_cdev::ServeEvent| {
         let line = match e {
@@ -372,28 +374,45 @@ fn run_twin(args: &EmulateArgs, path: &Path, out: &mut impl Write) -> Result<(),
     Ok(())
 }
 
-/// The `--cpu-latency` request, held until the returned value drops;
-/// says on `out` what took effect (refused: served all the same).
-fn hold_cpu_latency(
-    args: &EmulateArgs,
-    out: &mut impl Write,
-) -> Result<Option<CpuLatencyHold>, CliError> {
-    let CpuLatencyArg::Microseconds(latency_us) = args.cpu_latency else {
-        return Ok(None);
-    };
-    match CpuLatencyHold::take(u64::from(latency_us)) {
-        Ok(hold) => {
-            writeln!(out, "{}", hold.describe())?;
-            Ok(Some(hold))
+/// The `--cpu-latency` request: held until this drops, and the line that
+/// says what took effect (printed after the banner, so the banner stays
+/// the first line).
+struct CpuLatency {
+    _hold: Option<CpuLatencyHold>,
+    line: Option<String>,
+}
+
+impl CpuLatency {
+    /// Take the request `args` asks for (refused: served all the same,
+    /// with a note saying why).
+    fn take(args: &EmulateArgs) -> Self {
+        let CpuLatencyArg::Microseconds(latency_us) = args.cpu_latency else {
+            return Self {
+                _hold: None,
+                line: None,
+            };
+        };
+        match CpuLatencyHold::take(u64::from(latency_us)) {
+            Ok(hold) => Self {
+                line: Some(hold.describe()),
+                _hold: Some(hold),
+            },
+            Err(e) => Self {
+                _hold: None,
+                line: Some(format!(
+                    "note: {e}; serving all the same (a host and the emulator on different \
+                     idle CPUs may then wait tens of microseconds per hand-over; \
+                     --cpu-latency off silences this)"
+                )),
+            },
         }
-        Err(e) => {
-            writeln!(
-                out,
-                "note: {e}; serving all the same (a host and the emulator on different \
-                 CPUs may then wait tens of microseconds per hand-over; --cpu-latency off \
-                 silences this)"
-            )?;
-            Ok(None)
+    }
+
+    /// Say what took effect.
+    fn report(&self, out: &mut impl Write) -> std::io::Result<()> {
+        match &self.line {
+            Some(line) => writeln!(out, "{line}"),
+            None => Ok(()),
         }
     }
 }
@@ -447,7 +466,7 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
     };
     let (unicast, broadcast) = firelink_emulate::bind(&config)?;
     let stop = stop_flag(args)?;
-    let _cpu_latency = hold_cpu_latency(args, out)?;
+    let cpu_latency = CpuLatency::take(args);
     let firmware = match Profile::from(args.firmware) {
         _ if kind == RobotKind::Snake => "seed 001 Snake node",
         Profile::Rev7 => "Rev 7",
@@ -479,6 +498,7 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
                 .unwrap_or_default()
         )?;
     }
+    cpu_latency.report(out)?;
     out.flush()?;
     let mut log = |e: Event| {
         let line = match e {
@@ -609,7 +629,7 @@ fn run_eth(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
     };
     let sockets = eth_bind(&serve_config, &ids)?;
     let stop = stop_flag(args)?;
-    let _cpu_latency = hold_cpu_latency(args, out)?;
+    let cpu_latency = CpuLatency::take(args);
     writeln!(
         out,
         "emulating {} board(s) on the Ethernet-only network, chain from the host {:?} (hub: board {})",
@@ -620,6 +640,7 @@ fn run_eth(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
     for d in &descriptions {
         writeln!(out, "{d}")?;
     }
+    cpu_latency.report(out)?;
     out.flush()?;
     let mut log = |e: EthEvent| {
         let line = match e {

@@ -465,9 +465,10 @@ fn a_host_name_reaches_the_emulator() {
     emu.terminate();
 }
 
-/// `--cpu-latency 0`: the PM QoS request is held while serving (as root)
-/// or, where the device refuses, the emulator says why and serves all the
-/// same; `off` (the default) asks for nothing and says nothing.
+/// `--cpu-latency` (0 by default): the PM QoS request is held while
+/// serving (as root) or, where the device refuses, the emulator says why
+/// and serves all the same; either way after the banner, which stays the
+/// first line. `off` asks for nothing and says nothing.
 #[test]
 fn emulate_holds_or_explains_the_cpu_latency_request() {
     let quick = [
@@ -477,23 +478,27 @@ fn emulate_holds_or_explains_the_cpu_latency_request() {
         "--duration-s",
         "0.3",
     ];
-    let asked: Vec<&str> = ["emulate", "--boards", "1", "--cpu-latency", "0"]
+    for asked in [&["--cpu-latency", "0"][..], &[][..]] {
+        let args: Vec<&str> = ["emulate", "--boards", "1"]
+            .iter()
+            .chain(asked)
+            .chain(&quick)
+            .copied()
+            .collect();
+        let out = ok(&args);
+        assert!(out.starts_with("emulating 1 board(s)"), "{out}");
+        assert!(
+            out.contains("holding CPU wake-up latency at 0 us (/dev/cpu_dma_latency)")
+                || out.contains("note: cannot hold a CPU latency request on /dev/cpu_dma_latency"),
+            "{out}"
+        );
+    }
+    let off: Vec<&str> = ["emulate", "--boards", "1", "--cpu-latency", "off"]
         .iter()
         .chain(&quick)
         .copied()
         .collect();
-    let out = ok(&asked);
-    assert!(
-        out.contains("holding CPU wake-up latency at 0 us (/dev/cpu_dma_latency)")
-            || out.contains("note: cannot hold a CPU latency request on /dev/cpu_dma_latency"),
-        "{out}"
-    );
-    let default: Vec<&str> = ["emulate", "--boards", "1"]
-        .iter()
-        .chain(&quick)
-        .copied()
-        .collect();
-    let out = ok(&default);
+    let out = ok(&off);
     assert!(
         !out.contains("CPU wake-up latency") && !out.contains("CPU latency"),
         "{out}"
