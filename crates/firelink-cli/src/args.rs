@@ -87,13 +87,12 @@ pub fn cpu_latency(s: &str) -> Result<CpuLatencyArg, String> {
     if s.eq_ignore_ascii_case("off") {
         return Ok(CpuLatencyArg::Off);
     }
-    if crate::parse_number(s).is_err() {
-        return Err(format!(
-            "a CPU latency is microseconds (0 to 1000000) or off, not {s:?}"
-        ));
+    let n = crate::parse_number(s)
+        .map_err(|_| format!("a CPU latency is microseconds (0 to 1000000) or off, not {s:?}"))?;
+    if n > 1_000_000 {
+        return Err(format!("CPU latency {n} us is out of range: 0 to 1000000"));
     }
-    integer(s, 0, 1_000_000, "CPU latency (us, or off)")
-        .map(|n| CpuLatencyArg::Microseconds(n as u32))
+    Ok(CpuLatencyArg::Microseconds(n as u32))
 }
 
 /// An unsigned integer in `lo..=hi` (decimal or 0x hex).

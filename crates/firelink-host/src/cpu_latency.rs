@@ -76,10 +76,8 @@ impl CpuLatencyHold {
     /// [`CpuLatencyHold::take`] through the device at `path` (tests use
     /// a plain file: the request is the 4 bytes written to it).
     pub fn take_at(path: &Path, latency_us: u64) -> Result<Self, CpuLatencyError> {
-        let latency = u32::try_from(latency_us)
-            .ok()
-            .filter(|l| *l <= MAX_LATENCY_US)
-            .ok_or(CpuLatencyError::OutOfRange(latency_us))?;
+        let request =
+            i32::try_from(latency_us).map_err(|_| CpuLatencyError::OutOfRange(latency_us))?;
         let device = |source| CpuLatencyError::Device {
             path: path.to_path_buf(),
             source,
@@ -90,11 +88,10 @@ impl CpuLatencyHold {
             .map_err(device)?;
         // The kernel reads one native-endian s32 (it also takes a hex
         // string, which we do not use).
-        let request = i32::try_from(latency).unwrap_or(i32::MAX).to_ne_bytes();
-        file.write_all(&request).map_err(device)?;
+        file.write_all(&request.to_ne_bytes()).map_err(device)?;
         Ok(Self {
             _request: file,
-            latency_us: latency,
+            latency_us: request.unsigned_abs(),
             path: path.to_path_buf(),
         })
     }
