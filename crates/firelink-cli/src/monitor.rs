@@ -16,7 +16,7 @@ use firelink_wire::board::address::{BoardRegister, Register};
 use firelink_wire::board::registers::{StatusRead, Watchdog};
 use firelink_wire::human::Number;
 
-use crate::CliError;
+use crate::error::CliError;
 use crate::ports::{PortArgs, open_port};
 
 /// Options of `firelink monitor`.

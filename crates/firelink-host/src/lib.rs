@@ -19,6 +19,8 @@
 //!   [`replay`]: a port answering from such a recording.
 //! - [`scan`]: discovery and protocol choice.
 //! - [`board`]: the per-board I/O buffers and accessors.
+//! - [`register_address`]: registers by name (`axis2.enc_position`) and
+//!   the board's address map they must lie in.
 //! - [`io`]: the I/O system running the three protocols.
 //! - [`extras`]: the firmware features beyond the servo cycle (PROMs and
 //!   serial numbers, digital outputs and waveforms, instrument memory, I/O
@@ -52,6 +54,7 @@ pub mod mahru;
 pub mod pacing;
 pub mod packet_json;
 pub mod port;
+pub mod register_address;
 pub mod replay;
 pub mod robot_io;
 pub mod scan;

@@ -16,8 +16,8 @@ use firelink_testbed::mahru::table3::{Table3Options, run_table3};
 use firelink_testbed::mahru::{MahruConfig, MahruDemoOptions, run_mahru_demo};
 use firelink_wire::human::Number;
 
-use crate::CliError;
-use crate::demo::DemoArgs;
+use super::DemoArgs;
+use crate::error::CliError;
 
 /// The real-time systems `firelink budget` covers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
