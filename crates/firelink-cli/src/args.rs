@@ -81,13 +81,23 @@ pub enum CpuLatencyArg {
     Microseconds(u32),
 }
 
+/// A number as decimal or `0x` hex, `_` separators allowed.
+pub fn parse_number(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+        Some(h) => u64::from_str_radix(&h.replace('_', ""), 16),
+        None => t.replace('_', "").parse(),
+    };
+    parsed.map_err(|_| format!("not a number: {s:?}"))
+}
+
 /// `off`, or microseconds from 0 to 1 s (a request above that would ask
 /// for nothing the idle governor does not do anyway).
 pub fn cpu_latency(s: &str) -> Result<CpuLatencyArg, String> {
     if s.eq_ignore_ascii_case("off") {
         return Ok(CpuLatencyArg::Off);
     }
-    let n = crate::parse_number(s)
+    let n = parse_number(s)
         .map_err(|_| format!("a CPU latency is microseconds (0 to 1000000) or off, not {s:?}"))?;
     if n > 1_000_000 {
         return Err(format!("CPU latency {n} us is out of range: 0 to 1000000"));
@@ -97,7 +107,7 @@ pub fn cpu_latency(s: &str) -> Result<CpuLatencyArg, String> {
 
 /// An unsigned integer in `lo..=hi` (decimal or 0x hex).
 fn integer(s: &str, lo: u64, hi: u64, what: &str) -> Result<u64, String> {
-    let n = crate::parse_number(s)?;
+    let n = parse_number(s)?;
     if !(lo..=hi).contains(&n) {
         return Err(format!("{what} {n} is out of range: {lo} to {hi}"));
     }
@@ -117,7 +127,7 @@ pub fn board_id(s: &str) -> Result<u8, String> {
 
 /// A number of emulated boards on one bus: 1..=16 (the board-ID space).
 pub fn board_count(s: &str) -> Result<u8, String> {
-    let n = crate::parse_number(s)?;
+    let n = parse_number(s)?;
     if !(1..=16).contains(&n) {
         return Err(format!("{n} is out of range: between 1 and 16 boards"));
     }

@@ -12,7 +12,7 @@
 use std::os::unix::process::CommandExt;
 use std::process::Command;
 
-use crate::CliError;
+use crate::error::CliError;
 
 /// Replace this process with the companion binary `name` (e.g.
 /// `firelink-web`) run with `args`. Returns only if that failed.

@@ -17,19 +17,16 @@ use firelink_control::config::{IoConfig, presets};
 use firelink_emulate::eth_network::EthNetwork;
 use firelink_emulate::eth_serve::{EthEvent, EthServeConfig, MULTICAST_GROUP, eth_bind, eth_serve};
 use firelink_emulate::fw_cdev::{self, Twin};
-use firelink_emulate::{Bridge, Event, ServeConfig};
+use firelink_emulate::{Event, ServeConfig};
 use firelink_host::cpu_latency::CpuLatencyHold;
-use firelink_testbed::TestbedError;
-use firelink_testbed::emulated::{
-    BoardConfig, BoardSettings, FaultRule, PacketFault, PacketMatch, Profile, SimDuration,
-};
-use firelink_testbed::rig::{
-    BoardFault, Rig, RigBuilder, RobotKind, board_configs, generic_boards,
-};
-use firelink_testbed::snake;
+use firelink_testbed::emulated::{BoardSettings, Profile, SimDuration};
+use firelink_testbed::rig::RobotKind;
+use firelink_testbed::rig::served::{BusFaults, ServedBoards, ServedBridge};
+use firelink_testbed::snake::is_snake_config;
 
-use crate::CliError;
 use crate::args::{CpuLatencyArg, FirmwareArg, FpgaArg, HardwareArg};
+use crate::demo::{DemoRobot, load_config};
+use crate::error::CliError;
 
 /// Options of `firelink emulate`.
 #[derive(Args, Debug, Clone)]
@@ -45,7 +42,7 @@ pub struct EmulateArgs {
     /// (`configs/snake-seed001.json`), for `firelink snake-tool` and
     /// `firelink demo --robot snake --port udp:...`.
     #[arg(long, value_enum, conflicts_with_all = ["config", "boards"])]
-    pub robot: Option<crate::demo::DemoRobot>,
+    pub robot: Option<DemoRobot>,
     /// Firmware (seed: seed 000's TDMA and 0xFFFF rule).
     #[arg(long, value_enum, default_value_t = FirmwareArg::Rev8)]
     pub firmware: FirmwareArg,
@@ -180,36 +177,14 @@ pub enum NetworkArg {
     Eth,
 }
 
-/// Build the bridge of `args`: the boards on a simulated bus with the
-/// faults asked for, its Ethernet port on `--bridge-board`; with the rig's
-/// robot kind, board IDs and the configurations of its QLA boards (none
-/// for Snake nodes).
-pub fn build_bridge(
-    args: &EmulateArgs,
-) -> Result<(Bridge, RobotKind, Vec<u8>, Vec<BoardConfig>), CliError> {
-    let mut rig = build_rig(args)?;
-    let at = SimDuration::from_micros(args.fault_at_ms.saturating_mul(1000));
-    rig.schedule_pending(at);
-    let (kind, ids, configs) = (rig.kind, rig.ids(), rig.configs.clone());
-    let bridge = rig.bridge(args.bridge_board).map_err(|e| match e {
-        TestbedError::NoSuchBoard { board, .. } => CliError::NoSuchBoard {
-            option: "--bridge-board",
-            board,
-        },
-        other => other.into(),
-    })?;
-    Ok((bridge, kind, ids, configs))
-}
-
-/// The boards of `args` on a simulated bus with the faults asked for (the
-/// one place `emulate`'s board options are read, for both front ends);
-/// the timed faults not yet scheduled.
-pub fn build_rig(args: &EmulateArgs) -> Result<Rig, CliError> {
+/// The robot configuration `args` names for the bridge and the twin
+/// (`--config`, or `--robot`'s preset), its notes on stderr.
+fn bridge_config(args: &EmulateArgs) -> Result<Option<IoConfig>, CliError> {
     let config = match (&args.config, args.robot) {
-        (Some(path), _) => Some(crate::demo::load_config(path)?),
-        (None, Some(crate::demo::DemoRobot::Snake)) => Some(presets::snake_seed001()),
-        (None, Some(crate::demo::DemoRobot::Dvrk)) => Some(presets::dvrk_seed000()),
-        (None, Some(crate::demo::DemoRobot::Mahru)) => {
+        (Some(path), _) => Some(load_config(path)?),
+        (None, Some(DemoRobot::Snake)) => Some(presets::snake_seed001()),
+        (None, Some(DemoRobot::Dvrk)) => Some(presets::dvrk_seed000()),
+        (None, Some(DemoRobot::Mahru)) => {
             return Err(CliError::NotSupported {
                 option: "--robot mahru",
                 reason: "the MAHRU modules speak seed 002's own protocol, not the FPGA1394 \
@@ -218,123 +193,50 @@ pub fn build_rig(args: &EmulateArgs) -> Result<Rig, CliError> {
         }
         (None, None) => None,
     };
-    let builder = match &config {
-        Some(c) if RobotKind::of_config(c) == RobotKind::Snake => {
-            RigBuilder::snake(snake::node_configs(c, args.seed)?)
-        }
-        _ => RigBuilder::qla(qla_boards(args, config.as_ref())?),
-    };
-    let mut builder = builder.seed(args.seed);
-    if args.drop_rate > 0.0 {
-        builder = builder.fault_rule(FaultRule::random(
-            PacketMatch::any(),
-            PacketFault::Drop,
-            args.drop_rate.min(1.0),
-        ));
+    if let Some(config) = config.as_ref().filter(|c| !is_snake_config(c)) {
+        print_notes(config);
     }
-    if args.corrupt_rate > 0.0 {
-        builder = builder.fault_rule(FaultRule::random(
-            PacketMatch::any(),
-            PacketFault::FlipBits { count: 1 },
-            args.corrupt_rate.min(1.0),
-        ));
+    Ok(config)
+}
+
+/// What the configuration's mapping to plants says (to stderr).
+fn print_notes(config: &IoConfig) {
+    for note in firelink_testbed::plant_map::notes(config) {
+        eprintln!("note: {note}");
     }
-    if args.drop_response_rate > 0.0 {
-        builder = builder.drop_responses(args.drop_response_rate);
-    }
-    if args.busy_rate > 0.0 {
-        builder = builder.busy_requests(args.busy_rate);
-    }
-    builder = builder.reset_storm(args.reset_storm);
-    if let Some(id) = args.unplug_board {
-        builder = builder.board_fault(BoardFault::Unplug(id));
-    }
-    if let Some(id) = args.mute_board {
-        builder = builder.board_fault(BoardFault::Mute(id));
-    }
-    builder.build().map_err(|e| match e {
-        TestbedError::NoSuchBoard { role, board } => CliError::NoSuchBoard {
-            option: if role == BoardFault::Mute(board).role() {
-                "--mute-board"
-            } else {
-                "--unplug-board"
-            },
-            board,
+}
+
+/// The boards `args` asks for, `config`'s or generic ones (the one place
+/// `emulate`'s board options are read, for every front end).
+fn served_boards(args: &EmulateArgs, config: Option<IoConfig>) -> ServedBoards {
+    ServedBoards {
+        config,
+        boards: args.boards,
+        hardware: args.hardware.into(),
+        firmware: args.firmware.into(),
+        fpga: args.fpga.map(Into::into),
+        board_set: args.board_set.clone(),
+        commit_corrupt_writes: args.commit_corrupt_writes,
+        seed: args.seed,
+        faults: BusFaults {
+            drop_rate: args.drop_rate,
+            corrupt_rate: args.corrupt_rate,
+            drop_response_rate: args.drop_response_rate,
+            busy_rate: args.busy_rate,
+            reset_storm: args.reset_storm,
+            unplug_board: args.unplug_board,
+            mute_board: args.mute_board,
         },
-        other => other.into(),
-    })
+        fault_at: SimDuration::from_micros(args.fault_at_ms.saturating_mul(1000)),
+        fault_after_requests: args.fault_after_requests,
+        bridge_board: args.bridge_board,
+        split_timeout: SimDuration::from_millis(args.split_timeout_ms),
+    }
 }
 
-/// The QLA boards of `args`: `config`'s (or generic ones), with
-/// `--board-set` and `--commit-corrupt-writes` applied and checked.
-fn qla_boards(args: &EmulateArgs, config: Option<&IoConfig>) -> Result<Vec<BoardConfig>, CliError> {
-    let mut boards = match config {
-        Some(config) => {
-            for note in firelink_testbed::plant_map::notes(config) {
-                eprintln!("note: {note}");
-            }
-            let count = config.board_slots();
-            board_configs(config, args.firmware.into(), count)
-        }
-        // The board count was range-checked by clap (1..=16).
-        None => generic_boards(
-            args.boards,
-            args.hardware.into(),
-            args.firmware.into(),
-            args.seed,
-        ),
-    };
-    for set in &args.board_set {
-        let board = boards
-            .iter_mut()
-            .find(|b| b.board_id == set.board_id)
-            .ok_or(CliError::NoSuchBoard {
-                option: "--board-set",
-                board: set.board_id,
-            })?;
-        *board = set.apply(board.clone());
-    }
-    // --fpga is every board's FPGA unless its --board-set names one (so a
-    // DQLA asked for on a V2 is refused by the check below).
-    if let Some(fpga) = args.fpga {
-        for b in &mut boards {
-            let own = args
-                .board_set
-                .iter()
-                .any(|s| s.board_id == b.board_id && s.fpga.is_some());
-            if !own {
-                b.fpga = fpga.into();
-            }
-        }
-    }
-    for b in &mut boards {
-        b.commit_corrupt_writes = args.commit_corrupt_writes;
-    }
-    for b in &boards {
-        b.check()?;
-    }
-    Ok(boards)
-}
-
-/// The /dev/fw* twin of `args` (the boards and faults of `build_bus`).
+/// The /dev/fw* twin of `args` and its board IDs.
 pub fn build_twin(args: &EmulateArgs) -> Result<(Twin, Vec<u8>), CliError> {
-    let mut rig = build_rig(args)?;
-    let ids = rig.ids();
-    let deferred = match args.fault_after_requests {
-        Some(n) => Some((n, rig.take_pending())),
-        None => {
-            rig.schedule_pending(SimDuration::from_micros(
-                args.fault_at_ms.saturating_mul(1000),
-            ));
-            None
-        }
-    };
-    let mut twin = Twin::new(rig.bus, rig.host);
-    twin.set_split_timeout(SimDuration::from_millis(args.split_timeout_ms));
-    if let Some((n, faults)) = deferred {
-        twin.defer_faults(n, faults);
-    }
-    Ok((twin, ids))
+    Ok(served_boards(args, bridge_config(args)?).twin()?)
 }
 
 /// `firelink emulate --fw-cdev SOCKET`: serve the twin until SIGINT,
@@ -459,7 +361,12 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
             args.listen
         );
     }
-    let (mut bridge, kind, ids, boards) = build_bridge(args)?;
+    let ServedBridge {
+        mut bridge,
+        kind,
+        ids,
+        boards,
+    } = served_boards(args, bridge_config(args)?).bridge()?;
     let config = ServeConfig {
         listen: args.listen,
         loopback_broadcast: !args.no_broadcast,
@@ -540,7 +447,7 @@ fn refuse_on_eth(args: &EmulateArgs) -> Result<(), CliError> {
             "the Ethernet-only network has no bridge: every board has its own address (the hub is the first of --chain)",
         ),
         (
-            args.robot == Some(crate::demo::DemoRobot::Snake),
+            args.robot == Some(DemoRobot::Snake),
             "--robot snake",
             "the Snake nodes are seed 001's FireWire nodes, not FPGA V3 boards",
         ),
@@ -573,31 +480,14 @@ fn refuse_on_eth(args: &EmulateArgs) -> Result<(), CliError> {
 fn run_eth(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
     refuse_on_eth(args)?;
     let config = match (&args.config, args.robot) {
-        (Some(path), _) => Some(crate::demo::load_config(path)?),
-        (None, Some(crate::demo::DemoRobot::Dvrk)) => Some(presets::dvrk_seed000()),
+        (Some(path), _) => Some(load_config(path)?),
+        (None, Some(DemoRobot::Dvrk)) => Some(presets::dvrk_seed000()),
         _ => None,
     };
-    let mut boards = qla_boards(args, config.as_ref())?;
-    if !args.chain.is_empty() {
-        let mut ordered = Vec::with_capacity(boards.len());
-        for &id in &args.chain {
-            let i = boards
-                .iter()
-                .position(|b| b.board_id == id)
-                .ok_or(CliError::NoSuchBoard {
-                    option: "--chain",
-                    board: id,
-                })?;
-            ordered.push(boards.swap_remove(i));
-        }
-        if let Some(left) = boards.first() {
-            return Err(CliError::NoSuchBoard {
-                option: "--chain (every emulated board, once; missing)",
-                board: left.board_id,
-            });
-        }
-        boards = ordered;
+    if let Some(config) = &config {
+        print_notes(config);
     }
+    let boards = served_boards(args, config).chain(&args.chain)?;
     if !args.eth_base.is_loopback() {
         eprintln!(
             "firelink emulate: WARNING: the boards listen on {} + ID, not loopback: anyone who can \

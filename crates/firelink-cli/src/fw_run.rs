@@ -18,8 +18,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::Args;
 
-use crate::CliError;
 use crate::emulate_cmd::{EmulateArgs, build_twin};
+use crate::error::CliError;
 use firelink_emulate::fw_cdev;
 
 /// The environment variable naming the twin's socket (read by the

@@ -8,15 +8,15 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 
+use firelink_host::Port;
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
-use firelink_host::{Port, WatchdogSetting};
 
-use firelink_wire::board::address::{BoardRegister, Register};
-use firelink_wire::board::registers::{StatusRead, Watchdog};
-use firelink_wire::human::Number;
+use firelink_host::monitor::{
+    MonitorFigures, Switch, Switches, explain_status, on_off, watchdog_periods,
+};
 
-use crate::CliError;
+use crate::error::CliError;
 use crate::ports::{PortArgs, open_port};
 
 /// Options of `firelink monitor`.
@@ -37,71 +37,6 @@ pub struct MonitorArgs {
     /// `off`; absent: left as the boards have it.
     #[arg(long = "watchdog-ms", value_parser = crate::args::watchdog)]
     pub watchdog: Option<crate::args::WatchdogSetting>,
-}
-
-/// Running figures the monitor shows.
-#[derive(Debug, Default, Clone)]
-pub struct MonitorFigures {
-    /// Cycles run.
-    pub cycles: u64,
-    /// Achieved cycle rate over the last display period, Hz.
-    pub rate_hz: f64,
-    /// I/O time of the last cycle, us.
-    pub last_io_us: f64,
-    /// Largest I/O time over the last display period, us.
-    pub max_io_us: f64,
-    /// A one-line message from the last key action.
-    pub message: String,
-    /// Each board's watchdog period as read from its WATCHDOG register,
-    /// ms (0: off), by board ID; absent when it could not be read.
-    pub watchdog_ms: Vec<(u8, f64)>,
-}
-
-/// Every board's watchdog period from its WATCHDOG register, ms (0: off);
-/// boards whose register cannot be read are left out.
-pub fn watchdog_periods<P: Port>(io: &mut IoSystem<P>) -> Vec<(u8, f64)> {
-    let Ok(offset) = Register::board(BoardRegister::Watchdog).offset() else {
-        return Vec::new();
-    };
-    let ids: Vec<u8> = io.boards().iter().map(|b| b.board_id()).collect();
-    ids.into_iter()
-        .filter_map(|id| {
-            let raw = io.read_register(id, offset).ok()?;
-            Some((id, Watchdog(raw).period().as_secs_f64() * 1e3))
-        })
-        .collect()
-}
-
-/// What a board's STATUS says about its motor supply and its watchdog,
-/// in words, for the lines under the board (none when all is well):
-/// why the supply is not good, and what an expired watchdog means.
-fn explain(st: StatusRead, watchdog_ms: Option<f64>) -> Vec<String> {
-    let mut lines = Vec::new();
-    if !st.motor_supply_good() {
-        lines.push(if !st.motor_power_enabled() {
-            "supply off: motor power is not enabled (normal for idle boards)".to_string()
-        } else if st.motor_supply_fault() {
-            "supply FAULT: motor power is enabled but no motor supply is present".to_string()
-        } else {
-            "supply BAD: motor power is enabled but the motor supply is not up (still rising, \
-             or too low)"
-                .to_string()
-        });
-    }
-    if st.watchdog_timeout() {
-        let period = match watchdog_ms {
-            Some(ms) if ms > 0.0 => {
-                format!("its {} ms period", Number((ms * 1000.0).round() / 1000.0))
-            }
-            _ => "its period".to_string(),
-        };
-        lines.push(format!(
-            "watchdog expired: at some point the host wrote nothing for longer than {period} \
-             (normal for idle boards); it turned the amplifiers off and stays set until power \
-             or an amplifier is enabled"
-        ));
-    }
-    lines
 }
 
 /// Render one frame as text.
@@ -180,12 +115,7 @@ pub fn render<P: Port>(io: &IoSystem<P>, f: &MonitorFigures) -> String {
             },
             st.raw()
         );
-        let period = f
-            .watchdog_ms
-            .iter()
-            .find(|(id, _)| *id == b.board_id())
-            .map(|&(_, ms)| ms);
-        for line in explain(st, period) {
+        for line in explain_status(st, f.watchdog_of(b.board_id())) {
             let _ = writeln!(s, "  {line}");
         }
         let _ = writeln!(
@@ -212,10 +142,6 @@ pub fn render<P: Port>(io: &IoSystem<P>, f: &MonitorFigures) -> String {
         f.message
     );
     s
-}
-
-fn on_off(b: bool) -> &'static str {
-    if b { "on " } else { "off" }
 }
 
 /// `firelink monitor`.
@@ -247,9 +173,7 @@ pub fn run(args: &MonitorArgs, out: &mut impl Write) -> Result<(), CliError> {
         for _ in 0..cycles.max(1) {
             let r = *io.cycle();
             let _ = io.recover();
-            f.cycles += 1;
-            f.last_io_us = r.io_time().as_secs_f64() * 1e6;
-            f.max_io_us = f.max_io_us.max(f.last_io_us);
+            f.record_cycle(r.io_time().as_secs_f64() * 1e6);
             pace(start, f.cycles, period);
         }
         f.rate_hz = f.cycles as f64 / start.elapsed().as_secs_f64().max(1e-9);
@@ -273,6 +197,18 @@ fn pace(start: Instant, cycles: u64, period: Duration) {
     firelink_host::pacing::sleep_until(start + period.mul_f64(cycles as f64));
 }
 
+/// The switch a key flips.
+fn switch_of(key: char) -> Option<Switch> {
+    Some(match key {
+        'p' => Switch::Power,
+        'r' => Switch::Relay,
+        'a' => Switch::Amplifiers,
+        'z' => Switch::ZeroDacs,
+        'w' => Switch::Watchdog,
+        _ => return None,
+    })
+}
+
 fn interactive<P: Port>(
     io: &mut IoSystem<P>,
     period: Duration,
@@ -292,10 +228,7 @@ fn interactive<P: Port>(
         let start = Instant::now();
         let mut last_draw = Instant::now();
         let mut window_cycles = 0u64;
-        let mut power = false;
-        let mut relay = false;
-        let mut amps = false;
-        let mut watchdog = false;
+        let mut switches = Switches::default();
         let stop = firelink_host::stop::StopRequest::process();
         loop {
             if stop.is_requested() {
@@ -303,10 +236,8 @@ fn interactive<P: Port>(
             }
             let r = *io.cycle();
             let _ = io.recover();
-            f.cycles += 1;
+            f.record_cycle(r.io_time().as_secs_f64() * 1e6);
             window_cycles += 1;
-            f.last_io_us = r.io_time().as_secs_f64() * 1e6;
-            f.max_io_us = f.max_io_us.max(f.last_io_us);
             pace(start, f.cycles, period);
             if last_draw.elapsed() < Duration::from_millis(100) {
                 continue;
@@ -330,44 +261,10 @@ fn interactive<P: Port>(
                     match key.code {
                         KeyCode::Char('q') | KeyCode::Esc => return Ok(()),
                         KeyCode::Char('c') if ctrl => return Ok(()),
-                        KeyCode::Char('p') => {
-                            power = !power;
-                            io.boards_mut().iter_mut().for_each(|b| b.set_power(power));
-                            f.message = format!("power {}", on_off(power));
-                        }
-                        KeyCode::Char('r') => {
-                            relay = !relay;
-                            io.boards_mut().iter_mut().for_each(|b| b.set_relay(relay));
-                            f.message = format!("relay {}", on_off(relay));
-                        }
-                        KeyCode::Char('a') => {
-                            amps = !amps;
-                            io.boards_mut()
-                                .iter_mut()
-                                .for_each(|b| b.set_all_amps(amps));
-                            f.message = format!("amplifiers {}", on_off(amps));
-                        }
-                        KeyCode::Char('z') => {
-                            io.boards_mut().iter_mut().for_each(|b| b.safe_outputs());
-                            amps = false;
-                            f.message = "DACs zeroed, amplifiers off".into();
-                        }
-                        KeyCode::Char('w') => {
-                            watchdog = !watchdog;
-                            let p = if watchdog {
-                                WatchdogSetting::from_ms(50.0).unwrap_or_default()
-                            } else {
-                                WatchdogSetting::Off
-                            };
-                            f.message = match io.set_watchdog(p) {
-                                Ok(()) => {
-                                    f.watchdog_ms = watchdog_periods(io);
-                                    let warn =
-                                        p.warning().map_or(String::new(), |w| format!(" ({w})"));
-                                    format!("watchdog {p}{warn}")
-                                }
-                                Err(e) => format!("watchdog: {e}"),
-                            };
+                        KeyCode::Char(c) => {
+                            if let Some(switch) = switch_of(c) {
+                                f.message = switches.flip(switch, io, &mut f);
+                            }
                         }
                         _ => {}
                     }
@@ -378,35 +275,4 @@ fn interactive<P: Port>(
     let _ = execute!(out, cursor::Show, terminal::LeaveAlternateScreen);
     let _ = terminal::disable_raw_mode();
     result
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn idle_boards_are_explained() {
-        // Power off, watchdog expired: what an idle board reports.
-        let idle = StatusRead::default().with_watchdog_timeout(true);
-        let lines = explain(idle, Some(20.0));
-        assert_eq!(lines.len(), 2, "{lines:?}");
-        assert!(lines[0].starts_with("supply off: motor power is not enabled"));
-        assert!(
-            lines[1].contains("longer than its 20 ms period"),
-            "{lines:?}"
-        );
-        assert!(lines[1].contains("turned the amplifiers off"), "{lines:?}");
-        // Power on without a supply, and a supply still rising.
-        let no_supply = StatusRead::default()
-            .with_motor_power_enabled(true)
-            .with_motor_supply_fault(true);
-        assert!(explain(no_supply, None)[0].starts_with("supply FAULT"));
-        let rising = StatusRead::default().with_motor_power_enabled(true);
-        assert!(explain(rising, None)[0].starts_with("supply BAD"));
-        // All well: nothing to explain.
-        let good = StatusRead::default()
-            .with_motor_power_enabled(true)
-            .with_motor_supply_good(true);
-        assert!(explain(good, Some(20.0)).is_empty());
-    }
 }

@@ -6,7 +6,7 @@ use firelink_host::packet_json as codec;
 pub use firelink_host::packet_json::PacketJson;
 use firelink_wire::crc::crc1394;
 
-use crate::CliError;
+use crate::error::CliError;
 use crate::hex::parse_hex;
 
 /// Decode one complete packet (or, with `bridge`, one host->board datagram).

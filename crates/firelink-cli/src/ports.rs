@@ -12,8 +12,8 @@ use firelink_testbed::ports::{PortOptions, open_bus_port};
 
 pub use firelink_testbed::port_spec::PortSpec;
 
-use crate::CliError;
 use crate::args::UdpWaitArg;
+use crate::error::CliError;
 
 /// `--port` (clap): every command parses port strings with this.
 ///

@@ -15,8 +15,8 @@ use firelink_testbed::emulated::ArbitrationClass;
 use firelink_testbed::sim::SimOptions;
 use firelink_wire::packet::Speed;
 
-use crate::CliError;
 use crate::args::{FirmwareArg, ProtocolArg};
+use crate::error::CliError;
 
 /// Arbitration class of the boards' status broadcasts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]

@@ -8,7 +8,7 @@ use clap::Args;
 use firelink_testbed::soak::{self, SoakReport, SoakSettings};
 use firelink_testbed::watchdog::{self, WatchdogReport};
 
-use crate::CliError;
+use crate::error::CliError;
 
 /// Options of `firelink soak`.
 #[derive(Args, Debug)]

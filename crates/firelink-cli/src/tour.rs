@@ -8,7 +8,7 @@ use clap::Args;
 
 use firelink_wire::packet::{AsyncHeader, NodeId, Packet, PacketRepr, Rcode, Speed};
 
-use crate::CliError;
+use crate::error::CliError;
 
 /// Options of `firelink tour`.
 #[derive(Args, Clone, Debug)]

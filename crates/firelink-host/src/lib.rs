@@ -19,7 +19,11 @@
 //!   [`replay`]: a port answering from such a recording.
 //! - [`scan`]: discovery and protocol choice.
 //! - [`board`]: the per-board I/O buffers and accessors.
+//! - [`register_address`]: registers by name (`axis2.enc_position`) and
+//!   the board's address map they must lie in.
 //! - [`io`]: the I/O system running the three protocols.
+//! - [`monitor`]: the model of a live view of every board: running
+//!   figures, the operator's switches, a board's STATUS in words.
 //! - [`extras`]: the firmware features beyond the servo cycle (PROMs and
 //!   serial numbers, digital outputs and waveforms, instrument memory, I/O
 //!   expander, Ethernet registers, motor supply, PHY registers).
@@ -49,9 +53,11 @@ pub mod fault;
 pub mod firewire;
 pub mod io;
 pub mod mahru;
+pub mod monitor;
 pub mod pacing;
 pub mod packet_json;
 pub mod port;
+pub mod register_address;
 pub mod replay;
 pub mod robot_io;
 pub mod scan;

@@ -14,7 +14,6 @@
 //! firelink snake-tool show --board 0 --json
 //! ```
 
-mod session;
 mod tui;
 
 use std::io::Write;
@@ -27,10 +26,10 @@ use firelink_host::Port;
 use firelink_host::snake::SnakeSystem;
 use firelink_testbed::port_spec::{PortKind, PortSpec};
 use firelink_testbed::ports::{PortOptions, open_bus_port};
+use firelink_testbed::snake::tool::{Session, render};
 use firelink_testbed::snake::{node_configs, sim_port};
 
-use crate::CliError;
-pub use session::Session;
+use crate::error::CliError;
 
 /// `--port` (clap): the port grammar; plain `sim` (the configuration's
 /// nodes), `udp:` or `fw`.
@@ -127,7 +126,7 @@ pub fn run(args: &SnakeToolArgs, out: &mut impl Write) -> Result<(), CliError> {
     if let Some(b) = args.board {
         session.select_board(b)?;
     }
-    let result = match &args.command {
+    let result: Result<(), CliError> = match &args.command {
         None | Some(ToolCommand::Tui) => tui::run(&mut session, out),
         Some(ToolCommand::Exec { script, file }) => {
             let text = match (script, file) {
@@ -138,6 +137,7 @@ pub fn run(args: &SnakeToolArgs, out: &mut impl Write) -> Result<(), CliError> {
             };
             session
                 .run_script(&text)
+                .map_err(CliError::from)
                 .and_then(|text| Ok(write!(out, "{text}")?))
         }
         Some(ToolCommand::Show { json }) => {
@@ -145,7 +145,7 @@ pub fn run(args: &SnakeToolArgs, out: &mut impl Write) -> Result<(), CliError> {
             if *json {
                 writeln!(out, "{}", serde_json::to_string(&view)?)?;
             } else {
-                write!(out, "{}", session::render(&view, session.channel()))?;
+                write!(out, "{}", render(&view, session.channel()))?;
             }
             Ok(())
         }
@@ -157,5 +157,5 @@ pub fn run(args: &SnakeToolArgs, out: &mut impl Write) -> Result<(), CliError> {
             eprintln!("snake-tool: amplifiers turned off on exit (boards {boards:?})");
         }
     }
-    result.and(finished.map(|_| ()))
+    result.and(finished.map(|_| ()).map_err(CliError::from))
 }

@@ -10,8 +10,9 @@ use crossterm::{cursor, execute, terminal};
 
 use firelink_host::Port;
 
-use super::session::{HELP, Session, render};
-use crate::CliError;
+use firelink_testbed::snake::tool::{HELP, Session, ToolError, render};
+
+use crate::error::CliError;
 
 const KEYS: &str = "keys: <- -> channel  up/down board  e enable  +/- voltage 0.05 V  [ ] limit 10 mA  \
 < > wiper 10  t torque/speed  w write protect  r reset encoder  : command  q quit";
@@ -127,7 +128,7 @@ fn ui<P: Port>(session: &mut Session<P>, out: &mut impl Write) -> Result<(), Cli
 }
 
 /// The command a one-key action means, from the channel's readouts now.
-fn step_command<P: Port>(session: &mut Session<P>, key: char) -> Result<Option<String>, CliError> {
+fn step_command<P: Port>(session: &mut Session<P>, key: char) -> Result<Option<String>, ToolError> {
     let view = session.view()?;
     let Some(c) = view.channels.get(usize::from(session.channel()) - 1) else {
         return Ok(None);
@@ -150,7 +151,7 @@ fn step_command<P: Port>(session: &mut Session<P>, key: char) -> Result<Option<S
     }))
 }
 
-fn outcome(r: Result<String, CliError>) -> String {
+fn outcome(r: Result<String, ToolError>) -> String {
     match r {
         Ok(text) => text.trim().replace('\n', " | "),
         Err(e) => format!("error: {e}"),

@@ -449,6 +449,39 @@ pub fn run_budget(
     })
 }
 
+impl BudgetReport {
+    /// What does not fit the period, one phrase per real-time system
+    /// (none when everything fits): each inequality (1) that fails, and
+    /// the periods that overran end to end.
+    pub fn misfits(&self) -> Vec<String> {
+        self.per_rtos
+            .iter()
+            .filter_map(|r| {
+                let mut what = Vec::new();
+                for (name, q) in [
+                    ("as the seed adds it", r.seed_arithmetic),
+                    ("with Table I literally", r.literal),
+                ] {
+                    if !q.fits {
+                        what.push(format!(
+                            "(1) {name} needs {:.1} us of the {} us period",
+                            q.total_us,
+                            firelink_wire::human::Number(q.period_us)
+                        ));
+                    }
+                }
+                if r.end_to_end.overruns > 0 {
+                    what.push(format!(
+                        "{} of {} periods overran end to end",
+                        r.end_to_end.overruns, r.end_to_end.periods
+                    ));
+                }
+                (!what.is_empty()).then(|| format!("{}: {}", r.rtos, what.join(", ")))
+            })
+            .collect()
+    }
+}
+
 impl fmt::Display for BudgetReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(

@@ -3,9 +3,11 @@
 //! PC's link ([`SimPort`]), or behind an in-process `firelink emulate`
 //! bridge on loopback UDP ([`Emulator`]). Every bus of boards is built by
 //! the one [`RigBuilder`] ([`builder`]): boards by ID, seed, faults by
-//! board ID, the bridge board.
+//! board ID, the bridge board. What `firelink emulate` serves is
+//! assembled from typed options in [`served`].
 
 pub mod builder;
+pub mod served;
 
 pub use builder::{BoardFault, Rig, RigBuilder, RobotKind};
 

@@ -3,10 +3,12 @@
 //! the simulated bus with seed 001's PC model or behind an in-process
 //! Ethernet bridge), the node setup a program does before servoing
 //! ([`prepare`]), the 36-axis demo ([`demo`]) and the reproduction of the
-//! seed's measurements ([`bench`](mod@bench)).
+//! seed's measurements ([`bench`](mod@bench)); the test and configuration
+//! program's model ([`tool`]).
 
 pub mod bench;
 pub mod demo;
+pub mod tool;
 
 use firelink_board::plant::{AxisParams, presets};
 use firelink_board::snake::SnakeNodeConfig;

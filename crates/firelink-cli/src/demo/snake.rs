@@ -10,13 +10,13 @@ use firelink_control::runner::Pacing;
 use firelink_testbed::snake::demo::{SnakeDemoOptions, run_snake_demo};
 use firelink_testbed::snake::is_snake_config;
 
-use crate::CliError;
-use crate::demo::{DemoArgs, DemoRobot, print_report, with_progress};
+use super::{DemoArgs, DemoRobot, load_config, print_report, with_progress};
+use crate::error::CliError;
 
 fn config(args: &DemoArgs) -> Result<Option<IoConfig>, CliError> {
     args.config
         .as_ref()
-        .map(|path| crate::demo::load_config(path))
+        .map(|path| load_config(path))
         .transpose()
 }
 

@@ -10,14 +10,13 @@ use std::time::Duration;
 use clap::{Args, ValueEnum};
 
 use firelink_host::mahru::rtos::Rtos;
-use firelink_testbed::mahru::budget::{BudgetOptions, BudgetReport, run_budget};
+use firelink_testbed::mahru::budget::{BudgetOptions, run_budget};
 use firelink_testbed::mahru::can::{Table4Options, run_table4};
 use firelink_testbed::mahru::table3::{Table3Options, run_table3};
 use firelink_testbed::mahru::{MahruConfig, MahruDemoOptions, run_mahru_demo};
-use firelink_wire::human::Number;
 
-use crate::CliError;
-use crate::demo::DemoArgs;
+use super::DemoArgs;
+use crate::error::CliError;
 
 /// The real-time systems `firelink budget` covers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
@@ -158,7 +157,7 @@ pub fn run_budget_cmd(args: &BudgetArgs, out: &mut impl Write) -> Result<(), Cli
             },
             say,
         )?;
-        does_not_fit = misfits(&report);
+        does_not_fit = report.misfits();
         if args.json {
             json.insert("table_i".into(), serde_json::to_value(&report)?);
         } else {
@@ -217,35 +216,4 @@ pub fn run_budget_cmd(args: &BudgetArgs, out: &mut impl Write) -> Result<(), Cli
             does_not_fit.join("; ")
         )))
     }
-}
-
-/// What in Table I's analysis does not fit the period, one phrase per
-/// real-time system (none when everything fits).
-fn misfits(report: &BudgetReport) -> Vec<String> {
-    report
-        .per_rtos
-        .iter()
-        .filter_map(|r| {
-            let mut what = Vec::new();
-            for (name, q) in [
-                ("as the seed adds it", r.seed_arithmetic),
-                ("with Table I literally", r.literal),
-            ] {
-                if !q.fits {
-                    what.push(format!(
-                        "(1) {name} needs {:.1} us of the {} us period",
-                        q.total_us,
-                        Number(q.period_us)
-                    ));
-                }
-            }
-            if r.end_to_end.overruns > 0 {
-                what.push(format!(
-                    "{} of {} periods overran end to end",
-                    r.end_to_end.overruns, r.end_to_end.periods
-                ));
-            }
-            (!what.is_empty()).then(|| format!("{}: {}", r.rtos, what.join(", ")))
-        })
-        .collect()
 }
