@@ -18,10 +18,10 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
-use common::{Answer, decode, qla1s, request_datagram};
+use common::qla1s;
 use eth_common::{
-    BASE_IP, ENTRY, ETH_STATUS, FIRMWARE_VERSION, HARDWARE_VERSION, IP_ADDRESS, QLA1, hub_bytes,
-    in_own_network_namespace, stock_addresses_on_lo,
+    Answer, BASE_IP, ENTRY, ETH_STATUS, FIRMWARE_VERSION, HARDWARE_VERSION, IP_ADDRESS, QLA1,
+    decode, hub_bytes, in_own_network_namespace, request_datagram, stock_addresses_on_lo,
 };
 use firelink_board::config::{FpgaVersion, Profile};
 use firelink_emulate::eth_serve::MULTICAST_GROUP;

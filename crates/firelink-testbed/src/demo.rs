@@ -619,11 +619,15 @@ impl Injector for SimPort {
             }
             DemoFault::BoardLoss => {
                 let now = self.bus().now();
-                // Every board node is named after its board ID.
-                let name = format!("board{LOST_BOARD}");
+                // Every board node's name ends in its board ID (`board4`,
+                // `board 4`, `snake 4`); the PC's has no number.
+                let is_lost = |name: &str| {
+                    let digits = name.trim_start_matches(|c: char| !c.is_ascii_digit());
+                    !digits.is_empty() && digits.parse::<u8>() == Ok(LOST_BOARD)
+                };
                 let node = (0..self.bus().len())
                     .map(NodeHandle)
-                    .find(|&h| self.bus().name(h) == Some(name.as_str()))
+                    .find(|&h| self.bus().name(h).is_some_and(is_lost))
                     .ok_or_else(|| {
                         TestbedError::Config(format!(
                             "fault board-loss: no board {LOST_BOARD} on this bus"
