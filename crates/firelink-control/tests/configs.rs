@@ -2,7 +2,8 @@
 //! errors that name the file, the JSON path and the problem.
 
 use firelink_control::config::{
-    ConfigErrors, DvrkArm, HardwareVersion, IoConfig, PlantPreset, Problem, StopSide, presets,
+    ConfigErrors, DvrkArm, FpgaGeneration, HardwareVersion, IoConfig, PlantPreset, Problem,
+    StopSide, presets,
 };
 use serde_json::{Value, json};
 use std::path::PathBuf;
@@ -681,7 +682,7 @@ fn pot_couplings_must_fit_and_invert() {
 /// than 7, 8 or 9 is refused.
 #[test]
 fn a_v2_dqla_is_refused_at_loading() {
-    use firelink_control::config::{BoardSerial, BoardSimulation, FpgaGeneration, RobotSimulation};
+    use firelink_control::config::{BoardSerial, BoardSimulation, RobotSimulation};
     let with = |fpga: Option<FpgaGeneration>, firmware: Option<u32>| {
         let mut c = presets::snake_36axes();
         c.robots[0].simulation = Some(RobotSimulation {
@@ -719,4 +720,61 @@ fn a_v2_dqla_is_refused_at_loading() {
         (b.fpga_version, b.firmware),
         (Some(FpgaGeneration::V3), Some(9))
     );
+}
+
+/// `dvrk-dqla-rev9.json`: each arm on one DQLA as the dVRK's configuration
+/// generator lays out a DQLA arm (every actuator on the arm's first board
+/// ID, axis = actuator index; the ECM's brakes on axes 4-6; the PSM's
+/// instrument and adapter on the second QLA's lines, bits 23 and 26), each
+/// board an FPGA V3 at Rev 9; the same file with a V2 under a DQLA is
+/// refused.
+#[test]
+fn the_dqla_arms_are_one_board_each_as_the_dvrk_lays_them_out() {
+    let c = load("dvrk-dqla-rev9.json");
+    c.validate("dvrk-dqla-rev9.json").unwrap();
+    let boards = c.boards();
+    let ids: Vec<u8> = boards.iter().map(|b| b.board_id).collect();
+    assert_eq!(ids, [2, 4, 6]);
+    for (robot, board) in [("MTMR", 2u8), ("ECM", 4), ("PSM1", 6)] {
+        let r = c.robot(robot).unwrap();
+        assert_eq!(r.hardware_version, HardwareVersion::Dqla, "{robot}");
+        for (i, a) in r.actuators.iter().enumerate() {
+            assert_eq!(
+                (a.board_id, usize::from(a.axis_id)),
+                (board, i),
+                "{robot} {i}"
+            );
+        }
+        let sim = c.board_simulation(board).unwrap();
+        assert_eq!(
+            (sim.fpga_version, sim.firmware),
+            (Some(FpgaGeneration::V3), Some(9)),
+            "{robot}"
+        );
+    }
+    let brakes: Vec<(u8, u8)> = c
+        .robot("ECM")
+        .unwrap()
+        .brakes
+        .iter()
+        .flatten()
+        .map(|b| (b.board_id, b.axis_id))
+        .collect();
+    assert_eq!(brakes, [(4, 4), (4, 5), (4, 6)]);
+    let input = |name: &str| {
+        let d = c.digital_inputs.iter().flatten().find(|d| d.name == name);
+        d.map(|d| (d.board_id, d.bit_id))
+    };
+    assert_eq!(input("PSM1_tool"), Some((6, 23)));
+    assert_eq!(input("PSM1_adapter"), Some((6, 26)));
+    assert_eq!(input("ECM_arm_clutch"), Some((4, 0)));
+
+    // A DQLA exists only on an FPGA V3.
+    let text = std::fs::read_to_string(configs_dir().join("dvrk-dqla-rev9.json")).unwrap();
+    let v2 = text.replacen("\"fpga_version\": \"V3\"", "\"fpga_version\": \"V2\"", 1);
+    assert_ne!(v2, text);
+    let e = IoConfig::from_json_str(&v2, "v2.json")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("only on an FPGA V3"), "{e}");
 }

@@ -244,6 +244,17 @@ impl Bridge {
         }
     }
 
+    /// Whether the bridge board takes requests sent to the UDP multicast
+    /// group: firmware Rev 9 and later, on an FPGA V2 as on a V3 (the
+    /// Rev 9 host sends a bridge's group requests to 224.0.0.100 once it
+    /// has read the hub's firmware as 9 or later, EthUdpPort `PacketSend`;
+    /// earlier firmware answers the subnet broadcast only).
+    pub fn takes_multicast(&self) -> bool {
+        self.bus
+            .node::<BoardNode>(self.bridge_board)
+            .is_some_and(|b| b.firmware().config().firmware.number() >= 9)
+    }
+
     /// The bus.
     pub fn bus(&self) -> &Bus {
         &self.bus
@@ -611,6 +622,25 @@ pub fn bind(config: &ServeConfig) -> std::io::Result<(UdpSocket, Option<UdpSocke
     Ok((unicast, broadcast))
 }
 
+/// Bind a socket to the UDP multicast group `group` on `port` and join
+/// it on every interface: where a Rev 9 host sends a bridge its Ethernet
+/// broadcasts (the requests `InitNodes` flags for Ethernet broadcast: the
+/// IP write, the PHY request, the hub's identity reads) once it has read
+/// the bridge's firmware as 9 or later (EthUdpPort `PacketSend`:
+/// `DEST_MULTICAST`, the subnet broadcast before; everything else, the
+/// query and the command block included, goes by unicast to base + the
+/// hub's board ID). The bridge takes what arrives there only at
+/// Rev 9 ([`Bridge::takes_multicast`]). Needs a multicast route (e.g. on
+/// `lo` inside a network namespace).
+///
+/// # Errors
+/// Binding the socket or joining the group.
+pub fn bind_multicast(group: Ipv4Addr, port: u16) -> std::io::Result<UdpSocket> {
+    let socket = UdpSocket::bind(SocketAddr::new(IpAddr::V4(group), port))?;
+    socket.join_multicast_v4(&group, &Ipv4Addr::UNSPECIFIED)?;
+    Ok(socket)
+}
+
 /// Run the bridge until `stop` is set: receive datagrams, keep virtual time
 /// in step with the wall clock, answer reads from the unicast socket.
 ///
@@ -627,24 +657,45 @@ pub fn serve(
     unicast: &UdpSocket,
     broadcast: Option<&UdpSocket>,
     stop: &Arc<AtomicBool>,
+    on_event: impl FnMut(Event),
+) -> std::io::Result<()> {
+    let groups: Vec<&UdpSocket> = broadcast.into_iter().collect();
+    serve_groups(bridge, unicast, &groups, stop, on_event)
+}
+
+/// [`serve`] with any number of group sockets (the loopback broadcast
+/// address, the multicast group of [`bind_multicast`]): each is polled
+/// as `serve` polls its broadcast socket. A request that reaches the
+/// bridge by a multicast group is taken only when the bridge board's
+/// firmware takes multicast ([`Bridge::takes_multicast`]; before Rev 9 it
+/// is foreign traffic, ignored).
+///
+/// # Errors
+/// As [`serve`].
+pub fn serve_groups(
+    bridge: &mut Bridge,
+    unicast: &UdpSocket,
+    groups: &[&UdpSocket],
+    stop: &Arc<AtomicBool>,
     mut on_event: impl FnMut(Event),
 ) -> std::io::Result<()> {
     on_event(Event::Listening {
         addr: unicast.local_addr()?,
-        broadcast: broadcast.is_some(),
+        broadcast: !groups.is_empty(),
     });
     // The unicast socket blocks briefly (a datagram wakes it at once); the
-    // broadcast socket is polled between.
+    // group sockets are polled between.
     unicast.set_nonblocking(false)?;
     unicast.set_read_timeout(Some(Duration::from_micros(500)))?;
     let mut unicast_rx = Receiver::new(unicast)?;
-    let mut broadcast_rx = match broadcast {
-        Some(b) => {
-            b.set_nonblocking(true)?;
-            Some((b, Receiver::new(b)?))
-        }
-        None => None,
-    };
+    // (socket, receiver, whether what it brings is taken).
+    let takes_multicast = bridge.takes_multicast();
+    let mut group_rx = Vec::with_capacity(groups.len());
+    for &g in groups {
+        g.set_nonblocking(true)?;
+        let multicast = g.local_addr()?.ip().is_multicast();
+        group_rx.push((g, Receiver::new(g)?, !multicast || takes_multicast));
+    }
     let wall_origin = Instant::now();
     let virtual_origin = bridge.bus().now();
     let virtual_at = |at: Instant| {
@@ -704,11 +755,13 @@ pub fn serve(
         broadcast_checked = wall;
         loop {
             let mut any = false;
-            if let Some((b, rx)) = broadcast_rx.as_mut()
-                && let Some(r) = rx.receive(b, &mut buf, false)?
-            {
-                handle(r, &buf, bridge, &mut on_event)?;
-                any = true;
+            for (g, rx, taken) in &mut group_rx {
+                if let Some(r) = rx.receive(g, &mut buf, false)? {
+                    if *taken {
+                        handle(r, &buf, bridge, &mut on_event)?;
+                    }
+                    any = true;
+                }
             }
             if let Some(r) = unicast_rx.receive(unicast, &mut buf, false)? {
                 handle(r, &buf, bridge, &mut on_event)?;

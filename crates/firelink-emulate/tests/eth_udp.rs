@@ -3,10 +3,11 @@
 //! and `ScanNodes`, EthBasePort's broadcast read and command block, the
 //! fallback hub read): at 1, 2, 4, 8 and 16 boards over loopback, 2000
 //! cycles each as fast as the test goes, 0 sequence errors; the group
-//! requests through the loopback broadcast address. The multicast group
-//! 224.0.0.100 and the stock 169.254.0.100 + ID addresses run inside a
-//! network namespace the test makes itself (`unshare -n`, root); without
-//! root or `unshare` that test says so and skips.
+//! requests through the loopback broadcast address. The same at 1, 2, 4,
+//! 8 and 16 boards by the multicast group 224.0.0.100 on the stock
+//! 169.254.0.100 + ID addresses, inside a network namespace the test
+//! makes itself (`unshare -n`, root); without root or `unshare` that test
+//! says so and skips.
 
 mod common;
 mod eth_common;
@@ -260,99 +261,47 @@ fn rev9_host_on_16_boards_over_loopback() {
     loopback_run(16);
 }
 
-/// Inside the namespace: the stock addresses on `lo`, the multicast route,
-/// the group joined; the host's group requests by multicast.
+/// Inside the namespace: the stock addresses of 16 boards on `lo`, the
+/// multicast route; then at each board count the group joined and the
+/// host's group requests by multicast, 2000 cycles, 0 sequence errors.
 fn namespace_body() {
-    let run = |args: &[&str]| {
-        let ok = std::process::Command::new("ip")
-            .args(args)
-            .status()
-            .unwrap()
-            .success();
-        assert!(ok, "ip {args:?}");
-    };
-    run(&["link", "set", "lo", "up"]);
-    run(&["link", "set", "lo", "multicast", "on"]);
-    let chain = [2u8, 0, 3, 1];
-    for id in chain {
-        run(&[
-            "addr",
-            "add",
-            &format!("169.254.0.{}/32", 100 + id),
-            "dev",
-            "lo",
-        ]);
+    stock_addresses_on_lo(&(0..16).collect::<Vec<u8>>());
+    for n in BOARD_COUNTS {
+        let chain = shuffled(n);
+        let served = Served::start(
+            &chain,
+            EthServeConfig {
+                base: Ipv4Addr::new(169, 254, 0, 100),
+                port: 1394,
+                loopback_broadcast: false,
+                multicast: Some(MULTICAST_GROUP),
+            },
+            Some(MULTICAST_GROUP),
+        );
+        let mut host = Host::new(Ipv4Addr::new(169, 254, 0, 1));
+        host.socket.set_multicast_loop_v4(true).unwrap();
+        let (errors, fallbacks) = cycles(&served, &mut host, &chain, 2000);
+        let stats = served.stop();
+        let groups = if n > 15 { 2 } else { 1 };
+        assert_eq!(errors, 0, "{n} boards: sequence errors; {stats}");
+        assert_eq!(fallbacks, 40 * groups, "{n} boards");
+        assert_eq!(
+            stats.broadcast_responses,
+            2000 * groups,
+            "{n} boards: {stats}"
+        );
+        assert_eq!(stats.dropped(), 0, "{n} boards: {stats}");
     }
-    run(&["addr", "add", "169.254.0.1/16", "dev", "lo"]);
-    run(&["route", "add", "224.0.0.0/4", "dev", "lo"]);
-    let served = Served::start(
-        &chain,
-        EthServeConfig {
-            base: Ipv4Addr::new(169, 254, 0, 100),
-            port: 1394,
-            loopback_broadcast: false,
-            multicast: Some(MULTICAST_GROUP),
-        },
-        Some(MULTICAST_GROUP),
-    );
-    let mut host = Host::new(Ipv4Addr::new(169, 254, 0, 1));
-    host.socket.set_multicast_loop_v4(true).unwrap();
-    let (errors, fallbacks) = cycles(&served, &mut host, &chain, 2000);
-    let stats = served.stop();
-    assert_eq!(errors, 0, "{stats}");
-    assert_eq!(fallbacks, 40);
-    assert_eq!(stats.broadcast_responses, 2000, "{stats}");
-    assert_eq!(stats.dropped(), 0, "{stats}");
 }
 
-const IN_NAMESPACE: &str = "FIRELINK_ETH_NETNS";
+/// The board counts of the proof (issue 31).
+const BOARD_COUNTS: [u8; 5] = [1, 2, 4, 8, 16];
 
 #[test]
-fn rev9_host_by_multicast_in_a_network_namespace() {
-    if std::env::var_os(IN_NAMESPACE).is_some() {
-        namespace_body();
-        return;
-    }
-    // Root, as `id -u` says.
-    let root = std::process::Command::new("id")
-        .arg("-u")
-        .output()
-        .is_ok_and(|o| o.stdout.starts_with(b"0\n"));
-    let unshare = std::process::Command::new("unshare")
-        .arg("--version")
-        .output()
-        .is_ok_and(|o| o.status.success());
-    let ip = std::process::Command::new("ip")
-        .arg("-V")
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !(root && unshare && ip) {
-        eprintln!(
-            "SKIPPED rev9_host_by_multicast_in_a_network_namespace: needs root, unshare and ip \
-             (root {root}, unshare {unshare}, ip {ip}); multicast is sent only inside a namespace \
-             the test makes"
-        );
-        return;
-    }
-    let exe = std::env::current_exe().unwrap();
-    let out = std::process::Command::new("unshare")
-        .arg("-n")
-        .arg("--")
-        .arg(exe)
-        .args([
-            "--exact",
-            "rev9_host_by_multicast_in_a_network_namespace",
-            "--nocapture",
-            "--test-threads=1",
-        ])
-        .env(IN_NAMESPACE, "1")
-        .output()
-        .unwrap();
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
+fn rev9_host_by_multicast_at_1_to_16_boards_in_a_network_namespace() {
+    in_own_network_namespace(
+        "rev9_host_by_multicast_at_1_to_16_boards_in_a_network_namespace",
+        "FIRELINK_ETH_NETNS",
+        namespace_body,
     );
-    assert!(out.status.success(), "in the namespace:\n{text}");
-    assert!(text.contains("1 passed"), "the body ran:\n{text}");
 }

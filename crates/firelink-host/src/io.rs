@@ -29,7 +29,7 @@ use firelink_wire::board::broadcast::{
     BoardSlot, CommandBlockWriter, HubBlock, HubHeader, Query, SeqRule, hub_block_quadlets,
     status_broadcast_board,
 };
-use firelink_wire::board::realtime::{BlockFormat, ReadBlock, ReadBlockRepr};
+use firelink_wire::board::realtime::{BlockFormat, BoardLayout, ReadBlock, ReadBlockRepr};
 use firelink_wire::board::registers::{
     AmpCommand, SYSTEM_CLOCK_HZ, StatusCommand, WatchdogSetting,
 };
@@ -63,6 +63,23 @@ pub struct IoOptions {
     /// board's status broadcast has been overheard (the wait then only
     /// bounds it). Ports that cannot overhear the bus wait the whole time.
     pub listen_for_broadcasts: bool,
+}
+
+/// The reference host's wait between a query and its hub read
+/// (FirewirePort `WaitBroadcastRead`: 10 + 5 us per board the query
+/// selects), its boards counted in QLA1 read blocks: a board whose read
+/// block is longer than a QLA1's (a DQLA's 60 quadlets) counts as the
+/// QLA1 blocks it spans (rounded up), so the wait still covers the
+/// broadcasts it is meant to. A QLA1-only set waits exactly the reference
+/// host's 10 + 5 N us.
+fn reference_broadcast_wait(layouts: impl IntoIterator<Item = BoardLayout>) -> Duration {
+    /// A QLA1's read block at Rev 8/9: the block the formula is for.
+    const QLA1_READ_QUADLETS: usize = 32;
+    let blocks: usize = layouts
+        .into_iter()
+        .map(|l| l.read_block_quadlets().div_ceil(QLA1_READ_QUADLETS).max(1))
+        .sum();
+    Duration::from_micros(10 + 5 * blocks as u64)
 }
 
 /// Where the broadcast protocol sends its query and its commands
@@ -545,7 +562,7 @@ impl<P: Port> IoSystem<P> {
             let wait = self
                 .config
                 .broadcast_wait
-                .unwrap_or(Duration::from_micros(10 + 5 * members.len() as u64));
+                .unwrap_or_else(|| reference_broadcast_wait(slots.iter().map(|s| s.layout)));
             groups.push(QueryGroup {
                 mask,
                 members,
@@ -1240,5 +1257,38 @@ impl<P: Port> Drop for IoSystem<P> {
         if self.energised != 0 {
             let _ = crate::RobotIo::power_down(self);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firelink_wire::board::realtime::FirmwareRev;
+
+    /// QLA1 sets wait the reference host's 10 + 5 N us at every revision;
+    /// a DQLA (60-quadlet block) counts as two QLA1 blocks.
+    #[test]
+    fn the_broadcast_wait_counts_qla1_blocks() {
+        let qla1 = |rev| BoardLayout::new(rev, 4, 4).unwrap();
+        let dqla = BoardLayout::new(FirmwareRev::Rev9, 8, 8).unwrap();
+        for rev in [FirmwareRev::Rev7, FirmwareRev::Rev8, FirmwareRev::Rev9] {
+            for n in [1u64, 4, 8, 16] {
+                let layouts = (0..n).map(|_| qla1(rev));
+                assert_eq!(
+                    reference_broadcast_wait(layouts),
+                    Duration::from_micros(10 + 5 * n),
+                    "{rev:?}"
+                );
+            }
+        }
+        assert_eq!(dqla.read_block_quadlets(), 60);
+        assert_eq!(
+            reference_broadcast_wait([dqla; 3]),
+            Duration::from_micros(10 + 5 * 6)
+        );
+        assert_eq!(
+            reference_broadcast_wait([dqla, qla1(FirmwareRev::Rev9)]),
+            Duration::from_micros(10 + 5 * 3)
+        );
     }
 }

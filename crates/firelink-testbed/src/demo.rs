@@ -48,7 +48,8 @@ pub enum DemoFault {
     StopHost,
     /// The next broadcast query is corrupted on the wire.
     CorruptQuery,
-    /// PSM1's first board (board 4) stops answering for good.
+    /// Board 4 stops answering for good (PSM1's first board in seed 000's
+    /// dVRK; the ECM's DQLA in `configs/dvrk-dqla-rev9.json`).
     BoardLoss,
     /// Joint 0's setpoint jumps further than it can follow.
     FollowingError,
@@ -582,7 +583,9 @@ impl fmt::Display for DemoReport {
     }
 }
 
-/// The board whose loss the demo simulates (PSM1's first board).
+/// The board whose loss the demo simulates: PSM1's first board in seed
+/// 000's dVRK, the ECM's DQLA in the dVRK's numbering of DQLA arms
+/// (`configs/dvrk-dqla-rev9.json`).
 const LOST_BOARD: u8 = 4;
 
 /// Fault injection on a port: what each [`DemoFault`] does there (the
@@ -616,8 +619,20 @@ impl Injector for SimPort {
             }
             DemoFault::BoardLoss => {
                 let now = self.bus().now();
-                // Handles are in order of addition: the PC, then boards 0...
-                let node = NodeHandle(usize::from(LOST_BOARD) + 1);
+                // Every board node's name ends in its board ID (`board4`,
+                // `board 4`, `snake 4`); the PC's has no number.
+                let is_lost = |name: &str| {
+                    let digits = name.trim_start_matches(|c: char| !c.is_ascii_digit());
+                    !digits.is_empty() && digits.parse::<u8>() == Ok(LOST_BOARD)
+                };
+                let node = (0..self.bus().len())
+                    .map(NodeHandle)
+                    .find(|&h| self.bus().name(h).is_some_and(is_lost))
+                    .ok_or_else(|| {
+                        TestbedError::Config(format!(
+                            "fault board-loss: no board {LOST_BOARD} on this bus"
+                        ))
+                    })?;
                 self.bus_mut().set_fault_plan(FaultPlan::new().at(
                     now,
                     TimedFault::StopAnswering {

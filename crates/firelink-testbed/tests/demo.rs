@@ -146,3 +146,142 @@ fn the_bench_measures_models_and_says_which_is_which() {
     assert!(check_board_counts(&[]).is_err());
     assert!(check_board_counts(&[0]).is_err());
 }
+
+/// Today's controllers: `configs/dvrk-dqla-rev9.json`'s arms, one DQLA
+/// (FPGA V3, firmware Rev 9) each, for a short run.
+fn dqla(fault: DemoFault) -> DemoOptions {
+    DemoOptions {
+        config: firelink_control::config::presets::dqla_rev9(),
+        firmware: firelink_board::config::Profile::Rev9,
+        ..short(fault)
+    }
+}
+
+#[test]
+fn the_demo_runs_dqla_arms_at_rev9_with_no_errors() {
+    let r = run_demo(&dqla(DemoFault::None), None, |_| {}).unwrap();
+    assert_eq!(r.verdict(), Ok(()), "{r}");
+    // MTMR 7 + ECM 4 + PSM1 7 axes on three DQLAs (IDs 2, 4, 6: the IDs
+    // between are no board).
+    assert_eq!((r.boards, r.axes), (3, 18), "{r}");
+    assert_eq!(r.firmware, Some(9));
+    assert_eq!(r.errors.total, 0, "{r}");
+    assert_eq!(r.protocol, "broadcast");
+    for arm in ["MTMR", "ECM", "PSM1"] {
+        assert!(r.tracking_error.contains_key(arm), "{arm}: {r}");
+    }
+    assert!(r.power_down.still_on.is_empty(), "{:?}", r.power_down);
+}
+
+#[test]
+fn a_lost_dqla_board_is_named_and_every_amplifier_ends_off() {
+    let r = run_demo(&dqla(DemoFault::BoardLoss), None, |_| {}).unwrap();
+    assert_eq!(r.verdict(), Ok(()), "{r}");
+    // Board 4 is the ECM's DQLA.
+    let fault = r.fault.as_ref().unwrap();
+    assert_eq!(fault.board, Some(4), "{fault:?}");
+    assert_eq!(r.amplifiers_on_after_fault, Some(false), "{r}");
+    assert!(r.boards_not_answering.contains(&4), "{r}");
+    assert!(r.power_down.unknown.contains(&4), "{:?}", r.power_down);
+    assert!(r.power_down.still_on.is_empty(), "{:?}", r.power_down);
+    // The DQLA before the lost one in the status broadcasts' chain still
+    // answers, switched off (the one after it may not be read in time).
+    assert!(r.power_down.off.contains(&2), "{:?}", r.power_down);
+}
+
+#[test]
+fn a_stopped_host_trips_the_dqla_watchdogs() {
+    let r = run_demo(&dqla(DemoFault::StopHost), None, |_| {}).unwrap();
+    assert_eq!(r.verdict(), Ok(()), "{r}");
+    assert!(r.fault.is_some(), "{r}");
+    assert_eq!(r.amplifiers_on_after_fault, Some(false), "{r}");
+    assert!(r.power_down.still_on.is_empty(), "{:?}", r.power_down);
+}
+
+/// The DQLA arms on the Ethernet-only network (`firelink emulate
+/// --network eth`, here served in-process on loopback) driven through
+/// `udp:` at the network's group address (the port `firelink demo --port
+/// udp:` opens, with a time-out that only guards against a hang): every
+/// broadcast cycle read with no error. The servo loop is paced by the wall
+/// clock here, so on a loaded machine late cycles may end the motion in a
+/// fault; what is checked of that is the safety chain (amplifiers off).
+#[test]
+fn the_demo_runs_dqla_arms_over_the_ethernet_only_network() {
+    use firelink_control::runner::{Pacing, Robot};
+    use firelink_emulate::eth_network::EthNetwork;
+    use firelink_emulate::eth_serve::{EthServeConfig, eth_bind, eth_serve};
+    use firelink_host::WatchdogSetting;
+    use firelink_host::eth::UdpNetPort;
+    use firelink_host::io::{IoOptions, IoSystem};
+    use firelink_host::udp::WaitMode;
+    use firelink_testbed::demo::{DemoPlan, RealtimeStatus, run_program};
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::time::{Duration, Instant};
+    let config = firelink_control::config::presets::dqla_rev9();
+    let boards = firelink_testbed::rig::board_configs(
+        &config,
+        firelink_board::config::Profile::Rev9,
+        config.board_slots(),
+    );
+    let ids: Vec<u8> = boards.iter().map(|b| b.board_id).collect();
+    assert_eq!(ids, vec![2, 4, 6]);
+    let mut net = EthNetwork::new(boards, Default::default()).unwrap();
+    let serve = EthServeConfig {
+        port: 0,
+        ..EthServeConfig::default()
+    };
+    let sockets = eth_bind(&serve, &ids).unwrap();
+    let group = std::net::SocketAddr::new(
+        std::net::IpAddr::V4(firelink_host::eth::LOOPBACK_BROADCAST),
+        sockets.port,
+    );
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    let server = std::thread::spawn(move || {
+        eth_serve(&mut net, &sockets, &flag, |_| {}).unwrap();
+        net.stats()
+    });
+    // The scan waits the time-out once per absent board ID (13 of them),
+    // as the Rev 9 host's scan does: 1 s, far beyond any reply.
+    let port = UdpNetPort::open(group, false, Duration::from_secs(1), WaitMode::Blocking).unwrap();
+    assert!(port.is_ethernet_only());
+    let options = IoOptions {
+        protocol: Some(Protocol::Broadcast),
+        ..IoOptions::default()
+    };
+    let (io, scan) = IoSystem::open(port, options).unwrap();
+    assert_eq!(scan.boards.len(), 3);
+    let plan = DemoPlan {
+        config: &config,
+        rate_hz: 1000.0,
+        duration_s: 0.3,
+        fault: DemoFault::None,
+        watchdog: WatchdogSetting::from_ms(300.0).unwrap(),
+        pacing: Pacing::WallClock,
+    };
+    let robot = Robot::new(io, &config, plan.settings()).unwrap();
+    let wall = Instant::now();
+    let run = run_program(
+        robot,
+        &plan,
+        "udp".into(),
+        RealtimeStatus::default(),
+        wall,
+        &mut |_| {},
+    );
+    stop.store(true, Ordering::Relaxed);
+    let stats = server.join().unwrap();
+    let r = run.unwrap().report;
+    assert_eq!((r.boards, r.axes), (3, 18), "{r}");
+    assert_eq!(r.firmware, Some(9));
+    assert!(r.motion_cycles > 0, "{r}");
+    assert_eq!(r.errors.total, 0, "{r}; {stats}");
+    assert!(stats.broadcast_responses > 0, "{stats}");
+    assert_eq!(stats.dropped(), 0, "{stats}");
+    if r.fault.is_some() {
+        assert_eq!(r.amplifiers_on_after_fault, Some(false), "{r}");
+    }
+    assert!(r.power_down.unknown.is_empty(), "{:?}", r.power_down);
+    assert!(r.power_down.still_on.is_empty(), "{:?}", r.power_down);
+}

@@ -862,6 +862,71 @@ pub fn stock_ecm() -> IoConfig {
     c
 }
 
+/// A stock arm moved onto one DQLA, as the dVRK's configuration generator
+/// lays out a DQLA arm (`getActuatorsPerBoard("DQLA") == 8`): every
+/// actuator on the arm's first board ID, axis = actuator index; brake `i`
+/// on axis `i + 4` of the same board (the ECM's brakes on axes 4-6).
+fn on_dqla(mut robot: RobotConfig, board: u8) -> RobotConfig {
+    robot.hardware_version = HardwareVersion::Dqla;
+    for (axis, a) in robot.actuators.iter_mut().enumerate() {
+        a.board_id = board;
+        a.axis_id = axis as u8;
+    }
+    for (i, b) in robot.brakes.iter_mut().flatten().enumerate() {
+        b.board_id = board;
+        b.axis_id = (i + 4) as u8;
+    }
+    if let Some(sim) = robot.simulation.as_mut() {
+        sim.boards = vec![BoardSimulation {
+            board_id: board,
+            serial: BoardSerial {
+                fpga: None,
+                qla: None,
+            },
+            fpga_version: Some(super::FpgaGeneration::V3),
+            firmware: Some(9),
+        }];
+    }
+    robot
+}
+
+/// Today's dVRK controllers: the stock Classic MTMR, ECM and PSM1, each on
+/// one DQLA (two QLAs on an FPGA V3, 8 axes) at firmware Rev 9, with the
+/// board ID the dVRK gives a DQLA arm (the first of its QLA pair: MTMR 2,
+/// ECM 4, PSM1 6). The MTMR's gripper is on its board's axis 7; the
+/// PSM's instrument and sterile-adapter contacts on its second QLA's lines
+/// (DIGIN bits 23 and 26, the generator's "add 16 for the second board").
+pub fn dqla_rev9() -> IoConfig {
+    let robots = vec![
+        on_dqla(stock_mtmr().robots.remove(0), 2),
+        on_dqla(stock_ecm().robots.remove(0), 4),
+        on_dqla(stock_psm1().robots.remove(0), 6),
+    ];
+    let mut c = io_config(
+        "Today's dVRK controllers: the stock-style Classic MTMR (28247), ECM (29738) and PSM1 \
+         (28007) of this directory, each arm on one DQLA (two QLAs on an FPGA V3, 8 axes) at \
+         firmware Rev 9 where the Classic controllers use two QLA1 boards, laid out as the \
+         dVRK's configuration generator lays out a DQLA arm: every actuator on the arm's first \
+         board ID (MTMR 2, ECM 4, PSM1 6), axis = actuator index, the MTMR's gripper on axis 7, \
+         the ECM's brakes on axes 4-6, the PSM's digital inputs on its board (instrument and \
+         sterile adapter on the second QLA: bits 23 and 26) and its Dallas chip on its board. \
+         Each board's simulation section names FPGA V3 and firmware 9, so `firelink demo` and \
+         `firelink emulate` run it on V3/DQLA boards at Rev 9 (`firelink emulate --network eth \
+         --fpga V3 --firmware 9` on the Ethernet-only network).",
+        robots,
+    );
+    c.digital_inputs = Some(digital_inputs(&[
+        ("ECM_arm_clutch", 4, 0),
+        ("ECM_SUJ_clutch", 4, 2),
+        ("PSM1_SUJ_clutch", 6, 0),
+        ("PSM1_arm_clutch", 6, 2),
+        ("PSM1_tool", 6, 23),
+        ("PSM1_adapter", 6, 26),
+    ]));
+    c.dallas_chips = Some(json!([{ "board_id": 6, "name": "PSM1_dallas" }]));
+    c
+}
+
 /// The ECM brake channels' calibrated DAC offsets (code of 0 A minus
 /// 32768).
 const BRAKE_DAC_OFFSETS: [f64; 3] = [19.0, -27.0, 33.0];
@@ -957,7 +1022,7 @@ pub fn snake_seed001() -> IoConfig {
 }
 
 /// Every shipped configuration with its file name under `configs/`.
-pub fn shipped() -> [(&'static str, IoConfig); 7] {
+pub fn shipped() -> [(&'static str, IoConfig); 8] {
     [
         ("dvrk-seed000.json", dvrk_seed000()),
         ("bench-1board.json", bench_1board()),
@@ -966,6 +1031,7 @@ pub fn shipped() -> [(&'static str, IoConfig); 7] {
         ("dvrk-mtmr-28247.json", stock_mtmr()),
         ("dvrk-ecm-29738.json", stock_ecm()),
         ("snake-seed001.json", snake_seed001()),
+        ("dvrk-dqla-rev9.json", dqla_rev9()),
     ]
 }
 

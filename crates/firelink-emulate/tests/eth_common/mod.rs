@@ -212,3 +212,79 @@ pub fn shuffled(n: u8) -> Vec<u8> {
     }
     out
 }
+
+/// Run `body` inside a network namespace of its own: outside it (no
+/// `env` in the environment) run this test binary again as `unshare -n --
+/// BINARY --exact name`, with `env` set, and check that the body ran and
+/// passed; inside it run `body`. Multicast is sent only there. Without
+/// root, `unshare` or `ip` the test says so and returns (skipped).
+pub fn in_own_network_namespace(name: &str, env: &str, body: impl FnOnce()) {
+    if std::env::var_os(env).is_some() {
+        body();
+        return;
+    }
+    let succeeds = |program: &str, arg: &str| {
+        std::process::Command::new(program)
+            .arg(arg)
+            .output()
+            .is_ok_and(|o| o.status.success())
+    };
+    // Root, as `id -u` says.
+    let root = std::process::Command::new("id")
+        .arg("-u")
+        .output()
+        .is_ok_and(|o| o.stdout.starts_with(b"0\n"));
+    let unshare = succeeds("unshare", "--version");
+    let ip = succeeds("ip", "-V");
+    if !(root && unshare && ip) {
+        eprintln!(
+            "SKIPPED {name}: needs root, unshare and ip (root {root}, unshare {unshare}, ip \
+             {ip}); multicast is sent only inside a namespace the test makes"
+        );
+        return;
+    }
+    let out = std::process::Command::new("unshare")
+        .arg("-n")
+        .arg("--")
+        .arg(std::env::current_exe().unwrap())
+        .args(["--exact", name, "--nocapture", "--test-threads=1"])
+        .env(env, "1")
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "in the namespace:\n{text}");
+    assert!(text.contains("1 passed"), "the body ran:\n{text}");
+}
+
+/// `ip ARGS` inside the test's namespace, which must succeed.
+pub fn ip(args: &[&str]) {
+    let ok = std::process::Command::new("ip")
+        .args(args)
+        .status()
+        .unwrap()
+        .success();
+    assert!(ok, "ip {args:?}");
+}
+
+/// Inside the test's namespace: `lo` up with multicast, the multicast
+/// route on it, the host's 169.254.0.1/16 and `boards` at 169.254.0.100 +
+/// ID.
+pub fn stock_addresses_on_lo(boards: &[u8]) {
+    ip(&["link", "set", "lo", "up"]);
+    ip(&["link", "set", "lo", "multicast", "on"]);
+    for id in boards {
+        ip(&[
+            "addr",
+            "add",
+            &format!("169.254.0.{}/32", 100 + id),
+            "dev",
+            "lo",
+        ]);
+    }
+    ip(&["addr", "add", "169.254.0.1/16", "dev", "lo"]);
+    ip(&["route", "add", "224.0.0.0/4", "dev", "lo"]);
+}

@@ -156,8 +156,16 @@ pub fn board_configs_starting_at(
         .iter()
         .filter_map(plant_map::gripper_slot)
         .collect();
+    // A set of DQLA arms (today's controllers) has exactly the boards its
+    // arms name: the dVRK gives a DQLA arm the first ID of the QLA pair it
+    // replaces, and the IDs between are no board at all.
+    let dqla_set = !uses.is_empty() && uses.iter().all(|u| u.hardware == HardwareVersion::Dqla);
+    let named = config.board_slots();
     for id in 0..boards.min(16) as u8 {
         let board_use = uses.iter().find(|u| u.board_id == id);
+        if dqla_set && board_use.is_none() && usize::from(id) < named {
+            continue;
+        }
         let hardware = match board_use.map(|u| u.hardware) {
             Some(HardwareVersion::Dqla) => Hardware::Dqla,
             _ => Hardware::Qla1,
