@@ -1,0 +1,138 @@
+// Firelink console: the views of the robots other than the dVRK (seed
+// 001's Snake system, seed 002's MAHRU humanoid). The state is polled from
+// /api/state (the same cookie and checks as the dVRK's); commands go
+// through post() of app.js, which shows each one's outcome.
+"use strict";
+
+const robotView = { info: null, axis: 0, polling: false };
+
+function startRobotView(info) {
+  robotView.info = info;
+  document.body.dataset.robot = info.robot;
+  document.title = `Firelink console: ${info.robot}`;
+  $("dvrk-view").hidden = true;
+  const view = $(`${info.robot}-view`);
+  view.hidden = false;
+  // The outcome line belongs to this view's controls.
+  view.querySelector(".command-slot").appendChild($("last-command"));
+  for (const b of view.querySelectorAll("button[data-robot-action]")) {
+    b.onclick = () => post({ action: b.dataset.robotAction });
+  }
+  if (info.robot === "snake") setUpSnake(info);
+  poll();
+}
+
+async function poll() {
+  if (robotView.polling) return;
+  robotView.polling = true;
+  for (;;) {
+    try {
+      const r = await fetch("/api/state");
+      if (!r.ok) throw new Error("HTTP " + r.status);
+      const st = await r.json();
+      $("link").textContent = "live"; $("link").className = "link live";
+      if (st.state !== undefined) showRobotState(st);
+    } catch (e) {
+      $("link").textContent = "offline (retrying)"; $("link").className = "link";
+    }
+    await new Promise((done) => setTimeout(done, 100));
+  }
+}
+
+function showRobotState(st) {
+  live.state = st;
+  document.body.dataset.state = st.state;
+  $("state").textContent = st.state;
+  $("state").className = "state " + (st.state === "enabled" ? "active" : st.state);
+  const lc = st.last_command;
+  if (lc && (lc.id > live.shown.id || (lc.id === live.shown.id && live.shown.result === "running"))) showOutcome(lc);
+  const fault = document.querySelector(`#${robotView.info.robot}-view .robot-fault`);
+  const text = st.loop_exit ? "ROBOT LOOP ENDED: " + st.loop_exit : st.fault ? "FAULT: " + st.fault.text : "";
+  fault.hidden = !text; fault.textContent = text;
+  if (robotView.info.robot === "snake") showSnake(st);
+  else showMahru(st);
+}
+
+// ---- Snake ----
+
+function setUpSnake(info) {
+  const axis = $("snake-axis");
+  axis.innerHTML = info.joints.map((l, i) => `<option value="${i}">${i}: ${l}</option>`).join("");
+  axis.onchange = () => { robotView.axis = parseInt(axis.value, 10); };
+  const a = () => robotView.axis;
+  const num = (id) => parseFloat($(id).value);
+  $("snake-torque").onclick = () => post({ action: "mode", axis: a(), speed: false });
+  $("snake-speed").onclick = () => post({ action: "mode", axis: a(), speed: true });
+  $("snake-set-wiper").onclick = () => post({ action: "wiper", axis: a(), wiper: num("snake-wiper") });
+  $("snake-eeprom-read").onclick = () => post({ action: "eeprom_read", axis: a(), word: num("snake-word"), float: $("snake-float").checked });
+  $("snake-eeprom-write").onclick = () => post({ action: "eeprom_write", axis: a(), word: num("snake-word"), value: num("snake-value"), float: $("snake-float").checked });
+  $("snake-protect-on").onclick = () => post({ action: "write_protect", axis: a(), on: true });
+  $("snake-protect-off").onclick = () => post({ action: "write_protect", axis: a(), on: false });
+  $("snake-move").onclick = () => post({ action: "move", axis: a(), position: num("snake-position") });
+  $("snake-jog-minus").onclick = () => post({ action: "jog", axis: a(), delta: -num("snake-jog") });
+  $("snake-jog-plus").onclick = () => post({ action: "jog", axis: a(), delta: num("snake-jog") });
+  $("snake-axes").tBodies[0].onclick = (e) => {
+    const row = e.target.closest("tr");
+    if (!row) return;
+    robotView.axis = parseInt(row.dataset.axis, 10);
+    axis.value = String(robotView.axis);
+  };
+}
+
+function showSnake(st) {
+  const info = robotView.info;
+  const amps = st.axes.filter((x) => x.amp).length;
+  $("summary").textContent = `Snake: ${st.nodes.length} nodes, ${st.axes.length} axes, ${info.port}, t = ${fmt(st.t, 2)} s, I/O ${fmt(st.io_us, 1)} us, errors ${st.errors}`;
+  const expired = st.nodes.filter((n) => n.watchdog_expired).map((n) => n.id);
+  const silent = st.nodes.filter((n) => !n.valid).map((n) => n.id);
+  const faults = st.axes.map((x, i) => (x.fault ? i : -1)).filter((i) => i >= 0);
+  $("snake-safety").innerHTML = `safety: ${amps} of ${st.axes.length} amplifiers on; homed ${flag(st.homed, "yes", "no")}; ` +
+    `watchdog expired: ${expired.length ? `<span class="bad">nodes ${expired.join(", ")}</span>` : "none"}; ` +
+    `not answering: ${silent.length ? `<span class="bad">nodes ${silent.join(", ")}</span>` : "none"}; ` +
+    `channel faults: ${faults.length ? `<span class="bad">axes ${faults.join(", ")}</span>` : "none"}`;
+  const c = st.axes[robotView.axis];
+  if (c) $("snake-where").textContent = `(node ${c.node}, channel ${c.channel}: wiper ${c.wiper}, gain ${fmt(c.gain, 3)}, ${c.speed_mode ? "speed" : "torque"} mode, EEPROM ${c.write_protect ? "write-protected" : "writable"})`;
+  $("snake-nodes").tBodies[0].innerHTML = st.nodes.map((n) =>
+    `<tr data-node="${n.id}"><td>${n.id}</td><td>${n.valid ? "yes" : '<span class="bad">no</span>'}</td>` +
+    `<td>${n.watchdog_expired ? '<span class="bad">expired</span>' : "ok"}</td><td>${n.amps.toString(2).split("").filter((b) => b === "1").length}/7</td></tr>`).join("");
+  $("snake-axes").tBodies[0].innerHTML = st.axes.map((x, i) =>
+    `<tr data-axis="${i}" class="${i === robotView.axis ? "selected" : ""}"><td>${i}: ${info.joints[i]}</td><td>${x.node}</td><td>${x.channel}</td>` +
+    `<td>${fmt(x.setpoint, 4)}</td><td>${fmt(x.position, 4)}</td><td>${fmt(x.velocity, 3)}</td><td>${fmt(x.current_cmd, 3)}</td><td>${fmt(x.current, 3)}</td>` +
+    `<td>${x.encoder}</td><td>${x.pot}</td><td>${flag(x.amp, "on", "off")}</td><td>${x.fault ? '<span class="bad">FAULT</span>' : "-"}</td>` +
+    `<td>${x.wiper}</td><td>${fmt(x.gain, 3)}</td><td class="mode">${x.speed_mode ? "speed" : "torque"}</td><td class="protect">${x.write_protect ? "protected" : "writable"}</td></tr>`).join("");
+}
+
+// ---- MAHRU ----
+
+function showMahru(st) {
+  const info = robotView.info;
+  const b = st.budget;
+  $("summary").textContent = `MAHRU: ${st.modules.length} modules, ${info.rtos}, ${info.port}, t = ${fmt(st.t, 2)} s, period ${fmt(b.period_us, 0)} us, missed ${st.missed}`;
+  const g = st.gait;
+  $("mahru-walking").textContent = g.walking ? "walking" : "holding";
+  $("mahru-walking").className = g.walking ? "on" : "off";
+  $("mahru-phase").value = g.phase;
+  $("mahru-phase-text").textContent = `phase ${fmt(g.phase, 2)} of a ${fmt(info.stride_s, 2)} s stride, gait time ${fmt(g.time_s, 2)} s`;
+  const row = (name, us) => {
+    const share = b.period_us > 0 ? us / b.period_us : 0;
+    const width = Math.min(200, Math.round(200 * share));
+    return `<tr><td>${name}</td><td>${fmt(us, 1)}</td><td><span class="bar${share > 1 ? " over" : ""}" style="width:${width}px"></span> ${fmt(100 * share, 1)} %</td></tr>`;
+  };
+  $("mahru-budget").tBodies[0].innerHTML = row("read all, t(Te)", b.read_us) + row("compute, t(Tf)", b.compute_us) +
+    row("QWRITE, t(Tg)", b.write_us) + row("whole work", b.busy_us) + row("largest work", b.busy_max_us);
+  $("mahru-budget-summary").textContent = `used ${fmt(b.busy_us, 1)} of ${fmt(b.period_us, 0)} us available; ${b.periods} periods, ${b.overruns} overruns`;
+  const byId = {};
+  for (const m of info.modules) byId[m.mod_id] = m;
+  const motors = st.modules.filter((m) => (byId[m.mod_id] || {}).kind === "motor");
+  const sensors = st.modules.filter((m) => (byId[m.mod_id] || {}).kind === "force_torque");
+  $("mahru-modules").tBodies[0].innerHTML = st.modules.map((m) => {
+    const meta = byId[m.mod_id] || {};
+    const motor = meta.kind === "motor";
+    const v = (x, d) => (motor && m.valid ? fmt(x, d) : "-");
+    return `<tr data-mod="${m.mod_id}"><td>${m.mod_id}</td><td>${meta.name ?? "-"}</td><td>${meta.chain ?? "-"}</td><td>${m.state}</td>` +
+      `<td>${v(m.position, 4)}</td><td>${v(m.target, 4)}</td><td>${v(m.velocity, 3)}</td><td>${v(m.current, 3)}</td><td>${v(m.torque, 3)}</td><td>${fmt(m.read_us, 1)}</td></tr>`;
+  }).join("");
+  $("mahru-ft").tBodies[0].innerHTML = sensors.map((m) =>
+    `<tr data-mod="${m.mod_id}"><td>${(byId[m.mod_id] || {}).name ?? m.mod_id}</td>` + m.wrench.map((x) => `<td>${m.valid ? fmt(x, 2) : "-"}</td>`).join("") + "</tr>").join("");
+  document.body.dataset.motors = String(motors.length);
+}
