@@ -99,7 +99,7 @@ pub struct Exchange<F, C> {
 }
 
 impl<F, C> Exchange<F, C> {
-    /// An exchange with [`POOL`] frames made by `frame`.
+    /// An exchange with a pool of frames made by `frame`.
     pub fn new(frame: impl Fn() -> F) -> Exchange<F, C> {
         let free = ArrayQueue::new(POOL);
         for _ in 0..POOL {
