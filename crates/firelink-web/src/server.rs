@@ -653,7 +653,7 @@ fn parse_command(c: &Console, r: &CommandRequest) -> Result<Command, String> {
 
 /// The HTTP answer of a command's outcome: 200 done, 409 refused, 500
 /// failed.
-fn outcome_response(o: &CommandOutcome) -> Response {
+pub(crate) fn outcome_response(o: &CommandOutcome) -> Response {
     let status = match o.result {
         Verdict::Ok => StatusCode::OK,
         Verdict::Refused => StatusCode::CONFLICT,

@@ -28,6 +28,7 @@ use firelink_host::mahru::{ControllerState, MotionController, MotionError, Setpo
 use firelink_host::sim::SimPort;
 use firelink_testbed::mahru::MahruConfig;
 use firelink_testbed::mahru::gait::Gait;
+use firelink_testbed::mahru::main_loop::{gait_setpoints, motor_models};
 use firelink_testbed::mahru::rig::{PlacedModule, robot_port};
 use firelink_testbed::service::LoopExit;
 use firelink_wire::mahru::{ModId, ModuleKind, ModuleState};
@@ -236,13 +237,7 @@ pub fn start(config: MahruConfig, rate_hz: f64) -> Result<Hosted<MahruModel>, We
             })
         })
         .collect();
-    let motors = config
-        .modules()
-        .filter_map(|m| {
-            let j = config.motor(ModId(m.mod_id))?;
-            Some((ModId(m.mod_id), j.gravity_torque_nm, j.inertia))
-        })
-        .collect();
+    let motors = motor_models(&config);
     let count = controller.layout().modules.len();
     let exchange = Arc::new(Exchange::new(|| MahruFrame {
         t: 0.0,
@@ -415,16 +410,13 @@ fn period_once(rig: &mut Rig) -> Result<(), MotionError> {
     let read_end = c.port().now();
     c.port_mut().wait(rig.slack);
     let compute_start = c.port().now();
-    for &(id, gravity, inertia) in &rig.motors {
-        let s = rig.gait.setpoint(id, rig.gait_time);
-        let (v, a) = if rig.walking {
-            (s.velocity, s.acceleration)
-        } else {
-            (0.0, 0.0)
-        };
-        let torque = gravity * s.position.sin() + inertia * a;
-        rig.setpoints.set(id, s.position, v, a, torque);
-    }
+    gait_setpoints(
+        &rig.gait,
+        &rig.motors,
+        rig.gait_time,
+        rig.walking,
+        &mut rig.setpoints,
+    );
     c.port_mut().wait(rig.compute);
     let compute_end = c.port().now();
     c.port_mut().wait(rig.slack);

@@ -36,7 +36,7 @@ use tokio::sync::{Notify, oneshot};
 
 use firelink_testbed::service::{CommandOutcome, LoopExit, Verdict};
 
-use crate::server::{COMMAND_WAIT, Gate, Peer, answer, refusal, with_assets};
+use crate::server::{COMMAND_WAIT, Gate, Peer, answer, outcome_response, refusal, with_assets};
 
 /// Which robot the console drives.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
@@ -459,12 +459,7 @@ async fn command(
     match tokio::time::timeout(COMMAND_WAIT, rx).await {
         Ok(Ok(outcome)) => {
             c.view.record(&outcome);
-            let status = match outcome.result {
-                Verdict::Ok => StatusCode::OK,
-                Verdict::Refused => StatusCode::CONFLICT,
-                Verdict::Failed => StatusCode::INTERNAL_SERVER_ERROR,
-            };
-            (status, axum::Json(outcome)).into_response()
+            outcome_response(&outcome)
         }
         Ok(Err(_)) => answer(
             StatusCode::SERVICE_UNAVAILABLE,
@@ -524,4 +519,70 @@ fn panic_text(payload: &(dyn std::any::Any + Send)) -> &str {
         .copied()
         .or_else(|| payload.downcast_ref::<String>().map(String::as_str))
         .unwrap_or("a panic without a message")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Frames go round the pool: the server gets the newest, the older
+    /// ones and the one it read go back; a loop with no free frame skips
+    /// and counts.
+    #[test]
+    fn frames_go_round_the_pool_and_the_newest_wins() {
+        let ex: Exchange<u64, ()> = Exchange::new(|| 0);
+        for k in 1..=3 {
+            ex.publish(|f| *f = k);
+        }
+        let newest = ex.newest().unwrap();
+        assert_eq!(*newest, 3);
+        assert!(ex.newest().is_none());
+        ex.recycle(newest);
+        for k in 0..POOL as u64 + 2 {
+            ex.publish(|f| *f = 10 + k);
+        }
+        assert_eq!(ex.skipped.load(Ordering::Relaxed), 2);
+        assert_eq!(*ex.newest().unwrap(), 10 + POOL as u64 - 1);
+    }
+
+    /// A command's outcome reaches its waiter with the command's id; one
+    /// whose waiter gave up is kept for the state; whatever still waits
+    /// when the loop ends is refused with why.
+    #[test]
+    fn outcomes_reach_their_waiters_or_the_state() {
+        let ex: Exchange<u8, &'static str> = Exchange::new(|| 0);
+        let (id, mut rx) = ex.submit("first").unwrap();
+        let p = ex.next_request().unwrap();
+        assert_eq!((p.id, p.command), (id, "first"));
+        ex.answer(p, "first".into(), Ok("done".into()));
+        let o = rx.try_recv().unwrap();
+        assert_eq!(
+            (o.id, o.result, o.detail.as_str()),
+            (id, Verdict::Ok, "done")
+        );
+        let (_, rx) = ex.submit("abandoned").unwrap();
+        drop(rx);
+        let p = ex.next_request().unwrap();
+        ex.answer(p, "abandoned".into(), Err(failed("a time-out")));
+        let late = ex.late.pop().unwrap();
+        assert_eq!(
+            (late.result, late.detail.as_str()),
+            (Verdict::Failed, "a time-out")
+        );
+        let (_, mut rx) = ex.submit("queued").unwrap();
+        let exit = LoopExit {
+            power_down: Some(firelink_host::PowerDown::default()),
+            panic: None,
+            stopped_by: None,
+        };
+        ex.finish(exit, |c| (*c).to_string());
+        let o = rx.try_recv().unwrap();
+        assert_eq!(o.result, Verdict::Refused);
+        assert!(
+            o.detail.starts_with("not run: the robot loop has ended"),
+            "{}",
+            o.detail
+        );
+        assert_eq!(ex.accepted.load(Ordering::Relaxed), 3);
+    }
 }

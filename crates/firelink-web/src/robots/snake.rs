@@ -635,43 +635,22 @@ fn channel_command(rig: &mut Rig, command: SnakeCommand) -> Result<String, Refus
             ))
         }
         SnakeCommand::EepromRead { word, float, .. } => {
-            let index = (u32::from(ch) << 4) | u32::from(word);
-            let system = rig.robot.io_mut();
-            if float {
-                let v = system.eeprom_float(node, index).map_err(io_err)?;
-                Ok(format!(
-                    "node {node} channel {ch} EEPROM float at word {word}: {v}"
-                ))
-            } else {
-                let v = system.eeprom_raw(node, index).map_err(io_err)?;
-                Ok(format!(
-                    "node {node} channel {ch} EEPROM word {word}: {v} (0x{v:04x})"
-                ))
-            }
+            read_eeprom(rig.robot.io_mut(), node, ch, word, float).map_err(io_err)
         }
         SnakeCommand::EepromWrite {
             word, value, float, ..
         } => {
             settings_allowed(rig, &what)?;
-            let index = (u32::from(ch) << 4) | u32::from(word);
+            let index = eeprom_index(ch, word);
             let system = rig.robot.io_mut();
             if float {
-                system
-                    .set_eeprom_float(node, index, value as f32)
-                    .map_err(io_err)?;
-                let back = system.eeprom_float(node, index).map_err(io_err)?;
-                Ok(format!(
-                    "node {node} channel {ch} EEPROM float at word {word}: {back} (read back)"
-                ))
+                system.set_eeprom_float(node, index, value as f32)
             } else {
-                system
-                    .set_eeprom_raw(node, index, value as u16)
-                    .map_err(io_err)?;
-                let back = system.eeprom_raw(node, index).map_err(io_err)?;
-                Ok(format!(
-                    "node {node} channel {ch} EEPROM word {word}: {back} (read back)"
-                ))
+                system.set_eeprom_raw(node, index, value as u16)
             }
+            .map_err(io_err)?;
+            let back = read_eeprom(system, node, ch, word, float).map_err(io_err)?;
+            Ok(format!("{back} (read back)"))
         }
         SnakeCommand::WriteProtect { on, .. } => {
             settings_allowed(rig, &what)?;
@@ -686,6 +665,29 @@ fn channel_command(rig: &mut Rig, command: SnakeCommand) -> Result<String, Refus
         }
         _ => Err(refused("not a channel command")),
     }
+}
+
+/// An EEPROM index: the channel in bits 7-4, the word in bits 3-0.
+fn eeprom_index(ch: u8, word: u8) -> u32 {
+    (u32::from(ch) << 4) | u32::from(word)
+}
+
+/// Read an EEPROM word (or two as a float) and say what it holds.
+fn read_eeprom(
+    system: &mut SnakeSystem<SimPort>,
+    node: u8,
+    ch: u8,
+    word: u8,
+    float: bool,
+) -> Result<String, firelink_host::HostError> {
+    let index = eeprom_index(ch, word);
+    Ok(if float {
+        let v = system.eeprom_float(node, index)?;
+        format!("node {node} channel {ch} EEPROM float at word {word}: {v}")
+    } else {
+        let v = system.eeprom_raw(node, index)?;
+        format!("node {node} channel {ch} EEPROM word {word}: {v} (0x{v:04x})")
+    })
 }
 
 fn set_channel(rig: &mut Rig, axis: usize, change: impl FnOnce(&mut Channel)) {
