@@ -4,7 +4,30 @@
 // through post() of app.js, which shows each one's outcome.
 "use strict";
 
-const robotView = { info: null, axis: 0, polling: false };
+const robotView = { info: null, axis: 0, module: 0, polling: false, charts: {}, history: {} };
+const HISTORY_S = 30;
+
+// A strip chart of two series (uPlot, as the dVRK's) in `el`.
+function robotChart(el, title, unit, names, colours) {
+  const width = Math.max(420, el.parentElement.clientWidth - 40);
+  return new uPlot({
+    title, width, height: 200,
+    scales: { x: { time: false } },
+    axes: [{ label: "time, s" }, { label: unit, values: (u, ticks) => ticks.map((v) => String(+v.toPrecision(3))) }],
+    series: [{ label: "t" }].concat(names.map((n, i) => ({ label: n, stroke: colours[i], width: 1.5 }))),
+  }, [[], [], []], el);
+}
+
+// Add one point to the history `name` and redraw its chart (the last
+// HISTORY_S seconds; a clock that went back starts the history again).
+function chartPoint(name, t, a, b) {
+  let h = robotView.history[name];
+  if (!h || (h.t.length && t < h.t[h.t.length - 1])) h = robotView.history[name] = { t: [], a: [], b: [] };
+  if (h.t.length && t === h.t[h.t.length - 1]) return;
+  h.t.push(t); h.a.push(a); h.b.push(b);
+  while (h.t.length && h.t[0] < t - HISTORY_S) { h.t.shift(); h.a.shift(); h.b.shift(); }
+  robotView.charts[name].setData([h.t.slice(), h.a.slice(), h.b.slice()]);
+}
 
 function startRobotView(info) {
   robotView.info = info;
@@ -19,6 +42,7 @@ function startRobotView(info) {
     b.onclick = () => post({ action: b.dataset.robotAction });
   }
   if (info.robot === "snake") setUpSnake(info);
+  else setUpMahru(info);
   poll();
 }
 
@@ -58,7 +82,15 @@ function showRobotState(st) {
 function setUpSnake(info) {
   const axis = $("snake-axis");
   axis.innerHTML = info.joints.map((l, i) => `<option value="${i}">${i}: ${l}</option>`).join("");
-  axis.onchange = () => { robotView.axis = parseInt(axis.value, 10); };
+  const select = (i) => {
+    robotView.axis = i;
+    axis.value = String(i);
+    delete robotView.history.axis;
+    $("snake-chart-axis").textContent = `${i}: ${info.joints[i]}`;
+  };
+  axis.onchange = () => select(parseInt(axis.value, 10));
+  robotView.charts.axis = robotChart($("snake-chart"), "", "rad or m", ["setpoint", "position"], ["#1f6fd1", "#e8590c"]);
+  select(0);
   const a = () => robotView.axis;
   const num = (id) => parseFloat($(id).value);
   $("snake-torque").onclick = () => post({ action: "mode", axis: a(), speed: false });
@@ -73,9 +105,7 @@ function setUpSnake(info) {
   $("snake-jog-plus").onclick = () => post({ action: "jog", axis: a(), delta: num("snake-jog") });
   $("snake-axes").tBodies[0].onclick = (e) => {
     const row = e.target.closest("tr");
-    if (!row) return;
-    robotView.axis = parseInt(row.dataset.axis, 10);
-    axis.value = String(robotView.axis);
+    if (row) select(parseInt(row.dataset.axis, 10));
   };
 }
 
@@ -91,6 +121,7 @@ function showSnake(st) {
     `not answering: ${silent.length ? `<span class="bad">nodes ${silent.join(", ")}</span>` : "none"}; ` +
     `channel faults: ${faults.length ? `<span class="bad">axes ${faults.join(", ")}</span>` : "none"}`;
   const c = st.axes[robotView.axis];
+  if (c) chartPoint("axis", st.t, c.setpoint, c.position);
   if (c) $("snake-where").textContent = `(node ${c.node}, channel ${c.channel}: wiper ${c.wiper}, gain ${fmt(c.gain, 3)}, ${c.speed_mode ? "speed" : "torque"} mode, EEPROM ${c.write_protect ? "write-protected" : "writable"})`;
   $("snake-nodes").tBodies[0].innerHTML = st.nodes.map((n) =>
     `<tr data-node="${n.id}"><td>${n.id}</td><td>${n.valid ? "yes" : '<span class="bad">no</span>'}</td>` +
@@ -103,6 +134,16 @@ function showSnake(st) {
 }
 
 // ---- MAHRU ----
+
+function setUpMahru(info) {
+  const motors = info.modules.filter((m) => m.kind === "motor");
+  const select = $("mahru-module");
+  select.innerHTML = motors.map((m) => `<option value="${m.mod_id}">${m.mod_id}: ${m.name}</option>`).join("");
+  robotView.module = motors.length ? motors[0].mod_id : 0;
+  select.onchange = () => { robotView.module = parseInt(select.value, 10); delete robotView.history.module; };
+  robotView.charts.module = robotChart($("mahru-chart"), "", "rad", ["target", "position"], ["#1f6fd1", "#e8590c"]);
+  robotView.charts.budget = robotChart($("mahru-budget-chart"), "", "us", ["work", "period"], ["#2b8a3e", "#c0262d"]);
+}
 
 function showMahru(st) {
   const info = robotView.info;
@@ -123,6 +164,9 @@ function showMahru(st) {
   $("mahru-budget-summary").textContent = `used ${fmt(b.busy_us, 1)} of ${fmt(b.period_us, 0)} us available; ${b.periods} periods, ${b.overruns} overruns`;
   const byId = {};
   for (const m of info.modules) byId[m.mod_id] = m;
+  const chosen = st.modules.find((m) => m.mod_id === robotView.module);
+  if (chosen && chosen.valid) chartPoint("module", st.t, chosen.target, chosen.position);
+  if (b.periods > 0) chartPoint("budget", st.t, b.busy_us, b.period_us);
   const motors = st.modules.filter((m) => (byId[m.mod_id] || {}).kind === "motor");
   const sensors = st.modules.filter((m) => (byId[m.mod_id] || {}).kind === "force_torque");
   $("mahru-modules").tBodies[0].innerHTML = st.modules.map((m) => {

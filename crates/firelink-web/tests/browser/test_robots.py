@@ -94,9 +94,13 @@ def test_snake_view_shows_36_axes_and_its_values_update(browser, snake):  # noqa
     expect(page.locator("#snake-nodes tbody tr")).to_have_count(6)
     expect(page.locator("#summary")).to_contain_text("Snake: 6 nodes, 36 axes")
     expect(page.locator("#link")).to_have_text("live")
-    # The robot's clock moves on the page.
+    # The robot's clock moves on the page, and the selected axis's chart
+    # fills.
     first = page.evaluate("() => live.state.t")
     page.wait_for_function(f"() => live.state.t > {first}")
+    page.wait_for_function("() => robotView.charts.axis.data[0].length > 5")
+    last = page.evaluate("() => robotView.charts.axis.data[0].at(-1)")
+    page.wait_for_function(f"() => robotView.charts.axis.data[0].at(-1) > {last}")
     page.close()
 
 
@@ -179,6 +183,8 @@ def test_mahru_view_enables_and_walks(browser, mahru):  # noqa: F811
     # The budget fills in, and the feet carry the body.
     page.wait_for_function("() => live.state.budget.periods > 10 && live.state.budget.busy_us > 0")
     expect(page.locator("#mahru-budget-summary")).to_contain_text("of 2000 us available")
+    page.wait_for_function("() => robotView.charts.budget.data[0].length > 5 && robotView.charts.module.data[0].length > 5")
+    assert page.evaluate("() => robotView.charts.budget.data[2].at(-1)") == 2000
     assert click_and_answer(page, "#mahru-view button[data-robot-action=gait_start]") == 200
     expect(page.locator("#mahru-walking")).to_have_text("walking")
     page.wait_for_function("() => live.state.gait.time_s > 0.5")
