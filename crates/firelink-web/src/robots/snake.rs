@@ -35,16 +35,15 @@ use firelink_host::sim::SimPort;
 use firelink_host::snake::SnakeSystem;
 use firelink_testbed::service::LoopExit;
 use firelink_testbed::snake::{node_configs, prepare, sim_port};
+use firelink_wire::snake::WIPER_MAX;
 use firelink_wire::snake::registers::{PotOutputs, Wiper};
 
 use super::{Exchange, Hosted, PUBLISH_SECONDS, Pending, Refused, RobotKind, RobotModel};
 use super::{failed, pace, parse_json, refused};
 use crate::WebError;
 
-/// EEPROM words per channel (an index's bits 3-0).
-pub const EEPROM_WORDS: u8 = 16;
-/// The largest wiper position.
-pub const WIPER_MAX: u16 = 1023;
+/// EEPROM words per channel (the pot's user words, 0..=13).
+pub const EEPROM_WORDS: u8 = firelink_wire::snake::EEPROM_WORDS as u8;
 /// The largest jog, rad or m (one click should not throw an arm).
 pub const MAX_JOG: f64 = 0.5;
 
@@ -144,7 +143,7 @@ pub enum SnakeCommand {
     EepromRead {
         /// The axis.
         axis: usize,
-        /// Word 0..=15 (0..=14 for a float).
+        /// Word 0..=13 (0..=12 for a float).
         word: u8,
         /// Read words `word` and `word + 1` as a float.
         #[serde(default)]
@@ -154,7 +153,7 @@ pub enum SnakeCommand {
     EepromWrite {
         /// The axis.
         axis: usize,
-        /// Word 0..=15 (0..=14 for a float).
+        /// Word 0..=13 (0..=12 for a float).
         word: u8,
         /// The value: 0..=65535, or any finite number with `float`.
         value: f64,
