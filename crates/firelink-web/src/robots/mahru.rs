@@ -295,9 +295,7 @@ fn run(mut rig: Rig, ex: &Exchange<MahruFrame, MahruCommand>) -> LoopExit {
         let start = rig.controller.port().now();
         let mut n = 0u64;
         while !ex.stop.load(Ordering::Relaxed) && !stop.is_requested() {
-            while let Some(p) = ex.next_request() {
-                take(&mut rig, ex, p);
-            }
+            ex.take_requests(|p| take(&mut rig, ex, p));
             if rig.controller.state() == ControllerState::Running {
                 let _ = period_once(&mut rig);
             } else {

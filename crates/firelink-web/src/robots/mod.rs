@@ -138,6 +138,17 @@ impl<F, C> Exchange<F, C> {
         self.requests.pop()
     }
 
+    /// (Loop) Hand `each` the commands waiting, at most as many as the
+    /// queue holds (a flood of commands cannot hold the cycles up).
+    pub fn take_requests(&self, mut each: impl FnMut(Pending<C>)) {
+        for _ in 0..self.requests.capacity() {
+            match self.requests.pop() {
+                Some(p) => each(p),
+                None => break,
+            }
+        }
+    }
+
     /// (Loop) Answer `pending` with `result` (done with what it found, or
     /// refused or failed with why), described as `what`.
     pub fn answer(&self, pending: Pending<C>, what: String, result: Result<String, Refused>) {

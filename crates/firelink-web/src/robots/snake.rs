@@ -450,9 +450,7 @@ fn run(mut rig: Rig, ex: &Exchange<SnakeFrame, SnakeCommand>, rate_hz: f64) -> L
         let wall = Instant::now();
         let start = rig.robot.now();
         while !ex.stop.load(Ordering::Relaxed) && !rig.robot.stop_request().is_requested() {
-            while let Some(p) = ex.next_request() {
-                take(&mut rig, ex, p);
-            }
+            ex.take_requests(|p| take(&mut rig, ex, p));
             let _ = rig.robot.step(Pacing::Virtual);
             if rig.robot.cycles() % every == 0 {
                 ex.publish(|f| fill(f, &rig));
