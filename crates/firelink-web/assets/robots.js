@@ -12,7 +12,11 @@ function robotChart(el, title, unit, names, colours) {
   const width = Math.max(420, el.parentElement.clientWidth - 40);
   return new uPlot({
     title, width, height: 200,
-    scales: { x: { time: false } },
+    // A flat line gets a narrow band around it, not uPlot's 0..100.
+    scales: { x: { time: false }, y: { range: (u, lo, hi) => {
+      const pad = Math.max((hi - lo) * 0.05, Math.abs(hi) * 0.01, 1e-3);
+      return [lo - pad, hi + pad];
+    } } },
     axes: [{ label: "time, s" }, { label: unit, values: (u, ticks) => ticks.map((v) => String(+v.toPrecision(3))) }],
     series: [{ label: "t" }].concat(names.map((n, i) => ({ label: n, stroke: colours[i], width: 1.5 }))),
   }, [[], [], []], el);
