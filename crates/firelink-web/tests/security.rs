@@ -696,7 +696,10 @@ async fn the_snake_console_shows_36_axes_and_drives_its_channels() {
         ))
         .await;
     assert_eq!(r.status, 200, "{}", r.body);
-    let st = state_until(&c, "wiper 649", |s| s["axes"][axis]["wiper"] == 649).await;
+    // The state read after the outcome shows it (the loop hands the frame
+    // over before the outcome).
+    let st = c.state().await;
+    assert_eq!(st["axes"][axis]["wiper"], 649);
     let gain = st["axes"][axis]["gain"].as_f64().unwrap();
     let w = 649.0 / 1023.0;
     assert!(

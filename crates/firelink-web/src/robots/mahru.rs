@@ -350,6 +350,8 @@ fn stop_all(rig: &mut Rig) -> PowerDown {
 fn take(rig: &mut Rig, ex: &Exchange<MahruFrame, MahruCommand>, p: Pending<MahruCommand>) {
     let what = MahruModel::describe(&p.command);
     let result = execute(rig, p.command);
+    // The state that shows it first, then the outcome.
+    ex.publish(|f| fill(f, rig));
     ex.answer(p, what, result);
 }
 

@@ -6,9 +6,12 @@
 //! cycles; it never waits on the server. The hand-off ([`Exchange`]) is
 //! lock-free: a small pool of preallocated frames travels between two
 //! bounded queues (the loop fills one every [`PUBLISH_SECONDS`] of the
-//! robot's time; none free: that frame is skipped and counted), and
-//! commands arrive on a third queue the loop polls between cycles, each
-//! with the channel its outcome goes back on.
+//! robot's time and after each command; none free: it takes back the
+//! oldest the server has not read, counted), and commands arrive on a
+//! third queue the loop polls between cycles, each with the channel its
+//! outcome goes back on. The frame that shows a command done is handed
+//! over before the command's outcome, so whoever is told the outcome then
+//! reads a state at least that new.
 //!
 //! The HTTP side ([`router`]) serves the page, `GET /api/info` (what the
 //! robot is), `GET /api/state` (its newest frame as JSON, with a `robot`
@@ -119,10 +122,19 @@ impl<F, C> Exchange<F, C> {
         }
     }
 
-    /// (Loop) Fill a free frame with `fill` and hand it over; none free:
-    /// skipped, counted. No allocation.
+    /// (Loop) Fill a free frame with `fill` and hand it over. None free
+    /// (the server has not read for a while): the oldest waiting frame is
+    /// taken back instead, counted as skipped, so the newest state always
+    /// reaches the server. No allocation.
     pub fn publish(&self, fill: impl FnOnce(&mut F)) {
-        let Some(mut frame) = self.free.pop() else {
+        let frame = self.free.pop().or_else(|| {
+            let oldest = self.full.pop();
+            if oldest.is_some() {
+                self.skipped.fetch_add(1, Ordering::Relaxed);
+            }
+            oldest
+        });
+        let Some(mut frame) = frame else {
             self.skipped.fetch_add(1, Ordering::Relaxed);
             return;
         };
@@ -537,8 +549,8 @@ mod tests {
     use super::*;
 
     /// Frames go round the pool: the server gets the newest, the older
-    /// ones and the one it read go back; a loop with no free frame skips
-    /// and counts.
+    /// ones and the one it read go back; a loop with no free frame takes
+    /// the oldest waiting one back (counted), so the newest still arrives.
     #[test]
     fn frames_go_round_the_pool_and_the_newest_wins() {
         let ex: Exchange<u64, ()> = Exchange::new(|| 0);
@@ -553,7 +565,7 @@ mod tests {
             ex.publish(|f| *f = 10 + k);
         }
         assert_eq!(ex.skipped.load(Ordering::Relaxed), 2);
-        assert_eq!(*ex.newest().unwrap(), 10 + POOL as u64 - 1);
+        assert_eq!(*ex.newest().unwrap(), 10 + POOL as u64 + 1);
     }
 
     /// A command's outcome reaches its waiter with the command's id; one

@@ -476,6 +476,8 @@ fn run(mut rig: Rig, ex: &Exchange<SnakeFrame, SnakeCommand>, rate_hz: f64) -> L
 fn take(rig: &mut Rig, ex: &Exchange<SnakeFrame, SnakeCommand>, p: Pending<SnakeCommand>) {
     let what = SnakeModel::describe(&p.command);
     let result = execute(rig, p.command);
+    // The state that shows it first, then the outcome.
+    ex.publish(|f| fill(f, rig));
     ex.answer(p, what, result);
 }
 
