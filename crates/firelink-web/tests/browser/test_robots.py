@@ -67,6 +67,18 @@ def open_page(browser, url: str) -> Page:  # noqa: F811
     return pg
 
 
+def open_view(browser, url: str, robot: str, rows: dict[str, int]) -> Page:  # noqa: F811
+    """The page at `url`, showing `robot`'s view (not the dVRK's) live,
+    with `rows[table]` rows in each table."""
+    page = open_page(browser, url)
+    expect(page.locator(f"#{robot}-view")).to_be_visible()
+    expect(page.locator("#dvrk-view")).to_be_hidden()
+    for table, count in rows.items():
+        expect(page.locator(f"{table} tbody tr")).to_have_count(count)
+    expect(page.locator("#link")).to_have_text("live")
+    return page
+
+
 def post_raw(url: str, body: str) -> tuple[int, dict]:
     base, token = base_and_token(url)
     req = urllib.request.Request(
@@ -87,13 +99,8 @@ def click_and_answer(page: Page, selector: str) -> int:
 
 
 def test_snake_view_shows_36_axes_and_its_values_update(browser, snake):  # noqa: F811
-    page = open_page(browser, snake)
-    expect(page.locator("#snake-view")).to_be_visible()
-    expect(page.locator("#dvrk-view")).to_be_hidden()
-    expect(page.locator("#snake-axes tbody tr")).to_have_count(36)
-    expect(page.locator("#snake-nodes tbody tr")).to_have_count(6)
+    page = open_view(browser, snake, "snake", {"#snake-axes": 36, "#snake-nodes": 6})
     expect(page.locator("#summary")).to_contain_text("Snake: 6 nodes, 36 axes")
-    expect(page.locator("#link")).to_have_text("live")
     # The robot's clock moves on the page, and the selected axis's chart
     # fills.
     first = page.evaluate("() => live.state.t")
@@ -169,11 +176,7 @@ def test_snake_refuses_malformed_commands_with_a_reason(snake):
 
 
 def test_mahru_view_enables_and_walks(browser, mahru):  # noqa: F811
-    page = open_page(browser, mahru)
-    expect(page.locator("#mahru-view")).to_be_visible()
-    expect(page.locator("#dvrk-view")).to_be_hidden()
-    expect(page.locator("#mahru-modules tbody tr")).to_have_count(14)
-    expect(page.locator("#mahru-ft tbody tr")).to_have_count(4)
+    page = open_view(browser, mahru, "mahru", {"#mahru-modules": 14, "#mahru-ft": 4})
     expect(page.locator("#summary")).to_contain_text("MAHRU: 14 modules")
     # Disabled: the gait is refused, with the reason.
     assert click_and_answer(page, "#mahru-view button[data-robot-action=gait_start]") == 409
