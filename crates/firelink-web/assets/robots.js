@@ -95,6 +95,12 @@ function setUpSnake(info) {
   axis.onchange = () => select(parseInt(axis.value, 10));
   robotView.charts.axis = robotChart($("snake-chart"), "", "rad or m", ["setpoint", "position"], ["#1f6fd1", "#e8590c"]);
   select(0);
+  for (const f of info.faults) {
+    const b = document.createElement("button");
+    b.textContent = f; b.dataset.fault = f;
+    b.onclick = () => post({ action: "inject", fault: f });
+    $("snake-faults").appendChild(b);
+  }
   const a = () => robotView.axis;
   const num = (id) => parseFloat($(id).value);
   $("snake-torque").onclick = () => post({ action: "mode", axis: a(), speed: false });

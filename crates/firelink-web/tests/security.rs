@@ -903,3 +903,53 @@ async fn the_mahru_console_shows_14_modules_and_walks_on_command() {
     assert_eq!(accepted, 6);
     assert!(exit.is_clean(), "{exit}");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_board_loss_on_the_snake_shows_as_a_fault_and_an_unknown_node() {
+    let c = Console::start_robot(RobotKind::Snake, 1000.0, Vec::new()).await;
+    refused_as_malformed(
+        &c,
+        &[
+            (
+                r#"{"action":"inject","fault":"meteor"}"#,
+                "one of board-loss, stop-host, following-error",
+            ),
+            (
+                r#"{"action":"inject","fault":"corrupt-query"}"#,
+                "cannot be injected here",
+            ),
+        ],
+    )
+    .await;
+    for action in ["configure", "power_on", "home", "enable"] {
+        let r = c.command(&format!(r#"{{"action":"{action}"}}"#)).await;
+        assert_eq!(r.status, 200, "{action}: {}", r.body);
+    }
+    let r = c
+        .command(r#"{"action":"inject","fault":"board-loss"}"#)
+        .await;
+    assert_eq!(r.status, 200, "{}", r.body);
+    let st = state_until(&c, "the fault", |s| s["state"] == "fault").await;
+    assert!(
+        st["fault"]["text"]
+            .as_str()
+            .unwrap_or("")
+            .contains("board 4"),
+        "{st}"
+    );
+    let st = state_until(&c, "node 4 silent", |s| s["nodes"][4]["valid"] == false).await;
+    // The other nodes answer, every amplifier off (the fault path).
+    for n in st["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|n| n["id"] != 4)
+    {
+        assert_eq!(n["valid"], true, "{n}");
+        assert_eq!(n["amps"], 0, "{n}");
+    }
+    let (_, exit) = c.stop().await;
+    // The power-down cannot know node 4's state.
+    let pd = exit.power_down.expect("a power-down");
+    assert_eq!((pd.unknown, pd.still_on), (1 << 4, 0), "{exit}");
+}

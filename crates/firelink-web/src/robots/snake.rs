@@ -10,8 +10,8 @@
 //! amplifiers. What it drives: the lifecycle (configure, power on, home,
 //! enable, disable, clear fault), the tool's per-channel functions (the
 //! torque/speed switch, the wiper, EEPROM words read and written raw or
-//! as floats, the EEPROM's write protection) and motion of one axis (move
-//! to a position, jog by an amount).
+//! as floats, the EEPROM's write protection), motion of one axis (move
+//! to a position, jog by an amount) and the Snake demo's faults.
 //!
 //! Settings change the drive under the servo: they are refused while the
 //! robot is enabled or an amplifier is on (disable first). Motion needs an
@@ -33,6 +33,7 @@ use firelink_host::WatchdogSetting;
 use firelink_host::robot_io::RobotIo;
 use firelink_host::sim::SimPort;
 use firelink_host::snake::SnakeSystem;
+use firelink_testbed::demo::{DemoFault, Injector};
 use firelink_testbed::service::LoopExit;
 use firelink_testbed::snake::{node_configs, prepare, sim_port};
 use firelink_wire::snake::WIPER_MAX;
@@ -110,7 +111,7 @@ pub struct SnakeFrame {
 }
 
 /// What the page can ask of the Snake system.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(tag = "action", rename_all = "snake_case")]
 pub enum SnakeCommand {
     /// Unconfigured -> Configured.
@@ -174,6 +175,14 @@ pub enum SnakeCommand {
         axis: usize,
         /// The goal, rad or m.
         position: f64,
+    },
+    /// Inject a fault on the simulated bus, as `firelink demo --robot
+    /// snake --fault` does: `board-loss` (node 4 stops answering for
+    /// good), `stop-host` (the host goes silent for three watchdog
+    /// periods) or `following-error` (axis 0's setpoint jumps).
+    Inject {
+        /// The fault's name.
+        fault: String,
     },
     /// Move an axis by an amount from its setpoint.
     Jog {
@@ -247,11 +256,36 @@ impl SnakeCommand {
             SnakeCommand::Move { position, .. } if !position.is_finite() => {
                 Err(format!("position {position} is not a number"))
             }
+            SnakeCommand::Inject { ref fault } => fault_named(fault).map(|_| ()),
             SnakeCommand::Jog { delta, .. } if !(delta.is_finite() && delta.abs() <= MAX_JOG) => {
                 Err(format!("jog {delta}: at most {MAX_JOG} either way"))
             }
             _ => Ok(()),
         }
+    }
+}
+
+/// The faults the Snake system can be given (the Snake demo's: a corrupt
+/// query needs the broadcast protocol the nodes do not have).
+pub const FAULTS: [DemoFault; 3] = [
+    DemoFault::BoardLoss,
+    DemoFault::StopHost,
+    DemoFault::FollowingError,
+];
+
+/// One of [`FAULTS`] by its name.
+fn fault_named(name: &str) -> Result<DemoFault, String> {
+    let names = || FAULTS.map(DemoFault::name).join(", ");
+    let fault: DemoFault = name
+        .parse()
+        .map_err(|_| format!("fault {name:?}: one of {}", names()))?;
+    if FAULTS.contains(&fault) {
+        Ok(fault)
+    } else {
+        Err(format!(
+            "fault {name} cannot be injected here: one of {}",
+            names()
+        ))
     }
 }
 
@@ -274,6 +308,7 @@ impl RobotModel for SnakeModel {
             "wiper_max": WIPER_MAX,
             "eeprom_words": EEPROM_WORDS,
             "max_jog": MAX_JOG,
+            "faults": FAULTS.map(DemoFault::name),
         })
     }
 
@@ -299,6 +334,7 @@ impl RobotModel for SnakeModel {
 
     fn describe(c: &SnakeCommand) -> String {
         match *c {
+            SnakeCommand::Inject { ref fault } => format!("inject {fault}"),
             SnakeCommand::Configure => "configure".into(),
             SnakeCommand::PowerOn => "power on".into(),
             SnakeCommand::Home => "home".into(),
@@ -351,6 +387,7 @@ struct Rig {
     config: IoConfig,
     channels: Vec<Channel>,
     homed: bool,
+    watchdog: WatchdogSetting,
 }
 
 /// Start the Snake system of `config` on the simulated bus at `rate_hz`.
@@ -421,6 +458,7 @@ pub fn start(
         config,
         channels,
         homed: false,
+        watchdog,
     };
     let loop_exchange = Arc::clone(&exchange);
     let thread = std::thread::Builder::new()
@@ -475,7 +513,7 @@ fn run(mut rig: Rig, ex: &Exchange<SnakeFrame, SnakeCommand>, rate_hz: f64) -> L
 
 fn take(rig: &mut Rig, ex: &Exchange<SnakeFrame, SnakeCommand>, p: Pending<SnakeCommand>) {
     let what = SnakeModel::describe(&p.command);
-    let result = execute(rig, p.command);
+    let result = execute(rig, p.command.clone());
     // The state that shows it first, then the outcome.
     ex.publish(|f| fill(f, rig));
     ex.answer(p, what, result);
@@ -588,6 +626,19 @@ fn execute(rig: &mut Rig, command: SnakeCommand) -> Result<String, Refused> {
             .map_err(runner),
         SnakeCommand::Move { axis, position } => move_axis(rig, axis, |_| position),
         SnakeCommand::Jog { axis, delta } => move_axis(rig, axis, |here| here + delta),
+        SnakeCommand::Inject { fault } => {
+            let fault = fault_named(&fault).map_err(refused)?;
+            let watchdog = rig.watchdog.period_or_zero();
+            robot
+                .io_mut()
+                .port_mut()
+                .inject(fault, watchdog)
+                .map_err(|e| refused(e.to_string()))?;
+            if fault == DemoFault::FollowingError {
+                robot.step_setpoint(0, 0.5).map_err(runner)?;
+            }
+            Ok(String::new())
+        }
         other => channel_command(rig, other),
     }
 }

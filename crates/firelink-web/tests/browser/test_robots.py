@@ -3,9 +3,9 @@ Debian's Chromium), each against its own `firelink web --robot ...` on the
 simulated bus: the printed URL opens the robot's view (not the dVRK's),
 its values update, a command clicked on the page reaches the robot and
 shows in the state the server reports (the Snake's torque/speed switch and
-wiper on one channel, an EEPROM word, the lifecycle and a jog; MAHRU's
-enable and gait start with its phase and time budget), a malformed
-command is refused with its reason; screenshots are saved.
+wiper on one channel, an EEPROM word, the lifecycle, a jog and a board
+loss; MAHRU's enable and gait start with its phase and time budget), a
+malformed command is refused with its reason; screenshots are saved.
 
 Needs FIRELINK_WEB_BIN and, optionally, CHROMIUM and SCREENSHOT_DIR (as
 test_console.py). Nothing is timed: every wait polls for a state, bounded
@@ -173,6 +173,22 @@ def test_snake_refuses_malformed_commands_with_a_reason(snake):
     assert status == 400 and "axis 99 does not exist" in body["detail"], body
     status, body = post_raw(snake, '{"action":"warp"}')
     assert status == 400 and "unknown variant" in body["detail"], body
+
+
+def test_snake_board_loss_shows_the_fault(browser, snake):  # noqa: F811
+    page = open_view(browser, snake, "snake", {"#snake-axes": 36, "#snake-nodes": 6})
+    expect(page.locator("#state")).to_have_text("configured")
+    for action in ["power_on", "enable"]:
+        assert click_and_answer(page, f"#snake-view button[data-robot-action={action}]") == 200, action
+    expect(page.locator("#state")).to_have_text("active")
+    assert click_and_answer(page, "#snake-faults button[data-fault=board-loss]") == 200
+    expect(page.locator("#state")).to_have_text("fault")
+    expect(page.locator("#snake-view .robot-fault")).to_contain_text("board 4")
+    expect(page.locator("#snake-safety")).to_contain_text("not answering: nodes 4")
+    expect(page.locator("#snake-nodes tbody tr[data-node='4'] td").nth(1)).to_have_text("no")
+    assert server_state(snake)["state"] == "fault"
+    page.screenshot(path=str(SHOTS / "console-snake-fault.png"), full_page=True)
+    page.close()
 
 
 def test_mahru_view_enables_and_walks(browser, mahru):  # noqa: F811
