@@ -151,6 +151,11 @@ async function start() {
     return;
   }
   live.info = await r.json();
+  if (live.info.robot && live.info.robot !== "dvrk") {
+    // Snake or MAHRU: their own view (robots.js), the same commands API.
+    startRobotView(live.info);
+    return;
+  }
   series = live.info.joints.map(() => ({ t: [], sp: [], pos: [], cur: [] }));
   $("joint").innerHTML = live.info.joints.map((l, i) => `<option value="${i}">${l}</option>`).join("");
   $("joint").onchange = () => { selected = parseInt($("joint").value, 10); };

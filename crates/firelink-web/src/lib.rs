@@ -20,7 +20,12 @@
 //! Losing the browser changes nothing: the loop goes on, and the boards'
 //! watchdogs stay armed. The loop ending (a signal, a panic) ends the
 //! server; [`Running::stop`] says what the power-down found.
+//!
+//! `--robot snake` and `--robot mahru` run seed 001's Snake system and seed
+//! 002's MAHRU humanoid instead, each with its own view in the same page,
+//! behind the same checks ([`robots`]).
 
+pub mod robots;
 pub mod server;
 
 use std::net::SocketAddr;
@@ -31,6 +36,9 @@ use std::sync::atomic::Ordering;
 use firelink_control::config::{IoConfig, presets};
 use firelink_testbed::port_spec::PortSpec;
 use firelink_testbed::service::{LoopExit, Service};
+
+pub use robots::RobotKind;
+use robots::RobotView;
 
 /// Why the console could not start.
 #[derive(Debug, thiserror::Error)]
@@ -49,11 +57,14 @@ pub enum WebError {
 /// Options of `firelink web`.
 #[derive(Debug, Clone)]
 pub struct WebOptions {
+    /// Which robot (the dVRK by default).
+    pub robot: RobotKind,
     /// Where the boards are (`sim`, `emulate` or `udp:HOST[:PORT]`).
     pub port: PortSpec,
-    /// The robot configuration (default: seed 000's dVRK).
+    /// The robot configuration (default: seed 000's dVRK, seed 001's Snake
+    /// system or seed 002's MAHRU, by `robot`).
     pub config: Option<PathBuf>,
-    /// Control rate, Hz.
+    /// Control rate, Hz (MAHRU: one period is `1 / rate_hz`).
     pub rate_hz: f64,
     /// Board watchdog.
     pub watchdog: firelink_host::WatchdogSetting,
@@ -74,14 +85,25 @@ pub struct Running {
     pub url: String,
     token: String,
     allow_origins: Vec<String>,
-    service: Service,
+    backend: Backend,
+}
+
+/// The robot behind the console.
+enum Backend {
+    /// The dVRK's service.
+    Dvrk(Service),
+    /// The Snake system or MAHRU.
+    Other(Arc<dyn RobotView>),
 }
 
 impl Running {
     /// Commands the server has accepted so far (refused requests never
     /// reach the robot).
     pub fn commands_accepted(&self) -> u64 {
-        self.service.shared.queued.load(Ordering::Relaxed)
+        match &self.backend {
+            Backend::Dvrk(service) => service.shared.queued.load(Ordering::Relaxed),
+            Backend::Other(view) => view.accepted(),
+        }
     }
 
     /// This run's token (for the `X-Firelink-Token` header).
@@ -92,14 +114,20 @@ impl Running {
     /// How the robot loop ended, once it has (before [`stop`](Self::stop):
     /// a panic, or the process's stop request).
     pub fn loop_exit(&self) -> Option<LoopExit> {
-        self.service.shared.exit.get().cloned()
+        match &self.backend {
+            Backend::Dvrk(service) => service.shared.exit.get().cloned(),
+            Backend::Other(view) => view.exit(),
+        }
     }
 
     /// Stop the robot loop (it powers the robot down first) and the
     /// emulator; returns what the power-down found (and the loop's panic,
     /// if it panicked).
     pub fn stop(self) -> LoopExit {
-        self.service.stop()
+        match self.backend {
+            Backend::Dvrk(service) => service.stop(),
+            Backend::Other(view) => view.stop(),
+        }
     }
 }
 
@@ -110,24 +138,83 @@ fn token() -> Result<String, WebError> {
     Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
 }
 
+/// A configuration file with its warnings printed, or `None` without one.
+fn load_config(options: &WebOptions) -> Result<Option<IoConfig>, WebError> {
+    let Some(path) = &options.config else {
+        return Ok(None);
+    };
+    let loaded =
+        IoConfig::load_with_warnings(path).map_err(|e| WebError::Options(e.to_string()))?;
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(Some(loaded.config))
+}
+
+fn start_dvrk(options: &WebOptions) -> Result<Service, WebError> {
+    let config = load_config(options)?.unwrap_or_else(presets::dvrk_seed000);
+    Ok(Service::start(
+        &options.port,
+        config,
+        options.rate_hz,
+        options.watchdog,
+    )?)
+}
+
+/// The robots other than the dVRK run on the simulated bus only.
+fn sim_only(options: &WebOptions) -> Result<(), WebError> {
+    match options.port {
+        PortSpec::Sim(None) => Ok(()),
+        _ => Err(WebError::Options(format!(
+            "--robot {}: --port sim only (the robot's own nodes on the simulated bus; \
+             not {})",
+            options.robot, options.port
+        ))),
+    }
+}
+
+fn check_rate(rate_hz: f64) -> Result<(), WebError> {
+    if rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 20_000.0 {
+        Ok(())
+    } else {
+        Err(WebError::Options(format!(
+            "rate {rate_hz} Hz: must be 0 < rate <= 20000"
+        )))
+    }
+}
+
+fn start_snake(
+    options: &WebOptions,
+) -> Result<robots::Hosted<robots::snake::SnakeModel>, WebError> {
+    sim_only(options)?;
+    check_rate(options.rate_hz)?;
+    let config = load_config(options)?.unwrap_or_else(presets::snake_seed001);
+    robots::snake::start(config, options.rate_hz, options.watchdog)
+}
+
+fn start_mahru(
+    options: &WebOptions,
+) -> Result<robots::Hosted<robots::mahru::MahruModel>, WebError> {
+    sim_only(options)?;
+    check_rate(options.rate_hz)?;
+    let config = match &options.config {
+        Some(path) => firelink_testbed::mahru::MahruConfig::load(path)?,
+        None => firelink_testbed::mahru::MahruConfig::seed002(),
+    };
+    robots::mahru::start(config, options.rate_hz)
+}
+
 /// Start the robot service and bind the server; run the server with
 /// [`serve`]. Prints nothing.
 ///
 /// # Errors
 /// Bad options, a failed scan, an address already in use.
 pub async fn start(options: &WebOptions) -> Result<(Running, tokio::net::TcpListener), WebError> {
-    let config: IoConfig = match &options.config {
-        Some(path) => {
-            let loaded =
-                IoConfig::load_with_warnings(path).map_err(|e| WebError::Options(e.to_string()))?;
-            for w in &loaded.warnings {
-                eprintln!("warning: {w}");
-            }
-            loaded.config
-        }
-        None => presets::dvrk_seed000(),
+    let backend = match options.robot {
+        RobotKind::Dvrk => Backend::Dvrk(start_dvrk(options)?),
+        RobotKind::Snake => Backend::Other(Arc::new(start_snake(options)?)),
+        RobotKind::Mahru => Backend::Other(Arc::new(start_mahru(options)?)),
     };
-    let service = Service::start(&options.port, config, options.rate_hz, options.watchdog)?;
     let listener = tokio::net::TcpListener::bind(options.listen).await?;
     let addr = listener.local_addr()?;
     let token = token()?;
@@ -149,7 +236,7 @@ pub async fn start(options: &WebOptions) -> Result<(Running, tokio::net::TcpList
             url,
             token,
             allow_origins: options.allow_origins.clone(),
-            service,
+            backend,
         },
         listener,
     ))
@@ -165,12 +252,44 @@ pub async fn serve(
     listener: tokio::net::TcpListener,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> Result<(), WebError> {
-    let console = Arc::new(server::Console::new(
-        Arc::clone(&running.service.shared),
+    let view = match &running.backend {
+        Backend::Dvrk(service) => return serve_dvrk(running, service, listener, shutdown).await,
+        Backend::Other(view) => Arc::clone(view),
+    };
+    let gate = server::Gate::new(
         running.token.clone(),
         running.addr,
         running.allow_origins.clone(),
-        running.service.faults.clone(),
+    );
+    let app = robots::router(Arc::new(robots::RobotConsole::new(gate, Arc::clone(&view))));
+    let stop = async move {
+        tokio::select! {
+            () = shutdown => {}
+            () = view.ended().notified() => {}
+        }
+    };
+    axum::serve(
+        listener,
+        app.into_make_service_with_connect_info::<server::Peer>(),
+    )
+    .with_graceful_shutdown(stop)
+    .await
+    .map_err(WebError::Io)
+}
+
+/// [`serve`] for the dVRK.
+async fn serve_dvrk(
+    running: &Running,
+    service: &Service,
+    listener: tokio::net::TcpListener,
+    shutdown: impl std::future::Future<Output = ()> + Send + 'static,
+) -> Result<(), WebError> {
+    let console = Arc::new(server::Console::new(
+        Arc::clone(&service.shared),
+        running.token.clone(),
+        running.addr,
+        running.allow_origins.clone(),
+        service.faults.clone(),
     ));
     let drain = tokio::spawn(server::drain_forever(Arc::clone(&console)));
     let ended = Arc::clone(&console);

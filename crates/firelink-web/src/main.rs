@@ -8,12 +8,18 @@ use clap::Parser;
 
 use firelink_host::stop::install_signal_handlers;
 use firelink_testbed::port_spec::{PortSpec, PortSpecError};
-use firelink_web::{WebOptions, serve, start};
+use firelink_web::{RobotKind, WebOptions, serve, start};
 
 /// Watch and drive the boards and the robot in a browser.
 #[derive(Parser, Debug)]
 #[command(name = "firelink web", version)]
 struct Args {
+    /// Which robot: the dVRK (seed 000's QLA boards), snake (seed 001's
+    /// 36-axis system on its 7-channel nodes) or mahru (seed 002's
+    /// humanoid: 14 modules on three chains). Snake and MAHRU run on the
+    /// simulated bus (`--port sim`).
+    #[arg(long, value_enum, default_value_t = RobotKind::Dvrk)]
+    robot: RobotKind,
     /// Where the boards are: sim (the robot's emulated boards on the
     /// simulated bus, paced to the wall clock; sim:N[:FW]: boards 0..N at
     /// firmware FW), emulate (the same behind an in-process `firelink
@@ -21,7 +27,9 @@ struct Args {
     /// 0 / N).
     #[arg(long, default_value = "sim", value_parser = parse_port)]
     port: PortSpec,
-    /// Robot configuration (default: seed 000's dVRK, 28 axes).
+    /// Robot configuration (default: seed 000's dVRK, 28 axes; with
+    /// --robot snake configs/snake-seed001.json's, with --robot mahru
+    /// configs/mahru-seed002.json's).
     #[arg(long)]
     config: Option<PathBuf>,
     /// Address to listen on. Anything but a loopback address must be asked
@@ -33,9 +41,10 @@ struct Args {
     /// this machine (its own addresses are accepted as they are reached).
     #[arg(long = "allow-origin", value_name = "ORIGIN", value_parser = firelink_web::server::parse_origin)]
     allow_origin: Vec<String>,
-    /// Control rate, Hz.
-    #[arg(long, default_value_t = 1000.0)]
-    rate: f64,
+    /// Control rate, Hz (default: 1000; MAHRU: its configuration's
+    /// period, 2 ms for seed 002).
+    #[arg(long)]
+    rate: Option<f64>,
     /// Board watchdog period, ms (one 5.208 us tick to 341.32 ms), or
     /// `off` (with a warning).
     #[arg(long = "watchdog-ms", default_value = "20", value_parser = watchdog)]
@@ -50,6 +59,15 @@ fn parse_port(s: &str) -> Result<PortSpec, PortSpecError> {
 /// `--watchdog-ms`: a period or `off`, refused out of range.
 fn watchdog(s: &str) -> Result<WatchdogSetting, String> {
     WatchdogSetting::parse(s).map_err(|e| format!("{s:?}: {e}"))
+}
+
+/// MAHRU's rate by default: one period of its configuration's.
+fn mahru_rate(config: Option<&std::path::Path>) -> Result<f64, Box<dyn std::error::Error>> {
+    let config = match config {
+        Some(path) => firelink_testbed::mahru::MahruConfig::load(path)?,
+        None => firelink_testbed::mahru::MahruConfig::seed002(),
+    };
+    Ok(1.0 / config.period().as_secs_f64())
 }
 
 fn main() {
@@ -80,10 +98,16 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
     // (it watches the process's stop request); a second one ends the
     // process at once (the boards' watchdogs then turn the amplifiers off).
     let stop = install_signal_handlers()?;
+    let rate_hz = match (args.rate, args.robot) {
+        (Some(rate), _) => rate,
+        (None, RobotKind::Mahru) => mahru_rate(args.config.as_deref())?,
+        (None, _) => 1000.0,
+    };
     let options = WebOptions {
+        robot: args.robot,
         port: args.port,
         config: args.config,
-        rate_hz: args.rate,
+        rate_hz,
         watchdog: args.watchdog_ms,
         listen: args.listen,
         allow_origins: args.allow_origin,

@@ -51,6 +51,7 @@ use firelink_testbed::service::{Command, CommandOutcome, Frame, Shared, Verdict}
 const INDEX_HTML: &str = include_str!("../assets/index.html");
 const APP_JS: &str = include_str!("../assets/app.js");
 const APP_CSS: &str = include_str!("../assets/app.css");
+const ROBOTS_JS: &str = include_str!("../assets/robots.js");
 const UPLOT_JS: &str = include_str!("../assets/vendor/uPlot.iife.min.js");
 const UPLOT_CSS: &str = include_str!("../assets/vendor/uPlot.min.css");
 
@@ -103,14 +104,12 @@ impl Connected<axum::serve::IncomingStream<'_, tokio::net::TcpListener>> for Pee
 }
 
 /// A refused request: status and reason.
-type Refusal = (StatusCode, String);
+pub(crate) type Refusal = (StatusCode, String);
 
 /// The server's state.
 pub struct Console {
     shared: Arc<Shared>,
-    token: String,
-    cookie: String,
-    allowed_origins: Vec<String>,
+    gate: Gate,
     ring: Mutex<VecDeque<Sample>>,
     ring_capacity: usize,
     latest: Mutex<Value>,
@@ -216,39 +215,28 @@ pub fn parse_origin(text: &str) -> Result<String, String> {
     Ok(t)
 }
 
-impl Console {
-    /// A console for `shared` with the run's `token`, listening on `listen`
-    /// (its port names the cookie), accepting also the `allowed_origins`
-    /// (from [`parse_origin`]), with the faults the port can inject.
-    pub fn new(
-        shared: Arc<Shared>,
-        token: String,
-        listen: SocketAddr,
-        allowed_origins: Vec<String>,
-        faults: Vec<DemoFault>,
-    ) -> Console {
-        let ring_capacity = (CSV_SECONDS * shared.rate_hz).ceil() as usize;
-        let (stream, _) = broadcast::channel(64);
-        Console {
-            shared,
+/// The console's security checks (see the module docs), the same for
+/// every robot: the run's token and the origins accepted.
+pub struct Gate {
+    token: String,
+    cookie: String,
+    allowed_origins: Vec<String>,
+}
+
+impl Gate {
+    /// The checks of a console with the run's `token`, listening on
+    /// `listen` (its port names the cookie), accepting also the
+    /// `allowed_origins` (from [`parse_origin`]).
+    pub fn new(token: String, listen: SocketAddr, allowed_origins: Vec<String>) -> Gate {
+        Gate {
             token,
             cookie: cookie_name(listen.port()),
             allowed_origins,
-            ring: Mutex::new(VecDeque::with_capacity(ring_capacity)),
-            ring_capacity,
-            latest: Mutex::new(Value::Null),
-            last_command: Mutex::new(None),
-            recent: Mutex::new(VecDeque::with_capacity(RECENT_OUTCOMES)),
-            waiters: Mutex::new(HashMap::new()),
-            stream,
-            faults,
-            loop_ended: AtomicBool::new(false),
-            ended: Notify::new(),
         }
     }
 
     /// Reads: the token in the header or the cookie; never in the URL.
-    fn token_ok(&self, headers: &HeaderMap, uri: &Uri) -> Result<(), Refusal> {
+    pub(crate) fn token_ok(&self, headers: &HeaderMap, uri: &Uri) -> Result<(), Refusal> {
         let forbidden = |why: &str| Err((StatusCode::FORBIDDEN, why.to_string()));
         let in_url = uri
             .query()
@@ -320,9 +308,86 @@ impl Console {
 
     /// What can change the robot (and the WebSocket): the token and this
     /// console's own `Origin`.
-    fn may_change(&self, headers: &HeaderMap, uri: &Uri, local: SocketAddr) -> Result<(), Refusal> {
+    pub(crate) fn may_change(
+        &self,
+        headers: &HeaderMap,
+        uri: &Uri,
+        local: SocketAddr,
+    ) -> Result<(), Refusal> {
         self.token_ok(headers, uri)?;
         self.origin_ok(headers, local)
+    }
+
+    /// `/`: the page (static: it shows nothing until its API calls are
+    /// authorised). `/?token=T` with this run's token sets the cookie and
+    /// redirects to `/`; a wrong token is refused.
+    pub(crate) fn index(&self, uri: &Uri) -> Response {
+        let token = Query::<IndexQuery>::try_from_uri(uri)
+            .ok()
+            .and_then(|q| q.0.token);
+        let Some(token) = token else {
+            let mut r = asset(INDEX_HTML, "text/html; charset=utf-8");
+            r.headers_mut().extend(page_headers());
+            return r;
+        };
+        if !same_secret(token.as_bytes(), self.token.as_bytes()) {
+            return (
+                StatusCode::FORBIDDEN,
+                [(header::CONTENT_TYPE, "text/plain; charset=utf-8")],
+                "wrong or old token: open the URL this run of firelink web printed\n",
+            )
+                .into_response();
+        }
+        let cookie = format!(
+            "{}={}; Path=/; HttpOnly; SameSite=Strict",
+            self.cookie, self.token
+        );
+        let mut r = StatusCode::SEE_OTHER.into_response();
+        let h = r.headers_mut();
+        h.extend(page_headers());
+        h.insert(header::LOCATION, HeaderValue::from_static("/"));
+        if let Ok(v) = HeaderValue::from_str(&cookie) {
+            h.insert(header::SET_COOKIE, v);
+        }
+        r
+    }
+}
+
+impl Console {
+    /// A console for `shared` with the run's `token`, listening on `listen`
+    /// (its port names the cookie), accepting also the `allowed_origins`
+    /// (from [`parse_origin`]), with the faults the port can inject.
+    pub fn new(
+        shared: Arc<Shared>,
+        token: String,
+        listen: SocketAddr,
+        allowed_origins: Vec<String>,
+        faults: Vec<DemoFault>,
+    ) -> Console {
+        let ring_capacity = (CSV_SECONDS * shared.rate_hz).ceil() as usize;
+        let (stream, _) = broadcast::channel(64);
+        Console {
+            shared,
+            gate: Gate::new(token, listen, allowed_origins),
+            ring: Mutex::new(VecDeque::with_capacity(ring_capacity)),
+            ring_capacity,
+            latest: Mutex::new(Value::Null),
+            last_command: Mutex::new(None),
+            recent: Mutex::new(VecDeque::with_capacity(RECENT_OUTCOMES)),
+            waiters: Mutex::new(HashMap::new()),
+            stream,
+            faults,
+            loop_ended: AtomicBool::new(false),
+            ended: Notify::new(),
+        }
+    }
+
+    fn token_ok(&self, headers: &HeaderMap, uri: &Uri) -> Result<(), Refusal> {
+        self.gate.token_ok(headers, uri)
+    }
+
+    fn may_change(&self, headers: &HeaderMap, uri: &Uri, local: SocketAddr) -> Result<(), Refusal> {
+        self.gate.may_change(headers, uri, local)
     }
 
     /// Record an outcome: the last command, and the recent ones by id.
@@ -355,7 +420,7 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 }
 
 /// A JSON answer `{"result": ..., "detail": ...}` (refusals and errors).
-fn answer(status: StatusCode, result: &str, detail: &str) -> Response {
+pub(crate) fn answer(status: StatusCode, result: &str, detail: &str) -> Response {
     (
         status,
         axum::Json(json!({"result": result, "detail": detail})),
@@ -363,7 +428,7 @@ fn answer(status: StatusCode, result: &str, detail: &str) -> Response {
         .into_response()
 }
 
-fn refusal((status, why): Refusal) -> Response {
+pub(crate) fn refusal((status, why): Refusal) -> Response {
     answer(status, "forbidden", &why)
 }
 
@@ -502,38 +567,9 @@ struct IndexQuery {
     token: Option<String>,
 }
 
-/// `/`: the page (static: it shows nothing until its API calls are
-/// authorised). `/?token=T` with this run's token sets the cookie and
-/// redirects to `/`; a wrong token is refused.
+/// `/`: see [`Gate::index`].
 async fn index(State(c): State<Arc<Console>>, uri: Uri) -> Response {
-    let token = Query::<IndexQuery>::try_from_uri(&uri)
-        .ok()
-        .and_then(|q| q.0.token);
-    let Some(token) = token else {
-        let mut r = asset(INDEX_HTML, "text/html; charset=utf-8");
-        r.headers_mut().extend(page_headers());
-        return r;
-    };
-    if !same_secret(token.as_bytes(), c.token.as_bytes()) {
-        return (
-            StatusCode::FORBIDDEN,
-            [(header::CONTENT_TYPE, "text/plain; charset=utf-8")],
-            "wrong or old token: open the URL this run of firelink web printed\n",
-        )
-            .into_response();
-    }
-    let cookie = format!(
-        "{}={}; Path=/; HttpOnly; SameSite=Strict",
-        c.cookie, c.token
-    );
-    let mut r = StatusCode::SEE_OTHER.into_response();
-    let h = r.headers_mut();
-    h.extend(page_headers());
-    h.insert(header::LOCATION, HeaderValue::from_static("/"));
-    if let Ok(v) = HeaderValue::from_str(&cookie) {
-        h.insert(header::SET_COOKIE, v);
-    }
-    r
+    c.gate.index(&uri)
 }
 
 async fn info(State(c): State<Arc<Console>>, headers: HeaderMap, uri: Uri) -> Response {
@@ -541,6 +577,7 @@ async fn info(State(c): State<Arc<Console>>, headers: HeaderMap, uri: Uri) -> Re
         return refusal(e);
     }
     axum::Json(json!({
+        "robot": "dvrk",
         "port": c.shared.port_name,
         "rate_hz": c.shared.rate_hz,
         "joints": c.shared.joint_labels,
@@ -616,7 +653,7 @@ fn parse_command(c: &Console, r: &CommandRequest) -> Result<Command, String> {
 
 /// The HTTP answer of a command's outcome: 200 done, 409 refused, 500
 /// failed.
-fn outcome_response(o: &CommandOutcome) -> Response {
+pub(crate) fn outcome_response(o: &CommandOutcome) -> Response {
     let status = match o.result {
         Verdict::Ok => StatusCode::OK,
         Verdict::Refused => StatusCode::CONFLICT,
@@ -870,15 +907,17 @@ async fn stream_to(mut socket: WebSocket, mut rx: broadcast::Receiver<Arc<str>>,
     }
 }
 
-/// The router of the console. Serve it with
-/// `into_make_service_with_connect_info::<Peer>()` (the `Origin` check
-/// needs the connection's own address).
-pub fn router(console: Arc<Console>) -> Router {
-    Router::new()
-        .route("/", get(index))
+/// `router` with the page's static assets (the same for every robot:
+/// they reveal nothing and need nothing).
+pub(crate) fn with_assets<S: Clone + Send + Sync + 'static>(router: Router<S>) -> Router<S> {
+    router
         .route(
             "/app.js",
             get(|| async { asset(APP_JS, "text/javascript") }),
+        )
+        .route(
+            "/robots.js",
+            get(|| async { asset(ROBOTS_JS, "text/javascript") }),
         )
         .route("/app.css", get(|| async { asset(APP_CSS, "text/css") }))
         .route(
@@ -889,6 +928,14 @@ pub fn router(console: Arc<Console>) -> Router {
             "/vendor/uPlot.min.css",
             get(|| async { asset(UPLOT_CSS, "text/css") }),
         )
+}
+
+/// The router of the console. Serve it with
+/// `into_make_service_with_connect_info::<Peer>()` (the `Origin` check
+/// needs the connection's own address).
+pub fn router(console: Arc<Console>) -> Router {
+    with_assets(Router::new())
+        .route("/", get(index))
         .route("/api/info", get(info))
         .route("/api/state", get(state))
         .route("/api/command", post(command))

@@ -2,8 +2,10 @@
 //! the header or the cookie, never the URL) or from another origin are
 //! refused and change nothing; the right ones work, and a command is
 //! answered with its outcome (409 with the reason when the robot's state
-//! refuses it). Raw HTTP over loopback, against the console in process on
-//! the simulated bus. Nothing here is timed: waits are bounded only so
+//! refuses it). The same for the Snake and MAHRU views, whose commands
+//! are checked before they reach the robot (400 with the reason) and reach
+//! it when right (the state shows them). Raw HTTP over loopback, against
+//! the console in process on the simulated bus. Nothing here is timed: waits are bounded only so
 //! that a broken build fails instead of hanging.
 
 use std::net::SocketAddr;
@@ -16,7 +18,7 @@ use tokio::net::TcpStream;
 use firelink_testbed::port_spec::PortSpec;
 use firelink_testbed::service::LoopExit;
 use firelink_web::server::cookie_name;
-use firelink_web::{Running, WebOptions, serve, start};
+use firelink_web::{RobotKind, Running, WebOptions, serve, start};
 
 /// Bounded only so that a broken build fails instead of hanging.
 const HANG: Duration = Duration::from_secs(300);
@@ -92,10 +94,15 @@ struct Console {
 
 impl Console {
     async fn start(allow_origins: Vec<String>) -> Console {
+        Console::start_robot(RobotKind::Dvrk, 1000.0, allow_origins).await
+    }
+
+    async fn start_robot(robot: RobotKind, rate_hz: f64, allow_origins: Vec<String>) -> Console {
         let options = WebOptions {
+            robot,
             port: PortSpec::SIM,
             config: None,
-            rate_hz: 1000.0,
+            rate_hz,
             watchdog: firelink_host::WatchdogSetting::default(),
             listen: "127.0.0.1:0".parse().unwrap(),
             allow_origins,
@@ -537,4 +544,412 @@ async fn commands_are_answered_with_their_outcome_and_refusals_are_409() {
         exit.to_string(),
         "amplifiers and motor power off on boards 0-7"
     );
+}
+
+/// Poll the state until `done` holds (bounded by [`HANG`] only).
+async fn state_until(c: &Console, what: &str, done: impl Fn(&Value) -> bool) -> Value {
+    let waited = tokio::time::timeout(HANG, async {
+        loop {
+            let st = c.state().await;
+            if done(&st) {
+                return st;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    })
+    .await;
+    waited.unwrap_or_else(|_| panic!("the state never showed {what}"))
+}
+
+/// The checks every robot's console makes: no token (or a wrong one, or
+/// one in the URL) reveals or changes nothing; another origin changes
+/// nothing; the right ones work.
+async fn robot_console_checks_token_and_origin(c: &Console, harmless: &str) {
+    let (addr, host, own) = (c.addr, c.host(), c.own());
+    let origin = format!("Origin: {own}\r\n");
+    for path in ["/api/state", "/api/info"] {
+        for extra in ["", "X-Firelink-Token: 0000\r\n"] {
+            let r = request(addr, &get(&host, path, extra)).await;
+            assert_eq!(r.status, 403, "{path} {extra:?}: {}", r.body);
+        }
+        let in_url = format!("{path}?token={}", c.token);
+        let r = request(addr, &get(&host, &in_url, &c.token_header())).await;
+        assert_eq!(r.status, 403, "{in_url}");
+        assert!(r.body.contains("never in the URL"), "{}", r.body);
+        for extra in [c.token_header(), c.cookie()] {
+            let r = request(addr, &get(&host, path, &extra)).await;
+            assert_eq!(r.status, 200, "{path}: {}", r.body);
+        }
+    }
+    for extra in [
+        origin.clone(),
+        format!("X-Firelink-Token: 0000\r\n{origin}"),
+        c.token_header(),
+        format!("{}Origin: http://evil.example\r\n", c.token_header()),
+        format!("{}Origin: null\r\n", c.cookie()),
+    ] {
+        let r = request(addr, &post(&host, "/api/command", &extra, harmless)).await;
+        assert_eq!(r.status, 403, "{extra:?}: {}", r.body);
+    }
+    let r = c.command(harmless).await;
+    assert_eq!(r.status, 200, "{}", r.body);
+    // The page and its assets need nothing.
+    for path in ["/", "/app.js", "/robots.js", "/app.css"] {
+        let r = request(addr, &get(&host, path, "")).await;
+        assert_eq!(r.status, 200, "{path}");
+    }
+}
+
+/// Malformed and unknown commands are refused with 400 and a reason
+/// before they reach the robot.
+async fn refused_as_malformed(c: &Console, bodies: &[(&str, &str)]) {
+    for (body, why) in bodies {
+        let r = c.command(body).await;
+        assert_eq!(r.status, 400, "{body}: {}", r.body);
+        let detail = r.json()["detail"].as_str().unwrap_or("").to_string();
+        assert!(detail.contains(why), "{body}: {detail:?} lacks {why:?}");
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_snake_console_shows_36_axes_and_drives_its_channels() {
+    let c = Console::start_robot(RobotKind::Snake, 1000.0, Vec::new()).await;
+    robot_console_checks_token_and_origin(&c, r#"{"action":"disable"}"#).await;
+    let r = request(c.addr, &get(&c.host(), "/api/info", &c.token_header())).await;
+    let info = r.json();
+    assert_eq!(info["robot"], "snake");
+    assert_eq!(info["joints"].as_array().map(Vec::len), Some(36));
+    assert_eq!(info["nodes"], serde_json::json!([0, 1, 2, 3, 4, 5]));
+    let st = state_until(&c, "36 axes", |s| {
+        s["axes"].as_array().is_some_and(|a| a.len() == 36)
+    })
+    .await;
+    assert_eq!(st["robot"], "snake");
+    assert_eq!(st["state"], "unconfigured");
+    assert_eq!(st["nodes"].as_array().map(Vec::len), Some(6));
+    // Every channel as the node setup left it: the nominal wiper, torque mode.
+    for a in st["axes"].as_array().unwrap() {
+        assert_eq!(a["wiper"], 375, "{a}");
+        assert_eq!(a["speed_mode"], false, "{a}");
+    }
+    let axis = 9;
+    let where_ = (
+        st["axes"][axis]["node"].clone(),
+        st["axes"][axis]["channel"].clone(),
+    );
+    refused_as_malformed(
+        &c,
+        &[
+            ("not json", "bad command"),
+            (r#"{"action":"fly"}"#, "unknown variant `fly`"),
+            (r#"{"action":"mode","speed":true}"#, "missing field `axis`"),
+            (
+                r#"{"action":"mode","axis":36,"speed":true}"#,
+                "axis 36 does not exist",
+            ),
+            (r#"{"action":"mode","axis":-1,"speed":true}"#, "bad command"),
+            (
+                r#"{"action":"wiper","axis":0,"wiper":1024}"#,
+                "wiper 1024: 0..=1023",
+            ),
+            (
+                r#"{"action":"eeprom_read","axis":0,"word":16}"#,
+                "EEPROM word 16",
+            ),
+            (
+                r#"{"action":"eeprom_read","axis":0,"word":15,"float":true}"#,
+                "for a float",
+            ),
+            (
+                r#"{"action":"eeprom_write","axis":0,"word":1,"value":70000}"#,
+                "0..=65535",
+            ),
+            (
+                r#"{"action":"eeprom_write","axis":0,"word":1,"value":1.5}"#,
+                "0..=65535",
+            ),
+            (r#"{"action":"jog","axis":0,"delta":5}"#, "at most 0.5"),
+        ],
+    )
+    .await;
+    // The torque/speed switch reaches the node and is read back.
+    let r = c
+        .command(&format!(
+            r#"{{"action":"mode","axis":{axis},"speed":true}}"#
+        ))
+        .await;
+    assert_eq!(r.status, 200, "{}", r.body);
+    let detail = r.json()["detail"].as_str().unwrap_or("").to_string();
+    assert!(
+        detail.contains(&format!(
+            "node {} channel {}: speed mode (read back)",
+            where_.0, where_.1
+        )),
+        "{detail}"
+    );
+    let st = state_until(&c, "speed mode", |s| s["axes"][axis]["speed_mode"] == true).await;
+    assert_eq!(st["axes"][axis - 1]["speed_mode"], false);
+    // The wiper, and the gain it sets.
+    let r = c
+        .command(&format!(
+            r#"{{"action":"wiper","axis":{axis},"wiper":649}}"#
+        ))
+        .await;
+    assert_eq!(r.status, 200, "{}", r.body);
+    // The state read after the outcome shows it (the loop hands the frame
+    // over before the outcome).
+    let st = c.state().await;
+    assert_eq!(st["axes"][axis]["wiper"], 649);
+    let gain = st["axes"][axis]["gain"].as_f64().unwrap();
+    let w = 649.0 / 1023.0;
+    assert!(
+        (gain - (12.1 + 10.0 * w) / (1.5 + 10.0 * (1.0 - w))).abs() < 1e-9,
+        "{gain}"
+    );
+    // EEPROM: protected as the nodes start; unprotected, a word and a
+    // float written and read back; protected again, a write refused.
+    assert_eq!(st["axes"][axis]["write_protect"], true);
+    let r = c
+        .command(&format!(
+            r#"{{"action":"write_protect","axis":{axis},"on":false}}"#
+        ))
+        .await;
+    assert_eq!(r.status, 200, "{}", r.body);
+    state_until(&c, "unprotected", |s| {
+        s["axes"][axis]["write_protect"] == false
+    })
+    .await;
+    let r = c
+        .command(&format!(
+            r#"{{"action":"eeprom_write","axis":{axis},"word":3,"value":4660}}"#
+        ))
+        .await;
+    assert_eq!(r.status, 200, "{}", r.body);
+    let r = c
+        .command(&format!(
+            r#"{{"action":"eeprom_read","axis":{axis},"word":3}}"#
+        ))
+        .await;
+    assert!(
+        r.json()["detail"]
+            .as_str()
+            .unwrap_or("")
+            .contains("word 3: 4660 (0x1234)"),
+        "{}",
+        r.body
+    );
+    let r = c
+        .command(&format!(
+            r#"{{"action":"eeprom_write","axis":{axis},"word":4,"value":2.5,"float":true}}"#
+        ))
+        .await;
+    assert_eq!(r.status, 200, "{}", r.body);
+    let r = c
+        .command(&format!(
+            r#"{{"action":"eeprom_read","axis":{axis},"word":4,"float":true}}"#
+        ))
+        .await;
+    assert!(
+        r.json()["detail"]
+            .as_str()
+            .unwrap_or("")
+            .contains("float at word 4: 2.5"),
+        "{}",
+        r.body
+    );
+    let r = c
+        .command(&format!(
+            r#"{{"action":"write_protect","axis":{axis},"on":true}}"#
+        ))
+        .await;
+    assert_eq!(r.status, 200, "{}", r.body);
+    let r = c
+        .command(&format!(
+            r#"{{"action":"eeprom_write","axis":{axis},"word":3,"value":1}}"#
+        ))
+        .await;
+    assert_eq!(r.status, 500, "{}", r.body);
+    assert!(r.body.contains("write protection"), "{}", r.body);
+    // Motion is refused until the robot is enabled and homed.
+    let r = c.command(r#"{"action":"jog","axis":0,"delta":0.1}"#).await;
+    assert_eq!(r.status, 409, "{}", r.body);
+    assert!(r.body.contains("needs an enabled robot"), "{}", r.body);
+    // Back to torque mode and the nominal wiper, then the lifecycle.
+    for body in [
+        format!(r#"{{"action":"mode","axis":{axis},"speed":false}}"#),
+        format!(r#"{{"action":"wiper","axis":{axis},"wiper":375}}"#),
+        r#"{"action":"configure"}"#.to_string(),
+        r#"{"action":"power_on"}"#.to_string(),
+    ] {
+        let r = c.command(&body).await;
+        assert_eq!(r.status, 200, "{body}: {}", r.body);
+    }
+    // Settings are refused with the amplifiers on.
+    let r = c
+        .command(&format!(
+            r#"{{"action":"mode","axis":{axis},"speed":true}}"#
+        ))
+        .await;
+    assert_eq!(r.status, 409, "{}", r.body);
+    assert!(r.body.contains("disable first"), "{}", r.body);
+    for body in [r#"{"action":"home"}"#, r#"{"action":"enable"}"#] {
+        let r = c.command(body).await;
+        assert_eq!(r.status, 200, "{body}: {}", r.body);
+    }
+    let st = state_until(&c, "active", |s| s["state"] == "active").await;
+    assert_eq!(st["homed"], true);
+    assert!(
+        st["axes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|a| a["amp"] == true),
+        "{st}"
+    );
+    let before = st["axes"][0]["setpoint"].as_f64().unwrap();
+    let r = c.command(r#"{"action":"jog","axis":0,"delta":0.05}"#).await;
+    assert_eq!(r.status, 200, "{}", r.body);
+    state_until(&c, "the jog's end", |s| {
+        s["axes"][0]["setpoint"]
+            .as_f64()
+            .is_some_and(|sp| (sp - before - 0.05).abs() < 1e-9)
+    })
+    .await;
+    let (accepted, exit) = c.stop().await;
+    // Every command above but the malformed ones reached the robot.
+    assert_eq!(accepted, 19);
+    assert!(exit.is_clean(), "{exit}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_mahru_console_shows_14_modules_and_walks_on_command() {
+    // Seed 002's period, 2 ms.
+    let c = Console::start_robot(RobotKind::Mahru, 500.0, Vec::new()).await;
+    robot_console_checks_token_and_origin(&c, r#"{"action":"gait_stop"}"#).await;
+    let r = request(c.addr, &get(&c.host(), "/api/info", &c.token_header())).await;
+    let info = r.json();
+    assert_eq!(info["robot"], "mahru");
+    let modules = info["modules"].as_array().unwrap();
+    assert_eq!(modules.len(), 14);
+    assert_eq!(
+        modules
+            .iter()
+            .filter(|m| m["kind"] == "force_torque")
+            .count(),
+        4
+    );
+    refused_as_malformed(
+        &c,
+        &[
+            ("{", "bad command"),
+            (r#"{"action":"dance"}"#, "unknown variant `dance`"),
+            (r#"{"no_action":1}"#, "missing field `action`"),
+        ],
+    )
+    .await;
+    // Disabled: the gait is refused.
+    let r = c.command(r#"{"action":"gait_start"}"#).await;
+    assert_eq!(r.status, 409, "{}", r.body);
+    assert!(r.body.contains("enable first"), "{}", r.body);
+    let r = c.command(r#"{"action":"enable"}"#).await;
+    assert_eq!(r.status, 200, "{}", r.body);
+    let st = state_until(&c, "periods run", |s| {
+        s["budget"]["periods"].as_u64() > Some(10)
+    })
+    .await;
+    assert_eq!(st["state"], "enabled");
+    let b = &st["budget"];
+    assert_eq!(b["period_us"], 2000.0);
+    let busy = b["busy_us"].as_f64().unwrap();
+    let parts = ["read_us", "compute_us", "write_us"].map(|k| b[k].as_f64().unwrap());
+    assert!(parts.iter().all(|&p| p > 0.0), "{b}");
+    assert!(busy >= parts.iter().sum::<f64>(), "{b}");
+    // The sensors read a wrench (the feet carry the body).
+    let ft: Vec<&Value> = st["modules"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|m| {
+            m["wrench"]
+                .as_array()
+                .is_some_and(|w| w.iter().any(|x| x != 0.0))
+        })
+        .collect();
+    assert!(!ft.is_empty(), "{st}");
+    assert_eq!(st["gait"]["walking"], false);
+    let r = c.command(r#"{"action":"gait_start"}"#).await;
+    assert_eq!(r.status, 200, "{}", r.body);
+    let st = state_until(&c, "walking", |s| {
+        s["gait"]["walking"] == true && s["gait"]["time_s"].as_f64() > Some(0.3)
+    })
+    .await;
+    let phase = st["gait"]["phase"].as_f64().unwrap();
+    assert!((0.0..1.0).contains(&phase), "{phase}");
+    let r = c.command(r#"{"action":"gait_stop"}"#).await;
+    assert_eq!(r.status, 200, "{}", r.body);
+    let held = state_until(&c, "holding", |s| s["gait"]["walking"] == false).await;
+    let t = held["gait"]["time_s"].as_f64().unwrap();
+    let later = state_until(&c, "a later frame", |s| {
+        s["t"].as_f64() > held["t"].as_f64()
+    })
+    .await;
+    assert_eq!(later["gait"]["time_s"].as_f64(), Some(t));
+    assert_eq!(later["missed"], 0);
+    let r = c.command(r#"{"action":"disable"}"#).await;
+    assert_eq!(r.status, 200, "{}", r.body);
+    assert!(r.body.contains("every module stopped"), "{}", r.body);
+    let (accepted, exit) = c.stop().await;
+    // Every command above but the malformed ones reached the robot.
+    assert_eq!(accepted, 6);
+    assert!(exit.is_clean(), "{exit}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_board_loss_on_the_snake_shows_as_a_fault_and_an_unknown_node() {
+    let c = Console::start_robot(RobotKind::Snake, 1000.0, Vec::new()).await;
+    refused_as_malformed(
+        &c,
+        &[
+            (
+                r#"{"action":"inject","fault":"meteor"}"#,
+                "one of board-loss, stop-host, following-error",
+            ),
+            (
+                r#"{"action":"inject","fault":"corrupt-query"}"#,
+                "cannot be injected here",
+            ),
+        ],
+    )
+    .await;
+    for action in ["configure", "power_on", "home", "enable"] {
+        let r = c.command(&format!(r#"{{"action":"{action}"}}"#)).await;
+        assert_eq!(r.status, 200, "{action}: {}", r.body);
+    }
+    let r = c
+        .command(r#"{"action":"inject","fault":"board-loss"}"#)
+        .await;
+    assert_eq!(r.status, 200, "{}", r.body);
+    let st = state_until(&c, "the fault", |s| s["state"] == "fault").await;
+    assert!(
+        st["fault"]["text"]
+            .as_str()
+            .unwrap_or("")
+            .contains("board 4"),
+        "{st}"
+    );
+    let st = state_until(&c, "node 4 silent", |s| s["nodes"][4]["valid"] == false).await;
+    // The other nodes answer, every amplifier off (the fault path).
+    for n in st["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|n| n["id"] != 4)
+    {
+        assert_eq!(n["valid"], true, "{n}");
+        assert_eq!(n["amps"], 0, "{n}");
+    }
+    let (_, exit) = c.stop().await;
+    // The power-down cannot know node 4's state.
+    let pd = exit.power_down.expect("a power-down");
+    assert_eq!((pd.unknown, pd.still_on), (1 << 4, 0), "{exit}");
 }

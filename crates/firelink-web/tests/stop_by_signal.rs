@@ -1,8 +1,10 @@
 //! `firelink web` as a supervisor runs it: the binary drives emulated
 //! boards behind an in-process `firelink emulate` (loopback UDP), the robot
 //! is powered through the API, then the process gets SIGTERM, SIGINT or
-//! SIGHUP; afterwards a second client reads the boards. Waits are on the
-//! program's own output and on board state, bounded; nothing is timed.
+//! SIGHUP; afterwards a second client reads the boards. The Snake system
+//! and MAHRU (on the simulated bus) are powered the same way and say what
+//! their power-down found. Waits are on the program's own output and on
+//! board state, bounded; nothing is timed.
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream};
@@ -30,9 +32,14 @@ struct Web {
 
 impl Web {
     fn start(emu: &Emulator) -> Web {
+        let port = format!("udp:{}", emu.addr);
+        Web::start_with(&["--port", &port, "--config", BENCH, "--watchdog-ms", "300"])
+    }
+
+    fn start_with(args: &[&str]) -> Web {
         let mut child = Command::new(env!("CARGO_BIN_EXE_firelink-web"))
-            .args(["--port", &format!("udp:{}", emu.addr), "--config", BENCH])
-            .args(["--listen", "127.0.0.1:0", "--watchdog-ms", "300"])
+            .args(args)
+            .args(["--listen", "127.0.0.1:0"])
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
@@ -163,4 +170,35 @@ fn sigint_powers_the_robot_down() {
 #[test]
 fn sighup_powers_the_robot_down() {
     stopping_the_console_powers_the_robot_down("HUP");
+}
+
+/// The Snake system (every used amplifier on) and MAHRU (walking) on
+/// SIGTERM: the process ends cleanly and says every node or module was
+/// found off.
+#[test]
+fn sigterm_powers_the_snake_and_mahru_down() {
+    for (robot, commands, found) in [
+        (
+            "snake",
+            &["configure", "power_on"][..],
+            "amplifiers and motor power off on boards 0-5",
+        ),
+        (
+            "mahru",
+            &["enable", "gait_start"][..],
+            "amplifiers and motor power off on boards 0-13",
+        ),
+    ] {
+        let web = Web::start_with(&["--robot", robot]);
+        for action in commands {
+            let (status, body) = web.command(&format!(r#"{{"action":"{action}"}}"#));
+            assert_eq!(status, 200, "{robot} {action}: {body}");
+        }
+        let (status, said) = web.signal("TERM");
+        assert!(status.success(), "{robot}: {status:?}\n{said}");
+        assert!(
+            said.contains(&format!("stopped: {found}")),
+            "{robot}: {said}"
+        );
+    }
 }

@@ -36,6 +36,41 @@ pub struct PeriodTimes {
     pub busy_us: f64,
 }
 
+/// (ModID, gravity torque, inertia) of every motor of `config`: the model
+/// the set-points' torque feed-forward uses.
+pub fn motor_models(config: &MahruConfig) -> Vec<(ModId, f64, f64)> {
+    config
+        .modules()
+        .filter_map(|m| {
+            let j = config.motor(ModId(m.mod_id))?;
+            Some((ModId(m.mod_id), j.gravity_torque_nm, j.inertia))
+        })
+        .collect()
+}
+
+/// Every motor's set-point at `t` seconds of `gait`, with the model's
+/// gravity and inertia torques fed forward (`motors` from
+/// [`motor_models`]). With `moving` false the pose at `t` is held:
+/// velocity and acceleration 0, gravity still fed forward.
+pub fn gait_setpoints(
+    gait: &Gait,
+    motors: &[(ModId, f64, f64)],
+    t: f64,
+    moving: bool,
+    setpoints: &mut Setpoints,
+) {
+    for &(id, gravity, inertia) in motors {
+        let s = gait.setpoint(id, t);
+        let (velocity, acceleration) = if moving {
+            (s.velocity, s.acceleration)
+        } else {
+            (0.0, 0.0)
+        };
+        let torque = gravity * s.position.sin() + inertia * acceleration;
+        setpoints.set(id, s.position, velocity, acceleration, torque);
+    }
+}
+
 /// The MainController: the gait, the model feed-forward, the timing.
 pub struct MainLoop {
     gait: Gait,
@@ -59,16 +94,9 @@ fn us(d: Duration) -> f64 {
 impl MainLoop {
     /// The main loop of `config` at `period`.
     pub fn new(config: &MahruConfig, period: Duration) -> MainLoop {
-        let motors = config
-            .modules()
-            .filter_map(|m| {
-                let j = config.motor(ModId(m.mod_id))?;
-                Some((ModId(m.mod_id), j.gravity_torque_nm, j.inertia))
-            })
-            .collect();
         MainLoop {
             gait: Gait::new(config),
-            motors,
+            motors: motor_models(config),
             period,
             compute: duration_us(config.compute_us, bounds::PHASE_US),
             slack: duration_us(config.slack_us, bounds::PHASE_US),
@@ -94,12 +122,7 @@ impl MainLoop {
     /// Compute this period's set-points at walking time `t`: the gait,
     /// with the model's gravity and inertia torques fed forward.
     fn compute(&mut self, t: f64) {
-        for &(id, gravity, inertia) in &self.motors {
-            let s = self.gait.setpoint(id, t);
-            let torque = gravity * s.position.sin() + inertia * s.acceleration;
-            self.setpoints
-                .set(id, s.position, s.velocity, s.acceleration, torque);
-        }
+        gait_setpoints(&self.gait, &self.motors, t, true, &mut self.setpoints);
     }
 
     /// Run one period on `controller` (running); `observe` sees the
