@@ -5,7 +5,7 @@
 //! wall-clock time, until SIGINT or SIGTERM.
 
 use std::io::Write;
-use std::net::{Ipv4Addr, SocketAddr};
+use std::net::{Ipv4Addr, SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -155,10 +155,12 @@ pub struct EmulateArgs {
     /// (loopback by default; 169.254.0.100 is the stock one).
     #[arg(long = "eth-base", default_value = "127.0.0.100")]
     pub eth_base: Ipv4Addr,
-    /// With --network eth: also join the multicast group 224.0.0.100
-    /// (needs a multicast route, e.g. on `lo` inside a network namespace;
-    /// without it the host's group requests reach the boards through the
-    /// loopback broadcast address).
+    /// Also join the multicast group 224.0.0.100, where a Rev 9 host sends
+    /// its group requests (--network eth: the queries and command blocks;
+    /// a Rev 9 bridge: the host's Ethernet broadcasts). Needs a multicast
+    /// route, e.g. on `lo` inside a network namespace; without it the
+    /// host's group requests reach the boards through the loopback
+    /// broadcast address.
     #[arg(long)]
     pub multicast: bool,
     /// With --network eth: the boards' order along the chain from the host
@@ -340,13 +342,9 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
     if args.network == NetworkArg::Eth {
         return run_eth(args, out);
     }
-    if args.multicast || !args.chain.is_empty() {
+    if !args.chain.is_empty() {
         return Err(CliError::NotSupported {
-            option: if args.multicast {
-                "--multicast"
-            } else {
-                "--chain"
-            },
+            option: "--chain",
             reason: "belongs to the Ethernet-only network: add --network eth --fpga V3 --firmware 9",
         });
     }
@@ -371,7 +369,30 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
         listen: args.listen,
         loopback_broadcast: !args.no_broadcast,
     };
+    if args.multicast && !bridge.takes_multicast() {
+        return Err(CliError::NotSupported {
+            option: "--multicast",
+            reason: "a bridge takes the host's group requests from firmware Rev 9 on: add \
+                     --firmware 9 (or --network eth --fpga V3 --firmware 9)",
+        });
+    }
     let (unicast, broadcast) = firelink_emulate::bind(&config)?;
+    let multicast = if args.multicast {
+        let port = unicast.local_addr()?.port();
+        Some(
+            firelink_emulate::bind_multicast(MULTICAST_GROUP, port).map_err(|e| {
+                CliError::Io(std::io::Error::new(
+                    e.kind(),
+                    format!(
+                        "--multicast: cannot join {MULTICAST_GROUP}:{port} ({e}); the group \
+                         needs a multicast route, e.g. on lo inside a network namespace"
+                    ),
+                ))
+            })?,
+        )
+    } else {
+        None
+    };
     let stop = stop_flag(args)?;
     let cpu_latency = CpuLatency::take(args);
     let firmware = match Profile::from(args.firmware) {
@@ -406,6 +427,13 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
         )?;
     }
     cpu_latency.report(out)?;
+    if let Some(group) = &multicast {
+        writeln!(
+            out,
+            "joined multicast group {} (the Rev 9 host's Ethernet broadcasts)",
+            group.local_addr()?
+        )?;
+    }
     out.flush()?;
     let mut log = |e: Event| {
         let line = match e {
@@ -428,7 +456,8 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
         let _ = writeln!(out, "{line}");
         let _ = out.flush();
     };
-    firelink_emulate::serve(&mut bridge, &unicast, broadcast.as_ref(), &stop, &mut log)?;
+    let groups: Vec<&UdpSocket> = broadcast.iter().chain(multicast.iter()).collect();
+    firelink_emulate::serve_groups(&mut bridge, &unicast, &groups, &stop, &mut log)?;
     Ok(())
 }
 

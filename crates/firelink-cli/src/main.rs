@@ -94,7 +94,7 @@ enum Command {
     /// firelink-web`; its options: `firelink web --help`).
     #[command(disable_help_flag = true)]
     Web {
-        /// Options for firelink-web (--port, --config, --listen, --rate, --watchdog-ms, --help).
+        /// Options for firelink-web (--robot dvrk|snake|mahru, --port, --config, --listen, --rate, --watchdog-ms, --help).
         #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
         args: Vec<String>,
     },

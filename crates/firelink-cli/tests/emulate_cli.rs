@@ -535,7 +535,11 @@ fn emulate_network_eth() {
         ),
         (
             &["emulate", "--multicast"][..],
-            "--multicast: belongs to the Ethernet-only network",
+            "--multicast: a bridge takes the host's group requests from firmware Rev 9 on",
+        ),
+        (
+            &["emulate", "--chain", "1,0"][..],
+            "--chain: belongs to the Ethernet-only network",
         ),
     ] {
         fails(&[args, &quick[..]].concat(), expected);
@@ -625,4 +629,104 @@ fn scan_over_the_ethernet_only_network() {
         assert_eq!(b["node"], b["board_id"], "{b}");
     }
     emu.terminate();
+}
+
+/// `firelink emulate --firmware 9 --multicast`: a Rev 9 bridge of FPGA V2
+/// boards joins the group 224.0.0.100 on its port and answers a request
+/// the host sends there (the Rev 9 host's Ethernet broadcasts: here its
+/// read of the hub's firmware version by node 63 with the no-forward
+/// flag) from its own address. Multicast is sent only inside a network
+/// namespace this test makes (`unshare -n`, as root: `lo` up with
+/// multicast and the group's route); without root, `unshare` or `ip` it
+/// says so and skips.
+#[test]
+fn rev9_bridge_answers_the_multicast_group_in_a_network_namespace() {
+    const INSIDE: &str = "FIRELINK_CLI_TEST_IN_NAMESPACE";
+    const NAME: &str = "rev9_bridge_answers_the_multicast_group_in_a_network_namespace";
+    if std::env::var_os(INSIDE).is_none() {
+        let works = |program: &str, arg: &str| {
+            Command::new(program)
+                .arg(arg)
+                .output()
+                .is_ok_and(|o| o.status.success())
+        };
+        let root = Command::new("id")
+            .arg("-u")
+            .output()
+            .is_ok_and(|o| o.stdout.starts_with(b"0\n"));
+        if !(root && works("unshare", "--version") && works("ip", "-V")) {
+            eprintln!("SKIPPED {NAME}: needs root, unshare and ip (multicast only in a namespace)");
+            return;
+        }
+        let out = Command::new("unshare")
+            .args(["-n", "--"])
+            .arg(std::env::current_exe().unwrap())
+            .args(["--exact", NAME, "--nocapture", "--test-threads=1"])
+            .env(INSIDE, "1")
+            .output()
+            .unwrap();
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(out.status.success(), "in the namespace:\n{text}");
+        assert!(text.contains("1 passed"), "the body ran:\n{text}");
+        return;
+    }
+    for args in [
+        &["link", "set", "lo", "up"][..],
+        &["link", "set", "lo", "multicast", "on"],
+        &["route", "add", "224.0.0.0/4", "dev", "lo"],
+    ] {
+        let status = Command::new("ip").args(args).status().unwrap();
+        assert!(status.success(), "ip {args:?}");
+    }
+    let emu = Emulate::start(&["--boards", "2", "--firmware", "9", "--multicast"]);
+    let port: u16 = emu.port.rsplit(':').next().unwrap().parse().unwrap();
+    let joined = format!("joined multicast group 224.0.0.100:{port}");
+    assert!(
+        emu.start.iter().any(|l| l.starts_with(&joined)),
+        "{:?}",
+        emu.start
+    );
+    let hex = ok(&[
+        "packet",
+        "encode",
+        "--tcode",
+        "read_request_quadlet",
+        "--destination-id",
+        "0xffff",
+        "--tl",
+        "5",
+        "--offset",
+        "7",
+        "--bridge",
+        "--no-forward",
+    ]);
+    let hex = hex.trim();
+    let datagram: Vec<u8> = (0..hex.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(&hex[i..i + 2], 16).unwrap())
+        .collect();
+    let host = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    host.set_multicast_loop_v4(true).unwrap();
+    host.set_read_timeout(Some(std::time::Duration::from_secs(5)))
+        .unwrap();
+    host.send_to(&datagram, ("224.0.0.100", port)).unwrap();
+    let mut buf = [0u8; 256];
+    let (n, from) = host.recv_from(&mut buf).expect("the bridge's reply");
+    assert_eq!(from.to_string(), emu.port.trim_start_matches("udp:"));
+    let (reply, _) = firelink_wire::bridge::split_board_datagram(&buf[..n]).unwrap();
+    assert_eq!(
+        reply.quadlet_data(),
+        9,
+        "the firmware version, read by the group"
+    );
+    let rest = emu.terminate();
+    assert!(
+        rest.iter()
+            .any(|l| l.starts_with("stopped: 1 datagrams, 1 replies")),
+        "{rest:?}"
+    );
 }
