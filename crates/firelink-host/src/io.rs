@@ -30,9 +30,7 @@ use firelink_wire::board::broadcast::{
     status_broadcast_board,
 };
 use firelink_wire::board::realtime::{BlockFormat, ReadBlock, ReadBlockRepr};
-use firelink_wire::board::registers::{
-    AmpCommand, SYSTEM_CLOCK_HZ, StatusCommand, WatchdogSetting,
-};
+use firelink_wire::board::registers::{AmpCommand, StatusCommand, WatchdogSetting};
 use firelink_wire::packet::Packet;
 
 use crate::board::BoardIo;
@@ -48,8 +46,10 @@ pub struct IoOptions {
     /// Board to read the hub from; `None`: the bridge board, else the lowest ID.
     pub hub_board: Option<u8>,
     /// Wait between a query and its hub read (with broadcast groups,
-    /// after each group's query); `None`: 10 + 5 x the boards the query
-    /// selects, in us, as the reference host waits.
+    /// after each group's query); `None`: the port's
+    /// [`Port::broadcast_wait`] for the boards the query selects (10 + 5 N
+    /// us on the bus and the bridge, the Rev 9 host's 3 + 38 (N - 1) us on
+    /// the Ethernet-only network).
     pub broadcast_wait: Option<Duration>,
     /// Sequence rule; `None`: the rule of the boards' firmware.
     pub seq_rule: Option<SeqRule>,
@@ -95,6 +95,42 @@ impl BroadcastRoute {
     }
 }
 
+/// The hub's timing quadlet (`read_start:16 | now:16`, timers counting
+/// from the query) in us: when the hub read started and when the quadlet
+/// itself was read. The timers count the board's 49.152 MHz system clock
+/// on the FireWire bus and behind the bridge, the 125 MHz Ethernet clock
+/// on the Ethernet-only network (EthBasePort `GetBroadcastReadClockPeriod`).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct HubReadTimes {
+    /// When the hub read started, us after the query.
+    pub read_start_us: f32,
+    /// When the timing quadlet was read, us after the query.
+    pub read_end_us: f32,
+}
+
+impl HubReadTimes {
+    /// No hub read yet.
+    pub const ZERO: HubReadTimes = HubReadTimes {
+        read_start_us: 0.0,
+        read_end_us: 0.0,
+    };
+
+    /// The timing quadlet `word` of timers counting at `clock_hz`.
+    pub fn from_word(word: u32, clock_hz: u32) -> HubReadTimes {
+        let timing = firelink_wire::board::broadcast::HubTiming::from_word(word);
+        HubReadTimes {
+            read_start_us: hub_ticks_us(u32::from(timing.read_start), clock_hz),
+            read_end_us: hub_ticks_us(u32::from(timing.now), clock_hz),
+        }
+    }
+}
+
+/// `ticks` of a hub timer counting at `clock_hz`, in us (0 Hz reads as
+/// 1 Hz rather than dividing by zero).
+pub fn hub_ticks_us(ticks: u32, clock_hz: u32) -> f32 {
+    (f64::from(ticks) * 1e6 / f64::from(clock_hz.max(1))) as f32
+}
+
 /// What happened in the last cycle. `Copy`, fixed size.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CycleReport {
@@ -117,8 +153,12 @@ pub struct CycleReport {
     /// Why each missed board missed, by board ID.
     pub reasons: [Option<MissReason>; MAX_BOARDS],
     /// Broadcast protocol: when each board's block reached the hub, in us
-    /// after its query (from the hub headers), by board ID.
+    /// after its query (from the hub headers, counted at the port's
+    /// [`Port::hub_clock_hz`]), by board ID.
     pub update_time_us: [f32; MAX_BOARDS],
+    /// Broadcast protocol: the hub's timing quadlet of the cycle's last
+    /// hub block, at the same clock.
+    pub hub_read: HubReadTimes,
     /// The first port error of the cycle, if any.
     pub error: Option<HostError>,
     /// A bus reset was seen in this cycle (whatever the first error was):
@@ -138,6 +178,7 @@ impl CycleReport {
         missed: 0,
         reasons: [None; MAX_BOARDS],
         update_time_us: [0.0; MAX_BOARDS],
+        hub_read: HubReadTimes::ZERO,
         error: None,
         bus_reset: false,
     };
@@ -545,7 +586,7 @@ impl<P: Port> IoSystem<P> {
             let wait = self
                 .config
                 .broadcast_wait
-                .unwrap_or(Duration::from_micros(10 + 5 * members.len() as u64));
+                .unwrap_or_else(|| self.port.broadcast_wait(members.len()));
             groups.push(QueryGroup {
                 mask,
                 members,
@@ -1055,7 +1096,7 @@ impl<P: Port> IoSystem<P> {
         };
         let bytes = self.buf.get(..hub_len).unwrap_or(&[]);
         let hub = HubBlock::new_checked(bytes, &group.slots)?;
-        let clock_us = 1e6 / f64::from(SYSTEM_CLOCK_HZ);
+        let clock_hz = self.port.hub_clock_hz();
         // The hub packs blocks in arrival order, which is board order for
         // the Rev 7+ chain but not always for TDMA slots (a late slot, fair
         // arbitration, a late answer to an earlier group's query): when
@@ -1100,12 +1141,14 @@ impl<P: Port> IoSystem<P> {
                 HubHeader::Rev8 { update_time, .. } => u32::from(update_time),
             };
             if let Some(t) = self.report.update_time_us.get_mut(usize::from(slot.id)) {
-                *t = (f64::from(time) * clock_us) as f32;
+                *t = hub_ticks_us(time, clock_hz);
             }
             if let (Some(o), Some(outcome)) = (outcomes.get_mut(index), outcome) {
                 *o = Some(outcome);
             }
         }
+        let timing = hub.timing().to_word();
+        self.report.hub_read = HubReadTimes::from_word(timing, clock_hz);
         Ok(outcomes)
     }
 
