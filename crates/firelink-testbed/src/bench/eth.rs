@@ -129,6 +129,8 @@ pub(super) fn measure_point(
     })?;
     let settings = SideSettings {
         wait: WaitMode::Blocking,
+        // The Rev 9 host's own: 3 + 38 (N - 1) us.
+        host_wait: super::HostWait::Port,
         protocol: Protocol::Broadcast,
         options,
         idle: idle_time(options),
@@ -308,10 +310,21 @@ pub(super) fn eth_raws(
                 addr: emu.addr,
                 emulator: Some(&emu),
             };
-            let points =
-                super::udp_raws(&bridge, "in-process emulator", Protocol::Broadcast, options);
+            // The Rev 9 host's wait through the bridge: 10 + 10 (N - 1) us.
+            let runs = super::udp::measure_point(
+                &bridge,
+                Protocol::Broadcast,
+                options,
+                super::HostWait::Rev9Bridge,
+            );
             emu.stop()?;
-            raws.extend(points?.into_iter().map(|mut r| {
+            raws.extend(runs?.into_iter().map(|m| {
+                let mut r = super::raw_of_run(
+                    super::BenchTransport::Udp,
+                    "in-process emulator",
+                    Protocol::Broadcast,
+                    m,
+                );
                 r.board_set = Some(set);
                 r
             }));

@@ -422,6 +422,23 @@ struct Plan {
     note: Option<String>,
     /// The host's wait after each query.
     wait: Duration,
+    /// Boards each query selects (the largest group).
+    per_query: usize,
+}
+
+/// How long the host waits between a broadcast query and its hub read
+/// (or the hub's response).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum HostWait {
+    /// [`BenchOptions::wait_us_per_board`] x the boards the query selects
+    /// (seed 000's PC: 5 us x N).
+    PerBoard,
+    /// The port's own ([`firelink_host::Port::broadcast_wait`]: on the
+    /// Ethernet-only network the Rev 9 host's 3 + 38 (N - 1) us).
+    Port,
+    /// The Rev 9 host's wait through the bridge: 10 + 10 (N - 1) us
+    /// (EthBasePort `WaitBroadcastRead`).
+    Rev9Bridge,
 }
 
 impl Plan {
@@ -467,6 +484,22 @@ impl Plan {
             wait: Duration::from_secs_f64(
                 options.wait_us_per_board.max(0.0) * per_query as f64 / 1e6,
             ),
+            per_query,
+        }
+    }
+
+    /// The system's options with the host waiting as `wait` says.
+    fn options_with(&self, wait: HostWait) -> IoOptions {
+        let broadcast_wait = match wait {
+            HostWait::PerBoard => Some(self.wait),
+            HostWait::Port => None,
+            HostWait::Rev9Bridge => Some(Duration::from_micros(
+                10 + 10 * self.per_query.saturating_sub(1) as u64,
+            )),
+        };
+        IoOptions {
+            broadcast_wait,
+            ..self.options()
         }
     }
 
@@ -721,7 +754,7 @@ fn udp_raws(
     protocol: Protocol,
     options: &BenchOptions,
 ) -> Result<Vec<Raw>, TestbedError> {
-    let runs = udp::measure_point(bridge, protocol, options)?;
+    let runs = udp::measure_point(bridge, protocol, options, HostWait::PerBoard)?;
     Ok(runs
         .into_iter()
         .map(|m| raw_of_run(BenchTransport::Udp, target, protocol, m))

@@ -419,10 +419,12 @@ pub(super) struct Bridge<'a> {
     pub emulator: Option<&'a rig::Emulator>,
 }
 
-/// How a side runs: its wait mode and protocol, the benchmark's options,
+/// How a side runs: its wait mode, host wait and protocol, the benchmark's options,
 /// the idle time between cycles.
 pub(super) struct SideSettings<'a> {
     pub wait: WaitMode,
+    /// How long the host waits after each broadcast query.
+    pub host_wait: super::HostWait,
     pub protocol: Protocol,
     pub options: &'a super::BenchOptions,
     pub idle: Duration,
@@ -449,7 +451,7 @@ impl<P: DatagramPort> Side<P> {
         let plan = super::Plan::of(&scan, settings.protocol, settings.options);
         let (used, groups, note) = (plan.protocol, plan.groups, plan.note.clone());
         let boards = scan.boards.len();
-        let mut io = IoSystem::with_scan(port, &scan, plan.options())?;
+        let mut io = IoSystem::with_scan(port, &scan, plan.options_with(settings.host_wait))?;
         for _ in 0..WARM_UP {
             io.cycle();
             io.port_mut().wait(idle);
@@ -611,6 +613,7 @@ pub(super) fn measure_point(
     bridge: &Bridge<'_>,
     protocol: Protocol,
     options: &super::BenchOptions,
+    host_wait: super::HostWait,
 ) -> Result<Vec<ModeRun>, TestbedError> {
     let responder = Responder::start()?;
     let mut waits = options.udp_waits.clone();
@@ -622,6 +625,7 @@ pub(super) fn measure_point(
     for &wait in &waits {
         let settings = SideSettings {
             wait,
+            host_wait,
             protocol,
             options,
             idle: idle_time(options),
