@@ -7,7 +7,10 @@
 //! (`--udp-wait block,spin`), the floor of the same exchange and the CPU
 //! time per cycle; for `fw` (FirewirePort through the /dev/fw* twin, the
 //! command re-runs itself with the twin preloaded), the floor of bare
-//! request/event round trips and the host CPU against `sim`'s.
+//! request/event round trips and the host CPU against `sim`'s; for `eth`
+//! (the Ethernet-only network of FPGA V3 boards at Rev 9, in process or
+//! `--port udp:HOST`), its broadcast cycle beside the bridge at Rev 8 and
+//! Rev 9 and the firmware's stated timing.
 
 //!
 //! The measurement is [`firelink_testbed::bench`], the figure

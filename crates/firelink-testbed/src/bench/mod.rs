@@ -21,6 +21,13 @@
 //! [`fw`]); its host CPU per cycle is set against the same point's
 //! simulation cost on `sim` when both were measured in the run.
 //!
+//! The `eth` points ([`eth`]) measure the broadcast cycle of FPGA V3
+//! boards at Rev 9 on the Ethernet-only network (in process, or at an
+//! address given), beside the bridge with FPGA V2 boards at Rev 8 and at
+//! Rev 9 at the same board counts, each with its floor, the host waiting
+//! as the Rev 9 host does on each, and the firmware's stated timing of
+//! the chain ([`EthComparison`](eth::EthComparison)).
+//!
 //! Beside the I/O, the host's own CPU per 28-axis dVRK cycle (parse,
 //! PID, build commands) is measured over a recorded cycle with no I/O
 //! ([`host_cpu`]).
@@ -1161,16 +1168,23 @@ impl fmt::Display for BenchReport {
             .iter()
             .filter_map(|r| r.udp.as_ref().map(|u| (r, u)))
             .collect();
-        let Some((_, first)) = udp.first() else {
+        if udp.is_empty() {
             return Ok(());
-        };
+        }
+        let mut targets: Vec<&str> = Vec::new();
+        for (_, u) in &udp {
+            if !targets.contains(&u.target.as_str()) {
+                targets.push(&u.target);
+            }
+        }
         writeln!(
             f,
             "\nUDP against {}: the floor (the same requests, sizes and host waits against a responder \
              that answers at once) in blocks of {} cycles alternating with the point's own; \
              CPU per cycle, us (host: the cycle's I/O; emulator: its server thread; \
              floor srv: the responder's thread, a server that emulates nothing)",
-            first.target, self.udp_block_cycles
+            targets.join(", "),
+            self.udp_block_cycles
         )?;
         writeln!(
             f,
