@@ -252,6 +252,9 @@ pub const BRIDGE_REV8_SET: &str = "FPGA V2, Rev 8, bridge";
 /// The bridge companion at Rev 9.
 pub const BRIDGE_REV9_SET: &str = "FPGA V2, Rev 9, bridge";
 
+/// A board count and the stated timing of its chain.
+pub(super) type BoardsStated = (usize, StatedTiming);
+
 /// The `eth` transport's points: at every measured board count (1..=16),
 /// the Ethernet-only network in process, then the bridge with FPGA V2
 /// boards at Rev 8 and at Rev 9 (every wait mode asked), each with its
@@ -261,7 +264,7 @@ pub(super) fn eth_raws(
     generic: &firelink_control::config::IoConfig,
     options: &super::BenchOptions,
     progress: &mut dyn FnMut(super::BenchTransport, Protocol, usize),
-) -> Result<(Vec<super::Raw>, Vec<(usize, StatedTiming)>), TestbedError> {
+) -> Result<(Vec<super::Raw>, Vec<BoardsStated>), TestbedError> {
     let transport = super::BenchTransport::Eth;
     let mut raws = Vec::new();
     let mut stated = Vec::new();
