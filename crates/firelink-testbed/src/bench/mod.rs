@@ -72,7 +72,7 @@ pub enum BenchTransport {
     /// The Ethernet-only network of FPGA V3 boards at Rev 9 (wall clock;
     /// see [`eth`]): an in-process network on loopback, measured beside
     /// the bridge with FPGA V2 boards at Rev 8 and at Rev 9 and the
-    /// firmware's stated timing ([`EthComparison`]); or
+    /// firmware's stated timing ([`eth::EthComparison`]); or
     /// [`BenchOptions::udp_target`] when that is such a network.
     Eth,
 }
