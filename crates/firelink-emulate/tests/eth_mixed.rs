@@ -86,18 +86,23 @@ fn scan_and_run(mut port: UdpNetPort, v2: u8) {
     assert_eq!(stats.total_errors(), 0, "{stats:?}");
 }
 
-/// The hub is the V2 board at Rev 8: `udp:` asks it who it is and keeps
-/// the bridge, which reaches the V3 boards over FireWire; 300 broadcast
-/// cycles, 0 errors.
-#[test]
-fn udp_keeps_the_bridge_when_the_hub_is_a_v2_board() {
-    let server = common::Server::start(mixed(0));
+/// The bridge emulator over [`mixed`]`(v2)`: the hub's probe shows
+/// `hub_firmware` and whether the Rev 9 host would take the Ethernet-only
+/// network; the port `udp:` (`force_bridge` false) or `udpfw:` opens must
+/// be the bridge, scan every board and run [`CYCLES`] clean cycles.
+fn drive_through_the_bridge(v2: u8, hub_firmware: u32, ethernet_only: bool, force_bridge: bool) {
+    let server = common::Server::start(mixed(v2));
     let probe = EthPort::probe(server.addr, TIMEOUT).unwrap();
-    assert_eq!((probe.board, probe.firmware), (0, 8), "{probe:?}");
-    assert!(!probe.is_ethernet_only(), "{probe:?}");
-    let port = UdpNetPort::open(server.addr, false, SCAN_TIMEOUT, WaitMode::Blocking).unwrap();
-    assert!(!port.is_ethernet_only(), "the Rev 9 host keeps the bridge");
-    scan_and_run(port, 0);
+    assert_eq!(
+        (probe.board, probe.firmware),
+        (0, hub_firmware),
+        "{probe:?}"
+    );
+    assert_eq!(probe.is_ethernet_only(), ethernet_only, "{probe:?}");
+    let port =
+        UdpNetPort::open(server.addr, force_bridge, SCAN_TIMEOUT, WaitMode::Blocking).unwrap();
+    assert!(!port.is_ethernet_only(), "the bridge");
+    scan_and_run(port, v2);
     let stats = server.stop();
     // The bus failed only the scan's reads of the 12 absent nodes.
     assert_eq!(
@@ -107,26 +112,21 @@ fn udp_keeps_the_bridge_when_the_hub_is_a_v2_board() {
     );
 }
 
+/// The hub is the V2 board at Rev 8: `udp:` asks it who it is and keeps
+/// the bridge, which reaches the V3 boards over FireWire; 300 broadcast
+/// cycles, 0 errors.
+#[test]
+fn udp_keeps_the_bridge_when_the_hub_is_a_v2_board() {
+    drive_through_the_bridge(0, 8, false, false);
+}
+
 /// The hub is a V3 board at Rev 9 with a V2 board behind it on FireWire:
 /// the Rev 9 host's choice (`udp:`) is the Ethernet-only network, which
 /// cannot reach the V2 board; `udpfw:` forces the bridge and drives all
 /// four, 300 broadcast cycles with 0 errors.
 #[test]
 fn udpfw_drives_a_v2_board_behind_a_v3_rev9_hub() {
-    let server = common::Server::start(mixed(1));
-    let probe = EthPort::probe(server.addr, TIMEOUT).unwrap();
-    assert_eq!((probe.board, probe.firmware), (0, 9), "{probe:?}");
-    assert!(probe.is_ethernet_only(), "{probe:?}");
-    let port = UdpNetPort::open(server.addr, true, SCAN_TIMEOUT, WaitMode::Blocking).unwrap();
-    assert!(!port.is_ethernet_only());
-    scan_and_run(port, 1);
-    let stats = server.stop();
-    // The bus failed only the scan's reads of the 12 absent nodes.
-    assert_eq!(
-        (stats.malformed, stats.bad_crc, stats.bus_failures),
-        (0, 0, 12),
-        "{stats:?}"
-    );
+    drive_through_the_bridge(1, 9, true, true);
 }
 
 /// The Ethernet-only network refuses a V2 board by its ID, saying where
