@@ -7,7 +7,10 @@
 //! (`--udp-wait block,spin`), the floor of the same exchange and the CPU
 //! time per cycle; for `fw` (FirewirePort through the /dev/fw* twin, the
 //! command re-runs itself with the twin preloaded), the floor of bare
-//! request/event round trips and the host CPU against `sim`'s.
+//! request/event round trips and the host CPU against `sim`'s; for `eth`
+//! (the Ethernet-only network of FPGA V3 boards at Rev 9, in process or
+//! `--port udp:HOST`), its broadcast cycle beside the bridge at Rev 8 and
+//! Rev 9 and the firmware's stated timing.
 
 //!
 //! The measurement is [`firelink_testbed::bench`], the figure
@@ -35,6 +38,11 @@ pub enum TransportArg {
     /// FirewirePort through the /dev/fw* twin, served in-process (wall
     /// clock).
     Fw,
+    /// The Ethernet-only network of FPGA V3 boards at Rev 9 (in process on
+    /// loopback, or `--port udp:HOST` to one), its broadcast cycle beside
+    /// the bridge with FPGA V2 boards at Rev 8 and Rev 9 and the
+    /// firmware's stated timing (wall clock).
+    Eth,
 }
 
 impl From<TransportArg> for BenchTransport {
@@ -43,6 +51,7 @@ impl From<TransportArg> for BenchTransport {
             TransportArg::Sim => BenchTransport::Sim,
             TransportArg::Udp => BenchTransport::Udp,
             TransportArg::Fw => BenchTransport::Fw,
+            TransportArg::Eth => BenchTransport::Eth,
         }
     }
 }
@@ -94,7 +103,9 @@ pub struct BenchArgs {
     /// UDP points: measure the boards behind this bridge (`udp:HOST` on
     /// port 1394, or `udp:HOST:PORT`: a running `firelink emulate` or real
     /// boards) instead of an in-process emulator: one point per protocol
-    /// with the boards the scan finds; no emulator CPU.
+    /// with the boards the scan finds; no emulator CPU. With `--transport
+    /// eth`: the Ethernet-only network answering there (`firelink emulate
+    /// --network eth` or FPGA V3 boards at Rev 9).
     #[arg(long, value_parser = bridge_address)]
     pub port: Option<crate::ports::PortSpec>,
     /// UDP points: how the host's reads wait (comma-separated, each
@@ -197,7 +208,7 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
             return;
         }
         match (t, options.udp_target) {
-            (BenchTransport::Udp, Some(addr)) => {
+            (BenchTransport::Udp | BenchTransport::Eth, Some(addr)) => {
                 eprintln!("bench: {} {} at udp:{addr}", t.name(), proto.name());
             }
             _ => eprintln!("bench: {} {} {n} boards", t.name(), proto.name()),

@@ -230,3 +230,83 @@ fn bench_udp_short_run() {
     }
     assert!(r["udp_block_cycles"].as_u64().unwrap() > 0);
 }
+
+/// `--transport eth`: at each board count the Ethernet-only network's
+/// broadcast cycle, the bridge at Rev 8 and at Rev 9 beside it, each with
+/// its floor, every cycle without error; the comparison rows with the
+/// firmware's stated timing (figures measured, never judged here).
+#[test]
+fn bench_eth_runs_beside_the_bridge_and_prints_its_rows() {
+    let args = [
+        "bench",
+        "--cycles",
+        "30",
+        "--boards",
+        "2,4",
+        "--transport",
+        "eth",
+        "--protocol",
+        "broadcast",
+    ];
+    let r = json(&[&args[..], &["--json"]].concat());
+    let results = r["results"].as_array().unwrap();
+    // Per board count: the network and its two bridge companions.
+    assert_eq!(results.len(), 6, "{r}");
+    for x in results {
+        assert_eq!(x["errors"], 0, "{x}");
+        assert_eq!(x["cycles"], 30, "{x}");
+        assert_eq!(x["protocol"], "broadcast", "{x}");
+        assert_eq!(x["udp"]["floor_errors"], 0, "{x}");
+        assert!(x["io_time_us"]["median"].as_f64().unwrap() > 0.0, "{x}");
+    }
+    let sets: Vec<(&str, &str, u64)> = results
+        .iter()
+        .map(|x| {
+            (
+                x["transport"].as_str().unwrap(),
+                x["board_set"].as_str().unwrap(),
+                x["boards"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        sets,
+        [
+            ("eth", "FPGA V3, Rev 9, Ethernet-only", 2),
+            ("udp", "FPGA V2, Rev 8, bridge", 2),
+            ("udp", "FPGA V2, Rev 9, bridge", 2),
+            ("eth", "FPGA V3, Rev 9, Ethernet-only", 4),
+            ("udp", "FPGA V2, Rev 8, bridge", 4),
+            ("udp", "FPGA V2, Rev 9, bridge", 4),
+        ]
+    );
+    let rows = r["eth_comparison"].as_array().unwrap();
+    assert_eq!(rows.len(), 2, "{r}");
+    for (row, n) in rows.iter().zip([2.0, 4.0]) {
+        assert_eq!(row["boards"].as_f64(), Some(n));
+        assert_eq!(
+            row["stated"]["host_wait_us"].as_f64(),
+            Some(3.0 + 38.0 * (n - 1.0))
+        );
+        for key in [
+            "bridge_rev8_over_eth",
+            "bridge_rev9_over_eth",
+            "eth_over_floor",
+        ] {
+            assert!(row[key].as_f64().unwrap() > 0.0, "{key}: {row}");
+        }
+    }
+    // The text shows the comparison table, one row per board count.
+    let out = firelink(&args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("Ethernet-only network (FPGA V3, Rev 9) against the bridge"),
+        "{text}"
+    );
+    assert!(text.contains("FPGA V2, Rev 8, bridge"), "{text}");
+}

@@ -60,9 +60,16 @@ const IDLE_STEP: SimDuration = SimDuration::from_micros(200);
 /// Why a network cannot be built.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum NetworkError {
-    /// A board is not an FPGA V3 at Rev 9.
+    /// A board is not an FPGA V3 at Rev 9. An FPGA V2 has one 100 Mb/s
+    /// Ethernet port and no switch, and no firmware puts it on this
+    /// network: a set with V2 boards is a FireWire chain behind a bridge
+    /// (on real hardware, and in `firelink emulate` without `--network
+    /// eth`).
     #[error(
-        "board {board} is {fpga:?} at {profile:?}: the Ethernet-only network needs FPGA V3 boards at firmware Rev 9"
+        "board {board} is {fpga:?} at {profile:?}: the Ethernet-only network needs FPGA V3 boards at firmware Rev 9 \
+         (an FPGA V2 has one 100 Mb/s port, no switch and no Ethernet-only firmware); a set with V2 boards runs \
+         as the bridge over FireWire: emulate it without --network eth, with a V2 board as the bridge \
+         (--bridge-board), and `udp:` keeps the bridge as the Rev 9 host does"
     )]
     NotV3Rev9 {
         /// The board.

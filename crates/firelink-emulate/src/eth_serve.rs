@@ -29,7 +29,8 @@ const LOOPBACK_BROADCAST: Ipv4Addr = Ipv4Addr::new(127, 255, 255, 255);
 /// Largest datagram read whole.
 const MAX_DATAGRAM: usize = 4096;
 
-/// Longest the loop sleeps when nothing is due.
+/// Longest the loop waits when nothing is due (a datagram arriving ends
+/// the wait at once).
 const IDLE_SLEEP: Duration = Duration::from_micros(200);
 
 /// Where the network listens.
@@ -221,6 +222,7 @@ pub fn eth_serve(
         .map(|(id, s)| (Destination::Board(*id), s))
         .chain(group)
         .collect();
+    let mut readable = Readable::new(listeners.iter().map(|l| l.1));
     while !stop.load(Ordering::Relaxed) {
         let mut any = false;
         for &(to, socket) in &listeners {
@@ -267,7 +269,8 @@ pub fn eth_serve(
             lag_reported = Instant::now();
         }
         if !any {
-            // Sleep until the next reply or event is due, briefly.
+            // Wait until the next reply or event is due, briefly, or until
+            // a datagram arrives.
             let next = [net.next_due(), net.next_event()]
                 .into_iter()
                 .flatten()
@@ -275,10 +278,55 @@ pub fn eth_serve(
                 .map(|t| wall_at(t).saturating_duration_since(Instant::now()));
             let nap = next.map_or(IDLE_SLEEP, |d| d.min(IDLE_SLEEP));
             if !nap.is_zero() {
-                std::thread::sleep(nap);
+                readable.wait(nap);
             }
         }
     }
     on_event(EthEvent::Stopped(net.stats()));
     Ok(())
+}
+
+/// Waiting for a datagram on any of the network's sockets: `ppoll` on
+/// Linux (woken by the first datagram; the file descriptors gathered once),
+/// a plain sleep elsewhere.
+struct Readable<'s> {
+    #[cfg(target_os = "linux")]
+    fds: Vec<nix::poll::PollFd<'s>>,
+    #[cfg(not(target_os = "linux"))]
+    sockets: core::marker::PhantomData<&'s UdpSocket>,
+}
+
+impl<'s> Readable<'s> {
+    fn new(sockets: impl Iterator<Item = &'s UdpSocket>) -> Readable<'s> {
+        #[cfg(target_os = "linux")]
+        {
+            use std::os::fd::AsFd;
+            let flags = nix::poll::PollFlags::POLLIN;
+            Readable {
+                fds: sockets
+                    .map(|s| nix::poll::PollFd::new(s.as_fd(), flags))
+                    .collect(),
+            }
+        }
+        #[cfg(not(target_os = "linux"))]
+        {
+            let _ = sockets;
+            Readable {
+                sockets: core::marker::PhantomData,
+            }
+        }
+    }
+
+    /// Wait until a datagram is readable on one of the sockets, or `limit`
+    /// passed (an interrupted or failed wait returns early: the loop looks
+    /// at the sockets again).
+    fn wait(&mut self, limit: Duration) {
+        #[cfg(target_os = "linux")]
+        {
+            let timeout = nix::sys::time::TimeSpec::from_duration(limit);
+            let _ = nix::poll::ppoll(&mut self.fds, Some(timeout), None);
+        }
+        #[cfg(not(target_os = "linux"))]
+        std::thread::sleep(limit);
+    }
 }

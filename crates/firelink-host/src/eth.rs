@@ -58,6 +58,24 @@ pub const LOOPBACK_BASE: Ipv4Addr = Ipv4Addr::new(127, 0, 0, 100);
 /// Board 0's address on a real network (the dVRK's 169.254.0.100).
 pub const STOCK_BASE: Ipv4Addr = Ipv4Addr::new(169, 254, 0, 100);
 
+/// The clock of the Ethernet-only network's hub timers (the 15-bit update
+/// time in each hub header, the 16-bit timing quadlet): 125 MHz, where the
+/// FireWire hub counts the 49.152 MHz system clock (EthBasePort
+/// `GetBroadcastReadClockPeriod`: `1.0e-6/125.0` when not using the
+/// bridge).
+pub const ETH_HUB_CLOCK_HZ: u32 = 125_000_000;
+
+/// The Rev 9 host's wait between the broadcast query and the hub's
+/// response on the Ethernet-only network, for a configuration of `boards`
+/// boards: 3 + 38 (N - 1) us (EthBasePort `WaitBroadcastRead` when not
+/// using the bridge, "based on measurements, assuming contiguous Ethernet
+/// chain"; there N is every board the configuration uses, and the host
+/// waits longer when the last measured update time was longer). With the
+/// bridge the same host waits 10 + 10 (N - 1) us.
+pub fn ethernet_only_broadcast_wait(boards: usize) -> Duration {
+    Duration::from_micros(3 + 38 * boards.saturating_sub(1) as u64)
+}
+
 /// Largest request datagram: control word, header, 2048-byte payload,
 /// data CRC.
 const MAX_DATAGRAM: usize = 2 + 20 + 2048 + 4 + 16;
@@ -332,6 +350,11 @@ impl EthPort {
         self.stats
     }
 
+    /// The system calls made on the port's socket so far, by kind.
+    pub fn socket_calls(&self) -> crate::udp::SocketCalls {
+        self.socket.calls
+    }
+
     /// The extra data of the last matched response (byte 0 carries the
     /// srcPort of the replying board's switch).
     pub fn last_extra_data(&self) -> Option<ExtraData> {
@@ -502,6 +525,14 @@ impl Port for EthPort {
         Some(r)
     }
 
+    fn broadcast_wait(&self, boards: usize) -> Duration {
+        ethernet_only_broadcast_wait(boards)
+    }
+
+    fn hub_clock_hz(&self) -> u32 {
+        ETH_HUB_CLOCK_HZ
+    }
+
     crate::udp::datagram_port_clock_and_counts!();
 }
 
@@ -567,4 +598,68 @@ impl UdpNetPort {
 
 impl Port for UdpNetPort {
     crate::port::forward_port!(s => s.inner);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::{HubReadTimes, hub_ticks_us};
+
+    /// EthBasePort `WaitBroadcastRead` without the bridge: 3 us for one
+    /// board, 38 us for each further one.
+    #[test]
+    fn the_rev9_hosts_wait_on_the_ethernet_only_network() {
+        let us = |n| ethernet_only_broadcast_wait(n).as_micros();
+        assert_eq!(us(1), 3);
+        assert_eq!(us(2), 41);
+        assert_eq!(us(4), 117);
+        assert_eq!(us(8), 269);
+        assert_eq!(us(16), 573);
+        // No board: no further block to wait for.
+        assert_eq!(us(0), 3);
+    }
+
+    /// The port on the network says so: the Rev 9 wait and the 125 MHz hub
+    /// clock, where every other port keeps the bridge's.
+    #[test]
+    fn the_ethernet_only_port_waits_and_counts_as_the_rev9_host() {
+        let port = EthPort::open(EthAddresses::loopback(1394)).unwrap();
+        assert_eq!(port.broadcast_wait(8), Duration::from_micros(269));
+        assert_eq!(port.hub_clock_hz(), 125_000_000);
+        let bridge = crate::udp::UdpPort::open("127.0.0.1:1394".parse().unwrap()).unwrap();
+        assert_eq!(bridge.broadcast_wait(8), Duration::from_micros(50));
+        assert_eq!(bridge.hub_clock_hz(), 49_152_000);
+    }
+
+    /// A known hub header and timing quadlet at both clocks: update time
+    /// 0x4E20 (20000 ticks) is 160 us at 125 MHz, 406.9 us at 49.152 MHz;
+    /// the timing quadlet 0x2710_3A98 (read started at 10000 ticks, read at
+    /// 15000) is 80 and 120 us at 125 MHz.
+    #[test]
+    fn hub_times_at_the_ethernet_clock() {
+        let header = firelink_wire::board::broadcast::HubHeader::from_word(
+            0x2103_4E20,
+            firelink_wire::board::realtime::BlockFormat::Rev8,
+        );
+        let firelink_wire::board::broadcast::HubHeader::Rev8 {
+            quadlets,
+            update_time,
+            ..
+        } = header
+        else {
+            panic!("a Rev 8 header: {header:?}");
+        };
+        assert_eq!((quadlets, update_time), (33, 0x4E20));
+        assert_eq!(
+            hub_ticks_us(u32::from(update_time), ETH_HUB_CLOCK_HZ),
+            160.0
+        );
+        let bridge = hub_ticks_us(u32::from(update_time), 49_152_000);
+        assert!((bridge - 406.901).abs() < 0.001, "{bridge}");
+        // The largest 15-bit update time: 262.136 us at 125 MHz.
+        assert!((hub_ticks_us(0x7FFF, ETH_HUB_CLOCK_HZ) - 262.136).abs() < 0.001);
+        let times = HubReadTimes::from_word(0x2710_3A98, ETH_HUB_CLOCK_HZ);
+        assert_eq!(times.read_start_us, 80.0);
+        assert_eq!(times.read_end_us, 120.0);
+    }
 }

@@ -30,9 +30,7 @@ use firelink_wire::board::broadcast::{
     status_broadcast_board,
 };
 use firelink_wire::board::realtime::{BlockFormat, BoardLayout, ReadBlock, ReadBlockRepr};
-use firelink_wire::board::registers::{
-    AmpCommand, SYSTEM_CLOCK_HZ, StatusCommand, WatchdogSetting,
-};
+use firelink_wire::board::registers::{AmpCommand, StatusCommand, WatchdogSetting};
 use firelink_wire::packet::Packet;
 
 use crate::board::BoardIo;
@@ -48,8 +46,10 @@ pub struct IoOptions {
     /// Board to read the hub from; `None`: the bridge board, else the lowest ID.
     pub hub_board: Option<u8>,
     /// Wait between a query and its hub read (with broadcast groups,
-    /// after each group's query); `None`: 10 + 5 x the boards the query
-    /// selects, in us, as the reference host waits.
+    /// after each group's query); `None`: the port's
+    /// [`Port::broadcast_wait`] for the boards the query selects (10 + 5 N
+    /// us on the bus and the bridge, the Rev 9 host's 3 + 38 (N - 1) us on
+    /// the Ethernet-only network).
     pub broadcast_wait: Option<Duration>,
     /// Sequence rule; `None`: the rule of the boards' firmware.
     pub seq_rule: Option<SeqRule>,
@@ -65,21 +65,19 @@ pub struct IoOptions {
     pub listen_for_broadcasts: bool,
 }
 
-/// The reference host's wait between a query and its hub read
-/// (FirewirePort `WaitBroadcastRead`: 10 + 5 us per board the query
-/// selects), its boards counted in QLA1 read blocks: a board whose read
-/// block is longer than a QLA1's (a DQLA's 60 quadlets) counts as the
-/// QLA1 blocks it spans (rounded up), so the wait still covers the
-/// broadcasts it is meant to. A QLA1-only set waits exactly the reference
-/// host's 10 + 5 N us.
-fn reference_broadcast_wait(layouts: impl IntoIterator<Item = BoardLayout>) -> Duration {
+/// The boards a query selects, counted as the host's broadcast wait
+/// counts them ([`Port::broadcast_wait`]; FirewirePort `WaitBroadcastRead`:
+/// 10 + 5 us per board): in QLA1 read blocks, so that a board whose read
+/// block is longer than a QLA1's (a DQLA's 60 quadlets) counts as the QLA1
+/// blocks it spans (rounded up) and the wait still covers the broadcasts
+/// it is meant to. A QLA1-only set counts its boards.
+fn qla1_read_blocks(layouts: impl IntoIterator<Item = BoardLayout>) -> usize {
     /// A QLA1's read block at Rev 8/9: the block the formula is for.
     const QLA1_READ_QUADLETS: usize = 32;
-    let blocks: usize = layouts
+    layouts
         .into_iter()
         .map(|l| l.read_block_quadlets().div_ceil(QLA1_READ_QUADLETS).max(1))
-        .sum();
-    Duration::from_micros(10 + 5 * blocks as u64)
+        .sum()
 }
 
 /// Where the broadcast protocol sends its query and its commands
@@ -112,6 +110,42 @@ impl BroadcastRoute {
     }
 }
 
+/// The hub's timing quadlet (`read_start:16 | now:16`, timers counting
+/// from the query) in us: when the hub read started and when the quadlet
+/// itself was read. The timers count the board's 49.152 MHz system clock
+/// on the FireWire bus and behind the bridge, the 125 MHz Ethernet clock
+/// on the Ethernet-only network (EthBasePort `GetBroadcastReadClockPeriod`).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct HubReadTimes {
+    /// When the hub read started, us after the query.
+    pub read_start_us: f32,
+    /// When the timing quadlet was read, us after the query.
+    pub read_end_us: f32,
+}
+
+impl HubReadTimes {
+    /// No hub read yet.
+    pub const ZERO: HubReadTimes = HubReadTimes {
+        read_start_us: 0.0,
+        read_end_us: 0.0,
+    };
+
+    /// The timing quadlet `word` of timers counting at `clock_hz`.
+    pub fn from_word(word: u32, clock_hz: u32) -> HubReadTimes {
+        let timing = firelink_wire::board::broadcast::HubTiming::from_word(word);
+        HubReadTimes {
+            read_start_us: hub_ticks_us(u32::from(timing.read_start), clock_hz),
+            read_end_us: hub_ticks_us(u32::from(timing.now), clock_hz),
+        }
+    }
+}
+
+/// `ticks` of a hub timer counting at `clock_hz`, in us (0 Hz reads as
+/// 1 Hz rather than dividing by zero).
+pub fn hub_ticks_us(ticks: u32, clock_hz: u32) -> f32 {
+    (f64::from(ticks) * 1e6 / f64::from(clock_hz.max(1))) as f32
+}
+
 /// What happened in the last cycle. `Copy`, fixed size.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CycleReport {
@@ -134,8 +168,12 @@ pub struct CycleReport {
     /// Why each missed board missed, by board ID.
     pub reasons: [Option<MissReason>; MAX_BOARDS],
     /// Broadcast protocol: when each board's block reached the hub, in us
-    /// after its query (from the hub headers), by board ID.
+    /// after its query (from the hub headers, counted at the port's
+    /// [`Port::hub_clock_hz`]), by board ID.
     pub update_time_us: [f32; MAX_BOARDS],
+    /// Broadcast protocol: the hub's timing quadlet of the cycle's last
+    /// hub block, at the same clock.
+    pub hub_read: HubReadTimes,
     /// The first port error of the cycle, if any.
     pub error: Option<HostError>,
     /// A bus reset was seen in this cycle (whatever the first error was):
@@ -155,6 +193,7 @@ impl CycleReport {
         missed: 0,
         reasons: [None; MAX_BOARDS],
         update_time_us: [0.0; MAX_BOARDS],
+        hub_read: HubReadTimes::ZERO,
         error: None,
         bus_reset: false,
     };
@@ -559,10 +598,10 @@ impl<P: Port> IoSystem<P> {
                 None if rev4 => hub_quadlets.max(MAX_BOARDS * per_board),
                 None => hub_quadlets,
             };
-            let wait = self
-                .config
-                .broadcast_wait
-                .unwrap_or_else(|| reference_broadcast_wait(slots.iter().map(|s| s.layout)));
+            let wait = self.config.broadcast_wait.unwrap_or_else(|| {
+                self.port
+                    .broadcast_wait(qla1_read_blocks(slots.iter().map(|s| s.layout)))
+            });
             groups.push(QueryGroup {
                 mask,
                 members,
@@ -1072,7 +1111,7 @@ impl<P: Port> IoSystem<P> {
         };
         let bytes = self.buf.get(..hub_len).unwrap_or(&[]);
         let hub = HubBlock::new_checked(bytes, &group.slots)?;
-        let clock_us = 1e6 / f64::from(SYSTEM_CLOCK_HZ);
+        let clock_hz = self.port.hub_clock_hz();
         // The hub packs blocks in arrival order, which is board order for
         // the Rev 7+ chain but not always for TDMA slots (a late slot, fair
         // arbitration, a late answer to an earlier group's query): when
@@ -1117,12 +1156,14 @@ impl<P: Port> IoSystem<P> {
                 HubHeader::Rev8 { update_time, .. } => u32::from(update_time),
             };
             if let Some(t) = self.report.update_time_us.get_mut(usize::from(slot.id)) {
-                *t = (f64::from(time) * clock_us) as f32;
+                *t = hub_ticks_us(time, clock_hz);
             }
             if let (Some(o), Some(outcome)) = (outcomes.get_mut(index), outcome) {
                 *o = Some(outcome);
             }
         }
+        let timing = hub.timing().to_word();
+        self.report.hub_read = HubReadTimes::from_word(timing, clock_hz);
         Ok(outcomes)
     }
 
@@ -1265,30 +1306,20 @@ mod tests {
     use super::*;
     use firelink_wire::board::realtime::FirmwareRev;
 
-    /// QLA1 sets wait the reference host's 10 + 5 N us at every revision;
-    /// a DQLA (60-quadlet block) counts as two QLA1 blocks.
+    /// QLA1 sets count their boards at every revision (the wait is then
+    /// the reference host's 10 + 5 N us); a DQLA (60-quadlet block) counts
+    /// as two QLA1 blocks.
     #[test]
     fn the_broadcast_wait_counts_qla1_blocks() {
         let qla1 = |rev| BoardLayout::new(rev, 4, 4).unwrap();
         let dqla = BoardLayout::new(FirmwareRev::Rev9, 8, 8).unwrap();
         for rev in [FirmwareRev::Rev7, FirmwareRev::Rev8, FirmwareRev::Rev9] {
-            for n in [1u64, 4, 8, 16] {
-                let layouts = (0..n).map(|_| qla1(rev));
-                assert_eq!(
-                    reference_broadcast_wait(layouts),
-                    Duration::from_micros(10 + 5 * n),
-                    "{rev:?}"
-                );
+            for n in [1usize, 4, 8, 16] {
+                assert_eq!(qla1_read_blocks((0..n).map(|_| qla1(rev))), n, "{rev:?}");
             }
         }
         assert_eq!(dqla.read_block_quadlets(), 60);
-        assert_eq!(
-            reference_broadcast_wait([dqla; 3]),
-            Duration::from_micros(10 + 5 * 6)
-        );
-        assert_eq!(
-            reference_broadcast_wait([dqla, qla1(FirmwareRev::Rev9)]),
-            Duration::from_micros(10 + 5 * 3)
-        );
+        assert_eq!(qla1_read_blocks([dqla; 3]), 6);
+        assert_eq!(qla1_read_blocks([dqla, qla1(FirmwareRev::Rev9)]), 3);
     }
 }

@@ -142,6 +142,23 @@ pub trait Port {
         let _ = out;
         None
     }
+    /// The host's wait between a broadcast query selecting `boards` boards
+    /// (counted in QLA1 read blocks: a DQLA counts as two) and its hub read
+    /// (or the hub's own response), when the caller gives none: 10 + 5 N us for the FireWire bus and the bridge (Firelink's
+    /// default; the Rev 9 host waits 10 + 10 (N - 1) us there); the
+    /// Ethernet-only network's port overrides it with the Rev 9 host's
+    /// formula ([`crate::eth::ethernet_only_broadcast_wait`]).
+    fn broadcast_wait(&self, boards: usize) -> Duration {
+        Duration::from_micros(10 + 5 * boards as u64)
+    }
+    /// The clock the hub's update timers and its timing quadlet count, in
+    /// Hz: the boards' 49.152 MHz system clock, or on the Ethernet-only
+    /// network the 125 MHz Ethernet clock
+    /// ([`crate::eth::ETH_HUB_CLOCK_HZ`]; EthBasePort
+    /// `GetBroadcastReadClockPeriod`).
+    fn hub_clock_hz(&self) -> u32 {
+        firelink_wire::board::registers::SYSTEM_CLOCK_HZ
+    }
     /// Time since the port was opened (virtual on the simulated bus).
     fn now(&self) -> Duration;
     /// [`now`](Self::now) in picoseconds, as finely as the port's clock
@@ -249,6 +266,14 @@ macro_rules! forward_port {
         fn receive_broadcast_response(&mut self, out: &mut [u8]) -> Option<Result<()>> {
             let $s = self;
             $e.receive_broadcast_response(out)
+        }
+        fn broadcast_wait(&self, boards: usize) -> Duration {
+            let $s = self;
+            $e.broadcast_wait(boards)
+        }
+        fn hub_clock_hz(&self) -> u32 {
+            let $s = self;
+            $e.hub_clock_hz()
         }
         fn now(&self) -> Duration {
             let $s = self;

@@ -118,11 +118,15 @@ struct Series<'a> {
 fn series(report: &BenchReport) -> Vec<Series<'_>> {
     let mut out: Vec<Series<'_>> = Vec::new();
     for p in &report.results {
-        // UDP points say how the host waited (each mode is a series).
-        let label = match p.wait {
+        // UDP points say how the host waited (each mode is a series);
+        // the `eth` transport's board sets are series of their own.
+        let mut label = match p.wait {
             Some(wait) => format!("{} ({wait}) {}", p.transport, p.protocol_asked),
             None => format!("{} {}", p.transport, p.protocol_asked),
         };
+        if let Some(set) = p.board_set {
+            label = format!("{label}, {set}");
+        }
         match out.iter_mut().find(|s| s.label == label) {
             Some(s) => s.points.push(p),
             None => out.push(Series {

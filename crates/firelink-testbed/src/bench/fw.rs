@@ -106,7 +106,7 @@ impl TwinServer {
         let (bus, host, _) = rig::build_bus(boards)?;
         let mut twin = Twin::new(bus, host);
         let listener = fw_cdev::bind(&path)?;
-        let server = ServerThread::spawn(move |stop: &AtomicBool| {
+        let server = ServerThread::spawn(move |stop: &std::sync::Arc<AtomicBool>| {
             fw_cdev::serve(&mut twin, &listener, stop, |_| {})
         });
         Ok(TwinServer { server, path })
@@ -287,6 +287,8 @@ impl Floor {
                 Step::StartWriteQuadlet(..) => self.start_write(0, 4)?,
                 Step::StartWriteBlock(_, _, len) => self.start_write(1, len)?,
                 Step::Wait(d) => std::thread::sleep(d),
+                // Only the Ethernet-only network answers a query unasked.
+                Step::BroadcastResponse(_) => {}
             }
         }
         Ok(())
@@ -393,6 +395,7 @@ pub(super) fn measure_point(
     let per = |d: Duration| us(d) / cycles as f64;
     Ok(Raw {
         transport: BenchTransport::Fw,
+        board_set: None,
         wait: None,
         protocol: plan.protocol,
         asked: protocol,

@@ -21,6 +21,13 @@
 //! [`fw`]); its host CPU per cycle is set against the same point's
 //! simulation cost on `sim` when both were measured in the run.
 //!
+//! The `eth` points ([`eth`]) measure the broadcast cycle of FPGA V3
+//! boards at Rev 9 on the Ethernet-only network (in process, or at an
+//! address given), beside the bridge with FPGA V2 boards at Rev 8 and at
+//! Rev 9 at the same board counts, each with its floor, the host waiting
+//! as the Rev 9 host does on each, and the firmware's stated timing of
+//! the chain ([`EthComparison`](eth::EthComparison)).
+//!
 //! Beside the I/O, the host's own CPU per 28-axis dVRK cycle (parse,
 //! PID, build commands) is measured over a recorded cycle with no I/O
 //! ([`host_cpu`]).
@@ -28,6 +35,7 @@
 //! The library behind `firelink bench` and the Python package's
 //! `run_bench`; [`BenchReport`] serialises to `firelink bench --json`.
 
+pub mod eth;
 pub mod fw;
 pub mod host_cpu;
 mod server_thread;
@@ -61,6 +69,12 @@ pub enum BenchTransport {
     Udp,
     /// `FirewirePort` through the /dev/fw* twin (wall clock; see [`fw`]).
     Fw,
+    /// The Ethernet-only network of FPGA V3 boards at Rev 9 (wall clock;
+    /// see [`eth`]): an in-process network on loopback, measured beside
+    /// the bridge with FPGA V2 boards at Rev 8 and at Rev 9 and the
+    /// firmware's stated timing ([`eth::EthComparison`]); or
+    /// [`BenchOptions::udp_target`] when that is such a network.
+    Eth,
 }
 
 impl BenchTransport {
@@ -70,15 +84,17 @@ impl BenchTransport {
             BenchTransport::Sim => "sim",
             BenchTransport::Udp => "udp",
             BenchTransport::Fw => "fw",
+            BenchTransport::Eth => "eth",
         }
     }
 
-    /// Parse `sim`, `udp` or `fw`.
+    /// Parse `sim`, `udp`, `fw` or `eth`.
     pub fn from_name(name: &str) -> Option<BenchTransport> {
         match name {
             "sim" => Some(BenchTransport::Sim),
             "udp" => Some(BenchTransport::Udp),
             "fw" => Some(BenchTransport::Fw),
+            "eth" => Some(BenchTransport::Eth),
             _ => None,
         }
     }
@@ -250,8 +266,11 @@ pub struct FwFigures {
 /// One point of the benchmark.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct BenchPoint {
-    /// `sim`, `udp` or `fw`.
+    /// `sim`, `udp`, `fw` or `eth`.
     pub transport: &'static str,
+    /// The boards, where a transport measures more than one kind (the
+    /// `eth` transport's network and its bridge companions).
+    pub board_set: Option<&'static str>,
     /// UDP: how the host's reads waited, `block` or `spin`.
     pub wait: Option<&'static str>,
     /// The protocol used.
@@ -327,6 +346,9 @@ pub struct BenchReport {
     /// The simulation cost per cycle against boards, per protocol measured
     /// on the simulated bus at three or more board counts.
     pub sim_cost: Vec<SimCostFit>,
+    /// The `eth` transport: the Ethernet-only network against the bridge
+    /// and the firmware's stated timing, per board count.
+    pub eth_comparison: Vec<eth::EthComparison>,
 }
 
 /// The host's CPU per 28-axis cycle (parse, PID, build commands), us per
@@ -379,6 +401,7 @@ fn round3(x: f64) -> f64 {
 #[derive(Debug, Clone)]
 struct Raw {
     transport: BenchTransport,
+    board_set: Option<&'static str>,
     wait: Option<WaitMode>,
     udp: Option<(String, udp::ModeRun)>,
     fw: Option<fw::FwRun>,
@@ -406,6 +429,23 @@ struct Plan {
     note: Option<String>,
     /// The host's wait after each query.
     wait: Duration,
+    /// Boards each query selects (the largest group).
+    per_query: usize,
+}
+
+/// How long the host waits between a broadcast query and its hub read
+/// (or the hub's response).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum HostWait {
+    /// [`BenchOptions::wait_us_per_board`] x the boards the query selects
+    /// (seed 000's PC: 5 us x N).
+    PerBoard,
+    /// The port's own ([`firelink_host::Port::broadcast_wait`]: on the
+    /// Ethernet-only network the Rev 9 host's 3 + 38 (N - 1) us).
+    Port,
+    /// The Rev 9 host's wait through the bridge: 10 + 10 (N - 1) us
+    /// (EthBasePort `WaitBroadcastRead`).
+    Rev9Bridge,
 }
 
 impl Plan {
@@ -451,6 +491,22 @@ impl Plan {
             wait: Duration::from_secs_f64(
                 options.wait_us_per_board.max(0.0) * per_query as f64 / 1e6,
             ),
+            per_query,
+        }
+    }
+
+    /// The system's options with the host waiting as `wait` says.
+    fn options_with(&self, wait: HostWait) -> IoOptions {
+        let broadcast_wait = match wait {
+            HostWait::PerBoard => Some(self.wait),
+            HostWait::Port => None,
+            HostWait::Rev9Bridge => Some(Duration::from_micros(
+                10 + 10 * self.per_query.saturating_sub(1) as u64,
+            )),
+        };
+        IoOptions {
+            broadcast_wait,
+            ..self.options()
         }
     }
 
@@ -517,6 +573,7 @@ fn point<P: Port>(
     let (io, read, write, errors, cpu) = measure(io, options.cycles.max(1), idle);
     Ok(Raw {
         transport,
+        board_set: None,
         wait: None,
         udp: None,
         fw: None,
@@ -651,6 +708,7 @@ fn finish(raw: &Raw, compute: f64, period_us: f64) -> BenchPoint {
     .check(Duration::from_secs_f64(period_us.max(0.0) / 1e6));
     BenchPoint {
         transport: raw.transport.name(),
+        board_set: raw.board_set,
         protocol: raw.protocol.name(),
         protocol_asked: raw.asked.name(),
         broadcast_groups: raw.groups,
@@ -703,27 +761,33 @@ fn udp_raws(
     protocol: Protocol,
     options: &BenchOptions,
 ) -> Result<Vec<Raw>, TestbedError> {
-    let runs = udp::measure_point(bridge, protocol, options)?;
+    let runs = udp::measure_point(bridge, protocol, options, HostWait::PerBoard)?;
     Ok(runs
         .into_iter()
-        .map(|m| Raw {
-            transport: BenchTransport::Udp,
-            wait: Some(m.wait),
-            protocol: m.protocol,
-            asked: protocol,
-            groups: m.groups,
-            boards: m.boards,
-            io: m.io,
-            read: m.read,
-            write: m.write,
-            cycles: m.cycles,
-            errors: m.errors,
-            note: m.note.clone(),
-            udp: Some((target.to_string(), m)),
-            fw: None,
-            sim_cpu: None,
-        })
+        .map(|m| raw_of_run(BenchTransport::Udp, target, protocol, m))
         .collect())
+}
+
+/// The raw point of one measured datagram run (`udp` or `eth`).
+fn raw_of_run(transport: BenchTransport, target: &str, asked: Protocol, m: udp::ModeRun) -> Raw {
+    Raw {
+        transport,
+        board_set: None,
+        wait: Some(m.wait),
+        protocol: m.protocol,
+        asked,
+        groups: m.groups,
+        boards: m.boards,
+        io: m.io,
+        read: m.read,
+        write: m.write,
+        cycles: m.cycles,
+        errors: m.errors,
+        note: m.note.clone(),
+        udp: Some((target.to_string(), m)),
+        fw: None,
+        sim_cpu: None,
+    }
 }
 
 fn profile_name(p: Profile) -> &'static str {
@@ -733,6 +797,20 @@ fn profile_name(p: Profile) -> &'static str {
         Profile::Rev9 => "9",
         _ => "8",
     }
+}
+
+/// `n` boards of the benchmark's generic configuration at `profile`, with
+/// idle channels: I/O timing needs no motors, and idle channels keep the
+/// emulator's plants cheap (it must keep up with the wall clock over UDP).
+fn bench_boards(
+    generic: &firelink_control::config::IoConfig,
+    profile: Profile,
+    n: usize,
+) -> Vec<firelink_board::config::BoardConfig> {
+    rig::board_configs(generic, profile, n)
+        .into_iter()
+        .map(|b| b.with_axes(vec![firelink_board::plant::presets::unused_channel(); 4]))
+        .collect()
 }
 
 /// Run the benchmark; `progress` hears of each point before it runs (the
@@ -750,8 +828,18 @@ pub fn run_bench(
     }
     let generic = presets::bench_1board();
     let mut raws: Vec<Raw> = Vec::new();
+    let mut eth_stated: Vec<(usize, eth::StatedTiming)> = Vec::new();
     for &t in &options.transports {
         for &proto in &options.protocols {
+            if t == BenchTransport::Eth {
+                // The Ethernet-only network's point is its broadcast cycle.
+                if proto == Protocol::Broadcast {
+                    let (points, stated) = eth::eth_raws(&generic, options, &mut progress)?;
+                    raws.extend(points);
+                    eth_stated.extend(stated);
+                }
+                continue;
+            }
             if let (BenchTransport::Udp, Some(addr)) = (t, options.udp_target) {
                 progress(t, proto, 0);
                 let bridge = udp::Bridge {
@@ -769,14 +857,10 @@ pub fn run_bench(
                     continue;
                 }
                 progress(t, proto, n);
-                // I/O timing needs no motors: idle channels keep the
-                // emulator's plant cheap (it must keep up with the wall
-                // clock over UDP).
-                let cfgs: Vec<_> = rig::board_configs(&generic, options.firmware, n)
-                    .into_iter()
-                    .map(|b| b.with_axes(vec![firelink_board::plant::presets::unused_channel(); 4]))
-                    .collect();
+                let cfgs = bench_boards(&generic, options.firmware, n);
                 let points = match t {
+                    // Measured above, once for every protocol.
+                    BenchTransport::Eth => Vec::new(),
                     BenchTransport::Sim => {
                         let (port, _) = rig::sim_port(cfgs, true)?;
                         vec![point(port, t, proto, n, options)?]
@@ -818,8 +902,10 @@ pub fn run_bench(
         firmware: profile_name(options.firmware),
         cycles: options.cycles,
         udp_block_cycles: udp::BLOCK,
+        eth_comparison: Vec::new(),
     };
     report.sim_cost = report.sim_cost_fits();
+    report.eth_comparison = eth::comparisons(&report.results, &eth_stated);
     report.compare_fw_with_sim();
     Ok(report)
 }
@@ -880,6 +966,16 @@ impl BenchReport {
             )?;
         }
         Ok(())
+    }
+}
+
+/// A point's note column: its board set (where the transport measures
+/// several), then its note.
+fn point_note(r: &BenchPoint) -> String {
+    match (r.board_set, r.note.as_deref()) {
+        (Some(set), Some(note)) => format!("{set}; {note}"),
+        (Some(set), None) => set.to_string(),
+        (None, note) => note.unwrap_or("").to_string(),
     }
 }
 
@@ -1008,7 +1104,7 @@ impl fmt::Display for BenchReport {
                 num(r.io_time_us.max),
                 num(Some(r.max_rate_hz)),
                 if r.budget.fits { "fits" } else { "over" },
-                r.note.as_deref().unwrap_or("")
+                point_note(r)
             )?;
         }
         let period = self.results.first().map_or(0.0, |r| r.budget.period_us);
@@ -1066,21 +1162,29 @@ impl fmt::Display for BenchReport {
             }
         }
         self.fmt_fw(f)?;
+        eth::fmt_comparisons(&self.eth_comparison, f)?;
         let udp: Vec<(&BenchPoint, &UdpFigures)> = self
             .results
             .iter()
             .filter_map(|r| r.udp.as_ref().map(|u| (r, u)))
             .collect();
-        let Some((_, first)) = udp.first() else {
+        if udp.is_empty() {
             return Ok(());
-        };
+        }
+        let mut targets: Vec<&str> = Vec::new();
+        for (_, u) in &udp {
+            if !targets.contains(&u.target.as_str()) {
+                targets.push(&u.target);
+            }
+        }
         writeln!(
             f,
             "\nUDP against {}: the floor (the same requests, sizes and host waits against a responder \
              that answers at once) in blocks of {} cycles alternating with the point's own; \
              CPU per cycle, us (host: the cycle's I/O; emulator: its server thread; \
              floor srv: the responder's thread, a server that emulates nothing)",
-            first.target, self.udp_block_cycles
+            targets.join(", "),
+            self.udp_block_cycles
         )?;
         writeln!(
             f,

@@ -19,7 +19,9 @@ pub(super) struct ServerThread<T> {
 impl<T: Send + 'static> ServerThread<T> {
     /// Run `serve` on a new thread; it must return soon after the flag it
     /// is given is set.
-    pub(super) fn spawn(serve: impl FnOnce(&AtomicBool) -> T + Send + 'static) -> ServerThread<T> {
+    pub(super) fn spawn(
+        serve: impl FnOnce(&Arc<AtomicBool>) -> T + Send + 'static,
+    ) -> ServerThread<T> {
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
         let thread = std::thread::spawn(move || serve(&flag));

@@ -14,17 +14,20 @@
 //! included: virtual time runs on).
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, UdpSocket};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use firelink_control::runner::Percentiles;
+use firelink_host::eth::EthPort;
 use firelink_host::io::IoSystem;
 use firelink_host::scan::Protocol;
 use firelink_host::transaction::LinkStats;
-use firelink_host::udp::{UdpPort, WaitMode, is_wait_over};
+use firelink_host::udp::{SocketCalls, UdpPort, WaitMode, is_wait_over};
 use firelink_host::{Dest, LinkFilter, Port};
+use firelink_wire::board::address::HUB_QUERY_OFFSET;
 use firelink_wire::bridge::{ExtraData, split_host_datagram};
-use firelink_wire::packet::{PacketRepr, Rcode};
+use firelink_wire::packet::{NodeId, PacketRepr, Rcode};
 
 use super::server_thread::ServerThread;
 use crate::TestbedError;
@@ -54,6 +57,9 @@ pub(super) enum Step {
     /// A block write started without waiting for its completion.
     StartWriteBlock(Dest, u64, usize),
     Wait(Duration),
+    /// The hub's unsolicited response to a query taken (the Ethernet-only
+    /// network), of this many bytes.
+    BroadcastResponse(usize),
 }
 
 /// A port that writes down its calls while asked to (the script of one
@@ -132,6 +138,19 @@ impl<P: Port> Port for Recorder<P> {
         self.note(Step::Wait(limit));
         self.inner.wait_until_heard(limit, heard)
     }
+    fn receive_broadcast_response(&mut self, out: &mut [u8]) -> Option<firelink_host::Result<()>> {
+        let response = self.inner.receive_broadcast_response(out);
+        if response.is_some() {
+            self.note(Step::BroadcastResponse(out.len()));
+        }
+        response
+    }
+    fn broadcast_wait(&self, boards: usize) -> Duration {
+        self.inner.broadcast_wait(boards)
+    }
+    fn hub_clock_hz(&self) -> u32 {
+        self.inner.hub_clock_hz()
+    }
     fn now(&self) -> Duration {
         self.inner.now()
     }
@@ -165,10 +184,25 @@ static ZEROS: [u8; 2048] = [0; 2048];
 
 /// The floor's answer to one host datagram: a read gets the response of
 /// the size it asks for (zeros, correct CRCs, then the bridge's 8 bytes of
-/// extra data) written into `reply`; anything else gets nothing.
-pub fn floor_answer(request: &[u8], reply: &mut [u8]) -> Option<usize> {
+/// extra data) written into `reply`; with `query_answer` above 0, a
+/// broadcast query (a quadlet write to node 63 at `0x1800`) gets a block
+/// read response of that many bytes under its label, as the Ethernet-only
+/// network's hub answers it unasked; anything else gets nothing.
+pub fn floor_answer(request: &[u8], reply: &mut [u8], query_answer: usize) -> Option<usize> {
     let (_, packet) = split_host_datagram(request).ok()?;
     let response = match PacketRepr::parse(&packet).ok()? {
+        PacketRepr::WriteQuadletRequest { header, offset, .. }
+            if query_answer > 0
+                && offset == HUB_QUERY_OFFSET
+                && header.destination.phy() == NodeId::BROADCAST_PHY =>
+        {
+            PacketRepr::ReadBlockResponse {
+                header: header.response(),
+                rcode: Rcode::Complete,
+                extended_tcode: 0,
+                data: ZEROS.get(..query_answer)?,
+            }
+        }
         PacketRepr::ReadQuadletRequest { header, .. } => PacketRepr::ReadQuadletResponse {
             header: header.response(),
             rcode: Rcode::Complete,
@@ -195,27 +229,32 @@ pub fn floor_answer(request: &[u8], reply: &mut [u8]) -> Option<usize> {
 /// The floor's responder: a thread on 127.0.0.1 answering as
 /// [`floor_answer`] says, at once, from a blocking socket (as the
 /// emulator's server waits).
-struct Responder {
-    addr: SocketAddr,
+pub(super) struct Responder {
+    pub(super) addr: SocketAddr,
+    /// Bytes of the response a broadcast query gets (0: none).
+    query_answer: Arc<AtomicUsize>,
     /// Its thread, whose CPU clock tells what receiving and answering the
     /// floor's datagrams costs a server that emulates nothing.
     server: ServerThread<()>,
 }
 
 impl Responder {
-    fn start() -> Result<Responder, TestbedError> {
+    pub(super) fn start() -> Result<Responder, TestbedError> {
         let socket = UdpSocket::bind(SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0))?;
         // Only to look at the stop flag now and then.
         socket.set_read_timeout(Some(Duration::from_millis(50)))?;
         let addr = socket.local_addr()?;
-        let server = ServerThread::spawn(move |stop: &AtomicBool| {
+        let query_answer = Arc::new(AtomicUsize::new(0));
+        let answer = Arc::clone(&query_answer);
+        let server = ServerThread::spawn(move |stop: &Arc<AtomicBool>| {
             let mut rx = vec![0u8; 4096];
             let mut tx = vec![0u8; 4096];
             while !stop.load(Ordering::Relaxed) {
                 match socket.recv_from(&mut rx) {
                     Ok((len, from)) => {
                         let request = rx.get(..len).unwrap_or(&[]);
-                        if let Some(n) = floor_answer(request, &mut tx) {
+                        let query = answer.load(Ordering::Relaxed);
+                        if let Some(n) = floor_answer(request, &mut tx, query) {
                             let _ = socket.send_to(&tx[..n], from);
                         }
                     }
@@ -224,7 +263,16 @@ impl Responder {
                 }
             }
         });
-        Ok(Responder { addr, server })
+        Ok(Responder {
+            addr,
+            query_answer,
+            server,
+        })
+    }
+
+    /// Answer broadcast queries with `bytes` of hub (0: do not).
+    fn answer_queries_with(&self, bytes: usize) {
+        self.query_answer.store(bytes, Ordering::Relaxed);
     }
 
     /// CPU time its thread has used so far, while it runs.
@@ -235,7 +283,7 @@ impl Responder {
 
 /// Make the calls of `script` on `port` (the floor's cycle); the first
 /// failure ends it.
-fn replay(port: &mut UdpPort, script: &[Step], buf: &mut [u8]) -> firelink_host::Result<()> {
+fn replay<P: Port>(port: &mut P, script: &[Step], buf: &mut [u8]) -> firelink_host::Result<()> {
     for step in script {
         match *step {
             Step::ReadQuadlet(dest, offset) => {
@@ -254,6 +302,12 @@ fn replay(port: &mut UdpPort, script: &[Step], buf: &mut [u8]) -> firelink_host:
                 port.start_write_block(dest, offset, ZEROS.get(..len).unwrap_or_default())?;
             }
             Step::Wait(d) => port.wait(d),
+            Step::BroadcastResponse(len) => {
+                let out = buf.get_mut(..len).unwrap_or_default();
+                if let Some(r) = port.receive_broadcast_response(out) {
+                    r?;
+                }
+            }
         }
     }
     Ok(())
@@ -304,15 +358,46 @@ pub(super) struct ModeRun {
     pub floor_server_cpu: Option<f64>,
 }
 
-/// One wait mode's side of a UDP point while it runs.
-struct Side {
+/// A datagram port the benchmark drives: its read time-out can be set and
+/// its socket's system calls are counted.
+pub(super) trait DatagramPort: Port {
+    /// Set every read's time-out.
+    fn set_read_timeout(&mut self, timeout: Duration);
+    /// The system calls made on its socket so far.
+    fn socket_calls(&self) -> SocketCalls;
+}
+
+impl DatagramPort for UdpPort {
+    fn set_read_timeout(&mut self, timeout: Duration) {
+        self.set_timeout(timeout);
+    }
+    fn socket_calls(&self) -> SocketCalls {
+        UdpPort::socket_calls(self)
+    }
+}
+
+impl DatagramPort for EthPort {
+    fn set_read_timeout(&mut self, timeout: Duration) {
+        self.set_timeout(timeout);
+    }
+    fn socket_calls(&self) -> SocketCalls {
+        EthPort::socket_calls(self)
+    }
+}
+
+/// CPU time an emulator's server thread has used so far (`None`: no
+/// emulator in this process, or thread clocks cannot be read).
+pub(super) type ServerCpu<'a> = &'a dyn Fn() -> Option<Duration>;
+
+/// One wait mode's side of a point while it runs.
+pub(super) struct Side<P: DatagramPort> {
     wait: WaitMode,
     protocol: Protocol,
     groups: usize,
     boards: usize,
     note: Option<String>,
-    io: IoSystem<Recorder<UdpPort>>,
-    floor: UdpPort,
+    io: IoSystem<Recorder<P>>,
+    floor: P,
     script: Vec<Step>,
     times: Vec<f32>,
     floor_times: Vec<f32>,
@@ -334,26 +419,39 @@ pub(super) struct Bridge<'a> {
     pub emulator: Option<&'a rig::Emulator>,
 }
 
-impl Side {
-    fn open(
-        bridge: &Bridge<'_>,
+/// How a side runs: its wait mode, host wait and protocol, the benchmark's options,
+/// the idle time between cycles.
+pub(super) struct SideSettings<'a> {
+    pub wait: WaitMode,
+    /// How long the host waits after each broadcast query.
+    pub host_wait: super::HostWait,
+    pub protocol: Protocol,
+    pub options: &'a super::BenchOptions,
+    pub idle: Duration,
+}
+
+impl<P: DatagramPort> Side<P> {
+    /// Scan through `port`, warm up, record one cycle's calls and warm the
+    /// floor (`floor`: the same kind of port to `responder`) up on them.
+    pub(super) fn open(
+        port: P,
+        floor: P,
         responder: &Responder,
-        wait: WaitMode,
-        protocol: Protocol,
-        options: &super::BenchOptions,
-        idle: Duration,
-    ) -> Result<Side, TestbedError> {
-        let mut port = Recorder::new(rig::udp_port_with(bridge.addr, wait)?);
+        settings: &SideSettings<'_>,
+        server_cpu: ServerCpu<'_>,
+    ) -> Result<Side<P>, TestbedError> {
+        let idle = settings.idle;
+        let mut port = Recorder::new(port);
         // A busy machine must not hide a board from the scan; the cycles
         // then have the servo time-out.
-        port.inner.set_timeout(SCAN_TIMEOUT);
+        port.inner.set_read_timeout(SCAN_TIMEOUT);
         let scan = firelink_host::scan::scan(&mut port);
-        port.inner.set_timeout(rig::UDP_TIMEOUT);
+        port.inner.set_read_timeout(rig::UDP_TIMEOUT);
         let scan = scan?;
-        let plan = super::Plan::of(&scan, protocol, options);
+        let plan = super::Plan::of(&scan, settings.protocol, settings.options);
         let (used, groups, note) = (plan.protocol, plan.groups, plan.note.clone());
         let boards = scan.boards.len();
-        let mut io = IoSystem::with_scan(port, &scan, plan.options())?;
+        let mut io = IoSystem::with_scan(port, &scan, plan.options_with(settings.host_wait))?;
         for _ in 0..WARM_UP {
             io.cycle();
             io.port_mut().wait(idle);
@@ -363,19 +461,21 @@ impl Side {
         io.cycle();
         let script = io.port_mut().script.take().unwrap_or_default();
         io.port_mut().wait(idle);
-        let mut floor = rig::udp_port_with(responder.addr, wait)?;
+        if let Some(&Step::BroadcastResponse(len)) = script
+            .iter()
+            .find(|s| matches!(s, Step::BroadcastResponse(_)))
+        {
+            responder.answer_queries_with(len);
+        }
+        let mut floor = floor;
+        floor.set_read_timeout(rig::UDP_TIMEOUT);
         let mut buf = vec![0u8; 2048];
         for _ in 0..WARM_UP {
             let _ = replay(&mut floor, &script, &mut buf);
             floor.wait(idle);
         }
-        let emulator_cpu = bridge
-            .emulator
-            .and_then(rig::Emulator::server_cpu_time)
-            .map(|_| Duration::ZERO);
-        let floor_server_cpu = responder.cpu_time().map(|_| Duration::ZERO);
         Ok(Side {
-            wait,
+            wait: settings.wait,
             protocol: used,
             groups,
             boards,
@@ -391,8 +491,8 @@ impl Side {
             floor_host_cpu: Duration::ZERO,
             floor_errors: 0,
             socket_calls: 0,
-            emulator_cpu,
-            floor_server_cpu,
+            emulator_cpu: server_cpu().map(|_| Duration::ZERO),
+            floor_server_cpu: responder.cpu_time().map(|_| Duration::ZERO),
         })
     }
 
@@ -402,10 +502,10 @@ impl Side {
         n: u64,
         idle: Duration,
         host: Option<ThreadCpuClock>,
-        emulator: Option<&rig::Emulator>,
+        server_cpu: ServerCpu<'_>,
     ) {
         let calls = self.io.port().inner.socket_calls();
-        let emulator_before = emulator.and_then(rig::Emulator::server_cpu_time);
+        let emulator_before = server_cpu();
         for _ in 0..n {
             let (report, cpu) = cpu_over(host, || *self.io.cycle());
             self.host_cpu += cpu;
@@ -415,7 +515,7 @@ impl Side {
             self.write += us(report.write_time);
             self.io.port_mut().wait(idle);
         }
-        let emulator_after = emulator.and_then(rig::Emulator::server_cpu_time);
+        let emulator_after = server_cpu();
         self.emulator_cpu = match (self.emulator_cpu, emulator_before, emulator_after) {
             (Some(total), Some(a), Some(b)) => Some(total + b.saturating_sub(a)),
             _ => None,
@@ -478,23 +578,15 @@ impl Side {
     }
 }
 
-/// Measure one UDP point (a protocol on the boards at `bridge`) for each
-/// wait mode of `options`, with its floor, interleaved in blocks.
-pub(super) fn measure_point(
-    bridge: &Bridge<'_>,
-    protocol: Protocol,
+/// Run the measured cycles of `sides` with their floors, interleaved in
+/// blocks of [`BLOCK`] cycles, every side in turn.
+pub(super) fn run_sides<P: DatagramPort>(
+    mut sides: Vec<Side<P>>,
+    responder: &Responder,
     options: &super::BenchOptions,
-) -> Result<Vec<ModeRun>, TestbedError> {
-    let responder = Responder::start()?;
-    let idle = Duration::from_secs_f64(options.idle_us.max(0.0) / 1e6);
-    let mut waits = options.udp_waits.clone();
-    if waits.is_empty() {
-        waits.push(WaitMode::default());
-    }
-    let mut sides = waits
-        .iter()
-        .map(|&w| Side::open(bridge, &responder, w, protocol, options, idle))
-        .collect::<Result<Vec<Side>, TestbedError>>()?;
+    server_cpu: ServerCpu<'_>,
+) -> Vec<ModeRun> {
+    let idle = idle_time(options);
     let host = ThreadCpuClock::current();
     let cycles = options.cycles.max(1);
     let mut buf = vec![0u8; 2048];
@@ -502,13 +594,49 @@ pub(super) fn measure_point(
     while done < cycles {
         let n = BLOCK.min(cycles - done);
         for side in &mut sides {
-            side.own_block(n, idle, host, bridge.emulator);
-            side.floor_block(n, idle, host, &responder, &mut buf);
+            side.own_block(n, idle, host, server_cpu);
+            side.floor_block(n, idle, host, responder, &mut buf);
         }
         done += n;
     }
+    sides.into_iter().map(Side::finish).collect()
+}
+
+/// The idle time between cycles.
+pub(super) fn idle_time(options: &super::BenchOptions) -> Duration {
+    Duration::from_secs_f64(options.idle_us.max(0.0) / 1e6)
+}
+
+/// Measure one UDP point (a protocol on the boards at `bridge`) for each
+/// wait mode of `options`, with its floor, interleaved in blocks.
+pub(super) fn measure_point(
+    bridge: &Bridge<'_>,
+    protocol: Protocol,
+    options: &super::BenchOptions,
+    host_wait: super::HostWait,
+) -> Result<Vec<ModeRun>, TestbedError> {
+    let responder = Responder::start()?;
+    let mut waits = options.udp_waits.clone();
+    if waits.is_empty() {
+        waits.push(WaitMode::default());
+    }
+    let server_cpu = || bridge.emulator.and_then(rig::Emulator::server_cpu_time);
+    let mut sides = Vec::with_capacity(waits.len());
+    for &wait in &waits {
+        let settings = SideSettings {
+            wait,
+            host_wait,
+            protocol,
+            options,
+            idle: idle_time(options),
+        };
+        let port = rig::udp_port_with(bridge.addr, wait)?;
+        let floor = rig::udp_port_with(responder.addr, wait)?;
+        sides.push(Side::open(port, floor, &responder, &settings, &server_cpu)?);
+    }
+    let runs = run_sides(sides, &responder, options, &server_cpu);
     drop(responder);
-    Ok(sides.into_iter().map(Side::finish).collect())
+    Ok(runs)
 }
 
 #[cfg(test)]
@@ -537,21 +665,36 @@ mod tests {
                 data_length: len as u16,
                 extended_tcode: 0,
             });
-            let n = floor_answer(&req, &mut reply).unwrap();
+            let n = floor_answer(&req, &mut reply, 0).unwrap();
             assert_eq!(n, 20 + len + 4 + 8);
             let packet = Packet::new_checked(&reply[..n - 8]).unwrap();
             assert!(packet.verify().is_ok());
             assert_eq!(packet.tl(), 7);
         }
         let q = request(&PacketRepr::ReadQuadletRequest { header, offset: 4 });
-        assert_eq!(floor_answer(&q, &mut reply), Some(20 + 8));
+        assert_eq!(floor_answer(&q, &mut reply, 0), Some(20 + 8));
         let w = request(&PacketRepr::WriteQuadletRequest {
             header,
             offset: 0x1800,
             data: 1,
         });
-        assert_eq!(floor_answer(&w, &mut reply), None);
-        assert_eq!(floor_answer(&[0xFF; 3], &mut reply), None);
+        assert_eq!(floor_answer(&w, &mut reply, 0), None);
+        assert_eq!(floor_answer(&[0xFF; 3], &mut reply, 0), None);
+        // A broadcast query: nothing on the bridge; the hub's unsolicited
+        // block on the Ethernet-only network, under the query's label.
+        let query = request(&PacketRepr::WriteQuadletRequest {
+            header: AsyncHeader::new(NodeId::local(63), NodeId(0xFFD0), 9),
+            offset: 0x1800,
+            data: 0x0001_000F,
+        });
+        assert_eq!(floor_answer(&query, &mut reply, 0), None);
+        let n = floor_answer(&query, &mut reply, 4 * 133).unwrap();
+        assert_eq!(n, 20 + 4 * 133 + 4 + 8);
+        let packet = Packet::new_checked(&reply[..n - 8]).unwrap();
+        assert!(packet.verify().is_ok());
+        assert_eq!(packet.tl(), 9);
+        // A write elsewhere is still not answered.
+        assert_eq!(floor_answer(&w, &mut reply, 4 * 133), None);
         // A length beyond any block: no answer, no panic.
         let mut big = request(&PacketRepr::ReadBlockRequest {
             header,
@@ -560,6 +703,6 @@ mod tests {
             extended_tcode: 0,
         });
         big[2 + 12] = 0xFF;
-        let _ = floor_answer(&big, &mut reply);
+        let _ = floor_answer(&big, &mut reply, 0);
     }
 }
