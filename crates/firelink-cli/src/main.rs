@@ -20,7 +20,6 @@ mod packet_cmd;
 mod port_strings_test;
 mod ports;
 mod rt;
-mod seed001_bench;
 mod sim;
 mod snake_tool;
 mod soak_cmd;
@@ -32,7 +31,7 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 
 use args::parse_number;
-pub use error::{CliError, EXIT_STATUS};
+use error::{CliError, EXIT_STATUS};
 
 /// Firelink: real-time robot control over IEEE 1394 and its Ethernet bridge,
 /// with the bus and the boards emulated in software.

@@ -6,11 +6,11 @@
 //! [`firelink_plot::seed001`].
 
 use std::io::Write;
+use std::path::Path;
 
 use firelink_testbed::snake::bench::{Seed001Options, run_seed001_bench};
 
-use crate::CliError;
-use crate::bench::BenchArgs;
+use crate::error::CliError;
 
 /// The papers whose own measurements `--seed` reproduces.
 #[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
@@ -20,11 +20,17 @@ pub enum SeedPaper {
     Seed001,
 }
 
-/// Run `firelink bench --seed 001`: exits non-zero when a figure is more
-/// than 15 % from the paper's.
-pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
+/// Run `firelink bench --seed 001` with `iterations` quadlet reads and
+/// writes each, the figures drawn to `plot`, JSON or a table on `out`:
+/// exits non-zero when a figure is more than 15 % from the paper's.
+pub fn run(
+    iterations: u64,
+    plot: Option<&Path>,
+    json: bool,
+    out: &mut impl Write,
+) -> Result<(), CliError> {
     let options = Seed001Options {
-        iterations: usize::try_from(args.iterations).unwrap_or(usize::MAX),
+        iterations: usize::try_from(iterations).unwrap_or(usize::MAX),
         ..Seed001Options::default()
     };
     if !crate::args::quiet() {
@@ -34,10 +40,10 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
         );
     }
     let report = run_seed001_bench(&options)?;
-    if let Some(path) = &args.plot {
+    if let Some(path) = plot {
         firelink_plot::seed001(&report, path)?;
     }
-    if args.json {
+    if json {
         writeln!(out, "{}", serde_json::to_string(&report)?)?;
     } else {
         write!(out, "{report}")?;

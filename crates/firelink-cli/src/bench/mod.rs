@@ -16,6 +16,8 @@
 //! The measurement is [`firelink_testbed::bench`], the figure
 //! [`firelink_plot::fig11`]; this file parses the options and prints.
 
+mod seed001;
+
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -25,8 +27,8 @@ use firelink_host::scan::Protocol;
 use firelink_host::udp::WaitMode;
 use firelink_testbed::bench::{BenchOptions, BenchTransport, check_board_counts, run_bench};
 
-use crate::CliError;
 use crate::args::{FirmwareArg, ProtocolArg, UdpWaitArg};
+use crate::error::CliError;
 
 /// `--transport`: where the I/O time is measured.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -147,7 +149,7 @@ pub struct BenchArgs {
     /// 001's quadlet and block transaction times and servo budgets on one
     /// Snake node with its PC's model (the other options do not apply).
     #[arg(long, value_enum)]
-    pub seed: Option<crate::seed001_bench::SeedPaper>,
+    pub seed: Option<seed001::SeedPaper>,
     /// With `--seed 001`: quadlet reads and writes each (the paper: 9000;
     /// 1 to 10^7).
     #[arg(long, default_value_t = 9000, value_parser = crate::args::measured)]
@@ -196,7 +198,7 @@ pub fn options(args: &BenchArgs) -> Result<BenchOptions, CliError> {
 /// Run `firelink bench`.
 pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
     if args.seed.is_some() {
-        return crate::seed001_bench::run(args, out);
+        return seed001::run(args.iterations, args.plot.as_deref(), args.json, out);
     }
     let options = options(args)?;
     if options.transports.contains(&BenchTransport::Fw) && std::env::var_os(UNDER_TWIN).is_none() {
