@@ -552,26 +552,7 @@ pub fn run_node(
         arms.push(Arm::new(&mut node, &name, first, joints)?);
     }
     let mut poll = Poll::new().map_err(ros("poll"))?;
-    for (i, arm) in arms.iter_mut().enumerate() {
-        let registry = poll.registry();
-        registry
-            .register(&mut arm.servo, subscription_token(i, 0), Interest::READABLE)
-            .map_err(ros("servo_jp readiness"))?;
-        registry
-            .register(
-                &mut arm.move_jp,
-                subscription_token(i, 1),
-                Interest::READABLE,
-            )
-            .map_err(ros("move_jp readiness"))?;
-        registry
-            .register(
-                &mut arm.state_command,
-                subscription_token(i, 2),
-                Interest::READABLE,
-            )
-            .map_err(ros("state_command readiness"))?;
-    }
+    register_readiness(&poll, &mut arms)?;
     let waker = Waker::new(poll.registry(), FRAME).map_err(ros("frame waker"))?;
     let decimation = Decimation::new(settings.publish_hz, shared.rate_hz);
     shared
@@ -624,18 +605,7 @@ pub fn run_node(
         report.wakes_ready_timeout[0] += u64::from(any_ready);
         report.wakes_ready_timeout[1] += u64::from(events.is_empty());
         // Frames: the due ones kept for publication, the rest given back.
-        while let Some(frame) = shared.full.pop() {
-            costs.record(&frame);
-            newest = Some(Newest {
-                t: frame.t,
-                state: frame.state,
-            });
-            if decimation.due(frame.cycle) && to_publish.len() < to_publish.capacity() {
-                to_publish.push(frame);
-            } else {
-                let _ = shared.free.push(frame);
-            }
-        }
+        take_frames(shared, decimation, &mut costs, &mut newest, &mut to_publish);
         let state = newest.map_or(State::Unconfigured, |n| n.state);
         let homed = shared.homed.load(Ordering::Relaxed);
         // Commands first: they are what waits.
@@ -674,21 +644,7 @@ pub fn run_node(
         let ends = f64::from_bits(shared.move_ends.load(Ordering::Relaxed));
         let busy = newest.is_some_and(|n| n.t < ends) || !shared.commands.is_empty();
         let periodic = last_state_publish.elapsed() >= Duration::from_millis(100);
-        for arm in &mut arms {
-            let current = (crtk_state(state).to_string(), homed, busy);
-            if periodic || arm.last_state.as_ref() != Some(&current) {
-                let _ = arm.operating.publish(OperatingState {
-                    header: Header {
-                        stamp: now,
-                        frame_id: String::new(),
-                    },
-                    state: current.0.clone(),
-                    is_homed: homed,
-                    is_busy: busy,
-                });
-                arm.last_state = Some(current);
-            }
-        }
+        publish_operating_state(&mut arms, now, state, homed, busy, periodic);
         if periodic {
             last_state_publish = Instant::now();
         }
@@ -708,6 +664,85 @@ pub fn run_node(
     drop(node);
     drop(context);
     Ok(report)
+}
+
+/// Register each arm's subscriptions with the poll, each under its own
+/// token, so that a sample waiting wakes the node.
+fn register_readiness(poll: &Poll, arms: &mut [Arm]) -> Result<(), Ros2Error> {
+    for (i, arm) in arms.iter_mut().enumerate() {
+        let registry = poll.registry();
+        registry
+            .register(&mut arm.servo, subscription_token(i, 0), Interest::READABLE)
+            .map_err(ros("servo_jp readiness"))?;
+        registry
+            .register(
+                &mut arm.move_jp,
+                subscription_token(i, 1),
+                Interest::READABLE,
+            )
+            .map_err(ros("move_jp readiness"))?;
+        registry
+            .register(
+                &mut arm.state_command,
+                subscription_token(i, 2),
+                Interest::READABLE,
+            )
+            .map_err(ros("state_command readiness"))?;
+    }
+    Ok(())
+}
+
+/// Take the robot loop's finished frames: each one's costs recorded and
+/// the newest remembered; the due ones kept for publication, the rest
+/// given back.
+// The frames stay boxed: they move between the pool's queues by pointer.
+#[allow(clippy::vec_box)]
+fn take_frames(
+    shared: &Shared,
+    decimation: Decimation,
+    costs: &mut LoopCosts,
+    newest: &mut Option<Newest>,
+    to_publish: &mut Vec<Box<Frame>>,
+) {
+    while let Some(frame) = shared.full.pop() {
+        costs.record(&frame);
+        *newest = Some(Newest {
+            t: frame.t,
+            state: frame.state,
+        });
+        if decimation.due(frame.cycle) && to_publish.len() < to_publish.capacity() {
+            to_publish.push(frame);
+        } else {
+            let _ = shared.free.push(frame);
+        }
+    }
+}
+
+/// Publish each arm's operating state at 10 Hz (`periodic`) and whenever
+/// it changes.
+fn publish_operating_state(
+    arms: &mut [Arm],
+    now: Time,
+    state: State,
+    homed: bool,
+    busy: bool,
+    periodic: bool,
+) {
+    for arm in arms.iter_mut() {
+        let current = (crtk_state(state).to_string(), homed, busy);
+        if periodic || arm.last_state.as_ref() != Some(&current) {
+            let _ = arm.operating.publish(OperatingState {
+                header: Header {
+                    stamp: now,
+                    frame_id: String::new(),
+                },
+                state: current.0.clone(),
+                is_homed: homed,
+                is_busy: busy,
+            });
+            arm.last_state = Some(current);
+        }
+    }
 }
 
 /// Take every `state_command` waiting on `arm` and queue what it means.

@@ -346,9 +346,40 @@ pub fn run_console_homing(
         stall: None,
     };
     robot.configure()?;
+    let inputs = console_inputs(config, &robot);
+    robot.power_on()?;
+    robot.home()?;
+    watch.homed = true;
+    robot.activate()?;
+    let speed = options.speed.clamp(0.01, 1.0);
+
+    // Stop searches first, as the console calibrates the MTM roll before
+    // the arm's homing move.
+    let searches = search_stops(&mut robot, &mut watch, config, options, speed)?;
+
+    // Every joint to both software limits and back.
+    let reached = sweep_soft_limits(&mut robot, &mut watch, config, speed)?;
+
+    let cycles = robot.cycles();
+    let seconds = robot.now();
+    let arms = arm_reports(config, &robot, &watch, inputs, searches, &reached);
+    robot.shutdown()?;
+    Ok(ConsoleHomingReport {
+        arms,
+        cycles,
+        seconds,
+    })
+}
+
+/// The console's digital inputs as it reads them: each input's arm, name
+/// and whether it is pressed.
+fn console_inputs(
+    config: &IoConfig,
+    robot: &Robot<IoSystem<SimPort>>,
+) -> Vec<(usize, String, bool)> {
     // The inputs as the console reads them: DIGIN through the
     // configuration's rule (`pressed_value`), as sawRobotIO1394 does.
-    let inputs: Vec<(usize, String, bool)> = config
+    config
         .digital_inputs
         .iter()
         .flatten()
@@ -364,15 +395,18 @@ pub fn run_console_homing(
                 .find(|b| b.board_id() == d.board_id)?;
             Some((arm, d.name.clone(), d.is_pressed(board.digital_in().raw())))
         })
-        .collect();
-    robot.power_on()?;
-    robot.home()?;
-    watch.homed = true;
-    robot.activate()?;
-    let speed = options.speed.clamp(0.01, 1.0);
+        .collect()
+}
 
-    // Stop searches first, as the console calibrates the MTM roll before
-    // the arm's homing move.
+/// Search every stop-search joint's hard stop and return it home, keeping
+/// each search's record with its arm's index.
+fn search_stops(
+    robot: &mut Robot<IoSystem<SimPort>>,
+    watch: &mut Watch,
+    config: &IoConfig,
+    options: &ConsoleHomingOptions,
+    speed: f64,
+) -> Result<Vec<(usize, StopSearchRecord)>, TestbedError> {
     let mut searches: Vec<(usize, StopSearchRecord)> = Vec::new();
     let search_joints: Vec<usize> = robot.stop_search_joints().collect();
     for i in search_joints {
@@ -386,14 +420,14 @@ pub fn run_console_homing(
             None => (0, false),
         };
         let true_position = watch
-            .axis(&robot, i)
+            .axis(robot, i)
             .map_or(f64::NAN, firelink_board::plant::Axis::joint_position);
         let home = j
             .actuator
             .simulation
             .and_then(|s| s.homing)
             .map_or(0.0, |h| h.position);
-        move_to(&mut robot, &mut watch, config, i, home, speed)?;
+        move_to(robot, watch, config, i, home, speed)?;
         searches.push((
             j.robot_index,
             StopSearchRecord {
@@ -414,8 +448,18 @@ pub fn run_console_homing(
         ));
     }
 
-    // Every joint to both software limits and back.
-    let mut reached = vec![(f64::NAN, f64::NAN); n];
+    Ok(searches)
+}
+
+/// Move every joint to both software limits and back home; the positions
+/// reached at (lower, upper), per joint.
+fn sweep_soft_limits(
+    robot: &mut Robot<IoSystem<SimPort>>,
+    watch: &mut Watch,
+    config: &IoConfig,
+    speed: f64,
+) -> Result<Vec<(f64, f64)>, TestbedError> {
+    let mut reached = vec![(f64::NAN, f64::NAN); robot.joint_count()];
     for j in config.joints() {
         let i = j.index;
         let soft = j.actuator.encoder.position_limits_soft;
@@ -424,17 +468,28 @@ pub fn run_console_homing(
             .simulation
             .and_then(|s| s.homing)
             .map_or(robot.position(i).unwrap_or(0.0), |h| h.position);
-        move_to(&mut robot, &mut watch, config, i, soft.lower, speed)?;
+        move_to(robot, watch, config, i, soft.lower, speed)?;
         let lower = robot.position(i).unwrap_or(f64::NAN);
-        move_to(&mut robot, &mut watch, config, i, home, speed)?;
-        move_to(&mut robot, &mut watch, config, i, soft.upper, speed)?;
+        move_to(robot, watch, config, i, home, speed)?;
+        move_to(robot, watch, config, i, soft.upper, speed)?;
         let upper = robot.position(i).unwrap_or(f64::NAN);
-        move_to(&mut robot, &mut watch, config, i, home, speed)?;
+        move_to(robot, watch, config, i, home, speed)?;
         reached[i] = (lower, upper);
     }
 
-    let cycles = robot.cycles();
-    let seconds = robot.now();
+    Ok(reached)
+}
+
+/// The per-arm report: the inputs, each joint's pot and limit figures, the
+/// stop searches.
+fn arm_reports(
+    config: &IoConfig,
+    robot: &Robot<IoSystem<SimPort>>,
+    watch: &Watch,
+    inputs: Vec<(usize, String, bool)>,
+    searches: Vec<(usize, StopSearchRecord)>,
+    reached: &[(f64, f64)],
+) -> Vec<ArmHoming> {
     let mut arms: Vec<ArmHoming> = config
         .robots
         .iter()
@@ -456,7 +511,7 @@ pub fn run_console_homing(
         let tolerance = j.potentiometer_tolerance().map_or(0.0, |t| t.distance);
         let stops =
             watch
-                .axis(&robot, i)
+                .axis(robot, i)
                 .map(|a| a.params().stops)
                 .map_or((f64::NAN, f64::NAN), |s| {
                     (
@@ -484,12 +539,7 @@ pub fn run_console_homing(
             a.stop_searches.push(record);
         }
     }
-    robot.shutdown()?;
-    Ok(ConsoleHomingReport {
-        arms,
-        cycles,
-        seconds,
-    })
+    arms
 }
 
 /// Move joint `i` to `target` with a trapezoidal profile at `speed` times

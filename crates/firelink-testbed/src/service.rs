@@ -799,83 +799,10 @@ fn execute<P: Injector>(
             .clear_fault()
             .map(|r| format!("cleared: {r}"))
             .map_err(runner),
-        Command::Relay(true) => {
-            if let Some(r) = power_refusal(robot, "relay on") {
-                return Err(r);
-            }
-            for b in robot.io_mut().boards_mut() {
-                if robot_boards.contains(b.board_id()) {
-                    b.set_relay(true);
-                }
-            }
-            let closed = |r: &Robot<IoSystem<P>>| {
-                boards_not(r, robot_boards, firelink_host::board::BoardIo::relay_on) == 0
-            };
-            if !settle(robot, shared, options, closed) {
-                let open = boards_not(robot, robot_boards, firelink_host::board::BoardIo::relay_on);
-                return Err(failed(format!(
-                    "the relay of boards {} did not report closed",
-                    board_list(open)
-                )));
-            }
-            Ok(format!(
-                "relay closed at boards {}",
-                board_list(robot_boards.0)
-            ))
-        }
-        Command::Relay(false) => {
-            for b in robot.io_mut().boards_mut() {
-                b.set_relay(false);
-            }
-            let all = all_boards(robot);
-            let open = |r: &Robot<IoSystem<P>>| boards_not(r, all, |b| !b.relay_on()) == 0;
-            if !settle(robot, shared, options, open) {
-                let closed = boards_not(robot, all, |b| !b.relay_on());
-                return Err(failed(format!(
-                    "boards {} did not report their relay open (or did not answer)",
-                    board_list(closed)
-                )));
-            }
-            Ok(format!("relay open at boards {}", board_list(all.0)))
-        }
-        Command::Amplifiers(true) => {
-            if let Some(r) = power_refusal(robot, "amplifiers on") {
-                return Err(r);
-            }
-            robot
-                .enable_amplifiers_observed(&mut |r| publish(shared, r, None))
-                .map_err(|e| match runner(e) {
-                    Refusal(Verdict::Refused, why) => refused(format!(
-                        "amplifiers on needs motor power (power on first): {why}"
-                    )),
-                    other => other,
-                })?;
-            Ok(format!(
-                "amplifiers on for the {} axes the joints use, at boards {}; the other axes stay off",
-                robot.joint_count(),
-                board_list(robot_boards.0)
-            ))
-        }
-        Command::Amplifiers(false) => {
-            for b in robot.io_mut().boards_mut() {
-                b.set_all_amps(false);
-            }
-            let all = all_boards(robot);
-            let any_on =
-                |b: &firelink_host::board::BoardIo| (0..b.axes()).any(|a| b.amp_enabled(a));
-            let off = |r: &Robot<IoSystem<P>>| boards_not(r, all, |b| !any_on(b)) == 0;
-            if !settle(robot, shared, options, off) {
-                let on = boards_not(robot, all, |b| !any_on(b));
-                return Err(failed(format!(
-                    "boards {} still report an amplifier on (or did not answer)",
-                    board_list(on)
-                )));
-            }
-            Ok(format!(
-                "every amplifier off at boards {}",
-                board_list(all.0)
-            ))
-        }
+        Command::Relay(true) => relay_on(robot, shared, options, robot_boards),
+        Command::Relay(false) => relay_off(robot, shared, options),
+        Command::Amplifiers(true) => amplifiers_on(robot, shared, robot_boards),
+        Command::Amplifiers(false) => amplifiers_off(robot, shared, options),
         Command::Watchdog(period) => robot
             .io_mut()
             .set_watchdog(period)
@@ -944,6 +871,107 @@ fn execute<P: Injector>(
             Ok(String::new())
         }
     }
+}
+
+/// Close the relay of the robot's boards and wait until they report it closed.
+fn relay_on<P: Injector>(
+    robot: &mut Robot<IoSystem<P>>,
+    shared: &Shared,
+    options: &LoopOptions,
+    robot_boards: BoardSet,
+) -> Result<String, Refusal> {
+    if let Some(r) = power_refusal(robot, "relay on") {
+        return Err(r);
+    }
+    for b in robot.io_mut().boards_mut() {
+        if robot_boards.contains(b.board_id()) {
+            b.set_relay(true);
+        }
+    }
+    let closed = |r: &Robot<IoSystem<P>>| {
+        boards_not(r, robot_boards, firelink_host::board::BoardIo::relay_on) == 0
+    };
+    if !settle(robot, shared, options, closed) {
+        let open = boards_not(robot, robot_boards, firelink_host::board::BoardIo::relay_on);
+        return Err(failed(format!(
+            "the relay of boards {} did not report closed",
+            board_list(open)
+        )));
+    }
+    Ok(format!(
+        "relay closed at boards {}",
+        board_list(robot_boards.0)
+    ))
+}
+
+/// Open the relay of every board and wait until they report it open.
+fn relay_off<P: Injector>(
+    robot: &mut Robot<IoSystem<P>>,
+    shared: &Shared,
+    options: &LoopOptions,
+) -> Result<String, Refusal> {
+    for b in robot.io_mut().boards_mut() {
+        b.set_relay(false);
+    }
+    let all = all_boards(robot);
+    let open = |r: &Robot<IoSystem<P>>| boards_not(r, all, |b| !b.relay_on()) == 0;
+    if !settle(robot, shared, options, open) {
+        let closed = boards_not(robot, all, |b| !b.relay_on());
+        return Err(failed(format!(
+            "boards {} did not report their relay open (or did not answer)",
+            board_list(closed)
+        )));
+    }
+    Ok(format!("relay open at boards {}", board_list(all.0)))
+}
+
+/// Turn on the amplifiers of the axes the joints use, watched cycle by cycle.
+fn amplifiers_on<P: Injector>(
+    robot: &mut Robot<IoSystem<P>>,
+    shared: &Shared,
+    robot_boards: BoardSet,
+) -> Result<String, Refusal> {
+    if let Some(r) = power_refusal(robot, "amplifiers on") {
+        return Err(r);
+    }
+    robot
+        .enable_amplifiers_observed(&mut |r| publish(shared, r, None))
+        .map_err(|e| match runner(e) {
+            Refusal(Verdict::Refused, why) => refused(format!(
+                "amplifiers on needs motor power (power on first): {why}"
+            )),
+            other => other,
+        })?;
+    Ok(format!(
+        "amplifiers on for the {} axes the joints use, at boards {}; the other axes stay off",
+        robot.joint_count(),
+        board_list(robot_boards.0)
+    ))
+}
+
+/// Turn every amplifier off and wait until every board reports them off.
+fn amplifiers_off<P: Injector>(
+    robot: &mut Robot<IoSystem<P>>,
+    shared: &Shared,
+    options: &LoopOptions,
+) -> Result<String, Refusal> {
+    for b in robot.io_mut().boards_mut() {
+        b.set_all_amps(false);
+    }
+    let all = all_boards(robot);
+    let any_on = |b: &firelink_host::board::BoardIo| (0..b.axes()).any(|a| b.amp_enabled(a));
+    let off = |r: &Robot<IoSystem<P>>| boards_not(r, all, |b| !any_on(b)) == 0;
+    if !settle(robot, shared, options, off) {
+        let on = boards_not(robot, all, |b| !any_on(b));
+        return Err(failed(format!(
+            "boards {} still report an amplifier on (or did not answer)",
+            board_list(on)
+        )));
+    }
+    Ok(format!(
+        "every amplifier off at boards {}",
+        board_list(all.0)
+    ))
 }
 
 /// Motion commands need an Active robot whose joints are homed.

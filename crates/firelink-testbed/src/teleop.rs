@@ -536,9 +536,9 @@ pub fn run_teleop(options: &TeleopOptions) -> Result<TeleopReport, TestbedError>
     }
 }
 
-fn session(s: &mut Session, options: &TeleopOptions) -> Result<TeleopReport, TestbedError> {
-    // 1. The console's bring-up: power, bias from the pots, the MTM roll
-    //    against its stop, both arms to a working pose.
+/// The console's bring-up: power, bias from the pots, the MTM roll against
+/// its stop, both arms to a working pose. The gripper's reading at rest.
+fn bring_up(s: &mut Session) -> Result<f64, TestbedError> {
     s.robot.configure()?;
     s.robot.power_on()?;
     s.robot.home()?;
@@ -551,10 +551,16 @@ fn session(s: &mut Session, options: &TeleopOptions) -> Result<TeleopReport, Tes
     s.move_actuators(0, &mtm_actuators(&MTM_START), 0.5)?;
     let (q, jaw) = PSM_START;
     s.move_actuators(PSM0, &psm_actuators(&q, jaw), 0.5)?;
+    Ok(gripper_at_rest)
+}
 
-    // 2. Enable: align the MTM to the PSM; the hand pinches to say it is
-    //    there.
-    let mut teleop = Teleop::new(TeleopSettings::default());
+/// Enable teleoperation and align the MTM to the PSM, the hand pinching to
+/// say it is there: the alignment error when enabled (degrees), the
+/// seconds it took and the MTM's joint goal it leaves.
+fn enable_and_align(
+    s: &mut Session,
+    teleop: &mut Teleop,
+) -> Result<(f64, f64, [f64; MTM_JOINTS]), TestbedError> {
     teleop.enable();
     let enable_at = s.robot.now();
     let mut mtm_goal_q = mtm_joints(&s.actuators::<MTM_JOINTS>(0, true));
@@ -592,6 +598,87 @@ fn session(s: &mut Session, options: &TeleopOptions) -> Result<TeleopReport, Tes
         s.step()?;
     };
     let alignment_seconds = s.robot.now() - enable_at;
+    Ok((aligned_within, alignment_seconds, mtm_goal_q))
+}
+
+/// Servo the MTM towards `goal` through its inverse kinematics (the goal
+/// kept when unreachable), velocities from the last actuator positions.
+/// Whether the goal was reachable.
+fn servo_mtm(
+    s: &mut Session,
+    goal: &Frame,
+    mtm_goal_q: &mut [f64; MTM_JOINTS],
+    last_mtm_a: &mut [f64; MTM_JOINTS],
+) -> Result<bool, TestbedError> {
+    let reachable = match mtm_inverse(goal, mtm_goal_q) {
+        Ok(q) => {
+            *mtm_goal_q = q;
+            true
+        }
+        Err(_) => false,
+    };
+    let a = mtm_actuators(mtm_goal_q);
+    let v: [f64; MTM_JOINTS] = std::array::from_fn(|i| (a[i] - last_mtm_a[i]) / s.period);
+    *last_mtm_a = a;
+    s.servo(0, &a, &v)?;
+    Ok(reachable)
+}
+
+/// Hold the PSM where its setpoint is: the pose held and the actuator
+/// positions.
+fn hold_psm(s: &mut Session) -> Result<(Frame, [f64; PSM_ACTUATORS]), TestbedError> {
+    let (_, _, f) = s.psm(true);
+    let hold = s.actuators::<PSM_ACTUATORS>(PSM0, true);
+    for (i, p) in hold.iter().enumerate() {
+        s.robot.set_motion(PSM0 + i, Motion::Hold(*p))?;
+    }
+    Ok((f, hold))
+}
+
+/// Servo the PSM towards `goal` with `jaw` through its inverse kinematics
+/// (the goal kept when unreachable). Whether the goal was reachable.
+fn servo_psm(
+    s: &mut Session,
+    goal: &Frame,
+    jaw: f64,
+    psm_goal_q: &mut [f64; PSM_JOINTS],
+    last_psm_a: &mut [f64; PSM_ACTUATORS],
+) -> Result<bool, TestbedError> {
+    let reachable = match psm_inverse(goal, psm_goal_q) {
+        Ok(q) => {
+            *psm_goal_q = q;
+            true
+        }
+        Err(_) => false,
+    };
+    let a = psm_actuators(psm_goal_q, jaw);
+    let v: [f64; PSM_ACTUATORS] = std::array::from_fn(|i| (a[i] - last_psm_a[i]) / s.period);
+    *last_psm_a = a;
+    s.servo(PSM0, &a, &v)?;
+    Ok(reachable)
+}
+
+/// Where the hand has carried the MTM `progress` (0 to 1) of the way
+/// through the clutch's `travel`, on a smooth-step.
+fn clutch_offset_at(progress: f64, travel: [f64; 3]) -> [f64; 3] {
+    let x = progress.clamp(0.0, 1.0);
+    let smooth = x * x * (3.0 - 2.0 * x);
+    let mut offset = [0.0; 3];
+    for (o, d) in offset.iter_mut().zip(travel) {
+        *o = smooth * d;
+    }
+    offset
+}
+
+fn session(s: &mut Session, options: &TeleopOptions) -> Result<TeleopReport, TestbedError> {
+    // 1. The console's bring-up: power, bias from the pots, the MTM roll
+    //    against its stop, both arms to a working pose.
+    let gripper_at_rest = bring_up(s)?;
+
+    // 2. Enable: align the MTM to the PSM; the hand pinches to say it is
+    //    there.
+    let mut teleop = Teleop::new(TeleopSettings::default());
+    let (aligned_within, alignment_seconds, mut mtm_goal_q) = enable_and_align(s, &mut teleop)?;
 
     // 3. Following, with the clutch half-way.
     let hand = HandMotion::new(options.seed);
@@ -627,11 +714,7 @@ fn session(s: &mut Session, options: &TeleopOptions) -> Result<TeleopReport, Tes
         let t = k as f64 * s.period;
         let clutched = (clutch_at..clutch_at + clutch_for).contains(&t);
         if clutched {
-            let x = ((t - clutch_at) / clutch_for).clamp(0.0, 1.0);
-            let smooth = x * x * (3.0 - 2.0 * x);
-            for (o, d) in clutch_offset.iter_mut().zip(clutch_travel) {
-                *o = smooth * d;
-            }
+            clutch_offset = clutch_offset_at((t - clutch_at) / clutch_for, clutch_travel);
         } else {
             hand_t += s.period;
         }
@@ -642,42 +725,24 @@ fn session(s: &mut Session, options: &TeleopOptions) -> Result<TeleopReport, Tes
             Rotation::from_rotation_vector(h.rotation) * grip_base.rotation,
             add(add(grip_base.translation, h.translation), clutch_offset),
         );
-        match mtm_inverse(&goal, &mtm_goal_q) {
-            Ok(q) => mtm_goal_q = q,
-            Err(_) => mtm_unreachable += 1,
-        }
-        let a = mtm_actuators(&mtm_goal_q);
-        let v: [f64; MTM_JOINTS] = std::array::from_fn(|i| (a[i] - last_mtm_a[i]) / s.period);
-        last_mtm_a = a;
-        s.servo(0, &a, &v)?;
+        mtm_unreachable += u32::from(!servo_mtm(s, &goal, &mut mtm_goal_q, &mut last_mtm_a)?);
         s.pinch(Some(h.gripper));
 
         // The console's teleoperation.
         let input = teleop_input(s, t, clutched);
         let c = teleop.update(&input);
         if c.psm_hold {
-            let (_, _, f) = s.psm(true);
+            let (f, hold) = hold_psm(s)?;
             held = Some(f);
-            let hold = s.actuators::<PSM_ACTUATORS>(PSM0, true);
-            for (i, p) in hold.iter().enumerate() {
-                s.robot.set_motion(PSM0 + i, Motion::Hold(*p))?;
-            }
             last_psm_a = hold;
         }
         if let Some(goal) = c.psm {
             if let (Some(h), true) = (held.take(), teleop.times_enabled() > 1) {
                 resume_jump = norm(sub(goal.translation, h.translation)) * 1e3;
             }
-            match psm_inverse(&goal, &psm_goal_q) {
-                Ok(q) => psm_goal_q = q,
-                Err(_) => psm_unreachable += 1,
-            }
             let jaw = c.jaw.unwrap_or(input.psm_jaw);
-            let a = psm_actuators(&psm_goal_q, jaw);
-            let v: [f64; PSM_ACTUATORS] =
-                std::array::from_fn(|i| (a[i] - last_psm_a[i]) / s.period);
-            last_psm_a = a;
-            s.servo(PSM0, &a, &v)?;
+            let reached = servo_psm(s, &goal, jaw, &mut psm_goal_q, &mut last_psm_a)?;
+            psm_unreachable += u32::from(!reached);
             last_psm_goal = Some(goal);
         }
         if c.state == TeleopState::Aligning {
