@@ -12,7 +12,7 @@ use serde::Serialize;
 use firelink_board::mahru::ModuleNode;
 use firelink_control::runner::Percentiles;
 use firelink_host::Port;
-use firelink_host::mahru::{MotionController, MotionError};
+use firelink_host::mahru::{MotionController, MotionError, RobotLayout};
 use firelink_host::sim::SimPort;
 use firelink_wire::mahru::{ModuleKind, ModuleState};
 
@@ -456,51 +456,15 @@ pub fn run_mahru_demo(
     let stopped_cleanly = all_stopped(&mut r.controller, &r.modules);
     let stats = r.controller.stats();
     let layout = r.controller.layout().clone();
-    let modules = layout
-        .modules
-        .iter()
-        .enumerate()
-        .map(|(i, spec)| {
-            let placed = r.modules.iter().find(|m| m.mod_id == spec.mod_id);
-            let (rms, max) = match tracking[i] {
-                (sq, max, k) if k > 0 => (Some((sq / k as f64).sqrt() * 1e-3), Some(max * 1e-3)),
-                _ => (None, None),
-            };
-            ModuleReport {
-                mod_id: spec.mod_id.0,
-                name: spec.name.clone(),
-                kind: if spec.kind == ModuleKind::ForceTorque {
-                    "force_torque"
-                } else {
-                    "motor"
-                },
-                chain: placed.map_or(0, |m| m.chain),
-                hops: placed.map_or(0, |m| m.hops),
-                node: r.controller.nodes().get(i).copied().flatten(),
-                read_us: Stat::of(&mut reads[i]),
-                tracking_rms_mrad: rms.map(|x| (x * 1000.0).round() / 1000.0),
-                tracking_max_mrad: max.map(|x| (x * 1000.0).round() / 1000.0),
-            }
-        })
-        .collect();
+    let modules = module_reports(
+        &layout,
+        &r.modules,
+        r.controller.nodes(),
+        &mut reads,
+        &tracking,
+    );
     let round = |x: f64| (x * 1000.0).round() / 1000.0;
-    let force_torque = layout
-        .modules
-        .iter()
-        .enumerate()
-        .filter(|(_, m)| m.kind == ModuleKind::ForceTorque)
-        .map(|(i, m)| {
-            let s = &ft[i];
-            FtReport {
-                mod_id: m.mod_id.0,
-                name: m.name.clone(),
-                mean: s.sum.map(|x| round(x / s.count.max(1) as f64)),
-                min: s.min.map(round),
-                max: s.max.map(round),
-                first: s.first.unwrap_or_default().map(round),
-            }
-        })
-        .collect();
+    let force_torque = force_torque_reports(&layout, &ft);
     let missed = stats.missed;
     let errors = MahruErrors {
         missed,
@@ -536,6 +500,68 @@ pub fn run_mahru_demo(
         errors,
         fastest,
     })
+}
+
+/// Each module's line of the report: where it sits, its read times and
+/// how closely it tracked (`tracking[i]`: squared-error sum, largest
+/// error, samples, in urad).
+fn module_reports(
+    layout: &RobotLayout,
+    placed: &[PlacedModule],
+    nodes: &[Option<u8>],
+    reads: &mut [Vec<f32>],
+    tracking: &[(f64, f64, u64)],
+) -> Vec<ModuleReport> {
+    let milli = |x: f64| (x * 1000.0).round() / 1000.0;
+    layout
+        .modules
+        .iter()
+        .enumerate()
+        .map(|(i, spec)| {
+            let placed = placed.iter().find(|m| m.mod_id == spec.mod_id);
+            let (rms, max) = match tracking[i] {
+                (sq, max, k) if k > 0 => (Some((sq / k as f64).sqrt() * 1e-3), Some(max * 1e-3)),
+                _ => (None, None),
+            };
+            ModuleReport {
+                mod_id: spec.mod_id.0,
+                name: spec.name.clone(),
+                kind: if spec.kind == ModuleKind::ForceTorque {
+                    "force_torque"
+                } else {
+                    "motor"
+                },
+                chain: placed.map_or(0, |m| m.chain),
+                hops: placed.map_or(0, |m| m.hops),
+                node: nodes.get(i).copied().flatten(),
+                read_us: Stat::of(&mut reads[i]),
+                tracking_rms_mrad: rms.map(milli),
+                tracking_max_mrad: max.map(milli),
+            }
+        })
+        .collect()
+}
+
+/// Each force/torque sensor's readings over the run (to 1/1000).
+fn force_torque_reports(layout: &RobotLayout, ft: &[FtAccum]) -> Vec<FtReport> {
+    let round = |x: f64| (x * 1000.0).round() / 1000.0;
+    layout
+        .modules
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.kind == ModuleKind::ForceTorque)
+        .map(|(i, m)| {
+            let s = &ft[i];
+            FtReport {
+                mod_id: m.mod_id.0,
+                name: m.name.clone(),
+                mean: s.sum.map(|x| round(x / s.count.max(1) as f64)),
+                min: s.min.map(round),
+                max: s.max.map(round),
+                first: s.first.unwrap_or_default().map(round),
+            }
+        })
+        .collect()
 }
 
 /// From the largest work seen, in 10 us steps: the first period at which
