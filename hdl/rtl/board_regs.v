@@ -174,7 +174,11 @@ module board_regs #(
 
     generate
         for (g = 0; g < 4; g = g + 1) begin : words
-            wire [32:0] count = {enc_raw[32*g+31], enc_raw[32*g +: 32]} + offset[g];
+            // The count, registered: a sensor reaches the words one clock
+            // after it changes (the QLA's inputs are registers too).
+            reg  [32:0] count;
+            always @(posedge clk)
+                count <= {enc_raw[32*g+31], enc_raw[32*g +: 32]} + offset[g];
             wire        out_of_range = count[32] || (count[31:24] != 8'd0);
             assign adc_word[32*g +: 32] = adc[32*g +: 32];
             assign pos_word[32*g +: 32] = {1'b0, enc_index[g], enc_b[g], enc_a[g],

@@ -107,7 +107,7 @@ module firelink_node #(
     wire        rxb_we;
     wire [9:0]  rxb_waddr, rxb_raddr;
     wire [31:0] rxb_wdata, rxb_rdata;
-    sdp_ram #(.WIDTH(32), .DEPTH(1024), .ADDR_BITS(10)) rx_buffer (
+    sdp_ram #(.WIDTH(32), .DEPTH(1024), .ADDR_BITS(10), .OUT_REG(1)) rx_buffer (
         .clk(clk), .wr_en(rxb_we), .wr_addr(rxb_waddr), .wr_data(rxb_wdata),
         .rd_addr(rxb_raddr), .rd_data(rxb_rdata));
 
@@ -222,7 +222,7 @@ module firelink_node #(
     wire [5:0]  snap_waddr, snap_pl_addr;
     wire [31:0] snap_wdata;
     wire        bc_active;
-    sdp_ram #(.WIDTH(32), .DEPTH(64), .ADDR_BITS(6)) snapshot (
+    sdp_ram #(.WIDTH(32), .DEPTH(64), .ADDR_BITS(6), .OUT_REG(1)) snapshot (
         .clk(clk), .wr_en(snap_we), .wr_addr(snap_waddr), .wr_data(snap_wdata),
         .rd_addr((hub_src_sel && hub_src_active) ? hub_src_addr[5:0] : snap_pl_addr),
         .rd_data(snap_rdata));

@@ -10,7 +10,7 @@
 // valid/ready stream for phy_data_tx, which sends them at S400.
 //
 // Payload source: the framer raises pl_rd with pl_index; the quadlet must
-// be on pl_data exactly two clocks later. Each quadlet is asked for
+// be on pl_data exactly three clocks later. Each quadlet is asked for
 // at least four clocks before it is needed, so the bytes never stall.
 `default_nettype none
 
@@ -54,7 +54,7 @@ module link_tx (
     reg [2:0]  hq;
     reg [9:0]  dq;
     reg [31:0] pf;         // prefetched payload quadlet
-    reg [1:0]  pending;    // payload reads in flight, by age
+    reg [2:0]  pending;    // payload reads in flight, by age
 
     assign job_ready = (phase == P_IDLE);
     assign tx_valid  = (phase != P_IDLE);
@@ -88,7 +88,7 @@ module link_tx (
             hi      <= 3'd0;
             di      <= 10'd0;
             crc     <= 32'hFFFF_FFFF;
-            pending <= 2'b00;
+            pending <= 3'b000;
             pf      <= 32'd0;
             pl_index <= 10'd0;
             pkt_after_ack <= 1'b0;
@@ -96,8 +96,8 @@ module link_tx (
             hq <= 3'd4; dq <= 10'd0;
         end else begin
             // Payload reads in flight: capture the data when it is due.
-            pending <= {pending[0], 1'b0};
-            if (pending[1]) pf <= pl_data;
+            pending <= {pending[1:0], 1'b0};
+            if (pending[2]) pf <= pl_data;
             if (phase == P_IDLE) begin
                 if (job_valid) begin
                     h0 <= job_h0; h1 <= job_h1; h2 <= job_h2; h3 <= job_h3;

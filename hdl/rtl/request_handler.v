@@ -29,7 +29,7 @@
 // - A packet for this node that arrives while an earlier one still keeps
 //   the handler busy is answered ack_busy_X by link_ctrl and dropped here
 //   (drop_early): the requester sends it again.
-// Response payload quadlets come from the payload port two clocks after
+// Response payload quadlets come from the payload port three clocks after
 // the framer asks (registers, real-time block, hub, or the broadcast
 // snapshot while the status broadcast goes out).
 `default_nettype none
@@ -52,7 +52,7 @@ module request_handler (
     input  wire [31:0] pkt_time,
     input  wire        drop_early,    // the link answered it busy: ignore it
     input  wire        snap_busy,
-    // Receive buffer read (data one clock after the address).
+    // Receive buffer read (data two clocks after the address).
     output reg  [9:0]  rxb_addr,
     input  wire [31:0] rxb_data,
     // Register file.
@@ -120,12 +120,12 @@ module request_handler (
     localparam [3:0] RC_COMPLETE = 4'h0, RC_TYPE_ERROR = 4'h6,
                      RC_ADDRESS_ERROR = 4'h7;
     localparam [1:0] K_NONE = 2'd0, K_ACK = 2'd1, K_RESP = 2'd2;
-    localparam [2:0] S_IDLE = 3'd0, S_DECIDE = 3'd1, S_RQ_HUB = 3'd2,
-                     S_BLKWR = 3'd3, S_QUERY_RD = 3'd4, S_STORE = 3'd5,
-                     S_SLICE = 3'd6, S_QUERY_TAKE = 3'd7;
+    localparam [3:0] S_IDLE = 4'd0, S_DECIDE = 4'd1, S_RQ_HUB = 4'd2,
+                     S_BLKWR = 4'd3, S_QUERY_RD = 4'd4, S_STORE = 4'd5,
+                     S_SLICE = 4'd6, S_QUERY_TAKE = 4'd7, S_RQ_WAIT = 4'd8;
     localparam [1:0] P_RT = 2'd0, P_ADDR = 2'd1;
 
-    reg  [2:0]  state;
+    reg  [3:0]  state;
     // q0's rt and pri fields are not used.
     /* verilator lint_off UNUSEDSIGNAL */
     reg  [31:0] q0;
@@ -171,34 +171,50 @@ module request_handler (
     reg  [1:0]  pl_src;
     reg  [15:0] pl_base;
     reg  [31:0] pl_time;
-    // The framer's request addresses the sources in its own clock; the
-    // word is registered (block RAMs register theirs): data on the second
-    // clock.
-    wire        p1_valid = pl_rd;
-    wire [9:0]  p1_index = pl_index;
+    // Three stages from the framer's request (its pl_rd, pl_index are
+    // registers) to the word on pl_data:
+    // 1. the register address is worked out (base + index, or the
+    //    real-time block's register for the index) and registered; the
+    //    block RAMs (hub memory, snapshot) take their address;
+    // 2. the register file is read and the word registered, while the
+    //    block RAMs register theirs;
+    // 3. pl_data selects the word (the block RAMs' second register).
+    reg         p1_valid, p1_snapshot, p1_rt, p1_hub;
+    reg  [15:0] p1_regs_addr;   // the register read for it
+    reg         p1_stamp, p1_zero;
+    reg  [31:0] p1_extra;
     reg  [1:0]  p2_sel;     // 0 real-time, 1 registers, 2 hub, 3 snapshot
     reg  [31:0] p2_word;
-    wire [15:0] p1_addr = pl_base + {6'd0, p1_index};
+    wire [15:0] next_addr = pl_base + {6'd0, pl_index};
     reg  [15:0] rq_addr;
     reg         rq_read;
     always @(posedge clk) begin
-        if (pl_snapshot)               p2_sel <= 2'd3;
-        else if (pl_src == P_RT)       p2_sel <= 2'd0;
-        else if (p1_addr[15:12] == 4'h1) p2_sel <= 2'd2;
-        else                           p2_sel <= 2'd1;
-        p2_word <= (pl_src != P_RT) ? regs_rd_data :
-                   rt_stamp ? rt_timestamp : (rt_zero ? 32'd0 : regs_rd_data | rt_extra);
+        p1_valid     <= pl_rd;
+        p1_snapshot  <= pl_snapshot;
+        p1_rt        <= (pl_src == P_RT);
+        p1_hub       <= (next_addr[15:12] == 4'h1);
+        p1_regs_addr <= (pl_src == P_RT) ? rt_addr : next_addr;
+        p1_stamp     <= rt_stamp;
+        p1_zero      <= rt_zero;
+        p1_extra     <= rt_extra;
+        if (p1_snapshot)   p2_sel <= 2'd3;
+        else if (p1_rt)    p2_sel <= 2'd0;
+        else if (p1_hub)   p2_sel <= 2'd2;
+        else               p2_sel <= 2'd1;
+        p2_word <= !p1_rt ? regs_rd_data :
+                   p1_stamp ? rt_timestamp :
+                   (p1_zero ? 32'd0 : regs_rd_data | p1_extra);
     end
     assign pl_data       = (p2_sel == 2'd3) ? snap_rd_data :
                            (p2_sel == 2'd2) ? hub_rd_data : p2_word;
-    assign snap_rd_addr  = p1_index[5:0];
-    assign rt_index      = p1_index;
-    wire   payload_reg_read = p1_valid && !pl_snapshot && pl_src == P_ADDR;
-    wire   payload_rt_read  = p1_valid && !pl_snapshot && pl_src == P_RT;
-    assign regs_rd_addr  = payload_reg_read ? p1_addr :
-                           (payload_rt_read ? rt_addr : rq_addr);
-    assign regs_rd_strobe = (payload_reg_read && p1_addr[15:12] != 4'h1) || rq_read;
-    assign hub_rd_addr   = payload_reg_read ? p1_addr : rq_addr;
+    assign snap_rd_addr  = pl_index[5:0];
+    assign rt_index      = pl_index;
+    wire   payload_read     = p1_valid && !p1_snapshot;
+    wire   payload_reg_read = payload_read && !p1_rt;
+    wire   payload_hub_read = pl_rd && !pl_snapshot && pl_src == P_ADDR;
+    assign regs_rd_addr  = payload_read ? p1_regs_addr : rq_addr;
+    assign regs_rd_strobe = (payload_reg_read && !p1_hub) || rq_read;
+    assign hub_rd_addr   = payload_hub_read ? next_addr : rq_addr;
     assign hub_rd_time   = pl_time;
 
     // ---- receive buffer read mux -------------------------------------------
@@ -206,6 +222,8 @@ module request_handler (
     reg [9:0] blk_n;
     reg       blk_d;        // a quadlet read last clock
     reg [9:0] blk_kd;
+    reg       blk_d2;       // ... two clocks ago: its data is here
+    reg [9:0] blk_kd2;
     always @* begin
         case (state)
             S_SLICE:  rxb_addr = {slot, sl_rd_addr};
@@ -234,6 +252,7 @@ module request_handler (
             pl_src <= P_RT; pl_base <= 16'd0; pl_time <= 32'd0;
             rq_addr <= 16'd0;
             blk_k <= 10'd0; blk_n <= 10'd0; blk_d <= 1'b0; blk_kd <= 10'd0;
+            blk_d2 <= 1'b0; blk_kd2 <= 10'd0;
             reply_kind <= K_NONE; reply_ack <= 4'd0; reply_data_quads <= 10'd0;
             reply_h0 <= 32'd0; reply_h1 <= 32'd0; reply_h2 <= 32'd0; reply_h3 <= 32'd0;
             wr_addr <= 16'd0; wr_data <= 32'd0; wr_time <= 32'd0;
@@ -311,7 +330,7 @@ module request_handler (
                         if (addr16[15:12] == 4'h1) begin
                             // Hub quadlets come from the hub's read port.
                             reply_valid <= 1'b0;
-                            state       <= S_RQ_HUB;
+                            state       <= S_RQ_WAIT;
                         end else begin
                             rq_read <= 1'b1;
                         end
@@ -360,10 +379,12 @@ module request_handler (
                             blk_k <= 10'd0;
                             blk_n <= (dlen[15:11] != 5'd0) ? 10'd512 : {1'b0, dlen[10:2]};
                             blk_d <= 1'b0;
+                            blk_d2 <= 1'b0;
                             state <= S_BLKWR;
                         end
                     end
                 end
+                S_RQ_WAIT: state <= S_RQ_HUB;   // the hub reads rq_addr
                 S_RQ_HUB: begin
                     // hub_rd_data answers rq_addr now.
                     reply_valid <= early;
@@ -372,7 +393,7 @@ module request_handler (
                 end
                 // A query in the first quadlet of a block write: the buffer
                 // reads quadlet 0 (address set since the decision), its data
-                // is there one clock later.
+                // is there two clocks later.
                 S_QUERY_RD: state <= S_QUERY_TAKE;
                 S_QUERY_TAKE: begin
                     query_valid <= 1'b1;
@@ -386,16 +407,18 @@ module request_handler (
                 end
                 S_SLICE: if (!sl_start && !sl_busy) state <= S_IDLE;
                 S_BLKWR: begin
-                    blk_d  <= (blk_k < blk_n);
-                    blk_kd <= blk_k;
+                    blk_d   <= (blk_k < blk_n);
+                    blk_kd  <= blk_k;
+                    blk_d2  <= blk_d;
+                    blk_kd2 <= blk_kd;
                     if (blk_k < blk_n) blk_k <= blk_k + 10'd1;
-                    if (blk_d) begin
+                    if (blk_d2) begin
                         wr_en   <= 1'b1;
-                        wr_addr <= addr16 + {6'd0, blk_kd};
+                        wr_addr <= addr16 + {6'd0, blk_kd2};
                         wr_data <= rxb_data;
                         wr_time <= t;
                     end
-                    if (!blk_d && blk_k >= blk_n) state <= S_IDLE;
+                    if (!blk_d && !blk_d2 && blk_k >= blk_n) state <= S_IDLE;
                 end
                 default: state <= S_IDLE;
             endcase

@@ -90,7 +90,13 @@ module status_broadcast #(
     wire [31:0] slot_at = CHAIN ? (all_seen ? (too_soon ? earliest : seen_done)
                                             : deadline)
                                 : earliest;
-    wire        due     = $signed(now - slot_at - REQUEST_DELAY) >= 0;
+    // The request's clock, registered: the slot's inputs settle at least
+    // REQUEST_DELAY clocks before it (the hub stores a broadcast within
+    // that), and the snapshot copy (33 clocks) holds the request back
+    // after a query, so `due` never sees a stale value.
+    reg  [31:0] request_at;
+    always @(posedge clk) request_at <= slot_at + REQUEST_DELAY;
+    wire        due     = $signed(now - request_at) >= 0;
     wire        heard_all_now = ((wait_for & ~seen) == 16'd0);
 
     always @(posedge clk) begin
