@@ -68,7 +68,8 @@ module status_broadcast #(
     reg        pending;
     reg [15:0] wait_for;
     reg        all_seen;
-    reg [31:0] earliest, deadline, seen_done;
+    reg [31:0] earliest, seen_done;
+    reg [31:0] deadline_base;   // the chain's deadline before the timeouts
     reg [6:0]  copy;          // 0: idle, else next snapshot index + 1
     reg [15:0] seq;
 
@@ -84,6 +85,17 @@ module status_broadcast #(
             for (b = 0; b < 16; b = b + 1) popcount = popcount + {4'd0, v[b]};
         end
     endfunction
+
+    // The chain's deadline: CHAIN_TIMEOUT per lower selected board after
+    // the first slot, worked out over three registers from the query (the
+    // snapshot copy holds the request back for longer).
+    reg  [4:0]  lower_count;
+    reg  [31:0] lower_timeout, deadline;
+    always @(posedge clk) begin
+        lower_count   <= popcount(lower);
+        lower_timeout <= CHAIN_TIMEOUT * {27'd0, lower_count};
+        deadline      <= deadline_base + lower_timeout;
+    end
 
     // The slot instant.
     wire        too_soon = $signed(seen_done - earliest) < 0;
@@ -110,7 +122,7 @@ module status_broadcast #(
                 wait_for  <= 16'd0;
                 all_seen  <= 1'b0;
                 earliest  <= 32'd0;
-                deadline  <= 32'd0;
+                deadline_base <= 32'd0;
                 seen_done <= 32'd0;
                 seq       <= 16'd0;
                 rt_index  <= 10'd0;
@@ -131,14 +143,13 @@ module status_broadcast #(
                 wait_for <= lower;
                 all_seen <= (lower == 16'd0);
                 earliest <= query_at + FIRST_SLOT;
-                deadline <= query_at + FIRST_SLOT +
-                            CHAIN_TIMEOUT * {27'd0, popcount(lower)};
+                deadline_base <= query_at + FIRST_SLOT;
             end else begin
                 pending  <= phy_id_valid;
                 wait_for <= 16'd0;
                 all_seen <= 1'b1;
                 earliest <= query_at + TDMA_OFFSET + TDMA_SLOT * {26'd0, phy_id};
-                deadline <= query_at + TDMA_OFFSET + TDMA_SLOT * {26'd0, phy_id};
+                deadline_base <= query_at + TDMA_OFFSET + TDMA_SLOT * {26'd0, phy_id};
             end
         end else begin
             // Snapshot: header, then block quadlets 0..31 (read one clock ahead).
