@@ -29,7 +29,7 @@
 // - A packet for this node that arrives while an earlier one still keeps
 //   the handler busy is answered ack_busy_X by link_ctrl and dropped here
 //   (drop_early): the requester sends it again.
-// Response payload quadlets come from the payload port three clocks after
+// Response payload quadlets come from the payload port four clocks after
 // the framer asks (registers, real-time block, hub, or the broadcast
 // snapshot while the status broadcast goes out).
 `default_nettype none
@@ -120,7 +120,7 @@ module request_handler (
     localparam [3:0] RC_COMPLETE = 4'h0, RC_TYPE_ERROR = 4'h6,
                      RC_ADDRESS_ERROR = 4'h7;
     localparam [1:0] K_NONE = 2'd0, K_ACK = 2'd1, K_RESP = 2'd2;
-    localparam [3:0] S_IDLE = 4'd0, S_DECIDE = 4'd1, S_RQ_HUB = 4'd2,
+    localparam [3:0] S_IDLE = 4'd0, S_DECIDE = 4'd1, S_RQ_DATA = 4'd2,
                      S_BLKWR = 4'd3, S_QUERY_RD = 4'd4, S_STORE = 4'd5,
                      S_SLICE = 4'd6, S_QUERY_TAKE = 4'd7, S_RQ_WAIT = 4'd8;
     localparam [1:0] P_RT = 2'd0, P_ADDR = 2'd1;
@@ -171,20 +171,27 @@ module request_handler (
     reg  [1:0]  pl_src;
     reg  [15:0] pl_base;
     reg  [31:0] pl_time;
-    // Three stages from the framer's request (its pl_rd, pl_index are
+    // Four stages from the framer's request (its pl_rd, pl_index are
     // registers) to the word on pl_data:
-    // 1. the register address is worked out (base + index, or the
-    //    real-time block's register for the index) and registered; the
-    //    block RAMs (hub memory, snapshot) take their address;
-    // 2. the register file is read and the word registered, while the
-    //    block RAMs register theirs;
-    // 3. pl_data selects the word (the block RAMs' second register).
+    // 1. the addresses are worked out (base + index, or the real-time
+    //    block's register for the index) and registered;
+    // 2. the register file and the block RAMs (hub memory, snapshot) take
+    //    them;
+    // 3. the register word is completed (real-time block: timestamp,
+    //    zeros, buffer status) and registered; the block RAMs register
+    //    theirs once more;
+    // 4. pl_data selects the word.
     reg         p1_valid, p1_snapshot, p1_rt, p1_hub;
+    reg  [15:0] p1_addr;        // base + index (hub address)
+    reg  [5:0]  p1_index;       // snapshot quadlet
     reg  [15:0] p1_regs_addr;   // the register read for it
     reg         p1_stamp, p1_zero;
     reg  [31:0] p1_extra;
     reg  [1:0]  p2_sel;     // 0 real-time, 1 registers, 2 hub, 3 snapshot
-    reg  [31:0] p2_word;
+    reg         p2_stamp, p2_zero;
+    reg  [31:0] p2_extra;
+    reg  [1:0]  p3_sel;
+    reg  [31:0] p3_word;
     wire [15:0] next_addr = pl_base + {6'd0, pl_index};
     reg  [15:0] rq_addr;
     reg         rq_read;
@@ -193,6 +200,8 @@ module request_handler (
         p1_snapshot  <= pl_snapshot;
         p1_rt        <= (pl_src == P_RT);
         p1_hub       <= (next_addr[15:12] == 4'h1);
+        p1_addr      <= next_addr;
+        p1_index     <= pl_index[5:0];
         p1_regs_addr <= (pl_src == P_RT) ? rt_addr : next_addr;
         p1_stamp     <= rt_stamp;
         p1_zero      <= rt_zero;
@@ -201,20 +210,22 @@ module request_handler (
         else if (p1_rt)    p2_sel <= 2'd0;
         else if (p1_hub)   p2_sel <= 2'd2;
         else               p2_sel <= 2'd1;
-        p2_word <= !p1_rt ? regs_rd_data :
-                   p1_stamp ? rt_timestamp :
-                   (p1_zero ? 32'd0 : regs_rd_data | p1_extra);
+        p2_stamp     <= p1_rt && p1_stamp;
+        p2_zero      <= p1_rt && p1_zero;
+        p2_extra     <= p1_rt ? p1_extra : 32'd0;
+        p3_sel       <= p2_sel;
+        p3_word      <= p2_stamp ? rt_timestamp :
+                        (p2_zero ? 32'd0 : regs_rd_data | p2_extra);
     end
-    assign pl_data       = (p2_sel == 2'd3) ? snap_rd_data :
-                           (p2_sel == 2'd2) ? hub_rd_data : p2_word;
-    assign snap_rd_addr  = pl_index[5:0];
+    assign pl_data       = (p3_sel == 2'd3) ? snap_rd_data :
+                           (p3_sel == 2'd2) ? hub_rd_data : p3_word;
+    assign snap_rd_addr  = p1_index;
     assign rt_index      = pl_index;
     wire   payload_read     = p1_valid && !p1_snapshot;
     wire   payload_reg_read = payload_read && !p1_rt;
-    wire   payload_hub_read = pl_rd && !pl_snapshot && pl_src == P_ADDR;
     assign regs_rd_addr  = payload_read ? p1_regs_addr : rq_addr;
     assign regs_rd_strobe = (payload_reg_read && !p1_hub) || rq_read;
-    assign hub_rd_addr   = payload_hub_read ? next_addr : rq_addr;
+    assign hub_rd_addr   = payload_reg_read ? p1_addr : rq_addr;
     assign hub_rd_time   = pl_time;
 
     // ---- receive buffer read mux -------------------------------------------
@@ -304,7 +315,6 @@ module request_handler (
                             TC_RQ: begin
                                 reply_kind <= K_RESP;
                                 reply_ack  <= ACK_PENDING;
-                                reply_h3   <= regs_rd_data;
                             end
                             TC_RB: begin
                                 reply_kind <= K_RESP;
@@ -327,13 +337,11 @@ module request_handler (
                     end
                     // Reads.
                     if (taken && to_me && tcode == TC_RQ) begin
-                        if (addr16[15:12] == 4'h1) begin
-                            // Hub quadlets come from the hub's read port.
-                            reply_valid <= 1'b0;
-                            state       <= S_RQ_WAIT;
-                        end else begin
-                            rq_read <= 1'b1;
-                        end
+                        // The quadlet comes from the register file's or
+                        // the hub's read port, two clocks on.
+                        reply_valid <= 1'b0;
+                        state       <= S_RQ_WAIT;
+                        if (addr16[15:12] != 4'h1) rq_read <= 1'b1;
                     end
                     if (taken && to_me && tcode == TC_RB && rb_rcode == RC_COMPLETE) begin
                         pl_base <= addr16;
@@ -384,11 +392,11 @@ module request_handler (
                         end
                     end
                 end
-                S_RQ_WAIT: state <= S_RQ_HUB;   // the hub reads rq_addr
-                S_RQ_HUB: begin
-                    // hub_rd_data answers rq_addr now.
+                S_RQ_WAIT: state <= S_RQ_DATA;  // the ports read rq_addr
+                S_RQ_DATA: begin
+                    // hub_rd_data and regs_rd_data answer rq_addr now.
                     reply_valid <= early;
-                    reply_h3    <= hub_rd_data;
+                    reply_h3    <= (addr16[15:12] == 4'h1) ? hub_rd_data : regs_rd_data;
                     state       <= S_IDLE;
                 end
                 // A query in the first quadlet of a block write: the buffer

@@ -46,7 +46,7 @@ module status_broadcast #(
     output reg         rt_sample,
     output reg  [31:0] rt_sample_time,
     output reg  [9:0]  rt_index,
-    input  wire [31:0] rt_data,
+    input  wire [31:0] rt_data,       // for rt_index two clocks ago
     // Snapshot RAM write port.
     output reg         snap_we,
     output reg  [5:0]  snap_waddr,
@@ -104,7 +104,7 @@ module status_broadcast #(
                                 : earliest;
     // The request's clock, registered: the slot's inputs settle at least
     // REQUEST_DELAY clocks before it (the hub stores a broadcast within
-    // that), and the snapshot copy (33 clocks) holds the request back
+    // that), and the snapshot copy (34 clocks) holds the request back
     // after a query, so `due` never sees a stale value.
     reg  [31:0] request_at;
     always @(posedge clk) request_at <= slot_at + REQUEST_DELAY;
@@ -152,19 +152,21 @@ module status_broadcast #(
                 deadline_base <= query_at + TDMA_OFFSET + TDMA_SLOT * {26'd0, phy_id};
             end
         end else begin
-            // Snapshot: header, then block quadlets 0..31 (read one clock ahead).
+            // Snapshot: header, then block quadlets 0..31 (each read two
+            // clocks ahead: the index is registered, then the register
+            // file's word).
             if (copy != 7'd0) begin
                 rt_index <= {3'd0, copy} - 10'd1;
                 if (copy == 7'd1) begin
                     snap_we    <= 1'b1;
                     snap_waddr <= 6'd0;
                     snap_wdata <= {seq, BLOCK_QUADLETS};
-                end else begin
+                end else if (copy >= 7'd3) begin
                     snap_we    <= 1'b1;
-                    snap_waddr <= copy[5:0] - 6'd1;
+                    snap_waddr <= copy[5:0] - 6'd2;
                     snap_wdata <= rt_data;
                 end
-                copy <= (copy == 7'd33) ? 7'd0 : copy + 7'd1;
+                copy <= (copy == 7'd34) ? 7'd0 : copy + 7'd1;
             end
             // Every lower selected board heard: remember when.
             if (pending && !all_seen && seen_event && heard_all_now) begin
