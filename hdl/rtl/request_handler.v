@@ -130,42 +130,50 @@ module request_handler (
     /* verilator lint_off UNUSEDSIGNAL */
     reg  [31:0] q0;
     /* verilator lint_on UNUSEDSIGNAL */
-    reg  [31:0] q1, q2, q3;
+    reg  [31:16] q1;          // source (the offset's bits are compared on taking)
+    reg  [15:0]  q2;          // offset bits 15:0
+    reg  [31:0]  q3;
     reg         hdr_ok, has_data, data_ok, len_ok, slot, early;
     reg  [31:0] t;
     reg         dropped;      // a packet answered busy still to be skipped
 
     // ---- header fields -----------------------------------------------------
-    wire [5:0]  dest_phy = q0[21:16];   // the bus ID (31:22) is not compared
     wire [5:0]  tl      = q0[15:10];
     wire [3:0]  tcode   = q0[7:4];
     wire [15:0] source  = q1[31:16];
     wire [15:0] addr16  = q2[15:0];
-    wire [47:0] offset  = {q1[15:0], q2};
     wire [15:0] dlen    = q3[31:16];
+    // The comparisons of the header's fields, made as the packet is taken
+    // (registered with it, so that the decision is a clock of its own).
+    reg         f_to_me, f_bcast, f_dest0, f_cmd_offset;
+    reg         f_main, f_hub_mem, f_hub_space, f_query, f_addr0;
+    reg  [3:0]  f_rb_rcode;
+    function [3:0] block_read_rcode(input [15:0] length);
+        block_read_rcode = (length == 16'd0 || length[1:0] != 2'd0) ? RC_TYPE_ERROR :
+                           (length > 16'd2048) ? RC_ADDRESS_ERROR : RC_COMPLETE;
+    endfunction
     // Only the physical ID is compared, not the bus ID (FireWire.v l.891).
-    wire        to_me   = phy_id_valid && (dest_phy == phy_id);
-    wire        bcast   = (dest_phy == 6'h3F);
-    wire        node0   = !to_me && (dest_phy == 6'd0);
+    wire        to_me   = f_to_me;
+    wire        bcast   = f_bcast;
+    wire        node0   = !to_me && f_dest0;
     wire        taken   = len_ok && hdr_ok && (to_me || bcast || node0);
     // A request for this node whose header CRC fails: ack_data_error, no
     // response, no effect (FireWire.v l.1090).
     wire        is_request = (tcode == TC_WQ) || (tcode == TC_WB) ||
                              (tcode == TC_RQ) || (tcode == TC_RB);
     wire        hdr_bad_for_me = len_ok && !hdr_ok && to_me && is_request;
-    wire        is_main = (addr16[15:8] == 8'h00);
-    wire        is_hub_mem = (addr16[15:12] == 4'h1) && (addr16[11:0] < 12'h200);
-    wire        is_query   = (addr16 == 16'h1800);
+    wire        is_main    = f_main;
+    wire        is_hub_mem = f_hub_mem;
+    wire        is_query   = f_query;
 
     wire wq_taken = taken && tcode == TC_WQ && !(node0 && !is_query);
     wire wb_taken = taken && tcode == TC_WB &&
-                    !(node0 && offset != 48'hFFFF_FFFF_0000);
+                    !(node0 && !f_cmd_offset);
     wire wb_bad   = wb_taken && has_data && !data_ok;
 
     // Response headers.
     wire [31:0] resp_h1 = {10'h3FF, phy_id, 16'd0};
-    wire [3:0]  rb_rcode = (dlen == 16'd0 || dlen[1:0] != 2'd0) ? RC_TYPE_ERROR :
-                           (dlen > 16'd2048) ? RC_ADDRESS_ERROR : RC_COMPLETE;
+    wire [3:0]  rb_rcode = f_rb_rcode;
 
     // ---- payload port ------------------------------------------------------
     reg  [1:0]  pl_src;
@@ -256,12 +264,15 @@ module request_handler (
         rq_read     <= 1'b0;
         if (rst) begin
             state <= S_IDLE;
-            q0 <= 32'd0; q1 <= 32'd0; q2 <= 32'd0; q3 <= 32'd0;
+            q0 <= 32'd0; q1 <= 16'd0; q2 <= 16'd0; q3 <= 32'd0;
             hdr_ok <= 1'b0; has_data <= 1'b0; data_ok <= 1'b0; len_ok <= 1'b0;
             slot <= 1'b0; early <= 1'b0; t <= 32'd0; dropped <= 1'b0;
             st_valid <= 1'b0;
             pl_src <= P_RT; pl_base <= 16'd0; pl_time <= 32'd0;
             rq_addr <= 16'd0;
+            f_to_me <= 1'b0; f_bcast <= 1'b0; f_dest0 <= 1'b0; f_cmd_offset <= 1'b0;
+            f_main <= 1'b0; f_hub_mem <= 1'b0; f_hub_space <= 1'b0; f_query <= 1'b0;
+            f_addr0 <= 1'b0; f_rb_rcode <= RC_COMPLETE;
             blk_k <= 10'd0; blk_n <= 10'd0; blk_d <= 1'b0; blk_kd <= 10'd0;
             blk_d2 <= 1'b0; blk_kd2 <= 10'd0;
             reply_kind <= K_NONE; reply_ack <= 4'd0; reply_data_quads <= 10'd0;
@@ -283,12 +294,22 @@ module request_handler (
                 S_IDLE: if (pkt_valid && pkt_ready && pkt_early && (dropped || drop_early)) begin
                     dropped <= 1'b0;           // answered busy: no effect
                 end else if (pkt_valid && pkt_ready) begin
-                    q0 <= pkt_q0; q1 <= pkt_q1; q2 <= pkt_q2; q3 <= pkt_q3;
+                    q0 <= pkt_q0; q1 <= pkt_q1[31:16]; q2 <= pkt_q2[15:0]; q3 <= pkt_q3;
                     hdr_ok <= pkt_hdr_ok; has_data <= pkt_has_data;
                     data_ok <= pkt_data_ok; len_ok <= pkt_len_ok;
                     slot <= pkt_slot; early <= pkt_early; t <= pkt_time;
                     rq_addr <= pkt_q2[15:0];
                     pl_time <= pkt_time;
+                    f_to_me      <= phy_id_valid && (pkt_q0[21:16] == phy_id);
+                    f_bcast      <= (pkt_q0[21:16] == 6'h3F);
+                    f_dest0      <= (pkt_q0[21:16] == 6'd0);
+                    f_cmd_offset <= ({pkt_q1[15:0], pkt_q2} == 48'hFFFF_FFFF_0000);
+                    f_main       <= (pkt_q2[15:8] == 8'h00);
+                    f_hub_mem    <= (pkt_q2[15:12] == 4'h1) && (pkt_q2[11:0] < 12'h200);
+                    f_hub_space  <= (pkt_q2[15:12] == 4'h1);
+                    f_query      <= (pkt_q2[15:0] == 16'h1800);
+                    f_addr0      <= (pkt_q2[15:0] == 16'd0);
+                    f_rb_rcode   <= block_read_rcode(pkt_q3[31:16]);
                     state <= S_DECIDE;
                 end
                 S_DECIDE: begin
@@ -341,11 +362,11 @@ module request_handler (
                         // the hub's read port, two clocks on.
                         reply_valid <= 1'b0;
                         state       <= S_RQ_WAIT;
-                        if (addr16[15:12] != 4'h1) rq_read <= 1'b1;
+                        if (!f_hub_space) rq_read <= 1'b1;
                     end
                     if (taken && to_me && tcode == TC_RB && rb_rcode == RC_COMPLETE) begin
                         pl_base <= addr16;
-                        if (addr16 == 16'd0) begin
+                        if (f_addr0) begin
                             pl_src         <= P_RT;
                             rt_sample      <= 1'b1;
                             rt_sample_time <= t;
@@ -371,7 +392,7 @@ module request_handler (
                     if (wb_taken && !wb_bad) begin
                         refresh      <= 1'b1;
                         refresh_time <= t;
-                        if (addr16 == 16'd0) begin
+                        if (f_addr0) begin
                             sl_start <= 1'b1;
                             sl_len   <= has_data ? dlen : 16'd0;
                             sl_time  <= t;
@@ -396,7 +417,7 @@ module request_handler (
                 S_RQ_DATA: begin
                     // hub_rd_data and regs_rd_data answer rq_addr now.
                     reply_valid <= early;
-                    reply_h3    <= (addr16[15:12] == 4'h1) ? hub_rd_data : regs_rd_data;
+                    reply_h3    <= f_hub_space ? hub_rd_data : regs_rd_data;
                     state       <= S_IDLE;
                 end
                 // A query in the first quadlet of a block write: the buffer
