@@ -79,9 +79,11 @@ module broadcast_hub (
     reg  [9:0]  k;              // next source quadlet to read
     reg  [9:0]  w;              // next quadlet to write
     reg  [3:0]  board;
-    // The header quadlet, registered before it is checked (the source is a
-    // block RAM whose read data arrives late in the clock).
-    reg  [31:0] hdr;
+    // The header quadlet and its checks, registered before they are acted
+    // on.
+    reg  [15:0] hdr_seq;
+    reg  [9:0]  hdr_size;      // quadlets (checked <= 255)
+    reg         hdr_bad, hdr_long;
 
     // Hub memory.
     reg         mem_we;
@@ -122,8 +124,9 @@ module broadcast_hub (
     assign src_active = (state != S_IDLE) && (state != S_CLEAR);
 
     // Header rewrite (Rev 8).
-    wire [15:0] b_seq  = hdr[31:16];
-    wire [15:0] b_size = hdr[15:0];
+    wire [15:0] src_size = src_data[15:0];
+    wire [15:0] b_seq  = hdr_seq;
+    wire [9:0]  b_size = hdr_size;
     wire [31:0] upd    = t_store - query_at;
     wire [14:0] upd15  = (query_reg == 32'd0) ? 15'd0 :
                          ((upd[31:15] != 17'd0) ? 15'h7FFF : upd[14:0]);
@@ -154,7 +157,8 @@ module broadcast_hub (
             src_sel      <= 1'b0;
             len <= 16'd0; t_store <= 32'd0; nq <= 10'd0; k <= 10'd0; w <= 10'd0;
             board <= 4'd0;
-            hdr   <= 32'd0;
+            hdr_seq <= 16'd0; hdr_size <= 10'd0;
+            hdr_bad <= 1'b0; hdr_long <= 1'b0;
         end else if (reboot) begin
             // Back to power-up: the memory is cleared quadlet by quadlet.
             state        <= S_CLEAR;
@@ -201,13 +205,18 @@ module broadcast_hub (
                 S_HDR:  state <= S_HDR2;
                 S_HDR2: state <= S_LATCH;  // header quadlet on src_data next
                 S_LATCH: begin
-                    hdr   <= src_data;
-                    state <= S_CHECK;
+                    // Whole quadlets, size matches, fits (size <= 255 for
+                    // Rev 8): checked here, acted on next clock.
+                    hdr_seq  <= src_data[31:16];
+                    hdr_size <= src_size[9:0];
+                    hdr_bad  <= len < 16'd4 || len[1:0] != 2'd0 ||
+                                {src_size, 2'b00} != {2'b00, len} ||
+                                src_size > 16'd255 || {6'd0, count} + src_size > 16'd512;
+                    hdr_long <= src_size > 16'd1;
+                    state    <= S_CHECK;
                 end
                 S_CHECK: begin
-                    // Whole quadlets, size matches, fits (size <= 255 for Rev 8).
-                    if (len < 16'd4 || len[1:0] != 2'd0 || {b_size, 2'b00} != {2'b00, len} ||
-                        b_size > 16'd255 || {6'd0, count} + b_size > 16'd512) begin
+                    if (hdr_bad) begin
                         if (!src_sel) st_done <= 1'b1;
                         state <= S_IDLE;
                     end else begin
@@ -218,7 +227,7 @@ module broadcast_hub (
                         board     <= 4'd0;
                         w         <= 10'd1;
                         k         <= 10'd1;
-                        if (b_size > 16'd1) begin
+                        if (hdr_long) begin
                             src_addr <= 9'd1;
                             k        <= 10'd2;
                             state    <= S_DRAIN2;
