@@ -143,8 +143,9 @@ module board_power #(
     end
 
     // The turn-on instant of axis rr: max(request, good + hold) + delay,
-    // over two clocks: the axis's request and delay are registered (with
-    // whether they were still current), then the instant is worked out.
+    // over three clocks: the axis's request and delay are registered (with
+    // whether they are still current), then the later of the two instants,
+    // then the sum.
     reg [31:0]  allowed;    // supply good since + HOLD_CLOCKS
     wire [1:0]  ax       = (AXES == 1) ? 2'd0 : rr;
     reg  [1:0]  a_ax;
@@ -152,12 +153,20 @@ module board_power #(
     reg  [31:0] a_req;
     reg  [7:0]  a_delay;
     wire        a_early  = $signed(a_req - allowed) < 0;
-    wire [31:0] a_on_at  = (a_early ? allowed : a_req) + {14'd0, a_delay, 10'd0};
+    reg  [1:0]  b_ax;
+    reg         b_ok;
+    reg  [31:0] b_from;
+    reg  [7:0]  b_delay;
+    wire [31:0] b_on_at  = b_from + {14'd0, b_delay, 10'd0};
     always @(posedge clk) begin
         a_ax    <= ax;
         a_ok    <= !stale[ax] && !rst && !reboot;
         a_req   <= req_since[ax];
         a_delay <= enable_delay[8*ax +: 8];
+        b_ax    <= a_ax;
+        b_ok    <= a_ok && !stale[a_ax] && !rst && !reboot;
+        b_from  <= a_early ? allowed : a_req;
+        b_delay <= a_delay;
     end
 
     genvar g;
@@ -213,9 +222,9 @@ module board_power #(
             end
         end else begin
             // One axis's turn-on instant per clock.
-            on_at[a_ax] <= a_on_at;
+            on_at[b_ax] <= b_on_at;
             rr <= (rr == LAST_AXIS) ? 2'd0 : rr + 2'd1;
-            on_fresh <= (on_fresh | ({{(AXES-1){1'b0}}, a_ok} << a_ax)) & ~stale;
+            on_fresh <= (on_fresh | ({{(AXES-1){1'b0}}, b_ok} << b_ax)) & ~stale;
             // The safety tick: a clock whose count crossed k * 4915.2.
             if (tick_acc + TICK_NUM >= TICK_DEN) begin
                 tick_acc <= tick_acc + TICK_NUM - TICK_DEN;
