@@ -45,7 +45,7 @@ module link_tx (
                      P_DATA = 3'd4, P_DCRC = 3'd5;
 
     reg [2:0]  phase;
-    reg [31:0] cur;        // quadlet being sent
+    reg [31:0] cur;        // quadlet being sent, shifted to its current byte
     reg [1:0]  bi;         // byte of it
     reg [2:0]  hi;         // header quadlet index
     reg [9:0]  di;         // data quadlet index
@@ -61,7 +61,9 @@ module link_tx (
 
     assign job_ready = (phase == P_IDLE);
     assign tx_valid  = (phase != P_IDLE);
-    assign tx_data   = (phase == P_ACK) ? cur[31:24] : cur[31 - 8*bi -: 8];
+    // cur shifts left a byte per byte sent: the byte on the wire is always
+    // its top byte (no multiplexer before the CRC).
+    assign tx_data   = cur[31:24];
     wire   last_byte = (phase == P_ACK) || (bi == 2'd3);
     assign tx_last   = (phase == P_ACK) ||
                        (bi == 2'd3 && (phase == P_DCRC ||
@@ -140,7 +142,8 @@ module link_tx (
             end else if (tx_ready) begin
                 if (phase != P_ACK) crc <= crc_next;
                 if (!last_byte) begin
-                    bi <= bi + 2'd1;
+                    bi  <= bi + 2'd1;
+                    cur <= {cur[23:0], 8'd0};
                 end else begin
                     bi <= 2'd0;
                     case (phase)

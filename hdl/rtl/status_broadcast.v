@@ -69,7 +69,9 @@ module status_broadcast #(
     reg [15:0] wait_for;
     reg        all_seen;
     reg [31:0] earliest, seen_done;
-    reg [31:0] deadline_base;   // the chain's deadline before the timeouts
+    // The same instants + REQUEST_DELAY: when the request goes to the PHY.
+    reg [31:0] earliest_req, seen_req;
+    reg [31:0] deadline_base;   // the chain's deadline before the timeouts (+ REQUEST_DELAY)
     reg [6:0]  copy;          // 0: idle, else next snapshot index + 1
     reg [15:0] seq;
 
@@ -86,8 +88,8 @@ module status_broadcast #(
         end
     endfunction
 
-    // The chain's deadline: CHAIN_TIMEOUT per lower selected board after
-    // the first slot, worked out over three registers from the query (the
+    // The chain's deadline (+ REQUEST_DELAY): CHAIN_TIMEOUT per lower
+    // selected board after the first slot, worked out over three registers from the query (the
     // snapshot copy holds the request back for longer).
     reg  [4:0]  lower_count;
     reg  [31:0] lower_timeout, deadline;
@@ -97,17 +99,17 @@ module status_broadcast #(
         deadline      <= deadline_base + lower_timeout;
     end
 
-    // The slot instant.
+    // The slot instant (as its request instant, + REQUEST_DELAY).
     wire        too_soon = $signed(seen_done - earliest) < 0;
-    wire [31:0] slot_at = CHAIN ? (all_seen ? (too_soon ? earliest : seen_done)
-                                            : deadline)
-                                : earliest;
+    wire [31:0] slot_req = CHAIN ? (all_seen ? (too_soon ? earliest_req : seen_req)
+                                             : deadline)
+                                 : earliest_req;
     // The request's clock, registered: the slot's inputs settle at least
     // REQUEST_DELAY clocks before it (the hub stores a broadcast within
     // that), and the snapshot copy (34 clocks) holds the request back
     // after a query, so `due` never sees a stale value.
     reg  [31:0] request_at;
-    always @(posedge clk) request_at <= slot_at + REQUEST_DELAY;
+    always @(posedge clk) request_at <= slot_req;
     wire        due     = $signed(now - request_at) >= 0;
     wire        heard_all_now = ((wait_for & ~seen) == 16'd0);
 
@@ -122,6 +124,8 @@ module status_broadcast #(
                 wait_for  <= 16'd0;
                 all_seen  <= 1'b0;
                 earliest  <= 32'd0;
+                earliest_req <= 32'd0;
+                seen_req  <= 32'd0;
                 deadline_base <= 32'd0;
                 seen_done <= 32'd0;
                 seq       <= 16'd0;
@@ -138,18 +142,23 @@ module status_broadcast #(
             copy           <= 7'd1;
             bc_req         <= 1'b0;
             seen_done      <= query_at;
+            seen_req       <= query_at + REQUEST_DELAY;
             if (CHAIN) begin
                 pending  <= selected;
                 wait_for <= lower;
                 all_seen <= (lower == 16'd0);
                 earliest <= query_at + FIRST_SLOT;
-                deadline_base <= query_at + FIRST_SLOT;
+                earliest_req  <= query_at + (FIRST_SLOT + REQUEST_DELAY);
+                deadline_base <= query_at + (FIRST_SLOT + REQUEST_DELAY);
             end else begin
                 pending  <= phy_id_valid;
                 wait_for <= 16'd0;
                 all_seen <= 1'b1;
                 earliest <= query_at + TDMA_OFFSET + TDMA_SLOT * {26'd0, phy_id};
-                deadline_base <= query_at + TDMA_OFFSET + TDMA_SLOT * {26'd0, phy_id};
+                earliest_req  <= query_at + (TDMA_OFFSET + REQUEST_DELAY) +
+                                 TDMA_SLOT * {26'd0, phy_id};
+                deadline_base <= query_at + (TDMA_OFFSET + REQUEST_DELAY) +
+                                 TDMA_SLOT * {26'd0, phy_id};
             end
         end else begin
             // Snapshot: header, then block quadlets 0..31 (each read two
@@ -172,6 +181,7 @@ module status_broadcast #(
             if (pending && !all_seen && seen_event && heard_all_now) begin
                 all_seen  <= 1'b1;
                 seen_done <= seen_time;
+                seen_req  <= seen_time + REQUEST_DELAY;
             end
             if (pending && copy == 7'd0 && due) begin
                 pending         <= 1'b0;
