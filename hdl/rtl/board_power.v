@@ -169,11 +169,20 @@ module board_power #(
         b_delay <= a_delay;
     end
 
+    // Whether each axis's instant has come, registered (`now` counts up by
+    // one a clock): it is valid once on_at has been fresh for a clock, so an
+    // instant already past when it is first worked out turns the amplifier
+    // on a clock after that; one still ahead turns it on at that clock.
+    reg [AXES-1:0] reached, fresh_held;
     genvar g;
     generate
         for (g = 0; g < AXES; g = g + 1) begin : axis
+            always @(posedge clk) begin
+                reached[g]    <= $signed(now + 32'd1 - on_at[g]) >= 0;
+                fresh_held[g] <= on_fresh[g];
+            end
             assign amp_on[g] = requested[g] && power_enabled && good_seen &&
-                               on_fresh[g] && $signed(now - on_at[g]) >= 0;
+                               on_fresh[g] && fresh_held[g] && reached[g];
         end
     endgenerate
 
