@@ -210,7 +210,11 @@ module request_handler (
         p1_hub       <= (next_addr[15:12] == 4'h1);
         p1_addr      <= next_addr;
         p1_index     <= pl_index[5:0];
-        p1_regs_addr <= (pl_src == P_RT) ? rt_addr : next_addr;
+        // The register file's address is always this register: a payload
+        // read's, else the quadlet read's (a clock after the packet is
+        // taken, with its strobe).
+        p1_regs_addr <= !(pl_rd && !pl_snapshot) ? rq_addr :
+                        (pl_src == P_RT) ? rt_addr : next_addr;
         p1_stamp     <= rt_stamp;
         p1_zero      <= rt_zero;
         p1_extra     <= rt_extra;
@@ -231,7 +235,7 @@ module request_handler (
     assign rt_index      = pl_index;
     wire   payload_read     = p1_valid && !p1_snapshot;
     wire   payload_reg_read = payload_read && !p1_rt;
-    assign regs_rd_addr  = payload_read ? p1_regs_addr : rq_addr;
+    assign regs_rd_addr  = p1_regs_addr;
     assign regs_rd_strobe = (payload_reg_read && !p1_hub) || rq_read;
     assign hub_rd_addr   = payload_reg_read ? p1_addr : rq_addr;
     assign hub_rd_time   = pl_time;
