@@ -92,9 +92,8 @@ module board_power #(
 
     assign supply_fault = power_enabled && !supply_present;
 
-    // Supply good since (clock), while power stays enabled.
+    // The motor supply has been good (while power stays enabled).
     reg        good_seen;
-    reg [31:0] good_since;
     reg [31:0] req_since [0:AXES-1];
     reg [31:0] on_at [0:AXES-1];
     reg [AXES-1:0] on_fresh;          // on_at is up to date
@@ -126,30 +125,86 @@ module board_power #(
     end
     assign clear_watchdog = power_on_cmd || any_enable_request;
 
-    // The turn-on instant of axis rr: max(request, good + hold) + delay.
-    wire [1:0]  ax       = (AXES == 1) ? 2'd0 : rr;
-    wire [31:0] allowed  = good_since + HOLD_CLOCKS;
-    wire [31:0] rr_req   = req_since[ax];
-    wire        rr_early = $signed(rr_req - allowed) < 0;
-    wire [31:0] rr_on_at = (rr_early ? allowed : rr_req) +
-                           {14'd0, enable_delay[8*ax +: 8], 10'd0};
+    // Axes whose turn-on instant goes stale this clock (a new request, a
+    // delay written, the supply's state changed): on_fresh clears.
+    reg [AXES-1:0] stale;
+    always @* begin
+        stale = delay_written;
+        if (!power_enabled || !supply_good) begin
+            if (good_seen) stale = {AXES{1'b1}};
+        end else if (!good_seen) begin
+            stale = {AXES{1'b1}};
+        end
+        for (i = 0; i < AXES; i = i + 1)
+            if (want_on[i] && power_next &&
+                !(requested[i] && !watchdog_fire &&
+                  !(cmd_valid && power_mask && !power_value)))
+                stale[i] = 1'b1;
+    end
 
+    // The turn-on instant of axis rr: max(request, good + hold) + delay,
+    // over three clocks: the axis's request and delay are registered (with
+    // whether they are still current), then the later of the two instants,
+    // then the sum.
+    reg [31:0]  allowed;    // supply good since + HOLD_CLOCKS
+    wire [1:0]  ax       = (AXES == 1) ? 2'd0 : rr;
+    reg  [1:0]  a_ax;
+    reg         a_ok;
+    reg  [31:0] a_req;
+    reg  [7:0]  a_delay;
+    wire        a_early  = $signed(a_req - allowed) < 0;
+    reg  [1:0]  b_ax;
+    reg         b_ok;
+    reg  [31:0] b_from;
+    reg  [7:0]  b_delay;
+    wire [31:0] b_on_at  = b_from + {14'd0, b_delay, 10'd0};
+    always @(posedge clk) begin
+        a_ax    <= ax;
+        a_ok    <= !stale[ax] && !rst && !reboot;
+        a_req   <= req_since[ax];
+        a_delay <= enable_delay[8*ax +: 8];
+        b_ax    <= a_ax;
+        b_ok    <= a_ok && !stale[a_ax] && !rst && !reboot;
+        b_from  <= a_early ? allowed : a_req;
+        b_delay <= a_delay;
+    end
+
+    // Whether each axis's instant has come, registered (`now` counts up by
+    // one a clock): it is valid once on_at has been fresh for a clock, so an
+    // instant already past when it is first worked out turns the amplifier
+    // on a clock after that; one still ahead turns it on at that clock.
+    reg [AXES-1:0] reached, fresh_held;
     genvar g;
     generate
         for (g = 0; g < AXES; g = g + 1) begin : axis
+            always @(posedge clk) begin
+                reached[g]    <= $signed(now + 32'd1 - on_at[g]) >= 0;
+                fresh_held[g] <= on_fresh[g];
+            end
             assign amp_on[g] = requested[g] && power_enabled && good_seen &&
-                               on_fresh[g] && $signed(now - on_at[g]) >= 0;
+                               on_fresh[g] && fresh_held[g] && reached[g];
         end
     endgenerate
 
-    // The current check of one axis (scan - 1).
-    wire [1:0]  sax      = (AXES == 1) ? 2'd0 : scan[1:0] - 2'd1;
-    wire [15:0] m_cur    = measured[16*sax +: 16];
-    wire [15:0] m_cmd    = command[16*sax +: 16];
-    wire [16:0] m_diff   = (m_cur >= m_cmd) ? {1'b0, m_cur} - {1'b0, m_cmd}
-                                            : {1'b0, m_cmd} - {1'b0, m_cur};
-    wire        m_over   = m_diff > {1'b0, MISMATCH_COUNTS};
-    wire        m_long   = (tick_time - mismatch_since[sax]) >= MISMATCH_CLOCKS;
+    // The current check of one axis (scan - 1). Every axis's comparison
+    // is registered each clock (the measured current and the command as
+    // they were one clock before the axis's turn), and whether its
+    // mismatch had lasted long enough at the tick is registered at the
+    // tick (only the axis's own turn changes its mismatch_since).
+    wire [1:0]     sax = (AXES == 1) ? 2'd0 : scan[1:0] - 2'd1;
+    reg [AXES-1:0] over, long_now, long_at_tick;
+    generate
+        for (g = 0; g < AXES; g = g + 1) begin : check
+            wire [15:0] cur = measured[16*g +: 16];
+            wire [15:0] cmd = command[16*g +: 16];
+            wire [16:0] diff = (cur >= cmd) ? {1'b0, cur} - {1'b0, cmd}
+                                            : {1'b0, cmd} - {1'b0, cur};
+            always @(posedge clk) over[g] <= diff > {1'b0, MISMATCH_COUNTS};
+            always @* long_now[g] = (now - mismatch_since[g]) >= MISMATCH_CLOCKS;
+        end
+    endgenerate
+    wire        m_over   = over[sax];
+    wire        m_long   = long_at_tick[sax];
 
     always @(posedge clk) begin
         if (rst || reboot) begin
@@ -160,11 +215,12 @@ module board_power #(
             mismatching     <= {AXES{1'b0}};
             on_fresh        <= {AXES{1'b0}};
             good_seen       <= 1'b0;
-            good_since      <= 32'd0;
+            allowed         <= HOLD_CLOCKS;
             tick_acc        <= 16'd0;
             tick            <= 1'b0;
             tick_time       <= 32'd0;
             tick_on         <= {AXES{1'b0}};
+            long_at_tick    <= {AXES{1'b0}};
             scan            <= 3'd0;
             rr              <= 2'd0;
             was_on          <= {AXES{1'b0}};
@@ -175,9 +231,9 @@ module board_power #(
             end
         end else begin
             // One axis's turn-on instant per clock.
-            on_at[ax] <= rr_on_at;
+            on_at[b_ax] <= b_on_at;
             rr <= (rr == LAST_AXIS) ? 2'd0 : rr + 2'd1;
-            on_fresh <= (on_fresh | ({{(AXES-1){1'b0}}, 1'b1} << ax)) & ~delay_written;
+            on_fresh <= (on_fresh | ({{(AXES-1){1'b0}}, b_ok} << b_ax)) & ~stale;
             // The safety tick: a clock whose count crossed k * 4915.2.
             if (tick_acc + TICK_NUM >= TICK_DEN) begin
                 tick_acc <= tick_acc + TICK_NUM - TICK_DEN;
@@ -192,7 +248,7 @@ module board_power #(
                 good_seen <= 1'b0;
             end else if (!good_seen) begin
                 good_seen  <= 1'b1;
-                good_since <= now;
+                allowed    <= now + HOLD_CLOCKS;
                 on_fresh   <= {AXES{1'b0}};
             end
             // The watchdog drops every request first.
@@ -201,8 +257,9 @@ module board_power #(
             // an amplifier turned on).
             was_on <= amp_on;
             if (tick || (amp_on & ~was_on) != {AXES{1'b0}}) begin
-                tick_time <= now;
-                tick_on   <= amp_on;
+                tick_time    <= now;
+                tick_on      <= amp_on;
+                long_at_tick <= long_now;
                 scan      <= 3'd1;
             end else if (scan != 3'd0) begin
                 if (!tick_on[sax] || !m_over || !check_enable[sax]) begin

@@ -2,8 +2,8 @@
 // (shared/spec/fpga-board.md, sections 1-3).
 //
 // Main space, address 0x00CO: channel C = 0 board registers, 1..4 axes;
-// offset O. Reads are combinational (rd_addr -> rd_data); a read of
-// ENC_POSITION latches the encoder overflow flag when the count is out of
+// offset O. Reads take a clock (rd_addr -> rd_data, two ports); a read of
+// ENC_POSITION (port a) latches the encoder overflow flag when the count is out of
 // range (rd_strobe). Writes arrive one quadlet per clock with their time.
 // The sensors (ADC, encoder counter and velocity words, switches,
 // temperatures) are the QLA's inputs; the board's state words (STATUS,
@@ -30,10 +30,12 @@ module board_regs #(
     input  wire [15:0]  wr_addr,
     input  wire [31:0]  wr_data,
     input  wire [31:0]  wr_time,
-    // Read port.
+    // Read ports (data one clock after the address).
     input  wire [15:0]  rd_addr,
     input  wire         rd_strobe,
-    output reg  [31:0]  rd_data,
+    output wire [31:0]  rd_data,
+    input  wire [15:0]  rd_addr_b,
+    output wire [31:0]  rd_data_b,
     input  wire         rt_sample,       // the real-time block was sampled
     // Watchdog (write refresh is the caller's).
     input  wire         watchdog_fire,
@@ -174,7 +176,11 @@ module board_regs #(
 
     generate
         for (g = 0; g < 4; g = g + 1) begin : words
-            wire [32:0] count = {enc_raw[32*g+31], enc_raw[32*g +: 32]} + offset[g];
+            // The count, registered: a sensor reaches the words one clock
+            // after it changes (the QLA's inputs are registers too).
+            reg  [32:0] count;
+            always @(posedge clk)
+                count <= {enc_raw[32*g+31], enc_raw[32*g +: 32]} + offset[g];
             wire        out_of_range = count[32] || (count[31:24] != 8'd0);
             assign adc_word[32*g +: 32] = adc[32*g +: 32];
             assign pos_word[32*g +: 32] = {1'b0, enc_index[g], enc_b[g], enc_a[g],
@@ -189,48 +195,72 @@ module board_regs #(
         end
     endgenerate
 
-    // ---- read mux ----------------------------------------------------------
+    // ---- read ports ----------------------------------------------------------
+    // Two read ports (a: transactions, b: the status-broadcast snapshot),
+    // each over two registers: the word of every channel (board, axes 1-4)
+    // at the address's offset, then the channel's word. Data follows the
+    // address by one clock; it comes from registers.
+    function [31:0] board_word(input [3:0] r);
+        case (r)
+            4'd0:  board_word = status_word;
+            4'd1:  board_word = phy_ctrl;
+            4'd2:  board_word = {16'd0, phy_data};
+            4'd3:  board_word = {wdog_led, 15'd0, watchdog_period};
+            4'd4:  board_word = HW_VERSION;
+            4'd5:  board_word = temp_word;
+            4'd6:  board_word = {24'd0, dout_r};
+            4'd7:  board_word = FW_VERSION;
+            4'd10: board_word = din_word;
+            4'd11: board_word = HAS_ETHERNET ? ip_addr : 32'd0;
+            4'd12: board_word = ETH_STATUS;
+            // 15: GIT_DESC exists from Rev 9 on; reads 0 here.
+            default: board_word = 32'd0;
+        endcase
+    endfunction
+    function [31:0] axis_word(input [1:0] ax, input [3:0] r);
+        case (r)
+            4'd0:  axis_word = adc_word[32*ax +: 32];
+            4'd1:  axis_word = {16'd0, dac_cmd[ax]};
+            4'd4:  axis_word = preload[ax];
+            4'd5:  axis_word = pos_word[32*ax +: 32];
+            4'd6:  axis_word = enc_period[32*ax +: 32];
+            4'd7:  axis_word = enc_qtr1[32*ax +: 32];
+            4'd9:  axis_word = enc_qtr5[32*ax +: 32];
+            4'd10: axis_word = enc_run[32*ax +: 32];
+            // MOTOR_CONFIG (MotorChannelQLA.v l.79): bits 31/30 as
+            // written, voltage (expander) and current control available.
+            4'd11: axis_word = {no_safety[ax], force_dis[ax], 4'd0, 1'b1, 1'b1,
+                                en_delay[ax], 1'b0, cur_limit[ax]};
+            4'd12: axis_word = mstat_word[32*ax +: 32];
+            default: axis_word = 32'd0;
+        endcase
+    endfunction
+
+    wire [15:0] rd_addr_of [0:1];
+    wire [31:0] rd_data_of [0:1];
+    assign rd_addr_of[0] = rd_addr;
+    assign rd_addr_of[1] = rd_addr_b;
+    generate
+        for (g = 0; g < 2; g = g + 1) begin : port
+            wire [15:0] addr = rd_addr_of[g];
+            reg  [31:0] chan_word [0:4];    // board, axes 1-4
+            reg  [2:0]  chan;               // 0 board, 1-4 axis, 5 none
+            integer c;
+            always @(posedge clk) begin
+                chan_word[0] <= board_word(addr[3:0]);
+                for (c = 0; c < 4; c = c + 1)
+                    chan_word[c + 1] <= axis_word(c[1:0], addr[3:0]);
+                chan <= (addr[15:8] != 8'h00 || addr[7:4] > 4'd4) ? 3'd5 : addr[6:4];
+            end
+            assign rd_data_of[g] = (chan <= 3'd4) ? chan_word[chan] : 32'd0;
+        end
+    endgenerate
+    assign rd_data   = rd_data_of[0];
+    assign rd_data_b = rd_data_of[1];
     wire       rd_main = (rd_addr[15:8] == 8'h00);
     wire [3:0] rd_chan = rd_addr[7:4];
     wire [3:0] rd_reg  = rd_addr[3:0];
     wire [1:0] rd_ax   = rd_chan[1:0] - 2'd1;
-    always @* begin
-        rd_data = 32'd0;
-        if (rd_main && rd_chan == 4'd0) begin
-            case (rd_reg)
-                4'd0:  rd_data = status_word;
-                4'd1:  rd_data = phy_ctrl;
-                4'd2:  rd_data = {16'd0, phy_data};
-                4'd3:  rd_data = {wdog_led, 15'd0, watchdog_period};
-                4'd4:  rd_data = HW_VERSION;
-                4'd5:  rd_data = temp_word;
-                4'd6:  rd_data = {24'd0, dout_r};
-                4'd7:  rd_data = FW_VERSION;
-                4'd10: rd_data = din_word;
-                4'd11: rd_data = HAS_ETHERNET ? ip_addr : 32'd0;
-                4'd12: rd_data = ETH_STATUS;
-                // 15: GIT_DESC exists from Rev 9 on; reads 0 here.
-                default: rd_data = 32'd0;
-            endcase
-        end else if (rd_main && rd_chan >= 4'd1 && rd_chan <= 4'd4) begin
-            case (rd_reg)
-                4'd0:  rd_data = adc_word[32*rd_ax +: 32];
-                4'd1:  rd_data = {16'd0, dac_cmd[rd_ax]};
-                4'd4:  rd_data = preload[rd_ax];
-                4'd5:  rd_data = pos_word[32*rd_ax +: 32];
-                4'd6:  rd_data = enc_period[32*rd_ax +: 32];
-                4'd7:  rd_data = enc_qtr1[32*rd_ax +: 32];
-                4'd9:  rd_data = enc_qtr5[32*rd_ax +: 32];
-                4'd10: rd_data = enc_run[32*rd_ax +: 32];
-                // MOTOR_CONFIG (MotorChannelQLA.v l.79): bits 31/30 as
-                // written, voltage (expander) and current control available.
-                4'd11: rd_data = {no_safety[rd_ax], force_dis[rd_ax], 4'd0, 1'b1, 1'b1,
-                                  en_delay[rd_ax], 1'b0, cur_limit[rd_ax]};
-                4'd12: rd_data = mstat_word[32*rd_ax +: 32];
-                default: rd_data = 32'd0;
-            endcase
-        end
-    end
 
     // ---- writes ------------------------------------------------------------
     // PHY_CTRL: a read is the bare register number, a write

@@ -22,7 +22,7 @@ module board_watchdog #(
 ) (
     input  wire        clk,
     input  wire        rst,
-    input  wire [31:0] now,
+    input  wire [31:0] now,           // clocks since reset
     input  wire        refresh,       // a write to the board ...
     input  wire [31:0] refresh_time,  // ... at this clock
     input  wire        set_period,    // register 3 written
@@ -41,7 +41,11 @@ module board_watchdog #(
     end
 
     reg  [31:0] last_write;
-    wire [31:0] judged  = now - EVAL_DELAY;
+    // now - EVAL_DELAY, kept in a register: `now` counts up by one a clock
+    // from 0 after reset.
+    reg  [31:0] judged;
+    always @(posedge clk)
+        judged <= rst ? 32'd0 - EVAL_DELAY : now + 32'd1 - EVAL_DELAY;
     wire [31:0] elapsed = judged - last_write;
     wire [31:0] limit   = {8'd0, period, 8'd0};   // period * 256
     // A write that comes after the expiry instant finds the watchdog fired.

@@ -21,10 +21,10 @@
 //   to the moment that quadlet leaves in a response (4 clocks per quadlet
 //   at S400 after the 5-quadlet response header); 0x1800 the query,
 //   0x1802 the quadlets written; anything else 0. Read data follows the
-//   address by one clock.
+//   address by two clocks (the memory's output is registered).
 // Stores copy from a source RAM (receive buffer or the broadcast snapshot)
-// whose data follows src_addr by one clock; the packet was checked (header
-// and data CRC) before a store is asked for.
+// whose data follows src_addr by two clocks; the packet was checked
+// (header and data CRC) before a store is asked for.
 `default_nettype none
 
 module broadcast_hub (
@@ -61,11 +61,12 @@ module broadcast_hub (
     input  wire [31:0] rd_time,
     output wire [31:0] rd_data
 );
-    localparam [2:0] S_IDLE = 3'd0, S_HDR = 3'd1, S_CHECK = 3'd2, S_COPY = 3'd3,
-                     S_DRAIN = 3'd4, S_FINISH = 3'd5, S_CLEAR = 3'd6;
+    localparam [3:0] S_IDLE = 4'd0, S_HDR = 4'd1, S_CHECK = 4'd2, S_COPY = 4'd3,
+                     S_DRAIN = 4'd4, S_FINISH = 4'd5, S_CLEAR = 4'd6, S_LATCH = 4'd7,
+                     S_HDR2 = 4'd8, S_DRAIN2 = 4'd9;
     localparam [15:0] OWN_LEN = 16'd132;   // header + 32 quadlets
 
-    reg  [2:0]  state;
+    reg  [3:0]  state;
     reg  [9:0]  count;          // quadlets written (0..512)
     reg         timing_valid;
     reg  [8:0]  timing_index;
@@ -78,32 +79,43 @@ module broadcast_hub (
     reg  [9:0]  k;              // next source quadlet to read
     reg  [9:0]  w;              // next quadlet to write
     reg  [3:0]  board;
+    // The header quadlet and its checks, registered before they are acted
+    // on.
+    reg  [15:0] hdr_seq;
+    reg  [9:0]  hdr_size;      // quadlets (checked <= 255)
+    reg         hdr_bad, hdr_long;
 
     // Hub memory.
     reg         mem_we;
     reg  [8:0]  mem_waddr;
     reg  [31:0] mem_wdata;
     wire [31:0] mem_rdata;
-    wire [11:0] rd_index = rd_addr[11:0];
-    sdp_ram #(.WIDTH(32), .DEPTH(512), .ADDR_BITS(9)) memory (
+    sdp_ram #(.WIDTH(32), .DEPTH(512), .ADDR_BITS(9), .OUT_REG(1)) memory (
         .clk(clk), .wr_en(mem_we), .wr_addr(mem_waddr), .wr_data(mem_wdata),
-        .rd_addr(rd_index[8:0]), .rd_data(mem_rdata));
+        .rd_addr(rd_addr[8:0]), .rd_data(mem_rdata));
 
-    // Read port: registered selection, memory data one clock later.
+    // Read port: the address registered, then the selection registered
+    // beside the memory's second read register.
+    reg  [15:0] rd_addr_q;
+    always @(posedge clk) rd_addr_q <= rd_addr;
+    wire [11:0] rd_index = rd_addr_q[11:0];
     reg        rd_is_mem, rd_is_timing;
     reg [31:0] rd_other, rd_timing;
-    wire [31:0] start   = rd_time - query_at;
+    // Clocks from the query to the read's packet, registered (both change
+    // only when a packet is taken, long before its reads).
+    reg  [31:0] start;
+    always @(posedge clk) start <= rd_time - query_at;
     wire [31:0] leaving = start + {21'd0, rd_index[8:0], 2'b00} + 32'd20;
     function [15:0] sat16(input [31:0] v);
         sat16 = (v[31:16] != 16'd0) ? 16'hFFFF : v[15:0];
     endfunction
     always @(posedge clk) begin
-        rd_is_mem    <= (rd_addr[15:12] == 4'h1) && (rd_index < 12'h200);
-        rd_is_timing <= (rd_addr[15:12] == 4'h1) && timing_valid &&
+        rd_is_mem    <= (rd_addr_q[15:12] == 4'h1) && (rd_index < 12'h200);
+        rd_is_timing <= (rd_addr_q[15:12] == 4'h1) && timing_valid &&
                         (rd_index == {3'd0, timing_index});
         rd_timing    <= {sat16(start), sat16(leaving)};
-        if (rd_addr == 16'h1800)      rd_other <= query_reg;
-        else if (rd_addr == 16'h1802) rd_other <= {22'd0, count};
+        if (rd_addr_q == 16'h1800)      rd_other <= query_reg;
+        else if (rd_addr_q == 16'h1802) rd_other <= {22'd0, count};
         else                          rd_other <= 32'd0;
     end
     assign rd_data = rd_is_timing ? rd_timing : (rd_is_mem ? mem_rdata : rd_other);
@@ -112,8 +124,9 @@ module broadcast_hub (
     assign src_active = (state != S_IDLE) && (state != S_CLEAR);
 
     // Header rewrite (Rev 8).
-    wire [15:0] b_seq  = src_data[31:16];
-    wire [15:0] b_size = src_data[15:0];
+    wire [15:0] src_size = src_data[15:0];
+    wire [15:0] b_seq  = hdr_seq;
+    wire [9:0]  b_size = hdr_size;
     wire [31:0] upd    = t_store - query_at;
     wire [14:0] upd15  = (query_reg == 32'd0) ? 15'd0 :
                          ((upd[31:15] != 17'd0) ? 15'h7FFF : upd[14:0]);
@@ -144,6 +157,8 @@ module broadcast_hub (
             src_sel      <= 1'b0;
             len <= 16'd0; t_store <= 32'd0; nq <= 10'd0; k <= 10'd0; w <= 10'd0;
             board <= 4'd0;
+            hdr_seq <= 16'd0; hdr_size <= 10'd0;
+            hdr_bad <= 1'b0; hdr_long <= 1'b0;
         end else if (reboot) begin
             // Back to power-up: the memory is cleared quadlet by quadlet.
             state        <= S_CLEAR;
@@ -187,11 +202,21 @@ module broadcast_hub (
                         state    <= S_HDR;
                     end
                 end
-                S_HDR: state <= S_CHECK;   // header quadlet on src_data next
+                S_HDR:  state <= S_HDR2;
+                S_HDR2: state <= S_LATCH;  // header quadlet on src_data next
+                S_LATCH: begin
+                    // Whole quadlets, size matches, fits (size <= 255 for
+                    // Rev 8): checked here, acted on next clock.
+                    hdr_seq  <= src_data[31:16];
+                    hdr_size <= src_size[9:0];
+                    hdr_bad  <= len < 16'd4 || len[1:0] != 2'd0 ||
+                                {src_size, 2'b00} != {2'b00, len} ||
+                                src_size > 16'd255 || {6'd0, count} + src_size > 16'd512;
+                    hdr_long <= src_size > 16'd1;
+                    state    <= S_CHECK;
+                end
                 S_CHECK: begin
-                    // Whole quadlets, size matches, fits (size <= 255 for Rev 8).
-                    if (len < 16'd4 || len[1:0] != 2'd0 || {b_size, 2'b00} != {2'b00, len} ||
-                        b_size > 16'd255 || {6'd0, count} + b_size > 16'd512) begin
+                    if (hdr_bad) begin
                         if (!src_sel) st_done <= 1'b1;
                         state <= S_IDLE;
                     end else begin
@@ -202,22 +227,23 @@ module broadcast_hub (
                         board     <= 4'd0;
                         w         <= 10'd1;
                         k         <= 10'd1;
-                        if (b_size > 16'd1) begin
+                        if (hdr_long) begin
                             src_addr <= 9'd1;
                             k        <= 10'd2;
-                            state    <= S_DRAIN;
+                            state    <= S_DRAIN2;
                         end else begin
                             state <= S_FINISH;
                         end
                     end
                 end
-                S_DRAIN: begin
-                    // Two reads in flight (address register, RAM register).
+                S_DRAIN2, S_DRAIN: begin
+                    // Three reads in flight (address register, the RAM's
+                    // two read registers).
                     if (k < nq) begin
                         src_addr <= k[8:0];
                         k        <= k + 10'd1;
                     end
-                    state <= S_COPY;
+                    state <= (state == S_DRAIN2) ? S_DRAIN : S_COPY;
                 end
                 S_COPY: begin
                     // Quadlet w is on src_data; ask for quadlet k.

@@ -11,8 +11,8 @@
 // meets a header of length 0, a block running past the payload, a payload
 // that is not whole quadlets, or a block naming this board that is not 6
 // quadlets long changes nothing. No block naming the board: nothing.
-// The payload sits in the receive buffer (data one clock after the
-// address); writes go out one per clock.
+// The payload sits in the receive buffer (data two clocks after the
+// address: its output is registered); writes go out one per clock.
 `default_nettype none
 
 module command_slicer #(
@@ -35,15 +35,19 @@ module command_slicer #(
 );
     localparam [7:0] BLOCK_QUADLETS = 8'd6;
     localparam [2:0] S_IDLE = 3'd0, S_WAIT1 = 3'd1, S_HEAD = 3'd2,
-                     S_WAIT2 = 3'd3, S_APPLY = 3'd4;
+                     S_WAIT2 = 3'd3, S_APPLY = 3'd4, S_LATCH = 3'd5,
+                     S_WAIT1B = 3'd6, S_WAIT2B = 3'd7;
 
     reg [2:0]  state;
     reg [10:0] pos;        // quadlet of the current header
     reg [10:0] total;      // payload quadlets
     reg [3:0]  j;          // quadlet of our block being applied (1..5)
+    // The header, registered before it is looked at (the walk's decisions
+    // take a clock of their own).
+    reg [15:0] head;
 
-    wire [7:0]  h_quads = rd_data[7:0];
-    wire [7:0]  h_board = rd_data[15:8];
+    wire [7:0]  h_quads = head[7:0];
+    wire [7:0]  h_board = head[15:8];
     wire [11:0] h_end   = {1'b0, pos} + {4'd0, h_quads};
 
     always @(posedge clk) begin
@@ -55,6 +59,7 @@ module command_slicer #(
             pos     <= 11'd0;
             total   <= 11'd0;
             j       <= 4'd0;
+            head    <= 16'd0;
             wr_addr <= 16'd0;
             wr_data <= 32'd0;
             wr_time <= 32'd0;
@@ -72,9 +77,15 @@ module command_slicer #(
                         state <= S_WAIT1;
                     end
                 end
-                S_WAIT1: state <= S_HEAD;
-                S_HEAD: begin
+                S_WAIT1:  state <= S_WAIT1B;
+                S_WAIT1B: state <= S_LATCH;
+                S_LATCH: begin
                     // rd_data is the header at `pos`.
+                    head  <= rd_data[15:0];
+                    state <= S_HEAD;
+                end
+                S_HEAD: begin
+                    // `head` is the header at `pos`.
                     if (h_quads == 8'd0 || h_end > {1'b0, total}) begin
                         busy  <= 1'b0;
                         state <= S_IDLE;
@@ -96,9 +107,9 @@ module command_slicer #(
                         state   <= S_WAIT1;
                     end
                 end
-                S_WAIT2: begin
+                S_WAIT2, S_WAIT2B: begin
                     rd_addr <= rd_addr + 9'd1;
-                    state   <= S_APPLY;
+                    state   <= (state == S_WAIT2) ? S_WAIT2B : S_APPLY;
                 end
                 S_APPLY: begin
                     // rd_data is quadlet j of the block.

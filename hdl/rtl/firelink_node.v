@@ -107,7 +107,7 @@ module firelink_node #(
     wire        rxb_we;
     wire [9:0]  rxb_waddr, rxb_raddr;
     wire [31:0] rxb_wdata, rxb_rdata;
-    sdp_ram #(.WIDTH(32), .DEPTH(1024), .ADDR_BITS(10)) rx_buffer (
+    sdp_ram #(.WIDTH(32), .DEPTH(1024), .ADDR_BITS(10), .OUT_REG(1)) rx_buffer (
         .clk(clk), .wr_en(rxb_we), .wr_addr(rxb_waddr), .wr_data(rxb_wdata),
         .rd_addr(rxb_raddr), .rd_data(rxb_rdata));
 
@@ -132,7 +132,7 @@ module firelink_node #(
     // ---- board ------------------------------------------------------------------
     wire        wr_en, regs_rd_strobe;
     wire [15:0] wr_addr, handler_rd_addr;
-    wire [31:0] wr_data, wr_time, regs_rd_data;
+    wire [31:0] wr_data, wr_time, regs_rd_data, regs_rd_data_b;
     wire        wd_fire, wd_timed_out, wd_set, wd_clear, reboot;
     wire [15:0] wd_period, wd_value;
     wire        refresh;
@@ -149,8 +149,9 @@ module firelink_node #(
     board_regs #(.BOARD_ID(ID)) regs (
         .clk(clk), .rst(rst), .now(now),
         .wr_en(wr_en), .wr_addr(wr_addr), .wr_data(wr_data), .wr_time(wr_time),
-        .rd_addr(snap_busy ? rt_addr_b : handler_rd_addr),
-        .rd_strobe(regs_rd_strobe && !snap_busy), .rd_data(regs_rd_data),
+        .rd_addr(handler_rd_addr), .rd_strobe(regs_rd_strobe),
+        .rd_data(regs_rd_data),
+        .rd_addr_b(rt_addr_b), .rd_data_b(regs_rd_data_b),
         .rt_sample(hr_rt_sample || bc_rt_sample),
         .watchdog_fire(wd_fire), .watchdog_timed_out(wd_timed_out),
         .watchdog_period(wd_period), .watchdog_set(wd_set),
@@ -169,8 +170,10 @@ module firelink_node #(
         .dac_out(dac_out), .dout(dout));
 
     // The real-time block: a timestamp plus registers read through the
-    // register file's read port (the status-broadcast snapshot has the port
-    // while it copies; no packet is taken meanwhile).
+    // register file's read ports (a: the handler's block reads, b: the
+    // status-broadcast snapshot; no packet is taken while it copies). The
+    // register word follows the index by a clock; so does what else
+    // makes the quadlet.
     wire [9:0]  rt_index_a, rt_index_b;
     wire [15:0] rt_addr_a, rt_addr_b;
     wire        rt_stamp_a, rt_stamp_b, rt_zero_a, rt_zero_b;
@@ -185,8 +188,15 @@ module firelink_node #(
         .extra_a(rt_extra_a),
         .index_b(rt_index_b), .addr_b(rt_addr_b), .stamp_b(rt_stamp_b), .zero_b(rt_zero_b),
         .extra_b(rt_extra_b));
-    assign rt_data_b = rt_stamp_b ? rt_timestamp :
-                       (rt_zero_b ? 32'd0 : regs_rd_data | rt_extra_b);
+    reg         rt_stamp_b_q, rt_zero_b_q;
+    reg  [31:0] rt_extra_b_q;
+    always @(posedge clk) begin
+        rt_stamp_b_q <= rt_stamp_b;
+        rt_zero_b_q  <= rt_zero_b;
+        rt_extra_b_q <= rt_extra_b;
+    end
+    assign rt_data_b = rt_stamp_b_q ? rt_timestamp :
+                       (rt_zero_b_q ? 32'd0 : regs_rd_data_b | rt_extra_b_q);
 
     // Hub.
     wire        query_valid, query_event;
@@ -222,7 +232,7 @@ module firelink_node #(
     wire [5:0]  snap_waddr, snap_pl_addr;
     wire [31:0] snap_wdata;
     wire        bc_active;
-    sdp_ram #(.WIDTH(32), .DEPTH(64), .ADDR_BITS(6)) snapshot (
+    sdp_ram #(.WIDTH(32), .DEPTH(64), .ADDR_BITS(6), .OUT_REG(1)) snapshot (
         .clk(clk), .wr_en(snap_we), .wr_addr(snap_waddr), .wr_data(snap_wdata),
         .rd_addr((hub_src_sel && hub_src_active) ? hub_src_addr[5:0] : snap_pl_addr),
         .rd_data(snap_rdata));

@@ -109,18 +109,27 @@ module link_rx (
 
     wire        quad_done = active && rx_valid && (bitpos_next == 6'd32);
     wire [2:0]  hl_now    = (qidx == 11'd0) ? header_quadlets(shift_next[7:4]) : hlen;
-    wire [10:0] hcrc_idx  = {8'd0, hl_now};
-    wire [10:0] data_base = hcrc_idx + 11'd1;
-    wire [10:0] dcrc_idx  = data_base + dquads;
+    // Quadlet indices of the header CRC, the first data quadlet and the data
+    // CRC, registered from hlen and dquads: those are set at the ends of
+    // quadlets 0 and 3, and the next quadlet ends at least four clocks
+    // later. (At quadlet 0 hlen is still 0, which no comparison below
+    // mistakes for a header CRC: they all ask for hlen != 0 or has_data.)
+    reg  [10:0] hcrc_idx, data_base, dcrc_idx;
+    always @(posedge clk) begin
+        hcrc_idx  <= {8'd0, hlen};
+        data_base <= {8'd0, hlen} + 11'd1;
+        dcrc_idx  <= {8'd0, hlen} + 11'd1 + dquads;
+    end
+    // Quadlets the packet needs (header, its CRC, data and its CRC), for
+    // the end of the packet, which may come the clock after a quadlet.
+    wire [10:0] needed = (hlen == 3'd0) ? 11'd1 :
+                         (has_data ? {8'd0, hlen} + 11'd2 + dquads : {8'd0, hlen} + 11'd1);
     // data_length of the packet in q3 (bytes) -> quadlets, rounded up.
     wire [15:0] q3_len    = shift_next[31:16];
     wire [11:0] q3_round  = {1'b0, q3_len[12:2]} + {11'd0, (q3_len[1:0] != 2'd0)};
     wire [10:0] q3_quads  = (q3_len[15:13] != 3'd0 || q3_round[11]) ? 11'h7FF :
                             q3_round[10:0];
 
-    // Quadlets the packet needs (header, its CRC, data and its CRC).
-    wire [10:0] needed = (hlen == 3'd0) ? 11'd1 :
-                         (has_data ? dcrc_idx + 11'd1 : hcrc_idx + 11'd1);
 
     always @(posedge clk) begin
         buf_wr_en    <= 1'b0;
@@ -169,7 +178,7 @@ module link_rx (
                 bitpos <= 6'd0;
                 if (qidx != 11'h7FF) qidx <= qidx + 11'd1;
                 // The CRC restarts after the header CRC quadlet.
-                if (qidx == hcrc_idx && hl_now != 3'd0) begin
+                if (qidx == hcrc_idx && hlen != 3'd0) begin
                     crc   <= 32'hFFFF_FFFF;
                     crc_q <= 32'hFFFF_FFFF;
                 end else begin
@@ -197,7 +206,7 @@ module link_rx (
                     end
                     default: ;
                 endcase
-                if (hl_now != 3'd0 && qidx == hcrc_idx)
+                if (hlen != 3'd0 && qidx == hcrc_idx)
                     hdr_ok <= (shift_next == ~crc_q);
                 if (has_data && qidx == dcrc_idx)
                     data_ok <= (shift_next == ~crc_q);
@@ -218,7 +227,7 @@ module link_rx (
                 pkt_q1       <= q1;
                 pkt_q2       <= q2;
                 pkt_q3       <= q3;
-                pkt_hdr_ok   <= hdr_ok && (qidx >= hcrc_idx + 11'd1);
+                pkt_hdr_ok   <= hdr_ok && (qidx >= {8'd0, hlen} + 11'd1);
                 pkt_has_data <= has_data;
                 pkt_data_ok  <= data_ok;
                 pkt_len_ok   <= (qidx >= needed);

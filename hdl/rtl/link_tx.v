@@ -10,8 +10,9 @@
 // valid/ready stream for phy_data_tx, which sends them at S400.
 //
 // Payload source: the framer raises pl_rd with pl_index; the quadlet must
-// be on pl_data exactly two clocks later. Each quadlet is asked for
-// at least four clocks before it is needed, so the bytes never stall.
+// be on pl_data exactly four clocks later. Quadlets are asked for two
+// ahead (kept by parity in two registers), at least eight clocks before
+// they are needed, so the bytes never stall.
 `default_nettype none
 
 module link_tx (
@@ -44,7 +45,7 @@ module link_tx (
                      P_DATA = 3'd4, P_DCRC = 3'd5;
 
     reg [2:0]  phase;
-    reg [31:0] cur;        // quadlet being sent
+    reg [31:0] cur;        // quadlet being sent, shifted to its current byte
     reg [1:0]  bi;         // byte of it
     reg [2:0]  hi;         // header quadlet index
     reg [9:0]  di;         // data quadlet index
@@ -53,12 +54,16 @@ module link_tx (
     reg [31:0] h0, h1, h2, h3;
     reg [2:0]  hq;
     reg [9:0]  dq;
-    reg [31:0] pf;         // prefetched payload quadlet
-    reg [1:0]  pending;    // payload reads in flight, by age
+    reg [31:0] pf [0:1];   // prefetched payload quadlets, by index parity
+    reg [3:0]  pending;    // payload reads in flight, by age
+    reg [3:1]  pending_odd;// ... and their index parity
+    reg        ask_second; // quadlet 1 still to ask for (the clock after 0)
 
     assign job_ready = (phase == P_IDLE);
     assign tx_valid  = (phase != P_IDLE);
-    assign tx_data   = (phase == P_ACK) ? cur[31:24] : cur[31 - 8*bi -: 8];
+    // cur shifts left a byte per byte sent: the byte on the wire is always
+    // its top byte (no multiplexer before the CRC).
+    assign tx_data   = cur[31:24];
     wire   last_byte = (phase == P_ACK) || (bi == 2'd3);
     assign tx_last   = (phase == P_ACK) ||
                        (bi == 2'd3 && (phase == P_DCRC ||
@@ -88,16 +93,27 @@ module link_tx (
             hi      <= 3'd0;
             di      <= 10'd0;
             crc     <= 32'hFFFF_FFFF;
-            pending <= 2'b00;
-            pf      <= 32'd0;
+            pending <= 4'b0000;
+            pending_odd <= 3'b000;
+            ask_second  <= 1'b0;
+            pf[0]   <= 32'd0;
+            pf[1]   <= 32'd0;
             pl_index <= 10'd0;
             pkt_after_ack <= 1'b0;
             h0 <= 32'd0; h1 <= 32'd0; h2 <= 32'd0; h3 <= 32'd0;
             hq <= 3'd4; dq <= 10'd0;
         end else begin
             // Payload reads in flight: capture the data when it is due.
-            pending <= {pending[0], 1'b0};
-            if (pending[1]) pf <= pl_data;
+            pending     <= {pending[2:0], 1'b0};
+            // pl_index is the index of the read in pending[0].
+            pending_odd <= {pending_odd[2:1], pl_index[0]};
+            if (pending[3]) pf[pending_odd[3]] <= pl_data;
+            if (ask_second) begin
+                ask_second <= 1'b0;
+                pl_rd      <= 1'b1;
+                pl_index   <= 10'd1;
+                pending[0] <= 1'b1;
+            end
             if (phase == P_IDLE) begin
                 if (job_valid) begin
                     h0 <= job_h0; h1 <= job_h1; h2 <= job_h2; h3 <= job_h3;
@@ -115,17 +131,19 @@ module link_tx (
                         phase <= P_HDR;
                         cur   <= job_h0;
                     end
-                    // Ask for the first payload quadlet now.
+                    // Ask for the first two payload quadlets now.
                     if (job_pkt && job_data_quads != 10'd0) begin
                         pl_rd    <= 1'b1;
                         pl_index <= 10'd0;
                         pending[0] <= 1'b1;
+                        ask_second <= (job_data_quads > 10'd1);
                     end
                 end
             end else if (tx_ready) begin
                 if (phase != P_ACK) crc <= crc_next;
                 if (!last_byte) begin
-                    bi <= bi + 2'd1;
+                    bi  <= bi + 2'd1;
+                    cur <= {cur[23:0], 8'd0};
                 end else begin
                     bi <= 2'd0;
                     case (phase)
@@ -152,11 +170,11 @@ module link_tx (
                                 phase <= P_IDLE;
                             end else begin
                                 phase <= P_DATA;
-                                cur   <= pf;
+                                cur   <= pf[0];
                                 di    <= 10'd0;
-                                if (dq > 10'd1) begin
+                                if (dq > 10'd2) begin
                                     pl_rd    <= 1'b1;
-                                    pl_index <= 10'd1;
+                                    pl_index <= 10'd2;
                                     pending[0] <= 1'b1;
                                 end
                             end
@@ -167,10 +185,10 @@ module link_tx (
                                 cur   <= ~crc_next;
                             end else begin
                                 di  <= di + 10'd1;
-                                cur <= pf;
-                                if (di + 10'd2 < dq) begin
+                                cur <= pf[~di[0]];
+                                if (di + 10'd3 < dq) begin
                                     pl_rd    <= 1'b1;
-                                    pl_index <= di + 10'd2;
+                                    pl_index <= di + 10'd3;
                                     pending[0] <= 1'b1;
                                 end
                             end

@@ -46,7 +46,7 @@ module status_broadcast #(
     output reg         rt_sample,
     output reg  [31:0] rt_sample_time,
     output reg  [9:0]  rt_index,
-    input  wire [31:0] rt_data,
+    input  wire [31:0] rt_data,       // for rt_index two clocks ago
     // Snapshot RAM write port.
     output reg         snap_we,
     output reg  [5:0]  snap_waddr,
@@ -68,7 +68,10 @@ module status_broadcast #(
     reg        pending;
     reg [15:0] wait_for;
     reg        all_seen;
-    reg [31:0] earliest, deadline, seen_done;
+    reg [31:0] earliest, seen_done;
+    // The same instants + REQUEST_DELAY: when the request goes to the PHY.
+    reg [31:0] earliest_req, seen_req;
+    reg [31:0] deadline_base;   // the chain's deadline before the timeouts (+ REQUEST_DELAY)
     reg [6:0]  copy;          // 0: idle, else next snapshot index + 1
     reg [15:0] seq;
 
@@ -85,12 +88,29 @@ module status_broadcast #(
         end
     endfunction
 
-    // The slot instant.
+    // The chain's deadline (+ REQUEST_DELAY): CHAIN_TIMEOUT per lower
+    // selected board after the first slot, worked out over three registers from the query (the
+    // snapshot copy holds the request back for longer).
+    reg  [4:0]  lower_count;
+    reg  [31:0] lower_timeout, deadline;
+    always @(posedge clk) begin
+        lower_count   <= popcount(lower);
+        lower_timeout <= CHAIN_TIMEOUT * {27'd0, lower_count};
+        deadline      <= deadline_base + lower_timeout;
+    end
+
+    // The slot instant (as its request instant, + REQUEST_DELAY).
     wire        too_soon = $signed(seen_done - earliest) < 0;
-    wire [31:0] slot_at = CHAIN ? (all_seen ? (too_soon ? earliest : seen_done)
-                                            : deadline)
-                                : earliest;
-    wire        due     = $signed(now - slot_at - REQUEST_DELAY) >= 0;
+    wire [31:0] slot_req = CHAIN ? (all_seen ? (too_soon ? earliest_req : seen_req)
+                                             : deadline)
+                                 : earliest_req;
+    // The request's clock, registered: the slot's inputs settle at least
+    // REQUEST_DELAY clocks before it (the hub stores a broadcast within
+    // that), and the snapshot copy (34 clocks) holds the request back
+    // after a query, so `due` never sees a stale value.
+    reg  [31:0] request_at;
+    always @(posedge clk) request_at <= slot_req;
+    wire        due     = $signed(now - request_at) >= 0;
     wire        heard_all_now = ((wait_for & ~seen) == 16'd0);
 
     always @(posedge clk) begin
@@ -104,7 +124,9 @@ module status_broadcast #(
                 wait_for  <= 16'd0;
                 all_seen  <= 1'b0;
                 earliest  <= 32'd0;
-                deadline  <= 32'd0;
+                earliest_req <= 32'd0;
+                seen_req  <= 32'd0;
+                deadline_base <= 32'd0;
                 seen_done <= 32'd0;
                 seq       <= 16'd0;
                 rt_index  <= 10'd0;
@@ -120,39 +142,46 @@ module status_broadcast #(
             copy           <= 7'd1;
             bc_req         <= 1'b0;
             seen_done      <= query_at;
+            seen_req       <= query_at + REQUEST_DELAY;
             if (CHAIN) begin
                 pending  <= selected;
                 wait_for <= lower;
                 all_seen <= (lower == 16'd0);
                 earliest <= query_at + FIRST_SLOT;
-                deadline <= query_at + FIRST_SLOT +
-                            CHAIN_TIMEOUT * {27'd0, popcount(lower)};
+                earliest_req  <= query_at + (FIRST_SLOT + REQUEST_DELAY);
+                deadline_base <= query_at + (FIRST_SLOT + REQUEST_DELAY);
             end else begin
                 pending  <= phy_id_valid;
                 wait_for <= 16'd0;
                 all_seen <= 1'b1;
                 earliest <= query_at + TDMA_OFFSET + TDMA_SLOT * {26'd0, phy_id};
-                deadline <= query_at + TDMA_OFFSET + TDMA_SLOT * {26'd0, phy_id};
+                earliest_req  <= query_at + (TDMA_OFFSET + REQUEST_DELAY) +
+                                 TDMA_SLOT * {26'd0, phy_id};
+                deadline_base <= query_at + (TDMA_OFFSET + REQUEST_DELAY) +
+                                 TDMA_SLOT * {26'd0, phy_id};
             end
         end else begin
-            // Snapshot: header, then block quadlets 0..31 (read one clock ahead).
+            // Snapshot: header, then block quadlets 0..31 (each read two
+            // clocks ahead: the index is registered, then the register
+            // file's word).
             if (copy != 7'd0) begin
                 rt_index <= {3'd0, copy} - 10'd1;
                 if (copy == 7'd1) begin
                     snap_we    <= 1'b1;
                     snap_waddr <= 6'd0;
                     snap_wdata <= {seq, BLOCK_QUADLETS};
-                end else begin
+                end else if (copy >= 7'd3) begin
                     snap_we    <= 1'b1;
-                    snap_waddr <= copy[5:0] - 6'd1;
+                    snap_waddr <= copy[5:0] - 6'd2;
                     snap_wdata <= rt_data;
                 end
-                copy <= (copy == 7'd33) ? 7'd0 : copy + 7'd1;
+                copy <= (copy == 7'd34) ? 7'd0 : copy + 7'd1;
             end
             // Every lower selected board heard: remember when.
             if (pending && !all_seen && seen_event && heard_all_now) begin
                 all_seen  <= 1'b1;
                 seen_done <= seen_time;
+                seen_req  <= seen_time + REQUEST_DELAY;
             end
             if (pending && copy == 7'd0 && due) begin
                 pending         <= 1'b0;

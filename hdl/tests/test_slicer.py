@@ -23,10 +23,12 @@ async def slice_of(dut, words: list[int], length: int | None = None) -> list[tup
     await FallingEdge(dut.clk)
     dut.start.value = 0
     writes = []
-    last_addr = 0
+    # The receive buffer: a quadlet two clocks after its address (the
+    # block RAM's read register and its output register).
+    addrs = [0, 0]
     for _ in range(400):
-        dut.rd_data.value = words[last_addr] if last_addr < len(words) else 0
-        last_addr = int(dut.rd_addr.value)
+        dut.rd_data.value = words[addrs[0]] if addrs[0] < len(words) else 0
+        addrs = [addrs[1], int(dut.rd_addr.value)]
         await FallingEdge(dut.clk)
         if int(dut.wr_en.value):
             assert int(dut.wr_time.value) == 1234
