@@ -815,9 +815,21 @@ async fn the_snake_console_shows_36_axes_and_drives_its_channels() {
             .is_some_and(|sp| (sp - before - 0.05).abs() < 1e-9)
     })
     .await;
+    // A goal past the axis's soft limits is refused and moves nothing.
+    let r = c
+        .command(r#"{"action":"move","axis":0,"position":1e300}"#)
+        .await;
+    assert_eq!(r.status, 409, "{}", r.body);
+    assert!(r.body.contains("outside its soft limits"), "{}", r.body);
+    let st = state_until(&c, "the refused move", |s| {
+        s["axes"][0]["setpoint"].is_number()
+    })
+    .await;
+    let held = st["axes"][0]["setpoint"].as_f64().unwrap();
+    assert!((held - before - 0.05).abs() < 1e-9, "{st}");
     let (accepted, exit) = c.stop().await;
     // Every command above but the malformed ones reached the robot.
-    assert_eq!(accepted, 19);
+    assert_eq!(accepted, 20);
     assert!(exit.is_clean(), "{exit}");
 }
 

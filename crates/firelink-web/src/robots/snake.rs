@@ -760,10 +760,16 @@ fn move_axis(rig: &mut Rig, axis: usize, goal: impl FnOnce(f64) -> f64) -> Resul
     }
     let here = robot.setpoint(axis).unwrap_or(0.0);
     let to = goal(here);
-    let (v, a) = rig
-        .config
-        .joints()
-        .nth(axis)
+    let joint = rig.config.joints().nth(axis);
+    if let Some(soft) = joint.map(|j| j.actuator.encoder.position_limits_soft) {
+        if !(soft.lower..=soft.upper).contains(&to) {
+            return Err(refused(format!(
+                "axis {axis}: {to} is outside its soft limits {} ..= {}",
+                soft.lower, soft.upper
+            )));
+        }
+    }
+    let (v, a) = joint
         .and_then(|j| j.actuator.limits)
         .map_or((0.5, 2.0), |l| (l.velocity, l.acceleration.unwrap_or(2.0)));
     let p2p = PointToPoint::new(here, to, v, a).map_err(|e| refused(e.to_string()))?;
