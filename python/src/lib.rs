@@ -1254,9 +1254,13 @@ fn run_bench_json(
     let transports = items(transports, "transports", 8)?
         .iter()
         .map(|t| {
-            let name = args::text(t, "a transport", "sim or udp")?;
-            BenchTransport::from_name(&name)
-                .ok_or_else(|| bad(py, format!("unknown transport {name:?}: sim or udp")))
+            let name = args::text(t, "a transport", BenchTransport::NAMES)?;
+            BenchTransport::from_name(&name).ok_or_else(|| {
+                bad(
+                    py,
+                    format!("unknown transport {name:?}: {}", BenchTransport::NAMES),
+                )
+            })
         })
         .collect::<PyResult<Vec<_>>>()?;
     let boards = items(boards, "boards", 64)?

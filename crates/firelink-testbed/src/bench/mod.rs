@@ -88,6 +88,9 @@ impl BenchTransport {
         }
     }
 
+    /// The names [`BenchTransport::from_name`] takes, for messages.
+    pub const NAMES: &'static str = "sim, udp, fw or eth";
+
     /// Parse `sim`, `udp`, `fw` or `eth`.
     pub fn from_name(name: &str) -> Option<BenchTransport> {
         match name {
