@@ -24,7 +24,7 @@ use pyo3::types::{PyBool, PyByteArray, PyBytes, PyString};
 
 use firelink_wire::human::Number;
 
-use crate::bad;
+use crate::errors::bad;
 
 /// A Python string as a Rust string (without `str()`: see the module's
 /// docs).
@@ -340,7 +340,7 @@ pub(crate) fn firmware(value: &Bound<'_, PyAny>) -> PyResult<firelink_testbed::e
         _ => match value.cast::<PyString>() {
             Ok(s) => string(s)?,
             Err(_) => {
-                return Err(crate::error(
+                return Err(crate::errors::error(
                     value.py(),
                     "PortError",
                     format!(
@@ -351,7 +351,7 @@ pub(crate) fn firmware(value: &Bound<'_, PyAny>) -> PyResult<firelink_testbed::e
             }
         },
     };
-    crate::profile(value.py(), &name)
+    crate::ports::profile(value.py(), &name)
 }
 
 /// A byte string: `bytes`, `bytearray` or a `memoryview`.

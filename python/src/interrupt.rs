@@ -111,7 +111,7 @@ pub(crate) fn abandon_on_interrupt<T: Send + 'static>(
         // The worker ended without a result: it panicked.
         Err(None) => match worker.join() {
             Err(panic) => std::panic::resume_unwind(panic),
-            Ok(()) => Err(crate::error(
+            Ok(()) => Err(crate::errors::error(
                 py,
                 "FirelinkError",
                 "the worker thread ended without a result".to_string(),

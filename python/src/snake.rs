@@ -23,9 +23,9 @@ use firelink_wire::snake::CHANNELS;
 use firelink_wire::snake::registers::{PotOutputs, PowerControl, Wiper};
 
 use crate::args::{self, Span};
-use crate::{
-    AnyPort, bad, cycle_result, error, exclusive, host_error, interrupt, stats_dict, testbed_error,
-};
+use crate::errors::{bad, error, host_error, testbed_error};
+use crate::io_system::{cycle_result, stats_dict};
+use crate::{AnyPort, exclusive, interrupt};
 
 /// An argument as given, converted (with its name and range) where it is
 /// used: its extraction never fails, so PyO3 raises no `TypeError` first.
@@ -73,7 +73,7 @@ fn flag(v: Arg<'_>, what: &str) -> PyResult<bool> {
 /// as everywhere else; `sim:N[:FW]` and `emulate` refused.
 fn open_snake_port(py: Python<'_>, spec: &str, config: &IoConfig) -> PyResult<(AnyPort, String)> {
     const COMMAND: &str = "firelink.SnakeSystem";
-    let parsed = crate::parse_port_spec(py, spec)?;
+    let parsed = crate::ports::parse_port_spec(py, spec)?;
     let refused = parsed
         .refuse_unless(COMMAND, &[PortKind::Sim, PortKind::Udp, PortKind::Fw])
         .and_then(|()| {
@@ -86,7 +86,7 @@ fn open_snake_port(py: Python<'_>, spec: &str, config: &IoConfig) -> PyResult<(A
         return Err(error(py, "PortError", r.to_string()));
     }
     if !parsed.is_sim() {
-        return crate::open_port_for(py, COMMAND, spec);
+        return crate::ports::open_port_for(py, COMMAND, spec);
     }
     let nodes =
         firelink_testbed::snake::node_configs(config, 1).map_err(|e| testbed_error(py, e))?;
@@ -203,10 +203,10 @@ impl SnakeSystem {
         port: Option<&Bound<'_, PyAny>>,
         config: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<SnakeSystem> {
-        let config = crate::config_arg(py, config)?.unwrap_or_else(presets::snake_seed001);
+        let config = crate::config::config_arg(py, config)?.unwrap_or_else(presets::snake_seed001);
         let inner: AnyPort = match port.filter(|p| !p.is_none()) {
             None => open_snake_port(py, "sim", &config)?.0,
-            Some(p) => crate::port_arg(py, p, "SnakeSystem", |text| {
+            Some(p) => crate::ports::port_arg(py, p, "SnakeSystem", |text| {
                 Ok(open_snake_port(py, text, &config)?.0)
             })?,
         };
@@ -240,9 +240,9 @@ impl SnakeSystem {
     /// Let `seconds` pass (virtual time on the simulated bus), at most a
     /// day; Ctrl-C interrupts a long wait.
     fn wait(&mut self, py: Python<'_>, seconds: &Bound<'_, PyAny>) -> PyResult<()> {
-        let d = crate::wait_arg(seconds)?;
+        let d = crate::ports::wait_arg(seconds)?;
         let sys = self.sys();
-        crate::wait_on(py, sys.port_mut().as_mut(), d)
+        crate::ports::wait_on(py, sys.port_mut().as_mut(), d)
     }
 
     /// Find the nodes again (after a bus reset); buffers are kept.
@@ -654,9 +654,9 @@ impl SnakeSystem {
     /// watchdog expires disables its amplifiers.
     fn set_watchdog(&mut self, py: Python<'_>, ms: Arg<'_>) -> PyResult<()> {
         let ms = &ms.0;
-        let setting = crate::watchdog_setting(py, ms)?;
+        let setting = crate::errors::watchdog_setting(py, ms)?;
         if let Some(w) = setting.warning() {
-            crate::warn(py, w)?;
+            crate::errors::warn(py, w)?;
         }
         self.at_once(py, |s| s.set_watchdog(setting))
     }

@@ -1,0 +1,196 @@
+//! The demo and the benchmark as calls that return their JSON reports
+//! (`run_demo_json`, `run_bench_json`).
+
+use pyo3::prelude::*;
+use pyo3::types::PyString;
+
+use firelink_control::config::presets;
+use firelink_control::runner::Pacing;
+use firelink_host::udp::WaitMode;
+use firelink_testbed::bench::{BenchOptions, BenchTransport};
+use firelink_testbed::demo::{DemoFault, DemoOptions};
+use firelink_testbed::port_spec;
+
+use crate::args::{self, Span};
+use crate::config::{config_arg, path_arg};
+use crate::errors::{bad, error, testbed_error, warn, watchdog_setting};
+use crate::interrupt;
+use crate::io_system::{PROTOCOLS, protocol};
+use crate::ports::parse_port_spec;
+
+pub(crate) fn to_json_text(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<String> {
+    serde_json::to_string(value).map_err(|e| error(py, "FirelinkError", e.to_string()))
+}
+
+/// The longest demo, seconds of motion (as the command line's).
+const MAX_DEMO_S: f64 = 86_400.0;
+
+/// The most cycles one call runs or measures (as the command line's).
+pub(crate) const MAX_CYCLES: i64 = 1_000_000_000;
+
+/// The most cycles per benchmark point.
+const MAX_BENCH_CYCLES: i64 = 1_000_000;
+
+/// Run the demo; the report as JSON text (wrapped by `firelink.run_demo`).
+/// Ctrl-C stops the robot at its next cycle (the boards it powered are
+/// powered down) and raises `KeyboardInterrupt`.
+#[pyfunction]
+#[pyo3(signature = (port, duration, rate, protocol, firmware, fault, pacing, watchdog_ms, config))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn run_demo_json(
+    py: Python<'_>,
+    port: &Bound<'_, PyAny>,
+    duration: &Bound<'_, PyAny>,
+    rate: &Bound<'_, PyAny>,
+    protocol: &Bound<'_, PyAny>,
+    firmware: &Bound<'_, PyAny>,
+    fault: &Bound<'_, PyAny>,
+    pacing: Option<&Bound<'_, PyAny>>,
+    watchdog_ms: &Bound<'_, PyAny>,
+    config: Option<&Bound<'_, PyAny>>,
+) -> PyResult<String> {
+    let port = args::text(port, "port", port_spec::EXPECTED)?;
+    let duration_s = args::real(duration, "duration", Span::above(0.0, MAX_DEMO_S, " s"))?;
+    let rate_hz = args::real(rate, "rate", Span::closed(1.0, 100_000.0, " Hz"))?;
+    let protocol = self::protocol(py, &args::text(protocol, "protocol", PROTOCOLS)?)?;
+    let firmware = args::firmware(firmware)?;
+    let faults = "none, stop-host, corrupt-query, board-loss or following-error";
+    let fault = args::text(fault, "fault", faults)?
+        .parse::<DemoFault>()
+        .map_err(|e| bad(py, e.to_string()))?;
+    let pacing = match args::opt_text(pacing, "pacing", "virtual or realtime")?.as_deref() {
+        None => None,
+        Some("virtual") => Some(Pacing::Virtual),
+        Some("realtime") => Some(Pacing::WallClock),
+        Some(p) => {
+            return Err(bad(
+                py,
+                format!("unknown pacing {p:?}: virtual or realtime"),
+            ));
+        }
+    };
+    let watchdog = watchdog_setting(py, watchdog_ms)?;
+    let config = config_arg(py, config)?;
+    let options = DemoOptions {
+        config: config.unwrap_or_else(presets::dvrk_seed000),
+        rate_hz,
+        protocol,
+        duration_s,
+        port: parse_port_spec(py, &port)?,
+        firmware,
+        fault,
+        pacing,
+        watchdog,
+        udp_wait: WaitMode::Blocking,
+    };
+    if let Some(w) = watchdog.warning() {
+        warn(py, w)?;
+    }
+    let report = interrupt::until_interrupted(py, |stop| {
+        firelink_testbed::demo::run_demo_until(&options, stop, None, |_| {})
+    })?
+    .map_err(|e| testbed_error(py, e))?;
+    let mut value =
+        serde_json::to_value(&report).map_err(|e| error(py, "FirelinkError", e.to_string()))?;
+    if let Some(map) = value.as_object_mut() {
+        let verdict = report.verdict().err().unwrap_or_else(|| "ok".to_string());
+        map.insert("verdict".into(), verdict.into());
+    }
+    to_json_text(py, &value)
+}
+
+/// The items of a list argument (any iterable but a string; a string is
+/// one item), at most `max` of them: an endless iterator is refused, not
+/// followed.
+fn items<'py>(
+    value: &Bound<'py, PyAny>,
+    what: &str,
+    max: usize,
+) -> PyResult<Vec<Bound<'py, PyAny>>> {
+    if value.is_instance_of::<PyString>() {
+        return Ok(vec![value.clone()]);
+    }
+    let iter = value.try_iter().map_err(|_| {
+        bad(
+            value.py(),
+            format!("{what} must be a list, not {}", args::type_name(value)),
+        )
+    })?;
+    let mut out = Vec::new();
+    for item in iter {
+        if out.len() == max {
+            return Err(bad(
+                value.py(),
+                format!("{what} has more than {max} entries"),
+            ));
+        }
+        out.push(item?);
+    }
+    Ok(out)
+}
+
+/// Run the benchmark; the report as JSON text (wrapped by `firelink.run_bench`).
+/// Ctrl-C returns at once with `KeyboardInterrupt` (the benchmark's thread,
+/// on emulated boards only, finishes its work on its own).
+#[pyfunction]
+#[pyo3(signature = (transports, boards, protocols, cycles, firmware, plot))]
+pub(crate) fn run_bench_json(
+    py: Python<'_>,
+    transports: &Bound<'_, PyAny>,
+    boards: &Bound<'_, PyAny>,
+    protocols: &Bound<'_, PyAny>,
+    cycles: &Bound<'_, PyAny>,
+    firmware: &Bound<'_, PyAny>,
+    plot: Option<&Bound<'_, PyAny>>,
+) -> PyResult<String> {
+    let transports = items(transports, "transports", 8)?
+        .iter()
+        .map(|t| {
+            let name = args::text(t, "a transport", BenchTransport::NAMES)?;
+            BenchTransport::from_name(&name).ok_or_else(|| {
+                bad(
+                    py,
+                    format!("unknown transport {name:?}: {}", BenchTransport::NAMES),
+                )
+            })
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    let boards = items(boards, "boards", 64)?
+        .iter()
+        .map(|b| args::int_as::<usize>(b, "a board count", 1, 62))
+        .collect::<PyResult<Vec<_>>>()?;
+    let protocols = items(protocols, "protocols", 8)?
+        .iter()
+        .map(|p| protocol(py, &args::text(p, "a protocol", PROTOCOLS)?))
+        .collect::<PyResult<Vec<_>>>()?;
+    let cycles: u64 = args::int_as(cycles, "cycles", 1, MAX_BENCH_CYCLES)?;
+    let plot = match plot.filter(|p| !p.is_none()) {
+        None => None,
+        Some(p) => Some(path_arg(p, "plot")?),
+    };
+    let options = BenchOptions {
+        transports,
+        boards,
+        protocols,
+        cycles,
+        firmware: args::firmware(firmware)?,
+        ..BenchOptions::default()
+    };
+    // Checked here too, so that a refusal is not left to the worker.
+    firelink_testbed::bench::check_board_counts(&options.boards).map_err(|e| bad(py, e))?;
+    if options.transports.is_empty() || options.protocols.is_empty() {
+        return Err(bad(
+            py,
+            "run_bench needs at least one transport and one protocol",
+        ));
+    }
+    let outcome = interrupt::abandon_on_interrupt(py, move || {
+        let report = firelink_testbed::bench::run_bench(&options, |_, _, _| {})
+            .map_err(|e| e.to_string())?;
+        if let Some(path) = plot {
+            firelink_plot::fig11(&report, &path).map_err(|e| e.to_string())?;
+        }
+        serde_json::to_string(&report).map_err(|e| e.to_string())
+    })?;
+    outcome.map_err(|e| error(py, "FirelinkError", e))
+}
