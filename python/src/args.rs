@@ -22,6 +22,9 @@ use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyByteArray, PyBytes, PyString};
 
+use firelink_host::WatchdogSetting;
+use firelink_testbed::emulated::Profile;
+use firelink_testbed::port_spec;
 use firelink_wire::human::Number;
 
 use crate::errors::bad;
@@ -351,7 +354,7 @@ pub(crate) fn firmware(value: &Bound<'_, PyAny>) -> PyResult<firelink_testbed::e
             }
         },
     };
-    crate::ports::profile(value.py(), &name)
+    profile(value.py(), &name)
 }
 
 /// A byte string: `bytes`, `bytearray` or a `memoryview`.
@@ -507,4 +510,61 @@ pub(crate) fn real_array(value: &Bound<'_, PyAny>, what: &str, len: usize) -> Py
     }
     let arr = array(value, what, len, Values::Reals)?;
     Ok(arr.cast::<PyArray1<f64>>()?.to_vec()?)
+}
+
+/// The most cycles one call runs or measures (as the command line's).
+pub(crate) const MAX_CYCLES: i64 = 1_000_000_000;
+
+/// The emulated firmware a name gives (`7`, `8`, `9`, `seed`).
+pub(crate) fn profile(py: Python<'_>, name: &str) -> PyResult<Profile> {
+    port_spec::firmware_of(name).ok_or_else(|| {
+        crate::errors::error(
+            py,
+            "PortError",
+            format!("unknown firmware {name:?}: expected 7, 8, 9 or seed"),
+        )
+    })
+}
+
+/// A watchdog argument: a period in ms (int or float) or the string
+/// `"off"`; the one rule is `WatchdogSetting` (one tick to 65535 ticks).
+pub(crate) fn watchdog_setting(
+    py: Python<'_>,
+    value: &Bound<'_, PyAny>,
+) -> PyResult<WatchdogSetting> {
+    let range = WatchdogSetting::RANGE;
+    if let Ok(text) = value.cast::<PyString>() {
+        let text = string(text)?;
+        return WatchdogSetting::parse(&text).map_err(|e| match e {
+            firelink_wire::board::registers::WatchdogParseError::NotANumber => bad(
+                py,
+                format!("watchdog {text:?} is neither \"off\" nor a period in ms {range}"),
+            ),
+            range_error => bad(py, range_error.to_string()),
+        });
+    }
+    let not_a_period = || {
+        bad(
+            py,
+            format!(
+                "watchdog must be a period in ms {range} or \"off\", not {}",
+                type_name(value)
+            ),
+        )
+    };
+    if is_bool(value) {
+        return Err(not_a_period());
+    }
+    match value.extract::<f64>() {
+        // NaN and every out-of-range period: the setting's own message.
+        Ok(ms) => WatchdogSetting::from_ms(ms).map_err(|e| bad(py, e.to_string())),
+        Err(e) if e.is_instance_of::<pyo3::exceptions::PyOverflowError>(py) => Err(bad(
+            py,
+            format!(
+                "watchdog period {} ms is out of range: {range}, or \"off\"",
+                huge(value)
+            ),
+        )),
+        Err(_) => Err(not_a_period()),
+    }
 }

@@ -13,9 +13,9 @@ use firelink_host::io::{IoOptions, IoSystem as HostIoSystem};
 use firelink_host::scan::Protocol;
 
 use crate::args;
-use crate::errors::{bad, host_error, warn, watchdog_setting};
+use crate::args::{MAX_CYCLES, watchdog_setting};
+use crate::errors::{bad, host_error, warn};
 use crate::ports::{Board, board_id, offset, open_port_for, port_arg, quadlet, wait_arg, wait_on};
-use crate::runs::MAX_CYCLES;
 use crate::{AnyPort, exclusive, interrupt};
 
 /// The boards' I/O: one cycle reads every board and writes every board.

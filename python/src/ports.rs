@@ -10,23 +10,12 @@ use pyo3::types::{PyBytes, PyString};
 
 use firelink_host::Port as HostPort;
 use firelink_host::port::Dest;
-use firelink_testbed::emulated::Profile;
 use firelink_testbed::port_spec::{self, PortSpec, PortSpecError};
 use firelink_testbed::ports::{PortOptions, open_bus_port};
 
 use crate::args::{self, Span};
 use crate::errors::{bad, error, host_error, testbed_error};
 use crate::{AnyPort, exclusive, interrupt};
-
-pub(crate) fn profile(py: Python<'_>, name: &str) -> PyResult<Profile> {
-    port_spec::firmware_of(name).ok_or_else(|| {
-        error(
-            py,
-            "PortError",
-            format!("unknown firmware {name:?}: expected 7, 8, 9 or seed"),
-        )
-    })
-}
 
 /// Parse a port description with the one grammar every front end shares
 /// (`firelink_testbed::port_spec`); `PortError` with the parser's message.

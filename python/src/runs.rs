@@ -11,9 +11,10 @@ use firelink_testbed::bench::{BenchOptions, BenchTransport};
 use firelink_testbed::demo::{DemoFault, DemoOptions};
 use firelink_testbed::port_spec;
 
+use crate::args::watchdog_setting;
 use crate::args::{self, Span};
 use crate::config::{config_arg, path_arg};
-use crate::errors::{bad, error, testbed_error, warn, watchdog_setting};
+use crate::errors::{bad, error, testbed_error, warn};
 use crate::interrupt;
 use crate::io_system::{PROTOCOLS, protocol};
 use crate::ports::parse_port_spec;
@@ -24,9 +25,6 @@ pub(crate) fn to_json_text(py: Python<'_>, value: &impl serde::Serialize) -> PyR
 
 /// The longest demo, seconds of motion (as the command line's).
 const MAX_DEMO_S: f64 = 86_400.0;
-
-/// The most cycles one call runs or measures (as the command line's).
-pub(crate) const MAX_CYCLES: i64 = 1_000_000_000;
 
 /// The most cycles per benchmark point.
 const MAX_BENCH_CYCLES: i64 = 1_000_000;

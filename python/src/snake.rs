@@ -654,7 +654,7 @@ impl SnakeSystem {
     /// watchdog expires disables its amplifiers.
     fn set_watchdog(&mut self, py: Python<'_>, ms: Arg<'_>) -> PyResult<()> {
         let ms = &ms.0;
-        let setting = crate::errors::watchdog_setting(py, ms)?;
+        let setting = crate::args::watchdog_setting(py, ms)?;
         if let Some(w) = setting.warning() {
             crate::errors::warn(py, w)?;
         }

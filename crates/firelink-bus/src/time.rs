@@ -17,7 +17,7 @@
 use core::fmt;
 use core::ops::{Add, AddAssign, Mul, Sub};
 
-pub use firelink_wire::board::registers::SYSTEM_CLOCK_HZ;
+pub use firelink_wire::phy::SYSTEM_CLOCK_HZ;
 
 /// [`SYSTEM_CLOCK_HZ`] for arithmetic.
 const CLOCK_HZ: u128 = SYSTEM_CLOCK_HZ as u128;

@@ -12,9 +12,10 @@ use firelink_wire::board::realtime::{
     BlockFormat, BoardLayout, ReadBlock, ReadBlockRepr, WriteBlockRepr,
 };
 use firelink_wire::board::registers::{
-    AmpCommand, DAC_ZERO, DacWord, DigitalIn, FpgaVersion, GitDesc, HardwareVersion,
-    SYSTEM_CLOCK_HZ, StatusCommand, StatusRead,
+    AmpCommand, DAC_ZERO, DacWord, DigitalIn, FpgaVersion, GitDesc, HardwareVersion, StatusCommand,
+    StatusRead,
 };
+use firelink_wire::phy::SYSTEM_CLOCK_HZ;
 
 use crate::error::{HostError, Result};
 

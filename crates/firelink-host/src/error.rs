@@ -98,7 +98,7 @@ pub enum HostError {
     #[error("no boards found: {seen}")]
     NoBoards {
         /// The port's counters over the scan.
-        seen: crate::transaction::LinkStats,
+        seen: crate::link_stats::LinkStats,
     },
     /// A board ID is not present in the current configuration.
     #[error("board {0} is not on the bus")]

@@ -38,8 +38,9 @@ use firelink_wire::bridge::{ControlWord, ExtraData};
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
 
 use crate::error::{HostError, Result};
+use crate::link_stats::LinkStats;
 use crate::port::{Dest, LinkFilter, Port};
-use crate::transaction::{Expect, LinkStats, Transactions};
+use crate::transaction::{Expect, Transactions};
 use crate::udp::{
     HOST_SOURCE_ID, Socket, fill_request, is_wait_over, judge_reply, read_block_request, time_left,
     write_block_request, write_quadlet_request,

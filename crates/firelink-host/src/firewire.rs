@@ -77,8 +77,8 @@ use firelink_wire::fw_cdev::{
 use firelink_wire::packet::{AsyncHeader, NodeId, Packet, PacketRepr, Rcode};
 
 use crate::error::{HostError, Result};
+use crate::link_stats::LinkStats;
 use crate::port::{Dest, LinkFilter, LinkFilters, Port, Verdict};
-use crate::transaction::LinkStats;
 
 nix::ioctl_readwrite_bad!(
     /// FW_CDEV_IOC_GET_INFO.

@@ -52,6 +52,7 @@ pub mod fault;
 #[cfg(all(feature = "firewire", target_os = "linux"))]
 pub mod firewire;
 pub mod io;
+pub mod link_stats;
 pub mod mahru;
 pub mod monitor;
 pub mod pacing;

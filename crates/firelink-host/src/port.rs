@@ -157,7 +157,7 @@ pub trait Port {
     /// ([`crate::eth::ETH_HUB_CLOCK_HZ`]; EthBasePort
     /// `GetBroadcastReadClockPeriod`).
     fn hub_clock_hz(&self) -> u32 {
-        firelink_wire::board::registers::SYSTEM_CLOCK_HZ
+        firelink_wire::phy::SYSTEM_CLOCK_HZ
     }
     /// Time since the port was opened (virtual on the simulated bus).
     fn now(&self) -> Duration;
@@ -186,8 +186,8 @@ pub trait Port {
         false
     }
     /// What the port's link sent and received, refusals by reason.
-    fn link_stats(&self) -> crate::transaction::LinkStats {
-        crate::transaction::LinkStats::default()
+    fn link_stats(&self) -> crate::link_stats::LinkStats {
+        crate::link_stats::LinkStats::default()
     }
     /// Physical node IDs that may hold boards (the bridge: 0..=15; the
     /// simulated bus: every node but the PC).
@@ -291,7 +291,7 @@ macro_rules! forward_port {
             let $s = self;
             $e.acknowledges_writes()
         }
-        fn link_stats(&self) -> crate::transaction::LinkStats {
+        fn link_stats(&self) -> crate::link_stats::LinkStats {
             let $s = self;
             $e.link_stats()
         }

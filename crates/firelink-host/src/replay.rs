@@ -29,8 +29,9 @@ use firelink_wire::packet::{Packet, Tcode};
 use firelink_wire::pcap::{Direction, Records};
 
 use crate::error::{HostError, Result};
+use crate::link_stats::LinkStats;
 use crate::port::{Dest, Port};
-use crate::transaction::{CrcCheck, Expect, LinkStats, Transactions, copy_answer};
+use crate::transaction::{CrcCheck, Expect, Transactions, copy_answer};
 
 /// One recorded packet.
 #[derive(Debug, Clone, PartialEq, Eq)]

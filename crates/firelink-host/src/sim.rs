@@ -28,8 +28,9 @@ use firelink_bus::{Bus, HostLink, HostModel, NodeHandle, SimDuration, SimTime};
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Speed};
 
 use crate::error::{HostError, Result};
+use crate::link_stats::LinkStats;
 use crate::port::{Dest, LinkFilter, LinkFilters, Port, Verdict};
-use crate::transaction::{CrcCheck, Expect, LinkStats, Refusal, Transactions};
+use crate::transaction::{CrcCheck, Expect, Refusal, Transactions};
 
 /// Source node ID is the PC's own node (whatever its physical ID).
 fn pc_node(phy: u8) -> NodeId {

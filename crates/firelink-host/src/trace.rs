@@ -39,8 +39,8 @@ use firelink_wire::packet::Packet;
 use firelink_wire::pcap::{self, Direction, RECORD_OVERHEAD};
 
 use crate::error::{HostError, Result};
+use crate::link_stats::LinkStats;
 use crate::port::{Dest, LinkFilter, Port, Verdict};
-use crate::transaction::LinkStats;
 
 /// Which port call a record is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

@@ -34,8 +34,9 @@ use firelink_wire::bridge::{ControlWord, EXTRA_DATA_LEN, ExtraData};
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
 
 use crate::error::{AddressProblem, HostError, Result};
+use crate::link_stats::LinkStats;
 use crate::port::{Dest, LinkFilter, LinkFilters, Port, Verdict};
-use crate::transaction::{CrcCheck, Expect, LinkStats, Transactions, copy_answer};
+use crate::transaction::{CrcCheck, Expect, Transactions, copy_answer};
 
 /// Source node ID the reference host uses (`fpga-board.md` §8).
 pub const HOST_SOURCE_ID: NodeId = NodeId(0xFFD0);

@@ -7,7 +7,7 @@ use std::net::UdpSocket;
 use std::thread;
 use std::time::Duration;
 
-use firelink_host::transaction::LinkStats;
+use firelink_host::link_stats::LinkStats;
 use firelink_host::udp::{UdpPort, WaitMode};
 use firelink_host::{Dest, HostError, Port};
 use firelink_wire::bridge::{ExtraData, split_host_datagram};

@@ -1,8 +1,8 @@
 //! How a configuration's actuator becomes an emulated joint: its plant, its
 //! mechanical stops, what its potentiometer measures, how its amplifier's
 //! calibration shows, and what is plugged into its boards (a PSM's sterile
-//! adapter and instrument). [`rig::plant_for`](crate::rig::plant_for) and
-//! [`rig::board_configs`](crate::rig::board_configs) use it.
+//! adapter and instrument). [`plant_for`] gives a joint's plant;
+//! [`rig::board_configs`](crate::rig::board_configs) uses it.
 //!
 //! The emulated robot agrees with its configuration as a calibrated robot
 //! agrees with its own: the encoder and the pot measure the same joint
@@ -32,6 +32,90 @@ use firelink_control::config::{
     ActuatorConfig, DigitalInputConfig, DvrkArm, IoConfig, JointRef, JointType, PlantPreset,
     RobotConfig,
 };
+
+/// Where a joint starts, inside its soft limits (a little off centre, so
+/// homing has something to do).
+pub fn start_position(config: &IoConfig, joint: usize) -> f64 {
+    config.joints().nth(joint).map_or(0.0, |j| {
+        let l = j.actuator.encoder.position_limits_soft;
+        0.5 * (l.lower + l.upper) + 0.05 * l.span() * ((joint % 5) as f64 - 2.0) / 2.0
+    })
+}
+
+/// The plant model a configuration's actuator names, with its
+/// transmission, encoder, pot, drive direction, amplifier calibration and
+/// mechanical stops made to agree with the configuration, as a calibrated
+/// robot's configuration agrees with the robot (see the module doc),
+/// starting at [`start_position`]. An actuator without a `simulation`
+/// section drives what its robot's dVRK arm has there (by the robot's
+/// name: `MTMR`, `PSM1`, `ECM`, ...), else a generic motor.
+pub fn plant_for(config: &IoConfig, joint: usize) -> Option<AxisParams> {
+    plant_starting_at(config, joint, start_position(config, joint))
+}
+
+/// [`plant_for`], the joint starting at `start` (joint units).
+pub fn plant_starting_at(config: &IoConfig, joint: usize, start: f64) -> Option<AxisParams> {
+    let j = config.joints().nth(joint)?;
+    let a = j.actuator;
+    let mut p = preset_params(plant_preset(&j));
+    let scale = a.encoder.bits_to_position.scale;
+    let cpt = a
+        .encoder
+        .counts_per_turn
+        .unwrap_or(p.encoder.counts_per_rev);
+    let gear = 2.0 * std::f64::consts::PI / (f64::from(cpt) * scale.abs());
+    // A negative transmission ratio turns both the drive and the encoder
+    // around, as the configuration's direction -1 says.
+    p.load.gear_ratio = gear * scale.signum();
+    p.encoder.counts_per_rev = cpt;
+    p.encoder.reversed = false;
+    // Motor torque constant as the configuration models it.
+    let e2c = a.drive.effort_to_current.scale.abs();
+    if e2c > 0.0 {
+        p.motor.torque_constant = 1.0 / (gear * e2c);
+    }
+    p.amplifier.current_limit = p.amplifier.current_limit.max(a.drive.maximum_current);
+    if let Some(pot) = a.potentiometer {
+        let vs = pot.voltage_to_position.scale;
+        if vs != 0.0 {
+            p.pot.volts_per_unit = 1.0 / vs;
+            p.pot.offset_volts = -pot.voltage_to_position.offset / vs;
+        }
+    }
+    p.load.initial_position = start;
+    apply(&j, &mut p);
+    Some(p)
+}
+
+/// The emulator's parameters of a named plant.
+pub fn preset_params(preset: PlantPreset) -> AxisParams {
+    use PlantPreset::*;
+    let (mtm, psm) = match preset {
+        MtmJ1 => (Some(1), None),
+        MtmJ2 => (Some(2), None),
+        MtmJ3 => (Some(3), None),
+        MtmJ4 => (Some(4), None),
+        MtmJ5 => (Some(5), None),
+        MtmJ6 => (Some(6), None),
+        MtmJ7 => (Some(7), None),
+        PsmJ1 => (None, Some(1)),
+        PsmJ2 => (None, Some(2)),
+        PsmJ3 => (None, Some(3)),
+        PsmJ4 => (None, Some(4)),
+        PsmJ5 => (None, Some(5)),
+        PsmJ6 => (None, Some(6)),
+        PsmJ7 => (None, Some(7)),
+        EcmJ1 => return presets::ecm_joint(1).unwrap_or_else(presets::generic_motor),
+        EcmJ2 => return presets::ecm_joint(2).unwrap_or_else(presets::generic_motor),
+        EcmJ3 => return presets::ecm_joint(3).unwrap_or_else(presets::generic_motor),
+        EcmJ4 => return presets::ecm_joint(4).unwrap_or_else(presets::generic_motor),
+        MtmGripper => (Some(8), None),
+        Generic => (None, None),
+    };
+    mtm.and_then(presets::mtm_joint)
+        .or_else(|| psm.and_then(presets::psm_joint))
+        .unwrap_or_else(presets::generic_motor)
+}
 
 /// How far inside the end of its electrical range a pot still reads its
 /// joint, V: well above its noise (0.5 mV) and an ADC count (69 uV).
@@ -277,7 +361,7 @@ pub fn instruments(config: &IoConfig) -> Vec<(u8, Instrument)> {
 pub fn notes(config: &IoConfig) -> Vec<String> {
     let mut out = Vec::new();
     for j in config.joints() {
-        let Some(p) = crate::rig::plant_for(config, j.index) else {
+        let Some(p) = plant_for(config, j.index) else {
             continue;
         };
         let soft = j.actuator.encoder.position_limits_soft;
@@ -456,7 +540,7 @@ mod tests {
         let reach = soft.upper + 1.5f64.to_radians();
         pot.voltage_to_position.scale = 2.0 * reach / 4.5;
         pot.voltage_to_position.offset = -reach;
-        let p = crate::rig::plant_for(&config, 4).unwrap();
+        let p = plant_for(&config, 4).unwrap();
         let (lo, hi) = (p.stops.lower.unwrap(), p.stops.upper.unwrap());
         let margin = 3f64.to_radians();
         assert!((lo - (soft.lower - margin)).abs() < 1e-12, "{lo}");
@@ -473,7 +557,7 @@ mod tests {
         // The MTM roll: a pot of about half a turn, unchecked, stops at
         // -480 and +456 degrees: nothing to note.
         let mtmr = presets::stock_mtmr();
-        let roll = crate::rig::plant_for(&mtmr, 6).unwrap();
+        let roll = plant_for(&mtmr, 6).unwrap();
         assert!((roll.stops.lower.unwrap() - (-480f64).to_radians()).abs() < 1e-9);
         assert!((roll.stops.upper.unwrap() - 456f64.to_radians()).abs() < 1e-9);
         assert_eq!(super::notes(&mtmr), Vec::<String>::new());

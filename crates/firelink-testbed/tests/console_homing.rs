@@ -91,14 +91,14 @@ fn stock_mtmr_homes_its_roll_by_a_stop_search() {
     // in actuator space.
     assert!(mtm.joints[2].checked && mtm.joints[3].checked);
     let config = presets::stock_mtmr();
-    let pot3 = firelink_testbed::rig::plant_for(&config, 3)
+    let pot3 = firelink_testbed::plant_map::plant_for(&config, 3)
         .unwrap()
         .pot
         .measures;
     assert_eq!(pot3.len(), 3, "{pot3:?}");
     // The roll's pot reads about half a turn and saturates beyond (as the
     // arm's): the stops are far outside what it can read.
-    let roll = firelink_testbed::rig::plant_for(&config, 6).unwrap();
+    let roll = firelink_testbed::plant_map::plant_for(&config, 6).unwrap();
     let (pot_lo, pot_hi) = roll.pot_position_range().unwrap();
     assert!(pot_lo > -2.0 && pot_hi < 2.0, "{pot_lo} {pot_hi}");
     assert!(mtm.joints[6].stops.0 < pot_lo - 6.0 && mtm.joints[6].stops.1 > pot_hi + 6.0);

@@ -355,7 +355,7 @@ impl Port for PanickingPort {
     fn acknowledges_writes(&self) -> bool {
         self.0.acknowledges_writes()
     }
-    fn link_stats(&self) -> firelink_host::transaction::LinkStats {
+    fn link_stats(&self) -> firelink_host::link_stats::LinkStats {
         self.0.link_stats()
     }
     fn candidate_nodes(&self) -> core::ops::Range<u8> {

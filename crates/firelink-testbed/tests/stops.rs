@@ -18,6 +18,7 @@ use firelink_control::config::{IoConfig, presets};
 use firelink_host::Port;
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::sim::SimPort;
+use firelink_testbed::plant_map;
 use firelink_testbed::rig;
 
 /// One driven joint after the run.
@@ -183,7 +184,7 @@ fn a_stock_dvrk_file_without_firelink_sections_gets_the_arm_it_names() {
         }
     }
     for j in config.joints() {
-        let p = rig::plant_for(&config, j.index).unwrap();
+        let p = plant_map::plant_for(&config, j.index).unwrap();
         assert!(p.name.starts_with("PSM J"), "{}", p.name);
         let soft = j.actuator.encoder.position_limits_soft;
         let margin = if j.actuator_index == 2 {

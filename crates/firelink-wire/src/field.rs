@@ -82,6 +82,15 @@ pub fn write_quadlet(buf: &mut [u8], q: usize, value: u32) {
     }
 }
 
+/// The big-endian quadlets of a byte block, in order (a trailing partial
+/// quadlet is dropped).
+pub fn quadlets(bytes: &[u8]) -> impl Iterator<Item = u32> + '_ {
+    bytes.chunks_exact(4).map(|c| match *c {
+        [a, b, c, d] => u32::from_be_bytes([a, b, c, d]),
+        _ => 0, // chunks_exact(4) gives 4-byte chunks only
+    })
+}
+
 /// Round a byte count up to whole quadlets.
 pub const fn pad4(len: usize) -> usize {
     (len + 3) & !3

@@ -7,6 +7,13 @@
 use crate::error::{Error, Result};
 use crate::field::Field;
 
+/// The PHY-link interface clock (SCLK), 49.152 MHz: the 1394 base rate's
+/// clock, which every node's link runs on. The boards' logic runs on it
+/// too and counts their timestamps and timers in its cycles: the QLA
+/// board's system clock (`fpga-board.md` §2, §4), the Snake node's
+/// timestamp clock (seed 001 §5.3), and the simulated bus's cycle counter.
+pub const SYSTEM_CLOCK_HZ: u32 = 49_152_000;
+
 mod field {
     use crate::field::Field;
     pub const IDENTIFIER: Field = Field::new(0, 31, 30);

@@ -80,7 +80,7 @@ impl Ethernet {
     pub fn received(&mut self, packet: &[u8]) {
         let mut bytes = packet.to_vec();
         bytes.resize(packet.len().div_ceil(4) * 4, 0);
-        self.last_packet = super::registers::quadlets_of(&bytes);
+        self.last_packet = firelink_wire::field::quadlets(&bytes).collect();
         self.last_packet.truncate(PACKET_QUADLETS);
     }
 

@@ -423,8 +423,12 @@ impl QlaProm {
             }
             QlaPromOpcode::ReadBlock => {
                 let n = usize::from(cmd.data() & 0xF) + 1;
-                let quadlets = super::registers::quadlets_of(&self.read(address, 4 * n));
-                for (q, v) in self.buffer.iter_mut().zip(quadlets) {
+                let bytes = self.read(address, 4 * n);
+                for (q, v) in self
+                    .buffer
+                    .iter_mut()
+                    .zip(firelink_wire::field::quadlets(&bytes))
+                {
                     *q = v;
                 }
             }

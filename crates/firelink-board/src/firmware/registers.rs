@@ -18,6 +18,7 @@ use firelink_wire::board::registers::{
     EncQuarter, EncRun, FpgaVersion, MotorConfig, MotorStatus, PhyData, PhyRequest, StatusCommand,
     StatusRead, StatusWrite, Temperature, Watchdog as WatchdogWord,
 };
+use firelink_wire::field;
 
 use super::dout::OUTPUTS;
 use super::dqla_expander::{DqlaExpanders, PortLines};
@@ -189,15 +190,6 @@ fn round_to_code(x: f64, max: f64) -> f64 {
     ((x.clamp(0.0, max) + 0.5) as u64) as f64
 }
 
-/// Big-endian quadlets of a byte block (a trailing partial quadlet is
-/// dropped).
-pub(crate) fn quadlets_of(bytes: &[u8]) -> Vec<u32> {
-    bytes
-        .chunks_exact(4)
-        .map(|c| u32::from_be_bytes(c.try_into().unwrap_or([0; 4])))
-        .collect()
-}
-
 impl Firmware {
     fn n_axes(&self) -> usize {
         self.axes.len()
@@ -346,7 +338,7 @@ impl Firmware {
     pub fn read_block(&mut self, now: SimTime, offset: u64, quadlets: usize) -> Vec<u32> {
         let mut out = vec![0u8; quadlets * 4];
         self.read_block_into(now, offset, &mut out);
-        quadlets_of(&out)
+        field::quadlets(&out).collect()
     }
 
     /// [`read_block`](Self::read_block) into `out` (whole quadlets, wire
@@ -456,17 +448,18 @@ impl Firmware {
                 }
             }
             Target::Hub(HubAddress::Query) => {
-                if let Some(&w) = quadlets_of(data).first() {
+                if let Some(w) = field::quadlets(data).next() {
                     self.query(now, Some(w));
                 }
             }
             // A page-program stream goes to the PROM whole.
             Target::Space(AddressSpace::FpgaProm, index) => {
-                self.fpga_prom.stream(now, index, &quadlets_of(data));
+                self.fpga_prom
+                    .stream(now, index, &field::quadlets(data).collect::<Vec<_>>());
             }
             Target::Board(_) | Target::Axis(..) | Target::Space(..) => {
                 self.control_changed();
-                for (k, q) in quadlets_of(data).into_iter().enumerate() {
+                for (k, q) in field::quadlets(data).enumerate() {
                     match decode(u64::from(addr.wrapping_add(k as u16))) {
                         Target::Board(r) => self.write_board_register(now, r, q, phy),
                         Target::Axis(i, r) => self.write_axis_register(now, i, r, q),

@@ -7,6 +7,10 @@ use crate::plant::{AxisParams, presets};
 use crate::time::SimDuration;
 use firelink_wire::snake::CHANNELS;
 
+/// The ADC's conversion time (§6.2: "roughly 2 us"): a new node's plant
+/// step, so each conversion samples a plant advanced to that instant.
+pub const ADC_CONVERSION_TIME: SimDuration = SimDuration::from_micros(2);
+
 /// The version register of the emulated firmware: "SNK" and revision 2
 /// (seed 001's final revision, §5.4).
 pub const SNAKE_VERSION: u32 = firelink_wire::snake::registers::VERSION;
@@ -43,7 +47,7 @@ impl SnakeNodeConfig {
             amplifier: AmplifierModel::default(),
             version: SNAKE_VERSION,
             seed: 0,
-            plant_step: super::firmware::ADC_CONVERSION_TIME,
+            plant_step: ADC_CONVERSION_TIME,
         }
     }
 

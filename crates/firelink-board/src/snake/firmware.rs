@@ -64,8 +64,6 @@ use crate::time::{SimDuration, SimTime};
 pub const POT_SPI_TIME: SimDuration = SimDuration::from_micros(20);
 /// Time of an EEPROM write in the digital pot.
 pub const EEPROM_WRITE_TIME: SimDuration = SimDuration::from_millis(2);
-/// The ADC's conversion time (§6.2: "roughly 2 us").
-pub const ADC_CONVERSION_TIME: SimDuration = SimDuration::from_micros(2);
 
 /// What the node counted about the packets it saw.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

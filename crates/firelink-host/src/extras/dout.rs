@@ -6,7 +6,8 @@
 
 use firelink_wire::board::address::{AxisRegister, BoardRegister, Register};
 use firelink_wire::board::extras::WAVEFORM_TABLE_OFFSET;
-use firelink_wire::board::registers::{DigitalOutRead, DigitalOutWrite, DoutCtrl, SYSTEM_CLOCK_HZ};
+use firelink_wire::board::registers::{DigitalOutRead, DigitalOutWrite, DoutCtrl};
+use firelink_wire::phy::SYSTEM_CLOCK_HZ;
 
 use super::{FeatureError, Result, board_register};
 use crate::port::{Dest, Port};

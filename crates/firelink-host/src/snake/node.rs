@@ -7,10 +7,9 @@
 //! mark their channel valid so the FPGA writes it, and only it, with the
 //! next block write. Channels are numbered 1 to 7 (Table 1).
 
+use firelink_wire::phy::SYSTEM_CLOCK_HZ;
 use firelink_wire::snake::block::{ReadBlockRepr, WriteBlockRepr};
-use firelink_wire::snake::registers::{
-    ALL_CHANNELS, PowerControl, SYSTEM_CLOCK_HZ, SnakeStatus, check_eeprom_word,
-};
+use firelink_wire::snake::registers::{ALL_CHANNELS, PowerControl, SnakeStatus, check_eeprom_word};
 use firelink_wire::snake::{CHANNELS, check_channel};
 
 use crate::error::{HostError, Result};

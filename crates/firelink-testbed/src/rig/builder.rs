@@ -67,7 +67,8 @@ impl RobotKind {
     /// The kind a saw-robot-io configuration drives: Snake when every
     /// robot's `hardware_version` is `SNAKE`, else QLA-family boards.
     pub fn of_config(config: &IoConfig) -> RobotKind {
-        if crate::snake::is_snake_config(config) {
+        if !config.robots.is_empty() && config.robots.iter().all(|r| r.hardware_version.is_snake())
+        {
             RobotKind::Snake
         } else {
             RobotKind::Dvrk

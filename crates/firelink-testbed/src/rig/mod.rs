@@ -21,7 +21,7 @@ use firelink_board::node::BoardNode;
 use firelink_board::plant::AxisParams;
 use firelink_board::plant::presets;
 use firelink_bus::{Bus, HostModel, Node, NodeHandle};
-use firelink_control::config::{FpgaGeneration, HardwareVersion, IoConfig, PlantPreset};
+use firelink_control::config::{FpgaGeneration, HardwareVersion, IoConfig};
 use firelink_emulate::{BridgeStats, ServeConfig};
 use firelink_host::sim::SimPort;
 use firelink_host::udp::{UdpPort, WaitMode};
@@ -29,90 +29,6 @@ use firelink_host::udp::{UdpPort, WaitMode};
 use crate::TestbedError;
 use crate::cpu::ThreadCpuClock;
 use crate::plant_map;
-
-/// Where a joint starts, inside its soft limits (a little off centre, so
-/// homing has something to do).
-pub fn start_position(config: &IoConfig, joint: usize) -> f64 {
-    config.joints().nth(joint).map_or(0.0, |j| {
-        let l = j.actuator.encoder.position_limits_soft;
-        0.5 * (l.lower + l.upper) + 0.05 * l.span() * ((joint % 5) as f64 - 2.0) / 2.0
-    })
-}
-
-/// The plant model a configuration's actuator names, with its
-/// transmission, encoder, pot, drive direction, amplifier calibration and
-/// mechanical stops made to agree with the configuration, as a calibrated
-/// robot's configuration agrees with the robot (see [`plant_map`]),
-/// starting at [`start_position`]. An actuator without a `simulation`
-/// section drives what its robot's dVRK arm has there (by the robot's
-/// name: `MTMR`, `PSM1`, `ECM`, ...), else a generic motor.
-pub fn plant_for(config: &IoConfig, joint: usize) -> Option<AxisParams> {
-    plant_starting_at(config, joint, start_position(config, joint))
-}
-
-/// [`plant_for`], the joint starting at `start` (joint units).
-pub fn plant_starting_at(config: &IoConfig, joint: usize, start: f64) -> Option<AxisParams> {
-    let j = config.joints().nth(joint)?;
-    let a = j.actuator;
-    let mut p = preset_params(plant_map::plant_preset(&j));
-    let scale = a.encoder.bits_to_position.scale;
-    let cpt = a
-        .encoder
-        .counts_per_turn
-        .unwrap_or(p.encoder.counts_per_rev);
-    let gear = 2.0 * std::f64::consts::PI / (f64::from(cpt) * scale.abs());
-    // A negative transmission ratio turns both the drive and the encoder
-    // around, as the configuration's direction -1 says.
-    p.load.gear_ratio = gear * scale.signum();
-    p.encoder.counts_per_rev = cpt;
-    p.encoder.reversed = false;
-    // Motor torque constant as the configuration models it.
-    let e2c = a.drive.effort_to_current.scale.abs();
-    if e2c > 0.0 {
-        p.motor.torque_constant = 1.0 / (gear * e2c);
-    }
-    p.amplifier.current_limit = p.amplifier.current_limit.max(a.drive.maximum_current);
-    if let Some(pot) = a.potentiometer {
-        let vs = pot.voltage_to_position.scale;
-        if vs != 0.0 {
-            p.pot.volts_per_unit = 1.0 / vs;
-            p.pot.offset_volts = -pot.voltage_to_position.offset / vs;
-        }
-    }
-    p.load.initial_position = start;
-    plant_map::apply(&j, &mut p);
-    Some(p)
-}
-
-/// The emulator's parameters of a named plant.
-pub fn preset_params(preset: PlantPreset) -> AxisParams {
-    use PlantPreset::*;
-    let (mtm, psm) = match preset {
-        MtmJ1 => (Some(1), None),
-        MtmJ2 => (Some(2), None),
-        MtmJ3 => (Some(3), None),
-        MtmJ4 => (Some(4), None),
-        MtmJ5 => (Some(5), None),
-        MtmJ6 => (Some(6), None),
-        MtmJ7 => (Some(7), None),
-        PsmJ1 => (None, Some(1)),
-        PsmJ2 => (None, Some(2)),
-        PsmJ3 => (None, Some(3)),
-        PsmJ4 => (None, Some(4)),
-        PsmJ5 => (None, Some(5)),
-        PsmJ6 => (None, Some(6)),
-        PsmJ7 => (None, Some(7)),
-        EcmJ1 => return presets::ecm_joint(1).unwrap_or_else(presets::generic_motor),
-        EcmJ2 => return presets::ecm_joint(2).unwrap_or_else(presets::generic_motor),
-        EcmJ3 => return presets::ecm_joint(3).unwrap_or_else(presets::generic_motor),
-        EcmJ4 => return presets::ecm_joint(4).unwrap_or_else(presets::generic_motor),
-        MtmGripper => (Some(8), None),
-        Generic => (None, None),
-    };
-    mtm.and_then(presets::mtm_joint)
-        .or_else(|| psm.and_then(presets::psm_joint))
-        .unwrap_or_else(presets::generic_motor)
-}
 
 /// Board configurations for every board `config` uses, plus generic
 /// boards after them up to `boards` (at most 16; for the bench beyond 8
@@ -136,7 +52,9 @@ pub fn preset_params(preset: PlantPreset) -> AxisParams {
 /// configuration and is reported by [`BoardConfig::check`]; its PROM is
 /// left erased.
 pub fn board_configs(config: &IoConfig, profile: Profile, boards: usize) -> Vec<BoardConfig> {
-    board_configs_starting_at(config, profile, boards, |j| start_position(config, j))
+    board_configs_starting_at(config, profile, boards, |j| {
+        plant_map::start_position(config, j)
+    })
 }
 
 /// [`board_configs`], joint `j` starting at `start(j)`.
@@ -177,7 +95,7 @@ pub fn board_configs_starting_at(
             if j.actuator.board_id == id {
                 if let (Some(slot), Some(p)) = (
                     axes.get_mut(usize::from(j.actuator.axis_id)),
-                    plant_starting_at(config, i, start(i)),
+                    plant_map::plant_starting_at(config, i, start(i)),
                 ) {
                     *slot = p;
                     any = true;

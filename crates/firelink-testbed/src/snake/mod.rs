@@ -22,7 +22,8 @@ use firelink_wire::snake::analog::limit_code;
 use firelink_wire::snake::registers::{ENCODER_MIDPOINT, PotOutputs, Wiper};
 
 use crate::TestbedError;
-use crate::rig::{Emulator, RigBuilder, plant_for};
+use crate::plant_map::plant_for;
+use crate::rig::{Emulator, RigBuilder, RobotKind};
 
 /// The current limit programmed on a channel, relative to the largest
 /// current the servo commands (headroom for the PID's transients).
@@ -31,7 +32,7 @@ pub const LIMIT_HEADROOM: f64 = 1.25;
 /// Whether `config` drives seed 001's Snake nodes (every robot's
 /// `hardware_version` is `SNAKE`).
 pub fn is_snake_config(config: &IoConfig) -> bool {
-    !config.robots.is_empty() && config.robots.iter().all(|r| r.hardware_version.is_snake())
+    RobotKind::of_config(config) == RobotKind::Snake
 }
 
 /// One node per board ID the configuration uses, each channel driving the

@@ -101,9 +101,6 @@ pub const ADC_API_OFFSET: i32 = 8192;
 pub const DAC_FULL_SCALE_VOLTS: f64 = 2.5;
 /// The encoder period clock: 49.152 MHz / 64 = 768 kHz (§7.2).
 pub const PERIOD_CLOCK_HZ: u32 = 768_000;
-/// The node's timestamp clock is the 1394 PHY's 49.152 MHz (§5.3), the
-/// same clock as the QLA board's.
-pub use crate::board::registers::SYSTEM_CLOCK_HZ;
 /// The version register's top 24 bits on Firelink's emulated firmware:
 /// "SNK". The low byte is the revision. (The seed sets the register at
 /// synthesis and deprecated it; a host uses it to tell a Snake node from

@@ -159,9 +159,6 @@ mod field {
     pub const MSTAT_CURRENT_COMMAND: Field = Field::new(0, 15, 0);
 }
 
-/// The system clock of the board, 49.152 MHz (`fpga-board.md` §2, §4).
-pub const SYSTEM_CLOCK_HZ: u32 = 49_152_000;
-
 mod axis;
 mod digital_io;
 mod identity;
