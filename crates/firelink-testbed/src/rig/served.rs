@@ -41,6 +41,8 @@ pub enum BoardOption {
     UnplugBoard,
     /// The board that stops answering.
     MuteBoard,
+    /// A board a fault script names.
+    FaultScript,
     /// A board of the Ethernet-only network's chain.
     Chain,
     /// A board left out of the Ethernet-only network's chain.
@@ -83,13 +85,15 @@ pub struct BusFaults {
     pub unplug_board: Option<u8>,
     /// This board stops answering at the fault moment.
     pub mute_board: Option<u8>,
+    /// Further faults, as a script (after the ones above).
+    pub plan: FaultScript,
 }
 
 impl BusFaults {
-    /// The faults a script says (`firelink emulate`'s `--drop-rate`,
-    /// `--corrupt-rate`, `--unplug-board` and `--mute-board`): the rates
-    /// from the start, on every packet; the unplugged and the muted board
-    /// at the fault moment.
+    /// The faults as one script: `firelink emulate`'s `--drop-rate`,
+    /// `--corrupt-rate` (from the start, on every packet), `--unplug-board`
+    /// and `--mute-board` (at the fault moment), then [`plan`](Self::plan)'s
+    /// (`--faults`).
     pub fn script(&self) -> FaultScript {
         let mut script = FaultScript::new();
         for (rate, effect) in [
@@ -117,6 +121,7 @@ impl BusFaults {
                 ScriptedFault::Board(b),
             );
         }
+        script.entries.extend(self.plan.entries.iter().copied());
         script
     }
 }
@@ -220,10 +225,13 @@ impl ServedBoards {
         builder = builder.reset_storm(f.reset_storm);
         builder.build().map_err(|e| match e {
             TestbedError::NoSuchBoard { role, board } => ServedError::NoSuchBoard {
-                option: if role == BoardFault::Mute(board).role() {
+                option: if role == BoardFault::Mute(board).role() && f.mute_board == Some(board) {
                     BoardOption::MuteBoard
-                } else {
+                } else if role == BoardFault::Unplug(board).role() && f.unplug_board == Some(board)
+                {
                     BoardOption::UnplugBoard
+                } else {
+                    BoardOption::FaultScript
                 },
                 board,
             },
