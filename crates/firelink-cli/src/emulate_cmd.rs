@@ -20,6 +20,7 @@ use firelink_emulate::fw_cdev::{self, Twin};
 use firelink_emulate::{Event, ServeConfig};
 use firelink_host::cpu_latency::CpuLatencyHold;
 use firelink_testbed::emulated::{BoardSettings, Profile, SimDuration};
+use firelink_testbed::fault_script::{FaultScript, FaultScriptError};
 use firelink_testbed::rig::RobotKind;
 use firelink_testbed::rig::served::{BusFaults, ServedBoards, ServedBridge};
 use firelink_testbed::snake::is_snake_config;
@@ -115,6 +116,14 @@ pub struct EmulateArgs {
     /// Fault: this board stops answering after `--fault-at-ms`.
     #[arg(long = "mute-board", value_parser = crate::args::board_id)]
     pub mute_board: Option<u8>,
+    /// Faults as a plan, after the fault flags above: entries separated by
+    /// `;`, e.g. `mute@t=0us:id=4` (board 4 stops answering at
+    /// `--fault-at-ms`), `unplug@t=2000us:id=5` (2 ms after it),
+    /// `drop@start:tcode=0x6,rate=0.01`, `corrupt@start:dest=2,offset=0x1800,count=3`
+    /// (kinds mute, unplug, drop, corrupt; the bus cannot pause the host
+    /// nor count servo cycles).
+    #[arg(long = "faults", value_name = "SCRIPT", value_parser = fault_script)]
+    pub faults: Option<FaultScript>,
     /// When the timed faults happen, in ms of emulated time.
     #[arg(long = "fault-at-ms", default_value_t = 5000)]
     pub fault_at_ms: u64,
@@ -228,6 +237,7 @@ fn served_boards(args: &EmulateArgs, config: Option<IoConfig>) -> ServedBoards {
             reset_storm: args.reset_storm,
             unplug_board: args.unplug_board,
             mute_board: args.mute_board,
+            plan: args.faults.clone().unwrap_or_default(),
         },
         fault_at: SimDuration::from_micros(args.fault_at_ms.saturating_mul(1000)),
         fault_after_requests: args.fault_after_requests,
@@ -461,10 +471,15 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
     Ok(())
 }
 
+/// `--faults`: a fault script's text.
+fn fault_script(text: &str) -> Result<FaultScript, String> {
+    text.parse().map_err(|e: FaultScriptError| e.to_string())
+}
+
 /// The options `--network eth` cannot take, with why.
 fn refuse_on_eth(args: &EmulateArgs) -> Result<(), CliError> {
     let bus_fault = "a fault of the simulated 1394 bus; the Ethernet-only network has no 1394 bus";
-    let refusals: [(bool, &'static str, &'static str); 10] = [
+    let refusals: [(bool, &'static str, &'static str); 11] = [
         (
             args.fw_cdev.is_some(),
             "--fw-cdev",
@@ -491,6 +506,7 @@ fn refuse_on_eth(args: &EmulateArgs) -> Result<(), CliError> {
         (args.reset_storm > 0, "--reset-storm", bus_fault),
         (args.unplug_board.is_some(), "--unplug-board", bus_fault),
         (args.mute_board.is_some(), "--mute-board", bus_fault),
+        (args.faults.is_some(), "--faults", bus_fault),
     ];
     if let Some((_, option, reason)) = refusals.into_iter().find(|r| r.0) {
         return Err(CliError::NotSupported { option, reason });

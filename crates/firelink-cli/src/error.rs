@@ -182,6 +182,7 @@ impl From<ServedError> for CliError {
                     BoardOption::BridgeBoard => "--bridge-board",
                     BoardOption::UnplugBoard => "--unplug-board",
                     BoardOption::MuteBoard => "--mute-board",
+                    BoardOption::FaultScript => "--faults",
                     BoardOption::Chain => "--chain",
                     BoardOption::ChainMissing => "--chain (every emulated board, once; missing)",
                 },

@@ -249,6 +249,31 @@ fn emulate_refuses_bad_options() {
     fails(&["emulate", "--split-timeout-ms", "0"], "1..=60000");
     fails(&["emulate", "--cpu-latency", "2000000"], "0 to 1000000");
     fails(&["emulate", "--cpu-latency", "never"], "CPU latency");
+    // A fault script: its text, its boards and what the bus can do are
+    // checked before anything is served.
+    fails(
+        &["emulate", "--faults", "mute@soon:id=1"],
+        "moment \"soon\": expected start",
+    );
+    let quick = [
+        "--listen",
+        "127.0.0.1:0",
+        "--no-broadcast",
+        "--duration-s",
+        "1",
+    ];
+    for (script, words) in [
+        ("mute@t=0us:id=9", "--faults 9: no such board"),
+        ("host-pause@start:for=5us", "the host pauses itself"),
+        ("drop@cycle=4:rate=1", "does not count servo cycles"),
+    ] {
+        let all: Vec<&str> = ["emulate", "--boards", "2", "--faults", script]
+            .iter()
+            .chain(&quick)
+            .copied()
+            .collect();
+        fails(&all, words);
+    }
     // A DQLA exists only on an FPGA V3: asked for on a V2, refused.
     for args in [
         &["emulate", "--hardware", "DQLA", "--fpga", "V2"][..],
@@ -266,6 +291,29 @@ fn emulate_refuses_bad_options() {
         let all: Vec<&str> = args.iter().chain(&quick).copied().collect();
         fails(&all, "a DQLA exists only on an FPGA V3");
     }
+}
+
+/// `emulate --faults`: the board a script mutes from the start of
+/// emulated time is not found by the scan; the others are.
+#[test]
+fn emulate_takes_a_fault_script() {
+    let emu = Emulate::start(&[
+        "--boards",
+        "3",
+        "--faults",
+        "mute@t=0us:id=1",
+        "--fault-at-ms",
+        "0",
+    ]);
+    let v = scan(&emu.port);
+    let ids: Vec<u64> = v["boards"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b["board_id"].as_u64().unwrap())
+        .collect();
+    assert_eq!(ids, [0, 2]);
+    emu.terminate();
 }
 
 /// `emulate --fpga V3 --firmware 9 --hardware QLA1|DQLA`: the scan through

@@ -51,20 +51,20 @@ pub struct FaultCounts {
 }
 
 /// The link filter doing it.
-struct Injector {
+struct RandomFaultFilter {
     faults: LinkFaults,
     rng: ChaCha8Rng,
     counts: Arc<Mutex<FaultCounts>>,
 }
 
-impl Injector {
+impl RandomFaultFilter {
     /// A uniform draw in [0, 1).
     fn draw(&mut self) -> f64 {
         (self.rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
 }
 
-impl LinkFilter for Injector {
+impl LinkFilter for RandomFaultFilter {
     fn packet(&mut self, _at_ps: u64, _direction: Direction, packet: &mut [u8]) -> Verdict {
         let (drop, corrupt) = (self.draw(), self.draw());
         let bit = self.rng.next_u64();
@@ -100,7 +100,7 @@ impl<P: Port> FaultyPort<P> {
     /// `inner` does not show its packets ([`Port::add_link_filter`]).
     pub fn new(mut inner: P, faults: LinkFaults, seed: u64) -> Result<FaultyPort<P>> {
         let counts = Arc::new(Mutex::new(FaultCounts::default()));
-        inner.add_link_filter(Box::new(Injector {
+        inner.add_link_filter(Box::new(RandomFaultFilter {
             faults,
             rng: ChaCha8Rng::seed_from_u64(seed),
             counts: counts.clone(),

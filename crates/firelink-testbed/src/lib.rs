@@ -9,6 +9,10 @@
 //!
 //! - [`emulated`]: the emulated hardware's types front ends name (board
 //!   configurations, firmware profiles, the bus's fault rules);
+//! - [`fault_script`]: faults as a plan: what goes wrong and when (a
+//!   board by ID stops answering, packets corrupted or dropped, the host
+//!   pauses), turned by the rig into the simulated bus's fault plan and,
+//!   on any other port, into a link filter;
 //! - [`port_spec`]: where the robot is: the one grammar of port strings
 //!   (`sim[:N[:FW]]`, `emulate`, `udp:HOST[:PORT]`, `fw[:N]`) every front
 //!   end parses, and opening what it names ([`ports`]);
@@ -55,6 +59,7 @@ pub mod cpu;
 pub mod demo;
 pub mod emulated;
 pub mod error;
+pub mod fault_script;
 pub mod mahru;
 pub mod plant_map;
 pub mod port_spec;

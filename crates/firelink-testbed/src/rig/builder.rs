@@ -37,6 +37,7 @@ use firelink_host::sim::SimPort;
 use firelink_wire::packet::Tcode;
 
 use crate::TestbedError;
+use crate::fault_script::{FaultMoment, FaultScript, Occurrence, PacketEffect, ScriptedFault};
 
 /// Which family of robot a rig carries.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -146,6 +147,7 @@ pub struct RigBuilder {
     board_faults: Vec<BoardFault>,
     busy_rate: f64,
     reset_storm: u32,
+    script: FaultScript,
 }
 
 /// A built rig: the bus, the PC's link at its root, and every board by ID.
@@ -204,6 +206,7 @@ impl RigBuilder {
             board_faults: Vec::new(),
             busy_rate: 0.0,
             reset_storm: 0,
+            script: FaultScript::new(),
         }
     }
 
@@ -216,6 +219,19 @@ impl RigBuilder {
     /// A packet fault rule on the bus (a seeded drop or corruption rate).
     pub fn fault_rule(mut self, rule: FaultRule) -> RigBuilder {
         self.rules.push(rule);
+        self
+    }
+
+    /// A fault script's entries, resolved at build to the bus's fault plan
+    /// (before the rules and board faults given one by one): packet rules
+    /// from the start (`@start`) become the bus's rules, a board's loss at
+    /// `t=` after the fault moment is held like [`board_fault`](Self::board_fault)'s,
+    /// at that offset, and one from the start is scheduled at build.
+    /// Boards are named by ID. What the simulated bus cannot do by itself
+    /// (a packet rule from a later moment, anything at a servo cycle, a
+    /// host pause: the servo loop's) is refused at build.
+    pub fn fault_script(mut self, script: &FaultScript) -> RigBuilder {
+        self.script.entries.extend(script.entries.iter().copied());
         self
     }
 
@@ -270,6 +286,71 @@ impl RigBuilder {
                 ..RigOptions::default()
             },
         );
+        let script = self.script;
+        let resolve = |built: &BoardRig, board: u8, role: &'static str| {
+            ids.iter()
+                .position(|&id| id == board)
+                .and_then(|i| built.boards.get(i).copied())
+                .ok_or(TestbedError::NoSuchBoard { role, board })
+        };
+        let mut scripted_faults = Vec::new();
+        for entry in &script.entries {
+            let refused = |why: &str| TestbedError::Config(format!("fault {entry}: {why}"));
+            match (entry.at, entry.fault) {
+                (
+                    FaultMoment::Start,
+                    ScriptedFault::Packets {
+                        effect,
+                        select,
+                        occurrence,
+                    },
+                ) => {
+                    let mut matcher = PacketMatch::any();
+                    matcher.tcode = select.tcode;
+                    matcher.offset_low16 = select.offset;
+                    if let Some(board) = select.dest {
+                        let node = resolve(&built, board, "packets' destination board")?;
+                        matcher.destination_phy = built.bus.phy_id(node);
+                    }
+                    let fault = match effect {
+                        PacketEffect::Drop => PacketFault::Drop,
+                        PacketEffect::Corrupt => PacketFault::FlipBits { count: 1 },
+                    };
+                    built.bus.add_fault_rule(match occurrence {
+                        Occurrence::Rate(p) => FaultRule::random(matcher, fault, p.clamp(0.0, 1.0)),
+                        Occurrence::Count(n) => FaultRule {
+                            count: Some(n),
+                            ..FaultRule::once(matcher, fault)
+                        },
+                    });
+                }
+                (at @ (FaultMoment::Start | FaultMoment::After(_)), ScriptedFault::Board(b)) => {
+                    let node = resolve(&built, b.board_id(), b.role())?;
+                    match at {
+                        FaultMoment::After(offset) => scripted_faults.push((offset, b.on(node))),
+                        _ => {
+                            let now = built.bus.now();
+                            built.bus.schedule_fault(now, b.on(node));
+                        }
+                    }
+                }
+                (_, ScriptedFault::HostPause(_)) => {
+                    return Err(refused(
+                        "the host pauses itself: the servo loop's to do, not the bus's",
+                    ));
+                }
+                (FaultMoment::Cycle(_), _) => {
+                    return Err(refused(
+                        "the simulated bus does not count servo cycles: give it to the servo loop's link filter",
+                    ));
+                }
+                (FaultMoment::After(_), ScriptedFault::Packets { .. }) => {
+                    return Err(refused(
+                        "the bus's packet rules start with the run (@start); from a later moment, use the link filter",
+                    ));
+                }
+            }
+        }
         for rule in self.rules {
             built.bus.add_fault_rule(rule);
         }
@@ -288,7 +369,7 @@ impl RigBuilder {
             host: built.host,
             boards: ids.into_iter().zip(built.boards).collect(),
             configs: self.configs,
-            pending: Vec::new(),
+            pending: scripted_faults,
         };
         for fault in self.board_faults {
             let node = rig.node_of(fault.board_id(), fault.role())?;

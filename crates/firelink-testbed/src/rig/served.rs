@@ -24,8 +24,10 @@ use super::builder::{BoardFault, Rig, RigBuilder, RobotKind};
 use super::{board_configs, generic_boards};
 use crate::TestbedError;
 use crate::emulated::{
-    BoardConfig, BoardSettings, ConfigError, FaultRule, FpgaVersion, Hardware, PacketFault,
-    PacketMatch, Profile, SimDuration,
+    BoardConfig, BoardSettings, ConfigError, FpgaVersion, Hardware, Profile, SimDuration,
+};
+use crate::fault_script::{
+    FaultMoment, FaultScript, Occurrence, PacketEffect, PacketSelector, ScriptedFault,
 };
 
 /// The option that named a board the rig does not have.
@@ -39,6 +41,8 @@ pub enum BoardOption {
     UnplugBoard,
     /// The board that stops answering.
     MuteBoard,
+    /// A board a fault script names.
+    FaultScript,
     /// A board of the Ethernet-only network's chain.
     Chain,
     /// A board left out of the Ethernet-only network's chain.
@@ -81,6 +85,45 @@ pub struct BusFaults {
     pub unplug_board: Option<u8>,
     /// This board stops answering at the fault moment.
     pub mute_board: Option<u8>,
+    /// Further faults, as a script (after the ones above).
+    pub plan: FaultScript,
+}
+
+impl BusFaults {
+    /// The faults as one script: `firelink emulate`'s `--drop-rate`,
+    /// `--corrupt-rate` (from the start, on every packet), `--unplug-board`
+    /// and `--mute-board` (at the fault moment), then [`plan`](Self::plan)'s
+    /// (`--faults`).
+    pub fn script(&self) -> FaultScript {
+        let mut script = FaultScript::new();
+        for (rate, effect) in [
+            (self.drop_rate, PacketEffect::Drop),
+            (self.corrupt_rate, PacketEffect::Corrupt),
+        ] {
+            if rate > 0.0 {
+                script = script.with(
+                    FaultMoment::Start,
+                    ScriptedFault::Packets {
+                        effect,
+                        select: PacketSelector::default(),
+                        occurrence: Occurrence::Rate(rate.min(1.0)),
+                    },
+                );
+            }
+        }
+        let boards = [
+            self.unplug_board.map(BoardFault::Unplug),
+            self.mute_board.map(BoardFault::Mute),
+        ];
+        for b in boards.into_iter().flatten() {
+            script = script.with(
+                FaultMoment::After(SimDuration::ZERO),
+                ScriptedFault::Board(b),
+            );
+        }
+        script.entries.extend(self.plan.entries.iter().copied());
+        script
+    }
 }
 
 /// What to serve: the boards, their faults and the front end's settings.
@@ -172,21 +215,7 @@ impl ServedBoards {
             _ => RigBuilder::qla(self.qla_boards()?),
         };
         let f = &self.faults;
-        let mut builder = builder.seed(self.seed);
-        if f.drop_rate > 0.0 {
-            builder = builder.fault_rule(FaultRule::random(
-                PacketMatch::any(),
-                PacketFault::Drop,
-                f.drop_rate.min(1.0),
-            ));
-        }
-        if f.corrupt_rate > 0.0 {
-            builder = builder.fault_rule(FaultRule::random(
-                PacketMatch::any(),
-                PacketFault::FlipBits { count: 1 },
-                f.corrupt_rate.min(1.0),
-            ));
-        }
+        let mut builder = builder.seed(self.seed).fault_script(&f.script());
         if f.drop_response_rate > 0.0 {
             builder = builder.drop_responses(f.drop_response_rate);
         }
@@ -194,18 +223,15 @@ impl ServedBoards {
             builder = builder.busy_requests(f.busy_rate);
         }
         builder = builder.reset_storm(f.reset_storm);
-        if let Some(id) = f.unplug_board {
-            builder = builder.board_fault(BoardFault::Unplug(id));
-        }
-        if let Some(id) = f.mute_board {
-            builder = builder.board_fault(BoardFault::Mute(id));
-        }
         builder.build().map_err(|e| match e {
             TestbedError::NoSuchBoard { role, board } => ServedError::NoSuchBoard {
-                option: if role == BoardFault::Mute(board).role() {
+                option: if role == BoardFault::Mute(board).role() && f.mute_board == Some(board) {
                     BoardOption::MuteBoard
-                } else {
+                } else if role == BoardFault::Unplug(board).role() && f.unplug_board == Some(board)
+                {
                     BoardOption::UnplugBoard
+                } else {
+                    BoardOption::FaultScript
                 },
                 board,
             },

@@ -1,0 +1,220 @@
+//! Faults as a plan ([`firelink_testbed::fault_script`]): one script, read
+//! from its text, turned by the rig into the simulated bus's fault plan,
+//! and into a link filter on the host's UDP port to an in-process
+//! `firelink emulate` on loopback.
+//!
+//! Nothing here depends on timing: the UDP tests use a long watchdog
+//! (300 ms) and port time-out (500 ms), so a loaded machine cannot turn a
+//! slow answer into a fault these tests are not about, and they wait for
+//! board state by bounded polls.
+
+use std::time::{Duration, Instant};
+
+use firelink_board::config::Profile;
+use firelink_board::node::BoardNode;
+use firelink_bus::SimDuration;
+use firelink_control::config::{IoConfig, presets};
+use firelink_control::fault::FaultKind;
+use firelink_control::runner::{Pacing, Robot, RobotSettings, RunnerError};
+use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::scan::Protocol;
+use firelink_host::udp::UdpPort;
+use firelink_host::{Dest, Port, WatchdogSetting};
+use firelink_testbed::fault_script::{FaultScript, ScriptFilter};
+use firelink_testbed::rig::{self, Emulator, RigBuilder};
+
+/// The stock MTMR: two QLA1 boards.
+fn config() -> IoConfig {
+    presets::stock_mtmr()
+}
+
+/// The boards `config` uses (no empty slots), in board-ID order.
+fn used_boards(config: &IoConfig) -> Vec<firelink_board::config::BoardConfig> {
+    let used: Vec<u8> = config.boards().iter().map(|b| b.board_id).collect();
+    rig::board_configs(config, Profile::Rev8, config.board_slots())
+        .into_iter()
+        .filter(|b| used.contains(&b.board_id))
+        .collect()
+}
+
+/// The board the tests lose: the MTMR's second, the last in the chain.
+fn lost_board(config: &IoConfig) -> u8 {
+    let ids: Vec<u8> = used_boards(config).iter().map(|b| b.board_id).collect();
+    assert_eq!(ids.len(), 2, "{ids:?}");
+    ids[1]
+}
+
+fn settings() -> RobotSettings {
+    RobotSettings {
+        watchdog: WatchdogSetting::from_ms(300.0).expect("300 ms"),
+        ..RobotSettings::default()
+    }
+}
+
+/// Configure, power on, home and activate.
+fn bring_up<P: Port>(robot: &mut Robot<IoSystem<P>>) {
+    let left = robot.configure().expect("configure");
+    assert!(left.is_clean(), "{left}");
+    robot.power_on().expect("power on");
+    robot.home().expect("home");
+    robot.activate().expect("activate");
+}
+
+/// Run until the first fault (at most `cycles`): the board it names.
+fn missed_board<P: Port>(robot: &mut Robot<IoSystem<P>>, cycles: u64, pacing: Pacing) -> u8 {
+    match robot.run(cycles, pacing, 0, |_| {}) {
+        Err(RunnerError::Fault(f)) => match f.kind {
+            FaultKind::MissedBoard { board_id, .. } => board_id,
+            other => panic!("another fault: {other:?}"),
+        },
+        other => panic!("no fault in {cycles} cycles: {other:?}"),
+    }
+}
+
+#[test]
+fn a_board_lost_by_id_on_sim_ends_with_every_amplifier_off_and_the_board_named() {
+    let config = config();
+    let lost = lost_board(&config);
+    // Named by ID, found by the rig.
+    let script: FaultScript = format!("mute@t=0us:id={lost}").parse().unwrap();
+    let mut built = RigBuilder::qla(used_boards(&config))
+        .fault_script(&script)
+        .build()
+        .unwrap();
+    let fault_at = SimDuration::from_millis(20_000);
+    built.schedule_pending(fault_at);
+    let nodes = built.boards.clone();
+    let io = IoSystem::open(built.sim_port(), IoOptions::default())
+        .unwrap()
+        .0;
+    let mut robot = Robot::new(io, &config, settings()).unwrap();
+    bring_up(&mut robot);
+    assert!(
+        robot.io().port().now() < Duration::from_secs(20),
+        "the fault moment must come after the bring-up"
+    );
+    assert_eq!(missed_board(&mut robot, 40_000, Pacing::Virtual), lost);
+    // Twice the watchdog: the answering board is switched off by the
+    // host, the lost one by its own watchdog.
+    for _ in 0..600 {
+        let _ = robot.step(Pacing::Virtual);
+    }
+    assert!(!robot.any_amp_on());
+    // A board's firmware catches up with time when it hears a packet;
+    // the lost one hears nothing: bring it to now, as a real one is.
+    let bus = robot.io_mut().port_mut().bus_mut();
+    let now = bus.now();
+    for (id, node) in nodes {
+        let board = bus.node_mut::<BoardNode>(node).expect("a QLA board");
+        board.firmware_mut().advance(now);
+        let on: Vec<usize> = (0..4)
+            .filter(|&a| board.firmware().amplifier_on(a))
+            .collect();
+        assert!(on.is_empty(), "board {id}: amplifiers {on:?} still on");
+    }
+}
+
+/// The in-process emulator serving `config`'s boards, and its scan.
+fn emulator(config: &IoConfig) -> (Emulator, firelink_host::scan::ScanReport) {
+    let emu = Emulator::start(used_boards(config)).expect("emulator");
+    let mut p = port(&emu);
+    p.set_timeout(Duration::from_millis(50));
+    let scan = firelink_host::scan::scan(&mut p).expect("scan");
+    (emu, scan)
+}
+
+fn port(emu: &Emulator) -> UdpPort {
+    let mut p = emu.port().expect("port");
+    p.set_timeout(Duration::from_millis(500));
+    p
+}
+
+#[test]
+fn a_board_lost_by_id_over_udp_ends_with_every_amplifier_off_and_the_board_named() {
+    let config = config();
+    let (emu, scan) = emulator(&config);
+    // Board by board: with the broadcast protocol every board's state
+    // reaches the host inside the bridge board's block, where no link
+    // filter on the host's port can tell one board from another.
+    let options = IoOptions {
+        protocol: Some(Protocol::Sequential),
+        ..IoOptions::default()
+    };
+    let io = IoSystem::with_scan(port(&emu), &scan, options).unwrap();
+    let mut robot = Robot::new(io, &config, settings()).unwrap();
+    bring_up(&mut robot);
+    let lost = lost_board(&config);
+    let script: FaultScript = format!("mute@start:id={lost}").parse().unwrap();
+    let handle =
+        ScriptFilter::for_scan(robot.io_mut().port_mut(), &script, &scan.boards, 0).unwrap();
+    assert_eq!(missed_board(&mut robot, 1000, Pacing::WallClock), lost);
+    for _ in 0..3 {
+        let _ = robot.step(Pacing::Virtual);
+    }
+    assert!(!robot.any_amp_on());
+    assert!(handle.counts().silenced > 0);
+    drop(robot);
+    // A second client, without the filter: the lost board heard nothing
+    // more from the host, so its own watchdog switched its amplifiers off;
+    // the other was switched off by the first client.
+    let lost_node = scan
+        .boards
+        .iter()
+        .find(|b| b.board_id == lost)
+        .expect("the lost board")
+        .node;
+    let mut p = port(&emu);
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while p.read_quadlet(Dest::node(lost_node), 0).expect("status") & (1 << 23) == 0 {
+        assert!(
+            Instant::now() < deadline,
+            "the lost board's watchdog never fired"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let mut io = IoSystem::with_scan(p, &scan, IoOptions::default()).unwrap();
+    io.read_all();
+    for b in io.boards() {
+        let on: Vec<usize> = (0..b.axes()).filter(|&a| b.amp_enabled(a)).collect();
+        assert!(
+            on.is_empty(),
+            "board {}: amplifiers {on:?} on",
+            b.board_id()
+        );
+    }
+    emu.stop().unwrap();
+}
+
+/// Corrupted answers are refused by the host (their CRCs disagree) and
+/// counted by both sides; dropped requests time out. The script's counts
+/// are exact.
+#[test]
+fn corruption_and_drops_over_udp_are_counted_and_refused() {
+    let (emu, scan) = emulator(&config());
+    let mut p = port(&emu);
+    // Read-quadlet responses (tcode 6) corrupted, read-quadlet requests
+    // (tcode 4) to board 0 dropped: three and two of them.
+    let first = &scan.boards[0];
+    let script: FaultScript = format!(
+        "corrupt@start:tcode=0x6,count=3;drop@start:tcode=0x4,dest={},count=2",
+        first.board_id
+    )
+    .parse()
+    .unwrap();
+    let handle = ScriptFilter::for_scan(&mut p, &script, &scan.boards, 5).unwrap();
+    let node = first.node;
+    let before = p.link_stats();
+    let results: Vec<bool> = (0..7)
+        .map(|_| p.read_quadlet(Dest::node(node), 0).is_ok())
+        .collect();
+    // Two requests lost, then three answers corrupted, then clean reads.
+    assert_eq!(results, [false, false, false, false, false, true, true]);
+    let c = handle.counts();
+    assert_eq!((c.dropped, c.corrupted), (2, 3));
+    let after = p.link_stats();
+    assert_eq!(after.bad_crc - before.bad_crc, 3);
+    // The lost requests time out; the corrupted answers are refused as
+    // such.
+    assert_eq!(after.timeouts - before.timeouts, 2);
+    emu.stop().unwrap();
+}
