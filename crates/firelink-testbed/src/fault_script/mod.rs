@@ -42,7 +42,31 @@ use firelink_wire::packet::Tcode;
 
 pub use filter::{ScriptCounts, ScriptFilter, ScriptHandle};
 
-use crate::rig::BoardFault;
+/// A fault on one board, named by its board ID.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BoardFault {
+    /// Its cable is unplugged for good (a bus reset follows).
+    Unplug(u8),
+    /// It stops answering for good.
+    Mute(u8),
+}
+
+impl BoardFault {
+    /// The board it names.
+    pub fn board_id(self) -> u8 {
+        match self {
+            BoardFault::Unplug(id) | BoardFault::Mute(id) => id,
+        }
+    }
+
+    /// What it does, for messages.
+    pub fn role(self) -> &'static str {
+        match self {
+            BoardFault::Unplug(_) => "unplugged board",
+            BoardFault::Mute(_) => "muted board",
+        }
+    }
+}
 
 /// When a scripted fault starts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

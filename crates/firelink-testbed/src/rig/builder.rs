@@ -37,7 +37,9 @@ use firelink_host::sim::SimPort;
 use firelink_wire::packet::Tcode;
 
 use crate::TestbedError;
-use crate::fault_script::{FaultMoment, FaultScript, Occurrence, PacketEffect, ScriptedFault};
+use crate::fault_script::{
+    BoardFault, FaultMoment, FaultScript, Occurrence, PacketEffect, ScriptedFault,
+};
 
 /// Which family of robot a rig carries.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -97,43 +99,17 @@ impl FromStr for RobotKind {
     }
 }
 
-/// A fault on one board, named by its board ID.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum BoardFault {
-    /// Its cable is unplugged for good (a bus reset follows).
-    Unplug(u8),
-    /// It stops answering for good.
-    Mute(u8),
-}
-
-impl BoardFault {
-    /// The board it names.
-    pub fn board_id(self) -> u8 {
-        match self {
-            BoardFault::Unplug(id) | BoardFault::Mute(id) => id,
-        }
-    }
-
-    /// What it does, for messages.
-    pub fn role(self) -> &'static str {
-        match self {
-            BoardFault::Unplug(_) => "unplugged board",
-            BoardFault::Mute(_) => "muted board",
-        }
-    }
-
-    /// The bus's fault on `node`.
-    fn on(self, node: NodeHandle) -> TimedFault {
-        match self {
-            BoardFault::Unplug(_) => TimedFault::Disconnect {
-                node,
-                reconnect_after: None,
-            },
-            BoardFault::Mute(_) => TimedFault::StopAnswering {
-                node,
-                duration: None,
-            },
-        }
+/// The bus's fault for a board fault on `node`.
+fn bus_fault(fault: BoardFault, node: NodeHandle) -> TimedFault {
+    match fault {
+        BoardFault::Unplug(_) => TimedFault::Disconnect {
+            node,
+            reconnect_after: None,
+        },
+        BoardFault::Mute(_) => TimedFault::StopAnswering {
+            node,
+            duration: None,
+        },
     }
 }
 
@@ -327,10 +303,12 @@ impl RigBuilder {
                 (at @ (FaultMoment::Start | FaultMoment::After(_)), ScriptedFault::Board(b)) => {
                     let node = resolve(&built, b.board_id(), b.role())?;
                     match at {
-                        FaultMoment::After(offset) => scripted_faults.push((offset, b.on(node))),
+                        FaultMoment::After(offset) => {
+                            scripted_faults.push((offset, bus_fault(b, node)))
+                        }
                         _ => {
                             let now = built.bus.now();
-                            built.bus.schedule_fault(now, b.on(node));
+                            built.bus.schedule_fault(now, bus_fault(b, node));
                         }
                     }
                 }
@@ -373,7 +351,8 @@ impl RigBuilder {
         };
         for fault in self.board_faults {
             let node = rig.node_of(fault.board_id(), fault.role())?;
-            rig.pending.push((SimDuration::ZERO, fault.on(node)));
+            rig.pending
+                .push((SimDuration::ZERO, bus_fault(fault, node)));
         }
         // Each reset is over, and its generation counted, before the next.
         for k in 0..self.reset_storm {

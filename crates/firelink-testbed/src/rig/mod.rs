@@ -9,7 +9,7 @@
 pub mod builder;
 pub mod served;
 
-pub use builder::{BoardFault, Rig, RigBuilder, RobotKind};
+pub use builder::{Rig, RigBuilder, RobotKind};
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::sync::Arc;

@@ -20,12 +20,13 @@ use firelink_control::config::IoConfig;
 use firelink_emulate::Bridge;
 use firelink_emulate::fw_cdev::Twin;
 
-use super::builder::{BoardFault, Rig, RigBuilder, RobotKind};
+use super::builder::{Rig, RigBuilder, RobotKind};
 use super::{board_configs, generic_boards};
 use crate::TestbedError;
 use crate::emulated::{
     BoardConfig, BoardSettings, ConfigError, FpgaVersion, Hardware, Profile, SimDuration,
 };
+use crate::fault_script::BoardFault;
 use crate::fault_script::{
     FaultMoment, FaultScript, Occurrence, PacketEffect, PacketSelector, ScriptedFault,
 };
