@@ -984,7 +984,7 @@ pub fn run_program<R: DemoIo>(
 
 /// Configure, power on, home and activate the robot, and start every
 /// joint's motion.
-fn bring_up<R: DemoIo>(
+pub(crate) fn bring_up<R: DemoIo>(
     robot: &mut Robot<R>,
     config: &IoConfig,
     progress: &mut dyn FnMut(DemoProgress),
