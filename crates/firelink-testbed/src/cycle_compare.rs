@@ -23,11 +23,11 @@ use std::fmt;
 use firelink_board::node::BoardNode;
 use firelink_bus::{Bus, NodeHandle};
 use firelink_control::runner::{Pacing, Robot};
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::io::IoSystem;
 use firelink_host::sim::SimPort;
 
 use crate::TestbedError;
-use crate::demo::{DemoOptions, DemoPlan, bring_up};
+use crate::demo::{DemoOptions, bring_up, open_robot};
 use crate::port_spec::PortSpec;
 use crate::{ports, rig};
 
@@ -174,26 +174,10 @@ pub fn demo_run(options: &DemoOptions) -> Result<ComparedRun, TestbedError> {
             options.port
         )));
     }
-    let config = &options.config;
-    let boards = ports::sim_boards(&options.port, config, options.firmware);
+    let boards = ports::sim_boards(&options.port, &options.config, options.firmware);
     let (port, handles) = rig::sim_port(boards, false)?;
-    let (io, _) = IoSystem::open(
-        port,
-        IoOptions {
-            protocol: Some(options.protocol),
-            ..IoOptions::default()
-        },
-    )?;
-    let plan = DemoPlan {
-        config,
-        rate_hz: options.rate_hz,
-        duration_s: options.duration_s,
-        fault: options.fault,
-        watchdog: options.watchdog,
-        pacing: Pacing::Virtual,
-    };
-    let mut robot = Robot::new(io, config, plan.settings())?;
-    bring_up(&mut robot, config, &mut |_| {})?;
+    let (mut robot, _) = open_robot(port, options, Pacing::Virtual, |_, _| {})?;
+    bring_up(&mut robot, &options.config, &mut |_| {})?;
     Ok(ComparedRun {
         robot,
         boards: handles,
@@ -256,11 +240,17 @@ mod tests {
         }
     }
 
+    /// Two runs of the demo robot on the simulated bus, brought up alike.
+    fn two_runs() -> (ComparedRun, ComparedRun) {
+        let opts = options(PortSpec::SIM);
+        let a = demo_run(&opts).expect("bring-up");
+        let b = demo_run(&opts).expect("bring-up");
+        (a, b)
+    }
+
     #[test]
     fn the_same_options_give_the_same_state_every_cycle() {
-        let opts = options(PortSpec::SIM);
-        let mut a = demo_run(&opts).expect("bring-up");
-        let mut b = demo_run(&opts).expect("bring-up");
+        let (mut a, mut b) = two_runs();
         let found = compare_in_lockstep(&mut a, &mut b, 120, |_, _| {}, |_, _| {});
         assert_eq!(found, None);
         assert!(a.bus().now() > SimTime::ZERO);
@@ -268,9 +258,7 @@ mod tests {
 
     #[test]
     fn a_board_disturbed_on_one_side_is_found_at_that_cycle() {
-        let opts = options(PortSpec::SIM);
-        let mut a = demo_run(&opts).expect("bring-up");
-        let mut b = demo_run(&opts).expect("bring-up");
+        let (mut a, mut b) = two_runs();
         // Board node 2's motor supply fails before cycle 40 on side b only.
         let disturb = |run: &mut ComparedRun, cycle: u64| {
             if cycle == 40 {
@@ -289,9 +277,7 @@ mod tests {
 
     #[test]
     fn recording_every_event_on_every_other_cycle_changes_nothing() {
-        let opts = options(PortSpec::SIM);
-        let mut a = demo_run(&opts).expect("bring-up");
-        let mut b = demo_run(&opts).expect("bring-up");
+        let (mut a, mut b) = two_runs();
         // Side b records every packet, event and delivery on odd cycles
         // and nothing on even ones; side a records nothing.
         let toggle = |run: &mut ComparedRun, cycle: u64| {
