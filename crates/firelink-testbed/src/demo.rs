@@ -26,7 +26,7 @@ use firelink_control::runner::{
 use firelink_control::trajectory::{Motion, PointToPoint, Sinusoid};
 use firelink_control::{FaultKind, FaultReport};
 use firelink_host::io::{IoOptions, IoStats, IoSystem};
-use firelink_host::scan::Protocol;
+use firelink_host::scan::{Protocol, ScanReport};
 use firelink_host::sim::SimPort;
 use firelink_host::stop::StopRequest;
 use firelink_host::udp::{UdpPort, WaitMode};
@@ -856,8 +856,29 @@ fn run_robot<P: Injector>(
     progress: &mut dyn FnMut(DemoProgress),
 ) -> Result<DemoReport, TestbedError> {
     let rt = realtime_status(pacing, realtime);
-    let config = &options.config;
     let wall = Instant::now();
+    let (mut robot, plan) = open_robot(port, options, pacing, |io, scan| {
+        progress(DemoProgress::Found {
+            boards: scan.boards.len(),
+            port: port_name.clone(),
+            reason: scan.protocol_reason.to_string(),
+            protocol: io.protocol().name(),
+        });
+    })?;
+    robot.set_stop_request(stop.clone());
+    let done = run_program(robot, &plan, port_name, rt, wall, progress)?;
+    Ok(done.report)
+}
+
+/// Scan `port`, set up its boards for `options`' protocol (`found` is
+/// told what the scan found) and make the robot of `options`' plan with
+/// `pacing`.
+pub(crate) fn open_robot<'a, P: Injector>(
+    port: P,
+    options: &'a DemoOptions,
+    pacing: Pacing,
+    found: impl FnOnce(&IoSystem<P>, &ScanReport),
+) -> Result<(Robot<IoSystem<P>>, DemoPlan<'a>), TestbedError> {
     let (io, scan) = IoSystem::open(
         port,
         IoOptions {
@@ -865,24 +886,17 @@ fn run_robot<P: Injector>(
             ..IoOptions::default()
         },
     )?;
-    progress(DemoProgress::Found {
-        boards: scan.boards.len(),
-        port: port_name.clone(),
-        reason: scan.protocol_reason.to_string(),
-        protocol: io.protocol().name(),
-    });
+    found(&io, &scan);
     let plan = DemoPlan {
-        config,
+        config: &options.config,
         rate_hz: options.rate_hz,
         duration_s: options.duration_s,
         fault: options.fault,
         watchdog: options.watchdog,
         pacing,
     };
-    let mut robot = Robot::new(io, config, plan.settings())?;
-    robot.set_stop_request(stop.clone());
-    let done = run_program(robot, &plan, port_name, rt, wall, progress)?;
-    Ok(done.report)
+    let robot = Robot::new(io, &options.config, plan.settings())?;
+    Ok((robot, plan))
 }
 
 /// What a demo run does, whatever the robot.
@@ -984,7 +998,7 @@ pub fn run_program<R: DemoIo>(
 
 /// Configure, power on, home and activate the robot, and start every
 /// joint's motion.
-fn bring_up<R: DemoIo>(
+pub(crate) fn bring_up<R: DemoIo>(
     robot: &mut Robot<R>,
     config: &IoConfig,
     progress: &mut dyn FnMut(DemoProgress),

@@ -56,6 +56,7 @@
 pub mod bench;
 pub mod console_homing;
 pub mod cpu;
+pub mod cycle_compare;
 pub mod demo;
 pub mod emulated;
 pub mod error;

@@ -93,6 +93,7 @@
 
 mod brake;
 mod dallas;
+mod digest;
 mod dout;
 mod dqla_expander;
 mod ethernet;

@@ -534,6 +534,12 @@ impl Bus {
         &self.cfg
     }
 
+    /// Record `level` from now on (what was recorded so far stays). What
+    /// the bus records never changes what it does.
+    pub fn set_trace_level(&mut self, level: TraceLevel) {
+        self.cfg.trace = level;
+    }
+
     /// The timing figures.
     pub fn timing(&self) -> &BusTiming {
         &self.cfg.timing
