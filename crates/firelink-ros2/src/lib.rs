@@ -27,15 +27,20 @@
 //! subscription has a sample (DDS readiness) or the robot loop hands over
 //! a frame to publish (it wakes the poll after such a cycle): a `servo_jp` is queued
 //! for the robot loop as soon as it arrives, and the next cycle's write
-//! block carries it. It publishes `measured_js` and `setpoint_js` from the
-//! frames of the cycles due at `--publish-hz` (default 1 kHz, decimated
-//! from the control rate by cycle number), each stamped with its own
-//! cycle's time. `ROS_DOMAIN_ID` is honoured.
+//! block carries it: the node wakes the robot loop
+//! ([`Shared::nudge`]), which runs that cycle at once (at least a fifth of
+//! a period after the last one) and re-phases its schedule from it
+//! ([`firelink_testbed::cycle_schedule`]), so the point waits for the
+//! cycle's own I/O, not for the next period. It publishes `measured_js`
+//! and `setpoint_js` from the frames due at `--publish-hz` (default 1 kHz;
+//! the first frame of each `1 / publish-hz` slot of the robot's clock, so
+//! early cycles do not raise the rate), each stamped with its own cycle's
+//! time. `ROS_DOMAIN_ID` is honoured.
 
 pub mod messages;
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token, Waker};
@@ -48,7 +53,7 @@ use ros2_client::{
 use firelink_control::config::IoConfig;
 use firelink_control::lifecycle::State;
 use firelink_testbed::service::{
-    Command, Frame, MAX_ARM_JOINTS, POOL, Service, ServoApplied, ServoTrace, Shared,
+    Command, Frame, MAX_ARM_JOINTS, POOL, Service, ServoApplied, ServoTrace, Shared, Verdict,
 };
 
 use messages::{Header, JointState, OperatingState, StringMsg, StringStamped, Time};
@@ -59,6 +64,9 @@ pub enum Ros2Error {
     /// A DDS or ROS 2 entity could not be created.
     #[error("ROS 2: {0}")]
     Ros(String),
+    /// Bringing the robot up without DDS failed.
+    #[error("bring-up: {0}")]
+    BringUp(String),
     /// The robot service failed.
     #[error(transparent)]
     Testbed(#[from] firelink_testbed::TestbedError),
@@ -219,8 +227,9 @@ pub fn crtk_state(state: State) -> &'static str {
 /// Options of the node.
 #[derive(Debug, Clone)]
 pub struct NodeSettings {
-    /// Publications per second, decimated from the control rate by cycle
-    /// number (at 1 kHz control, 500 Hz publishes every second cycle).
+    /// Publications per second, decimated from the control rate by the
+    /// frames' time (at 1 kHz control, 500 Hz publishes one frame in every
+    /// 2 ms of the robot's clock).
     pub publish_hz: f64,
     /// DDS domain.
     pub domain_id: u16,
@@ -270,8 +279,9 @@ pub struct NodeReport {
     /// Control loop cycle time (I/O on the port's clock + compute), us:
     /// median, p99.
     pub control_cycle_us: [f64; 2],
-    /// Wall time the robot thread works per cycle (commands, the cycle,
-    /// the frame and the wake-up; not its pacing sleep), us: median, p99.
+    /// Wall time the robot thread works per cycle while the robot is Active
+    /// (commands, the cycle, the frame and the wake-up; not its sleep
+    /// between cycles), us: median, p99.
     /// It includes the time the thread waited for a CPU (this node's
     /// threads, other processes).
     pub control_busy_us: [f64; 2],
@@ -280,6 +290,15 @@ pub struct NodeReport {
     pub control_busy_cpu_us: [f64; 2],
     /// Frames the robot loop skipped because this node had none free.
     pub frames_skipped: u64,
+    /// Control cycles per second while the node ran (early cycles for
+    /// commands included).
+    pub control_hz: f64,
+    /// The control rate asked for (`--rate`): the schedule's.
+    pub control_asked_hz: f64,
+    /// The robot loop's cycles while the node ran by how they started:
+    /// early for a command, on schedule, overrun (more than half a period
+    /// late).
+    pub cycle_starts: [u64; 3],
 }
 
 fn percentile(sorted: &[f64], q: f64) -> f64 {
@@ -319,7 +338,12 @@ struct LoopCosts {
 impl LoopCosts {
     const MAX: usize = 1 << 20;
 
+    /// Record `frame`'s costs if the robot was Active in it (with and
+    /// without ROS 2 the robot is compared in the same state).
     fn record(&mut self, frame: &Frame) {
+        if frame.state != State::Active {
+            return;
+        }
         if self.compute.len() < Self::MAX {
             self.compute.push(frame.compute_us);
             self.cycle.push(frame.io_us + frame.compute_us);
@@ -373,26 +397,31 @@ impl ServoLatencies {
     }
 }
 
-/// Which frames are published: at `publish_hz` of the control rate, by
-/// cycle number, so the rate holds however late this node reads them.
+/// Which frames are published: at `publish_hz`, by the frames' own time
+/// on the robot's clock (the first frame in each slot of `1 / publish_hz`
+/// seconds), so the rate holds however late this node reads them and
+/// however many cycles the robot loop runs early for commands; every
+/// frame when `publish_hz` is at least the control rate.
 #[derive(Debug, Clone, Copy)]
 struct Decimation {
-    /// Publications per control cycle, 0 < ratio <= 1.
-    ratio: f64,
+    /// Publications per second.
+    hz: f64,
+    /// Every frame is published.
+    every_frame: bool,
 }
 
 impl Decimation {
     fn new(publish_hz: f64, rate_hz: f64) -> Decimation {
         Decimation {
-            ratio: (publish_hz / rate_hz).clamp(1e-9, 1.0),
+            hz: publish_hz.max(1e-9),
+            every_frame: publish_hz >= rate_hz,
         }
     }
 
-    /// Whether cycle `cycle`'s frame is published: where `cycle * ratio`
-    /// passes a whole number.
-    fn due(self, cycle: u64) -> bool {
-        let n = |c: u64| (c as f64 * self.ratio).floor();
-        cycle > 0 && n(cycle) > n(cycle - 1)
+    /// Whether the frame of time `t` (s) is published, the frame before
+    /// it being of time `previous` (`-inf`: none).
+    fn due(self, previous: f64, t: f64) -> bool {
+        self.every_frame || (t * self.hz).floor() > (previous * self.hz).floor()
     }
 }
 
@@ -555,12 +584,14 @@ pub fn run_node(
     register_readiness(&poll, &mut arms)?;
     let waker = Waker::new(poll.registry(), FRAME).map_err(ros("frame waker"))?;
     let decimation = Decimation::new(settings.publish_hz, shared.rate_hz);
+    let last_frame_t = AtomicU64::new(f64::NEG_INFINITY.to_bits());
     shared
         .frame_waker
-        .set(Box::new(move |cycle| {
+        .set(Box::new(move |_cycle, t| {
             // Woken for the frames it publishes (commands wake it by their
             // own readiness). A failed wake leaves the 100 ms time-out.
-            if decimation.due(cycle) {
+            let previous = f64::from_bits(last_frame_t.swap(t.to_bits(), Ordering::Relaxed));
+            if decimation.due(previous, t) {
                 let _ = waker.wake();
             }
         }))
@@ -572,6 +603,9 @@ pub fn run_node(
     let mut events = Events::with_capacity(64);
     let start = Instant::now();
     let mut newest: Option<Newest> = None;
+    let mut last_frame_t = f64::NEG_INFINITY;
+    let cycles_at_start = shared.cycles_done.load(Ordering::Relaxed);
+    let starts_at_start = cycle_starts(shared);
     let mut to_publish: Vec<Box<Frame>> = Vec::with_capacity(POOL);
     let mut ready = vec![false; arms.len() * SUBSCRIPTIONS];
     let mut report = NodeReport::default();
@@ -605,7 +639,14 @@ pub fn run_node(
         report.wakes_ready_timeout[0] += u64::from(any_ready);
         report.wakes_ready_timeout[1] += u64::from(events.is_empty());
         // Frames: the due ones kept for publication, the rest given back.
-        take_frames(shared, decimation, &mut costs, &mut newest, &mut to_publish);
+        let frames = Frames {
+            decimation,
+            last_t: &mut last_frame_t,
+            costs: &mut costs,
+            newest: &mut newest,
+            to_publish: &mut to_publish,
+        };
+        take_frames(shared, frames);
         let state = newest.map_or(State::Unconfigured, |n| n.state);
         let homed = shared.homed.load(Ordering::Relaxed);
         // Commands first: they are what waits.
@@ -654,6 +695,20 @@ pub fn run_node(
         }
     }
     report.seconds = start.elapsed().as_secs_f64();
+    let cycles = shared
+        .cycles_done
+        .load(Ordering::Relaxed)
+        .saturating_sub(cycles_at_start);
+    report.control_hz = cycles as f64 / report.seconds.max(1e-9);
+    report.control_asked_hz = shared.rate_hz;
+    let starts = cycle_starts(shared);
+    for (r, (now, then)) in report
+        .cycle_starts
+        .iter_mut()
+        .zip(starts.iter().zip(starts_at_start))
+    {
+        *r = now.saturating_sub(then);
+    }
     report.measured_js_hz = published as f64 / report.seconds.max(1e-9);
     report.measured_js_asked_hz = settings.publish_hz.min(shared.rate_hz);
     report.servo_jp_applied = shared.servo_applied.load(Ordering::Relaxed);
@@ -692,26 +747,42 @@ fn register_readiness(poll: &Poll, arms: &mut [Arm]) -> Result<(), Ros2Error> {
     Ok(())
 }
 
+/// The robot loop's cycles so far by how they started: early for a
+/// command, on schedule, overrun.
+fn cycle_starts(shared: &Shared) -> [u64; 3] {
+    let mut counts = [0; 3];
+    for (c, a) in counts.iter_mut().zip(&shared.cycle_starts) {
+        *c = a.load(Ordering::Relaxed);
+    }
+    counts
+}
+
+/// Where [`take_frames`] puts what it takes.
+struct Frames<'a> {
+    decimation: Decimation,
+    /// The time of the last frame taken (`-inf`: none yet).
+    last_t: &'a mut f64,
+    costs: &'a mut LoopCosts,
+    newest: &'a mut Option<Newest>,
+    // The frames stay boxed: they move between the pool's queues by pointer.
+    #[allow(clippy::vec_box)]
+    to_publish: &'a mut Vec<Box<Frame>>,
+}
+
 /// Take the robot loop's finished frames: each one's costs recorded and
 /// the newest remembered; the due ones kept for publication, the rest
 /// given back.
-// The frames stay boxed: they move between the pool's queues by pointer.
-#[allow(clippy::vec_box)]
-fn take_frames(
-    shared: &Shared,
-    decimation: Decimation,
-    costs: &mut LoopCosts,
-    newest: &mut Option<Newest>,
-    to_publish: &mut Vec<Box<Frame>>,
-) {
+fn take_frames(shared: &Shared, into: Frames<'_>) {
     while let Some(frame) = shared.full.pop() {
-        costs.record(&frame);
-        *newest = Some(Newest {
+        into.costs.record(&frame);
+        *into.newest = Some(Newest {
             t: frame.t,
             state: frame.state,
         });
-        if decimation.due(frame.cycle) && to_publish.len() < to_publish.capacity() {
-            to_publish.push(frame);
+        let due = into.decimation.due(*into.last_t, frame.t);
+        *into.last_t = frame.t;
+        if due && into.to_publish.len() < into.to_publish.capacity() {
+            into.to_publish.push(frame);
         } else {
             let _ = shared.free.push(frame);
         }
@@ -755,6 +826,7 @@ fn take_state_commands(arm: &Arm, shared: &Shared, state: State, report: &mut No
                         arm.report("refused: command queue full".into());
                     }
                 }
+                shared.nudge();
             }
             Err(e) => {
                 report.refused += 1;
@@ -830,14 +902,36 @@ fn take_motion(
             report.refused += 1;
             arm.report("refused: command queue full".into());
         }
+        // The robot loop runs the command's cycle now, not at its next
+        // deadline.
+        shared.nudge();
     }
 }
 
-/// Run the robot service alone (no DDS) for `duration`, draining its frames
-/// as the node would: the control loop's costs without ROS 2; a stop
-/// request (`stop`, set by the signals) ends it early.
-pub fn run_without_dds(service: &Service, duration: Duration, stop: &AtomicBool) -> NodeReport {
+/// Run the robot service alone (no DDS), draining its frames as the node
+/// would: the control loop's costs without ROS 2. The robot is brought up
+/// as a ROS 2 client does it (configured, powered, homed, active) and then
+/// holds still for `duration`; the costs are those of its Active cycles,
+/// as with the node. A stop request (`stop`, set by the signals) ends it
+/// early.
+///
+/// # Errors
+/// A bring-up command was refused or failed.
+pub fn run_without_dds(
+    service: &Service,
+    duration: Duration,
+    stop: &AtomicBool,
+) -> Result<NodeReport, Ros2Error> {
+    for command in [
+        Command::Configure,
+        Command::PowerOn,
+        Command::Home,
+        Command::Activate,
+    ] {
+        bring_up_step(&service.shared, command, stop)?;
+    }
     let start = Instant::now();
+    let cycles_at_start = service.shared.cycles_done.load(Ordering::Relaxed);
     let mut costs = LoopCosts::default();
     while start.elapsed() < duration && !stop.load(Ordering::Relaxed) {
         while let Some(frame) = service.shared.full.pop() {
@@ -846,13 +940,51 @@ pub fn run_without_dds(service: &Service, duration: Duration, stop: &AtomicBool)
         }
         std::thread::sleep(Duration::from_millis(1));
     }
+    let seconds = start.elapsed().as_secs_f64();
+    let shared = &service.shared;
     let mut report = NodeReport {
-        seconds: start.elapsed().as_secs_f64(),
-        frames_skipped: service.shared.skipped.load(Ordering::Relaxed),
+        seconds,
+        frames_skipped: shared.skipped.load(Ordering::Relaxed),
+        control_hz: shared
+            .cycles_done
+            .load(Ordering::Relaxed)
+            .saturating_sub(cycles_at_start) as f64
+            / seconds.max(1e-9),
+        control_asked_hz: shared.rate_hz,
+        cycle_starts: cycle_starts(shared),
         ..NodeReport::default()
     };
     costs.into_report(&mut report);
-    report
+    Ok(report)
+}
+
+/// Queue `command` and wait for its outcome, giving the frames back
+/// meanwhile.
+fn bring_up_step(shared: &Shared, command: Command, stop: &AtomicBool) -> Result<(), Ros2Error> {
+    let id = shared
+        .submit(command)
+        .map_err(|e| Ros2Error::BringUp(format!("{command}: {e}")))?;
+    shared.nudge();
+    while !stop.load(Ordering::Relaxed) {
+        while let Some(frame) = shared.full.pop() {
+            let _ = shared.free.push(frame);
+        }
+        while let Some(o) = shared.outcomes.pop() {
+            if o.id == id {
+                return match o.result {
+                    Verdict::Ok => Ok(()),
+                    _ => Err(Ros2Error::BringUp(o.to_string())),
+                };
+            }
+        }
+        if let Some(exit) = shared.exit.get() {
+            return Err(Ros2Error::BringUp(format!(
+                "{command}: the robot loop ended: {exit}"
+            )));
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    Err(Ros2Error::BringUp(format!("{command}: stopped")))
 }
 
 #[cfg(test)]
@@ -905,20 +1037,38 @@ mod tests {
         assert_eq!(arms[3].2[0], "j21");
     }
 
-    /// Publications are due by cycle number: a second of cycles gives the
-    /// asked rate exactly, whatever the ratio, and never more than one per
-    /// cycle.
+    /// Publications are due by the frames' time: a second of 1 kHz
+    /// cycles gives the asked rate exactly, whatever the ratio, and so does
+    /// the same second with a cycle run early for a command in every five;
+    /// never more than one per frame.
     #[test]
-    fn publications_are_decimated_by_cycle() {
-        let count = |publish_hz, rate_hz| {
-            let d = Decimation::new(publish_hz, rate_hz);
-            (1..=1000u64).filter(|&c| d.due(c)).count()
+    fn publications_are_decimated_by_time() {
+        // Cycles at 1 kHz (a tenth of a period past each millisecond).
+        let regular: Vec<f64> = (1..=1000).map(|k| k as f64 * 1e-3 + 1e-4).collect();
+        let mut with_early = regular.clone();
+        with_early.extend((1..=1000).step_by(5).map(|k| k as f64 * 1e-3 + 4e-4));
+        with_early.sort_by(f64::total_cmp);
+        let count = |times: &[f64], publish_hz| {
+            let d = Decimation::new(publish_hz, 1000.0);
+            let mut previous = 1e-4;
+            let mut n = 0;
+            for &t in times {
+                n += usize::from(d.due(previous, t));
+                previous = t;
+            }
+            n
         };
-        assert_eq!(count(500.0, 1000.0), 500);
-        assert_eq!(count(300.0, 1000.0), 300);
-        assert_eq!(count(1000.0, 1000.0), 1000);
-        assert_eq!(count(5000.0, 1000.0), 1000);
-        assert!(!Decimation::new(500.0, 1000.0).due(0));
+        for times in [&regular, &with_early] {
+            assert_eq!(count(times, 500.0), 500);
+            assert_eq!(count(times, 300.0), 300);
+            assert_eq!(count(times, 100.0), 100);
+        }
+        assert_eq!(count(&regular, 1000.0), 1000);
+        assert_eq!(count(&regular, 5000.0), 1000);
+        let d = Decimation::new(500.0, 1000.0);
+        assert!(d.due(f64::NEG_INFINITY, 0.0));
+        assert!(!d.due(0.0021, 0.0029));
+        assert!(d.due(0.0039, 0.0041));
     }
 
     /// Each applied point lands in the bucket of the cycle that carried it,

@@ -43,8 +43,9 @@ struct Args {
     /// Stop after this many seconds (default: at Ctrl-C, SIGTERM or SIGHUP).
     #[arg(long)]
     seconds: Option<f64>,
-    /// Run the robot without DDS for `--seconds` and report its compute
-    /// time (the comparison for "with ROS 2 attached").
+    /// Run the robot without DDS (brought up and holding still) for
+    /// `--seconds` and report its costs (the comparison for "with ROS 2
+    /// attached").
     #[arg(long = "no-dds")]
     no_dds: bool,
 }
@@ -105,7 +106,7 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
     let service = Service::start(&port, config.clone(), args.rate, args.watchdog_ms)?;
     let report = if args.no_dds {
         let d = duration.ok_or("--no-dds needs --seconds")?;
-        run_without_dds(&service, d, &stop)
+        run_without_dds(&service, d, &stop)?
     } else {
         let domain = args.domain.unwrap_or_else(domain_from_env);
         let base = 7400 + 250 * u32::from(domain);

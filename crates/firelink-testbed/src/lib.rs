@@ -38,6 +38,8 @@
 //! - [`mahru`]: seed 002's MAHRU humanoid (14 modules on three chains,
 //!   the MotionController walking it), its time budget (Table I), read
 //!   times by payload (Table III) and the CAN comparison (Table IV);
+//! - [`cycle_schedule`]: when the [`service`] loop runs its next cycle: at
+//!   the control rate, or at once for a waiting command;
 //! - [`watchdog`]: the watchdog proof: the host stopped at random moments,
 //!   every board's amplifiers off within the watchdog period plus one tick;
 //! - [`snake`]: seed 001's own system: Snake-node rigs, the 36-axis demo
@@ -57,6 +59,7 @@ pub mod bench;
 pub mod console_homing;
 pub mod cpu;
 pub mod cycle_compare;
+pub mod cycle_schedule;
 pub mod demo;
 pub mod emulated;
 pub mod error;

@@ -10,6 +10,16 @@
 //! the browser arrive on a third queue the loop polls once per cycle and
 //! carries out between cycles.
 //!
+//! Between cycles the loop sleeps until the next cycle is due on the wall
+//! clock, or until a consumer that queued a command wakes it
+//! ([`Shared::nudge`]): then the cycle runs at once (at least a fifth of a
+//! period after the last one) and the schedule re-phases from it
+//! ([`crate::cycle_schedule`]), so a command waits for the cycle's own I/O,
+//! not for the period. On the simulated bus the port's virtual clock moves
+//! by the schedule's interval before each cycle (a period, or less for an
+//! early cycle), so the control law's period is the real interval there
+//! too.
+//!
 //! Commands go through the robot's lifecycle: what powers anything (motor
 //! power, the relay, amplifiers) is refused, with the reason, in a state
 //! that does not allow it, and reaches only the boards and axes the
@@ -38,15 +48,16 @@ use firelink_control::lifecycle::State;
 use firelink_control::runner::{Pacing, Robot, RobotSettings, RunnerError};
 use firelink_control::trajectory::{Motion, PointToPoint, ServoPoint};
 use firelink_control::{BoardSet, FaultReport};
-use firelink_host::PowerDown;
 use firelink_host::WatchdogSetting;
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::robot_io::board_list;
 use firelink_host::stop::StopReason;
+use firelink_host::{PowerDown, RobotIo};
 use std::thread::JoinHandle;
 
 use firelink_board::config::Profile;
 
+use crate::cycle_schedule::{CycleSchedule, Due};
 use crate::demo::{DemoFault, Injector, motion_for};
 use crate::port_spec::PortSpec;
 use crate::rig;
@@ -492,20 +503,45 @@ pub struct Shared {
     /// counter; 0 before the first): a consumer reads it when it queues a
     /// command, to count in cycles how long the command waited.
     pub cycles_done: AtomicU64,
-    /// Called with the cycle's number after every frame is handed over
-    /// (from the robot thread: it must not block, lock or allocate), so a
-    /// consumer can sleep until a frame it wants is there; set at most
-    /// once.
+    /// Called with the cycle's number and port time (s) after every frame
+    /// is handed over (from the robot thread: it must not block, lock or
+    /// allocate), so a consumer can sleep until a frame it wants is there;
+    /// set at most once.
     pub frame_waker: OnceLock<FrameWaker>,
+    /// The cycle whose commands the loop takes now or took last (stored
+    /// before it takes them): a consumer that reads it after queueing a
+    /// command (with a `SeqCst` fence between) knows the command is
+    /// carried at the latest by the cycle after that one; exactly by it
+    /// when [`cycles_done`](Self::cycles_done), read before queueing, was
+    /// the same number (the command was queued between cycles).
+    pub commands_taken_for: AtomicU64,
+    /// Cycles of the loop by how they started against the schedule:
+    /// early for a command, on schedule, overrun
+    /// ([`CycleStart`](crate::cycle_schedule::CycleStart)).
+    pub cycle_starts: [AtomicU64; 3],
+    /// The robot loop's thread, for [`nudge`](Self::nudge) (set when the
+    /// loop starts).
+    pub robot_thread: OnceLock<std::thread::Thread>,
 }
 
 /// What the loop calls after handing over the frame of a cycle
-/// ([`Shared::frame_waker`]), with the cycle's number: e.g. a
-/// `mio::Waker`'s `wake` (one `eventfd` write) for the cycles the consumer
-/// publishes.
-pub type FrameWaker = Box<dyn Fn(u64) + Send + Sync>;
+/// ([`Shared::frame_waker`]), with the cycle's number and port time (s):
+/// e.g. a `mio::Waker`'s `wake` (one `eventfd` write) for the cycles the
+/// consumer publishes.
+pub type FrameWaker = Box<dyn Fn(u64, f64) + Send + Sync>;
 
 impl Shared {
+    /// Wake the robot loop if it sleeps between cycles: a consumer calls it
+    /// after queueing a command, and the command's cycle starts at once
+    /// (at least a fifth of a period after the last one) instead of at the
+    /// next deadline. Allocation-free; harmless when the loop is busy (it
+    /// looks at the queues before it sleeps again).
+    pub fn nudge(&self) {
+        if let Some(t) = self.robot_thread.get() {
+            t.unpark();
+        }
+    }
+
     /// A fresh id for a [`Request`] (never 0).
     pub fn new_id(&self) -> u64 {
         self.last_id.fetch_add(1, Ordering::Relaxed) + 1
@@ -600,6 +636,9 @@ pub fn prepare<P: Injector>(
         servo_log_dropped: AtomicU64::new(0),
         cycles_done: AtomicU64::new(0),
         frame_waker: OnceLock::new(),
+        commands_taken_for: AtomicU64::new(0),
+        cycle_starts: Default::default(),
+        robot_thread: OnceLock::new(),
     };
     for _ in 0..POOL {
         let _ = shared.free.push(Box::new(Frame::sized(
@@ -632,7 +671,7 @@ fn publish<P: firelink_host::Port>(
         }
     }
     if let Some(wake) = shared.frame_waker.get() {
-        wake(robot.cycles());
+        wake(robot.cycles(), robot.now());
     }
 }
 
@@ -1062,15 +1101,29 @@ fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
         .unwrap_or_else(|| "a panic without a message".into())
 }
 
-/// The loop proper: commands between cycles, a frame after each.
+/// The loop proper: commands between cycles, a frame after each; between
+/// cycles it sleeps until the next is due or a command is queued
+/// ([`crate::cycle_schedule`]).
 fn cycle_until_stopped<P: Injector>(
     robot: &mut Robot<IoSystem<P>>,
     shared: &Shared,
     options: &LoopOptions,
 ) {
+    let _ = shared.robot_thread.set(std::thread::current());
     let period = Duration::from_secs_f64(1.0 / options.rate_hz);
+    // A machine's clock: as the runner's pacing, a cycle more than half a
+    // period late restarts the schedule. Virtual time: the missed cycles
+    // are caught up (for up to a second), as virtual time is kept in step
+    // with the wall clock.
+    let catch_up = match options.pacing {
+        Pacing::WallClock => period / 2,
+        Pacing::Virtual => Duration::from_secs(1),
+    };
+    let mut schedule = CycleSchedule::new(period, catch_up);
     let wall_start = Instant::now();
-    let port_start = robot.now();
+    // The port's clock at the last cycle's start (to move a virtual clock
+    // by the schedule's interval).
+    let mut last_port_start: Option<f64> = None;
     // The traces of the servo points taken for this cycle, with the cycle
     // that carries each (the next one run: this loop's, or the first of a
     // command queued behind it that runs cycles of its own), logged once
@@ -1083,40 +1136,41 @@ fn cycle_until_stopped<P: Injector>(
     // another: a signal stops the loop at once, whatever its consumer
     // does.)
     while !shared.stop.load(Ordering::Relaxed) && !robot.stop_request().is_requested() {
+        let now = wall_start.elapsed();
+        let waiting = !shared.commands.is_empty() || !shared.requests.is_empty();
+        if let Due::At(t) = schedule.due(now, waiting) {
+            // Until the cycle is due, or a consumer's nudge; then look again.
+            std::thread::park_timeout(t.saturating_sub(now));
+            continue;
+        }
+        let kind = schedule.start(now);
+        if let Some(count) = shared.cycle_starts.get(kind.index()) {
+            count.fetch_add(1, Ordering::Relaxed);
+        }
         let work_start = Instant::now();
         let cpu_start = cpu_clock.and_then(|c| c.now());
-        // Every command waiting is taken before the cycle (at most what the
-        // queue holds, so a cycle's work stays bounded): a servo stream
-        // faster than this loop (a slow machine, a debug build) then never
-        // fills the queue; the newest servo point of an arm wins.
-        for _ in 0..shared.commands.capacity() {
-            let Some(command) = shared.commands.pop() else {
-                break;
-            };
-            let r = execute(robot, shared, command, options);
-            // Servo commands stream at the publisher's rate: only their
-            // refusals are reported (the success path allocates nothing).
-            match (command, &r) {
-                (Command::ServoJoints { trace, .. }, Ok(_)) => {
-                    if (trace.source_ns != 0 || trace.queued_ns != 0)
-                        && traced.len() < traced.capacity()
-                    {
-                        traced.push((trace, robot.cycles() + 1));
-                    }
+        if options.pacing == Pacing::Virtual {
+            // The port's clock moves by the schedule's interval (not less):
+            // a period for a cycle on schedule, the time since the last
+            // cycle's slot for an early one, so the control law's period
+            // is the real interval; never more than a period, as before: the
+            // simulated boards do not see this thread wait for a CPU (a
+            // busy machine would trip their watchdogs).
+            if let (Some(port), Some(interval)) = (last_port_start, schedule.slot_interval()) {
+                let behind = port + interval.as_secs_f64() - robot.now();
+                if behind > 0.0 {
+                    robot.io_mut().wait(Duration::from_secs_f64(behind));
                 }
-                _ => outcome(shared, 0, command, r),
             }
         }
-        for _ in 0..shared.requests.capacity() {
-            let Some(Request { id, command }) = shared.requests.pop() else {
-                break;
-            };
-            let r = execute(robot, shared, command, options);
-            outcome(shared, id, command, r);
-        }
+        last_port_start = Some(robot.now());
+        take_commands(robot, shared, options, &mut traced);
         // A fault is latched in the robot and shown in the frames; the
         // loop keeps cycling (outputs safe) until it is cleared.
-        let _ = robot.step(options.pacing);
+        let _ = robot.cycle();
+        // A bus reset renumbers nodes: the boards are found again between
+        // cycles (a failed attempt is retried after the next cycle).
+        let _ = robot.io_mut().recover();
         log_applied(shared, &mut traced);
         publish(shared, robot, busy);
         let cpu_end = cpu_clock.and_then(|c| c.now());
@@ -1126,14 +1180,50 @@ fn cycle_until_stopped<P: Injector>(
                 .zip(cpu_end)
                 .map(|(a, b)| b.saturating_sub(a).as_secs_f64() * 1e6),
         });
-        if options.pacing == Pacing::Virtual {
-            // Keep virtual time in step with the wall clock so the browser
-            // sees the robot move at its real speed.
-            let ahead = (robot.now() - port_start) - wall_start.elapsed().as_secs_f64();
-            if ahead > 0.0 {
-                std::thread::sleep(Duration::from_secs_f64(ahead).min(period * 4));
+    }
+}
+
+/// Every command waiting, taken before a cycle (at most what the queues
+/// hold, so a cycle's work stays bounded): a servo stream faster than the
+/// loop (a slow machine, a debug build) then never fills the queue; the
+/// newest servo point of an arm wins. The traced servo points go to
+/// `traced`, with the cycle that carries them.
+fn take_commands<P: Injector>(
+    robot: &mut Robot<IoSystem<P>>,
+    shared: &Shared,
+    options: &LoopOptions,
+    traced: &mut Vec<(ServoTrace, u64)>,
+) {
+    // Said before the queue is read (and fenced): a consumer that reads it
+    // after queueing knows which cycle at the latest carries its command.
+    shared
+        .commands_taken_for
+        .store(robot.cycles() + 1, Ordering::SeqCst);
+    std::sync::atomic::fence(Ordering::SeqCst);
+    for _ in 0..shared.commands.capacity() {
+        let Some(command) = shared.commands.pop() else {
+            break;
+        };
+        let r = execute(robot, shared, command, options);
+        // Servo commands stream at the publisher's rate: only their
+        // refusals are reported (the success path allocates nothing).
+        match (command, &r) {
+            (Command::ServoJoints { trace, .. }, Ok(_)) => {
+                if (trace.source_ns != 0 || trace.queued_ns != 0)
+                    && traced.len() < traced.capacity()
+                {
+                    traced.push((trace, robot.cycles() + 1));
+                }
             }
+            _ => outcome(shared, 0, command, r),
         }
+    }
+    for _ in 0..shared.requests.capacity() {
+        let Some(Request { id, command }) = shared.requests.pop() else {
+            break;
+        };
+        let r = execute(robot, shared, command, options);
+        outcome(shared, id, command, r);
     }
 }
 
@@ -1274,6 +1364,7 @@ impl Service {
 
     fn shutdown(&mut self) -> LoopExit {
         self.shared.stop.store(true, Ordering::Relaxed);
+        self.shared.nudge();
         let exit = match self.thread.take() {
             Some(t) => match t.join() {
                 Ok(exit) => exit,

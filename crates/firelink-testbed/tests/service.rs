@@ -19,8 +19,8 @@ use firelink_testbed::TestbedError;
 use firelink_testbed::demo::{DemoFault, Injector, PortSpec};
 use firelink_testbed::rig;
 use firelink_testbed::service::{
-    Command, CommandOutcome, Frame, LoopOptions, MAX_ARM_JOINTS, Service, ServoTrace, Shared,
-    Verdict,
+    Command, CommandOutcome, Frame, LoopOptions, MAX_ARM_JOINTS, Service, ServoApplied, ServoTrace,
+    Shared, Verdict,
 };
 
 /// Bounded only so that a broken build fails instead of hanging.
@@ -139,13 +139,17 @@ fn commands_drive_the_lifecycle_and_motion_waits_for_homing() {
     );
 }
 
-/// A servo point queued after cycle k (as [`Shared::cycles_done`] said when
-/// it was queued) is carried by the write block of cycle k + 1, or k + 2
-/// when it was queued while the loop was taking cycle k + 1's commands;
-/// never later, however late the consumer or the loop runs (cycles are
-/// counted, not time). Each applied point is logged once, with its trace.
+/// The design property of the loop's wake-up, counted in cycles, not
+/// timed, with a synthetic source on the simulated bus: a servo point
+/// queued between two cycles (after cycle k was done and before the loop
+/// began taking cycle k + 1's commands) is carried by the very next write
+/// block, cycle k + 1's; one queued while the loop ran is carried at the
+/// latest by the first cycle whose commands were taken after it was
+/// queued (the loop says which, [`Shared::commands_taken_for`]). The
+/// source wakes the loop after each point ([`Shared::nudge`]), as the
+/// ROS 2 node does. Each applied point is logged once, with its trace.
 #[test]
-fn a_servo_point_queued_after_cycle_k_is_written_by_cycle_k_plus_2() {
+fn a_servo_point_queued_between_cycles_is_carried_by_the_very_next_write_block() {
     let service = Service::start(
         &PortSpec::SIM,
         presets::bench_1board(),
@@ -164,47 +168,65 @@ fn a_servo_point_queued_after_cycle_k_is_written_by_cycle_k_plus_2() {
     }
     // Held where homing left the joint (a jump would be a following error).
     let here = next_frame(shared).joints[0].setpoint;
-    let mut lags = [0u32; 3];
-    for n in 1..=200u64 {
-        let k = shared.cycles_done.load(Ordering::SeqCst);
+    let mut between_cycles = 0;
+    for n in 1..=300u64 {
+        let done = shared.cycles_done.load(Ordering::SeqCst);
         let trace = ServoTrace {
             source_ns: 0,
             queued_ns: n,
-            queued_after_cycle: k,
+            queued_after_cycle: done,
         };
         shared
             .commands
             .push(traced_servo_at(0, 1, here, trace))
             .unwrap();
-        let start = Instant::now();
-        let applied = loop {
-            while let Some(f) = shared.full.pop() {
-                let _ = shared.free.push(f);
-            }
-            if let Some(a) = shared.servo_log.pop() {
-                break a;
-            }
-            // (An applied servo point reports no outcome; a refused one does.)
-            if let Some(o) = shared.outcomes.pop() {
-                panic!("servo point {n}: {o}");
-            }
-            assert!(start.elapsed() < HANG, "servo point {n} never applied");
-            std::thread::yield_now();
-        };
+        std::sync::atomic::fence(Ordering::SeqCst);
+        let taking = shared.commands_taken_for.load(Ordering::SeqCst);
+        shared.nudge();
+        let applied = applied_point(shared, n);
         assert_eq!(applied.trace, trace, "one entry per point, in order");
-        let lag = applied.cycle - k;
-        assert!(
-            (1..=2).contains(&lag),
-            "queued after cycle {k}, written by cycle {}",
-            applied.cycle
-        );
-        lags[lag as usize] += 1;
         assert!(applied.applied_ns > 0);
+        if taking == done {
+            // Between cycles `done` and `done + 1`.
+            between_cycles += 1;
+            assert_eq!(applied.cycle, done + 1, "point {n}");
+        } else {
+            // Queued while the loop ran: after cycle `done`, by cycle
+            // `taking + 1` (whose commands were taken after it was queued).
+            assert!(
+                (done + 1..=taking + 1).contains(&applied.cycle),
+                "point {n}: queued after cycle {done}, while cycle {taking} took its \
+                 commands; carried by {}",
+                applied.cycle
+            );
+        }
     }
     assert_eq!(shared.servo_log_dropped.load(Ordering::Relaxed), 0);
-    assert_eq!(shared.servo_applied.load(Ordering::Relaxed), 200);
-    assert_eq!(lags[1] + lags[2], 200, "{lags:?}");
+    assert_eq!(shared.servo_applied.load(Ordering::Relaxed), 300);
+    // (How many fell between cycles depends on the machine's timing; the
+    // source mostly finds the loop asleep.)
+    eprintln!("{between_cycles} of 300 points queued between cycles");
     assert!(service.stop().is_clean());
+}
+
+/// Wait until the loop logs servo point `n` as applied (frames given back
+/// meanwhile); a refusal fails the test.
+fn applied_point(shared: &Shared, n: u64) -> ServoApplied {
+    let start = Instant::now();
+    loop {
+        while let Some(f) = shared.full.pop() {
+            let _ = shared.free.push(f);
+        }
+        if let Some(a) = shared.servo_log.pop() {
+            return a;
+        }
+        // (An applied servo point reports no outcome; a refused one does.)
+        if let Some(o) = shared.outcomes.pop() {
+            panic!("servo point {n}: {o}");
+        }
+        assert!(start.elapsed() < HANG, "servo point {n} never applied");
+        std::thread::yield_now();
+    }
 }
 
 /// Every amplifier of every board, as a frame shows them: (on, of).

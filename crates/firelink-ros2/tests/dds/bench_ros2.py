@@ -1,24 +1,36 @@
 """Figures for BENCHMARKS.md: servo_jp latency from the DDS source stamp to
 applied (the write block of the cycle that carried it sent), split into
-DDS delivery plus the node's wake-up and the wait for the next cycle; the
-measured_js rate achieved against the asked one; the cycles that carried
-each point; and the robot thread's work per cycle with ROS 2 attached and
-without, side by side in one run. Runs inside a network namespace it
+DDS delivery plus the node's wake-up and the wait for the write block; the
+measured_js and control rates achieved against the asked ones; the cycles
+that carried each point and how the robot loop's cycles started (early for
+a command, on schedule, overrun); and the robot thread's CPU time per
+cycle with ROS 2 attached and without. Runs inside a network namespace it
 creates (root).
 
     FIRELINK_ROS2_BIN=target/release/firelink-ros2 python crates/firelink-ros2/tests/dds/bench_ros2.py \\
-        [--before OLD_BINARY] [--publish-hz 500]
+        [--before OLD_BINARY] [--publish-hz 500] [--cost-pairs 6] [--cost-seconds 3]
 
-Each binary serves two clients in turn: one streaming servo_jp at its own
-200 Hz (arrivals at any phase of the control cycle) and one answering each
-measured_js sample at once (`--react`, a loop closed over ROS 2). After
-each run of the binary under test, the robot runs alone (`--no-dds`) for
-as long.
+Latency: each binary serves two clients in turn, one streaming servo_jp at
+its own 200 Hz (arrivals at any phase of the control cycle) and one
+answering each measured_js sample at once (`--react`, a loop closed over
+ROS 2).
+
+Cost: the binary under test runs `--cost-pairs` pairs of short runs, with
+ROS 2 (the 200 Hz stream client) and without (`--no-dds`: the robot
+brought up the same way, holding still), the order alternating from pair
+to pair; per run the median of the robot thread's CPU time per cycle over
+the cycles it was Active, and the median over pairs of the ratio with /
+without. Interleaving pairs and taking the median of their ratios keeps
+what else the machine does at the time out of the figure better than one
+long run of each.
+
+Prints the JSON of every run, then one table of everything.
 """
 
 import argparse
 import json
 import os
+import statistics
 import subprocess
 import sys
 
@@ -26,13 +38,23 @@ sys.path.insert(0, os.path.dirname(__file__))
 import test_ros2 as t  # noqa: E402
 
 
-def with_dds(ns: t.Netns, binary: str, publish_hz: int, react: bool) -> dict:
+def client(ns: t.Netns, arm: str, react: bool, seconds: float) -> dict:
+    env = {**os.environ, "ROS_DOMAIN_ID": "7", "CYCLONEDDS_URI":
+           "<CycloneDDS><Domain><Id>7</Id></Domain></CycloneDDS>"}
+    mode = ["--react"] if react else []
+    out = subprocess.run(["ip", "netns", "exec", ns.name, sys.executable, t.CLIENT, "--arm", arm,
+                          "--seconds", str(seconds), *mode], capture_output=True, text=True, env=env, timeout=300)
+    assert out.returncode == 0, out.stdout + out.stderr
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def with_dds(ns: t.Netns, binary: str, publish_hz: int, react: bool, seconds: float = 5.0) -> dict:
     node = t.robot(ns, binary, publish_hz)
     try:
-        client = t.client(ns, "PSM1", react=react)
+        result = client(ns, "PSM1", react, seconds)
     finally:
         report = t.stop(node)
-    return {"client": client, "node": report}
+    return {"client": result, "node": report}
 
 
 def without_dds(ns: t.Netns, binary: str, seconds: float) -> dict:
@@ -43,27 +65,87 @@ def without_dds(ns: t.Netns, binary: str, seconds: float) -> dict:
 
 
 def summary(run: dict) -> dict:
-    node, client = run["node"], run["client"]
+    node, result = run["node"], run["client"]
     return {
-        "servo_jp_sent_received_applied": [client["servo_sent"], node["servo_jp_received"], node["servo_jp_applied"]],
+        "servo_jp_sent_received_applied": [result["servo_sent"], node["servo_jp_received"], node["servo_jp_applied"]],
         "latency_us_p50_p99_max": node["servo_latency_us"],
         "transit_us_p50_p99_max": node.get("servo_transit_us"),
         "wait_us_p50_p99_max": node.get("servo_wait_us"),
         "applied_by_cycle_k1_k2_later": node.get("servo_applied_by_cycle"),
         "measured_js_hz": node["measured_js_hz"],
         "measured_js_asked_hz": node.get("measured_js_asked_hz"),
-        "tracking_rms_rad": client["tracking_rms_rad"],
-        "busy_us_median_p99": node.get("control_busy_us"),
+        "control_hz": node.get("control_hz"),
+        "control_asked_hz": node.get("control_asked_hz"),
+        "cycle_starts_early_scheduled_overrun": node.get("cycle_starts"),
+        "tracking_rms_rad": result["tracking_rms_rad"],
         "busy_cpu_us_median_p99": node.get("control_busy_cpu_us"),
+        "busy_us_median_p99": node.get("control_busy_us"),
         "cycle_us_median_p99": node["control_cycle_us"],
-        "compute_us_median_p99": node["control_compute_us"],
     }
+
+
+def cost_pairs(ns: t.Netns, binary: str, publish_hz: int, pairs: int, seconds: float) -> dict:
+    rows = []
+    for k in range(pairs):
+        order = ("with", "without") if k % 2 == 0 else ("without", "with")
+        row = {}
+        for which in order:
+            if which == "with":
+                row["with"] = with_dds(ns, binary, publish_hz, False, seconds)["node"]["control_busy_cpu_us"][0]
+            else:
+                row["without"] = without_dds(ns, binary, seconds)["control_busy_cpu_us"][0]
+        row["ratio"] = row["with"] / max(row["without"], 1e-9)
+        rows.append(row)
+    return {
+        "pairs": rows,
+        "median_cpu_with_us": statistics.median(r["with"] for r in rows),
+        "median_cpu_without_us": statistics.median(r["without"] for r in rows),
+        "median_ratio": statistics.median(r["ratio"] for r in rows),
+    }
+
+
+def ms(us: list) -> str:
+    return " / ".join(f"{u / 1000:.2f}" for u in us)
+
+
+def table(out: dict) -> str:
+    runs = out["runs"]
+    cols = list(runs)
+    lines = ["| figure | " + " | ".join(cols) + " |", "|---|" + "---:|" * len(cols)]
+
+    def row(name, f):
+        lines.append(f"| {name} | " + " | ".join(f(runs[c]) for c in cols) + " |")
+
+    row("servo_jp sent / received / applied", lambda r: " / ".join(map(str, r["servo_jp_sent_received_applied"])))
+    row("latency p50 / p99 / max, ms", lambda r: ms(r["latency_us_p50_p99_max"]))
+    row("transit p50 / p99 / max, ms", lambda r: ms(r["transit_us_p50_p99_max"] or [0, 0, 0]))
+    row("wait p50 / p99 / max, ms", lambda r: ms(r["wait_us_p50_p99_max"] or [0, 0, 0]))
+    row("carried by k+1 / k+2 / later", lambda r: " / ".join(map(str, r["applied_by_cycle_k1_k2_later"] or [])))
+    row("measured_js, Hz (% of asked)",
+        lambda r: f"{r['measured_js_hz']:.1f} ({100 * r['measured_js_hz'] / (r['measured_js_asked_hz'] or 1):.1f} %)")
+    row("control, Hz (% of asked)",
+        lambda r: "" if r["control_hz"] is None else
+        f"{r['control_hz']:.1f} ({100 * r['control_hz'] / (r['control_asked_hz'] or 1):.1f} %)")
+    row("cycles early / on schedule / overrun",
+        lambda r: " / ".join(map(str, r["cycle_starts_early_scheduled_overrun"] or [])))
+    row("robot thread CPU per cycle, median us", lambda r: f"{(r['busy_cpu_us_median_p99'] or [0])[0]:.1f}")
+    cost = out.get("cost")
+    text = "\n".join(lines)
+    if cost:
+        pairs = ", ".join(f"{p['with']:.1f}/{p['without']:.1f}={p['ratio']:.3f}" for p in cost["pairs"])
+        text += (f"\n\nrobot thread CPU per cycle, with / without ROS 2 (us), {len(cost['pairs'])} interleaved pairs: "
+                 f"{pairs}\nmedian with {cost['median_cpu_with_us']:.1f} us, without {cost['median_cpu_without_us']:.1f} us, "
+                 f"median of ratios {cost['median_ratio']:.3f}")
+    text += f"\n\nload average at start {' '.join(out['loadavg_at_start'])}, at end {' '.join(out['loadavg_at_end'])}"
+    return text
 
 
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--before", help="an earlier firelink-ros2 binary, run the same way first")
     parser.add_argument("--publish-hz", type=int, default=500)
+    parser.add_argument("--cost-pairs", type=int, default=6, help="interleaved with/without runs (0: none)")
+    parser.add_argument("--cost-seconds", type=float, default=3.0)
     args = parser.parse_args()
     with open("/proc/loadavg") as f:
         load = f.read().split()[:3]
@@ -74,24 +156,18 @@ def main() -> None:
         ns.multicast_on("lo")
         binaries = ([("before", args.before)] if args.before else []) + [("after", t.BIN)]
         for label, binary in binaries:
-            for mode, react in (("stream_200hz", False), ("react", True)):
-                run = with_dds(ns, binary, args.publish_hz, react)
-                entry = summary(run)
-                if label == "after":
-                    alone = without_dds(ns, binary, run["node"]["seconds"])
-                    entry["without_dds_busy_us_median_p99"] = alone["control_busy_us"]
-                    entry["without_dds_busy_cpu_us_median_p99"] = alone["control_busy_cpu_us"]
-                    entry["busy_cpu_ratio_with_over_without"] = (
-                        run["node"]["control_busy_cpu_us"][0] / max(alone["control_busy_cpu_us"][0], 1e-9))
-                    entry["without_dds_cycle_us_median_p99"] = alone["control_cycle_us"]
-                    entry["busy_ratio_with_over_without"] = (
-                        run["node"]["control_busy_us"][0] / max(alone["control_busy_us"][0], 1e-9))
-                out["runs"][f"{label}/{mode}"] = entry
+            for mode, react in (("stream 200 Hz", False), ("react", True)):
+                print(f"{label}: {mode}", file=sys.stderr, flush=True)
+                out["runs"][f"{label}: {mode}"] = summary(with_dds(ns, binary, args.publish_hz, react))
+        if args.cost_pairs > 0:
+            out["cost"] = cost_pairs(ns, t.BIN, args.publish_hz, args.cost_pairs, args.cost_seconds)
     finally:
         ns.delete()
     with open("/proc/loadavg") as f:
         out["loadavg_at_end"] = f.read().split()[:3]
     print(json.dumps(out, indent=1))
+    print()
+    print(table(out))
 
 
 if __name__ == "__main__":
