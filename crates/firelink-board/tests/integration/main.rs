@@ -4,9 +4,9 @@
 //! declared below (a test's name is `file::test`); a new test file joins
 //! with one `mod` line. See ARCHITECTURE.md, "Tests".
 
-mod common;
 mod broadcast;
 mod bus;
+mod common;
 mod motion;
 mod plant_accuracy;
 mod registers;

@@ -4,8 +4,8 @@
 //! declared below (a test's name is `file::test`); a new test file joins
 //! with one `mod` line. See ARCHITECTURE.md, "Tests".
 
-mod common;
 mod cli_args;
+mod common;
 mod demo_bench;
 mod emulate_cli;
 mod fw_port;

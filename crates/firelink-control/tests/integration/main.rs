@@ -4,8 +4,8 @@
 //! declared below (a test's name is `file::test`); a new test file joins
 //! with one `mod` line. See ARCHITECTURE.md, "Tests".
 
-mod common;
 mod alloc_free;
+mod common;
 mod configs;
 mod console_schema;
 mod runner;

@@ -3,7 +3,6 @@
 //! the fallback hub read, the command block) as raw datagrams into
 //! [`EthNetwork`] in virtual time, every reply checked byte by byte.
 
-use crate::common;
 use crate::eth_common;
 
 use std::net::{Ipv4Addr, SocketAddr};

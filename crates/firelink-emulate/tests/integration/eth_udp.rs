@@ -9,7 +9,6 @@
 //! makes itself (`unshare -n`, root); without root or `unshare` that test
 //! says so and skips.
 
-use crate::common;
 use crate::eth_common;
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, UdpSocket};

@@ -4,10 +4,10 @@
 //! declared below (a test's name is `file::test`); a new test file joins
 //! with one `mod` line. See ARCHITECTURE.md, "Tests".
 
-mod common;
-mod eth_common;
 mod bridge_multicast;
 mod broadcast_cycles;
+mod common;
+mod eth_common;
 mod eth_host;
 mod eth_mixed;
 mod eth_network;

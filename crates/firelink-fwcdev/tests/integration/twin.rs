@@ -154,7 +154,9 @@ fn run_child(name: &str, setup: Setup) {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(
-        lines.iter().any(|l| l.contains("test result: ok. 1 passed")),
+        lines
+            .iter()
+            .any(|l| l.contains("test result: ok. 1 passed")),
         "{exact} did not run in the child:\n{}",
         lines.join("\n")
     );
