@@ -45,7 +45,7 @@ use noise::{Noise, NoiseChannel, NoiseStream};
 /// firmware's safety tick. Spans are integrated exactly in the current loop
 /// ([`Integrator::Exact`]), which agrees with the semi-implicit integration
 /// at [`REFERENCE_STEP`] (the tests say how closely:
-/// `tests/plant_accuracy.rs`).
+/// `tests/integration/plant_accuracy.rs`).
 pub const DEFAULT_STEP: SimDuration = SimDuration(100_000_000);
 
 /// The step of the reference integration ([`Integrator::SemiImplicitEuler`]):
