@@ -129,7 +129,14 @@ fn bench_sim_reproduces_the_shape_of_fig_11() {
     assert_eq!(h["axes"], 28);
     assert_eq!(h["boards"], 8);
     assert!(h["cycles"].as_u64().unwrap() > 0);
-    for stat in ["median", "p99", "mean"] {
+    for stat in [
+        "median",
+        "p99",
+        "mean",
+        "floor_median",
+        "floor_p99",
+        "floor_ratio",
+    ] {
         assert!(h[stat].as_f64().unwrap() > 0.0, "{stat}: {h}");
     }
     assert!(r["compute_us"].as_f64().is_some());
@@ -153,6 +160,8 @@ fn bench_text_shows_the_host_cpu_per_cycle() {
         .find(|l| l.starts_with("host CPU per 28-axis cycle (parse, PID, build commands): median"))
         .unwrap_or_else(|| panic!("no host CPU line in:\n{text}"));
     assert!(line.contains("p99"), "{line}");
+    assert!(line.contains("floor (the bare loop"), "{line}");
+    assert!(line.contains("ratio"), "{line}");
 }
 
 #[test]

@@ -19,7 +19,8 @@
 //!
 //! Used by the criterion benchmark (`cargo bench -p firelink-testbed
 //! --bench host_cycle`) and by `firelink bench`
-//! ([`measure`](RecordedCycle::measure)).
+//! ([`measure_with_floor`](RecordedCycle::measure_with_floor): the
+//! cycle beside its floor, the bare loop, in one run).
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -35,7 +36,7 @@ use firelink_host::link_stats::LinkStats;
 use firelink_host::port::{Dest, LinkFilter, Port};
 use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
-use firelink_wire::board::address::{HUB_MEMORY_OFFSET, HUB_QUERY_OFFSET};
+use firelink_wire::board::address::{COMMAND_BLOCK_OFFSET, HUB_MEMORY_OFFSET, HUB_QUERY_OFFSET};
 use firelink_wire::board::broadcast::{HubHeader, Query};
 use firelink_wire::board::realtime::BlockFormat;
 
@@ -307,7 +308,28 @@ const SETTLE_CYCLES: u64 = 200;
 /// block (see the module docs).
 pub struct RecordedCycle {
     robot: ReplayedRobot,
+    /// The bare loop's buffers ([`bare_cycle`](Self::bare_cycle)): the
+    /// hub read's and the command block's, of the host's sizes.
+    bare_hub: Vec<u8>,
+    bare_commands: Vec<u8>,
+    /// The bare loop's query sequence.
+    bare_seq: u16,
 }
+
+/// Per-cycle times of the replayed host cycle and of its floor, the bare
+/// loop, measured in alternating blocks in one run
+/// ([`RecordedCycle::measure_with_floor`]), us.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CycleAndFloor {
+    /// The replayed host cycles.
+    pub cycle: Percentiles,
+    /// The bare loop's cycles.
+    pub floor: Percentiles,
+}
+
+/// Cycles per block of [`RecordedCycle::measure_with_floor`]: the host
+/// cycle's blocks and the bare loop's alternate.
+pub const FLOOR_BLOCK_CYCLES: usize = 500;
 
 /// The same kind of motion as the demo's for joint `i` (see
 /// [`motion_for`]), with amplitudes a thousandth of the demo's: frozen
@@ -378,7 +400,19 @@ impl RecordedCycle {
             let here = robot.position(i).unwrap_or(0.0);
             robot.set_motion(i, tiny_motion(&config, i, here))?;
         }
-        let mut recorded = RecordedCycle { robot };
+        let hub_len = robot.io().port().hub().len();
+        let command_len = robot
+            .io()
+            .boards()
+            .iter()
+            .map(|b| b.info().layout.write_block_len())
+            .sum();
+        let mut recorded = RecordedCycle {
+            robot,
+            bare_hub: vec![0; hub_len],
+            bare_commands: vec![0; command_len],
+            bare_seq: 0,
+        };
         for _ in 0..SETTLE_CYCLES {
             recorded.cycle().map_err(TestbedError::Config)?;
         }
@@ -400,6 +434,36 @@ impl RecordedCycle {
         }
     }
 
+    /// The bare loop: one cycle of the frozen port's own part and nothing
+    /// else, the floor of [`cycle`](Self::cycle): the query written, the
+    /// recorded hub block replayed into a buffer of the host's hub read
+    /// and a command block of the host's size handed to the port, with no
+    /// parse, no control and no command built.
+    ///
+    /// # Errors
+    /// The port refused a call (it does not, frozen).
+    #[inline(never)]
+    pub fn bare_cycle(&mut self) -> core::result::Result<(), String> {
+        self.bare_seq = self.bare_seq.wrapping_add(1).max(1);
+        let query = Query {
+            seq: self.bare_seq,
+            board_mask: 0xFF,
+        }
+        .to_word()
+        .map_err(|e| e.to_string())?;
+        let port = self.robot.io_mut().port_mut();
+        port.begin_cycle();
+        port.start_write_quadlet(Dest::BROADCAST, HUB_QUERY_OFFSET, query)
+            .and_then(|()| port.read_block(Dest::node(0), HUB_MEMORY_OFFSET, &mut self.bare_hub))
+            .and_then(|()| {
+                port.start_write_block(Dest::BROADCAST, COMMAND_BLOCK_OFFSET, &self.bare_commands)
+            })
+            .map_err(|e| e.to_string())?;
+        port.end_cycle();
+        black_box(&self.bare_hub);
+        Ok(())
+    }
+
     /// The robot.
     pub fn robot(&self) -> &ReplayedRobot {
         &self.robot
@@ -410,29 +474,53 @@ impl RecordedCycle {
         &mut self.robot
     }
 
-    /// Time `cycles` replayed cycles one by one on the machine's monotonic
-    /// clock, after `warm_up` untimed ones: per-cycle percentiles, us.
+    /// Time `cycles` replayed cycles and as many cycles of the bare loop
+    /// ([`bare_cycle`](Self::bare_cycle)), one by one on the machine's
+    /// monotonic clock, in alternating blocks of [`FLOOR_BLOCK_CYCLES`]
+    /// after `warm_up` untimed cycles of each: the two sets of
+    /// percentiles are from the same minutes of the same run, so their
+    /// ratio does not move with the machine's speed as much as either.
     ///
     /// # Errors
     /// A replayed cycle failed.
-    pub fn measure(
+    pub fn measure_with_floor(
         &mut self,
         warm_up: u64,
         cycles: usize,
-    ) -> core::result::Result<Percentiles, TestbedError> {
+    ) -> core::result::Result<CycleAndFloor, TestbedError> {
         for _ in 0..warm_up {
             self.cycle().map_err(TestbedError::Config)?;
+            self.bare_cycle().map_err(TestbedError::Config)?;
         }
-        let mut t = vec![0f32; cycles];
-        for slot in t.iter_mut() {
-            let start = Instant::now();
-            let r = self.cycle();
-            let spent = start.elapsed();
-            r.map_err(TestbedError::Config)?;
-            *slot = (spent.as_secs_f64() * 1e6) as f32;
+        let mut host = vec![0f32; cycles];
+        let mut bare = vec![0f32; cycles];
+        for (host, bare) in host
+            .chunks_mut(FLOOR_BLOCK_CYCLES)
+            .zip(bare.chunks_mut(FLOOR_BLOCK_CYCLES))
+        {
+            for slot in host.iter_mut() {
+                *slot = timed_us(|| self.cycle())?;
+            }
+            for slot in bare.iter_mut() {
+                *slot = timed_us(|| self.bare_cycle())?;
+            }
         }
-        Ok(Percentiles::of(&mut t))
+        Ok(CycleAndFloor {
+            cycle: Percentiles::of(&mut host),
+            floor: Percentiles::of(&mut bare),
+        })
     }
+}
+
+/// `run` timed on the monotonic clock, us.
+fn timed_us(
+    run: impl FnOnce() -> core::result::Result<(), String>,
+) -> core::result::Result<f32, TestbedError> {
+    let start = Instant::now();
+    let r = run();
+    let spent = start.elapsed();
+    r.map_err(TestbedError::Config)?;
+    Ok((spent.as_secs_f64() * 1e6) as f32)
 }
 
 #[cfg(test)]

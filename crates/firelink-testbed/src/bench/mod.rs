@@ -234,6 +234,10 @@ pub struct UdpFigures {
     /// nothing, on this machine. The part of `emulator_cpu_us` above it is
     /// the emulation's; absent where thread clocks cannot be read.
     pub floor_server_cpu_us: Option<f64>,
+    /// `emulator_cpu_us` over `floor_server_cpu_us`, both from this run:
+    /// the emulator's CPU against the bare responder's on the same
+    /// datagrams; absent when either is.
+    pub emulator_cpu_ratio: Option<f64>,
 }
 
 /// What a measured `fw` point adds: its floor, and CPU time per cycle.
@@ -367,6 +371,16 @@ pub struct HostCpu {
     pub mean: f64,
     /// Cycles timed.
     pub cycles: u64,
+    /// The floor, in the same run: the bare loop's median, us
+    /// ([`host_cpu::RecordedCycle::bare_cycle`]: the frozen port's own
+    /// part of a cycle, the query, the hub block replayed and the command
+    /// block handed over, with no parse, control or command built), timed
+    /// in blocks alternating with the host cycle's.
+    pub floor_median: f64,
+    /// The bare loop's 99th percentile, us.
+    pub floor_p99: f64,
+    /// `median` over `floor_median`.
+    pub floor_ratio: f64,
     /// Axes computed per cycle.
     pub axes: usize,
     /// Boards whose blocks are parsed per cycle.
@@ -384,13 +398,17 @@ pub const HOST_CPU_WARM_UP: u64 = 2_000;
 /// The recorded cycle could not be set up or one of its cycles failed.
 pub fn host_cpu_per_cycle() -> Result<HostCpu, TestbedError> {
     let mut recorded = host_cpu::RecordedCycle::record()?;
-    let p = recorded.measure(HOST_CPU_WARM_UP, HOST_CPU_CYCLES)?;
+    let m = recorded.measure_with_floor(HOST_CPU_WARM_UP, HOST_CPU_CYCLES)?;
+    let (p, floor) = (m.cycle, m.floor);
     let robot = recorded.robot();
     Ok(HostCpu {
         median: round3(p.median),
         p99: round3(p.p99),
         mean: round3(p.mean),
         cycles: HOST_CPU_CYCLES as u64,
+        floor_median: round3(floor.median),
+        floor_p99: round3(floor.p99),
+        floor_ratio: ratio3(p.median, floor.median),
         axes: robot.joint_count(),
         boards: robot.io().boards().len(),
     })
@@ -741,6 +759,11 @@ fn finish(raw: &Raw, compute: f64, period_us: f64) -> BenchPoint {
             socket_calls_per_cycle: round2(m.socket_calls),
             emulator_cpu_us: m.emulator_cpu.map(round2),
             floor_server_cpu_us: m.floor_server_cpu.map(round2),
+            emulator_cpu_ratio: m
+                .emulator_cpu
+                .map(round2)
+                .zip(m.floor_server_cpu.map(round2))
+                .map(|(emulator, floor)| ratio3(emulator, floor)),
         }),
         fw: raw.fw.as_ref().map(|m| FwFigures {
             floor_us: io_time(&m.floor),
@@ -1120,8 +1143,17 @@ impl fmt::Display for BenchReport {
             Some(h) => writeln!(
                 f,
                 "host CPU per {}-axis cycle (parse, PID, build commands): median {:.2} us, p99 {:.2} us \
-                 ({} boards' blocks parsed; {} recorded cycles replayed with no I/O)",
-                h.axes, h.median, h.p99, h.boards, h.cycles
+                 ({} boards' blocks parsed; {} recorded cycles replayed with no I/O); \
+                 floor (the bare loop: the replaying port alone, same run) median {:.2} us, \
+                 p99 {:.2} us; ratio {:.2}",
+                h.axes,
+                h.median,
+                h.p99,
+                h.boards,
+                h.cycles,
+                h.floor_median,
+                h.floor_p99,
+                h.floor_ratio
             )?,
             None => writeln!(
                 f,
@@ -1185,13 +1217,14 @@ impl fmt::Display for BenchReport {
             "\nUDP against {}: the floor (the same requests, sizes and host waits against a responder \
              that answers at once) in blocks of {} cycles alternating with the point's own; \
              CPU per cycle, us (host: the cycle's I/O; emulator: its server thread; \
-             floor srv: the responder's thread, a server that emulates nothing)",
+             floor srv: the responder's thread, a server that emulates nothing; \
+             emu/srv: emulator over floor srv)",
             targets.join(", "),
             self.udp_block_cycles
         )?;
         writeln!(
             f,
-            "{:<9} {:<32} {:>6} {:>9} {:>9} {:>6} {:>9} {:>9} {:>8} {:>9} {:>7}",
+            "{:<9} {:<32} {:>6} {:>9} {:>9} {:>6} {:>9} {:>9} {:>8} {:>9} {:>7} {:>7}",
             "trans",
             "protocol",
             "boards",
@@ -1202,12 +1235,13 @@ impl fmt::Display for BenchReport {
             "floor cpu",
             "emu cpu",
             "floor srv",
+            "emu/srv",
             "calls"
         )?;
         for (r, u) in udp {
             writeln!(
                 f,
-                "{:<9} {:<32} {:>6} {:>9} {:>9} {:>6.2} {:>9} {:>9} {:>8} {:>9} {:>7.1}",
+                "{:<9} {:<32} {:>6} {:>9} {:>9} {:>6.2} {:>9} {:>9} {:>8} {:>9} {:>7} {:>7.1}",
                 transport(r),
                 r.protocol,
                 r.boards,
@@ -1218,6 +1252,8 @@ impl fmt::Display for BenchReport {
                 num(Some(u.floor_host_cpu_us)),
                 num(u.emulator_cpu_us),
                 num(u.floor_server_cpu_us),
+                u.emulator_cpu_ratio
+                    .map_or("-".to_string(), |x| format!("{x:.2}")),
                 u.socket_calls_per_cycle
             )?;
         }

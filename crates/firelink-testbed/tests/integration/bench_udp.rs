@@ -35,6 +35,15 @@ fn each_wait_mode_is_a_point_with_its_floor_and_cpu() {
         assert!(u.emulator_cpu_us.is_some_and(|c| c > 0.0), "{u:?}");
         // The floor's responder answered the floor's reads: its thread ran.
         assert!(u.floor_server_cpu_us.is_some_and(|c| c > 0.0), "{u:?}");
+        // The two, set against each other in the same run.
+        assert_eq!(
+            u.emulator_cpu_ratio,
+            Some(
+                ((u.emulator_cpu_us.unwrap() / u.floor_server_cpu_us.unwrap()) * 1000.0).round()
+                    / 1000.0
+            ),
+            "{u:?}"
+        );
         // Query, hub read and its answer, commands: at least four calls.
         assert!(u.socket_calls_per_cycle >= 4.0, "{u:?}");
     }
