@@ -2,10 +2,10 @@
 //! concatenated command block, for every layout.
 #![no_main]
 
-use firelink_wire::board::broadcast::{
+use firelink_wire::qla::broadcast::{
     BoardSlot, HubBlock, SeqRule, command_slices, find_command_block,
 };
-use firelink_wire::board::realtime::{
+use firelink_wire::qla::realtime::{
     BoardLayout, FirmwareRev, ReadBlock, ReadBlockRepr, WriteBlock, WriteBlockRepr,
 };
 use libfuzzer_sys::fuzz_target;

@@ -5,7 +5,7 @@
 #![no_main]
 
 use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::firmware::{Firmware, PhyRegisters, Reply};
+use firelink_board::qla::{Firmware, PhyRegisters, Reply};
 use firelink_board::time::{SimTime, SimDuration};
 use firelink_wire::packet::Packet;
 use libfuzzer_sys::fuzz_target;

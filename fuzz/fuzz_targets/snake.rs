@@ -4,7 +4,7 @@
 //! map, the pot commands and the blocks.
 #![no_main]
 
-use firelink_board::firmware::{PhyRegisters, Reply};
+use firelink_board::qla::{PhyRegisters, Reply};
 use firelink_board::snake::{SnakeFirmware, SnakeNodeConfig};
 use firelink_board::time::SimTime;
 use firelink_wire::packet::Packet;

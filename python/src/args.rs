@@ -536,7 +536,7 @@ pub(crate) fn watchdog_setting(
     if let Ok(text) = value.cast::<PyString>() {
         let text = string(text)?;
         return WatchdogSetting::parse(&text).map_err(|e| match e {
-            firelink_wire::board::registers::WatchdogParseError::NotANumber => bad(
+            firelink_wire::qla::registers::WatchdogParseError::NotANumber => bad(
                 py,
                 format!("watchdog {text:?} is neither \"off\" nor a period in ms {range}"),
             ),

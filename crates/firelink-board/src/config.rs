@@ -11,14 +11,14 @@
 //! assert_eq!(cfg.read_block_quadlets(), 32);
 //! ```
 
-use firelink_wire::board::realtime::{BoardLayout, FirmwareRev};
-pub use firelink_wire::board::registers::FpgaVersion;
-use firelink_wire::board::registers::HardwareVersion;
+use firelink_wire::qla::realtime::{BoardLayout, FirmwareRev};
+pub use firelink_wire::qla::registers::FpgaVersion;
+use firelink_wire::qla::registers::HardwareVersion;
 
-use firelink_wire::board::extras::{fpga_serial_image, qla_serial_image};
+use firelink_wire::qla::extras::{fpga_serial_image, qla_serial_image};
 
-pub use crate::firmware::{BrakeLine, BrakeWire, Instrument};
 use crate::plant::{AxisParams, DEFAULT_STEP, presets};
+pub use crate::qla::{BrakeLine, BrakeWire, Instrument};
 use crate::time::SimDuration;
 
 /// Which firmware behaviour a board reproduces.
@@ -422,7 +422,7 @@ impl BoardConfig {
                 })
             }
         };
-        use firelink_wire::board::extras::{FPGA_SERIAL_MAX, QLA_SERIAL_MAX};
+        use firelink_wire::qla::extras::{FPGA_SERIAL_MAX, QLA_SERIAL_MAX};
         serial(
             "FPGA",
             &self.fpga_serial,

@@ -15,10 +15,10 @@
 //!   temperature; dVRK presets.
 //! - [`config`]: what a board is (board ID, QLA1/DQLA, firmware profile,
 //!   FPGA version, axes, seed).
-//! - [`firmware`]: the board as a bus-agnostic state machine fed raw
-//!   packets: link rules, registers, real-time blocks, broadcast/hub,
+//! - [`qla`]: the QLA family's firmware (FPGA1394 + QLA1 or DQLA), the
+//!   board as a bus-agnostic state machine fed raw packets: link rules, registers, real-time blocks, broadcast/hub,
 //!   watchdog and safety. Bit packing comes from
-//!   [`firelink_wire::board`].
+//!   [`firelink_wire::qla`].
 //! - [`node`]: [`BoardNode`](node::BoardNode), the firmware as a
 //!   [`firelink_bus::Node`] on the simulated bus.
 //! - [`snake`]: seed 001's 7-channel Snake robot node, a board model of
@@ -32,7 +32,7 @@
 //!
 //! ```
 //! use firelink_board::config::{BoardConfig, Hardware, Profile};
-//! use firelink_board::firmware::{Firmware, PhyRegisters, Reply};
+//! use firelink_board::qla::{Firmware, PhyRegisters, Reply};
 //! use firelink_board::time::SimTime;
 //! use firelink_wire::packet::{Ack, AsyncHeader, NodeId, PacketRepr};
 //!
@@ -55,10 +55,10 @@
 #![cfg_attr(not(test), warn(clippy::indexing_slicing))]
 
 pub mod config;
-pub mod firmware;
 pub mod mahru;
 pub mod node;
 pub mod plant;
+pub mod qla;
 pub mod rig;
 pub mod snake;
 pub mod time;

@@ -25,7 +25,7 @@ use firelink_bus::{ArbitrationClass, Node, NodeCtx, ResetInfo, RxReply, SimTime,
 use firelink_wire::packet::{Ack, Speed};
 
 use crate::config::{BoardConfig, Profile};
-use crate::firmware::{Firmware, PhyAccess, Reply};
+use crate::qla::{Firmware, PhyAccess, Reply};
 
 /// Timer token of the broadcast slot.
 const SLOT_TIMER: u64 = 1;

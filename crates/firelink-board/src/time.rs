@@ -11,6 +11,6 @@ pub use firelink_bus::time::{PS_PER_S, SYSTEM_CLOCK_HZ, SimDuration, SimTime};
 
 /// One watchdog tick: 256 system clocks, about 5.208 us (`fpga-board.md`
 /// section 2, register 3; defined with the register,
-/// [`Watchdog::CLOCKS_PER_TICK`](firelink_wire::board::registers::Watchdog::CLOCKS_PER_TICK)).
+/// [`Watchdog::CLOCKS_PER_TICK`](firelink_wire::qla::registers::Watchdog::CLOCKS_PER_TICK)).
 pub const WATCHDOG_TICK_CLOCKS: u64 =
-    firelink_wire::board::registers::Watchdog::CLOCKS_PER_TICK as u64;
+    firelink_wire::qla::registers::Watchdog::CLOCKS_PER_TICK as u64;

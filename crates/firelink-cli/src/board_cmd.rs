@@ -9,8 +9,8 @@ use firelink_host::board::BoardInfo;
 use firelink_host::register_address::{self, register_offset};
 use firelink_host::scan::{ScanReport, mask_boards, scan};
 use firelink_host::{Dest, Port};
-use firelink_wire::board::address::{AxisRegister, BoardRegister, Register};
-use firelink_wire::board::registers::{StatusRead, Temperature, Watchdog};
+use firelink_wire::qla::address::{AxisRegister, BoardRegister, Register};
+use firelink_wire::qla::registers::{StatusRead, Temperature, Watchdog};
 
 use crate::error::CliError;
 use crate::ports::{PortArgs, open_port};
@@ -157,7 +157,7 @@ pub fn run_info(args: &ScanArgs, out: &mut impl Write) -> Result<(), CliError> {
             let adc = port.read_quadlet(dest, Register::axis(axis, AxisRegister::Adc).offset()?)?;
             axes.push(serde_json::json!({
                 "axis": axis,
-                "encoder_counts": firelink_wire::board::registers::counts_from_offset_binary(enc),
+                "encoder_counts": firelink_wire::qla::registers::counts_from_offset_binary(enc),
                 "pot_bits": adc >> 16,
                 "current_bits": adc & 0xFFFF,
             }));

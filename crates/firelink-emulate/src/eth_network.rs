@@ -40,13 +40,13 @@ use std::net::SocketAddr;
 use std::sync::Arc;
 
 use firelink_board::config::{BoardConfig, FpgaVersion, Profile};
-use firelink_board::firmware::{Firmware, PhyRegisters, Reply};
+use firelink_board::qla::{Firmware, PhyRegisters, Reply};
 use firelink_bus::ethernet::{ChainError, EthChain, EthTiming, Framing, SwitchPort};
 use firelink_bus::{SimDuration, SimTime};
-use firelink_wire::board::address::HUB_QUERY_OFFSET;
-use firelink_wire::board::broadcast::Query;
 use firelink_wire::bridge::{CONTROL_WORD_LEN, ExtraData, ExtraFlags, split_host_datagram};
 use firelink_wire::packet::{AsyncHeader, NodeId, Packet, Tcode};
+use firelink_wire::qla::address::HUB_QUERY_OFFSET;
+use firelink_wire::qla::broadcast::Query;
 
 /// REG_IPADDR's address in the main space.
 const IP_ADDRESS_OFFSET: u64 = 0x0B;

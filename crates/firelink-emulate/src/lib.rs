@@ -192,7 +192,7 @@ pub struct Bridge {
 /// The longest a datagram waits, in virtual time, for the boards to finish
 /// the status broadcasts the datagrams before it started: more than a full
 /// Rev 7+ chain of 16 boards with every predecessor silent
-/// (16 x [`CHAIN_TIMEOUT_PER_BOARD`](firelink_board::firmware::CHAIN_TIMEOUT_PER_BOARD)).
+/// (16 x [`CHAIN_TIMEOUT_PER_BOARD`](firelink_board::qla::CHAIN_TIMEOUT_PER_BOARD)).
 const SETTLE_LIMIT: SimDuration = SimDuration::from_micros(2_000);
 
 /// 49.152 MHz ticks in a virtual duration, saturating at 16 bits.

@@ -7,15 +7,15 @@
 //! units (counts, ADC bits) plus the few physical conversions that are fixed
 //! by the QLA hardware; robot-specific scaling lives in the control layer.
 
-use firelink_wire::board::MAX_AXES;
-use firelink_wire::board::realtime::{
+use firelink_wire::phy::SYSTEM_CLOCK_HZ;
+use firelink_wire::qla::MAX_AXES;
+use firelink_wire::qla::realtime::{
     BlockFormat, BoardLayout, ReadBlock, ReadBlockRepr, WriteBlockRepr,
 };
-use firelink_wire::board::registers::{
+use firelink_wire::qla::registers::{
     AmpCommand, DAC_ZERO, DacWord, DigitalIn, FpgaVersion, GitDesc, HardwareVersion, StatusCommand,
     StatusRead,
 };
-use firelink_wire::phy::SYSTEM_CLOCK_HZ;
 
 use crate::error::{HostError, Result};
 
@@ -362,8 +362,8 @@ impl BoardIo {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use firelink_wire::board::realtime::FirmwareRev;
-    use firelink_wire::board::registers::MotorStatus;
+    use firelink_wire::qla::realtime::FirmwareRev;
+    use firelink_wire::qla::registers::MotorStatus;
 
     fn info(fw: FirmwareRev) -> BoardInfo {
         BoardInfo {

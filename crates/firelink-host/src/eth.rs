@@ -33,9 +33,9 @@ use std::io;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
-use firelink_wire::board::address::{BoardRegister, HUB_QUERY_OFFSET, Register};
 use firelink_wire::bridge::{ControlWord, ExtraData};
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
+use firelink_wire::qla::address::{BoardRegister, HUB_QUERY_OFFSET, Register};
 
 use crate::error::{HostError, Result};
 use crate::link_stats::LinkStats;
@@ -158,8 +158,8 @@ impl Probe {
     /// bridge.
     pub fn is_ethernet_only(&self) -> bool {
         let v3 = matches!(
-            firelink_wire::board::registers::FpgaVersion::from_eth_status(self.eth_status),
-            Ok(firelink_wire::board::registers::FpgaVersion::V3)
+            firelink_wire::qla::registers::FpgaVersion::from_eth_status(self.eth_status),
+            Ok(firelink_wire::qla::registers::FpgaVersion::V3)
         );
         v3 && self.firmware >= 9
     }
@@ -638,11 +638,11 @@ mod tests {
     /// 15000) is 80 and 120 us at 125 MHz.
     #[test]
     fn hub_times_at_the_ethernet_clock() {
-        let header = firelink_wire::board::broadcast::HubHeader::from_word(
+        let header = firelink_wire::qla::broadcast::HubHeader::from_word(
             0x2103_4E20,
-            firelink_wire::board::realtime::BlockFormat::Rev8,
+            firelink_wire::qla::realtime::BlockFormat::Rev8,
         );
-        let firelink_wire::board::broadcast::HubHeader::Rev8 {
+        let firelink_wire::qla::broadcast::HubHeader::Rev8 {
             quadlets,
             update_time,
             ..

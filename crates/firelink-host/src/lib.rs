@@ -71,6 +71,6 @@ pub mod transaction;
 pub mod udp;
 
 pub use error::{HostError, MissReason, Result};
-pub use firelink_wire::board::registers::WatchdogSetting;
+pub use firelink_wire::qla::registers::WatchdogSetting;
 pub use port::{Dest, LinkFilter, Port};
 pub use robot_io::{BoardStatus, PowerDown, RobotIo};

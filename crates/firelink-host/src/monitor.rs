@@ -10,9 +10,9 @@
 //! - nothing here reads a clock: the front end measures and records each
 //!   cycle's I/O time and the achieved rate.
 
-use firelink_wire::board::address::{BoardRegister, Register};
-use firelink_wire::board::registers::{StatusRead, Watchdog};
 use firelink_wire::human::Number;
+use firelink_wire::qla::address::{BoardRegister, Register};
+use firelink_wire::qla::registers::{StatusRead, Watchdog};
 
 use crate::io::IoSystem;
 use crate::{Port, WatchdogSetting};

@@ -10,7 +10,7 @@
 //!   address beyond `0xffff` would silently alias, and one beyond 48 bits
 //!   is no 1394 offset at all.
 
-use firelink_wire::board::address::{AxisRegister, BoardRegister, Register};
+use firelink_wire::qla::address::{AxisRegister, BoardRegister, Register};
 
 /// The largest 1394 offset: 48 bits.
 pub const MAX_1394_OFFSET: u64 = 0xFFFF_FFFF_FFFF;

@@ -27,7 +27,7 @@
 
 use std::time::Duration;
 
-use firelink_wire::board::registers::WatchdogSetting;
+use firelink_wire::qla::registers::WatchdogSetting;
 
 use crate::error::{HostError, Result};
 use crate::io::{CycleReport, IoStats, IoSystem};

@@ -15,11 +15,11 @@
 //! mask selects who answers, `fpga-board.md` §6.1) and reads that group's
 //! hub block before the next query, then one command block to all boards.
 
-use firelink_wire::board::address::{BoardRegister, HUB_MEMORY_QUADLETS, Register};
-use firelink_wire::board::broadcast::hub_block_quadlets;
-use firelink_wire::board::realtime::{BlockFormat, BoardLayout, FirmwareRev};
-use firelink_wire::board::registers::{FpgaVersion, GitDesc, HardwareVersion, StatusRead};
 use firelink_wire::packet::Speed;
+use firelink_wire::qla::address::{BoardRegister, HUB_MEMORY_QUADLETS, Register};
+use firelink_wire::qla::broadcast::hub_block_quadlets;
+use firelink_wire::qla::realtime::{BlockFormat, BoardLayout, FirmwareRev};
+use firelink_wire::qla::registers::{FpgaVersion, GitDesc, HardwareVersion, StatusRead};
 
 use crate::board::BoardInfo;
 use crate::error::{HostError, Result};
@@ -483,7 +483,7 @@ fn scan_once<P: Port + ?Sized>(port: &mut P) -> Result<ScanReport> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use firelink_wire::board::registers::FpgaVersion;
+    use firelink_wire::qla::registers::FpgaVersion;
 
     fn board(id: u8, layout: BoardLayout) -> BoardInfo {
         BoardInfo {

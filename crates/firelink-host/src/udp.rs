@@ -29,9 +29,9 @@ use std::io;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, ToSocketAddrs, UdpSocket};
 use std::time::{Duration, Instant};
 
-use firelink_wire::board::address::{BoardRegister, Register};
 use firelink_wire::bridge::{ControlWord, EXTRA_DATA_LEN, ExtraData};
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
+use firelink_wire::qla::address::{BoardRegister, Register};
 
 use crate::error::{AddressProblem, HostError, Result};
 use crate::link_stats::LinkStats;

@@ -7,7 +7,7 @@
 //! what each run holds:
 //! - the bus: its clock (to the picosecond) and the packets put on the
 //!   wire so far;
-//! - every board: [`Firmware::state_digest`](firelink_board::firmware::Firmware::state_digest) (registers, hub memory, the
+//! - every board: [`Firmware::state_digest`](firelink_board::qla::Firmware::state_digest) (registers, hub memory, the
 //!   waiting broadcast, the received-packet memory, the plant);
 //! - the host: every joint's position, velocity, potentiometer, measured
 //!   and commanded current as the control program holds them (bit for
@@ -98,7 +98,7 @@ pub struct CycleState {
     pub now_ps: u64,
     /// Packets put on the wire so far.
     pub packets_sent: u64,
-    /// Each board's [`Firmware::state_digest`](firelink_board::firmware::Firmware::state_digest)
+    /// Each board's [`Firmware::state_digest`](firelink_board::qla::Firmware::state_digest)
     /// (`None`: not a board node).
     pub boards: Vec<Option<u64>>,
     /// Each joint's position, velocity, potentiometer, measured and

@@ -58,9 +58,9 @@ use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
 use firelink_host::trace::{CallKind, CallRecord, TracingPort};
 use firelink_host::{MissReason, Port};
-use firelink_wire::board::broadcast::status_broadcast_board;
-use firelink_wire::board::realtime::FirmwareRev;
 use firelink_wire::packet::{Packet, Speed, Tcode};
+use firelink_wire::qla::broadcast::status_broadcast_board;
+use firelink_wire::qla::realtime::FirmwareRev;
 
 use crate::TestbedError;
 
@@ -429,7 +429,7 @@ pub fn prepare(options: &SimOptions) -> Result<PreparedSim, TestbedError> {
     // one packet at the bus speed.
     let per_board = layout.map_or(0, |l| l.broadcast_quadlets());
     let hub_block = layout.map_or(0, |l| {
-        firelink_wire::board::broadcast::hub_block_quadlets(std::iter::repeat_n(l, n))
+        firelink_wire::qla::broadcast::hub_block_quadlets(std::iter::repeat_n(l, n))
     });
     let fixed = if firmware == FirmwareRev::Rev4 {
         hub_block.max(16 * per_board)

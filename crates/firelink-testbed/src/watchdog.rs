@@ -19,7 +19,7 @@ use firelink_control::config::presets;
 use firelink_control::runner::{Pacing, Robot};
 use firelink_host::io::IoSystem;
 use firelink_host::sim::SimPort;
-use firelink_wire::board::registers::Watchdog;
+use firelink_wire::qla::registers::Watchdog;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;

@@ -12,7 +12,7 @@
 //! - [`bridge`]: the Ethernet/UDP bridge framing (control word, extra data).
 //! - [`fw_cdev`]: Linux firewire-cdev ioctl arguments and events, and the
 //!   /dev/fw* twin's request/reply framing.
-//! - [`board`]: the FPGA1394/QLA board protocol: address spaces and the
+//! - [`qla`]: the QLA family's board protocol (FPGA1394 + QLA1 or DQLA): address spaces and the
 //!   register map, register quadlet codecs, the real-time read and write
 //!   blocks, and the broadcast protocol (query, status broadcasts, hub
 //!   block, command block).
@@ -45,7 +45,6 @@
 #[cfg(test)]
 extern crate std;
 
-pub mod board;
 pub mod bridge;
 pub mod crc;
 mod error;
@@ -57,6 +56,7 @@ mod open_enum;
 pub mod packet;
 pub mod pcap;
 pub mod phy;
+pub mod qla;
 pub mod snake;
 
 pub use error::{Error, Result};

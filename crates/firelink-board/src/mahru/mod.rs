@@ -48,7 +48,7 @@ use firelink_wire::mahru::{
 };
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Rcode, Speed, Tcode};
 
-use crate::firmware::emit;
+use crate::qla::emit;
 
 pub use ft::{BodyParams, FtLoad, FtParams, FtSensor};
 pub use joint::{JointParams, MotorController};

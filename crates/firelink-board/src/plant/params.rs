@@ -17,7 +17,7 @@ pub const QLA_FULL_SCALE_AMPS: f64 = 6.25;
 pub const QLA_AMPS_PER_BIT: f64 = 2.0 * QLA_FULL_SCALE_AMPS / 65536.0;
 
 /// The DAC code commanding zero current (`fpga-board.md` section 3).
-pub use firelink_wire::board::registers::DAC_ZERO;
+pub use firelink_wire::qla::registers::DAC_ZERO;
 
 /// Full-scale voltage of the QLA potentiometer ADC (16 bits over 0..4.5 V).
 pub const POT_FULL_SCALE_VOLTS: f64 = 4.5;

@@ -39,8 +39,8 @@
 //!   read returns the last conversion, a sample of the plant at most 2 us
 //!   old with fresh noise.
 
-use firelink_wire::board::registers::{PhyData, PhyRequest};
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Rcode, Tcode};
+use firelink_wire::qla::registers::{PhyData, PhyRequest};
 use firelink_wire::snake::address::{ChannelDevice, GlobalRegister, SnakeRegister};
 use firelink_wire::snake::block::{
     READ_BLOCK_QUADLETS, ReadBlockRepr, WRITE_BLOCK_LEN, WriteBlock, WriteBlockRepr,
@@ -55,9 +55,9 @@ use super::channel::{
     AmplifierModel, DigitalPot, EncoderCounter, period_register, volts_to_sample,
 };
 use super::config::SnakeNodeConfig;
-use crate::firmware::power::Watchdog;
-use crate::firmware::{PhyAccess, Reply, block_read_refusal, block_response_packet, emit};
 use crate::plant::{DAC_ZERO, Plant};
+use crate::qla::power::Watchdog;
+use crate::qla::{PhyAccess, Reply, block_read_refusal, block_response_packet, emit};
 use crate::time::{SimDuration, SimTime};
 
 /// Time of one digital-pot SPI command.

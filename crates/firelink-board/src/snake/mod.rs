@@ -17,7 +17,7 @@
 //! the axis model then drives.
 //!
 //! ```
-//! use firelink_board::firmware::{PhyRegisters, Reply};
+//! use firelink_board::qla::{PhyRegisters, Reply};
 //! use firelink_board::snake::{SnakeFirmware, SnakeNodeConfig};
 //! use firelink_board::time::SimTime;
 //! use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr};

@@ -2,21 +2,21 @@
 //! sequence checks and command slicing. The boards sit on a minimal
 //! in-test wire: one packet at a time, every board hears it when it ends
 //! (S400 transmission time, no arbitration); the host checks the hub
-//! block with the `firelink_wire::board::broadcast` codecs.
+//! block with the `firelink_wire::qla::broadcast` codecs.
 
 use crate::common;
 
 use common::*;
 use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::firmware::Reply;
+use firelink_board::qla::Reply;
 use firelink_board::time::{SYSTEM_CLOCK_HZ, SimDuration, SimTime};
 use firelink_wire::Error;
-use firelink_wire::board::broadcast::{
+use firelink_wire::packet::{NodeId, Packet};
+use firelink_wire::qla::broadcast::{
     BoardSlot, HubBlock, HubHeader, SeqRule, emit_command_block, has_hub_timing, hub_block_quadlets,
 };
-use firelink_wire::board::realtime::{BoardLayout, WriteBlockRepr};
-use firelink_wire::board::registers::{DacWord, StatusRead};
-use firelink_wire::packet::{NodeId, Packet};
+use firelink_wire::qla::realtime::{BoardLayout, WriteBlockRepr};
+use firelink_wire::qla::registers::{DacWord, StatusRead};
 
 /// Transmission time of `bytes` at S400 (393.216 Mb/s).
 fn s400(bytes: usize) -> SimDuration {
@@ -323,8 +323,8 @@ fn query_with_dqla_boards() {
 
 #[test]
 fn hub_sizes_match_the_spec() {
-    let qla8 = BoardLayout::qla1(firelink_wire::board::realtime::FirmwareRev::Rev8);
-    let qla7 = BoardLayout::qla1(firelink_wire::board::realtime::FirmwareRev::Rev7);
+    let qla8 = BoardLayout::qla1(firelink_wire::qla::realtime::FirmwareRev::Rev8);
+    let qla7 = BoardLayout::qla1(firelink_wire::qla::realtime::FirmwareRev::Rev7);
     assert_eq!(hub_block_quadlets([qla8; 2]), 67);
     assert_eq!(hub_block_quadlets([qla7; 3]), 29 * 3 + 1);
 }
@@ -543,7 +543,7 @@ fn status_broadcast_offsets() {
 /// with the full sequence and no timing quadlet after them.
 #[test]
 fn rev4_boards_use_seed_000_sizes_and_clock_exact_slots() {
-    use firelink_wire::board::realtime::FirmwareRev;
+    use firelink_wire::qla::realtime::FirmwareRev;
     let n = 5;
     let boards = (0..n)
         .map(|id| {

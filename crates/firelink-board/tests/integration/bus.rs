@@ -9,12 +9,12 @@ use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::node::BoardNode;
 use firelink_bus::host::{HostLink, Outcome};
 use firelink_bus::{Bus, BusConfig, NodeConfig, NodeHandle};
-use firelink_wire::board::broadcast::{
+use firelink_wire::packet::{Ack, NodeId, Packet, PacketRepr, Speed};
+use firelink_wire::qla::broadcast::{
     BoardSlot, HubBlock, SeqRule, emit_command_block, hub_block_quadlets,
 };
-use firelink_wire::board::realtime::WriteBlockRepr;
-use firelink_wire::board::registers::DacWord;
-use firelink_wire::packet::{Ack, NodeId, Packet, PacketRepr, Speed};
+use firelink_wire::qla::realtime::WriteBlockRepr;
+use firelink_wire::qla::registers::DacWord;
 
 struct Rig {
     bus: Bus,

@@ -5,10 +5,10 @@ use crate::common;
 
 use common::*;
 use firelink_board::config::{BoardConfig, FpgaVersion, Hardware, Profile};
-use firelink_board::firmware::{Reply, RxError};
+use firelink_board::qla::{Reply, RxError};
 use firelink_board::time::SimDuration;
-use firelink_wire::board::registers::DigitalOutWrite;
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, PacketRepr, Rcode};
+use firelink_wire::qla::registers::DigitalOutWrite;
 
 fn rig(profile: Profile) -> Rig {
     Rig::new(BoardConfig::new(5, Hardware::Qla1, profile), 2)

@@ -6,7 +6,7 @@
 use crate::common;
 
 use common::*;
-use firelink_board::firmware::{PhyRegisters, Reply};
+use firelink_board::qla::{PhyRegisters, Reply};
 use firelink_board::snake::channel::AmplifierModel;
 use firelink_board::snake::firmware::{EEPROM_WRITE_TIME, POT_SPI_TIME};
 use firelink_board::snake::{SNAKE_VERSION, SnakeFirmware, SnakeNode, SnakeNodeConfig};

@@ -100,7 +100,7 @@ pub const SCHEMA_ID: &str = "saw-robot-io.schema.json";
 /// The value `$version` must have.
 pub const SCHEMA_VERSION: &str = "6";
 /// Board IDs are set by a 4-bit rotary switch.
-pub use firelink_wire::board::MAX_BOARD_ID;
+pub use firelink_wire::qla::MAX_BOARD_ID;
 
 /// `robots[0].actuators[1].brake`: an ignored key's path as the loader's
 /// errors write paths.

@@ -49,8 +49,8 @@ use std::time::{Duration, Instant};
 use firelink_host::io::{CycleReport, IoStats};
 use firelink_host::stop::{StopReason, StopRequest};
 use firelink_host::{BoardStatus, HostError, MissReason, PowerDown, RobotIo, WatchdogSetting};
-use firelink_wire::board::MAX_BOARDS;
 use firelink_wire::phy::SYSTEM_CLOCK_HZ;
+use firelink_wire::qla::MAX_BOARDS;
 
 use crate::config::{IoConfig, StopSearchConfig};
 use crate::fault::{FaultKind, FaultReport};

@@ -251,9 +251,9 @@ fn rev9_bridge_by_multicast() -> u64 {
 /// The command block of `n` QLA1 Rev 9 boards: every motor's command
 /// valid and changing with the cycle.
 fn command_block(n: usize, cycle: u32) -> Vec<u8> {
-    use firelink_wire::board::broadcast::emit_command_block;
-    use firelink_wire::board::realtime::WriteBlockRepr;
-    use firelink_wire::board::registers::DacWord;
+    use firelink_wire::qla::broadcast::emit_command_block;
+    use firelink_wire::qla::realtime::WriteBlockRepr;
+    use firelink_wire::qla::registers::DacWord;
     let layout = qla1s(1, Profile::Rev9)[0].layout();
     let blocks: Vec<WriteBlockRepr> = (0..n as u8)
         .map(|id| {

@@ -17,7 +17,7 @@ use firelink_host::eth::{EthAddresses, EthPort};
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::port::Port;
 use firelink_host::scan::{Protocol, scan};
-use firelink_wire::board::registers::FpgaVersion;
+use firelink_wire::qla::registers::FpgaVersion;
 
 /// Long enough never to fire on a loaded machine.
 const TIMEOUT: Duration = Duration::from_secs(5);

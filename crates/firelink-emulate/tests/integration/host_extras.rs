@@ -9,7 +9,7 @@ use common::Server;
 use std::time::Duration;
 
 use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::firmware::Instrument;
+use firelink_board::qla::Instrument;
 use firelink_host::extras::dallas::read_tool;
 use firelink_host::extras::dout::{
     read_digital_outputs, read_dout_control, read_waveform_table, start_waveform, waveform_status,

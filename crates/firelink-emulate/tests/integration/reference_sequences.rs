@@ -423,7 +423,7 @@ fn qla_prom_and_serial_number() {
 /// one (family 0x0B, the tool's record).
 #[test]
 fn dallas_interface_with_and_without_a_tool() {
-    use firelink_board::firmware::Instrument;
+    use firelink_board::qla::Instrument;
     let tool = Instrument {
         model: 420_006,
         version: 12,

@@ -13,7 +13,7 @@ use common::{RefHost, Server, bridge, qla1s};
 use firelink_board::config::{BoardConfig, FpgaVersion, Hardware, Profile};
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
-use firelink_wire::board::dqla::MAX7301_CONFIG;
+use firelink_wire::qla::dqla::MAX7301_CONFIG;
 
 /// Generous: test builds are unoptimised and share two cores.
 const TIMEOUT: Duration = Duration::from_millis(100);

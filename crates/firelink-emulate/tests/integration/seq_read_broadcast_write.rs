@@ -34,8 +34,8 @@ use common::{RefHost, bridge, qla1s};
 use firelink_board::config::Profile;
 use firelink_bus::SimDuration;
 use firelink_emulate::Handled;
-use firelink_wire::board::broadcast::CommandBlockWriter;
-use firelink_wire::board::realtime::{BoardLayout, FirmwareRev, WriteBlockRepr};
+use firelink_wire::qla::broadcast::CommandBlockWriter;
+use firelink_wire::qla::realtime::{BoardLayout, FirmwareRev, WriteBlockRepr};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

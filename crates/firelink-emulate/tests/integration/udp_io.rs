@@ -15,9 +15,9 @@ use firelink_emulate::Handled;
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
 use firelink_host::{Dest, Port};
-use firelink_wire::board::address::{AxisRegister, Register};
 use firelink_wire::bridge::split_board_datagram;
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
+use firelink_wire::qla::address::{AxisRegister, Register};
 
 #[test]
 fn scan_over_udp_finds_1_8_and_16_boards() {

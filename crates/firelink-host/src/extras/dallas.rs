@@ -4,8 +4,8 @@
 
 use std::time::Duration;
 
-use firelink_wire::board::address::BoardRegister;
-use firelink_wire::board::extras::{
+use firelink_wire::qla::address::BoardRegister;
+use firelink_wire::qla::extras::{
     DALLAS_BUFFER_OFFSET, DS2505_BYTES, DallasControl, DallasMode, DallasReset, DallasStatus,
 };
 

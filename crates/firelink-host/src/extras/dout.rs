@@ -4,10 +4,10 @@
 //! again, swaps the PWM times, and XORs waveform entries with `0xF`; the
 //! board keeps everything verbatim.
 
-use firelink_wire::board::address::{AxisRegister, BoardRegister, Register};
-use firelink_wire::board::extras::WAVEFORM_TABLE_OFFSET;
-use firelink_wire::board::registers::{DigitalOutRead, DigitalOutWrite, DoutCtrl};
 use firelink_wire::phy::SYSTEM_CLOCK_HZ;
+use firelink_wire::qla::address::{AxisRegister, BoardRegister, Register};
+use firelink_wire::qla::extras::WAVEFORM_TABLE_OFFSET;
+use firelink_wire::qla::registers::{DigitalOutRead, DigitalOutWrite, DoutCtrl};
 
 use super::{FeatureError, Result, board_register};
 use crate::port::{Dest, Port};

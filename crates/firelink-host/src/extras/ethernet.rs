@@ -2,8 +2,8 @@
 //! registers through register 12 (`ReadKSZ8851Reg`) and the debug window
 //! of space 4.
 
-use firelink_wire::board::address::BoardRegister;
-use firelink_wire::board::extras::{ETH_DEBUG_ABSENT, ETH_WINDOW_OFFSET, EthControl, EthStatusV2};
+use firelink_wire::qla::address::BoardRegister;
+use firelink_wire::qla::extras::{ETH_DEBUG_ABSENT, ETH_WINDOW_OFFSET, EthControl, EthStatusV2};
 
 use super::{FeatureError, Result, board_register};
 use crate::port::{Dest, Port};

@@ -37,8 +37,8 @@ pub mod supply;
 
 use std::time::Duration;
 
-use firelink_wire::board::address::{BoardRegister, Register};
-use firelink_wire::board::registers::{PhyData, PhyRequest};
+use firelink_wire::qla::address::{BoardRegister, Register};
+use firelink_wire::qla::registers::{PhyData, PhyRequest};
 
 use crate::error::HostError;
 use crate::port::{Dest, Port};
@@ -142,7 +142,7 @@ pub fn read_phy_register<P: Port + ?Sized>(port: &mut P, dest: Dest, register: u
 /// Transaction failures.
 pub fn is_qla_expanded<P: Port + ?Sized>(port: &mut P, dest: Dest) -> Result<bool> {
     let status = port.read_quadlet(dest, board_register(BoardRegister::Status))?;
-    Ok(firelink_wire::board::registers::StatusRead(status).io_expander())
+    Ok(firelink_wire::qla::registers::StatusRead(status).io_expander())
 }
 
 /// Send one MAX7317 command through register 14 and read register 14

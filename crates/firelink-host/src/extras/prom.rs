@@ -6,8 +6,8 @@
 
 use std::time::Duration;
 
-use firelink_wire::board::address::BoardRegister;
-use firelink_wire::board::extras::{
+use firelink_wire::qla::address::BoardRegister;
+use firelink_wire::qla::extras::{
     FPGA_PROM_BUFFER_OFFSET, FPGA_PROM_PAGE_BYTES, FPGA_SERIAL_ADDRESS, PROM_STATUS_WIP,
     PromCommand, PromOpcode, PromStatus, QLA_PROM_BUFFER_OFFSET, QLA_PROM_BUFFER_QUADLETS,
     QLA_PROM_COMMAND_OFFSET, QLA_PROM_RESULT_OFFSET, QLA_SERIAL_READ_BYTES, QlaPromCommand,

@@ -7,8 +7,8 @@
 
 use std::time::Duration;
 
-use firelink_wire::board::address::{AxisRegister, BoardRegister, Register};
-use firelink_wire::board::registers::{
+use firelink_wire::qla::address::{AxisRegister, BoardRegister, Register};
+use firelink_wire::qla::registers::{
     DigitalIn, STATUS_POWER_OFF, STATUS_POWER_ON, STATUS_RELAY_ON, StatusCommand, StatusRead,
 };
 

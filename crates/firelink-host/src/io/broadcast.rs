@@ -10,17 +10,17 @@
 
 use std::time::Duration;
 
-use firelink_wire::board::MAX_BOARDS;
-use firelink_wire::board::address::{
+use firelink_wire::packet::Packet;
+use firelink_wire::qla::MAX_BOARDS;
+use firelink_wire::qla::address::{
     COMMAND_BLOCK_OFFSET, COMMAND_SNOOP_NODE, COMMAND_SNOOP_OFFSET, HUB_MEMORY_OFFSET,
     HUB_QUERY_OFFSET,
 };
-use firelink_wire::board::broadcast::{
+use firelink_wire::qla::broadcast::{
     BoardSlot, CommandBlockWriter, HubBlock, HubHeader, Query, hub_block_quadlets,
     status_broadcast_board,
 };
-use firelink_wire::board::realtime::{BlockFormat, BoardLayout};
-use firelink_wire::packet::Packet;
+use firelink_wire::qla::realtime::{BlockFormat, BoardLayout};
 
 use super::{HubReadTimes, IoSystem, hub_ticks_us, miss_from_wire};
 use crate::error::{HostError, MissReason, Result};
@@ -398,7 +398,7 @@ impl<P: Port> IoSystem<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use firelink_wire::board::realtime::FirmwareRev;
+    use firelink_wire::qla::realtime::FirmwareRev;
 
     /// QLA1 sets count their boards at every revision (the wait is then
     /// the reference host's 10 + 5 N us); a DQLA (60-quadlet block) counts

@@ -30,10 +30,10 @@ mod sequential;
 
 use std::time::Duration;
 
-use firelink_wire::board::MAX_BOARDS;
-use firelink_wire::board::address::{BoardRegister, Register};
-use firelink_wire::board::broadcast::{BoardSlot, SeqRule};
-use firelink_wire::board::registers::{AmpCommand, StatusCommand, WatchdogSetting};
+use firelink_wire::qla::MAX_BOARDS;
+use firelink_wire::qla::address::{BoardRegister, Register};
+use firelink_wire::qla::broadcast::{BoardSlot, SeqRule};
+use firelink_wire::qla::registers::{AmpCommand, StatusCommand, WatchdogSetting};
 
 use crate::board::BoardIo;
 use crate::error::{HostError, MissReason, Result};

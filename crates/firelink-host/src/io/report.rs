@@ -5,7 +5,7 @@
 
 use std::time::Duration;
 
-use firelink_wire::board::MAX_BOARDS;
+use firelink_wire::qla::MAX_BOARDS;
 
 use crate::error::{HostError, MissReason};
 
@@ -31,7 +31,7 @@ impl HubReadTimes {
 
     /// The timing quadlet `word` of timers counting at `clock_hz`.
     pub fn from_word(word: u32, clock_hz: u32) -> HubReadTimes {
-        let timing = firelink_wire::board::broadcast::HubTiming::from_word(word);
+        let timing = firelink_wire::qla::broadcast::HubTiming::from_word(word);
         HubReadTimes {
             read_start_us: hub_ticks_us(u32::from(timing.read_start), clock_hz),
             read_end_us: hub_ticks_us(u32::from(timing.now), clock_hz),

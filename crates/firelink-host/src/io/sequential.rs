@@ -7,8 +7,8 @@
 //! [`Protocol::Sequential`]: crate::scan::Protocol::Sequential
 //! [`Protocol::SequentialReadBroadcastWrite`]: crate::scan::Protocol::SequentialReadBroadcastWrite
 
-use firelink_wire::board::address::REALTIME_BLOCK_OFFSET;
-use firelink_wire::board::realtime::{ReadBlock, ReadBlockRepr};
+use firelink_wire::qla::address::REALTIME_BLOCK_OFFSET;
+use firelink_wire::qla::realtime::{ReadBlock, ReadBlockRepr};
 
 use super::{IoSystem, miss_from_wire};
 use crate::error::{HostError, MissReason};

@@ -38,8 +38,8 @@ pub use node::{EepromIndex, SnakeNodeInfo, SnakeNodeIo, channel, float_to_words,
 
 use std::time::Duration;
 
-use firelink_wire::board::registers::{Watchdog, WatchdogSetting};
 use firelink_wire::packet::Ack;
+use firelink_wire::qla::registers::{Watchdog, WatchdogSetting};
 use firelink_wire::snake::address::{ChannelDevice, GlobalRegister, SnakeRegister};
 use firelink_wire::snake::block::{READ_BLOCK_LEN, ReadBlock, ReadBlockRepr, WRITE_BLOCK_LEN};
 use firelink_wire::snake::registers::{

@@ -8,8 +8,8 @@
 use std::time::Duration;
 
 use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::firmware::{CHAIN_TIMEOUT_PER_BOARD, FIRST_SLOT_CLOCKS};
 use firelink_board::node::BoardNode;
+use firelink_board::qla::{CHAIN_TIMEOUT_PER_BOARD, FIRST_SLOT_CLOCKS};
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::trace::PacketKind;
 use firelink_bus::{SimDuration, TimedFault, TraceLevel};
@@ -17,10 +17,10 @@ use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
 use firelink_host::sim::SimPort;
 use firelink_host::{MissReason, Port};
-use firelink_wire::board::address::HUB_QUERY_OFFSET;
-use firelink_wire::board::broadcast::{Query, SeqRule, status_broadcast_board};
-use firelink_wire::board::realtime::{BoardLayout, FirmwareRev, ReadBlock, ReadBlockRepr};
 use firelink_wire::packet::{Packet, Tcode};
+use firelink_wire::qla::address::HUB_QUERY_OFFSET;
+use firelink_wire::qla::broadcast::{Query, SeqRule, status_broadcast_board};
+use firelink_wire::qla::realtime::{BoardLayout, FirmwareRev, ReadBlock, ReadBlockRepr};
 
 const GROUP_1: u16 = 0x00FF;
 const GROUP_2: u16 = 0xFF00;

@@ -11,8 +11,8 @@ use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
 use firelink_host::sim::SimPort;
 use firelink_host::{BoardStatus, HostError, MissReason, Port, RobotIo};
-use firelink_wire::board::address::HUB_QUERY_OFFSET;
 use firelink_wire::packet::Tcode;
+use firelink_wire::qla::address::HUB_QUERY_OFFSET;
 
 fn rig(n: u8, hardware: Hardware, profile: Profile) -> BoardRig {
     let boards = (0..n)
@@ -163,7 +163,7 @@ fn seed_model_reproduces_pc_side_cycle_times() {
         let config = IoOptions {
             protocol: Some(protocol),
             broadcast_wait: Some(Duration::from_micros(40)),
-            seq_rule: Some(firelink_wire::board::broadcast::SeqRule::Seed000),
+            seq_rule: Some(firelink_wire::qla::broadcast::SeqRule::Seed000),
             ..IoOptions::default()
         };
         let (mut io, _) = IoSystem::open(p, config).unwrap();

@@ -31,8 +31,8 @@ use firelink_emulate::eth_serve::{EthServeConfig, eth_bind, eth_serve};
 use firelink_host::eth::{EthAddresses, EthPort, ethernet_only_broadcast_wait};
 use firelink_host::scan::Protocol;
 use firelink_host::udp::WaitMode;
-use firelink_wire::board::broadcast::{command_block_quadlets, hub_block_quadlets};
 use firelink_wire::bridge::{CONTROL_WORD_LEN, EXTRA_DATA_LEN};
+use firelink_wire::qla::broadcast::{command_block_quadlets, hub_block_quadlets};
 
 use super::server_thread::ServerThread;
 use super::udp::{ModeRun, Responder, Side, SideSettings, idle_time, run_sides};

@@ -36,9 +36,9 @@ use firelink_host::link_stats::LinkStats;
 use firelink_host::port::{Dest, LinkFilter, Port};
 use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
-use firelink_wire::board::address::{COMMAND_BLOCK_OFFSET, HUB_MEMORY_OFFSET, HUB_QUERY_OFFSET};
-use firelink_wire::board::broadcast::{HubHeader, Query};
-use firelink_wire::board::realtime::BlockFormat;
+use firelink_wire::qla::address::{COMMAND_BLOCK_OFFSET, HUB_MEMORY_OFFSET, HUB_QUERY_OFFSET};
+use firelink_wire::qla::broadcast::{HubHeader, Query};
+use firelink_wire::qla::realtime::BlockFormat;
 
 use crate::TestbedError;
 use crate::demo::motion_for;
@@ -527,7 +527,7 @@ fn timed_us(
 mod tests {
     use super::*;
     use firelink_control::lifecycle::State;
-    use firelink_wire::board::realtime::{ReadBlock, ReadBlockRepr};
+    use firelink_wire::qla::realtime::{ReadBlock, ReadBlockRepr};
 
     /// The replayed cycles run the whole program on the recorded inputs:
     /// every board latches its recorded block, the robot stays Active with

@@ -25,9 +25,9 @@ use firelink_host::link_stats::LinkStats;
 use firelink_host::scan::Protocol;
 use firelink_host::udp::{SocketCalls, UdpPort, WaitMode, is_wait_over};
 use firelink_host::{Dest, LinkFilter, Port};
-use firelink_wire::board::address::HUB_QUERY_OFFSET;
 use firelink_wire::bridge::{ExtraData, split_host_datagram};
 use firelink_wire::packet::{NodeId, PacketRepr, Rcode};
+use firelink_wire::qla::address::HUB_QUERY_OFFSET;
 
 use super::server_thread::ServerThread;
 use crate::TestbedError;

@@ -62,8 +62,8 @@ impl Identity {
         use identity_field as f;
         self.mod_id.check()?;
         let kind = u8::from(self.kind);
-        crate::board::check_max("module kind", u64::from(kind), 0xF)?;
-        crate::board::check_max("firmware revision", u64::from(self.firmware), 0xF)?;
+        crate::qla::check_max("module kind", u64::from(kind), 0xF)?;
+        crate::qla::check_max("firmware revision", u64::from(self.firmware), 0xF)?;
         let mut b = [0u8; 4];
         f::MAGIC.set(&mut b, u32::from(Self::MAGIC));
         f::KIND.set(&mut b, u32::from(kind));
@@ -135,7 +135,7 @@ impl IdCheck {
     pub fn to_quadlet(&self) -> Result<u32> {
         use idcheck_field as f;
         self.mod_id.check()?;
-        crate::board::check_max("physical ID", u64::from(self.phy_id), 63)?;
+        crate::qla::check_max("physical ID", u64::from(self.phy_id), 63)?;
         let mut b = [0u8; 4];
         f::MOD_ID.set(&mut b, u32::from(self.mod_id.0));
         f::STATE.set(&mut b, state_bits(self.state)?);

@@ -30,9 +30,9 @@
 //! assert_eq!(WriteBlockRepr::parse(&view).unwrap(), repr);
 //! ```
 
-use crate::board::check_exact;
 use crate::error::{Error, Result};
 use crate::field::{read_quadlet, write_quadlet};
+use crate::qla::check_exact;
 use crate::snake::registers::{AdcData, ChannelCommand, EncoderData, EncoderPeriod, SnakeStatus};
 use crate::snake::{CHANNELS, check_channel};
 

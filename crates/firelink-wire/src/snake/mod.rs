@@ -7,7 +7,7 @@
 //! channel devices' quadlets are not drawn), the layouts here are
 //! Firelink's own, chosen once and documented on each register; the PHY
 //! registers and the watchdog reuse the JHU board's encodings
-//! ([`crate::board::registers`]), the node's direct descendant.
+//! ([`crate::qla::registers`]), the node's direct descendant.
 //!
 //! - [`address`]: Table 1: bits 7-4 of the offset select the channel
 //!   (0 = global), bits 3-0 the device; what each cell allows.

@@ -4,9 +4,9 @@
 //! Firelink's (the seed does not draw them); each is defined once in the
 //! private `field` module. The PHY control/data registers and the
 //! watchdog period use the JHU board's encodings:
-//! [`PhyRequest`](crate::board::registers::PhyRequest),
-//! [`PhyData`](crate::board::registers::PhyData) and
-//! [`Watchdog`](crate::board::registers::Watchdog) (16 bits of 256
+//! [`PhyRequest`](crate::qla::registers::PhyRequest),
+//! [`PhyData`](crate::qla::registers::PhyData) and
+//! [`Watchdog`](crate::qla::registers::Watchdog) (16 bits of 256
 //! system clocks, 5.2083 us; 0 = off).
 //!
 //! Conventions the host library turns into the seed's API values
@@ -26,9 +26,9 @@
 //! assert!(PotCommand::parse(0x3E00_0000).is_err()); // EEPROM word 14 does not exist
 //! ```
 
-use crate::board::{check_max, quadlet_register};
 use crate::error::{Error, Result};
 use crate::open_enum::open_enum;
+use crate::qla::{check_max, quadlet_register};
 use crate::snake::{CHANNELS, EEPROM_WORDS, WIPER_MAX, check_channel};
 
 /// Bit fields of the registers, each defined once.

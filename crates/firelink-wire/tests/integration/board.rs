@@ -10,30 +10,30 @@ use std::net::Ipv4Addr;
 use std::vec::Vec;
 
 use firelink_wire::Error;
-use firelink_wire::board::address::{
+use firelink_wire::field::{read_quadlet, write_quadlet};
+use firelink_wire::qla::address::{
     Address, AddressSpace, AxisRegister, BoardRegister, COMMAND_SNOOP_OFFSET, HUB_QUERY_OFFSET,
     HubAddress, Register, STATUS_BROADCAST_OFFSET,
 };
-use firelink_wire::board::broadcast::{
+use firelink_wire::qla::broadcast::{
     BoardSlot, BroadcastHeader, CommandBlockWriter, HubBlock, HubHeader, HubPacker, HubTiming,
     Query, SeqRule, StatusBroadcast, StatusBroadcastRepr, command_block_quadlets, command_slices,
     emit_command_block, find_command_block, hub_block_quadlets, status_broadcast_offset,
 };
-use firelink_wire::board::extras::{
+use firelink_wire::qla::extras::{
     DallasControl, DallasStatus, EthControl, EthStatusV2, ExpanderDebug, ExpanderRead,
     ExpanderWrite, PromCommand, PromStatus, QlaPromCommand,
 };
-use firelink_wire::board::realtime::{
+use firelink_wire::qla::realtime::{
     BlockFormat, BoardLayout, FirmwareRev, ReadBlock, ReadBlockRepr, WriteBlock, WriteBlockRepr,
 };
-use firelink_wire::board::registers::{
+use firelink_wire::qla::registers::{
     AdcWord, DAC_ZERO, DacWord, DigitalIn, DigitalOutRead, DigitalOutWrite, DoutCtrl, EncPeriod,
     EncPosition, EncPreload, EncQuarter, EncRun, FpgaVersion, GitDesc, HardwareVersion,
     MotorConfig, MotorStatus, PhyData, PhyRequest, STATUS_POWER_OFF, STATUS_POWER_ON,
     STATUS_RELAY_ON, StatusCommand, StatusRead, StatusWrite, Temperature, Watchdog, WaveformEntry,
     counts_from_offset_binary, ip_from_register, ip_to_register, offset_binary_from_counts,
 };
-use firelink_wire::field::{read_quadlet, write_quadlet};
 use proptest::prelude::*;
 
 const QLA1_REV7: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev7);
@@ -925,9 +925,9 @@ proptest! {
     #[test]
     fn serial_numbers(bytes in proptest::collection::vec(any::<u8>(), 0..24),
                       serial in "[!-~]{1,11}") {
-        let _ = firelink_wire::board::extras::parse_fpga_serial(&bytes);
-        let _ = firelink_wire::board::extras::parse_qla_serial(&bytes);
-        use firelink_wire::board::extras::*;
+        let _ = firelink_wire::qla::extras::parse_fpga_serial(&bytes);
+        let _ = firelink_wire::qla::extras::parse_qla_serial(&bytes);
+        use firelink_wire::qla::extras::*;
         let image = fpga_serial_image(&serial).unwrap();
         prop_assert_eq!(parse_fpga_serial(&image), Ok(serial.as_str()));
         match qla_serial_image(&serial) {

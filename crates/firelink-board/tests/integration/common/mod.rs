@@ -5,7 +5,7 @@
 #![allow(dead_code)]
 
 use firelink_board::config::BoardConfig;
-use firelink_board::firmware::{Firmware, PhyRegisters, Reply};
+use firelink_board::qla::{Firmware, PhyRegisters, Reply};
 use firelink_board::time::{SimDuration, SimTime};
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Rcode, Tcode};
 

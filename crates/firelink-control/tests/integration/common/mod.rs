@@ -6,15 +6,15 @@
 use std::time::Duration;
 
 use firelink_board::config::Profile;
-use firelink_board::firmware::Firmware;
 use firelink_board::node::BoardNode;
+use firelink_board::qla::Firmware;
 use firelink_bus::NodeHandle;
 use firelink_bus::fault::{FaultPlan, PacketFault, PacketMatch, TimedFault};
 use firelink_control::config::IoConfig;
 use firelink_host::sim::SimPort;
 use firelink_testbed::rig;
-use firelink_wire::board::realtime::FirmwareRev;
 use firelink_wire::packet::Tcode;
+use firelink_wire::qla::realtime::FirmwareRev;
 
 /// Emulated boards for every board `config` uses, joint `j` starting at
 /// `start(j)`, on a simulated bus behind a [`SimPort`]. `seed_000`: the

@@ -9,10 +9,10 @@
 #![allow(dead_code)]
 
 use firelink_board::config::{BoardConfig, FpgaVersion, Hardware, Profile};
-use firelink_wire::board::broadcast::emit_command_block;
-use firelink_wire::board::realtime::WriteBlockRepr;
-use firelink_wire::board::registers::DacWord;
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
+use firelink_wire::qla::broadcast::emit_command_block;
+use firelink_wire::qla::realtime::WriteBlockRepr;
+use firelink_wire::qla::registers::DacWord;
 
 pub use crate::common::{Answer, decode, request_datagram};
 

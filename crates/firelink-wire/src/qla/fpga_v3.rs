@@ -13,7 +13,7 @@
 //! `WriteEthernetClearErrors`). Raw bits only.
 //!
 //! ```
-//! use firelink_wire::board::fpga_v3::{EthStatusV3, MdioRequest, PhyPort, mdio_offset};
+//! use firelink_wire::qla::fpga_v3::{EthStatusV3, MdioRequest, PhyPort, mdio_offset};
 //! // A Rev 9 V3 with both links up at 1 Gb/s and the PS Ethernet enabled.
 //! let s = EthStatusV3(0x40B1_B1B1);
 //! assert!(s.is_v3() && s.ps_eth_enabled());
@@ -23,7 +23,7 @@
 //! assert_eq!(MdioRequest::read(1, 2).raw(), 0x6088_0000);
 //! ```
 
-use crate::board::quadlet_register;
+use crate::qla::quadlet_register;
 
 /// Bit fields, each defined once.
 mod field {

@@ -319,7 +319,7 @@ impl<'a> HubPacker<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::board::registers::StatusRead;
+    use crate::qla::registers::StatusRead;
 
     const REV7: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev7);
     const REV8: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev8);

@@ -272,7 +272,7 @@ impl WriteBlockRepr {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::board::registers::{DAC_ZERO, STATUS_POWER_ON, StatusCommand};
+    use crate::qla::registers::{DAC_ZERO, STATUS_POWER_ON, StatusCommand};
 
     const REV7: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev7);
     const REV8: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev8);

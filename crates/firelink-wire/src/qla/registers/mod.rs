@@ -10,7 +10,7 @@
 //! `watchdog`, `identity`, `digital_io`, `axis`) re-exported here.
 //!
 //! ```
-//! use firelink_wire::board::registers::{StatusCommand, StatusRead};
+//! use firelink_wire::qla::registers::{StatusCommand, StatusRead};
 //! // The emulator builds STATUS; the host reads it.
 //! let status = StatusRead::default().with_axes(4).with_board_id(3).with_amp_enabled(0b0101);
 //! assert_eq!(status.raw(), 0x4300_0005);
@@ -21,9 +21,9 @@
 use core::net::Ipv4Addr;
 use core::time::Duration;
 
-use crate::board::{check_max, quadlet_register};
 use crate::error::{Error, Result};
 use crate::open_enum::open_enum;
+use crate::qla::{check_max, quadlet_register};
 
 /// Bit fields of the register quadlets, each defined once
 /// (`fpga-board.md` §2 and §3).

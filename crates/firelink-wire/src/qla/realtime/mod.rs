@@ -15,8 +15,8 @@
 //! does not have. Unchecked views read 0 where bytes are missing.
 //!
 //! ```
-//! use firelink_wire::board::realtime::{BoardLayout, FirmwareRev, ReadBlock, ReadBlockRepr};
-//! use firelink_wire::board::registers::EncPosition;
+//! use firelink_wire::qla::realtime::{BoardLayout, FirmwareRev, ReadBlock, ReadBlockRepr};
+//! use firelink_wire::qla::registers::EncPosition;
 //! let layout = BoardLayout::qla1(FirmwareRev::Rev8);
 //! let mut repr = ReadBlockRepr::new(layout);
 //! repr.encoder[2].position = EncPosition::default().with_counts(-5).unwrap();
@@ -28,15 +28,15 @@
 //! assert_eq!(ReadBlockRepr::parse(&view).unwrap(), repr);
 //! ```
 
-use crate::board::address::check_board_id;
-use crate::board::registers::{
-    AdcWord, DacWord, DigitalIn, EncPeriod, EncPosition, EncQuarter, EncRun, HardwareVersion,
-    MotorStatus, StatusRead, StatusWrite, Temperature,
-};
-use crate::board::{MAX_AXES, layout_view};
 use crate::error::{Error, Result};
 use crate::field::{read_quadlet, write_quadlet};
 use crate::open_enum::open_enum;
+use crate::qla::address::check_board_id;
+use crate::qla::registers::{
+    AdcWord, DacWord, DigitalIn, EncPeriod, EncPosition, EncQuarter, EncRun, HardwareVersion,
+    MotorStatus, StatusRead, StatusWrite, Temperature,
+};
+use crate::qla::{MAX_AXES, layout_view};
 
 /// Fixed quadlets of the blocks (`fpga-board.md` §4, §5), each defined once.
 mod field {

@@ -10,7 +10,7 @@
 //! register-14 ID 0; a DQLA's two have IDs 1 and 2 (DQLA.v), and each
 //! takes only the writes that name its ID.
 
-use firelink_wire::board::extras::{
+use firelink_wire::qla::extras::{
     EXPANDER_READ_MARKER, ExpanderDebug, ExpanderRead, ExpanderWrite,
 };
 

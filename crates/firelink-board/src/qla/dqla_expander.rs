@@ -1,7 +1,7 @@
 //! The DQLA's two MAX7301 I/O expanders (one per QLA, register-14 IDs 3
 //! and 4), which carry each QLA's power enable, amplifier disables,
 //! switches, index lines, amplifier fault lines and supply-good line
-//! (`firelink_wire::board::dqla` cites the sources: DQLA.v, Max7301x2.v,
+//! (`firelink_wire::qla::dqla` cites the sources: DQLA.v, Max7301x2.v,
 //! fpgatest's `DQLA_IOExp_Check`).
 //!
 //! What the model keeps: each chip's configuration registers (`0x04`,
@@ -17,8 +17,8 @@
 //! the amplifier lines (1 = amplifier on), 7:4 index; 31:28 the LEDs as
 //! last written. The SPI bus is never busy.
 
-use firelink_wire::board::dqla::{MAX7301_CONFIG, MAX7301_READ_MARKER, Max7301Read};
-use firelink_wire::board::extras::ExpanderWrite;
+use firelink_wire::qla::dqla::{MAX7301_CONFIG, MAX7301_READ_MARKER, Max7301Read};
+use firelink_wire::qla::extras::ExpanderWrite;
 
 /// Registers of a MAX7301 (0x00-0x5F).
 const REGISTERS: usize = 0x60;

@@ -1,24 +1,24 @@
 //! The register file: what each address reads and what each write does
 //! (`fpga-board.md` sections 1-5), and the real-time blocks.
 
-use firelink_wire::board::address::{
+use firelink_wire::field;
+use firelink_wire::qla::address::{
     Address, AddressSpace, AxisRegister, BoardRegister, HubAddress, REALTIME_BLOCK_OFFSET, Register,
 };
-use firelink_wire::board::broadcast::find_command_block;
-use firelink_wire::board::dqla::{DqlaDigitalIn, DqlaStatus};
-use firelink_wire::board::extras::{
+use firelink_wire::qla::broadcast::find_command_block;
+use firelink_wire::qla::dqla::{DqlaDigitalIn, DqlaStatus};
+use firelink_wire::qla::extras::{
     DallasControl, EthControl, ExpanderWrite, PromCommand, QlaPromCommand,
 };
-use firelink_wire::board::fpga_v3::{EthControlV3, mdio_port_of};
-use firelink_wire::board::realtime::{
+use firelink_wire::qla::fpga_v3::{EthControlV3, mdio_port_of};
+use firelink_wire::qla::realtime::{
     BlockFormat, EncoderReading, MotorReading, ReadBlock, WriteBlock,
 };
-use firelink_wire::board::registers::{
+use firelink_wire::qla::registers::{
     AdcWord, DacWord, DigitalIn, DigitalOutWrite, DoutCtrl, ENC_NEUTRAL, EncPeriod, EncPosition,
     EncQuarter, EncRun, FpgaVersion, MotorConfig, MotorStatus, PhyData, PhyRequest, StatusCommand,
     StatusRead, StatusWrite, Temperature, Watchdog as WatchdogWord,
 };
-use firelink_wire::field;
 
 use super::dout::OUTPUTS;
 use super::dqla_expander::{DqlaExpanders, PortLines};

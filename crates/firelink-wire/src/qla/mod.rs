@@ -21,8 +21,8 @@
 //!   expanders' register-14 read-out.
 //!
 //! ```
-//! use firelink_wire::board::realtime::{BoardLayout, FirmwareRev};
-//! use firelink_wire::board::broadcast::hub_block_quadlets;
+//! use firelink_wire::qla::realtime::{BoardLayout, FirmwareRev};
+//! use firelink_wire::qla::broadcast::hub_block_quadlets;
 //! let qla1 = BoardLayout::qla1(FirmwareRev::Rev8);
 //! assert_eq!(qla1.read_block_quadlets(), 32);
 //! assert_eq!(qla1.write_block_quadlets(), 6);
@@ -125,14 +125,14 @@ macro_rules! quadlet_register {
                 $(#[$fattr])*
                 #[inline]
                 pub fn $get(self) -> $ty {
-                    <$ty as $crate::board::Bits>::from_bits($field.extract(self.0))
+                    <$ty as $crate::qla::Bits>::from_bits($field.extract(self.0))
                 }
 
                 #[doc = concat!("Set [`", stringify!($get), "`](Self::", stringify!($get),
                     ") (truncated to the field width).")]
                 #[inline]
                 pub fn $set(&mut self, value: $ty) {
-                    self.0 = $field.insert(self.0, $crate::board::Bits::to_bits(value));
+                    self.0 = $field.insert(self.0, $crate::qla::Bits::to_bits(value));
                 }
 
                 #[doc = concat!("This quadlet with [`", stringify!($get), "`](Self::",
@@ -166,7 +166,7 @@ macro_rules! quadlet_register {
 pub(crate) use quadlet_register;
 
 /// Define a checked view of a buffer whose exact size a
-/// [`BoardLayout`](crate::board::realtime::BoardLayout) sets: the struct
+/// [`BoardLayout`](crate::qla::realtime::BoardLayout) sets: the struct
 /// (buffer and layout) with `new_unchecked`, `new_checked`, `check_len`
 /// (against the layout's `$quadlets()`, errors naming `$what`), `layout`,
 /// `as_bytes` and `into_inner`. The view's own accessors go in a separate
@@ -182,14 +182,14 @@ macro_rules! layout_view {
         #[derive(Debug, Clone, Copy, PartialEq, Eq)]
         pub struct $name<T: AsRef<[u8]>> {
             buffer: T,
-            layout: $crate::board::realtime::BoardLayout,
+            layout: $crate::qla::realtime::BoardLayout,
         }
 
         impl<T: AsRef<[u8]>> $name<T> {
             /// Wrap a buffer without checking it.
             pub const fn new_unchecked(
                 buffer: T,
-                layout: $crate::board::realtime::BoardLayout,
+                layout: $crate::qla::realtime::BoardLayout,
             ) -> $name<T> {
                 $name { buffer, layout }
             }
@@ -200,7 +200,7 @@ macro_rules! layout_view {
             /// See [`check_len`](Self::check_len).
             pub fn new_checked(
                 buffer: T,
-                layout: $crate::board::realtime::BoardLayout,
+                layout: $crate::qla::realtime::BoardLayout,
             ) -> $crate::Result<$name<T>> {
                 let view = Self::new_unchecked(buffer, layout);
                 view.check_len()?;
@@ -214,7 +214,7 @@ macro_rules! layout_view {
             /// [`Error::BlockSize`](crate::Error::BlockSize).
             #[inline]
             pub fn check_len(&self) -> $crate::Result<()> {
-                $crate::board::check_exact(
+                $crate::qla::check_exact(
                     $what,
                     self.buffer.as_ref().len(),
                     self.layout.$quadlets(),
@@ -222,7 +222,7 @@ macro_rules! layout_view {
             }
 
             /// The layout.
-            pub fn layout(&self) -> $crate::board::realtime::BoardLayout {
+            pub fn layout(&self) -> $crate::qla::realtime::BoardLayout {
                 self.layout
             }
 

@@ -201,7 +201,7 @@ pub fn find_command_block(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::board::registers::DAC_ZERO;
+    use crate::qla::registers::DAC_ZERO;
 
     const REV7: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev7);
     const REV8: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev8);

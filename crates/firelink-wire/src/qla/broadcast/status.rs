@@ -25,7 +25,7 @@ pub fn status_broadcast_board(
     // Header, timestamp, STATUS.
     let (head, status) = (data.get(..4)?, data.get(8..12)?);
     let header = BroadcastHeader::from_word(read_quadlet(head, 0));
-    let board = crate::board::registers::StatusRead(read_quadlet(status, 0)).board_id();
+    let board = crate::qla::registers::StatusRead(read_quadlet(status, 0)).board_id();
     Some((header, board))
 }
 
@@ -155,7 +155,7 @@ impl StatusBroadcastRepr {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::board::registers::StatusRead;
+    use crate::qla::registers::StatusRead;
 
     const REV8: BoardLayout = BoardLayout::qla1(FirmwareRev::Rev8);
 

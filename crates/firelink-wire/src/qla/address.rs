@@ -8,16 +8,16 @@
 //! offsets (the hub memory's 512 quadlets are `0x1000..=0x11FF`).
 //!
 //! ```
-//! use firelink_wire::board::address::{Address, AddressSpace, AxisRegister, Register};
+//! use firelink_wire::qla::address::{Address, AddressSpace, AxisRegister, Register};
 //! let reg = Register::axis(2, AxisRegister::EncPosition);
 //! assert_eq!(reg.offset(), Ok(0x25));
 //! assert_eq!(Register::from_offset(0x25), Some(reg));
 //! assert_eq!(Address::from_offset(0xFFFF_FF00_1000).space, AddressSpace::Hub);
 //! ```
 
-use crate::board::{MAX_BOARD_ID, check_max};
 use crate::error::{Error, Result};
 use crate::open_enum::open_enum;
+use crate::qla::{MAX_BOARD_ID, check_max};
 
 /// Bit fields of the low 16 bits of an offset (`fpga-board.md` §1), each
 /// defined once.

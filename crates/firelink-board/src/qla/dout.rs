@@ -8,7 +8,7 @@
 //! compute it at `now` and every write first settles it to `now`; nothing
 //! needs a timer.
 
-use firelink_wire::board::registers::{DigitalOutRead, DigitalOutWrite, DoutCtrl, WaveformEntry};
+use firelink_wire::qla::registers::{DigitalOutRead, DigitalOutWrite, DoutCtrl, WaveformEntry};
 
 use crate::time::SimTime;
 

@@ -2,7 +2,7 @@
 //! V3's status and control word, and its two RTL8211F PHYs behind the MDIO
 //! windows `0x41A0` / `0x42A0` of space 4.
 //!
-//! Facts (`firelink_wire::board::fpga_v3` cites them): the status word's
+//! Facts (`firelink_wire::qla::fpga_v3` cites them): the status word's
 //! version bits `01`, clock checks, UDP mode, the PS Ethernet enable (bit
 //! 16, Rev 9 on; 0 before), ACCESS_ERR 0 at Rev 9, one status byte per
 //! port; the control word's clear-errors, per-port PHY reset and PS
@@ -32,7 +32,7 @@
 
 use std::collections::BTreeMap;
 
-use firelink_wire::board::fpga_v3::{
+use firelink_wire::qla::fpga_v3::{
     EthControlV3, EthPortStatusV3, EthStatusV3, MdioRequest, MdioResult, PHY_ADDR_BROADCAST,
     PHY_ADDR_RTL8211F, PhyPort, VERSION_V3, rtl8211f, speed,
 };

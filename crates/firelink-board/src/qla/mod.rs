@@ -69,7 +69,7 @@
 //!
 //! ```
 //! use firelink_board::config::{BoardConfig, Hardware, Profile};
-//! use firelink_board::firmware::{Firmware, PhyRegisters, Reply};
+//! use firelink_board::qla::{Firmware, PhyRegisters, Reply};
 //! use firelink_board::time::SimTime;
 //! use firelink_wire::packet::{AsyncHeader, NodeId, Packet, PacketRepr, Ack};
 //!
@@ -118,17 +118,17 @@ pub use power::{
     SUPPLY_HOLD, WATCHDOG_POWER_UP_TICKS,
 };
 
-use firelink_wire::board::address::{
-    COMMAND_SNOOP_OFFSET, HUB_MEMORY_OFFSET, HUB_MEMORY_QUADLETS, HUB_QUERY_OFFSET,
-    REALTIME_BLOCK_OFFSET, STATUS_BROADCAST_OFFSET, STATUS_BROADCAST_PRIORITY,
-};
-use firelink_wire::board::broadcast::{
-    BroadcastHeader, CORRUPT_QUERY_SEQ, Query, status_broadcast_offset,
-};
-use firelink_wire::board::registers::PhyData;
 use firelink_wire::packet::{
     Ack, AsyncHeader, CrcStatus, NodeId, Packet, PacketRepr, Rcode, Tcode,
 };
+use firelink_wire::qla::address::{
+    COMMAND_SNOOP_OFFSET, HUB_MEMORY_OFFSET, HUB_MEMORY_QUADLETS, HUB_QUERY_OFFSET,
+    REALTIME_BLOCK_OFFSET, STATUS_BROADCAST_OFFSET, STATUS_BROADCAST_PRIORITY,
+};
+use firelink_wire::qla::broadcast::{
+    BroadcastHeader, CORRUPT_QUERY_SEQ, Query, status_broadcast_offset,
+};
+use firelink_wire::qla::registers::PhyData;
 
 use crate::config::{BoardConfig, Profile};
 use crate::plant::{Plant, QLA_AMPS_PER_BIT};
@@ -139,7 +139,7 @@ use dqla_expander::DqlaExpanders;
 use ethernet::Ethernet;
 use ethernet_v3::EthernetV3;
 use expander::Expander;
-use firelink_wire::board::MAX_AXES;
+use firelink_wire::qla::MAX_AXES;
 use hub::{Hub, HubClock, Pending};
 use power::{AxisState, Power, Watchdog};
 use prom::{FpgaProm, QlaProm};
@@ -149,7 +149,7 @@ use prom::{FpgaProm, QlaProm};
 fn qla_expanders(hardware: &crate::config::Hardware) -> Vec<Expander> {
     match hardware {
         crate::config::Hardware::Qla1 => vec![Expander::new()],
-        crate::config::Hardware::Dqla => firelink_wire::board::dqla::DQLA_MAX7317_IDS
+        crate::config::Hardware::Dqla => firelink_wire::qla::dqla::DQLA_MAX7317_IDS
             .iter()
             .map(|&id| Expander::with_id(id))
             .collect(),

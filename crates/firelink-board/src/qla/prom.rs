@@ -13,7 +13,7 @@
 
 use std::collections::BTreeMap;
 
-use firelink_wire::board::extras::{
+use firelink_wire::qla::extras::{
     FPGA_PROM_BYTES, FPGA_PROM_ID, FPGA_PROM_PAGE_BYTES, FPGA_PROM_SECTOR_BYTES,
     FPGA_PROM_SIGNATURE, FPGA_SERIAL_ADDRESS, PROM_STATUS_WEL, PROM_STATUS_WIP, PromCommand,
     PromOpcode, PromStatus, QLA_PROM_BUFFER_QUADLETS, QLA_PROM_BYTES, QLA_PROM_PAGE_BYTES,
@@ -452,7 +452,7 @@ impl QlaProm {
 mod tests {
     use super::*;
     use crate::time::SimDuration;
-    use firelink_wire::board::extras::{parse_fpga_serial, parse_qla_serial};
+    use firelink_wire::qla::extras::{parse_fpga_serial, parse_qla_serial};
 
     fn cmd(op: PromOpcode, a: u32) -> PromCommand {
         PromCommand::new(op, a)

@@ -11,7 +11,7 @@
 //! (`DQLA_IOExp_Check`). Raw bits only.
 //!
 //! ```
-//! use firelink_wire::board::dqla::{DqlaStatus, Max7301Read, MAX7301_CONFIG};
+//! use firelink_wire::qla::dqla::{DqlaStatus, Max7301Read, MAX7301_CONFIG};
 //! // A DQLA with both QLAs' expanders found, power and relay on.
 //! let s = DqlaStatus(0x8305_F303);
 //! assert_eq!(s.board_id(), 3);
@@ -23,7 +23,7 @@
 //! assert_eq!(Max7301Read(0x4000_89FF).answer(), 0x89FF);
 //! ```
 
-use crate::board::quadlet_register;
+use crate::qla::quadlet_register;
 
 /// Bit fields, each defined once.
 mod field {

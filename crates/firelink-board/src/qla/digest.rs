@@ -70,7 +70,7 @@ impl Firmware {
 #[cfg(test)]
 mod tests {
     use crate::config::{BoardConfig, Hardware, Profile};
-    use crate::firmware::Firmware;
+    use crate::qla::Firmware;
     use crate::time::SimTime;
 
     #[test]

@@ -2,13 +2,11 @@
 //! the query registers, the schedule of this board's status broadcast and
 //! the hub memory every board fills with every board's broadcast.
 
-use firelink_wire::board::address::HUB_MEMORY_QUADLETS;
-use firelink_wire::board::broadcast::{
-    BroadcastHeader, HubPacker, HubTiming, Query, has_hub_timing,
-};
-use firelink_wire::board::realtime::{BlockFormat, FirmwareRev};
-use firelink_wire::board::registers::StatusRead;
 use firelink_wire::field::read_quadlet;
+use firelink_wire::qla::address::HUB_MEMORY_QUADLETS;
+use firelink_wire::qla::broadcast::{BroadcastHeader, HubPacker, HubTiming, Query, has_hub_timing};
+use firelink_wire::qla::realtime::{BlockFormat, FirmwareRev};
+use firelink_wire::qla::registers::StatusRead;
 
 use crate::time::{SimDuration, SimTime};
 

@@ -14,7 +14,7 @@
 
 use std::collections::BTreeMap;
 
-use firelink_wire::board::extras::{ETH_DEBUG_ABSENT, EthControl, EthStatusV2, ksz8851};
+use firelink_wire::qla::extras::{ETH_DEBUG_ABSENT, EthControl, EthStatusV2, ksz8851};
 
 /// Quadlets of the last-packet area of the window (`0x00-0x7F`).
 pub const PACKET_QUADLETS: usize = 0x80;

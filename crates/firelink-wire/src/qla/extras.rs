@@ -6,13 +6,13 @@
 //! (register 12) and its KSZ8851 registers, and the serial-number formats
 //! the reference host reads from the two PROMs. The digital outputs
 //! (register 6, DOUT_CTRL, the waveform table) are in
-//! [`registers`](crate::board::registers).
+//! [`registers`](crate::qla::registers).
 //!
 //! Raw bits only, each field defined once; what the board *does* with them
 //! lives in the emulated firmware.
 //!
 //! ```
-//! use firelink_wire::board::extras::{PromCommand, PromOpcode, fpga_serial_image, parse_fpga_serial};
+//! use firelink_wire::qla::extras::{PromCommand, PromOpcode, fpga_serial_image, parse_fpga_serial};
 //! // GetFPGASerialNumber reads 16 bytes at 0x1FFF00 (extras §1).
 //! let read = PromCommand::new(PromOpcode::Read, 0x1F_FF00);
 //! assert_eq!(read.raw(), 0x031F_FF00);
@@ -21,9 +21,9 @@
 //! assert_eq!(parse_fpga_serial(&image), Ok("1234-56"));
 //! ```
 
-use crate::board::quadlet_register;
 use crate::error::{Error, Result};
 use crate::open_enum::open_enum;
+use crate::qla::quadlet_register;
 
 /// Bit fields of the extras' register quadlets, each defined once.
 mod field {

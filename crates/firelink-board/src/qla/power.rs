@@ -6,7 +6,7 @@
 //! watchdog expires at `last write + period * 256 clocks`, the current check
 //! runs every [`SAFETY_TICK`] while an amplifier is on.
 
-use firelink_wire::board::registers::{ENC_NEUTRAL, Watchdog as WatchdogWord};
+use firelink_wire::qla::registers::{ENC_NEUTRAL, Watchdog as WatchdogWord};
 
 use crate::plant::QLA_AMPS_PER_BIT;
 use crate::time::{SimDuration, SimTime};

@@ -8,7 +8,7 @@
 //! `0x0B`) and 256 bytes follow (about 250 ms in all); without one, no
 //! presence pulse (reset result 3) and the buffer keeps what it had.
 
-use firelink_wire::board::extras::{
+use firelink_wire::qla::extras::{
     DALLAS_BUFFER_QUADLETS, DS2505_BYTES, DS2505_FAMILY, DallasControl, DallasMode, DallasReset,
     DallasStatus,
 };

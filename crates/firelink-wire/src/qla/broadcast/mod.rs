@@ -15,10 +15,10 @@
 //! `hub_block`, `command`) re-exported here.
 //!
 //! ```
-//! use firelink_wire::board::broadcast::{
+//! use firelink_wire::qla::broadcast::{
 //!     BoardSlot, HubBlock, HubHeader, HubPacker, HubTiming, SeqRule, StatusBroadcastRepr,
 //! };
-//! use firelink_wire::board::realtime::{BoardLayout, FirmwareRev, ReadBlockRepr};
+//! use firelink_wire::qla::realtime::{BoardLayout, FirmwareRev, ReadBlockRepr};
 //! let layout = BoardLayout::qla1(FirmwareRev::Rev8);
 //! let boards = [BoardSlot { id: 0, layout }, BoardSlot { id: 1, layout }];
 //! let mut hub = [0u8; 2048];
@@ -37,17 +37,17 @@
 //! assert_eq!(block.entries().count(), 2);
 //! ```
 
-use crate::board::address::{
+use crate::error::{Error, Result};
+use crate::field::{read_quadlet, write_quadlet};
+use crate::qla::address::{
     HUB_MEMORY_QUADLETS, STATUS_BROADCAST_BOARD_STRIDE, STATUS_BROADCAST_OFFSET, check_board_id,
 };
-use crate::board::realtime::{
+use crate::qla::realtime::{
     BlockFormat, BoardLayout, FirmwareRev, ReadBlock, ReadBlockRepr, WriteBlock, WriteBlockRepr,
     WriteHeader,
 };
-use crate::board::registers::DacWord;
-use crate::board::{MAX_BOARDS, check_exact, check_max, layout_view};
-use crate::error::{Error, Result};
-use crate::field::{read_quadlet, write_quadlet};
+use crate::qla::registers::DacWord;
+use crate::qla::{MAX_BOARDS, check_exact, check_max, layout_view};
 
 /// Bit fields of the broadcast protocol quadlets (`fpga-board.md` §6), each
 /// defined once.
