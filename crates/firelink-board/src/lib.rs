@@ -16,8 +16,9 @@
 //! - [`config`]: what a board is (board ID, QLA1/DQLA, firmware profile,
 //!   FPGA version, axes, seed).
 //! - [`qla`]: the QLA family's firmware (FPGA1394 + QLA1 or DQLA), the
-//!   board as a bus-agnostic state machine fed raw packets: link rules, registers, real-time blocks, broadcast/hub,
-//!   watchdog and safety. Bit packing comes from
+//!   board as a bus-agnostic state machine fed raw packets: link rules,
+//!   registers, real-time blocks, broadcast/hub, watchdog and safety. Bit
+//!   packing comes from
 //!   [`firelink_wire::qla`].
 //! - [`node`]: [`BoardNode`](node::BoardNode), the firmware as a
 //!   [`firelink_bus::Node`] on the simulated bus.

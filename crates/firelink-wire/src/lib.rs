@@ -12,7 +12,8 @@
 //! - [`bridge`]: the Ethernet/UDP bridge framing (control word, extra data).
 //! - [`fw_cdev`]: Linux firewire-cdev ioctl arguments and events, and the
 //!   /dev/fw* twin's request/reply framing.
-//! - [`qla`]: the QLA family's board protocol (FPGA1394 + QLA1 or DQLA): address spaces and the
+//! - [`qla`]: the QLA family's board protocol (FPGA1394 + QLA1 or DQLA):
+//!   address spaces and the
 //!   register map, register quadlet codecs, the real-time read and write
 //!   blocks, and the broadcast protocol (query, status broadcasts, hub
 //!   block, command block).
