@@ -115,6 +115,10 @@ pub struct BenchArgs {
     /// (poll the socket).
     #[arg(long = "udp-wait", value_enum, value_delimiter = ',', default_values_t = [UdpWaitArg::Block])]
     pub udp_wait: Vec<UdpWaitArg>,
+    /// UDP points: the host's time-out for each answer, ms (a cycle that
+    /// waits longer counts an error; real hosts use about 20).
+    #[arg(long = "udp-timeout-ms", default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+    pub udp_timeout_ms: u64,
     /// Board counts (comma-separated, 1..=62); above 16 (the board-ID
     /// space) the figures come from the cost model fitted to the 16-board
     /// run.
@@ -186,6 +190,7 @@ pub fn options(args: &BenchArgs) -> Result<BenchOptions, CliError> {
         wait_us_per_board: args.wait_us,
         idle_us: args.idle_us,
         udp_waits,
+        udp_timeout: std::time::Duration::from_millis(args.udp_timeout_ms),
         udp_target: match args.port {
             Some(crate::ports::PortSpec::Udp(addr) | crate::ports::PortSpec::UdpFw(addr)) => {
                 Some(addr)

@@ -256,6 +256,9 @@ fn bench_eth_runs_beside_the_bridge_and_prints_its_rows() {
         "eth",
         "--protocol",
         "broadcast",
+        // A thread stalled on a busy machine is not a lost answer.
+        "--udp-timeout-ms",
+        "2000",
     ];
     let r = json(&[&args[..], &["--json"]].concat());
     let results = r["results"].as_array().unwrap();

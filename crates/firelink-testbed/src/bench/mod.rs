@@ -129,6 +129,11 @@ pub struct BenchOptions {
     /// UDP points: how the host's reads wait. Every mode is measured at
     /// every UDP point, side by side (their blocks of cycles alternate).
     pub udp_waits: Vec<WaitMode>,
+    /// UDP points: how long the host waits for an answer before the cycle
+    /// counts an error (a real host's servo time-out, 20 ms, by default).
+    /// A test on a busy machine raises it, so that a stalled thread is not
+    /// counted as a lost packet.
+    pub udp_timeout: std::time::Duration,
     /// UDP points: the boards at this address (a running `firelink
     /// emulate` or a real bridge board) instead of an in-process emulator;
     /// one point per protocol with the boards the scan finds there (the
@@ -148,6 +153,7 @@ impl Default for BenchOptions {
             wait_us_per_board: 5.0,
             idle_us: 50.0,
             udp_waits: vec![WaitMode::Blocking],
+            udp_timeout: crate::rig::UDP_TIMEOUT,
             udp_target: None,
         }
     }

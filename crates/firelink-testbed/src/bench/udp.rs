@@ -446,7 +446,7 @@ impl<P: DatagramPort> Side<P> {
         // then have the servo time-out.
         port.inner.set_read_timeout(SCAN_TIMEOUT);
         let scan = firelink_host::scan::scan(&mut port);
-        port.inner.set_read_timeout(rig::UDP_TIMEOUT);
+        port.inner.set_read_timeout(settings.options.udp_timeout);
         let scan = scan?;
         let plan = super::Plan::of(&scan, settings.protocol, settings.options);
         let (used, groups, note) = (plan.protocol, plan.groups, plan.note.clone());
@@ -468,7 +468,7 @@ impl<P: DatagramPort> Side<P> {
             responder.answer_queries_with(len);
         }
         let mut floor = floor;
-        floor.set_read_timeout(rig::UDP_TIMEOUT);
+        floor.set_read_timeout(settings.options.udp_timeout);
         let mut buf = vec![0u8; 2048];
         for _ in 0..WARM_UP {
             let _ = replay(&mut floor, &script, &mut buf);
