@@ -43,20 +43,25 @@ fn protocol_arg(py: Python<'_>, value: Option<&Bound<'_, PyAny>>) -> PyResult<Op
 }
 
 impl IoSystem {
-    fn board_index(
+    /// Apply `request` to every board, or to the board whose ID is `board`
+    /// (`InvalidRequest` if this system has none); nothing is applied when
+    /// the argument is refused.
+    fn request_on_boards(
         &mut self,
         py: Python<'_>,
         board: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Vec<usize>> {
-        match args::opt_int_as::<u8>(board, "board ID", 0, 15)? {
-            None => Ok((0..exclusive(&mut self.io).boards().len()).collect()),
-            Some(id) => exclusive(&mut self.io)
-                .boards()
-                .iter()
-                .position(|b| b.board_id() == id)
-                .map(|i| vec![i])
-                .ok_or_else(|| bad(py, format!("no board {id} in this system"))),
+        request: impl Fn(&mut firelink_host::board::BoardIo),
+    ) -> PyResult<()> {
+        let id = args::opt_int_as::<u8>(board, "board ID", 0, 15)?;
+        let boards = exclusive(&mut self.io).boards_mut();
+        match id {
+            None => boards.iter_mut().for_each(request),
+            Some(id) => match boards.iter_mut().find(|b| b.board_id() == id) {
+                Some(b) => request(b),
+                None => return Err(bad(py, format!("no board {id} in this system"))),
+            },
         }
+        Ok(())
     }
 
     fn per_axis<T: Copy + Default>(
@@ -267,10 +272,7 @@ impl IoSystem {
         board: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let on = args::flag(on, "on")?;
-        for i in self.board_index(py, board)? {
-            exclusive(&mut self.io).boards_mut()[i].set_power(on);
-        }
-        Ok(())
+        self.request_on_boards(py, board, |b| b.set_power(on))
     }
 
     /// Request the safety relay on or off with the next write.
@@ -282,10 +284,7 @@ impl IoSystem {
         board: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let on = args::flag(on, "on")?;
-        for i in self.board_index(py, board)? {
-            exclusive(&mut self.io).boards_mut()[i].set_relay(on);
-        }
-        Ok(())
+        self.request_on_boards(py, board, |b| b.set_relay(on))
     }
 
     /// Request every amplifier (of every board, or `board`) on or off.
@@ -297,10 +296,7 @@ impl IoSystem {
         board: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let on = args::flag(on, "on")?;
-        for i in self.board_index(py, board)? {
-            exclusive(&mut self.io).boards_mut()[i].set_all_amps(on);
-        }
-        Ok(())
+        self.request_on_boards(py, board, |b| b.set_all_amps(on))
     }
 
     /// Set every board's watchdog: a period in milliseconds (one 5.208 us

@@ -196,19 +196,16 @@ impl ScriptFilter {
     }
 }
 
-/// A big-endian quadlet of `packet`, if it has one there.
-fn quadlet(packet: &[u8], at: usize) -> Option<u32> {
-    packet
-        .get(at..at + 4)
-        .map(|b| u32::from_be_bytes([b[0], b[1], b[2], b[3]]))
+/// Big-endian quadlet `q` of `packet`, if the packet is that long.
+fn quadlet(packet: &[u8], q: usize) -> Option<u32> {
+    (packet.len() >= 4 * (q + 1)).then(|| firelink_wire::field::read_quadlet(packet, q))
 }
 
 impl LinkFilter for ScriptFilter {
     fn packet(&mut self, at_ps: u64, _direction: Direction, packet: &mut [u8]) -> Verdict {
-        let s = self.shared.clone();
-        s.packets.fetch_add(1, Ordering::Relaxed);
-        let cycle = s.cycle.load(Ordering::Relaxed);
-        let (q0, q1, q2) = (quadlet(packet, 0), quadlet(packet, 4), quadlet(packet, 8));
+        self.shared.packets.fetch_add(1, Ordering::Relaxed);
+        let cycle = self.shared.cycle.load(Ordering::Relaxed);
+        let (q0, q1, q2) = (quadlet(packet, 0), quadlet(packet, 1), quadlet(packet, 2));
         let dest = q0.map(|q| (q >> 16) as u8 & 0x3F);
         let source = q1.map(|q| (q >> 16) as u8 & 0x3F);
         let tcode = q0.map(|q| (q >> 4) as u8 & 0xF);
@@ -226,7 +223,7 @@ impl LinkFilter for ScriptFilter {
             match self.rules[i].action {
                 Action::Silence { node } => {
                     if dest == Some(node) || source == Some(node) {
-                        s.silenced.fetch_add(1, Ordering::Relaxed);
+                        self.shared.silenced.fetch_add(1, Ordering::Relaxed);
                         return Verdict::Drop;
                     }
                 }
@@ -250,14 +247,14 @@ impl LinkFilter for ScriptFilter {
                     }
                     match effect {
                         PacketEffect::Drop => {
-                            s.dropped.fetch_add(1, Ordering::Relaxed);
+                            self.shared.dropped.fetch_add(1, Ordering::Relaxed);
                             return Verdict::Drop;
                         }
                         PacketEffect::Corrupt => {
                             let bit = self.rng.next_u64() % (packet.len() as u64 * 8).max(1);
                             if let Some(b) = packet.get_mut((bit / 8) as usize) {
                                 *b ^= 1 << (bit % 8);
-                                s.corrupted.fetch_add(1, Ordering::Relaxed);
+                                self.shared.corrupted.fetch_add(1, Ordering::Relaxed);
                             }
                         }
                     }
