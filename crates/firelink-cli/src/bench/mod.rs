@@ -117,7 +117,7 @@ pub struct BenchArgs {
     pub udp_wait: Vec<UdpWaitArg>,
     /// UDP points: the host's time-out for each answer, ms (a cycle that
     /// waits longer counts an error; real hosts use about 20).
-    #[arg(long = "udp-timeout-ms", default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+    #[arg(long = "udp-timeout-ms", default_value_t = 20, value_parser = crate::args::timeout_ms)]
     pub udp_timeout_ms: u64,
     /// Board counts (comma-separated, 1..=62); above 16 (the board-ID
     /// space) the figures come from the cost model fitted to the 16-board

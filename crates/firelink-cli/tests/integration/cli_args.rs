@@ -26,6 +26,8 @@ fn out_of_range_numbers_are_usage_errors() {
         &["bench", "--idle-us", "1e300"],
         &["bench", "--period-us", "1e300"],
         &["bench", "--cycles", "0"],
+        &["bench", "--udp-timeout-ms", "0"],
+        &["bench", "--udp-timeout-ms", "1e300"],
         &["emulate", "--duration-s", "1e300"],
         &["emulate", "--duration-s=-1"],
         &["emulate", "--drop-rate", "2"],
