@@ -5,7 +5,7 @@
 //! wall-clock time, until SIGINT or SIGTERM.
 
 use std::io::Write;
-use std::net::{Ipv4Addr, SocketAddr, UdpSocket};
+use std::net::{Ipv4Addr, SocketAddr};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -14,15 +14,15 @@ use std::time::Duration;
 use clap::{Args, ValueEnum};
 
 use firelink_control::config::{IoConfig, presets};
-use firelink_emulate::eth_network::EthNetwork;
-use firelink_emulate::eth_serve::{EthEvent, EthServeConfig, MULTICAST_GROUP, eth_bind, eth_serve};
+use firelink_emulate::Event;
+use firelink_emulate::eth_serve::EthEvent;
 use firelink_emulate::fw_cdev::{self, Twin};
-use firelink_emulate::{Event, ServeConfig};
-use firelink_host::cpu_latency::CpuLatencyHold;
-use firelink_testbed::emulated::{BoardSettings, Profile, SimDuration};
+use firelink_testbed::emulated::{BoardSettings, SimDuration};
+use firelink_testbed::emulation::{
+    BridgeServer, CpuLatencyNote, EthRequest, EthServer, refuse_on_eth,
+};
 use firelink_testbed::fault_script::{FaultScript, FaultScriptError};
-use firelink_testbed::rig::RobotKind;
-use firelink_testbed::rig::served::{BusFaults, ServedBoards, ServedBridge};
+use firelink_testbed::rig::served::{BusFaults, ServedBoards};
 use firelink_testbed::snake::is_snake_config;
 
 use crate::args::{CpuLatencyArg, FirmwareArg, FpgaArg, HardwareArg};
@@ -251,13 +251,35 @@ pub fn build_twin(args: &EmulateArgs) -> Result<(Twin, Vec<u8>), CliError> {
     Ok(served_boards(args, bridge_config(args)?).twin()?)
 }
 
+/// `--cpu-latency` as the library takes it: microseconds, or nothing.
+fn cpu_latency(args: &EmulateArgs) -> CpuLatencyNote {
+    CpuLatencyNote::take(match args.cpu_latency {
+        CpuLatencyArg::Microseconds(us) => Some(us),
+        CpuLatencyArg::Off => None,
+    })
+}
+
+/// Print the `--cpu-latency` line, if any, and flush.
+fn report(out: &mut impl Write, note: &CpuLatencyNote) -> std::io::Result<()> {
+    if let Some(line) = &note.line {
+        writeln!(out, "{line}")?;
+    }
+    out.flush()
+}
+
+/// Print one server event as its line, at once.
+fn log_line(out: &mut impl Write, event: impl std::fmt::Display) {
+    let _ = writeln!(out, "{event}");
+    let _ = out.flush();
+}
+
 /// `firelink emulate --fw-cdev SOCKET`: serve the twin until SIGINT,
 /// SIGTERM or `--duration-s`.
 fn run_twin(args: &EmulateArgs, path: &Path, out: &mut impl Write) -> Result<(), CliError> {
     let (mut twin, ids) = build_twin(args)?;
     let listener = fw_cdev::bind(path)?;
     let stop = stop_flag(args)?;
-    let cpu_latency = CpuLatency::take(args);
+    let cpu_latency = cpu_latency(args);
     writeln!(
         out,
         "emulating {} board(s) {:?} as /dev/fw1..fw{} (the PC's card: /dev/fw0); bus generation {}",
@@ -266,69 +288,11 @@ fn run_twin(args: &EmulateArgs, path: &Path, out: &mut impl Write) -> Result<(),
         ids.len(),
         twin.bus().generation()
     )?;
-    cpu_latency.report(out)?;
-    out.flush()?;
-    let mut log = |e: fw_cdev::ServeEvent| {
-        let line = match e {
-            fw_cdev::ServeEvent::Listening(p) => {
-                format!("firewire-cdev twin listening on {}", p.display())
-            }
-            fw_cdev::ServeEvent::Opened { device, connection } => {
-                format!("/dev/fw{device} opened (connection {connection})")
-            }
-            fw_cdev::ServeEvent::BusReset(g) => format!("bus reset: generation {g}"),
-            fw_cdev::ServeEvent::Stopped(s) => format!("stopped: {s}"),
-        };
-        let _ = writeln!(out, "{line}");
-        let _ = out.flush();
-    };
-    let served = fw_cdev::serve(&mut twin, &listener, &stop, &mut log);
+    report(out, &cpu_latency)?;
+    let served = fw_cdev::serve(&mut twin, &listener, &stop, |e| log_line(out, e));
     let _ = std::fs::remove_file(path);
     served?;
     Ok(())
-}
-
-/// The `--cpu-latency` request: held until this drops, and the line that
-/// says what took effect (printed after the banner, so the banner stays
-/// the first line).
-struct CpuLatency {
-    _hold: Option<CpuLatencyHold>,
-    line: Option<String>,
-}
-
-impl CpuLatency {
-    /// Take the request `args` asks for (refused: served all the same,
-    /// with a note saying why).
-    fn take(args: &EmulateArgs) -> Self {
-        let CpuLatencyArg::Microseconds(latency_us) = args.cpu_latency else {
-            return Self {
-                _hold: None,
-                line: None,
-            };
-        };
-        match CpuLatencyHold::take(u64::from(latency_us)) {
-            Ok(hold) => Self {
-                line: Some(hold.describe()),
-                _hold: Some(hold),
-            },
-            Err(e) => Self {
-                _hold: None,
-                line: Some(format!(
-                    "note: {e}; serving all the same (a host and the emulator on different \
-                     idle CPUs may then wait tens of microseconds per hand-over; \
-                     --cpu-latency off silences this)"
-                )),
-            },
-        }
-    }
-
-    /// Say what took effect.
-    fn report(&self, out: &mut impl Write) -> std::io::Result<()> {
-        match &self.line {
-            Some(line) => writeln!(out, "{line}"),
-            None => Ok(()),
-        }
-    }
 }
 
 /// A flag set by SIGINT, SIGTERM, or after `--duration-s`.
@@ -369,105 +333,27 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
             args.listen
         );
     }
-    let ServedBridge {
-        mut bridge,
-        kind,
-        ids,
-        boards,
-    } = served_boards(args, bridge_config(args)?).bridge()?;
-    let config = ServeConfig {
-        listen: args.listen,
-        loopback_broadcast: !args.no_broadcast,
-    };
-    if args.multicast && !bridge.takes_multicast() {
-        return Err(CliError::NotSupported {
-            option: "--multicast",
-            reason: "a bridge takes the host's group requests from firmware Rev 9 on: add \
-                     --firmware 9 (or --network eth --fpga V3 --firmware 9)",
-        });
-    }
-    let (unicast, broadcast) = firelink_emulate::bind(&config)?;
-    let multicast = if args.multicast {
-        let port = unicast.local_addr()?.port();
-        Some(
-            firelink_emulate::bind_multicast(MULTICAST_GROUP, port).map_err(|e| {
-                CliError::Io(std::io::Error::new(
-                    e.kind(),
-                    format!(
-                        "--multicast: cannot join {MULTICAST_GROUP}:{port} ({e}); the group \
-                         needs a multicast route, e.g. on lo inside a network namespace"
-                    ),
-                ))
-            })?,
-        )
-    } else {
-        None
-    };
-    let stop = stop_flag(args)?;
-    let cpu_latency = CpuLatency::take(args);
-    let firmware = match Profile::from(args.firmware) {
-        _ if kind == RobotKind::Snake => "seed 001 Snake node",
-        Profile::Rev7 => "Rev 7",
-        Profile::Rev8 => "Rev 8",
-        Profile::Rev9 => "Rev 9",
-        Profile::Seed => "seed 000",
-    };
-    writeln!(
-        out,
-        "emulating {} board(s) {:?} at firmware {firmware}; bus generation {}",
-        ids.len(),
-        ids,
-        bridge.generation()
+    let served = served_boards(args, bridge_config(args)?).bridge()?;
+    let mut server = BridgeServer::open(
+        served,
+        args.firmware.into(),
+        args.listen,
+        !args.no_broadcast,
+        args.multicast,
     )?;
-    for b in &boards {
-        writeln!(
-            out,
-            "  board {}: {}, FPGA serial {}, QLA serial {}, motor supply {} V, FPGA V{}, Rev {}{}",
-            b.board_id,
-            b.hardware.hardware_version().name(),
-            b.fpga_serial,
-            b.qla_serials().join(" / "),
-            b.motor_supply_volts,
-            b.fpga.number(),
-            b.firmware.number(),
-            b.instrument
-                .as_ref()
-                .map(|i| format!(", instrument {} ({})", i.model, i.name))
-                .unwrap_or_default()
-        )?;
+    let stop = stop_flag(args)?;
+    let cpu_latency = cpu_latency(args);
+    for line in server.banner() {
+        writeln!(out, "{line}")?;
     }
-    cpu_latency.report(out)?;
-    if let Some(group) = &multicast {
-        writeln!(
-            out,
-            "joined multicast group {} (the Rev 9 host's Ethernet broadcasts)",
-            group.local_addr()?
-        )?;
+    if let Some(line) = &cpu_latency.line {
+        writeln!(out, "{line}")?;
+    }
+    if let Some(line) = server.multicast_line()? {
+        writeln!(out, "{line}")?;
     }
     out.flush()?;
-    let mut log = |e: Event| {
-        let line = match e {
-            Event::Listening { addr, broadcast } => format!(
-                "listening on udp {addr}{}",
-                if broadcast {
-                    " (and the loopback broadcast address)"
-                } else {
-                    ""
-                }
-            ),
-            Event::HostSeen(from) => format!("host {from} connected"),
-            Event::BusReset(g) => format!("bus reset: generation {g}"),
-            Event::Lagging(d) => format!(
-                "emulation is {:.1} ms behind real time (machine busy)",
-                d.as_secs_f64() * 1e3
-            ),
-            Event::Stopped(s) => format!("stopped: {s}"),
-        };
-        let _ = writeln!(out, "{line}");
-        let _ = out.flush();
-    };
-    let groups: Vec<&UdpSocket> = broadcast.iter().chain(multicast.iter()).collect();
-    firelink_emulate::serve_groups(&mut bridge, &unicast, &groups, &stop, &mut log)?;
+    server.serve(&stop, |e: Event| log_line(out, e))?;
     Ok(())
 }
 
@@ -476,54 +362,18 @@ fn fault_script(text: &str) -> Result<FaultScript, String> {
     text.parse().map_err(|e: FaultScriptError| e.to_string())
 }
 
-/// The options `--network eth` cannot take, with why.
-fn refuse_on_eth(args: &EmulateArgs) -> Result<(), CliError> {
-    let bus_fault = "a fault of the simulated 1394 bus; the Ethernet-only network has no 1394 bus";
-    let refusals: [(bool, &'static str, &'static str); 11] = [
-        (
-            args.fw_cdev.is_some(),
-            "--fw-cdev",
-            "the /dev/fw* twin is the FireWire front end, not the Ethernet-only network",
-        ),
-        (
-            args.bridge_board.is_some(),
-            "--bridge-board",
-            "the Ethernet-only network has no bridge: every board has its own address (the hub is the first of --chain)",
-        ),
-        (
-            args.robot == Some(DemoRobot::Snake),
-            "--robot snake",
-            "the Snake nodes are seed 001's FireWire nodes, not FPGA V3 boards",
-        ),
-        (args.drop_rate > 0.0, "--drop-rate", bus_fault),
-        (args.corrupt_rate > 0.0, "--corrupt-rate", bus_fault),
-        (
-            args.drop_response_rate > 0.0,
-            "--drop-response-rate",
-            bus_fault,
-        ),
-        (args.busy_rate > 0.0, "--busy-rate", bus_fault),
-        (args.reset_storm > 0, "--reset-storm", bus_fault),
-        (args.unplug_board.is_some(), "--unplug-board", bus_fault),
-        (args.mute_board.is_some(), "--mute-board", bus_fault),
-        (args.faults.is_some(), "--faults", bus_fault),
-    ];
-    if let Some((_, option, reason)) = refusals.into_iter().find(|r| r.0) {
-        return Err(CliError::NotSupported { option, reason });
-    }
-    if args.fpga != Some(FpgaArg::V3) || args.firmware != FirmwareArg::Rev9 {
-        return Err(CliError::NotSupported {
-            option: "--network eth",
-            reason: "the Ethernet-only network is FPGA V3 boards at firmware Rev 9: add --fpga V3 --firmware 9",
-        });
-    }
-    Ok(())
-}
-
 /// `firelink emulate --network eth`: the boards on the Ethernet-only
 /// network until SIGINT, SIGTERM or `--duration-s`.
 fn run_eth(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
-    refuse_on_eth(args)?;
+    let asked = EthRequest {
+        twin: args.fw_cdev.is_some(),
+        snake: args.robot == Some(DemoRobot::Snake),
+        fault_script: args.faults.is_some(),
+    };
+    refuse_on_eth(&served_boards(args, None), asked).map_err(|r| CliError::NotSupported {
+        option: r.option,
+        reason: r.reason,
+    })?;
     let config = match (&args.config, args.robot) {
         (Some(path), _) => Some(load_config(path)?),
         (None, Some(DemoRobot::Dvrk)) => Some(presets::dvrk_seed000()),
@@ -540,70 +390,19 @@ fn run_eth(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
             args.eth_base
         );
     }
-    let descriptions: Vec<String> = boards
-        .iter()
-        .map(|b| {
-            format!(
-                "  board {}: {}, FPGA serial {}, QLA serial {}, FPGA V{}, Rev {}",
-                b.board_id,
-                b.hardware.hardware_version().name(),
-                b.fpga_serial,
-                b.qla_serials().join(" / "),
-                b.fpga.number(),
-                b.firmware.number()
-            )
-        })
-        .collect();
-    let mut net = EthNetwork::new(boards, Default::default())?;
-    let ids = net.board_ids();
-    let serve_config = EthServeConfig {
-        base: args.eth_base,
-        port: args.listen.port(),
-        loopback_broadcast: !args.no_broadcast,
-        multicast: args.multicast.then_some(MULTICAST_GROUP),
-    };
-    let sockets = eth_bind(&serve_config, &ids)?;
-    let stop = stop_flag(args)?;
-    let cpu_latency = CpuLatency::take(args);
-    writeln!(
-        out,
-        "emulating {} board(s) on the Ethernet-only network, chain from the host {:?} (hub: board {})",
-        ids.len(),
-        ids,
-        ids.first().copied().unwrap_or(0)
+    let mut server = EthServer::open(
+        boards,
+        args.eth_base,
+        args.listen.port(),
+        !args.no_broadcast,
+        args.multicast,
     )?;
-    for d in &descriptions {
-        writeln!(out, "{d}")?;
+    let stop = stop_flag(args)?;
+    let cpu_latency = cpu_latency(args);
+    for line in server.banner() {
+        writeln!(out, "{line}")?;
     }
-    cpu_latency.report(out)?;
-    out.flush()?;
-    let mut log = |e: EthEvent| {
-        let line = match e {
-            EthEvent::Listening {
-                boards,
-                broadcast,
-                multicast,
-            } => {
-                let list: Vec<String> = boards.iter().map(|(id, a)| format!("{id}={a}")).collect();
-                let mut line = format!("listening on udp {}", list.join(" "));
-                if let Some(b) = broadcast {
-                    line.push_str(&format!(", broadcast {b}"));
-                }
-                if let Some(m) = multicast {
-                    line.push_str(&format!(", multicast {m}"));
-                }
-                line
-            }
-            EthEvent::HostSeen(from) => format!("host {from} connected"),
-            EthEvent::Lagging(d) => format!(
-                "emulation is {:.1} ms behind real time (machine busy)",
-                d.as_secs_f64() * 1e3
-            ),
-            EthEvent::Stopped(s) => format!("stopped: {s}"),
-        };
-        let _ = writeln!(out, "{line}");
-        let _ = out.flush();
-    };
-    eth_serve(&mut net, &sockets, &stop, &mut log)?;
+    report(out, &cpu_latency)?;
+    server.serve(&stop, |e: EthEvent| log_line(out, e))?;
     Ok(())
 }

@@ -3,9 +3,10 @@
 //! ([`EXIT_STATUS`]).
 
 use firelink_host::register_address::AddressError;
-use firelink_testbed::rig::served::{BoardOption, ServedError};
+use firelink_testbed::emulation::{ServeError, option_flag};
+use firelink_testbed::rig::served::ServedError;
 
-use crate::hex;
+use firelink_host::hex;
 
 /// Everything the command line reports as a one-line error.
 #[derive(Debug, thiserror::Error)]
@@ -41,22 +42,10 @@ pub enum CliError {
     /// A `--port` this command cannot use.
     #[error(transparent)]
     PortRefused(#[from] firelink_testbed::port_spec::PortRefused),
-    /// A register address outside the board's map.
-    #[error("address {address:#x}: {problem}")]
-    Address {
-        /// The address given.
-        address: u64,
-        /// Why it cannot be used.
-        problem: String,
-    },
-    /// A register name that is not on the board.
-    #[error("register {name:?}: {problem}")]
-    Register {
-        /// What was given.
-        name: String,
-        /// What is wrong with it.
-        problem: &'static str,
-    },
+    /// A register address outside the board's map, or a register name
+    /// that is not on the board.
+    #[error(transparent)]
+    Address(#[from] AddressError),
     /// An option names a board that is not emulated.
     #[error("{option} {board}: no such board")]
     NoSuchBoard {
@@ -97,13 +86,8 @@ pub enum CliError {
         error: firelink_host::HostError,
     },
     /// The preloaded /dev/fw* twin library (`fw-run`) is not built.
-    #[error(
-        "the /dev/fw* twin library is not built: run `cargo build -p firelink-fwcdev` or set FIRELINK_FWCDEV_LIB (looked for {path})"
-    )]
-    TwinLibraryMissing {
-        /// Where it was looked for.
-        path: String,
-    },
+    #[error(transparent)]
+    TwinLibraryMissing(#[from] firelink_testbed::fw_run::TwinLibraryMissing),
     /// A companion binary (`firelink-web`, `firelink-ros2`) is not built.
     #[error("{name} is not built: run `cargo build --release -p {name}` (looked for {path})")]
     CompanionMissing {
@@ -161,12 +145,15 @@ impl CliError {
     }
 }
 
-impl From<AddressError> for CliError {
-    fn from(e: AddressError) -> CliError {
+impl From<ServeError> for CliError {
+    fn from(e: ServeError) -> CliError {
         match e {
-            AddressError::Register { name, problem } => CliError::Register { name, problem },
-            AddressError::Address { address, problem } => CliError::Address { address, problem },
-            AddressError::Wire(e) => CliError::Wire(e),
+            ServeError::Refused(r) => CliError::NotSupported {
+                option: r.option,
+                reason: r.reason,
+            },
+            ServeError::Network(e) => CliError::EthNetwork(e),
+            ServeError::Io(e) => CliError::Io(e),
         }
     }
 }
@@ -177,15 +164,7 @@ impl From<ServedError> for CliError {
     fn from(e: ServedError) -> CliError {
         match e {
             ServedError::NoSuchBoard { option, board } => CliError::NoSuchBoard {
-                option: match option {
-                    BoardOption::BoardSet => "--board-set",
-                    BoardOption::BridgeBoard => "--bridge-board",
-                    BoardOption::UnplugBoard => "--unplug-board",
-                    BoardOption::MuteBoard => "--mute-board",
-                    BoardOption::FaultScript => "--faults",
-                    BoardOption::Chain => "--chain",
-                    BoardOption::ChainMissing => "--chain (every emulated board, once; missing)",
-                },
+                option: option_flag(option),
                 board,
             },
             ServedError::Settings(e) => CliError::BoardSettings(e),

@@ -13,7 +13,6 @@ mod demo;
 mod emulate_cmd;
 mod error;
 mod fw_run;
-mod hex;
 mod monitor;
 mod packet_cmd;
 #[cfg(test)]
@@ -28,9 +27,8 @@ mod tour;
 use std::io::Write;
 use std::process::ExitCode;
 
-use clap::{Args, Parser, Subcommand};
+use clap::{Parser, Subcommand};
 
-use args::parse_number;
 use error::{CliError, EXIT_STATUS};
 
 /// Firelink: real-time robot control over IEEE 1394 and its Ethernet bridge,
@@ -46,7 +44,7 @@ struct Cli {
 enum Command {
     /// Decode or build single 1394 packets.
     #[command(subcommand)]
-    Packet(PacketCommand),
+    Packet(packet_cmd::PacketCommand),
     /// Print the IEEE 1394 CRC-32 of hex bytes.
     Crc {
         /// Bytes as hex (whitespace allowed).
@@ -108,73 +106,6 @@ enum Command {
     },
 }
 
-#[derive(Subcommand)]
-enum PacketCommand {
-    /// Decode one complete packet given as hex; print one JSON object.
-    Decode {
-        /// The input is a host->board UDP payload: control word, then the packet.
-        #[arg(long)]
-        bridge: bool,
-        /// Packet bytes as hex (whitespace allowed).
-        #[arg(required = true, num_args = 1..)]
-        hex: Vec<String>,
-    },
-    /// Build a packet from flags or JSON; print its hex with correct CRCs.
-    Encode(Box<EncodeArgs>),
-}
-
-#[derive(Args)]
-struct EncodeArgs {
-    /// The packet as a JSON object with the keys `packet decode` prints.
-    #[arg(long, conflicts_with_all = ["tcode", "destination_id"])]
-    json: Option<String>,
-    /// Transaction code: a number or a name such as read_request_block.
-    #[arg(long)]
-    tcode: Option<String>,
-    /// Destination node ID (e.g. 0xffc0).
-    #[arg(long = "destination-id", value_parser = parse_number)]
-    destination_id: Option<u64>,
-    /// Source node ID (default 0xffd0).
-    #[arg(long = "source-id", value_parser = parse_number)]
-    source_id: Option<u64>,
-    /// Transaction label 0..63.
-    #[arg(long, value_parser = parse_number)]
-    tl: Option<u64>,
-    /// Retry code 0..3.
-    #[arg(long, value_parser = parse_number)]
-    rt: Option<u64>,
-    /// Priority 0..15.
-    #[arg(long, value_parser = parse_number)]
-    pri: Option<u64>,
-    /// 48-bit destination offset.
-    #[arg(long, value_parser = parse_number)]
-    offset: Option<u64>,
-    /// Data quadlet of quadlet writes / quadlet read responses.
-    #[arg(long = "quadlet-data", value_parser = parse_number)]
-    quadlet_data: Option<u64>,
-    /// Response code.
-    #[arg(long, value_parser = parse_number)]
-    rcode: Option<u64>,
-    /// Bytes requested by a block read.
-    #[arg(long = "data-length", value_parser = parse_number)]
-    data_length: Option<u64>,
-    /// Extended tcode.
-    #[arg(long = "extended-tcode", value_parser = parse_number)]
-    extended_tcode: Option<u64>,
-    /// Payload of block writes / block read responses, as hex.
-    #[arg(long)]
-    data: Option<String>,
-    /// Prepend the Ethernet bridge control word.
-    #[arg(long)]
-    bridge: bool,
-    /// Bus generation for the bridge control word.
-    #[arg(long, value_parser = parse_number, requires = "bridge")]
-    generation: Option<u64>,
-    /// Set the bridge no-forward bit.
-    #[arg(long = "no-forward", requires = "bridge")]
-    no_forward: bool,
-}
-
 /// Commands that power a robot turn SIGINT, SIGTERM and SIGHUP into a stop
 /// request: the loop returns between cycles, the robot is powered down,
 /// and the process exits with 128 + the signal's number. (A second signal
@@ -195,42 +126,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
         firelink_host::stop::install_signal_handlers()?;
     }
     match command {
-        Command::Packet(PacketCommand::Decode { bridge, hex }) => {
-            let json = packet_cmd::decode(&hex.join(" "), bridge)?;
-            writeln!(out, "{}", serde_json::to_string(&json)?)?;
-        }
-        Command::Packet(PacketCommand::Encode(args)) => {
-            let json = match &args.json {
-                Some(text) => serde_json::from_str(text)?,
-                None => {
-                    let tcode = args.tcode.as_deref().ok_or(CliError::Missing("--tcode"))?;
-                    let (tcode, tcode_name) = match parse_number(tcode) {
-                        Ok(n) => (Some(n), None),
-                        Err(_) => (None, Some(tcode.to_string())),
-                    };
-                    packet_cmd::PacketJson {
-                        tcode,
-                        tcode_name,
-                        destination_id: args.destination_id,
-                        source_id: args.source_id,
-                        tl: args.tl,
-                        rt: args.rt,
-                        pri: args.pri,
-                        offset: args.offset,
-                        quadlet_data: args.quadlet_data,
-                        rcode: args.rcode,
-                        data_length: args.data_length,
-                        extended_tcode: args.extended_tcode,
-                        data: args.data.clone(),
-                        no_forward: Some(args.no_forward),
-                        generation: args.generation,
-                        ..Default::default()
-                    }
-                }
-            };
-            let bytes = packet_cmd::encode(&json, args.bridge)?;
-            writeln!(out, "{}", hex::to_hex(&bytes))?;
-        }
+        Command::Packet(command) => packet_cmd::run(&command, &mut out)?,
         Command::Crc { hex } => {
             writeln!(out, "{:08x}", packet_cmd::crc(&hex.join(" "))?)?;
         }

@@ -1,52 +1,136 @@
 //! `firelink packet decode|encode` and `firelink crc`: one packet as hex in,
 //! one JSON object out, and back. The record and its codec are
-//! [`firelink_host::packet_json`]; this file handles the hex text.
+//! [`firelink_host::packet_json`]; this file handles the flags and the hex
+//! text.
 
-use firelink_host::packet_json as codec;
-pub use firelink_host::packet_json::PacketJson;
+use std::io::Write;
+
+use clap::{Args, Subcommand};
+
+use firelink_host::hex::{parse_hex, to_hex};
+use firelink_host::packet_json::{self as codec, PacketJson};
 use firelink_wire::crc::crc1394;
 
+use crate::args::parse_number;
 use crate::error::CliError;
-use crate::hex::parse_hex;
 
-/// Decode one complete packet (or, with `bridge`, one host->board datagram).
-pub fn decode(hex: &str, bridge: bool) -> Result<PacketJson, CliError> {
-    Ok(codec::decode(&parse_hex(hex)?, bridge)?)
+/// `firelink packet`'s two commands.
+#[derive(Subcommand)]
+pub enum PacketCommand {
+    /// Decode one complete packet given as hex; print one JSON object.
+    Decode {
+        /// The input is a host->board UDP payload: control word, then the packet.
+        #[arg(long)]
+        bridge: bool,
+        /// Packet bytes as hex (whitespace allowed).
+        #[arg(required = true, num_args = 1..)]
+        hex: Vec<String>,
+    },
+    /// Build a packet from flags or JSON; print its hex with correct CRCs.
+    Encode(Box<EncodeArgs>),
 }
 
-/// Build the packet described by `json` and return its bytes.
-pub fn encode(json: &PacketJson, bridge: bool) -> Result<Vec<u8>, CliError> {
-    Ok(codec::encode(json, bridge)?)
+/// Options of `firelink packet encode`.
+#[derive(Args)]
+pub struct EncodeArgs {
+    /// The packet as a JSON object with the keys `packet decode` prints.
+    #[arg(long, conflicts_with_all = ["tcode", "destination_id"])]
+    json: Option<String>,
+    /// Transaction code: a number or a name such as read_request_block.
+    #[arg(long)]
+    tcode: Option<String>,
+    /// Destination node ID (e.g. 0xffc0).
+    #[arg(long = "destination-id", value_parser = parse_number)]
+    destination_id: Option<u64>,
+    /// Source node ID (default 0xffd0).
+    #[arg(long = "source-id", value_parser = parse_number)]
+    source_id: Option<u64>,
+    /// Transaction label 0..63.
+    #[arg(long, value_parser = parse_number)]
+    tl: Option<u64>,
+    /// Retry code 0..3.
+    #[arg(long, value_parser = parse_number)]
+    rt: Option<u64>,
+    /// Priority 0..15.
+    #[arg(long, value_parser = parse_number)]
+    pri: Option<u64>,
+    /// 48-bit destination offset.
+    #[arg(long, value_parser = parse_number)]
+    offset: Option<u64>,
+    /// Data quadlet of quadlet writes / quadlet read responses.
+    #[arg(long = "quadlet-data", value_parser = parse_number)]
+    quadlet_data: Option<u64>,
+    /// Response code.
+    #[arg(long, value_parser = parse_number)]
+    rcode: Option<u64>,
+    /// Bytes requested by a block read.
+    #[arg(long = "data-length", value_parser = parse_number)]
+    data_length: Option<u64>,
+    /// Extended tcode.
+    #[arg(long = "extended-tcode", value_parser = parse_number)]
+    extended_tcode: Option<u64>,
+    /// Payload of block writes / block read responses, as hex.
+    #[arg(long)]
+    data: Option<String>,
+    /// Prepend the Ethernet bridge control word.
+    #[arg(long)]
+    bridge: bool,
+    /// Bus generation for the bridge control word.
+    #[arg(long, value_parser = parse_number, requires = "bridge")]
+    generation: Option<u64>,
+    /// Set the bridge no-forward bit.
+    #[arg(long = "no-forward", requires = "bridge")]
+    no_forward: bool,
+}
+
+/// `firelink packet decode|encode`: one JSON object, or the packet's hex.
+pub fn run(command: &PacketCommand, out: &mut impl Write) -> Result<(), CliError> {
+    match command {
+        PacketCommand::Decode { bridge, hex } => {
+            let json = codec::decode(&parse_hex(&hex.join(" "))?, *bridge)?;
+            writeln!(out, "{}", serde_json::to_string(&json)?)?;
+        }
+        PacketCommand::Encode(args) => {
+            let json = match &args.json {
+                Some(text) => serde_json::from_str(text)?,
+                None => args.record()?,
+            };
+            writeln!(out, "{}", to_hex(&codec::encode(&json, args.bridge)?))?;
+        }
+    }
+    Ok(())
+}
+
+impl EncodeArgs {
+    /// The packet record the flags describe.
+    fn record(&self) -> Result<PacketJson, CliError> {
+        let tcode = self.tcode.as_deref().ok_or(CliError::Missing("--tcode"))?;
+        let (tcode, tcode_name) = match parse_number(tcode) {
+            Ok(n) => (Some(n), None),
+            Err(_) => (None, Some(tcode.to_string())),
+        };
+        Ok(PacketJson {
+            tcode,
+            tcode_name,
+            destination_id: self.destination_id,
+            source_id: self.source_id,
+            tl: self.tl,
+            rt: self.rt,
+            pri: self.pri,
+            offset: self.offset,
+            quadlet_data: self.quadlet_data,
+            rcode: self.rcode,
+            data_length: self.data_length,
+            extended_tcode: self.extended_tcode,
+            data: self.data.clone(),
+            no_forward: Some(self.no_forward),
+            generation: self.generation,
+            ..Default::default()
+        })
+    }
 }
 
 /// The 1394 CRC of hex bytes.
 pub fn crc(hex: &str) -> Result<u32, CliError> {
     Ok(crc1394(&parse_hex(hex)?))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::hex::to_hex;
-
-    #[test]
-    fn decode_then_encode_is_identity() {
-        let hex = "ffc11540ffc2000000000007b2b02823";
-        let json = decode(hex, false).unwrap();
-        assert_eq!(json.tcode_name.as_deref(), Some("read_request_quadlet"));
-        assert_eq!(json.header_crc_ok, Some(true));
-        assert_eq!(to_hex(&encode(&json, false).unwrap()), hex);
-    }
-
-    #[test]
-    fn encode_names_missing_fields() {
-        let json = PacketJson {
-            tcode_name: Some("write_request_quadlet".into()),
-            destination_id: Some(0xffc0),
-            offset: Some(0),
-            ..Default::default()
-        };
-        let err = encode(&json, false).unwrap_err();
-        assert_eq!(err.to_string(), "missing field quadlet_data");
-    }
 }

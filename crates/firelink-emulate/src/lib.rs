@@ -41,6 +41,7 @@ use std::time::{Duration, Instant};
 mod arrival;
 pub mod eth_network;
 pub mod eth_serve;
+mod event_text;
 #[cfg(target_os = "linux")]
 pub mod fw_cdev;
 pub mod latency;

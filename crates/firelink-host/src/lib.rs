@@ -44,6 +44,7 @@
 //! emulated boards today and real boards over Ethernet tomorrow.
 
 pub mod board;
+pub mod board_access;
 pub mod cpu_latency;
 pub mod error;
 pub mod eth;
@@ -51,10 +52,12 @@ pub mod extras;
 pub mod fault;
 #[cfg(all(feature = "firewire", target_os = "linux"))]
 pub mod firewire;
+pub mod hex;
 pub mod io;
 pub mod link_stats;
 pub mod mahru;
 pub mod monitor;
+pub mod monitor_frame;
 pub mod pacing;
 pub mod packet_json;
 pub mod port;
@@ -66,6 +69,7 @@ pub mod scan;
 pub mod sim;
 pub mod snake;
 pub mod stop;
+pub mod tour;
 pub mod trace;
 pub mod transaction;
 pub mod udp;

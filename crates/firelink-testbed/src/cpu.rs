@@ -6,8 +6,9 @@
 //! Linux: `pthread_getcpuclockid` names the thread's CPU-time clock (the
 //! clock `CLOCK_THREAD_CPUTIME_ID` is inside the thread) and
 //! `clock_gettime` reads it. Elsewhere no clock is available and the
-//! figures are absent. The only unsafe code of this crate: two libc calls
-//! with plain arguments, in the two functions at the end.
+//! figures are absent. Unsafe code: two libc calls with plain arguments,
+//! in the two functions at the end (the crate's other unsafe module is
+//! the real-time setup, `realtime.rs`).
 
 use std::thread::JoinHandle;
 use std::time::Duration;

@@ -25,7 +25,7 @@ use clap::{Args, ValueEnum};
 
 use firelink_host::scan::Protocol;
 use firelink_host::udp::WaitMode;
-use firelink_testbed::bench::{BenchOptions, BenchTransport, check_board_counts, run_bench};
+use firelink_testbed::bench::{BenchOptions, BenchTransport, parse_board_counts, run_bench};
 
 use crate::args::{FirmwareArg, ProtocolArg, UdpWaitArg};
 use crate::error::CliError;
@@ -72,27 +72,6 @@ fn bridge_address(text: &str) -> Result<crate::ports::PortSpec, CliError> {
             .refused("firelink bench --port", "it takes udp".into())
             .into()),
     }
-}
-
-/// The `--boards` list: each count 1..=62; counts above 16 (the board-ID
-/// space of one bus) are extrapolated from the largest measured count
-/// before them, so one must come first.
-fn board_counts(text: &str) -> Result<Vec<usize>, CliError> {
-    let counts = text
-        .split(',')
-        .filter(|x| !x.trim().is_empty())
-        .map(|x| {
-            x.trim()
-                .parse::<usize>()
-                .ok()
-                .filter(|n| (1..=62).contains(n))
-                .ok_or_else(|| {
-                    CliError::BoardCounts(format!("{x:?} is not a board count (1..=62)"))
-                })
-        })
-        .collect::<Result<Vec<usize>, CliError>>()?;
-    check_board_counts(&counts).map_err(CliError::BoardCounts)?;
-    Ok(counts)
 }
 
 /// Options of `firelink bench`.
@@ -182,7 +161,7 @@ pub fn options(args: &BenchArgs) -> Result<BenchOptions, CliError> {
     }
     Ok(BenchOptions {
         transports: transports.into_iter().map(BenchTransport::from).collect(),
-        boards: board_counts(&args.boards)?,
+        boards: parse_board_counts(&args.boards).map_err(CliError::BoardCounts)?,
         protocols: args.protocol.iter().copied().map(Protocol::from).collect(),
         cycles: args.cycles,
         firmware: args.firmware.into(),
@@ -240,17 +219,14 @@ const UNDER_TWIN: &str = "FIRELINK_BENCH_UNDER_TWIN";
 /// preloaded and a fresh socket path for the benchmark's own twin server,
 /// and pass its table on.
 fn rerun_under_twin(out: &mut impl Write) -> Result<(), CliError> {
-    let library = crate::fw_run::library_path()?;
-    let dir = crate::fw_run::temp_dir()?;
-    let mut preload = library.into_os_string();
-    if let Some(old) = std::env::var_os("LD_PRELOAD").filter(|o| !o.is_empty()) {
-        preload.push(" ");
-        preload.push(old);
-    }
+    use firelink_testbed::fw_run::{SOCKET_ENV, library_path, preload, temp_dir};
+    let library = library_path()?;
+    let dir = temp_dir()?;
+    let preload = preload(&library);
     let output = std::process::Command::new(std::env::current_exe()?)
         .args(std::env::args_os().skip(1))
         .env("LD_PRELOAD", preload)
-        .env(crate::fw_run::SOCKET_ENV, dir.join("fw-cdev.sock"))
+        .env(SOCKET_ENV, dir.join("fw-cdev.sock"))
         .env(UNDER_TWIN, "1")
         .stderr(std::process::Stdio::inherit())
         .output();

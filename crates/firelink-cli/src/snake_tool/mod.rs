@@ -25,9 +25,8 @@ use firelink_control::config::{IoConfig, presets};
 use firelink_host::Port;
 use firelink_host::snake::SnakeSystem;
 use firelink_testbed::port_spec::{PortKind, PortSpec};
-use firelink_testbed::ports::{PortOptions, open_bus_port};
-use firelink_testbed::snake::tool::{Session, render};
-use firelink_testbed::snake::{node_configs, sim_port};
+use firelink_testbed::ports::PortOptions;
+use firelink_testbed::snake::tool::{Session, open_tool_port, render};
 
 use crate::error::CliError;
 
@@ -96,7 +95,7 @@ pub enum ToolCommand {
     },
 }
 
-fn open(args: &SnakeToolArgs) -> Result<(Box<dyn Port>, Option<IoConfig>), CliError> {
+fn open(args: &SnakeToolArgs) -> Result<(Box<dyn Port>, IoConfig), CliError> {
     let config = match &args.config {
         Some(path) => crate::demo::load_config(path)?,
         None => presets::snake_seed001(),
@@ -106,23 +105,14 @@ fn open(args: &SnakeToolArgs) -> Result<(Box<dyn Port>, Option<IoConfig>), CliEr
         udp_wait: args.udp_wait.into(),
         ..PortOptions::default()
     };
-    match args.port {
-        PortSpec::Sim(_) => {
-            let nodes = node_configs(&config, 1)?;
-            Ok((Box::new(sim_port(nodes, false, None)?), Some(config)))
-        }
-        other => Ok((
-            open_bus_port("firelink snake-tool", &other, &options)?,
-            Some(config),
-        )),
-    }
+    Ok((open_tool_port(&args.port, &config, &options)?, config))
 }
 
 /// `firelink snake-tool`.
 pub fn run(args: &SnakeToolArgs, out: &mut impl Write) -> Result<(), CliError> {
     let (port, config) = open(args)?;
     let system = SnakeSystem::open(port)?;
-    let mut session = Session::new(system, config)?;
+    let mut session = Session::new(system, Some(config))?;
     if let Some(b) = args.board {
         session.select_board(b)?;
     }

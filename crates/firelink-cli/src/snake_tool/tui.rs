@@ -10,12 +10,9 @@ use crossterm::{cursor, execute, terminal};
 
 use firelink_host::Port;
 
-use firelink_testbed::snake::tool::{HELP, Session, ToolError, render};
+use firelink_testbed::snake::tool::{HELP, KEYS, Session, key_command, outcome_line, render};
 
 use crate::error::CliError;
-
-const KEYS: &str = "keys: <- -> channel  up/down board  e enable  +/- voltage 0.05 V  [ ] limit 10 mA  \
-< > wiper 10  t torque/speed  w write protect  r reset encoder  : command  q quit";
 
 /// Run the UI until `q`.
 pub fn run<P: Port>(session: &mut Session<P>, out: &mut impl Write) -> Result<(), CliError> {
@@ -86,7 +83,7 @@ fn ui<P: Port>(session: &mut Session<P>, out: &mut impl Write) -> Result<(), Cli
                     message = if line.trim() == "help" {
                         HELP.replace('\n', " | ")
                     } else {
-                        outcome(session.command(&line))
+                        outcome_line(session.command(&line))
                     };
                 }
                 KeyCode::Esc => prompt = None,
@@ -113,9 +110,11 @@ fn ui<P: Port>(session: &mut Session<P>, out: &mut impl Write) -> Result<(), Cli
             KeyCode::Right => format!("channel {}", (session.channel() + 1).min(7)),
             KeyCode::Up => format!("board {}", boards[at.saturating_sub(1)]),
             KeyCode::Down => format!("board {}", boards[(at + 1).min(boards.len() - 1)]),
-            KeyCode::Char(c) => match step_command(session, c) {
-                Ok(Some(cmd)) => cmd,
-                Ok(None) => continue,
+            KeyCode::Char(c) => match session.view() {
+                Ok(view) => match key_command(&view, session.channel(), c) {
+                    Some(cmd) => cmd,
+                    None => continue,
+                },
                 Err(e) => {
                     message = e.to_string();
                     continue;
@@ -123,37 +122,6 @@ fn ui<P: Port>(session: &mut Session<P>, out: &mut impl Write) -> Result<(), Cli
             },
             _ => continue,
         };
-        message = outcome(session.command(&command));
-    }
-}
-
-/// The command a one-key action means, from the channel's readouts now.
-fn step_command<P: Port>(session: &mut Session<P>, key: char) -> Result<Option<String>, ToolError> {
-    let view = session.view()?;
-    let Some(c) = view.channels.get(usize::from(session.channel()) - 1) else {
-        return Ok(None);
-    };
-    Ok(Some(match key {
-        'e' => format!("enable {}", if c.enabled { "off" } else { "on" }),
-        '+' | '=' => format!("voltage {}", (c.motor_volts + 0.05).min(1.25)),
-        '-' => format!("voltage {}", (c.motor_volts - 0.05).max(-1.25)),
-        ']' => format!("current-limit {}", (c.current_limit_ma + 10.0).min(2000.0)),
-        '[' => format!("current-limit {}", (c.current_limit_ma - 10.0).max(0.0)),
-        '>' | '.' => format!("wiper {}", (c.wiper + 10).min(1023)),
-        '<' | ',' => format!("wiper {}", c.wiper.saturating_sub(10)),
-        't' => format!("switch {}", if c.speed_mode { "torque" } else { "speed" }),
-        'w' => format!(
-            "write-protect {}",
-            if c.write_protect { "off" } else { "on" }
-        ),
-        'r' => "reset-encoder".into(),
-        _ => return Ok(None),
-    }))
-}
-
-fn outcome(r: Result<String, ToolError>) -> String {
-    match r {
-        Ok(text) => text.trim().replace('\n', " | "),
-        Err(e) => format!("error: {e}"),
+        message = outcome_line(session.command(&command));
     }
 }

@@ -182,6 +182,27 @@ pub fn check_board_counts(counts: &[usize]) -> Result<(), String> {
     Ok(())
 }
 
+/// A board-count list as written (`2,4,8,16,32,62`), checked as
+/// [`check_board_counts`] checks it.
+///
+/// # Errors
+/// A count that is not a number in 1..=62, or the list's rule broken.
+pub fn parse_board_counts(text: &str) -> Result<Vec<usize>, String> {
+    let counts = text
+        .split(',')
+        .filter(|x| !x.trim().is_empty())
+        .map(|x| {
+            x.trim()
+                .parse::<usize>()
+                .ok()
+                .filter(|n| (1..=62).contains(n))
+                .ok_or_else(|| format!("{x:?} is not a board count (1..=62)"))
+        })
+        .collect::<Result<Vec<usize>, String>>()?;
+    check_board_counts(&counts)?;
+    Ok(counts)
+}
+
 /// I/O time statistics of a point, us; `max` is absent for modelled points.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct IoTime {

@@ -69,6 +69,7 @@ mod judgement;
 mod ledger;
 mod plan;
 mod report;
+mod text;
 
 use judgement::*;
 use ledger::*;

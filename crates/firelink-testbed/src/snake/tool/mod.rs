@@ -25,12 +25,16 @@
 
 mod commands;
 mod error;
+mod keys;
+mod open;
 mod session;
 mod state;
 mod view;
 
 pub use commands::HELP;
 pub use error::ToolError;
+pub use keys::{KEYS, key_command, outcome_line};
+pub use open::open_tool_port;
 pub use session::Session;
 pub use state::{ChannelState, Factors, STATE_VERSION, StateFile};
 pub use view::{ChannelView, NodeView, render};

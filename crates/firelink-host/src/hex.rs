@@ -1,4 +1,7 @@
-//! Hex text <-> bytes for the command line.
+//! Hex text <-> bytes, as people type packets and payloads: whitespace,
+//! `_` and `:` separators and `0x` prefixes allowed; every refusal names
+//! what was wrong. (Here rather than in `firelink-wire`, which allocates
+//! nothing.)
 
 /// Why a hex argument could not be read.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -84,5 +87,23 @@ mod tests {
             })
         );
         assert_eq!(parse_hex("  "), Err(HexError::Empty));
+    }
+
+    #[test]
+    fn packets_typed_as_hex_decode_and_encode_back() {
+        use crate::packet_json::{PacketJson, decode, encode};
+        let hex = "ffc11540ffc2000000000007b2b02823";
+        let json = decode(&parse_hex(hex).unwrap(), false).unwrap();
+        assert_eq!(json.tcode_name.as_deref(), Some("read_request_quadlet"));
+        assert_eq!(json.header_crc_ok, Some(true));
+        assert_eq!(to_hex(&encode(&json, false).unwrap()), hex);
+        let json = PacketJson {
+            tcode_name: Some("write_request_quadlet".into()),
+            destination_id: Some(0xffc0),
+            offset: Some(0),
+            ..Default::default()
+        };
+        let err = encode(&json, false).unwrap_err();
+        assert_eq!(err.to_string(), "missing field quadlet_data");
     }
 }
