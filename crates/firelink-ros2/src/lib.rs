@@ -35,9 +35,14 @@
 //! and `setpoint_js` from the frames due at `--publish-hz` (default 1 kHz;
 //! the first frame of each `1 / publish-hz` slot of the robot's clock, so
 //! early cycles do not raise the rate), each stamped with its own cycle's
-//! time. `ROS_DOMAIN_ID` is honoured.
+//! time. `ROS_DOMAIN_ID` is honoured. The threads a point passes through
+//! (RustDDS's socket reader, this node's, the robot loop's) run with
+//! real-time scheduling where the OS permits ([`realtime`], on unless
+//! [`NodeSettings::realtime`] is off), so that other work on the machine
+//! does not delay their wake-ups.
 
 pub mod messages;
+pub mod realtime;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -238,6 +243,9 @@ pub struct NodeSettings {
     /// Stamp messages with the robot's own clock (the simulated bus's
     /// virtual time, as ROS's `use_sim_time`) instead of the wall clock.
     pub sim_time: bool,
+    /// Give the threads on a servo point's path real-time scheduling
+    /// ([`realtime`]) where the OS permits it.
+    pub realtime: bool,
 }
 
 /// What the node measured, printed as JSON when it stops.
@@ -264,9 +272,23 @@ pub struct NodeReport {
     /// robot loop by this node (DDS delivery and this node's wake-up), us:
     /// p50, p99, max.
     pub servo_transit_us: [f64; 3],
+    /// Of the transit: DDS source timestamp to RustDDS's reception stamp
+    /// (the sender's write, the socket, RustDDS's event loop's wake-up),
+    /// us: p50, p99, max.
+    pub servo_delivery_us: [f64; 3],
+    /// Of the transit: RustDDS's reception to queued for the robot loop
+    /// (this node's wake-up and its take), us: p50, p99, max.
+    pub servo_take_us: [f64; 3],
     /// The second part: queued to applied (the wait for the next control
     /// cycle, and the cycle up to its write block), us: p50, p99, max.
     pub servo_wait_us: [f64; 3],
+    /// Of the wait: queued to the start of the cycle that carried the
+    /// point (the robot loop's wake-up, the minimum gap, a cycle already
+    /// in flight for a point carried by k + 2), us: p50, p99, max.
+    pub servo_to_cycle_us: [f64; 3],
+    /// Of the wait: the carrying cycle's start to applied (its work up to
+    /// the write block sent), us: p50, p99, max.
+    pub servo_cycle_us: [f64; 3],
     /// Applied servo_jp by the cycle that carried them, counted from the
     /// last cycle done when this node queued them: k + 1, k + 2, later.
     pub servo_applied_by_cycle: [u64; 3],
@@ -299,6 +321,12 @@ pub struct NodeReport {
     /// early for a command, on schedule, overrun (more than half a period
     /// late).
     pub cycle_starts: [u64; 3],
+    /// This node's thread's time publishing one frame (every arm's
+    /// measured_js and setpoint_js), us: median, p99: while it publishes,
+    /// a servo_jp waits.
+    pub publish_frame_us: [f64; 2],
+    /// The real-time settings (`--rt`) and what took.
+    pub realtime: realtime::RealtimeReport,
 }
 
 fn percentile(sorted: &[f64], q: f64) -> f64 {
@@ -364,18 +392,39 @@ impl LoopCosts {
     }
 }
 
-/// The servo points the robot applied, as the loop logged them.
+/// Microseconds from `from` to `to` (ns stamps of one clock; 0 if `to`
+/// is earlier).
+fn us_between(from: u64, to: u64) -> f64 {
+    to.saturating_sub(from) as f64 / 1e3
+}
+
+/// The servo points: their transit as this node queued them, and their
+/// wait as the robot loop logged them applied.
 #[derive(Default)]
 struct ServoLatencies {
     total: Vec<f64>,
     transit: Vec<f64>,
+    delivery: Vec<f64>,
+    take: Vec<f64>,
     wait: Vec<f64>,
+    to_cycle: Vec<f64>,
+    cycle: Vec<f64>,
     by_cycle: [u64; 3],
 }
 
 impl ServoLatencies {
+    /// A point queued at `queued_ns` that RustDDS stamped received at
+    /// `received_ns` and its sender at `source_ns` (0: not stamped).
+    fn queued(&mut self, source_ns: u64, received_ns: u64, queued_ns: u64) {
+        if source_ns == 0 || received_ns == 0 || self.delivery.len() >= LoopCosts::MAX {
+            return;
+        }
+        self.delivery.push(us_between(source_ns, received_ns));
+        self.take.push(us_between(received_ns, queued_ns));
+    }
+
     fn record(&mut self, a: &ServoApplied) {
-        let us = |from: u64, to: u64| to.saturating_sub(from) as f64 / 1e3;
+        let us = us_between;
         let lag = a.cycle.saturating_sub(a.trace.queued_after_cycle);
         let slot = usize::try_from(lag.clamp(1, 3) - 1).unwrap_or(2);
         self.by_cycle[slot] += 1;
@@ -387,12 +436,18 @@ impl ServoLatencies {
             self.transit.push(us(a.trace.source_ns, a.trace.queued_ns));
         }
         self.wait.push(us(a.trace.queued_ns, a.applied_ns));
+        self.to_cycle.push(us(a.trace.queued_ns, a.started_ns));
+        self.cycle.push(us(a.started_ns, a.applied_ns));
     }
 
     fn into_report(mut self, report: &mut NodeReport) {
         report.servo_latency_us = p50_p99_max(&mut self.total);
         report.servo_transit_us = p50_p99_max(&mut self.transit);
+        report.servo_delivery_us = p50_p99_max(&mut self.delivery);
+        report.servo_take_us = p50_p99_max(&mut self.take);
         report.servo_wait_us = p50_p99_max(&mut self.wait);
+        report.servo_to_cycle_us = p50_p99_max(&mut self.to_cycle);
+        report.servo_cycle_us = p50_p99_max(&mut self.cycle);
         report.servo_applied_by_cycle = self.by_cycle;
     }
 }
@@ -613,6 +668,12 @@ pub fn run_node(
     let mut costs = LoopCosts::default();
     let mut servo = ServoLatencies::default();
     let mut last_state_publish = start;
+    let mut publish_us = Vec::new();
+    // Now that the DDS threads are there: real-time scheduling for the
+    // ones a servo point passes through (and the robot loop's).
+    if settings.realtime {
+        report.realtime = realtime::apply(&mut realtime::OsScheduler, true);
+    }
     while !stop.load(Ordering::Relaxed) {
         let left = settings
             .duration
@@ -655,15 +716,23 @@ pub fn run_node(
             if ready_of(2) {
                 take_state_commands(arm, shared, state, &mut report);
             }
+            let mut taking = Taking {
+                shared,
+                state,
+                homed,
+                report: &mut report,
+                servo: &mut servo,
+            };
             if ready_of(0) {
-                take_motion(arm, true, shared, state, homed, &mut report);
+                take_motion(arm, true, &mut taking);
             }
             if ready_of(1) {
-                take_motion(arm, false, shared, state, homed, &mut report);
+                take_motion(arm, false, &mut taking);
             }
         }
         // Publications, each from its own cycle's frame.
         for frame in to_publish.drain(..) {
+            let publishing = Instant::now();
             let stamp = if settings.sim_time {
                 Time::from_secs_f64(frame.t)
             } else {
@@ -675,6 +744,9 @@ pub fn run_node(
             }
             published += 1;
             let _ = shared.free.push(frame);
+            if publish_us.len() < LoopCosts::MAX {
+                publish_us.push(publishing.elapsed().as_secs_f64() * 1e6);
+            }
         }
         // Operating state: at 10 Hz and whenever it changes.
         let now = match (settings.sim_time, newest) {
@@ -713,6 +785,7 @@ pub fn run_node(
     report.measured_js_asked_hz = settings.publish_hz.min(shared.rate_hz);
     report.servo_jp_applied = shared.servo_applied.load(Ordering::Relaxed);
     report.frames_skipped = shared.skipped.load(Ordering::Relaxed);
+    report.publish_frame_us = median_p99(&mut publish_us);
     costs.into_report(&mut report);
     servo.into_report(&mut report);
     drop(arms);
@@ -836,16 +909,26 @@ fn take_state_commands(arm: &Arm, shared: &Shared, state: State, report: &mut No
     }
 }
 
-/// Take every `servo_jp` (`servo`) or `move_jp` waiting on `arm`, check it
-/// and queue it for the robot loop with its trace.
-fn take_motion(
-    arm: &mut Arm,
-    servo: bool,
-    shared: &Shared,
+/// What [`take_motion`] needs: the service, the robot's state, and where
+/// it counts.
+struct Taking<'a> {
+    shared: &'a Shared,
     state: State,
     homed: bool,
-    report: &mut NodeReport,
-) {
+    report: &'a mut NodeReport,
+    servo: &'a mut ServoLatencies,
+}
+
+/// Take every `servo_jp` (`servo`) or `move_jp` waiting on `arm`, check it
+/// and queue it for the robot loop with its trace.
+fn take_motion(arm: &mut Arm, servo: bool, taking: &mut Taking<'_>) {
+    let Taking {
+        shared,
+        state,
+        homed,
+        ..
+    } = *taking;
+    let report = &mut *taking.report;
     loop {
         let taken = if servo {
             arm.servo.take()
@@ -877,13 +960,19 @@ fn take_motion(
             arm.last_servo = Some((t, positions));
             // Latency from the DDS source timestamp (the sender's wall
             // clock), whatever clock the header uses.
+            let ns = |t: Option<ros2_client::ROSTime>| {
+                t.map_or(0, |t| u64::try_from(t.to_nanos()).unwrap_or(0))
+            };
             let trace = ServoTrace {
-                source_ns: info
-                    .source_timestamp()
-                    .map_or(0, |t| u64::try_from(t.to_nanos()).unwrap_or(0)),
+                source_ns: ns(info.source_timestamp()),
                 queued_ns: wall_ns(),
                 queued_after_cycle: shared.cycles_done.load(Ordering::SeqCst),
             };
+            taking.servo.queued(
+                trace.source_ns,
+                ns(info.received_timestamp()),
+                trace.queued_ns,
+            );
             Command::ServoJoints {
                 first,
                 count,
@@ -912,16 +1001,23 @@ fn take_motion(
 /// would: the control loop's costs without ROS 2. The robot is brought up
 /// as a ROS 2 client does it (configured, powered, homed, active) and then
 /// holds still for `duration`; the costs are those of its Active cycles,
-/// as with the node. A stop request (`stop`, set by the signals) ends it
-/// early.
+/// as with the node, and so are the real-time settings (`realtime`: the
+/// robot loop's and the calling thread's). A stop request (`stop`, set by
+/// the signals) ends it early.
 ///
 /// # Errors
 /// A bring-up command was refused or failed.
 pub fn run_without_dds(
     service: &Service,
     duration: Duration,
+    realtime: bool,
     stop: &AtomicBool,
 ) -> Result<NodeReport, Ros2Error> {
+    let realtime = if realtime {
+        realtime::apply(&mut realtime::OsScheduler, false)
+    } else {
+        realtime::RealtimeReport::default()
+    };
     for command in [
         Command::Configure,
         Command::PowerOn,
@@ -952,6 +1048,7 @@ pub fn run_without_dds(
             / seconds.max(1e-9),
         control_asked_hz: shared.rate_hz,
         cycle_starts: cycle_starts(shared),
+        realtime,
         ..NodeReport::default()
     };
     costs.into_report(&mut report);
@@ -1084,6 +1181,7 @@ mod tests {
                 queued_after_cycle,
             },
             cycle,
+            started_ns: 1_800_000,
             applied_ns: 1_900_000,
         };
         for (k, c) in [(10, 11), (10, 12), (10, 12), (10, 40)] {
@@ -1095,6 +1193,8 @@ mod tests {
         assert_eq!(report.servo_latency_us, [900.0, 900.0, 900.0]);
         assert_eq!(report.servo_transit_us, [200.0, 200.0, 200.0]);
         assert_eq!(report.servo_wait_us, [700.0, 700.0, 700.0]);
+        assert_eq!(report.servo_to_cycle_us, [600.0, 600.0, 600.0]);
+        assert_eq!(report.servo_cycle_us, [100.0, 100.0, 100.0]);
     }
 
     #[test]

@@ -313,6 +313,10 @@ pub struct ServoApplied {
     /// when it waited behind a command that runs cycles of its own
     /// (power-on, homing, a relay or amplifier change).
     pub cycle: u64,
+    /// When the loop's next cycle (the one `applied_ns` closes) started,
+    /// before it took its commands, ns since the Unix epoch (as
+    /// `applied_ns`, less the time the cycle took on the monotonic clock).
+    pub started_ns: u64,
     /// When the write block of the loop's next cycle had been sent, ns
     /// since the Unix epoch (the wall clock, read once after that cycle,
     /// only when a traced point was applied in it): the point's own cycle
@@ -1171,7 +1175,7 @@ fn cycle_until_stopped<P: Injector>(
         // A bus reset renumbers nodes: the boards are found again between
         // cycles (a failed attempt is retried after the next cycle).
         let _ = robot.io_mut().recover();
-        log_applied(shared, &mut traced);
+        log_applied(shared, &mut traced, work_start);
         publish(shared, robot, busy);
         let cpu_end = cpu_clock.and_then(|c| c.now());
         busy = Some(LoopCost {
@@ -1228,10 +1232,10 @@ fn take_commands<P: Injector>(
 }
 
 /// The servo points of `traced` have been carried by the write blocks of
-/// their cycles, the last of them just sent: log them for the consumer
-/// (the wall clock is read once, and only when there is one), and empty
-/// `traced`.
-fn log_applied(shared: &Shared, traced: &mut Vec<(ServoTrace, u64)>) {
+/// their cycles, the last of them just sent (that cycle started at
+/// `cycle_start`): log them for the consumer (the clocks are read once,
+/// and only when there is one), and empty `traced`.
+fn log_applied(shared: &Shared, traced: &mut Vec<(ServoTrace, u64)>, cycle_start: Instant) {
     if traced.is_empty() {
         return;
     }
@@ -1239,10 +1243,13 @@ fn log_applied(shared: &Shared, traced: &mut Vec<(ServoTrace, u64)>) {
     let applied_ns = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX));
+    let took_ns = u64::try_from(cycle_start.elapsed().as_nanos()).unwrap_or(u64::MAX);
+    let started_ns = applied_ns.saturating_sub(took_ns);
     for &(trace, cycle) in traced.iter() {
         let entry = ServoApplied {
             trace,
             cycle,
+            started_ns,
             applied_ns,
         };
         if shared.servo_log.push(entry).is_err() {
@@ -1251,6 +1258,11 @@ fn log_applied(shared: &Shared, traced: &mut Vec<(ServoTrace, u64)>) {
     }
     traced.clear();
 }
+
+/// The name of the robot loop's thread (as the OS shows it, e.g. in
+/// `/proc/<pid>/task/<tid>/comm`): how a front end finds the thread to give
+/// it a real-time priority.
+pub const ROBOT_THREAD_NAME: &str = "firelink-robot";
 
 /// A robot service running in its own thread.
 pub struct Service {
@@ -1411,7 +1423,7 @@ fn spawn<P: Injector + Send + 'static>(
     let (robot, shared) = prepare(port, name, &options)?;
     let loop_shared = Arc::clone(&shared);
     let handle = std::thread::Builder::new()
-        .name("firelink-robot".into())
+        .name(ROBOT_THREAD_NAME.into())
         .spawn(move || run(robot, loop_shared, options))?;
     Ok((shared, handle))
 }

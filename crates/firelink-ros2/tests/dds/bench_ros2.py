@@ -8,7 +8,11 @@ cycle with ROS 2 attached and without. Runs inside a network namespace it
 creates (root).
 
     FIRELINK_ROS2_BIN=target/release/firelink-ros2 python crates/firelink-ros2/tests/dds/bench_ros2.py \\
-        [--before OLD_BINARY] [--publish-hz 500] [--cost-pairs 6] [--cost-seconds 3]
+        [--before OLD_BINARY] [--no-rt-too] [--client-fifo 60] [--publish-hz 500] [--cost-pairs 6] \\
+        [--cost-seconds 3]
+
+`--no-rt-too`: the binary under test also runs with `--no-rt` (every
+thread at normal priority), to show what the real-time settings do.
 
 Latency: each binary serves two clients in turn, one streaming servo_jp at
 its own 200 Hz (arrivals at any phase of the control cycle) and one
@@ -38,18 +42,23 @@ sys.path.insert(0, os.path.dirname(__file__))
 import test_ros2 as t  # noqa: E402
 
 
+# `--client-fifo N`: the client runs under `chrt -f N` (set in main).
+CLIENT_PREFIX: list = []
+
+
 def client(ns: t.Netns, arm: str, react: bool, seconds: float) -> dict:
     env = {**os.environ, "ROS_DOMAIN_ID": "7", "CYCLONEDDS_URI":
            "<CycloneDDS><Domain><Id>7</Id></Domain></CycloneDDS>"}
     mode = ["--react"] if react else []
-    out = subprocess.run(["ip", "netns", "exec", ns.name, sys.executable, t.CLIENT, "--arm", arm,
+    out = subprocess.run(["ip", "netns", "exec", ns.name, *CLIENT_PREFIX, sys.executable, t.CLIENT, "--arm", arm,
                           "--seconds", str(seconds), *mode], capture_output=True, text=True, env=env, timeout=300)
     assert out.returncode == 0, out.stdout + out.stderr
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def with_dds(ns: t.Netns, binary: str, publish_hz: int, react: bool, seconds: float = 5.0) -> dict:
-    node = t.robot(ns, binary, publish_hz)
+def with_dds(ns: t.Netns, binary: str, publish_hz: int, react: bool, seconds: float = 5.0,
+             extra: list = ()) -> dict:
+    node = t.robot(ns, binary, publish_hz, *extra)
     try:
         result = client(ns, "PSM1", react, seconds)
     finally:
@@ -70,7 +79,13 @@ def summary(run: dict) -> dict:
         "servo_jp_sent_received_applied": [result["servo_sent"], node["servo_jp_received"], node["servo_jp_applied"]],
         "latency_us_p50_p99_max": node["servo_latency_us"],
         "transit_us_p50_p99_max": node.get("servo_transit_us"),
+        "delivery_us_p50_p99_max": node.get("servo_delivery_us"),
+        "take_us_p50_p99_max": node.get("servo_take_us"),
         "wait_us_p50_p99_max": node.get("servo_wait_us"),
+        "to_cycle_us_p50_p99_max": node.get("servo_to_cycle_us"),
+        "cycle_us_p50_p99_max": node.get("servo_cycle_us"),
+        "publish_frame_us_median_p99": node.get("publish_frame_us"),
+        "realtime": node.get("realtime"),
         "applied_by_cycle_k1_k2_later": node.get("servo_applied_by_cycle"),
         "measured_js_hz": node["measured_js_hz"],
         "measured_js_asked_hz": node.get("measured_js_asked_hz"),
@@ -119,7 +134,12 @@ def table(out: dict) -> str:
     row("servo_jp sent / received / applied", lambda r: " / ".join(map(str, r["servo_jp_sent_received_applied"])))
     row("latency p50 / p99 / max, ms", lambda r: ms(r["latency_us_p50_p99_max"]))
     row("transit p50 / p99 / max, ms", lambda r: ms(r["transit_us_p50_p99_max"] or [0, 0, 0]))
+    row("- of which DDS delivery (source to RustDDS received)",
+        lambda r: ms(r["delivery_us_p50_p99_max"] or [0, 0, 0]))
+    row("- of which the node's take (received to queued)", lambda r: ms(r["take_us_p50_p99_max"] or [0, 0, 0]))
     row("wait p50 / p99 / max, ms", lambda r: ms(r["wait_us_p50_p99_max"] or [0, 0, 0]))
+    row("- of which to the carrying cycle's start", lambda r: ms(r["to_cycle_us_p50_p99_max"] or [0, 0, 0]))
+    row("- of which that cycle up to applied", lambda r: ms(r["cycle_us_p50_p99_max"] or [0, 0, 0]))
     row("carried by k+1 / k+2 / later", lambda r: " / ".join(map(str, r["applied_by_cycle_k1_k2_later"] or [])))
     row("measured_js, Hz (% of asked)",
         lambda r: f"{r['measured_js_hz']:.1f} ({100 * r['measured_js_hz'] / (r['measured_js_asked_hz'] or 1):.1f} %)")
@@ -129,6 +149,10 @@ def table(out: dict) -> str:
     row("cycles early / on schedule / overrun",
         lambda r: " / ".join(map(str, r["cycle_starts_early_scheduled_overrun"] or [])))
     row("robot thread CPU per cycle, median us", lambda r: f"{(r['busy_cpu_us_median_p99'] or [0])[0]:.1f}")
+    row("node: one frame published, median / p99 us",
+        lambda r: " / ".join(f"{u:.0f}" for u in (r["publish_frame_us_median_p99"] or [])))
+    row("real-time settings applied", lambda r: "" if r["realtime"] is None else
+        ("yes" if r["realtime"]["applied"] else ("no" if r["realtime"]["requested"] else "off (--no-rt)")))
     cost = out.get("cost")
     text = "\n".join(lines)
     if cost:
@@ -143,22 +167,31 @@ def table(out: dict) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--before", help="an earlier firelink-ros2 binary, run the same way first")
+    parser.add_argument("--no-rt-too", action="store_true",
+                        help="also run the binary under test with --no-rt (every thread at normal priority)")
+    parser.add_argument("--client-fifo", type=int, metavar="PRIORITY",
+                        help="run the Python client under chrt -f PRIORITY (a real-time client: its own "
+                             "send jitter, which counts in transit, then does not wait behind other work)")
     parser.add_argument("--publish-hz", type=int, default=500)
     parser.add_argument("--cost-pairs", type=int, default=6, help="interleaved with/without runs (0: none)")
     parser.add_argument("--cost-seconds", type=float, default=3.0)
     args = parser.parse_args()
     with open("/proc/loadavg") as f:
         load = f.read().split()[:3]
-    out = {"publish_hz": args.publish_hz, "loadavg_at_start": load, "runs": {}}
+    out = {"publish_hz": args.publish_hz, "client_fifo": args.client_fifo, "loadavg_at_start": load, "runs": {}}
+    if args.client_fifo:
+        CLIENT_PREFIX[:] = ["chrt", "-f", str(args.client_fifo)]
     ns = t.Netns()
     try:
         ns.run("ip", "link", "set", "lo", "up")
         ns.multicast_on("lo")
-        binaries = ([("before", args.before)] if args.before else []) + [("after", t.BIN)]
-        for label, binary in binaries:
+        binaries = ([("before", args.before, [])] if args.before else []) + \
+            ([("after --no-rt", t.BIN, ["--no-rt"])] if args.no_rt_too else []) + [("after", t.BIN, [])]
+        for label, binary, extra in binaries:
             for mode, react in (("stream 200 Hz", False), ("react", True)):
                 print(f"{label}: {mode}", file=sys.stderr, flush=True)
-                out["runs"][f"{label}: {mode}"] = summary(with_dds(ns, binary, args.publish_hz, react))
+                out["runs"][f"{label}: {mode}"] = summary(with_dds(ns, binary, args.publish_hz, react,
+                                                                   extra=extra))
         if args.cost_pairs > 0:
             out["cost"] = cost_pairs(ns, t.BIN, args.publish_hz, args.cost_pairs, args.cost_seconds)
     finally:

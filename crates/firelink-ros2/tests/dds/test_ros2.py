@@ -48,9 +48,9 @@ class Netns:
         subprocess.run(["ip", "netns", "delete", self.name], check=False)
 
 
-def robot(ns: Netns, binary: str = BIN, publish_hz: int = 500) -> subprocess.Popen:
+def robot(ns: Netns, binary: str = BIN, publish_hz: int = 500, *extra: str) -> subprocess.Popen:
     env = {**os.environ, "ROS_DOMAIN_ID": "7"}
-    proc = ns.popen(binary, "--port", "sim", "--rate", "1000", "--publish-hz", str(publish_hz),
+    proc = ns.popen(binary, "--port", "sim", "--rate", "1000", "--publish-hz", str(publish_hz), *extra,
                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     line = proc.stdout.readline()
     assert line.strip() == "firelink ros2: ready", line + proc.stderr.read()
@@ -105,6 +105,17 @@ def check_handoff(report: dict) -> None:
     assert report["wakes_ready_timeout"][0] > 0, report
 
 
+def check_realtime(report: dict) -> None:
+    """Root (which these tests need) may use SCHED_FIFO: by default every
+    thread on a servo point's path got its priority and nothing was
+    refused (the report names each thread and what it got)."""
+    rt = report["realtime"]
+    assert rt["requested"] and rt["applied"] and rt["memory_locked"], rt
+    assert sorted(t["thread"] for t in rt["threads"]) == ["dds_event_loop", "node", "robot_loop"], rt
+    assert all(t["sched_fifo"] == {"robot_loop": 80, "dds_event_loop": 75, "node": 70}[t["thread"]]
+               for t in rt["threads"]), rt
+
+
 def test_a_cyclone_client_enables_homes_and_servos_an_arm():
     ns = Netns()
     try:
@@ -122,6 +133,7 @@ def test_a_cyclone_client_enables_homes_and_servos_an_arm():
         assert report["refused"] >= 1, report
         assert report["measured_js_hz"] > 0, report
         check_handoff(report)
+        check_realtime(report)
         Path(os.environ.get("ROS2_REPORT", "target/ros2-report.json")).write_text(json.dumps({"client": result, "node": report}, indent=1))
     finally:
         ns.delete()
@@ -139,7 +151,8 @@ def test_across_machines_robot_and_client_in_two_namespaces():
             ns.run("ip", "addr", "add", addr, "dev", dev)
             ns.run("ip", "link", "set", dev, "up")
             ns.multicast_on(dev)
-        node = robot(robot_ns)
+        # Every thread at normal priority (--no-rt): the same behaviour.
+        node = robot(robot_ns, BIN, 500, "--no-rt")
         try:
             # This client answers each measured_js sample with a servo_jp.
             result = client(client_ns, "MTMR", react=True)
@@ -147,6 +160,8 @@ def test_across_machines_robot_and_client_in_two_namespaces():
             report = stop(node)
         check(result, 7)
         check_handoff(report)
+        assert report["realtime"] == {"requested": False, "applied": False, "memory_locked": False,
+                                      "threads": [], "errors": []}, report
     finally:
         robot_ns.delete()
         client_ns.delete()
