@@ -77,6 +77,7 @@ pub(crate) fn run_demo_json(
         port: parse_port_spec(py, &port)?,
         firmware,
         fault,
+        faults: None,
         pacing,
         watchdog,
         udp_wait: WaitMode::Blocking,

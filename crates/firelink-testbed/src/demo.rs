@@ -8,6 +8,16 @@
 //! ([`DemoOptions`]) and what to do with progress ([`DemoProgress`]); the
 //! report serialises to the JSON `firelink demo --json` prints, and
 //! [`DemoReport::verdict`] says whether the run did what it was asked.
+//!
+//! Faults are a plan ([`FaultScript`]): a named preset ([`DemoFault`],
+//! `--fault NAME`) or a script of the caller's (`--faults SCRIPT`), applied
+//! by the port's [`FaultTarget`] (the rig's on `sim`, the emulator's on
+//! `emulate`, the host's side on any other link) when the servo loop
+//! reaches each entry's moment. In the demo, `start` is the first cycle of
+//! the motion (after homing), `cycle=N` counts the motion's cycles from
+//! there, and the fault moment (`t=` counts from it) is half way through
+//! the motion. Following error, a motion fault rather than a wire fault,
+//! is the demo's own.
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -17,8 +27,7 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 
 use firelink_board::config::Profile;
-use firelink_bus::NodeHandle;
-use firelink_bus::fault::{FaultPlan, PacketFault, PacketMatch, TimedFault};
+use firelink_bus::SimDuration;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{
     CycleTimes, Pacing, Percentiles, Robot, RobotSettings, RunnerError,
@@ -27,31 +36,39 @@ use firelink_control::trajectory::{Motion, PointToPoint, Sinusoid};
 use firelink_control::{FaultKind, FaultReport};
 use firelink_host::io::{IoOptions, IoStats, IoSystem};
 use firelink_host::scan::{Protocol, ScanReport};
-use firelink_host::sim::SimPort;
 use firelink_host::stop::StopRequest;
-use firelink_host::udp::{UdpPort, WaitMode};
+use firelink_host::udp::WaitMode;
 use firelink_host::{Port, PowerDown, RobotIo, WatchdogSetting};
 use firelink_wire::packet::Tcode;
 
 use crate::TestbedError;
+use crate::fault_script::{
+    BoardFault, FaultMoment, FaultScript, FaultTarget, Occurrence, PacketEffect, PacketSelector,
+    ScriptEntry, ScriptedFault,
+};
 pub use crate::port_spec::PortSpec;
 use crate::ports::{self, PortOptions};
 use crate::rig;
 
-/// The fault the demo injects half way through its motion.
+/// The fault the demo injects half way through its motion: a named preset
+/// whose wire and host part is a [`FaultScript`] ([`DemoFault::script`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum DemoFault {
     /// No fault: the run must end without one.
     #[default]
     None,
-    /// The host stops sending for three watchdog periods.
+    /// The host stops sending for three watchdog periods
+    /// (`host-pause@t=0us:for=...`).
     StopHost,
-    /// The next broadcast query is corrupted on the wire.
+    /// The next broadcast query is corrupted on the wire
+    /// (`corrupt@t=0us:tcode=0x0,offset=0x1800,count=1`).
     CorruptQuery,
-    /// Board 4 stops answering for good (PSM1's first board in seed 000's
-    /// dVRK; the ECM's DQLA in `configs/dvrk-dqla-rev9.json`).
+    /// Board 4 stops answering for good (`mute@t=0us:id=4`; PSM1's first
+    /// board in seed 000's dVRK; the ECM's DQLA in
+    /// `configs/dvrk-dqla-rev9.json`).
     BoardLoss,
-    /// Joint 0's setpoint jumps further than it can follow.
+    /// Joint 0's setpoint jumps further than it can follow (a motion
+    /// fault, not a wire fault: no script).
     FollowingError,
 }
 
@@ -74,6 +91,29 @@ impl DemoFault {
             DemoFault::BoardLoss => "board-loss",
             DemoFault::FollowingError => "following-error",
         }
+    }
+
+    /// Its wire and host faults, all at the fault moment; `watchdog` is the
+    /// boards' period (a stopped host stays silent for three of them).
+    pub fn script(self, watchdog: Duration) -> FaultScript {
+        let now = FaultMoment::After(SimDuration::ZERO);
+        let fault = match self {
+            DemoFault::None | DemoFault::FollowingError => return FaultScript::new(),
+            DemoFault::StopHost => ScriptedFault::HostPause(watchdog * 3),
+            // The broadcast query: a quadlet write to the hub's query
+            // register.
+            DemoFault::CorruptQuery => ScriptedFault::Packets {
+                effect: PacketEffect::Corrupt,
+                select: PacketSelector {
+                    tcode: Some(Tcode::WriteQuadletRequest),
+                    dest: None,
+                    offset: Some(0x1800),
+                },
+                occurrence: Occurrence::Count(1),
+            },
+            DemoFault::BoardLoss => ScriptedFault::Board(BoardFault::Mute(LOST_BOARD)),
+        };
+        FaultScript::new().with(now, fault)
     }
 }
 
@@ -130,8 +170,11 @@ pub struct DemoOptions {
     /// Firmware of the emulated boards (sim, emulate; `sim:N:FW` names its
     /// own).
     pub firmware: Profile,
-    /// The fault to inject half way.
+    /// The fault to inject half way (a named preset).
     pub fault: DemoFault,
+    /// A fault script instead of the preset (`--faults`; `fault` must then
+    /// be [`DemoFault::None`]).
+    pub faults: Option<FaultScript>,
     /// Pacing; `None`: the port's default.
     pub pacing: Option<Pacing>,
     /// Board watchdog.
@@ -150,6 +193,7 @@ impl Default for DemoOptions {
             port: PortSpec::SIM,
             firmware: Profile::Rev8,
             fault: DemoFault::None,
+            faults: None,
             pacing: None,
             watchdog: WatchdogSetting::default(),
             udp_wait: WaitMode::Blocking,
@@ -194,8 +238,9 @@ pub enum DemoProgress {
         /// Errors so far.
         errors: u64,
     },
-    /// The fault is being injected.
-    Injecting(DemoFault),
+    /// The fault is being injected: the preset's name, or the script's
+    /// entries now due.
+    Injecting(String),
     /// The robot faulted.
     Fault(String),
     /// After the fault: the state and whether any amplifier is on.
@@ -408,8 +453,9 @@ pub struct DemoReport {
     pub errors: ErrorCounts,
     /// Watchdog.
     pub watchdog: WatchdogReport,
-    /// The fault injected.
-    pub fault_injected: &'static str,
+    /// The fault injected: the preset's name (`none` for none), or the
+    /// script's text.
+    pub fault_injected: String,
     /// The fault the robot raised, if any.
     pub fault: Option<FaultSummary>,
     /// State at the end of the motion.
@@ -588,101 +634,6 @@ impl fmt::Display for DemoReport {
 /// (`configs/dvrk-dqla-rev9.json`).
 const LOST_BOARD: u8 = 4;
 
-/// Fault injection on a port: what each [`DemoFault`] does there (the
-/// simulated bus can do all of them; over UDP the
-/// bus is in another process, so only a stopped host and a following
-/// error).
-pub trait Injector: Port {
-    /// Inject `fault`; `watchdog` is the boards' period (a stopped host
-    /// stays silent for three of them).
-    ///
-    /// # Errors
-    /// [`TestbedError::Config`] when this port cannot inject `fault`.
-    fn inject(&mut self, fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError>;
-}
-
-impl Injector for SimPort {
-    fn inject(&mut self, fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError> {
-        match fault {
-            DemoFault::StopHost => self.wait(watchdog * 3),
-            DemoFault::CorruptQuery => {
-                let m = PacketMatch::any()
-                    .tcode(Tcode::WriteQuadletRequest)
-                    .offset(0x1800);
-                self.bus_mut().set_fault_plan(FaultPlan::new().once(
-                    m,
-                    PacketFault::CorruptQuadlet {
-                        index: 3,
-                        xor: 0x0100_0000,
-                    },
-                ));
-            }
-            DemoFault::BoardLoss => {
-                let now = self.bus().now();
-                // Every board node's name ends in its board ID (`board4`,
-                // `board 4`, `snake 4`); the PC's has no number.
-                let is_lost = |name: &str| {
-                    let digits = name.trim_start_matches(|c: char| !c.is_ascii_digit());
-                    !digits.is_empty() && digits.parse::<u8>() == Ok(LOST_BOARD)
-                };
-                let node = (0..self.bus().len())
-                    .map(NodeHandle)
-                    .find(|&h| self.bus().name(h).is_some_and(is_lost))
-                    .ok_or_else(|| {
-                        TestbedError::Config(format!(
-                            "fault board-loss: no board {LOST_BOARD} on this bus"
-                        ))
-                    })?;
-                self.bus_mut().set_fault_plan(FaultPlan::new().at(
-                    now,
-                    TimedFault::StopAnswering {
-                        node,
-                        duration: None,
-                    },
-                ));
-            }
-            DemoFault::None | DemoFault::FollowingError => {}
-        }
-        Ok(())
-    }
-}
-
-/// A fault on a port whose bus the host cannot reach into (UDP, FireWire):
-/// a stopped host sleeps on the wall clock; a corrupted query and a lost
-/// board need the simulated bus.
-fn inject_from_outside(fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError> {
-    match fault {
-        DemoFault::StopHost => std::thread::sleep(watchdog * 3),
-        DemoFault::CorruptQuery | DemoFault::BoardLoss => {
-            return Err(TestbedError::Config(format!(
-                "fault {} needs the sim port (the bus is in another process)",
-                fault.name()
-            )));
-        }
-        DemoFault::None | DemoFault::FollowingError => {}
-    }
-    Ok(())
-}
-
-impl Injector for UdpPort {
-    fn inject(&mut self, fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError> {
-        inject_from_outside(fault, watchdog)
-    }
-}
-
-impl Injector for firelink_host::eth::UdpNetPort {
-    fn inject(&mut self, fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError> {
-        inject_from_outside(fault, watchdog)
-    }
-}
-
-#[cfg(target_os = "linux")]
-impl Injector for firelink_host::firewire::FirewirePort {
-    fn inject(&mut self, fault: DemoFault, watchdog: Duration) -> Result<(), TestbedError> {
-        inject_from_outside(fault, watchdog)
-    }
-}
-
 /// The demo's motions: on every arm, even joints follow a sinusoid (10 %
 /// of the joint's range, 0.4 to 0.7 Hz), odd joints move point to point by
 /// 5 %, from `here`.
@@ -765,18 +716,24 @@ pub fn run_demo_until(
     let config = &options.config;
     // Boards 0..=the highest board ID the configuration uses.
     let boards = config.board_slots();
-    let pacing = options
-        .pacing
-        .unwrap_or_else(|| options.port.default_pacing());
+    if options.fault != DemoFault::None && options.faults.is_some() {
+        return Err(TestbedError::Config(format!(
+            "fault {} and a fault script: give one of the two",
+            options.fault
+        )));
+    }
+    // Any other link: only what the host's side can do.
+    let link = FaultTarget::link();
     match &options.port {
         PortSpec::Sim(_) => {
             let boards = ports::sim_boards(&options.port, config, options.firmware);
-            let (port, _) = rig::sim_port(boards, false)?;
+            let rig = rig::RigBuilder::qla(boards).build()?;
+            let target = rig.fault_target();
             run_robot(
-                port,
+                rig.sim_port(),
+                &target,
                 options,
                 "sim".into(),
-                pacing,
                 stop,
                 realtime,
                 &mut progress,
@@ -786,7 +743,15 @@ pub fn run_demo_until(
             let emu = rig::Emulator::start(rig::board_configs(config, options.firmware, boards))?;
             let name = format!("udp:{} (in-process firelink emulate)", emu.addr);
             let port = emu.port_with(options.udp_wait)?;
-            let report = run_robot(port, options, name, pacing, stop, realtime, &mut progress);
+            let report = run_robot(
+                port,
+                &emu.fault_target(),
+                options,
+                name,
+                stop,
+                realtime,
+                &mut progress,
+            );
             emu.stop()?;
             report
         }
@@ -794,36 +759,46 @@ pub fn run_demo_until(
             let force_bridge = matches!(options.port, PortSpec::UdpFw(_));
             let port = rig::net_port_with(*addr, force_bridge, options.udp_wait)?;
             let name = port.name().to_string();
-            run_robot(port, options, name, pacing, stop, realtime, &mut progress)
+            run_robot(port, &link, options, name, stop, realtime, &mut progress)
         }
         PortSpec::Fw(card) => {
             let port = ports::fw_port(*card, &PortOptions::default())?;
             let name = options.port.to_string();
-            run_robot(port, options, name, pacing, stop, realtime, &mut progress)
+            run_robot(port, &link, options, name, stop, realtime, &mut progress)
         }
     }
 }
 
 /// What the demo needs of a robot's I/O beyond the abstract robot I/O
-/// ([`RobotIo`]): the port, where faults are injected, and what the
-/// report names. QLA boards ([`IoSystem`]) and seed 001's Snake nodes
+/// ([`RobotIo`]): the port, on which its [`FaultTarget`] applies faults,
+/// the boards found, and what the report names. QLA boards ([`IoSystem`])
+/// and seed 001's Snake nodes
 /// ([`SnakeSystem`](firelink_host::snake::SnakeSystem)) both run the same
 /// demo ([`run_program`]).
 pub trait DemoIo: RobotIo {
     /// The port the I/O system talks through.
-    type Port: Injector;
-    /// The port, to inject faults.
-    fn injector(&mut self) -> &mut Self::Port;
+    type Port: Port + 'static;
+    /// The port, to apply faults on.
+    fn port_mut(&mut self) -> &mut Self::Port;
+    /// Each board found: its board ID and node (for a link filter's
+    /// `dest=`).
+    fn board_nodes(&self) -> Vec<(u8, u8)>;
     /// Firmware of the first board.
     fn firmware(&self) -> Option<u32>;
     /// The I/O protocol's name.
     fn protocol(&self) -> String;
 }
 
-impl<P: Injector> DemoIo for IoSystem<P> {
+impl<P: Port + 'static> DemoIo for IoSystem<P> {
     type Port = P;
-    fn injector(&mut self) -> &mut P {
-        self.port_mut()
+    fn port_mut(&mut self) -> &mut P {
+        IoSystem::port_mut(self)
+    }
+    fn board_nodes(&self) -> Vec<(u8, u8)> {
+        IoSystem::boards(self)
+            .iter()
+            .map(|b| (b.info().board_id, b.info().node))
+            .collect()
     }
     fn firmware(&self) -> Option<u32> {
         IoSystem::boards(self).first().map(|b| b.info().firmware)
@@ -845,16 +820,20 @@ fn tick<R: RobotIo>(r: &Robot<R>) -> DemoProgress {
     }
 }
 
-/// Run the demo on any injectable port.
-fn run_robot<P: Injector>(
+/// Run the demo on any port (paced as `options` say, else as the port's
+/// default), its faults applied by `target`.
+fn run_robot<P: Port + 'static>(
     port: P,
+    target: &FaultTarget,
     options: &DemoOptions,
     port_name: String,
-    pacing: Pacing,
     stop: &StopRequest,
     realtime: Option<&dyn Fn() -> RealtimeStatus>,
     progress: &mut dyn FnMut(DemoProgress),
 ) -> Result<DemoReport, TestbedError> {
+    let pacing = options
+        .pacing
+        .unwrap_or_else(|| options.port.default_pacing());
     let rt = realtime_status(pacing, realtime);
     let wall = Instant::now();
     let (mut robot, plan) = open_robot(port, options, pacing, |io, scan| {
@@ -866,14 +845,14 @@ fn run_robot<P: Injector>(
         });
     })?;
     robot.set_stop_request(stop.clone());
-    let done = run_program(robot, &plan, port_name, rt, wall, progress)?;
+    let done = run_program(robot, &plan, target, port_name, rt, wall, progress)?;
     Ok(done.report)
 }
 
 /// Scan `port`, set up its boards for `options`' protocol (`found` is
 /// told what the scan found) and make the robot of `options`' plan with
 /// `pacing`.
-pub(crate) fn open_robot<'a, P: Injector>(
+pub(crate) fn open_robot<'a, P: Port>(
     port: P,
     options: &'a DemoOptions,
     pacing: Pacing,
@@ -892,6 +871,7 @@ pub(crate) fn open_robot<'a, P: Injector>(
         rate_hz: options.rate_hz,
         duration_s: options.duration_s,
         fault: options.fault,
+        script: options.faults.as_ref(),
         watchdog: options.watchdog,
         pacing,
     };
@@ -908,15 +888,45 @@ pub struct DemoPlan<'a> {
     pub rate_hz: f64,
     /// Seconds of motion after homing.
     pub duration_s: f64,
-    /// The fault to inject half way.
+    /// The fault to inject half way (a named preset).
     pub fault: DemoFault,
+    /// A fault script instead of the preset.
+    pub script: Option<&'a FaultScript>,
     /// Board watchdog.
     pub watchdog: WatchdogSetting,
     /// Pacing.
     pub pacing: Pacing,
 }
 
+/// What a plan breaks: its name in reports and progress, its script, and
+/// whether joint 0's setpoint jumps at the fault moment.
+struct PlannedFaults {
+    name: String,
+    /// Whether `name` is a preset's (else the script's text).
+    preset: bool,
+    script: FaultScript,
+    following_error: bool,
+}
+
 impl DemoPlan<'_> {
+    /// The script the plan applies, and its name.
+    fn faults(&self) -> PlannedFaults {
+        match self.script {
+            Some(script) if !script.is_empty() => PlannedFaults {
+                name: script.to_string(),
+                preset: false,
+                script: script.clone(),
+                following_error: false,
+            },
+            _ => PlannedFaults {
+                name: self.fault.name().into(),
+                preset: true,
+                script: self.fault.script(self.watchdog.period_or_zero()),
+                following_error: self.fault == DemoFault::FollowingError,
+            },
+        }
+    }
+
     /// The servo settings of the plan.
     pub fn settings(&self) -> RobotSettings {
         RobotSettings {
@@ -940,27 +950,31 @@ pub struct DemoRun {
 }
 
 /// Run the demo with a servo program on its boards: configure, power on,
-/// home, move every joint, inject the plan's fault half way, power off,
-/// report. `wall` is when the run started (for the wall time).
+/// home, move every joint, apply the plan's faults (`target` applies them
+/// on the port) at their moments, power off, report. `wall` is when the
+/// run started (for the wall time).
 ///
 /// # Errors
-/// The program failed outside a cycle; the fault could not be injected on
-/// this port.
+/// The program failed outside a cycle; a fault `target` cannot apply on
+/// this port (refused before the boards are touched).
 pub fn run_program<R: DemoIo>(
     mut robot: Robot<R>,
     plan: &DemoPlan<'_>,
+    target: &FaultTarget,
     port_name: String,
     rt: RealtimeStatus,
     wall: Instant,
     progress: &mut dyn FnMut(DemoProgress),
 ) -> Result<DemoRun, TestbedError> {
+    let faults = plan.faults();
+    target.check(&faults.script, &port_name)?;
     if plan.watchdog.is_off() {
         progress(DemoProgress::WatchdogOff);
     }
     let mut setup_cycles = 0;
     let ran = bring_up(&mut robot, plan.config, progress).and_then(|()| {
         setup_cycles = robot.cycles();
-        run_motion(&mut robot, plan, progress)
+        run_motion(&mut robot, plan, &faults, target, progress)
     });
     let fault = match ran {
         Ok(fault) => fault,
@@ -990,7 +1004,7 @@ pub fn run_program<R: DemoIo>(
         power_down,
     };
     Ok(DemoRun {
-        report: demo_report(&robot, plan, run),
+        report: demo_report(&robot, plan, &faults.name, run),
         times: robot.times().clone(),
         setup_cycles,
     })
@@ -1021,33 +1035,66 @@ pub(crate) fn bring_up<R: DemoIo>(
     Ok(())
 }
 
-/// The plan's motion, its fault injected half way; a fault ends the motion
-/// and is followed by cycles in Fault (twice the watchdog period) so that
-/// the safety chain can act. Returns the fault, if one happened.
+/// The plan's motion, its faults applied at their moments (`start`: the
+/// motion's first cycle; `cycle=N`: N cycles into the motion; `t=`: from
+/// the fault moment, half way); a fault ends the motion and is followed by
+/// cycles in Fault (twice the watchdog period) so that the safety chain
+/// can act. Returns the fault, if one happened.
 fn run_motion<R: DemoIo>(
     robot: &mut Robot<R>,
     plan: &DemoPlan<'_>,
+    faults: &PlannedFaults,
+    target: &FaultTarget,
     progress: &mut dyn FnMut(DemoProgress),
 ) -> Result<Option<FaultReport>, TestbedError> {
-    let (pacing, rate, inject) = (plan.pacing, plan.rate_hz, plan.fault);
+    let (pacing, rate) = (plan.pacing, plan.rate_hz);
     let watchdog = plan.watchdog.period_or_zero();
     let total = (plan.duration_s * rate).round() as u64;
     let every = (rate / 4.0).max(1.0) as u64;
-    let half = total / 2;
-    let first = if inject == DemoFault::None {
-        total
-    } else {
-        half
-    };
-    let mut outcome = robot.run(first, pacing, every, |r| progress(tick(r)));
-    if outcome.is_ok() && inject != DemoFault::None {
-        progress(DemoProgress::Injecting(inject));
-        robot.io_mut().injector().inject(inject, watchdog)?;
-        if inject == DemoFault::FollowingError {
+    let stops = fault_stops(faults, total);
+    let mut outcome = Ok(());
+    let mut done = 0;
+    for &(cycle, moment) in &stops {
+        if cycle > done {
+            outcome = robot.run(cycle - done, pacing, every, |r| progress(tick(r)));
+            done = cycle;
+        }
+        if outcome.is_err() {
+            break;
+        }
+        let due: Vec<&ScriptEntry> = faults
+            .script
+            .entries
+            .iter()
+            .filter(|e| match e.at {
+                FaultMoment::Start => cycle == 0 && !moment,
+                FaultMoment::Cycle(n) => n == cycle && !moment,
+                FaultMoment::After(_) => moment,
+            })
+            .collect();
+        let following_error = moment && faults.following_error;
+        if due.is_empty() && !following_error {
+            continue;
+        }
+        progress(DemoProgress::Injecting(if faults.preset {
+            faults.name.clone()
+        } else {
+            due.iter()
+                .map(|e| e.to_string())
+                .collect::<Vec<_>>()
+                .join(";")
+        }));
+        let nodes = robot.io().board_nodes();
+        for entry in due {
+            target.apply(entry, robot.io_mut().port_mut(), &nodes)?;
+        }
+        if following_error {
             // A setpoint jump the joint cannot follow within the grace time.
             let _ = robot.step_setpoint(0, 0.5);
         }
-        outcome = robot.run(total - half, pacing, every, |r| progress(tick(r)));
+    }
+    if outcome.is_ok() && total > done {
+        outcome = robot.run(total - done, pacing, every, |r| progress(tick(r)));
     }
     match outcome {
         Ok(()) => Ok(None),
@@ -1068,6 +1115,35 @@ fn run_motion<R: DemoIo>(
         }
         Err(e) => Err(e.into()),
     }
+}
+
+/// The motion cycles at which faults are due, in order: (cycle, whether it
+/// is the fault moment, half way). Entries at or after the motion's end
+/// never come.
+fn fault_stops(faults: &PlannedFaults, total: u64) -> Vec<(u64, bool)> {
+    let mut stops: Vec<(u64, bool)> = faults
+        .script
+        .entries
+        .iter()
+        .filter_map(|e| match e.at {
+            FaultMoment::Start => Some(0),
+            FaultMoment::Cycle(n) => (n < total).then_some(n),
+            FaultMoment::After(_) => None,
+        })
+        .map(|c| (c, false))
+        .collect();
+    let at_moment = faults.following_error
+        || faults
+            .script
+            .entries
+            .iter()
+            .any(|e| matches!(e.at, FaultMoment::After(_)));
+    if at_moment {
+        stops.push((total / 2, true));
+    }
+    stops.sort_unstable();
+    stops.dedup();
+    stops
 }
 
 /// The robot's state right after the motion, before shutdown.
@@ -1113,7 +1189,12 @@ struct FinishedRun {
 }
 
 /// The demo's report of a finished run.
-fn demo_report<R: DemoIo>(robot: &Robot<R>, plan: &DemoPlan<'_>, run: FinishedRun) -> DemoReport {
+fn demo_report<R: DemoIo>(
+    robot: &Robot<R>,
+    plan: &DemoPlan<'_>,
+    fault_name: &str,
+    run: FinishedRun,
+) -> DemoReport {
     let times = robot.times();
     let (mut c, mut io, mut comp) = (
         times.cycle_us.clone(),
@@ -1173,7 +1254,7 @@ fn demo_report<R: DemoIo>(robot: &Robot<R>, plan: &DemoPlan<'_>, run: FinishedRu
             expired_boards: run.after.expired,
             unknown_boards: run.after.silent.clone(),
         },
-        fault_injected: plan.fault.name(),
+        fault_injected: fault_name.to_string(),
         fault: run.fault.as_ref().map(FaultSummary::from),
         state_after_run: run.after.state,
         amplifiers_on_after_fault: run.fault.map(|_| run.after.amplifiers_on),

@@ -58,7 +58,8 @@ use std::thread::JoinHandle;
 use firelink_board::config::Profile;
 
 use crate::cycle_schedule::{CycleSchedule, Due};
-use crate::demo::{DemoFault, Injector, motion_for};
+use crate::demo::{DemoFault, DemoIo, motion_for};
+use crate::fault_script::FaultTarget;
 use crate::port_spec::PortSpec;
 use crate::rig;
 
@@ -585,6 +586,10 @@ pub struct LoopOptions {
     /// `Virtual` on the simulated bus (then paced to the wall clock by the
     /// loop so the browser sees real time), `WallClock` over UDP.
     pub pacing: Pacing,
+    /// Who applies an injected fault's script on the port (the rig's on
+    /// `sim`, the emulator's on `emulate`; [`FaultTarget::link`] for any
+    /// other port).
+    pub faults: FaultTarget,
 }
 
 /// Open the I/O system and the robot on `port`, size the frame pool and
@@ -592,7 +597,7 @@ pub struct LoopOptions {
 ///
 /// # Errors
 /// The scan or the configuration failed.
-pub fn prepare<P: Injector>(
+pub fn prepare<P: firelink_host::Port + 'static>(
     port: P,
     port_name: String,
     options: &LoopOptions,
@@ -722,7 +727,10 @@ fn runner(e: RunnerError) -> Refusal {
 
 /// Why powering anything is refused in `robot`'s state, if it is:
 /// `needs` says what the command needs ("power on needs ...").
-fn power_refusal<P: Injector>(robot: &Robot<IoSystem<P>>, what: &str) -> Option<Refusal> {
+fn power_refusal<P: firelink_host::Port + 'static>(
+    robot: &Robot<IoSystem<P>>,
+    what: &str,
+) -> Option<Refusal> {
     match robot.state() {
         State::Configured | State::Active => None,
         State::Unconfigured => Some(refused(format!(
@@ -736,14 +744,14 @@ fn power_refusal<P: Injector>(robot: &Robot<IoSystem<P>>, what: &str) -> Option<
 }
 
 /// The boards found, as a set.
-fn all_boards<P: Injector>(robot: &Robot<IoSystem<P>>) -> BoardSet {
+fn all_boards<P: firelink_host::Port + 'static>(robot: &Robot<IoSystem<P>>) -> BoardSet {
     robot.io().boards().iter().map(|b| b.board_id()).collect()
 }
 
 /// Cycle (publishing every frame) until `done` says so, at most half a
 /// second of the robot's cycles; a fault on the way is latched and shown
 /// in the frames like any other.
-fn settle<P: Injector>(
+fn settle<P: firelink_host::Port + 'static>(
     robot: &mut Robot<IoSystem<P>>,
     shared: &Shared,
     options: &LoopOptions,
@@ -766,7 +774,7 @@ const SETTLE_SECONDS: f64 = 0.5;
 
 /// Boards of `set` that answered the last latch with `state` wrong, as a
 /// mask (the ones that did not answer included).
-fn boards_not<P: Injector>(
+fn boards_not<P: firelink_host::Port + 'static>(
     robot: &Robot<IoSystem<P>>,
     set: BoardSet,
     ok: impl Fn(&firelink_host::board::BoardIo) -> bool,
@@ -780,7 +788,7 @@ fn boards_not<P: Injector>(
         .fold(0, |m, b| m | 1 << (b.board_id() & 0xF))
 }
 
-fn execute<P: Injector>(
+fn execute<P: firelink_host::Port + 'static>(
     robot: &mut Robot<IoSystem<P>>,
     shared: &Shared,
     command: Command,
@@ -902,11 +910,11 @@ fn execute<P: Injector>(
             Ok(String::new())
         }
         Command::Inject(fault) => {
-            let watchdog = options.watchdog.period_or_zero();
-            robot
-                .io_mut()
-                .port_mut()
-                .inject(fault, watchdog)
+            let script = fault.script(options.watchdog.period_or_zero());
+            let nodes = robot.io().board_nodes();
+            options
+                .faults
+                .apply_all(&script, robot.io_mut().port_mut(), &nodes)
                 .map_err(|e| refused(e.to_string()))?;
             if fault == DemoFault::FollowingError {
                 robot.step_setpoint(0, 0.5).map_err(runner)?;
@@ -917,7 +925,7 @@ fn execute<P: Injector>(
 }
 
 /// Close the relay of the robot's boards and wait until they report it closed.
-fn relay_on<P: Injector>(
+fn relay_on<P: firelink_host::Port + 'static>(
     robot: &mut Robot<IoSystem<P>>,
     shared: &Shared,
     options: &LoopOptions,
@@ -948,7 +956,7 @@ fn relay_on<P: Injector>(
 }
 
 /// Open the relay of every board and wait until they report it open.
-fn relay_off<P: Injector>(
+fn relay_off<P: firelink_host::Port + 'static>(
     robot: &mut Robot<IoSystem<P>>,
     shared: &Shared,
     options: &LoopOptions,
@@ -969,7 +977,7 @@ fn relay_off<P: Injector>(
 }
 
 /// Turn on the amplifiers of the axes the joints use, watched cycle by cycle.
-fn amplifiers_on<P: Injector>(
+fn amplifiers_on<P: firelink_host::Port + 'static>(
     robot: &mut Robot<IoSystem<P>>,
     shared: &Shared,
     robot_boards: BoardSet,
@@ -993,7 +1001,7 @@ fn amplifiers_on<P: Injector>(
 }
 
 /// Turn every amplifier off and wait until every board reports them off.
-fn amplifiers_off<P: Injector>(
+fn amplifiers_off<P: firelink_host::Port + 'static>(
     robot: &mut Robot<IoSystem<P>>,
     shared: &Shared,
     options: &LoopOptions,
@@ -1018,7 +1026,7 @@ fn amplifiers_off<P: Injector>(
 }
 
 /// Motion commands need an Active robot whose joints are homed.
-fn ready_for_motion<P: Injector>(
+fn ready_for_motion<P: firelink_host::Port + 'static>(
     robot: &Robot<IoSystem<P>>,
     shared: &Shared,
 ) -> Result<(), Refusal> {
@@ -1035,7 +1043,7 @@ fn ready_for_motion<P: Injector>(
 }
 
 /// Joint indices and positions of a servo or move command, checked.
-fn joints<'a, P: Injector>(
+fn joints<'a, P: firelink_host::Port + 'static>(
     robot: &Robot<IoSystem<P>>,
     first: u16,
     count: u8,
@@ -1063,7 +1071,7 @@ fn joints<'a, P: Injector>(
 /// default the process's: a signal); then power down, whatever ended the
 /// loop, a panic inside it included, and record how in [`Shared::exit`].
 /// Call on the thread that owns the robot.
-pub fn run<P: Injector>(
+pub fn run<P: firelink_host::Port + 'static>(
     mut robot: Robot<IoSystem<P>>,
     shared: Arc<Shared>,
     options: LoopOptions,
@@ -1108,7 +1116,7 @@ fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
 /// The loop proper: commands between cycles, a frame after each; between
 /// cycles it sleeps until the next is due or a command is queued
 /// ([`crate::cycle_schedule`]).
-fn cycle_until_stopped<P: Injector>(
+fn cycle_until_stopped<P: firelink_host::Port + 'static>(
     robot: &mut Robot<IoSystem<P>>,
     shared: &Shared,
     options: &LoopOptions,
@@ -1192,7 +1200,7 @@ fn cycle_until_stopped<P: Injector>(
 /// loop (a slow machine, a debug build) then never fills the queue; the
 /// newest servo point of an arm wins. The traced servo points go to
 /// `traced`, with the cycle that carries them.
-fn take_commands<P: Injector>(
+fn take_commands<P: firelink_host::Port + 'static>(
     robot: &mut Robot<IoSystem<P>>,
     shared: &Shared,
     options: &LoopOptions,
@@ -1298,44 +1306,62 @@ impl Service {
     ) -> Result<Service, crate::TestbedError> {
         check_rate(rate_hz)?;
         let boards = config.board_slots();
-        let options = |pacing| LoopOptions {
+        let options = |pacing, faults| LoopOptions {
             config: config.clone(),
             rate_hz,
             watchdog,
             pacing,
+            faults,
         };
-        let all: Vec<DemoFault> = DemoFault::ALL
-            .iter()
-            .copied()
-            .filter(|f| *f != DemoFault::None)
-            .collect();
-        let remote = vec![DemoFault::StopHost, DemoFault::FollowingError];
+        // The presets whose script the port's fault target can apply.
+        let offered = |target: &FaultTarget, name: &str| -> Vec<DemoFault> {
+            DemoFault::ALL
+                .into_iter()
+                .filter(|f| *f != DemoFault::None)
+                .filter(|f| {
+                    target
+                        .check(&f.script(watchdog.period_or_zero()), name)
+                        .is_ok()
+                })
+                .collect()
+        };
         let configs = || rig::board_configs(&config, Profile::Rev8, boards);
         let (shared, thread, emulator, faults) = match port {
             PortSpec::Sim(_) => {
                 let boards = crate::ports::sim_boards(port, &config, Profile::Rev8);
-                let (port, _) = rig::sim_port(boards, false)?;
-                let (s, h) = spawn(port, "sim".into(), options(Pacing::Virtual))?;
-                (s, h, None, all)
+                let rig = rig::RigBuilder::qla(boards).build()?;
+                let target = rig.fault_target();
+                let faults = offered(&target, "sim");
+                let (s, h) = spawn(
+                    rig.sim_port(),
+                    "sim".into(),
+                    options(Pacing::Virtual, target),
+                )?;
+                (s, h, None, faults)
             }
             PortSpec::Emulate => {
                 let emu = rig::Emulator::start(configs())?;
                 let name = format!("udp:{} (in-process emulator)", emu.addr);
                 let port = emu.port()?;
-                let (s, h) = spawn(port, name, options(Pacing::WallClock))?;
-                (s, h, Some(emu), remote)
+                let target = emu.fault_target();
+                let faults = offered(&target, &name);
+                let (s, h) = spawn(port, name, options(Pacing::WallClock, target))?;
+                (s, h, Some(emu), faults)
             }
             PortSpec::Udp(addr) | PortSpec::UdpFw(addr) => {
                 let force_bridge = matches!(port, PortSpec::UdpFw(_));
                 let net = rig::net_port_with(*addr, force_bridge, Default::default())?;
                 let name = firelink_host::port::Port::name(&net).to_string();
-                let (s, h) = spawn(net, name, options(Pacing::WallClock))?;
-                (s, h, None, remote)
+                let faults = offered(&FaultTarget::link(), &name);
+                let (s, h) = spawn(net, name, options(Pacing::WallClock, FaultTarget::link()))?;
+                (s, h, None, faults)
             }
             PortSpec::Fw(card) => {
                 let fw = crate::ports::fw_port(*card, &crate::ports::PortOptions::default())?;
-                let (s, h) = spawn(fw, port.to_string(), options(Pacing::WallClock))?;
-                (s, h, None, remote)
+                let faults = offered(&FaultTarget::link(), &port.to_string());
+                let options = options(Pacing::WallClock, FaultTarget::link());
+                let (s, h) = spawn(fw, port.to_string(), options)?;
+                (s, h, None, faults)
             }
         };
         Ok(Service {
@@ -1353,7 +1379,7 @@ impl Service {
     ///
     /// # Errors
     /// A bad rate, a failed scan or configuration, the thread.
-    pub fn on_port<P: Injector + Send + 'static>(
+    pub fn on_port<P: firelink_host::Port + Send + 'static>(
         port: P,
         name: String,
         options: LoopOptions,
@@ -1415,7 +1441,7 @@ impl Drop for Service {
     }
 }
 
-fn spawn<P: Injector + Send + 'static>(
+fn spawn<P: firelink_host::Port + Send + 'static>(
     port: P,
     name: String,
     options: LoopOptions,

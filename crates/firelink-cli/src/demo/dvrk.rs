@@ -30,6 +30,7 @@ pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
         port: args.port,
         firmware: args.firmware.into(),
         fault: args.fault.into(),
+        faults: args.faults.clone(),
         pacing: args.pacing.map(Pacing::from),
         watchdog,
         udp_wait: args.udp_wait.into(),

@@ -24,6 +24,7 @@ use serde::Serialize;
 use firelink_control::config::IoConfig;
 use firelink_control::runner::Pacing;
 use firelink_testbed::demo::{DemoFault, DemoProgress, PortSpec, RealtimeStatus};
+use firelink_testbed::fault_script::FaultScript;
 
 use crate::args::{FirmwareArg, ProtocolArg, UdpWaitArg};
 use crate::error::CliError;
@@ -116,9 +117,18 @@ pub struct DemoArgs {
     /// Board firmware of the emulated boards.
     #[arg(long, value_enum, default_value_t = FirmwareArg::Rev8)]
     pub firmware: FirmwareArg,
-    /// Inject a fault half-way.
+    /// Inject a fault half-way (a named preset: its fault script).
     #[arg(long, value_enum, default_value_t = FaultArg::None)]
     pub fault: FaultArg,
+    /// Instead of --fault: faults as a plan, entries separated by `;`.
+    /// `start` is the motion's first cycle, `cycle=N` counts the motion's
+    /// cycles, `t=` counts from half way: `mute@cycle=300:id=4`,
+    /// `host-pause@t=0us:for=60000us`,
+    /// `corrupt@t=0us:tcode=0x0,offset=0x1800,count=1`,
+    /// `drop@cycle=100:dest=2,rate=0.1` (a port that cannot apply an entry
+    /// refuses it by name before the run).
+    #[arg(long = "faults", value_name = "SCRIPT", conflicts_with = "fault")]
+    pub faults: Option<FaultScript>,
     /// Pacing; default: virtual for sim, realtime over UDP.
     #[arg(long, value_enum)]
     pub pacing: Option<PacingArg>,
@@ -161,6 +171,7 @@ impl Default for DemoArgs {
             udp_wait: UdpWaitArg::Block,
             firmware: FirmwareArg::Rev8,
             fault: FaultArg::None,
+            faults: None,
             pacing: None,
             watchdog: crate::args::WatchdogSetting::default(),
             no_rt: false,

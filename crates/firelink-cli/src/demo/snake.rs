@@ -39,6 +39,7 @@ pub fn options(args: &DemoArgs) -> Result<SnakeDemoOptions, CliError> {
         duration_s: args.duration,
         port: args.port,
         fault: args.fault.into(),
+        faults: args.faults.clone(),
         pacing: args.pacing.map(Pacing::from),
         watchdog,
         find_max_rate: !args.no_rate_search,

@@ -82,6 +82,38 @@ fn demo_fault_injection_shows_the_safety_chain() {
     }
 }
 
+/// `--faults SCRIPT` takes the path of `--fault NAME`: a cycle-timed
+/// board loss is applied at its cycle and named; a script and a preset
+/// at once, and a bad script, are refused.
+#[test]
+fn demo_runs_a_fault_script() {
+    let r = json(&[
+        "demo",
+        "--duration",
+        "0.2",
+        "--faults",
+        "mute@cycle=300:id=4",
+        "--json",
+    ]);
+    assert_eq!(r["fault_injected"], "mute@cycle=300:id=4");
+    assert_eq!(r["fault"]["board"], 4, "{}", r["fault"]);
+    assert_eq!(r["amplifiers_on_after_fault"], false);
+    for args in [
+        &[
+            "demo",
+            "--fault",
+            "board-loss",
+            "--faults",
+            "mute@start:id=4",
+        ][..],
+        &["demo", "--faults", "mute@soon:id=4"][..],
+    ] {
+        let out = firelink(args);
+        assert!(!out.status.success(), "{args:?}");
+        assert!(!out.stderr.is_empty());
+    }
+}
+
 #[test]
 fn demo_rejects_bad_options() {
     for args in [

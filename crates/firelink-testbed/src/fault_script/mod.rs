@@ -5,7 +5,9 @@
 //! ([`RigBuilder::fault_script`](crate::rig::RigBuilder::fault_script));
 //! on any other port (UDP to the emulator, and whatever transport shows its
 //! packets) it becomes a link filter ([`ScriptFilter`]), so corruption and
-//! drops work there too.
+//! drops work there too. A servo loop that runs a script hands each entry,
+//! when due, to its port's [`FaultTarget`] (made by whoever built the
+//! port), which applies it there or refuses it by name.
 //!
 //! The text form is one entry per fault, `;` between entries:
 //!
@@ -32,6 +34,7 @@
 //!   text that parses to the same script.
 
 mod filter;
+pub(crate) mod target;
 
 use std::fmt;
 use std::str::FromStr;
@@ -41,6 +44,8 @@ use firelink_bus::SimDuration;
 use firelink_wire::packet::Tcode;
 
 pub use filter::{ScriptCounts, ScriptFilter, ScriptHandle};
+pub use target::FaultTarget;
+pub(crate) use target::apply_on_bus;
 
 /// A fault on one board, named by its board ID.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -81,18 +81,9 @@ fn the_docs_examples_parse() {
             fault: ScriptedFault::Board(BoardFault::Mute(4)),
         }
     );
-    assert_eq!(
-        script.entries[2].fault,
-        ScriptedFault::Packets {
-            effect: PacketEffect::Corrupt,
-            select: PacketSelector {
-                tcode: Some(Tcode::WriteQuadletRequest),
-                dest: None,
-                offset: Some(0x1800),
-            },
-            occurrence: Occurrence::Count(1),
-        }
-    );
+    // The demo's corrupt-query preset.
+    let preset = crate::demo::DemoFault::CorruptQuery.script(std::time::Duration::ZERO);
+    assert_eq!(script.entries[2].fault, preset.entries[0].fault);
     assert_eq!(
         script.entries[4],
         ScriptEntry {

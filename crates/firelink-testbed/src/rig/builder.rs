@@ -37,9 +37,8 @@ use firelink_host::sim::SimPort;
 use firelink_wire::packet::Tcode;
 
 use crate::TestbedError;
-use crate::fault_script::{
-    BoardFault, FaultMoment, FaultScript, Occurrence, PacketEffect, ScriptedFault,
-};
+use crate::fault_script::target::bus_rule;
+use crate::fault_script::{BoardFault, FaultMoment, FaultScript, FaultTarget, ScriptedFault};
 
 /// Which family of robot a rig carries.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -100,7 +99,7 @@ impl FromStr for RobotKind {
 }
 
 /// The bus's fault for a board fault on `node`.
-fn bus_fault(fault: BoardFault, node: NodeHandle) -> TimedFault {
+pub(crate) fn bus_fault(fault: BoardFault, node: NodeHandle) -> TimedFault {
     match fault {
         BoardFault::Unplug(_) => TimedFault::Disconnect {
             node,
@@ -281,24 +280,16 @@ impl RigBuilder {
                         occurrence,
                     },
                 ) => {
-                    let mut matcher = PacketMatch::any();
-                    matcher.tcode = select.tcode;
-                    matcher.offset_low16 = select.offset;
-                    if let Some(board) = select.dest {
-                        let node = resolve(&built, board, "packets' destination board")?;
-                        matcher.destination_phy = built.bus.phy_id(node);
-                    }
-                    let fault = match effect {
-                        PacketEffect::Drop => PacketFault::Drop,
-                        PacketEffect::Corrupt => PacketFault::FlipBits { count: 1 },
+                    let phy = match select.dest {
+                        Some(board) => {
+                            let node = resolve(&built, board, "packets' destination board")?;
+                            built.bus.phy_id(node)
+                        }
+                        None => None,
                     };
-                    built.bus.add_fault_rule(match occurrence {
-                        Occurrence::Rate(p) => FaultRule::random(matcher, fault, p.clamp(0.0, 1.0)),
-                        Occurrence::Count(n) => FaultRule {
-                            count: Some(n),
-                            ..FaultRule::once(matcher, fault)
-                        },
-                    });
+                    built
+                        .bus
+                        .add_fault_rule(bus_rule(effect, select, occurrence, phy, None));
                 }
                 (at @ (FaultMoment::Start | FaultMoment::After(_)), ScriptedFault::Board(b)) => {
                     let node = resolve(&built, b.board_id(), b.role())?;
@@ -319,7 +310,7 @@ impl RigBuilder {
                 }
                 (FaultMoment::Cycle(_), _) => {
                     return Err(refused(
-                        "the simulated bus does not count servo cycles: give it to the servo loop's link filter",
+                        "the simulated bus does not count servo cycles: give it to the servo loop's fault target (Rig::fault_target)",
                     ));
                 }
                 (FaultMoment::After(_), ScriptedFault::Packets { .. }) => {
@@ -398,6 +389,13 @@ impl Rig {
     /// unscheduled (for a caller that starts them itself).
     pub fn take_pending(&mut self) -> Vec<(SimDuration, TimedFault)> {
         std::mem::take(&mut self.pending)
+    }
+
+    /// The fault target of its simulated port: a script's entries applied
+    /// on this bus by the servo loop when they are due (cycle-timed ones
+    /// too), boards found by ID as built here.
+    pub fn fault_target(&self) -> FaultTarget {
+        FaultTarget::sim(self.boards.clone())
     }
 
     /// The PC's port on the bus (no PC model).

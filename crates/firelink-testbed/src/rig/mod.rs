@@ -12,15 +12,15 @@ pub mod served;
 pub use builder::{Rig, RigBuilder, RobotKind};
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, mpsc};
 use std::thread::JoinHandle;
 
 use firelink_board::config::{BoardConfig, BrakeWire, FpgaVersion, Hardware, Profile};
 use firelink_board::node::BoardNode;
 use firelink_board::plant::AxisParams;
 use firelink_board::plant::presets;
-use firelink_bus::{Bus, HostModel, Node, NodeHandle};
+use firelink_bus::{Bus, HostModel, Node, NodeHandle, SimDuration};
 use firelink_control::config::{FpgaGeneration, HardwareVersion, IoConfig};
 use firelink_emulate::{BridgeStats, ServeConfig};
 use firelink_host::sim::SimPort;
@@ -28,6 +28,7 @@ use firelink_host::udp::{UdpPort, WaitMode};
 
 use crate::TestbedError;
 use crate::cpu::ThreadCpuClock;
+use crate::fault_script::BoardFault;
 use crate::plant_map;
 
 /// Board configurations for every board `config` uses, plus generic
@@ -222,6 +223,48 @@ pub fn sim_port_of_used(
     Ok((port, ids.into_iter().zip(handles).collect()))
 }
 
+/// A board fault for the emulator's server thread, and where to say it
+/// was applied.
+struct FaultRequest {
+    fault: BoardFault,
+    after: SimDuration,
+    done: mpsc::Sender<Result<(), TestbedError>>,
+}
+
+/// The fault channel of an in-process [`Emulator`]: a board fault sent
+/// here is on the emulator's bus (its board found by ID, as the rig built
+/// it) when [`board_fault`](Self::board_fault) returns.
+#[derive(Clone)]
+pub struct EmulatorFaults {
+    /// The board IDs on its bus.
+    boards: Vec<u8>,
+    to_server: mpsc::Sender<FaultRequest>,
+    interrupt: Arc<AtomicBool>,
+}
+
+impl EmulatorFaults {
+    /// The board IDs on the emulator's bus, in chain order.
+    pub fn boards(&self) -> &[u8] {
+        &self.boards
+    }
+
+    /// `fault` on the emulator's bus, `after` from its present time.
+    ///
+    /// # Errors
+    /// [`TestbedError::NoSuchBoard`]; the server has stopped.
+    pub fn board_fault(&self, fault: BoardFault, after: SimDuration) -> Result<(), TestbedError> {
+        let gone = || TestbedError::Emulator("the server has stopped: no fault applied".into());
+        let (done, applied) = mpsc::channel();
+        self.to_server
+            .send(FaultRequest { fault, after, done })
+            .map_err(|_| gone())?;
+        // Sent before the server is woken: it finds the request when it
+        // looks.
+        self.interrupt.store(true, Ordering::SeqCst);
+        applied.recv().map_err(|_| gone())?
+    }
+}
+
 /// An in-process `firelink emulate`: the boards behind the UDP bridge on
 /// 127.0.0.1 (an ephemeral port), served by a thread until stopped or
 /// dropped.
@@ -229,6 +272,7 @@ pub struct Emulator {
     /// Where it listens.
     pub addr: SocketAddr,
     stop: Arc<AtomicBool>,
+    faults: EmulatorFaults,
     thread: Option<JoinHandle<std::io::Result<BridgeStats>>>,
     cpu: Option<ThreadCpuClock>,
 }
@@ -254,33 +298,74 @@ impl Emulator {
         })?;
         let addr = unicast.local_addr()?;
         let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
-        let (ready, started) = std::sync::mpsc::channel();
+        let interrupt = Arc::new(AtomicBool::new(false));
+        let (flag, wake) = (stop.clone(), interrupt.clone());
+        let (to_server, requests) = mpsc::channel::<FaultRequest>();
+        let (ready, started) = mpsc::channel();
         // The bus is built on the server thread.
         let thread = std::thread::spawn(move || {
-            let mut bridge = match rig.build().and_then(|r| r.bridge(None)) {
+            let built = rig.build().and_then(|r| {
+                let boards = r.boards.clone();
+                r.bridge(None).map(|b| (b, boards))
+            });
+            let (mut bridge, boards) = match built {
                 Ok(b) => b,
                 Err(e) => {
                     let _ = ready.send(Err(e));
                     return Ok(BridgeStats::default());
                 }
             };
-            let _ = ready.send(Ok(()));
-            firelink_emulate::serve(&mut bridge, &unicast, None, &flag, |_| {})?;
+            let _ = ready.send(Ok(boards.iter().map(|(id, _)| *id).collect()));
+            // Serve until stopped; a fault request interrupts the serving,
+            // is applied to the bus between two datagrams, and serving
+            // goes on (datagrams wait in the socket meanwhile).
+            loop {
+                firelink_emulate::serve(&mut bridge, &unicast, None, &wake, |_| {})?;
+                if flag.load(Ordering::SeqCst) {
+                    break;
+                }
+                wake.store(false, Ordering::SeqCst);
+                while let Ok(r) = requests.try_recv() {
+                    let applied = crate::fault_script::apply_on_bus(
+                        bridge.bus_mut(),
+                        &boards,
+                        crate::fault_script::ScriptedFault::Board(r.fault),
+                        r.after,
+                    );
+                    let _ = r.done.send(applied);
+                }
+            }
             Ok(bridge.stats())
         });
-        match started.recv() {
-            Ok(Ok(())) => {}
+        let boards = match started.recv() {
+            Ok(Ok(ids)) => ids,
             Ok(Err(e)) => return Err(e),
             Err(_) => return Err(TestbedError::Emulator("the server thread failed".into())),
-        }
+        };
         let cpu = ThreadCpuClock::of(&thread);
         Ok(Emulator {
             addr,
             stop,
+            faults: EmulatorFaults {
+                boards,
+                to_server,
+                interrupt,
+            },
             thread: Some(thread),
             cpu,
         })
+    }
+
+    /// Its fault channel: board faults applied on its bus by the server
+    /// thread (a [`FaultTarget`](crate::fault_script::FaultTarget) for the
+    /// host's port to it: [`fault_target`](Self::fault_target)).
+    pub fn faults(&self) -> EmulatorFaults {
+        self.faults.clone()
+    }
+
+    /// The fault target of a port to it.
+    pub fn fault_target(&self) -> crate::fault_script::FaultTarget {
+        crate::fault_script::FaultTarget::emulator(self.faults())
     }
 
     /// CPU time the server thread has used so far (user and system), while
@@ -296,7 +381,8 @@ impl Emulator {
     /// # Errors
     /// The server's socket error, or a panic of its thread.
     pub fn stop(mut self) -> Result<BridgeStats, TestbedError> {
-        self.stop.store(true, Ordering::Relaxed);
+        self.stop.store(true, Ordering::SeqCst);
+        self.faults.interrupt.store(true, Ordering::SeqCst);
         match self.thread.take().map(JoinHandle::join) {
             Some(Ok(r)) => Ok(r?),
             Some(Err(_)) => Err(TestbedError::Emulator("the server thread panicked".into())),
@@ -317,7 +403,8 @@ impl Emulator {
 
 impl Drop for Emulator {
     fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
+        self.stop.store(true, Ordering::SeqCst);
+        self.faults.interrupt.store(true, Ordering::SeqCst);
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }

@@ -14,17 +14,18 @@ use serde::Serialize;
 
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, Robot};
-use firelink_host::WatchdogSetting;
 use firelink_host::snake::SnakeSystem;
 use firelink_host::udp::WaitMode;
+use firelink_host::{Port, WatchdogSetting};
 
 use crate::TestbedError;
 use crate::demo::{
-    DemoFault, DemoIo, DemoPlan, DemoProgress, DemoReport, Injector, PortSpec, RealtimeStatus,
-    TimeStats, check_run, realtime_status, run_program,
+    DemoFault, DemoIo, DemoPlan, DemoProgress, DemoReport, PortSpec, RealtimeStatus, TimeStats,
+    check_run, realtime_status, run_program,
 };
+use crate::fault_script::{FaultScript, FaultTarget};
 use crate::rig;
-use crate::snake::{emulator, node_configs, prepare, sim_port};
+use crate::snake::{emulator, node_configs, prepare, sim_port_with_faults};
 
 /// Options of a Snake demo run.
 #[derive(Debug, Clone)]
@@ -41,6 +42,9 @@ pub struct SnakeDemoOptions {
     /// The fault to inject half way (a corrupt query needs the broadcast
     /// protocol, which the Snake nodes do not have: refused).
     pub fault: DemoFault,
+    /// A fault script instead of the preset (`fault` must then be
+    /// [`DemoFault::None`]).
+    pub faults: Option<FaultScript>,
     /// Pacing; `None`: the port's default.
     pub pacing: Option<Pacing>,
     /// Node watchdog.
@@ -62,6 +66,7 @@ impl Default for SnakeDemoOptions {
             duration_s: 3.0,
             port: PortSpec::SIM,
             fault: DemoFault::None,
+            faults: None,
             pacing: None,
             watchdog: WatchdogSetting::default(),
             find_max_rate: true,
@@ -191,22 +196,27 @@ pub fn run_snake_demo(
                 .into(),
         ));
     }
+    if options.fault != DemoFault::None && options.faults.is_some() {
+        return Err(TestbedError::Config(format!(
+            "fault {} and a fault script: give one of the two",
+            options.fault
+        )));
+    }
     options.port.refuse_board_count(
         "the Snake demo",
         "Snake nodes come from the configuration and have no QLA firmware",
     )?;
     let nodes = node_configs(&options.config, options.seed)?;
-    let pacing = options
-        .pacing
-        .unwrap_or_else(|| options.port.default_pacing());
+    // Any other link: only what the host's side can do.
+    let link = FaultTarget::link();
     let out = match &options.port {
         PortSpec::Sim(_) => {
-            let port = sim_port(nodes, true, None)?;
+            let (port, target) = sim_port_with_faults(nodes, true, None)?;
             run_on(
                 port,
+                &target,
                 options,
                 SIM_NAME.into(),
-                pacing,
                 realtime,
                 &mut progress,
             )?
@@ -215,20 +225,21 @@ pub fn run_snake_demo(
             let emu = emulator(nodes)?;
             let name = format!("udp:{} (in-process firelink emulate)", emu.addr);
             let port = emu.port_with(options.udp_wait)?;
-            let r = run_on(port, options, name, pacing, realtime, &mut progress);
+            let target = emu.fault_target();
+            let r = run_on(port, &target, options, name, realtime, &mut progress);
             emu.stop()?;
             r?
         }
         PortSpec::Udp(addr) | PortSpec::UdpFw(addr) => {
             let force_bridge = matches!(options.port, PortSpec::UdpFw(_));
             let port = rig::net_port_with(*addr, force_bridge, options.udp_wait)?;
-            let name = firelink_host::port::Port::name(&port).to_string();
-            run_on(port, options, name, pacing, realtime, &mut progress)?
+            let name = port.name().to_string();
+            run_on(port, &link, options, name, realtime, &mut progress)?
         }
         PortSpec::Fw(card) => {
             let port = crate::ports::fw_port(*card, &crate::ports::PortOptions::default())?;
             let name = options.port.to_string();
-            run_on(port, options, name, pacing, realtime, &mut progress)?
+            run_on(port, &link, options, name, realtime, &mut progress)?
         }
     };
     let max_rate = (options.find_max_rate && options.port.is_sim() && out.report.fault.is_none())
@@ -242,10 +253,16 @@ pub fn run_snake_demo(
     })
 }
 
-impl<P: Injector> DemoIo for SnakeSystem<P> {
+impl<P: Port + 'static> DemoIo for SnakeSystem<P> {
     type Port = P;
-    fn injector(&mut self) -> &mut P {
-        self.port_mut()
+    fn port_mut(&mut self) -> &mut P {
+        SnakeSystem::port_mut(self)
+    }
+    fn board_nodes(&self) -> Vec<(u8, u8)> {
+        self.nodes()
+            .iter()
+            .map(|n| (n.info().board_id, n.info().node))
+            .collect()
     }
     fn firmware(&self) -> Option<u32> {
         // The version register's low byte is the firmware revision.
@@ -267,15 +284,19 @@ struct RunOutcome {
     motion_io_max_us: f64,
 }
 
-/// Run the demo over one port.
-fn run_on<P: Injector>(
+/// Run the demo over one port (paced as `options` say, else as the
+/// port's default), its faults applied by `target`.
+fn run_on<P: Port + 'static>(
     port: P,
+    target: &FaultTarget,
     options: &SnakeDemoOptions,
     port_name: String,
-    pacing: Pacing,
     realtime: Option<&dyn Fn() -> RealtimeStatus>,
     progress: &mut dyn FnMut(DemoProgress),
 ) -> Result<RunOutcome, TestbedError> {
+    let pacing = options
+        .pacing
+        .unwrap_or_else(|| options.port.default_pacing());
     let rt = realtime_status(pacing, realtime);
     let wall = Instant::now();
     let mut system = SnakeSystem::open(port)?;
@@ -292,11 +313,12 @@ fn run_on<P: Injector>(
         rate_hz: options.rate_hz,
         duration_s: options.duration_s,
         fault: options.fault,
+        script: options.faults.as_ref(),
         watchdog: options.watchdog,
         pacing,
     };
     let robot = Robot::new(system, &options.config, plan.settings())?;
-    let run = run_program(robot, &plan, port_name, rt, wall, progress)?;
+    let run = run_program(robot, &plan, target, port_name, rt, wall, progress)?;
     let period_us = 1e6 / options.rate_hz;
     let times = &run.times;
     let setup = (run.setup_cycles as usize).min(times.cycle_us.len());
@@ -331,19 +353,13 @@ fn trial(options: &SnakeDemoOptions, rate_hz: f64) -> Result<RateTrial, TestbedE
         duration_s: TRIAL_SECONDS,
         port: PortSpec::SIM,
         fault: DemoFault::None,
+        faults: None,
         pacing: Some(Pacing::Virtual),
         find_max_rate: false,
         ..options.clone()
     };
-    let port = sim_port(node_configs(&run.config, run.seed)?, true, None)?;
-    let out = match run_on(
-        port,
-        &run,
-        SIM_NAME.into(),
-        Pacing::Virtual,
-        None,
-        &mut |_| {},
-    ) {
+    let (port, target) = sim_port_with_faults(node_configs(&run.config, run.seed)?, true, None)?;
+    let out = match run_on(port, &target, &run, SIM_NAME.into(), None, &mut |_| {}) {
         Ok(out) => out,
         // A rate at which the robot cannot even home (the gains leave a
         // joint under-damped at a low rate) did not hold: say why and let

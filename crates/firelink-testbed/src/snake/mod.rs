@@ -80,17 +80,32 @@ pub fn sim_port(
     pc_model: bool,
     jitter: Option<u64>,
 ) -> Result<SimPort, TestbedError> {
+    sim_port_with_faults(configs, pc_model, jitter).map(|(port, _)| port)
+}
+
+/// [`sim_port`] and its fault target (the nodes by ID as the rig built
+/// them).
+///
+/// # Errors
+/// [`TestbedError::NoBoards`].
+pub fn sim_port_with_faults(
+    configs: Vec<SnakeNodeConfig>,
+    pc_model: bool,
+    jitter: Option<u64>,
+) -> Result<(SimPort, crate::fault_script::FaultTarget), TestbedError> {
     let rig = RigBuilder::snake(configs).build()?;
+    let target = rig.fault_target();
     let mut model = HostModel::seed001(rig.bus.timing());
     if let Some(seed) = jitter {
         model = model.with_jitter(seed);
     }
     let port = rig.sim_port();
-    Ok(if pc_model {
+    let port = if pc_model {
         port.with_host_model(model)
     } else {
         port
-    })
+    };
+    Ok((port, target))
 }
 
 /// An in-process `firelink emulate` of the nodes (the first is the

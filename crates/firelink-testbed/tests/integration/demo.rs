@@ -85,7 +85,7 @@ fn a_verdict_fails_when_an_injected_fault_goes_unseen() {
     )
     .unwrap();
     assert_eq!(r.verdict(), Ok(()));
-    r.fault_injected = DemoFault::StopHost.name();
+    r.fault_injected = DemoFault::StopHost.name().into();
     assert!(r.verdict().unwrap_err().contains("not detected"));
 }
 
@@ -257,6 +257,7 @@ fn the_demo_runs_dqla_arms_over_the_ethernet_only_network() {
         rate_hz: 1000.0,
         duration_s: 0.3,
         fault: DemoFault::None,
+        script: None,
         watchdog: WatchdogSetting::from_ms(300.0).unwrap(),
         pacing: Pacing::WallClock,
     };
@@ -265,6 +266,7 @@ fn the_demo_runs_dqla_arms_over_the_ethernet_only_network() {
     let run = run_program(
         robot,
         &plan,
+        &firelink_testbed::fault_script::FaultTarget::link(),
         "udp".into(),
         RealtimeStatus::default(),
         wall,
@@ -284,4 +286,81 @@ fn the_demo_runs_dqla_arms_over_the_ethernet_only_network() {
     }
     assert!(r.power_down.unknown.is_empty(), "{:?}", r.power_down);
     assert!(r.power_down.still_on.is_empty(), "{:?}", r.power_down);
+}
+
+/// A script's board loss at a servo cycle (`mute@cycle=300:id=4`): the
+/// runner counts the motion's cycles and has the rig's fault target mute
+/// board 4, found by its ID, at the 300th; the board is named and every
+/// amplifier that answers ends off, well before the half-way fault moment.
+#[test]
+fn a_board_lost_at_a_cycle_is_named_and_every_amplifier_ends_off() {
+    let options = DemoOptions {
+        duration_s: 0.2,
+        faults: Some("mute@cycle=300:id=4".parse().unwrap()),
+        ..DemoOptions::default()
+    };
+    let mut injected = Vec::new();
+    let r = run_demo(&options, None, |e| {
+        if let DemoProgress::Injecting(what) = e {
+            injected.push(what);
+        }
+    })
+    .unwrap();
+    assert_eq!(injected, ["mute@cycle=300:id=4"]);
+    assert_eq!(r.fault_injected, "mute@cycle=300:id=4");
+    assert_eq!(r.verdict(), Ok(()), "{r}");
+    let fault = r.fault.as_ref().unwrap();
+    assert_eq!(fault.board, Some(4), "{fault:?}");
+    assert_eq!(r.amplifiers_on_after_fault, Some(false), "{r}");
+    assert!(r.boards_not_answering.contains(&4), "{r}");
+    // The motion's cycles start after homing: the fault came after its
+    // 300th cycle and before half way (600 of 1200).
+    let setup = r.cycles - r.motion_cycles;
+    assert!(
+        fault.cycle > setup + 300 && fault.cycle < setup + 600,
+        "setup {setup}, {fault:?}"
+    );
+    assert!(r.power_down.still_on.is_empty(), "{:?}", r.power_down);
+}
+
+/// What a port cannot apply is refused by name before the boards are
+/// touched: a board the rig does not have, a preset and a script at once.
+#[test]
+fn faults_a_port_cannot_apply_are_refused_before_the_run() {
+    let refused = |options: DemoOptions| {
+        let mut events = Vec::new();
+        let e = run_demo(&options, None, |e| events.push(e)).unwrap_err();
+        assert!(
+            !events.iter().any(|e| matches!(e, DemoProgress::Configured)),
+            "{events:?}"
+        );
+        e.to_string()
+    };
+    let e = refused(DemoOptions {
+        faults: Some("mute@cycle=10:id=9".parse().unwrap()),
+        ..short(DemoFault::None)
+    });
+    assert_eq!(e, "muted board 9: no such board on the rig");
+    let e = refused(DemoOptions {
+        faults: Some("host-pause@t=5000us:for=100us".parse().unwrap()),
+        ..short(DemoFault::None)
+    });
+    assert_eq!(
+        e,
+        "configuration: fault host-pause@t=5000us:for=100us cannot be applied on sim: \
+         a host pause starts at its moment: give t=0us or cycle=N"
+    );
+    let e = run_demo(
+        &DemoOptions {
+            faults: Some("mute@start:id=4".parse().unwrap()),
+            ..short(DemoFault::StopHost)
+        },
+        None,
+        |_| {},
+    )
+    .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "configuration: fault stop-host and a fault script: give one of the two"
+    );
 }

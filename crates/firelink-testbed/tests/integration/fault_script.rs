@@ -218,3 +218,142 @@ fn corruption_and_drops_over_udp_are_counted_and_refused() {
     assert_eq!(after.timeouts - before.timeouts, 2);
     emu.stop().unwrap();
 }
+
+/// The demo's program over loopback UDP to an in-process emulator of
+/// `config()`'s boards (broadcast protocol, 0.2 s at 1 kHz), `script`
+/// applied by the emulator's fault target: the report, the bridge's
+/// counters and what the run said it injected.
+fn demo_over_udp(
+    script: &FaultScript,
+) -> (
+    firelink_testbed::demo::DemoReport,
+    firelink_emulate::BridgeStats,
+    Vec<String>,
+) {
+    use firelink_testbed::demo::{DemoFault, DemoPlan, DemoProgress, RealtimeStatus, run_program};
+    let config = config();
+    let emu = Emulator::start(used_boards(&config)).expect("emulator");
+    let options = IoOptions {
+        protocol: Some(Protocol::Broadcast),
+        ..IoOptions::default()
+    };
+    let (io, _) = IoSystem::open(port(&emu), options).unwrap();
+    let plan = DemoPlan {
+        config: &config,
+        rate_hz: 1000.0,
+        duration_s: 0.2,
+        fault: DemoFault::None,
+        script: Some(script),
+        watchdog: settings().watchdog,
+        pacing: Pacing::Virtual,
+    };
+    let robot = Robot::new(io, &config, plan.settings()).unwrap();
+    let mut injected = Vec::new();
+    let run = run_program(
+        robot,
+        &plan,
+        &emu.fault_target(),
+        "emulate".into(),
+        RealtimeStatus::default(),
+        Instant::now(),
+        &mut |e| {
+            if let DemoProgress::Injecting(what) = e {
+                injected.push(what);
+            }
+        },
+    )
+    .unwrap();
+    let stats = emu.stop().unwrap();
+    (run.report, stats, injected)
+}
+
+/// The demo's corrupt-query preset as a script over loopback UDP to the
+/// in-process emulator: the emulator's fault target puts it in a link
+/// filter on the host's port, one query goes out corrupted, the bridge
+/// refuses it by its CRC (counted once), and the run recovers.
+#[test]
+fn a_corrupt_query_over_udp_is_counted_by_the_bridge_and_the_run_recovers() {
+    let script: FaultScript = "corrupt@t=0us:tcode=0x0,offset=0x1800,count=1"
+        .parse()
+        .unwrap();
+    assert_eq!(
+        script,
+        firelink_testbed::demo::DemoFault::CorruptQuery.script(Duration::from_millis(300))
+    );
+    let (r, stats, injected) = demo_over_udp(&script);
+    assert_eq!(injected, [script.to_string()], "{r}");
+    assert_eq!(stats.bad_crc, 1, "{stats}");
+    // The lost query is a cycle whose boards did not answer: the fault
+    // is detected, the safety chain acts, and the link has recovered:
+    // every board answers afterwards and is powered down.
+    assert_eq!(r.verdict(), Ok(()), "{r}");
+    assert_eq!(r.amplifiers_on_after_fault, Some(false), "{r}");
+    assert!(r.boards_not_answering.is_empty(), "{r}");
+    assert!(r.power_down.unknown.is_empty(), "{:?}", r.power_down);
+    assert!(r.power_down.still_on.is_empty(), "{:?}", r.power_down);
+    assert_eq!(r.power_down.off.len(), 2, "{:?}", r.power_down);
+}
+
+/// What a port cannot apply is refused, naming the entry and the port:
+/// a board silenced from the host's side of a link, a host pause after
+/// its moment; a board the rig does not have, by its ID.
+#[test]
+fn a_fault_target_refuses_what_its_port_cannot_do() {
+    use firelink_testbed::fault_script::FaultTarget;
+    let mute: FaultScript = "mute@t=0us:id=4".parse().unwrap();
+    let e = FaultTarget::link()
+        .check(&mute, "udp:127.0.0.1:1234")
+        .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "configuration: fault mute@t=0us:id=4 cannot be applied on udp:127.0.0.1:1234: a board \
+         cannot be silenced from the host's side of a link (behind a hub one block carries \
+         every board's state); use the sim port or the in-process emulator"
+    );
+    let pause: FaultScript = "host-pause@t=10us:for=100us".parse().unwrap();
+    let e = FaultTarget::link().check(&pause, "fw").unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("fault host-pause@t=10us:for=100us cannot be applied on fw"),
+        "{e}"
+    );
+    // Packets and host pauses are the host's side's to do.
+    let link_ok: FaultScript = "drop@cycle=5:dest=2,rate=0.5;host-pause@cycle=9:for=100us"
+        .parse()
+        .unwrap();
+    assert!(FaultTarget::link().check(&link_ok, "fw").is_ok());
+    // The rig's target knows its boards by ID; the emulator's mutes them
+    // on its own bus.
+    let rig = RigBuilder::qla(used_boards(&config())).build().unwrap();
+    let e = rig
+        .fault_target()
+        .check(&"unplug@cycle=3:id=9".parse().unwrap(), "sim")
+        .unwrap_err();
+    assert_eq!(e.to_string(), "unplugged board 9: no such board on the rig");
+    let emu = Emulator::start(used_boards(&config())).expect("emulator");
+    let lost: FaultScript = format!("mute@t=0us:id={}", lost_board(&config()))
+        .parse()
+        .unwrap();
+    assert!(emu.fault_target().check(&lost, "emulate").is_ok());
+    let e = emu.fault_target().check(&mute, "emulate").unwrap_err();
+    assert_eq!(e.to_string(), "muted board 4: no such board on the rig");
+    emu.stop().unwrap();
+}
+
+/// A board muted behind the broadcast hub, which no filter on the host's
+/// port could do: the in-process emulator's fault target mutes it on the
+/// emulator's own bus at the fault moment; the host names it and every
+/// amplifier that answers ends off.
+#[test]
+fn a_board_muted_on_the_emulators_bus_is_named_over_udp() {
+    let lost = lost_board(&config());
+    let script: FaultScript = format!("mute@t=0us:id={lost}").parse().unwrap();
+    let (r, stats, injected) = demo_over_udp(&script);
+    assert_eq!(injected, [script.to_string()], "{r}");
+    assert_eq!(stats.bad_crc, 0, "{stats}");
+    assert_eq!(r.verdict(), Ok(()), "{r}");
+    let fault = r.fault.as_ref().unwrap();
+    assert_eq!(fault.board, Some(lost), "{fault:?}");
+    assert_eq!(r.amplifiers_on_after_fault, Some(false), "{r}");
+    assert!(r.boards_not_answering.contains(&lost), "{r}");
+}

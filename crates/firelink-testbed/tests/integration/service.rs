@@ -15,8 +15,8 @@ use firelink_control::lifecycle::State;
 use firelink_control::runner::Pacing;
 use firelink_host::sim::SimPort;
 use firelink_host::{Dest, Port};
-use firelink_testbed::TestbedError;
-use firelink_testbed::demo::{DemoFault, Injector, PortSpec};
+use firelink_testbed::demo::{DemoFault, PortSpec};
+use firelink_testbed::fault_script::FaultTarget;
 use firelink_testbed::rig;
 use firelink_testbed::service::{
     Command, CommandOutcome, Frame, LoopOptions, MAX_ARM_JOINTS, Service, ServoApplied, ServoTrace,
@@ -383,10 +383,12 @@ impl Port for PanickingPort {
     fn candidate_nodes(&self) -> core::ops::Range<u8> {
         self.0.candidate_nodes()
     }
-}
-
-impl Injector for PanickingPort {
-    fn inject(&mut self, _: DemoFault, _: Duration) -> Result<(), TestbedError> {
+    /// The injected corrupt query's link filter is where the loop's bug
+    /// is.
+    fn add_link_filter(
+        &mut self,
+        _: Box<dyn firelink_host::port::LinkFilter>,
+    ) -> firelink_host::Result<()> {
         panic!("a bug in the robot loop");
     }
 }
@@ -404,6 +406,7 @@ fn a_panic_in_the_loop_powers_down_and_is_reported() {
             rate_hz: 500.0,
             watchdog: firelink_host::WatchdogSetting::default(),
             pacing: Pacing::Virtual,
+            faults: FaultTarget::link(),
         },
     )
     .unwrap();
@@ -412,7 +415,9 @@ fn a_panic_in_the_loop_powers_down_and_is_reported() {
     ok(&run(shared, Command::PowerOn));
     assert!(next_frame(shared).boards.iter().all(|b| b.power));
     // The panicking command gets no outcome of its own; the loop ends.
-    let id = shared.submit(Command::Inject(DemoFault::StopHost)).unwrap();
+    let id = shared
+        .submit(Command::Inject(DemoFault::CorruptQuery))
+        .unwrap();
     let start = Instant::now();
     let exit = loop {
         if let Some(exit) = shared.exit.get() {

@@ -33,9 +33,10 @@ use firelink_host::WatchdogSetting;
 use firelink_host::robot_io::RobotIo;
 use firelink_host::sim::SimPort;
 use firelink_host::snake::SnakeSystem;
-use firelink_testbed::demo::{DemoFault, Injector};
+use firelink_testbed::demo::{DemoFault, DemoIo};
+use firelink_testbed::fault_script::FaultTarget;
 use firelink_testbed::service::LoopExit;
-use firelink_testbed::snake::{node_configs, prepare, sim_port};
+use firelink_testbed::snake::{node_configs, prepare, sim_port_with_faults};
 use firelink_wire::snake::WIPER_MAX;
 use firelink_wire::snake::registers::{PotOutputs, Wiper};
 
@@ -388,6 +389,8 @@ struct Rig {
     channels: Vec<Channel>,
     homed: bool,
     watchdog: WatchdogSetting,
+    /// Who applies an injected fault's script on the simulated bus.
+    faults: FaultTarget,
 }
 
 /// Start the Snake system of `config` on the simulated bus at `rate_hz`.
@@ -399,7 +402,7 @@ pub fn start(
     rate_hz: f64,
     watchdog: WatchdogSetting,
 ) -> Result<Hosted<SnakeModel>, WebError> {
-    let port = sim_port(node_configs(&config, 1)?, false, None)?;
+    let (port, faults) = sim_port_with_faults(node_configs(&config, 1)?, false, None)?;
     let mut system = SnakeSystem::open(port).map_err(firelink_testbed::TestbedError::from)?;
     prepare(&mut system, &config)?;
     let nodes: Vec<u8> = system.nodes().iter().map(|n| n.board_id()).collect();
@@ -459,6 +462,7 @@ pub fn start(
         channels,
         homed: false,
         watchdog,
+        faults,
     };
     let loop_exchange = Arc::clone(&exchange);
     let thread = std::thread::Builder::new()
@@ -628,11 +632,10 @@ fn execute(rig: &mut Rig, command: SnakeCommand) -> Result<String, Refused> {
         SnakeCommand::Jog { axis, delta } => move_axis(rig, axis, |here| here + delta),
         SnakeCommand::Inject { fault } => {
             let fault = fault_named(&fault).map_err(refused)?;
-            let watchdog = rig.watchdog.period_or_zero();
-            robot
-                .io_mut()
-                .port_mut()
-                .inject(fault, watchdog)
+            let script = fault.script(rig.watchdog.period_or_zero());
+            let nodes = robot.io().board_nodes();
+            rig.faults
+                .apply_all(&script, robot.io_mut().port_mut(), &nodes)
                 .map_err(|e| refused(e.to_string()))?;
             if fault == DemoFault::FollowingError {
                 robot.step_setpoint(0, 0.5).map_err(runner)?;
