@@ -38,7 +38,7 @@ fn out_of_range_numbers_are_usage_errors() {
         &["demo", "--period", "9us"],
         &["demo", "--period", "1e300s"],
         &["demo", "--period", "0.5Hz"],
-        &["demo", "--robot", "mahru", "--period", "-1ms"],
+        &["demo", "--robot", "mahru", "--period=-1ms"],
         &["budget", "--period", "2s"],
         &["demo", "--watchdog-ms", "1e300"],
         &["demo", "--watchdog-ms=-5"],
