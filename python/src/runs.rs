@@ -4,6 +4,7 @@
 use pyo3::prelude::*;
 use pyo3::types::PyString;
 
+use firelink_control::ServoPeriod;
 use firelink_control::config::presets;
 use firelink_control::runner::Pacing;
 use firelink_host::udp::WaitMode;
@@ -71,7 +72,7 @@ pub(crate) fn run_demo_json(
     let config = config_arg(py, config)?;
     let options = DemoOptions {
         config: config.unwrap_or_else(presets::dvrk_seed000),
-        rate_hz,
+        period: ServoPeriod::from_rate_hz(rate_hz).map_err(|e| bad(py, e.to_string()))?,
         protocol,
         duration_s,
         port: parse_port_spec(py, &port)?,

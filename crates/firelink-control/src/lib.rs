@@ -29,6 +29,8 @@
 //! - [`teleop`]: an MTM teleoperating a PSM as the dVRK console does
 //!   (alignment, scale, clutch, gripper to jaw).
 //! - [`budget`]: does the cycle fit its period (seed 002, Table I).
+//! - [`period`]: [`ServoPeriod`], the servo period from configuration and
+//!   command line to the runner (`1ms`, `250us`, `1kHz`).
 //! - [`runner`]: [`Robot`](runner::Robot), a configuration over the host
 //!   library's abstract robot I/O (`firelink_host::RobotIo`, seed 001's
 //!   top layer): lifecycle, homing (pots and stop searches), motion and the
@@ -85,6 +87,7 @@ pub mod homing;
 pub mod kinematics;
 mod label;
 pub mod lifecycle;
+pub mod period;
 pub mod pid;
 pub mod runner;
 pub mod safety;
@@ -94,3 +97,4 @@ pub mod trajectory;
 pub use fault::{FaultKind, FaultReport};
 pub use label::{BoardSet, Label};
 pub use lifecycle::{Lifecycle, LifecycleError, PowerStatus, State};
+pub use period::{ServoPeriod, ServoPeriodError};

@@ -32,10 +32,10 @@ use std::fmt;
 use firelink_board::config::Profile;
 use firelink_board::node::BoardNode;
 use firelink_bus::NodeHandle;
-use firelink_control::Label;
 use firelink_control::config::{IoConfig, JointType};
 use firelink_control::runner::{Pacing, Robot, RobotSettings, StopFound};
 use firelink_control::trajectory::{Motion, PointToPoint};
+use firelink_control::{Label, ServoPeriod};
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::sim::SimPort;
 use serde::Serialize;
@@ -45,8 +45,8 @@ use crate::{TestbedError, rig};
 /// Settings of the scenario.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ConsoleHomingOptions {
-    /// Servo rate, Hz.
-    pub rate_hz: f64,
+    /// The servo period.
+    pub period: ServoPeriod,
     /// Fraction of each joint's velocity limit the moves to the software
     /// limits use (0 to 1].
     pub speed: f64,
@@ -59,7 +59,7 @@ impl Default for ConsoleHomingOptions {
     /// joints' velocity limits, Rev 8.
     fn default() -> Self {
         ConsoleHomingOptions {
-            rate_hz: 1000.0,
+            period: ServoPeriod::KHZ_1,
             speed: 0.5,
             firmware: Profile::Rev8,
         }
@@ -333,7 +333,7 @@ pub fn run_console_homing(
         .collect::<Vec<_>>();
     let (io, _) = IoSystem::open(port, IoOptions::default())?;
     let settings = RobotSettings {
-        rate_hz: options.rate_hz,
+        period: options.period,
         ..RobotSettings::default()
     };
     let mut robot = Robot::new(io, config, settings)?;
@@ -435,7 +435,7 @@ fn search_stops(
                 stalled_at: found.stalled_at,
                 true_position,
                 duration: found.duration,
-                stalled_for: against as f64 / options.rate_hz,
+                stalled_for: against as f64 / options.period.rate_hz(),
                 following_error: found.following_error,
                 error_grew: grew && against > 1,
                 commanded_current: found.commanded_current,

@@ -33,7 +33,7 @@ use firelink_control::runner::{
     CycleTimes, Pacing, Percentiles, Robot, RobotSettings, RunnerError,
 };
 use firelink_control::trajectory::{Motion, PointToPoint, Sinusoid};
-use firelink_control::{FaultKind, FaultReport};
+use firelink_control::{FaultKind, FaultReport, ServoPeriod};
 use firelink_host::io::{IoOptions, IoStats, IoSystem};
 use firelink_host::scan::{Protocol, ScanReport};
 use firelink_host::stop::StopRequest;
@@ -159,8 +159,8 @@ pub struct RealtimeStatus {
 pub struct DemoOptions {
     /// The robot (default: seed 000's dVRK, 28 axes on 8 QLA1 boards).
     pub config: IoConfig,
-    /// Control rate, Hz.
-    pub rate_hz: f64,
+    /// The servo period (default 6 kHz).
+    pub period: ServoPeriod,
     /// I/O protocol.
     pub protocol: Protocol,
     /// Seconds of motion after homing.
@@ -187,7 +187,7 @@ impl Default for DemoOptions {
     fn default() -> Self {
         DemoOptions {
             config: presets::dvrk_seed000(),
-            rate_hz: 6000.0,
+            period: ServoPeriod::from_rate_hz(6000.0).expect("6 kHz is a servo period"),
             protocol: Protocol::Broadcast,
             duration_s: 3.0,
             port: PortSpec::SIM,
@@ -544,18 +544,7 @@ impl fmt::Display for DemoReport {
                 t.rms_rad, t.max_rad, t.prismatic_rms_mm, t.prismatic_max_mm
             )?;
         }
-        let (total, e) = (self.errors.total, &self.errors.by_kind);
-        writeln!(
-            f,
-            "  errors: total {}  timeouts {}  sequence {}  corrupt queries {}  bus resets {}  bad packets {}  nacks {}",
-            total,
-            e.timeouts,
-            e.sequence_errors,
-            e.corrupt_queries,
-            e.bus_resets,
-            e.bad_packets,
-            e.nacks
-        )?;
+        writeln!(f, "  {}", crate::demo_text::errors_line(&self.errors))?;
         let watchdog = if self.watchdog.period_ms > 0.0 {
             format!(
                 "{} ms",
@@ -658,22 +647,26 @@ pub fn motion_for(config: &IoConfig, i: usize, here: f64) -> Motion {
     }
 }
 
-/// A demo's rate and duration must be finite and above 0.
+/// A demo's duration must be finite and above 0 (its period was checked
+/// when it was made, [`ServoPeriod`]).
 ///
 /// # Errors
 /// [`TestbedError::Config`] naming the value.
-pub(crate) fn check_run(rate_hz: f64, duration_s: f64) -> Result<(), TestbedError> {
-    if !(rate_hz.is_finite() && rate_hz > 0.0) {
-        return Err(TestbedError::Config(format!(
-            "rate {rate_hz} Hz: must be above 0"
-        )));
-    }
+pub(crate) fn check_run(duration_s: f64) -> Result<(), TestbedError> {
     if !(duration_s.is_finite() && duration_s > 0.0) {
         return Err(TestbedError::Config(format!(
             "duration {duration_s} s: must be above 0"
         )));
     }
     Ok(())
+}
+
+/// The servo period of a rate, Hz, refused as a configuration error.
+///
+/// # Errors
+/// [`TestbedError::Config`] outside 1 Hz to 100 kHz.
+pub(crate) fn servo_period(rate_hz: f64) -> Result<ServoPeriod, TestbedError> {
+    ServoPeriod::from_rate_hz(rate_hz).map_err(|e| TestbedError::Config(e.to_string()))
 }
 
 /// The real-time settings of a run: `realtime()` with wall-clock pacing,
@@ -712,7 +705,7 @@ pub fn run_demo_until(
     realtime: Option<&dyn Fn() -> RealtimeStatus>,
     mut progress: impl FnMut(DemoProgress),
 ) -> Result<DemoReport, TestbedError> {
-    check_run(options.rate_hz, options.duration_s)?;
+    check_run(options.duration_s)?;
     let config = &options.config;
     // Boards 0..=the highest board ID the configuration uses.
     let boards = config.board_slots();
@@ -868,7 +861,7 @@ pub(crate) fn open_robot<'a, P: Port>(
     found(&io, &scan);
     let plan = DemoPlan {
         config: &options.config,
-        rate_hz: options.rate_hz,
+        period: options.period,
         duration_s: options.duration_s,
         fault: options.fault,
         script: options.faults.as_ref(),
@@ -884,8 +877,8 @@ pub(crate) fn open_robot<'a, P: Port>(
 pub struct DemoPlan<'a> {
     /// The robot.
     pub config: &'a IoConfig,
-    /// Control rate, Hz.
-    pub rate_hz: f64,
+    /// The servo period.
+    pub period: ServoPeriod,
     /// Seconds of motion after homing.
     pub duration_s: f64,
     /// The fault to inject half way (a named preset).
@@ -930,7 +923,7 @@ impl DemoPlan<'_> {
     /// The servo settings of the plan.
     pub fn settings(&self) -> RobotSettings {
         RobotSettings {
-            rate_hz: self.rate_hz,
+            period: self.period,
             watchdog: self.watchdog,
             ..RobotSettings::default()
         }
@@ -1047,7 +1040,7 @@ fn run_motion<R: DemoIo>(
     target: &FaultTarget,
     progress: &mut dyn FnMut(DemoProgress),
 ) -> Result<Option<FaultReport>, TestbedError> {
-    let (pacing, rate) = (plan.pacing, plan.rate_hz);
+    let (pacing, rate) = (plan.pacing, plan.period.rate_hz());
     let watchdog = plan.watchdog.period_or_zero();
     let total = (plan.duration_s * rate).round() as u64;
     let every = (rate / 4.0).max(1.0) as u64;
@@ -1225,7 +1218,7 @@ fn demo_report<R: DemoIo>(
         axes: robot.joint_count(),
         firmware: robot.io().firmware(),
         protocol: robot.io().protocol(),
-        rate_hz: plan.rate_hz,
+        rate_hz: plan.period.rate_hz(),
         pacing: match plan.pacing {
             Pacing::Virtual => "virtual",
             Pacing::WallClock => "realtime",

@@ -22,6 +22,9 @@
 //!   simulated bus behind a [`SimPort`](firelink_host::sim::SimPort), or
 //!   behind an in-process Ethernet-bridge emulator on loopback UDP
 //!   ([`rig::Emulator`]);
+//! - [`demo_request`]: one request for `firelink demo` whatever the robot
+//!   (the dVRK, the Snake system, MAHRU, the teleoperation session) and
+//!   its outcome; [`demo_text`]: the dVRK demo's progress lines and table;
 //! - [`sim`]: one I/O cycle of N boards on the simulated bus, measured
 //!   phase by phase (the wire times of the seed papers; `firelink sim`);
 //! - [`plant_map`]: how an actuator of a configuration becomes an emulated
@@ -61,6 +64,8 @@ pub mod cpu;
 pub mod cycle_compare;
 pub mod cycle_schedule;
 pub mod demo;
+pub mod demo_request;
+pub mod demo_text;
 pub mod emulated;
 pub mod emulation;
 pub mod error;

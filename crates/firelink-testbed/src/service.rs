@@ -604,7 +604,7 @@ pub fn prepare<P: firelink_host::Port + 'static>(
 ) -> Result<(Robot<IoSystem<P>>, Arc<Shared>), crate::TestbedError> {
     let (io, _) = IoSystem::open(port, IoOptions::default())?;
     let settings = RobotSettings {
-        rate_hz: options.rate_hz,
+        period: crate::demo::servo_period(options.rate_hz)?,
         watchdog: options.watchdog,
         ..RobotSettings::default()
     };

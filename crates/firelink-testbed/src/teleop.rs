@@ -43,6 +43,7 @@ use firelink_board::plant::presets::{
     MTM_GRIPPER_DEG_AT_ZERO_VOLTS, MTM_GRIPPER_DEG_PER_VOLT, MTM_GRIPPER_REST, MTM_GRIPPER_SPRING,
 };
 use firelink_bus::NodeHandle;
+use firelink_control::ServoPeriod;
 use firelink_control::config::{IoConfig, RobotSimulation, ToolConfig, presets};
 use firelink_control::kinematics::frame::{add, norm, sub};
 use firelink_control::kinematics::mtm::{
@@ -69,8 +70,8 @@ pub const HAND_SEED: u64 = 0x7e1e_0b5e;
 /// Settings of the session.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TeleopOptions {
-    /// Servo rate, Hz (the console's teleoperation runs at 1 kHz).
-    pub rate_hz: f64,
+    /// The servo period (the console's teleoperation runs at 1 kHz).
+    pub period: ServoPeriod,
     /// Seconds of following (the clutch's included).
     pub seconds: f64,
     /// The clutch: pressed at this many seconds into the following, for
@@ -87,7 +88,7 @@ impl Default for TeleopOptions {
     /// seed, Rev 8.
     fn default() -> Self {
         TeleopOptions {
-            rate_hz: 1000.0,
+            period: ServoPeriod::KHZ_1,
             seconds: 60.0,
             clutch: Some((30.0, 3.0)),
             seed: HAND_SEED,
@@ -510,7 +511,7 @@ pub fn run_teleop(options: &TeleopOptions) -> Result<TeleopReport, TestbedError>
         .map_or(3, |(_, axis)| usize::from(axis));
     let (io, _) = IoSystem::open(port, IoOptions::default())?;
     let settings = RobotSettings {
-        rate_hz: options.rate_hz,
+        period: options.period,
         ..RobotSettings::default()
     };
     let robot = Robot::new(io, &config, settings)?;

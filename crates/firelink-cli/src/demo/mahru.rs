@@ -1,21 +1,17 @@
-//! Seed 002's MAHRU humanoid on the command line: `firelink demo --robot
-//! mahru` (the robot walking) and `firelink budget` (Tables I, III and IV).
-//! The runs are [`firelink_testbed::mahru`]; this file parses options and
-//! prints.
+//! `firelink budget`: seed 002's MAHRU humanoid's Tables I, III and IV
+//! ([`firelink_testbed::mahru::tables`]); this file parses the options and
+//! prints. (`firelink demo --robot mahru` is the demo's request.)
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
-use std::time::Duration;
+use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
 
+use firelink_control::ServoPeriod;
 use firelink_host::mahru::rtos::Rtos;
-use firelink_testbed::mahru::budget::{BudgetOptions, run_budget};
-use firelink_testbed::mahru::can::{Table4Options, run_table4};
-use firelink_testbed::mahru::table3::{Table3Options, run_table3};
-use firelink_testbed::mahru::{MahruConfig, MahruDemoOptions, run_mahru_demo};
+use firelink_testbed::mahru::MahruConfig;
+use firelink_testbed::mahru::tables::{TablesOptions, run_tables};
 
-use super::DemoArgs;
 use crate::error::CliError;
 
 /// The real-time systems `firelink budget` covers.
@@ -61,9 +57,13 @@ pub struct BudgetArgs {
     /// robot, built in).
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// The control period, us (default: the configuration's, 2000).
-    #[arg(long = "period-us", value_parser = crate::args::mahru_period_us)]
-    pub period_us: Option<f64>,
+    /// The servo period, `2ms`, `500Hz` (default: the configuration's 2
+    /// ms; MAHRU's bounds: 100 us to 1 s).
+    #[arg(long, conflicts_with = "period_us")]
+    pub period: Option<ServoPeriod>,
+    /// The period in us (the older spelling of --period).
+    #[arg(long = "period-us", hide = true, value_parser = super::period_us)]
+    pub period_us: Option<ServoPeriod>,
     /// Real-time systems.
     #[arg(long, value_enum, default_value_t = RtosChoice::Both)]
     pub rtos: RtosChoice,
@@ -94,120 +94,40 @@ pub struct BudgetArgs {
     pub json: bool,
 }
 
-fn config(path: Option<&Path>) -> Result<MahruConfig, CliError> {
-    match path {
-        Some(p) => MahruConfig::load(p).map_err(CliError::from),
-        None => Ok(MahruConfig::seed002()),
-    }
-}
-
-fn period(us: Option<f64>) -> Option<Duration> {
-    us.map(|us| Duration::from_secs_f64(us / 1e6))
-}
-
-/// `firelink demo --robot mahru`.
-pub fn run_demo(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
-    const COMMAND: &str = "firelink demo --robot mahru";
-    args.port
-        .refuse_unless(COMMAND, &[firelink_testbed::port_spec::PortKind::Sim])?;
-    args.port.refuse_board_count(
-        COMMAND,
-        "the MAHRU modules come from its configuration (seed 002's own protocol)",
-    )?;
-    let quiet = args.quiet || crate::args::quiet();
-    let options = MahruDemoOptions {
-        config: config(args.config.as_deref())?,
-        duration_s: args.duration,
-        period: period(args.period_us),
-        find_fastest: true,
-    };
-    let report = run_mahru_demo(&options, |line| {
-        if !quiet {
-            eprintln!("demo: {line}");
-        }
-    })?;
-    if args.json {
-        writeln!(out, "{}", serde_json::to_string(&report)?)?;
-    } else {
-        write!(out, "{report}")?;
-    }
-    report.verdict().map_err(CliError::Failed)
-}
-
 /// `firelink budget`.
 pub fn run_budget_cmd(args: &BudgetArgs, out: &mut impl Write) -> Result<(), CliError> {
     let quiet = crate::args::quiet();
-    let say = |line: &str| {
+    let config = match &args.config {
+        Some(path) => MahruConfig::load(path)?,
+        None => MahruConfig::seed002(),
+    };
+    let options = TablesOptions {
+        config,
+        period: args.period.or(args.period_us),
+        rtos: args.rtos.systems(),
+        budget: args.tables.contains(&Table::Budget),
+        read_times: args.tables.contains(&Table::ReadTimes),
+        can: args.tables.contains(&Table::Can),
+        samples: args.samples.min(u64::from(u32::MAX)) as u32,
+        periods: args.periods,
+        reads: args.reads,
+        can_cycles: args.can_cycles.min(u64::from(u32::MAX)) as u32,
+        can_errors: args.can_errors,
+    };
+    let tables = run_tables(&options, |line| {
         if !quiet {
             eprintln!("budget: {line}");
         }
-    };
-    let config = config(args.config.as_deref())?;
-    let systems = args.rtos.systems();
-    let mut json = serde_json::Map::new();
-    let mut does_not_fit = Vec::new();
-    if args.tables.contains(&Table::Budget) {
-        let report = run_budget(
-            &BudgetOptions {
-                config: config.clone(),
-                period: period(args.period_us),
-                samples: args.samples.min(u64::from(u32::MAX)) as u32,
-                periods: args.periods,
-                rtos: systems.clone(),
-            },
-            say,
-        )?;
-        does_not_fit = report.misfits();
-        if args.json {
-            json.insert("table_i".into(), serde_json::to_value(&report)?);
-        } else {
-            writeln!(out, "{report}")?;
-        }
-    }
-    if args.tables.contains(&Table::ReadTimes) {
-        say(&format!(
-            "Table III: {} reads per payload and system",
-            args.reads
-        ));
-        let report = run_table3(
-            &Table3Options {
-                reads: args.reads,
-                rtos: systems,
-                responder: config.responder_timing(),
-                seed: config.seed,
-                ..Table3Options::default()
-            },
-            |p| say(&format!("{} {} B done", p.rtos, p.payload)),
-        )?;
-        if let Some(path) = &args.plot {
-            firelink_plot::mahru::table3(&report, path)?;
-        }
-        if args.json {
-            json.insert("table_iii".into(), serde_json::to_value(&report)?);
-        } else {
-            writeln!(out, "{report}")?;
-        }
-    }
-    if args.tables.contains(&Table::Can) {
-        let report = run_table4(
-            &Table4Options {
-                config,
-                cycles: args.can_cycles.min(u64::from(u32::MAX)) as u32,
-                error_probability: args.can_errors,
-                reads: args.reads.min(200_000),
-                periods: args.periods.min(2000),
-            },
-            say,
-        )?;
-        if args.json {
-            json.insert("table_iv".into(), serde_json::to_value(&report)?);
-        } else {
-            writeln!(out, "{report}")?;
-        }
+    })?;
+    if let (Some(path), Some(table3)) = (&args.plot, &tables.table_iii) {
+        firelink_plot::mahru::table3(table3, path)?;
     }
     if args.json {
-        writeln!(out, "{}", serde_json::Value::Object(json))?;
+        writeln!(out, "{}", tables.json()?)?;
+    } else {
+        write!(out, "{tables}")?;
     }
+    let does_not_fit = tables.misfits();
     if does_not_fit.is_empty() {
         Ok(())
     } else {

@@ -1,29 +1,25 @@
 //! `firelink demo`: the README's main job. The 28-axis dVRK of seed 000 on
-//! emulated boards ([`dvrk`]): configure, power on, home, follow
-//! trajectories on all four arms, power off, and report; or seed 001's
-//! Snake system ([`snake`]), or seed 002's MAHRU humanoid walking
-//! ([`mahru`], which also holds `firelink budget`). The runs themselves
-//! are in the testbed; [`robot`] picks one.
+//! emulated boards: configure, power on, home, follow trajectories on all
+//! four arms, power off, and report; or seed 001's Snake system, or seed
+//! 002's MAHRU humanoid walking ([`mahru`] also holds `firelink budget`).
+//! The runs, the choice of robot and the report's table are the testbed's
+//! ([`firelink_testbed::demo_request`]); [`robot`] runs the request.
 //!
-//! This file holds what the robots share: the options, the progress
-//! shown on stderr, the real-time setup and the report's printing. The
-//! robots' files import it and nothing here imports them.
+//! This file holds the options, the progress shown on stderr and the
+//! real-time setup.
 
-pub mod dvrk;
 pub mod mahru;
 pub mod robot;
-pub mod snake;
 
-use std::fmt;
-use std::io::Write;
 use std::path::PathBuf;
 
-use clap::{Args, ValueEnum};
-use serde::Serialize;
+use clap::{Args, FromArgMatches, ValueEnum};
 
+use firelink_control::ServoPeriod;
 use firelink_control::config::IoConfig;
 use firelink_control::runner::Pacing;
 use firelink_testbed::demo::{DemoFault, DemoProgress, PortSpec, RealtimeStatus};
+use firelink_testbed::demo_text::{progress_line, tick_line};
 use firelink_testbed::fault_script::FaultScript;
 
 use crate::args::{FirmwareArg, ProtocolArg, UdpWaitArg};
@@ -81,20 +77,25 @@ pub struct DemoArgs {
     /// Which robot: `dvrk` (seed 000's 28 axes on QLA boards), `snake`
     /// (seed 001's 36 axes on its own 7-channel nodes; also chosen by a
     /// `--config` whose boards are SNAKE nodes) or `mahru` (seed 002's
-    /// humanoid; it uses --duration, --period-us, --config, --json,
+    /// humanoid; it uses --duration, --period, --config, --json,
     /// --quiet).
     #[arg(long, value_enum, default_value_t = DemoRobot::Dvrk)]
     pub robot: DemoRobot,
-    /// Control rate, Hz (1 to 100000; default 6000, the Snake robot 1000).
-    #[arg(long, value_parser = crate::args::rate_hz)]
-    pub rate: Option<f64>,
-    /// Snake robot: skip the search for the highest rate that holds.
+    /// The servo period for every robot, as a period or a rate: `1ms`,
+    /// `250us`, `6kHz` (10 us to 1 s; default: the dVRK 6 kHz, the Snake
+    /// robot 1 kHz, MAHRU its configuration's 2 ms).
+    #[arg(long, conflicts_with_all = ["rate", "period_us"])]
+    pub period: Option<ServoPeriod>,
+    /// The period as a rate in Hz (the older spelling of --period).
+    #[arg(long, hide = true, value_parser = rate, conflicts_with = "period_us")]
+    pub rate: Option<ServoPeriod>,
+    /// The period in us, 100 to 1000000 (the older spelling of --period).
+    #[arg(long = "period-us", hide = true, value_parser = period_us)]
+    pub period_us: Option<ServoPeriod>,
+    /// Snake robot and MAHRU: skip the search for the fastest rate or
+    /// period that holds.
     #[arg(long = "no-rate-search")]
     pub no_rate_search: bool,
-    /// MAHRU: the control period in us, 100 to 1000000 (default: its
-    /// configuration's 2000).
-    #[arg(long = "period-us", value_parser = crate::args::mahru_period_us)]
-    pub period_us: Option<f64>,
     /// I/O protocol.
     #[arg(long, value_enum, default_value_t = ProtocolArg::Broadcast)]
     pub protocol: ProtocolArg,
@@ -158,56 +159,23 @@ pub struct DemoArgs {
     pub quiet: bool,
 }
 
+/// `firelink` alone: `firelink demo` with every default.
 impl Default for DemoArgs {
     fn default() -> Self {
-        DemoArgs {
-            robot: DemoRobot::Dvrk,
-            rate: None,
-            no_rate_search: false,
-            period_us: None,
-            protocol: ProtocolArg::Broadcast,
-            duration: 3.0,
-            port: PortSpec::SIM,
-            udp_wait: UdpWaitArg::Block,
-            firmware: FirmwareArg::Rev8,
-            fault: FaultArg::None,
-            faults: None,
-            pacing: None,
-            watchdog: crate::args::WatchdogSetting::default(),
-            no_rt: false,
-            config: None,
-            teleop: false,
-            json: false,
-            quiet: false,
-        }
+        let command = DemoArgs::augment_args(clap::Command::new("demo"));
+        DemoArgs::from_arg_matches(&command.get_matches_from(["demo"]))
+            .expect("the demo's defaults parse")
     }
 }
 
-fn progress_line(event: &DemoProgress) -> Option<String> {
-    Some(match event {
-        DemoProgress::Found {
-            boards,
-            port,
-            reason,
-            protocol,
-        } => format!("found {boards} boards on {port} ({reason}), protocol {protocol}"),
-        DemoProgress::WatchdogOff => return None,
-        DemoProgress::TookOver(text) => text.clone(),
-        DemoProgress::Configured => "configured; powering on".into(),
-        DemoProgress::Powered(t) => format!("powered at t = {t:.3} s; homing"),
-        DemoProgress::Homed(t) => format!("homed and active at t = {t:.3} s; moving every arm"),
-        DemoProgress::Tick { .. } => return None,
-        DemoProgress::Injecting(f) => format!("injecting fault: {f}"),
-        DemoProgress::Fault(text) => format!("FAULT: {text}"),
-        DemoProgress::SafetyChain {
-            state,
-            amplifiers_on,
-        } => format!(
-            "safety chain: state {state}, amplifiers {}",
-            if *amplifiers_on { "ON" } else { "off" }
-        ),
-        DemoProgress::PoweredOff(wall) => format!("powered off; wall time {wall:.2} s"),
-    })
+/// `--rate`: Hz, 1 to 100000.
+fn rate(s: &str) -> Result<ServoPeriod, String> {
+    ServoPeriod::from_rate_hz(crate::args::rate_hz(s)?).map_err(|e| e.to_string())
+}
+
+/// `--period-us`: us, MAHRU's bounds (100 us to 1 s).
+fn period_us(s: &str) -> Result<ServoPeriod, String> {
+    ServoPeriod::from_micros_f64(crate::args::mahru_period_us(s)?).map_err(|e| e.to_string())
 }
 
 /// The demo's robots.
@@ -223,16 +191,8 @@ pub enum DemoRobot {
 
 /// Show one progress event on stderr (ticks overwrite one line).
 pub(crate) fn show(event: &DemoProgress, ticking: &mut bool) {
-    if let DemoProgress::Tick {
-        t,
-        cycles,
-        io_median_us,
-        errors,
-    } = event
-    {
-        eprint!(
-            "\rdemo: t = {t:7.3} s  cycles {cycles:8}  io median {io_median_us:6.1} us  errors {errors}   "
-        );
+    if let Some(tick) = tick_line(event) {
+        eprint!("\rdemo: {tick}   ");
         *ticking = true;
         return;
     }
@@ -268,47 +228,4 @@ pub(crate) fn realtime_setup(spinning: bool) -> RealtimeStatus {
         timer_slack_1ns: s.timer_slack_1ns,
         errors: s.errors,
     }
-}
-
-/// Run a demo with its progress on stderr (unless quiet): `run` gets the
-/// real-time setup to call (unless `--no-rt`) and the progress sink.
-pub(crate) fn with_progress<T>(
-    args: &DemoArgs,
-    run: impl FnOnce(
-        Option<&dyn Fn() -> RealtimeStatus>,
-        &mut dyn FnMut(DemoProgress),
-    ) -> Result<T, firelink_testbed::TestbedError>,
-) -> Result<T, CliError> {
-    let quiet = args.quiet || crate::args::quiet();
-    if let Some(w) = args.watchdog.warning() {
-        eprintln!("demo: {w}");
-    }
-    // The port's reads spin over UDP with `--udp-wait spin`.
-    let spinning = args.udp_wait == UdpWaitArg::Spin && !args.port.is_sim();
-    let setup_spinning = move || realtime_setup(spinning);
-    let setup: &dyn Fn() -> RealtimeStatus = &setup_spinning;
-    let mut ticking = false;
-    let report = run((!args.no_rt).then_some(setup), &mut |event| {
-        if !quiet {
-            show(&event, &mut ticking);
-        }
-    })?;
-    if ticking {
-        eprintln!();
-    }
-    Ok(report)
-}
-
-/// Print a demo's report: JSON with `--json`, else the table.
-pub(crate) fn print_report(
-    args: &DemoArgs,
-    out: &mut impl Write,
-    report: &(impl Serialize + fmt::Display),
-) -> Result<(), CliError> {
-    if args.json {
-        writeln!(out, "{}", serde_json::to_string(report)?)?;
-    } else {
-        write!(out, "{report}")?;
-    }
-    Ok(())
 }

@@ -1,23 +1,87 @@
-//! `firelink demo`: which robot's demo the options ask for (the dVRK by
-//! default, `--teleop`, `--robot snake` or a Snake configuration,
-//! `--robot mahru`), and running it.
+//! `firelink demo`: the options as one [`DemoRequest`] (the testbed picks
+//! the robot and runs it), its progress on stderr, and the report printed.
 
 use std::io::Write;
 
-use super::{DemoArgs, DemoRobot};
-use super::{dvrk, mahru, snake};
+use firelink_testbed::demo::RealtimeStatus;
+use firelink_testbed::demo_request::{DemoConfig, DemoRequest};
+use firelink_testbed::mahru::MahruConfig;
+use firelink_testbed::rig::RobotKind;
+
+use super::{DemoArgs, DemoRobot, load_config, realtime_setup, show};
+use crate::args::UdpWaitArg;
 use crate::error::CliError;
 
-/// Run `firelink demo`.
+/// The request the options make; the configuration file is loaded (its
+/// warnings printed) as the robot reads it.
+///
+/// # Errors
+/// The configuration could not be loaded.
+pub fn request(args: &DemoArgs) -> Result<DemoRequest, CliError> {
+    let config = match (&args.config, args.robot) {
+        (None, _) => DemoConfig::Builtin,
+        (Some(path), DemoRobot::Mahru) => DemoConfig::Mahru(MahruConfig::load(path)?),
+        (Some(path), _) => DemoConfig::Io(load_config(path)?),
+    };
+    Ok(DemoRequest {
+        robot: match args.robot {
+            DemoRobot::Dvrk => RobotKind::Dvrk,
+            DemoRobot::Snake => RobotKind::Snake,
+            DemoRobot::Mahru => RobotKind::Mahru,
+        },
+        teleop: args.teleop,
+        config,
+        period: args.period.or(args.rate).or(args.period_us),
+        duration_s: args.duration,
+        port: args.port,
+        protocol: args.protocol.into(),
+        firmware: args.firmware.into(),
+        fault: args.fault.into(),
+        faults: args.faults.clone(),
+        pacing: args.pacing.map(Into::into),
+        watchdog: args.watchdog,
+        udp_wait: args.udp_wait.into(),
+        search_fastest: !args.no_rate_search,
+    })
+}
+
+/// Run `firelink demo`: progress on stderr unless quiet, the report on
+/// `out` (JSON with `--json`, else the table); a run that did not do what
+/// it was asked exits 3.
 pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
-    if args.teleop {
-        return dvrk::run_teleop(args, out);
+    let request = request(args)?;
+    let quiet = args.quiet || crate::args::quiet();
+    if let Some(w) = args.watchdog.warning() {
+        eprintln!("demo: {w}");
     }
-    if args.robot == DemoRobot::Mahru {
-        return mahru::run_demo(args, out);
+    // The port's reads spin over UDP with `--udp-wait spin`.
+    let spinning = args.udp_wait == UdpWaitArg::Spin && !args.port.is_sim();
+    let setup = move || realtime_setup(spinning);
+    let setup: &dyn Fn() -> RealtimeStatus = &setup;
+    let mut ticking = false;
+    let outcome = request.run(
+        (!args.no_rt).then_some(setup),
+        &mut |event| {
+            if !quiet {
+                show(&event, &mut ticking);
+            }
+        },
+        &mut |line| {
+            if !quiet {
+                eprintln!("demo: {line}");
+            }
+        },
+    )?;
+    if ticking {
+        eprintln!();
     }
-    if snake::wanted(args)? {
-        return snake::run(args, out);
+    if let Some(line) = outcome.realtime_line().filter(|_| !quiet) {
+        eprintln!("demo: {line}");
     }
-    dvrk::run(args, out)
+    if args.json {
+        writeln!(out, "{}", outcome.json()?)?;
+    } else {
+        write!(out, "{}", outcome.table())?;
+    }
+    outcome.verdict().map_err(CliError::Failed)
 }

@@ -35,6 +35,11 @@ fn out_of_range_numbers_are_usage_errors() {
         &["emulate", "--mute-board", "16"],
         &["demo", "--rate", "1e-300"],
         &["demo", "--rate", "0"],
+        &["demo", "--period", "9us"],
+        &["demo", "--period", "1e300s"],
+        &["demo", "--period", "0.5Hz"],
+        &["demo", "--robot", "mahru", "--period=-1ms"],
+        &["budget", "--period", "2s"],
         &["demo", "--watchdog-ms", "1e300"],
         &["demo", "--watchdog-ms=-5"],
         &["demo", "--watchdog-ms", "0"],
@@ -60,6 +65,26 @@ fn out_of_range_numbers_are_usage_errors() {
             1,
             "{args:?}: {err}"
         );
+    }
+}
+
+#[test]
+fn a_servo_period_without_its_unit_or_twice_is_a_usage_error() {
+    for (args, says) in [
+        (&["demo", "--period", "1000"][..], "no unit"),
+        (&["demo", "--period", "1 fortnight"], "unknown unit"),
+        (
+            &["demo", "--period", "1ms", "--rate", "1000"],
+            "cannot be used with",
+        ),
+        (
+            &["budget", "--period", "2ms", "--period-us", "2000"],
+            "cannot be used with",
+        ),
+    ] {
+        let (code, err) = firelink(args);
+        assert_eq!(code, 2, "{args:?} exited {code}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
     }
 }
 

@@ -29,6 +29,48 @@ fn demo_runs_the_dvrk_and_reports() {
     assert_eq!(r["state"], "configured");
 }
 
+/// `--period` means the same for every robot, written as a period or a
+/// rate, and the older `--rate` / `--period-us` say the same thing.
+#[test]
+fn one_period_flag_for_every_robot() {
+    let dvrk = |period: &[&str]| {
+        let mut args = vec!["demo", "--duration", "0.05", "--json"];
+        args.extend_from_slice(period);
+        json(&args)
+    };
+    let by_period = dvrk(&["--period", "250us"]);
+    assert_eq!(by_period["rate_hz"], 4000.0);
+    let by_rate = dvrk(&["--period", "4kHz"]);
+    assert_eq!(by_rate["cycles"], by_period["cycles"]);
+    assert_eq!(by_rate["tracking_error"], by_period["tracking_error"]);
+    assert_eq!(
+        dvrk(&["--rate", "4000"])["tracking_error"],
+        by_period["tracking_error"]
+    );
+    let snake = json(&[
+        "demo",
+        "--robot",
+        "snake",
+        "--period",
+        "2ms",
+        "--duration",
+        "0.1",
+        "--no-rate-search",
+        "--json",
+    ]);
+    assert_eq!(snake["rate_hz"], 500.0);
+    let mahru = |period: &[&str]| {
+        let mut args = vec!["demo", "--robot", "mahru", "--duration", "0.05"];
+        args.extend_from_slice(&["--no-rate-search", "--json"]);
+        args.extend_from_slice(period);
+        json(&args)
+    };
+    let m = mahru(&["--period", "500Hz"]);
+    assert_eq!(m["period_us"], 2000.0);
+    assert_eq!(mahru(&["--period-us", "2000"])["timing"], m["timing"]);
+    assert_eq!(mahru(&["--period", "2ms"])["modules"], m["modules"]);
+}
+
 #[test]
 fn demo_sequential_and_default() {
     let r = json(&[

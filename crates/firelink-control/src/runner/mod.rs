@@ -57,6 +57,7 @@ use crate::fault::{FaultKind, FaultReport};
 use crate::homing::{Homing, HomingError, HomingSettings, HomingStep};
 use crate::label::{BoardSet, Label};
 use crate::lifecycle::{Lifecycle, LifecycleError, PowerStatus, State};
+use crate::period::ServoPeriod;
 use crate::pid::{Pid, PidError, PidGains};
 use crate::safety::{JointSample, SafetyMonitor};
 use crate::trajectory::Motion;
@@ -75,8 +76,8 @@ pub enum Pacing {
 /// Runner settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RobotSettings {
-    /// Control rate, Hz.
-    pub rate_hz: f64,
+    /// The servo period (its rate: [`ServoPeriod::rate_hz`]).
+    pub period: ServoPeriod,
     /// Board watchdog.
     pub watchdog: WatchdogSetting,
     /// Homing sample counts.
@@ -91,7 +92,7 @@ pub struct RobotSettings {
 impl Default for RobotSettings {
     fn default() -> Self {
         RobotSettings {
-            rate_hz: 1000.0,
+            period: ServoPeriod::KHZ_1,
             watchdog: WatchdogSetting::default(),
             homing: HomingSettings {
                 averaging_samples: 20,
@@ -348,18 +349,11 @@ impl<R: RobotIo> Robot<R> {
     /// A robot for `config` over the axes of `io`.
     ///
     /// # Errors
-    /// [`RunnerError::Config`] for a rate that is not positive, or an
-    /// actuator whose board is not among the boards found or has no such
-    /// axis (naming the joint); [`RunnerError::Pid`] for invalid gains. (A
+    /// [`RunnerError::Config`] for an actuator whose board is not among
+    /// the boards found or has no such axis (naming the joint); [`RunnerError::Pid`] for invalid gains. (A
     /// missing board is also what [`configure`](Self::configure) refuses,
     /// with the robot named.)
     pub fn new(io: R, config: &IoConfig, settings: RobotSettings) -> Result<Robot<R>, RunnerError> {
-        if !(settings.rate_hz.is_finite() && settings.rate_hz > 0.0) {
-            return Err(RunnerError::Config(format!(
-                "rate must be > 0 Hz, not {}",
-                settings.rate_hz
-            )));
-        }
         let mut joints = Vec::new();
         let mut pids = Vec::new();
         let mut by_board = Vec::new();
@@ -556,7 +550,7 @@ impl<R: RobotIo> Robot<R> {
 
     /// The period, seconds.
     pub fn period(&self) -> f64 {
-        1.0 / self.settings.rate_hz
+        self.settings.period.as_secs_f64()
     }
 
     /// Seconds on the port's clock.
@@ -965,7 +959,7 @@ impl<R: RobotIo> Robot<R> {
     /// # Errors
     /// A fault detected in this cycle (or latched before).
     pub fn step(&mut self, pacing: Pacing) -> Result<(), RunnerError> {
-        let period = Duration::from_secs_f64(self.period());
+        let period = self.settings.period.as_duration();
         self.pacer.before_cycle(pacing, period, &mut self.times);
         let started = self.io.now();
         let r = self.cycle();

@@ -8,7 +8,7 @@ use std::time::Duration;
 use firelink_control::config::presets;
 use firelink_control::runner::{Pacing, Robot, RobotSettings, RunnerError};
 use firelink_control::trajectory::{Motion, Sinusoid};
-use firelink_control::{FaultKind, LifecycleError, State};
+use firelink_control::{FaultKind, LifecycleError, ServoPeriod, State};
 use firelink_host::Port;
 use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
@@ -45,7 +45,7 @@ fn robot_on(protocol: Protocol, rate: f64, seed_000: bool) -> Robot<IoSystem<Sim
         io,
         &config,
         RobotSettings {
-            rate_hz: rate,
+            period: ServoPeriod::from_rate_hz(rate).unwrap(),
             ..RobotSettings::default()
         },
     )
@@ -253,14 +253,8 @@ fn configuration_errors() {
         matches!(e, RunnerError::Config(ref m) if m.contains("not on the bus")),
         "{e}"
     );
-    // A zero rate.
-    let port = common::port(&bench, false, |_| 0.0);
-    let (io, _) = IoSystem::open(port, IoOptions::default()).unwrap();
-    let settings = RobotSettings {
-        rate_hz: 0.0,
-        ..RobotSettings::default()
-    };
-    assert!(Robot::new(io, &bench, settings).is_err());
+    // A zero rate cannot even be said.
+    assert!(ServoPeriod::from_rate_hz(0.0).is_err());
 }
 
 /// A late cycle (the host stalled for several periods, in virtual time)

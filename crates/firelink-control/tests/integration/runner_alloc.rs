@@ -38,7 +38,7 @@ fn runner_cycle_does_not_allocate() {
         )
         .unwrap();
         let settings = RobotSettings {
-            rate_hz: 6000.0,
+            period: firelink_control::ServoPeriod::from_rate_hz(6000.0).unwrap(),
             max_samples: 10_000,
             ..RobotSettings::default()
         };

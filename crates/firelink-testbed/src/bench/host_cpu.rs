@@ -370,7 +370,7 @@ impl RecordedCycle {
             ));
         }
         let settings = RobotSettings {
-            rate_hz: 6000.0,
+            period: crate::demo::servo_period(6000.0)?,
             watchdog: WatchdogSetting::default(),
             // The timing record is not what is measured here.
             max_samples: 1 << 16,

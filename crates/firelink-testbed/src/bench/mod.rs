@@ -655,8 +655,11 @@ pub fn compute_time_us() -> f64 {
     let Ok((io, _)) = IoSystem::open(port, IoOptions::default()) else {
         return 0.0;
     };
+    let Ok(period) = crate::demo::servo_period(6000.0) else {
+        return 0.0;
+    };
     let settings = RobotSettings {
-        rate_hz: 6000.0,
+        period,
         ..RobotSettings::default()
     };
     let Ok(mut robot) = Robot::new(io, &config, settings) else {

@@ -20,6 +20,7 @@ use std::time::Duration;
 
 use serde::Serialize;
 
+use firelink_control::ServoPeriod;
 use firelink_control::budget::{CycleBudget, TableI};
 use firelink_host::Port;
 use firelink_host::mahru::rtos::Rtos;
@@ -46,7 +47,7 @@ pub struct BudgetOptions {
     /// The robot.
     pub config: MahruConfig,
     /// The period (default: the configuration's).
-    pub period: Option<Duration>,
+    pub period: Option<ServoPeriod>,
     /// Timings of each transaction type, per module.
     pub samples: u32,
     /// Periods of the end-to-end run.
@@ -361,7 +362,8 @@ pub fn run_budget(
             options.samples
         )));
     }
-    let period = check_period(options.period.unwrap_or_else(|| base.period()))?;
+    let period = options.period.map(ServoPeriod::as_duration);
+    let period = check_period(period.unwrap_or_else(|| base.period()))?;
     let layout = base.layout()?;
     let nm = layout
         .modules

@@ -10,6 +10,7 @@ use std::time::Duration;
 use serde::Serialize;
 
 use firelink_board::mahru::ModuleNode;
+use firelink_control::ServoPeriod;
 use firelink_control::runner::Percentiles;
 use firelink_host::Port;
 use firelink_host::mahru::{MotionController, MotionError, RobotLayout};
@@ -61,7 +62,7 @@ pub struct MahruDemoOptions {
     /// Seconds of walking.
     pub duration_s: f64,
     /// The period (default: the configuration's).
-    pub period: Option<Duration>,
+    pub period: Option<ServoPeriod>,
     /// Also search for the fastest period that holds.
     pub find_fastest: bool,
 }
@@ -380,7 +381,8 @@ pub fn run_mahru_demo(
 ) -> Result<MahruDemoReport, TestbedError> {
     let config = &options.config;
     config.validate()?;
-    let period = check_period(options.period.unwrap_or_else(|| config.period()))?;
+    let period = options.period.map(ServoPeriod::as_duration);
+    let period = check_period(period.unwrap_or_else(|| config.period()))?;
     if !(options.duration_s.is_finite()
         && options.duration_s > 0.0
         && options.duration_s <= MAX_DURATION_S)

@@ -16,6 +16,7 @@
 //! - [`table3`]: read-transaction time by payload under both real-time
 //!   systems (Table III).
 //! - [`can`]: the same 14-module cycle on a CAN bus (Table IV).
+//! - [`tables`]: `firelink budget`: Tables I, III and IV in one run.
 
 pub mod budget;
 pub mod can;
@@ -25,6 +26,7 @@ pub mod gait;
 pub mod main_loop;
 pub mod rig;
 pub mod table3;
+pub mod tables;
 
 pub use config::MahruConfig;
 pub use demo::{MahruDemoOptions, MahruDemoReport, run_mahru_demo};

@@ -12,6 +12,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use firelink_control::ServoPeriod;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, Robot};
 use firelink_host::snake::SnakeSystem;
@@ -32,8 +33,8 @@ use crate::snake::{emulator, node_configs, prepare, sim_port_with_faults};
 pub struct SnakeDemoOptions {
     /// The robot (default: `configs/snake-seed001.json`).
     pub config: IoConfig,
-    /// Control rate, Hz (the seed's target: 1 kHz).
-    pub rate_hz: f64,
+    /// The servo period (the seed's target: 1 kHz).
+    pub period: ServoPeriod,
     /// Seconds of motion after homing.
     pub duration_s: f64,
     /// Where the nodes are (plain `sim`: the nodes come from the
@@ -62,7 +63,7 @@ impl Default for SnakeDemoOptions {
     fn default() -> Self {
         SnakeDemoOptions {
             config: presets::snake_seed001(),
-            rate_hz: 1000.0,
+            period: ServoPeriod::KHZ_1,
             duration_s: 3.0,
             port: PortSpec::SIM,
             fault: DemoFault::None,
@@ -188,7 +189,7 @@ pub fn run_snake_demo(
     realtime: Option<&dyn Fn() -> RealtimeStatus>,
     mut progress: impl FnMut(DemoProgress),
 ) -> Result<SnakeDemoReport, TestbedError> {
-    check_run(options.rate_hz, options.duration_s)?;
+    check_run(options.duration_s)?;
     if options.fault == DemoFault::CorruptQuery {
         return Err(TestbedError::Config(
             "fault corrupt-query needs the broadcast protocol; Snake nodes are read and \
@@ -310,7 +311,7 @@ fn run_on<P: Port + 'static>(
     prepare(&mut system, &options.config)?;
     let plan = DemoPlan {
         config: &options.config,
-        rate_hz: options.rate_hz,
+        period: options.period,
         duration_s: options.duration_s,
         fault: options.fault,
         script: options.faults.as_ref(),
@@ -319,7 +320,7 @@ fn run_on<P: Port + 'static>(
     };
     let robot = Robot::new(system, &options.config, plan.settings())?;
     let run = run_program(robot, &plan, target, port_name, rt, wall, progress)?;
-    let period_us = 1e6 / options.rate_hz;
+    let period_us = options.period.as_micros_f64();
     let times = &run.times;
     let setup = (run.setup_cycles as usize).min(times.cycle_us.len());
     let end = (setup + run.report.motion_cycles as usize).min(times.cycle_us.len());
@@ -349,7 +350,7 @@ const MAX_TRIALS: usize = 5;
 /// One short run at `rate_hz` on a fresh simulated rig.
 fn trial(options: &SnakeDemoOptions, rate_hz: f64) -> Result<RateTrial, TestbedError> {
     let run = SnakeDemoOptions {
-        rate_hz,
+        period: crate::demo::servo_period(rate_hz)?,
         duration_s: TRIAL_SECONDS,
         port: PortSpec::SIM,
         fault: DemoFault::None,

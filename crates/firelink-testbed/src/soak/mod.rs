@@ -231,7 +231,7 @@ pub fn bring_up_robot(
         },
     )?;
     let robot_settings = RobotSettings {
-        rate_hz: settings.rate_hz,
+        period: crate::demo::servo_period(settings.rate_hz)?,
         watchdog: WatchdogSetting::default(),
         max_samples: 1,
         ..RobotSettings::default()

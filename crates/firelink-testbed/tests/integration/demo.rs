@@ -91,16 +91,19 @@ fn a_verdict_fails_when_an_injected_fault_goes_unseen() {
 
 #[test]
 fn bad_demo_options_are_refused_with_the_reason() {
+    // A rate of 0 is no servo period.
+    let e = firelink_control::ServoPeriod::from_rate_hz(0.0).unwrap_err();
+    assert!(e.to_string().contains("out of range"), "{e}");
     let e = run_demo(
         &DemoOptions {
-            rate_hz: 0.0,
+            duration_s: 0.0,
             ..DemoOptions::default()
         },
         None,
         |_| {},
     )
     .unwrap_err();
-    assert!(e.to_string().contains("rate"), "{e}");
+    assert!(e.to_string().contains("duration"), "{e}");
     assert!("meteor".parse::<DemoFault>().is_err());
     assert!("nowhere".parse::<PortSpec>().is_err());
     assert_eq!(
@@ -254,7 +257,7 @@ fn the_demo_runs_dqla_arms_over_the_ethernet_only_network() {
     assert_eq!(scan.boards.len(), 3);
     let plan = DemoPlan {
         config: &config,
-        rate_hz: 1000.0,
+        period: firelink_control::ServoPeriod::KHZ_1,
         duration_s: 0.3,
         fault: DemoFault::None,
         script: None,

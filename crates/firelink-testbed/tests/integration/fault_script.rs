@@ -240,7 +240,7 @@ fn demo_over_udp(
     let (io, _) = IoSystem::open(port(&emu), options).unwrap();
     let plan = DemoPlan {
         config: &config,
-        rate_hz: 1000.0,
+        period: firelink_control::ServoPeriod::from_rate_hz(1000.0).unwrap(),
         duration_s: 0.2,
         fault: DemoFault::None,
         script: Some(script),

@@ -8,6 +8,7 @@
 //! Everything runs in virtual time; counts are kept small enough for a
 //! debug build (the full 1e6-read distribution is `firelink budget`).
 
+use firelink_control::ServoPeriod;
 use std::time::Duration;
 
 use firelink_board::mahru::{
@@ -548,7 +549,7 @@ fn the_demo_walks_at_2_ms_without_an_error_and_is_deterministic() {
     let options = MahruDemoOptions {
         config: MahruConfig::seed002(),
         duration_s: 1.5,
-        period: Some(Duration::from_millis(2)),
+        period: Some(ServoPeriod::from_duration(Duration::from_millis(2)).unwrap()),
         find_fastest: true,
     };
     let report = run_mahru_demo(&options, |_| {}).unwrap();
@@ -576,7 +577,7 @@ fn the_demo_walks_at_2_ms_without_an_error_and_is_deterministic() {
     // A period too short for the work overruns: errors, verdict fails.
     let short = run_mahru_demo(
         &MahruDemoOptions {
-            period: Some(Duration::from_micros(1000)),
+            period: Some(ServoPeriod::from_duration(Duration::from_micros(1000)).unwrap()),
             duration_s: 0.1,
             find_fastest: false,
             ..options
@@ -620,7 +621,7 @@ fn table_i_from_the_simulation_reproduces_the_seeds_example() {
     // A period the budget does not fit in is said so.
     let tight = run_budget(
         &BudgetOptions {
-            period: Some(Duration::from_micros(1200)),
+            period: Some(ServoPeriod::from_duration(Duration::from_micros(1200)).unwrap()),
             samples: 5,
             periods: 10,
             rtos: vec![Rtos::Xenomai],

@@ -204,7 +204,7 @@ fn a_stop_request_during_bring_up_ends_the_demo_powered_down() {
     let asks = stop.clone();
     let options = DemoOptions {
         config: config.clone(),
-        rate_hz: 1000.0,
+        period: firelink_control::ServoPeriod::KHZ_1,
         duration_s: 60.0,
         port: PortSpec::Udp(emu.addr),
         watchdog: WatchdogSetting::from_ms(300.0).expect("300 ms"),

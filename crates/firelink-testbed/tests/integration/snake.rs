@@ -58,7 +58,7 @@ fn the_36_axis_system_runs_at_1_khz_without_errors() {
 /// the generic servo: the tracking per arm and the I/O errors.
 fn exercise<R: RobotIo>(io: R, config: &IoConfig, cycles: u64) -> (Vec<(String, f64)>, u64) {
     let settings = RobotSettings {
-        rate_hz: 1000.0,
+        period: firelink_control::ServoPeriod::KHZ_1,
         watchdog: firelink_host::WatchdogSetting::default(),
         ..RobotSettings::default()
     };
@@ -154,11 +154,11 @@ fn options_the_nodes_cannot_honour_are_refused() {
     };
     let e = run_snake_demo(&qla, None, |_| {}).unwrap_err();
     assert!(e.to_string().contains("SNAKE"), "{e}");
-    let rate = SnakeDemoOptions {
-        rate_hz: f64::NAN,
+    let endless = SnakeDemoOptions {
+        duration_s: f64::NAN,
         ..short(DemoFault::None)
     };
-    assert!(run_snake_demo(&rate, None, |_| {}).is_err());
+    assert!(run_snake_demo(&endless, None, |_| {}).is_err());
 }
 
 #[test]

@@ -24,11 +24,11 @@ use std::time::{Duration, Instant};
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
-use firelink_control::FaultReport;
 use firelink_control::config::IoConfig;
 use firelink_control::lifecycle::State;
 use firelink_control::runner::{Pacing, Robot, RobotSettings, RunnerError};
 use firelink_control::trajectory::{Motion, PointToPoint};
+use firelink_control::{FaultReport, ServoPeriod};
 use firelink_host::WatchdogSetting;
 use firelink_host::robot_io::RobotIo;
 use firelink_host::sim::SimPort;
@@ -429,8 +429,10 @@ pub fn start(
             write_protect,
         });
     }
+    let period = ServoPeriod::from_rate_hz(rate_hz)
+        .map_err(|e| WebError::Options(format!("the Snake robot: {e}")))?;
     let settings = RobotSettings {
-        rate_hz,
+        period,
         watchdog,
         ..RobotSettings::default()
     };

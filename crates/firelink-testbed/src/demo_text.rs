@@ -1,90 +1,74 @@
-//! `firelink demo` on seed 000's dVRK (the default robot): the 28-axis
-//! run of [`firelink_testbed::demo`], its options, its report as a table,
-//! and the teleoperation session (`--teleop`).
+//! The dVRK demo as a person reads it: a progress event as a line
+//! ([`progress_line`]; a tick as the line a display redraws in place,
+//! [`tick_line`]) and the report as a table ([`render`], the errors in
+//! one line, [`errors_line`]), with what its timing means in words
+//! ([`timing_notes`]). `firelink demo` prints these; `--json` prints the
+//! [`DemoReport`] itself.
 
-use std::io::Write;
-
-use firelink_control::config::{IoConfig, JointType, presets};
-use firelink_control::runner::Pacing;
-use firelink_testbed::demo::{DemoOptions, DemoReport, run_demo};
+use firelink_control::config::{IoConfig, JointType};
 use firelink_wire::human::Number;
 
-use super::{DemoArgs, load_config, print_report, with_progress};
-use crate::error::CliError;
+use crate::demo::{DemoProgress, DemoReport, ErrorCounts};
 
-/// The demo's options from the command line.
-///
-/// # Errors
-/// The configuration file could not be loaded.
-pub fn options(args: &DemoArgs) -> Result<DemoOptions, CliError> {
-    let config = match &args.config {
-        Some(path) => load_config(path)?,
-        None => presets::dvrk_seed000(),
+/// The I/O errors by kind, in one line (the demo's tables).
+pub fn errors_line(errors: &ErrorCounts) -> String {
+    let e = &errors.by_kind;
+    format!(
+        "errors: total {}  timeouts {}  sequence {}  corrupt queries {}  bus resets {}  bad packets {}  nacks {}",
+        errors.total,
+        e.timeouts,
+        e.sequence_errors,
+        e.corrupt_queries,
+        e.bus_resets,
+        e.bad_packets,
+        e.nacks
+    )
+}
+
+/// A [`DemoProgress::Tick`] as the one line a display redraws in place
+/// (`None` for every other event).
+pub fn tick_line(event: &DemoProgress) -> Option<String> {
+    let DemoProgress::Tick {
+        t,
+        cycles,
+        io_median_us,
+        errors,
+    } = event
+    else {
+        return None;
     };
-    let watchdog = args.watchdog;
-    Ok(DemoOptions {
-        config,
-        rate_hz: args.rate.unwrap_or(6000.0),
-        protocol: args.protocol.into(),
-        duration_s: args.duration,
-        port: args.port,
-        firmware: args.firmware.into(),
-        fault: args.fault.into(),
-        faults: args.faults.clone(),
-        pacing: args.pacing.map(Pacing::from),
-        watchdog,
-        udp_wait: args.udp_wait.into(),
+    Some(format!(
+        "t = {t:7.3} s  cycles {cycles:8}  io median {io_median_us:6.1} us  errors {errors}"
+    ))
+}
+
+/// A progress event as one line for a person (`None`: nothing to show,
+/// e.g. a [`DemoProgress::Tick`], which a display draws in place).
+pub fn progress_line(event: &DemoProgress) -> Option<String> {
+    Some(match event {
+        DemoProgress::Found {
+            boards,
+            port,
+            reason,
+            protocol,
+        } => format!("found {boards} boards on {port} ({reason}), protocol {protocol}"),
+        DemoProgress::WatchdogOff => return None,
+        DemoProgress::TookOver(text) => text.clone(),
+        DemoProgress::Configured => "configured; powering on".into(),
+        DemoProgress::Powered(t) => format!("powered at t = {t:.3} s; homing"),
+        DemoProgress::Homed(t) => format!("homed and active at t = {t:.3} s; moving every arm"),
+        DemoProgress::Tick { .. } => return None,
+        DemoProgress::Injecting(f) => format!("injecting fault: {f}"),
+        DemoProgress::Fault(text) => format!("FAULT: {text}"),
+        DemoProgress::SafetyChain {
+            state,
+            amplifiers_on,
+        } => format!(
+            "safety chain: state {state}, amplifiers {}",
+            if *amplifiers_on { "ON" } else { "off" }
+        ),
+        DemoProgress::PoweredOff(wall) => format!("powered off; wall time {wall:.2} s"),
     })
-}
-
-/// Run `firelink demo` on the dVRK.
-pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
-    let options = options(args)?;
-    let report = with_progress(args, |rt, progress| run_demo(&options, rt, progress))?;
-    if !(args.quiet || crate::args::quiet()) && report.realtime.requested {
-        let r = &report.realtime;
-        eprintln!(
-            "demo: real time: SCHED_FIFO {}, memory locked {}, timer slack 1 ns {}{}",
-            r.sched_fifo_priority.is_some(),
-            r.memory_locked,
-            r.timer_slack_1ns,
-            if r.errors.is_empty() {
-                String::new()
-            } else {
-                format!(" ({})", r.errors.join("; "))
-            }
-        );
-    }
-    if args.json {
-        print_report(args, out, &report)?;
-    } else {
-        write!(out, "{}", render(&report, &options.config))?;
-    }
-    report.verdict().map_err(CliError::Failed)
-}
-
-/// `firelink demo --teleop`: the teleoperation session and its report.
-pub fn run_teleop(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
-    use firelink_testbed::teleop::TeleopOptions;
-    if !(args.quiet || crate::args::quiet()) {
-        eprintln!(
-            "demo: teleoperation MTMR -> PSM1, 60 s of virtual time on the simulated bus \
-             (the clutch pressed from 30 to 33 s)"
-        );
-    }
-    let options = TeleopOptions {
-        firmware: args.firmware.into(),
-        ..TeleopOptions::default()
-    };
-    let report = firelink_testbed::teleop::run_teleop(&options)?;
-    if args.json {
-        serde_json::to_writer_pretty(&mut *out, &report)
-            .map_err(|e| CliError::Failed(e.to_string()))?;
-        writeln!(out)?;
-    } else {
-        write!(out, "{report}")?;
-    }
-    Ok(())
 }
 
 /// A time in microseconds as a person reads it: `183.4 us`, `24.1 ms`.
@@ -219,18 +203,7 @@ pub fn render(report: &DemoReport, config: &IoConfig) -> String {
         }
         let _ = writeln!(s);
     }
-    let (total, e) = (report.errors.total, &report.errors.by_kind);
-    let _ = writeln!(
-        s,
-        "  errors: total {}  timeouts {}  sequence {}  corrupt queries {}  bus resets {}  bad packets {}  nacks {}",
-        total,
-        e.timeouts,
-        e.sequence_errors,
-        e.corrupt_queries,
-        e.bus_resets,
-        e.bad_packets,
-        e.nacks
-    );
+    let _ = writeln!(s, "  {}", errors_line(&report.errors));
     let w = &report.watchdog;
     let period = if w.period_ms > 0.0 {
         format!("{} ms", Number(w.period_ms))
@@ -268,7 +241,7 @@ pub fn render(report: &DemoReport, config: &IoConfig) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use firelink_testbed::demo::TimeStats;
+    use crate::demo::{DemoOptions, TimeStats, run_demo};
 
     /// A short run of the dVRK demo on the simulated bus.
     fn report() -> (DemoReport, IoConfig) {

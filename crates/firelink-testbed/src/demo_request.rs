@@ -1,0 +1,387 @@
+//! One demo request for every robot: what `firelink demo` asks for,
+//! whichever robot it names. [`DemoRequest::run`] picks the run (the
+//! dVRK's [`run_demo`], the Snake system's [`run_snake_demo`], MAHRU's
+//! [`run_mahru_demo`] or the teleoperation session [`run_teleop`]), hands
+//! it the options that robot takes, and returns a [`DemoOutcome`] that
+//! prints itself as JSON or as a table and gives the verdict.
+//!
+//! The servo period is one [`ServoPeriod`] for every robot: `None` is the
+//! robot's own default (the dVRK 6 kHz, the Snake system 1 kHz, MAHRU its
+//! configuration's period).
+
+use firelink_board::config::Profile;
+use firelink_control::ServoPeriod;
+use firelink_control::config::{IoConfig, presets};
+use firelink_control::runner::Pacing;
+use firelink_host::WatchdogSetting;
+use firelink_host::scan::Protocol;
+use firelink_host::udp::WaitMode;
+
+use crate::TestbedError;
+use crate::demo::{
+    DemoFault, DemoOptions, DemoProgress, DemoReport, PortSpec, RealtimeStatus, run_demo,
+};
+use crate::demo_text::render;
+use crate::fault_script::FaultScript;
+use crate::mahru::{MahruConfig, MahruDemoOptions, MahruDemoReport, run_mahru_demo};
+use crate::port_spec::PortKind;
+use crate::rig::RobotKind;
+use crate::snake::demo::{SnakeDemoOptions, SnakeDemoReport, run_snake_demo};
+use crate::snake::is_snake_config;
+use crate::teleop::{TeleopOptions, TeleopReport, run_teleop};
+
+/// The robot's configuration.
+#[derive(Debug, Clone, Default)]
+pub enum DemoConfig {
+    /// The robot's own seed configuration.
+    #[default]
+    Builtin,
+    /// A saw-robot-io configuration (the dVRK or a Snake system: its
+    /// boards say which).
+    Io(IoConfig),
+    /// A MAHRU configuration.
+    Mahru(MahruConfig),
+}
+
+/// What a demo run is asked to do, for any robot.
+#[derive(Debug, Clone)]
+pub struct DemoRequest {
+    /// The robot; a [`DemoConfig::Io`] on Snake nodes is the Snake system
+    /// whatever this says, unless it is MAHRU.
+    pub robot: RobotKind,
+    /// Instead of the trajectories: the dVRK's teleoperation session.
+    pub teleop: bool,
+    /// The configuration.
+    pub config: DemoConfig,
+    /// The servo period; `None`: the robot's own.
+    pub period: Option<ServoPeriod>,
+    /// Seconds of motion after homing.
+    pub duration_s: f64,
+    /// Where the boards are.
+    pub port: PortSpec,
+    /// I/O protocol (the dVRK).
+    pub protocol: Protocol,
+    /// Firmware of the emulated QLA boards.
+    pub firmware: Profile,
+    /// The fault to inject half way.
+    pub fault: DemoFault,
+    /// A fault script instead of the preset (`firelink demo --faults`).
+    pub faults: Option<FaultScript>,
+    /// Pacing; `None`: the port's default.
+    pub pacing: Option<Pacing>,
+    /// Board watchdog.
+    pub watchdog: WatchdogSetting,
+    /// How the UDP port's reads wait.
+    pub udp_wait: WaitMode,
+    /// The Snake system and MAHRU: after the run, search for the fastest
+    /// rate or period that holds.
+    pub search_fastest: bool,
+}
+
+impl Default for DemoRequest {
+    fn default() -> Self {
+        let dvrk = DemoOptions::default();
+        DemoRequest {
+            robot: RobotKind::Dvrk,
+            teleop: false,
+            config: DemoConfig::Builtin,
+            period: None,
+            duration_s: dvrk.duration_s,
+            port: dvrk.port,
+            protocol: dvrk.protocol,
+            firmware: dvrk.firmware,
+            fault: dvrk.fault,
+            faults: None,
+            pacing: dvrk.pacing,
+            watchdog: dvrk.watchdog,
+            udp_wait: dvrk.udp_wait,
+            search_fastest: true,
+        }
+    }
+}
+
+/// What a demo run returned.
+#[derive(Debug, Clone)]
+pub enum DemoOutcome {
+    /// The dVRK demo, with the configuration its table reads.
+    Dvrk(Box<DemoReport>, Box<IoConfig>),
+    /// The Snake demo.
+    Snake(Box<SnakeDemoReport>),
+    /// MAHRU walking.
+    Mahru(Box<MahruDemoReport>),
+    /// The teleoperation session.
+    Teleop(Box<TeleopReport>),
+}
+
+impl DemoRequest {
+    /// The run the request picks, as a robot and whether it is the
+    /// teleoperation session: that session (the dVRK's, whatever the
+    /// robot), MAHRU, the Snake system (asked for, or a configuration on
+    /// Snake nodes), else the dVRK.
+    pub fn chosen(&self) -> (RobotKind, bool) {
+        if self.teleop {
+            return (RobotKind::Dvrk, true);
+        }
+        match (&self.config, self.robot) {
+            (_, RobotKind::Mahru) => (RobotKind::Mahru, false),
+            (DemoConfig::Io(c), _) if is_snake_config(c) => (RobotKind::Snake, false),
+            (_, kind) => (kind, false),
+        }
+    }
+
+    fn io_config(&self, builtin: fn() -> IoConfig) -> Result<IoConfig, TestbedError> {
+        match &self.config {
+            DemoConfig::Builtin => Ok(builtin()),
+            DemoConfig::Io(c) => Ok(c.clone()),
+            DemoConfig::Mahru(_) => Err(TestbedError::Config(
+                "a MAHRU configuration drives only --robot mahru".into(),
+            )),
+        }
+    }
+
+    /// The dVRK demo's options.
+    ///
+    /// # Errors
+    /// A MAHRU configuration.
+    pub fn dvrk_options(&self) -> Result<DemoOptions, TestbedError> {
+        let default = DemoOptions::default();
+        Ok(DemoOptions {
+            config: self.io_config(presets::dvrk_seed000)?,
+            period: self.period.unwrap_or(default.period),
+            protocol: self.protocol,
+            duration_s: self.duration_s,
+            port: self.port,
+            firmware: self.firmware,
+            fault: self.fault,
+            faults: self.faults.clone(),
+            pacing: self.pacing,
+            watchdog: self.watchdog,
+            udp_wait: self.udp_wait,
+        })
+    }
+
+    /// The Snake demo's options.
+    ///
+    /// # Errors
+    /// A MAHRU configuration.
+    pub fn snake_options(&self) -> Result<SnakeDemoOptions, TestbedError> {
+        let default = SnakeDemoOptions::default();
+        Ok(SnakeDemoOptions {
+            config: self.io_config(presets::snake_seed001)?,
+            period: self.period.unwrap_or(default.period),
+            duration_s: self.duration_s,
+            port: self.port,
+            fault: self.fault,
+            faults: self.faults.clone(),
+            pacing: self.pacing,
+            watchdog: self.watchdog,
+            find_max_rate: self.search_fastest,
+            udp_wait: self.udp_wait,
+            ..default
+        })
+    }
+
+    /// MAHRU's options; MAHRU runs on plain `sim` only.
+    ///
+    /// # Errors
+    /// Another port, or a saw-robot-io configuration.
+    pub fn mahru_options(&self) -> Result<MahruDemoOptions, TestbedError> {
+        const COMMAND: &str = "firelink demo --robot mahru";
+        self.port.refuse_unless(COMMAND, &[PortKind::Sim])?;
+        self.port.refuse_board_count(
+            COMMAND,
+            "the MAHRU modules come from its configuration (seed 002's own protocol)",
+        )?;
+        let config = match &self.config {
+            DemoConfig::Builtin => MahruConfig::seed002(),
+            DemoConfig::Mahru(c) => c.clone(),
+            DemoConfig::Io(_) => {
+                return Err(TestbedError::Config(
+                    "MAHRU needs a MAHRU configuration (as configs/mahru-seed002.json)".into(),
+                ));
+            }
+        };
+        Ok(MahruDemoOptions {
+            config,
+            duration_s: self.duration_s,
+            period: self.period,
+            find_fastest: self.search_fastest,
+        })
+    }
+
+    /// Run the chosen demo. `realtime` is the calling thread's real-time
+    /// setup for wall-clock pacing (the dVRK and Snake runs); `progress`
+    /// gets the runs' events, `say` plain lines (MAHRU's steps, what the
+    /// teleoperation session is).
+    ///
+    /// # Errors
+    /// Options the chosen robot cannot honour, and the run's own errors.
+    pub fn run(
+        &self,
+        realtime: Option<&dyn Fn() -> RealtimeStatus>,
+        progress: &mut dyn FnMut(DemoProgress),
+        say: &mut dyn FnMut(&str),
+    ) -> Result<DemoOutcome, TestbedError> {
+        Ok(match self.chosen() {
+            (_, true) => {
+                say(
+                    "teleoperation MTMR -> PSM1, 60 s of virtual time on the simulated bus \
+                     (the clutch pressed from 30 to 33 s)",
+                );
+                let options = TeleopOptions {
+                    firmware: self.firmware,
+                    period: match self.period {
+                        Some(p) => p,
+                        None => TeleopOptions::default().period,
+                    },
+                    ..TeleopOptions::default()
+                };
+                DemoOutcome::Teleop(Box::new(run_teleop(&options)?))
+            }
+            (RobotKind::Mahru, _) => {
+                let report = run_mahru_demo(&self.mahru_options()?, |line| say(line))?;
+                DemoOutcome::Mahru(Box::new(report))
+            }
+            (RobotKind::Snake, _) => {
+                let report = run_snake_demo(&self.snake_options()?, realtime, progress)?;
+                DemoOutcome::Snake(Box::new(report))
+            }
+            (RobotKind::Dvrk, _) => {
+                let options = self.dvrk_options()?;
+                let report = run_demo(&options, realtime, progress)?;
+                DemoOutcome::Dvrk(Box::new(report), Box::new(options.config))
+            }
+        })
+    }
+}
+
+impl DemoOutcome {
+    /// The report as JSON, one line (the teleoperation session's
+    /// indented, as it always was).
+    ///
+    /// # Errors
+    /// Serialisation (not expected: the reports are plain data).
+    pub fn json(&self) -> Result<String, serde_json::Error> {
+        match self {
+            DemoOutcome::Dvrk(r, _) => serde_json::to_string(r),
+            DemoOutcome::Snake(r) => serde_json::to_string(r),
+            DemoOutcome::Mahru(r) => serde_json::to_string(r),
+            DemoOutcome::Teleop(r) => serde_json::to_string_pretty(r),
+        }
+    }
+
+    /// The report as a table for a person.
+    pub fn table(&self) -> String {
+        match self {
+            DemoOutcome::Dvrk(r, config) => render(r, config),
+            DemoOutcome::Snake(r) => r.to_string(),
+            DemoOutcome::Mahru(r) => r.to_string(),
+            DemoOutcome::Teleop(r) => r.to_string(),
+        }
+    }
+
+    /// What the dVRK run's real-time setup achieved, in one line (when it
+    /// was asked for).
+    pub fn realtime_line(&self) -> Option<String> {
+        let DemoOutcome::Dvrk(report, _) = self else {
+            return None;
+        };
+        let r = &report.realtime;
+        r.requested.then(|| {
+            format!(
+                "real time: SCHED_FIFO {}, memory locked {}, timer slack 1 ns {}{}",
+                r.sched_fifo_priority.is_some(),
+                r.memory_locked,
+                r.timer_slack_1ns,
+                if r.errors.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", r.errors.join("; "))
+                }
+            )
+        })
+    }
+
+    /// Whether the run did what it was asked (the teleoperation session
+    /// reports; it has no verdict of its own).
+    ///
+    /// # Errors
+    /// What went wrong, in one line.
+    pub fn verdict(&self) -> Result<(), String> {
+        match self {
+            DemoOutcome::Dvrk(r, _) => r.verdict(),
+            DemoOutcome::Snake(r) => r.verdict(),
+            DemoOutcome::Mahru(r) => r.verdict(),
+            DemoOutcome::Teleop(_) => Ok(()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_robot_is_chosen_as_the_command_line_always_did() {
+        use RobotKind::{Dvrk, Mahru, Snake};
+        let chosen = |robot, teleop, config| {
+            let request = DemoRequest {
+                robot,
+                teleop,
+                config,
+                ..DemoRequest::default()
+            };
+            request.chosen()
+        };
+        let snake = || DemoConfig::Io(presets::snake_seed001());
+        let dvrk = || DemoConfig::Io(presets::dvrk_seed000());
+        assert_eq!(chosen(Dvrk, false, DemoConfig::Builtin), (Dvrk, false));
+        assert_eq!(chosen(Dvrk, true, DemoConfig::Builtin), (Dvrk, true));
+        assert_eq!(chosen(Snake, false, DemoConfig::Builtin), (Snake, false));
+        // A configuration on Snake nodes is the Snake system.
+        assert_eq!(chosen(Dvrk, false, snake()), (Snake, false));
+        assert_eq!(chosen(Dvrk, false, dvrk()), (Dvrk, false));
+        assert_eq!(chosen(Mahru, false, DemoConfig::Builtin), (Mahru, false));
+        // The teleoperation session is the dVRK's, whatever the robot.
+        assert_eq!(chosen(Mahru, true, DemoConfig::Builtin), (Dvrk, true));
+        assert_eq!(chosen(Snake, true, snake()), (Dvrk, true));
+    }
+
+    #[test]
+    fn one_period_means_the_same_for_every_robot() {
+        let period: ServoPeriod = "2ms".parse().unwrap();
+        let r = DemoRequest {
+            period: Some(period),
+            ..DemoRequest::default()
+        };
+        assert_eq!(r.dvrk_options().unwrap().period, period);
+        assert_eq!(r.snake_options().unwrap().period, period);
+        assert_eq!(r.mahru_options().unwrap().period, Some(period));
+        // Unset: each robot's own.
+        let r = DemoRequest::default();
+        assert_eq!(r.dvrk_options().unwrap().period.rate_hz(), 6000.0);
+        assert_eq!(r.snake_options().unwrap().period.rate_hz(), 1000.0);
+        assert_eq!(r.mahru_options().unwrap().period, None);
+    }
+
+    #[test]
+    fn mahru_refuses_other_ports_and_configurations() {
+        let r = DemoRequest {
+            robot: RobotKind::Mahru,
+            port: PortSpec::Emulate,
+            ..DemoRequest::default()
+        };
+        assert!(r.mahru_options().is_err());
+        let r = DemoRequest {
+            robot: RobotKind::Mahru,
+            config: DemoConfig::Io(presets::dvrk_seed000()),
+            ..DemoRequest::default()
+        };
+        assert!(r.mahru_options().is_err());
+        let r = DemoRequest {
+            config: DemoConfig::Mahru(MahruConfig::seed002()),
+            ..DemoRequest::default()
+        };
+        assert!(r.dvrk_options().is_err());
+    }
+}
