@@ -79,6 +79,20 @@ pub struct JointSample {
     pub potentiometer: Option<f64>,
 }
 
+impl JointSample {
+    /// Whether every value is finite (a missing pot counts as finite),
+    /// all at once: `x * 0` is ±0 for a finite `x` and NaN otherwise, and
+    /// NaN spreads.
+    #[inline]
+    fn all_finite(&self) -> bool {
+        let pot = self.potentiometer.unwrap_or(0.0);
+        let probe = (self.setpoint * 0.0 + self.position * 0.0)
+            + (self.velocity * 0.0 + self.current * 0.0)
+            + pot * 0.0;
+        probe == 0.0
+    }
+}
+
 /// Running timers of one joint: when each condition started.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 struct Timers {
@@ -268,9 +282,31 @@ impl SafetyMonitor {
         self.latched
     }
 
+    /// The common cycle, decided in one pass without a branch per check:
+    /// one sample per joint, no joint allowed to stall, and every joint's
+    /// sample finite, inside every bound ([`Bounds::all_clear`]) with no
+    /// timer running. Then no check can fire and no timer starts: the
+    /// joint-by-joint checks would find nothing and change nothing.
+    #[inline]
+    fn all_quiet(&self, samples: &[JointSample]) -> bool {
+        if self.any_stalling
+            || samples.len() != self.bounds.len()
+            || samples.len() != self.timers.len()
+        {
+            return false;
+        }
+        let joints = self.bounds.iter().zip(&self.timers).zip(samples);
+        joints.fold(true, |quiet, ((b, t), s)| {
+            quiet & s.all_finite() & t.idle() & b.all_clear(s)
+        })
+    }
+
     fn first_fault(&mut self, now: f64, samples: &[JointSample]) -> Option<FaultKind> {
         // Time must be usable for the duration checks.
         let now_ok = now.is_finite();
+        if now_ok && self.all_quiet(samples) {
+            return None;
+        }
         let joints = self.limits.iter().zip(&self.bounds);
         for (i, ((lim, b), timers)) in joints.zip(self.timers.iter_mut()).enumerate() {
             // (The label is copied into a fault only.)
@@ -289,13 +325,8 @@ impl SafetyMonitor {
                 })
             };
             let pot = s.potentiometer.unwrap_or(0.0);
-            // Every value finite, all at once: `x * 0` is ±0 for a finite
-            // `x` and NaN otherwise, and NaN spreads. Which one, only if
-            // not.
-            let probe = (s.setpoint * 0.0 + s.position * 0.0)
-                + (s.velocity * 0.0 + s.current * 0.0)
-                + pot * 0.0;
-            if probe != 0.0 {
+            // Which value is not finite, only if one is not.
+            if !s.all_finite() {
                 for (what, v) in [
                     ("setpoint", s.setpoint),
                     ("position", s.position),
