@@ -282,33 +282,41 @@ impl SafetyMonitor {
         self.latched
     }
 
-    /// The common cycle, decided in one pass without a branch per check:
-    /// one sample per joint, no joint allowed to stall, and every joint's
-    /// sample finite, inside every bound ([`Bounds::all_clear`]) with no
-    /// timer running. Then no check can fire and no timer starts: the
-    /// joint-by-joint checks would find nothing and change nothing.
+    /// How many joints from the first are quiet: their samples finite,
+    /// inside every bound ([`Bounds::all_clear`], tested without a branch
+    /// per check) with no timer running; 0 if a joint may stall or the
+    /// samples are not one per joint. The joint-by-joint checks of a quiet
+    /// joint find nothing and change nothing, so they start after these
+    /// (in the common cycle, every joint: no check at all).
     #[inline]
-    fn all_quiet(&self, samples: &[JointSample]) -> bool {
+    fn quiet_joints(&self, samples: &[JointSample]) -> usize {
         if self.any_stalling
             || samples.len() != self.bounds.len()
             || samples.len() != self.timers.len()
         {
-            return false;
+            return 0;
         }
         let joints = self.bounds.iter().zip(&self.timers).zip(samples);
-        joints.fold(true, |quiet, ((b, t), s)| {
-            quiet & s.all_finite() & t.idle() & b.all_clear(s)
-        })
+        joints
+            .take_while(|((b, t), s)| s.all_finite() & t.idle() & b.all_clear(s))
+            .count()
     }
 
     fn first_fault(&mut self, now: f64, samples: &[JointSample]) -> Option<FaultKind> {
         // Time must be usable for the duration checks.
         let now_ok = now.is_finite();
-        if now_ok && self.all_quiet(samples) {
+        // The joints before the first that is not quiet need no check.
+        let quiet = if now_ok {
+            self.quiet_joints(samples)
+        } else {
+            0
+        };
+        if quiet == samples.len() && quiet == self.limits.len() {
             return None;
         }
         let joints = self.limits.iter().zip(&self.bounds);
-        for (i, ((lim, b), timers)) in joints.zip(self.timers.iter_mut()).enumerate() {
+        let joints = joints.zip(self.timers.iter_mut()).enumerate().skip(quiet);
+        for (i, ((lim, b), timers)) in joints {
             // (The label is copied into a fault only.)
             let joint = &lim.label;
             let stalling = self.any_stalling && self.stalling.get(i).copied().unwrap_or(false);
