@@ -254,8 +254,9 @@ impl Pid {
     }
 
     /// One control step over `dt` seconds: the current command, amperes,
-    /// always finite and within `±output_limit`.
-    #[inline]
+    /// always finite and within `±output_limit`. (Inlined into the servo
+    /// cycle's loop over the joints.)
+    #[inline(always)]
     pub fn update(&mut self, setpoint: Setpoint, measured: Measurement, dt: f64) -> f64 {
         // Every input finite, all at once: `x * 0` is ±0 for a finite `x`
         // and NaN for an infinite or NaN one, and NaN spreads.
@@ -279,7 +280,7 @@ impl Pid {
             return 0.0;
         }
         let bound = self.bound;
-        let candidate = (self.integral + e * dt).clamp(-bound, bound);
+        let candidate = within(self.integral + e * dt, -bound, bound);
         let limit = self.output_limit;
         let with_candidate = base + g.ki * candidate;
         let pushes_deeper = with_candidate.abs() > limit
@@ -293,7 +294,21 @@ impl Pid {
         } else {
             PidStatus::Ok
         };
-        u.clamp(-limit, limit)
+        within(u, -limit, limit)
+    }
+}
+
+/// `x` limited to `[lo, hi]` (NaN stays NaN): [`f64::clamp`] for bounds
+/// known to be in order (the controller's are, from construction), without
+/// its check of them on every call of the servo cycle.
+#[inline(always)]
+fn within(x: f64, lo: f64, hi: f64) -> f64 {
+    if x < lo {
+        lo
+    } else if x > hi {
+        hi
+    } else {
+        x
     }
 }
 

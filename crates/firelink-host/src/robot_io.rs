@@ -99,6 +99,19 @@ pub trait RobotIo {
     /// # Errors
     /// See the trait docs.
     fn encoder_position(&self, axis: usize) -> Result<i32>;
+    /// Every axis's latched inputs at once, for a cycle that reads them
+    /// all: `counts[i]` and `pots[i]` become
+    /// [`encoder_position`](Self::encoder_position)`(i).ok()` and
+    /// [`analog_position`](Self::analog_position)`(i).ok()` for every `i`
+    /// below the shorter slice's length (`None` past the last axis). The
+    /// default asks axis by axis; a system that can walk its latched
+    /// blocks once does that instead.
+    fn axis_inputs(&self, counts: &mut [Option<i32>], pots: &mut [Option<u16>]) {
+        for (i, (c, p)) in counts.iter_mut().zip(pots.iter_mut()).enumerate() {
+            *c = self.encoder_position(i).ok();
+            *p = self.analog_position(i).ok();
+        }
+    }
     /// `GetEncoderVelocity`: counts per second from the board's period
     /// measurement (0 when too slow to measure).
     ///
@@ -145,6 +158,14 @@ pub trait RobotIo {
     /// # Errors
     /// See the trait docs.
     fn set_motor_command(&mut self, axis: usize, code: u16) -> Result<()>;
+    /// [`set_motor_command`](Self::set_motor_command) for each `(axis,
+    /// code)` of `commands`, in order, for a cycle that sets them all; an
+    /// axis the system lacks is skipped. The default sets axis by axis.
+    fn set_motor_commands(&mut self, commands: &[(usize, u16)]) {
+        for &(axis, code) in commands {
+            let _ = self.set_motor_command(axis, code);
+        }
+    }
     /// Ask for the axis's amplifier on or off with the next apply.
     ///
     /// # Errors
@@ -434,6 +455,10 @@ impl<P: Port> RobotIo for IoSystem<P> {
         b.encoder_counts(a).ok_or_else(|| bad_axis(axis))
     }
 
+    fn axis_inputs(&self, counts: &mut [Option<i32>], pots: &mut [Option<u16>]) {
+        IoSystem::axis_inputs(self, counts, pots);
+    }
+
     fn encoder_velocity(&self, axis: usize) -> Result<f64> {
         let (b, a) = self.board_at(axis)?;
         b.encoder_velocity(a).ok_or_else(|| bad_axis(axis))
@@ -474,6 +499,10 @@ impl<P: Port> RobotIo for IoSystem<P> {
         let (b, a) = self.locate(axis)?;
         let board = self.boards_mut().get_mut(b).ok_or_else(|| bad_axis(axis))?;
         board.set_dac(a, code)
+    }
+
+    fn set_motor_commands(&mut self, commands: &[(usize, u16)]) {
+        IoSystem::set_motor_commands(self, commands);
     }
 
     fn set_amplifier_enable(&mut self, axis: usize, on: bool) -> Result<()> {

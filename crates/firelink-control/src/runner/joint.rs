@@ -70,8 +70,10 @@ impl Joint {
     /// encoder `counts` latched and the boards' sample clock `sampled`
     /// (s) give the position (homed) and the velocity, into the joint and
     /// its safety `sample`. Returns the encoder position before the homing
-    /// offset. Allocation-free.
-    #[inline]
+    /// offset. Allocation-free. (Like the other steps of a joint's cycle,
+    /// inlined into the cycle's loop over the joints: a call per joint
+    /// and step cost more than its arithmetic.)
+    #[inline(always)]
     pub fn measure(&mut self, counts: i32, sampled: f64, sample: &mut JointSample) -> f64 {
         let raw = self.encoder.counts_to_position(i64::from(counts));
         let pos = raw + self.offset;
@@ -84,7 +86,7 @@ impl Joint {
 
     /// Then the setpoint: Active, the trajectory's at the port's time
     /// `now`; otherwise the joint's position, at rest.
-    #[inline]
+    #[inline(always)]
     pub fn plan(&mut self, now: f64, active: bool) {
         if active {
             let sp = self.motion.sample(now - self.motion_start);
@@ -99,8 +101,10 @@ impl Joint {
     /// Last, after [`plan`](Self::plan): Active, the PID's current over the
     /// period `dt` and the tracking error into `acc`; otherwise no current.
     /// `pot` is the joint's pot position in actuator space (NaN: none).
-    /// The rest of the safety `sample`. Allocation-free.
-    #[inline]
+    /// The rest of the safety `sample`. Allocation-free. (Inlined into
+    /// the cycle's loop over the joints: a call per joint cost more than
+    /// its arithmetic.)
+    #[inline(always)]
     pub fn control(
         &mut self,
         dt: f64,
@@ -139,7 +143,7 @@ impl Joint {
 
     /// The pot position from the pot's ADC bits (NaN without a pot or a
     /// reading).
-    #[inline]
+    #[inline(always)]
     pub fn pot_position(&self, bits: Option<u16>) -> f64 {
         match (&self.pot, bits) {
             (Some(p), Some(bits)) => p.bits_to_position(bits),
@@ -148,7 +152,7 @@ impl Joint {
     }
 
     /// The DAC code to write: the current while active, else zero current.
-    #[inline]
+    #[inline(always)]
     pub fn command(&self, active: bool) -> u16 {
         if active {
             self.drive

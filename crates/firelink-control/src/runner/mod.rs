@@ -183,6 +183,15 @@ pub struct Robot<R: RobotIo> {
     stop_searches: Vec<Option<StopSearchConfig>>,
     pot: Vec<f64>,
     enc: Vec<f64>,
+    /// Per I/O axis: the latch's encoder counts and pot codes, read for
+    /// every axis in one call ([`RobotIo::axis_inputs`]); `None` where the
+    /// I/O system has no reading.
+    axis_counts: Vec<Option<i32>>,
+    axis_pots: Vec<Option<u16>>,
+    /// The cycle's motor commands, `(axis, DAC code)`: the joints' in
+    /// joint order, then the brakes', written in one call
+    /// ([`RobotIo::set_motor_commands`]).
+    commands: Vec<(usize, u16)>,
     times: CycleTimes,
     cycle: u64,
     last_start: Option<Duration>,
@@ -409,6 +418,14 @@ impl<R: RobotIo> Robot<R> {
                 Some(used)
             });
         let n = joints.len();
+        // (Every joint's and brake's axis is below the axis count.)
+        let axes = io.axis_count();
+        let commands = joints
+            .iter()
+            .map(|j| j.axis)
+            .chain(brakes.iter().map(|b| b.axis))
+            .map(|axis| (axis, 0))
+            .collect();
         let arm_names: Vec<String> = config.robots.iter().map(|r| r.name.clone()).collect();
         Ok(Robot {
             io,
@@ -439,6 +456,9 @@ impl<R: RobotIo> Robot<R> {
                 .collect(),
             pot: vec![0.0; n],
             enc: vec![0.0; n],
+            axis_counts: vec![None; axes],
+            axis_pots: vec![None; axes],
+            commands,
             times: CycleTimes::with_capacity(settings.max_samples),
             cycle: 0,
             last_start: None,
@@ -1153,6 +1173,8 @@ impl<R: RobotIo> Robot<R> {
         // joint controlled: each joint's arithmetic (a division for the
         // velocity, a sine for a sinusoid, the PID on both) depends on no
         // other joint's, and in separate passes the joints overlap.
+        self.io
+            .axis_inputs(&mut self.axis_counts, &mut self.axis_pots);
         let joints = self.joints.iter_mut().zip(&mut self.samples);
         let pots = self
             .enc
@@ -1160,10 +1182,10 @@ impl<R: RobotIo> Robot<R> {
             .zip(&mut self.pot)
             .zip(&mut self.raw_pot);
         for ((j, s), ((e, p), raw)) in joints.zip(pots) {
-            let counts = self.io.encoder_position(j.axis).unwrap_or(0);
+            let counts = self.axis_counts.get(j.axis).copied().flatten();
             let sampled = self.sample_clock.get(j.board).copied().unwrap_or(now);
-            *e = j.measure(counts, sampled, s);
-            let pot = j.pot_position(self.io.analog_position(j.axis).ok());
+            *e = j.measure(counts.unwrap_or(0), sampled, s);
+            let pot = j.pot_position(self.axis_pots.get(j.axis).copied().flatten());
             // Pots on joints are read where they are, then mixed.
             if coupled { *raw = pot } else { *p = pot }
         }
@@ -1187,18 +1209,20 @@ impl<R: RobotIo> Robot<R> {
             }
         }
         let active = self.life.state() == State::Active;
-        for j in &self.joints {
-            let _ = self.io.set_motor_command(j.axis, j.command(active));
+        // (Joints first: the zip takes no slot past the last joint.)
+        let mut slots = self.commands.iter_mut();
+        for (j, (_, code)) in self.joints.iter().zip(slots.by_ref()) {
+            *code = j.command(active);
         }
         let running = matches!(self.life.state(), State::Active | State::Configured);
         let since = self.brakes_released_at.filter(|_| running).map(|t| now - t);
-        for b in &self.brakes {
-            let code = match since {
+        for (b, (_, code)) in self.brakes.iter().zip(slots) {
+            *code = match since {
                 Some(t) if t < b.release_time => b.release,
                 Some(_) => b.hold,
                 None => b.engaged,
             };
-            let _ = self.io.set_motor_command(b.axis, code);
         }
+        self.io.set_motor_commands(&self.commands);
     }
 }

@@ -36,7 +36,7 @@ impl VelocityEstimator {
     /// Add the sample taken at `time` (seconds, any origin, increasing) and
     /// return the new estimate. A sample whose time does not advance past
     /// the oldest one in the window leaves the estimate unchanged.
-    #[inline]
+    #[inline(always)]
     pub fn update(&mut self, time: f64, position: f64) -> f64 {
         if self.backfill {
             self.date_the_rest_samples(time);

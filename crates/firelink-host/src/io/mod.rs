@@ -403,6 +403,42 @@ impl<P: Port> IoSystem<P> {
         self.lookup.axis(axis)
     }
 
+    /// Every axis's latched encoder count and pot code, in axis order:
+    /// `counts[i]` and `pots[i]` for every axis `i` below the shorter
+    /// slice's length, `None` past the last axis (what
+    /// [`RobotIo::axis_inputs`](crate::RobotIo::axis_inputs) says). One
+    /// walk over the axis table, no look-up per axis.
+    #[inline]
+    pub fn axis_inputs(&self, counts: &mut [Option<i32>], pots: &mut [Option<u16>]) {
+        let mut axes = self.lookup.axes.iter();
+        for (c, p) in counts.iter_mut().zip(pots.iter_mut()) {
+            let input = axes.next().and_then(|&(b, a)| {
+                let board = self.boards.get(usize::from(b))?;
+                Some((board, usize::from(a)))
+            });
+            (*c, *p) = match input {
+                Some((board, a)) => (board.encoder_counts(a), board.pot_bits(a)),
+                None => (None, None),
+            };
+        }
+    }
+
+    /// Each `(axis, code)` of `commands` into its board's next command
+    /// block, in order (what
+    /// [`RobotIo::set_motor_commands`](crate::RobotIo::set_motor_commands)
+    /// says); an axis the system lacks is skipped.
+    #[inline]
+    pub fn set_motor_commands(&mut self, commands: &[(usize, u16)]) {
+        for &(axis, code) in commands {
+            let Some(&(b, a)) = self.lookup.axes.get(axis) else {
+                continue;
+            };
+            if let Some(board) = self.boards.get_mut(usize::from(b)) {
+                let _ = board.set_dac(usize::from(a), code);
+            }
+        }
+    }
+
     /// The last cycle's report.
     pub fn report(&self) -> &CycleReport {
         &self.report
