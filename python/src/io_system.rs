@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use firelink_host::Port as HostPort;
-use firelink_host::io::{IoOptions, IoSystem as HostIoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem as HostIoSystem};
 use firelink_host::scan::Protocol;
 
 use crate::args;
@@ -50,7 +50,7 @@ impl IoSystem {
         &mut self,
         py: Python<'_>,
         board: Option<&Bound<'_, PyAny>>,
-        request: impl Fn(&mut firelink_host::board::BoardIo),
+        request: impl Fn(&mut firelink_host::qla::board::BoardIo),
     ) -> PyResult<()> {
         let id = args::opt_int_as::<u8>(board, "board ID", 0, 15)?;
         let boards = exclusive(&mut self.io).boards_mut();
@@ -66,7 +66,7 @@ impl IoSystem {
 
     fn per_axis<T: Copy + Default>(
         &mut self,
-        f: impl Fn(&firelink_host::board::BoardIo, usize) -> Option<T>,
+        f: impl Fn(&firelink_host::qla::board::BoardIo, usize) -> Option<T>,
     ) -> Vec<T> {
         let boards = exclusive(&mut self.io).boards();
         self.axes
@@ -379,14 +379,14 @@ impl IoSystem {
 }
 
 /// A cycle's report as (nothing failed, I/O time in microseconds).
-pub(crate) fn cycle_result(r: &firelink_host::io::CycleReport) -> (bool, f64) {
+pub(crate) fn cycle_result(r: &firelink_host::qla::io::CycleReport) -> (bool, f64) {
     (r.all_ok(), r.io_time().as_secs_f64() * 1e6)
 }
 
 /// Error counters as a dict (`IoSystem.stats`, `SnakeSystem.stats`).
 pub(crate) fn stats_dict<'py>(
     py: Python<'py>,
-    s: &firelink_host::io::IoStats,
+    s: &firelink_host::qla::io::IoStats,
 ) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("cycles", s.cycles)?;

@@ -140,8 +140,8 @@ impl Board {
     }
 }
 
-impl From<&firelink_host::board::BoardInfo> for Board {
-    fn from(b: &firelink_host::board::BoardInfo) -> Self {
+impl From<&firelink_host::qla::board::BoardInfo> for Board {
+    fn from(b: &firelink_host::qla::board::BoardInfo) -> Self {
         Board {
             board_id: b.board_id,
             node: b.node,

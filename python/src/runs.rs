@@ -9,7 +9,8 @@ use firelink_control::config::presets;
 use firelink_control::runner::Pacing;
 use firelink_host::udp::WaitMode;
 use firelink_testbed::bench::{BenchOptions, BenchTransport};
-use firelink_testbed::demo::{DemoFault, DemoOptions};
+use firelink_testbed::demo::DemoFault;
+use firelink_testbed::dvrk::demo::DemoOptions;
 use firelink_testbed::port_spec;
 
 use crate::args::watchdog_setting;
@@ -87,7 +88,7 @@ pub(crate) fn run_demo_json(
         warn(py, w)?;
     }
     let report = interrupt::until_interrupted(py, |stop| {
-        firelink_testbed::demo::run_demo_until(&options, stop, None, |_| {})
+        firelink_testbed::dvrk::demo::run_demo_until(&options, stop, None, |_| {})
     })?
     .map_err(|e| testbed_error(py, e))?;
     let mut value =

@@ -12,7 +12,7 @@ use std::time::Duration;
 use criterion::{Criterion, criterion_group, criterion_main};
 use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::rig::{BoardRig, RigOptions};
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
 use firelink_host::sim::SimPort;
 use firelink_host::{Dest, Port, Result};

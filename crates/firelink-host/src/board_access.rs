@@ -9,7 +9,7 @@ use serde::Serialize;
 use firelink_wire::qla::address::{AxisRegister, BoardRegister, Register};
 use firelink_wire::qla::registers::{StatusRead, Temperature, Watchdog, counts_from_offset_binary};
 
-use crate::board::BoardInfo;
+use crate::qla::board::BoardInfo;
 use crate::register_address::{AddressError, check_address, register_offset};
 use crate::scan::{ScanReport, scan};
 use crate::{Dest, HostError, Port};

@@ -19,7 +19,7 @@
 //! [`Port::receive_broadcast_response`] takes (from whichever board is the
 //! hub); when it does not come within the read time-out the caller reads
 //! the hub instead (counted in [`EthStats::fallbacks`]). The blocks are in
-//! chain order; [`IoSystem`](crate::io::IoSystem) places each by the board
+//! chain order; [`IoSystem`](crate::qla::io::IoSystem) places each by the board
 //! ID in its STATUS.
 //!
 //! Responses are judged by the one [transaction engine](crate::transaction)
@@ -604,7 +604,7 @@ impl Port for UdpNetPort {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::{HubReadTimes, hub_ticks_us};
+    use crate::qla::io::{HubReadTimes, hub_ticks_us};
 
     /// EthBasePort `WaitBroadcastRead` without the bridge: 3 us for one
     /// board, 38 us for each further one.

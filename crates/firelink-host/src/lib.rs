@@ -18,18 +18,19 @@
 //!   packet (pcap of any port), and that lose and damage packets;
 //!   [`replay`]: a port answering from such a recording.
 //! - [`scan`]: discovery and protocol choice.
-//! - [`board`]: the per-board I/O buffers and accessors.
+//! - [`qla`]: the QLA family's wing (the dVRK's boards): [`qla::board`],
+//!   the per-board I/O buffers and accessors; [`qla::io`], the I/O system
+//!   running the three protocols; [`qla::extras`], the firmware features
+//!   beyond the servo cycle (PROMs and serial numbers, digital outputs and
+//!   waveforms, instrument memory, I/O expander, Ethernet registers, motor
+//!   supply, PHY registers).
 //! - [`register_address`]: registers by name (`axis2.enc_position`) and
 //!   the board's address map they must lie in.
-//! - [`io`]: the I/O system running the three protocols.
 //! - [`monitor`]: the model of a live view of every board: running
 //!   figures, the operator's switches, a board's STATUS in words.
-//! - [`extras`]: the firmware features beyond the servo cycle (PROMs and
-//!   serial numbers, digital outputs and waveforms, instrument memory, I/O
-//!   expander, Ethernet registers, motor supply, PHY registers).
 //! - [`robot_io`]: seed 001's abstract robot I/O ([`RobotIo`]): latch all
 //!   inputs, per-axis get/set, apply all outputs, the same for every
-//!   kind of board (implemented for [`io::IoSystem`] and
+//!   kind of board (implemented for [`qla::io::IoSystem`] and
 //!   [`snake::SnakeSystem`]).
 //! - [`cpu_latency`]: holding the CPUs awake (a PM QoS request) so that
 //!   hand-overs between processes do not wait for a sleeping CPU.
@@ -43,17 +44,14 @@
 //! Protocols never know which port they use, so the same program drives
 //! emulated boards today and real boards over Ethernet tomorrow.
 
-pub mod board;
 pub mod board_access;
 pub mod cpu_latency;
 pub mod error;
 pub mod eth;
-pub mod extras;
 pub mod fault;
 #[cfg(all(feature = "firewire", target_os = "linux"))]
 pub mod firewire;
 pub mod hex;
-pub mod io;
 pub mod link_stats;
 pub mod mahru;
 pub mod monitor;
@@ -61,6 +59,7 @@ pub mod monitor_frame;
 pub mod pacing;
 pub mod packet_json;
 pub mod port;
+pub mod qla;
 pub mod register_address;
 pub mod replay;
 pub mod robot_io;

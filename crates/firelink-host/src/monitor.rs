@@ -14,7 +14,7 @@ use firelink_wire::human::Number;
 use firelink_wire::qla::address::{BoardRegister, Register};
 use firelink_wire::qla::registers::{StatusRead, Watchdog};
 
-use crate::io::IoSystem;
+use crate::qla::io::IoSystem;
 use crate::{Port, WatchdogSetting};
 
 /// The watchdog period the `Watchdog` switch sets, ms.

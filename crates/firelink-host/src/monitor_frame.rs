@@ -5,8 +5,8 @@
 use std::time::{Duration, Instant};
 
 use crate::Port;
-use crate::io::IoSystem;
 use crate::monitor::{MonitorFigures, Switch, explain_status, on_off};
+use crate::qla::io::IoSystem;
 
 /// Render one frame as text.
 pub fn render<P: Port>(io: &IoSystem<P>, f: &MonitorFigures) -> String {

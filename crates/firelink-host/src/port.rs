@@ -111,12 +111,12 @@ pub trait Port {
     }
     /// Let `duration` pass (virtual time on the simulated bus).
     fn wait(&mut self, duration: Duration);
-    /// A servo cycle's I/O begins ([`IoSystem::read_all`](crate::io::IoSystem::read_all)):
+    /// A servo cycle's I/O begins ([`IoSystem::read_all`](crate::qla::io::IoSystem::read_all)):
     /// a port that bounds the time one cycle may spend waiting for its
     /// answers (the `fw` port's cycle budget) starts that budget anew.
     /// Other ports ignore it.
     fn begin_cycle(&mut self) {}
-    /// The cycle's I/O is over ([`IoSystem::write_all`](crate::io::IoSystem::write_all)
+    /// The cycle's I/O is over ([`IoSystem::write_all`](crate::qla::io::IoSystem::write_all)
     /// returned): calls until the next [`begin_cycle`](Self::begin_cycle)
     /// (a rescan, a register read) are bounded by their own time-outs only.
     fn end_cycle(&mut self) {}
@@ -180,8 +180,8 @@ pub trait Port {
     /// `0xFFFF_F000_0800`) are refused on this port, as Linux's FireWire
     /// driver refuses them: the broadcast protocol then sends its query and
     /// commands to node 0 for the boards to snoop
-    /// ([`BroadcastRoute::SnoopedNode0`](crate::io::BroadcastRoute), which
-    /// [`IoSystem`](crate::io::IoSystem) takes by itself on such a port).
+    /// ([`BroadcastRoute::SnoopedNode0`](crate::qla::io::BroadcastRoute), which
+    /// [`IoSystem`](crate::qla::io::IoSystem) takes by itself on such a port).
     fn refuses_broadcast_registers(&self) -> bool {
         false
     }

@@ -30,8 +30,8 @@ use std::time::Duration;
 use firelink_wire::qla::registers::WatchdogSetting;
 
 use crate::error::{HostError, Result};
-use crate::io::{CycleReport, IoStats, IoSystem};
 use crate::port::Port;
+use crate::qla::io::{CycleReport, IoStats, IoSystem};
 
 /// Abstract robot I/O: see the module docs.
 ///
@@ -340,7 +340,7 @@ impl<P: Port> IoSystem<P> {
         self.axis_slot(axis).ok_or_else(|| bad_axis(axis))
     }
 
-    fn board_at(&self, axis: usize) -> Result<(&crate::board::BoardIo, usize)> {
+    fn board_at(&self, axis: usize) -> Result<(&crate::qla::board::BoardIo, usize)> {
         let (b, a) = self.locate(axis)?;
         let board = self.boards().get(b).ok_or_else(|| bad_axis(axis))?;
         Ok((board, a))

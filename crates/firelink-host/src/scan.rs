@@ -21,9 +21,9 @@ use firelink_wire::qla::broadcast::hub_block_quadlets;
 use firelink_wire::qla::realtime::{BlockFormat, BoardLayout, FirmwareRev};
 use firelink_wire::qla::registers::{FpgaVersion, GitDesc, HardwareVersion, StatusRead};
 
-use crate::board::BoardInfo;
 use crate::error::{HostError, Result};
 use crate::port::{Dest, Port};
+use crate::qla::board::BoardInfo;
 
 /// The three I/O protocols, in increasing efficiency.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]

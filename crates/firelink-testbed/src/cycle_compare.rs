@@ -23,11 +23,12 @@ use std::fmt;
 use firelink_board::node::BoardNode;
 use firelink_bus::{Bus, NodeHandle};
 use firelink_control::runner::{Pacing, Robot};
-use firelink_host::io::IoSystem;
+use firelink_host::qla::io::IoSystem;
 use firelink_host::sim::SimPort;
 
 use crate::TestbedError;
-use crate::demo::{DemoOptions, bring_up, open_robot};
+use crate::demo::bring_up;
+use crate::dvrk::demo::{DemoOptions, open_robot};
 use crate::port_spec::PortSpec;
 use crate::{ports, rig};
 

@@ -1,11 +1,13 @@
-//! The demo: seed 000's 28-axis dVRK (or any robot configuration whose
-//! boards are QLA-family boards) on emulated boards: configure, power on,
-//! home, follow trajectories on every arm, optionally inject a fault half
-//! way, power off, and return a typed [`DemoReport`].
+//! The demo program every robot shares: configure, power on, home, follow
+//! trajectories on every arm ([`motion_for`]), optionally inject a fault
+//! half way, power off, and return a typed [`DemoReport`]. The dVRK's run
+//! ([`crate::dvrk::demo`]) and the Snake system's
+//! ([`crate::snake::demo`]) drive it ([`run_program`] over [`DemoIo`]).
 //!
 //! This is the library behind `firelink demo` and the Python package's
 //! `run_demo`: callers choose the port ([`PortSpec`]), the options
-//! ([`DemoOptions`]) and what to do with progress ([`DemoProgress`]); the
+//! (the robot's, e.g. [`crate::dvrk::demo::DemoOptions`]) and what to do
+//! with progress ([`DemoProgress`]); the
 //! report serialises to the JSON `firelink demo --json` prints, and
 //! [`DemoReport::verdict`] says whether the run did what it was asked.
 //!
@@ -26,18 +28,14 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
-use firelink_board::config::Profile;
 use firelink_bus::SimDuration;
-use firelink_control::config::{IoConfig, presets};
+use firelink_control::config::IoConfig;
 use firelink_control::runner::{
     CycleTimes, Pacing, Percentiles, Robot, RobotSettings, RunnerError,
 };
 use firelink_control::trajectory::{Motion, PointToPoint, Sinusoid};
 use firelink_control::{FaultKind, FaultReport, ServoPeriod};
-use firelink_host::io::{IoOptions, IoStats, IoSystem};
-use firelink_host::scan::{Protocol, ScanReport};
-use firelink_host::stop::StopRequest;
-use firelink_host::udp::WaitMode;
+use firelink_host::qla::io::IoStats;
 use firelink_host::{Port, PowerDown, RobotIo, WatchdogSetting};
 use firelink_wire::packet::Tcode;
 
@@ -47,8 +45,6 @@ use crate::fault_script::{
     ScriptEntry, ScriptedFault,
 };
 pub use crate::port_spec::PortSpec;
-use crate::ports::{self, PortOptions};
-use crate::rig;
 
 /// The fault the demo injects half way through its motion: a named preset
 /// whose wire and host part is a [`FaultScript`] ([`DemoFault::script`]).
@@ -152,53 +148,6 @@ pub struct RealtimeStatus {
     pub timer_slack_1ns: bool,
     /// Why the others did not happen.
     pub errors: Vec<String>,
-}
-
-/// Options of a demo run.
-#[derive(Debug, Clone)]
-pub struct DemoOptions {
-    /// The robot (default: seed 000's dVRK, 28 axes on 8 QLA1 boards).
-    pub config: IoConfig,
-    /// The servo period (default 6 kHz).
-    pub period: ServoPeriod,
-    /// I/O protocol.
-    pub protocol: Protocol,
-    /// Seconds of motion after homing.
-    pub duration_s: f64,
-    /// Where the boards are (`sim:N[:FW]`: boards 0..N of the robot, at FW).
-    pub port: PortSpec,
-    /// Firmware of the emulated boards (sim, emulate; `sim:N:FW` names its
-    /// own).
-    pub firmware: Profile,
-    /// The fault to inject half way (a named preset).
-    pub fault: DemoFault,
-    /// A fault script instead of the preset (`--faults`; `fault` must then
-    /// be [`DemoFault::None`]).
-    pub faults: Option<FaultScript>,
-    /// Pacing; `None`: the port's default.
-    pub pacing: Option<Pacing>,
-    /// Board watchdog.
-    pub watchdog: WatchdogSetting,
-    /// How the UDP port's reads wait for their answer (emulate, udp).
-    pub udp_wait: WaitMode,
-}
-
-impl Default for DemoOptions {
-    fn default() -> Self {
-        DemoOptions {
-            config: presets::dvrk_seed000(),
-            period: ServoPeriod::from_rate_hz(6000.0).expect("6 kHz is a servo period"),
-            protocol: Protocol::Broadcast,
-            duration_s: 3.0,
-            port: PortSpec::SIM,
-            firmware: Profile::Rev8,
-            fault: DemoFault::None,
-            faults: None,
-            pacing: None,
-            watchdog: WatchdogSetting::default(),
-            udp_wait: WaitMode::Blocking,
-        }
-    }
 }
 
 /// What the demo is doing, for a progress display.
@@ -681,90 +630,9 @@ pub(crate) fn realtime_status(
     }
 }
 
-/// Run the demo. `realtime` is called once the port is open, on the
-/// calling thread, when the pacing is wall-clock (the CLI passes its
-/// SCHED_FIFO/mlockall setup; `None`: no real-time settings). The robot
-/// obeys the process's stop request ([`StopRequest::process`]).
-pub fn run_demo(
-    options: &DemoOptions,
-    realtime: Option<&dyn Fn() -> RealtimeStatus>,
-    progress: impl FnMut(DemoProgress),
-) -> Result<DemoReport, TestbedError> {
-    run_demo_until(options, &StopRequest::process(), realtime, progress)
-}
-
-/// [`run_demo`], the robot obeying `stop` (e.g. Python's Ctrl-C): once it
-/// is set, the loop returns [`RunnerError::Stopped`] at its next cycle and
-/// the boards the run energised are powered down as the robot is dropped.
-///
-/// # Errors
-/// As [`run_demo`]; [`RunnerError::Stopped`] once `stop` is set.
-pub fn run_demo_until(
-    options: &DemoOptions,
-    stop: &StopRequest,
-    realtime: Option<&dyn Fn() -> RealtimeStatus>,
-    mut progress: impl FnMut(DemoProgress),
-) -> Result<DemoReport, TestbedError> {
-    check_run(options.duration_s)?;
-    let config = &options.config;
-    // Boards 0..=the highest board ID the configuration uses.
-    let boards = config.board_slots();
-    if options.fault != DemoFault::None && options.faults.is_some() {
-        return Err(TestbedError::Config(format!(
-            "fault {} and a fault script: give one of the two",
-            options.fault
-        )));
-    }
-    // Any other link: only what the host's side can do.
-    let link = FaultTarget::link();
-    match &options.port {
-        PortSpec::Sim(_) => {
-            let boards = ports::sim_boards(&options.port, config, options.firmware);
-            let rig = rig::RigBuilder::qla(boards).build()?;
-            let target = rig.fault_target();
-            run_robot(
-                rig.sim_port(),
-                &target,
-                options,
-                "sim".into(),
-                stop,
-                realtime,
-                &mut progress,
-            )
-        }
-        PortSpec::Emulate => {
-            let emu = rig::Emulator::start(rig::board_configs(config, options.firmware, boards))?;
-            let name = format!("udp:{} (in-process firelink emulate)", emu.addr);
-            let port = emu.port_with(options.udp_wait)?;
-            let report = run_robot(
-                port,
-                &emu.fault_target(),
-                options,
-                name,
-                stop,
-                realtime,
-                &mut progress,
-            );
-            emu.stop()?;
-            report
-        }
-        PortSpec::Udp(addr) | PortSpec::UdpFw(addr) => {
-            let force_bridge = matches!(options.port, PortSpec::UdpFw(_));
-            let port = rig::net_port_with(*addr, force_bridge, options.udp_wait)?;
-            let name = port.name().to_string();
-            run_robot(port, &link, options, name, stop, realtime, &mut progress)
-        }
-        PortSpec::Fw(card) => {
-            let port = ports::fw_port(*card, &PortOptions::default())?;
-            let name = options.port.to_string();
-            run_robot(port, &link, options, name, stop, realtime, &mut progress)
-        }
-    }
-}
-
 /// What the demo needs of a robot's I/O beyond the abstract robot I/O
 /// ([`RobotIo`]): the port, on which its [`FaultTarget`] applies faults,
-/// the boards found, and what the report names. QLA boards ([`IoSystem`])
+/// the boards found, and what the report names. QLA boards ([`IoSystem`](firelink_host::qla::io::IoSystem))
 /// and seed 001's Snake nodes
 /// ([`SnakeSystem`](firelink_host::snake::SnakeSystem)) both run the same
 /// demo ([`run_program`]).
@@ -782,27 +650,8 @@ pub trait DemoIo: RobotIo {
     fn protocol(&self) -> String;
 }
 
-impl<P: Port + 'static> DemoIo for IoSystem<P> {
-    type Port = P;
-    fn port_mut(&mut self) -> &mut P {
-        IoSystem::port_mut(self)
-    }
-    fn board_nodes(&self) -> Vec<(u8, u8)> {
-        IoSystem::boards(self)
-            .iter()
-            .map(|b| (b.info().board_id, b.info().node))
-            .collect()
-    }
-    fn firmware(&self) -> Option<u32> {
-        IoSystem::boards(self).first().map(|b| b.info().firmware)
-    }
-    fn protocol(&self) -> String {
-        IoSystem::protocol(self).name().to_string()
-    }
-}
-
 /// The periodic progress event: the median I/O time of the last 2000 cycles.
-fn tick<R: RobotIo>(r: &Robot<R>) -> DemoProgress {
+pub(crate) fn tick<R: RobotIo>(r: &Robot<R>) -> DemoProgress {
     let io = &r.times().io_us;
     let mut last: Vec<f32> = io[io.len().saturating_sub(2000)..].to_vec();
     DemoProgress::Tick {
@@ -811,65 +660,6 @@ fn tick<R: RobotIo>(r: &Robot<R>) -> DemoProgress {
         io_median_us: Percentiles::of(&mut last).median,
         errors: r.io_stats().total_errors(),
     }
-}
-
-/// Run the demo on any port (paced as `options` say, else as the port's
-/// default), its faults applied by `target`.
-fn run_robot<P: Port + 'static>(
-    port: P,
-    target: &FaultTarget,
-    options: &DemoOptions,
-    port_name: String,
-    stop: &StopRequest,
-    realtime: Option<&dyn Fn() -> RealtimeStatus>,
-    progress: &mut dyn FnMut(DemoProgress),
-) -> Result<DemoReport, TestbedError> {
-    let pacing = options
-        .pacing
-        .unwrap_or_else(|| options.port.default_pacing());
-    let rt = realtime_status(pacing, realtime);
-    let wall = Instant::now();
-    let (mut robot, plan) = open_robot(port, options, pacing, |io, scan| {
-        progress(DemoProgress::Found {
-            boards: scan.boards.len(),
-            port: port_name.clone(),
-            reason: scan.protocol_reason.to_string(),
-            protocol: io.protocol().name(),
-        });
-    })?;
-    robot.set_stop_request(stop.clone());
-    let done = run_program(robot, &plan, target, port_name, rt, wall, progress)?;
-    Ok(done.report)
-}
-
-/// Scan `port`, set up its boards for `options`' protocol (`found` is
-/// told what the scan found) and make the robot of `options`' plan with
-/// `pacing`.
-pub(crate) fn open_robot<'a, P: Port>(
-    port: P,
-    options: &'a DemoOptions,
-    pacing: Pacing,
-    found: impl FnOnce(&IoSystem<P>, &ScanReport),
-) -> Result<(Robot<IoSystem<P>>, DemoPlan<'a>), TestbedError> {
-    let (io, scan) = IoSystem::open(
-        port,
-        IoOptions {
-            protocol: Some(options.protocol),
-            ..IoOptions::default()
-        },
-    )?;
-    found(&io, &scan);
-    let plan = DemoPlan {
-        config: &options.config,
-        period: options.period,
-        duration_s: options.duration_s,
-        fault: options.fault,
-        script: options.faults.as_ref(),
-        watchdog: options.watchdog,
-        pacing,
-    };
-    let robot = Robot::new(io, &options.config, plan.settings())?;
-    Ok((robot, plan))
 }
 
 /// What a demo run does, whatever the robot.

@@ -18,17 +18,16 @@ use firelink_host::scan::Protocol;
 use firelink_host::udp::WaitMode;
 
 use crate::TestbedError;
-use crate::demo::{
-    DemoFault, DemoOptions, DemoProgress, DemoReport, PortSpec, RealtimeStatus, run_demo,
-};
+use crate::demo::{DemoFault, DemoProgress, DemoReport, PortSpec, RealtimeStatus};
 use crate::demo_text::render;
+use crate::dvrk::demo::{DemoOptions, run_demo};
+use crate::dvrk::teleop::{TeleopOptions, TeleopReport, run_teleop};
 use crate::fault_script::FaultScript;
 use crate::mahru::{MahruConfig, MahruDemoOptions, MahruDemoReport, run_mahru_demo};
 use crate::port_spec::PortKind;
 use crate::rig::RobotKind;
 use crate::snake::demo::{SnakeDemoOptions, SnakeDemoReport, run_snake_demo};
 use crate::snake::is_snake_config;
-use crate::teleop::{TeleopOptions, TeleopReport, run_teleop};
 
 /// The robot's configuration.
 #[derive(Debug, Clone, Default)]

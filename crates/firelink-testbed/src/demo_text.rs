@@ -241,7 +241,8 @@ pub fn render(report: &DemoReport, config: &IoConfig) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::demo::{DemoOptions, TimeStats, run_demo};
+    use crate::demo::TimeStats;
+    use crate::dvrk::demo::{DemoOptions, run_demo};
 
     /// A short run of the dVRK demo on the simulated bus.
     fn report() -> (DemoReport, IoConfig) {

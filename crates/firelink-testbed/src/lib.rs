@@ -30,11 +30,13 @@
 //! - [`plant_map`]: how an actuator of a configuration becomes an emulated
 //!   joint: plant, mechanical stops inside what its pot can see, coupled
 //!   pots, amplifier calibration, a PSM's adapter and instrument;
-//! - [`console_homing`]: what the dVRK console does to an arm after power-on
-//!   (bias from pots, stop searches, every joint to both software limits and
-//!   back), with pot/encoder agreement and the stops watched every cycle;
-//! - [`teleop`]: a teleoperation session: a hand moves the MTMR, PSM1
-//!   follows through the console's teleoperation, 60 s of virtual time;
+//! - [`dvrk`]: the dVRK's wing: the dVRK demo's options and runs
+//!   ([`dvrk::demo`]), what the dVRK console does to an arm after power-on
+//!   ([`dvrk::console_homing`]: bias from pots, stop searches, every joint
+//!   to both software limits and back, with pot/encoder agreement and the
+//!   stops watched every cycle) and a teleoperation session
+//!   ([`dvrk::teleop`]: a hand moves the MTMR, PSM1 follows, 60 s of
+//!   virtual time);
 //! - [`soak`]: the fault soak: a million servo cycles with one packet in a
 //!   hundred faulted, every fault accounted for, amplifiers proven off
 //!   whenever the safety chain says so;
@@ -59,13 +61,13 @@
 //! points and host-CPU figures).
 
 pub mod bench;
-pub mod console_homing;
 pub mod cpu;
 pub mod cycle_compare;
 pub mod cycle_schedule;
 pub mod demo;
 pub mod demo_request;
 pub mod demo_text;
+pub mod dvrk;
 pub mod emulated;
 pub mod emulation;
 pub mod error;
@@ -82,7 +84,6 @@ pub mod service;
 pub mod sim;
 pub mod snake;
 pub mod soak;
-pub mod teleop;
 pub mod watchdog;
 
 pub use error::TestbedError;

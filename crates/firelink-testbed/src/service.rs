@@ -49,7 +49,7 @@ use firelink_control::runner::{Pacing, Robot, RobotSettings, RunnerError};
 use firelink_control::trajectory::{Motion, PointToPoint, ServoPoint};
 use firelink_control::{BoardSet, FaultReport};
 use firelink_host::WatchdogSetting;
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::robot_io::board_list;
 use firelink_host::stop::StopReason;
 use firelink_host::{PowerDown, RobotIo};
@@ -777,7 +777,7 @@ const SETTLE_SECONDS: f64 = 0.5;
 fn boards_not<P: firelink_host::Port + 'static>(
     robot: &Robot<IoSystem<P>>,
     set: BoardSet,
-    ok: impl Fn(&firelink_host::board::BoardIo) -> bool,
+    ok: impl Fn(&firelink_host::qla::board::BoardIo) -> bool,
 ) -> u16 {
     robot
         .io()
@@ -940,10 +940,18 @@ fn relay_on<P: firelink_host::Port + 'static>(
         }
     }
     let closed = |r: &Robot<IoSystem<P>>| {
-        boards_not(r, robot_boards, firelink_host::board::BoardIo::relay_on) == 0
+        boards_not(
+            r,
+            robot_boards,
+            firelink_host::qla::board::BoardIo::relay_on,
+        ) == 0
     };
     if !settle(robot, shared, options, closed) {
-        let open = boards_not(robot, robot_boards, firelink_host::board::BoardIo::relay_on);
+        let open = boards_not(
+            robot,
+            robot_boards,
+            firelink_host::qla::board::BoardIo::relay_on,
+        );
         return Err(failed(format!(
             "the relay of boards {} did not report closed",
             board_list(open)
@@ -1010,7 +1018,7 @@ fn amplifiers_off<P: firelink_host::Port + 'static>(
         b.set_all_amps(false);
     }
     let all = all_boards(robot);
-    let any_on = |b: &firelink_host::board::BoardIo| (0..b.axes()).any(|a| b.amp_enabled(a));
+    let any_on = |b: &firelink_host::qla::board::BoardIo| (0..b.axes()).any(|a| b.amp_enabled(a));
     let off = |r: &Robot<IoSystem<P>>| boards_not(r, all, |b| !any_on(b)) == 0;
     if !settle(robot, shared, options, off) {
         let on = boards_not(robot, all, |b| !any_on(b));

@@ -53,7 +53,7 @@ use firelink_board::rig::{BoardRig, GapCount, RigOptions};
 use firelink_bus::fault::{FaultPlan, FaultRecord};
 use firelink_bus::trace::{PacketId, PacketKind, PacketRecord, Trace};
 use firelink_bus::{ArbitrationClass, HostModel, NodeHandle, SimDuration, SimTime, TraceLevel};
-use firelink_host::io::{BroadcastRoute, IoOptions, IoSystem};
+use firelink_host::qla::io::{BroadcastRoute, IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
 use firelink_host::trace::{CallKind, CallRecord, TracingPort};
@@ -582,7 +582,7 @@ fn shifted(plan: &FaultPlan, t0: SimTime) -> FaultPlan {
 
 /// The boards that missed the cycle, in words.
 fn describe_misses(
-    report: &firelink_host::io::CycleReport,
+    report: &firelink_host::qla::io::CycleReport,
     protocol: Protocol,
     errors: &mut Vec<String>,
 ) {

@@ -17,7 +17,7 @@ use firelink_bus::{NodeHandle, SimDuration, SimTime};
 use firelink_control::State;
 use firelink_control::config::presets;
 use firelink_control::runner::{Pacing, Robot};
-use firelink_host::io::IoSystem;
+use firelink_host::qla::io::IoSystem;
 use firelink_host::sim::SimPort;
 use firelink_wire::qla::registers::Watchdog;
 use rand::{Rng, SeedableRng};

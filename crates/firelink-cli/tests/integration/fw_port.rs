@@ -10,7 +10,7 @@ use std::process::Command;
 use std::time::Duration;
 
 use firelink_host::firewire::{FirewirePort, FwOptions};
-use firelink_host::io::{BroadcastRoute, IoOptions, IoSystem};
+use firelink_host::qla::io::{BroadcastRoute, IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::{HostError, Port, RobotIo, WatchdogSetting};
 use firelink_wire::fw_cdev::rcode as fw_rcode;

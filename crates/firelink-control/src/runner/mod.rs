@@ -1,6 +1,6 @@
 //! The runner: one robot program's servo loop over the host library's
 //! abstract robot I/O ([`RobotIo`]), the same code for QLA boards
-//! ([`IoSystem`](firelink_host::io::IoSystem)) and seed 001's Snake nodes
+//! ([`IoSystem`](firelink_host::qla::io::IoSystem)) and seed 001's Snake nodes
 //! ([`SnakeSystem`](firelink_host::snake::SnakeSystem)).
 //!
 //! [`Robot`] ties a configuration ([`IoConfig`]) to the axes of its I/O
@@ -46,7 +46,7 @@ use joint::{Joint, Pacer};
 
 use std::time::{Duration, Instant};
 
-use firelink_host::io::{CycleReport, IoStats};
+use firelink_host::qla::io::{CycleReport, IoStats};
 use firelink_host::stop::{StopReason, StopRequest};
 use firelink_host::{BoardStatus, HostError, MissReason, PowerDown, RobotIo, WatchdogSetting};
 use firelink_wire::phy::SYSTEM_CLOCK_HZ;

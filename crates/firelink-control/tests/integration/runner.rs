@@ -10,7 +10,7 @@ use firelink_control::runner::{Pacing, Robot, RobotSettings, RunnerError};
 use firelink_control::trajectory::{Motion, Sinusoid};
 use firelink_control::{FaultKind, LifecycleError, ServoPeriod, State};
 use firelink_host::Port;
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
 

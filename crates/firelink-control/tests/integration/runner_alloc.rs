@@ -13,7 +13,7 @@ use std::time::Duration;
 use firelink_control::config::presets;
 use firelink_control::runner::{Pacing, Robot, RobotSettings};
 use firelink_control::trajectory::{Motion, Sinusoid};
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::{Dest, Port, Result};
 

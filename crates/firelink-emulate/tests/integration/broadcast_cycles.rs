@@ -26,7 +26,7 @@ use std::time::Duration;
 
 use firelink_board::config::Profile;
 use firelink_emulate::BridgeStats;
-use firelink_host::io::{IoOptions, IoStats, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoStats, IoSystem};
 use firelink_host::scan::Protocol;
 
 /// Run `cycles` broadcast cycles (query and hub read per group, command

@@ -14,8 +14,8 @@ use std::time::Duration;
 use eth_common::{ServedNetwork, shuffled};
 use firelink_emulate::eth_serve::EthServeConfig;
 use firelink_host::eth::{EthAddresses, EthPort};
-use firelink_host::io::{IoOptions, IoSystem};
 use firelink_host::port::Port;
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
 use firelink_wire::qla::registers::FpgaVersion;
 

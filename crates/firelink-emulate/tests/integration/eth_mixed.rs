@@ -22,7 +22,7 @@ use std::time::Duration;
 use firelink_board::config::{BoardConfig, FpgaVersion, Hardware, Profile};
 use firelink_emulate::eth_network::{EthNetwork, NetworkError};
 use firelink_host::eth::{EthPort, UdpNetPort};
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
 use firelink_host::udp::WaitMode;
 

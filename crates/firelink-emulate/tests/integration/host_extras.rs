@@ -1,5 +1,5 @@
 //! Issue 13 through the host library: the firmware features of
-//! `fpga-board-extras.md` driven by `firelink_host::extras` over loopback
+//! `fpga-board-extras.md` driven by `firelink_host::qla::extras` over loopback
 //! UDP against the emulator, as a dVRK host drives real boards.
 
 use crate::common;
@@ -10,18 +10,20 @@ use std::time::Duration;
 
 use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::qla::Instrument;
-use firelink_host::extras::dallas::read_tool;
-use firelink_host::extras::dout::{
+use firelink_host::qla::extras::dallas::read_tool;
+use firelink_host::qla::extras::dout::{
     read_digital_outputs, read_dout_control, read_waveform_table, start_waveform, waveform_status,
     write_digital_outputs, write_pwm, write_waveform_table,
 };
-use firelink_host::extras::ethernet::{eth_status, has_eth_debug_data, read_ksz8851_register};
-use firelink_host::extras::prom::{
+use firelink_host::qla::extras::ethernet::{eth_status, has_eth_debug_data, read_ksz8851_register};
+use firelink_host::qla::extras::prom::{
     fpga_prom_id, fpga_serial_number, qla_serial_number, write_fpga_serial_number,
     write_qla_serial_number,
 };
-use firelink_host::extras::supply::{measure_dqla_supply_voltage, measure_motor_supply_voltage};
-use firelink_host::extras::{FeatureError, is_qla_expanded, read_phy_register};
+use firelink_host::qla::extras::supply::{
+    measure_dqla_supply_voltage, measure_motor_supply_voltage,
+};
+use firelink_host::qla::extras::{FeatureError, is_qla_expanded, read_phy_register};
 use firelink_host::scan::scan;
 use firelink_host::{Dest, HostError, Port};
 

@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use common::{RefHost, Server, bridge, qla1s};
 use firelink_board::config::{BoardConfig, FpgaVersion, Hardware, Profile};
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
 use firelink_wire::qla::dqla::MAX7301_CONFIG;
 

@@ -12,7 +12,7 @@ use std::time::Duration;
 
 use firelink_board::config::Profile;
 use firelink_emulate::Handled;
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
 use firelink_host::{Dest, Port};
 use firelink_wire::bridge::split_board_datagram;

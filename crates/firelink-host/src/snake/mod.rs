@@ -49,8 +49,8 @@ use firelink_wire::snake::registers::{
 use firelink_wire::snake::{BLOCK_OFFSET, CHANNELS};
 
 use crate::error::{HostError, MissReason, Result};
-use crate::io::{CycleReport, IoStats};
 use crate::port::{Dest, Port};
+use crate::qla::io::{CycleReport, IoStats};
 use crate::robot_io::{RobotIo, bad_axis};
 
 /// How long a digital-pot command may take before the host gives up
@@ -795,7 +795,7 @@ impl<P: Port> RobotIo for SnakeSystem<P> {
     }
 }
 
-/// As [`IoSystem`](crate::io::IoSystem)'s: a program that enabled
+/// As [`IoSystem`](crate::qla::io::IoSystem)'s: a program that enabled
 /// amplifiers and ends without a power-down gets one
 /// ([`RobotIo::power_down`]).
 impl<P: Port> Drop for SnakeSystem<P> {

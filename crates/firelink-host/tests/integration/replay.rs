@@ -2,7 +2,7 @@
 //! `tests/data/README.md`): the same calls must send exactly the recorded
 //! requests and reach the recorded result, with no board and no bus.
 
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::replay::ReplayPort;
 use firelink_host::scan::{Protocol, scan};
 use firelink_host::{HostError, Port};

@@ -13,7 +13,7 @@ use firelink_board::qla::{CHAIN_TIMEOUT_PER_BOARD, FIRST_SLOT_CLOCKS};
 use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::trace::PacketKind;
 use firelink_bus::{SimDuration, TimedFault, TraceLevel};
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::scan::{Protocol, scan};
 use firelink_host::sim::SimPort;
 use firelink_host::{MissReason, Port};

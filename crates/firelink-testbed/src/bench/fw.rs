@@ -36,7 +36,7 @@ use firelink_control::runner::Percentiles;
 use firelink_emulate::fw_cdev::{self, Twin};
 use firelink_host::Port;
 use firelink_host::firewire::{FirewirePort, FwOptions};
-use firelink_host::io::IoSystem;
+use firelink_host::qla::io::IoSystem;
 use firelink_host::scan::Protocol;
 use firelink_wire::fw_cdev::{
     KERNEL_ABI_VERSION, ResponseEvent, SendRequestArgs, TWIN_MAX_MESSAGE, TwinRequest,

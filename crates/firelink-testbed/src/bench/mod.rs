@@ -52,7 +52,7 @@ use firelink_control::budget::CycleBudget;
 use firelink_control::config::presets;
 use firelink_control::runner::{Pacing, Percentiles, Robot, RobotSettings};
 use firelink_host::Port;
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::udp::WaitMode;
 

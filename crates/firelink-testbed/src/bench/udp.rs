@@ -20,8 +20,8 @@ use std::time::{Duration, Instant};
 
 use firelink_control::runner::Percentiles;
 use firelink_host::eth::EthPort;
-use firelink_host::io::IoSystem;
 use firelink_host::link_stats::LinkStats;
+use firelink_host::qla::io::IoSystem;
 use firelink_host::scan::Protocol;
 use firelink_host::udp::{SocketCalls, UdpPort, WaitMode, is_wait_over};
 use firelink_host::{Dest, LinkFilter, Port};

@@ -22,8 +22,8 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use firelink_host::board::BoardInfo;
 use firelink_host::port::{Direction, LinkFilter, Port, Verdict};
+use firelink_host::qla::board::BoardInfo;
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::{RngCore, SeedableRng};
 

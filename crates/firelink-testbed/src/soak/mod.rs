@@ -52,7 +52,7 @@ use firelink_control::State;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, Robot, RobotSettings};
 use firelink_control::trajectory::{Motion, Sinusoid};
-use firelink_host::io::{CycleReport, IoOptions, IoSystem};
+use firelink_host::qla::io::{CycleReport, IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
 use firelink_host::{HostError, MissReason, WatchdogSetting};

@@ -6,7 +6,7 @@
 //! that grows every cycle.
 
 use firelink_control::config::{IoConfig, presets};
-use firelink_testbed::console_homing::{
+use firelink_testbed::dvrk::console_homing::{
     ArmHoming, ConsoleHomingOptions, ConsoleHomingReport, run_console_homing,
 };
 

@@ -3,7 +3,8 @@
 
 use firelink_host::scan::Protocol;
 use firelink_testbed::bench::{BenchOptions, BenchTransport, check_board_counts, run_bench};
-use firelink_testbed::demo::{DemoFault, DemoOptions, DemoProgress, PortSpec, run_demo};
+use firelink_testbed::demo::{DemoFault, DemoProgress, PortSpec};
+use firelink_testbed::dvrk::demo::{DemoOptions, run_demo};
 
 fn short(fault: DemoFault) -> DemoOptions {
     DemoOptions {
@@ -215,7 +216,7 @@ fn the_demo_runs_dqla_arms_over_the_ethernet_only_network() {
     use firelink_emulate::eth_serve::{EthServeConfig, eth_bind, eth_serve};
     use firelink_host::WatchdogSetting;
     use firelink_host::eth::UdpNetPort;
-    use firelink_host::io::{IoOptions, IoSystem};
+    use firelink_host::qla::io::{IoOptions, IoSystem};
     use firelink_host::udp::WaitMode;
     use firelink_testbed::demo::{DemoPlan, RealtimeStatus, run_program};
     use std::sync::Arc;

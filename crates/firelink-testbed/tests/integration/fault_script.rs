@@ -16,7 +16,7 @@ use firelink_bus::SimDuration;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::fault::FaultKind;
 use firelink_control::runner::{Pacing, Robot, RobotSettings, RunnerError};
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::udp::UdpPort;
 use firelink_host::{Dest, Port, WatchdogSetting};

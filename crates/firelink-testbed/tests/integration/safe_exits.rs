@@ -17,12 +17,13 @@ use firelink_control::config::{IoConfig, presets};
 use firelink_control::lifecycle::State;
 use firelink_control::runner::{Robot, RobotSettings, RunnerError};
 use firelink_host::WatchdogSetting;
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::scan::ScanReport;
 use firelink_host::stop::{StopReason, StopRequest};
 use firelink_host::udp::UdpPort;
 use firelink_testbed::TestbedError;
-use firelink_testbed::demo::{DemoOptions, DemoProgress, PortSpec, run_demo_until};
+use firelink_testbed::demo::{DemoProgress, PortSpec};
+use firelink_testbed::dvrk::demo::{DemoOptions, run_demo_until};
 use firelink_testbed::rig::{self, Emulator};
 
 /// The bench robot: one QLA board, four gentle axes.

@@ -9,7 +9,7 @@ use std::time::Duration;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, Robot, RobotSettings};
 use firelink_host::RobotIo;
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::snake::SnakeSystem;
 use firelink_testbed::demo::{DemoFault, motion_for};

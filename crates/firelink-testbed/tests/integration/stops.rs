@@ -16,7 +16,7 @@ use firelink_board::plant::Axis;
 use firelink_bus::NodeHandle;
 use firelink_control::config::{IoConfig, presets};
 use firelink_host::Port;
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::sim::SimPort;
 use firelink_testbed::plant_map;
 use firelink_testbed::rig;

@@ -6,7 +6,7 @@
 //! following the MTM's motion scaled by 0.2, the jaw following the
 //! gripper, and a clutch half-way that resumes without a jump.
 
-use firelink_testbed::teleop::{TeleopOptions, run_teleop};
+use firelink_testbed::dvrk::teleop::{TeleopOptions, run_teleop};
 
 #[test]
 fn psm1_follows_mtmr_for_60_seconds_without_a_fault() {
@@ -62,10 +62,10 @@ fn the_instrument_wrist_and_jaw_follow_teleoperation_speeds() {
     use firelink_control::kinematics::psm::{PSM_JOINTS, psm_actuators, psm_joints};
     use firelink_control::runner::{Pacing, Robot, RobotSettings};
     use firelink_control::trajectory::{PointToPoint, ServoPoint};
-    use firelink_host::io::{IoOptions, IoSystem};
+    use firelink_host::qla::io::{IoOptions, IoSystem};
     use firelink_testbed::rig;
 
-    let mut config = firelink_testbed::teleop::mtmr_psm1();
+    let mut config = firelink_testbed::dvrk::teleop::mtmr_psm1();
     config.robots.remove(0);
     let (port, _) = rig::sim_port_of_used(&config, firelink_board::config::Profile::Rev8).unwrap();
     let (io, _) = IoSystem::open(port, IoOptions::default()).unwrap();

@@ -13,7 +13,7 @@ use std::time::Duration;
 
 use firelink_board::config::Profile;
 use firelink_control::config::presets;
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_testbed::rig::{self, Emulator};
 

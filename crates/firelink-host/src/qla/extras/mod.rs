@@ -15,7 +15,7 @@
 //! # #[cfg(feature = "sim")] {
 //! use firelink_board::config::{BoardConfig, Hardware, Profile};
 //! use firelink_board::rig::{BoardRig, RigOptions};
-//! use firelink_host::extras::prom::{fpga_serial_number, qla_serial_number};
+//! use firelink_host::qla::extras::prom::{fpga_serial_number, qla_serial_number};
 //! use firelink_host::sim::SimPort;
 //! use firelink_host::Dest;
 //! let board = BoardConfig::new(3, Hardware::Qla1, Profile::Rev8)

@@ -35,9 +35,9 @@ use firelink_wire::qla::address::{BoardRegister, Register};
 use firelink_wire::qla::broadcast::{BoardSlot, SeqRule};
 use firelink_wire::qla::registers::{AmpCommand, StatusCommand, WatchdogSetting};
 
-use crate::board::BoardIo;
 use crate::error::{HostError, MissReason, Result};
 use crate::port::{Dest, Port};
+use crate::qla::board::BoardIo;
 use crate::scan::{Protocol, ScanReport, scan};
 
 pub use broadcast::BroadcastRoute;

@@ -22,7 +22,7 @@
 //!
 //! ```no_run
 //! use firelink_control::config::presets;
-//! use firelink_testbed::console_homing::{run_console_homing, ConsoleHomingOptions};
+//! use firelink_testbed::dvrk::console_homing::{run_console_homing, ConsoleHomingOptions};
 //! let report = run_console_homing(&presets::stock_mtmr(), &ConsoleHomingOptions::default()).unwrap();
 //! println!("{report}");
 //! ```
@@ -36,7 +36,7 @@ use firelink_control::config::{IoConfig, JointType};
 use firelink_control::runner::{Pacing, Robot, RobotSettings, StopFound};
 use firelink_control::trajectory::{Motion, PointToPoint};
 use firelink_control::{Label, ServoPeriod};
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::sim::SimPort;
 use serde::Serialize;
 

@@ -30,7 +30,7 @@
 //! at the clutch's release.
 //!
 //! ```no_run
-//! use firelink_testbed::teleop::{run_teleop, TeleopOptions};
+//! use firelink_testbed::dvrk::teleop::{run_teleop, TeleopOptions};
 //! let report = run_teleop(&TeleopOptions::default()).unwrap();
 //! println!("{report}");
 //! ```
@@ -56,7 +56,7 @@ use firelink_control::kinematics::{Frame, Rotation, Vec3};
 use firelink_control::runner::{Pacing, Robot, RobotSettings};
 use firelink_control::teleop::{Teleop, TeleopInput, TeleopSettings, TeleopState};
 use firelink_control::trajectory::{Motion, PointToPoint, ServoPoint};
-use firelink_host::io::{IoOptions, IoSystem};
+use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::sim::SimPort;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
