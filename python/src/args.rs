@@ -227,7 +227,10 @@ pub(crate) fn real(value: &Bound<'_, PyAny>, what: &str, span: Span) -> PyResult
     if is_bool(value) || value.is_instance_of::<PyString>() {
         return Err(bad(
             py,
-            format!("{what} must be a number {span_text}, not {}", type_name(value)),
+            format!(
+                "{what} must be a number {span_text}, not {}",
+                type_name(value)
+            ),
         ));
     }
     match value.extract::<f64>() {
@@ -253,7 +256,10 @@ pub(crate) fn real(value: &Bound<'_, PyAny>, what: &str, span: Span) -> PyResult
         Err(e) if passes_through(py, &e) => Err(e),
         Err(_) => Err(bad(
             py,
-            format!("{what} must be a number {span_text}, not {}", type_name(value)),
+            format!(
+                "{what} must be a number {span_text}, not {}",
+                type_name(value)
+            ),
         )),
     }
 }

@@ -14,9 +14,9 @@ use firelink_testbed::port_spec::{self, PortSpec, PortSpecError};
 use firelink_testbed::ports::{PortOptions, open_bus_port};
 
 use crate::args::{self, Span};
-use firelink_testbed::limits;
 use crate::errors::{bad, error, host_error, testbed_error};
 use crate::{AnyPort, exclusive, interrupt};
+use firelink_testbed::limits;
 
 /// Parse a port description with the one grammar every front end shares
 /// (`firelink_testbed::port_spec`); `PortError` with the parser's message.

@@ -11,14 +11,14 @@ use firelink_testbed::bench::{BenchOptions, BenchTransport};
 use firelink_testbed::demo::{DemoFault, DemoOptions};
 use firelink_testbed::port_spec;
 
-use crate::args::watchdog_setting;
 use crate::args;
-use firelink_testbed::limits;
+use crate::args::watchdog_setting;
 use crate::config::{config_arg, path_arg};
 use crate::errors::{bad, error, testbed_error, warn};
 use crate::interrupt;
 use crate::io_system::{PROTOCOLS, protocol};
 use crate::ports::parse_port_spec;
+use firelink_testbed::limits;
 
 pub(crate) fn to_json_text(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<String> {
     serde_json::to_string(value).map_err(|e| error(py, "FirelinkError", e.to_string()))
