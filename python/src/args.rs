@@ -168,75 +168,50 @@ pub(crate) fn int_as<T: TryFrom<i64>>(
     })
 }
 
-/// An optional integer argument (`None`: absent).
+/// An optional integer argument in one of `firelink_testbed::limits`'s
+/// integer ranges (`None`: absent).
 ///
 /// # Errors
-/// As [`int_as`].
-pub(crate) fn opt_int_as<T: TryFrom<i64>>(
+/// As [`int_in`].
+pub(crate) fn opt_int_in<T: TryFrom<i64>>(
     value: Option<&Bound<'_, PyAny>>,
     what: &str,
-    lo: i64,
-    hi: i64,
+    range: std::ops::RangeInclusive<u64>,
 ) -> PyResult<Option<T>> {
     match value {
-        Some(v) if !v.is_none() => int_as(v, what, lo, hi).map(Some),
+        Some(v) if !v.is_none() => int_in(v, what, range).map(Some),
         _ => Ok(None),
     }
 }
 
-/// The range a real argument must lie in, and its unit.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Span {
-    /// The lowest value.
-    pub lo: f64,
-    /// Whether `lo` itself is refused (the value must be above it).
-    pub above: bool,
-    /// The highest value (included).
-    pub hi: f64,
-    /// The unit, with its leading space (`" s"`), or empty.
-    pub unit: &'static str,
-}
+/// The range a real argument must lie in, and its unit: the command
+/// line's own type, so a rule the two share is stated once
+/// (`firelink_testbed::limits`'s constants).
+pub(crate) use firelink_testbed::limits::Span;
 
-impl Span {
-    /// `lo..=hi`.
-    pub const fn closed(lo: f64, hi: f64, unit: &'static str) -> Span {
-        Span {
-            lo,
-            above: false,
-            hi,
-            unit,
-        }
-    }
-
-    /// Above `lo`, at most `hi`.
-    pub const fn above(lo: f64, hi: f64, unit: &'static str) -> Span {
-        Span {
-            lo,
-            above: true,
-            hi,
-            unit,
-        }
-    }
-
-    fn contains(self, x: f64) -> bool {
-        let low = if self.above {
-            x > self.lo
-        } else {
-            x >= self.lo
-        };
-        low && x <= self.hi
+/// What `span` allows, for messages ("from 1 to 100000 Hz", "above 0 s
+/// and at most 86400 s").
+fn allowed(span: Span) -> String {
+    let (lo, hi, unit) = (Number(span.lo), Number(span.hi), span.unit);
+    if span.above {
+        format!("above {lo}{unit} and at most {hi}{unit}")
+    } else {
+        format!("from {lo} to {hi}{unit}")
     }
 }
 
-impl std::fmt::Display for Span {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let (lo, hi, unit) = (Number(self.lo), Number(self.hi), self.unit);
-        if self.above {
-            write!(f, "above {lo}{unit} and at most {hi}{unit}")
-        } else {
-            write!(f, "from {lo} to {hi}{unit}")
-        }
-    }
+/// An integer argument in one of `firelink_testbed::limits`'s integer
+/// ranges (`NODE_ID`, `BOARD_ID`, ...).
+///
+/// # Errors
+/// As [`int`].
+pub(crate) fn int_in<T: TryFrom<i64>>(
+    value: &Bound<'_, PyAny>,
+    what: &str,
+    range: std::ops::RangeInclusive<u64>,
+) -> PyResult<T> {
+    let bound = |n: u64| i64::try_from(n).unwrap_or(i64::MAX);
+    int_as(value, what, bound(*range.start()), bound(*range.end()))
 }
 
 /// A real argument (an int or a float, numpy's scalars included; never a
@@ -248,36 +223,43 @@ impl std::fmt::Display for Span {
 pub(crate) fn real(value: &Bound<'_, PyAny>, what: &str, span: Span) -> PyResult<f64> {
     let py = value.py();
     let unit = span.unit;
+    let span_text = allowed(span);
     if is_bool(value) || value.is_instance_of::<PyString>() {
         return Err(bad(
             py,
-            format!("{what} must be a number {span}, not {}", type_name(value)),
+            format!(
+                "{what} must be a number {span_text}, not {}",
+                type_name(value)
+            ),
         ));
     }
     match value.extract::<f64>() {
         Ok(x) if x.is_nan() => Err(bad(
             py,
-            format!("{what} is NaN: it must be a number {span}"),
+            format!("{what} is NaN: it must be a number {span_text}"),
         )),
         Ok(x) if span.contains(x) => Ok(x),
         Ok(x) => Err(bad(
             py,
             format!(
-                "{what} {}{unit} is out of range: it must be {span}",
+                "{what} {}{unit} is out of range: it must be {span_text}",
                 Number(x)
             ),
         )),
         Err(e) if e.is_instance_of::<pyo3::exceptions::PyOverflowError>(py) => Err(bad(
             py,
             format!(
-                "{what} {}{unit} is out of range: it must be {span}",
+                "{what} {}{unit} is out of range: it must be {span_text}",
                 huge(value)
             ),
         )),
         Err(e) if passes_through(py, &e) => Err(e),
         Err(_) => Err(bad(
             py,
-            format!("{what} must be a number {span}, not {}", type_name(value)),
+            format!(
+                "{what} must be a number {span_text}, not {}",
+                type_name(value)
+            ),
         )),
     }
 }
@@ -512,8 +494,9 @@ pub(crate) fn real_array(value: &Bound<'_, PyAny>, what: &str, len: usize) -> Py
     Ok(arr.cast::<PyArray1<f64>>()?.to_vec()?)
 }
 
-/// The most cycles one call runs or measures (as the command line's).
-pub(crate) const MAX_CYCLES: i64 = 1_000_000_000;
+/// The most cycles one call runs or measures (the command line's rule,
+/// `firelink_testbed::limits::CYCLES`; a call may also run 0).
+pub(crate) const MAX_CYCLES: i64 = *firelink_testbed::limits::CYCLES.end() as i64;
 
 /// The emulated firmware a name gives (`7`, `8`, `9`, `seed`).
 pub(crate) fn profile(py: Python<'_>, name: &str) -> PyResult<Profile> {

@@ -38,7 +38,8 @@ impl Emulator {
         robot: Option<&Bound<'_, PyAny>>,
         config: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Emulator> {
-        let boards: usize = args::opt_int_as(boards, "boards", 1, 16)?.unwrap_or(8);
+        let boards: usize =
+            args::opt_int_in(boards, "boards", firelink_testbed::limits::BOARD_COUNT)?.unwrap_or(8);
         let firmware = firmware
             .filter(|f| !f.is_none())
             .map_or(Ok(Profile::Rev8), args::firmware)?;

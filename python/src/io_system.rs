@@ -52,7 +52,7 @@ impl IoSystem {
         board: Option<&Bound<'_, PyAny>>,
         request: impl Fn(&mut firelink_host::qla::board::BoardIo),
     ) -> PyResult<()> {
-        let id = args::opt_int_as::<u8>(board, "board ID", 0, 15)?;
+        let id = args::opt_int_in::<u8>(board, "board ID", firelink_testbed::limits::BOARD_ID)?;
         let boards = exclusive(&mut self.io).boards_mut();
         match id {
             None => boards.iter_mut().for_each(request),

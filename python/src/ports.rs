@@ -16,6 +16,7 @@ use firelink_testbed::ports::{PortOptions, open_bus_port};
 use crate::args::{self, Span};
 use crate::errors::{bad, error, host_error, testbed_error};
 use crate::{AnyPort, exclusive, interrupt};
+use firelink_testbed::limits;
 
 /// Parse a port description with the one grammar every front end shares
 /// (`firelink_testbed::port_spec`); `PortError` with the parser's message.
@@ -54,7 +55,7 @@ pub(crate) fn parse_port(py: Python<'_>, text: &Bound<'_, PyAny>) -> PyResult<St
 
 /// A physical node ID, 0..=63 (63: broadcast).
 pub(crate) fn node(value: &Bound<'_, PyAny>) -> PyResult<Dest> {
-    args::int_as(value, "node", 0, 63).map(Dest::node)
+    args::int_in(value, "node", limits::NODE_ID).map(Dest::node)
 }
 
 /// An address in a node's 48-bit space.
@@ -74,7 +75,7 @@ pub(crate) fn quadlet(value: &Bound<'_, PyAny>) -> PyResult<u32> {
 
 /// A board ID (rotary switch), 0..=15.
 pub(crate) fn board_id(value: &Bound<'_, PyAny>) -> PyResult<u8> {
-    args::int_as(value, "board ID", 0, 15)
+    args::int_in(value, "board ID", limits::BOARD_ID)
 }
 
 /// The longest wait one call may ask for: a day.
@@ -269,7 +270,7 @@ impl Port {
         quadlets: &Bound<'_, PyAny>,
     ) -> PyResult<Bound<'py, PyBytes>> {
         let (dest, offset) = (self::node(node)?, self::offset(address)?);
-        let quadlets: usize = args::int_as(quadlets, "quadlets", 1, 512)?;
+        let quadlets: usize = args::int_in(quadlets, "quadlets", limits::QUADLETS)?;
         let port = self.get(py)?;
         let mut out = vec![0u8; quadlets * 4];
         py.detach(|| port.read_block(dest, offset, &mut out))

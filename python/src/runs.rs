@@ -13,20 +13,18 @@ use firelink_testbed::demo::DemoFault;
 use firelink_testbed::dvrk::demo::DemoOptions;
 use firelink_testbed::port_spec;
 
+use crate::args;
 use crate::args::watchdog_setting;
-use crate::args::{self, Span};
 use crate::config::{config_arg, path_arg};
 use crate::errors::{bad, error, testbed_error, warn};
 use crate::interrupt;
 use crate::io_system::{PROTOCOLS, protocol};
 use crate::ports::parse_port_spec;
+use firelink_testbed::limits;
 
 pub(crate) fn to_json_text(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<String> {
     serde_json::to_string(value).map_err(|e| error(py, "FirelinkError", e.to_string()))
 }
-
-/// The longest demo, seconds of motion (as the command line's).
-const MAX_DEMO_S: f64 = 86_400.0;
 
 /// The most cycles per benchmark point.
 const MAX_BENCH_CYCLES: i64 = 1_000_000;
@@ -50,8 +48,8 @@ pub(crate) fn run_demo_json(
     config: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<String> {
     let port = args::text(port, "port", port_spec::EXPECTED)?;
-    let duration_s = args::real(duration, "duration", Span::above(0.0, MAX_DEMO_S, " s"))?;
-    let rate_hz = args::real(rate, "rate", Span::closed(1.0, 100_000.0, " Hz"))?;
+    let duration_s = args::real(duration, "duration", limits::RUN_SECONDS)?;
+    let rate_hz = args::real(rate, "rate", limits::RATE_HZ)?;
     let protocol = self::protocol(py, &args::text(protocol, "protocol", PROTOCOLS)?)?;
     let firmware = args::firmware(firmware)?;
     let faults = "none, stop-host, corrupt-query, board-loss or following-error";
@@ -158,7 +156,7 @@ pub(crate) fn run_bench_json(
         .collect::<PyResult<Vec<_>>>()?;
     let boards = items(boards, "boards", 64)?
         .iter()
-        .map(|b| args::int_as::<usize>(b, "a board count", 1, 62))
+        .map(|b| args::int_in::<usize>(b, "a board count", limits::BENCH_BOARD_COUNT))
         .collect::<PyResult<Vec<_>>>()?;
     let protocols = items(protocols, "protocols", 8)?
         .iter()

@@ -51,8 +51,8 @@ fn ranged<T: TryFrom<i64>>(
     args::int_as(&v.0, what, lo, hi)
 }
 
-fn board_id(py: Python<'_>, v: Arg<'_>) -> PyResult<u8> {
-    ranged(py, v, 0, 15, "board ID")
+fn board_id(_py: Python<'_>, v: Arg<'_>) -> PyResult<u8> {
+    args::int_in(&v.0, "board ID", firelink_testbed::limits::BOARD_ID)
 }
 
 fn channel(py: Python<'_>, v: Arg<'_>) -> PyResult<u8> {

@@ -142,11 +142,6 @@ fn num_or_hex<'de, D: Deserializer<'de>>(d: D) -> core::result::Result<Option<u6
     }
 }
 
-/// Bytes as lowercase hex.
-pub fn to_hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
 /// Hex text (whitespace ignored) as bytes.
 pub fn from_hex(text: &str) -> Result<Vec<u8>> {
     let digits: Vec<u8> = text.bytes().filter(|b| !b.is_ascii_whitespace()).collect();
@@ -231,7 +226,7 @@ pub fn describe(packet: &Packet<&[u8]>) -> Result<PacketJson> {
         json.extended_tcode = Some(u64::from(packet.extended_tcode()));
     }
     if tcode.has_data_block() {
-        json.data = Some(to_hex(packet.payload()));
+        json.data = Some(crate::hex::to_hex(packet.payload()));
         json.data_crc_ok = packet.data_crc_ok();
     }
     Ok(json)

@@ -27,11 +27,13 @@
 //!
 //! The system calls are behind [`Scheduler`], so the choice of threads and
 //! priorities and the fallback are tested without changing any thread's
-//! scheduling. This module holds the crate's only unsafe code: two libc
-//! calls with plain arguments and a pointer to a local struct.
+//! scheduling. The real ones, [`OsScheduler`], are
+//! `firelink_testbed::realtime`'s (the tree's one home for them); the
+//! crate has no unsafe code.
 
 use std::io;
 
+use firelink_testbed::realtime as os;
 use firelink_testbed::service::ROBOT_THREAD_NAME;
 
 /// A thread on a servo point's path.
@@ -225,13 +227,11 @@ pub fn apply(scheduler: &mut impl Scheduler, with_dds: bool) -> RealtimeReport {
     report
 }
 
-/// The real system calls (Linux; elsewhere each one is refused as
-/// unsupported).
+/// The real system calls, made by `firelink_testbed::realtime` (Linux;
+/// elsewhere each one is refused as unsupported).
 #[derive(Debug, Default)]
 pub struct OsScheduler;
 
-#[cfg(target_os = "linux")]
-#[allow(unsafe_code)]
 impl Scheduler for OsScheduler {
     fn tasks(&self) -> io::Result<Vec<Task>> {
         let mut tasks = Vec::new();
@@ -249,84 +249,24 @@ impl Scheduler for OsScheduler {
     }
 
     fn own_tid(&self) -> i32 {
-        // SAFETY: gettid takes no arguments and cannot fail.
-        unsafe { libc::gettid() }
+        os::current_tid()
     }
 
     fn lock_memory(&mut self) -> io::Result<()> {
-        // SAFETY: no pointers; the flags are the documented constants.
-        match unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) } {
-            0 => Ok(()),
-            _ => Err(io::Error::last_os_error()),
-        }
+        os::lock_memory()
     }
 
     fn set_timer_slack_1ns(&mut self, tid: i32) -> io::Result<()> {
-        std::fs::write(timer_slack_file(tid), "1")
+        os::set_timer_slack(tid, 1)
     }
 
     fn timer_slack_ns(&self, tid: i32) -> Option<u64> {
-        std::fs::read_to_string(timer_slack_file(tid))
-            .ok()?
-            .trim()
-            .parse()
-            .ok()
+        os::timer_slack_ns(tid)
     }
 
     fn set_fifo(&mut self, tid: i32, priority: i32) -> io::Result<()> {
-        let param = libc::sched_param {
-            sched_priority: priority,
-        };
-        // SAFETY: `param` is a valid sched_param for the duration of the
-        // call; `tid` names a thread of this process (Linux schedules
-        // threads, and takes a thread id here).
-        match unsafe { libc::sched_setscheduler(tid, libc::SCHED_FIFO, &param) } {
-            0 => Ok(()),
-            _ => Err(io::Error::last_os_error()),
-        }
+        os::set_fifo(tid, priority)
     }
-}
-
-/// Where Linux shows thread `tid`'s timer slack (`/proc/<tid>`, which
-/// names one thread, not under `/proc/self/task`).
-#[cfg(target_os = "linux")]
-fn timer_slack_file(tid: i32) -> String {
-    format!("/proc/{tid}/timerslack_ns")
-}
-
-#[cfg(not(target_os = "linux"))]
-impl Scheduler for OsScheduler {
-    fn tasks(&self) -> io::Result<Vec<Task>> {
-        Err(unsupported())
-    }
-
-    fn own_tid(&self) -> i32 {
-        0
-    }
-
-    fn lock_memory(&mut self) -> io::Result<()> {
-        Err(unsupported())
-    }
-
-    fn set_timer_slack_1ns(&mut self, _tid: i32) -> io::Result<()> {
-        Err(unsupported())
-    }
-
-    fn timer_slack_ns(&self, _tid: i32) -> Option<u64> {
-        None
-    }
-
-    fn set_fifo(&mut self, _tid: i32, _priority: i32) -> io::Result<()> {
-        Err(unsupported())
-    }
-}
-
-#[cfg(not(target_os = "linux"))]
-fn unsupported() -> io::Error {
-    io::Error::new(
-        io::ErrorKind::Unsupported,
-        "real-time settings are implemented for Linux only",
-    )
 }
 
 #[cfg(test)]

@@ -7,36 +7,117 @@
 //! panic building a `Duration` from `1e300`, wrap a node ID modulo 64
 //! into a broadcast, or turn a watchdog off by accident. The command line
 //! hands these functions to clap (`value_parser = fn(&str) -> Result<T,
-//! String>`); other front ends may call them on their own text.
+//! String>`); other front ends may call them on their own text, or, when
+//! they are handed numbers rather than text (Python), check them against
+//! the same ranges: [`Span`] constants for the real rules (`RATE_HZ`,
+//! `RUN_SECONDS`, ...) and `RangeInclusive` constants for the integer ones
+//! (`NODE_ID`, `BOARD_ID`, ...).
 
 pub use firelink_host::WatchdogSetting;
 /// A number as decimal or `0x` hex, `_` separators allowed (the packet
 /// records' rule).
 pub use firelink_host::packet_json::parse_number;
 use firelink_wire::human::Number;
+use std::ops::RangeInclusive;
 
-/// A finite number in `lo..=hi` (or `lo < x` when `open_low`).
-fn bounded(s: &str, lo: f64, hi: f64, open_low: bool, unit: &str) -> Result<f64, String> {
+/// The range a real value must lie in, and its unit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Span {
+    /// The lowest value.
+    pub lo: f64,
+    /// Whether `lo` itself is refused (the value must be above it).
+    pub above: bool,
+    /// The highest value (included).
+    pub hi: f64,
+    /// The unit, with its leading space (`" s"`), or empty.
+    pub unit: &'static str,
+}
+
+impl Span {
+    /// `lo..=hi`.
+    pub const fn closed(lo: f64, hi: f64, unit: &'static str) -> Span {
+        Span {
+            lo,
+            above: false,
+            hi,
+            unit,
+        }
+    }
+
+    /// Above `lo`, at most `hi`.
+    pub const fn above(lo: f64, hi: f64, unit: &'static str) -> Span {
+        Span {
+            lo,
+            above: true,
+            hi,
+            unit,
+        }
+    }
+
+    /// Whether `x` lies in the span (NaN never does).
+    pub fn contains(self, x: f64) -> bool {
+        let low = if self.above {
+            x > self.lo
+        } else {
+            x >= self.lo
+        };
+        low && x <= self.hi
+    }
+}
+
+/// A control or I/O rate: 1 Hz to 100 kHz.
+pub const RATE_HZ: Span = Span::closed(1.0, 100_000.0, " Hz");
+/// A run length: above 0 and at most one day.
+pub const RUN_SECONDS: Span = Span::above(0.0, 86_400.0, " s");
+/// A run length where 0 means "until stopped": 0 to one year.
+pub const SECONDS_OR_FOREVER: Span = Span::closed(0.0, 31_536_000.0, " s");
+/// A wait or idle time: 0 to 1 s.
+pub const WAIT_US: Span = Span::closed(0.0, 1e6, " us");
+/// A control period: above 0, at most 1 s.
+pub const PERIOD_US: Span = Span::above(0.0, 1e6, " us");
+/// A probability.
+pub const PROBABILITY: Span = Span::closed(0.0, 1.0, "");
+
+/// A physical node ID: 0..=62, and 63 for broadcast.
+pub const NODE_ID: RangeInclusive<u64> = 0..=63;
+/// A board ID (the rotary switch).
+pub const BOARD_ID: RangeInclusive<u64> = 0..=15;
+/// Emulated boards on one bus (the board-ID space).
+pub const BOARD_COUNT: RangeInclusive<u64> = 1..=16;
+/// Cycles to run.
+pub const CYCLES: RangeInclusive<u64> = 1..=1_000_000_000;
+/// Cycles, periods or reads whose every time is kept.
+pub const MEASURED: RangeInclusive<u64> = 1..=10_000_000;
+/// Board counts of a benchmark: up to 62 (above 16, the board-ID space,
+/// modelled from a measured count).
+pub const BENCH_BOARD_COUNT: RangeInclusive<u64> = 1..=62;
+/// Quadlets of one register access (a block of 2048 bytes at most).
+pub const QUADLETS: RangeInclusive<u64> = 1..=512;
+/// A time-out in milliseconds: 1 ms to 60 s.
+pub const TIMEOUT_MS: RangeInclusive<u64> = 1..=60_000;
+
+/// A finite number in `span`.
+fn bounded(s: &str, span: Span) -> Result<f64, String> {
     let x: f64 = s
         .trim()
         .parse()
         .map_err(|_| format!("{s:?} is not a number"))?;
-    let low_ok = if open_low { x > lo } else { x >= lo };
-    if !x.is_finite() || !low_ok || x > hi {
-        let low = if open_low { "above" } else { "from" };
+    if !x.is_finite() || !span.contains(x) {
+        let low = if span.above { "above" } else { "from" };
         return Err(format!(
-            "{} is out of range: {low} {} to {}{unit}",
+            "{} is out of range: {low} {} to {}{}",
             s.trim(),
-            Number(lo),
-            Number(hi)
+            Number(span.lo),
+            Number(span.hi),
+            span.unit
         ));
     }
     Ok(x)
 }
 
-/// A control or I/O rate: 1 Hz to 100 kHz.
+/// A control or I/O rate: [`RATE_HZ`], 1 Hz to 100 kHz.
 pub fn rate_hz(s: &str) -> Result<f64, String> {
-    bounded(s, 1.0, 100_000.0, false, " Hz")
+    bounded(s, RATE_HZ)
 }
 
 /// An I/O rate where 0 means "as fast as possible": 0, or 1 Hz to 100 kHz.
@@ -47,29 +128,30 @@ pub fn rate_hz_or_max(s: &str) -> Result<f64, String> {
     rate_hz(s)
 }
 
-/// A run length in seconds: above 0 and at most one day.
+/// A run length in seconds: [`RUN_SECONDS`], above 0 and at most one day.
 pub fn run_seconds(s: &str) -> Result<f64, String> {
-    bounded(s, 0.0, 86_400.0, true, " s")
+    bounded(s, RUN_SECONDS)
 }
 
-/// A run length in seconds where 0 means "until stopped": 0 to one year.
+/// A run length in seconds where 0 means "until stopped":
+/// [`SECONDS_OR_FOREVER`], 0 to one year.
 pub fn seconds_or_forever(s: &str) -> Result<f64, String> {
-    bounded(s, 0.0, 31_536_000.0, false, " s")
+    bounded(s, SECONDS_OR_FOREVER)
 }
 
-/// A wait or idle time in microseconds: 0 to 1 s.
+/// A wait or idle time in microseconds: [`WAIT_US`], 0 to 1 s.
 pub fn wait_us(s: &str) -> Result<f64, String> {
-    bounded(s, 0.0, 1e6, false, " us")
+    bounded(s, WAIT_US)
 }
 
-/// A control period in microseconds: above 0, at most 1 s.
+/// A control period in microseconds: [`PERIOD_US`], above 0, at most 1 s.
 pub fn period_us(s: &str) -> Result<f64, String> {
-    bounded(s, 0.0, 1e6, true, " us")
+    bounded(s, PERIOD_US)
 }
 
-/// A probability: 0 to 1.
+/// A probability: [`PROBABILITY`], 0 to 1.
 pub fn probability(s: &str) -> Result<f64, String> {
-    bounded(s, 0.0, 1.0, false, "")
+    bounded(s, PROBABILITY)
 }
 
 /// `--cpu-latency`: hold the CPUs' wake-up latency at some microseconds,
@@ -96,11 +178,15 @@ pub fn cpu_latency(s: &str) -> Result<CpuLatencyRequest, String> {
     Ok(CpuLatencyRequest::Microseconds(n as u32))
 }
 
-/// An unsigned integer in `lo..=hi` (decimal or 0x hex).
-fn integer(s: &str, lo: u64, hi: u64, what: &str) -> Result<u64, String> {
+/// An unsigned integer in `range` (decimal or 0x hex).
+fn integer(s: &str, range: RangeInclusive<u64>, what: &str) -> Result<u64, String> {
     let n = parse_number(s)?;
-    if !(lo..=hi).contains(&n) {
-        return Err(format!("{what} {n} is out of range: {lo} to {hi}"));
+    if !range.contains(&n) {
+        return Err(format!(
+            "{what} {n} is out of range: {} to {}",
+            range.start(),
+            range.end()
+        ));
     }
     Ok(n)
 }
@@ -108,18 +194,18 @@ fn integer(s: &str, lo: u64, hi: u64, what: &str) -> Result<u64, String> {
 /// A physical node ID: 0..=62, or 63 for broadcast. Larger values are
 /// rejected (they used to wrap modulo 64, so 127 became a broadcast).
 pub fn node_id(s: &str) -> Result<u8, String> {
-    integer(s, 0, 63, "node ID (0..=62, 63 = broadcast)").map(|n| n as u8)
+    integer(s, NODE_ID, "node ID (0..=62, 63 = broadcast)").map(|n| n as u8)
 }
 
 /// A board ID (rotary switch): 0..=15.
 pub fn board_id(s: &str) -> Result<u8, String> {
-    integer(s, 0, 15, "board ID").map(|n| n as u8)
+    integer(s, BOARD_ID, "board ID").map(|n| n as u8)
 }
 
 /// A number of emulated boards on one bus: 1..=16 (the board-ID space).
 pub fn board_count(s: &str) -> Result<u8, String> {
     let n = parse_number(s)?;
-    if !(1..=16).contains(&n) {
+    if !BOARD_COUNT.contains(&n) {
         return Err(format!("{n} is out of range: between 1 and 16 boards"));
     }
     Ok(n as u8)
@@ -127,45 +213,45 @@ pub fn board_count(s: &str) -> Result<u8, String> {
 
 /// Cycles to run: 1 to 10^9.
 pub fn cycles(s: &str) -> Result<u64, String> {
-    integer(s, 1, 1_000_000_000, "number of cycles")
+    integer(s, CYCLES, "number of cycles")
 }
 
 /// Cycles, periods or reads whose every time is kept (a benchmark's
 /// measured cycles, `budget --periods` and `--reads`): 1 to 10^7, tens of
 /// megabytes of samples at most.
 pub fn measured(s: &str) -> Result<u64, String> {
-    integer(s, 1, 10_000_000, "number of measured cycles")
+    integer(s, MEASURED, "number of measured cycles")
 }
 
 /// `budget --samples`: timings per transaction type and module, 1 to
 /// [`MAX_TIMINGS`](crate::mahru::budget::MAX_TIMINGS).
 pub fn timings(s: &str) -> Result<u64, String> {
     let hi = u64::from(crate::mahru::budget::MAX_TIMINGS);
-    integer(s, 1, hi, "number of timings")
+    integer(s, 1..=hi, "number of timings")
 }
 
 /// `budget --can-cycles`: 1 to
 /// [`MAX_CAN_CYCLES`](crate::mahru::can::MAX_CAN_CYCLES).
 pub fn can_cycles(s: &str) -> Result<u64, String> {
     let hi = u64::from(crate::mahru::can::MAX_CAN_CYCLES);
-    integer(s, 1, hi, "number of CAN cycles")
+    integer(s, 1..=hi, "number of CAN cycles")
 }
 
 /// MAHRU's control period in microseconds: the configuration's bounds,
 /// 100 us to 1 s.
 pub fn mahru_period_us(s: &str) -> Result<f64, String> {
     let (lo, hi) = crate::mahru::config::bounds::PERIOD_US;
-    bounded(s, lo, hi, false, " us")
+    bounded(s, Span::closed(lo, hi, " us"))
 }
 
 /// Quadlets of one register access: 1..=512 (a block of 2048 bytes).
 pub fn quadlets(s: &str) -> Result<usize, String> {
-    integer(s, 1, 512, "number of quadlets").map(|n| n as usize)
+    integer(s, QUADLETS, "number of quadlets").map(|n| n as usize)
 }
 
 /// A time-out in milliseconds: 1 ms to 60 s.
 pub fn timeout_ms(s: &str) -> Result<u64, String> {
-    integer(s, 1, 60_000, "time-out (ms)")
+    integer(s, TIMEOUT_MS, "time-out (ms)")
 }
 
 /// `--watchdog-ms`: `off`, or a period in milliseconds the WATCHDOG

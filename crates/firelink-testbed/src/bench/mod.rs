@@ -167,7 +167,7 @@ pub fn check_board_counts(counts: &[usize]) -> Result<(), String> {
     }
     let mut measured = false;
     for &n in counts {
-        if !(1..=62).contains(&n) {
+        if !crate::limits::BENCH_BOARD_COUNT.contains(&(n as u64)) {
             return Err(format!("{n} boards: a board count is 1..=62"));
         }
         if n <= 16 {
@@ -195,7 +195,7 @@ pub fn parse_board_counts(text: &str) -> Result<Vec<usize>, String> {
             x.trim()
                 .parse::<usize>()
                 .ok()
-                .filter(|n| (1..=62).contains(n))
+                .filter(|&n| crate::limits::BENCH_BOARD_COUNT.contains(&(n as u64)))
                 .ok_or_else(|| format!("{x:?} is not a board count (1..=62)"))
         })
         .collect::<Result<Vec<usize>, String>>()?;
