@@ -257,6 +257,24 @@ pub struct ErrorCounts {
     pub by_kind: IoStats,
 }
 
+/// The I/O errors by kind, in one line (the demo's tables).
+impl fmt::Display for ErrorCounts {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let e = &self.by_kind;
+        write!(
+            f,
+            "errors: total {}  timeouts {}  sequence {}  corrupt queries {}  bus resets {}  bad packets {}  nacks {}",
+            self.total,
+            e.timeouts,
+            e.sequence_errors,
+            e.corrupt_queries,
+            e.bus_resets,
+            e.bad_packets,
+            e.nacks
+        )
+    }
+}
+
 impl From<&IoStats> for ErrorCounts {
     fn from(s: &IoStats) -> Self {
         ErrorCounts {
@@ -493,7 +511,7 @@ impl fmt::Display for DemoReport {
                 t.rms_rad, t.max_rad, t.prismatic_rms_mm, t.prismatic_max_mm
             )?;
         }
-        writeln!(f, "  {}", crate::demo_text::errors_line(&self.errors))?;
+        writeln!(f, "  {}", self.errors)?;
         let watchdog = if self.watchdog.period_ms > 0.0 {
             format!(
                 "{} ms",

@@ -1,29 +1,14 @@
 //! The dVRK demo as a person reads it: a progress event as a line
 //! ([`progress_line`]; a tick as the line a display redraws in place,
 //! [`tick_line`]) and the report as a table ([`render`], the errors in
-//! one line, [`errors_line`]), with what its timing means in words
+//! one line, [`ErrorCounts`](crate::demo::ErrorCounts)'s `Display`), with what its timing means in words
 //! ([`timing_notes`]). `firelink demo` prints these; `--json` prints the
 //! [`DemoReport`] itself.
 
 use firelink_control::config::{IoConfig, JointType};
 use firelink_wire::human::Number;
 
-use crate::demo::{DemoProgress, DemoReport, ErrorCounts};
-
-/// The I/O errors by kind, in one line (the demo's tables).
-pub fn errors_line(errors: &ErrorCounts) -> String {
-    let e = &errors.by_kind;
-    format!(
-        "errors: total {}  timeouts {}  sequence {}  corrupt queries {}  bus resets {}  bad packets {}  nacks {}",
-        errors.total,
-        e.timeouts,
-        e.sequence_errors,
-        e.corrupt_queries,
-        e.bus_resets,
-        e.bad_packets,
-        e.nacks
-    )
-}
+use crate::demo::{DemoProgress, DemoReport};
 
 /// A [`DemoProgress::Tick`] as the one line a display redraws in place
 /// (`None` for every other event).
@@ -203,7 +188,7 @@ pub fn render(report: &DemoReport, config: &IoConfig) -> String {
         }
         let _ = writeln!(s);
     }
-    let _ = writeln!(s, "  {}", errors_line(&report.errors));
+    let _ = writeln!(s, "  {}", report.errors);
     let w = &report.watchdog;
     let period = if w.period_ms > 0.0 {
         format!("{} ms", Number(w.period_ms))

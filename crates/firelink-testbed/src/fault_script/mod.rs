@@ -40,12 +40,12 @@ use std::fmt;
 use std::str::FromStr;
 use std::time::Duration;
 
-use firelink_bus::SimDuration;
+use firelink_bus::{NodeHandle, SimDuration, TimedFault};
 use firelink_wire::packet::Tcode;
 
 pub use filter::{ScriptCounts, ScriptFilter, ScriptHandle};
-pub use target::FaultTarget;
 pub(crate) use target::apply_on_bus;
+pub use target::{BoardFaultChannel, FaultTarget};
 
 /// A fault on one board, named by its board ID.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -57,6 +57,20 @@ pub enum BoardFault {
 }
 
 impl BoardFault {
+    /// The simulated bus's fault for it, on the board's `node`.
+    pub(crate) fn on_node(self, node: NodeHandle) -> TimedFault {
+        match self {
+            BoardFault::Unplug(_) => TimedFault::Disconnect {
+                node,
+                reconnect_after: None,
+            },
+            BoardFault::Mute(_) => TimedFault::StopAnswering {
+                node,
+                duration: None,
+            },
+        }
+    }
+
     /// The board it names.
     pub fn board_id(self) -> u8 {
         match self {

@@ -27,17 +27,31 @@
 
 use std::any::Any;
 use std::fmt;
+use std::sync::Arc;
 
 use firelink_bus::{Bus, FaultRule, NodeHandle, PacketFault, PacketMatch, SimDuration};
 use firelink_host::Port;
 use firelink_host::sim::SimPort;
 
 use super::{
-    FaultMoment, FaultScript, Occurrence, PacketEffect, PacketSelector, ScriptEntry, ScriptFilter,
-    ScriptedFault,
+    BoardFault, FaultMoment, FaultScript, Occurrence, PacketEffect, PacketSelector, ScriptEntry,
+    ScriptFilter, ScriptedFault,
 };
 use crate::TestbedError;
-use crate::rig::EmulatorFaults;
+
+/// A way to put a board fault on a bus the host's port does not own: the
+/// in-process emulator's fault channel
+/// ([`EmulatorFaults`](crate::rig::EmulatorFaults)).
+pub trait BoardFaultChannel: Send + Sync {
+    /// The board IDs on that bus.
+    fn boards(&self) -> &[u8];
+    /// `fault` on that bus, `after` from its present time; applied when
+    /// this returns.
+    ///
+    /// # Errors
+    /// The board is not there; the bus's owner has stopped.
+    fn board_fault(&self, fault: BoardFault, after: SimDuration) -> Result<(), TestbedError>;
+}
 
 /// Where a [`FaultTarget`] applies what it is given.
 #[derive(Clone, Default)]
@@ -46,7 +60,7 @@ enum Place {
     /// rig built it.
     Sim { boards: Vec<(u8, NodeHandle)> },
     /// The in-process emulator behind a UDP port.
-    Emulator(EmulatorFaults),
+    Emulator(Arc<dyn BoardFaultChannel>),
     /// Any other link: only what the host's side can do.
     #[default]
     Link,
@@ -86,9 +100,9 @@ impl FaultTarget {
 
     /// The in-process emulator's target: board faults through its channel
     /// ([`Emulator::faults`](crate::rig::Emulator::faults)).
-    pub fn emulator(faults: EmulatorFaults) -> FaultTarget {
+    pub fn emulator(faults: impl BoardFaultChannel + 'static) -> FaultTarget {
         FaultTarget {
-            place: Place::Emulator(faults),
+            place: Place::Emulator(Arc::new(faults)),
             seed: 0,
         }
     }
@@ -283,7 +297,7 @@ pub(crate) fn apply_on_bus(
     match fault {
         ScriptedFault::Board(b) => {
             let node = board_node(boards, b.board_id(), b.role())?;
-            bus.schedule_fault(at, crate::rig::builder::bus_fault(b, node));
+            bus.schedule_fault(at, b.on_node(node));
         }
         ScriptedFault::Packets {
             effect,

@@ -98,20 +98,6 @@ impl FromStr for RobotKind {
     }
 }
 
-/// The bus's fault for a board fault on `node`.
-pub(crate) fn bus_fault(fault: BoardFault, node: NodeHandle) -> TimedFault {
-    match fault {
-        BoardFault::Unplug(_) => TimedFault::Disconnect {
-            node,
-            reconnect_after: None,
-        },
-        BoardFault::Mute(_) => TimedFault::StopAnswering {
-            node,
-            duration: None,
-        },
-    }
-}
-
 /// What to build: the boards, the bus's seed and the faults.
 pub struct RigBuilder {
     kind: RobotKind,
@@ -295,11 +281,11 @@ impl RigBuilder {
                     let node = resolve(&built, b.board_id(), b.role())?;
                     match at {
                         FaultMoment::After(offset) => {
-                            scripted_faults.push((offset, bus_fault(b, node)))
+                            scripted_faults.push((offset, b.on_node(node)))
                         }
                         _ => {
                             let now = built.bus.now();
-                            built.bus.schedule_fault(now, bus_fault(b, node));
+                            built.bus.schedule_fault(now, b.on_node(node));
                         }
                     }
                 }
@@ -342,8 +328,7 @@ impl RigBuilder {
         };
         for fault in self.board_faults {
             let node = rig.node_of(fault.board_id(), fault.role())?;
-            rig.pending
-                .push((SimDuration::ZERO, bus_fault(fault, node)));
+            rig.pending.push((SimDuration::ZERO, fault.on_node(node)));
         }
         // Each reset is over, and its generation counted, before the next.
         for k in 0..self.reset_storm {

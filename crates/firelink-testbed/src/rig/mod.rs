@@ -28,7 +28,7 @@ use firelink_host::udp::{UdpPort, WaitMode};
 
 use crate::TestbedError;
 use crate::cpu::ThreadCpuClock;
-use crate::fault_script::BoardFault;
+use crate::fault_script::{BoardFault, BoardFaultChannel};
 use crate::plant_map;
 
 /// Board configurations for every board `config` uses, plus generic
@@ -242,9 +242,9 @@ pub struct EmulatorFaults {
     interrupt: Arc<AtomicBool>,
 }
 
-impl EmulatorFaults {
+impl BoardFaultChannel for EmulatorFaults {
     /// The board IDs on the emulator's bus, in chain order.
-    pub fn boards(&self) -> &[u8] {
+    fn boards(&self) -> &[u8] {
         &self.boards
     }
 
@@ -252,7 +252,7 @@ impl EmulatorFaults {
     ///
     /// # Errors
     /// [`TestbedError::NoSuchBoard`]; the server has stopped.
-    pub fn board_fault(&self, fault: BoardFault, after: SimDuration) -> Result<(), TestbedError> {
+    fn board_fault(&self, fault: BoardFault, after: SimDuration) -> Result<(), TestbedError> {
         let gone = || TestbedError::Emulator("the server has stopped: no fault applied".into());
         let (done, applied) = mpsc::channel();
         self.to_server
