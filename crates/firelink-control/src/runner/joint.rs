@@ -32,6 +32,10 @@ pub(crate) struct Joint {
     pub motion: Motion,
     pub motion_start: f64,
     pub offset: f64,
+    /// Homed: the encoder was biased from the pot (`Robot::home`). Only
+    /// from then does the safety monitor compare the two: before, the
+    /// encoder counts from wherever the board started.
+    pub homed: bool,
     pub position: f64,
     pub velocity: VelocityEstimator,
     pub setpoint: f64,
@@ -58,6 +62,7 @@ impl Joint {
             motion: Motion::Hold(0.0),
             motion_start: 0.0,
             offset: 0.0,
+            homed: false,
             position: 0.0,
             velocity: VelocityEstimator::default(),
             setpoint: 0.0,
@@ -138,7 +143,8 @@ impl Joint {
         self.current = amps;
         sample.setpoint = self.setpoint;
         sample.current = amps;
-        sample.potentiometer = (self.pot.is_some() && active && pot.is_finite()).then_some(pot);
+        sample.potentiometer =
+            (self.pot.is_some() && self.homed && active && pot.is_finite()).then_some(pot);
     }
 
     /// The pot position from the pot's ADC bits (NaN without a pot or a
@@ -183,6 +189,7 @@ pub(crate) fn hold_all(joints: &mut [Joint], pids: &mut [Pid], now: f64) {
 pub(crate) fn apply_offsets(joints: &mut [Joint], offsets: &[f64], raw: &[f64]) {
     for ((j, off), raw) in joints.iter_mut().zip(offsets).zip(raw) {
         j.offset = *off;
+        j.homed = true;
         j.position = raw + off;
         // Not active: the setpoint follows the (now homed) position.
         j.setpoint = j.position;

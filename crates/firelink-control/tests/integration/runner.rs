@@ -372,3 +372,33 @@ fn a_stop_search_without_a_stop_fails_and_leaves_the_checks_on() {
         Some(FaultKind::FollowingError { .. })
     ));
 }
+
+/// Before homing the encoders count from wherever the boards started, so
+/// the safety monitor does not compare them with the pots: a robot
+/// activated unhomed (the joints away from the encoders' zero) holds for
+/// a whole second without a pot mismatch. Before, it faulted once its
+/// latency had passed, so whether the service's lifecycle test faulted
+/// depended on how long its thread took between two commands.
+#[test]
+fn an_unhomed_robot_is_not_faulted_for_pots_its_encoders_were_never_biased_from() {
+    let mut r = robot(Protocol::Broadcast, 2000.0);
+    r.configure().unwrap();
+    r.power_on().unwrap();
+    r.activate().unwrap();
+    for _ in 0..2000 {
+        r.step(Pacing::Virtual).unwrap();
+    }
+    assert_eq!(r.state(), State::Active);
+    // Encoder and pot do disagree: the check would have fired.
+    let disagree = (0..r.joint_count()).any(|i| {
+        let (p, pot) = (
+            r.position(i).unwrap(),
+            r.potentiometer(i).unwrap_or(f64::NAN),
+        );
+        (p - pot).abs() > 0.1
+    });
+    assert!(
+        disagree,
+        "no joint's encoder and pot disagree: the test shows nothing"
+    );
+}
