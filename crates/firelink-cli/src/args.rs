@@ -2,11 +2,12 @@
 //! the number rules are [`firelink_testbed::limits`] (out of range, not
 //! finite or not a number is a usage error, exit status 2, with one line
 //! naming the option, the value and the range); the named choices
-//! (firmware, FPGA, hardware, protocol, UDP wait) are the enums here.
+//! (firmware, FPGA, hardware) are the enums here; the protocol and the UDP
+//! wait are the host library's own (`firelink_host::scan::Protocol`,
+//! `firelink_host::udp::WaitMode`, clap's `ValueEnum` behind its `clap`
+//! feature).
 
 use clap::ValueEnum;
-use firelink_host::scan::Protocol;
-use firelink_host::udp::WaitMode;
 use firelink_testbed::emulated::{FpgaVersion, Hardware, Profile};
 pub use firelink_testbed::limits::{
     CpuLatencyRequest as CpuLatencyArg, WatchdogSetting, board_count, board_id, can_cycles,
@@ -78,52 +79,6 @@ impl From<HardwareArg> for Hardware {
         match h {
             HardwareArg::Qla1 => Hardware::Qla1,
             HardwareArg::Dqla => Hardware::Dqla,
-        }
-    }
-}
-
-/// `--protocol`: the I/O protocol.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ProtocolArg {
-    /// One block read and one block write per board.
-    #[value(alias = "seq")]
-    Sequential,
-    /// One block read per board, then one broadcast write of all commands.
-    #[value(alias = "seq-bc", alias = "seqrbw")]
-    SequentialReadBroadcastWrite,
-    /// Query, status broadcasts, one hub read (each per broadcast group when
-    /// the boards overflow one hub), one broadcast write.
-    #[value(alias = "bcast", alias = "bc")]
-    Broadcast,
-}
-
-impl From<ProtocolArg> for Protocol {
-    fn from(p: ProtocolArg) -> Protocol {
-        match p {
-            ProtocolArg::Sequential => Protocol::Sequential,
-            ProtocolArg::SequentialReadBroadcastWrite => Protocol::SequentialReadBroadcastWrite,
-            ProtocolArg::Broadcast => Protocol::Broadcast,
-        }
-    }
-}
-
-/// `--udp-wait`: how a UDP port's reads wait for their answer.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum UdpWaitArg {
-    /// Sleep in the kernel until the answer or the time-out: low CPU.
-    #[value(alias = "blocking")]
-    Block,
-    /// Poll the socket until the answer or the time-out: low latency,
-    /// one core busy while waiting.
-    #[value(alias = "spinning")]
-    Spin,
-}
-
-impl From<UdpWaitArg> for WaitMode {
-    fn from(w: UdpWaitArg) -> WaitMode {
-        match w {
-            UdpWaitArg::Block => WaitMode::Blocking,
-            UdpWaitArg::Spin => WaitMode::Spinning,
         }
     }
 }

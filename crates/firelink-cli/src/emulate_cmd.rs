@@ -22,11 +22,12 @@ use firelink_testbed::emulation::{
     BridgeServer, CpuLatencyNote, EthRequest, EthServer, refuse_on_eth,
 };
 use firelink_testbed::fault_script::{FaultScript, FaultScriptError};
+use firelink_testbed::rig::RobotKind;
 use firelink_testbed::rig::served::{BusFaults, ServedBoards};
 use firelink_testbed::snake::is_snake_config;
 
 use crate::args::{CpuLatencyArg, FirmwareArg, FpgaArg, HardwareArg};
-use crate::demo::{DemoRobot, load_config};
+use crate::demo::load_config;
 use crate::error::CliError;
 
 /// Options of `firelink emulate`.
@@ -43,7 +44,7 @@ pub struct EmulateArgs {
     /// (`configs/snake-seed001.json`), for `firelink snake-tool` and
     /// `firelink demo --robot snake --port udp:...`.
     #[arg(long, value_enum, conflicts_with_all = ["config", "boards"])]
-    pub robot: Option<DemoRobot>,
+    pub robot: Option<RobotKind>,
     /// Firmware (seed: seed 000's TDMA and 0xFFFF rule).
     #[arg(long, value_enum, default_value_t = FirmwareArg::Rev8)]
     pub firmware: FirmwareArg,
@@ -193,9 +194,9 @@ pub enum NetworkArg {
 fn bridge_config(args: &EmulateArgs) -> Result<Option<IoConfig>, CliError> {
     let config = match (&args.config, args.robot) {
         (Some(path), _) => Some(load_config(path)?),
-        (None, Some(DemoRobot::Snake)) => Some(presets::snake_seed001()),
-        (None, Some(DemoRobot::Dvrk)) => Some(presets::dvrk_seed000()),
-        (None, Some(DemoRobot::Mahru)) => {
+        (None, Some(RobotKind::Snake)) => Some(presets::snake_seed001()),
+        (None, Some(RobotKind::Dvrk)) => Some(presets::dvrk_seed000()),
+        (None, Some(RobotKind::Mahru)) => {
             return Err(CliError::NotSupported {
                 option: "--robot mahru",
                 reason: "the MAHRU modules speak seed 002's own protocol, not the FPGA1394 \
@@ -367,7 +368,7 @@ fn fault_script(text: &str) -> Result<FaultScript, String> {
 fn run_eth(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
     let asked = EthRequest {
         twin: args.fw_cdev.is_some(),
-        snake: args.robot == Some(DemoRobot::Snake),
+        snake: args.robot == Some(RobotKind::Snake),
         fault_script: args.faults.is_some(),
     };
     refuse_on_eth(&served_boards(args, None), asked).map_err(|r| CliError::NotSupported {
@@ -376,7 +377,7 @@ fn run_eth(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
     })?;
     let config = match (&args.config, args.robot) {
         (Some(path), _) => Some(load_config(path)?),
-        (None, Some(DemoRobot::Dvrk)) => Some(presets::dvrk_seed000()),
+        (None, Some(RobotKind::Dvrk)) => Some(presets::dvrk_seed000()),
         _ => None,
     };
     if let Some(config) = &config {

@@ -25,7 +25,7 @@ pub struct MonitorArgs {
     pub port: PortArgs,
     /// I/O protocol (default: the best the boards support).
     #[arg(long, value_enum)]
-    pub protocol: Option<crate::args::ProtocolArg>,
+    pub protocol: Option<Protocol>,
     /// Target I/O rate in Hz (0 = as fast as possible, else 1 to 100000).
     #[arg(long, default_value_t = 1000.0, value_parser = crate::args::rate_hz_or_max)]
     pub rate: f64,
@@ -42,7 +42,7 @@ pub struct MonitorArgs {
 pub fn run(args: &MonitorArgs, out: &mut impl Write) -> Result<(), CliError> {
     let port = open_port(&args.port, "firelink monitor")?;
     let config = IoOptions {
-        protocol: args.protocol.map(Protocol::from),
+        protocol: args.protocol,
         ..IoOptions::default()
     };
     let (mut io, _scan) = IoSystem::open(port, config)?;

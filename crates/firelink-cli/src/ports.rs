@@ -12,8 +12,8 @@ use firelink_testbed::ports::{PortOptions, open_bus_port};
 
 pub use firelink_testbed::port_spec::PortSpec;
 
-use crate::args::UdpWaitArg;
 use crate::error::CliError;
+use firelink_host::udp::WaitMode;
 
 /// `--port` (clap): every command parses port strings with this.
 ///
@@ -60,8 +60,8 @@ pub struct PortArgs {
     /// How a UDP port's reads wait for the answer: `block` (sleep in the
     /// kernel, low CPU) or `spin` (poll the socket, low latency, one core
     /// busy while waiting).
-    #[arg(long = "udp-wait", value_enum, default_value_t = UdpWaitArg::Block)]
-    pub udp_wait: UdpWaitArg,
+    #[arg(long = "udp-wait", value_enum, default_value_t = WaitMode::Blocking)]
+    pub udp_wait: WaitMode,
     /// Record every 1394 packet the host sends and receives to this pcap
     /// file (Wireshark opens it; the host library's replay tests play such
     /// files back).
@@ -74,7 +74,7 @@ pub struct PortArgs {
 pub fn open_port(args: &PortArgs, command: &str) -> Result<Box<dyn Port>, CliError> {
     let options = PortOptions {
         timeout: std::time::Duration::from_millis(args.timeout_ms),
-        udp_wait: args.udp_wait.into(),
+        udp_wait: args.udp_wait,
         stop_cycle_master: !args.keep_cycle_master,
         ..PortOptions::default()
     };

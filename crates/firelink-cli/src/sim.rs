@@ -15,7 +15,9 @@ use firelink_testbed::emulated::ArbitrationClass;
 use firelink_testbed::sim::SimOptions;
 use firelink_wire::packet::Speed;
 
-use crate::args::{FirmwareArg, ProtocolArg};
+use firelink_host::scan::Protocol;
+
+use crate::args::FirmwareArg;
 use crate::error::CliError;
 
 /// Arbitration class of the boards' status broadcasts.
@@ -53,8 +55,8 @@ pub struct SimArgs {
     #[arg(long, alias = "firmware", value_enum, default_value_t = FirmwareArg::Seed)]
     profile: FirmwareArg,
     /// I/O protocol: broadcast or sequential (the phase tables' two).
-    #[arg(long, value_enum, default_value_t = ProtocolArg::Broadcast)]
-    protocol: ProtocolArg,
+    #[arg(long, value_enum, default_value_t = Protocol::Broadcast)]
+    protocol: Protocol,
     /// Gap count to set (PHY configuration packet and bus reset) before the
     /// cycle; default the power-up 63.
     #[arg(long = "gap-count", value_parser = clap::value_parser!(u8).range(0..=63))]
@@ -91,11 +93,8 @@ pub struct SimArgs {
 
 impl SimArgs {
     fn options(&self) -> SimOptions {
-        let mut options = SimOptions::new(
-            usize::from(self.boards),
-            self.profile.into(),
-            self.protocol.into(),
-        );
+        let mut options =
+            SimOptions::new(usize::from(self.boards), self.profile.into(), self.protocol);
         options.gap_count = self.gap_count;
         options.arbitration = match self.arbitration {
             ArbitrationArg::Iso => ArbitrationClass::Isochronous,

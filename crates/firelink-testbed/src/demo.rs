@@ -49,22 +49,43 @@ pub use crate::port_spec::PortSpec;
 /// The fault the demo injects half way through its motion: a named preset
 /// whose wire and host part is a [`FaultScript`] ([`DemoFault::script`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum DemoFault {
     /// No fault: the run must end without one.
     #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Nothing: the run must end without a fault")
+    )]
     None,
     /// The host stops sending for three watchdog periods
     /// (`host-pause@t=0us:for=...`).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "The host stops sending for three watchdog periods")
+    )]
     StopHost,
     /// The next broadcast query is corrupted on the wire
     /// (`corrupt@t=0us:tcode=0x0,offset=0x1800,count=1`).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "The next broadcast query is corrupted on the wire")
+    )]
     CorruptQuery,
     /// Board 4 stops answering for good (`mute@t=0us:id=4`; PSM1's first
     /// board in seed 000's dVRK; the ECM's DQLA in
     /// `configs/dvrk-dqla-rev9.json`).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "PSM1's first board stops answering for good")
+    )]
     BoardLoss,
     /// Joint 0's setpoint jumps further than it can follow (a motion
     /// fault, not a wire fault: no script).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Joint 0's setpoint jumps further than it can follow")
+    )]
     FollowingError,
 }
 

@@ -21,42 +21,14 @@ mod seed001;
 use std::io::Write;
 use std::path::PathBuf;
 
-use clap::{Args, ValueEnum};
+use clap::Args;
 
 use firelink_host::scan::Protocol;
 use firelink_host::udp::WaitMode;
 use firelink_testbed::bench::{BenchOptions, BenchTransport, parse_board_counts, run_bench};
 
-use crate::args::{FirmwareArg, ProtocolArg, UdpWaitArg};
+use crate::args::FirmwareArg;
 use crate::error::CliError;
-
-/// `--transport`: where the I/O time is measured.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum TransportArg {
-    /// The simulated bus with the seed-000 PC model (virtual time).
-    Sim,
-    /// Loopback UDP to an in-process bridge emulator (wall clock).
-    Udp,
-    /// FirewirePort through the /dev/fw* twin, served in-process (wall
-    /// clock).
-    Fw,
-    /// The Ethernet-only network of FPGA V3 boards at Rev 9 (in process on
-    /// loopback, or `--port udp:HOST` to one), its broadcast cycle beside
-    /// the bridge with FPGA V2 boards at Rev 8 and Rev 9 and the
-    /// firmware's stated timing (wall clock).
-    Eth,
-}
-
-impl From<TransportArg> for BenchTransport {
-    fn from(t: TransportArg) -> BenchTransport {
-        match t {
-            TransportArg::Sim => BenchTransport::Sim,
-            TransportArg::Udp => BenchTransport::Udp,
-            TransportArg::Fw => BenchTransport::Fw,
-            TransportArg::Eth => BenchTransport::Eth,
-        }
-    }
-}
 
 /// `--port`: the port grammar, of which the benchmark takes `udp:HOST`
 /// (port 1394) or `udp:HOST:PORT`.
@@ -80,7 +52,7 @@ pub struct BenchArgs {
     /// Transports (comma-separated; default `sim,udp`, with `--port` only
     /// `udp`).
     #[arg(long, value_enum, value_delimiter = ',')]
-    pub transport: Vec<TransportArg>,
+    pub transport: Vec<BenchTransport>,
     /// UDP points: measure the boards behind this bridge (`udp:HOST` on
     /// port 1394, or `udp:HOST:PORT`: a running `firelink emulate` or real
     /// boards) instead of an in-process emulator: one point per protocol
@@ -92,8 +64,8 @@ pub struct BenchArgs {
     /// UDP points: how the host's reads wait (comma-separated, each
     /// measured side by side): `block` (sleep in the kernel) or `spin`
     /// (poll the socket).
-    #[arg(long = "udp-wait", value_enum, value_delimiter = ',', default_values_t = [UdpWaitArg::Block])]
-    pub udp_wait: Vec<UdpWaitArg>,
+    #[arg(long = "udp-wait", value_enum, value_delimiter = ',', default_values_t = [WaitMode::Blocking])]
+    pub udp_wait: Vec<WaitMode>,
     /// UDP points: the host's time-out for each answer, ms (a cycle that
     /// waits longer counts an error; real hosts use about 20).
     #[arg(long = "udp-timeout-ms", default_value_t = 20, value_parser = crate::args::timeout_ms)]
@@ -104,8 +76,8 @@ pub struct BenchArgs {
     #[arg(long, default_value = "2,4,8,16,32,62")]
     pub boards: String,
     /// Protocols (comma-separated).
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ProtocolArg::Sequential, ProtocolArg::Broadcast])]
-    pub protocol: Vec<ProtocolArg>,
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Protocol::Sequential, Protocol::Broadcast])]
+    pub protocol: Vec<Protocol>,
     /// Measured cycles per point (after 20 warm-up cycles), 1 to 10^7.
     #[arg(long, default_value_t = 1000, value_parser = crate::args::measured)]
     pub cycles: u64,
@@ -150,19 +122,19 @@ pub struct BenchArgs {
 pub fn options(args: &BenchArgs) -> Result<BenchOptions, CliError> {
     let transports = match (args.transport.is_empty(), args.port) {
         (false, _) => args.transport.clone(),
-        (true, Some(_)) => vec![TransportArg::Udp],
-        (true, None) => vec![TransportArg::Sim, TransportArg::Udp],
+        (true, Some(_)) => vec![BenchTransport::Udp],
+        (true, None) => vec![BenchTransport::Sim, BenchTransport::Udp],
     };
     let mut udp_waits = Vec::new();
-    for w in args.udp_wait.iter().copied().map(WaitMode::from) {
+    for w in args.udp_wait.iter().copied() {
         if !udp_waits.contains(&w) {
             udp_waits.push(w);
         }
     }
     Ok(BenchOptions {
-        transports: transports.into_iter().map(BenchTransport::from).collect(),
+        transports,
         boards: parse_board_counts(&args.boards).map_err(CliError::BoardCounts)?,
-        protocols: args.protocol.iter().copied().map(Protocol::from).collect(),
+        protocols: args.protocol.clone(),
         cycles: args.cycles,
         firmware: args.firmware.into(),
         period_us: args.period_us,

@@ -18,40 +18,16 @@ use clap::{Args, FromArgMatches, ValueEnum};
 use firelink_control::ServoPeriod;
 use firelink_control::config::IoConfig;
 use firelink_control::runner::Pacing;
+use firelink_host::scan::Protocol;
+use firelink_host::udp::WaitMode;
 use firelink_testbed::demo::{DemoFault, DemoProgress, PortSpec, RealtimeStatus};
 use firelink_testbed::demo_text::{progress_line, tick_line};
 use firelink_testbed::fault_script::FaultScript;
+use firelink_testbed::rig::RobotKind;
 
-use crate::args::{FirmwareArg, ProtocolArg, UdpWaitArg};
+use crate::args::FirmwareArg;
 use crate::error::CliError;
 use crate::rt;
-
-/// `--fault`: what the demo breaks half way.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum FaultArg {
-    /// Nothing: the run must end without a fault.
-    None,
-    /// The host stops sending for three watchdog periods.
-    StopHost,
-    /// The next broadcast query is corrupted on the wire.
-    CorruptQuery,
-    /// PSM1's first board stops answering for good.
-    BoardLoss,
-    /// Joint 0's setpoint jumps further than it can follow.
-    FollowingError,
-}
-
-impl From<FaultArg> for DemoFault {
-    fn from(f: FaultArg) -> DemoFault {
-        match f {
-            FaultArg::None => DemoFault::None,
-            FaultArg::StopHost => DemoFault::StopHost,
-            FaultArg::CorruptQuery => DemoFault::CorruptQuery,
-            FaultArg::BoardLoss => DemoFault::BoardLoss,
-            FaultArg::FollowingError => DemoFault::FollowingError,
-        }
-    }
-}
 
 /// `--pacing`: virtual or wall-clock time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -79,8 +55,8 @@ pub struct DemoArgs {
     /// `--config` whose boards are SNAKE nodes) or `mahru` (seed 002's
     /// humanoid; it uses --duration, --period, --config, --json,
     /// --quiet).
-    #[arg(long, value_enum, default_value_t = DemoRobot::Dvrk)]
-    pub robot: DemoRobot,
+    #[arg(long, value_enum, default_value_t = RobotKind::Dvrk)]
+    pub robot: RobotKind,
     /// The servo period for every robot, as a period or a rate: `1ms`,
     /// `250us`, `6kHz` (10 us to 1 s; default: the dVRK 6 kHz, the Snake
     /// robot 1 kHz, MAHRU its configuration's 2 ms).
@@ -97,8 +73,8 @@ pub struct DemoArgs {
     #[arg(long = "no-rate-search")]
     pub no_rate_search: bool,
     /// I/O protocol.
-    #[arg(long, value_enum, default_value_t = ProtocolArg::Broadcast)]
-    pub protocol: ProtocolArg,
+    #[arg(long, value_enum, default_value_t = Protocol::Broadcast)]
+    pub protocol: Protocol,
     /// Seconds of motion after homing (above 0, at most a day).
     #[arg(long, default_value_t = 3.0, value_parser = crate::args::run_seconds)]
     pub duration: f64,
@@ -113,14 +89,14 @@ pub struct DemoArgs {
     /// Over UDP (`emulate`, `udp:...`): how the port's reads wait for the
     /// answer, `block` (sleep in the kernel, low CPU) or `spin` (poll the
     /// socket, low latency, one core busy while waiting).
-    #[arg(long = "udp-wait", value_enum, default_value_t = UdpWaitArg::Block)]
-    pub udp_wait: UdpWaitArg,
+    #[arg(long = "udp-wait", value_enum, default_value_t = WaitMode::Blocking)]
+    pub udp_wait: WaitMode,
     /// Board firmware of the emulated boards.
     #[arg(long, value_enum, default_value_t = FirmwareArg::Rev8)]
     pub firmware: FirmwareArg,
     /// Inject a fault half-way (a named preset: its fault script).
-    #[arg(long, value_enum, default_value_t = FaultArg::None)]
-    pub fault: FaultArg,
+    #[arg(long, value_enum, default_value_t = DemoFault::None)]
+    pub fault: DemoFault,
     /// Instead of --fault: faults as a plan, entries separated by `;`.
     /// `start` is the motion's first cycle, `cycle=N` counts the motion's
     /// cycles, `t=` counts from half way: `mute@cycle=300:id=4`,
@@ -176,17 +152,6 @@ fn rate(s: &str) -> Result<ServoPeriod, String> {
 /// `--period-us`: us, MAHRU's bounds (100 us to 1 s).
 fn period_us(s: &str) -> Result<ServoPeriod, String> {
     ServoPeriod::from_micros_f64(crate::args::mahru_period_us(s)?).map_err(|e| e.to_string())
-}
-
-/// The demo's robots.
-#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
-pub enum DemoRobot {
-    /// Seed 000's da Vinci Research Kit on QLA boards.
-    Dvrk,
-    /// Seed 001's Snake robot system on its 7-channel nodes.
-    Snake,
-    /// Seed 002's MAHRU humanoid: 14 modules on three chains, walking.
-    Mahru,
 }
 
 /// Show one progress event on stderr (ticks overwrite one line).

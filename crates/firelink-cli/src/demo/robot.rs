@@ -8,9 +8,9 @@ use firelink_testbed::demo_request::{DemoConfig, DemoRequest};
 use firelink_testbed::mahru::MahruConfig;
 use firelink_testbed::rig::RobotKind;
 
-use super::{DemoArgs, DemoRobot, load_config, realtime_setup, show};
-use crate::args::UdpWaitArg;
+use super::{DemoArgs, load_config, realtime_setup, show};
 use crate::error::CliError;
+use firelink_host::udp::WaitMode;
 
 /// The request the options make; the configuration file is loaded (its
 /// warnings printed) as the robot reads it.
@@ -20,27 +20,23 @@ use crate::error::CliError;
 pub fn request(args: &DemoArgs) -> Result<DemoRequest, CliError> {
     let config = match (&args.config, args.robot) {
         (None, _) => DemoConfig::Builtin,
-        (Some(path), DemoRobot::Mahru) => DemoConfig::Mahru(MahruConfig::load(path)?),
+        (Some(path), RobotKind::Mahru) => DemoConfig::Mahru(MahruConfig::load(path)?),
         (Some(path), _) => DemoConfig::Io(load_config(path)?),
     };
     Ok(DemoRequest {
-        robot: match args.robot {
-            DemoRobot::Dvrk => RobotKind::Dvrk,
-            DemoRobot::Snake => RobotKind::Snake,
-            DemoRobot::Mahru => RobotKind::Mahru,
-        },
+        robot: args.robot,
         teleop: args.teleop,
         config,
         period: args.period.or(args.rate).or(args.period_us),
         duration_s: args.duration,
         port: args.port,
-        protocol: args.protocol.into(),
+        protocol: args.protocol,
         firmware: args.firmware.into(),
-        fault: args.fault.into(),
+        fault: args.fault,
         faults: args.faults.clone(),
         pacing: args.pacing.map(Into::into),
         watchdog: args.watchdog,
-        udp_wait: args.udp_wait.into(),
+        udp_wait: args.udp_wait,
         search_fastest: !args.no_rate_search,
     })
 }
@@ -55,7 +51,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
         eprintln!("demo: {w}");
     }
     // The port's reads spin over UDP with `--udp-wait spin`.
-    let spinning = args.udp_wait == UdpWaitArg::Spin && !args.port.is_sim();
+    let spinning = args.udp_wait == WaitMode::Spinning && !args.port.is_sim();
     let setup = move || realtime_setup(spinning);
     let setup: &dyn Fn() -> RealtimeStatus = &setup;
     let mut ticking = false;
