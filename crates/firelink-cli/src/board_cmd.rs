@@ -6,10 +6,10 @@ use std::io::Write;
 use clap::Args;
 
 use firelink_host::board_access::{
-    self, BoardSummary, RegisterError, ScanSummary, WriteOutcome, parse_address,
+    self, RegisterError, ScanSummary, WriteOutcome, parse_address, scan_text,
 };
 use firelink_host::register_address::check_address;
-use firelink_host::scan::{mask_boards, scan};
+use firelink_host::scan::scan;
 use firelink_host::{Dest, Port};
 
 use crate::error::CliError;
@@ -37,44 +37,7 @@ pub fn run_scan(args: &ScanArgs, out: &mut impl Write) -> Result<(), CliError> {
         )?;
         return Ok(());
     }
-    writeln!(out, "{} board(s) on {}:", report.boards.len(), port.name())?;
-    writeln!(out, "  board  node  hardware  firmware  fpga  git")?;
-    for b in &report.boards {
-        let j = BoardSummary::from(b);
-        writeln!(
-            out,
-            "  {:>5}  {:>4}  {:<8}  {:>8}  V{}    {}",
-            j.board_id, j.node, j.hardware, j.firmware, j.fpga, j.git
-        )?;
-    }
-    if let Some(bridge) = report.bridge_board {
-        writeln!(out, "Ethernet bridge: board {bridge}")?;
-    }
-    if !report.unsupported.is_empty() {
-        for u in &report.unsupported {
-            writeln!(
-                out,
-                "node {}: unsupported hardware {} firmware {}",
-                u.node,
-                u.hardware.name(),
-                u.firmware
-            )?;
-        }
-    }
-    writeln!(
-        out,
-        "protocol: {} ({})",
-        report.protocol_label(),
-        report.protocol_reason
-    )?;
-    if report.broadcast_groups.len() > 1 {
-        let groups: Vec<String> = report
-            .broadcast_groups
-            .iter()
-            .map(|&m| format!("boards {}", mask_boards(m)))
-            .collect();
-        writeln!(out, "broadcast groups: {}", groups.join(" | "))?;
-    }
+    write!(out, "{}", scan_text(port.name(), &report))?;
     Ok(())
 }
 

@@ -16,7 +16,7 @@ use firelink_host::cpu_latency::CpuLatencyHold;
 
 use crate::emulated::{FpgaVersion, Profile};
 use crate::rig::RobotKind;
-use crate::rig::served::{BoardOption, ServedBoards, ServedBridge};
+use crate::rig::served::{ServedBoards, ServedBridge};
 
 /// Why the boards cannot be served as asked.
 #[derive(Debug, thiserror::Error)]
@@ -274,19 +274,6 @@ pub fn refuse_on_eth(boards: &ServedBoards, asked: EthRequest) -> Result<(), Ref
         });
     }
     Ok(())
-}
-
-/// The command-line option that names a board of `option`'s kind.
-pub fn option_flag(option: BoardOption) -> &'static str {
-    match option {
-        BoardOption::BoardSet => "--board-set",
-        BoardOption::BridgeBoard => "--bridge-board",
-        BoardOption::UnplugBoard => "--unplug-board",
-        BoardOption::MuteBoard => "--mute-board",
-        BoardOption::FaultScript => "--faults",
-        BoardOption::Chain => "--chain",
-        BoardOption::ChainMissing => "--chain (every emulated board, once; missing)",
-    }
 }
 
 /// The firmware's name in the banner: the Snake node's, or the QLA
