@@ -7,22 +7,13 @@ use clap::Args;
 
 use firelink_host::Port;
 use firelink_host::trace::PcapWriter;
-use firelink_testbed::port_spec::{PortKind, PortSpecError};
+use firelink_host::udp::WaitMode;
+use firelink_testbed::port_spec::PortKind;
 use firelink_testbed::ports::{PortOptions, open_bus_port};
 
-pub use firelink_testbed::port_spec::PortSpec;
+pub use firelink_testbed::port_spec::{PortSpec, parse_port};
 
 use crate::error::CliError;
-use firelink_host::udp::WaitMode;
-
-/// `--port` (clap): every command parses port strings with this.
-///
-/// # Errors
-/// What [`PortSpec`]'s parser finds, naming the string and what is
-/// expected.
-pub fn parse_port(text: &str) -> Result<PortSpec, PortSpecError> {
-    text.parse()
-}
 
 /// `--port` of a command that takes only some kinds of port: parsed, then
 /// refused unless of one of `accepted` (naming `command` and the port).
