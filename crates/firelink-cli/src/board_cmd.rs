@@ -5,9 +5,7 @@ use std::io::Write;
 
 use clap::Args;
 
-use firelink_host::board_access::{
-    self, RegisterError, ScanSummary, WriteOutcome, parse_address, scan_text,
-};
+use firelink_host::board_access::{self, ScanSummary, parse_address, scan_text};
 use firelink_host::register_address::check_address;
 use firelink_host::scan::scan;
 use firelink_host::{Dest, Port};
@@ -130,8 +128,7 @@ pub fn run_read(args: &ReadArgs, out: &mut impl Write) -> Result<(), CliError> {
     let address = args.address;
     check_address(address, args.count)?;
     let (mut port, dest) = args.target.open()?;
-    let values = board_access::read_registers(port.as_mut(), dest, address, args.count)
-        .map_err(register_error)?;
+    let values = board_access::read_registers(port.as_mut(), dest, address, args.count)?;
     for (i, v) in values.iter().enumerate() {
         writeln!(out, "{:#06x}: {v:08x}", address + i as u64)?;
     }
@@ -151,32 +148,10 @@ pub fn run_write(args: &WriteArgs, out: &mut impl Write) -> Result<(), CliError>
         })?);
     }
     let (mut port, dest) = args.target.open()?;
-    let n = values.len();
-    match board_access::write_registers(port.as_mut(), dest, address, &values)
-        .map_err(register_error)?
-    {
-        WriteOutcome::Acknowledged => {
-            writeln!(out, "wrote {n} quadlet(s) at {address:#06x} (acknowledged)")?;
-        }
-        WriteOutcome::Broadcast => writeln!(
-            out,
-            "sent {n} quadlet(s) to every board at {address:#06x} (broadcast writes are never acknowledged)"
-        )?,
-        WriteOutcome::ReadBack(Ok(back)) => writeln!(
-            out,
-            "sent {n} quadlet(s) at {address:#06x} (not acknowledged over UDP; the node answers, \
-             reading back {back:08x})"
-        )?,
-        WriteOutcome::ReadBack(Err(error)) => {
-            return Err(CliError::WriteNotConfirmed { address, error });
-        }
-    }
+    let outcome = board_access::write_registers(port.as_mut(), dest, address, &values)?;
+    let line = outcome
+        .line(values.len(), address)
+        .map_err(|error| CliError::WriteNotConfirmed { address, error })?;
+    writeln!(out, "{line}")?;
     Ok(())
-}
-
-fn register_error(e: RegisterError) -> CliError {
-    match e {
-        RegisterError::Address(e) => e.into(),
-        RegisterError::Host(e) => e.into(),
-    }
 }

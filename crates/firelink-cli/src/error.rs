@@ -46,6 +46,10 @@ pub enum CliError {
     /// that is not on the board.
     #[error(transparent)]
     Address(#[from] AddressError),
+    /// A register read or write was refused (its address) or failed (the
+    /// port).
+    #[error(transparent)]
+    Register(#[from] firelink_host::board_access::RegisterError),
     /// The emulated boards cannot be served as asked: an option they
     /// cannot honour, boards the Ethernet-only network cannot hold, a
     /// socket that cannot be bound.

@@ -18,7 +18,6 @@ mod packet_cmd;
 #[cfg(test)]
 mod port_strings_test;
 mod ports;
-mod rt;
 mod sim;
 mod snake_tool;
 mod soak_cmd;

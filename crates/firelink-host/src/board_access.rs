@@ -310,6 +310,31 @@ pub fn write_registers(
     })
 }
 
+impl WriteOutcome {
+    /// What `firelink write` says of `count` quadlets written at
+    /// `address` this way; `Err`: the read-back that was to confirm the
+    /// write failed.
+    ///
+    /// # Errors
+    /// [`WriteOutcome::ReadBack`] of an error: that error.
+    pub fn line(self, count: usize, address: u64) -> Result<String, HostError> {
+        Ok(match self {
+            WriteOutcome::Acknowledged => {
+                format!("wrote {count} quadlet(s) at {address:#06x} (acknowledged)")
+            }
+            WriteOutcome::Broadcast => format!(
+                "sent {count} quadlet(s) to every board at {address:#06x} (broadcast writes \
+                 are never acknowledged)"
+            ),
+            WriteOutcome::ReadBack(back) => format!(
+                "sent {count} quadlet(s) at {address:#06x} (not acknowledged over UDP; the node \
+                 answers, reading back {:08x})",
+                back?
+            ),
+        })
+    }
+}
+
 /// Why a register access was not made or failed.
 #[derive(Debug, thiserror::Error)]
 pub enum RegisterError {

@@ -154,8 +154,8 @@ impl FromStr for DemoFault {
     }
 }
 
-/// What the real-time setup of the calling thread achieved (the CLI does
-/// it; the library only reports it).
+/// What the real-time setup of the calling thread achieved (the front end
+/// asks for it, [`RealtimeStatus::take`]; the run only reports it).
 #[derive(Debug, Clone, PartialEq, Default, Serialize)]
 pub struct RealtimeStatus {
     /// Whether real-time settings were asked for at all.
@@ -169,6 +169,24 @@ pub struct RealtimeStatus {
     pub timer_slack_1ns: bool,
     /// Why the others did not happen.
     pub errors: Vec<String>,
+}
+
+impl RealtimeStatus {
+    /// Take the real-time settings for the calling thread (SCHED_FIFO at
+    /// `priority`, locked memory, a 1 ns timer slack;
+    /// [`crate::realtime::setup`]) and say what was granted; `spinning`:
+    /// the thread's port reads spin (no SCHED_FIFO where real-time threads
+    /// are throttled).
+    pub fn take(priority: i32, spinning: bool) -> RealtimeStatus {
+        let s = crate::realtime::setup(priority, spinning);
+        RealtimeStatus {
+            requested: true,
+            sched_fifo_priority: s.sched_fifo,
+            memory_locked: s.memory_locked,
+            timer_slack_1ns: s.timer_slack_1ns,
+            errors: s.errors,
+        }
+    }
 }
 
 /// What the demo is doing, for a progress display.

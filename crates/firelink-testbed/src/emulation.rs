@@ -9,6 +9,7 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
 use firelink_board::config::BoardConfig;
+use firelink_control::config::{IoConfig, presets};
 use firelink_emulate::eth_network::{EthNetwork, NetworkError};
 use firelink_emulate::eth_serve::{EthEvent, EthServeConfig, EthSockets, MULTICAST_GROUP};
 use firelink_emulate::{Bridge, Event, ServeConfig};
@@ -274,6 +275,24 @@ pub fn refuse_on_eth(boards: &ServedBoards, asked: EthRequest) -> Result<(), Ref
         });
     }
     Ok(())
+}
+
+/// The configuration `firelink emulate --robot` serves: the robot's seed
+/// configuration; MAHRU is refused (its modules speak seed 002's own
+/// protocol, not the bridge's).
+///
+/// # Errors
+/// [`Refused`] for MAHRU.
+pub fn robot_preset(robot: RobotKind) -> Result<IoConfig, Refused> {
+    match robot {
+        RobotKind::Dvrk => Ok(presets::dvrk_seed000()),
+        RobotKind::Snake => Ok(presets::snake_seed001()),
+        RobotKind::Mahru => Err(Refused {
+            option: "--robot mahru",
+            reason: "the MAHRU modules speak seed 002's own protocol, not the FPGA1394 \
+                     bridge's; run `firelink demo --robot mahru`",
+        }),
+    }
 }
 
 /// The firmware's name in the banner: the Snake node's, or the QLA

@@ -26,8 +26,9 @@ use clap::Args;
 use firelink_host::scan::Protocol;
 use firelink_host::udp::WaitMode;
 use firelink_testbed::bench::{BenchOptions, BenchTransport, parse_board_counts, run_bench};
+use firelink_testbed::emulated::Profile;
+use firelink_testbed::fw_run::{library_path, rerun_with_twin, under_twin};
 
-use crate::args::FirmwareArg;
 use crate::error::CliError;
 
 /// `--port`: the port grammar, of which the benchmark takes `udp:HOST`
@@ -82,8 +83,8 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 1000, value_parser = crate::args::measured)]
     pub cycles: u64,
     /// Firmware of the emulated boards.
-    #[arg(long, value_enum, default_value_t = FirmwareArg::Rev8)]
-    pub firmware: FirmwareArg,
+    #[arg(long, default_value = "rev8", value_parser = crate::args::firmware())]
+    pub firmware: Profile,
     /// Control period for the seed-002 budget check, us (default: 6 kHz).
     #[arg(long = "period-us", default_value_t = 166.67, value_parser = crate::args::period_us)]
     pub period_us: f64,
@@ -136,7 +137,7 @@ pub fn options(args: &BenchArgs) -> Result<BenchOptions, CliError> {
         boards: parse_board_counts(&args.boards).map_err(CliError::BoardCounts)?,
         protocols: args.protocol.clone(),
         cycles: args.cycles,
-        firmware: args.firmware.into(),
+        firmware: args.firmware,
         period_us: args.period_us,
         wait_us_per_board: args.wait_us,
         idle_us: args.idle_us,
@@ -157,8 +158,18 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
         return seed001::run(args.iterations, args.plot.as_deref(), args.json, out);
     }
     let options = options(args)?;
-    if options.transports.contains(&BenchTransport::Fw) && std::env::var_os(UNDER_TWIN).is_none() {
-        return rerun_under_twin(out);
+    if options.transports.contains(&BenchTransport::Fw) && !under_twin() {
+        // The `fw` points need the twin library in this process: the same
+        // command again with it preloaded, its table passed on.
+        let output = rerun_with_twin(&library_path()?, std::env::args_os().skip(1))?;
+        out.write_all(&output.stdout)?;
+        if !output.status.success() {
+            return Err(CliError::Failed(format!(
+                "bench: the run with the /dev/fw* twin preloaded failed ({})",
+                output.status
+            )));
+        }
+        return Ok(());
     }
     let quiet = crate::args::quiet();
     let report = run_bench(&options, |t, proto, n| {
@@ -179,37 +190,6 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
         writeln!(out, "{}", serde_json::to_string(&report)?)?;
     } else {
         write!(out, "{report}")?;
-    }
-    Ok(())
-}
-
-/// Set in the re-run of `firelink bench` that has the twin preloaded.
-const UNDER_TWIN: &str = "FIRELINK_BENCH_UNDER_TWIN";
-
-/// The `fw` points need `libfirelink_fwcdev.so` in this process, which
-/// only the loader can put there: run this same command again with it
-/// preloaded and a fresh socket path for the benchmark's own twin server,
-/// and pass its table on.
-fn rerun_under_twin(out: &mut impl Write) -> Result<(), CliError> {
-    use firelink_testbed::fw_run::{SOCKET_ENV, library_path, preload, temp_dir};
-    let library = library_path()?;
-    let dir = temp_dir()?;
-    let preload = preload(&library);
-    let output = std::process::Command::new(std::env::current_exe()?)
-        .args(std::env::args_os().skip(1))
-        .env("LD_PRELOAD", preload)
-        .env(SOCKET_ENV, dir.join("fw-cdev.sock"))
-        .env(UNDER_TWIN, "1")
-        .stderr(std::process::Stdio::inherit())
-        .output();
-    let _ = std::fs::remove_dir_all(&dir);
-    let output = output?;
-    out.write_all(&output.stdout)?;
-    if !output.status.success() {
-        return Err(CliError::Failed(format!(
-            "bench: the run with the /dev/fw* twin preloaded failed ({})",
-            output.status
-        )));
     }
     Ok(())
 }

@@ -5,47 +5,28 @@
 //! The runs, the choice of robot and the report's table are the testbed's
 //! ([`firelink_testbed::demo_request`]); [`robot`] runs the request.
 //!
-//! This file holds the options, the progress shown on stderr and the
-//! real-time setup.
+//! This file holds the options and the progress shown on stderr (the
+//! real-time setup is the testbed's `RealtimeStatus::take`).
 
 pub mod mahru;
 pub mod robot;
 
 use std::path::PathBuf;
 
-use clap::{Args, FromArgMatches, ValueEnum};
+use clap::{Args, FromArgMatches};
 
 use firelink_control::ServoPeriod;
 use firelink_control::config::IoConfig;
 use firelink_control::runner::Pacing;
 use firelink_host::scan::Protocol;
 use firelink_host::udp::WaitMode;
-use firelink_testbed::demo::{DemoFault, DemoProgress, PortSpec, RealtimeStatus};
+use firelink_testbed::demo::{DemoFault, DemoProgress, PortSpec};
 use firelink_testbed::demo_text::{progress_line, tick_line};
+use firelink_testbed::emulated::Profile;
 use firelink_testbed::fault_script::FaultScript;
 use firelink_testbed::rig::RobotKind;
 
-use crate::args::FirmwareArg;
 use crate::error::CliError;
-use crate::rt;
-
-/// `--pacing`: virtual or wall-clock time.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum PacingArg {
-    /// As fast as the simulation goes, in virtual time.
-    Virtual,
-    /// The wall clock.
-    Realtime,
-}
-
-impl From<PacingArg> for Pacing {
-    fn from(p: PacingArg) -> Pacing {
-        match p {
-            PacingArg::Virtual => Pacing::Virtual,
-            PacingArg::Realtime => Pacing::WallClock,
-        }
-    }
-}
 
 /// Options of `firelink demo`.
 #[derive(Args, Debug, Clone)]
@@ -63,10 +44,10 @@ pub struct DemoArgs {
     #[arg(long, conflicts_with_all = ["rate", "period_us"])]
     pub period: Option<ServoPeriod>,
     /// The period as a rate in Hz (the older spelling of --period).
-    #[arg(long, hide = true, value_parser = rate, conflicts_with = "period_us")]
+    #[arg(long, hide = true, value_parser = crate::args::servo_rate, conflicts_with = "period_us")]
     pub rate: Option<ServoPeriod>,
     /// The period in us, 100 to 1000000 (the older spelling of --period).
-    #[arg(long = "period-us", hide = true, value_parser = period_us)]
+    #[arg(long = "period-us", hide = true, value_parser = crate::args::servo_period_us)]
     pub period_us: Option<ServoPeriod>,
     /// Snake robot and MAHRU: skip the search for the fastest rate or
     /// period that holds.
@@ -92,8 +73,8 @@ pub struct DemoArgs {
     #[arg(long = "udp-wait", value_enum, default_value_t = WaitMode::Blocking)]
     pub udp_wait: WaitMode,
     /// Board firmware of the emulated boards.
-    #[arg(long, value_enum, default_value_t = FirmwareArg::Rev8)]
-    pub firmware: FirmwareArg,
+    #[arg(long, default_value = "rev8", value_parser = crate::args::firmware())]
+    pub firmware: Profile,
     /// Inject a fault half-way (a named preset: its fault script).
     #[arg(long, value_enum, default_value_t = DemoFault::None)]
     pub fault: DemoFault,
@@ -107,8 +88,8 @@ pub struct DemoArgs {
     #[arg(long = "faults", value_name = "SCRIPT", conflicts_with = "fault")]
     pub faults: Option<FaultScript>,
     /// Pacing; default: virtual for sim, realtime over UDP.
-    #[arg(long, value_enum)]
-    pub pacing: Option<PacingArg>,
+    #[arg(long, value_parser = crate::args::pacing())]
+    pub pacing: Option<Pacing>,
     /// Board watchdog period in ms (above 0, at most 341), or `off`
     /// (a stopped host then leaves the amplifiers on: say so explicitly).
     #[arg(long = "watchdog-ms", default_value = "20", value_parser = crate::args::watchdog)]
@@ -144,16 +125,6 @@ impl Default for DemoArgs {
     }
 }
 
-/// `--rate`: Hz, 1 to 100000.
-fn rate(s: &str) -> Result<ServoPeriod, String> {
-    ServoPeriod::from_rate_hz(crate::args::rate_hz(s)?).map_err(|e| e.to_string())
-}
-
-/// `--period-us`: us, MAHRU's bounds (100 us to 1 s).
-fn period_us(s: &str) -> Result<ServoPeriod, String> {
-    ServoPeriod::from_micros_f64(crate::args::mahru_period_us(s)?).map_err(|e| e.to_string())
-}
-
 /// Show one progress event on stderr (ticks overwrite one line).
 pub(crate) fn show(event: &DemoProgress, ticking: &mut bool) {
     if let Some(tick) = tick_line(event) {
@@ -180,17 +151,4 @@ pub(crate) fn load_config(path: &std::path::Path) -> Result<IoConfig, CliError> 
         eprintln!("warning: {w}");
     }
     Ok(loaded.config)
-}
-
-/// The real-time settings for the thread that runs the cycles;
-/// `spinning`: its port's reads spin (see [`rt::setup`]).
-pub(crate) fn realtime_setup(spinning: bool) -> RealtimeStatus {
-    let s = rt::setup(80, spinning);
-    RealtimeStatus {
-        requested: true,
-        sched_fifo_priority: s.sched_fifo,
-        memory_locked: s.memory_locked,
-        timer_slack_1ns: s.timer_slack_1ns,
-        errors: s.errors,
-    }
 }

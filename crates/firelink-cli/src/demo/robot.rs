@@ -8,7 +8,7 @@ use firelink_testbed::demo_request::{DemoConfig, DemoRequest};
 use firelink_testbed::mahru::MahruConfig;
 use firelink_testbed::rig::RobotKind;
 
-use super::{DemoArgs, load_config, realtime_setup, show};
+use super::{DemoArgs, load_config, show};
 use crate::error::CliError;
 use firelink_host::udp::WaitMode;
 
@@ -31,10 +31,10 @@ pub fn request(args: &DemoArgs) -> Result<DemoRequest, CliError> {
         duration_s: args.duration,
         port: args.port,
         protocol: args.protocol,
-        firmware: args.firmware.into(),
+        firmware: args.firmware,
         fault: args.fault,
         faults: args.faults.clone(),
-        pacing: args.pacing.map(Into::into),
+        pacing: args.pacing,
         watchdog: args.watchdog,
         udp_wait: args.udp_wait,
         search_fastest: !args.no_rate_search,
@@ -52,7 +52,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
     }
     // The port's reads spin over UDP with `--udp-wait spin`.
     let spinning = args.udp_wait == WaitMode::Spinning && !args.port.is_sim();
-    let setup = move || realtime_setup(spinning);
+    let setup = move || RealtimeStatus::take(80, spinning);
     let setup: &dyn Fn() -> RealtimeStatus = &setup;
     let mut ticking = false;
     let outcome = request.run(
