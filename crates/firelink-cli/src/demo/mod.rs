@@ -17,83 +17,25 @@ use clap::{Args, FromArgMatches};
 
 use firelink_control::ServoPeriod;
 use firelink_control::config::IoConfig;
-use firelink_control::runner::Pacing;
-use firelink_host::scan::Protocol;
-use firelink_host::udp::WaitMode;
-use firelink_testbed::demo::{DemoFault, DemoProgress, PortSpec};
+use firelink_testbed::demo::DemoProgress;
+use firelink_testbed::demo_request::DemoRequest;
 use firelink_testbed::demo_text::{progress_line, tick_line};
-use firelink_testbed::emulated::Profile;
-use firelink_testbed::fault_script::FaultScript;
-use firelink_testbed::rig::RobotKind;
 
 use crate::error::CliError;
 
-/// Options of `firelink demo`.
+/// Options of `firelink demo`: the request (the testbed's
+/// [`DemoRequest`]), and what the command line does with it.
 #[derive(Args, Debug, Clone)]
 pub struct DemoArgs {
-    /// Which robot: `dvrk` (seed 000's 28 axes on QLA boards), `snake`
-    /// (seed 001's 36 axes on its own 7-channel nodes; also chosen by a
-    /// `--config` whose boards are SNAKE nodes) or `mahru` (seed 002's
-    /// humanoid; it uses --duration, --period, --config, --json,
-    /// --quiet).
-    #[arg(long, value_enum, default_value_t = RobotKind::Dvrk)]
-    pub robot: RobotKind,
-    /// The servo period for every robot, as a period or a rate: `1ms`,
-    /// `250us`, `6kHz` (10 us to 1 s; default: the dVRK 6 kHz, the Snake
-    /// robot 1 kHz, MAHRU its configuration's 2 ms).
-    #[arg(long, conflicts_with_all = ["rate", "period_us"])]
-    pub period: Option<ServoPeriod>,
+    /// What to run.
+    #[command(flatten)]
+    pub request: DemoRequest,
     /// The period as a rate in Hz (the older spelling of --period).
-    #[arg(long, hide = true, value_parser = crate::args::servo_rate, conflicts_with = "period_us")]
+    #[arg(long, hide = true, value_parser = crate::args::servo_rate, conflicts_with_all = ["period", "period_us"])]
     pub rate: Option<ServoPeriod>,
     /// The period in us, 100 to 1000000 (the older spelling of --period).
-    #[arg(long = "period-us", hide = true, value_parser = crate::args::servo_period_us)]
+    #[arg(long = "period-us", hide = true, value_parser = crate::args::servo_period_us, conflicts_with = "period")]
     pub period_us: Option<ServoPeriod>,
-    /// Snake robot and MAHRU: skip the search for the fastest rate or
-    /// period that holds.
-    #[arg(long = "no-rate-search")]
-    pub no_rate_search: bool,
-    /// I/O protocol.
-    #[arg(long, value_enum, default_value_t = Protocol::Broadcast)]
-    pub protocol: Protocol,
-    /// Seconds of motion after homing (above 0, at most a day).
-    #[arg(long, default_value_t = 3.0, value_parser = crate::args::run_seconds)]
-    pub duration: f64,
-    /// Where the boards are: `sim` (the robot's emulated boards on the
-    /// simulated bus, in-process; `sim:N[:FW]`: boards 0..N at firmware
-    /// FW), `emulate` (the same boards behind an in-process `firelink
-    /// emulate`, over loopback UDP), `udp:HOST[:PORT]` (a running
-    /// `firelink emulate` or a real bridge board) or `fw` / `fw:N`
-    /// (FireWire card 0 / N). MAHRU runs on plain `sim` only.
-    #[arg(long, default_value = "sim", value_parser = crate::ports::parse_port)]
-    pub port: PortSpec,
-    /// Over UDP (`emulate`, `udp:...`): how the port's reads wait for the
-    /// answer, `block` (sleep in the kernel, low CPU) or `spin` (poll the
-    /// socket, low latency, one core busy while waiting).
-    #[arg(long = "udp-wait", value_enum, default_value_t = WaitMode::Blocking)]
-    pub udp_wait: WaitMode,
-    /// Board firmware of the emulated boards.
-    #[arg(long, default_value = "rev8", value_parser = crate::args::firmware())]
-    pub firmware: Profile,
-    /// Inject a fault half-way (a named preset: its fault script).
-    #[arg(long, value_enum, default_value_t = DemoFault::None)]
-    pub fault: DemoFault,
-    /// Instead of --fault: faults as a plan, entries separated by `;`.
-    /// `start` is the motion's first cycle, `cycle=N` counts the motion's
-    /// cycles, `t=` counts from half way: `mute@cycle=300:id=4`,
-    /// `host-pause@t=0us:for=60000us`,
-    /// `corrupt@t=0us:tcode=0x0,offset=0x1800,count=1`,
-    /// `drop@cycle=100:dest=2,rate=0.1` (a port that cannot apply an entry
-    /// refuses it by name before the run).
-    #[arg(long = "faults", value_name = "SCRIPT", conflicts_with = "fault")]
-    pub faults: Option<FaultScript>,
-    /// Pacing; default: virtual for sim, realtime over UDP.
-    #[arg(long, value_parser = crate::args::pacing())]
-    pub pacing: Option<Pacing>,
-    /// Board watchdog period in ms (above 0, at most 341), or `off`
-    /// (a stopped host then leaves the amplifiers on: say so explicitly).
-    #[arg(long = "watchdog-ms", default_value = "20", value_parser = crate::args::watchdog)]
-    pub watchdog: crate::args::WatchdogSetting,
     /// Do not try SCHED_FIFO, mlockall and a 1 ns timer slack with
     /// realtime pacing.
     #[arg(long = "no-rt")]
