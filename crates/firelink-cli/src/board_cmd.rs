@@ -5,11 +5,9 @@ use std::io::Write;
 
 use clap::Args;
 
-use firelink_host::board_access::{
-    self, BoardSummary, RegisterError, ScanSummary, WriteOutcome, parse_address,
-};
+use firelink_host::board_access::{self, ScanSummary, parse_address, scan_text};
 use firelink_host::register_address::check_address;
-use firelink_host::scan::{mask_boards, scan};
+use firelink_host::scan::scan;
 use firelink_host::{Dest, Port};
 
 use crate::error::CliError;
@@ -37,44 +35,7 @@ pub fn run_scan(args: &ScanArgs, out: &mut impl Write) -> Result<(), CliError> {
         )?;
         return Ok(());
     }
-    writeln!(out, "{} board(s) on {}:", report.boards.len(), port.name())?;
-    writeln!(out, "  board  node  hardware  firmware  fpga  git")?;
-    for b in &report.boards {
-        let j = BoardSummary::from(b);
-        writeln!(
-            out,
-            "  {:>5}  {:>4}  {:<8}  {:>8}  V{}    {}",
-            j.board_id, j.node, j.hardware, j.firmware, j.fpga, j.git
-        )?;
-    }
-    if let Some(bridge) = report.bridge_board {
-        writeln!(out, "Ethernet bridge: board {bridge}")?;
-    }
-    if !report.unsupported.is_empty() {
-        for u in &report.unsupported {
-            writeln!(
-                out,
-                "node {}: unsupported hardware {} firmware {}",
-                u.node,
-                u.hardware.name(),
-                u.firmware
-            )?;
-        }
-    }
-    writeln!(
-        out,
-        "protocol: {} ({})",
-        report.protocol_label(),
-        report.protocol_reason
-    )?;
-    if report.broadcast_groups.len() > 1 {
-        let groups: Vec<String> = report
-            .broadcast_groups
-            .iter()
-            .map(|&m| format!("boards {}", mask_boards(m)))
-            .collect();
-        writeln!(out, "broadcast groups: {}", groups.join(" | "))?;
-    }
+    write!(out, "{}", scan_text(port.name(), &report))?;
     Ok(())
 }
 
@@ -167,8 +128,7 @@ pub fn run_read(args: &ReadArgs, out: &mut impl Write) -> Result<(), CliError> {
     let address = args.address;
     check_address(address, args.count)?;
     let (mut port, dest) = args.target.open()?;
-    let values = board_access::read_registers(port.as_mut(), dest, address, args.count)
-        .map_err(register_error)?;
+    let values = board_access::read_registers(port.as_mut(), dest, address, args.count)?;
     for (i, v) in values.iter().enumerate() {
         writeln!(out, "{:#06x}: {v:08x}", address + i as u64)?;
     }
@@ -188,32 +148,10 @@ pub fn run_write(args: &WriteArgs, out: &mut impl Write) -> Result<(), CliError>
         })?);
     }
     let (mut port, dest) = args.target.open()?;
-    let n = values.len();
-    match board_access::write_registers(port.as_mut(), dest, address, &values)
-        .map_err(register_error)?
-    {
-        WriteOutcome::Acknowledged => {
-            writeln!(out, "wrote {n} quadlet(s) at {address:#06x} (acknowledged)")?;
-        }
-        WriteOutcome::Broadcast => writeln!(
-            out,
-            "sent {n} quadlet(s) to every board at {address:#06x} (broadcast writes are never acknowledged)"
-        )?,
-        WriteOutcome::ReadBack(Ok(back)) => writeln!(
-            out,
-            "sent {n} quadlet(s) at {address:#06x} (not acknowledged over UDP; the node answers, \
-             reading back {back:08x})"
-        )?,
-        WriteOutcome::ReadBack(Err(error)) => {
-            return Err(CliError::WriteNotConfirmed { address, error });
-        }
-    }
+    let outcome = board_access::write_registers(port.as_mut(), dest, address, &values)?;
+    let line = outcome
+        .line(values.len(), address)
+        .map_err(|error| CliError::WriteNotConfirmed { address, error })?;
+    writeln!(out, "{line}")?;
     Ok(())
-}
-
-fn register_error(e: RegisterError) -> CliError {
-    match e {
-        RegisterError::Address(e) => e.into(),
-        RegisterError::Host(e) => e.into(),
-    }
 }

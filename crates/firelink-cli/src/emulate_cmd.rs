@@ -13,20 +13,22 @@ use std::time::Duration;
 
 use clap::{Args, ValueEnum};
 
-use firelink_control::config::{IoConfig, presets};
+use firelink_control::config::IoConfig;
 use firelink_emulate::Event;
 use firelink_emulate::eth_serve::EthEvent;
 use firelink_emulate::fw_cdev::{self, Twin};
-use firelink_testbed::emulated::{BoardSettings, SimDuration};
+use firelink_host::stop::server_stop_flag;
+use firelink_testbed::emulated::{BoardSettings, FpgaVersion, Hardware, Profile, SimDuration};
 use firelink_testbed::emulation::{
-    BridgeServer, CpuLatencyNote, EthRequest, EthServer, refuse_on_eth,
+    BridgeServer, CpuLatencyNote, EthRequest, EthServer, ServeError, refuse_on_eth, robot_preset,
 };
 use firelink_testbed::fault_script::{FaultScript, FaultScriptError};
+use firelink_testbed::rig::RobotKind;
 use firelink_testbed::rig::served::{BusFaults, ServedBoards};
 use firelink_testbed::snake::is_snake_config;
 
-use crate::args::{CpuLatencyArg, FirmwareArg, FpgaArg, HardwareArg};
-use crate::demo::{DemoRobot, load_config};
+use crate::args::CpuLatencyArg;
+use crate::demo::load_config;
 use crate::error::CliError;
 
 /// Options of `firelink emulate`.
@@ -43,17 +45,17 @@ pub struct EmulateArgs {
     /// (`configs/snake-seed001.json`), for `firelink snake-tool` and
     /// `firelink demo --robot snake --port udp:...`.
     #[arg(long, value_enum, conflicts_with_all = ["config", "boards"])]
-    pub robot: Option<DemoRobot>,
+    pub robot: Option<RobotKind>,
     /// Firmware (seed: seed 000's TDMA and 0xFFFF rule).
-    #[arg(long, value_enum, default_value_t = FirmwareArg::Rev8)]
-    pub firmware: FirmwareArg,
+    #[arg(long, default_value = "rev8", value_parser = crate::args::firmware())]
+    pub firmware: Profile,
     /// Companion board of every board.
-    #[arg(long, value_enum, default_value_t = HardwareArg::Qla1)]
-    pub hardware: HardwareArg,
+    #[arg(long, default_value = "QLA1", value_parser = crate::args::hardware())]
+    pub hardware: Hardware,
     /// FPGA board of every board (default: V2 for a QLA1, V3 for a DQLA,
     /// the only FPGA the firmware builds a DQLA for; a V2 DQLA is refused).
-    #[arg(long, value_enum)]
-    pub fpga: Option<FpgaArg>,
+    #[arg(long, value_parser = crate::args::fpga())]
+    pub fpga: Option<FpgaVersion>,
     /// One board's settings (repeatable): `ID:key=value,...` with keys
     /// hardware (QLA1, DQLA), fpga (V2, V3), firmware (7, 8, 9),
     /// fpga-serial, qla-serial, qla2-serial, supply-volts,
@@ -188,33 +190,21 @@ pub enum NetworkArg {
     Eth,
 }
 
-/// The robot configuration `args` names for the bridge and the twin
-/// (`--config`, or `--robot`'s preset), its notes on stderr.
-fn bridge_config(args: &EmulateArgs) -> Result<Option<IoConfig>, CliError> {
+/// The robot configuration `args` names (`--config`, or `--robot`'s
+/// preset), what its mapping to plants says on stderr (not for Snake
+/// nodes, which map one to one).
+fn served_config(args: &EmulateArgs) -> Result<Option<IoConfig>, CliError> {
     let config = match (&args.config, args.robot) {
         (Some(path), _) => Some(load_config(path)?),
-        (None, Some(DemoRobot::Snake)) => Some(presets::snake_seed001()),
-        (None, Some(DemoRobot::Dvrk)) => Some(presets::dvrk_seed000()),
-        (None, Some(DemoRobot::Mahru)) => {
-            return Err(CliError::NotSupported {
-                option: "--robot mahru",
-                reason: "the MAHRU modules speak seed 002's own protocol, not the FPGA1394 \
-                         bridge's; run `firelink demo --robot mahru`",
-            });
-        }
+        (None, Some(robot)) => Some(robot_preset(robot).map_err(ServeError::from)?),
         (None, None) => None,
     };
-    if let Some(config) = config.as_ref().filter(|c| !is_snake_config(c)) {
-        print_notes(config);
+    for config in config.iter().filter(|c| !is_snake_config(c)) {
+        for note in firelink_testbed::plant_map::notes(config) {
+            eprintln!("note: {note}");
+        }
     }
     Ok(config)
-}
-
-/// What the configuration's mapping to plants says (to stderr).
-fn print_notes(config: &IoConfig) {
-    for note in firelink_testbed::plant_map::notes(config) {
-        eprintln!("note: {note}");
-    }
 }
 
 /// The boards `args` asks for, `config`'s or generic ones (the one place
@@ -223,9 +213,9 @@ fn served_boards(args: &EmulateArgs, config: Option<IoConfig>) -> ServedBoards {
     ServedBoards {
         config,
         boards: args.boards,
-        hardware: args.hardware.into(),
-        firmware: args.firmware.into(),
-        fpga: args.fpga.map(Into::into),
+        hardware: args.hardware,
+        firmware: args.firmware,
+        fpga: args.fpga,
         board_set: args.board_set.clone(),
         commit_corrupt_writes: args.commit_corrupt_writes,
         seed: args.seed,
@@ -248,15 +238,7 @@ fn served_boards(args: &EmulateArgs, config: Option<IoConfig>) -> ServedBoards {
 
 /// The /dev/fw* twin of `args` and its board IDs.
 pub fn build_twin(args: &EmulateArgs) -> Result<(Twin, Vec<u8>), CliError> {
-    Ok(served_boards(args, bridge_config(args)?).twin()?)
-}
-
-/// `--cpu-latency` as the library takes it: microseconds, or nothing.
-fn cpu_latency(args: &EmulateArgs) -> CpuLatencyNote {
-    CpuLatencyNote::take(match args.cpu_latency {
-        CpuLatencyArg::Microseconds(us) => Some(us),
-        CpuLatencyArg::Off => None,
-    })
+    Ok(served_boards(args, served_config(args)?).twin()?)
 }
 
 /// Print the `--cpu-latency` line, if any, and flush.
@@ -279,7 +261,7 @@ fn run_twin(args: &EmulateArgs, path: &Path, out: &mut impl Write) -> Result<(),
     let (mut twin, ids) = build_twin(args)?;
     let listener = fw_cdev::bind(path)?;
     let stop = stop_flag(args)?;
-    let cpu_latency = cpu_latency(args);
+    let cpu_latency = CpuLatencyNote::take(args.cpu_latency.microseconds());
     writeln!(
         out,
         "emulating {} board(s) {:?} as /dev/fw1..fw{} (the PC's card: /dev/fw0); bus generation {}",
@@ -296,19 +278,8 @@ fn run_twin(args: &EmulateArgs, path: &Path, out: &mut impl Write) -> Result<(),
 }
 
 /// A flag set by SIGINT, SIGTERM, or after `--duration-s`.
-fn stop_flag(args: &EmulateArgs) -> Result<Arc<AtomicBool>, CliError> {
-    let stop = Arc::new(AtomicBool::new(false));
-    signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))?;
-    signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))?;
-    if args.duration_s > 0.0 {
-        let stop = Arc::clone(&stop);
-        let d = Duration::from_secs_f64(args.duration_s);
-        std::thread::spawn(move || {
-            std::thread::sleep(d);
-            stop.store(true, std::sync::atomic::Ordering::Relaxed);
-        });
-    }
-    Ok(stop)
+fn stop_flag(args: &EmulateArgs) -> std::io::Result<Arc<AtomicBool>> {
+    server_stop_flag((args.duration_s > 0.0).then(|| Duration::from_secs_f64(args.duration_s)))
 }
 
 /// `firelink emulate`.
@@ -333,16 +304,16 @@ pub fn run(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
             args.listen
         );
     }
-    let served = served_boards(args, bridge_config(args)?).bridge()?;
+    let served = served_boards(args, served_config(args)?).bridge()?;
     let mut server = BridgeServer::open(
         served,
-        args.firmware.into(),
+        args.firmware,
         args.listen,
         !args.no_broadcast,
         args.multicast,
     )?;
     let stop = stop_flag(args)?;
-    let cpu_latency = cpu_latency(args);
+    let cpu_latency = CpuLatencyNote::take(args.cpu_latency.microseconds());
     for line in server.banner() {
         writeln!(out, "{line}")?;
     }
@@ -367,22 +338,11 @@ fn fault_script(text: &str) -> Result<FaultScript, String> {
 fn run_eth(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
     let asked = EthRequest {
         twin: args.fw_cdev.is_some(),
-        snake: args.robot == Some(DemoRobot::Snake),
+        snake: args.robot == Some(RobotKind::Snake),
         fault_script: args.faults.is_some(),
     };
-    refuse_on_eth(&served_boards(args, None), asked).map_err(|r| CliError::NotSupported {
-        option: r.option,
-        reason: r.reason,
-    })?;
-    let config = match (&args.config, args.robot) {
-        (Some(path), _) => Some(load_config(path)?),
-        (None, Some(DemoRobot::Dvrk)) => Some(presets::dvrk_seed000()),
-        _ => None,
-    };
-    if let Some(config) = &config {
-        print_notes(config);
-    }
-    let boards = served_boards(args, config).chain(&args.chain)?;
+    refuse_on_eth(&served_boards(args, None), asked).map_err(ServeError::from)?;
+    let boards = served_boards(args, served_config(args)?).chain(&args.chain)?;
     if !args.eth_base.is_loopback() {
         eprintln!(
             "firelink emulate: WARNING: the boards listen on {} + ID, not loopback: anyone who can \
@@ -398,7 +358,7 @@ fn run_eth(args: &EmulateArgs, out: &mut impl Write) -> Result<(), CliError> {
         args.multicast,
     )?;
     let stop = stop_flag(args)?;
-    let cpu_latency = cpu_latency(args);
+    let cpu_latency = CpuLatencyNote::take(args.cpu_latency.microseconds());
     for line in server.banner() {
         writeln!(out, "{line}")?;
     }

@@ -3,7 +3,7 @@
 //! ([`EXIT_STATUS`]).
 
 use firelink_host::register_address::AddressError;
-use firelink_testbed::emulation::{ServeError, option_flag};
+use firelink_testbed::emulation::ServeError;
 use firelink_testbed::rig::served::ServedError;
 
 use firelink_host::hex;
@@ -46,14 +46,20 @@ pub enum CliError {
     /// that is not on the board.
     #[error(transparent)]
     Address(#[from] AddressError),
-    /// An option names a board that is not emulated.
-    #[error("{option} {board}: no such board")]
-    NoSuchBoard {
-        /// The option.
-        option: &'static str,
-        /// The board ID given.
-        board: u8,
-    },
+    /// A register read or write was refused (its address) or failed (the
+    /// port).
+    #[error(transparent)]
+    Register(#[from] firelink_host::board_access::RegisterError),
+    /// The emulated boards cannot be served as asked: an option they
+    /// cannot honour, boards the Ethernet-only network cannot hold, a
+    /// socket that cannot be bound.
+    #[error(transparent)]
+    Serve(#[from] ServeError),
+    /// The emulated boards cannot be assembled: an option names a board
+    /// that is not emulated, or a board's settings (`--board-set`) are
+    /// inconsistent.
+    #[error(transparent)]
+    Served(#[from] ServedError),
     /// An option this command cannot honour here.
     #[error("{option}: {reason}")]
     NotSupported {
@@ -62,12 +68,6 @@ pub enum CliError {
         /// Why, and what to do instead.
         reason: &'static str,
     },
-    /// Boards that cannot be on the Ethernet-only network.
-    #[error(transparent)]
-    EthNetwork(#[from] firelink_emulate::eth_network::NetworkError),
-    /// An emulated board's settings are inconsistent (`--board-set`).
-    #[error(transparent)]
-    BoardSettings(#[from] firelink_testbed::emulated::ConfigError),
     /// A `snake-tool` command or session failed (a refused command names
     /// itself and what was wrong).
     #[error(transparent)]
@@ -141,34 +141,6 @@ impl CliError {
         match self {
             CliError::Failed(_) | CliError::DoesNotFit(_) => 3,
             _ => 1,
-        }
-    }
-}
-
-impl From<ServeError> for CliError {
-    fn from(e: ServeError) -> CliError {
-        match e {
-            ServeError::Refused(r) => CliError::NotSupported {
-                option: r.option,
-                reason: r.reason,
-            },
-            ServeError::Network(e) => CliError::EthNetwork(e),
-            ServeError::Io(e) => CliError::Io(e),
-        }
-    }
-}
-
-impl From<ServedError> for CliError {
-    /// A board named by an option that is not emulated is reported with
-    /// the option's flag.
-    fn from(e: ServedError) -> CliError {
-        match e {
-            ServedError::NoSuchBoard { option, board } => CliError::NoSuchBoard {
-                option: option_flag(option),
-                board,
-            },
-            ServedError::Settings(e) => CliError::BoardSettings(e),
-            ServedError::Testbed(e) => CliError::Testbed(e),
         }
     }
 }

@@ -18,7 +18,6 @@ mod packet_cmd;
 #[cfg(test)]
 mod port_strings_test;
 mod ports;
-mod rt;
 mod sim;
 mod snake_tool;
 mod soak_cmd;
@@ -67,7 +66,7 @@ enum Command {
     Sim(sim::SimArgs),
     /// The main job: the 28-axis dVRK of seed 000 on emulated boards (the default;
     /// `--robot mahru`: seed 002's humanoid walking).
-    Demo(demo::DemoArgs),
+    Demo(Box<demo::DemoArgs>),
     /// I/O time per cycle vs boards and protocol: simulated bus and loopback UDP.
     Bench(bench::BenchArgs),
     /// Seed 002's timing analysis of the MAHRU humanoid: Table I (the time
@@ -119,9 +118,7 @@ fn drives_a_robot(command: &Command) -> bool {
 
 fn run(cli: Cli) -> Result<(), CliError> {
     let mut out = std::io::stdout().lock();
-    let command = cli
-        .command
-        .unwrap_or(Command::Demo(demo::DemoArgs::default()));
+    let command = cli.command.unwrap_or_else(|| Command::Demo(Box::default()));
     if drives_a_robot(&command) {
         firelink_host::stop::install_signal_handlers()?;
     }

@@ -1,10 +1,11 @@
 //! `firelink monitor`: a live terminal view of every axis of every board,
 //! like the dVRK's qladisp. The I/O loop runs at full rate; the screen is
 //! redrawn at a human rate (10 Hz). Keys toggle power, relay, amplifiers and
-//! the watchdog. The frame and the keys are [`firelink_host::monitor_frame`].
+//! the watchdog. The loop, the frame and the keys are
+//! [`firelink_host::monitor_frame`]; this file owns the terminal.
 
 use std::io::Write;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use clap::Args;
 
@@ -13,7 +14,7 @@ use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 
 use firelink_host::monitor::{MonitorFigures, Switches, watchdog_periods};
-use firelink_host::monitor_frame::{pace, render, run_cycles, switch_of};
+use firelink_host::monitor_frame::{LiveView, render, run_cycles, switch_of};
 
 use crate::error::CliError;
 use crate::ports::{PortArgs, open_port};
@@ -25,7 +26,7 @@ pub struct MonitorArgs {
     pub port: PortArgs,
     /// I/O protocol (default: the best the boards support).
     #[arg(long, value_enum)]
-    pub protocol: Option<crate::args::ProtocolArg>,
+    pub protocol: Option<Protocol>,
     /// Target I/O rate in Hz (0 = as fast as possible, else 1 to 100000).
     #[arg(long, default_value_t = 1000.0, value_parser = crate::args::rate_hz_or_max)]
     pub rate: f64,
@@ -42,7 +43,7 @@ pub struct MonitorArgs {
 pub fn run(args: &MonitorArgs, out: &mut impl Write) -> Result<(), CliError> {
     let port = open_port(&args.port, "firelink monitor")?;
     let config = IoOptions {
-        protocol: args.protocol.map(Protocol::from),
+        protocol: args.protocol,
         ..IoOptions::default()
     };
     let (mut io, _scan) = IoSystem::open(port, config)?;
@@ -93,35 +94,17 @@ fn interactive<P: Port>(
             watchdog_ms,
             ..MonitorFigures::default()
         };
-        let start = Instant::now();
-        let mut last_draw = Instant::now();
-        let mut window_cycles = 0u64;
+        let mut live = LiveView::new(period);
         let mut switches = Switches::default();
         let stop = firelink_host::stop::StopRequest::process();
-        loop {
-            if stop.is_requested() {
-                return Ok(());
-            }
-            let r = *io.cycle();
-            let _ = io.recover();
-            f.record_cycle(r.io_time().as_secs_f64() * 1e6);
-            window_cycles += 1;
-            pace(start, f.cycles, period);
-            if last_draw.elapsed() < Duration::from_millis(100) {
-                continue;
-            }
-            f.rate_hz = window_cycles as f64 / last_draw.elapsed().as_secs_f64();
-            window_cycles = 0;
-            last_draw = Instant::now();
-            let frame = render(io, &f).replace('\n', "\r\n");
+        while let Some(frame) = live.next_frame(io, &mut f, &stop) {
             execute!(
                 out,
                 cursor::MoveTo(0, 0),
                 terminal::Clear(terminal::ClearType::All)
             )?;
-            write!(out, "{frame}")?;
+            write!(out, "{}", frame.replace('\n', "\r\n"))?;
             out.flush()?;
-            f.max_io_us = 0.0;
             while event::poll(Duration::ZERO)? {
                 if let Event::Key(key) = event::read()? {
                     // In raw mode Ctrl-C is a key, not a signal.
@@ -139,6 +122,7 @@ fn interactive<P: Port>(
                 }
             }
         }
+        Ok(())
     })();
     let _ = execute!(out, cursor::Show, terminal::LeaveAlternateScreen);
     let _ = terminal::disable_raw_mode();

@@ -39,39 +39,9 @@ pub struct EncodeArgs {
     /// Transaction code: a number or a name such as read_request_block.
     #[arg(long)]
     tcode: Option<String>,
-    /// Destination node ID (e.g. 0xffc0).
-    #[arg(long = "destination-id", value_parser = parse_number)]
-    destination_id: Option<u64>,
-    /// Source node ID (default 0xffd0).
-    #[arg(long = "source-id", value_parser = parse_number)]
-    source_id: Option<u64>,
-    /// Transaction label 0..63.
-    #[arg(long, value_parser = parse_number)]
-    tl: Option<u64>,
-    /// Retry code 0..3.
-    #[arg(long, value_parser = parse_number)]
-    rt: Option<u64>,
-    /// Priority 0..15.
-    #[arg(long, value_parser = parse_number)]
-    pri: Option<u64>,
-    /// 48-bit destination offset.
-    #[arg(long, value_parser = parse_number)]
-    offset: Option<u64>,
-    /// Data quadlet of quadlet writes / quadlet read responses.
-    #[arg(long = "quadlet-data", value_parser = parse_number)]
-    quadlet_data: Option<u64>,
-    /// Response code.
-    #[arg(long, value_parser = parse_number)]
-    rcode: Option<u64>,
-    /// Bytes requested by a block read.
-    #[arg(long = "data-length", value_parser = parse_number)]
-    data_length: Option<u64>,
-    /// Extended tcode.
-    #[arg(long = "extended-tcode", value_parser = parse_number)]
-    extended_tcode: Option<u64>,
-    /// Payload of block writes / block read responses, as hex.
-    #[arg(long)]
-    data: Option<String>,
+    /// The header fields and the payload.
+    #[command(flatten)]
+    fields: PacketJson,
     /// Prepend the Ethernet bridge control word.
     #[arg(long)]
     bridge: bool,
@@ -112,20 +82,9 @@ impl EncodeArgs {
         Ok(PacketJson {
             tcode,
             tcode_name,
-            destination_id: self.destination_id,
-            source_id: self.source_id,
-            tl: self.tl,
-            rt: self.rt,
-            pri: self.pri,
-            offset: self.offset,
-            quadlet_data: self.quadlet_data,
-            rcode: self.rcode,
-            data_length: self.data_length,
-            extended_tcode: self.extended_tcode,
-            data: self.data.clone(),
             no_forward: Some(self.no_forward),
             generation: self.generation,
-            ..Default::default()
+            ..self.fields.clone()
         })
     }
 }

@@ -16,7 +16,7 @@ fn port_of(command: Command) -> Option<PortSpec> {
         Command::Read(a) => Some(a.target.port.port),
         Command::Write(a) => Some(a.target.port.port),
         Command::Monitor(a) => Some(a.port.port),
-        Command::Demo(a) => Some(a.port),
+        Command::Demo(a) => Some(a.request.port),
         Command::SnakeTool(a) => Some(a.port),
         Command::Bench(a) => a.port,
         _ => None,

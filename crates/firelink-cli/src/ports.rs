@@ -7,22 +7,13 @@ use clap::Args;
 
 use firelink_host::Port;
 use firelink_host::trace::PcapWriter;
-use firelink_testbed::port_spec::{PortKind, PortSpecError};
+use firelink_host::udp::WaitMode;
+use firelink_testbed::port_spec::PortKind;
 use firelink_testbed::ports::{PortOptions, open_bus_port};
 
-pub use firelink_testbed::port_spec::PortSpec;
+pub use firelink_testbed::port_spec::{PortSpec, parse_port};
 
-use crate::args::UdpWaitArg;
 use crate::error::CliError;
-
-/// `--port` (clap): every command parses port strings with this.
-///
-/// # Errors
-/// What [`PortSpec`]'s parser finds, naming the string and what is
-/// expected.
-pub fn parse_port(text: &str) -> Result<PortSpec, PortSpecError> {
-    text.parse()
-}
 
 /// `--port` of a command that takes only some kinds of port: parsed, then
 /// refused unless of one of `accepted` (naming `command` and the port).
@@ -60,8 +51,8 @@ pub struct PortArgs {
     /// How a UDP port's reads wait for the answer: `block` (sleep in the
     /// kernel, low CPU) or `spin` (poll the socket, low latency, one core
     /// busy while waiting).
-    #[arg(long = "udp-wait", value_enum, default_value_t = UdpWaitArg::Block)]
-    pub udp_wait: UdpWaitArg,
+    #[arg(long = "udp-wait", value_enum, default_value_t = WaitMode::Blocking)]
+    pub udp_wait: WaitMode,
     /// Record every 1394 packet the host sends and receives to this pcap
     /// file (Wireshark opens it; the host library's replay tests play such
     /// files back).
@@ -74,7 +65,7 @@ pub struct PortArgs {
 pub fn open_port(args: &PortArgs, command: &str) -> Result<Box<dyn Port>, CliError> {
     let options = PortOptions {
         timeout: std::time::Duration::from_millis(args.timeout_ms),
-        udp_wait: args.udp_wait.into(),
+        udp_wait: args.udp_wait,
         stop_cycle_master: !args.keep_cycle_master,
         ..PortOptions::default()
     };

@@ -10,38 +10,14 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use clap::{Args, ValueEnum};
-use firelink_testbed::emulated::ArbitrationClass;
+use clap::Args;
+
+use firelink_host::scan::Protocol;
+use firelink_testbed::emulated::{ArbitrationClass, Profile};
 use firelink_testbed::sim::SimOptions;
 use firelink_wire::packet::Speed;
 
-use crate::args::{FirmwareArg, ProtocolArg};
 use crate::error::CliError;
-
-/// Arbitration class of the boards' status broadcasts.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum ArbitrationArg {
-    /// Isochronous-style requests (0.04 us gap).
-    Iso,
-    /// Priority requests (subaction gap).
-    Priority,
-    /// Fair requests (subaction gap, fairness interval).
-    Fair,
-}
-
-/// Bus speed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum SpeedArg {
-    /// S100.
-    #[value(name = "100")]
-    S100,
-    /// S200.
-    #[value(name = "200")]
-    S200,
-    /// S400.
-    #[value(name = "400")]
-    S400,
-}
 
 /// Arguments of `firelink sim`.
 #[derive(Args, Debug)]
@@ -50,21 +26,21 @@ pub struct SimArgs {
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u8).range(1..=16))]
     boards: u8,
     /// The boards' firmware (`--firmware` too).
-    #[arg(long, alias = "firmware", value_enum, default_value_t = FirmwareArg::Seed)]
-    profile: FirmwareArg,
+    #[arg(long, alias = "firmware", default_value = "seed", value_parser = crate::args::firmware())]
+    profile: Profile,
     /// I/O protocol: broadcast or sequential (the phase tables' two).
-    #[arg(long, value_enum, default_value_t = ProtocolArg::Broadcast)]
-    protocol: ProtocolArg,
+    #[arg(long, value_enum, default_value_t = Protocol::Broadcast)]
+    protocol: Protocol,
     /// Gap count to set (PHY configuration packet and bus reset) before the
     /// cycle; default the power-up 63.
     #[arg(long = "gap-count", value_parser = clap::value_parser!(u8).range(0..=63))]
     gap_count: Option<u8>,
     /// Arbitration of the boards' status broadcasts.
-    #[arg(long, value_enum, default_value_t = ArbitrationArg::Iso)]
-    arbitration: ArbitrationArg,
+    #[arg(long, default_value = "iso", value_parser = crate::args::arbitration())]
+    arbitration: ArbitrationClass,
     /// Speed of every packet in Mb/s.
-    #[arg(long, value_enum, default_value_t = SpeedArg::S400)]
-    speed: SpeedArg,
+    #[arg(long, default_value = "400", value_parser = crate::args::speed())]
+    speed: Speed,
     /// Seed of the fault injector and the host jitter.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -91,22 +67,10 @@ pub struct SimArgs {
 
 impl SimArgs {
     fn options(&self) -> SimOptions {
-        let mut options = SimOptions::new(
-            usize::from(self.boards),
-            self.profile.into(),
-            self.protocol.into(),
-        );
+        let mut options = SimOptions::new(usize::from(self.boards), self.profile, self.protocol);
         options.gap_count = self.gap_count;
-        options.arbitration = match self.arbitration {
-            ArbitrationArg::Iso => ArbitrationClass::Isochronous,
-            ArbitrationArg::Priority => ArbitrationClass::Priority,
-            ArbitrationArg::Fair => ArbitrationClass::Fair,
-        };
-        options.speed = match self.speed {
-            SpeedArg::S100 => Speed::S100,
-            SpeedArg::S200 => Speed::S200,
-            SpeedArg::S400 => Speed::S400,
-        };
+        options.arbitration = self.arbitration;
+        options.speed = self.speed;
         options.seed = self.seed;
         options.host_overhead = self.host_overhead;
         options.host_jitter = self.jitter;

@@ -17,12 +17,6 @@ pub struct TourArgs {
     pub boards: u8,
 }
 
-impl Default for TourArgs {
-    fn default() -> Self {
-        TourArgs { boards: 8 }
-    }
-}
-
 /// Print the cycle's packets as a table.
 pub fn run(args: &TourArgs, out: &mut impl Write) -> Result<(), CliError> {
     write!(out, "{}", firelink_host::tour::build(args.boards)?)?;

@@ -1,8 +1,11 @@
 //! The bus tools' work on boards, for any front end: a scan report and
-//! a board's identity as records (`scan --json`), every board's live
+//! a board's identity as records (`scan --json`) and as text
+//! ([`scan_text`]), every board's live
 //! state (`info`), a destination from a board ID, and register reads and
 //! writes checked against the board's map, with a write over the bridge
 //! confirmed by reading back.
+
+use std::fmt::Write as _;
 
 use serde::Serialize;
 
@@ -11,7 +14,7 @@ use firelink_wire::qla::registers::{StatusRead, Temperature, Watchdog, counts_fr
 
 use crate::qla::board::BoardInfo;
 use crate::register_address::{AddressError, check_address, register_offset};
-use crate::scan::{ScanReport, scan};
+use crate::scan::{ScanReport, mask_boards, scan};
 use crate::{Dest, HostError, Port};
 
 /// One board's identity as a record.
@@ -90,6 +93,49 @@ impl ScanSummary {
             generation: report.generation,
         }
     }
+}
+
+/// `report`, a scan of the port named `port`, as the table `firelink scan`
+/// prints: one line per board, the bridge board, the nodes the host does
+/// not drive, the protocol and why, and the broadcast groups when there
+/// are several.
+pub fn scan_text(port: &str, report: &ScanReport) -> String {
+    let mut text = format!("{} board(s) on {port}:\n", report.boards.len());
+    text.push_str("  board  node  hardware  firmware  fpga  git\n");
+    for b in report.boards.iter().map(BoardSummary::from) {
+        let _ = writeln!(
+            text,
+            "  {:>5}  {:>4}  {:<8}  {:>8}  V{}    {}",
+            b.board_id, b.node, b.hardware, b.firmware, b.fpga, b.git
+        );
+    }
+    if let Some(bridge) = report.bridge_board {
+        let _ = writeln!(text, "Ethernet bridge: board {bridge}");
+    }
+    for u in &report.unsupported {
+        let _ = writeln!(
+            text,
+            "node {}: unsupported hardware {} firmware {}",
+            u.node,
+            u.hardware.name(),
+            u.firmware
+        );
+    }
+    let _ = writeln!(
+        text,
+        "protocol: {} ({})",
+        report.protocol_label(),
+        report.protocol_reason
+    );
+    if report.broadcast_groups.len() > 1 {
+        let groups: Vec<String> = report
+            .broadcast_groups
+            .iter()
+            .map(|&m| format!("boards {}", mask_boards(m)))
+            .collect();
+        let _ = writeln!(text, "broadcast groups: {}", groups.join(" | "));
+    }
+    text
 }
 
 /// One axis's raw readouts.
@@ -262,6 +308,31 @@ pub fn write_registers(
     } else {
         WriteOutcome::ReadBack(port.read_quadlet(dest, address))
     })
+}
+
+impl WriteOutcome {
+    /// What `firelink write` says of `count` quadlets written at
+    /// `address` this way; `Err`: the read-back that was to confirm the
+    /// write failed.
+    ///
+    /// # Errors
+    /// [`WriteOutcome::ReadBack`] of an error: that error.
+    pub fn line(self, count: usize, address: u64) -> Result<String, HostError> {
+        Ok(match self {
+            WriteOutcome::Acknowledged => {
+                format!("wrote {count} quadlet(s) at {address:#06x} (acknowledged)")
+            }
+            WriteOutcome::Broadcast => format!(
+                "sent {count} quadlet(s) to every board at {address:#06x} (broadcast writes \
+                 are never acknowledged)"
+            ),
+            WriteOutcome::ReadBack(back) => format!(
+                "sent {count} quadlet(s) at {address:#06x} (not acknowledged over UDP; the node \
+                 answers, reading back {:08x})",
+                back?
+            ),
+        })
+    }
 }
 
 /// Why a register access was not made or failed.

@@ -1,12 +1,14 @@
 //! `firelink monitor`'s screen, for any front end: one frame of every
 //! axis of every board as text (like the dVRK's qladisp), the key that
-//! flips each switch, and the pacing of the I/O loop.
+//! flips each switch, and the pacing of the I/O loop ([`LiveView`]: the
+//! cycles of a live view and a frame every [`FRAME_INTERVAL`]).
 
 use std::time::{Duration, Instant};
 
 use crate::Port;
 use crate::monitor::{MonitorFigures, Switch, explain_status, on_off};
 use crate::qla::io::IoSystem;
+use crate::stop::StopRequest;
 
 /// Render one frame as text.
 pub fn render<P: Port>(io: &IoSystem<P>, f: &MonitorFigures) -> String {
@@ -138,6 +140,63 @@ pub fn run_cycles<P: Port>(
         pace(start, f.cycles, period);
     }
     f.rate_hz = f.cycles as f64 / start.elapsed().as_secs_f64().max(1e-9);
+}
+
+/// How often a live view shows a new frame: a human rate.
+pub const FRAME_INTERVAL: Duration = Duration::from_millis(100);
+
+/// A live view's I/O loop: cycles paced at one period from its start,
+/// and a frame every [`FRAME_INTERVAL`] with the rate since the last.
+#[derive(Debug, Clone)]
+pub struct LiveView {
+    start: Instant,
+    period: Duration,
+    last_frame: Instant,
+    window_cycles: u64,
+}
+
+impl LiveView {
+    /// A view whose cycles are paced at `period` (zero: as fast as they
+    /// go) from now.
+    pub fn new(period: Duration) -> LiveView {
+        let now = Instant::now();
+        LiveView {
+            start: now,
+            period,
+            last_frame: now,
+            window_cycles: 0,
+        }
+    }
+
+    /// Run I/O cycles, each recovered from, recorded in `f` and paced,
+    /// until a frame is due: then the frame (the window's rate and largest
+    /// I/O time, which starts again). `None`: `stop` was requested.
+    pub fn next_frame<P: Port>(
+        &mut self,
+        io: &mut IoSystem<P>,
+        f: &mut MonitorFigures,
+        stop: &StopRequest,
+    ) -> Option<String> {
+        loop {
+            if stop.is_requested() {
+                return None;
+            }
+            let r = *io.cycle();
+            let _ = io.recover();
+            f.record_cycle(r.io_time().as_secs_f64() * 1e6);
+            self.window_cycles += 1;
+            pace(self.start, f.cycles, self.period);
+            let since = self.last_frame.elapsed();
+            if since >= FRAME_INTERVAL {
+                f.rate_hz = self.window_cycles as f64 / since.as_secs_f64();
+                self.window_cycles = 0;
+                self.last_frame = Instant::now();
+                let frame = render(io, f);
+                f.max_io_us = 0.0;
+                return Some(frame);
+            }
+        }
+    }
 }
 
 /// The switch a key flips.

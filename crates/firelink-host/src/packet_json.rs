@@ -45,75 +45,100 @@ pub enum PacketJsonError {
 type Result<T> = core::result::Result<T, PacketJsonError>;
 
 /// One decoded packet, as printed by `packet decode` and read by `packet encode --json`.
-/// Keys that do not apply to a packet's tcode are absent.
-#[derive(Debug, Default, Serialize, Deserialize, PartialEq)]
+/// Keys that do not apply to a packet's tcode are absent. Behind the `clap`
+/// feature, also `packet encode`'s flags for the header fields and the
+/// payload (clap's `Args`; the tcode, which takes a number or a name, and
+/// the bridge control word are the front end's).
+#[derive(Debug, Default, Clone, Serialize, Deserialize, PartialEq)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
 #[serde(deny_unknown_fields)]
 pub struct PacketJson {
     /// Transaction code.
     #[serde(default, deserialize_with = "num_or_hex")]
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(skip))]
     pub tcode: Option<u64>,
     /// Snake-case name of the tcode.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(skip))]
     pub tcode_name: Option<String>,
     /// Destination node ID.
     #[serde(default, deserialize_with = "num_or_hex")]
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(long = "destination-id", value_parser = parse_number, help = "Destination node ID (e.g. 0xffc0)"))]
     pub destination_id: Option<u64>,
     /// Source node ID.
     #[serde(default, deserialize_with = "num_or_hex")]
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(long = "source-id", value_parser = parse_number, help = "Source node ID (default 0xffd0)"))]
     pub source_id: Option<u64>,
     /// Transaction label.
     #[serde(default, deserialize_with = "num_or_hex")]
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(long, value_parser = parse_number, help = "Transaction label 0..63"))]
     pub tl: Option<u64>,
     /// Retry code.
     #[serde(default, deserialize_with = "num_or_hex")]
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(long, value_parser = parse_number, help = "Retry code 0..3"))]
     pub rt: Option<u64>,
     /// Priority.
     #[serde(default, deserialize_with = "num_or_hex")]
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(long, value_parser = parse_number, help = "Priority 0..15"))]
     pub pri: Option<u64>,
     /// Whether the header CRC matches (decode only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(skip))]
     pub header_crc_ok: Option<bool>,
     /// 48-bit destination offset (requests, cycle start).
     #[serde(default, deserialize_with = "num_or_hex")]
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(long, value_parser = parse_number, help = "48-bit destination offset"))]
     pub offset: Option<u64>,
     /// Header data quadlet (quadlet writes, quadlet read responses, cycle start).
     #[serde(default, deserialize_with = "num_or_hex")]
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(long = "quadlet-data", value_parser = parse_number, help = "Data quadlet of quadlet writes / quadlet read responses"))]
     pub quadlet_data: Option<u64>,
     /// Response code (responses).
     #[serde(default, deserialize_with = "num_or_hex")]
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(long, value_parser = parse_number, help = "Response code"))]
     pub rcode: Option<u64>,
     /// Payload length in bytes (block packets).
     #[serde(default, deserialize_with = "num_or_hex")]
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(long = "data-length", value_parser = parse_number, help = "Bytes requested by a block read"))]
     pub data_length: Option<u64>,
     /// Extended tcode (block packets).
     #[serde(default, deserialize_with = "num_or_hex")]
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(long = "extended-tcode", value_parser = parse_number, help = "Extended tcode"))]
     pub extended_tcode: Option<u64>,
     /// Payload as hex (block packets with data).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, help = "Payload of block writes / block read responses, as hex")
+    )]
     pub data: Option<String>,
     /// Whether the data CRC matches (decode only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(skip))]
     pub data_crc_ok: Option<bool>,
     /// Bridge control word: handle on the Ethernet board itself.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(skip))]
     pub no_forward: Option<bool>,
     /// Bridge control word: the host's bus generation.
     #[serde(default, deserialize_with = "num_or_hex")]
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(skip))]
     pub generation: Option<u64>,
     /// Total packet length in bytes (decode only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "clap", arg(skip))]
     pub packet_length: Option<usize>,
 }
 

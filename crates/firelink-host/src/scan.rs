@@ -28,15 +28,30 @@ use crate::qla::board::BoardInfo;
 /// The three I/O protocols, in increasing efficiency.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Protocol {
     /// One block read and one block write per board per cycle (seed 000's
     /// baseline).
+    #[cfg_attr(
+        feature = "clap",
+        value(alias = "seq", help = "One block read and one block write per board")
+    )]
     Sequential,
     /// One block read per board, then one broadcast write of all commands.
+    #[cfg_attr(feature = "clap", value(alias = "seq-bc", alias = "seqrbw"))]
     SequentialReadBroadcastWrite,
     /// Query, wait, one hub read, one broadcast write (seed 000); the
     /// query, wait and hub read once per group when the boards' blocks
     /// overflow one hub ([`broadcast_groups`]).
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            alias = "bcast",
+            alias = "bc",
+            help = "Query, status broadcasts, one hub read (each per broadcast group when \
+                    the boards overflow one hub), one broadcast write"
+        )
+    )]
     Broadcast,
 }
 

@@ -13,7 +13,8 @@
 //! process's own request ([`StopRequest::process`]). The first signal asks
 //! for an orderly stop; a second one of any of them ends the process at
 //! once (the boards' watchdogs then turn the amplifiers off), so a program
-//! stuck in a time-out can still be stopped.
+//! stuck in a time-out can still be stopped. A server that powers
+//! nothing stops on SIGINT, SIGTERM or a deadline ([`server_stop_flag`]).
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, OnceLock};
@@ -135,6 +136,27 @@ pub fn install_signal_handlers() -> std::io::Result<StopRequest> {
             signal_hook::flag::register_usize(signal, flag, signal as usize)?;
         }
         let _ = INSTALLED.set(());
+    }
+    Ok(stop)
+}
+
+/// The stop of a server that powers nothing (an emulator): a flag set by
+/// SIGINT or SIGTERM, or when `deadline` has passed, if one is given.
+///
+/// # Errors
+/// A signal handler could not be installed.
+pub fn server_stop_flag(
+    deadline: Option<std::time::Duration>,
+) -> std::io::Result<Arc<std::sync::atomic::AtomicBool>> {
+    let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))?;
+    signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))?;
+    if let Some(deadline) = deadline {
+        let stop = Arc::clone(&stop);
+        std::thread::spawn(move || {
+            std::thread::sleep(deadline);
+            stop.store(true, Ordering::Relaxed);
+        });
     }
     Ok(stop)
 }

@@ -47,15 +47,33 @@ const MAX_DATAGRAM: usize = 2 + 20 + 2048 + 4 + 16;
 
 /// How a [`UdpPort`] waits for the answer to a read.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum WaitMode {
     /// Sleep in the kernel until a datagram arrives or the time-out
     /// passes (a blocking socket with its receive time-out): no CPU while
     /// waiting; the answer costs a wake-up of the sleeping thread.
     #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            name = "block",
+            alias = "blocking",
+            help = "Sleep in the kernel until the answer or the time-out: low CPU"
+        )
+    )]
     Blocking,
     /// Poll the non-blocking socket in a loop until the answer arrives or
     /// the time-out passes: the answer is taken as soon as it is queued,
     /// at the price of one core busy for the whole wait.
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            name = "spin",
+            alias = "spinning",
+            help = "Poll the socket until the answer or the time-out: low latency, one \
+                    core busy while waiting"
+        )
+    )]
     Spinning,
 }
 

@@ -11,7 +11,8 @@ use firelink_control::config::{IoConfig, presets};
 use firelink_host::WatchdogSetting;
 use firelink_host::stop::install_signal_handlers;
 use firelink_ros2::{NodeSettings, domain_from_env, run_node, run_without_dds};
-use firelink_testbed::port_spec::{PortSpec, PortSpecError};
+use firelink_testbed::limits::watchdog;
+use firelink_testbed::port_spec::{PortSpec, parse_port};
 use firelink_testbed::service::Service;
 
 /// Run the robot and speak ROS 2 (CRTK topics per arm) over DDS.
@@ -59,16 +60,6 @@ struct Args {
     /// timer slack).
     #[arg(long = "no-rt", overrides_with = "rt")]
     no_rt: bool,
-}
-
-/// `--port`: the port grammar every front end shares.
-fn parse_port(s: &str) -> Result<PortSpec, PortSpecError> {
-    s.parse()
-}
-
-/// `--watchdog-ms`: a period or `off`, refused out of range.
-fn watchdog(s: &str) -> Result<WatchdogSetting, String> {
-    WatchdogSetting::parse(s).map_err(|e| format!("{s:?}: {e}"))
 }
 
 fn main() {

@@ -49,22 +49,43 @@ pub use crate::port_spec::PortSpec;
 /// The fault the demo injects half way through its motion: a named preset
 /// whose wire and host part is a [`FaultScript`] ([`DemoFault::script`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum DemoFault {
     /// No fault: the run must end without one.
     #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Nothing: the run must end without a fault")
+    )]
     None,
     /// The host stops sending for three watchdog periods
     /// (`host-pause@t=0us:for=...`).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "The host stops sending for three watchdog periods")
+    )]
     StopHost,
     /// The next broadcast query is corrupted on the wire
     /// (`corrupt@t=0us:tcode=0x0,offset=0x1800,count=1`).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "The next broadcast query is corrupted on the wire")
+    )]
     CorruptQuery,
     /// Board 4 stops answering for good (`mute@t=0us:id=4`; PSM1's first
     /// board in seed 000's dVRK; the ECM's DQLA in
     /// `configs/dvrk-dqla-rev9.json`).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "PSM1's first board stops answering for good")
+    )]
     BoardLoss,
     /// Joint 0's setpoint jumps further than it can follow (a motion
     /// fault, not a wire fault: no script).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Joint 0's setpoint jumps further than it can follow")
+    )]
     FollowingError,
 }
 
@@ -133,8 +154,8 @@ impl FromStr for DemoFault {
     }
 }
 
-/// What the real-time setup of the calling thread achieved (the CLI does
-/// it; the library only reports it).
+/// What the real-time setup of the calling thread achieved (the front end
+/// asks for it, [`RealtimeStatus::take`]; the run only reports it).
 #[derive(Debug, Clone, PartialEq, Default, Serialize)]
 pub struct RealtimeStatus {
     /// Whether real-time settings were asked for at all.
@@ -148,6 +169,24 @@ pub struct RealtimeStatus {
     pub timer_slack_1ns: bool,
     /// Why the others did not happen.
     pub errors: Vec<String>,
+}
+
+impl RealtimeStatus {
+    /// Take the real-time settings for the calling thread (SCHED_FIFO at
+    /// `priority`, locked memory, a 1 ns timer slack;
+    /// [`crate::realtime::setup`]) and say what was granted; `spinning`:
+    /// the thread's port reads spin (no SCHED_FIFO where real-time threads
+    /// are throttled).
+    pub fn take(priority: i32, spinning: bool) -> RealtimeStatus {
+        let s = crate::realtime::setup(priority, spinning);
+        RealtimeStatus {
+            requested: true,
+            sched_fifo_priority: s.sched_fifo,
+            memory_locked: s.memory_locked,
+            timer_slack_1ns: s.timer_slack_1ns,
+            errors: s.errors,
+        }
+    }
 }
 
 /// What the demo is doing, for a progress display.

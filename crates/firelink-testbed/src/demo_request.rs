@@ -42,39 +42,106 @@ pub enum DemoConfig {
     Mahru(MahruConfig),
 }
 
-/// What a demo run is asked to do, for any robot.
+/// What a demo run is asked to do, for any robot: also `firelink demo`'s
+/// options (clap's `Args` behind the `clap` feature; the configuration and
+/// the teleoperation session are the front end's to fill in).
 #[derive(Debug, Clone)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
 pub struct DemoRequest {
-    /// The robot; a [`DemoConfig::Io`] on Snake nodes is the Snake system
-    /// whatever this says, unless it is MAHRU.
+    /// Which robot: `dvrk` (seed 000's 28 axes on QLA boards), `snake`
+    /// (seed 001's 36 axes on its own 7-channel nodes; also chosen by a
+    /// `--config` whose boards are SNAKE nodes) or `mahru` (seed 002's
+    /// humanoid; it uses --duration, --period, --config, --json,
+    /// --quiet).
+    #[cfg_attr(feature = "clap", arg(long, value_enum, default_value_t = RobotKind::Dvrk))]
     pub robot: RobotKind,
     /// Instead of the trajectories: the dVRK's teleoperation session.
+    #[cfg_attr(feature = "clap", arg(skip))]
     pub teleop: bool,
-    /// The configuration.
+    /// The configuration (a [`DemoConfig::Io`] on Snake nodes is the Snake
+    /// system whatever `robot` says, unless it is MAHRU).
+    #[cfg_attr(feature = "clap", arg(skip))]
     pub config: DemoConfig,
-    /// The servo period; `None`: the robot's own.
+    /// The servo period for every robot, as a period or a rate: `1ms`,
+    /// `250us`, `6kHz` (10 us to 1 s; default: the dVRK 6 kHz, the Snake
+    /// robot 1 kHz, MAHRU its configuration's 2 ms).
+    #[cfg_attr(feature = "clap", arg(long))]
     pub period: Option<ServoPeriod>,
-    /// Seconds of motion after homing.
-    pub duration_s: f64,
-    /// Where the boards are.
-    pub port: PortSpec,
-    /// I/O protocol (the dVRK).
-    pub protocol: Protocol,
-    /// Firmware of the emulated QLA boards.
-    pub firmware: Profile,
-    /// The fault to inject half way.
-    pub fault: DemoFault,
-    /// A fault script instead of the preset (`firelink demo --faults`).
-    pub faults: Option<FaultScript>,
-    /// Pacing; `None`: the port's default.
-    pub pacing: Option<Pacing>,
-    /// Board watchdog.
-    pub watchdog: WatchdogSetting,
-    /// How the UDP port's reads wait.
-    pub udp_wait: WaitMode,
     /// The Snake system and MAHRU: after the run, search for the fastest
     /// rate or period that holds.
+    #[cfg_attr(
+        feature = "clap",
+        arg(
+            long = "no-rate-search",
+            action = clap::ArgAction::SetFalse,
+            help = "Snake robot and MAHRU: skip the search for the fastest rate or period that holds"
+        )
+    )]
     pub search_fastest: bool,
+    /// I/O protocol.
+    #[cfg_attr(feature = "clap", arg(long, value_enum, default_value_t = Protocol::Broadcast))]
+    pub protocol: Protocol,
+    /// Seconds of motion after homing (above 0, at most a day).
+    #[cfg_attr(
+        feature = "clap",
+        arg(
+            long = "duration",
+            value_name = "DURATION",
+            default_value_t = 3.0,
+            value_parser = crate::limits::run_seconds
+        )
+    )]
+    pub duration_s: f64,
+    /// Where the boards are: `sim` (the robot's emulated boards on the
+    /// simulated bus, in-process; `sim:N[:FW]`: boards 0..N at firmware
+    /// FW), `emulate` (the same boards behind an in-process `firelink
+    /// emulate`, over loopback UDP), `udp:HOST[:PORT]` (a running
+    /// `firelink emulate` or a real bridge board) or `fw` / `fw:N`
+    /// (FireWire card 0 / N). MAHRU runs on plain `sim` only.
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, default_value = "sim", value_parser = crate::port_spec::parse_port)
+    )]
+    pub port: PortSpec,
+    /// Over UDP (`emulate`, `udp:...`): how the port's reads wait for the
+    /// answer, `block` (sleep in the kernel, low CPU) or `spin` (poll the
+    /// socket, low latency, one core busy while waiting).
+    #[cfg_attr(
+        feature = "clap",
+        arg(long = "udp-wait", value_enum, default_value_t = WaitMode::Blocking)
+    )]
+    pub udp_wait: WaitMode,
+    /// Board firmware of the emulated boards.
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, default_value = "rev8", value_parser = crate::cli_args::firmware())
+    )]
+    pub firmware: Profile,
+    /// Inject a fault half-way (a named preset: its fault script).
+    #[cfg_attr(feature = "clap", arg(long, value_enum, default_value_t = DemoFault::None))]
+    pub fault: DemoFault,
+    /// Instead of --fault: faults as a plan, entries separated by `;`.
+    /// `start` is the motion's first cycle, `cycle=N` counts the motion's
+    /// cycles, `t=` counts from half way: `mute@cycle=300:id=4`,
+    /// `host-pause@t=0us:for=60000us`,
+    /// `corrupt@t=0us:tcode=0x0,offset=0x1800,count=1`,
+    /// `drop@cycle=100:dest=2,rate=0.1` (a port that cannot apply an entry
+    /// refuses it by name before the run).
+    #[cfg_attr(
+        feature = "clap",
+        arg(long = "faults", value_name = "SCRIPT", conflicts_with = "fault")
+    )]
+    pub faults: Option<FaultScript>,
+    /// Pacing; default: virtual for sim, realtime over UDP.
+    #[cfg_attr(feature = "clap", arg(long, value_parser = crate::cli_args::pacing()))]
+    pub pacing: Option<Pacing>,
+    /// Board watchdog period in ms (above 0, at most 341), or `off`
+    /// (a stopped host then leaves the amplifiers on: say so explicitly).
+    #[cfg_attr(
+        feature = "clap",
+        arg(long = "watchdog-ms", default_value = "20", value_parser = crate::limits::watchdog)
+    )]
+    pub watchdog: WatchdogSetting,
 }
 
 impl Default for DemoRequest {

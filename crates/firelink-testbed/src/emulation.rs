@@ -9,6 +9,7 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
 use firelink_board::config::BoardConfig;
+use firelink_control::config::{IoConfig, presets};
 use firelink_emulate::eth_network::{EthNetwork, NetworkError};
 use firelink_emulate::eth_serve::{EthEvent, EthServeConfig, EthSockets, MULTICAST_GROUP};
 use firelink_emulate::{Bridge, Event, ServeConfig};
@@ -16,7 +17,7 @@ use firelink_host::cpu_latency::CpuLatencyHold;
 
 use crate::emulated::{FpgaVersion, Profile};
 use crate::rig::RobotKind;
-use crate::rig::served::{BoardOption, ServedBoards, ServedBridge};
+use crate::rig::served::{ServedBoards, ServedBridge};
 
 /// Why the boards cannot be served as asked.
 #[derive(Debug, thiserror::Error)]
@@ -276,16 +277,21 @@ pub fn refuse_on_eth(boards: &ServedBoards, asked: EthRequest) -> Result<(), Ref
     Ok(())
 }
 
-/// The command-line option that names a board of `option`'s kind.
-pub fn option_flag(option: BoardOption) -> &'static str {
-    match option {
-        BoardOption::BoardSet => "--board-set",
-        BoardOption::BridgeBoard => "--bridge-board",
-        BoardOption::UnplugBoard => "--unplug-board",
-        BoardOption::MuteBoard => "--mute-board",
-        BoardOption::FaultScript => "--faults",
-        BoardOption::Chain => "--chain",
-        BoardOption::ChainMissing => "--chain (every emulated board, once; missing)",
+/// The configuration `firelink emulate --robot` serves: the robot's seed
+/// configuration; MAHRU is refused (its modules speak seed 002's own
+/// protocol, not the bridge's).
+///
+/// # Errors
+/// [`Refused`] for MAHRU.
+pub fn robot_preset(robot: RobotKind) -> Result<IoConfig, Refused> {
+    match robot {
+        RobotKind::Dvrk => Ok(presets::dvrk_seed000()),
+        RobotKind::Snake => Ok(presets::snake_seed001()),
+        RobotKind::Mahru => Err(Refused {
+            option: "--robot mahru",
+            reason: "the MAHRU modules speak seed 002's own protocol, not the FPGA1394 \
+                     bridge's; run `firelink demo --robot mahru`",
+        }),
     }
 }
 

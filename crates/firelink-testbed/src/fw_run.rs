@@ -81,6 +81,39 @@ pub fn temp_dir() -> std::io::Result<PathBuf> {
     ))
 }
 
+/// Set in the process [`rerun_with_twin`] starts.
+pub const UNDER_TWIN_ENV: &str = "FIRELINK_BENCH_UNDER_TWIN";
+
+/// Whether this process is one [`rerun_with_twin`] started.
+pub fn under_twin() -> bool {
+    std::env::var_os(UNDER_TWIN_ENV).is_some()
+}
+
+/// Run this executable again with `args`, the twin library `library`
+/// preloaded, a fresh socket path for a twin server of its own
+/// ([`SOCKET_ENV`]) and [`UNDER_TWIN_ENV`] set: for a command whose
+/// `FirewirePort` needs the library in its own process, which only the
+/// loader can put there. Its stderr passes through; its stdout and status
+/// are returned.
+///
+/// # Errors
+/// No temporary directory, or the executable could not be started.
+pub fn rerun_with_twin(
+    library: &Path,
+    args: impl IntoIterator<Item = OsString>,
+) -> std::io::Result<std::process::Output> {
+    let dir = temp_dir()?;
+    let output = Command::new(std::env::current_exe()?)
+        .args(args)
+        .env("LD_PRELOAD", preload(library))
+        .env(SOCKET_ENV, dir.join("fw-cdev.sock"))
+        .env(UNDER_TWIN_ENV, "1")
+        .stderr(std::process::Stdio::inherit())
+        .output();
+    let _ = std::fs::remove_dir_all(&dir);
+    output
+}
+
 /// How the program ended, and whether the twin's server did well.
 #[derive(Debug)]
 pub struct FwRunExit {

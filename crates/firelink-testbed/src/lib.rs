@@ -61,6 +61,8 @@
 //! points and host-CPU figures).
 
 pub mod bench;
+#[cfg(feature = "clap")]
+pub mod cli_args;
 pub mod cpu;
 pub mod cycle_compare;
 pub mod cycle_schedule;

@@ -13,6 +13,7 @@
 //! `RUN_SECONDS`, ...) and `RangeInclusive` constants for the integer ones
 //! (`NODE_ID`, `BOARD_ID`, ...).
 
+use firelink_control::ServoPeriod;
 pub use firelink_host::WatchdogSetting;
 /// A number as decimal or `0x` hex, `_` separators allowed (the packet
 /// records' rule).
@@ -149,6 +150,17 @@ pub fn period_us(s: &str) -> Result<f64, String> {
     bounded(s, PERIOD_US)
 }
 
+/// A servo period given as a rate in Hz ([`rate_hz`]'s bounds).
+pub fn servo_rate(s: &str) -> Result<ServoPeriod, String> {
+    ServoPeriod::from_rate_hz(rate_hz(s)?).map_err(|e| e.to_string())
+}
+
+/// A servo period given in microseconds, MAHRU's bounds
+/// ([`mahru_period_us`]: 100 us to 1 s).
+pub fn servo_period_us(s: &str) -> Result<ServoPeriod, String> {
+    ServoPeriod::from_micros_f64(mahru_period_us(s)?).map_err(|e| e.to_string())
+}
+
 /// A probability: [`PROBABILITY`], 0 to 1.
 pub fn probability(s: &str) -> Result<f64, String> {
     bounded(s, PROBABILITY)
@@ -162,6 +174,16 @@ pub enum CpuLatencyRequest {
     Off,
     /// Hold this many microseconds.
     Microseconds(u32),
+}
+
+impl CpuLatencyRequest {
+    /// The latency to hold, in microseconds; `None`: no request.
+    pub fn microseconds(self) -> Option<u32> {
+        match self {
+            CpuLatencyRequest::Off => None,
+            CpuLatencyRequest::Microseconds(us) => Some(us),
+        }
+    }
 }
 
 /// `off`, or microseconds from 0 to 1 s (a request above that would ask

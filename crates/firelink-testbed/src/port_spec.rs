@@ -251,6 +251,15 @@ pub fn firmware_of(name: &str) -> Option<Profile> {
     }
 }
 
+/// `--port` in every front end's command line (clap's `value_parser`): the
+/// one grammar, [`PortSpec`]'s `FromStr`.
+///
+/// # Errors
+/// What the grammar finds, naming the string and what is expected.
+pub fn parse_port(text: &str) -> Result<PortSpec, PortSpecError> {
+    text.parse()
+}
+
 impl FromStr for PortSpec {
     type Err = PortSpecError;
 

@@ -7,7 +7,8 @@ use std::path::PathBuf;
 use clap::Parser;
 
 use firelink_host::stop::install_signal_handlers;
-use firelink_testbed::port_spec::{PortSpec, PortSpecError};
+use firelink_testbed::limits::watchdog;
+use firelink_testbed::port_spec::{PortSpec, parse_port};
 use firelink_web::{RobotKind, WebOptions, serve, start};
 
 /// Watch and drive the boards and the robot in a browser.
@@ -49,16 +50,6 @@ struct Args {
     /// `off` (with a warning).
     #[arg(long = "watchdog-ms", default_value = "20", value_parser = watchdog)]
     watchdog_ms: WatchdogSetting,
-}
-
-/// `--port`: the port grammar every front end shares.
-fn parse_port(s: &str) -> Result<PortSpec, PortSpecError> {
-    s.parse()
-}
-
-/// `--watchdog-ms`: a period or `off`, refused out of range.
-fn watchdog(s: &str) -> Result<WatchdogSetting, String> {
-    WatchdogSetting::parse(s).map_err(|e| format!("{s:?}: {e}"))
 }
 
 /// MAHRU's rate by default: one period of its configuration's.

@@ -21,42 +21,15 @@ mod seed001;
 use std::io::Write;
 use std::path::PathBuf;
 
-use clap::{Args, ValueEnum};
+use clap::Args;
 
 use firelink_host::scan::Protocol;
 use firelink_host::udp::WaitMode;
 use firelink_testbed::bench::{BenchOptions, BenchTransport, parse_board_counts, run_bench};
+use firelink_testbed::emulated::Profile;
+use firelink_testbed::fw_run::{library_path, rerun_with_twin, under_twin};
 
-use crate::args::{FirmwareArg, ProtocolArg, UdpWaitArg};
 use crate::error::CliError;
-
-/// `--transport`: where the I/O time is measured.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum TransportArg {
-    /// The simulated bus with the seed-000 PC model (virtual time).
-    Sim,
-    /// Loopback UDP to an in-process bridge emulator (wall clock).
-    Udp,
-    /// FirewirePort through the /dev/fw* twin, served in-process (wall
-    /// clock).
-    Fw,
-    /// The Ethernet-only network of FPGA V3 boards at Rev 9 (in process on
-    /// loopback, or `--port udp:HOST` to one), its broadcast cycle beside
-    /// the bridge with FPGA V2 boards at Rev 8 and Rev 9 and the
-    /// firmware's stated timing (wall clock).
-    Eth,
-}
-
-impl From<TransportArg> for BenchTransport {
-    fn from(t: TransportArg) -> BenchTransport {
-        match t {
-            TransportArg::Sim => BenchTransport::Sim,
-            TransportArg::Udp => BenchTransport::Udp,
-            TransportArg::Fw => BenchTransport::Fw,
-            TransportArg::Eth => BenchTransport::Eth,
-        }
-    }
-}
 
 /// `--port`: the port grammar, of which the benchmark takes `udp:HOST`
 /// (port 1394) or `udp:HOST:PORT`.
@@ -80,7 +53,7 @@ pub struct BenchArgs {
     /// Transports (comma-separated; default `sim,udp`, with `--port` only
     /// `udp`).
     #[arg(long, value_enum, value_delimiter = ',')]
-    pub transport: Vec<TransportArg>,
+    pub transport: Vec<BenchTransport>,
     /// UDP points: measure the boards behind this bridge (`udp:HOST` on
     /// port 1394, or `udp:HOST:PORT`: a running `firelink emulate` or real
     /// boards) instead of an in-process emulator: one point per protocol
@@ -92,8 +65,8 @@ pub struct BenchArgs {
     /// UDP points: how the host's reads wait (comma-separated, each
     /// measured side by side): `block` (sleep in the kernel) or `spin`
     /// (poll the socket).
-    #[arg(long = "udp-wait", value_enum, value_delimiter = ',', default_values_t = [UdpWaitArg::Block])]
-    pub udp_wait: Vec<UdpWaitArg>,
+    #[arg(long = "udp-wait", value_enum, value_delimiter = ',', default_values_t = [WaitMode::Blocking])]
+    pub udp_wait: Vec<WaitMode>,
     /// UDP points: the host's time-out for each answer, ms (a cycle that
     /// waits longer counts an error; real hosts use about 20).
     #[arg(long = "udp-timeout-ms", default_value_t = 20, value_parser = crate::args::timeout_ms)]
@@ -104,14 +77,14 @@ pub struct BenchArgs {
     #[arg(long, default_value = "2,4,8,16,32,62")]
     pub boards: String,
     /// Protocols (comma-separated).
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ProtocolArg::Sequential, ProtocolArg::Broadcast])]
-    pub protocol: Vec<ProtocolArg>,
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Protocol::Sequential, Protocol::Broadcast])]
+    pub protocol: Vec<Protocol>,
     /// Measured cycles per point (after 20 warm-up cycles), 1 to 10^7.
     #[arg(long, default_value_t = 1000, value_parser = crate::args::measured)]
     pub cycles: u64,
     /// Firmware of the emulated boards.
-    #[arg(long, value_enum, default_value_t = FirmwareArg::Rev8)]
-    pub firmware: FirmwareArg,
+    #[arg(long, default_value = "rev8", value_parser = crate::args::firmware())]
+    pub firmware: Profile,
     /// Control period for the seed-002 budget check, us (default: 6 kHz).
     #[arg(long = "period-us", default_value_t = 166.67, value_parser = crate::args::period_us)]
     pub period_us: f64,
@@ -150,21 +123,21 @@ pub struct BenchArgs {
 pub fn options(args: &BenchArgs) -> Result<BenchOptions, CliError> {
     let transports = match (args.transport.is_empty(), args.port) {
         (false, _) => args.transport.clone(),
-        (true, Some(_)) => vec![TransportArg::Udp],
-        (true, None) => vec![TransportArg::Sim, TransportArg::Udp],
+        (true, Some(_)) => vec![BenchTransport::Udp],
+        (true, None) => vec![BenchTransport::Sim, BenchTransport::Udp],
     };
     let mut udp_waits = Vec::new();
-    for w in args.udp_wait.iter().copied().map(WaitMode::from) {
+    for w in args.udp_wait.iter().copied() {
         if !udp_waits.contains(&w) {
             udp_waits.push(w);
         }
     }
     Ok(BenchOptions {
-        transports: transports.into_iter().map(BenchTransport::from).collect(),
+        transports,
         boards: parse_board_counts(&args.boards).map_err(CliError::BoardCounts)?,
-        protocols: args.protocol.iter().copied().map(Protocol::from).collect(),
+        protocols: args.protocol.clone(),
         cycles: args.cycles,
-        firmware: args.firmware.into(),
+        firmware: args.firmware,
         period_us: args.period_us,
         wait_us_per_board: args.wait_us,
         idle_us: args.idle_us,
@@ -185,8 +158,18 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
         return seed001::run(args.iterations, args.plot.as_deref(), args.json, out);
     }
     let options = options(args)?;
-    if options.transports.contains(&BenchTransport::Fw) && std::env::var_os(UNDER_TWIN).is_none() {
-        return rerun_under_twin(out);
+    if options.transports.contains(&BenchTransport::Fw) && !under_twin() {
+        // The `fw` points need the twin library in this process: the same
+        // command again with it preloaded, its table passed on.
+        let output = rerun_with_twin(&library_path()?, std::env::args_os().skip(1))?;
+        out.write_all(&output.stdout)?;
+        if !output.status.success() {
+            return Err(CliError::Failed(format!(
+                "bench: the run with the /dev/fw* twin preloaded failed ({})",
+                output.status
+            )));
+        }
+        return Ok(());
     }
     let quiet = crate::args::quiet();
     let report = run_bench(&options, |t, proto, n| {
@@ -207,37 +190,6 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
         writeln!(out, "{}", serde_json::to_string(&report)?)?;
     } else {
         write!(out, "{report}")?;
-    }
-    Ok(())
-}
-
-/// Set in the re-run of `firelink bench` that has the twin preloaded.
-const UNDER_TWIN: &str = "FIRELINK_BENCH_UNDER_TWIN";
-
-/// The `fw` points need `libfirelink_fwcdev.so` in this process, which
-/// only the loader can put there: run this same command again with it
-/// preloaded and a fresh socket path for the benchmark's own twin server,
-/// and pass its table on.
-fn rerun_under_twin(out: &mut impl Write) -> Result<(), CliError> {
-    use firelink_testbed::fw_run::{SOCKET_ENV, library_path, preload, temp_dir};
-    let library = library_path()?;
-    let dir = temp_dir()?;
-    let preload = preload(&library);
-    let output = std::process::Command::new(std::env::current_exe()?)
-        .args(std::env::args_os().skip(1))
-        .env("LD_PRELOAD", preload)
-        .env(SOCKET_ENV, dir.join("fw-cdev.sock"))
-        .env(UNDER_TWIN, "1")
-        .stderr(std::process::Stdio::inherit())
-        .output();
-    let _ = std::fs::remove_dir_all(&dir);
-    let output = output?;
-    out.write_all(&output.stdout)?;
-    if !output.status.success() {
-        return Err(CliError::Failed(format!(
-            "bench: the run with the /dev/fw* twin preloaded failed ({})",
-            output.status
-        )));
     }
     Ok(())
 }

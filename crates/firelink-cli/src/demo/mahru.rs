@@ -62,7 +62,7 @@ pub struct BudgetArgs {
     #[arg(long, conflicts_with = "period_us")]
     pub period: Option<ServoPeriod>,
     /// The period in us (the older spelling of --period).
-    #[arg(long = "period-us", hide = true, value_parser = super::period_us)]
+    #[arg(long = "period-us", hide = true, value_parser = crate::args::servo_period_us)]
     pub period_us: Option<ServoPeriod>,
     /// Real-time systems.
     #[arg(long, value_enum, default_value_t = RtosChoice::Both)]
@@ -127,13 +127,5 @@ pub fn run_budget_cmd(args: &BudgetArgs, out: &mut impl Write) -> Result<(), Cli
     } else {
         write!(out, "{tables}")?;
     }
-    let does_not_fit = tables.misfits();
-    if does_not_fit.is_empty() {
-        Ok(())
-    } else {
-        Err(CliError::DoesNotFit(format!(
-            "the budget does not fit: {}",
-            does_not_fit.join("; ")
-        )))
-    }
+    tables.verdict().map_err(CliError::DoesNotFit)
 }

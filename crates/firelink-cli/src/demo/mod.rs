@@ -5,138 +5,37 @@
 //! The runs, the choice of robot and the report's table are the testbed's
 //! ([`firelink_testbed::demo_request`]); [`robot`] runs the request.
 //!
-//! This file holds the options, the progress shown on stderr and the
-//! real-time setup.
+//! This file holds the options and the progress shown on stderr (the
+//! real-time setup is the testbed's `RealtimeStatus::take`).
 
 pub mod mahru;
 pub mod robot;
 
 use std::path::PathBuf;
 
-use clap::{Args, FromArgMatches, ValueEnum};
+use clap::{Args, FromArgMatches};
 
 use firelink_control::ServoPeriod;
 use firelink_control::config::IoConfig;
-use firelink_control::runner::Pacing;
-use firelink_testbed::demo::{DemoFault, DemoProgress, PortSpec, RealtimeStatus};
+use firelink_testbed::demo::DemoProgress;
+use firelink_testbed::demo_request::DemoRequest;
 use firelink_testbed::demo_text::{progress_line, tick_line};
-use firelink_testbed::fault_script::FaultScript;
 
-use crate::args::{FirmwareArg, ProtocolArg, UdpWaitArg};
 use crate::error::CliError;
-use crate::rt;
 
-/// `--fault`: what the demo breaks half way.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum FaultArg {
-    /// Nothing: the run must end without a fault.
-    None,
-    /// The host stops sending for three watchdog periods.
-    StopHost,
-    /// The next broadcast query is corrupted on the wire.
-    CorruptQuery,
-    /// PSM1's first board stops answering for good.
-    BoardLoss,
-    /// Joint 0's setpoint jumps further than it can follow.
-    FollowingError,
-}
-
-impl From<FaultArg> for DemoFault {
-    fn from(f: FaultArg) -> DemoFault {
-        match f {
-            FaultArg::None => DemoFault::None,
-            FaultArg::StopHost => DemoFault::StopHost,
-            FaultArg::CorruptQuery => DemoFault::CorruptQuery,
-            FaultArg::BoardLoss => DemoFault::BoardLoss,
-            FaultArg::FollowingError => DemoFault::FollowingError,
-        }
-    }
-}
-
-/// `--pacing`: virtual or wall-clock time.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum PacingArg {
-    /// As fast as the simulation goes, in virtual time.
-    Virtual,
-    /// The wall clock.
-    Realtime,
-}
-
-impl From<PacingArg> for Pacing {
-    fn from(p: PacingArg) -> Pacing {
-        match p {
-            PacingArg::Virtual => Pacing::Virtual,
-            PacingArg::Realtime => Pacing::WallClock,
-        }
-    }
-}
-
-/// Options of `firelink demo`.
+/// Options of `firelink demo`: the request (the testbed's
+/// [`DemoRequest`]), and what the command line does with it.
 #[derive(Args, Debug, Clone)]
 pub struct DemoArgs {
-    /// Which robot: `dvrk` (seed 000's 28 axes on QLA boards), `snake`
-    /// (seed 001's 36 axes on its own 7-channel nodes; also chosen by a
-    /// `--config` whose boards are SNAKE nodes) or `mahru` (seed 002's
-    /// humanoid; it uses --duration, --period, --config, --json,
-    /// --quiet).
-    #[arg(long, value_enum, default_value_t = DemoRobot::Dvrk)]
-    pub robot: DemoRobot,
-    /// The servo period for every robot, as a period or a rate: `1ms`,
-    /// `250us`, `6kHz` (10 us to 1 s; default: the dVRK 6 kHz, the Snake
-    /// robot 1 kHz, MAHRU its configuration's 2 ms).
-    #[arg(long, conflicts_with_all = ["rate", "period_us"])]
-    pub period: Option<ServoPeriod>,
+    /// What to run.
+    #[command(flatten)]
+    pub request: DemoRequest,
     /// The period as a rate in Hz (the older spelling of --period).
-    #[arg(long, hide = true, value_parser = rate, conflicts_with = "period_us")]
+    #[arg(long, hide = true, value_parser = crate::args::servo_rate, conflicts_with_all = ["period", "period_us"])]
     pub rate: Option<ServoPeriod>,
     /// The period in us, 100 to 1000000 (the older spelling of --period).
-    #[arg(long = "period-us", hide = true, value_parser = period_us)]
+    #[arg(long = "period-us", hide = true, value_parser = crate::args::servo_period_us, conflicts_with = "period")]
     pub period_us: Option<ServoPeriod>,
-    /// Snake robot and MAHRU: skip the search for the fastest rate or
-    /// period that holds.
-    #[arg(long = "no-rate-search")]
-    pub no_rate_search: bool,
-    /// I/O protocol.
-    #[arg(long, value_enum, default_value_t = ProtocolArg::Broadcast)]
-    pub protocol: ProtocolArg,
-    /// Seconds of motion after homing (above 0, at most a day).
-    #[arg(long, default_value_t = 3.0, value_parser = crate::args::run_seconds)]
-    pub duration: f64,
-    /// Where the boards are: `sim` (the robot's emulated boards on the
-    /// simulated bus, in-process; `sim:N[:FW]`: boards 0..N at firmware
-    /// FW), `emulate` (the same boards behind an in-process `firelink
-    /// emulate`, over loopback UDP), `udp:HOST[:PORT]` (a running
-    /// `firelink emulate` or a real bridge board) or `fw` / `fw:N`
-    /// (FireWire card 0 / N). MAHRU runs on plain `sim` only.
-    #[arg(long, default_value = "sim", value_parser = crate::ports::parse_port)]
-    pub port: PortSpec,
-    /// Over UDP (`emulate`, `udp:...`): how the port's reads wait for the
-    /// answer, `block` (sleep in the kernel, low CPU) or `spin` (poll the
-    /// socket, low latency, one core busy while waiting).
-    #[arg(long = "udp-wait", value_enum, default_value_t = UdpWaitArg::Block)]
-    pub udp_wait: UdpWaitArg,
-    /// Board firmware of the emulated boards.
-    #[arg(long, value_enum, default_value_t = FirmwareArg::Rev8)]
-    pub firmware: FirmwareArg,
-    /// Inject a fault half-way (a named preset: its fault script).
-    #[arg(long, value_enum, default_value_t = FaultArg::None)]
-    pub fault: FaultArg,
-    /// Instead of --fault: faults as a plan, entries separated by `;`.
-    /// `start` is the motion's first cycle, `cycle=N` counts the motion's
-    /// cycles, `t=` counts from half way: `mute@cycle=300:id=4`,
-    /// `host-pause@t=0us:for=60000us`,
-    /// `corrupt@t=0us:tcode=0x0,offset=0x1800,count=1`,
-    /// `drop@cycle=100:dest=2,rate=0.1` (a port that cannot apply an entry
-    /// refuses it by name before the run).
-    #[arg(long = "faults", value_name = "SCRIPT", conflicts_with = "fault")]
-    pub faults: Option<FaultScript>,
-    /// Pacing; default: virtual for sim, realtime over UDP.
-    #[arg(long, value_enum)]
-    pub pacing: Option<PacingArg>,
-    /// Board watchdog period in ms (above 0, at most 341), or `off`
-    /// (a stopped host then leaves the amplifiers on: say so explicitly).
-    #[arg(long = "watchdog-ms", default_value = "20", value_parser = crate::args::watchdog)]
-    pub watchdog: crate::args::WatchdogSetting,
     /// Do not try SCHED_FIFO, mlockall and a 1 ns timer slack with
     /// realtime pacing.
     #[arg(long = "no-rt")]
@@ -168,27 +67,6 @@ impl Default for DemoArgs {
     }
 }
 
-/// `--rate`: Hz, 1 to 100000.
-fn rate(s: &str) -> Result<ServoPeriod, String> {
-    ServoPeriod::from_rate_hz(crate::args::rate_hz(s)?).map_err(|e| e.to_string())
-}
-
-/// `--period-us`: us, MAHRU's bounds (100 us to 1 s).
-fn period_us(s: &str) -> Result<ServoPeriod, String> {
-    ServoPeriod::from_micros_f64(crate::args::mahru_period_us(s)?).map_err(|e| e.to_string())
-}
-
-/// The demo's robots.
-#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
-pub enum DemoRobot {
-    /// Seed 000's da Vinci Research Kit on QLA boards.
-    Dvrk,
-    /// Seed 001's Snake robot system on its 7-channel nodes.
-    Snake,
-    /// Seed 002's MAHRU humanoid: 14 modules on three chains, walking.
-    Mahru,
-}
-
 /// Show one progress event on stderr (ticks overwrite one line).
 pub(crate) fn show(event: &DemoProgress, ticking: &mut bool) {
     if let Some(tick) = tick_line(event) {
@@ -215,17 +93,4 @@ pub(crate) fn load_config(path: &std::path::Path) -> Result<IoConfig, CliError> 
         eprintln!("warning: {w}");
     }
     Ok(loaded.config)
-}
-
-/// The real-time settings for the thread that runs the cycles;
-/// `spinning`: its port's reads spin (see [`rt::setup`]).
-pub(crate) fn realtime_setup(spinning: bool) -> RealtimeStatus {
-    let s = rt::setup(80, spinning);
-    RealtimeStatus {
-        requested: true,
-        sched_fifo_priority: s.sched_fifo,
-        memory_locked: s.memory_locked,
-        timer_slack_1ns: s.timer_slack_1ns,
-        errors: s.errors,
-    }
 }

@@ -3,13 +3,13 @@
 
 use std::io::Write;
 
+use firelink_host::udp::WaitMode;
 use firelink_testbed::demo::RealtimeStatus;
 use firelink_testbed::demo_request::{DemoConfig, DemoRequest};
 use firelink_testbed::mahru::MahruConfig;
 use firelink_testbed::rig::RobotKind;
 
-use super::{DemoArgs, DemoRobot, load_config, realtime_setup, show};
-use crate::args::UdpWaitArg;
+use super::{DemoArgs, load_config, show};
 use crate::error::CliError;
 
 /// The request the options make; the configuration file is loaded (its
@@ -18,30 +18,17 @@ use crate::error::CliError;
 /// # Errors
 /// The configuration could not be loaded.
 pub fn request(args: &DemoArgs) -> Result<DemoRequest, CliError> {
-    let config = match (&args.config, args.robot) {
+    let request = &args.request;
+    let config = match (&args.config, request.robot) {
         (None, _) => DemoConfig::Builtin,
-        (Some(path), DemoRobot::Mahru) => DemoConfig::Mahru(MahruConfig::load(path)?),
+        (Some(path), RobotKind::Mahru) => DemoConfig::Mahru(MahruConfig::load(path)?),
         (Some(path), _) => DemoConfig::Io(load_config(path)?),
     };
     Ok(DemoRequest {
-        robot: match args.robot {
-            DemoRobot::Dvrk => RobotKind::Dvrk,
-            DemoRobot::Snake => RobotKind::Snake,
-            DemoRobot::Mahru => RobotKind::Mahru,
-        },
-        teleop: args.teleop,
         config,
-        period: args.period.or(args.rate).or(args.period_us),
-        duration_s: args.duration,
-        port: args.port,
-        protocol: args.protocol.into(),
-        firmware: args.firmware.into(),
-        fault: args.fault.into(),
-        faults: args.faults.clone(),
-        pacing: args.pacing.map(Into::into),
-        watchdog: args.watchdog,
-        udp_wait: args.udp_wait.into(),
-        search_fastest: !args.no_rate_search,
+        teleop: args.teleop,
+        period: request.period.or(args.rate).or(args.period_us),
+        ..request.clone()
     })
 }
 
@@ -51,12 +38,12 @@ pub fn request(args: &DemoArgs) -> Result<DemoRequest, CliError> {
 pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
     let request = request(args)?;
     let quiet = args.quiet || crate::args::quiet();
-    if let Some(w) = args.watchdog.warning() {
+    if let Some(w) = request.watchdog.warning() {
         eprintln!("demo: {w}");
     }
     // The port's reads spin over UDP with `--udp-wait spin`.
-    let spinning = args.udp_wait == UdpWaitArg::Spin && !args.port.is_sim();
-    let setup = move || realtime_setup(spinning);
+    let spinning = request.udp_wait == WaitMode::Spinning && !request.port.is_sim();
+    let setup = move || RealtimeStatus::take(80, spinning);
     let setup: &dyn Fn() -> RealtimeStatus = &setup;
     let mut ticking = false;
     let outcome = request.run(

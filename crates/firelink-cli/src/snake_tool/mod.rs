@@ -24,6 +24,7 @@ use clap::{Args, Subcommand};
 use firelink_control::config::{IoConfig, presets};
 use firelink_host::Port;
 use firelink_host::snake::SnakeSystem;
+use firelink_host::udp::WaitMode;
 use firelink_testbed::port_spec::{PortKind, PortSpec};
 use firelink_testbed::ports::PortOptions;
 use firelink_testbed::snake::tool::{Session, open_tool_port, render};
@@ -63,8 +64,8 @@ pub struct SnakeToolArgs {
     pub timeout_ms: u64,
     /// How the UDP port's reads wait for the answer: `block` (low CPU) or
     /// `spin` (low latency, one core busy while waiting).
-    #[arg(long = "udp-wait", value_enum, default_value_t = crate::args::UdpWaitArg::Block)]
-    pub udp_wait: crate::args::UdpWaitArg,
+    #[arg(long = "udp-wait", value_enum, default_value_t = WaitMode::Blocking)]
+    pub udp_wait: WaitMode,
     /// Start on this board (default: the lowest ID found).
     #[arg(long, value_parser = crate::args::board_id)]
     pub board: Option<u8>,
@@ -102,7 +103,7 @@ fn open(args: &SnakeToolArgs) -> Result<(Box<dyn Port>, IoConfig), CliError> {
     };
     let options = PortOptions {
         timeout: std::time::Duration::from_millis(args.timeout_ms),
-        udp_wait: args.udp_wait.into(),
+        udp_wait: args.udp_wait,
         ..PortOptions::default()
     };
     Ok((open_tool_port(&args.port, &config, &options)?, config))

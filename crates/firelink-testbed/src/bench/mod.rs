@@ -61,19 +61,37 @@ use crate::rig;
 
 /// Where a benchmark point runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum BenchTransport {
     /// The simulated bus with the seed-000 PC model (virtual time).
     Sim,
     /// UDP to a bridge: an in-process emulator on loopback, or
     /// [`BenchOptions::udp_target`] (wall clock).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Loopback UDP to an in-process bridge emulator (wall clock)")
+    )]
     Udp,
     /// `FirewirePort` through the /dev/fw* twin (wall clock; see [`fw`]).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "FirewirePort through the /dev/fw* twin, served in-process (wall clock)")
+    )]
     Fw,
     /// The Ethernet-only network of FPGA V3 boards at Rev 9 (wall clock;
     /// see [`eth`]): an in-process network on loopback, measured beside
     /// the bridge with FPGA V2 boards at Rev 8 and at Rev 9 and the
     /// firmware's stated timing ([`eth::EthComparison`]); or
     /// [`BenchOptions::udp_target`] when that is such a network.
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            help = "The Ethernet-only network of FPGA V3 boards at Rev 9 (in process on \
+                      loopback, or `--port udp:HOST` to one), its broadcast cycle beside the \
+                      bridge with FPGA V2 boards at Rev 8 and Rev 9 and the firmware's stated \
+                      timing (wall clock)"
+        )
+    )]
     Eth,
 }
 

@@ -129,6 +129,19 @@ impl Tables {
             .map(BudgetReport::misfits)
             .unwrap_or_default()
     }
+
+    /// The verdict: `Err` says what does not fit ([`Self::misfits`]), as
+    /// one line.
+    ///
+    /// # Errors
+    /// A Table I budget that does not fit.
+    pub fn verdict(&self) -> Result<(), String> {
+        let misfits = self.misfits();
+        if misfits.is_empty() {
+            return Ok(());
+        }
+        Err(format!("the budget does not fit: {}", misfits.join("; ")))
+    }
 }
 
 /// Each table produced, followed by an empty line.

@@ -42,14 +42,27 @@ use crate::fault_script::{BoardFault, FaultMoment, FaultScript, FaultTarget, Scr
 
 /// Which family of robot a rig carries.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum RobotKind {
     /// The dVRK and other robots on QLA-family boards (FPGA1394 + QLA1 or
     /// DQLA), seed 000.
     #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Seed 000's da Vinci Research Kit on QLA boards")
+    )]
     Dvrk,
     /// Seed 001's Snake robot on its own 7-channel nodes.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Seed 001's Snake robot system on its 7-channel nodes")
+    )]
     Snake,
     /// Seed 002's MAHRU humanoid on its own modules (three chains).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Seed 002's MAHRU humanoid: 14 modules on three chains, walking")
+    )]
     Mahru,
 }
 

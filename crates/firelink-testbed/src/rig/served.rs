@@ -50,11 +50,27 @@ pub enum BoardOption {
     ChainMissing,
 }
 
+impl BoardOption {
+    /// The command-line option that names a board of this kind.
+    pub fn flag(self) -> &'static str {
+        match self {
+            BoardOption::BoardSet => "--board-set",
+            BoardOption::BridgeBoard => "--bridge-board",
+            BoardOption::UnplugBoard => "--unplug-board",
+            BoardOption::MuteBoard => "--mute-board",
+            BoardOption::FaultScript => "--faults",
+            BoardOption::Chain => "--chain",
+            BoardOption::ChainMissing => "--chain (every emulated board, once; missing)",
+        }
+    }
+}
+
 /// Why the served boards cannot be assembled.
 #[derive(Debug, thiserror::Error)]
 pub enum ServedError {
-    /// An option names a board that is not emulated.
-    #[error("{option:?} {board}: no such board")]
+    /// An option names a board that is not emulated (naming the option
+    /// by its flag).
+    #[error("{} {board}: no such board", option.flag())]
     NoSuchBoard {
         /// The option.
         option: BoardOption,
