@@ -41,6 +41,7 @@ or the emulated boards under ``firelink fw-run``).
 
 from __future__ import annotations
 
+import datetime
 import json
 import operator
 from collections.abc import Iterable, Iterator, Mapping
@@ -162,11 +163,22 @@ class Report(Mapping[str, Any]):
         return json.dumps(self._data)
 
 
+class _RateNotGiven(float):
+    """``run_demo``'s default ``rate``: 6000 Hz unless ``period`` is given."""
+
+    def __repr__(self) -> str:
+        return "6000.0"
+
+
+_RATE_NOT_GIVEN = _RateNotGiven(6000.0)
+
+
 def run_demo(
     port: str = "sim",
     *,
     duration: float = 3.0,
-    rate: float = 6000.0,
+    period: Union[str, float, datetime.timedelta, None] = None,
+    rate: float = _RATE_NOT_GIVEN,
     protocol: str = "broadcast",
     firmware: Union[str, int] = "8",
     fault: str = "none",
@@ -177,8 +189,13 @@ def run_demo(
     """Run the demo (``firelink demo``) and return its report.
 
     ``port``: ``sim``, ``emulate`` or ``udp:HOST[:PORT]``; ``duration``:
-    seconds of motion, above 0 and at most 86400; ``rate``: Hz, 1 to
-    100000; ``fault``: ``none``, ``stop-host``, ``corrupt-query``,
+    seconds of motion, above 0 and at most 86400; ``period``: the servo
+    period, 10 us to 1 s (100 kHz to 1 Hz), as on the command line's
+    ``--period`` (a string with its unit: ``"1ms"``, ``"250us"``,
+    ``"6kHz"``), or a number of seconds as ``time.sleep`` takes
+    (``0.001``), or a ``datetime.timedelta`` (default: 6 kHz);
+    ``rate``: the older spelling, the period as a rate in Hz, 1 to 100000
+    (``rate=1000`` is ``period="1ms"``; giving both is refused); ``fault``: ``none``, ``stop-host``, ``corrupt-query``,
     ``board-loss`` or ``following-error``; ``watchdog_ms``: 0.00521 to
     341.32 ms, or ``"off"`` (with a ``UserWarning``); ``config``: a
     ``Config`` or a configuration file (default: seed 000's dVRK).
@@ -186,8 +203,11 @@ def run_demo(
     the robot at its next cycle, powers down the boards it powered and
     raises ``KeyboardInterrupt``.
     """
+    if isinstance(period, datetime.timedelta):
+        period = period.total_seconds()
+    rate_given = rate is not _RATE_NOT_GIVEN
     text = _firelink.run_demo_json(
-        port, duration, rate, protocol, firmware, fault, pacing, watchdog_ms, config,
+        port, duration, period, rate, rate_given, protocol, firmware, fault, pacing, watchdog_ms, config,
     )
     return Report(json.loads(text))
 

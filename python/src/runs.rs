@@ -4,9 +4,9 @@
 use pyo3::prelude::*;
 use pyo3::types::PyString;
 
-use firelink_control::ServoPeriod;
 use firelink_control::config::presets;
 use firelink_control::runner::Pacing;
+use firelink_control::{ServoPeriod, ServoPeriodError};
 use firelink_host::udp::WaitMode;
 use firelink_testbed::bench::{BenchOptions, BenchTransport};
 use firelink_testbed::demo::DemoFault;
@@ -33,13 +33,15 @@ const MAX_BENCH_CYCLES: i64 = 1_000_000;
 /// Ctrl-C stops the robot at its next cycle (the boards it powered are
 /// powered down) and raises `KeyboardInterrupt`.
 #[pyfunction]
-#[pyo3(signature = (port, duration, rate, protocol, firmware, fault, pacing, watchdog_ms, config))]
+#[pyo3(signature = (port, duration, period, rate, rate_given, protocol, firmware, fault, pacing, watchdog_ms, config))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn run_demo_json(
     py: Python<'_>,
     port: &Bound<'_, PyAny>,
     duration: &Bound<'_, PyAny>,
+    period: Option<&Bound<'_, PyAny>>,
     rate: &Bound<'_, PyAny>,
+    rate_given: bool,
     protocol: &Bound<'_, PyAny>,
     firmware: &Bound<'_, PyAny>,
     fault: &Bound<'_, PyAny>,
@@ -49,7 +51,7 @@ pub(crate) fn run_demo_json(
 ) -> PyResult<String> {
     let port = args::text(port, "port", port_spec::EXPECTED)?;
     let duration_s = args::real(duration, "duration", limits::RUN_SECONDS)?;
-    let rate_hz = args::real(rate, "rate", limits::RATE_HZ)?;
+    let period = servo_period(period, rate, rate_given)?;
     let protocol = self::protocol(py, &args::text(protocol, "protocol", PROTOCOLS)?)?;
     let firmware = args::firmware(firmware)?;
     let faults = "none, stop-host, corrupt-query, board-loss or following-error";
@@ -71,7 +73,7 @@ pub(crate) fn run_demo_json(
     let config = config_arg(py, config)?;
     let options = DemoOptions {
         config: config.unwrap_or_else(presets::dvrk_seed000),
-        period: ServoPeriod::from_rate_hz(rate_hz).map_err(|e| bad(py, e.to_string()))?,
+        period,
         protocol,
         duration_s,
         port: parse_port_spec(py, &port)?,
@@ -96,6 +98,46 @@ pub(crate) fn run_demo_json(
         map.insert("verdict".into(), verdict.into());
     }
     to_json_text(py, &value)
+}
+
+/// `run_demo`'s servo period: `period` (text as `--period` takes it, or a
+/// number of seconds), or the older `rate` (Hz; 6 kHz when neither is
+/// given). Both given is refused, naming both.
+fn servo_period(
+    period: Option<&Bound<'_, PyAny>>,
+    rate: &Bound<'_, PyAny>,
+    rate_given: bool,
+) -> PyResult<ServoPeriod> {
+    let py = rate.py();
+    let refused = |e: ServoPeriodError| bad(py, e.to_string());
+    let Some(period) = period else {
+        let hz = args::real(rate, "rate", limits::RATE_HZ)?;
+        return ServoPeriod::from_rate_hz(hz).map_err(refused);
+    };
+    if rate_given {
+        return Err(bad(
+            py,
+            "give period= or rate=, not both (rate= is the older spelling of period=)",
+        ));
+    }
+    if let Ok(text) = period.cast::<PyString>() {
+        return args::string(text)?.parse().map_err(refused);
+    }
+    match period.extract::<f64>() {
+        Ok(secs) if !args::is_bool(period) => ServoPeriod::from_secs_f64(secs).map_err(refused),
+        // An integer too big for a float: out of range by the same rule.
+        Err(e) if e.is_instance_of::<pyo3::exceptions::PyOverflowError>(py) => {
+            ServoPeriod::from_secs_f64(f64::INFINITY).map_err(refused)
+        }
+        _ => Err(bad(
+            py,
+            format!(
+                "period must be a string with its unit (\"1ms\", \"250us\", \"6kHz\") \
+                 or a number of seconds, not {}",
+                args::type_name(period)
+            ),
+        )),
+    }
 }
 
 /// The items of a list argument (any iterable but a string; a string is

@@ -1,5 +1,6 @@
 """The demo and the benchmark from Python, with typed reports."""
 
+import datetime
 import itertools
 from pathlib import Path
 
@@ -117,3 +118,52 @@ def test_the_bench_and_its_figure(tmp_path):
 def test_bad_bench_options_raise(kwargs, match):
     with pytest.raises(firelink.InvalidRequest, match=match):
         firelink.run_bench(**{"transports": ["sim"], "boards": [2], "cycles": 5, **kwargs})
+
+
+# What a run measures on the machine's clock; everything else is a pure
+# function of the arguments (virtual time).
+WALL_CLOCK = {"cycle_time_us", "compute_time_us", "wall_time_s", "speed_vs_real_time"}
+
+
+def _virtual(report):
+    return {k: v for k, v in report.to_dict().items() if k not in WALL_CLOCK}
+
+
+def test_period_and_the_older_rate_give_the_same_run():
+    by_rate = _virtual(firelink.run_demo(duration=0.05, rate=1000, config=ONE_BOARD))
+    assert by_rate["rate_hz"] == 1000.0
+    for period in ("1ms", "1000us", "1kHz", 0.001, datetime.timedelta(milliseconds=1)):
+        assert _virtual(firelink.run_demo(duration=0.05, period=period, config=ONE_BOARD)) == by_rate, period
+    # Neither given: 6 kHz, as before.
+    assert firelink.run_demo(duration=0.02, config=ONE_BOARD).rate_hz == 6000.0
+    assert firelink.run_demo(duration=0.02, period="6kHz", config=ONE_BOARD).rate_hz == 6000.0
+
+
+@pytest.mark.parametrize("rate", [1000, 6000.0, None, "1ms"])
+def test_period_and_rate_together_are_refused_naming_both(rate):
+    with pytest.raises(firelink.InvalidRequest, match=r"give period= or rate=, not both"):
+        firelink.run_demo(duration=0.05, period="1ms", rate=rate)
+
+
+@pytest.mark.parametrize(
+    "period, match",
+    [
+        ("5us", "servo period 5 us: out of range, 10 us to 1 s"),
+        ("2 s", "servo period 2 s: out of range"),
+        ("200kHz", "out of range, 10 us to 1 s \\(100 kHz to 1 Hz\\)"),
+        (0, "servo period 0 s: out of range"),
+        (-0.001, "out of range"),
+        (1.5, "servo period 1.5 s: out of range"),
+        (float("nan"), "out of range"),
+        (float("inf"), "out of range"),
+        (10**400, "out of range"),
+        ("1000", "no unit"),
+        ("1 fortnight", "unknown unit"),
+        ("", "no unit"),
+        (True, "period must be a string with its unit .* or a number of seconds, not bool"),
+        ([1], "not list"),
+    ],
+)
+def test_a_bad_period_is_refused_with_the_reason(period, match):
+    with pytest.raises(firelink.InvalidRequest, match=match):
+        firelink.run_demo(duration=0.05, period=period)

@@ -5,6 +5,8 @@ use std::io::Write;
 
 use clap::Args;
 
+use firelink_control::ServoPeriod;
+
 use firelink_testbed::soak::{self, SoakSettings};
 use firelink_testbed::watchdog::{self, WatchdogReport};
 
@@ -13,9 +15,13 @@ use crate::error::CliError;
 /// Options of `firelink soak`.
 #[derive(Args, Debug)]
 pub struct SoakArgs {
-    /// Servo cycles of the 28-axis robot (virtual time, 6 kHz).
+    /// Servo cycles of the 28-axis robot (virtual time, one --period each).
     #[arg(long, default_value_t = 1_000_000, value_parser = crate::args::cycles)]
     pub cycles: u64,
+    /// The servo period, as a period or a rate: `1ms`, `250us`, `6kHz`
+    /// (10 us to 1 s).
+    #[arg(long, default_value = "6kHz")]
+    pub period: ServoPeriod,
     /// Seed of every random choice: the same seed gives the same report.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -43,7 +49,7 @@ pub fn run(args: &SoakArgs, out: &mut impl Write) -> Result<(), CliError> {
         seed: args.seed,
         packet_fault_rate: args.packet_fault_rate,
         bus_fault_every: args.bus_fault_every,
-        ..SoakSettings::default()
+        period: args.period,
     };
     let report = soak::run(&settings, |done, r| {
         if !quiet {
@@ -84,4 +90,43 @@ pub fn run(args: &SoakArgs, out: &mut impl Write) -> Result<(), CliError> {
         ));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `firelink soak`'s arguments alone.
+    #[derive(clap::Parser, Debug)]
+    struct Soak {
+        #[command(flatten)]
+        args: SoakArgs,
+    }
+
+    fn period_of(args: &[&str]) -> Result<ServoPeriod, String> {
+        use clap::Parser;
+        Soak::try_parse_from([&["soak"], args].concat())
+            .map(|s| s.args.period)
+            .map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn the_period_is_a_period_or_a_rate_under_the_one_rule() {
+        assert_eq!(
+            period_of(&[]).unwrap(),
+            ServoPeriod::from_rate_hz(6000.0).unwrap()
+        );
+        assert_eq!(period_of(&["--period", "1ms"]).unwrap(), ServoPeriod::KHZ_1);
+        assert_eq!(
+            period_of(&["--period", "1kHz"]).unwrap(),
+            ServoPeriod::KHZ_1
+        );
+        for bad in ["5us", "2s", "0Hz"] {
+            let e = period_of(&["--period", bad]).unwrap_err();
+            assert!(
+                e.contains("out of range, 10 us to 1 s (100 kHz to 1 Hz)"),
+                "{bad}: {e}"
+            );
+        }
+    }
 }

@@ -112,6 +112,20 @@ impl ServoPeriod {
         Self::from_duration(Duration::from_nanos((us * 1e3).round() as u64))
     }
 
+    /// The period in seconds (e.g. Python's `period=0.001`).
+    ///
+    /// # Errors
+    /// [`ServoPeriodError::OutOfRange`] outside 10 us to 1 s (also for NaN
+    /// and infinities).
+    pub fn from_secs_f64(secs: f64) -> Result<ServoPeriod, ServoPeriodError> {
+        if !(1e-5..=1.0).contains(&secs) {
+            return Err(ServoPeriodError::OutOfRange {
+                shown: format!("{secs} s"),
+            });
+        }
+        Self::from_duration(Duration::from_nanos((secs * 1e9).round() as u64))
+    }
+
     /// The period on the nanosecond grid: what pacing waits out.
     pub fn as_duration(self) -> Duration {
         self.duration
@@ -276,6 +290,18 @@ mod tests {
         for us in [0.0, 9.99, f64::NAN, f64::NEG_INFINITY, 1e300] {
             assert!(ServoPeriod::from_micros_f64(us).is_err(), "{us}");
         }
+        for secs in [0.0, 9.99e-6, 1.000001, f64::NAN, f64::INFINITY, -1e-3] {
+            let e = ServoPeriod::from_secs_f64(secs).unwrap_err();
+            assert!(e.to_string().contains("out of range"), "{secs}: {e}");
+        }
+        assert_eq!(
+            ServoPeriod::from_secs_f64(0.001).unwrap(),
+            ServoPeriod::KHZ_1
+        );
+        assert_eq!(
+            ServoPeriod::from_secs_f64(250e-6).unwrap().as_duration(),
+            Duration::from_micros(250)
+        );
         assert_eq!(
             ServoPeriod::from_micros_f64(2000.0).unwrap().as_duration(),
             Duration::from_millis(2)

@@ -315,8 +315,10 @@ pub struct NodeReport {
     /// Control cycles per second while the node ran (early cycles for
     /// commands included).
     pub control_hz: f64,
-    /// The control rate asked for (`--rate`): the schedule's.
+    /// The control rate asked for (`--period`, as a rate): the schedule's.
     pub control_asked_hz: f64,
+    /// The servo period asked for (`--period`), us.
+    pub control_asked_period_us: f64,
     /// The robot loop's cycles while the node ran by how they started:
     /// early for a command, on schedule, overrun (more than half a period
     /// late).
@@ -638,7 +640,7 @@ pub fn run_node(
     let mut poll = Poll::new().map_err(ros("poll"))?;
     register_readiness(&poll, &mut arms)?;
     let waker = Waker::new(poll.registry(), FRAME).map_err(ros("frame waker"))?;
-    let decimation = Decimation::new(settings.publish_hz, shared.rate_hz);
+    let decimation = Decimation::new(settings.publish_hz, shared.period.rate_hz());
     let last_frame_t = AtomicU64::new(f64::NEG_INFINITY.to_bits());
     shared
         .frame_waker
@@ -772,7 +774,8 @@ pub fn run_node(
         .load(Ordering::Relaxed)
         .saturating_sub(cycles_at_start);
     report.control_hz = cycles as f64 / report.seconds.max(1e-9);
-    report.control_asked_hz = shared.rate_hz;
+    report.control_asked_hz = shared.period.rate_hz();
+    report.control_asked_period_us = shared.period.as_micros_f64();
     let starts = cycle_starts(shared);
     for (r, (now, then)) in report
         .cycle_starts
@@ -782,7 +785,7 @@ pub fn run_node(
         *r = now.saturating_sub(then);
     }
     report.measured_js_hz = published as f64 / report.seconds.max(1e-9);
-    report.measured_js_asked_hz = settings.publish_hz.min(shared.rate_hz);
+    report.measured_js_asked_hz = settings.publish_hz.min(shared.period.rate_hz());
     report.servo_jp_applied = shared.servo_applied.load(Ordering::Relaxed);
     report.frames_skipped = shared.skipped.load(Ordering::Relaxed);
     report.publish_frame_us = median_p99(&mut publish_us);
@@ -1046,7 +1049,8 @@ pub fn run_without_dds(
             .load(Ordering::Relaxed)
             .saturating_sub(cycles_at_start) as f64
             / seconds.max(1e-9),
-        control_asked_hz: shared.rate_hz,
+        control_asked_hz: shared.period.rate_hz(),
+        control_asked_period_us: shared.period.as_micros_f64(),
         cycle_starts: cycle_starts(shared),
         realtime,
         ..NodeReport::default()

@@ -7,6 +7,7 @@ use std::time::Duration;
 
 use clap::Parser;
 
+use firelink_control::ServoPeriod;
 use firelink_control::config::{IoConfig, presets};
 use firelink_host::WatchdogSetting;
 use firelink_host::stop::install_signal_handlers;
@@ -27,11 +28,15 @@ struct Args {
     /// Robot configuration (default: seed 000's dVRK: MTML, MTMR, PSM1, PSM2).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Control rate, Hz.
-    #[arg(long, default_value_t = 1000.0)]
-    rate: f64,
+    /// The servo period, as a period or a rate: `1ms`, `250us`, `6kHz`
+    /// (10 us to 1 s).
+    #[arg(long, default_value = "1ms")]
+    period: ServoPeriod,
+    /// The period as a rate in Hz (the older spelling of --period).
+    #[arg(long, hide = true, conflicts_with = "period", value_parser = firelink_testbed::limits::servo_rate_hz)]
+    rate: Option<ServoPeriod>,
     /// Publications per second (measured_js, setpoint_js), decimated from
-    /// the control rate.
+    /// the control rate (1 / --period).
     #[arg(long = "publish-hz", default_value_t = 1000.0)]
     publish_hz: f64,
     /// DDS domain (default: ROS_DOMAIN_ID, else 0).
@@ -60,6 +65,13 @@ struct Args {
     /// timer slack).
     #[arg(long = "no-rt", overrides_with = "rt")]
     no_rt: bool,
+}
+
+impl Args {
+    /// `--period`, or its older spelling `--rate` when that was given.
+    fn servo_period(&self) -> ServoPeriod {
+        self.rate.unwrap_or(self.period)
+    }
 }
 
 fn main() {
@@ -105,7 +117,7 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
     ] {
         signal_hook::flag::register(signal, Arc::clone(&stop))?;
     }
-    let service = Service::start(&port, config.clone(), args.rate, args.watchdog_ms)?;
+    let service = Service::start(&port, config.clone(), args.servo_period(), args.watchdog_ms)?;
     let report = if args.no_dds {
         let d = duration.ok_or("--no-dds needs --seconds")?;
         run_without_dds(&service, d, !args.no_rt, &stop)?
@@ -176,5 +188,41 @@ mod tests {
         };
         let wrong = disagreements_with_table(parse, |_| true);
         assert!(wrong.is_empty(), "{wrong:#?}");
+    }
+
+    fn period_of(args: &[&str]) -> Result<ServoPeriod, String> {
+        Args::try_parse_from([&["firelink"], args].concat())
+            .map(|a| a.servo_period())
+            .map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn the_period_and_the_older_rate_give_the_same_servo_period() {
+        let one_ms = period_of(&["--period", "1ms"]).unwrap();
+        assert_eq!(one_ms, ServoPeriod::KHZ_1);
+        assert_eq!(period_of(&["--rate", "1000"]).unwrap(), one_ms);
+        assert_eq!(period_of(&[]).unwrap(), one_ms);
+        assert_eq!(
+            period_of(&["--period", "250us"]).unwrap(),
+            period_of(&["--rate", "4000"]).unwrap()
+        );
+        let both = period_of(&["--period", "1ms", "--rate", "1000"]).unwrap_err();
+        assert!(both.contains("cannot be used with"), "{both}");
+    }
+
+    #[test]
+    fn a_period_out_of_range_is_refused_with_the_one_rule() {
+        for args in [
+            ["--period", "5us"],
+            ["--period", "0.1Hz"],
+            ["--rate", "0"],
+            ["--rate", "1e6"],
+        ] {
+            let e = period_of(&args).unwrap_err();
+            assert!(
+                e.contains("out of range, 10 us to 1 s (100 kHz to 1 Hz)"),
+                "{args:?}: {e}"
+            );
+        }
     }
 }

@@ -121,6 +121,17 @@ pub fn rate_hz(s: &str) -> Result<f64, String> {
     bounded(s, RATE_HZ)
 }
 
+/// A servo rate in Hz as a servo period (the older `--rate` spelling of
+/// `--period`): a number, then [`ServoPeriod`](firelink_control::ServoPeriod)'s
+/// one range rule, 1 Hz to 100 kHz, named in its error.
+pub fn servo_rate_hz(s: &str) -> Result<firelink_control::ServoPeriod, String> {
+    let hz: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?} is not a number (a rate in Hz)"))?;
+    firelink_control::ServoPeriod::from_rate_hz(hz).map_err(|e| e.to_string())
+}
+
 /// An I/O rate where 0 means "as fast as possible": 0, or 1 Hz to 100 kHz.
 pub fn rate_hz_or_max(s: &str) -> Result<f64, String> {
     if s.trim().parse::<f64>().is_ok_and(|x| x == 0.0) {
@@ -288,6 +299,20 @@ pub fn watchdog(s: &str) -> Result<WatchdogSetting, String> {
 mod tests {
     use super::*;
     use std::time::Duration;
+
+    #[test]
+    fn the_older_rate_spelling_is_a_servo_period_under_its_one_rule() {
+        let p = servo_rate_hz(" 1000 ").unwrap();
+        assert_eq!(p, "1ms".parse::<firelink_control::ServoPeriod>().unwrap());
+        for bad in ["0", "-5", "1e6", "NaN", "inf"] {
+            let e = servo_rate_hz(bad).unwrap_err();
+            assert!(
+                e.contains("servo period") && e.contains("out of range"),
+                "{bad}: {e}"
+            );
+        }
+        assert!(servo_rate_hz("1kHz").unwrap_err().contains("not a number"));
+    }
 
     #[test]
     fn numbers_out_of_range_are_rejected_with_the_range() {

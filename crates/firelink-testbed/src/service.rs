@@ -47,7 +47,7 @@ use firelink_control::config::IoConfig;
 use firelink_control::lifecycle::State;
 use firelink_control::runner::{Pacing, Robot, RobotSettings, RunnerError};
 use firelink_control::trajectory::{Motion, PointToPoint, ServoPoint};
-use firelink_control::{BoardSet, FaultReport};
+use firelink_control::{BoardSet, FaultReport, ServoPeriod};
 use firelink_host::WatchdogSetting;
 use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::robot_io::board_list;
@@ -485,8 +485,8 @@ pub struct Shared {
     pub stop: AtomicBool,
     /// Joint labels, in configuration order.
     pub joint_labels: Vec<String>,
-    /// Control rate, Hz.
-    pub rate_hz: f64,
+    /// The servo period (its rate: `period.rate_hz()`).
+    pub period: ServoPeriod,
     /// The port's name.
     pub port_name: String,
     /// Boards found: (board ID, firmware, hardware name).
@@ -579,8 +579,8 @@ pub const POOL: usize = 1024;
 pub struct LoopOptions {
     /// The robot.
     pub config: IoConfig,
-    /// Control rate, Hz.
-    pub rate_hz: f64,
+    /// The servo period.
+    pub period: ServoPeriod,
     /// Board watchdog.
     pub watchdog: WatchdogSetting,
     /// `Virtual` on the simulated bus (then paced to the wall clock by the
@@ -604,7 +604,7 @@ pub fn prepare<P: firelink_host::Port + 'static>(
 ) -> Result<(Robot<IoSystem<P>>, Arc<Shared>), crate::TestbedError> {
     let (io, _) = IoSystem::open(port, IoOptions::default())?;
     let settings = RobotSettings {
-        period: crate::demo::servo_period(options.rate_hz)?,
+        period: options.period,
         watchdog: options.watchdog,
         ..RobotSettings::default()
     };
@@ -635,7 +635,7 @@ pub fn prepare<P: firelink_host::Port + 'static>(
         queued: AtomicU64::new(0),
         stop: AtomicBool::new(false),
         joint_labels,
-        rate_hz: options.rate_hz,
+        period: options.period,
         port_name,
         board_infos,
         homed: AtomicBool::new(false),
@@ -757,7 +757,7 @@ fn settle<P: firelink_host::Port + 'static>(
     options: &LoopOptions,
     done: impl Fn(&Robot<IoSystem<P>>) -> bool,
 ) -> bool {
-    let cycles = (options.rate_hz * SETTLE_SECONDS).ceil().max(10.0) as u64;
+    let cycles = (options.period.rate_hz() * SETTLE_SECONDS).ceil().max(10.0) as u64;
     for _ in 0..cycles {
         let _ = robot.step(options.pacing);
         publish(shared, robot, None);
@@ -1130,7 +1130,7 @@ fn cycle_until_stopped<P: firelink_host::Port + 'static>(
     options: &LoopOptions,
 ) {
     let _ = shared.robot_thread.set(std::thread::current());
-    let period = Duration::from_secs_f64(1.0 / options.rate_hz);
+    let period = options.period.as_duration();
     // A machine's clock: as the runner's pacing, a cycle more than half a
     // period late restarts the schedule. Virtual time: the missed cycles
     // are caught up (for up to a second), as virtual time is kept in step
@@ -1290,33 +1290,23 @@ pub struct Service {
     emulator: Option<rig::Emulator>,
 }
 
-fn check_rate(rate_hz: f64) -> Result<(), crate::TestbedError> {
-    if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 20_000.0) {
-        return Err(crate::TestbedError::Config(format!(
-            "rate {rate_hz} Hz: must be 0 < rate <= 20000"
-        )));
-    }
-    Ok(())
-}
-
 impl Service {
     /// Start the robot of `config` on `port` (emulated boards at firmware
     /// Rev 8 for `sim` and `emulate`, unless `sim:N:FW` names one) at
-    /// `rate_hz`; the loop runs until [`stop`](Self::stop).
+    /// a servo period of `period`; the loop runs until [`stop`](Self::stop).
     ///
     /// # Errors
-    /// A bad rate, a failed scan or configuration, sockets, the thread.
+    /// A failed scan or configuration, sockets, the thread.
     pub fn start(
         port: &PortSpec,
         config: IoConfig,
-        rate_hz: f64,
+        period: ServoPeriod,
         watchdog: WatchdogSetting,
     ) -> Result<Service, crate::TestbedError> {
-        check_rate(rate_hz)?;
         let boards = config.board_slots();
         let options = |pacing, faults| LoopOptions {
             config: config.clone(),
-            rate_hz,
+            period,
             watchdog,
             pacing,
             faults,
@@ -1386,13 +1376,12 @@ impl Service {
     /// ([`faults`](Self::faults) is empty).
     ///
     /// # Errors
-    /// A bad rate, a failed scan or configuration, the thread.
+    /// A failed scan or configuration, the thread.
     pub fn on_port<P: firelink_host::Port + Send + 'static>(
         port: P,
         name: String,
         options: LoopOptions,
     ) -> Result<Service, crate::TestbedError> {
-        check_rate(options.rate_hz)?;
         let (shared, thread) = spawn(port, name, options)?;
         Ok(Service {
             shared,

@@ -83,7 +83,7 @@ pub fn run(trials: u64, seed: u64) -> Result<WatchdogReport, TestbedError> {
         .period();
     let tick = Watchdog(1).period();
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x0057_A7C4);
-    let cycle = SimDuration::from_micros_f64(1e6 / settings.rate_hz);
+    let cycle = SimDuration::from_micros_f64(settings.period.as_micros_f64());
     let mut over = Vec::new();
     let mut after_stop = Vec::new();
     let mut within = 0u64;

@@ -33,6 +33,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 
+use firelink_control::ServoPeriod;
 use firelink_control::config::{IoConfig, presets};
 use firelink_testbed::port_spec::PortSpec;
 use firelink_testbed::service::{LoopExit, Service};
@@ -64,8 +65,9 @@ pub struct WebOptions {
     /// The robot configuration (default: seed 000's dVRK, seed 001's Snake
     /// system or seed 002's MAHRU, by `robot`).
     pub config: Option<PathBuf>,
-    /// Control rate, Hz (MAHRU: one period is `1 / rate_hz`).
-    pub rate_hz: f64,
+    /// The servo period (MAHRU: its control period, within its
+    /// configuration's bounds too).
+    pub period: ServoPeriod,
     /// Board watchdog.
     pub watchdog: firelink_host::WatchdogSetting,
     /// Address to listen on.
@@ -156,7 +158,7 @@ fn start_dvrk(options: &WebOptions) -> Result<Service, WebError> {
     Ok(Service::start(
         &options.port,
         config,
-        options.rate_hz,
+        options.period,
         options.watchdog,
     )?)
 }
@@ -173,35 +175,23 @@ fn sim_only(options: &WebOptions) -> Result<(), WebError> {
     }
 }
 
-fn check_rate(rate_hz: f64) -> Result<(), WebError> {
-    if rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 20_000.0 {
-        Ok(())
-    } else {
-        Err(WebError::Options(format!(
-            "rate {rate_hz} Hz: must be 0 < rate <= 20000"
-        )))
-    }
-}
-
 fn start_snake(
     options: &WebOptions,
 ) -> Result<robots::Hosted<robots::snake::SnakeModel>, WebError> {
     sim_only(options)?;
-    check_rate(options.rate_hz)?;
     let config = load_config(options)?.unwrap_or_else(presets::snake_seed001);
-    robots::snake::start(config, options.rate_hz, options.watchdog)
+    robots::snake::start(config, options.period, options.watchdog)
 }
 
 fn start_mahru(
     options: &WebOptions,
 ) -> Result<robots::Hosted<robots::mahru::MahruModel>, WebError> {
     sim_only(options)?;
-    check_rate(options.rate_hz)?;
     let config = match &options.config {
         Some(path) => firelink_testbed::mahru::MahruConfig::load(path)?,
         None => firelink_testbed::mahru::MahruConfig::seed002(),
     };
-    robots::mahru::start(config, options.rate_hz)
+    robots::mahru::start(config, options.period)
 }
 
 /// Start the robot service and bind the server; run the server with

@@ -1,5 +1,6 @@
 //! `firelink-web` (also run as `firelink web`): the web console.
 
+use firelink_control::ServoPeriod;
 use firelink_host::WatchdogSetting;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -42,23 +43,48 @@ struct Args {
     /// this machine (its own addresses are accepted as they are reached).
     #[arg(long = "allow-origin", value_name = "ORIGIN", value_parser = firelink_web::server::parse_origin)]
     allow_origin: Vec<String>,
-    /// Control rate, Hz (default: 1000; MAHRU: its configuration's
-    /// period, 2 ms for seed 002).
-    #[arg(long)]
-    rate: Option<f64>,
+    /// The servo period, as a period or a rate: `1ms`, `250us`, `6kHz`
+    /// (10 us to 1 s; default: 1 ms; MAHRU: its configuration's period,
+    /// 2 ms for seed 002, within 100 us to 1 s).
+    #[arg(long, conflicts_with = "rate")]
+    period: Option<ServoPeriod>,
+    /// The period as a rate in Hz (the older spelling of --period).
+    #[arg(long, hide = true, value_parser = firelink_testbed::limits::servo_rate_hz)]
+    rate: Option<ServoPeriod>,
     /// Board watchdog period, ms (one 5.208 us tick to 341.32 ms), or
     /// `off` (with a warning).
     #[arg(long = "watchdog-ms", default_value = "20", value_parser = watchdog)]
     watchdog_ms: WatchdogSetting,
 }
 
-/// MAHRU's rate by default: one period of its configuration's.
-fn mahru_rate(config: Option<&std::path::Path>) -> Result<f64, Box<dyn std::error::Error>> {
+/// MAHRU's period by default: its configuration's.
+fn mahru_period(
+    config: Option<&std::path::Path>,
+) -> Result<ServoPeriod, Box<dyn std::error::Error>> {
     let config = match config {
         Some(path) => firelink_testbed::mahru::MahruConfig::load(path)?,
         None => firelink_testbed::mahru::MahruConfig::seed002(),
     };
-    Ok(1.0 / config.period().as_secs_f64())
+    Ok(ServoPeriod::from_duration(config.period())?)
+}
+
+/// The console's options from the command line: `--period` or its older
+/// spelling `--rate`, else the robot's default period.
+fn web_options(args: Args) -> Result<WebOptions, Box<dyn std::error::Error>> {
+    let period = match (args.period.or(args.rate), args.robot) {
+        (Some(period), _) => period,
+        (None, RobotKind::Mahru) => mahru_period(args.config.as_deref())?,
+        (None, _) => ServoPeriod::KHZ_1,
+    };
+    Ok(WebOptions {
+        robot: args.robot,
+        port: args.port,
+        config: args.config,
+        period,
+        watchdog: args.watchdog_ms,
+        listen: args.listen,
+        allow_origins: args.allow_origin,
+    })
 }
 
 fn main() {
@@ -89,20 +115,7 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
     // (it watches the process's stop request); a second one ends the
     // process at once (the boards' watchdogs then turn the amplifiers off).
     let stop = install_signal_handlers()?;
-    let rate_hz = match (args.rate, args.robot) {
-        (Some(rate), _) => rate,
-        (None, RobotKind::Mahru) => mahru_rate(args.config.as_deref())?,
-        (None, _) => 1000.0,
-    };
-    let options = WebOptions {
-        robot: args.robot,
-        port: args.port,
-        config: args.config,
-        rate_hz,
-        watchdog: args.watchdog_ms,
-        listen: args.listen,
-        allow_origins: args.allow_origin,
-    };
+    let options = web_options(args)?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -163,5 +176,53 @@ mod tests {
         };
         let wrong = disagreements_with_table(parse, |_| true);
         assert!(wrong.is_empty(), "{wrong:#?}");
+    }
+
+    fn period_of(args: &[&str]) -> Result<ServoPeriod, String> {
+        let args =
+            Args::try_parse_from([&["firelink"], args].concat()).map_err(|e| e.to_string())?;
+        web_options(args)
+            .map(|o| o.period)
+            .map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn the_period_and_the_older_rate_give_the_same_servo_period() {
+        let one_ms = period_of(&["--period", "1ms"]).unwrap();
+        assert_eq!(one_ms, ServoPeriod::KHZ_1);
+        assert_eq!(period_of(&["--rate", "1000"]).unwrap(), one_ms);
+        assert_eq!(period_of(&["--period", "1kHz"]).unwrap(), one_ms);
+        assert_eq!(period_of(&[]).unwrap(), one_ms);
+        for robot in ["snake", "mahru"] {
+            assert_eq!(
+                period_of(&["--robot", robot, "--period", "2ms"]).unwrap(),
+                period_of(&["--robot", robot, "--rate", "500"]).unwrap(),
+            );
+        }
+        // MAHRU's default: seed 002's 2 ms.
+        assert_eq!(
+            period_of(&["--robot", "mahru"]).unwrap(),
+            "2ms".parse().unwrap()
+        );
+        let both = period_of(&["--period", "1ms", "--rate", "1000"]).unwrap_err();
+        assert!(both.contains("cannot be used with"), "{both}");
+    }
+
+    #[test]
+    fn a_period_out_of_range_is_refused_with_the_one_rule() {
+        for args in [
+            ["--period", "5us"],
+            ["--period", "2s"],
+            ["--rate", "0"],
+            ["--rate", "200000"],
+        ] {
+            let e = period_of(&args).unwrap_err();
+            assert!(
+                e.contains("out of range, 10 us to 1 s (100 kHz to 1 Hz)"),
+                "{args:?}: {e}"
+            );
+        }
+        let e = period_of(&["--period", "1000"]).unwrap_err();
+        assert!(e.contains("no unit"), "{e}");
     }
 }

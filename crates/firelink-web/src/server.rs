@@ -364,7 +364,7 @@ impl Console {
         allowed_origins: Vec<String>,
         faults: Vec<DemoFault>,
     ) -> Console {
-        let ring_capacity = (CSV_SECONDS * shared.rate_hz).ceil() as usize;
+        let ring_capacity = (CSV_SECONDS * shared.period.rate_hz()).ceil() as usize;
         let (stream, _) = broadcast::channel(64);
         Console {
             shared,
@@ -579,7 +579,8 @@ async fn info(State(c): State<Arc<Console>>, headers: HeaderMap, uri: Uri) -> Re
     axum::Json(json!({
         "robot": "dvrk",
         "port": c.shared.port_name,
-        "rate_hz": c.shared.rate_hz,
+        "rate_hz": c.shared.period.rate_hz(),
+        "period_us": c.shared.period.as_micros_f64(),
         "joints": c.shared.joint_labels,
         "boards": c.shared.board_infos.iter().map(|(id, fw, hw)| json!({"id": id, "firmware": fw, "hardware": hw})).collect::<Vec<_>>(),
         "faults": c.faults.iter().map(|f| f.name()).collect::<Vec<_>>(),

@@ -39,7 +39,7 @@ pub const MAX_DURATION_S: f64 = 86_400.0;
 ///
 /// # Errors
 /// [`TestbedError::Config`] with the range.
-pub(crate) fn check_period(period: Duration) -> Result<Duration, TestbedError> {
+pub fn check_period(period: Duration) -> Result<Duration, TestbedError> {
     let us = period.as_secs_f64() * 1e6;
     let (lo, hi) = bounds::PERIOD_US;
     if (lo..=hi).contains(&us) {

@@ -93,6 +93,7 @@ impl Soak {
             report: SoakReport {
                 cycles: 0,
                 seed: settings.seed,
+                period_us: settings.period.as_micros_f64(),
                 virtual_s: 0.0,
                 packets: 0,
                 injected: 0,

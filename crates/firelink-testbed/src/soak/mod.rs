@@ -48,10 +48,10 @@ use firelink_bus::trace::PacketKind;
 use firelink_bus::{
     FaultPlan, FaultRule, NodeHandle, PacketMatch, SimDuration, SimTime, TimedFault,
 };
-use firelink_control::State;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, Robot, RobotSettings};
 use firelink_control::trajectory::{Motion, Sinusoid};
+use firelink_control::{ServoPeriod, State};
 use firelink_host::qla::io::{CycleReport, IoOptions, IoSystem};
 use firelink_host::scan::Protocol;
 use firelink_host::sim::SimPort;
@@ -231,7 +231,7 @@ pub fn bring_up_robot(
         },
     )?;
     let robot_settings = RobotSettings {
-        period: crate::demo::servo_period(settings.rate_hz)?,
+        period: settings.period,
         watchdog: WatchdogSetting::default(),
         max_samples: 1,
         ..RobotSettings::default()

@@ -71,7 +71,7 @@ pub(super) fn fault_plan(
 
     // Bus-level faults at seeded instants, in order of time.
     let mut rng = ChaCha8Rng::seed_from_u64(settings.seed ^ 0x50A4_B05F);
-    let period = SimDuration::from_micros_f64(1e6 / settings.rate_hz);
+    let period = SimDuration::from_micros_f64(settings.period.as_micros_f64());
     let span = period * settings.cycles;
     let every = period * settings.bus_fault_every.max(1);
     let mut timed = Vec::new();

@@ -20,8 +20,8 @@ pub struct SoakSettings {
     /// On average one bus-level fault (reset, babble, unplug) per this
     /// many cycles.
     pub bus_fault_every: u64,
-    /// Control rate, Hz.
-    pub rate_hz: f64,
+    /// The servo period (virtual time).
+    pub period: ServoPeriod,
 }
 
 impl Default for SoakSettings {
@@ -31,7 +31,7 @@ impl Default for SoakSettings {
             seed: 1,
             packet_fault_rate: 0.01,
             bus_fault_every: 2_000,
-            rate_hz: 6_000.0,
+            period: ServoPeriod::from_rate_hz(6_000.0).expect("6 kHz is a servo period"),
         }
     }
 }
@@ -146,6 +146,8 @@ pub struct SoakReport {
     pub cycles: u64,
     /// The seed.
     pub seed: u64,
+    /// The servo period, us (`1e6 / rate`).
+    pub period_us: f64,
     /// Virtual time run, seconds.
     pub virtual_s: f64,
     /// Packets on the bus.

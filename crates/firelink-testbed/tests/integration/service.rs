@@ -10,6 +10,7 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use firelink_board::config::Profile;
+use firelink_control::ServoPeriod;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::lifecycle::State;
 use firelink_control::runner::Pacing;
@@ -93,7 +94,7 @@ fn commands_drive_the_lifecycle_and_motion_waits_for_homing() {
     let service = Service::start(
         &PortSpec::SIM,
         presets::bench_1board(),
-        500.0,
+        "2ms".parse().unwrap(),
         firelink_host::WatchdogSetting::default(),
     )
     .unwrap();
@@ -153,7 +154,7 @@ fn a_servo_point_queued_between_cycles_is_carried_by_the_very_next_write_block()
     let service = Service::start(
         &PortSpec::SIM,
         presets::bench_1board(),
-        1000.0,
+        ServoPeriod::KHZ_1,
         firelink_host::WatchdogSetting::default(),
     )
     .unwrap();
@@ -258,7 +259,7 @@ fn power_commands_follow_the_lifecycle_and_reach_only_the_used_axes() {
     let service = Service::start(
         &PortSpec::SIM,
         config,
-        1000.0,
+        ServoPeriod::KHZ_1,
         firelink_host::WatchdogSetting::default(),
     )
     .unwrap();
@@ -403,7 +404,7 @@ fn a_panic_in_the_loop_powers_down_and_is_reported() {
         "sim".into(),
         LoopOptions {
             config,
-            rate_hz: 500.0,
+            period: "500Hz".parse().unwrap(),
             watchdog: firelink_host::WatchdogSetting::default(),
             pacing: Pacing::Virtual,
             faults: FaultTarget::link(),

@@ -60,6 +60,30 @@ fn the_same_seed_gives_the_same_report() {
 }
 
 #[test]
+fn the_period_sets_the_virtual_time_and_a_rate_gives_the_same_soak() {
+    let at = |period: &str| {
+        let s = SoakSettings {
+            period: period.parse().unwrap(),
+            ..settings(3_000, 11)
+        };
+        soak::run(&s, |_, _| {}).unwrap()
+    };
+    let by_period = at("1ms");
+    assert_eq!(by_period.period_us, 1000.0);
+    // 3000 cycles of 1 ms (re-arming included): at least 3 s of virtual time.
+    assert!(by_period.virtual_s >= 3.0, "{}", by_period.virtual_s);
+    let by_rate = at("1kHz");
+    assert_eq!(
+        serde_json::to_string(&by_period).unwrap(),
+        serde_json::to_string(&by_rate).unwrap()
+    );
+    // The default is 6 kHz, as before the period was a setting.
+    let default = soak::run(&settings(3_000, 11), |_, _| {}).unwrap();
+    assert_eq!(default.period_us, 1e6 / 6000.0);
+    assert!(default.virtual_s < by_period.virtual_s);
+}
+
+#[test]
 fn amplifiers_go_off_within_the_watchdog_period_every_time() {
     let r = watchdog::run(40, 3).unwrap();
     assert_eq!(r.observations, 40 * 8);

@@ -22,6 +22,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
 use firelink_board::mahru::ModuleNode;
+use firelink_control::ServoPeriod;
 use firelink_host::Port;
 use firelink_host::PowerDown;
 use firelink_host::mahru::{ControllerState, MotionController, MotionError, Setpoints};
@@ -202,21 +203,17 @@ fn micros(d: Duration) -> f64 {
     d.as_secs_f64() * 1e6
 }
 
-/// Start MAHRU of `config` on its simulated bus with a period of
-/// `1 / rate_hz`; the robot waits, disabled, for "enable".
+/// Start MAHRU of `config` on its simulated bus with a control period of
+/// `period` (within the configuration's bounds); the robot waits,
+/// disabled, for "enable".
 ///
 /// # Errors
 /// A configuration that does not validate, a period out of range, the
 /// bus.
-pub fn start(config: MahruConfig, rate_hz: f64) -> Result<Hosted<MahruModel>, WebError> {
+pub fn start(config: MahruConfig, period: ServoPeriod) -> Result<Hosted<MahruModel>, WebError> {
     config.validate()?;
-    let period_us = 1e6 / rate_hz;
-    let (lo, hi) = firelink_testbed::mahru::config::bounds::PERIOD_US;
-    if !(lo..=hi).contains(&period_us) {
-        return Err(WebError::Options(format!(
-            "MAHRU: a period of {period_us:.1} us (--rate {rate_hz}) is out of range: {lo} to {hi} us"
-        )));
-    }
+    let period_us = period.as_micros_f64();
+    let period = firelink_testbed::mahru::demo::check_period(period.as_duration())?;
     let phase = |us: f64| Duration::from_secs_f64(us.clamp(0.0, 1e6) / 1e6);
     let (port, placed, _) = robot_port(&config)?;
     let layout = config.layout()?;
@@ -250,7 +247,6 @@ pub fn start(config: MahruConfig, rate_hz: f64) -> Result<Hosted<MahruModel>, We
         missed: 0,
         resets_recovered: 0,
     }));
-    let period = Duration::from_secs_f64(period_us / 1e6);
     let rig = Rig {
         controller,
         placed,

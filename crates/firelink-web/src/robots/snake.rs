@@ -19,7 +19,7 @@
 
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
@@ -294,7 +294,7 @@ fn fault_named(name: &str) -> Result<DemoFault, String> {
 pub struct SnakeModel {
     labels: Vec<String>,
     nodes: Vec<u8>,
-    rate_hz: f64,
+    period: ServoPeriod,
 }
 
 impl RobotModel for SnakeModel {
@@ -305,7 +305,8 @@ impl RobotModel for SnakeModel {
         json!({
             "joints": self.labels,
             "nodes": self.nodes,
-            "rate_hz": self.rate_hz,
+            "rate_hz": self.period.rate_hz(),
+            "period_us": self.period.as_micros_f64(),
             "wiper_max": WIPER_MAX,
             "eeprom_words": EEPROM_WORDS,
             "max_jog": MAX_JOG,
@@ -393,13 +394,14 @@ struct Rig {
     faults: FaultTarget,
 }
 
-/// Start the Snake system of `config` on the simulated bus at `rate_hz`.
+/// Start the Snake system of `config` on the simulated bus with a servo
+/// period of `period`.
 ///
 /// # Errors
 /// A configuration not on Snake nodes, the rig, the node setup.
 pub fn start(
     config: IoConfig,
-    rate_hz: f64,
+    period: ServoPeriod,
     watchdog: WatchdogSetting,
 ) -> Result<Hosted<SnakeModel>, WebError> {
     let (port, faults) = sim_port_with_faults(node_configs(&config, 1)?, false, None)?;
@@ -429,8 +431,6 @@ pub fn start(
             write_protect,
         });
     }
-    let period = ServoPeriod::from_rate_hz(rate_hz)
-        .map_err(|e| WebError::Options(format!("the Snake robot: {e}")))?;
     let settings = RobotSettings {
         period,
         watchdog,
@@ -469,11 +469,11 @@ pub fn start(
     let loop_exchange = Arc::clone(&exchange);
     let thread = std::thread::Builder::new()
         .name("firelink-snake".into())
-        .spawn(move || run(rig, &loop_exchange, rate_hz))?;
+        .spawn(move || run(rig, &loop_exchange, period))?;
     let model = SnakeModel {
         labels,
         nodes,
-        rate_hz,
+        period,
     };
     Ok(Hosted::new(
         RobotKind::Snake,
@@ -487,9 +487,9 @@ pub fn start(
 /// The loop: commands between cycles, a frame every [`PUBLISH_SECONDS`];
 /// on the way out (a stop, the process's stop request, a panic) the
 /// robot is powered down.
-fn run(mut rig: Rig, ex: &Exchange<SnakeFrame, SnakeCommand>, rate_hz: f64) -> LoopExit {
-    let every = ((rate_hz * PUBLISH_SECONDS).round() as u64).max(1);
-    let period = Duration::from_secs_f64(1.0 / rate_hz);
+fn run(mut rig: Rig, ex: &Exchange<SnakeFrame, SnakeCommand>, servo: ServoPeriod) -> LoopExit {
+    let every = ((servo.rate_hz() * PUBLISH_SECONDS).round() as u64).max(1);
+    let period = servo.as_duration();
     let looped = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         let wall = Instant::now();
         let start = rig.robot.now();

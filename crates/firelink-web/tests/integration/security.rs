@@ -94,15 +94,15 @@ struct Console {
 
 impl Console {
     async fn start(allow_origins: Vec<String>) -> Console {
-        Console::start_robot(RobotKind::Dvrk, 1000.0, allow_origins).await
+        Console::start_robot(RobotKind::Dvrk, "1ms", allow_origins).await
     }
 
-    async fn start_robot(robot: RobotKind, rate_hz: f64, allow_origins: Vec<String>) -> Console {
+    async fn start_robot(robot: RobotKind, period: &str, allow_origins: Vec<String>) -> Console {
         let options = WebOptions {
             robot,
             port: PortSpec::SIM,
             config: None,
-            rate_hz,
+            period: period.parse().unwrap(),
             watchdog: firelink_host::WatchdogSetting::default(),
             listen: "127.0.0.1:0".parse().unwrap(),
             allow_origins,
@@ -262,7 +262,13 @@ async fn everything_that_reveals_or_changes_state_needs_the_token_never_in_the_u
         assert_eq!(r.status, 101);
     }
     let r = request(addr, &get(&host, "/api/info", &c.cookie())).await;
-    assert_eq!(r.json()["joints"].as_array().map(Vec::len), Some(28));
+    let info = r.json();
+    assert_eq!(info["joints"].as_array().map(Vec::len), Some(28));
+    // Started with a period of 1 ms: the rate is derived from it.
+    assert_eq!(
+        (info["period_us"].as_f64(), info["rate_hz"].as_f64()),
+        (Some(1000.0), Some(1000.0))
+    );
     let r = request(addr, &get(&host, "/api/csv?seconds=1", &c.token_header())).await;
     assert!(r.body.starts_with("t_s,MTML"), "{}", r.body);
     // The static page and its assets reveal nothing and need nothing.
@@ -613,13 +619,18 @@ async fn refused_as_malformed(c: &Console, bodies: &[(&str, &str)]) {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_snake_console_shows_36_axes_and_drives_its_channels() {
-    let c = Console::start_robot(RobotKind::Snake, 1000.0, Vec::new()).await;
+    let c = Console::start_robot(RobotKind::Snake, "1kHz", Vec::new()).await;
     robot_console_checks_token_and_origin(&c, r#"{"action":"disable"}"#).await;
     let r = request(c.addr, &get(&c.host(), "/api/info", &c.token_header())).await;
     let info = r.json();
     assert_eq!(info["robot"], "snake");
     assert_eq!(info["joints"].as_array().map(Vec::len), Some(36));
     assert_eq!(info["nodes"], serde_json::json!([0, 1, 2, 3, 4, 5]));
+    // Started with a rate of 1 kHz: a period of 1 ms.
+    assert_eq!(
+        (info["period_us"].as_f64(), info["rate_hz"].as_f64()),
+        (Some(1000.0), Some(1000.0))
+    );
     let st = state_until(&c, "36 axes", |s| {
         s["axes"].as_array().is_some_and(|a| a.len() == 36)
     })
@@ -836,7 +847,7 @@ async fn the_snake_console_shows_36_axes_and_drives_its_channels() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_mahru_console_shows_14_modules_and_walks_on_command() {
     // Seed 002's period, 2 ms.
-    let c = Console::start_robot(RobotKind::Mahru, 500.0, Vec::new()).await;
+    let c = Console::start_robot(RobotKind::Mahru, "2ms", Vec::new()).await;
     robot_console_checks_token_and_origin(&c, r#"{"action":"gait_stop"}"#).await;
     let r = request(c.addr, &get(&c.host(), "/api/info", &c.token_header())).await;
     let info = r.json();
@@ -918,7 +929,7 @@ async fn the_mahru_console_shows_14_modules_and_walks_on_command() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_board_loss_on_the_snake_shows_as_a_fault_and_an_unknown_node() {
-    let c = Console::start_robot(RobotKind::Snake, 1000.0, Vec::new()).await;
+    let c = Console::start_robot(RobotKind::Snake, "1kHz", Vec::new()).await;
     refused_as_malformed(
         &c,
         &[
@@ -964,4 +975,24 @@ async fn a_board_loss_on_the_snake_shows_as_a_fault_and_an_unknown_node() {
     // The power-down cannot know node 4's state.
     let pd = exit.power_down.expect("a power-down");
     assert_eq!((pd.unknown, pd.still_on), (1 << 4, 0), "{exit}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_mahru_period_outside_its_configuration_bounds_is_refused_with_the_range() {
+    // 50 us is a servo period (10 us to 1 s) but not one MAHRU's
+    // configuration allows (100 us to 1 s): refused before anything runs.
+    let options = WebOptions {
+        robot: RobotKind::Mahru,
+        port: PortSpec::SIM,
+        config: None,
+        period: "50us".parse().unwrap(),
+        watchdog: firelink_host::WatchdogSetting::default(),
+        listen: "127.0.0.1:0".parse().unwrap(),
+        allow_origins: Vec::new(),
+    };
+    let e = start(&options).await.err().expect("refused").to_string();
+    assert!(
+        e.contains("MAHRU: period 50 us is out of range: 100 to 1000000 us"),
+        "{e}"
+    );
 }
