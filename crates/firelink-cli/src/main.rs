@@ -90,7 +90,7 @@ enum Command {
     /// firelink-web`; its options: `firelink web --help`).
     #[command(disable_help_flag = true)]
     Web {
-        /// Options for firelink-web (--robot dvrk|snake|mahru, --port, --config, --listen, --rate, --watchdog-ms, --help).
+        /// Options for firelink-web (--robot dvrk|snake|mahru, --port, --config, --listen, --period, --watchdog-ms, --help).
         #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
         args: Vec<String>,
     },
@@ -99,7 +99,7 @@ enum Command {
     /// `firelink ros2 --help`).
     #[command(disable_help_flag = true)]
     Ros2 {
-        /// Options for firelink-ros2 (--port, --config, --rate, --publish-hz, --domain, --seconds, --help).
+        /// Options for firelink-ros2 (--port, --config, --period, --publish-hz, --domain, --rt/--no-rt, --no-dds, --seconds, --help).
         #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
         args: Vec<String>,
     },
