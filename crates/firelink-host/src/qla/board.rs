@@ -14,7 +14,7 @@ use firelink_wire::qla::realtime::{
 };
 use firelink_wire::qla::registers::{
     AmpCommand, DAC_ZERO, DacWord, DigitalIn, FpgaVersion, GitDesc, HardwareVersion, StatusCommand,
-    StatusRead,
+    StatusRead, StatusWrite,
 };
 
 use crate::error::{HostError, Result};
@@ -317,6 +317,14 @@ impl BoardIo {
         let mut out = self.output;
         out.control = self.control.to_word();
         out
+    }
+
+    /// The next write block as [`output`](Self::output) is made of: the
+    /// block with its DAC quadlets, and the control quadlet to write with
+    /// it (what the command block is emitted from, without a copy).
+    #[inline]
+    pub(crate) fn output_parts(&self) -> (&WriteBlockRepr, StatusWrite) {
+        (&self.output, self.control.to_word())
     }
 
     /// After a write: one-shot requests (power, relay, amplifier changes)

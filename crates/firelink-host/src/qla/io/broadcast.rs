@@ -376,7 +376,8 @@ impl<P: Port> IoSystem<P> {
     pub(super) fn write_broadcast(&mut self) {
         let mut writer = CommandBlockWriter::new(&mut self.cmd);
         for board in &self.boards {
-            if let Err(e) = writer.push(&board.output()) {
+            let (block, control) = board.output_parts();
+            if let Err(e) = writer.push_with_control(block, control) {
                 self.stats.count_error(&HostError::Wire(e));
                 if self.report.error.is_none() {
                     self.report.error = Some(HostError::Wire(e));

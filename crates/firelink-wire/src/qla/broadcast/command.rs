@@ -51,6 +51,21 @@ impl<'a> CommandBlockWriter<'a> {
     /// [`Error::BufferTooSmall`]; the errors of [`WriteBlockRepr::emit`].
     #[inline]
     pub fn push(&mut self, block: &WriteBlockRepr) -> Result<()> {
+        self.push_with_control(block, block.control)
+    }
+
+    /// [`push`](Self::push) with `control` as the block's control quadlet
+    /// ([`WriteBlockRepr::emit_with_control`]): the block goes straight
+    /// into the buffer, without a copy of it with the control put in.
+    ///
+    /// # Errors
+    /// As [`push`](Self::push).
+    #[inline]
+    pub fn push_with_control(
+        &mut self,
+        block: &WriteBlockRepr,
+        control: StatusWrite,
+    ) -> Result<()> {
         if let Some(previous) = self.last {
             if block.board_id <= previous {
                 return Err(Error::BoardOrder {
@@ -68,7 +83,7 @@ impl<'a> CommandBlockWriter<'a> {
                 available,
             });
         };
-        self.len += block.emit(out)?;
+        self.len += block.emit_with_control(control, out)?;
         self.last = Some(block.board_id);
         Ok(())
     }

@@ -46,7 +46,7 @@ use crate::qla::realtime::{
     BlockFormat, BoardLayout, FirmwareRev, ReadBlock, ReadBlockRepr, WriteBlock, WriteBlockRepr,
     WriteHeader,
 };
-use crate::qla::registers::DacWord;
+use crate::qla::registers::{DacWord, StatusWrite};
 use crate::qla::{MAX_BOARDS, check_exact, check_max, layout_view};
 
 /// Bit fields of the broadcast protocol quadlets (`fpga-board.md` §6), each

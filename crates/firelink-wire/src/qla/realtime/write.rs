@@ -229,6 +229,18 @@ impl WriteBlockRepr {
     /// [`Error::BufferTooSmall`].
     #[inline]
     pub fn emit(&self, buf: &mut [u8]) -> Result<usize> {
+        self.emit_with_control(self.control, buf)
+    }
+
+    /// [`emit`](Self::emit) with `control` as the control quadlet instead
+    /// of the block's own: the host keeps its board's commands in a block
+    /// and the control apart, and writes both into the command block
+    /// without a copy of the block put together first.
+    ///
+    /// # Errors
+    /// As [`emit`](Self::emit).
+    #[inline]
+    pub fn emit_with_control(&self, control: StatusWrite, buf: &mut [u8]) -> Result<usize> {
         check_board_id(self.board_id)?;
         let len = self.buffer_len();
         let available = buf.len();
@@ -241,29 +253,40 @@ impl WriteBlockRepr {
         };
         // Whole quadlets in wire order (what `WriteBlock`'s setters write,
         // each once): the Rev 8 header, the DACs (Rev 4 and 7: with the
-        // board ID), the control quadlet last (none on Rev 4).
+        // board ID), the control quadlet last (none on Rev 4); put together
+        // in a fixed array first, then stored in one pass (`out` holds
+        // exactly the layout's quadlets).
         let format = self.layout.format();
-        let mut quadlets = out.chunks_exact_mut(4);
-        let mut put = |word: u32| {
-            if let Some(q) = quadlets.next() {
-                q.copy_from_slice(&word.to_be_bytes());
+        let mut words = [0u32; MAX_AXES + 2];
+        let (dacs, rest) = match format {
+            BlockFormat::Rev8 => {
+                let (header, rest) = words.split_at_mut(1);
+                if let Some(h) = header.first_mut() {
+                    *h = WriteHeader {
+                        board_id: self.board_id,
+                        quadlets: self.layout.write_block_quadlets() as u8,
+                    }
+                    .to_word();
+                }
+                rest.split_at_mut(MAX_AXES)
             }
+            BlockFormat::Rev4 | BlockFormat::Rev7 => words.split_at_mut(MAX_AXES),
         };
-        if format == BlockFormat::Rev8 {
-            put(WriteHeader {
-                board_id: self.board_id,
-                quadlets: self.layout.write_block_quadlets() as u8,
-            }
-            .to_word());
-        }
-        for &dac in self.dacs() {
-            put(match format {
+        let motors = self.layout.motors();
+        for (w, &dac) in dacs.iter_mut().zip(&self.dac) {
+            *w = match format {
                 BlockFormat::Rev4 | BlockFormat::Rev7 => dac.with_board_id(self.board_id).0,
                 BlockFormat::Rev8 => dac.0,
-            });
+            };
         }
+        // The control quadlet right after the layout's DACs.
         if format != BlockFormat::Rev4 {
-            put(self.control.0);
+            if let Some(c) = dacs.get_mut(motors).or_else(|| rest.first_mut()) {
+                *c = control.0;
+            }
+        }
+        for (q, w) in out.chunks_exact_mut(4).zip(words) {
+            q.copy_from_slice(&w.to_be_bytes());
         }
         Ok(len)
     }
@@ -338,6 +361,65 @@ mod tests {
             WriteBlockRepr::parse(&block),
             Err(Error::Malformed { .. })
         ));
+    }
+
+    /// Every format and motor count: the block `emit_with_control`
+    /// writes is header (Rev 8), the layout's DACs (Rev 4 and 7 with the
+    /// board ID) and the given control (not on Rev 4), quadlet by quadlet,
+    /// nothing past it; `emit` is the same with the block's own control.
+    #[test]
+    fn emit_with_control_writes_each_quadlet_in_wire_order() {
+        for rev in [FirmwareRev::Rev4, FirmwareRev::Rev7, FirmwareRev::Rev8] {
+            for motors in 1..=MAX_AXES as u8 {
+                let layout = BoardLayout::new(rev, motors, motors).unwrap();
+                let mut repr = WriteBlockRepr::new(layout, 0xB);
+                for (i, d) in repr.dac.iter_mut().enumerate() {
+                    *d = DacWord::valid_command(0x100 * i as u16 + 7);
+                }
+                repr.control = StatusWrite(0x0000_0303);
+                let control = StatusWrite(0x0000_0F0A);
+                // (The quadlets expected and how many.)
+                let mut words = [0u32; MAX_AXES + 2];
+                let mut n = 0;
+                if layout.format() == BlockFormat::Rev8 {
+                    words[n] = 0x0B00 | (u32::from(motors) + 2);
+                    n += 1;
+                }
+                for d in repr.dacs() {
+                    words[n] = match layout.format() {
+                        BlockFormat::Rev8 => d.0,
+                        _ => d.with_board_id(0xB).0,
+                    };
+                    n += 1;
+                }
+                let own_len = n;
+                if layout.format() != BlockFormat::Rev4 {
+                    words[n] = control.0;
+                    n += 1;
+                }
+                let own = &words[..own_len];
+                let expected = &words[..n];
+                let mut buf = [0xA5u8; (MAX_AXES + 3) * 4];
+                let len = expected.len() * 4;
+                assert_eq!(repr.emit_with_control(control, &mut buf), Ok(len));
+                for (q, &w) in expected.iter().enumerate() {
+                    assert_eq!(read_quadlet(&buf, q), w, "{rev:?} {motors}: quadlet {q}");
+                }
+                assert!(buf[len..].iter().all(|&b| b == 0xA5), "{rev:?} {motors}");
+                let mut own_buf = [0xA5u8; (MAX_AXES + 3) * 4];
+                assert_eq!(repr.emit(&mut own_buf), Ok(len));
+                for (q, &w) in own.iter().enumerate() {
+                    assert_eq!(
+                        read_quadlet(&own_buf, q),
+                        w,
+                        "{rev:?} {motors}: quadlet {q}"
+                    );
+                }
+                if layout.format() != BlockFormat::Rev4 {
+                    assert_eq!(read_quadlet(&own_buf, own.len()), 0x0000_0303);
+                }
+            }
+        }
     }
 
     #[test]
