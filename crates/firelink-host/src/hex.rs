@@ -120,7 +120,7 @@ mod tests {
         // A sign is not a hex digit (a byte parser of its own took `+f`).
         let err = encode(&block("+f00"), false).unwrap_err();
         assert_eq!(err.to_string(), "data: invalid hex digit '+' at position 0");
-        let err = encode(&block("0 f"), false).unwrap_err();
+        let err = encode(&block("0f 0"), false).unwrap_err();
         assert!(err.to_string().contains("odd number"), "{err}");
         let with_separators = encode(&block("0x0f:00_01 02"), false).unwrap();
         assert_eq!(with_separators, encode(&block("0f000102"), false).unwrap());

@@ -279,11 +279,12 @@ impl DemoRequest {
     ) -> Result<DemoOutcome, TestbedError> {
         Ok(match self.chosen() {
             (_, true) => {
+                // Refused before anything is said.
+                let options = self.teleop_options()?;
                 say(
                     "teleoperation MTMR -> PSM1, 60 s of virtual time on the simulated bus \
                      (the clutch pressed from 30 to 33 s)",
                 );
-                let options = self.teleop_options()?;
                 DemoOutcome::Teleop(Box::new(run_teleop(&options)?))
             }
             (RobotKind::Mahru, _) => {
