@@ -1038,4 +1038,8 @@ impl Port for FirewirePort {
         self.filters.add(filter);
         Ok(())
     }
+
+    fn takes_link_filters(&self) -> bool {
+        true
+    }
 }

@@ -106,4 +106,23 @@ mod tests {
         let err = encode(&json, false).unwrap_err();
         assert_eq!(err.to_string(), "missing field quadlet_data");
     }
+
+    #[test]
+    fn a_packets_data_is_read_by_the_same_hex_rules() {
+        use crate::packet_json::{PacketJson, encode};
+        let block = |data: &str| PacketJson {
+            tcode_name: Some("write_request_block".into()),
+            destination_id: Some(0xffc0),
+            offset: Some(0),
+            data: Some(data.into()),
+            ..Default::default()
+        };
+        // A sign is not a hex digit (a byte parser of its own took `+f`).
+        let err = encode(&block("+f00"), false).unwrap_err();
+        assert_eq!(err.to_string(), "data: invalid hex digit '+' at position 0");
+        let err = encode(&block("0f 0"), false).unwrap_err();
+        assert!(err.to_string().contains("odd number"), "{err}");
+        let with_separators = encode(&block("0x0f:00_01 02"), false).unwrap();
+        assert_eq!(with_separators, encode(&block("0f000102"), false).unwrap());
+    }
 }

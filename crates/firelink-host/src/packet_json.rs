@@ -167,25 +167,6 @@ fn num_or_hex<'de, D: Deserializer<'de>>(d: D) -> core::result::Result<Option<u6
     }
 }
 
-/// Hex text (whitespace ignored) as bytes.
-pub fn from_hex(text: &str) -> Result<Vec<u8>> {
-    let digits: Vec<u8> = text.bytes().filter(|b| !b.is_ascii_whitespace()).collect();
-    if digits.len() % 2 != 0 {
-        return Err(PacketJsonError::Hex(format!(
-            "odd number of hex digits ({})",
-            digits.len()
-        )));
-    }
-    digits
-        .chunks(2)
-        .map(|pair| {
-            let s = core::str::from_utf8(pair).unwrap_or("??");
-            u8::from_str_radix(s, 16)
-                .map_err(|_| PacketJsonError::Hex(format!("not a hex byte: {s:?}")))
-        })
-        .collect()
-}
-
 /// Decode one complete packet (or, with `bridge`, one host->board datagram:
 /// the bridge control word, then the packet). Trailing bytes are an error.
 pub fn decode(bytes: &[u8], bridge: bool) -> Result<PacketJson> {
@@ -313,7 +294,10 @@ pub fn encode(json: &PacketJson, bridge: bool) -> Result<Vec<u8>> {
     };
     let data_bytes = match &json.data {
         Some(hex) if hex.trim().is_empty() => Some(Vec::new()),
-        Some(hex) => Some(from_hex(hex)?),
+        // The tree's one hex reader, as `packet decode` reads its argument.
+        Some(hex) => {
+            Some(crate::hex::parse_hex(hex).map_err(|e| PacketJsonError::Hex(e.to_string()))?)
+        }
         None => None,
     };
     if let (Some(len), Some(data)) = (json.data_length, &data_bytes) {

@@ -207,6 +207,13 @@ pub trait Port {
             value: 0,
         })
     }
+    /// Whether [`add_link_filter`](Self::add_link_filter) takes a filter
+    /// (asked before a run, so that what a filter would do is refused
+    /// before the boards are touched). Every port that overrides the one
+    /// overrides the other.
+    fn takes_link_filters(&self) -> bool {
+        false
+    }
 }
 
 /// Forward every [`Port`] method to another port: `forward_port!(s =>
@@ -307,6 +314,10 @@ macro_rules! forward_port {
             let $s = self;
             $e.add_link_filter(filter)
         }
+        fn takes_link_filters(&self) -> bool {
+            let $s = self;
+            $e.takes_link_filters()
+        }
     };
 }
 pub(crate) use forward_port;
@@ -341,6 +352,14 @@ pub trait LinkFilter: Send {
     /// on the port's clock ([`Port::now_ps`]). The filter may change its
     /// bytes in place, or drop it.
     fn packet(&mut self, at_ps: u64, direction: Direction, packet: &mut [u8]) -> Verdict;
+
+    /// Whether the filter will never again change or drop a packet (a
+    /// fault that has fired its count): the port's [`LinkFilters`] lets
+    /// it go when the next filter is added, so that faults injected one
+    /// after another do not lengthen every packet's path.
+    fn is_spent(&self) -> bool {
+        false
+    }
 }
 
 /// The filters of one port, in the order they were added: the last added
@@ -358,9 +377,16 @@ impl core::fmt::Debug for LinkFilters {
 }
 
 impl LinkFilters {
-    /// Add one.
+    /// Add one, letting go of those that are spent
+    /// ([`LinkFilter::is_spent`]).
     pub fn add(&mut self, filter: Box<dyn LinkFilter>) {
+        self.filters.retain(|f| !f.is_spent());
         self.filters.push(filter);
+    }
+
+    /// How many filters each packet goes through.
+    pub fn len(&self) -> usize {
+        self.filters.len()
     }
 
     /// Whether there are none.

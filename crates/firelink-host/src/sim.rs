@@ -563,4 +563,8 @@ impl Port for SimPort {
         self.filters.add(filter);
         Ok(())
     }
+
+    fn takes_link_filters(&self) -> bool {
+        true
+    }
 }

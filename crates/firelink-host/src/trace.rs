@@ -407,4 +407,8 @@ impl<P: Port> Port for TracingPort<P> {
     fn add_link_filter(&mut self, filter: Box<dyn LinkFilter>) -> Result<()> {
         self.inner.add_link_filter(filter)
     }
+
+    fn takes_link_filters(&self) -> bool {
+        self.inner.takes_link_filters()
+    }
 }

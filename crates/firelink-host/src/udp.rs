@@ -718,6 +718,10 @@ impl Port for UdpPort {
         self.filters.add(filter);
         Ok(())
     }
+
+    fn takes_link_filters(&self) -> bool {
+        true
+    }
 }
 
 #[cfg(test)]

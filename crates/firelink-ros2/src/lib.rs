@@ -675,6 +675,7 @@ pub fn run_node(
     // ones a servo point passes through (and the robot loop's).
     if settings.realtime {
         report.realtime = realtime::apply(&mut realtime::OsScheduler, true);
+        say_refusals(&report.realtime);
     }
     while !stop.load(Ordering::Relaxed) {
         let left = settings
@@ -1000,6 +1001,15 @@ fn take_motion(arm: &mut Arm, servo: bool, taking: &mut Taking<'_>) {
     }
 }
 
+/// Each real-time setting the OS refused, on stderr as soon as it was
+/// refused (at start-up: an operator sees it while the node runs, not only
+/// in the report when it stops).
+fn say_refusals(report: &realtime::RealtimeReport) {
+    for e in &report.errors {
+        eprintln!("firelink ros2: real-time: {e} (running on without it)");
+    }
+}
+
 /// Run the robot service alone (no DDS), draining its frames as the node
 /// would: the control loop's costs without ROS 2. The robot is brought up
 /// as a ROS 2 client does it (configured, powered, homed, active) and then
@@ -1017,7 +1027,9 @@ pub fn run_without_dds(
     stop: &AtomicBool,
 ) -> Result<NodeReport, Ros2Error> {
     let realtime = if realtime {
-        realtime::apply(&mut realtime::OsScheduler, false)
+        let applied = realtime::apply(&mut realtime::OsScheduler, false);
+        say_refusals(&applied);
+        applied
     } else {
         realtime::RealtimeReport::default()
     };

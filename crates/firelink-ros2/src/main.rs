@@ -157,9 +157,7 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
         )?
     };
     stop.store(true, Ordering::Relaxed);
-    for e in &report.realtime.errors {
-        eprintln!("firelink ros2: real-time: {e} (running on without it)");
-    }
+    // (Real-time refusals were said on stderr as they happened.)
     if let Some(reason) = stop_request.reason() {
         eprintln!("firelink ros2: stopping: {reason}");
     }

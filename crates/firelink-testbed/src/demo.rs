@@ -66,7 +66,10 @@ pub enum DemoFault {
     )]
     StopHost,
     /// The next broadcast query is corrupted on the wire
-    /// (`corrupt@t=0us:tcode=0x0,offset=0x1800,count=1`).
+    /// (`corrupt@t=0us:tcode=0x0,offset=0x1800,count=1`): one bit of it,
+    /// drawn from the run's seed, is flipped, so its CRC fails and the
+    /// boards drop it; the query is lost (no board sees a changed value)
+    /// and the host misses that cycle's answers.
     #[cfg_attr(
         feature = "clap",
         value(help = "The next broadcast query is corrupted on the wire")
@@ -118,7 +121,7 @@ impl DemoFault {
             DemoFault::None | DemoFault::FollowingError => return FaultScript::new(),
             DemoFault::StopHost => ScriptedFault::HostPause(watchdog * 3),
             // The broadcast query: a quadlet write to the hub's query
-            // register.
+            // register, lost to the CRC error of one flipped bit.
             DemoFault::CorruptQuery => ScriptedFault::Packets {
                 effect: PacketEffect::Corrupt,
                 select: PacketSelector {
@@ -767,6 +770,46 @@ impl DemoPlan<'_> {
         }
     }
 
+    /// Whether the plan's faults can all happen: each entry within the
+    /// motion (`cycle=N` before its last cycle, `t=` before its end, half
+    /// way plus `t`), and each applicable by `target` on `port`
+    /// ([`FaultTarget::check`]; `nodes`: the boards the scan found, `None`
+    /// before the scan). Called before the boards are touched, so that a
+    /// fault that could never be applied is refused, naming the entry,
+    /// rather than reported as not detected.
+    ///
+    /// # Errors
+    /// [`TestbedError::Config`] naming the entry and the motion's length,
+    /// or what [`FaultTarget::check`] refuses.
+    pub fn check_faults<P: Port + 'static>(
+        &self,
+        target: &FaultTarget,
+        port: &P,
+        nodes: Option<&[(u8, u8)]>,
+    ) -> Result<(), TestbedError> {
+        let faults = self.faults();
+        let rate = self.period.rate_hz();
+        let total = motion_cycles(self.duration_s, rate);
+        // The fault moment is half way; after it, this long is left.
+        let left_s = (total - total / 2) as f64 / rate;
+        for entry in &faults.script.entries {
+            let late = match entry.at {
+                FaultMoment::Start => total == 0,
+                FaultMoment::Cycle(n) => n >= total,
+                FaultMoment::After(t) => t.as_secs_f64() >= left_s,
+            };
+            if late {
+                return Err(TestbedError::Config(format!(
+                    "fault {entry} cannot happen within the motion: it is {total} cycles \
+                     ({} s) long, `cycle=` counts from its start and `t=` from half way \
+                     ({left_s} s before its end)",
+                    self.duration_s
+                )));
+            }
+        }
+        target.check(&faults.script, port, nodes)
+    }
+
     /// The servo settings of the plan.
     pub fn settings(&self) -> RobotSettings {
         RobotSettings {
@@ -796,7 +839,10 @@ pub struct DemoRun {
 ///
 /// # Errors
 /// The program failed outside a cycle; a fault `target` cannot apply on
-/// this port (refused before the boards are touched).
+/// this port or that cannot happen within the motion (refused before the
+/// boards are touched: the callers check the plan before they open the
+/// port's boards, [`DemoPlan::check_faults`]; here it is checked again
+/// with the boards the scan found).
 pub fn run_program<R: DemoIo>(
     mut robot: Robot<R>,
     plan: &DemoPlan<'_>,
@@ -807,7 +853,8 @@ pub fn run_program<R: DemoIo>(
     progress: &mut dyn FnMut(DemoProgress),
 ) -> Result<DemoRun, TestbedError> {
     let faults = plan.faults();
-    target.check(&faults.script, &port_name)?;
+    let nodes = robot.io().board_nodes();
+    plan.check_faults(target, &*robot.io_mut().port_mut(), Some(&nodes))?;
     if plan.watchdog.is_off() {
         progress(DemoProgress::WatchdogOff);
     }
@@ -889,7 +936,7 @@ fn run_motion<R: DemoIo>(
 ) -> Result<Option<FaultReport>, TestbedError> {
     let (pacing, rate) = (plan.pacing, plan.period.rate_hz());
     let watchdog = plan.watchdog.period_or_zero();
-    let total = (plan.duration_s * rate).round() as u64;
+    let total = motion_cycles(plan.duration_s, rate);
     let every = (rate / 4.0).max(1.0) as u64;
     let stops = fault_stops(faults, total);
     let mut outcome = Ok(());
@@ -902,11 +949,13 @@ fn run_motion<R: DemoIo>(
         if outcome.is_err() {
             break;
         }
-        let due: Vec<&ScriptEntry> = faults
+        // Each with its index in the script (its link filter's seed).
+        let due: Vec<(usize, &ScriptEntry)> = faults
             .script
             .entries
             .iter()
-            .filter(|e| match e.at {
+            .enumerate()
+            .filter(|(_, e)| match e.at {
                 FaultMoment::Start => cycle == 0 && !moment,
                 FaultMoment::Cycle(n) => n == cycle && !moment,
                 FaultMoment::After(_) => moment,
@@ -920,13 +969,13 @@ fn run_motion<R: DemoIo>(
             faults.name.clone()
         } else {
             due.iter()
-                .map(|e| e.to_string())
+                .map(|(_, e)| e.to_string())
                 .collect::<Vec<_>>()
                 .join(";")
         }));
         let nodes = robot.io().board_nodes();
-        for entry in due {
-            target.apply(entry, robot.io_mut().port_mut(), &nodes)?;
+        for (index, entry) in due {
+            target.apply(index, entry, robot.io_mut().port_mut(), &nodes)?;
         }
         if following_error {
             // A setpoint jump the joint cannot follow within the grace time.
@@ -955,6 +1004,11 @@ fn run_motion<R: DemoIo>(
         }
         Err(e) => Err(e.into()),
     }
+}
+
+/// The cycles of a motion of `duration_s` seconds at `rate` Hz.
+fn motion_cycles(duration_s: f64, rate: f64) -> u64 {
+    (duration_s * rate).round() as u64
 }
 
 /// The motion cycles at which faults are due, in order: (cycle, whether it

@@ -253,6 +253,7 @@ impl DemoRequest {
     /// Another port, or a saw-robot-io configuration.
     pub fn mahru_options(&self) -> Result<MahruDemoOptions, TestbedError> {
         const COMMAND: &str = "firelink demo --robot mahru";
+        self.refuse_faults(COMMAND)?;
         self.port.refuse_unless(COMMAND, &[PortKind::Sim])?;
         self.port.refuse_board_count(
             COMMAND,
@@ -275,6 +276,61 @@ impl DemoRequest {
         })
     }
 
+    /// A fault (`--fault`, `--faults`) for a run that injects none: refused,
+    /// naming the option and the run (`command`).
+    fn refuse_faults(&self, command: &str) -> Result<(), TestbedError> {
+        let given = if self.fault != DemoFault::None {
+            Some(format!("--fault {}", self.fault))
+        } else {
+            self.faults.as_ref().map(|f| format!("--faults {f}"))
+        };
+        match given {
+            Some(option) => Err(TestbedError::Config(format!(
+                "{command} injects no faults: {option} cannot be honoured"
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    /// The teleoperation session's options: its own length, port (the
+    /// simulated bus) and pacing (virtual time), no faults; an option the
+    /// session would ignore is refused by name.
+    ///
+    /// # Errors
+    /// `--fault`, `--faults`, `--duration`, `--port` or `--pacing` given.
+    pub fn teleop_options(&self) -> Result<TeleopOptions, TestbedError> {
+        const COMMAND: &str = "firelink demo --teleop";
+        self.refuse_faults(COMMAND)?;
+        let default = DemoRequest::default();
+        let ignored = if self.duration_s != default.duration_s {
+            Some(format!(
+                "--duration {} (the session follows for its own 60 s)",
+                self.duration_s
+            ))
+        } else if self.port != default.port {
+            Some(format!(
+                "--port {} (the session runs on the simulated bus)",
+                self.port
+            ))
+        } else {
+            self.pacing
+                .map(|_| "--pacing (the session runs in virtual time)".to_string())
+        };
+        if let Some(option) = ignored {
+            return Err(TestbedError::Config(format!(
+                "{COMMAND} cannot honour {option}"
+            )));
+        }
+        Ok(TeleopOptions {
+            firmware: self.firmware,
+            period: match self.period {
+                Some(p) => p,
+                None => TeleopOptions::default().period,
+            },
+            ..TeleopOptions::default()
+        })
+    }
+
     /// Run the chosen demo. `realtime` is the calling thread's real-time
     /// setup for wall-clock pacing (the dVRK and Snake runs); `progress`
     /// gets the runs' events, `say` plain lines (MAHRU's steps, what the
@@ -290,18 +346,12 @@ impl DemoRequest {
     ) -> Result<DemoOutcome, TestbedError> {
         Ok(match self.chosen() {
             (_, true) => {
+                // Refused before anything is said.
+                let options = self.teleop_options()?;
                 say(
                     "teleoperation MTMR -> PSM1, 60 s of virtual time on the simulated bus \
                      (the clutch pressed from 30 to 33 s)",
                 );
-                let options = TeleopOptions {
-                    firmware: self.firmware,
-                    period: match self.period {
-                        Some(p) => p,
-                        None => TeleopOptions::default().period,
-                    },
-                    ..TeleopOptions::default()
-                };
                 DemoOutcome::Teleop(Box::new(run_teleop(&options)?))
             }
             (RobotKind::Mahru, _) => {
@@ -449,5 +499,79 @@ mod tests {
             ..DemoRequest::default()
         };
         assert!(r.dvrk_options().is_err());
+    }
+
+    #[test]
+    fn runs_that_inject_no_faults_refuse_the_options_they_would_ignore() {
+        let script: FaultScript = "mute@t=0us:id=4".parse().unwrap();
+        fn error<T>(r: Result<T, TestbedError>) -> String {
+            r.map(|_| ()).unwrap_err().to_string()
+        }
+        let mahru = DemoRequest {
+            robot: RobotKind::Mahru,
+            ..DemoRequest::default()
+        };
+        assert!(mahru.mahru_options().is_ok());
+        let e = error(
+            DemoRequest {
+                fault: DemoFault::BoardLoss,
+                ..mahru.clone()
+            }
+            .mahru_options(),
+        );
+        assert!(e.contains("--fault board-loss"), "{e}");
+        let e = error(
+            DemoRequest {
+                faults: Some(script.clone()),
+                ..mahru
+            }
+            .mahru_options(),
+        );
+        assert!(e.contains("--faults mute@t=0us:id=4"), "{e}");
+        let teleop = DemoRequest {
+            teleop: true,
+            ..DemoRequest::default()
+        };
+        assert!(teleop.teleop_options().is_ok());
+        for (request, option) in [
+            (
+                DemoRequest {
+                    fault: DemoFault::StopHost,
+                    ..teleop.clone()
+                },
+                "--fault stop-host",
+            ),
+            (
+                DemoRequest {
+                    faults: Some(script),
+                    ..teleop.clone()
+                },
+                "--faults",
+            ),
+            (
+                DemoRequest {
+                    duration_s: 5.0,
+                    ..teleop.clone()
+                },
+                "--duration 5",
+            ),
+            (
+                DemoRequest {
+                    port: PortSpec::Emulate,
+                    ..teleop.clone()
+                },
+                "--port emulate",
+            ),
+            (
+                DemoRequest {
+                    pacing: Some(Pacing::WallClock),
+                    ..teleop.clone()
+                },
+                "--pacing",
+            ),
+        ] {
+            let e = error(request.teleop_options());
+            assert!(e.contains(option), "{option}: {e}");
+        }
     }
 }

@@ -1311,30 +1311,32 @@ impl Service {
             pacing,
             faults,
         };
-        // The presets whose script the port's fault target can apply.
-        let offered = |target: &FaultTarget, name: &str| -> Vec<DemoFault> {
+        // The presets whose script the port's fault target can apply on
+        // that port (so that the console offers none that cannot work).
+        fn offered<P: firelink_host::Port + 'static>(
+            target: &FaultTarget,
+            port: &P,
+            watchdog: WatchdogSetting,
+        ) -> Vec<DemoFault> {
             DemoFault::ALL
                 .into_iter()
                 .filter(|f| *f != DemoFault::None)
                 .filter(|f| {
                     target
-                        .check(&f.script(watchdog.period_or_zero()), name)
+                        .check(&f.script(watchdog.period_or_zero()), port, None)
                         .is_ok()
                 })
                 .collect()
-        };
+        }
         let configs = || rig::board_configs(&config, Profile::Rev8, boards);
         let (shared, thread, emulator, faults) = match port {
             PortSpec::Sim(_) => {
                 let boards = crate::ports::sim_boards(port, &config, Profile::Rev8);
                 let rig = rig::RigBuilder::qla(boards).build()?;
                 let target = rig.fault_target();
-                let faults = offered(&target, "sim");
-                let (s, h) = spawn(
-                    rig.sim_port(),
-                    "sim".into(),
-                    options(Pacing::Virtual, target),
-                )?;
+                let port = rig.sim_port();
+                let faults = offered(&target, &port, watchdog);
+                let (s, h) = spawn(port, "sim".into(), options(Pacing::Virtual, target))?;
                 (s, h, None, faults)
             }
             PortSpec::Emulate => {
@@ -1342,7 +1344,7 @@ impl Service {
                 let name = format!("udp:{} (in-process emulator)", emu.addr);
                 let port = emu.port()?;
                 let target = emu.fault_target();
-                let faults = offered(&target, &name);
+                let faults = offered(&target, &port, watchdog);
                 let (s, h) = spawn(port, name, options(Pacing::WallClock, target))?;
                 (s, h, Some(emu), faults)
             }
@@ -1350,13 +1352,13 @@ impl Service {
                 let force_bridge = matches!(port, PortSpec::UdpFw(_));
                 let net = rig::net_port_with(*addr, force_bridge, Default::default())?;
                 let name = firelink_host::port::Port::name(&net).to_string();
-                let faults = offered(&FaultTarget::link(), &name);
+                let faults = offered(&FaultTarget::link(), &net, watchdog);
                 let (s, h) = spawn(net, name, options(Pacing::WallClock, FaultTarget::link()))?;
                 (s, h, None, faults)
             }
             PortSpec::Fw(card) => {
                 let fw = crate::ports::fw_port(*card, &crate::ports::PortOptions::default())?;
-                let faults = offered(&FaultTarget::link(), &port.to_string());
+                let faults = offered(&FaultTarget::link(), &fw, watchdog);
                 let options = options(Pacing::WallClock, FaultTarget::link());
                 let (s, h) = spawn(fw, port.to_string(), options)?;
                 (s, h, None, faults)

@@ -8,5 +8,6 @@ mod alloc_free;
 mod common;
 mod configs;
 mod console_schema;
+mod pot_check;
 mod runner;
 mod runner_alloc;

@@ -10,6 +10,7 @@ Needs FIRELINK_ROS2_BIN (the firelink-ros2 binary).
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import subprocess
@@ -105,10 +106,28 @@ def check_handoff(report: dict) -> None:
     assert report["wakes_ready_timeout"][0] > 0, report
 
 
+@functools.lru_cache(maxsize=None)
+def sched_fifo_refused() -> str | None:
+    """Why this machine refuses SCHED_FIFO even to root (a container
+    without CAP_SYS_NICE, a cgroup with no real-time budget), or None:
+    asked once, of a throw-away child process, not of the test."""
+    probe = ("import os; "
+             "os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    if out.returncode == 0:
+        return None
+    return (out.stderr.strip().splitlines() or ["refused"])[-1]
+
+
 def check_realtime(report: dict) -> None:
     """Root (which these tests need) may use SCHED_FIFO: by default every
     thread on a servo point's path got its priority and nothing was
-    refused (the report names each thread and what it got)."""
+    refused (the report names each thread and what it got). Where the
+    machine refuses SCHED_FIFO itself, there is nothing to check: skipped,
+    saying why."""
+    refused = sched_fifo_refused()
+    if refused is not None:
+        pytest.skip(f"this machine refuses SCHED_FIFO ({refused}): the real-time assertion cannot hold")
     rt = report["realtime"]
     assert rt["requested"] and rt["applied"] and rt["memory_locked"], rt
     assert sorted(t["thread"] for t in rt["threads"]) == ["dds_event_loop", "node", "robot_loop"], rt
@@ -133,8 +152,9 @@ def test_a_cyclone_client_enables_homes_and_servos_an_arm():
         assert report["refused"] >= 1, report
         assert report["measured_js_hz"] > 0, report
         check_handoff(report)
-        check_realtime(report)
         Path(os.environ.get("ROS2_REPORT", "target/ros2-report.json")).write_text(json.dumps({"client": result, "node": report}, indent=1))
+        # Last: it skips, saying why, where the machine refuses SCHED_FIFO.
+        check_realtime(report)
     finally:
         ns.delete()
 

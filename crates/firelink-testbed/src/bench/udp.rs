@@ -177,6 +177,10 @@ impl<P: Port> Port for Recorder<P> {
     fn add_link_filter(&mut self, filter: Box<dyn LinkFilter>) -> firelink_host::Result<()> {
         self.inner.add_link_filter(filter)
     }
+
+    fn takes_link_filters(&self) -> bool {
+        self.inner.takes_link_filters()
+    }
 }
 
 /// Largest payload a block request asks for (2048 bytes), zeros.

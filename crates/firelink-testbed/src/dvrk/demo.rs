@@ -188,6 +188,9 @@ fn run_robot<P: Port + 'static>(
         .unwrap_or_else(|| options.port.default_pacing());
     let rt = realtime_status(pacing, realtime);
     let wall = Instant::now();
+    // The faults are checked before the boards are touched (and again
+    // with the boards the scan found).
+    demo_plan(options, pacing).check_faults(target, &port, None)?;
     let (mut robot, plan) = open_robot(port, options, pacing, |io, scan| {
         progress(DemoProgress::Found {
             boards: scan.boards.len(),
@@ -199,6 +202,19 @@ fn run_robot<P: Port + 'static>(
     robot.set_stop_request(stop.clone());
     let done = run_program(robot, &plan, target, port_name, rt, wall, progress)?;
     Ok(done.report)
+}
+
+/// The demo plan of `options` with `pacing`.
+fn demo_plan(options: &DemoOptions, pacing: Pacing) -> DemoPlan<'_> {
+    DemoPlan {
+        config: &options.config,
+        period: options.period,
+        duration_s: options.duration_s,
+        fault: options.fault,
+        script: options.faults.as_ref(),
+        watchdog: options.watchdog,
+        pacing,
+    }
 }
 
 /// Scan `port`, set up its boards for `options`' protocol (`found` is
@@ -218,15 +234,7 @@ pub(crate) fn open_robot<'a, P: Port>(
         },
     )?;
     found(&io, &scan);
-    let plan = DemoPlan {
-        config: &options.config,
-        period: options.period,
-        duration_s: options.duration_s,
-        fault: options.fault,
-        script: options.faults.as_ref(),
-        watchdog: options.watchdog,
-        pacing,
-    };
+    let plan = demo_plan(options, pacing);
     let robot = Robot::new(io, &options.config, plan.settings())?;
     Ok((robot, plan))
 }

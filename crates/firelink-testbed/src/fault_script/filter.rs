@@ -10,14 +10,22 @@
 //!   (the host's scan, [`ScriptFilter::for_scan`]); an entry naming a
 //!   board not in it is refused, naming the board;
 //! - `t=` moments count on the port's clock from the filter's creation;
-//!   `cycle=` moments from the cycle the servo loop reports through
-//!   [`ScriptHandle::set_cycle`];
+//!   `cycle=` moments from the cycle reported through
+//!   [`ScriptHandle::set_cycle`]: only for a caller that puts a whole
+//!   script on its port itself ([`ScriptFilter::for_scan`]) and counts its
+//!   own cycles; a [`FaultTarget`](super::FaultTarget)'s filters never
+//!   hold a `cycle=` entry (the servo loop applies it at its cycle, as
+//!   a `t=0us` filter);
 //! - seen from the host, an unplugged board is a muted one (the filter
 //!   cannot reset a bus in another process);
 //! - host pauses are the servo loop's to do; the filter leaves them
 //!   alone;
 //! - the filter allocates nothing per packet and takes no lock: counts
-//!   and the cycle are atomics shared with the [`ScriptHandle`].
+//!   and the cycle are atomics shared with the [`ScriptHandle`];
+//! - once every rule is a `count=` rule that has fired its count, the
+//!   filter is spent ([`LinkFilter::is_spent`]) and the port lets it go
+//!   when the next filter comes (faults injected one after another do not
+//!   lengthen every packet's path).
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -60,8 +68,10 @@ pub struct ScriptHandle {
 }
 
 impl ScriptHandle {
-    /// The servo loop is at cycle `cycle` (`cycle=` entries at or before
-    /// it are in force).
+    /// The caller's loop is at cycle `cycle` (`cycle=` entries at or
+    /// before it are in force). Only a filter made directly from a script
+    /// with `cycle=` entries needs it (see the module docs); the servo
+    /// loop's [`FaultTarget`](super::FaultTarget) does not use it.
     pub fn set_cycle(&self, cycle: u64) {
         self.shared.cycle.store(cycle, Ordering::Relaxed);
     }
@@ -202,6 +212,14 @@ fn quadlet(packet: &[u8], q: usize) -> Option<u32> {
 }
 
 impl LinkFilter for ScriptFilter {
+    /// Every rule is a `count=` rule that has fired its count (a silenced
+    /// board and a `rate=` rule go on for good).
+    fn is_spent(&self) -> bool {
+        self.rules
+            .iter()
+            .all(|r| matches!(r.action, Action::Packets { left: Some(0), .. }))
+    }
+
     fn packet(&mut self, at_ps: u64, _direction: Direction, packet: &mut [u8]) -> Verdict {
         self.shared.packets.fetch_add(1, Ordering::Relaxed);
         let cycle = self.shared.cycle.load(Ordering::Relaxed);

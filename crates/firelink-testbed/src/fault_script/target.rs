@@ -6,9 +6,16 @@
 //!
 //! Rules:
 //! - [`FaultTarget::check`] refuses, before a run, every entry this port
-//!   cannot apply, naming the entry and the port;
+//!   cannot apply, naming the entry and the port: what `apply` would
+//!   refuse later (a board the target does not have, a `dest=` board the
+//!   host's scan did not find, packet rules on a port that takes no link
+//!   filters, the simulated bus's target on another port);
 //!   [`FaultTarget::apply`] applies one entry now; its `t=` is then an
 //!   offset from now (its moment is the caller's business);
+//! - each link filter draws from its own seed, mixed from the target's
+//!   seed (the run's) and the entry's index in its script: two `rate=`
+//!   rules never draw the same sequence, and the same seed gives the
+//!   same run;
 //! - on the simulated bus (the rig's target): a board fault is a timed
 //!   bus fault on the board's node as the rig built it (by board ID,
 //!   never by its place), a packet rule is a bus fault rule from now on,
@@ -23,7 +30,10 @@
 //!   cannot be silenced (with the broadcast protocol one block from the
 //!   hub carries every board's state);
 //! - a host pause starts at its moment (`t=0us` or a cycle): a later `t=`
-//!   is refused.
+//!   is refused;
+//! - on the simulated bus a packet rule aimed at a board that is off the
+//!   bus (unplugged) is refused, naming the board: the bus's rule without
+//!   a destination would hit every board.
 
 use std::any::Any;
 use std::fmt;
@@ -113,26 +123,58 @@ impl FaultTarget {
         FaultTarget::default()
     }
 
-    /// The seed of the link filters' random draws (0 by default).
+    /// The run's seed, from which each link filter's random draws are
+    /// seeded (with the entry's index; 0 by default).
     pub fn with_seed(mut self, seed: u64) -> FaultTarget {
         self.seed = seed;
         self
     }
 
-    /// Whether every entry of `script` can be applied here; the error
-    /// names the first that cannot and the port (`port_name`).
+    /// Whether every entry of `script` can be applied on `port`; `nodes`
+    /// are the boards the host's scan found (board ID, node), `None`
+    /// before the scan (a `dest=` board is then checked once they are
+    /// known). The error names the first entry that cannot and the port.
     ///
     /// # Errors
-    /// [`TestbedError::Config`] naming the entry, the port and why.
-    pub fn check(&self, script: &FaultScript, port_name: &str) -> Result<(), TestbedError> {
+    /// [`TestbedError::Config`] naming the entry, the port and why;
+    /// [`TestbedError::NoSuchBoard`] for a board not there.
+    pub fn check<P: Port + 'static>(
+        &self,
+        script: &FaultScript,
+        port: &P,
+        nodes: Option<&[(u8, u8)]>,
+    ) -> Result<(), TestbedError> {
+        let on = OnPort::of(port, nodes);
         for entry in &script.entries {
-            self.check_entry(entry, port_name)?;
+            self.check_entry(entry, &on)?;
         }
         Ok(())
     }
 
-    fn check_entry(&self, entry: &ScriptEntry, port_name: &str) -> Result<(), TestbedError> {
-        let refused = |why: &str| refusal(entry, port_name, why);
+    fn check_entry(&self, entry: &ScriptEntry, on: &OnPort<'_>) -> Result<(), TestbedError> {
+        let refused = |why: &str| refusal(entry, on.name, why);
+        let filter = |dest: Option<u8>| {
+            if !on.takes_filters {
+                return Err(refused(
+                    "this port does not show its packets to a link filter (packet rules \
+                     need the sim port, the in-process emulator or a UDP or FireWire link)",
+                ));
+            }
+            match (dest, on.nodes) {
+                (Some(d), Some(nodes)) if !nodes.iter().any(|(id, _)| *id == d) => {
+                    Err(TestbedError::NoSuchBoard {
+                        role: "packets' destination board",
+                        board: d,
+                    })
+                }
+                _ => Ok(()),
+            }
+        };
+        if matches!(self.place, Place::Sim { .. }) && !on.sim_port {
+            return Err(refused(
+                "the simulated bus's target on another port (it applies faults on a SimPort)",
+            ));
+        }
         match (entry.fault, &self.place) {
             (ScriptedFault::HostPause(_), _) => match entry.at {
                 FaultMoment::After(t) if t > SimDuration::ZERO => Err(refused(
@@ -161,7 +203,9 @@ impl FaultTarget {
                 "a board cannot be silenced from the host's side of a link (behind a hub one \
                  block carries every board's state); use the sim port or the in-process emulator",
             )),
-            (ScriptedFault::Packets { .. }, Place::Emulator(_) | Place::Link) => Ok(()),
+            (ScriptedFault::Packets { select, .. }, Place::Emulator(_) | Place::Link) => {
+                filter(select.dest)
+            }
         }
     }
 
@@ -174,11 +218,12 @@ impl FaultTarget {
     /// does not show its packets to a link filter.
     pub fn apply<P: Port + 'static>(
         &self,
+        index: usize,
         entry: &ScriptEntry,
         port: &mut P,
         nodes: &[(u8, u8)],
     ) -> Result<(), TestbedError> {
-        self.check_entry(entry, port.name())?;
+        self.check_entry(entry, &OnPort::of(port, Some(nodes)))?;
         let offset = match entry.at {
             FaultMoment::After(t) => t,
             FaultMoment::Start | FaultMoment::Cycle(_) => SimDuration::ZERO,
@@ -200,14 +245,15 @@ impl FaultTarget {
             }
             Place::Emulator(faults) => match entry.fault {
                 ScriptedFault::Board(b) => faults.board_fault(b, offset),
-                _ => self.filter(entry, offset, port, nodes),
+                _ => self.filter(index, entry, offset, port, nodes),
             },
-            Place::Link => self.filter(entry, offset, port, nodes),
+            Place::Link => self.filter(index, entry, offset, port, nodes),
         }
     }
 
     /// Every entry of `script` now, in order (each moment taken as now,
-    /// `t=` counted from now): an injected fault's script.
+    /// `t=` counted from now; entry `i` is index `i` for its seed): an
+    /// injected fault's script.
     ///
     /// # Errors
     /// As [`apply`](Self::apply), for the first entry that fails.
@@ -217,26 +263,60 @@ impl FaultTarget {
         port: &mut P,
         nodes: &[(u8, u8)],
     ) -> Result<(), TestbedError> {
-        for entry in &script.entries {
-            self.apply(entry, port, nodes)?;
+        for (index, entry) in script.entries.iter().enumerate() {
+            self.apply(index, entry, port, nodes)?;
         }
         Ok(())
     }
 
-    /// A packet rule as a link filter on the host's port, from now + `offset`.
+    /// A packet rule (entry `index` of its script) as a link filter on the
+    /// host's port, from now + `offset`.
     fn filter<P: Port>(
         &self,
+        index: usize,
         entry: &ScriptEntry,
         offset: SimDuration,
         port: &mut P,
         nodes: &[(u8, u8)],
     ) -> Result<(), TestbedError> {
         let script = FaultScript::new().with(FaultMoment::After(offset), entry.fault);
-        let (filter, _) = ScriptFilter::new(&script, nodes, port.now_ps(), self.seed)?;
+        let seed = entry_seed(self.seed, index);
+        let (filter, _) = ScriptFilter::new(&script, nodes, port.now_ps(), seed)?;
         let name = port.name().to_string();
         port.add_link_filter(Box::new(filter))
             .map_err(|e| refusal(entry, &name, &e.to_string()))
     }
+}
+
+/// What an entry is checked against: the port's name, whether it takes
+/// link filters and is the simulated bus's, and the boards the host's
+/// scan found (`None`: not yet scanned).
+struct OnPort<'a> {
+    name: &'a str,
+    takes_filters: bool,
+    sim_port: bool,
+    nodes: Option<&'a [(u8, u8)]>,
+}
+
+impl<'a> OnPort<'a> {
+    fn of<P: Port + 'static>(port: &'a P, nodes: Option<&'a [(u8, u8)]>) -> OnPort<'a> {
+        OnPort {
+            name: port.name(),
+            takes_filters: port.takes_link_filters(),
+            sim_port: (port as &dyn Any).is::<SimPort>(),
+            nodes,
+        }
+    }
+}
+
+/// The seed of entry `index`'s link filter in a run seeded with `seed`
+/// (SplitMix64's finaliser over both: nearby seeds and indexes give
+/// unrelated streams).
+pub(crate) fn entry_seed(seed: u64, index: usize) -> u64 {
+    let mut z = seed ^ (index as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
 }
 
 /// "fault ENTRY cannot be applied on PORT: WHY".
@@ -305,7 +385,21 @@ pub(crate) fn apply_on_bus(
             occurrence,
         } => {
             let phy = match select.dest {
-                Some(d) => bus.phy_id(board_node(boards, d, "packets' destination board")?),
+                Some(d) => {
+                    let node = board_node(boards, d, "packets' destination board")?;
+                    // No physical ID: the board is off the bus, and a rule
+                    // without a destination would hit every board.
+                    Some(bus.phy_id(node).ok_or_else(|| {
+                        TestbedError::Config(format!(
+                            "packets to board {d} cannot be {}: board {d} is off the bus \
+                             (unplugged)",
+                            match effect {
+                                PacketEffect::Drop => "dropped",
+                                PacketEffect::Corrupt => "corrupted",
+                            }
+                        ))
+                    })?)
+                }
                 None => None,
             };
             let after = (offset > SimDuration::ZERO).then_some(at);

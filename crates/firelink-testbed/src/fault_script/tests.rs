@@ -283,7 +283,10 @@ fn the_rig_turns_a_script_into_the_bus_plan() {
     assert_eq!(e.to_string(), "muted board 5: no such board on the rig");
     for (text, why) in [
         ("drop@cycle=3:rate=1", "does not count servo cycles"),
-        ("drop@t=5us:rate=1", "start with the run (@start)"),
+        (
+            "drop@t=5us:rate=1",
+            "a packet rule from a later moment is the servo loop's",
+        ),
         ("host-pause@start:for=5us", "the host pauses itself"),
     ] {
         let e = qla(&[4])
@@ -312,4 +315,232 @@ fn the_emulate_flags_are_a_script() {
         "drop@start:rate=0.01;corrupt@start:rate=0.02;unplug@t=0us:id=3;mute@t=0us:id=4"
     );
     assert!(crate::rig::served::BusFaults::default().script().is_empty());
+}
+
+/// A port that does no I/O: it keeps the link filters a fault target adds
+/// (or refuses them, as the Ethernet-only network's port does), so that a
+/// test can put made-up packets through them.
+struct FilterPort {
+    takes_filters: bool,
+    filters: firelink_host::port::LinkFilters,
+}
+
+impl FilterPort {
+    fn new(takes_filters: bool) -> FilterPort {
+        FilterPort {
+            takes_filters,
+            filters: Default::default(),
+        }
+    }
+
+    /// Send `packet` through the filters: whether it passed.
+    fn send(&mut self, mut packet: Vec<u8>) -> bool {
+        self.filters.outgoing(0, &mut packet) == Verdict::Pass
+    }
+}
+
+impl firelink_host::Port for FilterPort {
+    fn name(&self) -> &str {
+        "filter-port"
+    }
+    fn read_quadlet(&mut self, _: firelink_host::Dest, _: u64) -> firelink_host::Result<u32> {
+        Err(firelink_host::HostError::InvalidRequest {
+            what: "a filter port does no I/O",
+            value: 0,
+        })
+    }
+    fn write_quadlet(
+        &mut self,
+        _: firelink_host::Dest,
+        _: u64,
+        _: u32,
+    ) -> firelink_host::Result<()> {
+        Ok(())
+    }
+    fn read_block(
+        &mut self,
+        _: firelink_host::Dest,
+        _: u64,
+        _: &mut [u8],
+    ) -> firelink_host::Result<()> {
+        Err(firelink_host::HostError::InvalidRequest {
+            what: "a filter port does no I/O",
+            value: 0,
+        })
+    }
+    fn write_block(
+        &mut self,
+        _: firelink_host::Dest,
+        _: u64,
+        _: &[u8],
+    ) -> firelink_host::Result<()> {
+        Ok(())
+    }
+    fn wait(&mut self, _: Duration) {}
+    fn now(&self) -> Duration {
+        Duration::ZERO
+    }
+    fn generation(&self) -> u32 {
+        0
+    }
+    fn add_link_filter(&mut self, filter: Box<dyn LinkFilter>) -> firelink_host::Result<()> {
+        if !self.takes_filters {
+            return Err(firelink_host::HostError::InvalidRequest {
+                what: "this port does not show its packets to filters",
+                value: 0,
+            });
+        }
+        self.filters.add(filter);
+        Ok(())
+    }
+    fn takes_link_filters(&self) -> bool {
+        self.takes_filters
+    }
+}
+
+/// `check` refuses before the run what `apply` would refuse later: packet
+/// rules on a port that takes no link filters, a `dest=` board the scan
+/// did not find, the simulated bus's target on another port.
+#[test]
+fn check_refuses_what_apply_would_refuse_later() {
+    let drop: FaultScript = "drop@start:rate=0.5".parse().unwrap();
+    let link = FaultTarget::link();
+    let e = link
+        .check(&drop, &FilterPort::new(false), None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("drop@start:rate=0.5 cannot be applied on filter-port")
+            && e.contains("does not show its packets"),
+        "{e}"
+    );
+    // ... which `apply` refuses too.
+    let mut no_filters = FilterPort::new(false);
+    assert!(link.apply_all(&drop, &mut no_filters, &[]).is_err());
+    assert!(link.check(&drop, &FilterPort::new(true), None).is_ok());
+    let to_nine: FaultScript = "drop@start:dest=9,rate=1".parse().unwrap();
+    let port = FilterPort::new(true);
+    // Unknown before the scan; refused once the scan has not found it.
+    assert!(link.check(&to_nine, &port, None).is_ok());
+    let e = link
+        .check(&to_nine, &port, Some(&[(0, 0), (1, 1)]))
+        .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "packets' destination board 9: no such board on the rig"
+    );
+    assert!(link.check(&to_nine, &port, Some(&[(9, 2)])).is_ok());
+    // The rig's target applies faults on its simulated bus only.
+    let rig = qla(&[4]).build().unwrap();
+    let e = rig
+        .fault_target()
+        .check(&"mute@start:id=4".parse().unwrap(), &port, None)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("simulated bus's target on another port"), "{e}");
+    let target = rig.fault_target();
+    let sim = rig.sim_port();
+    assert!(
+        target
+            .check(&"mute@start:id=4".parse().unwrap(), &sim, None)
+            .is_ok()
+    );
+}
+
+/// A packet rule aimed at a board that is off the bus is refused, naming
+/// it (the bus's rule would otherwise have no destination: every board).
+#[test]
+fn a_packet_rule_for_an_unplugged_board_is_refused() {
+    let rig = qla(&[4, 5, 6]).build().unwrap();
+    let boards = rig.boards.clone();
+    let mut port = rig.sim_port();
+    let bus = port.bus_mut();
+    apply_on_bus(
+        bus,
+        &boards,
+        ScriptedFault::Board(BoardFault::Unplug(4)),
+        SimDuration::ZERO,
+    )
+    .unwrap();
+    bus.run_until(bus.now() + SimDuration::from_millis(5));
+    let to = |board: u8| ScriptedFault::Packets {
+        effect: PacketEffect::Drop,
+        select: PacketSelector {
+            dest: Some(board),
+            ..PacketSelector::default()
+        },
+        occurrence: Occurrence::Count(1),
+    };
+    let e = apply_on_bus(bus, &boards, to(4), SimDuration::ZERO).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "configuration: packets to board 4 cannot be dropped: board 4 is off the bus (unplugged)"
+    );
+    // Board 4 is the chain's leaf (the PC at the other end): its cable
+    // takes it alone; the boards still on the bus take the rule.
+    let on_bus: Vec<u8> = boards
+        .iter()
+        .filter(|(_, n)| bus.phy_id(*n).is_some())
+        .map(|(id, _)| *id)
+        .collect();
+    assert!(!on_bus.is_empty() && !on_bus.contains(&4), "{on_bus:?}");
+    for id in on_bus {
+        apply_on_bus(bus, &boards, to(id), SimDuration::ZERO).unwrap();
+    }
+}
+
+/// Which of 64 made-up requests a filter drops.
+fn drops(port: &mut FilterPort) -> Vec<bool> {
+    (0..64).map(|_| !port.send(request(0, 0))).collect()
+}
+
+/// Each link filter draws from its own seed (the run's, mixed with the
+/// entry's index): two `rate=` rules do not drop the same packets, and
+/// the same seed drops the same ones again.
+#[test]
+fn link_filters_draw_from_the_runs_seed_and_their_entry() {
+    let script: FaultScript = "drop@start:rate=0.5;drop@start:rate=0.5".parse().unwrap();
+    let run = |seed: u64, entry: usize| {
+        let mut port = FilterPort::new(true);
+        let target = FaultTarget::link().with_seed(seed);
+        target
+            .apply(entry, &script.entries[entry], &mut port, &[])
+            .unwrap();
+        drops(&mut port)
+    };
+    let (first, second) = (run(7, 0), run(7, 1));
+    assert_ne!(first, second, "two rate= rules drew the same sequence");
+    assert_eq!(first, run(7, 0), "the same seed did not give the same run");
+    assert_ne!(first, run(8, 0), "another seed gave the same run");
+    // Both filters on one port, as a run puts them: reproduced too.
+    let both = |seed| {
+        let mut port = FilterPort::new(true);
+        FaultTarget::link()
+            .with_seed(seed)
+            .apply_all(&script, &mut port, &[])
+            .unwrap();
+        drops(&mut port)
+    };
+    assert_eq!(both(7), both(7));
+}
+
+/// Faults injected one after another (the service's, as the web console
+/// does it) do not lengthen the port's filter chain: a `count=` filter
+/// that has fired is let go when the next comes; one that goes on for
+/// good stays.
+#[test]
+fn many_injections_do_not_grow_the_filter_chain() {
+    let query = crate::demo::DemoFault::CorruptQuery.script(Duration::from_millis(20));
+    let target = FaultTarget::link();
+    let mut port = FilterPort::new(true);
+    for _ in 0..50 {
+        target.apply_all(&query, &mut port, &[]).unwrap();
+        assert_eq!(port.filters.len(), 1);
+        // The query it corrupts goes by.
+        port.send(request(0, 0x1800));
+    }
+    let rate: FaultScript = "drop@start:rate=0.1".parse().unwrap();
+    target.apply_all(&rate, &mut port, &[]).unwrap();
+    target.apply_all(&query, &mut port, &[]).unwrap();
+    assert_eq!(port.filters.len(), 2, "the rate= filter goes on");
 }

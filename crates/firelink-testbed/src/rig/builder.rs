@@ -37,7 +37,7 @@ use firelink_host::sim::SimPort;
 use firelink_wire::packet::Tcode;
 
 use crate::TestbedError;
-use crate::fault_script::target::bus_rule;
+use crate::fault_script::apply_on_bus;
 use crate::fault_script::{BoardFault, FaultMoment, FaultScript, FaultTarget, ScriptedFault};
 
 /// Which family of robot a rig carries.
@@ -201,9 +201,11 @@ impl RigBuilder {
     /// from the start (`@start`) become the bus's rules, a board's loss at
     /// `t=` after the fault moment is held like [`board_fault`](Self::board_fault)'s,
     /// at that offset, and one from the start is scheduled at build.
-    /// Boards are named by ID. What the simulated bus cannot do by itself
-    /// (a packet rule from a later moment, anything at a servo cycle, a
-    /// host pause: the servo loop's) is refused at build.
+    /// Boards are named by ID. Entries from the start are translated to
+    /// the bus as the servo loop's fault target does it (one translation).
+    /// What the rig cannot hold until its fault moment (a packet rule from
+    /// a later moment, anything at a servo cycle, a host pause: the servo
+    /// loop's, through [`Rig::fault_target`]) is refused at build.
     pub fn fault_script(mut self, script: &FaultScript) -> RigBuilder {
         self.script.entries.extend(script.entries.iter().copied());
         self
@@ -261,46 +263,27 @@ impl RigBuilder {
             },
         );
         let script = self.script;
-        let resolve = |built: &BoardRig, board: u8, role: &'static str| {
-            ids.iter()
-                .position(|&id| id == board)
-                .and_then(|i| built.boards.get(i).copied())
-                .ok_or(TestbedError::NoSuchBoard { role, board })
-        };
+        // Each board's node by ID, as the fault target knows them.
+        let by_id: Vec<(u8, NodeHandle)> = ids.iter().copied().zip(built.boards.clone()).collect();
         let mut scripted_faults = Vec::new();
         for entry in &script.entries {
             let refused = |why: &str| TestbedError::Config(format!("fault {entry}: {why}"));
             match (entry.at, entry.fault) {
-                (
-                    FaultMoment::Start,
-                    ScriptedFault::Packets {
-                        effect,
-                        select,
-                        occurrence,
-                    },
-                ) => {
-                    let phy = match select.dest {
-                        Some(board) => {
-                            let node = resolve(&built, board, "packets' destination board")?;
-                            built.bus.phy_id(node)
-                        }
-                        None => None,
-                    };
-                    built
-                        .bus
-                        .add_fault_rule(bus_rule(effect, select, occurrence, phy, None));
+                // From the start: on the bus now, translated as the servo
+                // loop's fault target does it (one place).
+                (FaultMoment::Start, ScriptedFault::Packets { .. } | ScriptedFault::Board(_)) => {
+                    apply_on_bus(&mut built.bus, &by_id, entry.fault, SimDuration::ZERO)?;
                 }
-                (at @ (FaultMoment::Start | FaultMoment::After(_)), ScriptedFault::Board(b)) => {
-                    let node = resolve(&built, b.board_id(), b.role())?;
-                    match at {
-                        FaultMoment::After(offset) => {
-                            scripted_faults.push((offset, b.on_node(node)))
-                        }
-                        _ => {
-                            let now = built.bus.now();
-                            built.bus.schedule_fault(now, b.on_node(node));
-                        }
-                    }
+                (FaultMoment::After(offset), ScriptedFault::Board(b)) => {
+                    let node = by_id
+                        .iter()
+                        .find(|(id, _)| *id == b.board_id())
+                        .map(|(_, n)| *n)
+                        .ok_or(TestbedError::NoSuchBoard {
+                            role: b.role(),
+                            board: b.board_id(),
+                        })?;
+                    scripted_faults.push((offset, b.on_node(node)));
                 }
                 (_, ScriptedFault::HostPause(_)) => {
                     return Err(refused(
@@ -314,7 +297,9 @@ impl RigBuilder {
                 }
                 (FaultMoment::After(_), ScriptedFault::Packets { .. }) => {
                     return Err(refused(
-                        "the bus's packet rules start with the run (@start); from a later moment, use the link filter",
+                        "the rig holds only board faults until its fault moment; a packet rule \
+                         from a later moment is the servo loop's: give it to the rig's fault \
+                         target (Rig::fault_target), which applies it when due",
                     ));
                 }
             }

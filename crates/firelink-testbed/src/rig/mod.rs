@@ -321,10 +321,14 @@ impl Emulator {
             // goes on (datagrams wait in the socket meanwhile).
             loop {
                 firelink_emulate::serve(&mut bridge, &unicast, None, &wake, |_| {})?;
+                // Cleared before the stop flag is read: a stop that comes
+                // after this sets `wake` again, so the next `serve`
+                // returns at once and the flag is seen (cleared after the
+                // read, that stop's wake-up would be lost and `join` hang).
+                wake.store(false, Ordering::SeqCst);
                 if flag.load(Ordering::SeqCst) {
                     break;
                 }
-                wake.store(false, Ordering::SeqCst);
                 while let Ok(r) = requests.try_recv() {
                     let applied = crate::fault_script::apply_on_bus(
                         bridge.bus_mut(),

@@ -208,14 +208,15 @@ pub fn run_snake_demo(
         "Snake nodes come from the configuration and have no QLA firmware",
     )?;
     let nodes = node_configs(&options.config, options.seed)?;
-    // Any other link: only what the host's side can do.
-    let link = FaultTarget::link();
+    // Any other link: only what the host's side can do. Link filters draw
+    // from the run's seed.
+    let link = FaultTarget::link().with_seed(options.seed);
     let out = match &options.port {
         PortSpec::Sim(_) => {
             let (port, target) = sim_port_with_faults(nodes, true, None)?;
             run_on(
                 port,
-                &target,
+                &target.with_seed(options.seed),
                 options,
                 SIM_NAME.into(),
                 realtime,
@@ -226,7 +227,7 @@ pub fn run_snake_demo(
             let emu = emulator(nodes)?;
             let name = format!("udp:{} (in-process firelink emulate)", emu.addr);
             let port = emu.port_with(options.udp_wait)?;
-            let target = emu.fault_target();
+            let target = emu.fault_target().with_seed(options.seed);
             let r = run_on(port, &target, options, name, realtime, &mut progress);
             emu.stop()?;
             r?
@@ -300,15 +301,6 @@ fn run_on<P: Port + 'static>(
         .unwrap_or_else(|| options.port.default_pacing());
     let rt = realtime_status(pacing, realtime);
     let wall = Instant::now();
-    let mut system = SnakeSystem::open(port)?;
-    let ids: Vec<u8> = system.nodes().iter().map(|n| n.board_id()).collect();
-    progress(DemoProgress::Found {
-        boards: ids.len(),
-        port: port_name.clone(),
-        reason: "Snake nodes found by their version register".into(),
-        protocol: "per-node block read and block write",
-    });
-    prepare(&mut system, &options.config)?;
     let plan = DemoPlan {
         config: &options.config,
         period: options.period,
@@ -318,6 +310,18 @@ fn run_on<P: Port + 'static>(
         watchdog: options.watchdog,
         pacing,
     };
+    // The faults are checked before the nodes are touched (and again with
+    // the nodes found).
+    plan.check_faults(target, &port, None)?;
+    let mut system = SnakeSystem::open(port)?;
+    let ids: Vec<u8> = system.nodes().iter().map(|n| n.board_id()).collect();
+    progress(DemoProgress::Found {
+        boards: ids.len(),
+        port: port_name.clone(),
+        reason: "Snake nodes found by their version register".into(),
+        protocol: "per-node block read and block write",
+    });
+    prepare(&mut system, &options.config)?;
     let robot = Robot::new(system, &options.config, plan.settings())?;
     let run = run_program(robot, &plan, target, port_name, rt, wall, progress)?;
     let period_us = options.period.as_micros_f64();

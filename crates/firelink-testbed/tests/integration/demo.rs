@@ -328,18 +328,50 @@ fn a_board_lost_at_a_cycle_is_named_and_every_amplifier_ends_off() {
 }
 
 /// What a port cannot apply is refused by name before the boards are
-/// touched: a board the rig does not have, a preset and a script at once.
+/// touched (not even scanned: no event at all): a board the rig does not
+/// have, an entry that cannot happen within the motion, a preset and a
+/// script at once.
 #[test]
 fn faults_a_port_cannot_apply_are_refused_before_the_run() {
     let refused = |options: DemoOptions| {
         let mut events = Vec::new();
         let e = run_demo(&options, None, |e| events.push(e)).unwrap_err();
-        assert!(
-            !events.iter().any(|e| matches!(e, DemoProgress::Configured)),
-            "{events:?}"
-        );
+        assert!(events.is_empty(), "{events:?}");
         e.to_string()
     };
+    // 0.1 s at 6 kHz: 600 motion cycles, the fault moment at the 300th,
+    // 0.05 s before the end.
+    for late in [
+        "mute@cycle=600:id=4",
+        "drop@cycle=100000:rate=0.5",
+        "mute@t=50000us:id=4",
+    ] {
+        let e = refused(DemoOptions {
+            faults: Some(late.parse().unwrap()),
+            ..short(DemoFault::None)
+        });
+        assert_eq!(
+            e,
+            format!(
+                "configuration: fault {late} cannot happen within the motion: it is 600 \
+                 cycles (0.1 s) long, `cycle=` counts from its start and `t=` from half way \
+                 (0.05 s before its end)"
+            )
+        );
+    }
+    // The last cycle and the last moment before the end are within it.
+    for within in ["mute@cycle=599:id=4", "mute@t=49000us:id=4"] {
+        let r = run_demo(
+            &DemoOptions {
+                faults: Some(within.parse().unwrap()),
+                ..short(DemoFault::None)
+            },
+            None,
+            |_| {},
+        )
+        .unwrap();
+        assert_eq!(r.fault_injected, within);
+    }
     let e = refused(DemoOptions {
         faults: Some("mute@cycle=10:id=9".parse().unwrap()),
         ..short(DemoFault::None)

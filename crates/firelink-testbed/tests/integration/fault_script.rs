@@ -300,43 +300,48 @@ fn a_corrupt_query_over_udp_is_counted_by_the_bridge_and_the_run_recovers() {
 #[test]
 fn a_fault_target_refuses_what_its_port_cannot_do() {
     use firelink_testbed::fault_script::FaultTarget;
+    let emu = Emulator::start(used_boards(&config())).expect("emulator");
+    let udp = port(&emu);
+    let name = udp.name().to_string();
     let mute: FaultScript = "mute@t=0us:id=4".parse().unwrap();
-    let e = FaultTarget::link()
-        .check(&mute, "udp:127.0.0.1:1234")
-        .unwrap_err();
+    let e = FaultTarget::link().check(&mute, &udp, None).unwrap_err();
     assert_eq!(
         e.to_string(),
-        "configuration: fault mute@t=0us:id=4 cannot be applied on udp:127.0.0.1:1234: a board \
-         cannot be silenced from the host's side of a link (behind a hub one block carries \
-         every board's state); use the sim port or the in-process emulator"
+        format!(
+            "configuration: fault mute@t=0us:id=4 cannot be applied on {name}: a board \
+             cannot be silenced from the host's side of a link (behind a hub one block \
+             carries every board's state); use the sim port or the in-process emulator"
+        )
     );
     let pause: FaultScript = "host-pause@t=10us:for=100us".parse().unwrap();
-    let e = FaultTarget::link().check(&pause, "fw").unwrap_err();
+    let e = FaultTarget::link().check(&pause, &udp, None).unwrap_err();
     assert!(
-        e.to_string()
-            .contains("fault host-pause@t=10us:for=100us cannot be applied on fw"),
+        e.to_string().contains(&format!(
+            "fault host-pause@t=10us:for=100us cannot be applied on {name}"
+        )),
         "{e}"
     );
     // Packets and host pauses are the host's side's to do.
     let link_ok: FaultScript = "drop@cycle=5:dest=2,rate=0.5;host-pause@cycle=9:for=100us"
         .parse()
         .unwrap();
-    assert!(FaultTarget::link().check(&link_ok, "fw").is_ok());
+    assert!(FaultTarget::link().check(&link_ok, &udp, None).is_ok());
     // The rig's target knows its boards by ID; the emulator's mutes them
     // on its own bus.
     let rig = RigBuilder::qla(used_boards(&config())).build().unwrap();
-    let e = rig
-        .fault_target()
-        .check(&"unplug@cycle=3:id=9".parse().unwrap(), "sim")
+    let target = rig.fault_target();
+    let sim = rig.sim_port();
+    let e = target
+        .check(&"unplug@cycle=3:id=9".parse().unwrap(), &sim, None)
         .unwrap_err();
     assert_eq!(e.to_string(), "unplugged board 9: no such board on the rig");
-    let emu = Emulator::start(used_boards(&config())).expect("emulator");
     let lost: FaultScript = format!("mute@t=0us:id={}", lost_board(&config()))
         .parse()
         .unwrap();
-    assert!(emu.fault_target().check(&lost, "emulate").is_ok());
-    let e = emu.fault_target().check(&mute, "emulate").unwrap_err();
+    assert!(emu.fault_target().check(&lost, &udp, None).is_ok());
+    let e = emu.fault_target().check(&mute, &udp, None).unwrap_err();
     assert_eq!(e.to_string(), "muted board 4: no such board on the rig");
+    drop(udp);
     emu.stop().unwrap();
 }
 

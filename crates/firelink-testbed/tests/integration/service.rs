@@ -392,6 +392,10 @@ impl Port for PanickingPort {
     ) -> firelink_host::Result<()> {
         panic!("a bug in the robot loop");
     }
+    // It says it takes filters, so that the fault target hands it one.
+    fn takes_link_filters(&self) -> bool {
+        true
+    }
 }
 
 #[test]
