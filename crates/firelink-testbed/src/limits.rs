@@ -122,7 +122,7 @@ pub fn rate_hz(s: &str) -> Result<f64, String> {
 }
 
 /// A servo rate in Hz as a servo period (the older `--rate` spelling of
-/// `--period`): a number, then [`ServoPeriod`](firelink_control::ServoPeriod)'s
+/// `--period`): a number, then [`ServoPeriod`]'s
 /// one range rule, 1 Hz to 100 kHz, named in its error.
 pub fn servo_rate_hz(s: &str) -> Result<firelink_control::ServoPeriod, String> {
     let hz: f64 = s
