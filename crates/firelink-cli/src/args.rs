@@ -10,9 +10,9 @@
 pub use firelink_testbed::cli_args::{arbitration, firmware, fpga, hardware, speed};
 pub use firelink_testbed::limits::{
     CpuLatencyRequest as CpuLatencyArg, WatchdogSetting, board_count, board_id, can_cycles,
-    cpu_latency, cycles, measured, node_id, parse_number, period_us, probability, quadlets,
-    rate_hz_or_max, seconds_or_forever, servo_period_us, servo_rate, timeout_ms, timings, wait_us,
-    watchdog,
+    cpu_latency, cycles, mahru_servo_period, measured, node_id, parse_number, period_us,
+    probability, quadlets, rate_hz_or_max, seconds_or_forever, servo_period_us, servo_rate,
+    timeout_ms, timings, wait_us, watchdog,
 };
 
 /// Whether the default run should be quiet about progress (tests).

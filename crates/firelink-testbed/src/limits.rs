@@ -172,6 +172,15 @@ pub fn servo_period_us(s: &str) -> Result<ServoPeriod, String> {
     ServoPeriod::from_micros_f64(mahru_period_us(s)?).map_err(|e| e.to_string())
 }
 
+/// A servo period as [`ServoPeriod`] reads it (`2ms`, `500Hz`, `250us`),
+/// within MAHRU's bounds (100 us to 1 s; the period's own rule allows
+/// 10 us): `budget --period`.
+pub fn mahru_servo_period(s: &str) -> Result<ServoPeriod, String> {
+    let period = s.parse::<ServoPeriod>().map_err(|e| e.to_string())?;
+    crate::mahru::demo::check_period(period.as_duration()).map_err(|e| e.to_string())?;
+    Ok(period)
+}
+
 /// A probability: [`PROBABILITY`], 0 to 1.
 pub fn probability(s: &str) -> Result<f64, String> {
     bounded(s, PROBABILITY)

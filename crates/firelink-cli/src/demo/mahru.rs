@@ -59,7 +59,7 @@ pub struct BudgetArgs {
     pub config: Option<PathBuf>,
     /// The servo period, `2ms`, `500Hz` (default: the configuration's 2
     /// ms; MAHRU's bounds: 100 us to 1 s).
-    #[arg(long, conflicts_with = "period_us")]
+    #[arg(long, conflicts_with = "period_us", value_parser = crate::args::mahru_servo_period)]
     pub period: Option<ServoPeriod>,
     /// The period in us (the older spelling of --period).
     #[arg(long = "period-us", hide = true, value_parser = crate::args::servo_period_us)]

@@ -40,6 +40,7 @@ fn out_of_range_numbers_are_usage_errors() {
         &["demo", "--period", "0.5Hz"],
         &["demo", "--robot", "mahru", "--period=-1ms"],
         &["budget", "--period", "2s"],
+        &["budget", "--period", "50us"],
         &["demo", "--watchdog-ms", "1e300"],
         &["demo", "--watchdog-ms=-5"],
         &["demo", "--watchdog-ms", "0"],
