@@ -258,7 +258,8 @@ pub struct NodeReport {
     /// The publication rate asked for (`--publish-hz`, at most the control
     /// rate).
     pub measured_js_asked_hz: f64,
-    /// servo_jp messages received.
+    /// servo_jp messages received (without DDS: the points of the
+    /// in-process [`ServoStream`] queued).
     pub servo_jp_received: u64,
     /// servo_jp applied by the robot.
     pub servo_jp_applied: u64,
@@ -1010,22 +1011,164 @@ fn say_refusals(report: &realtime::RealtimeReport) {
     }
 }
 
-/// Run the robot service alone (no DDS), draining its frames as the node
-/// would: the control loop's costs without ROS 2. The robot is brought up
-/// as a ROS 2 client does it (configured, powered, homed, active) and then
-/// holds still for `duration`; the costs are those of its Active cycles,
-/// as with the node, and so are the real-time settings (`realtime`: the
-/// robot loop's and the calling thread's). A stop request (`stop`, set by
-/// the signals) ends it early.
+/// A servo stream made in this process, for [`run_without_dds`]: what the
+/// benchmark's ROS 2 client (`tests/dds/crtk_client.py`) sends, without
+/// DDS, so that the robot loop does the same work with ROS 2 and without
+/// (an arm that follows a stream costs more per cycle than one holding
+/// still: its plants move, its joints are not quiet). The arm's first joint
+/// follows a sinusoid of [`AMPLITUDE_RAD`](Self::AMPLITUDE_RAD) at
+/// [`FREQUENCY_HZ`](Self::FREQUENCY_HZ) about where it was when the stream
+/// began, on the robot's clock; a point is sent every [`1 / RATE_HZ`](Self::RATE_HZ)
+/// of the wall clock, aimed [`LEAD_S`](Self::LEAD_S) ahead of the newest
+/// frame; each is queued with its velocity and trace as the node queues a
+/// `servo_jp`, and the loop is nudged.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ServoStream {
+    /// The arm (a robot's name in the configuration), e.g. `PSM1`.
+    pub arm: String,
+}
+
+impl ServoStream {
+    /// Points per second (wall clock).
+    pub const RATE_HZ: f64 = 200.0;
+    /// The sinusoid's amplitude, rad.
+    pub const AMPLITUDE_RAD: f64 = 0.05;
+    /// The sinusoid's frequency, Hz.
+    pub const FREQUENCY_HZ: f64 = 0.5;
+    /// How far ahead of the newest frame a point aims, s.
+    pub const LEAD_S: f64 = 0.01;
+}
+
+/// A [`ServoStream`] under way: the arm's joints and where the sinusoid
+/// started.
+struct StreamState {
+    first: usize,
+    count: usize,
+    /// The robot's time and the arm's positions at the stream's first frame.
+    origin: Option<(f64, [f64; MAX_ARM_JOINTS])>,
+    /// The last point sent: its time and positions (for the velocities).
+    last: Option<(f64, [f64; MAX_ARM_JOINTS])>,
+    /// The newest frame's time (the robot's clock).
+    newest_t: f64,
+    next_send: Instant,
+    sent: u64,
+}
+
+impl StreamState {
+    fn new(stream: &ServoStream, shared: &Shared, config: &IoConfig) -> Result<Self, Ros2Error> {
+        let (_, first, joints) = arms_of(config, &shared.joint_labels)
+            .into_iter()
+            .find(|(name, _, _)| *name == stream.arm)
+            .ok_or_else(|| {
+                Ros2Error::BringUp(format!("servo stream: no arm named {}", stream.arm))
+            })?;
+        Ok(StreamState {
+            first,
+            count: joints.len().min(MAX_ARM_JOINTS),
+            origin: None,
+            last: None,
+            newest_t: 0.0,
+            next_send: Instant::now(),
+            sent: 0,
+        })
+    }
+
+    /// Note the frame's time, and where the arm is in the stream's first
+    /// (Active) frame.
+    fn see(&mut self, frame: &Frame) {
+        self.newest_t = frame.t;
+        if self.origin.is_some() || frame.state != State::Active {
+            return;
+        }
+        let mut at = [0.0; MAX_ARM_JOINTS];
+        for (p, j) in at
+            .iter_mut()
+            .zip(frame.joints.iter().skip(self.first).take(self.count))
+        {
+            *p = j.position;
+        }
+        self.origin = Some((frame.t, at));
+    }
+
+    /// Queue the next point if it is due (once the stream's first frame
+    /// was seen), aimed ahead of the newest frame's time.
+    fn send_if_due(&mut self, shared: &Shared) {
+        let now = Instant::now();
+        let Some((t0, origin)) = self.origin else {
+            return;
+        };
+        if now < self.next_send {
+            return;
+        }
+        let period = Duration::from_secs_f64(1.0 / ServoStream::RATE_HZ);
+        self.next_send = (self.next_send + period).max(now);
+        let t = self.newest_t + ServoStream::LEAD_S;
+        let mut positions = origin;
+        positions[0] = origin[0]
+            + ServoStream::AMPLITUDE_RAD
+                * (2.0 * std::f64::consts::PI * ServoStream::FREQUENCY_HZ * (t - t0)).sin();
+        let mut velocities = [0.0; MAX_ARM_JOINTS];
+        if let Some((tl, pl)) = self.last {
+            let dt = t - tl;
+            if dt > 1e-4 && dt < 0.5 {
+                for i in 0..self.count {
+                    velocities[i] = (positions[i] - pl[i]) / dt;
+                }
+            }
+        }
+        self.last = Some((t, positions));
+        let stamp = wall_ns();
+        let command = Command::ServoJoints {
+            first: self.first as u16,
+            count: self.count as u8,
+            positions,
+            velocities,
+            trace: ServoTrace {
+                source_ns: stamp,
+                queued_ns: stamp,
+                queued_after_cycle: shared.cycles_done.load(Ordering::SeqCst),
+            },
+        };
+        if shared.commands.push(command).is_ok() {
+            self.sent += 1;
+        }
+        shared.nudge();
+    }
+
+    /// How long to sleep at most before the next point is due (before
+    /// the stream's first frame: a point is not due).
+    fn until_due(&self) -> Duration {
+        if self.origin.is_none() {
+            return Duration::MAX;
+        }
+        self.next_send.saturating_duration_since(Instant::now())
+    }
+}
+
+/// Run the robot service alone (no DDS), draining its frames (and its log
+/// of applied servo points) as the node would: the control loop's costs
+/// without ROS 2. The robot is brought up as a ROS 2 client does it
+/// (configured, powered, homed, active); then for `duration` it holds
+/// still, or follows `stream` (the benchmark client's stream made in this
+/// process: the same work for the robot loop as with the client over
+/// DDS). The costs are those of its Active cycles, as with the node, and so
+/// are the real-time settings (`realtime`: the robot loop's and the calling
+/// thread's). A stop request (`stop`, set by the signals) ends it early.
 ///
 /// # Errors
-/// A bring-up command was refused or failed.
+/// A bring-up command was refused or failed, or `stream` names no arm of
+/// `config`.
 pub fn run_without_dds(
     service: &Service,
+    config: &IoConfig,
     duration: Duration,
     realtime: bool,
+    stream: Option<&ServoStream>,
     stop: &AtomicBool,
 ) -> Result<NodeReport, Ros2Error> {
+    let mut stream = stream
+        .map(|s| StreamState::new(s, &service.shared, config))
+        .transpose()?;
     let realtime = if realtime {
         let applied = realtime::apply(&mut realtime::OsScheduler, false);
         say_refusals(&applied);
@@ -1041,18 +1184,34 @@ pub fn run_without_dds(
     ] {
         bring_up_step(&service.shared, command, stop)?;
     }
+    eprintln!(
+        "firelink ros2: active without DDS for {:.1} s{}",
+        duration.as_secs_f64(),
+        stream
+            .as_ref()
+            .map_or("", |_| ", following the servo stream")
+    );
     let start = Instant::now();
-    let cycles_at_start = service.shared.cycles_done.load(Ordering::Relaxed);
+    let shared = &service.shared;
+    let cycles_at_start = shared.cycles_done.load(Ordering::Relaxed);
     let mut costs = LoopCosts::default();
     while start.elapsed() < duration && !stop.load(Ordering::Relaxed) {
-        while let Some(frame) = service.shared.full.pop() {
+        while let Some(frame) = shared.full.pop() {
             costs.record(&frame);
-            let _ = service.shared.free.push(frame);
+            if let Some(s) = stream.as_mut() {
+                s.see(&frame);
+            }
+            let _ = shared.free.push(frame);
         }
-        std::thread::sleep(Duration::from_millis(1));
+        while shared.servo_log.pop().is_some() {}
+        let mut nap = Duration::from_millis(1);
+        if let Some(s) = stream.as_mut() {
+            s.send_if_due(shared);
+            nap = nap.min(s.until_due());
+        }
+        std::thread::sleep(nap);
     }
     let seconds = start.elapsed().as_secs_f64();
-    let shared = &service.shared;
     let mut report = NodeReport {
         seconds,
         frames_skipped: shared.skipped.load(Ordering::Relaxed),
@@ -1065,6 +1224,8 @@ pub fn run_without_dds(
         control_asked_period_us: shared.period.as_micros_f64(),
         cycle_starts: cycle_starts(shared),
         realtime,
+        servo_jp_received: stream.as_ref().map_or(0, |s| s.sent),
+        servo_jp_applied: shared.servo_applied.load(Ordering::Relaxed),
         ..NodeReport::default()
     };
     costs.into_report(&mut report);
@@ -1104,6 +1265,94 @@ fn bring_up_step(shared: &Shared, command: Command, stop: &AtomicBool) -> Result
 mod tests {
     use super::*;
     use firelink_control::config::presets;
+
+    /// The robot's shared state for the dVRK on the simulated bus, with no
+    /// loop running (nothing takes the queued commands but the test).
+    fn idle_shared(config: &IoConfig) -> Arc<Shared> {
+        use firelink_testbed::{emulated::Profile, rig, service};
+        let boards = rig::board_configs(config, Profile::Rev8, config.board_slots());
+        let rig = rig::RigBuilder::qla(boards).build().expect("rig");
+        let options = service::LoopOptions {
+            config: config.clone(),
+            period: firelink_control::ServoPeriod::from_rate_hz(1000.0).expect("1 kHz"),
+            watchdog: firelink_host::WatchdogSetting::Off,
+            pacing: firelink_control::runner::Pacing::Virtual,
+            faults: rig.fault_target(),
+        };
+        let (_robot, shared) =
+            service::prepare(rig.sim_port(), "sim".into(), &options).expect("prepare");
+        shared
+    }
+
+    #[test]
+    fn the_in_process_stream_queues_the_benchmark_clients_points() {
+        let config = presets::dvrk_seed000();
+        let shared = idle_shared(&config);
+        let stream = ServoStream { arm: "PSM1".into() };
+        let mut state = StreamState::new(&stream, &shared, &config).expect("PSM1");
+        let (_, first, joints) = arms_of(&config, &shared.joint_labels)
+            .into_iter()
+            .find(|(name, _, _)| name == "PSM1")
+            .expect("PSM1");
+        let mut frame = shared.free.pop().expect("a frame");
+        frame.t = 2.0;
+        for (k, j) in frame.joints.iter_mut().enumerate() {
+            j.position = 0.1 * k as f64;
+        }
+        // Nothing is sent before an Active frame says where the arm is.
+        frame.state = State::Configured;
+        state.see(&frame);
+        state.send_if_due(&shared);
+        assert!(shared.commands.is_empty());
+        assert_eq!(state.until_due(), Duration::MAX);
+        frame.state = State::Active;
+        state.see(&frame);
+        state.send_if_due(&shared);
+        let Some(Command::ServoJoints {
+            first: f,
+            count,
+            positions,
+            velocities,
+            trace,
+        }) = shared.commands.pop()
+        else {
+            panic!("no servo point queued");
+        };
+        assert_eq!((f as usize, count as usize), (first, joints.len()));
+        let origin = 0.1 * first as f64;
+        let expected = origin
+            + ServoStream::AMPLITUDE_RAD
+                * (2.0 * std::f64::consts::PI * ServoStream::FREQUENCY_HZ * ServoStream::LEAD_S)
+                    .sin();
+        assert_eq!(positions[0], expected);
+        for (i, p) in positions.iter().enumerate().take(joints.len()).skip(1) {
+            assert_eq!(*p, 0.1 * (first + i) as f64, "joint {i} holds");
+        }
+        assert!(
+            velocities.iter().all(|v| *v == 0.0),
+            "no velocity without a previous point"
+        );
+        assert!(trace.source_ns != 0 && trace.queued_ns == trace.source_ns);
+        // The next point (made due now) carries the velocity between the two.
+        state.next_send = Instant::now();
+        frame.t = 2.1;
+        state.see(&frame);
+        state.send_if_due(&shared);
+        let Some(Command::ServoJoints {
+            positions: p2,
+            velocities: v2,
+            ..
+        }) = shared.commands.pop()
+        else {
+            panic!("no second point");
+        };
+        assert_eq!(
+            v2[0],
+            (p2[0] - positions[0]) / ((2.1 + ServoStream::LEAD_S) - (2.0 + ServoStream::LEAD_S))
+        );
+        assert_eq!(state.sent, 2);
+        assert!(StreamState::new(&ServoStream { arm: "PSM9".into() }, &shared, &config).is_err());
+    }
 
     #[test]
     fn state_commands_map_onto_the_lifecycle() {

@@ -11,7 +11,7 @@ use firelink_control::ServoPeriod;
 use firelink_control::config::{IoConfig, presets};
 use firelink_host::WatchdogSetting;
 use firelink_host::stop::install_signal_handlers;
-use firelink_ros2::{NodeSettings, domain_from_env, run_node, run_without_dds};
+use firelink_ros2::{NodeSettings, ServoStream, domain_from_env, run_node, run_without_dds};
 use firelink_testbed::limits::watchdog;
 use firelink_testbed::port_spec::{PortSpec, parse_port};
 use firelink_testbed::service::Service;
@@ -54,6 +54,12 @@ struct Args {
     /// attached").
     #[arg(long = "no-dds")]
     no_dds: bool,
+    /// With `--no-dds`: instead of holding still, this arm follows the
+    /// benchmark client's servo stream made in this process (200 points a
+    /// second, its first joint on a 0.05 rad, 0.5 Hz sinusoid), so the
+    /// robot loop does the same work as with the client over DDS.
+    #[arg(long = "servo-stream", value_name = "ARM", requires = "no_dds")]
+    servo_stream: Option<String>,
     /// Real-time scheduling for the robot loop, RustDDS's socket reader and
     /// the node's thread (SCHED_FIFO 80 / 75 / 70, 1 ns timer slack,
     /// mlockall), where the OS permits it (root or CAP_SYS_NICE; otherwise
@@ -117,10 +123,21 @@ fn run(args: Args) -> Result<(), Box<dyn std::error::Error>> {
     ] {
         signal_hook::flag::register(signal, Arc::clone(&stop))?;
     }
+    if let Some(arm) = &args.servo_stream
+        && !config.robots.iter().any(|r| r.name == *arm)
+    {
+        let arms: Vec<&str> = config.robots.iter().map(|r| r.name.as_str()).collect();
+        return Err(format!(
+            "servo stream: no arm named {arm} (the configuration has {})",
+            arms.join(", ")
+        )
+        .into());
+    }
     let service = Service::start(&port, config.clone(), args.servo_period(), args.watchdog_ms)?;
     let report = if args.no_dds {
         let d = duration.ok_or("--no-dds needs --seconds")?;
-        run_without_dds(&service, d, !args.no_rt, &stop)?
+        let stream = args.servo_stream.map(|arm| ServoStream { arm });
+        run_without_dds(&service, &config, d, !args.no_rt, stream.as_ref(), &stop)?
     } else {
         let domain = args.domain.unwrap_or_else(domain_from_env);
         let base = 7400 + 250 * u32::from(domain);

@@ -20,9 +20,11 @@ answering each measured_js sample at once (`--react`, a loop closed over
 ROS 2).
 
 Cost: the binary under test runs `--cost-pairs` pairs of short runs, with
-ROS 2 (the 200 Hz stream client) and without (`--no-dds`: the robot
-brought up the same way, holding still), the order alternating from pair
-to pair; per run the median of the robot thread's CPU time per cycle over
+ROS 2 (the 200 Hz stream client) and without (`--no-dds --servo-stream
+PSM1`: the robot brought up the same way, following the same stream made
+in the node's process, so the robot loop does the same work: an arm that
+follows a stream costs more per cycle than one holding still), the order
+alternating from pair to pair; per run the median of the robot thread's CPU time per cycle over
 the cycles it was Active, and the median over pairs of the ratio with /
 without. Interleaving pairs and taking the median of their ratios keeps
 what else the machine does at the time out of the figure better than one
@@ -68,8 +70,8 @@ def with_dds(ns: t.Netns, binary: str, publish_hz: int, react: bool, seconds: fl
 
 def without_dds(ns: t.Netns, binary: str, seconds: float) -> dict:
     alone = subprocess.run(
-        ["ip", "netns", "exec", ns.name, binary, "--port", "sim", "--rate", "1000", "--no-dds", "--seconds",
-         str(max(1, round(seconds)))], capture_output=True, text=True, check=True)
+        ["ip", "netns", "exec", ns.name, binary, "--port", "sim", "--rate", "1000", "--no-dds", "--servo-stream", "PSM1",
+         "--seconds", str(max(1, round(seconds)))], capture_output=True, text=True, check=True)
     return json.loads(alone.stdout.strip().splitlines()[-1])
 
 

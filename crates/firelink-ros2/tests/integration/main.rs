@@ -5,3 +5,4 @@
 //! namespace, are `tests/dds/*.py`, run by `scripts/test-ros2`.)
 
 mod period;
+mod servo_stream;
