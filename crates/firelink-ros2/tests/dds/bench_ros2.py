@@ -36,6 +36,7 @@ Prints the JSON of every run, then one table of everything.
 import argparse
 import json
 import os
+import random
 import statistics
 import subprocess
 import sys
@@ -118,7 +119,16 @@ def cost_pairs(ns: t.Netns, binary: str, publish_hz: int, pairs: int, seconds: f
         "median_cpu_with_us": statistics.median(r["with"] for r in rows),
         "median_cpu_without_us": statistics.median(r["without"] for r in rows),
         "median_ratio": statistics.median(r["ratio"] for r in rows),
+        "median_ratio_ci95": bootstrap_ci([r["ratio"] for r in rows]),
     }
+
+
+def bootstrap_ci(ratios: list, resamples: int = 10000, seed: int = 1) -> list:
+    """A 95 % confidence interval of the median of `ratios` (percentile
+    bootstrap, seeded: the same pairs give the same interval)."""
+    rng = random.Random(seed)
+    medians = sorted(statistics.median(rng.choices(ratios, k=len(ratios))) for _ in range(resamples))
+    return [medians[int(0.025 * resamples)], medians[int(0.975 * resamples) - 1]]
 
 
 def ms(us: list) -> str:
@@ -161,7 +171,8 @@ def table(out: dict) -> str:
         pairs = ", ".join(f"{p['with']:.1f}/{p['without']:.1f}={p['ratio']:.3f}" for p in cost["pairs"])
         text += (f"\n\nrobot thread CPU per cycle, with / without ROS 2 (us), {len(cost['pairs'])} interleaved pairs: "
                  f"{pairs}\nmedian with {cost['median_cpu_with_us']:.1f} us, without {cost['median_cpu_without_us']:.1f} us, "
-                 f"median of ratios {cost['median_ratio']:.3f}")
+                 f"median of ratios {cost['median_ratio']:.3f} (95 % interval "
+                 f"{cost['median_ratio_ci95'][0]:.3f}-{cost['median_ratio_ci95'][1]:.3f}, bootstrap)")
     text += f"\n\nload average at start {' '.join(out['loadavg_at_start'])}, at end {' '.join(out['loadavg_at_end'])}"
     return text
 
