@@ -46,8 +46,8 @@ pub enum CliError {
     /// that is not on the board.
     #[error(transparent)]
     Address(#[from] AddressError),
-    /// A register read or write was refused (its address) or failed (the
-    /// port).
+    /// A register read or write was refused (its address), failed (the
+    /// port) or, over the bridge, could not be confirmed by reading back.
     #[error(transparent)]
     Register(#[from] firelink_host::board_access::RegisterError),
     /// The emulated boards cannot be served as asked: an option they
@@ -75,16 +75,6 @@ pub enum CliError {
     /// The benchmark's board counts cannot be measured or modelled.
     #[error("--boards: {0}")]
     BoardCounts(String),
-    /// A write over the bridge could not be confirmed by reading back.
-    #[error(
-        "write to {address:#06x} not confirmed: the bridge acknowledges no write, and a read-back failed: {error}"
-    )]
-    WriteNotConfirmed {
-        /// The register.
-        address: u64,
-        /// Why the read-back failed.
-        error: firelink_host::HostError,
-    },
     /// The preloaded /dev/fw* twin library (`fw-run`) is not built.
     #[error(transparent)]
     TwinLibraryMissing(#[from] firelink_testbed::fw_run::TwinLibraryMissing),
