@@ -4,7 +4,6 @@
 
 use firelink_host::register_address::AddressError;
 use firelink_testbed::emulation::ServeError;
-use firelink_testbed::rig::served::ServedError;
 
 use firelink_host::hex;
 
@@ -51,23 +50,10 @@ pub enum CliError {
     #[error(transparent)]
     Register(#[from] firelink_host::board_access::RegisterError),
     /// The emulated boards cannot be served as asked: an option they
-    /// cannot honour, boards the Ethernet-only network cannot hold, a
-    /// socket that cannot be bound.
+    /// cannot honour, boards the Ethernet-only network cannot hold or that
+    /// cannot be assembled, a socket that cannot be bound.
     #[error(transparent)]
     Serve(#[from] ServeError),
-    /// The emulated boards cannot be assembled: an option names a board
-    /// that is not emulated, or a board's settings (`--board-set`) are
-    /// inconsistent.
-    #[error(transparent)]
-    Served(#[from] ServedError),
-    /// An option this command cannot honour here.
-    #[error("{option}: {reason}")]
-    NotSupported {
-        /// The option.
-        option: &'static str,
-        /// Why, and what to do instead.
-        reason: &'static str,
-    },
     /// A `snake-tool` command or session failed (a refused command names
     /// itself and what was wrong).
     #[error(transparent)]
