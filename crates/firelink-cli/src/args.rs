@@ -11,9 +11,8 @@
 
 pub use firelink_testbed::cli_args::{arbitration, firmware, speed};
 pub use firelink_testbed::limits::{
-    WatchdogSetting, board_id, can_cycles, cycles, mahru_servo_period, measured, node_id,
-    parse_number, period_us, probability, quadlets, rate_hz_or_max, servo_period_us, servo_rate,
-    timeout_ms, timings, wait_us, watchdog,
+    WatchdogSetting, board_id, cycles, measured, node_id, parse_number, period_us, quadlets,
+    rate_hz_or_max, servo_period_us, servo_rate, timeout_ms, wait_us, watchdog,
 };
 
 /// Whether the default run should be quiet about progress (tests).
