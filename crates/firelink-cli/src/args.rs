@@ -9,10 +9,9 @@
 //! feature). The options of a request the testbed owns (such as `demo`'s)
 //! name these rules themselves.
 
-pub use firelink_testbed::cli_args::firmware;
 pub use firelink_testbed::limits::{
-    WatchdogSetting, board_id, cycles, measured, node_id, parse_number, period_us, quadlets,
-    rate_hz_or_max, servo_period_us, servo_rate, timeout_ms, wait_us, watchdog,
+    WatchdogSetting, board_id, cycles, measured, node_id, parse_number, quadlets, rate_hz_or_max,
+    servo_period_us, servo_rate, timeout_ms, watchdog,
 };
 
 /// Whether the default run should be quiet about progress (tests).
