@@ -149,9 +149,6 @@ pub fn run_write(args: &WriteArgs, out: &mut impl Write) -> Result<(), CliError>
     }
     let (mut port, dest) = args.target.open()?;
     let outcome = board_access::write_registers(port.as_mut(), dest, address, &values)?;
-    let line = outcome
-        .line(values.len(), address)
-        .map_err(|error| CliError::WriteNotConfirmed { address, error })?;
-    writeln!(out, "{line}")?;
+    writeln!(out, "{}", outcome.line(values.len(), address)?)?;
     Ok(())
 }

@@ -4,7 +4,6 @@
 
 use firelink_host::register_address::AddressError;
 use firelink_testbed::emulation::ServeError;
-use firelink_testbed::rig::served::ServedError;
 
 use firelink_host::hex;
 
@@ -46,28 +45,15 @@ pub enum CliError {
     /// that is not on the board.
     #[error(transparent)]
     Address(#[from] AddressError),
-    /// A register read or write was refused (its address) or failed (the
-    /// port).
+    /// A register read or write was refused (its address), failed (the
+    /// port) or, over the bridge, could not be confirmed by reading back.
     #[error(transparent)]
     Register(#[from] firelink_host::board_access::RegisterError),
     /// The emulated boards cannot be served as asked: an option they
-    /// cannot honour, boards the Ethernet-only network cannot hold, a
-    /// socket that cannot be bound.
+    /// cannot honour, boards the Ethernet-only network cannot hold or that
+    /// cannot be assembled, a socket that cannot be bound.
     #[error(transparent)]
     Serve(#[from] ServeError),
-    /// The emulated boards cannot be assembled: an option names a board
-    /// that is not emulated, or a board's settings (`--board-set`) are
-    /// inconsistent.
-    #[error(transparent)]
-    Served(#[from] ServedError),
-    /// An option this command cannot honour here.
-    #[error("{option}: {reason}")]
-    NotSupported {
-        /// The option.
-        option: &'static str,
-        /// Why, and what to do instead.
-        reason: &'static str,
-    },
     /// A `snake-tool` command or session failed (a refused command names
     /// itself and what was wrong).
     #[error(transparent)]
@@ -75,16 +61,6 @@ pub enum CliError {
     /// The benchmark's board counts cannot be measured or modelled.
     #[error("--boards: {0}")]
     BoardCounts(String),
-    /// A write over the bridge could not be confirmed by reading back.
-    #[error(
-        "write to {address:#06x} not confirmed: the bridge acknowledges no write, and a read-back failed: {error}"
-    )]
-    WriteNotConfirmed {
-        /// The register.
-        address: u64,
-        /// Why the read-back failed.
-        error: firelink_host::HostError,
-    },
     /// The preloaded /dev/fw* twin library (`fw-run`) is not built.
     #[error(transparent)]
     TwinLibraryMissing(#[from] firelink_testbed::fw_run::TwinLibraryMissing),

@@ -12,9 +12,9 @@ use std::ffi::OsString;
 
 use clap::Args;
 
+use firelink_testbed::emulation::EmulateRequest;
 use firelink_testbed::fw_run::{library_path, run_with_twin};
 
-use crate::emulate_cmd::{EmulateArgs, build_twin};
 use crate::error::CliError;
 
 /// Options of `firelink fw-run`.
@@ -22,7 +22,7 @@ use crate::error::CliError;
 pub struct FwRunArgs {
     /// The boards, their firmware and faults, as `firelink emulate` takes them.
     #[command(flatten)]
-    pub emulate: EmulateArgs,
+    pub emulate: EmulateRequest,
     /// Print the twin server's lines (devices opened, bus resets, its
     /// counters at the end) on stderr.
     #[arg(long)]
@@ -38,7 +38,7 @@ pub struct FwRunArgs {
 /// The twin could not be built or bound, or PROGRAM not started.
 pub fn run(args: &FwRunArgs) -> Result<u8, CliError> {
     let library = library_path()?;
-    let (twin, _ids) = build_twin(&args.emulate)?;
+    let (twin, _ids) = args.emulate.twin(&mut |line| eprintln!("{line}"))?;
     let verbose = args.verbose;
     let exit = run_with_twin(twin, &library, &args.program, move |e| {
         if verbose {

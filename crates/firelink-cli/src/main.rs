@@ -75,7 +75,7 @@ enum Command {
     Budget(Box<demo::mahru::BudgetArgs>),
     /// Emulated boards behind an Ethernet bridge on UDP (127.0.0.1:1394),
     /// or as /dev/fw* devices (`--fw-cdev SOCKET`).
-    Emulate(Box<emulate_cmd::EmulateArgs>),
+    Emulate(Box<firelink_testbed::emulation::EmulateRequest>),
     /// Run a program with the emulated boards as /dev/fw* devices (the
     /// firewire-cdev twin preloaded): `firelink fw-run --boards 8 --
     /// firelink scan --port fw`.

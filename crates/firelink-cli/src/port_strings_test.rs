@@ -18,7 +18,7 @@ fn port_of(command: Command) -> Option<PortSpec> {
         Command::Monitor(a) => Some(a.port.port),
         Command::Demo(a) => Some(a.request.port),
         Command::SnakeTool(a) => Some(a.port),
-        Command::Bench(a) => a.port,
+        Command::Bench(a) => a.request.port,
         _ => None,
     }
 }

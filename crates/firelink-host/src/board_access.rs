@@ -316,8 +316,9 @@ impl WriteOutcome {
     /// write failed.
     ///
     /// # Errors
-    /// [`WriteOutcome::ReadBack`] of an error: that error.
-    pub fn line(self, count: usize, address: u64) -> Result<String, HostError> {
+    /// [`WriteOutcome::ReadBack`] of an error: [`RegisterError::NotConfirmed`]
+    /// with that error.
+    pub fn line(self, count: usize, address: u64) -> Result<String, RegisterError> {
         Ok(match self {
             WriteOutcome::Acknowledged => {
                 format!("wrote {count} quadlet(s) at {address:#06x} (acknowledged)")
@@ -329,7 +330,7 @@ impl WriteOutcome {
             WriteOutcome::ReadBack(back) => format!(
                 "sent {count} quadlet(s) at {address:#06x} (not acknowledged over UDP; the node \
                  answers, reading back {:08x})",
-                back?
+                back.map_err(|error| RegisterError::NotConfirmed { address, error })?
             ),
         })
     }
@@ -344,6 +345,16 @@ pub enum RegisterError {
     /// The port failed.
     #[error(transparent)]
     Host(#[from] HostError),
+    /// A write over the bridge could not be confirmed by reading back.
+    #[error(
+        "write to {address:#06x} not confirmed: the bridge acknowledges no write, and a read-back failed: {error}"
+    )]
+    NotConfirmed {
+        /// The register.
+        address: u64,
+        /// Why the read-back failed.
+        error: HostError,
+    },
 }
 
 #[cfg(test)]

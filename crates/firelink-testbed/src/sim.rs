@@ -92,6 +92,77 @@ pub struct SimOptions {
     pub faults: FaultPlan,
 }
 
+/// What `firelink sim` asks for (clap's `Args` behind the `clap`
+/// feature): [`SimOptions`] without a fault plan, as typed;
+/// [`SimRequest::options`] makes them.
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+pub struct SimRequest {
+    /// Number of boards (1 to 16).
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, default_value_t = 8, value_parser = clap::value_parser!(u8).range(1..=16))
+    )]
+    pub boards: u8,
+    /// The boards' firmware (`--firmware` too).
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, alias = "firmware", default_value = "seed", value_parser = crate::cli_args::firmware())
+    )]
+    pub profile: Profile,
+    /// I/O protocol: broadcast or sequential (the phase tables' two).
+    #[cfg_attr(feature = "clap", arg(long, value_enum, default_value_t = Protocol::Broadcast))]
+    pub protocol: Protocol,
+    /// Gap count to set (PHY configuration packet and bus reset) before the
+    /// cycle; default the power-up 63.
+    #[cfg_attr(
+        feature = "clap",
+        arg(long = "gap-count", value_parser = clap::value_parser!(u8).range(0..=63))
+    )]
+    pub gap_count: Option<u8>,
+    /// Arbitration of the boards' status broadcasts.
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, default_value = "iso", value_parser = crate::cli_args::arbitration())
+    )]
+    pub arbitration: ArbitrationClass,
+    /// Speed of every packet in Mb/s.
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, default_value = "400", value_parser = crate::cli_args::speed())
+    )]
+    pub speed: Speed,
+    /// Seed of the fault injector and the host jitter.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 0))]
+    pub seed: u64,
+    /// Add the PC's software overhead (seed 000's PC: read 32 us, write
+    /// 34 us, broadcast write call 2.51 us).
+    #[cfg_attr(feature = "clap", arg(long = "host-overhead"))]
+    pub host_overhead: bool,
+    /// With --host-overhead: draw the overheads from a seeded distribution.
+    #[cfg_attr(feature = "clap", arg(long, requires = "host_overhead"))]
+    pub jitter: bool,
+    /// Run the cycle master (cycle start every 125 us; off in seed 000).
+    #[cfg_attr(feature = "clap", arg(long = "cycle-master"))]
+    pub cycle_master: bool,
+}
+
+impl SimRequest {
+    /// The options the request makes (no faults).
+    pub fn options(&self) -> SimOptions {
+        SimOptions {
+            gap_count: self.gap_count,
+            arbitration: self.arbitration,
+            speed: self.speed,
+            seed: self.seed,
+            host_overhead: self.host_overhead,
+            host_jitter: self.jitter,
+            cycle_master: self.cycle_master,
+            ..SimOptions::new(usize::from(self.boards), self.profile, self.protocol)
+        }
+    }
+}
+
 impl SimOptions {
     /// Defaults: gap count 63, isochronous-style arbitration for the status
     /// broadcasts, S400, seed 0, no host overhead, no cycle master.
@@ -784,4 +855,36 @@ fn next_packet_id(trace: &Trace) -> PacketId {
 
 fn us(d: SimDuration) -> f64 {
     d.as_micros_f64()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_request_sets_every_option_it_names() {
+        let request = SimRequest {
+            boards: 4,
+            profile: Profile::Rev8,
+            protocol: Protocol::Sequential,
+            gap_count: Some(10),
+            arbitration: ArbitrationClass::Isochronous,
+            speed: Speed::S200,
+            seed: 3,
+            host_overhead: true,
+            jitter: true,
+            cycle_master: true,
+        };
+        let options = request.options();
+        let expected = SimOptions {
+            gap_count: Some(10),
+            speed: Speed::S200,
+            seed: 3,
+            host_overhead: true,
+            host_jitter: true,
+            cycle_master: true,
+            ..SimOptions::new(4, Profile::Rev8, Protocol::Sequential)
+        };
+        assert_eq!(options, expected);
+    }
 }

@@ -13,8 +13,9 @@
 //! Rev 9 and the firmware's stated timing.
 
 //!
-//! The measurement is [`firelink_testbed::bench`], the figure
-//! [`firelink_plot::fig11`]; this file parses the options and prints.
+//! The options and the measurement are [`firelink_testbed::bench`]'s
+//! ([`BenchRequest`]), the figure [`firelink_plot::fig11`]; this file
+//! prints.
 
 mod seed001;
 
@@ -23,80 +24,17 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use firelink_host::scan::Protocol;
-use firelink_host::udp::WaitMode;
-use firelink_testbed::bench::{BenchOptions, BenchTransport, parse_board_counts, run_bench};
-use firelink_testbed::emulated::Profile;
+use firelink_testbed::bench::{BenchRequest, BenchTransport, run_bench};
 use firelink_testbed::fw_run::{library_path, rerun_with_twin, under_twin};
 
 use crate::error::CliError;
 
-/// `--port`: the port grammar, of which the benchmark takes `udp:HOST`
-/// (port 1394) or `udp:HOST:PORT`.
-fn bridge_address(text: &str) -> Result<crate::ports::PortSpec, CliError> {
-    match crate::ports::parse_port_for(
-        text,
-        "firelink bench --port",
-        &[firelink_testbed::port_spec::PortKind::Udp],
-    )? {
-        // The bench measures the bridge: `udp` and `udpfw` alike.
-        spec @ (crate::ports::PortSpec::Udp(_) | crate::ports::PortSpec::UdpFw(_)) => Ok(spec),
-        other => Err(other
-            .refused("firelink bench --port", "it takes udp".into())
-            .into()),
-    }
-}
-
 /// Options of `firelink bench`.
 #[derive(Args, Debug, Clone)]
 pub struct BenchArgs {
-    /// Transports (comma-separated; default `sim,udp`, with `--port` only
-    /// `udp`).
-    #[arg(long, value_enum, value_delimiter = ',')]
-    pub transport: Vec<BenchTransport>,
-    /// UDP points: measure the boards behind this bridge (`udp:HOST` on
-    /// port 1394, or `udp:HOST:PORT`: a running `firelink emulate` or real
-    /// boards) instead of an in-process emulator: one point per protocol
-    /// with the boards the scan finds; no emulator CPU. With `--transport
-    /// eth`: the Ethernet-only network answering there (`firelink emulate
-    /// --network eth` or FPGA V3 boards at Rev 9).
-    #[arg(long, value_parser = bridge_address)]
-    pub port: Option<crate::ports::PortSpec>,
-    /// UDP points: how the host's reads wait (comma-separated, each
-    /// measured side by side): `block` (sleep in the kernel) or `spin`
-    /// (poll the socket).
-    #[arg(long = "udp-wait", value_enum, value_delimiter = ',', default_values_t = [WaitMode::Blocking])]
-    pub udp_wait: Vec<WaitMode>,
-    /// UDP points: the host's time-out for each answer, ms (a cycle that
-    /// waits longer counts an error; real hosts use about 20).
-    #[arg(long = "udp-timeout-ms", default_value_t = 20, value_parser = crate::args::timeout_ms)]
-    pub udp_timeout_ms: u64,
-    /// Board counts (comma-separated, 1..=62); above 16 (the board-ID
-    /// space) the figures come from the cost model fitted to the 16-board
-    /// run.
-    #[arg(long, default_value = "2,4,8,16,32,62")]
-    pub boards: String,
-    /// Protocols (comma-separated).
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Protocol::Sequential, Protocol::Broadcast])]
-    pub protocol: Vec<Protocol>,
-    /// Measured cycles per point (after 20 warm-up cycles), 1 to 10^7.
-    #[arg(long, default_value_t = 1000, value_parser = crate::args::measured)]
-    pub cycles: u64,
-    /// Firmware of the emulated boards.
-    #[arg(long, default_value = "rev8", value_parser = crate::args::firmware())]
-    pub firmware: Profile,
-    /// Control period for the seed-002 budget check, us (default: 6 kHz).
-    #[arg(long = "period-us", default_value_t = 166.67, value_parser = crate::args::period_us)]
-    pub period_us: f64,
-    /// Broadcast protocol: the host's wait between the query and the hub
-    /// read, us per board (seed 000's PC sleeps 5 us x N).
-    #[arg(long = "wait-us", default_value_t = 5.0, value_parser = crate::args::wait_us)]
-    pub wait_us: f64,
-    /// Idle time between cycles, us: a paced control loop leaves the bus
-    /// idle between cycles (longer than the 21 us arbitration reset gap, so
-    /// the PC's fairness interval restarts), as at seed 000's 6 kHz.
-    #[arg(long = "idle-us", default_value_t = 50.0, value_parser = crate::args::wait_us)]
-    pub idle_us: f64,
+    /// What to measure.
+    #[command(flatten)]
+    pub request: BenchRequest,
     /// Write a PNG plot of I/O time against boards here (with `--seed
     /// 001`: that paper's Fig. 20 and 21).
     #[arg(long)]
@@ -115,49 +53,12 @@ pub struct BenchArgs {
     pub json: bool,
 }
 
-/// The benchmark's options from the command line.
-///
-/// # Errors
-/// [`CliError::BoardCounts`]: a count outside 1..=62, or counts above 16
-/// with no measured count before them.
-pub fn options(args: &BenchArgs) -> Result<BenchOptions, CliError> {
-    let transports = match (args.transport.is_empty(), args.port) {
-        (false, _) => args.transport.clone(),
-        (true, Some(_)) => vec![BenchTransport::Udp],
-        (true, None) => vec![BenchTransport::Sim, BenchTransport::Udp],
-    };
-    let mut udp_waits = Vec::new();
-    for w in args.udp_wait.iter().copied() {
-        if !udp_waits.contains(&w) {
-            udp_waits.push(w);
-        }
-    }
-    Ok(BenchOptions {
-        transports,
-        boards: parse_board_counts(&args.boards).map_err(CliError::BoardCounts)?,
-        protocols: args.protocol.clone(),
-        cycles: args.cycles,
-        firmware: args.firmware,
-        period_us: args.period_us,
-        wait_us_per_board: args.wait_us,
-        idle_us: args.idle_us,
-        udp_waits,
-        udp_timeout: std::time::Duration::from_millis(args.udp_timeout_ms),
-        udp_target: match args.port {
-            Some(crate::ports::PortSpec::Udp(addr) | crate::ports::PortSpec::UdpFw(addr)) => {
-                Some(addr)
-            }
-            _ => None,
-        },
-    })
-}
-
 /// Run `firelink bench`.
 pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
     if args.seed.is_some() {
         return seed001::run(args.iterations, args.plot.as_deref(), args.json, out);
     }
-    let options = options(args)?;
+    let options = args.request.options().map_err(CliError::BoardCounts)?;
     if options.transports.contains(&BenchTransport::Fw) && !under_twin() {
         // The `fw` points need the twin library in this process: the same
         // command again with it preloaded, its table passed on.

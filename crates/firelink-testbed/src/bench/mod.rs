@@ -32,14 +32,18 @@
 //! PID, build commands) is measured over a recorded cycle with no I/O
 //! ([`host_cpu`]).
 //!
-//! The library behind `firelink bench` and the Python package's
-//! `run_bench`; [`BenchReport`] serialises to `firelink bench --json`.
+//! The library behind `firelink bench` (whose options are a
+//! [`BenchRequest`]) and the Python package's `run_bench`;
+//! [`BenchReport`] serialises to `firelink bench --json`.
 
 pub mod eth;
 pub mod fw;
 pub mod host_cpu;
+mod request;
 mod server_thread;
 pub mod udp;
+
+pub use request::{BenchRequest, bridge_address};
 
 use std::fmt;
 use std::net::SocketAddr;

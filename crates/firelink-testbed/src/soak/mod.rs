@@ -33,9 +33,10 @@
 //! paths run thousands of times.
 //!
 //! Private submodules: `report` (settings, fault kinds, outcomes and the
-//! report, re-exported here), `plan` (the seeded fault plan), `ledger` (the
-//! running account and the safety invariants) and `judgement` (one logged
-//! fault's verdict).
+//! report, re-exported here), `request` (the soak and the watchdog proof
+//! after it, as `firelink soak` asks for them: [`SoakRequest`]), `plan`
+//! (the seeded fault plan), `ledger` (the running account and the safety
+//! invariants) and `judgement` (one logged fault's verdict).
 
 use std::collections::{BTreeMap, VecDeque};
 use std::time::Duration;
@@ -69,12 +70,14 @@ mod judgement;
 mod ledger;
 mod plan;
 mod report;
+mod request;
 mod text;
 
 use judgement::*;
 use ledger::*;
 use plan::*;
 pub use report::*;
+pub use request::{SoakOutcome, SoakRequest};
 
 /// Run the soak.
 ///

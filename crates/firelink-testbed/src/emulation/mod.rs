@@ -2,7 +2,14 @@
 //! `--network eth` and `--fw-cdev` forms, `fw-run`) decides the same way:
 //! the bridge's and the Ethernet-only network's sockets and banners,
 //! which options the Ethernet-only network refuses and why, what the
-//! firmware is called, and the CPU wake-up latency held while serving.
+//! firmware is called, and the CPU wake-up latency held while serving;
+//! and the one request that names the boards and how to serve them
+//! ([`EmulateRequest`], `firelink emulate`'s options), opened into a bound
+//! server ([`Emulation`]).
+
+mod request;
+
+pub use request::{EmulateRequest, Emulation, Network};
 
 use std::net::{Ipv4Addr, SocketAddr, UdpSocket};
 use std::sync::Arc;
@@ -31,6 +38,18 @@ pub enum ServeError {
     /// A socket could not be bound or joined (naming which and why).
     #[error(transparent)]
     Io(#[from] std::io::Error),
+    /// The robot configuration could not be loaded (every problem, with
+    /// its path).
+    #[error(transparent)]
+    Config(#[from] firelink_control::config::ConfigErrors),
+    /// The boards cannot be assembled: an option names a board that is
+    /// not emulated, or a board's settings are inconsistent.
+    #[error(transparent)]
+    Served(#[from] crate::rig::served::ServedError),
+    /// The /dev/fw* twin's unix socket could not be bound (said after
+    /// `output:`, as `firelink emulate --fw-cdev` always has).
+    #[error("output: {0}")]
+    TwinSocket(std::io::Error),
 }
 
 /// The bridge with its sockets bound: ready to serve.
