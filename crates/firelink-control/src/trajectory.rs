@@ -508,8 +508,10 @@ impl ServoPoint {
 }
 
 impl Motion {
-    /// The setpoint at time `t` since the motion started.
-    #[inline]
+    /// The setpoint at time `t` since the motion started. (Inlined into
+    /// the servo cycle's loop over the joints: a call per joint and cycle
+    /// cost more than a hold's or a finished move's sample.)
+    #[inline(always)]
     pub fn sample(&self, t: f64) -> Sample {
         match self {
             Motion::Hold(p) => Sample::at_rest(*p),

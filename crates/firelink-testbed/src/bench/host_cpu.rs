@@ -51,6 +51,21 @@ pub struct HubReplay<P: Port> {
     inner: P,
     hub: Vec<u8>,
     frozen: Option<Frozen>,
+    /// Once [`digest_writes`](HubReplay::digest_writes) was called: the
+    /// FNV-1a digest of every block written while frozen (the command
+    /// blocks, in order).
+    written: Option<u64>,
+}
+
+/// FNV-1a 64's offset basis.
+pub const FNV_OFFSET: u64 = 0xCBF2_9CE4_8422_2325;
+
+/// `bytes` folded into the FNV-1a 64 digest `digest` (start from
+/// [`FNV_OFFSET`]).
+pub fn fnv1a(digest: u64, bytes: &[u8]) -> u64 {
+    bytes.iter().fold(digest, |d, &b| {
+        (d ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01B3)
+    })
 }
 
 /// The replay's state once frozen.
@@ -72,7 +87,29 @@ impl<P: Port> HubReplay<P> {
             inner: port,
             hub: Vec::new(),
             frozen: None,
+            written: None,
         }
+    }
+
+    /// From now on fold every block written while frozen into a digest
+    /// ([`written_digest`](Self::written_digest)): the replayed cycles'
+    /// command blocks, to compare two builds' outputs.
+    pub fn digest_writes(&mut self) {
+        self.written.get_or_insert(FNV_OFFSET);
+    }
+
+    /// The digest of the blocks written since
+    /// [`digest_writes`](Self::digest_writes), if it was called.
+    pub fn written_digest(&self) -> Option<u64> {
+        self.written
+    }
+
+    /// A block written while frozen: into the digest, if one is kept.
+    fn frozen_block(&mut self, data: &[u8]) {
+        if let Some(d) = self.written.as_mut() {
+            *d = fnv1a(*d, data);
+        }
+        black_box(data);
     }
 
     /// From now on answer from the last hub block read: `entries` are the
@@ -229,7 +266,7 @@ impl<P: Port> Port for HubReplay<P> {
 
     fn write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
         if self.frozen.is_some() {
-            black_box(data);
+            self.frozen_block(data);
             return Ok(());
         }
         self.inner.write_block(dest, offset, data)
@@ -245,7 +282,7 @@ impl<P: Port> Port for HubReplay<P> {
 
     fn start_write_block(&mut self, dest: Dest, offset: u64, data: &[u8]) -> Result<()> {
         if self.frozen.is_some() {
-            black_box(data);
+            self.frozen_block(data);
             return Ok(());
         }
         self.inner.start_write_block(dest, offset, data)
@@ -466,6 +503,28 @@ impl RecordedCycle {
         port.end_cycle();
         black_box(&self.bare_hub);
         Ok(())
+    }
+
+    /// `digest` with the robot's state after the last cycle folded in
+    /// ([`fnv1a`] over the bits of every joint's position, velocity,
+    /// setpoint, commanded current and pot position, then the lifecycle
+    /// state): two builds that compute the same give the same digest.
+    pub fn fold_state(&self, digest: u64) -> u64 {
+        let r = &self.robot;
+        let d = (0..r.joint_count()).fold(digest, |d, i| {
+            [
+                r.position(i),
+                r.velocity(i),
+                r.setpoint(i),
+                r.commanded_current(i),
+                r.potentiometer(i),
+            ]
+            .into_iter()
+            .fold(d, |d, v| {
+                fnv1a(d, &v.map_or(u64::MAX, f64::to_bits).to_le_bytes())
+            })
+        });
+        fnv1a(d, format!("{:?}", r.state()).as_bytes())
     }
 
     /// The robot.

@@ -88,6 +88,9 @@ pub(super) struct QueryGroup {
     pub(super) hub_read_quadlets: usize,
     /// Between the query and the hub read.
     pub(super) wait: Duration,
+    /// Where the hub block's timing quadlet is
+    /// ([`HubBlock::timing_quadlet`] of `slots`, worked out here once).
+    pub(super) timing_quadlet: Option<usize>,
 }
 
 /// Per board (index in the system): its block from the hub was latched,
@@ -153,6 +156,7 @@ impl<P: Port> IoSystem<P> {
                 self.port
                     .broadcast_wait(qla1_read_blocks(slots.iter().map(|s| s.layout)))
             });
+            let timing_quadlet = HubBlock::<&[u8]>::timing_quadlet(&slots);
             groups.push(QueryGroup {
                 mask,
                 members,
@@ -160,6 +164,7 @@ impl<P: Port> IoSystem<P> {
                 hub_quadlets,
                 hub_read_quadlets,
                 wait,
+                timing_quadlet,
             });
         }
         Ok(groups)
@@ -366,7 +371,7 @@ impl<P: Port> IoSystem<P> {
                 *o = Some(outcome);
             }
         }
-        let timing = hub.timing().to_word();
+        let timing = hub.timing_at(group.timing_quadlet).to_word();
         self.report.hub_read = HubReadTimes::from_word(timing, clock_hz);
         Ok(outcomes)
     }

@@ -111,12 +111,30 @@ impl<'b, T: AsRef<[u8]>> HubBlock<'b, T> {
     /// The timing quadlet after the last entry (all zero for Rev 4 boards,
     /// whose hub has none).
     pub fn timing(&self) -> HubTiming {
-        let layouts = self.boards.iter().map(|b| b.layout);
-        if !self.boards.is_empty() && !layouts.clone().any(|l| has_hub_timing(l.format())) {
-            return HubTiming::default();
+        self.timing_at(Self::timing_quadlet(self.boards))
+    }
+
+    /// Where the timing quadlet of a hub block of `boards` is (`None`: Rev
+    /// 4 boards, whose hub has none): what [`timing`](Self::timing) reads,
+    /// for a caller that works it out once for many blocks of the same
+    /// boards ([`timing_at`](Self::timing_at)).
+    pub fn timing_quadlet(boards: &[BoardSlot]) -> Option<usize> {
+        let layouts = boards.iter().map(|b| b.layout);
+        if !boards.is_empty() && !layouts.clone().any(|l| has_hub_timing(l.format())) {
+            return None;
         }
-        let q = hub_block_quadlets(layouts).saturating_sub(1);
-        HubTiming::from_word(read_quadlet(self.buffer.as_ref(), q))
+        Some(hub_block_quadlets(layouts).saturating_sub(1))
+    }
+
+    /// The timing quadlet at `quadlet`, as
+    /// [`timing_quadlet`](Self::timing_quadlet) of this block's boards
+    /// gives it (all zero for `None`).
+    #[inline]
+    pub fn timing_at(&self, quadlet: Option<usize>) -> HubTiming {
+        match quadlet {
+            Some(q) => HubTiming::from_word(read_quadlet(self.buffer.as_ref(), q)),
+            None => HubTiming::default(),
+        }
     }
 
     /// Validate every entry ([`HubEntry::validate`]); the first failure is

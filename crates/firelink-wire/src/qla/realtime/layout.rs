@@ -54,7 +54,7 @@ impl FirmwareRev {
     /// format, Rev 4 its own; other earlier revisions (which the spec does
     /// not describe) the Rev 7 format.
     #[inline]
-    pub fn block_format(self) -> BlockFormat {
+    pub const fn block_format(self) -> BlockFormat {
         // (The named revisions without turning them into numbers first:
         // every cycle asks, several times per board.)
         match self {
@@ -75,6 +75,12 @@ pub struct BoardLayout {
     firmware: FirmwareRev,
     motors: u8,
     encoders: u8,
+    /// `firmware.block_format()` and the read block's quadlets, worked out
+    /// once when the layout is made: every cycle asks for both several
+    /// times per board. (Functions of the three fields above, so equality
+    /// and hashing mean the same with them.)
+    format: BlockFormat,
+    read_quadlets: u8,
 }
 
 /// The per-axis sections of the read block, in wire order.
@@ -107,20 +113,35 @@ impl BoardLayout {
     /// A QLA1 board: 4 motors, 4 encoders.
     #[inline]
     pub const fn qla1(firmware: FirmwareRev) -> BoardLayout {
-        BoardLayout {
-            firmware,
-            motors: 4,
-            encoders: 4,
-        }
+        Self::made(firmware, 4, 4)
     }
 
     /// A DQLA board: 8 motors, 8 encoders.
     #[inline]
     pub const fn dqla(firmware: FirmwareRev) -> BoardLayout {
+        Self::made(firmware, 8, 8)
+    }
+
+    /// The layout with its derived fields, for counts already checked (at
+    /// most [`MAX_AXES`] each: the read block is then at most
+    /// `4 + 2 * 8 + 5 * 8 = 60` quadlets).
+    const fn made(firmware: FirmwareRev, motors: u8, encoders: u8) -> BoardLayout {
+        let format = firmware.block_format();
+        let (m, e) = (motors as usize, encoders as usize);
+        // Rev 4 `4 + M + E`, Rev 7 `4 + M + 5E`, Rev 8 `4 + 2M + 5E`
+        // (`fpga-board.md` §4; what `section` gives, see the tests).
+        let quadlets = field::READ_FIXED_QUADLETS
+            + match format {
+                BlockFormat::Rev4 => m + e,
+                BlockFormat::Rev7 => m + 5 * e,
+                BlockFormat::Rev8 => 2 * m + 5 * e,
+            };
         BoardLayout {
             firmware,
-            motors: 8,
-            encoders: 8,
+            motors,
+            encoders,
+            format,
+            read_quadlets: quadlets as u8,
         }
     }
 
@@ -140,11 +161,7 @@ impl BoardLayout {
                 });
             }
         }
-        Ok(BoardLayout {
-            firmware,
-            motors,
-            encoders,
-        })
+        Ok(Self::made(firmware, motors, encoders))
     }
 
     /// The layout of a known companion board (QLA1, DQLA); `None` otherwise.
@@ -165,8 +182,8 @@ impl BoardLayout {
 
     /// The block format of the firmware.
     #[inline]
-    pub fn format(self) -> BlockFormat {
-        self.firmware.block_format()
+    pub const fn format(self) -> BlockFormat {
+        self.format
     }
 
     /// Number of motors (ADC, DAC and MOTOR_STATUS entries).
@@ -239,9 +256,8 @@ impl BoardLayout {
     /// Rev 8 `4 + 2M + 5E` (QLA1 32, DQLA 60), `fpga-board.md` §4; Rev 4
     /// `4 + M + E` (QLA1 12).
     #[inline]
-    pub fn read_block_quadlets(self) -> usize {
-        let (start, count) = self.section(Section::MotorStatus);
-        start + count
+    pub const fn read_block_quadlets(self) -> usize {
+        self.read_quadlets as usize
     }
 
     /// Bytes of the real-time read block.
@@ -312,6 +328,22 @@ mod tests {
                 (d.read_block_quadlets(), d.write_block_quadlets()),
                 (60, 10)
             );
+        }
+    }
+
+    /// The read block's size kept in the layout is where its last
+    /// section ends, for every format and count.
+    #[test]
+    fn kept_read_quadlets_end_the_last_section() {
+        for rev in (0..12).map(FirmwareRev::from) {
+            for m in 1..=MAX_AXES as u8 {
+                for e in 1..=MAX_AXES as u8 {
+                    let l = BoardLayout::new(rev, m, e).unwrap();
+                    let (start, count) = l.section(Section::MotorStatus);
+                    assert_eq!(l.read_block_quadlets(), start + count, "{rev:?} {m} {e}");
+                    assert_eq!(l.format(), rev.block_format());
+                }
+            }
         }
     }
 

@@ -255,17 +255,6 @@ fn be_quadlet(q: &[u8]) -> u32 {
     }
 }
 
-/// The first `Q` quadlets of `bytes`, if it holds them.
-#[inline]
-fn words<const Q: usize>(bytes: &[u8]) -> Option<[u32; Q]> {
-    let mut out = [0; Q];
-    let bytes = bytes.get(..Q * 4)?;
-    for (o, q) in out.iter_mut().zip(bytes.chunks_exact(4)) {
-        *o = be_quadlet(q);
-    }
-    Some(out)
-}
-
 impl ReadBlockRepr {
     /// A block of all zeros.
     pub fn new(layout: BoardLayout) -> ReadBlockRepr {
@@ -325,23 +314,28 @@ impl ReadBlockRepr {
         // 8 from quadlets at places known when compiling.
         let bytes = block.as_bytes();
         let filled = match (layout.format(), layout.motors(), layout.encoders()) {
-            (BlockFormat::Rev8, 4, 4) => words::<32>(bytes).map(|w| self.fill_from::<4, 32>(&w)),
-            (BlockFormat::Rev7, 4, 4) => words::<28>(bytes).map(|w| self.fill_from::<4, 28>(&w)),
-            (BlockFormat::Rev8, 8, 8) => words::<60>(bytes).map(|w| self.fill_from::<8, 60>(&w)),
-            _ => None,
+            (BlockFormat::Rev8, 4, 4) => self.fill_from::<4, 32>(bytes),
+            (BlockFormat::Rev7, 4, 4) => self.fill_from::<4, 28>(bytes),
+            (BlockFormat::Rev8, 8, 8) => self.fill_from::<8, 60>(bytes),
+            _ => false,
         };
-        if filled.is_none() {
+        if !filled {
             self.fill_sections_any(bytes, layout);
         }
         Ok(())
     }
 
-    /// [`parse_into`](Self::parse_into)'s sections from the `Q` quadlets
-    /// of a Rev 7 or 8 block with `N` motors and `N` encoders (MOTOR_STATUS
-    /// when `Q` holds it).
-    #[inline]
-    fn fill_from<const N: usize, const Q: usize>(&mut self, words: &[u32; Q]) {
-        let at = |q: usize| words.get(q).copied().unwrap_or(0);
+    /// [`parse_into`](Self::parse_into)'s sections from the first `Q`
+    /// quadlets of `bytes`, a Rev 7 or 8 block with `N` motors and `N`
+    /// encoders (MOTOR_STATUS when `Q` holds it); false, nothing written,
+    /// when `bytes` is shorter. Each quadlet read straight into its field
+    /// (the places are constants here: no copy of the block first).
+    #[inline(always)]
+    fn fill_from<const N: usize, const Q: usize>(&mut self, bytes: &[u8]) -> bool {
+        let Some(bytes) = bytes.get(..Q * 4) else {
+            return false;
+        };
+        let at = |q: usize| bytes.get(q * 4..q * 4 + 4).map_or(0, be_quadlet);
         let adc = field::READ_FIXED_QUADLETS;
         let encoders = adc + N;
         let status = encoders + 5 * N;
@@ -370,6 +364,7 @@ impl ReadBlockRepr {
                 EncoderReading::default()
             };
         }
+        true
     }
 
     /// [`parse_into`](Self::parse_into)'s sections for any layout.

@@ -253,10 +253,19 @@ impl WriteBlockRepr {
         };
         // Whole quadlets in wire order (what `WriteBlock`'s setters write,
         // each once): the Rev 8 header, the DACs (Rev 4 and 7: with the
-        // board ID), the control quadlet last (none on Rev 4); put together
-        // in a fixed array first, then stored in one pass (`out` holds
-        // exactly the layout's quadlets).
+        // board ID), the control quadlet last (none on Rev 4). The QLA1's
+        // and the DQLA's Rev 8 blocks each quadlet stored in its place;
+        // any other put together in a fixed array first, then stored in
+        // one pass (`out` holds exactly the layout's quadlets).
         let format = self.layout.format();
+        let stored = match (format, self.layout.motors()) {
+            (BlockFormat::Rev8, 4) => self.emit_rev8::<4>(control, out),
+            (BlockFormat::Rev8, 8) => self.emit_rev8::<8>(control, out),
+            _ => false,
+        };
+        if stored {
+            return Ok(len);
+        }
         let mut words = [0u32; MAX_AXES + 2];
         let (dacs, rest) = match format {
             BlockFormat::Rev8 => {
@@ -289,6 +298,33 @@ impl WriteBlockRepr {
             q.copy_from_slice(&w.to_be_bytes());
         }
         Ok(len)
+    }
+
+    /// [`emit_with_control`](Self::emit_with_control)'s Rev 8 block of a
+    /// layout with `N` motors into `out`, which holds exactly its `N + 2`
+    /// quadlets: the header, the `N` DACs, the control quadlet, each
+    /// stored in its place (constants here); false, nothing written, when
+    /// `out` is shorter.
+    #[inline(always)]
+    fn emit_rev8<const N: usize>(&self, control: StatusWrite, out: &mut [u8]) -> bool {
+        let Some(out) = out.get_mut(..(N + 2) * 4) else {
+            return false;
+        };
+        let mut put = |q: usize, word: u32| {
+            if let Some(b) = out.get_mut(q * 4..q * 4 + 4) {
+                b.copy_from_slice(&word.to_be_bytes());
+            }
+        };
+        let header = WriteHeader {
+            board_id: self.board_id,
+            quadlets: (N + 2) as u8,
+        };
+        put(0, header.to_word());
+        for (i, dac) in self.dac.iter().take(N).enumerate() {
+            put(1 + i, dac.0);
+        }
+        put(N + 1, control.0);
+        true
     }
 }
 
