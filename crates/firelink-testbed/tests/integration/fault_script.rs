@@ -370,3 +370,30 @@ fn a_board_muted_on_the_emulators_bus_is_named_over_udp() {
     assert_eq!(r.amplifiers_on_after_fault, Some(false), "{r}");
     assert!(r.boards_not_answering.contains(&lost), "{r}");
 }
+
+/// The simulated bus's target on a wrapped sim port (a tracer over it):
+/// a host pause is the port's own wait and is applied (the port's clock
+/// moves by it); a board fault needs the bus and is still refused.
+#[test]
+fn the_sim_target_pauses_the_host_on_a_wrapped_sim_port() {
+    use firelink_host::trace::TracingPort;
+    let rig = RigBuilder::qla(used_boards(&config())).build().unwrap();
+    let target = rig.fault_target();
+    let mut port = TracingPort::new(rig.sim_port());
+    let name = port.name().to_string();
+    let pause: FaultScript = "host-pause@cycle=3:for=100us".parse().unwrap();
+    target.check(&pause, &port, None).unwrap();
+    let before = port.now();
+    target.apply(0, &pause.entries[0], &mut port, &[]).unwrap();
+    assert_eq!(port.now() - before, Duration::from_micros(100));
+    let mute: FaultScript = format!("mute@t=0us:id={}", lost_board(&config()))
+        .parse()
+        .unwrap();
+    let e = target.check(&mute, &port, None).unwrap_err();
+    assert!(
+        e.to_string().contains(&format!(
+            "cannot be applied on {name}: the simulated bus's target on another port"
+        )),
+        "{e}"
+    );
+}
