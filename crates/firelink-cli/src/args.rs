@@ -11,7 +11,7 @@ pub use firelink_testbed::cli_args::{arbitration, firmware, fpga, hardware, spee
 pub use firelink_testbed::limits::{
     CpuLatencyRequest as CpuLatencyArg, WatchdogSetting, board_count, board_id, can_cycles,
     cpu_latency, cycles, mahru_servo_period, measured, node_id, parse_number, period_us,
-    probability, quadlets, rate_hz_or_max, seconds_or_forever, servo_period_us, servo_rate,
+    probability, quadlets, rate_hz_or_max, seconds_or_forever, servo_period_us, servo_rate_hz,
     timeout_ms, timings, wait_us, watchdog,
 };
 

@@ -31,7 +31,7 @@ pub struct DemoArgs {
     #[command(flatten)]
     pub request: DemoRequest,
     /// The period as a rate in Hz (the older spelling of --period).
-    #[arg(long, hide = true, value_parser = crate::args::servo_rate, conflicts_with_all = ["period", "period_us"])]
+    #[arg(long, hide = true, value_parser = crate::args::servo_rate_hz, conflicts_with_all = ["period", "period_us"])]
     pub rate: Option<ServoPeriod>,
     /// The period in us, 100 to 1000000 (the older spelling of --period).
     #[arg(long = "period-us", hide = true, value_parser = crate::args::servo_period_us, conflicts_with = "period")]

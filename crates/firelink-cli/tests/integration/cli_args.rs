@@ -89,6 +89,21 @@ fn a_servo_period_without_its_unit_or_twice_is_a_usage_error() {
     }
 }
 
+/// The demo's hidden `--rate` is read by the one parser the web console's
+/// and the ROS 2 node's share (`limits::servo_rate_hz`): its refusal is
+/// the servo period's own range rule, as theirs is.
+#[test]
+fn the_demos_older_rate_is_refused_by_the_servo_periods_rule() {
+    for rate in ["0", "1e6", "NaN"] {
+        let (code, err) = firelink(&["demo", "--rate", rate]);
+        assert_eq!(code, 2, "--rate {rate} exited {code}: {err}");
+        assert!(
+            err.contains("out of range, 10 us to 1 s (100 kHz to 1 Hz)"),
+            "--rate {rate}: {err}"
+        );
+    }
+}
+
 #[test]
 fn bench_board_lists_are_checked() {
     for list in ["17", "0", "63", "2,x"] {
