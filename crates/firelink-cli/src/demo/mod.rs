@@ -58,6 +58,21 @@ pub struct DemoArgs {
     pub quiet: bool,
 }
 
+impl DemoArgs {
+    /// Note in the request the options `matches` (this command's) got from
+    /// the command line, by argument ID, whatever their value.
+    pub fn note_given(&mut self, matches: &clap::ArgMatches) {
+        use clap::parser::ValueSource;
+        let command = DemoArgs::augment_args(clap::Command::new("demo"));
+        self.request.given = command
+            .get_arguments()
+            .map(|a| a.get_id().as_str())
+            .filter(|id| matches.value_source(id) == Some(ValueSource::CommandLine))
+            .map(String::from)
+            .collect();
+    }
+}
+
 /// `firelink` alone: `firelink demo` with every default.
 impl Default for DemoArgs {
     fn default() -> Self {

@@ -149,3 +149,33 @@ fn a_write_over_udp_to_nobody_is_not_reported_as_done() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(!stdout.contains("wrote"), "{stdout}");
 }
+
+/// The teleoperation session takes only --period (or its older
+/// spellings), --firmware, --json and --quiet: every other option, given
+/// on the command line, is refused by name, even at its default value, and
+/// before anything runs (a --config is not even read: no warning of its).
+#[test]
+fn teleop_refuses_every_option_it_would_ignore() {
+    let config = concat!(env!("CARGO_MANIFEST_DIR"), "/../../configs/dvrk-seed000.json");
+    for (args, option) in [
+        (&["--duration", "3"][..], "--duration"),
+        (&["--robot", "dvrk"], "--robot"),
+        (&["--config", config], "--config"),
+        (&["--port", "sim"], "--port"),
+        (&["--protocol", "broadcast"], "--protocol"),
+        (&["--udp-wait", "block"], "--udp-wait"),
+        (&["--watchdog-ms", "20"], "--watchdog-ms"),
+        (&["--pacing", "virtual"], "--pacing"),
+        (&["--no-rt"], "--no-rt"),
+        (&["--no-rate-search"], "--no-rate-search"),
+        (&["--fault", "none"], "--fault none"),
+    ] {
+        let (code, err) = firelink(&[&["demo", "--teleop"], args].concat());
+        assert_eq!(code, 1, "{args:?}: {err}");
+        assert!(
+            err.contains(&format!("firelink demo --teleop cannot honour {option}")),
+            "{args:?}: {err}"
+        );
+        assert!(!err.contains("warning"), "{args:?}: {err}");
+    }
+}
