@@ -610,14 +610,14 @@ mod tests {
                     duration_s: 5.0,
                     ..teleop.clone()
                 },
-                "--duration 5",
+                "--duration (",
             ),
             (
                 DemoRequest {
                     port: PortSpec::Emulate,
                     ..teleop.clone()
                 },
-                "--port emulate",
+                "--port (",
             ),
             (
                 DemoRequest {
