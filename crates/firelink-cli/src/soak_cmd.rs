@@ -63,7 +63,7 @@ pub fn run(args: &SoakArgs, out: &mut impl Write) -> Result<(), CliError> {
         if !quiet {
             eprintln!("soak: watchdog proof, {} host stops", args.watchdog_trials);
         }
-        Some(watchdog::run(args.watchdog_trials, args.seed)?)
+        Some(watchdog::run(args.watchdog_trials, args.seed, args.period)?)
     } else {
         None
     };
