@@ -156,7 +156,10 @@ fn a_write_over_udp_to_nobody_is_not_reported_as_done() {
 /// before anything runs (a --config is not even read: no warning of its).
 #[test]
 fn teleop_refuses_every_option_it_would_ignore() {
-    let config = concat!(env!("CARGO_MANIFEST_DIR"), "/../../configs/dvrk-seed000.json");
+    let config = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../configs/dvrk-seed000.json"
+    );
     for (args, option) in [
         (&["--duration", "3"][..], "--duration"),
         (&["--robot", "dvrk"], "--robot"),
