@@ -347,7 +347,10 @@ impl DemoRequest {
     /// value is not the default's (a request made without a command line).
     ///
     /// # Errors
-    /// `--fault`, `--faults`, or an option of [`TELEOP_IGNORES`] given.
+    /// `--fault`, `--faults`, or another option the session ignores given
+    /// (`--robot`, `--config`, `--duration`, `--port`, `--protocol`,
+    /// `--udp-wait`, `--pacing`, `--no-rt`, `--watchdog-ms`,
+    /// `--no-rate-search`).
     pub fn teleop_options(&self) -> Result<TeleopOptions, TestbedError> {
         const COMMAND: &str = "firelink demo --teleop";
         if self.given.iter().any(|g| g == "fault") && self.fault == DemoFault::None {

@@ -36,7 +36,10 @@ fn asked(args: &[&str]) -> (f64, f64) {
         (0.0, 0.0),
         "{args:?}: {report}"
     );
-    (number("control_asked_hz"), number("control_asked_period_us"))
+    (
+        number("control_asked_hz"),
+        number("control_asked_period_us"),
+    )
 }
 
 #[test]
