@@ -11,7 +11,7 @@
 
 pub use firelink_testbed::limits::{
     WatchdogSetting, board_id, cycles, measured, node_id, parse_number, quadlets, rate_hz_or_max,
-    servo_period_us, servo_rate, timeout_ms, watchdog,
+    servo_period_us, servo_rate_hz, timeout_ms, watchdog,
 };
 
 /// Whether the default run should be quiet about progress (tests).

@@ -26,7 +26,7 @@ mod tour;
 use std::io::Write;
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 use error::{CliError, EXIT_STATUS};
 
@@ -149,7 +149,16 @@ fn run(cli: Cli) -> Result<(), CliError> {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let matches = Cli::command().get_matches();
+    let mut cli =
+        Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.format(&mut Cli::command()).exit());
+    // What was given on the command line, for the runs that refuse the
+    // options they would ignore.
+    if let (Some(Command::Demo(args)), Some(m)) =
+        (&mut cli.command, matches.subcommand_matches("demo"))
+    {
+        args.note_given(m);
+    }
     if let Some(Command::FwRun(args)) = &cli.command {
         return match fw_run::run(args) {
             Ok(code) => ExitCode::from(code),

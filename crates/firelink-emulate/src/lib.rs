@@ -679,6 +679,37 @@ pub fn serve_groups(
     unicast: &UdpSocket,
     groups: &[&UdpSocket],
     stop: &Arc<AtomicBool>,
+    on_event: impl FnMut(Event),
+) -> std::io::Result<()> {
+    serve_inner(bridge, unicast, groups, stop, None, on_event)
+}
+
+/// [`serve`] (no group socket) with the boards' time taken from the
+/// caller's clock instead of the wall clock: each datagram is handled at
+/// `virtual_at(its arrival stamp)`, and a quiet moment `now` lets virtual
+/// time reach `virtual_at(now)`. For an in-process host whose own time is
+/// virtual (a test's): the boards then keep the host's time, and a host or
+/// server kept off the CPU changes nothing the boards see. `virtual_at`
+/// must not go backwards for later instants; no lag is reported.
+///
+/// # Errors
+/// As [`serve`].
+pub fn serve_following(
+    bridge: &mut Bridge,
+    unicast: &UdpSocket,
+    stop: &Arc<AtomicBool>,
+    virtual_at: &dyn Fn(Instant) -> SimTime,
+    on_event: impl FnMut(Event),
+) -> std::io::Result<()> {
+    serve_inner(bridge, unicast, &[], stop, Some(virtual_at), on_event)
+}
+
+fn serve_inner(
+    bridge: &mut Bridge,
+    unicast: &UdpSocket,
+    groups: &[&UdpSocket],
+    stop: &Arc<AtomicBool>,
+    following: Option<&dyn Fn(Instant) -> SimTime>,
     mut on_event: impl FnMut(Event),
 ) -> std::io::Result<()> {
     on_event(Event::Listening {
@@ -700,9 +731,12 @@ pub fn serve_groups(
     }
     let wall_origin = Instant::now();
     let virtual_origin = bridge.bus().now();
-    let virtual_at = |at: Instant| {
-        virtual_origin
-            + SimDuration::from_micros_f64(at.duration_since(wall_origin).as_secs_f64() * 1e6)
+    let virtual_at = |at: Instant| match following {
+        Some(clock) => clock(at),
+        None => {
+            virtual_origin
+                + SimDuration::from_micros_f64(at.duration_since(wall_origin).as_secs_f64() * 1e6)
+        }
     };
     let mut buf = vec![0u8; MAX_DATAGRAM];
     let mut reply = Vec::with_capacity(MAX_DATAGRAM);
@@ -776,7 +810,8 @@ pub fn serve_groups(
         bridge.advance_to(virtual_at(wall));
         let ahead_us = bridge.bus().now().as_micros_f64() - virtual_origin.as_micros_f64();
         let behind = wall_origin.elapsed().as_secs_f64() - ahead_us / 1e6;
-        if behind > 0.010 && lag_reported.elapsed() > Duration::from_secs(5) {
+        if following.is_none() && behind > 0.010 && lag_reported.elapsed() > Duration::from_secs(5)
+        {
             on_event(Event::Lagging(Duration::from_secs_f64(behind)));
             lag_reported = Instant::now();
         }

@@ -839,10 +839,11 @@ pub struct DemoRun {
 ///
 /// # Errors
 /// The program failed outside a cycle; a fault `target` cannot apply on
-/// this port or that cannot happen within the motion (refused before the
-/// boards are touched: the callers check the plan before they open the
-/// port's boards, [`DemoPlan::check_faults`]; here it is checked again
-/// with the boards the scan found).
+/// this port or that cannot happen within the motion (the callers check
+/// the plan before they open the port's boards,
+/// [`DemoPlan::check_faults`]; here it is checked again with the boards
+/// the scan found, so a `dest=` board not found is refused after the
+/// scan, before any board is configured or powered on).
 pub fn run_program<R: DemoIo>(
     mut robot: Robot<R>,
     plan: &DemoPlan<'_>,

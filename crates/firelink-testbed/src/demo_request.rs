@@ -142,7 +142,53 @@ pub struct DemoRequest {
         arg(long = "watchdog-ms", default_value = "20", value_parser = crate::limits::watchdog)
     )]
     pub watchdog: WatchdogSetting,
+    /// The options the user gave, by clap's argument ID (the field's name:
+    /// `duration_s`, `port`, ...; the front end's own, as `config`, too),
+    /// whatever their value: the front end fills it from clap's value
+    /// sources. A run that would ignore one refuses it by these, so an
+    /// option given with its default value is refused as well.
+    #[cfg_attr(feature = "clap", arg(skip))]
+    pub given: Vec<String>,
 }
+
+/// The options the teleoperation session does not use, by clap's argument
+/// ID: the option as written, and why it cannot be honoured.
+const TELEOP_IGNORES: &[(&str, &str, &str)] = &[
+    ("robot", "--robot", "the session is the dVRK's"),
+    (
+        "config",
+        "--config",
+        "the session runs seed 000's MTMR and PSM1",
+    ),
+    (
+        "duration_s",
+        "--duration",
+        "the session follows for its own 60 s",
+    ),
+    ("port", "--port", "the session runs on the simulated bus"),
+    (
+        "protocol",
+        "--protocol",
+        "the session's I/O picks its protocol itself",
+    ),
+    (
+        "udp_wait",
+        "--udp-wait",
+        "the session runs on the simulated bus",
+    ),
+    ("pacing", "--pacing", "the session runs in virtual time"),
+    ("no_rt", "--no-rt", "the session runs in virtual time"),
+    (
+        "watchdog",
+        "--watchdog-ms",
+        "the session keeps the runner's default watchdog",
+    ),
+    (
+        "search_fastest",
+        "--no-rate-search",
+        "the session searches no rate",
+    ),
+];
 
 impl Default for DemoRequest {
     fn default() -> Self {
@@ -162,6 +208,7 @@ impl Default for DemoRequest {
             watchdog: dvrk.watchdog,
             udp_wait: dvrk.udp_wait,
             search_fastest: true,
+            given: Vec::new(),
         }
     }
 }
@@ -292,30 +339,43 @@ impl DemoRequest {
         }
     }
 
-    /// The teleoperation session's options: its own length, port (the
-    /// simulated bus) and pacing (virtual time), no faults; an option the
-    /// session would ignore is refused by name.
+    /// The teleoperation session's options: its own robot, configuration,
+    /// length, port (the simulated bus), watchdog and pacing (virtual
+    /// time), no faults; it takes only `--period` and `--firmware`. An
+    /// option the session would ignore is refused by name when it was
+    /// given ([`given`](Self::given)), whatever its value, or when its
+    /// value is not the default's (a request made without a command line).
     ///
     /// # Errors
-    /// `--fault`, `--faults`, `--duration`, `--port` or `--pacing` given.
+    /// `--fault`, `--faults`, or another option the session ignores given
+    /// (`--robot`, `--config`, `--duration`, `--port`, `--protocol`,
+    /// `--udp-wait`, `--pacing`, `--no-rt`, `--watchdog-ms`,
+    /// `--no-rate-search`).
     pub fn teleop_options(&self) -> Result<TeleopOptions, TestbedError> {
         const COMMAND: &str = "firelink demo --teleop";
+        if self.given.iter().any(|g| g == "fault") && self.fault == DemoFault::None {
+            return Err(TestbedError::Config(format!(
+                "{COMMAND} cannot honour --fault none (the session injects no faults)"
+            )));
+        }
         self.refuse_faults(COMMAND)?;
         let default = DemoRequest::default();
-        let ignored = if self.duration_s != default.duration_s {
-            Some(format!(
-                "--duration {} (the session follows for its own 60 s)",
-                self.duration_s
-            ))
-        } else if self.port != default.port {
-            Some(format!(
-                "--port {} (the session runs on the simulated bus)",
-                self.port
-            ))
-        } else {
-            self.pacing
-                .map(|_| "--pacing (the session runs in virtual time)".to_string())
+        let changed = |id: &str| match id {
+            "robot" => self.robot != default.robot,
+            "config" => !matches!(self.config, DemoConfig::Builtin),
+            "duration_s" => self.duration_s != default.duration_s,
+            "port" => self.port != default.port,
+            "protocol" => self.protocol != default.protocol,
+            "udp_wait" => self.udp_wait != default.udp_wait,
+            "pacing" => self.pacing.is_some(),
+            "watchdog" => self.watchdog != default.watchdog,
+            "search_fastest" => self.search_fastest != default.search_fastest,
+            _ => false,
         };
+        let ignored = TELEOP_IGNORES
+            .iter()
+            .find(|(id, _, _)| self.given.iter().any(|g| g == id) || changed(id))
+            .map(|(_, option, why)| format!("{option} ({why})"));
         if let Some(option) = ignored {
             return Err(TestbedError::Config(format!(
                 "{COMMAND} cannot honour {option}"
@@ -553,14 +613,14 @@ mod tests {
                     duration_s: 5.0,
                     ..teleop.clone()
                 },
-                "--duration 5",
+                "--duration (",
             ),
             (
                 DemoRequest {
                     port: PortSpec::Emulate,
                     ..teleop.clone()
                 },
-                "--port emulate",
+                "--port (",
             ),
             (
                 DemoRequest {
@@ -573,5 +633,35 @@ mod tests {
             let e = error(request.teleop_options());
             assert!(e.contains(option), "{option}: {e}");
         }
+        // Given on the command line, an option the session ignores is
+        // refused even at its default value.
+        for (id, option, _) in TELEOP_IGNORES {
+            let request = DemoRequest {
+                given: vec![(*id).to_string()],
+                ..teleop.clone()
+            };
+            let e = error(request.teleop_options());
+            assert!(
+                e.contains(&format!("cannot honour {option} (")),
+                "{id}: {e}"
+            );
+        }
+        let e = error(
+            DemoRequest {
+                given: vec!["fault".into()],
+                ..teleop.clone()
+            }
+            .teleop_options(),
+        );
+        assert!(e.contains("--fault none"), "{e}");
+        // What it takes.
+        let request = DemoRequest {
+            given: ["period", "firmware", "teleop", "json", "quiet"]
+                .map(String::from)
+                .to_vec(),
+            period: Some(ServoPeriod::from_rate_hz(2000.0).unwrap()),
+            ..teleop
+        };
+        assert_eq!(request.teleop_options().unwrap().period.rate_hz(), 2000.0);
     }
 }

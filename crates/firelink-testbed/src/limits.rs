@@ -122,8 +122,8 @@ pub fn rate_hz(s: &str) -> Result<f64, String> {
 }
 
 /// A servo rate in Hz as a servo period (the older `--rate` spelling of
-/// `--period`): a number, then [`ServoPeriod`]'s
-/// one range rule, 1 Hz to 100 kHz, named in its error.
+/// `--period`, the one parser of every program's `--rate`): a number, then
+/// [`ServoPeriod`]'s one range rule, 1 Hz to 100 kHz, named in its error.
 pub fn servo_rate_hz(s: &str) -> Result<firelink_control::ServoPeriod, String> {
     let hz: f64 = s
         .trim()
@@ -159,11 +159,6 @@ pub fn wait_us(s: &str) -> Result<f64, String> {
 /// A control period in microseconds: [`PERIOD_US`], above 0, at most 1 s.
 pub fn period_us(s: &str) -> Result<f64, String> {
     bounded(s, PERIOD_US)
-}
-
-/// A servo period given as a rate in Hz ([`rate_hz`]'s bounds).
-pub fn servo_rate(s: &str) -> Result<ServoPeriod, String> {
-    ServoPeriod::from_rate_hz(rate_hz(s)?).map_err(|e| e.to_string())
 }
 
 /// A servo period given in microseconds, MAHRU's bounds

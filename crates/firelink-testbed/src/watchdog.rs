@@ -14,9 +14,9 @@ use std::time::Duration;
 
 use firelink_board::node::BoardNode;
 use firelink_bus::{NodeHandle, SimDuration, SimTime};
-use firelink_control::State;
 use firelink_control::config::presets;
 use firelink_control::runner::{Pacing, Robot};
+use firelink_control::{ServoPeriod, State};
 use firelink_host::qla::io::IoSystem;
 use firelink_host::sim::SimPort;
 use firelink_wire::qla::registers::Watchdog;
@@ -36,6 +36,10 @@ pub struct WatchdogReport {
     pub observations: u64,
     /// The watchdog period, us.
     pub period_us: f64,
+    /// The servo period the robot ran at, us (the soak's `--period`; in
+    /// the JSON as the soak's `period_us`, so not repeated here).
+    #[serde(skip)]
+    pub servo_period_us: f64,
     /// One watchdog tick (256 clocks of 49.152 MHz), us.
     pub tick_us: f64,
     /// Observations where a board's amplifiers were off within period +
@@ -65,13 +69,15 @@ fn quantiles(v: &mut [f64]) -> [f64; 4] {
     [at(0.0), at(0.5), at(0.99), at(1.0)]
 }
 
-/// Run `trials` host stops, seeded by `seed`.
+/// Run `trials` host stops, seeded by `seed`, the robot's servo loop at
+/// `period` (the soak's).
 ///
 /// # Errors
 /// The robot could not be brought up.
-pub fn run(trials: u64, seed: u64) -> Result<WatchdogReport, TestbedError> {
+pub fn run(trials: u64, seed: u64, period: ServoPeriod) -> Result<WatchdogReport, TestbedError> {
     let settings = SoakSettings {
         seed,
+        period,
         ..SoakSettings::default()
     };
     let config = presets::dvrk_seed000();
@@ -120,6 +126,7 @@ pub fn run(trials: u64, seed: u64) -> Result<WatchdogReport, TestbedError> {
         trials,
         observations: trials * boards.len() as u64,
         period_us: period.as_secs_f64() * 1e6,
+        servo_period_us: settings.period.as_micros_f64(),
         tick_us: tick.as_secs_f64() * 1e6,
         within_bound: within,
         over_period_us: quantiles(&mut over),

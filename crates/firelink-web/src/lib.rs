@@ -12,10 +12,11 @@
 //!   it hands frames to the server through lock-free queues of preallocated
 //!   frames and takes commands the same way;
 //! - [`server`]: axum on tokio; drains the frames every 20 ms, keeps the
-//!   last seconds for CSV, streams to browsers over a WebSocket, answers
-//!   each command with its outcome, and checks the per-run token (header or
-//!   cookie, never the URL) on everything that reveals or changes the
-//!   robot and the `Origin` of everything that changes it.
+//!   last 30 s for CSV (at most 6 kHz of them: `server::CSV_MAX_RATE_HZ`),
+//!   streams to browsers over a WebSocket, answers each command with its
+//!   outcome, and checks the per-run token (header or cookie, never the
+//!   URL) on everything that reveals or changes the robot and the `Origin`
+//!   of everything that changes it.
 //!
 //! Losing the browser changes nothing: the loop goes on, and the boards'
 //! watchdogs stay armed. The loop ending (a signal, a panic) ends the

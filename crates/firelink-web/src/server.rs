@@ -61,6 +61,12 @@ const TICK: Duration = Duration::from_millis(20);
 const SAMPLES_PER_TICK: usize = 20;
 /// Seconds of samples kept for the CSV download.
 pub const CSV_SECONDS: f64 = 30.0;
+/// The highest rate the CSV's samples are kept at: a faster loop keeps
+/// every k-th cycle (k the smallest whole number that brings the rate to
+/// this or below; at 6 kHz and under, every cycle). So the ring holds at
+/// most `CSV_SECONDS` x this many samples at any servo rate (180 000, not
+/// the 3 million 30 s of a 100 kHz loop would be).
+pub const CSV_MAX_RATE_HZ: f64 = 6_000.0;
 /// How long `POST /api/command` waits for its command's outcome before it
 /// answers 202 (still running). Every command takes well under a second of
 /// the robot's time (power-on waits for the supply and the amplifiers'
@@ -78,6 +84,60 @@ struct Sample {
     t: f64,
     /// setpoint, position, commanded current per joint, flattened.
     values: Vec<f32>,
+}
+
+/// The samples kept for the CSV: the last [`CSV_SECONDS`] of the loop's
+/// cycles, at most [`CSV_MAX_RATE_HZ`] of them a second (a faster loop's
+/// cycles decimated by a whole factor).
+#[derive(Debug)]
+struct SampleRing {
+    samples: VecDeque<Sample>,
+    capacity: usize,
+    /// Keep one cycle in this many.
+    keep_every: u64,
+    /// Cycles offered so far.
+    seen: u64,
+}
+
+impl SampleRing {
+    /// The ring for a loop at `rate_hz`.
+    fn for_rate(rate_hz: f64) -> SampleRing {
+        let keep_every = (rate_hz / CSV_MAX_RATE_HZ).ceil().max(1.0) as u64;
+        let capacity = (CSV_SECONDS * rate_hz / keep_every as f64).ceil() as usize;
+        SampleRing {
+            samples: VecDeque::with_capacity(capacity),
+            capacity,
+            keep_every,
+            seen: 0,
+        }
+    }
+
+    /// Offer one cycle's sample: kept if it is one of the decimation's,
+    /// the oldest dropped when full. `values` is made only for a kept one.
+    fn offer(&mut self, t: f64, values: impl FnOnce() -> Vec<f32>) {
+        let keep = self.seen % self.keep_every == 0;
+        self.seen += 1;
+        if !keep {
+            return;
+        }
+        if self.samples.len() == self.capacity {
+            self.samples.pop_front();
+        }
+        self.samples.push_back(Sample {
+            t,
+            values: values(),
+        });
+    }
+
+    /// Copies of the samples of the last `seconds` (by the newest's time).
+    fn last(&self, seconds: f64) -> Vec<Sample> {
+        let newest = self.samples.back().map_or(0.0, |s| s.t);
+        self.samples
+            .iter()
+            .filter(|s| s.t >= newest - seconds)
+            .cloned()
+            .collect()
+    }
 }
 
 /// The two ends of a connection, for the `Origin` check: the address the
@@ -110,8 +170,7 @@ pub(crate) type Refusal = (StatusCode, String);
 pub struct Console {
     shared: Arc<Shared>,
     gate: Gate,
-    ring: Mutex<VecDeque<Sample>>,
-    ring_capacity: usize,
+    ring: Mutex<SampleRing>,
     latest: Mutex<Value>,
     last_command: Mutex<Option<CommandOutcome>>,
     recent: Mutex<VecDeque<CommandOutcome>>,
@@ -364,13 +423,12 @@ impl Console {
         allowed_origins: Vec<String>,
         faults: Vec<DemoFault>,
     ) -> Console {
-        let ring_capacity = (CSV_SECONDS * shared.period.rate_hz()).ceil() as usize;
+        let ring = SampleRing::for_rate(shared.period.rate_hz());
         let (stream, _) = broadcast::channel(64);
         Console {
             shared,
             gate: Gate::new(token, listen, allowed_origins),
-            ring: Mutex::new(VecDeque::with_capacity(ring_capacity)),
-            ring_capacity,
+            ring: Mutex::new(ring),
             latest: Mutex::new(Value::Null),
             last_command: Mutex::new(None),
             recent: Mutex::new(VecDeque::with_capacity(RECENT_OUTCOMES)),
@@ -481,17 +539,13 @@ fn publish_frames(console: &Console, tick: u64) {
         vec![[Vec::new(), Vec::new(), Vec::new()]; console.shared.joint_labels.len()];
     let mut newest: Option<Box<Frame>> = None;
     while let Some(frame) = console.shared.full.pop() {
-        let mut values = Vec::with_capacity(frame.joints.len() * 3);
-        for j in &frame.joints {
-            values.extend_from_slice(&[j.setpoint as f32, j.position as f32, j.current as f32]);
-        }
-        {
-            let mut ring = lock(&console.ring);
-            if ring.len() == console.ring_capacity {
-                ring.pop_front();
+        lock(&console.ring).offer(frame.t, || {
+            let mut values = Vec::with_capacity(frame.joints.len() * 3);
+            for j in &frame.joints {
+                values.extend_from_slice(&[j.setpoint as f32, j.position as f32, j.current as f32]);
             }
-            ring.push_back(Sample { t: frame.t, values });
-        }
+            values
+        });
         t.push(frame.t);
         for (k, j) in frame.joints.iter().enumerate() {
             if let Some(s) = per_joint.get_mut(k) {
@@ -803,14 +857,15 @@ async fn csv(State(c): State<Arc<Console>>, headers: HeaderMap, uri: Uri) -> Res
             &format!("seconds: 0 < s <= {CSV_SECONDS}"),
         );
     }
-    let ring = lock(&c.ring);
-    let newest = ring.back().map_or(0.0, |s| s.t);
+    // Copied out under the lock, formatted without it: the robot's
+    // frames go on into the ring meanwhile.
+    let samples = lock(&c.ring).last(seconds);
     let mut out = String::from("t_s");
     for label in &c.shared.joint_labels {
         let _ = write!(out, ",{label} setpoint,{label} position,{label} current_A");
     }
     out.push('\n');
-    for s in ring.iter().filter(|s| s.t >= newest - seconds) {
+    for s in &samples {
         let _ = write!(out, "{:.6}", s.t);
         for v in &s.values {
             let _ = write!(out, ",{v}");
@@ -950,6 +1005,38 @@ pub fn router(console: Arc<Console>) -> Router {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_csv_ring_is_bounded_at_any_servo_rate() {
+        let most = (CSV_SECONDS * CSV_MAX_RATE_HZ) as usize;
+        // Up to the kept rate, every cycle (30 s of them).
+        for (rate, capacity) in [(1000.0, 30_000), (6000.0, most)] {
+            let r = SampleRing::for_rate(rate);
+            assert_eq!((r.capacity, r.keep_every), (capacity, 1), "{rate} Hz");
+        }
+        // 100 kHz: one cycle in 17 (5.9 kHz), not 3 million samples.
+        let mut r = SampleRing::for_rate(100_000.0);
+        assert_eq!(r.keep_every, 17);
+        assert!(r.capacity <= most, "{}", r.capacity);
+        assert!(r.samples.capacity() < 200_000, "{}", r.samples.capacity());
+        // A minute of cycles: the ring stays at its capacity, each kept
+        // sample 17 cycles after the one before, the newest the last kept.
+        let period = 1e-5;
+        let cycles = 6_000_000u64;
+        for k in 0..cycles {
+            r.offer(k as f64 * period, Vec::new);
+        }
+        assert_eq!(r.samples.len(), r.capacity);
+        let newest = r.samples.back().unwrap().t;
+        assert!(
+            ((cycles - 1) / 17 * 17) as f64 * period == newest,
+            "{newest}"
+        );
+        let kept = r.last(1.0);
+        let step = kept[1].t - kept[0].t;
+        assert!((step - 17.0 * period).abs() < 1e-9, "{step}");
+        assert_eq!(kept.len(), 1.0f64.div_euclid(17.0 * period) as usize + 1);
+    }
 
     #[test]
     fn secrets_compare_whole() {

@@ -31,7 +31,7 @@ pub struct DemoArgs {
     #[command(flatten)]
     pub request: DemoRequest,
     /// The period as a rate in Hz (the older spelling of --period).
-    #[arg(long, hide = true, value_parser = crate::args::servo_rate, conflicts_with_all = ["period", "period_us"])]
+    #[arg(long, hide = true, value_parser = crate::args::servo_rate_hz, conflicts_with_all = ["period", "period_us"])]
     pub rate: Option<ServoPeriod>,
     /// The period in us, 100 to 1000000 (the older spelling of --period).
     #[arg(long = "period-us", hide = true, value_parser = crate::args::servo_period_us, conflicts_with = "period")]
@@ -56,6 +56,21 @@ pub struct DemoArgs {
     /// No progress lines on stderr.
     #[arg(long)]
     pub quiet: bool,
+}
+
+impl DemoArgs {
+    /// Note in the request the options `matches` (this command's) got from
+    /// the command line, by argument ID, whatever their value.
+    pub fn note_given(&mut self, matches: &clap::ArgMatches) {
+        use clap::parser::ValueSource;
+        let command = DemoArgs::augment_args(clap::Command::new("demo"));
+        self.request.given = command
+            .get_arguments()
+            .map(|a| a.get_id().as_str())
+            .filter(|id| matches.value_source(id) == Some(ValueSource::CommandLine))
+            .map(String::from)
+            .collect();
+    }
 }
 
 /// `firelink` alone: `firelink demo` with every default.

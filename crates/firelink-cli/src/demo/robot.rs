@@ -21,11 +21,18 @@ pub fn request(args: &DemoArgs) -> Result<DemoRequest, CliError> {
     let request = &args.request;
     let config = match (&args.config, request.robot) {
         (None, _) => DemoConfig::Builtin,
+        // Not read: the session refuses --config (it is in `given`).
+        (Some(_), _) if args.teleop => DemoConfig::Builtin,
         (Some(path), RobotKind::Mahru) => DemoConfig::Mahru(MahruConfig::load(path)?),
         (Some(path), _) => DemoConfig::Io(load_config(path)?),
     };
+    let mut given = request.given.clone();
+    if args.config.is_some() && !given.iter().any(|g| g == "config") {
+        given.push("config".into());
+    }
     Ok(DemoRequest {
         config,
+        given,
         teleop: args.teleop,
         period: request.period.or(args.rate).or(args.period_us),
         ..request.clone()

@@ -89,6 +89,21 @@ fn a_servo_period_without_its_unit_or_twice_is_a_usage_error() {
     }
 }
 
+/// The demo's hidden `--rate` is read by the one parser the web console's
+/// and the ROS 2 node's share (`limits::servo_rate_hz`): its refusal is
+/// the servo period's own range rule, as theirs is.
+#[test]
+fn the_demos_older_rate_is_refused_by_the_servo_periods_rule() {
+    for rate in ["0", "1e6", "NaN"] {
+        let (code, err) = firelink(&["demo", "--rate", rate]);
+        assert_eq!(code, 2, "--rate {rate} exited {code}: {err}");
+        assert!(
+            err.contains("out of range, 10 us to 1 s (100 kHz to 1 Hz)"),
+            "--rate {rate}: {err}"
+        );
+    }
+}
+
 #[test]
 fn bench_board_lists_are_checked() {
     for list in ["17", "0", "63", "2,x"] {
@@ -133,4 +148,37 @@ fn a_write_over_udp_to_nobody_is_not_reported_as_done() {
     assert_ne!(out.status.code(), Some(0));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(!stdout.contains("wrote"), "{stdout}");
+}
+
+/// The teleoperation session takes only --period (or its older
+/// spellings), --firmware, --json and --quiet: every other option, given
+/// on the command line, is refused by name, even at its default value, and
+/// before anything runs (a --config is not even read: no warning of its).
+#[test]
+fn teleop_refuses_every_option_it_would_ignore() {
+    let config = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../configs/dvrk-seed000.json"
+    );
+    for (args, option) in [
+        (&["--duration", "3"][..], "--duration"),
+        (&["--robot", "dvrk"], "--robot"),
+        (&["--config", config], "--config"),
+        (&["--port", "sim"], "--port"),
+        (&["--protocol", "broadcast"], "--protocol"),
+        (&["--udp-wait", "block"], "--udp-wait"),
+        (&["--watchdog-ms", "20"], "--watchdog-ms"),
+        (&["--pacing", "virtual"], "--pacing"),
+        (&["--no-rt"], "--no-rt"),
+        (&["--no-rate-search"], "--no-rate-search"),
+        (&["--fault", "none"], "--fault none"),
+    ] {
+        let (code, err) = firelink(&[&["demo", "--teleop"], args].concat());
+        assert_eq!(code, 1, "{args:?}: {err}");
+        assert!(
+            err.contains(&format!("firelink demo --teleop cannot honour {option}")),
+            "{args:?}: {err}"
+        );
+        assert!(!err.contains("warning"), "{args:?}: {err}");
+    }
 }

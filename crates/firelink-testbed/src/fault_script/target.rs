@@ -170,7 +170,9 @@ impl FaultTarget {
                 _ => Ok(()),
             }
         };
-        if matches!(self.place, Place::Sim { .. }) && !on.sim_port {
+        // (A host pause is the port's own wait: any port, wrapped or not.)
+        let host_pause = matches!(entry.fault, ScriptedFault::HostPause(_));
+        if matches!(self.place, Place::Sim { .. }) && !on.sim_port && !host_pause {
             return Err(refused(
                 "the simulated bus's target on another port (it applies faults on a SimPort)",
             ));

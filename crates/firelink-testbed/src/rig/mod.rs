@@ -7,9 +7,11 @@
 //! assembled from typed options in [`served`].
 
 pub mod builder;
+pub mod host_clock;
 pub mod served;
 
 pub use builder::{Rig, RigBuilder, RobotKind};
+pub use host_clock::{HostClock, HostClockedPort};
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -292,6 +294,25 @@ impl Emulator {
     /// # Errors
     /// As [`start`](Self::start); what [`RigBuilder::build`] refuses.
     pub fn start_rig(rig: RigBuilder) -> Result<Emulator, TestbedError> {
+        Emulator::start_with(rig, None)
+    }
+
+    /// Start serving `boards` in the time of the host that waits on
+    /// `clock` (its port: a [`HostClockedPort`] over [`port`](Self::port)):
+    /// each datagram is handled at the host's time when it arrived, never
+    /// at the wall clock's, so neither thread's scheduling changes what the
+    /// boards see. Host time 0 is the boards' time when serving starts.
+    ///
+    /// # Errors
+    /// As [`start`](Self::start).
+    pub fn start_following(
+        boards: Vec<BoardConfig>,
+        clock: HostClock,
+    ) -> Result<Emulator, TestbedError> {
+        Emulator::start_with(RigBuilder::qla(boards), Some(clock))
+    }
+
+    fn start_with(rig: RigBuilder, following: Option<HostClock>) -> Result<Emulator, TestbedError> {
         let (unicast, _) = firelink_emulate::bind(&ServeConfig {
             listen: SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0),
             loopback_broadcast: false,
@@ -316,11 +337,30 @@ impl Emulator {
                 }
             };
             let _ = ready.send(Ok(boards.iter().map(|(id, _)| *id).collect()));
+            let origin = bridge.bus().now();
+            let host_time = following.map(|clock| {
+                move |at: std::time::Instant| {
+                    let d = clock.at(at);
+                    origin
+                        + SimDuration::from_nanos(u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
+                }
+            });
             // Serve until stopped; a fault request interrupts the serving,
             // is applied to the bus between two datagrams, and serving
             // goes on (datagrams wait in the socket meanwhile).
             loop {
-                firelink_emulate::serve(&mut bridge, &unicast, None, &wake, |_| {})?;
+                match &host_time {
+                    Some(at) => {
+                        firelink_emulate::serve_following(
+                            &mut bridge,
+                            &unicast,
+                            &wake,
+                            at,
+                            |_| {},
+                        )?;
+                    }
+                    None => firelink_emulate::serve(&mut bridge, &unicast, None, &wake, |_| {})?,
+                }
                 // Cleared before the stop flag is read: a stop that comes
                 // after this sets `wake` again, so the next `serve`
                 // returns at once and the flag is seen (cleared after the

@@ -103,7 +103,7 @@ impl SoakRequest {
                 "watchdog proof, {} host stops",
                 self.watchdog_trials
             ));
-            Some(watchdog::run(self.watchdog_trials, self.seed)?)
+            Some(watchdog::run(self.watchdog_trials, self.seed, self.period)?)
         } else {
             None
         };

@@ -11,8 +11,9 @@ impl fmt::Display for SoakReport {
         let r = self;
         writeln!(
             out,
-            "fault soak: {} cycles ({:.1} s virtual), seed {}, {} packets, {} faults ({:.2} % of packets)",
+            "fault soak: {} cycles of {:.3} us ({:.1} s virtual), seed {}, {} packets, {} faults ({:.2} % of packets)",
             r.cycles,
+            r.period_us,
             r.virtual_s,
             r.seed,
             r.packets,
@@ -58,8 +59,8 @@ impl fmt::Display for WatchdogReport {
         let p = self;
         writeln!(
             out,
-            "watchdog proof: {} host stops x 8 boards: {} of {} off within period {:.1} us + one tick {:.3} us",
-            p.trials, p.within_bound, p.observations, p.period_us, p.tick_us
+            "watchdog proof: {} host stops x 8 boards, servo period {:.3} us: {} of {} off within period {:.1} us + one tick {:.3} us",
+            p.trials, p.servo_period_us, p.within_bound, p.observations, p.period_us, p.tick_us
         )?;
         let [min, p50, p99, max] = p.over_period_us;
         writeln!(

@@ -6,7 +6,9 @@
 //! Nothing here depends on timing: the UDP tests use a long watchdog
 //! (300 ms) and port time-out (500 ms), so a loaded machine cannot turn a
 //! slow answer into a fault these tests are not about, and they wait for
-//! board state by bounded polls.
+//! board state by bounded polls; the demo's runs over UDP keep the host's
+//! virtual time on both sides ([`HostClock`]), so no delay of either
+//! thread reaches the boards' plants.
 
 use std::time::{Duration, Instant};
 
@@ -21,7 +23,7 @@ use firelink_host::scan::Protocol;
 use firelink_host::udp::UdpPort;
 use firelink_host::{Dest, Port, WatchdogSetting};
 use firelink_testbed::fault_script::{FaultScript, ScriptFilter};
-use firelink_testbed::rig::{self, Emulator, RigBuilder};
+use firelink_testbed::rig::{self, Emulator, HostClock, HostClockedPort, RigBuilder};
 
 /// The stock MTMR: two QLA1 boards.
 fn config() -> IoConfig {
@@ -223,6 +225,12 @@ fn corruption_and_drops_over_udp_are_counted_and_refused() {
 /// `config()`'s boards (broadcast protocol, 0.2 s at 1 kHz), `script`
 /// applied by the emulator's fault target: the report, the bridge's
 /// counters and what the run said it injected.
+///
+/// The host runs in virtual time on a [`HostClock`] (its port's clock moves
+/// only when it waits, one period a cycle) and the emulator keeps that
+/// time ([`Emulator::start_following`]): a host or server thread kept off
+/// the CPU changes nothing the boards' plants or watchdogs see, so no
+/// delay on a loaded machine can trip a limit the test is not about.
 fn demo_over_udp(
     script: &FaultScript,
 ) -> (
@@ -232,12 +240,13 @@ fn demo_over_udp(
 ) {
     use firelink_testbed::demo::{DemoFault, DemoPlan, DemoProgress, RealtimeStatus, run_program};
     let config = config();
-    let emu = Emulator::start(used_boards(&config)).expect("emulator");
+    let clock = HostClock::new();
+    let emu = Emulator::start_following(used_boards(&config), clock.clone()).expect("emulator");
     let options = IoOptions {
         protocol: Some(Protocol::Broadcast),
         ..IoOptions::default()
     };
-    let (io, _) = IoSystem::open(port(&emu), options).unwrap();
+    let (io, _) = IoSystem::open(HostClockedPort::new(port(&emu), clock), options).unwrap();
     let plan = DemoPlan {
         config: &config,
         period: firelink_control::ServoPeriod::from_rate_hz(1000.0).unwrap(),
@@ -273,20 +282,12 @@ fn demo_over_udp(
 /// refuses it by its CRC (counted once), and the run recovers.
 #[test]
 fn a_corrupt_query_over_udp_is_counted_by_the_bridge_and_the_run_recovers() {
-    let preset: FaultScript = "corrupt@t=0us:tcode=0x0,offset=0x1800,count=1"
-        .parse()
-        .unwrap();
+    // The preset itself: half way through the motion.
+    let script = firelink_testbed::demo::DemoFault::CorruptQuery.script(Duration::from_millis(300));
     assert_eq!(
-        preset,
-        firelink_testbed::demo::DemoFault::CorruptQuery.script(Duration::from_millis(300))
+        script.to_string(),
+        "corrupt@t=0us:tcode=0x0,offset=0x1800,count=1"
     );
-    // The preset's rule, at the motion's first cycle: the emulator paces
-    // its plants to the wall clock, so on a loaded machine a delayed host
-    // cycle during the motion can trip a velocity limit before a later
-    // fault moment; at `start` no motion cycle comes before the fault.
-    let script: FaultScript = "corrupt@start:tcode=0x0,offset=0x1800,count=1"
-        .parse()
-        .unwrap();
     let (r, stats, injected) = demo_over_udp(&script);
     assert_eq!(injected, [script.to_string()], "{r}");
     assert_eq!(stats.bad_crc, 1, "{stats}");
@@ -359,8 +360,8 @@ fn a_fault_target_refuses_what_its_port_cannot_do() {
 #[test]
 fn a_board_muted_on_the_emulators_bus_is_named_over_udp() {
     let lost = lost_board(&config());
-    // At the motion's first cycle, for the reason given above.
-    let script: FaultScript = format!("mute@start:id={lost}").parse().unwrap();
+    // Half way, as the board-loss preset does.
+    let script: FaultScript = format!("mute@t=0us:id={lost}").parse().unwrap();
     let (r, stats, injected) = demo_over_udp(&script);
     assert_eq!(injected, [script.to_string()], "{r}");
     assert_eq!(stats.bad_crc, 0, "{stats}");
@@ -369,4 +370,31 @@ fn a_board_muted_on_the_emulators_bus_is_named_over_udp() {
     assert_eq!(fault.board, Some(lost), "{fault:?}");
     assert_eq!(r.amplifiers_on_after_fault, Some(false), "{r}");
     assert!(r.boards_not_answering.contains(&lost), "{r}");
+}
+
+/// The simulated bus's target on a wrapped sim port (a tracer over it):
+/// a host pause is the port's own wait and is applied (the port's clock
+/// moves by it); a board fault needs the bus and is still refused.
+#[test]
+fn the_sim_target_pauses_the_host_on_a_wrapped_sim_port() {
+    use firelink_host::trace::TracingPort;
+    let rig = RigBuilder::qla(used_boards(&config())).build().unwrap();
+    let target = rig.fault_target();
+    let mut port = TracingPort::new(rig.sim_port());
+    let name = port.name().to_string();
+    let pause: FaultScript = "host-pause@cycle=3:for=100us".parse().unwrap();
+    target.check(&pause, &port, None).unwrap();
+    let before = port.now();
+    target.apply(0, &pause.entries[0], &mut port, &[]).unwrap();
+    assert_eq!(port.now() - before, Duration::from_micros(100));
+    let mute: FaultScript = format!("mute@t=0us:id={}", lost_board(&config()))
+        .parse()
+        .unwrap();
+    let e = target.check(&mute, &port, None).unwrap_err();
+    assert!(
+        e.to_string().contains(&format!(
+            "cannot be applied on {name}: the simulated bus's target on another port"
+        )),
+        "{e}"
+    );
 }

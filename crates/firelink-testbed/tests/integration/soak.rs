@@ -85,11 +85,30 @@ fn the_period_sets_the_virtual_time_and_a_rate_gives_the_same_soak() {
 
 #[test]
 fn amplifiers_go_off_within_the_watchdog_period_every_time() {
-    let r = watchdog::run(40, 3).unwrap();
+    let r = watchdog::run(40, 3, SoakSettings::default().period).unwrap();
     assert_eq!(r.observations, 40 * 8);
     assert_eq!(r.within_bound, r.observations, "{r:?}");
     assert!(r.passed());
     // Off no later than one tick after the period, and not early.
     assert!(r.over_period_us[3] <= r.tick_us, "{r:?}");
     assert!(r.over_period_us[0] > -1.0, "{r:?}");
+}
+
+/// The proof runs the robot at the period it is given (the soak's
+/// `--period`), and its table says so: at 1 ms the host can stop up to a
+/// whole millisecond after its last write, which a 6 kHz loop (a write
+/// every 167 us) never shows.
+#[test]
+fn the_watchdog_proof_runs_at_the_period_it_is_given() {
+    let r = watchdog::run(40, 3, "1ms".parse().unwrap()).unwrap();
+    assert!(r.passed(), "{r:?}");
+    assert_eq!(r.servo_period_us, 1000.0);
+    let six_khz = 1e6 / 6000.0;
+    assert!(r.after_stop_us[0] < r.period_us - 2.0 * six_khz, "{r:?}");
+    assert!(r.to_string().contains("servo period 1000.000 us"), "{r}");
+    let default = watchdog::run(40, 3, SoakSettings::default().period).unwrap();
+    assert!(
+        default.after_stop_us[0] > default.period_us - 2.0 * six_khz,
+        "{default:?}"
+    );
 }
