@@ -3,7 +3,7 @@
 //! finite or not a number is a usage error, exit status 2, with one line
 //! naming the option, the value and the range); the named choices
 //! (firmware, FPGA, hardware) are the enums here; the protocol and the UDP
-//! wait are the host library's own (`firelink_host::scan::Protocol`,
+//! wait are the host library's own (`firelink_host::qla::scan::Protocol`,
 //! `firelink_host::udp::WaitMode`, clap's `ValueEnum` behind its `clap`
 //! feature).
 

@@ -15,8 +15,8 @@ use clap::{Args, ValueEnum};
 
 use firelink_control::config::IoConfig;
 use firelink_emulate::Event;
-use firelink_emulate::eth_serve::EthEvent;
 use firelink_emulate::fw_cdev::{self, Twin};
+use firelink_emulate::qla::eth_serve::EthEvent;
 use firelink_host::stop::server_stop_flag;
 use firelink_testbed::emulated::{BoardSettings, FpgaVersion, Hardware, Profile, SimDuration};
 use firelink_testbed::emulation::{

@@ -12,7 +12,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_testbed::emulated::{ArbitrationClass, Profile};
 use firelink_testbed::sim::SimOptions;
 use firelink_wire::packet::Speed;

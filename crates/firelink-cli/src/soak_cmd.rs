@@ -1,5 +1,5 @@
 //! `firelink soak`: the fault soak and the watchdog proof
-//! ([`firelink_testbed::soak`], [`firelink_testbed::watchdog`]).
+//! ([`firelink_testbed::dvrk::soak`], [`firelink_testbed::dvrk::watchdog`]).
 
 use std::io::Write;
 
@@ -7,8 +7,8 @@ use clap::Args;
 
 use firelink_control::ServoPeriod;
 
-use firelink_testbed::soak::{self, SoakSettings};
-use firelink_testbed::watchdog::{self, WatchdogReport};
+use firelink_testbed::dvrk::soak::{self, SoakSettings};
+use firelink_testbed::dvrk::watchdog::{self, WatchdogReport};
 
 use crate::error::CliError;
 

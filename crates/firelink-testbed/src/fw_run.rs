@@ -15,7 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use firelink_emulate::fw_cdev::{self, ServeEvent, Twin};
 
-pub use crate::bench::fw::SOCKET_ENV;
+pub use crate::dvrk::bench::fw::SOCKET_ENV;
 
 /// Where the preloaded library is, when not next to the running binary.
 pub const LIBRARY_ENV: &str = "FIRELINK_FWCDEV_LIB";

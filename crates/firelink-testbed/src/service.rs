@@ -55,7 +55,7 @@ use firelink_host::stop::StopReason;
 use firelink_host::{PowerDown, RobotIo};
 use std::thread::JoinHandle;
 
-use firelink_board::config::Profile;
+use firelink_board::qla::config::Profile;
 
 use crate::cycle_schedule::{CycleSchedule, Due};
 use crate::demo::{DemoFault, DemoIo, motion_for};

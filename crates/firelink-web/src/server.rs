@@ -835,8 +835,8 @@ async fn fig11(State(c): State<Arc<Console>>, headers: HeaderMap, uri: Uri) -> R
         return refusal(e);
     }
     let made = tokio::task::spawn_blocking(|| -> Result<Vec<u8>, String> {
-        use firelink_host::scan::Protocol;
-        use firelink_testbed::bench::{BenchOptions, BenchTransport, run_bench};
+        use firelink_host::qla::scan::Protocol;
+        use firelink_testbed::dvrk::bench::{BenchOptions, BenchTransport, run_bench};
         let report = run_bench(
             &BenchOptions {
                 transports: vec![BenchTransport::Sim],

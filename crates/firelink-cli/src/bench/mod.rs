@@ -13,7 +13,7 @@
 //! Rev 9 and the firmware's stated timing.
 
 //!
-//! The measurement is [`firelink_testbed::bench`], the figure
+//! The measurement is [`firelink_testbed::dvrk::bench`], the figure
 //! [`firelink_plot::fig11`]; this file parses the options and prints.
 
 mod seed001;
@@ -23,9 +23,9 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_host::udp::WaitMode;
-use firelink_testbed::bench::{BenchOptions, BenchTransport, parse_board_counts, run_bench};
+use firelink_testbed::dvrk::bench::{BenchOptions, BenchTransport, parse_board_counts, run_bench};
 use firelink_testbed::emulated::Profile;
 use firelink_testbed::fw_run::{library_path, rerun_with_twin, under_twin};
 

@@ -245,7 +245,7 @@ fn no_boards_found_says_what_came_instead() {
     ] {
         let mut p = UdpPort::open(misbehaving(answer)).unwrap();
         p.set_timeout(Duration::from_millis(20));
-        let err = firelink_host::scan::scan(&mut p).unwrap_err();
+        let err = firelink_host::qla::scan::scan(&mut p).unwrap_err();
         let HostError::NoBoards { seen } = err else {
             panic!("{answer:?}: {err}");
         };

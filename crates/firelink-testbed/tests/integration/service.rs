@@ -9,7 +9,7 @@
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use firelink_board::config::Profile;
+use firelink_board::qla::config::Profile;
 use firelink_control::ServoPeriod;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::lifecycle::State;
