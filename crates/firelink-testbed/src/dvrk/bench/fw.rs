@@ -48,11 +48,8 @@ use super::udp::{BLOCK, Recorder, Step};
 use super::{BenchTransport, Raw};
 use crate::TestbedError;
 use crate::cpu::ThreadCpuClock;
+use crate::fw_run::SOCKET_ENV;
 use crate::rig;
-
-/// The environment variable naming the twin's socket (the preloaded
-/// library connects there; the benchmark's server binds it).
-pub const SOCKET_ENV: &str = "FIRELINK_FW_CDEV";
 
 /// Warm-up cycles before measuring (the point's and the floor's).
 const WARM_UP: u64 = 20;
