@@ -7,8 +7,8 @@
 //! - [`teleop`]: a teleoperation session, PSM1 following the MTMR;
 //! - [`soak`]: the fault soak of the 28-axis robot on the simulated bus,
 //!   and [`watchdog`], the watchdog proof over it;
-//! - [`bench`]: seed 000's I/O benchmark (Fig. 11) of the QLA boards'
-//!   protocols, simulated and measured;
+//! - [`bench`](mod@bench): seed 000's I/O benchmark (Fig. 11) of the QLA
+//!   boards' protocols, simulated and measured;
 //! - [`cycle_compare`]: two simulated runs of the demo robot compared
 //!   cycle by cycle (boards by their firmware's state digest).
 //!
