@@ -57,9 +57,10 @@ use ros2_client::{
 
 use firelink_control::config::IoConfig;
 use firelink_control::lifecycle::State;
-use firelink_testbed::service::{
-    Command, Frame, MAX_ARM_JOINTS, POOL, Service, ServoApplied, ServoTrace, Shared, Verdict,
+use firelink_testbed::dvrk::service::{
+    Command, Frame, MAX_ARM_JOINTS, POOL, Service, ServoApplied, ServoTrace, Shared,
 };
+use firelink_testbed::loop_outcome::Verdict;
 
 use messages::{Header, JointState, OperatingState, StringMsg, StringStamped, Time};
 

@@ -46,8 +46,10 @@
 //! - [`mahru`]: seed 002's MAHRU humanoid (14 modules on three chains,
 //!   the MotionController walking it), its time budget (Table I), read
 //!   times by payload (Table III) and the CAN comparison (Table IV);
-//! - [`cycle_schedule`]: when the [`service`] loop runs its next cycle: at
-//!   the control rate, or at once for a waiting command;
+//! - [`cycle_schedule`]: when the robot service's loop
+//!   ([`dvrk::service`]) runs its next cycle: at the control rate, or at
+//!   once for a waiting command; [`loop_outcome`]: how a robot loop's
+//!   commands and the loop itself end, for every robot's loop;
 //! - [`snake`]: seed 001's own system: Snake-node rigs, the 36-axis demo
 //!   on the generic servo, and the reproduction of the seed's bus
 //!   measurements with its PC model.
@@ -58,7 +60,7 @@
 //! (its server paces virtual time to the wall clock), the UDP and FireWire
 //! ports of [`ports`], and the programs that run over them with wall-clock
 //! pacing and measure wall-clock or CPU time (the demo and Snake demo on
-//! `emulate`, `udp:` or `fw`, the [`service`] loop, the benchmark's UDP
+//! `emulate`, `udp:` or `fw`, the [`dvrk::service`] loop, the benchmark's UDP
 //! points and host-CPU figures).
 
 #[cfg(feature = "clap")]
@@ -75,13 +77,13 @@ pub mod error;
 pub mod fault_script;
 pub mod fw_run;
 pub mod limits;
+pub mod loop_outcome;
 pub mod mahru;
 pub mod plant_map;
 pub mod port_spec;
 pub mod ports;
 pub mod realtime;
 pub mod rig;
-pub mod service;
 pub mod sim;
 pub mod snake;
 

@@ -9,6 +9,10 @@
 //!   and [`watchdog`], the watchdog proof over it;
 //! - [`bench`](mod@bench): seed 000's I/O benchmark (Fig. 11) of the QLA
 //!   boards' protocols, simulated and measured;
+//! - [`service`]: the robot as a service for the web console's dVRK view
+//!   and the ROS 2 node (one thread owns the robot and its QLA I/O
+//!   system); how its commands and its loop end is every robot loop's
+//!   ([`crate::loop_outcome`]);
 //! - [`cycle_compare`]: two simulated runs of the demo robot compared
 //!   cycle by cycle (boards by their firmware's state digest).
 //!
@@ -19,6 +23,7 @@ pub mod bench;
 pub mod console_homing;
 pub mod cycle_compare;
 pub mod demo;
+pub mod service;
 pub mod soak;
 pub mod teleop;
 pub mod watchdog;
