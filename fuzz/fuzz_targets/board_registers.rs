@@ -4,7 +4,7 @@
 //! sends is a well-formed packet, and its broadcasts are too.
 #![no_main]
 
-use firelink_board::config::{BoardConfig, Hardware, Profile};
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
 use firelink_board::qla::{Firmware, PhyRegisters, Reply};
 use firelink_board::time::{SimTime, SimDuration};
 use firelink_wire::packet::Packet;

@@ -5,8 +5,8 @@
 //! board datagram, and nothing accumulates in the bridge's link.
 #![no_main]
 
-use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
+use firelink_board::qla::rig::{BoardRig, RigOptions};
 use firelink_emulate::{Bridge, Handled};
 use firelink_wire::bridge::split_board_datagram;
 use libfuzzer_sys::fuzz_target;

@@ -10,7 +10,7 @@ use pyo3::types::PyDict;
 
 use firelink_host::Port as HostPort;
 use firelink_host::qla::io::{IoOptions, IoSystem as HostIoSystem};
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 
 use crate::args;
 use crate::args::{MAX_CYCLES, watchdog_setting};
@@ -379,14 +379,14 @@ impl IoSystem {
 }
 
 /// A cycle's report as (nothing failed, I/O time in microseconds).
-pub(crate) fn cycle_result(r: &firelink_host::qla::io::CycleReport) -> (bool, f64) {
+pub(crate) fn cycle_result(r: &firelink_host::cycle_report::CycleReport) -> (bool, f64) {
     (r.all_ok(), r.io_time().as_secs_f64() * 1e6)
 }
 
 /// Error counters as a dict (`IoSystem.stats`, `SnakeSystem.stats`).
 pub(crate) fn stats_dict<'py>(
     py: Python<'py>,
-    s: &firelink_host::qla::io::IoStats,
+    s: &firelink_host::cycle_report::IoStats,
 ) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("cycles", s.cycles)?;

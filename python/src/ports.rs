@@ -228,7 +228,7 @@ impl Port {
     fn scan(&mut self, py: Python<'_>) -> PyResult<Vec<Board>> {
         let port = self.get(py)?;
         let report = py
-            .detach(|| firelink_host::scan::scan(port))
+            .detach(|| firelink_host::qla::scan::scan(port))
             .map_err(|e| host_error(py, e))?;
         Ok(report.boards.iter().map(Board::from).collect())
     }

@@ -8,8 +8,8 @@ use firelink_control::config::presets;
 use firelink_control::runner::Pacing;
 use firelink_control::{ServoPeriod, ServoPeriodError};
 use firelink_host::udp::WaitMode;
-use firelink_testbed::bench::{BenchOptions, BenchTransport};
 use firelink_testbed::demo::DemoFault;
+use firelink_testbed::dvrk::bench::{BenchOptions, BenchTransport};
 use firelink_testbed::dvrk::demo::DemoOptions;
 use firelink_testbed::port_spec;
 
@@ -218,7 +218,7 @@ pub(crate) fn run_bench_json(
         ..BenchOptions::default()
     };
     // Checked here too, so that a refusal is not left to the worker.
-    firelink_testbed::bench::check_board_counts(&options.boards).map_err(|e| bad(py, e))?;
+    firelink_testbed::dvrk::bench::check_board_counts(&options.boards).map_err(|e| bad(py, e))?;
     if options.transports.is_empty() || options.protocols.is_empty() {
         return Err(bad(
             py,
@@ -226,7 +226,7 @@ pub(crate) fn run_bench_json(
         ));
     }
     let outcome = interrupt::abandon_on_interrupt(py, move || {
-        let report = firelink_testbed::bench::run_bench(&options, |_, _, _| {})
+        let report = firelink_testbed::dvrk::bench::run_bench(&options, |_, _, _| {})
             .map_err(|e| e.to_string())?;
         if let Some(path) = plot {
             firelink_plot::fig11(&report, &path).map_err(|e| e.to_string())?;

@@ -33,9 +33,9 @@
 use std::fmt::Write as _;
 use std::process::ExitCode;
 
-use firelink_board::config::{BoardConfig, Hardware, Profile};
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
+use firelink_board::qla::rig::{BoardRig, RigOptions};
 use firelink_board::qla::{Firmware, Reply};
-use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::trace::{PacketKind, TraceEvent};
 use firelink_bus::{HostLink, SimDuration, SimTime, TraceLevel};
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr, Speed};

@@ -13,15 +13,16 @@
 //!   gear train and load, a quadrature encoder with edge timing, a
 //!   potentiometer, current sense with seeded noise and the amplifier
 //!   temperature; dVRK presets.
-//! - [`config`]: what a board is (board ID, QLA1/DQLA, firmware profile,
-//!   FPGA version, axes, seed).
 //! - [`qla`]: the QLA family's firmware (FPGA1394 + QLA1 or DQLA), the
 //!   board as a bus-agnostic state machine fed raw packets: link rules,
 //!   registers, real-time blocks, broadcast/hub, watchdog and safety. Bit
 //!   packing comes from
 //!   [`firelink_wire::qla`].
-//! - [`node`]: [`BoardNode`](node::BoardNode), the firmware as a
-//!   [`firelink_bus::Node`] on the simulated bus.
+//!   With it: [`qla::config`], what a board is (board ID, QLA1/DQLA,
+//!   firmware profile, FPGA version, axes, seed); [`qla::node`],
+//!   [`BoardNode`](qla::node::BoardNode), the firmware as a
+//!   [`firelink_bus::Node`] on the simulated bus; [`qla::rig`], ready-made
+//!   buses of such boards.
 //! - [`snake`]: seed 001's 7-channel Snake robot node, a board model of
 //!   its own beside the QLA (firmware, channels, bus node).
 //! - [`mahru`]: seed 002's MAHRU humanoid modules (DSP + FPGA motor
@@ -32,7 +33,7 @@
 //! seed and packet sequence give the same run, bit for bit.
 //!
 //! ```
-//! use firelink_board::config::{BoardConfig, Hardware, Profile};
+//! use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
 //! use firelink_board::qla::{Firmware, PhyRegisters, Reply};
 //! use firelink_board::time::SimTime;
 //! use firelink_wire::packet::{Ack, AsyncHeader, NodeId, PacketRepr};
@@ -55,11 +56,8 @@
 //! ```
 #![cfg_attr(not(test), warn(clippy::indexing_slicing))]
 
-pub mod config;
 pub mod mahru;
-pub mod node;
 pub mod plant;
 pub mod qla;
-pub mod rig;
 pub mod snake;
 pub mod time;

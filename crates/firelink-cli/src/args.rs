@@ -4,7 +4,7 @@
 //! naming the option, the value and the range); the named choices
 //! (firmware, FPGA, hardware) are the value parsers of
 //! [`firelink_testbed::cli_args`]; the protocol and the UDP wait are the
-//! host library's own (`firelink_host::scan::Protocol`,
+//! host library's own (`firelink_host::qla::scan::Protocol`,
 //! `firelink_host::udp::WaitMode`, clap's `ValueEnum` behind its `clap`
 //! feature). The options of a request the testbed owns (such as `demo`'s)
 //! name these rules themselves.

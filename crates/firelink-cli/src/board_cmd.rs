@@ -1,13 +1,13 @@
 //! `firelink scan`, `info`, `read` and `write`: discovery and register
-//! access ([`firelink_host::board_access`]).
+//! access ([`firelink_host::qla::board_access`]).
 
 use std::io::Write;
 
 use clap::Args;
 
-use firelink_host::board_access::{self, ScanSummary, parse_address, scan_text};
-use firelink_host::register_address::check_address;
-use firelink_host::scan::scan;
+use firelink_host::qla::board_access::{self, ScanSummary, parse_address, scan_text};
+use firelink_host::qla::register_address::check_address;
+use firelink_host::qla::scan::scan;
 use firelink_host::{Dest, Port};
 
 use crate::error::CliError;

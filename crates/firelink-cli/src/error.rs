@@ -2,7 +2,7 @@
 //! as one line on stderr, and the exit status each maps to
 //! ([`EXIT_STATUS`]).
 
-use firelink_host::register_address::AddressError;
+use firelink_host::qla::register_address::AddressError;
 use firelink_testbed::emulation::ServeError;
 
 use firelink_host::hex;
@@ -48,7 +48,7 @@ pub enum CliError {
     /// A register read or write was refused (its address), failed (the
     /// port) or, over the bridge, could not be confirmed by reading back.
     #[error(transparent)]
-    Register(#[from] firelink_host::board_access::RegisterError),
+    Register(#[from] firelink_host::qla::board_access::RegisterError),
     /// The emulated boards cannot be served as asked: an option they
     /// cannot honour, boards the Ethernet-only network cannot hold or that
     /// cannot be assembled, a socket that cannot be bound.

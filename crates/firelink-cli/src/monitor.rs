@@ -2,7 +2,7 @@
 //! like the dVRK's qladisp. The I/O loop runs at full rate; the screen is
 //! redrawn at a human rate (10 Hz). Keys toggle power, relay, amplifiers and
 //! the watchdog. The loop, the frame and the keys are
-//! [`firelink_host::monitor_frame`]; this file owns the terminal.
+//! [`firelink_host::qla::monitor_frame`]; this file owns the terminal.
 
 use std::io::Write;
 use std::time::Duration;
@@ -11,10 +11,10 @@ use clap::Args;
 
 use firelink_host::Port;
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 
-use firelink_host::monitor::{MonitorFigures, Switches, watchdog_periods};
-use firelink_host::monitor_frame::{LiveView, render, run_cycles, switch_of};
+use firelink_host::qla::monitor::{MonitorFigures, Switches, watchdog_periods};
+use firelink_host::qla::monitor_frame::{LiveView, render, run_cycles, switch_of};
 
 use crate::error::CliError;
 use crate::ports::{PortArgs, open_port};

@@ -1,12 +1,12 @@
 //! `firelink soak`: the fault soak and the watchdog proof
-//! ([`firelink_testbed::soak`], [`firelink_testbed::watchdog`]; the
+//! ([`firelink_testbed::dvrk::soak`], [`firelink_testbed::dvrk::watchdog`]; the
 //! options are the testbed's [`SoakRequest`]).
 
 use std::io::Write;
 
 use clap::Args;
 
-use firelink_testbed::soak::SoakRequest;
+use firelink_testbed::dvrk::soak::SoakRequest;
 
 use crate::error::CliError;
 

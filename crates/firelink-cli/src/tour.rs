@@ -1,7 +1,7 @@
 //! `firelink tour`: every packet of one broadcast I/O cycle (seed 000's
 //! protocol, firmware Rev 8, QLA1 boards), built with the wire layer, then
 //! decoded again, with its size, CRCs and its raw time on the wire at S400
-//! ([`firelink_host::tour`]).
+//! ([`firelink_host::qla::tour`]).
 
 use std::io::Write;
 
@@ -19,6 +19,6 @@ pub struct TourArgs {
 
 /// Print the cycle's packets as a table.
 pub fn run(args: &TourArgs, out: &mut impl Write) -> Result<(), CliError> {
-    write!(out, "{}", firelink_host::tour::build(args.boards)?)?;
+    write!(out, "{}", firelink_host::qla::tour::build(args.boards)?)?;
     Ok(())
 }

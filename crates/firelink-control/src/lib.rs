@@ -21,13 +21,13 @@
 //! - [`fault`]: the fault report ([`FaultReport`]), `Copy` and
 //!   allocation-free.
 //! - [`homing`]: make the encoders agree with the potentiometers.
-//! - [`kinematics`]: the dVRK MTM's and PSM's forward and inverse
-//!   kinematics from their public DH tables, and the PSM instrument's
-//!   coupling.
 //! - [`safety`]: the per-cycle safety monitor (following error, velocity,
 //!   current saturation, position, pot/encoder agreement).
-//! - [`teleop`]: an MTM teleoperating a PSM as the dVRK console does
-//!   (alignment, scale, clutch, gripper to jaw).
+//! - [`dvrk`]: the dVRK's wing: its arms' kinematics
+//!   ([`dvrk::kinematics`]: the MTM's and PSM's forward and inverse
+//!   kinematics from their public DH tables, and the PSM instrument's
+//!   coupling) and the console's teleoperation ([`dvrk::teleop`]: an MTM
+//!   teleoperating a PSM, alignment, scale, clutch, gripper to jaw).
 //! - [`budget`]: does the cycle fit its period (seed 002, Table I).
 //! - [`period`]: [`ServoPeriod`], the servo period from configuration and
 //!   command line to the runner (`1ms`, `250us`, `1kHz`).
@@ -82,16 +82,15 @@
 
 pub mod budget;
 pub mod config;
+pub mod dvrk;
 pub mod fault;
 pub mod homing;
-pub mod kinematics;
 mod label;
 pub mod lifecycle;
 pub mod period;
 pub mod pid;
 pub mod runner;
 pub mod safety;
-pub mod teleop;
 pub mod trajectory;
 
 pub use fault::{FaultKind, FaultReport};

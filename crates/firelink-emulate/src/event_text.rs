@@ -4,7 +4,7 @@
 use core::fmt;
 
 use crate::Event;
-use crate::eth_serve::EthEvent;
+use crate::qla::eth_serve::EthEvent;
 
 /// "12.3 ms behind real time".
 fn lagging(out: &mut fmt::Formatter<'_>, behind: core::time::Duration) -> fmt::Result {

@@ -15,7 +15,8 @@
 //!   paced to the wall clock, clean stop on a flag.
 //! - [`latency`]: how late the server answers, from each datagram's
 //!   arrival to its reply sent (the counters on the stop line).
-//! - [`eth_network`] and [`eth_serve`]: FPGA V3 boards at firmware Rev 9
+//! - [`qla`]: the QLA family's wing: [`qla::eth_network`] and
+//!   [`qla::eth_serve`], FPGA V3 boards at firmware Rev 9
 //!   on the Ethernet-only network (no bridge, no 1394 bus): each board its
 //!   own UDP address, the broadcast read answered unasked by the hub, the
 //!   chain's timing from `firelink_bus::ethernet` (`firelink emulate
@@ -39,15 +40,14 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 mod arrival;
-pub mod eth_network;
-pub mod eth_serve;
 mod event_text;
 #[cfg(target_os = "linux")]
 pub mod fw_cdev;
 pub mod latency;
+pub mod qla;
 
 use arrival::{Received, Receiver};
-use firelink_board::node::BoardNode;
+use firelink_board::qla::node::BoardNode;
 use firelink_bus::host::{Completion, Outcome};
 use firelink_bus::{Bus, HostLink, NodeHandle, SimDuration, SimTime};
 use firelink_host::link_stats::LinkStats;

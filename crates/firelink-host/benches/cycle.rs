@@ -10,10 +10,10 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
+use firelink_board::qla::rig::{BoardRig, RigOptions};
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::{Protocol, scan};
+use firelink_host::qla::scan::{Protocol, scan};
 use firelink_host::sim::SimPort;
 use firelink_host::{Dest, Port, Result};
 

@@ -604,7 +604,7 @@ impl Port for UdpNetPort {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::qla::io::{HubReadTimes, hub_ticks_us};
+    use crate::cycle_report::{HubReadTimes, hub_ticks_us};
 
     /// EthBasePort `WaitBroadcastRead` without the bridge: 3 us for one
     /// board, 38 us for each further one.

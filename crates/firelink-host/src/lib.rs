@@ -17,17 +17,20 @@
 //! - [`trace`] and [`fault`]: port wrappers that record every call and
 //!   packet (pcap of any port), and that lose and damage packets;
 //!   [`replay`]: a port answering from such a recording.
-//! - [`scan`]: discovery and protocol choice.
-//! - [`qla`]: the QLA family's wing (the dVRK's boards): [`qla::board`],
-//!   the per-board I/O buffers and accessors; [`qla::io`], the I/O system
-//!   running the three protocols; [`qla::extras`], the firmware features
-//!   beyond the servo cycle (PROMs and serial numbers, digital outputs and
-//!   waveforms, instrument memory, I/O expander, Ethernet registers, motor
-//!   supply, PHY registers).
-//! - [`register_address`]: registers by name (`axis2.enc_position`) and
-//!   the board's address map they must lie in.
-//! - [`monitor`]: the model of a live view of every board: running
-//!   figures, the operator's switches, a board's STATUS in words.
+//! - [`qla`]: the QLA family's wing (the dVRK's boards): [`qla::scan`],
+//!   discovery and protocol choice; [`qla::board`], the per-board I/O
+//!   buffers and accessors; [`qla::io`], the I/O system running the three
+//!   protocols; [`qla::extras`], the firmware features beyond the servo
+//!   cycle (PROMs and serial numbers, digital outputs and waveforms,
+//!   instrument memory, I/O expander, Ethernet registers, motor supply,
+//!   PHY registers); the bus tools' work on boards
+//!   ([`qla::board_access`], registers by name in
+//!   [`qla::register_address`]), the live view of every board
+//!   ([`qla::monitor`], [`qla::monitor_frame`]) and the tour of one
+//!   broadcast cycle ([`qla::tour`]).
+//! - [`cycle_report`]: what every robot's I/O cycle reports
+//!   ([`cycle_report::CycleReport`]) and counts
+//!   ([`cycle_report::IoStats`]).
 //! - [`robot_io`]: seed 001's abstract robot I/O ([`RobotIo`]): latch all
 //!   inputs, per-axis get/set, apply all outputs, the same for every
 //!   kind of board (implemented for [`qla::io::IoSystem`] and
@@ -44,8 +47,8 @@
 //! Protocols never know which port they use, so the same program drives
 //! emulated boards today and real boards over Ethernet tomorrow.
 
-pub mod board_access;
 pub mod cpu_latency;
+pub mod cycle_report;
 pub mod error;
 pub mod eth;
 pub mod fault;
@@ -54,21 +57,16 @@ pub mod firewire;
 pub mod hex;
 pub mod link_stats;
 pub mod mahru;
-pub mod monitor;
-pub mod monitor_frame;
 pub mod pacing;
 pub mod packet_json;
 pub mod port;
 pub mod qla;
-pub mod register_address;
 pub mod replay;
 pub mod robot_io;
-pub mod scan;
 #[cfg(feature = "sim")]
 pub mod sim;
 pub mod snake;
 pub mod stop;
-pub mod tour;
 pub mod trace;
 pub mod transaction;
 pub mod udp;

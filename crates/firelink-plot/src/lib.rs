@@ -24,7 +24,7 @@ use std::sync::OnceLock;
 use plotters::coord::ranged1d::ValueFormatter;
 use plotters::prelude::*;
 
-use firelink_testbed::bench::{BenchPoint, BenchReport};
+use firelink_testbed::dvrk::bench::{BenchPoint, BenchReport};
 
 mod seed001;
 pub use seed001::seed001;

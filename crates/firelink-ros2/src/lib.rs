@@ -57,9 +57,10 @@ use ros2_client::{
 
 use firelink_control::config::IoConfig;
 use firelink_control::lifecycle::State;
-use firelink_testbed::service::{
-    Command, Frame, MAX_ARM_JOINTS, POOL, Service, ServoApplied, ServoTrace, Shared, Verdict,
+use firelink_testbed::dvrk::service::{
+    Command, Frame, MAX_ARM_JOINTS, POOL, Service, ServoApplied, ServoTrace, Shared,
 };
+use firelink_testbed::loop_outcome::Verdict;
 
 use messages::{Header, JointState, OperatingState, StringMsg, StringStamped, Time};
 
@@ -1269,7 +1270,7 @@ mod tests {
     /// The robot's shared state for the dVRK on the simulated bus, with no
     /// loop running (nothing takes the queued commands but the test).
     fn idle_shared(config: &IoConfig) -> Arc<Shared> {
-        use firelink_testbed::{emulated::Profile, rig, service};
+        use firelink_testbed::{dvrk::service, emulated::Profile, rig};
         let boards = rig::board_configs(config, Profile::Rev8, config.board_slots());
         let rig = rig::RigBuilder::qla(boards).build().expect("rig");
         let options = service::LoopOptions {

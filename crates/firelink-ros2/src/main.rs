@@ -12,9 +12,9 @@ use firelink_control::config::{IoConfig, presets};
 use firelink_host::WatchdogSetting;
 use firelink_host::stop::install_signal_handlers;
 use firelink_ros2::{NodeSettings, ServoStream, domain_from_env, run_node, run_without_dds};
+use firelink_testbed::dvrk::service::Service;
 use firelink_testbed::limits::watchdog;
 use firelink_testbed::port_spec::{PortSpec, parse_port};
-use firelink_testbed::service::Service;
 
 /// Run the robot and speak ROS 2 (CRTK topics per arm) over DDS.
 #[derive(Parser, Debug)]

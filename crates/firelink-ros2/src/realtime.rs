@@ -33,8 +33,8 @@
 
 use std::io;
 
+use firelink_testbed::dvrk::service::ROBOT_THREAD_NAME;
 use firelink_testbed::realtime as os;
-use firelink_testbed::service::ROBOT_THREAD_NAME;
 
 /// A thread on a servo point's path.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]

@@ -1,6 +1,6 @@
 //! The host's own CPU per servo cycle: seed 000's 28-axis dVRK on 8 QLA1
 //! Rev 8 boards, broadcast protocol, with the I/O replaced by a recorded
-//! hub block (`firelink_testbed::bench::host_cpu`): no simulated bus, no
+//! hub block (`firelink_testbed::dvrk::bench::host_cpu`): no simulated bus, no
 //! sockets.
 //!
 //! - `cycle_28_axes`: one whole host cycle (`Robot::cycle`): the hub block
@@ -19,7 +19,7 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use firelink_host::RobotIo;
-use firelink_testbed::bench::host_cpu::RecordedCycle;
+use firelink_testbed::dvrk::bench::host_cpu::RecordedCycle;
 
 fn host_cycle(c: &mut Criterion) {
     let mut recorded = RecordedCycle::record().expect("the recorded cycle sets up");

@@ -11,8 +11,8 @@
 
 use criterion::BatchSize;
 use criterion::{Criterion, criterion_group, criterion_main};
-use firelink_board::config::Profile;
-use firelink_host::scan::Protocol;
+use firelink_board::qla::config::Profile;
+use firelink_host::qla::scan::Protocol;
 use firelink_testbed::sim::{SimOptions, prepare, simulate};
 use std::hint::black_box;
 

@@ -1,5 +1,5 @@
 //! Run a number of replayed 28-axis host cycles (see
-//! `firelink_testbed::bench::host_cpu`) and nothing else, for profilers
+//! `firelink_testbed::dvrk::bench::host_cpu`) and nothing else, for profilers
 //! that count instructions:
 //!
 //! ```sh
@@ -18,7 +18,7 @@
 
 use std::process::ExitCode;
 
-use firelink_testbed::bench::host_cpu::{FNV_OFFSET, RecordedCycle};
+use firelink_testbed::dvrk::bench::host_cpu::{FNV_OFFSET, RecordedCycle};
 
 /// `cycles` replayed cycles; false if one failed.
 #[inline(never)]

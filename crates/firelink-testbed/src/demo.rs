@@ -35,7 +35,7 @@ use firelink_control::runner::{
 };
 use firelink_control::trajectory::{Motion, PointToPoint, Sinusoid};
 use firelink_control::{FaultKind, FaultReport, ServoPeriod};
-use firelink_host::qla::io::IoStats;
+use firelink_host::cycle_report::IoStats;
 use firelink_host::{Port, PowerDown, RobotIo, WatchdogSetting};
 use firelink_wire::packet::Tcode;
 

@@ -9,12 +9,12 @@
 //! robot's own default (the dVRK 6 kHz, the Snake system 1 kHz, MAHRU its
 //! configuration's period).
 
-use firelink_board::config::Profile;
+use firelink_board::qla::config::Profile;
 use firelink_control::ServoPeriod;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::Pacing;
 use firelink_host::WatchdogSetting;
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_host::udp::WaitMode;
 
 use crate::TestbedError;

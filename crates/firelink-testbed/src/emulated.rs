@@ -5,7 +5,7 @@
 //! reach the layers below through the testbed only, so that they depend
 //! on one crate for emulated robots.
 
-pub use firelink_board::config::{
+pub use firelink_board::qla::config::{
     BoardConfig, BoardSettings, ConfigError, FpgaVersion, Hardware, Profile, default_fpga_serial,
     default_qla_serial,
 };

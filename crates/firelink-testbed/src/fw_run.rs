@@ -15,7 +15,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use firelink_emulate::fw_cdev::{self, ServeEvent, Twin};
 
-pub use crate::bench::fw::SOCKET_ENV;
+/// The environment variable naming the twin's socket (the preloaded
+/// library connects there; the server binds it: `fw-run`'s, the
+/// benchmark's).
+pub const SOCKET_ENV: &str = "FIRELINK_FW_CDEV";
 
 /// Where the preloaded library is, when not next to the running binary.
 pub const LIBRARY_ENV: &str = "FIRELINK_FWCDEV_LIB";

@@ -36,17 +36,20 @@
 //!   to both software limits and back, with pot/encoder agreement and the
 //!   stops watched every cycle) and a teleoperation session
 //!   ([`dvrk::teleop`]: a hand moves the MTMR, PSM1 follows, 60 s of
-//!   virtual time);
-//! - [`soak`]: the fault soak: a million servo cycles with one packet in a
-//!   hundred faulted, every fault accounted for, amplifiers proven off
-//!   whenever the safety chain says so;
+//!   virtual time); the fault soak ([`dvrk::soak`]: a million servo
+//!   cycles with one packet in a hundred faulted, every fault accounted
+//!   for, amplifiers proven off whenever the safety chain says so), the
+//!   watchdog proof ([`dvrk::watchdog`]: the host stopped at random
+//!   moments, every board's amplifiers off within the watchdog period plus
+//!   one tick), seed 000's I/O benchmark ([`dvrk::bench`]) and two
+//!   simulated runs compared cycle by cycle ([`dvrk::cycle_compare`]);
 //! - [`mahru`]: seed 002's MAHRU humanoid (14 modules on three chains,
 //!   the MotionController walking it), its time budget (Table I), read
 //!   times by payload (Table III) and the CAN comparison (Table IV);
-//! - [`cycle_schedule`]: when the [`service`] loop runs its next cycle: at
-//!   the control rate, or at once for a waiting command;
-//! - [`watchdog`]: the watchdog proof: the host stopped at random moments,
-//!   every board's amplifiers off within the watchdog period plus one tick;
+//! - [`cycle_schedule`]: when the robot service's loop
+//!   ([`dvrk::service`]) runs its next cycle: at the control rate, or at
+//!   once for a waiting command; [`loop_outcome`]: how a robot loop's
+//!   commands and the loop itself end, for every robot's loop;
 //! - [`snake`]: seed 001's own system: Snake-node rigs, the 36-axis demo
 //!   on the generic servo, and the reproduction of the seed's bus
 //!   measurements with its PC model.
@@ -57,14 +60,12 @@
 //! (its server paces virtual time to the wall clock), the UDP and FireWire
 //! ports of [`ports`], and the programs that run over them with wall-clock
 //! pacing and measure wall-clock or CPU time (the demo and Snake demo on
-//! `emulate`, `udp:` or `fw`, the [`service`] loop, the benchmark's UDP
+//! `emulate`, `udp:` or `fw`, the [`dvrk::service`] loop, the benchmark's UDP
 //! points and host-CPU figures).
 
-pub mod bench;
 #[cfg(feature = "clap")]
 pub mod cli_args;
 pub mod cpu;
-pub mod cycle_compare;
 pub mod cycle_schedule;
 pub mod demo;
 pub mod demo_request;
@@ -76,16 +77,14 @@ pub mod error;
 pub mod fault_script;
 pub mod fw_run;
 pub mod limits;
+pub mod loop_outcome;
 pub mod mahru;
 pub mod plant_map;
 pub mod port_spec;
 pub mod ports;
 pub mod realtime;
 pub mod rig;
-pub mod service;
 pub mod sim;
 pub mod snake;
-pub mod soak;
-pub mod watchdog;
 
 pub use error::TestbedError;

@@ -24,9 +24,9 @@
 //! measures its joint, `inverse(JointToActuatorPosition) x actuators`, as
 //! the real arm's do; the host turns them back into actuator space.
 
-use firelink_board::config::{BrakeLine, BrakeWire, Instrument};
 use firelink_board::plant::presets;
 use firelink_board::plant::{AxisParams, HardStops, POT_FULL_SCALE_VOLTS};
+use firelink_board::qla::config::{BrakeLine, BrakeWire, Instrument};
 use firelink_control::config::presets::{STOP_MARGIN_M, STOP_MARGIN_RAD};
 use firelink_control::config::{
     ActuatorConfig, DigitalInputConfig, DvrkArm, IoConfig, JointRef, JointType, PlantPreset,
@@ -404,7 +404,7 @@ pub fn notes(config: &IoConfig) -> Vec<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use firelink_board::config::Profile;
+    use firelink_board::qla::config::Profile;
     use firelink_control::config::{ToolConfig, presets};
 
     /// How sawRobotIO1394 reads a digital input (`mtsDigitalInput1394::

@@ -36,7 +36,7 @@ use std::fmt;
 use std::net::SocketAddr;
 use std::str::FromStr;
 
-use firelink_board::config::Profile;
+use firelink_board::qla::config::Profile;
 use firelink_host::udp::UdpPort;
 
 /// What every front end accepts, as its error messages say it.

@@ -10,7 +10,7 @@
 
 use std::time::Duration;
 
-use firelink_board::config::{BoardConfig, Profile};
+use firelink_board::qla::config::{BoardConfig, Profile};
 use firelink_control::config::{IoConfig, presets};
 use firelink_host::Port;
 use firelink_host::udp::{UdpPort, WaitMode};
@@ -130,7 +130,7 @@ pub fn open_bus_port(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use firelink_host::scan::scan;
+    use firelink_host::qla::scan::scan;
 
     /// `sim` is the dVRK's eight boards; `sim:N:FW` the first N at FW;
     /// `emulate` is refused naming the command.

@@ -35,8 +35,8 @@
 //! must.
 //!
 //! ```
-//! use firelink_board::config::Profile;
-//! use firelink_host::scan::Protocol;
+//! use firelink_board::qla::config::Profile;
+//! use firelink_host::qla::scan::Protocol;
 //! use firelink_testbed::sim::{SimOptions, simulate};
 //! let report = simulate(&SimOptions::new(8, Profile::Seed, Protocol::Broadcast)).unwrap();
 //! // The command broadcast of seed 000 takes about 3.26 us at S400.
@@ -48,13 +48,13 @@ use std::time::Duration;
 
 use serde::Serialize;
 
-use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::rig::{BoardRig, GapCount, RigOptions};
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
+use firelink_board::qla::rig::{BoardRig, GapCount, RigOptions};
 use firelink_bus::fault::{FaultPlan, FaultRecord};
 use firelink_bus::trace::{PacketId, PacketKind, PacketRecord, Trace};
 use firelink_bus::{ArbitrationClass, HostModel, NodeHandle, SimDuration, SimTime, TraceLevel};
 use firelink_host::qla::io::{BroadcastRoute, IoOptions, IoSystem};
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_host::sim::SimPort;
 use firelink_host::trace::{CallKind, CallRecord, TracingPort};
 use firelink_host::{MissReason, Port};
@@ -653,7 +653,7 @@ fn shifted(plan: &FaultPlan, t0: SimTime) -> FaultPlan {
 
 /// The boards that missed the cycle, in words.
 fn describe_misses(
-    report: &firelink_host::qla::io::CycleReport,
+    report: &firelink_host::cycle_report::CycleReport,
     protocol: Protocol,
     errors: &mut Vec<String>,
 ) {

@@ -8,7 +8,7 @@
 //! the last seconds as CSV.
 //!
 //! Two halves that never wait on each other:
-//! - [`firelink_testbed::service`]: one thread owns the robot and runs its servo cycles;
+//! - [`firelink_testbed::dvrk::service`]: one thread owns the robot and runs its servo cycles;
 //!   it hands frames to the server through lock-free queues of preallocated
 //!   frames and takes commands the same way;
 //! - [`server`]: axum on tokio; drains the frames every 20 ms, keeps the
@@ -36,8 +36,9 @@ use std::sync::atomic::Ordering;
 
 use firelink_control::ServoPeriod;
 use firelink_control::config::{IoConfig, presets};
+use firelink_testbed::dvrk::service::Service;
+use firelink_testbed::loop_outcome::LoopExit;
 use firelink_testbed::port_spec::PortSpec;
-use firelink_testbed::service::{LoopExit, Service};
 
 pub use robots::RobotKind;
 use robots::RobotView;

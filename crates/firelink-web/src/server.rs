@@ -46,7 +46,8 @@ use tokio::sync::{Notify, broadcast, oneshot};
 use firelink_host::WatchdogSetting;
 use firelink_testbed::demo::DemoFault;
 
-use firelink_testbed::service::{Command, CommandOutcome, Frame, Shared, Verdict};
+use firelink_testbed::dvrk::service::{Command, Frame, Shared};
+use firelink_testbed::loop_outcome::{CommandOutcome, Verdict};
 
 const INDEX_HTML: &str = include_str!("../assets/index.html");
 const APP_JS: &str = include_str!("../assets/app.js");
@@ -778,7 +779,7 @@ async fn command(
     let queued = c
         .shared
         .requests
-        .push(firelink_testbed::service::Request { id, command });
+        .push(firelink_testbed::dvrk::service::Request { id, command });
     if queued.is_err() {
         lock(&c.waiters).remove(&id);
         return answer(
@@ -890,8 +891,8 @@ async fn fig11(State(c): State<Arc<Console>>, headers: HeaderMap, uri: Uri) -> R
         return refusal(e);
     }
     let made = tokio::task::spawn_blocking(|| -> Result<Vec<u8>, String> {
-        use firelink_host::scan::Protocol;
-        use firelink_testbed::bench::{BenchOptions, BenchTransport, run_bench};
+        use firelink_host::qla::scan::Protocol;
+        use firelink_testbed::dvrk::bench::{BenchOptions, BenchTransport, run_bench};
         let report = run_bench(
             &BenchOptions {
                 transports: vec![BenchTransport::Sim],

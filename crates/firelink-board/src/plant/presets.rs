@@ -164,7 +164,7 @@ pub fn unused_channel() -> AxisParams {
 /// A brake's coil on an amplifier channel: the amplifier drives current
 /// into it (resistance and inductance of a small motor), nothing turns.
 /// Which joint the brake holds is the board's wiring
-/// ([`BrakeWire`](crate::config::BrakeWire)).
+/// ([`BrakeWire`](crate::qla::config::BrakeWire)).
 pub fn brake_coil() -> AxisParams {
     let mut p = generic_motor();
     p.name = "brake coil".into();

@@ -69,8 +69,8 @@ impl Firmware {
 
 #[cfg(test)]
 mod tests {
-    use crate::config::{BoardConfig, Hardware, Profile};
     use crate::qla::Firmware;
+    use crate::qla::config::{BoardConfig, Hardware, Profile};
     use crate::time::SimTime;
 
     #[test]

@@ -15,7 +15,7 @@
 //!   FPGA V3.1 (IRQ line wired), and Eth1's link follows
 //!   [`EthernetV3::set_link`] (the port the host or the previous board is
 //!   on) at 1 Gb/s; Eth2 has no link (the Ethernet-only network's chain,
-//!   `firelink_emulate::eth_network`, does not reach these bits yet). The
+//!   `firelink_emulate::qla::eth_network`, does not reach these bits yet). The
 //!   PS Ethernet starts enabled.
 //! - A PHY reset takes the port down (not initialised, no link) for
 //!   [`PHY_RESET_TIME`]: the 10 ms reset plus the 160 ms until the PHY

@@ -10,6 +10,11 @@
 //! state between calls is computed exactly (the watchdog fires at its
 //! exact expiry even if nothing is received then).
 //!
+//! Beside the firmware: [`config`], what a board is (board ID, QLA1 or
+//! DQLA, firmware profile, FPGA version, axes, seed); [`node`], the
+//! firmware as a node on the simulated bus ([`node::BoardNode`]); [`rig`],
+//! ready-made buses of such boards.
+//!
 //! Link behaviour (`fpga-board.md`, `ieee1394.md`, the Rev 8 FireWire.v):
 //! - A packet is taken when addressed to this node, to broadcast (63), or
 //!   to node 0 at the snooped query (`0x1800`) or command
@@ -68,7 +73,7 @@
 //! - A query with sequence 0 is ignored.
 //!
 //! ```
-//! use firelink_board::config::{BoardConfig, Hardware, Profile};
+//! use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
 //! use firelink_board::qla::{Firmware, PhyRegisters, Reply};
 //! use firelink_board::time::SimTime;
 //! use firelink_wire::packet::{AsyncHeader, NodeId, Packet, PacketRepr, Ack};
@@ -92,6 +97,7 @@
 //! ```
 
 mod brake;
+pub mod config;
 mod dallas;
 mod digest;
 mod dout;
@@ -100,10 +106,12 @@ mod ethernet;
 mod ethernet_v3;
 mod expander;
 mod hub;
+pub mod node;
 mod phy;
 pub(crate) mod power;
 mod prom;
 mod registers;
+pub mod rig;
 
 pub use brake::{BrakeLine, BrakeWire};
 pub use dallas::Instrument;
@@ -130,9 +138,9 @@ use firelink_wire::qla::broadcast::{
 };
 use firelink_wire::qla::registers::PhyData;
 
-use crate::config::{BoardConfig, Profile};
 use crate::plant::{Plant, QLA_AMPS_PER_BIT};
 use crate::time::{SimDuration, SimTime};
+use config::{BoardConfig, Profile};
 use dallas::Dallas;
 use dout::DigitalOutputs;
 use dqla_expander::DqlaExpanders;
@@ -146,10 +154,10 @@ use prom::{FpgaProm, QlaProm};
 
 /// The MAX7317 expanders of a companion board: ID 0 on a QLA1, IDs 1 and 2
 /// (QLA 1 and QLA 2) on a DQLA (DQLA.v).
-fn qla_expanders(hardware: &crate::config::Hardware) -> Vec<Expander> {
+fn qla_expanders(hardware: &crate::qla::config::Hardware) -> Vec<Expander> {
     match hardware {
-        crate::config::Hardware::Qla1 => vec![Expander::new()],
-        crate::config::Hardware::Dqla => firelink_wire::qla::dqla::DQLA_MAX7317_IDS
+        crate::qla::config::Hardware::Qla1 => vec![Expander::new()],
+        crate::qla::config::Hardware::Dqla => firelink_wire::qla::dqla::DQLA_MAX7317_IDS
             .iter()
             .map(|&id| Expander::with_id(id))
             .collect(),
@@ -232,10 +240,10 @@ pub enum RxError {
     /// A data CRC failed: `ack_data_error`, nothing committed.
     DataCrc,
     /// A quadlet write whose header CRC failed, committed all the same
-    /// ([`BoardConfig::commit_corrupt_writes`](crate::config::BoardConfig::commit_corrupt_writes)).
+    /// ([`BoardConfig::commit_corrupt_writes`](crate::qla::config::BoardConfig::commit_corrupt_writes)).
     HeaderCrcCommitted,
     /// A real-time block write whose data CRC failed, committed all the
-    /// same ([`BoardConfig::commit_corrupt_writes`](crate::config::BoardConfig::commit_corrupt_writes)).
+    /// same ([`BoardConfig::commit_corrupt_writes`](crate::qla::config::BoardConfig::commit_corrupt_writes)).
     DataCrcCommitted,
     /// A query with a failed header CRC, answered with sequence `0xFFFF`
     /// (seed profile).

@@ -20,12 +20,12 @@ use firelink_wire::qla::registers::{
     StatusRead, StatusWrite, Temperature, Watchdog as WatchdogWord,
 };
 
+use super::config::{Hardware, Profile};
 use super::dout::OUTPUTS;
 use super::dqla_expander::{DqlaExpanders, PortLines};
 use super::expander::ExpanderInputs;
 use super::power::{AxisState, Watchdog};
 use super::{Firmware, PhyAccess, RxError};
-use crate::config::{Hardware, Profile};
 use crate::plant::encoder::{PeriodField, QuarterField, RunField, VelocityFields};
 use crate::plant::{POT_FULL_SCALE_VOLTS, QLA_AMPS_PER_BIT, QLA_FULL_SCALE_AMPS};
 use crate::time::SimTime;

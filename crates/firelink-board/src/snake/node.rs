@@ -25,7 +25,7 @@ use firelink_wire::packet::Speed;
 
 use super::config::SnakeNodeConfig;
 use super::firmware::SnakeFirmware;
-use crate::node::{CtxPhy, on_bus, report_rx_error};
+use crate::qla::node::{CtxPhy, on_bus, report_rx_error};
 
 /// Timer token of the node's next self-driven change.
 const WAKEUP_TIMER: u64 = 1;

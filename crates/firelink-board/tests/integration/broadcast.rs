@@ -7,8 +7,8 @@
 use crate::common;
 
 use common::*;
-use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::qla::Reply;
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
 use firelink_board::time::{SYSTEM_CLOCK_HZ, SimDuration, SimTime};
 use firelink_wire::Error;
 use firelink_wire::packet::{NodeId, Packet};

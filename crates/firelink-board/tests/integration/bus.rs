@@ -5,8 +5,8 @@
 use crate::common;
 
 use common::*;
-use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::node::BoardNode;
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
+use firelink_board::qla::node::BoardNode;
 use firelink_bus::host::{HostLink, Outcome};
 use firelink_bus::{Bus, BusConfig, NodeConfig, NodeHandle};
 use firelink_wire::packet::{Ack, NodeId, Packet, PacketRepr, Speed};

@@ -4,8 +4,8 @@
 use crate::common;
 
 use common::*;
-use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::plant::presets;
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
 use firelink_board::time::{SimDuration, SimTime};
 use firelink_wire::packet::Ack;
 

@@ -4,7 +4,7 @@
 use crate::common;
 
 use common::*;
-use firelink_board::config::{BoardConfig, FpgaVersion, Hardware, Profile};
+use firelink_board::qla::config::{BoardConfig, FpgaVersion, Hardware, Profile};
 use firelink_board::qla::{Reply, RxError};
 use firelink_board::time::SimDuration;
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, PacketRepr, Rcode};

@@ -13,7 +13,7 @@
 //! Rev 9 and the firmware's stated timing.
 
 //!
-//! The options and the measurement are [`firelink_testbed::bench`]'s
+//! The options and the measurement are [`firelink_testbed::dvrk::bench`]'s
 //! ([`BenchRequest`]), the figure [`firelink_plot::fig11`]; this file
 //! prints.
 
@@ -24,7 +24,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use firelink_testbed::bench::{BenchRequest, BenchTransport, run_bench};
+use firelink_testbed::dvrk::bench::{BenchRequest, BenchTransport, run_bench};
 use firelink_testbed::fw_run::{library_path, rerun_with_twin, under_twin};
 
 use crate::error::CliError;

@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use firelink_host::firewire::{FirewirePort, FwOptions};
 use firelink_host::qla::io::{BroadcastRoute, IoOptions, IoSystem};
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_host::{HostError, Port, RobotIo, WatchdogSetting};
 use firelink_wire::fw_cdev::rcode as fw_rcode;
 

@@ -46,7 +46,7 @@ use joint::{Joint, Pacer};
 
 use std::time::{Duration, Instant};
 
-use firelink_host::qla::io::{CycleReport, IoStats};
+use firelink_host::cycle_report::{CycleReport, IoStats};
 use firelink_host::stop::{StopReason, StopRequest};
 use firelink_host::{BoardStatus, HostError, MissReason, PowerDown, RobotIo, WatchdogSetting};
 use firelink_wire::phy::SYSTEM_CLOCK_HZ;

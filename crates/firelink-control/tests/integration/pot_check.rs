@@ -9,7 +9,7 @@ use firelink_control::config::presets;
 use firelink_control::runner::{Pacing, Robot, RobotSettings, RunnerError};
 use firelink_control::{FaultKind, ServoPeriod, State};
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_host::{Dest, Port};
 use firelink_wire::qla::address::{AxisRegister, Register};
 

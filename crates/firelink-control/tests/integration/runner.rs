@@ -11,7 +11,7 @@ use firelink_control::trajectory::{Motion, Sinusoid};
 use firelink_control::{FaultKind, LifecycleError, ServoPeriod, State};
 use firelink_host::Port;
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_host::sim::SimPort;
 
 /// Joints start inside their soft limits and away from the encoders'

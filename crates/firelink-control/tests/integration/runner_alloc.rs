@@ -14,7 +14,7 @@ use firelink_control::config::presets;
 use firelink_control::runner::{Pacing, Robot, RobotSettings};
 use firelink_control::trajectory::{Motion, Sinusoid};
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_host::{Dest, Port, Result};
 
 #[test]

@@ -23,8 +23,8 @@ use eth_common::{
     Answer, BASE_IP, ENTRY, ETH_STATUS, FIRMWARE_VERSION, HARDWARE_VERSION, IP_ADDRESS, QLA1,
     decode, hub_bytes, in_own_network_namespace, request_datagram, stock_addresses_on_lo,
 };
-use firelink_board::config::{FpgaVersion, Profile};
-use firelink_emulate::eth_serve::MULTICAST_GROUP;
+use firelink_board::qla::config::{FpgaVersion, Profile};
+use firelink_emulate::qla::eth_serve::MULTICAST_GROUP;
 use firelink_emulate::{BridgeStats, ServeConfig, bind, bind_multicast, serve_groups};
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr, Tcode};
 

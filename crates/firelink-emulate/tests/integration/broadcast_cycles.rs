@@ -24,10 +24,11 @@ use common::{Server, qla1s};
 
 use std::time::Duration;
 
-use firelink_board::config::Profile;
+use firelink_board::qla::config::Profile;
 use firelink_emulate::BridgeStats;
-use firelink_host::qla::io::{IoOptions, IoStats, IoSystem};
-use firelink_host::scan::Protocol;
+use firelink_host::cycle_report::IoStats;
+use firelink_host::qla::io::{IoOptions, IoSystem};
+use firelink_host::qla::scan::Protocol;
 
 /// Run `cycles` broadcast cycles (query and hub read per group, command
 /// write) against `boards` emulated boards; the host does not wait between

@@ -12,11 +12,11 @@ use crate::eth_common;
 use std::time::Duration;
 
 use eth_common::{ServedNetwork, shuffled};
-use firelink_emulate::eth_serve::EthServeConfig;
+use firelink_emulate::qla::eth_serve::EthServeConfig;
 use firelink_host::eth::{EthAddresses, EthPort};
 use firelink_host::port::Port;
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::{Protocol, scan};
+use firelink_host::qla::scan::{Protocol, scan};
 use firelink_wire::qla::registers::FpgaVersion;
 
 /// Long enough never to fire on a loaded machine.
@@ -49,7 +49,7 @@ impl Served {
         port
     }
 
-    fn stop(self) -> firelink_emulate::eth_network::NetworkStats {
+    fn stop(self) -> firelink_emulate::qla::eth_network::NetworkStats {
         self.0.stop()
     }
 }
@@ -213,7 +213,8 @@ fn probe_tells_the_ethernet_only_network_from_the_bridge() {
     );
     let _ = served.stop();
 
-    let bridge = common::Server::start(common::qla1s(2, firelink_board::config::Profile::Rev8));
+    let bridge =
+        common::Server::start(common::qla1s(2, firelink_board::qla::config::Profile::Rev8));
     let probe = EthPort::probe(bridge.addr, TIMEOUT).unwrap();
     assert!(!probe.is_ethernet_only(), "{probe:?}");
     assert_eq!(probe.from, bridge.addr);
@@ -250,7 +251,8 @@ fn udp_chooses_the_ethernet_only_network_and_udpfw_the_bridge() {
     drop(forced);
     let _ = served.stop();
 
-    let bridge = common::Server::start(common::qla1s(2, firelink_board::config::Profile::Rev8));
+    let bridge =
+        common::Server::start(common::qla1s(2, firelink_board::qla::config::Profile::Rev8));
     let mut port = UdpNetPort::open(bridge.addr, false, SCAN_TIMEOUT, WaitMode::Blocking).unwrap();
     assert!(!port.is_ethernet_only());
     let report = scan(&mut port).unwrap();

@@ -19,11 +19,11 @@ use crate::common;
 
 use std::time::Duration;
 
-use firelink_board::config::{BoardConfig, FpgaVersion, Hardware, Profile};
-use firelink_emulate::eth_network::{EthNetwork, NetworkError};
+use firelink_board::qla::config::{BoardConfig, FpgaVersion, Hardware, Profile};
+use firelink_emulate::qla::eth_network::{EthNetwork, NetworkError};
 use firelink_host::eth::{EthPort, UdpNetPort};
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::{Protocol, scan};
+use firelink_host::qla::scan::{Protocol, scan};
 use firelink_host::udp::WaitMode;
 
 /// Long enough never to fire on a loaded machine.

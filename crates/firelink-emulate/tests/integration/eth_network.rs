@@ -8,10 +8,10 @@ use crate::eth_common;
 use std::net::{Ipv4Addr, SocketAddr};
 
 use eth_common::*;
-use firelink_board::config::{BoardConfig, FpgaVersion, Hardware, Profile};
+use firelink_board::qla::config::{BoardConfig, FpgaVersion, Hardware, Profile};
 use firelink_bus::ethernet::{EthTiming, SwitchPort};
 use firelink_bus::{SimDuration, SimTime};
-use firelink_emulate::eth_network::{Destination, EthNetwork, NetworkError, Outgoing};
+use firelink_emulate::qla::eth_network::{Destination, EthNetwork, NetworkError, Outgoing};
 use firelink_wire::packet::{Rcode, Tcode};
 
 const HOST_ADDR: SocketAddr = SocketAddr::new(std::net::IpAddr::V4(Ipv4Addr::LOCALHOST), 40000);

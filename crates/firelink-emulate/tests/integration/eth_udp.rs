@@ -15,8 +15,8 @@ use std::net::{IpAddr, Ipv4Addr, SocketAddr, UdpSocket};
 use std::time::Duration;
 
 use eth_common::*;
-use firelink_emulate::eth_network::NetworkStats;
-use firelink_emulate::eth_serve::{EthServeConfig, MULTICAST_GROUP};
+use firelink_emulate::qla::eth_network::NetworkStats;
+use firelink_emulate::qla::eth_serve::{EthServeConfig, MULTICAST_GROUP};
 use firelink_wire::packet::Tcode;
 
 /// Long enough never to fire on a loaded machine; no test measures time.

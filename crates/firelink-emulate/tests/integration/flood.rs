@@ -8,7 +8,7 @@
 use crate::common;
 
 use common::request_datagram;
-use firelink_board::config::Profile;
+use firelink_board::qla::config::Profile;
 use firelink_emulate::{Bridge, BridgeStats, DropReason, Handled};
 use firelink_wire::bridge::split_board_datagram;
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};

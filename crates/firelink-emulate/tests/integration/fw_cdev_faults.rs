@@ -5,8 +5,8 @@
 //! BUS_RESET event per reset on every open device with rising
 //! generations; lock requests get the rcode the kernel would report.
 
-use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
+use firelink_board::qla::rig::{BoardRig, RigOptions};
 use firelink_bus::trace::PacketKind;
 use firelink_bus::{FaultRule, PacketFault, PacketMatch, SimDuration, SimTime, TimedFault};
 use firelink_emulate::fw_cdev::{Outgoing, Twin};

@@ -16,8 +16,8 @@ use nix::sys::socket::{
     AddressFamily, MsgFlags, SockFlag, SockType, UnixAddr, connect, recv, send, socket,
 };
 
-use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
+use firelink_board::qla::rig::{BoardRig, RigOptions};
 use firelink_emulate::fw_cdev::{self, SPEED_CODE, Twin};
 use firelink_wire::fw_cdev::{
     BusResetRecord, ResponseEvent, SendRequestArgs, TwinReply, TwinRequest, rcode,

@@ -8,8 +8,8 @@ use common::Server;
 
 use std::time::Duration;
 
-use firelink_board::config::{BoardConfig, Hardware, Profile};
 use firelink_board::qla::Instrument;
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
 use firelink_host::qla::extras::dallas::read_tool;
 use firelink_host::qla::extras::dout::{
     read_digital_outputs, read_dout_control, read_waveform_table, start_waveform, waveform_status,
@@ -24,7 +24,7 @@ use firelink_host::qla::extras::supply::{
     measure_dqla_supply_voltage, measure_motor_supply_voltage,
 };
 use firelink_host::qla::extras::{FeatureError, is_qla_expanded, read_phy_register};
-use firelink_host::scan::scan;
+use firelink_host::qla::scan::scan;
 use firelink_host::{Dest, HostError, Port};
 
 fn boards() -> Vec<BoardConfig> {

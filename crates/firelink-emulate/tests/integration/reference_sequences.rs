@@ -5,7 +5,7 @@
 use crate::common;
 
 use common::{RefHost, bridge};
-use firelink_board::config::{BoardConfig, Hardware, Profile};
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
 use firelink_emulate::Handled;
 
 fn qla1(n: u8) -> Vec<BoardConfig> {
@@ -151,9 +151,9 @@ fn waveform_table_written_read_back_and_played() {
 fn broadcast_quadlet_read_is_answered_by_the_bridge_alone() {
     for bridge_id in [0usize, 2] {
         let boards = qla1(3);
-        let rig = firelink_board::rig::BoardRig::daisy_chain(
+        let rig = firelink_board::qla::rig::BoardRig::daisy_chain(
             boards,
-            &firelink_board::rig::RigOptions::default(),
+            &firelink_board::qla::rig::RigOptions::default(),
         );
         let phy = rig.bus.phy_id(rig.boards[bridge_id]).unwrap();
         let b = firelink_emulate::Bridge::new(rig.bus, rig.host, rig.boards[bridge_id]);

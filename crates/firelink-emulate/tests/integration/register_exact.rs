@@ -16,9 +16,9 @@ use std::net::UdpSocket;
 use std::time::Duration;
 
 use common::{Server, qla1s, request_datagram};
-use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::node::{BoardNode, status_broadcast_class};
-use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
+use firelink_board::qla::node::{BoardNode, status_broadcast_class};
+use firelink_board::qla::rig::{BoardRig, RigOptions};
 use firelink_bus::host::{Completion, Outcome};
 use firelink_bus::trace::PacketKind;
 use firelink_bus::{ArbitrationClass, HostLink, SimDuration, TraceLevel};

@@ -10,9 +10,9 @@ use crate::common;
 use std::time::Duration;
 
 use common::{RefHost, Server, bridge, qla1s};
-use firelink_board::config::{BoardConfig, FpgaVersion, Hardware, Profile};
+use firelink_board::qla::config::{BoardConfig, FpgaVersion, Hardware, Profile};
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::{Protocol, scan};
+use firelink_host::qla::scan::{Protocol, scan};
 use firelink_wire::qla::dqla::MAX7301_CONFIG;
 
 /// Generous: test builds are unoptimised and share two cores.

@@ -31,7 +31,7 @@ use crate::common;
 
 use common::{RefHost, bridge, qla1s};
 
-use firelink_board::config::Profile;
+use firelink_board::qla::config::Profile;
 use firelink_bus::SimDuration;
 use firelink_emulate::Handled;
 use firelink_wire::qla::broadcast::CommandBlockWriter;

@@ -10,10 +10,10 @@ const TIMEOUT: std::time::Duration = std::time::Duration::from_millis(100);
 
 use std::time::Duration;
 
-use firelink_board::config::Profile;
+use firelink_board::qla::config::Profile;
 use firelink_emulate::Handled;
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::{Protocol, scan};
+use firelink_host::qla::scan::{Protocol, scan};
 use firelink_host::{Dest, Port};
 use firelink_wire::bridge::split_board_datagram;
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};

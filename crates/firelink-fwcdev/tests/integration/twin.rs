@@ -18,8 +18,8 @@ use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
+use firelink_board::qla::rig::{BoardRig, RigOptions};
 use firelink_bus::{FaultRule, PacketFault, PacketMatch, TimedFault};
 use firelink_emulate::fw_cdev::{self, Twin};
 use firelink_wire::fw_cdev::{

@@ -48,9 +48,9 @@ use firelink_wire::snake::registers::{
 };
 use firelink_wire::snake::{BLOCK_OFFSET, CHANNELS};
 
+use crate::cycle_report::{CycleReport, IoStats};
 use crate::error::{HostError, MissReason, Result};
 use crate::port::{Dest, Port};
-use crate::qla::io::{CycleReport, IoStats};
 use crate::robot_io::{RobotIo, bad_axis};
 
 /// How long a digital-pot command may take before the host gives up

@@ -3,8 +3,8 @@
 //! requests and reach the recorded result, with no board and no bus.
 
 use firelink_host::qla::io::{IoOptions, IoSystem};
+use firelink_host::qla::scan::{Protocol, scan};
 use firelink_host::replay::ReplayPort;
-use firelink_host::scan::{Protocol, scan};
 use firelink_host::{HostError, Port};
 
 fn replay(name: &str) -> ReplayPort {

@@ -6,11 +6,11 @@
 
 use std::time::Duration;
 
-use firelink_board::config::{BoardConfig, FpgaVersion, Hardware, Profile};
-use firelink_board::node::BoardNode;
-use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_board::qla::config::{BoardConfig, FpgaVersion, Hardware, Profile};
+use firelink_board::qla::node::BoardNode;
+use firelink_board::qla::rig::{BoardRig, RigOptions};
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::{Protocol, scan};
+use firelink_host::qla::scan::{Protocol, scan};
 use firelink_host::sim::SimPort;
 use firelink_host::{Port, WatchdogSetting};
 

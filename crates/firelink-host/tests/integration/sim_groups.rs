@@ -7,14 +7,14 @@
 
 use std::time::Duration;
 
-use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::node::BoardNode;
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
+use firelink_board::qla::node::BoardNode;
+use firelink_board::qla::rig::{BoardRig, RigOptions};
 use firelink_board::qla::{CHAIN_TIMEOUT_PER_BOARD, FIRST_SLOT_CLOCKS};
-use firelink_board::rig::{BoardRig, RigOptions};
 use firelink_bus::trace::PacketKind;
 use firelink_bus::{SimDuration, TimedFault, TraceLevel};
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::{Protocol, scan};
+use firelink_host::qla::scan::{Protocol, scan};
 use firelink_host::sim::SimPort;
 use firelink_host::{MissReason, Port};
 use firelink_wire::packet::{Packet, Tcode};

@@ -3,12 +3,12 @@
 
 use std::time::Duration;
 
-use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::node::BoardNode;
-use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
+use firelink_board::qla::node::BoardNode;
+use firelink_board::qla::rig::{BoardRig, RigOptions};
 use firelink_bus::{FaultRule, HostModel, PacketFault, PacketMatch, SimDuration, TimedFault};
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::{Protocol, scan};
+use firelink_host::qla::scan::{Protocol, scan};
 use firelink_host::sim::SimPort;
 use firelink_host::{BoardStatus, HostError, MissReason, Port, RobotIo};
 use firelink_wire::packet::Tcode;

@@ -5,9 +5,9 @@
 
 use std::time::Duration;
 
-use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::node::BoardNode;
-use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
+use firelink_board::qla::node::BoardNode;
+use firelink_board::qla::rig::{BoardRig, RigOptions};
 use firelink_board::snake::{SnakeNode, SnakeNodeConfig};
 use firelink_bus::Node;
 use firelink_host::RobotIo;

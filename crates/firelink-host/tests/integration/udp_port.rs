@@ -249,7 +249,7 @@ fn no_boards_found_says_what_came_instead() {
         // machine to be slow to run the responder's thread.
         let timeout = if answer == Answer::Silence { 20 } else { 100 };
         p.set_timeout(Duration::from_millis(timeout));
-        let err = firelink_host::scan::scan(&mut p).unwrap_err();
+        let err = firelink_host::qla::scan::scan(&mut p).unwrap_err();
         let HostError::NoBoards { seen } = err else {
             panic!("{answer:?}: {err}");
         };

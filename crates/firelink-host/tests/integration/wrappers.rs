@@ -2,11 +2,11 @@
 //! port records every call and packet, the faulty port loses and damages
 //! packets and the library reports each as a live link would.
 
-use firelink_board::config::{BoardConfig, Hardware, Profile};
-use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
+use firelink_board::qla::rig::{BoardRig, RigOptions};
 use firelink_host::fault::{FaultyPort, LinkFaults};
 use firelink_host::port::Direction;
-use firelink_host::scan::scan;
+use firelink_host::qla::scan::scan;
 use firelink_host::sim::SimPort;
 use firelink_host::trace::{CallKind, TracingPort};
 use firelink_host::{Dest, HostError, Port};

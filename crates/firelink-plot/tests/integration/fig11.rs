@@ -1,8 +1,8 @@
 //! Fig. 11 as a PNG: a real image of the stated size from a real
 //! benchmark report; no report, no figure.
 
-use firelink_host::scan::Protocol;
-use firelink_testbed::bench::{BenchOptions, BenchTransport, run_bench};
+use firelink_host::qla::scan::Protocol;
+use firelink_testbed::dvrk::bench::{BenchOptions, BenchTransport, run_bench};
 
 fn png_size(bytes: &[u8]) -> (u32, u32) {
     assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "not a PNG");

@@ -29,8 +29,8 @@
 
 use std::fmt;
 
-use firelink_board::config::Profile;
-use firelink_board::node::BoardNode;
+use firelink_board::qla::config::Profile;
+use firelink_board::qla::node::BoardNode;
 use firelink_bus::NodeHandle;
 use firelink_control::config::{IoConfig, JointType};
 use firelink_control::runner::{Pacing, Robot, RobotSettings, StopFound};

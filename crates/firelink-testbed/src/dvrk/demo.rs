@@ -6,12 +6,12 @@
 
 use std::time::Instant;
 
-use firelink_board::config::Profile;
+use firelink_board::qla::config::Profile;
 use firelink_control::ServoPeriod;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, Robot};
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::{Protocol, ScanReport};
+use firelink_host::qla::scan::{Protocol, ScanReport};
 use firelink_host::stop::StopRequest;
 use firelink_host::udp::WaitMode;
 use firelink_host::{Port, WatchdogSetting};

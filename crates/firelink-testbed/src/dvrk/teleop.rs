@@ -1,6 +1,6 @@
 //! A teleoperation session in the console's terms: an operator's hand
 //! moves the MTMR, PSM1 follows through
-//! [`firelink_control::teleop`], everything through the host library
+//! [`firelink_control::dvrk::teleop`], everything through the host library
 //! against emulated boards on the simulated bus, every cycle watched.
 //!
 //! 1. The arms as the console leaves them: MTMR (boards 2-3, its gripper
@@ -37,24 +37,24 @@
 
 use std::fmt;
 
-use firelink_board::config::Profile;
-use firelink_board::node::BoardNode;
 use firelink_board::plant::presets::{
     MTM_GRIPPER_DEG_AT_ZERO_VOLTS, MTM_GRIPPER_DEG_PER_VOLT, MTM_GRIPPER_REST, MTM_GRIPPER_SPRING,
 };
+use firelink_board::qla::config::Profile;
+use firelink_board::qla::node::BoardNode;
 use firelink_bus::NodeHandle;
 use firelink_control::ServoPeriod;
 use firelink_control::config::{IoConfig, RobotSimulation, ToolConfig, presets};
-use firelink_control::kinematics::frame::{add, norm, sub};
-use firelink_control::kinematics::mtm::{
+use firelink_control::dvrk::kinematics::frame::{add, norm, sub};
+use firelink_control::dvrk::kinematics::mtm::{
     MTM_JOINTS, mtm_actuators, mtm_forward, mtm_inverse, mtm_joints, mtm_orient,
 };
-use firelink_control::kinematics::psm::{
+use firelink_control::dvrk::kinematics::psm::{
     PSM_ACTUATORS, PSM_JOINTS, psm_actuators, psm_forward, psm_inverse, psm_joints,
 };
-use firelink_control::kinematics::{Frame, Rotation, Vec3};
+use firelink_control::dvrk::kinematics::{Frame, Rotation, Vec3};
+use firelink_control::dvrk::teleop::{Teleop, TeleopInput, TeleopSettings, TeleopState};
 use firelink_control::runner::{Pacing, Robot, RobotSettings};
-use firelink_control::teleop::{Teleop, TeleopInput, TeleopSettings, TeleopState};
 use firelink_control::trajectory::{Motion, PointToPoint, ServoPoint};
 use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::sim::SimPort;

@@ -15,10 +15,10 @@ use std::net::{Ipv4Addr, SocketAddr, UdpSocket};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
-use firelink_board::config::BoardConfig;
+use firelink_board::qla::config::BoardConfig;
 use firelink_control::config::{IoConfig, presets};
-use firelink_emulate::eth_network::{EthNetwork, NetworkError};
-use firelink_emulate::eth_serve::{EthEvent, EthServeConfig, EthSockets, MULTICAST_GROUP};
+use firelink_emulate::qla::eth_network::{EthNetwork, NetworkError};
+use firelink_emulate::qla::eth_serve::{EthEvent, EthServeConfig, EthSockets, MULTICAST_GROUP};
 use firelink_emulate::{Bridge, Event, ServeConfig};
 use firelink_host::cpu_latency::CpuLatencyHold;
 
@@ -192,7 +192,7 @@ impl EthServer {
             loopback_broadcast,
             multicast: multicast.then_some(MULTICAST_GROUP),
         };
-        let sockets = firelink_emulate::eth_serve::eth_bind(&config, &ids)?;
+        let sockets = firelink_emulate::qla::eth_serve::eth_bind(&config, &ids)?;
         let mut banner = vec![format!(
             "emulating {} board(s) on the Ethernet-only network, chain from the host {:?} (hub: board {})",
             ids.len(),
@@ -221,7 +221,7 @@ impl EthServer {
         stop: &Arc<AtomicBool>,
         on_event: impl FnMut(EthEvent),
     ) -> std::io::Result<()> {
-        firelink_emulate::eth_serve::eth_serve(&mut self.net, &self.sockets, stop, on_event)
+        firelink_emulate::qla::eth_serve::eth_serve(&mut self.net, &self.sockets, stop, on_event)
     }
 }
 

@@ -246,7 +246,7 @@ fn cycle_entries_wait_for_the_loop_and_boards_must_exist() {
 }
 
 fn qla(ids: &[u8]) -> crate::rig::RigBuilder {
-    use firelink_board::config::{BoardConfig, Hardware, Profile};
+    use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
     crate::rig::RigBuilder::qla(
         ids.iter()
             .map(|&id| BoardConfig::new(id, Hardware::Qla1, Profile::Rev8))

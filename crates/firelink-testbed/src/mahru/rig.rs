@@ -4,7 +4,7 @@
 //! overhead model.
 
 use firelink_board::mahru::{ModuleConfig, ModuleNode};
-use firelink_board::rig::{linux_gap_count, set_gap_count};
+use firelink_board::qla::rig::{linux_gap_count, set_gap_count};
 use firelink_bus::{Bus, BusConfig, HostLink, NodeConfig, NodeHandle, TraceLevel};
 use firelink_host::mahru::rtos::{Rtos, RtosModel};
 use firelink_host::sim::SimPort;

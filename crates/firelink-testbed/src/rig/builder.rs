@@ -24,8 +24,8 @@
 use std::fmt;
 use std::str::FromStr;
 
-use firelink_board::config::BoardConfig;
-use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_board::qla::config::BoardConfig;
+use firelink_board::qla::rig::{BoardRig, RigOptions};
 use firelink_board::snake::SnakeNodeConfig;
 use firelink_bus::trace::PacketKind;
 use firelink_bus::{
@@ -407,7 +407,7 @@ impl Rig {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use firelink_board::config::{Hardware, Profile};
+    use firelink_board::qla::config::{Hardware, Profile};
 
     fn boards(ids: &[u8]) -> Vec<BoardConfig> {
         ids.iter()

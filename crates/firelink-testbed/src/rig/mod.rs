@@ -18,10 +18,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, mpsc};
 use std::thread::JoinHandle;
 
-use firelink_board::config::{BoardConfig, BrakeWire, FpgaVersion, Hardware, Profile};
-use firelink_board::node::BoardNode;
 use firelink_board::plant::AxisParams;
 use firelink_board::plant::presets;
+use firelink_board::qla::config::{BoardConfig, BrakeWire, FpgaVersion, Hardware, Profile};
+use firelink_board::qla::node::BoardNode;
 use firelink_bus::{Bus, HostModel, Node, NodeHandle, SimDuration};
 use firelink_control::config::{FpgaGeneration, HardwareVersion, IoConfig};
 use firelink_emulate::{BridgeStats, ServeConfig};
@@ -49,8 +49,8 @@ use crate::plant_map;
 /// are what a robot's `simulation.boards` gives the board; a board it does
 /// not name (every board of a dVRK file without Firelink's sections, or a
 /// brake board) keeps the emulator's default, unique per board ID
-/// ([`default_fpga_serial`](firelink_board::config::default_fpga_serial),
-/// [`default_qla_serial`](firelink_board::config::default_qla_serial)). A
+/// ([`default_fpga_serial`](firelink_board::qla::config::default_fpga_serial),
+/// [`default_qla_serial`](firelink_board::qla::config::default_qla_serial)). A
 /// serial the PROM cannot hold (more than 8 characters) stays in the
 /// configuration and is reported by [`BoardConfig::check`]; its PROM is
 /// left erased.
@@ -509,7 +509,7 @@ mod tests {
     /// configuration names.
     #[test]
     fn boards_carry_their_own_serials_and_hardware() {
-        use firelink_board::config::{default_fpga_serial, default_qla_serial};
+        use firelink_board::qla::config::{default_fpga_serial, default_qla_serial};
         let dvrk = presets::dvrk_seed000();
         let boards = board_configs(&dvrk, Profile::Rev8, 9);
         for b in &boards {

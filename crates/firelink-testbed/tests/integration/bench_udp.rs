@@ -3,10 +3,10 @@
 //! address. Figures are measured, never judged here (the machine is
 //! shared): only that they are there and make sense.
 
-use firelink_board::config::{Hardware, Profile};
-use firelink_host::scan::Protocol;
+use firelink_board::qla::config::{Hardware, Profile};
+use firelink_host::qla::scan::Protocol;
 use firelink_host::udp::WaitMode;
-use firelink_testbed::bench::{BenchOptions, BenchTransport, run_bench};
+use firelink_testbed::dvrk::bench::{BenchOptions, BenchTransport, run_bench};
 use firelink_testbed::rig;
 
 #[test]

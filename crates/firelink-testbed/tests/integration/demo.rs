@@ -1,9 +1,9 @@
 //! The demo and the bench as library calls: typed reports, the same
 //! report for the same inputs, faults detected with the safety chain.
 
-use firelink_host::scan::Protocol;
-use firelink_testbed::bench::{BenchOptions, BenchTransport, check_board_counts, run_bench};
+use firelink_host::qla::scan::Protocol;
 use firelink_testbed::demo::{DemoFault, DemoProgress, PortSpec};
+use firelink_testbed::dvrk::bench::{BenchOptions, BenchTransport, check_board_counts, run_bench};
 use firelink_testbed::dvrk::demo::{DemoOptions, run_demo};
 
 fn short(fault: DemoFault) -> DemoOptions {
@@ -139,7 +139,7 @@ fn the_bench_measures_models_and_says_which_is_which() {
     // The I/O figures are deterministic on the simulated bus (the compute
     // time, and the rate and budget built on it, are the host's own CPU).
     let again = run_bench(&options, |_, _, _| {}).unwrap();
-    let io = |r: &firelink_testbed::bench::BenchReport| {
+    let io = |r: &firelink_testbed::dvrk::bench::BenchReport| {
         r.results
             .iter()
             .map(|p| (p.io_time_us, p.read_us, p.write_us, p.errors, p.model))
@@ -156,7 +156,7 @@ fn the_bench_measures_models_and_says_which_is_which() {
 fn dqla(fault: DemoFault) -> DemoOptions {
     DemoOptions {
         config: firelink_control::config::presets::dqla_rev9(),
-        firmware: firelink_board::config::Profile::Rev9,
+        firmware: firelink_board::qla::config::Profile::Rev9,
         ..short(fault)
     }
 }
@@ -212,8 +212,8 @@ fn a_stopped_host_trips_the_dqla_watchdogs() {
 #[test]
 fn the_demo_runs_dqla_arms_over_the_ethernet_only_network() {
     use firelink_control::runner::{Pacing, Robot};
-    use firelink_emulate::eth_network::EthNetwork;
-    use firelink_emulate::eth_serve::{EthServeConfig, eth_bind, eth_serve};
+    use firelink_emulate::qla::eth_network::EthNetwork;
+    use firelink_emulate::qla::eth_serve::{EthServeConfig, eth_bind, eth_serve};
     use firelink_host::WatchdogSetting;
     use firelink_host::eth::UdpNetPort;
     use firelink_host::qla::io::{IoOptions, IoSystem};
@@ -225,7 +225,7 @@ fn the_demo_runs_dqla_arms_over_the_ethernet_only_network() {
     let config = firelink_control::config::presets::dqla_rev9();
     let boards = firelink_testbed::rig::board_configs(
         &config,
-        firelink_board::config::Profile::Rev9,
+        firelink_board::qla::config::Profile::Rev9,
         config.board_slots(),
     );
     let ids: Vec<u8> = boards.iter().map(|b| b.board_id).collect();

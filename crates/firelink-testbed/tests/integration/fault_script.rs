@@ -12,14 +12,14 @@
 
 use std::time::{Duration, Instant};
 
-use firelink_board::config::Profile;
-use firelink_board::node::BoardNode;
+use firelink_board::qla::config::Profile;
+use firelink_board::qla::node::BoardNode;
 use firelink_bus::SimDuration;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::fault::FaultKind;
 use firelink_control::runner::{Pacing, Robot, RobotSettings, RunnerError};
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_host::udp::UdpPort;
 use firelink_host::{Dest, Port, WatchdogSetting};
 use firelink_testbed::fault_script::{FaultScript, ScriptFilter};
@@ -31,7 +31,7 @@ fn config() -> IoConfig {
 }
 
 /// The boards `config` uses (no empty slots), in board-ID order.
-fn used_boards(config: &IoConfig) -> Vec<firelink_board::config::BoardConfig> {
+fn used_boards(config: &IoConfig) -> Vec<firelink_board::qla::config::BoardConfig> {
     let used: Vec<u8> = config.boards().iter().map(|b| b.board_id).collect();
     rig::board_configs(config, Profile::Rev8, config.board_slots())
         .into_iter()
@@ -117,11 +117,11 @@ fn a_board_lost_by_id_on_sim_ends_with_every_amplifier_off_and_the_board_named()
 }
 
 /// The in-process emulator serving `config`'s boards, and its scan.
-fn emulator(config: &IoConfig) -> (Emulator, firelink_host::scan::ScanReport) {
+fn emulator(config: &IoConfig) -> (Emulator, firelink_host::qla::scan::ScanReport) {
     let emu = Emulator::start(used_boards(config)).expect("emulator");
     let mut p = port(&emu);
     p.set_timeout(Duration::from_millis(50));
-    let scan = firelink_host::scan::scan(&mut p).expect("scan");
+    let scan = firelink_host::qla::scan::scan(&mut p).expect("scan");
     (emu, scan)
 }
 

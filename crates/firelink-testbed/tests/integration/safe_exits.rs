@@ -12,13 +12,13 @@
 
 use std::time::{Duration, Instant};
 
-use firelink_board::config::Profile;
+use firelink_board::qla::config::Profile;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::lifecycle::State;
 use firelink_control::runner::{Robot, RobotSettings, RunnerError};
 use firelink_host::WatchdogSetting;
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::ScanReport;
+use firelink_host::qla::scan::ScanReport;
 use firelink_host::stop::{StopReason, StopRequest};
 use firelink_host::udp::UdpPort;
 use firelink_testbed::TestbedError;
@@ -111,7 +111,7 @@ fn scan_of(emu: &Emulator) -> ScanReport {
         // Absent node IDs cost a time-out each: short here.
         let mut p = port(emu);
         p.set_timeout(Duration::from_millis(50));
-        let scan = firelink_host::scan::scan(&mut p).expect("scan");
+        let scan = firelink_host::qla::scan::scan(&mut p).expect("scan");
         SCANS.lock().expect("scans").push((emu.addr, scan.clone()));
         scan
     })

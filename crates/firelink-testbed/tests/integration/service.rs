@@ -9,7 +9,7 @@
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use firelink_board::config::Profile;
+use firelink_board::qla::config::Profile;
 use firelink_control::ServoPeriod;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::lifecycle::State;
@@ -17,12 +17,12 @@ use firelink_control::runner::Pacing;
 use firelink_host::sim::SimPort;
 use firelink_host::{Dest, Port};
 use firelink_testbed::demo::{DemoFault, PortSpec};
-use firelink_testbed::fault_script::FaultTarget;
-use firelink_testbed::rig;
-use firelink_testbed::service::{
-    Command, CommandOutcome, Frame, LoopOptions, MAX_ARM_JOINTS, Service, ServoApplied, ServoTrace,
-    Shared, Verdict,
+use firelink_testbed::dvrk::service::{
+    Command, Frame, LoopOptions, MAX_ARM_JOINTS, Service, ServoApplied, ServoTrace, Shared,
 };
+use firelink_testbed::fault_script::FaultTarget;
+use firelink_testbed::loop_outcome::{CommandOutcome, Verdict};
+use firelink_testbed::rig;
 
 /// Bounded only so that a broken build fails instead of hanging.
 const HANG: Duration = Duration::from_secs(300);

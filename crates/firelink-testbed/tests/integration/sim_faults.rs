@@ -3,13 +3,13 @@
 //! detected by a board or the host. (Faults on single transactions are
 //! tested on the bus alone, in `firelink-bus`'s `tests/integration/faults.rs`.)
 
-use firelink_board::config::Profile;
+use firelink_board::qla::config::Profile;
 use firelink_bus::fault::{
     EvidenceKind, FaultPlan, FaultRule, PacketFault, PacketMatch, TimedFault,
 };
 use firelink_bus::host::HostLink;
 use firelink_bus::{SimDuration, SimTime};
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_testbed::sim::{SimOptions, SimRun};
 use firelink_wire::packet::Tcode;
 

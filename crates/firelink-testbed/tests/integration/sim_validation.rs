@@ -8,10 +8,10 @@
 //! TDMA phase 40.71 us, hub block read with final ack 20 us, command
 //! broadcast 3.26 us; a 48-byte async read or 16-byte write under 5 us.
 
-use firelink_board::config::Profile;
+use firelink_board::qla::config::Profile;
 use firelink_bus::trace::PacketKind;
 use firelink_bus::{ArbitrationClass, pcap};
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_testbed::sim::{SimOptions, SimReport, SimRun};
 
 fn simulate(cfg: &SimOptions) -> SimReport {

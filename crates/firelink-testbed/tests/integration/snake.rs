@@ -10,7 +10,7 @@ use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, Robot, RobotSettings};
 use firelink_host::RobotIo;
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_host::snake::SnakeSystem;
 use firelink_testbed::demo::{DemoFault, motion_for};
 use firelink_testbed::rig;
@@ -87,7 +87,7 @@ fn exercise<R: RobotIo>(io: R, config: &IoConfig, cycles: u64) -> (Vec<(String, 
 fn the_same_servo_drives_a_qla_rig_and_a_snake_rig() {
     // QLA: one QLA1 board, four generic motors, read and written one by one.
     let qla_config = presets::bench_1board();
-    let boards = rig::board_configs(&qla_config, firelink_board::config::Profile::Rev8, 1);
+    let boards = rig::board_configs(&qla_config, firelink_board::qla::config::Profile::Rev8, 1);
     let (port, _) = rig::sim_port(boards, false).unwrap();
     let (qla, _) = IoSystem::open(
         port,

@@ -3,8 +3,8 @@
 //! whenever the safety chain says so, every board's watchdog within its
 //! bound; and the same seed gives the same report.
 
-use firelink_testbed::soak::{self, SoakSettings};
-use firelink_testbed::watchdog;
+use firelink_testbed::dvrk::soak::{self, SoakSettings};
+use firelink_testbed::dvrk::watchdog;
 
 fn settings(cycles: u64, seed: u64) -> SoakSettings {
     SoakSettings {

@@ -10,9 +10,9 @@
 
 use std::time::Duration;
 
-use firelink_board::config::Profile;
-use firelink_board::node::BoardNode;
 use firelink_board::plant::Axis;
+use firelink_board::qla::config::Profile;
+use firelink_board::qla::node::BoardNode;
 use firelink_bus::NodeHandle;
 use firelink_control::config::{IoConfig, presets};
 use firelink_host::Port;

@@ -59,7 +59,7 @@ fn psm1_follows_mtmr_for_60_seconds_without_a_fault() {
 /// their goals.
 #[test]
 fn the_instrument_wrist_and_jaw_follow_teleoperation_speeds() {
-    use firelink_control::kinematics::psm::{PSM_JOINTS, psm_actuators, psm_joints};
+    use firelink_control::dvrk::kinematics::psm::{PSM_JOINTS, psm_actuators, psm_joints};
     use firelink_control::runner::{Pacing, Robot, RobotSettings};
     use firelink_control::trajectory::{PointToPoint, ServoPoint};
     use firelink_host::qla::io::{IoOptions, IoSystem};
@@ -67,7 +67,8 @@ fn the_instrument_wrist_and_jaw_follow_teleoperation_speeds() {
 
     let mut config = firelink_testbed::dvrk::teleop::mtmr_psm1();
     config.robots.remove(0);
-    let (port, _) = rig::sim_port_of_used(&config, firelink_board::config::Profile::Rev8).unwrap();
+    let (port, _) =
+        rig::sim_port_of_used(&config, firelink_board::qla::config::Profile::Rev8).unwrap();
     let (io, _) = IoSystem::open(port, IoOptions::default()).unwrap();
     let mut robot = Robot::new(io, &config, RobotSettings::default()).unwrap();
     robot.configure().unwrap();

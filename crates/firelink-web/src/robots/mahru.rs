@@ -27,11 +27,11 @@ use firelink_host::Port;
 use firelink_host::PowerDown;
 use firelink_host::mahru::{ControllerState, MotionController, MotionError, Setpoints};
 use firelink_host::sim::SimPort;
+use firelink_testbed::loop_outcome::LoopExit;
 use firelink_testbed::mahru::MahruConfig;
 use firelink_testbed::mahru::gait::Gait;
 use firelink_testbed::mahru::main_loop::{gait_setpoints, motor_models};
 use firelink_testbed::mahru::rig::{PlacedModule, robot_port};
-use firelink_testbed::service::LoopExit;
 use firelink_wire::mahru::{ModId, ModuleKind, ModuleState};
 
 use super::{Exchange, Hosted, PUBLISH_SECONDS, Pending, Refused, RobotKind, RobotModel};

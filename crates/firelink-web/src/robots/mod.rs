@@ -37,7 +37,7 @@ use crossbeam_queue::ArrayQueue;
 use serde_json::{Value, json};
 use tokio::sync::{Notify, oneshot};
 
-use firelink_testbed::service::{CommandOutcome, LoopExit, Verdict};
+use firelink_testbed::loop_outcome::{CommandOutcome, LoopExit, Verdict};
 
 use crate::server::{COMMAND_WAIT, Gate, Peer, answer, outcome_response, refusal, with_assets};
 

@@ -35,7 +35,7 @@ use firelink_host::sim::SimPort;
 use firelink_host::snake::SnakeSystem;
 use firelink_testbed::demo::{DemoFault, DemoIo};
 use firelink_testbed::fault_script::FaultTarget;
-use firelink_testbed::service::LoopExit;
+use firelink_testbed::loop_outcome::LoopExit;
 use firelink_testbed::snake::{node_configs, prepare, sim_port_with_faults};
 use firelink_wire::snake::WIPER_MAX;
 use firelink_wire::snake::registers::{PotOutputs, Wiper};

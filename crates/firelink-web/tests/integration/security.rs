@@ -15,8 +15,8 @@ use serde_json::Value;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 
+use firelink_testbed::loop_outcome::LoopExit;
 use firelink_testbed::port_spec::PortSpec;
-use firelink_testbed::service::LoopExit;
 use firelink_web::server::cookie_name;
 use firelink_web::{RobotKind, Running, WebOptions, serve, start};
 

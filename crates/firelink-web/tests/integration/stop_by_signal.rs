@@ -11,10 +11,10 @@ use std::net::{SocketAddr, TcpStream};
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
-use firelink_board::config::Profile;
+use firelink_board::qla::config::Profile;
 use firelink_control::config::presets;
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_testbed::rig::{self, Emulator};
 
 const BENCH: &str = concat!(
@@ -114,7 +114,7 @@ impl Web {
 }
 
 /// Board 0 as a second client reads it: (motor power, amplifiers on).
-fn board0(emu: &Emulator, scan: &firelink_host::scan::ScanReport) -> (bool, usize) {
+fn board0(emu: &Emulator, scan: &firelink_host::qla::scan::ScanReport) -> (bool, usize) {
     let mut port = emu.port().expect("port");
     port.set_timeout(Duration::from_millis(500));
     // Block reads of each board: no broadcast query that would cut into
@@ -138,7 +138,7 @@ fn stopping_the_console_powers_the_robot_down(signal: &str) {
     let scan = {
         let mut p = emu.port().expect("port");
         p.set_timeout(Duration::from_millis(50));
-        firelink_host::scan::scan(&mut p).expect("scan")
+        firelink_host::qla::scan::scan(&mut p).expect("scan")
     };
     let web = Web::start(&emu);
     web.must("configure");

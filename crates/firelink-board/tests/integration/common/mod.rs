@@ -4,7 +4,7 @@
 
 #![allow(dead_code)]
 
-use firelink_board::config::BoardConfig;
+use firelink_board::qla::config::BoardConfig;
 use firelink_board::qla::{Firmware, PhyRegisters, Reply};
 use firelink_board::time::{SimDuration, SimTime};
 use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Rcode, Tcode};

@@ -5,9 +5,9 @@
 
 use std::time::Duration;
 
-use firelink_board::config::Profile;
-use firelink_board::node::BoardNode;
 use firelink_board::qla::Firmware;
+use firelink_board::qla::config::Profile;
+use firelink_board::qla::node::BoardNode;
 use firelink_bus::NodeHandle;
 use firelink_bus::fault::{FaultPlan, PacketFault, PacketMatch, TimedFault};
 use firelink_control::config::IoConfig;

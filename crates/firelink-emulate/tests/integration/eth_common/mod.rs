@@ -8,7 +8,7 @@
 //! framing).
 #![allow(dead_code)]
 
-use firelink_board::config::{BoardConfig, FpgaVersion, Hardware, Profile};
+use firelink_board::qla::config::{BoardConfig, FpgaVersion, Hardware, Profile};
 use firelink_wire::packet::{AsyncHeader, NodeId, PacketRepr};
 use firelink_wire::qla::broadcast::emit_command_block;
 use firelink_wire::qla::realtime::WriteBlockRepr;
@@ -155,14 +155,14 @@ pub struct ServedNetwork {
     /// The port every board listens on.
     pub port: u16,
     stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
-    thread: Option<std::thread::JoinHandle<firelink_emulate::eth_network::NetworkStats>>,
+    thread: Option<std::thread::JoinHandle<firelink_emulate::qla::eth_network::NetworkStats>>,
 }
 
 impl ServedNetwork {
     /// Bind as `config` says and serve.
-    pub fn start(chain: &[u8], config: &firelink_emulate::eth_serve::EthServeConfig) -> Self {
-        use firelink_emulate::eth_network::EthNetwork;
-        use firelink_emulate::eth_serve::{eth_bind, eth_serve};
+    pub fn start(chain: &[u8], config: &firelink_emulate::qla::eth_serve::EthServeConfig) -> Self {
+        use firelink_emulate::qla::eth_network::EthNetwork;
+        use firelink_emulate::qla::eth_serve::{eth_bind, eth_serve};
         let mut net =
             EthNetwork::new(v3_rev9(chain), firelink_bus::ethernet::EthTiming::default()).unwrap();
         let sockets = eth_bind(config, chain).unwrap();
@@ -191,7 +191,7 @@ impl ServedNetwork {
     }
 
     /// Stop serving; the network's counters.
-    pub fn stop(mut self) -> firelink_emulate::eth_network::NetworkStats {
+    pub fn stop(mut self) -> firelink_emulate::qla::eth_network::NetworkStats {
         self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
         self.thread.take().unwrap().join().unwrap()
     }

@@ -13,8 +13,8 @@
 //!
 //! ```
 //! # #[cfg(feature = "sim")] {
-//! use firelink_board::config::{BoardConfig, Hardware, Profile};
-//! use firelink_board::rig::{BoardRig, RigOptions};
+//! use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
+//! use firelink_board::qla::rig::{BoardRig, RigOptions};
 //! use firelink_host::qla::extras::prom::{fpga_serial_number, qla_serial_number};
 //! use firelink_host::sim::SimPort;
 //! use firelink_host::Dest;

@@ -6,7 +6,7 @@
 //! and the commands go ([`BroadcastRoute`]) and each group's hub block,
 //! hub read and wait ([`QueryGroup`]) are worked out at each scan.
 //!
-//! [`Protocol::SequentialReadBroadcastWrite`]: crate::scan::Protocol::SequentialReadBroadcastWrite
+//! [`Protocol::SequentialReadBroadcastWrite`]: crate::qla::scan::Protocol::SequentialReadBroadcastWrite
 
 use std::time::Duration;
 
@@ -22,10 +22,11 @@ use firelink_wire::qla::broadcast::{
 };
 use firelink_wire::qla::realtime::{BlockFormat, BoardLayout};
 
-use super::{HubReadTimes, IoSystem, hub_ticks_us, miss_from_wire};
+use super::{IoSystem, miss_from_wire};
+use crate::cycle_report::{HubReadTimes, hub_ticks_us};
 use crate::error::{HostError, MissReason, Result};
 use crate::port::{Dest, Port};
-use crate::scan::ScanReport;
+use crate::qla::scan::ScanReport;
 
 /// The boards a query selects, counted as the host's broadcast wait
 /// counts them ([`Port::broadcast_wait`]; FirewirePort `WaitBroadcastRead`:
@@ -99,7 +100,7 @@ type HubOutcomes = [Option<core::result::Result<(), MissReason>>; MAX_BOARDS];
 
 impl<P: Port> IoSystem<P> {
     /// The broadcast queries of one cycle for the boards of `scan`
-    /// ([`crate::scan::broadcast_groups`]), each with its hub block, hub read and
+    /// ([`crate::qla::scan::broadcast_groups`]), each with its hub block, hub read and
     /// wait.
     ///
     /// # Errors
@@ -108,7 +109,7 @@ impl<P: Port> IoSystem<P> {
     /// hub block.
     pub(super) fn query_groups(&self, scan: &ScanReport) -> Result<Vec<QueryGroup>> {
         let masks =
-            crate::scan::broadcast_groups(&scan.boards).ok_or(HostError::InvalidRequest {
+            crate::qla::scan::broadcast_groups(&scan.boards).ok_or(HostError::InvalidRequest {
                 what: "the boards' hub blocks do not fit the hub memory",
                 value: scan.boards.len() as u32,
             })?;

@@ -9,7 +9,7 @@
 //!   boards broadcast their status, one block read of the hub memory from one
 //!   board, one broadcast write of all commands (`T = TQ + wait + TR + TW`).
 //!   Boards whose blocks together overflow the hub memory run in broadcast
-//!   groups ([`crate::scan::broadcast_groups`]): query, wait and hub read
+//!   groups ([`crate::qla::scan::broadcast_groups`]): query, wait and hub read
 //!   once per group, each query with its own sequence number and the
 //!   group's board mask, then the one command write to all boards.
 //!
@@ -18,14 +18,15 @@
 //! cycle is reported by ID with the reason and counted; its inputs are
 //! marked invalid, never silently reused.
 //!
-//! The module's parts: the cycle's reports and counters (`report`: what
-//! every protocol fills in), the per-board protocols' reads and writes
-//! (`sequential`) and the broadcast protocol's queries, hub reads and
-//! command block (`broadcast`); what they share (the system, its set-up,
-//! registers and the cycle's frame) is here.
+//! The module's parts: the per-board protocols' reads and writes
+//! (`sequential`), the broadcast protocol's queries, hub reads and
+//! command block (`broadcast`) and the system as the abstract robot I/O
+//! (`robot_io`); what they share (the system, its set-up, registers and
+//! the cycle's frame) is here. What every protocol fills in, the cycle's
+//! report and the counters, is every robot's: [`crate::cycle_report`].
 
 mod broadcast;
-mod report;
+mod robot_io;
 mod sequential;
 
 use std::time::Duration;
@@ -35,14 +36,14 @@ use firelink_wire::qla::address::{BoardRegister, Register};
 use firelink_wire::qla::broadcast::{BoardSlot, SeqRule};
 use firelink_wire::qla::registers::{AmpCommand, StatusCommand, WatchdogSetting};
 
+use crate::cycle_report::{CycleReport, IoStats};
 use crate::error::{HostError, MissReason, Result};
 use crate::port::{Dest, Port};
 use crate::qla::board::BoardIo;
-use crate::scan::{Protocol, ScanReport, scan};
+use crate::qla::scan::{Protocol, ScanReport, scan};
 
 pub use broadcast::BroadcastRoute;
 use broadcast::QueryGroup;
-pub use report::{CycleReport, HubReadTimes, IoStats, hub_ticks_us};
 
 /// How to run the I/O system.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -352,9 +353,9 @@ impl<P: Port> IoSystem<P> {
     }
 
     /// The protocol in use as reports name it: `broadcast, 2 groups` when
-    /// the broadcast protocol runs in groups ([`crate::scan::protocol_label`]).
+    /// the broadcast protocol runs in groups ([`crate::qla::scan::protocol_label`]).
     pub fn protocol_label(&self) -> String {
-        crate::scan::protocol_label(self.protocol, self.groups.len())
+        crate::qla::scan::protocol_label(self.protocol, self.groups.len())
     }
 
     /// The sequence rule in use.

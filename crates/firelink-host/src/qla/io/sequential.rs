@@ -4,8 +4,8 @@
 //! same way and writes with the broadcast protocol's command block
 //! ([`super::broadcast`]).
 //!
-//! [`Protocol::Sequential`]: crate::scan::Protocol::Sequential
-//! [`Protocol::SequentialReadBroadcastWrite`]: crate::scan::Protocol::SequentialReadBroadcastWrite
+//! [`Protocol::Sequential`]: crate::qla::scan::Protocol::Sequential
+//! [`Protocol::SequentialReadBroadcastWrite`]: crate::qla::scan::Protocol::SequentialReadBroadcastWrite
 
 use firelink_wire::qla::address::REALTIME_BLOCK_OFFSET;
 use firelink_wire::qla::realtime::{ReadBlock, ReadBlockRepr};

@@ -4,7 +4,7 @@
 use std::fmt;
 
 use super::SoakReport;
-use crate::watchdog::WatchdogReport;
+use crate::dvrk::watchdog::WatchdogReport;
 
 impl fmt::Display for SoakReport {
     fn fmt(&self, out: &mut fmt::Formatter<'_>) -> fmt::Result {

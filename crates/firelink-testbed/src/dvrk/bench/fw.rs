@@ -31,13 +31,13 @@ use nix::sys::socket::{
     AddressFamily, MsgFlags, Shutdown, SockFlag, SockType, recv, send, shutdown, socketpair,
 };
 
-use firelink_board::config::BoardConfig;
+use firelink_board::qla::config::BoardConfig;
 use firelink_control::runner::Percentiles;
 use firelink_emulate::fw_cdev::{self, Twin};
 use firelink_host::Port;
 use firelink_host::firewire::{FirewirePort, FwOptions};
 use firelink_host::qla::io::IoSystem;
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_wire::fw_cdev::{
     KERNEL_ABI_VERSION, ResponseEvent, SendRequestArgs, TWIN_MAX_MESSAGE, TwinRequest,
     emit_response, rcode,
@@ -48,11 +48,8 @@ use super::udp::{BLOCK, Recorder, Step};
 use super::{BenchTransport, Raw};
 use crate::TestbedError;
 use crate::cpu::ThreadCpuClock;
+use crate::fw_run::SOCKET_ENV;
 use crate::rig;
-
-/// The environment variable naming the twin's socket (the preloaded
-/// library connects there; the benchmark's server binds it).
-pub const SOCKET_ENV: &str = "FIRELINK_FW_CDEV";
 
 /// Warm-up cycles before measuring (the point's and the floor's).
 const WARM_UP: u64 = 20;
@@ -331,7 +328,7 @@ pub(super) fn measure_point(
     let server = TwinServer::start(boards, path)?;
     let idle = Duration::from_secs_f64(options.idle_us.max(0.0) / 1e6);
     let mut port = Recorder::new(FirewirePort::open(FwOptions::default())?);
-    let scan = firelink_host::scan::scan(&mut port)?;
+    let scan = firelink_host::qla::scan::scan(&mut port)?;
     let plan = super::Plan::of(&scan, protocol, options);
     let mut io = IoSystem::with_scan(port, &scan, plan.options())?;
     for _ in 0..WARM_UP {

@@ -20,7 +20,7 @@
 
 use std::fmt;
 
-use firelink_board::node::BoardNode;
+use firelink_board::qla::node::BoardNode;
 use firelink_bus::{Bus, NodeHandle};
 use firelink_control::runner::{Pacing, Robot};
 use firelink_host::qla::io::IoSystem;

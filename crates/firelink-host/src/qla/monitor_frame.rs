@@ -6,8 +6,8 @@
 use std::time::{Duration, Instant};
 
 use crate::Port;
-use crate::monitor::{MonitorFigures, Switch, explain_status, on_off};
 use crate::qla::io::IoSystem;
+use crate::qla::monitor::{MonitorFigures, Switch, explain_status, on_off};
 use crate::stop::StopRequest;
 
 /// Render one frame as text.
@@ -17,7 +17,7 @@ pub fn render<P: Port>(io: &IoSystem<P>, f: &MonitorFigures) -> String {
     let stats = io.stats();
     let groups: Vec<String> = io
         .broadcast_groups()
-        .map(|m| format!("boards {}", crate::scan::mask_boards(m)))
+        .map(|m| format!("boards {}", crate::qla::scan::mask_boards(m)))
         .collect();
     let _ = writeln!(
         s,

@@ -23,13 +23,13 @@ use std::time::Duration;
 
 use serde::Serialize;
 
-use firelink_board::config::{BoardConfig, FpgaVersion};
+use firelink_board::qla::config::{BoardConfig, FpgaVersion};
 use firelink_bus::SimTime;
 use firelink_bus::ethernet::{EthChain, EthTiming, Framing};
-use firelink_emulate::eth_network::EthNetwork;
-use firelink_emulate::eth_serve::{EthServeConfig, eth_bind, eth_serve};
+use firelink_emulate::qla::eth_network::EthNetwork;
+use firelink_emulate::qla::eth_serve::{EthServeConfig, eth_bind, eth_serve};
 use firelink_host::eth::{EthAddresses, EthPort, ethernet_only_broadcast_wait};
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_host::udp::WaitMode;
 use firelink_wire::bridge::{CONTROL_WORD_LEN, EXTRA_DATA_LEN};
 use firelink_wire::qla::broadcast::{command_block_quadlets, hub_block_quadlets};
@@ -278,7 +278,7 @@ pub(super) fn eth_raws(
         raws.push(raw);
         let chain = as_v3(super::bench_boards(
             generic,
-            firelink_board::config::Profile::Rev9,
+            firelink_board::qla::config::Profile::Rev9,
             boards,
         ));
         stated.push((boards, stated_timing(&chain)?));
@@ -288,7 +288,7 @@ pub(super) fn eth_raws(
         progress(transport, Protocol::Broadcast, n);
         let chain = as_v3(super::bench_boards(
             generic,
-            firelink_board::config::Profile::Rev9,
+            firelink_board::qla::config::Profile::Rev9,
             n,
         ));
         stated.push((n, stated_timing(&chain)?));
@@ -304,8 +304,8 @@ pub(super) fn eth_raws(
         raw.board_set = Some(ETH_SET);
         raws.push(raw);
         for (profile, set) in [
-            (firelink_board::config::Profile::Rev8, BRIDGE_REV8_SET),
-            (firelink_board::config::Profile::Rev9, BRIDGE_REV9_SET),
+            (firelink_board::qla::config::Profile::Rev8, BRIDGE_REV8_SET),
+            (firelink_board::qla::config::Profile::Rev9, BRIDGE_REV9_SET),
         ] {
             let boards = super::bench_boards(generic, profile, n)
                 .into_iter()
@@ -473,7 +473,7 @@ pub(super) fn fmt_comparisons(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use firelink_board::config::{Hardware, Profile};
+    use firelink_board::qla::config::{Hardware, Profile};
 
     fn qla1s(n: u8) -> Vec<BoardConfig> {
         as_v3(

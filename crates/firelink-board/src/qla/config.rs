@@ -2,7 +2,7 @@
 //! profile, FPGA version, git description), its plant and its seed.
 //!
 //! ```
-//! use firelink_board::config::{BoardConfig, Hardware, Profile};
+//! use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
 //! use firelink_board::plant::presets::{arm_axes, Arm};
 //! let cfg = BoardConfig::new(6, Hardware::Qla1, Profile::Rev8)
 //!     .with_axes(arm_axes(Arm::Psm, 0, 4))
@@ -548,7 +548,7 @@ impl BoardConfig {
 /// goes on an FPGA V3.
 ///
 /// ```
-/// use firelink_board::config::{BoardConfig, BoardSettings, Hardware, Profile};
+/// use firelink_board::qla::config::{BoardConfig, BoardSettings, Hardware, Profile};
 /// let s: BoardSettings = "2:hardware=DQLA,qla-serial=22723,fpga-serial=5496-03".parse().unwrap();
 /// let b = s.apply(BoardConfig::new(2, Hardware::Qla1, Profile::Rev8));
 /// assert_eq!(b.hardware, Hardware::Dqla);

@@ -3,7 +3,7 @@
 //! [`firelink_bus::ethernet`]. No sockets, no clock: datagrams go in with
 //! the virtual time they arrived ([`EthNetwork::handle`]), replies come
 //! out with the virtual time they reach the host
-//! ([`EthNetwork::take_due`]); the server ([`crate::eth_serve`]) does the
+//! ([`EthNetwork::take_due`]); the server ([`crate::qla::eth_serve`]) does the
 //! sockets and the pacing.
 //!
 //! What each board does with a datagram (EthernetIO.v, Rev 9):
@@ -39,7 +39,7 @@ use std::collections::BTreeMap;
 use std::net::SocketAddr;
 use std::sync::Arc;
 
-use firelink_board::config::{BoardConfig, FpgaVersion, Profile};
+use firelink_board::qla::config::{BoardConfig, FpgaVersion, Profile};
 use firelink_board::qla::{Firmware, PhyRegisters, Reply};
 use firelink_bus::ethernet::{ChainError, EthChain, EthTiming, Framing, SwitchPort};
 use firelink_bus::{SimDuration, SimTime};

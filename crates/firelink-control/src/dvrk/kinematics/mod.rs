@@ -10,7 +10,7 @@
 //! every cycle.
 //!
 //! ```
-//! use firelink_control::kinematics::psm::{psm_forward, psm_inverse};
+//! use firelink_control::dvrk::kinematics::psm::{psm_forward, psm_inverse};
 //! let q = [0.2, -0.1, 0.12, 0.3, 0.2, -0.4];
 //! let tip = psm_forward(&q);
 //! let back = psm_inverse(&tip, &q).unwrap();

@@ -12,7 +12,7 @@
 
 use std::time::Duration;
 
-use firelink_board::node::BoardNode;
+use firelink_board::qla::node::BoardNode;
 use firelink_bus::{NodeHandle, SimDuration, SimTime};
 use firelink_control::config::presets;
 use firelink_control::runner::{Pacing, Robot};
@@ -25,7 +25,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
 use crate::TestbedError;
-use crate::soak::{RunningRobot, SoakSettings, bring_up_robot};
+use crate::dvrk::soak::{RunningRobot, SoakSettings, bring_up_robot};
 
 /// The result (`firelink soak --watchdog-trials N`).
 #[derive(Debug, Clone, Serialize)]

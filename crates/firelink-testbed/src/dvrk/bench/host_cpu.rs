@@ -25,7 +25,7 @@
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
-use firelink_board::config::Profile;
+use firelink_board::qla::config::Profile;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, Percentiles, Robot, RobotSettings};
 use firelink_control::trajectory::{Motion, PointToPoint, Sinusoid};
@@ -34,7 +34,7 @@ use firelink_host::error::{HostError, Result};
 use firelink_host::link_stats::LinkStats;
 use firelink_host::port::{Dest, LinkFilter, Port};
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_host::sim::SimPort;
 use firelink_wire::qla::address::{COMMAND_BLOCK_OFFSET, HUB_MEMORY_OFFSET, HUB_QUERY_OFFSET};
 use firelink_wire::qla::broadcast::{HubHeader, Query};

@@ -51,13 +51,13 @@ use std::time::Duration;
 
 use serde::Serialize;
 
-use firelink_board::config::Profile;
+use firelink_board::qla::config::Profile;
 use firelink_control::budget::CycleBudget;
 use firelink_control::config::presets;
 use firelink_control::runner::{Pacing, Percentiles, Robot, RobotSettings};
 use firelink_host::Port;
 use firelink_host::qla::io::{IoOptions, IoSystem};
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_host::udp::WaitMode;
 
 use crate::TestbedError;
@@ -520,7 +520,7 @@ pub(crate) enum HostWait {
 
 impl Plan {
     fn of(
-        scan: &firelink_host::scan::ScanReport,
+        scan: &firelink_host::qla::scan::ScanReport,
         protocol: Protocol,
         options: &BenchOptions,
     ) -> Plan {
@@ -535,7 +535,7 @@ impl Plan {
             let masks: Vec<String> = scan
                 .broadcast_groups
                 .iter()
-                .map(|&m| firelink_host::scan::mask_boards(m))
+                .map(|&m| firelink_host::qla::scan::mask_boards(m))
                 .collect();
             Some(format!(
                 "{groups} broadcast groups (boards {}): {}",
@@ -635,7 +635,7 @@ fn point<P: Port>(
     boards: usize,
     options: &BenchOptions,
 ) -> Result<Raw, TestbedError> {
-    let scan = firelink_host::scan::scan(&mut port)?;
+    let scan = firelink_host::qla::scan::scan(&mut port)?;
     let plan = Plan::of(&scan, protocol, options);
     let (used, groups, note) = (plan.protocol, plan.groups, plan.note.clone());
     let io = IoSystem::with_scan(port, &scan, plan.options())?;
@@ -884,7 +884,7 @@ fn bench_boards(
     generic: &firelink_control::config::IoConfig,
     profile: Profile,
     n: usize,
-) -> Vec<firelink_board::config::BoardConfig> {
+) -> Vec<firelink_board::qla::config::BoardConfig> {
     rig::board_configs(generic, profile, n)
         .into_iter()
         .map(|b| b.with_axes(vec![firelink_board::plant::presets::unused_channel(); 4]))
@@ -1172,7 +1172,7 @@ impl fmt::Display for BenchReport {
                 f,
                 "{:<9} {:<32} {:>6} {:>9} {:>9} {:>9} {:>8} Hz {:>10}  {}",
                 transport(r),
-                firelink_host::scan::protocol_label(
+                firelink_host::qla::scan::protocol_label(
                     Protocol::from_name(r.protocol).unwrap_or(Protocol::Sequential),
                     r.broadcast_groups
                 ),

@@ -5,7 +5,7 @@
 
 use std::time::Duration;
 
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_host::udp::WaitMode;
 
 use super::{BenchOptions, BenchTransport, parse_board_counts};

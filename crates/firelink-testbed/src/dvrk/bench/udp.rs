@@ -22,7 +22,7 @@ use firelink_control::runner::Percentiles;
 use firelink_host::eth::EthPort;
 use firelink_host::link_stats::LinkStats;
 use firelink_host::qla::io::IoSystem;
-use firelink_host::scan::Protocol;
+use firelink_host::qla::scan::Protocol;
 use firelink_host::udp::{SocketCalls, UdpPort, WaitMode, is_wait_over};
 use firelink_host::{Dest, LinkFilter, Port};
 use firelink_wire::bridge::{ExtraData, split_host_datagram};
@@ -449,7 +449,7 @@ impl<P: DatagramPort> Side<P> {
         // A busy machine must not hide a board from the scan; the cycles
         // then have the servo time-out.
         port.inner.set_read_timeout(SCAN_TIMEOUT);
-        let scan = firelink_host::scan::scan(&mut port);
+        let scan = firelink_host::qla::scan::scan(&mut port);
         port.inner.set_read_timeout(settings.options.udp_timeout);
         let scan = scan?;
         let plan = super::Plan::of(&scan, settings.protocol, settings.options);

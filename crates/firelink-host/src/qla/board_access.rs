@@ -13,8 +13,8 @@ use firelink_wire::qla::address::{AxisRegister, BoardRegister, Register};
 use firelink_wire::qla::registers::{StatusRead, Temperature, Watchdog, counts_from_offset_binary};
 
 use crate::qla::board::BoardInfo;
-use crate::register_address::{AddressError, check_address, register_offset};
-use crate::scan::{ScanReport, mask_boards, scan};
+use crate::qla::register_address::{AddressError, check_address, register_offset};
+use crate::qla::scan::{ScanReport, mask_boards, scan};
 use crate::{Dest, HostError, Port};
 
 /// One board's identity as a record.

@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 
 use firelink_bus::{SimDuration, SimTime};
 
-use crate::eth_network::{Destination, EthNetwork, NetworkStats, Outgoing};
+use crate::qla::eth_network::{Destination, EthNetwork, NetworkStats, Outgoing};
 
 /// The Rev 9 host's multicast group (EthUdpPort: `MulticastIP` default).
 pub const MULTICAST_GROUP: Ipv4Addr = Ipv4Addr::new(224, 0, 0, 100);

@@ -41,9 +41,9 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::time::Duration;
 
-use firelink_board::config::{BoardConfig, Profile};
-use firelink_board::node::BoardNode;
-use firelink_board::rig::{BoardRig, RigOptions};
+use firelink_board::qla::config::{BoardConfig, Profile};
+use firelink_board::qla::node::BoardNode;
+use firelink_board::qla::rig::{BoardRig, RigOptions};
 use firelink_bus::fault::{EvidenceKind, FaultId, FaultLog, FaultSource, PacketFault};
 use firelink_bus::trace::PacketKind;
 use firelink_bus::{
@@ -53,8 +53,9 @@ use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, Robot, RobotSettings};
 use firelink_control::trajectory::{Motion, Sinusoid};
 use firelink_control::{ServoPeriod, State};
-use firelink_host::qla::io::{CycleReport, IoOptions, IoSystem};
-use firelink_host::scan::Protocol;
+use firelink_host::cycle_report::CycleReport;
+use firelink_host::qla::io::{IoOptions, IoSystem};
+use firelink_host::qla::scan::Protocol;
 use firelink_host::sim::SimPort;
 use firelink_host::{HostError, MissReason, WatchdogSetting};
 use firelink_wire::packet::Tcode;

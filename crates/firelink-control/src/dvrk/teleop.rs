@@ -39,8 +39,8 @@
 //! degrees). [`Teleop::update`] takes the time as an argument and does not
 //! allocate.
 
-use crate::kinematics::frame::{add, scale, sub};
-use crate::kinematics::{Frame, Rotation, Vec3};
+use crate::dvrk::kinematics::frame::{add, scale, sub};
+use crate::dvrk::kinematics::{Frame, Rotation, Vec3};
 
 const DEG: f64 = core::f64::consts::PI / 180.0;
 
@@ -83,7 +83,7 @@ impl Default for TeleopSettings {
             jaw_caught_up: 2.0 * DEG,
             gripper_max: 60.0 * DEG,
             gripper_zero: 0.0,
-            jaw_limits: crate::kinematics::psm::JAW_LIMITS,
+            jaw_limits: crate::dvrk::kinematics::psm::JAW_LIMITS,
         }
     }
 }
@@ -316,7 +316,7 @@ impl Teleop {
         // The roll: the angle between the PSM's and the MTM's y axes.
         let y_psm = input.psm.rotation.column(1);
         let y_mtm = input.mtm.rotation.column(1);
-        let c = crate::kinematics::frame::dot(y_psm, y_mtm).clamp(-1.0, 1.0);
+        let c = crate::dvrk::kinematics::frame::dot(y_psm, y_mtm).clamp(-1.0, 1.0);
         let roll = libm::acos(c);
         self.roll_range = (self.roll_range.0.min(roll), self.roll_range.1.max(roll));
         let span = |r: (f64, f64)| if r.1 >= r.0 { r.1 - r.0 } else { 0.0 };
@@ -399,7 +399,9 @@ mod tests {
         let c = t.update(&input(0.002, near, psm, 1.0 - 6.0 * DEG, false));
         assert_eq!(c.state, TeleopState::Enabled);
         let goal = c.psm.unwrap();
-        assert!(crate::kinematics::frame::norm(sub(goal.translation, psm.translation)) < 1e-15);
+        assert!(
+            crate::dvrk::kinematics::frame::norm(sub(goal.translation, psm.translation)) < 1e-15
+        );
         assert!(goal.rotation.angle_to(&psm.rotation) < 1e-9);
         // The MTM moves 50 mm and turns: the PSM 10 mm, turned alike.
         let turn = Rotation::about_z(0.3);
@@ -410,7 +412,7 @@ mod tests {
         let c = t.update(&input(0.003, moved, psm, 1.0, false));
         let goal = c.psm.unwrap();
         let want = add(psm.translation, [0.01, 0.0, 0.0]);
-        assert!(crate::kinematics::frame::norm(sub(goal.translation, want)) < 1e-12);
+        assert!(crate::dvrk::kinematics::frame::norm(sub(goal.translation, want)) < 1e-12);
         assert!(goal.rotation.angle_to(&(turn * psm.rotation)) < 1e-9);
     }
 
@@ -480,7 +482,9 @@ mod tests {
         let c = t.update(&input(0.006, back, held, 0.4, false));
         assert_eq!(c.state, TeleopState::Enabled);
         let goal = c.psm.unwrap();
-        assert!(crate::kinematics::frame::norm(sub(goal.translation, held.translation)) < 1e-15);
+        assert!(
+            crate::dvrk::kinematics::frame::norm(sub(goal.translation, held.translation)) < 1e-15
+        );
         assert_eq!(t.times_enabled(), 2);
         t.disable();
         assert_eq!(t.update(&input(0.007, back, held, 0.4, false)).psm, None);

@@ -9,7 +9,7 @@ use firelink_control::ServoPeriod;
 
 use super::{SoakReport, SoakSettings};
 use crate::TestbedError;
-use crate::watchdog::{self, WatchdogReport};
+use crate::dvrk::watchdog::{self, WatchdogReport};
 
 /// The soak and the watchdog proof, as asked for.
 #[derive(Debug, Clone)]

@@ -1,7 +1,13 @@
-//! What a cycle of an [`IoSystem`](super::IoSystem) reports: the cycle's
-//! [`CycleReport`] (fixed size, `Copy`), the counters over all cycles
-//! ([`IoStats`]) and the hub's timing quadlet in us ([`HubReadTimes`]);
-//! every protocol fills in the same ones.
+//! What a robot's I/O cycle reports, whichever boards it runs: the
+//! cycle's [`CycleReport`] (fixed size, `Copy`), the counters over all
+//! cycles ([`IoStats`]) and the hub's timing quadlet in us
+//! ([`HubReadTimes`]). Every robot's I/O system fills in the same ones
+//! (the QLA family's [`IoSystem`](crate::qla::io::IoSystem) with each of
+//! its protocols, the [`SnakeSystem`](crate::snake::SnakeSystem)); the
+//! runner reads them through [`RobotIo`](crate::RobotIo), the demo's
+//! report and the soak from the runner or the system. The broadcast
+//! protocol's fields (update times, the hub's timing) stay zero where
+//! there is no hub.
 
 use std::time::Duration;
 

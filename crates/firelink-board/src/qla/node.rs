@@ -9,8 +9,8 @@
 //! context. Damage the firmware notices is reported to the bus trace.
 //!
 //! ```
-//! use firelink_board::config::{BoardConfig, Hardware, Profile};
-//! use firelink_board::node::BoardNode;
+//! use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
+//! use firelink_board::qla::node::BoardNode;
 //! use firelink_bus::{Bus, BusConfig, NodeConfig};
 //! let mut bus = Bus::new(BusConfig::default());
 //! let a = bus.add(BoardNode::new(BoardConfig::new(0, Hardware::Qla1, Profile::Rev8)), NodeConfig::board());
@@ -24,7 +24,7 @@
 use firelink_bus::{ArbitrationClass, Node, NodeCtx, ResetInfo, RxReply, SimTime, TransmitRequest};
 use firelink_wire::packet::{Ack, Speed};
 
-use crate::config::{BoardConfig, Profile};
+use crate::qla::config::{BoardConfig, Profile};
 use crate::qla::{Firmware, PhyAccess, Reply};
 
 /// Timer token of the broadcast slot.

@@ -126,7 +126,7 @@ pub fn chain(links: &[DhLink], convention: Convention, q: &[f64]) -> Frame {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kinematics::frame::{norm, sub};
+    use crate::dvrk::kinematics::frame::{norm, sub};
 
     fn link(alpha: f64, a: f64, d: f64, kind: JointKind) -> DhLink {
         DhLink {

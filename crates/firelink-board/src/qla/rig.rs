@@ -12,8 +12,8 @@ use firelink_bus::{
 };
 use firelink_wire::packet::Speed;
 
-use crate::config::BoardConfig;
-use crate::node::BoardNode;
+use crate::qla::config::BoardConfig;
+use crate::qla::node::BoardNode;
 
 /// A bus with the PC's link and emulated boards, reset and numbered.
 pub struct BoardRig {
@@ -157,7 +157,7 @@ impl BoardRig {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::{Hardware, Profile};
+    use crate::qla::config::{Hardware, Profile};
 
     #[test]
     fn boards_are_numbered_in_order_and_pc_is_root() {
