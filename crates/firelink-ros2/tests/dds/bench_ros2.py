@@ -126,6 +126,8 @@ def cost_pairs(ns: t.Netns, binary: str, publish_hz: int, pairs: int, seconds: f
 def bootstrap_ci(ratios: list, resamples: int = 10000, seed: int = 1) -> list:
     """A 95 % confidence interval of the median of `ratios` (percentile
     bootstrap, seeded: the same pairs give the same interval)."""
+    if not ratios:
+        return [None, None]
     rng = random.Random(seed)
     medians = sorted(statistics.median(rng.choices(ratios, k=len(ratios))) for _ in range(resamples))
     return [medians[int(0.025 * resamples)], medians[int(0.975 * resamples) - 1]]

@@ -12,6 +12,15 @@
 //! boards see the host's requests at the host's times, however late on
 //! the wall clock either thread ran.
 //!
+//! The look-up is as good as the receive stamp, and it is not exact: a
+//! datagram the kernel stamps only after the host's next wait (its
+//! receive deferred under load), or an emulator thread pre-empted between
+//! the two clock reads that convert the stamp, is handled one wait late
+//! (or early), and a command then reaches the boards a period late. The
+//! tests that use it assert outcomes such a shift does not change (which
+//! board is named, amplifiers off, the bridge's counters), not
+//! trajectories bit for bit.
+//!
 //! [`Emulator::start_following`]: super::Emulator::start_following
 
 use std::collections::VecDeque;

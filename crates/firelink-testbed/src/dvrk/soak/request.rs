@@ -85,6 +85,24 @@ impl SoakRequest {
         }
     }
 
+    /// The servo period must be shorter than the boards' watchdog (the
+    /// default 20 ms the soak and the proof keep): a longer one would
+    /// trip it between two cycles of a healthy loop.
+    ///
+    /// # Errors
+    /// [`TestbedError::Config`], naming both.
+    pub fn check_period(&self) -> Result<(), TestbedError> {
+        let watchdog = firelink_host::WatchdogSetting::default().period_or_zero();
+        if self.period.as_duration() >= watchdog {
+            return Err(TestbedError::Config(format!(
+                "soak --period {}: the boards' watchdog is {} ms; the servo period must be shorter",
+                self.period,
+                watchdog.as_secs_f64() * 1e3
+            )));
+        }
+        Ok(())
+    }
+
     /// Run the soak, then the watchdog proof (unless `watchdog_trials` is
     /// 0) with the same seed; `progress` gets a line now and then (the
     /// cycles and faults so far, the proof starting).
@@ -92,6 +110,7 @@ impl SoakRequest {
     /// # Errors
     /// As [`super::run`] and [`watchdog::run`].
     pub fn run(&self, progress: &mut dyn FnMut(&str)) -> Result<SoakOutcome, TestbedError> {
+        self.check_period()?;
         let soak = super::run(&self.settings(), |done, r| {
             progress(&format!(
                 "{done} cycles, {} faults ({} detected, {} harmless, {} undetected)",
@@ -158,6 +177,22 @@ impl fmt::Display for SoakOutcome {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_period_the_watchdog_would_trip_on_is_refused_before_the_run() {
+        let request = |period: &str| SoakRequest {
+            period: period.parse().unwrap(),
+            ..SoakRequest::default()
+        };
+        let e = request("25ms").run(&mut |_| {}).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "configuration: soak --period 25 ms: the boards' watchdog is 20 ms; the servo period must be shorter"
+        );
+        assert!(request("20ms").check_period().is_err());
+        assert!(request("19ms").check_period().is_ok());
+        assert!(SoakRequest::default().check_period().is_ok());
+    }
 
     #[test]
     fn the_request_carries_the_soaks_settings() {
