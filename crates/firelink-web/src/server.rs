@@ -63,8 +63,10 @@ const SAMPLES_PER_TICK: usize = 20;
 /// Seconds of samples kept for the CSV download.
 pub const CSV_SECONDS: f64 = 30.0;
 /// The highest rate the CSV's samples are kept at: a faster loop keeps
-/// every k-th cycle (k the smallest whole number that brings the rate to
-/// this or below; at 6 kHz and under, every cycle). So the ring holds at
+/// every k-th frame it hands over (k the smallest whole number that brings
+/// the rate to this or below; at 6 kHz and under, every frame; frames the
+/// loop skipped when the console fell behind are not counted, so the kept
+/// ones are then unevenly spaced; their times say so). So the ring holds at
 /// most `CSV_SECONDS` x this many samples at any servo rate (180 000, not
 /// the 3 million 30 s of a 100 kHz loop would be).
 pub const CSV_MAX_RATE_HZ: f64 = 6_000.0;
