@@ -604,6 +604,80 @@ struct Newest {
     state: State,
 }
 
+/// Publish `measured_js` and `setpoint_js` of every arm from each frame of
+/// `to_publish` (each stamped with its own cycle's time, or the wall clock
+/// off the simulated bus), giving the frames back; the time each took goes
+/// to `publish_us` (bounded). Returns how many frames were published.
+// The frames stay boxed: they move between the pool's queues by pointer.
+#[allow(clippy::vec_box)]
+fn publish_frames(
+    arms: &[Arm],
+    to_publish: &mut Vec<Box<Frame>>,
+    shared: &Shared,
+    sim_time: bool,
+    publish_us: &mut Vec<f64>,
+) -> u64 {
+    let mut published = 0;
+    for frame in to_publish.drain(..) {
+        let publishing = Instant::now();
+        let stamp = if sim_time {
+            Time::from_secs_f64(frame.t)
+        } else {
+            Time::now()
+        };
+        for arm in arms {
+            let _ = arm.measured.publish(arm.joint_state(&frame, false, stamp));
+            let _ = arm.setpoint.publish(arm.joint_state(&frame, true, stamp));
+        }
+        published += 1;
+        let _ = shared.free.push(frame);
+        if publish_us.len() < LoopCosts::MAX {
+            publish_us.push(publishing.elapsed().as_secs_f64() * 1e6);
+        }
+    }
+    published
+}
+
+/// The robot loop's figures over the node's run (`report.seconds` set):
+/// its rate against the asked one, and how its cycles started since
+/// `starts_at_start`.
+fn loop_figures(
+    shared: &Shared,
+    cycles_at_start: u64,
+    starts_at_start: [u64; 3],
+    report: &mut NodeReport,
+) {
+    let cycles = shared
+        .cycles_done
+        .load(Ordering::Relaxed)
+        .saturating_sub(cycles_at_start);
+    report.control_hz = cycles as f64 / report.seconds.max(1e-9);
+    report.control_asked_hz = shared.period.rate_hz();
+    report.control_asked_period_us = shared.period.as_micros_f64();
+    let starts = cycle_starts(shared);
+    for (r, (now, then)) in report
+        .cycle_starts
+        .iter_mut()
+        .zip(starts.iter().zip(starts_at_start))
+    {
+        *r = now.saturating_sub(then);
+    }
+}
+
+/// The operating state's stamp (the newest frame's time on the simulated
+/// bus, else the wall clock) and whether the robot is busy (a move not yet
+/// ended, or commands waiting).
+fn state_stamp_and_busy(shared: &Shared, sim_time: bool, newest: Option<Newest>) -> (Time, bool) {
+    let now = match (sim_time, newest) {
+        (true, Some(n)) => Time::from_secs_f64(n.t),
+        (true, None) => Time::default(),
+        (false, _) => Time::now(),
+    };
+    let ends = f64::from_bits(shared.move_ends.load(Ordering::Relaxed));
+    let busy = newest.is_some_and(|n| n.t < ends) || !shared.commands.is_empty();
+    (now, busy)
+}
+
 /// Run the node on a started service until `stop` (or the duration).
 ///
 /// One thread (the caller's) does all of the node's DDS work and sleeps in
@@ -736,31 +810,15 @@ pub fn run_node(
             }
         }
         // Publications, each from its own cycle's frame.
-        for frame in to_publish.drain(..) {
-            let publishing = Instant::now();
-            let stamp = if settings.sim_time {
-                Time::from_secs_f64(frame.t)
-            } else {
-                Time::now()
-            };
-            for arm in &arms {
-                let _ = arm.measured.publish(arm.joint_state(&frame, false, stamp));
-                let _ = arm.setpoint.publish(arm.joint_state(&frame, true, stamp));
-            }
-            published += 1;
-            let _ = shared.free.push(frame);
-            if publish_us.len() < LoopCosts::MAX {
-                publish_us.push(publishing.elapsed().as_secs_f64() * 1e6);
-            }
-        }
+        published += publish_frames(
+            &arms,
+            &mut to_publish,
+            shared,
+            settings.sim_time,
+            &mut publish_us,
+        );
         // Operating state: at 10 Hz and whenever it changes.
-        let now = match (settings.sim_time, newest) {
-            (true, Some(n)) => Time::from_secs_f64(n.t),
-            (true, None) => Time::default(),
-            (false, _) => Time::now(),
-        };
-        let ends = f64::from_bits(shared.move_ends.load(Ordering::Relaxed));
-        let busy = newest.is_some_and(|n| n.t < ends) || !shared.commands.is_empty();
+        let (now, busy) = state_stamp_and_busy(shared, settings.sim_time, newest);
         let periodic = last_state_publish.elapsed() >= Duration::from_millis(100);
         publish_operating_state(&mut arms, now, state, homed, busy, periodic);
         if periodic {
@@ -772,21 +830,7 @@ pub fn run_node(
         }
     }
     report.seconds = start.elapsed().as_secs_f64();
-    let cycles = shared
-        .cycles_done
-        .load(Ordering::Relaxed)
-        .saturating_sub(cycles_at_start);
-    report.control_hz = cycles as f64 / report.seconds.max(1e-9);
-    report.control_asked_hz = shared.period.rate_hz();
-    report.control_asked_period_us = shared.period.as_micros_f64();
-    let starts = cycle_starts(shared);
-    for (r, (now, then)) in report
-        .cycle_starts
-        .iter_mut()
-        .zip(starts.iter().zip(starts_at_start))
-    {
-        *r = now.saturating_sub(then);
-    }
+    loop_figures(shared, cycles_at_start, starts_at_start, &mut report);
     report.measured_js_hz = published as f64 / report.seconds.max(1e-9);
     report.measured_js_asked_hz = settings.publish_hz.min(shared.period.rate_hz());
     report.servo_jp_applied = shared.servo_applied.load(Ordering::Relaxed);
@@ -1195,6 +1239,7 @@ pub fn run_without_dds(
     let start = Instant::now();
     let shared = &service.shared;
     let cycles_at_start = shared.cycles_done.load(Ordering::Relaxed);
+    let starts_at_start = cycle_starts(shared);
     let mut costs = LoopCosts::default();
     while start.elapsed() < duration && !stop.load(Ordering::Relaxed) {
         while let Some(frame) = shared.full.pop() {
@@ -1212,23 +1257,15 @@ pub fn run_without_dds(
         }
         std::thread::sleep(nap);
     }
-    let seconds = start.elapsed().as_secs_f64();
     let mut report = NodeReport {
-        seconds,
+        seconds: start.elapsed().as_secs_f64(),
         frames_skipped: shared.skipped.load(Ordering::Relaxed),
-        control_hz: shared
-            .cycles_done
-            .load(Ordering::Relaxed)
-            .saturating_sub(cycles_at_start) as f64
-            / seconds.max(1e-9),
-        control_asked_hz: shared.period.rate_hz(),
-        control_asked_period_us: shared.period.as_micros_f64(),
-        cycle_starts: cycle_starts(shared),
         realtime,
         servo_jp_received: stream.as_ref().map_or(0, |s| s.sent),
         servo_jp_applied: shared.servo_applied.load(Ordering::Relaxed),
         ..NodeReport::default()
     };
+    loop_figures(shared, cycles_at_start, starts_at_start, &mut report);
     costs.into_report(&mut report);
     Ok(report)
 }

@@ -1162,25 +1162,20 @@ impl fmt::Display for BenchReport {
             "{:<9} {:<32} {:>6} {:>9} {:>9} {:>9} {:>11} {:>10}  note",
             "trans", "protocol", "boards", "median", "p99", "max", "max rate", "budget"
         )?;
-        let num = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.1}"));
-        let transport = |r: &BenchPoint| match r.wait {
-            Some(w) => format!("{}/{w}", r.transport),
-            None => r.transport.to_string(),
-        };
         for r in &self.results {
             writeln!(
                 f,
                 "{:<9} {:<32} {:>6} {:>9} {:>9} {:>9} {:>8} Hz {:>10}  {}",
-                transport(r),
+                transport_label(r),
                 firelink_host::qla::scan::protocol_label(
                     Protocol::from_name(r.protocol).unwrap_or(Protocol::Sequential),
                     r.broadcast_groups
                 ),
                 r.boards,
-                num(Some(r.io_time_us.median)),
-                num(Some(r.io_time_us.p99)),
-                num(r.io_time_us.max),
-                num(Some(r.max_rate_hz)),
+                figure_or_dash(Some(r.io_time_us.median)),
+                figure_or_dash(Some(r.io_time_us.p99)),
+                figure_or_dash(r.io_time_us.max),
+                figure_or_dash(Some(r.max_rate_hz)),
                 if r.budget.fits { "fits" } else { "over" },
                 point_note(r)
             )?;
@@ -1217,6 +1212,29 @@ impl fmt::Display for BenchReport {
             "paper (seed 000, 8 boards): sequential {} us measured, broadcast {} us",
             self.paper.sequential_8_us, self.paper.broadcast_8_us
         )?;
+        self.fmt_sim(f)?;
+        self.fmt_fw(f)?;
+        eth::fmt_comparisons(&self.eth_comparison, f)?;
+        self.fmt_udp(f)
+    }
+}
+
+/// A figure with one decimal, or `-` when there is none.
+fn figure_or_dash(v: Option<f64>) -> String {
+    v.map_or("-".to_string(), |x| format!("{x:.1}"))
+}
+
+/// A point's transport as the tables show it (`udp/WAIT` with its wait).
+fn transport_label(r: &BenchPoint) -> String {
+    match r.wait {
+        Some(w) => format!("{}/{w}", r.transport),
+        None => r.transport.to_string(),
+    }
+}
+
+impl BenchReport {
+    /// The simulation-cost table of the `sim` points (none: nothing).
+    fn fmt_sim(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let sims: Vec<&BenchPoint> = self
             .results
             .iter()
@@ -1240,16 +1258,19 @@ impl fmt::Display for BenchReport {
                     r.transport,
                     r.protocol,
                     r.boards,
-                    num(r.sim_cpu_us),
-                    num(r.sim_cpu_per_board_us)
+                    figure_or_dash(r.sim_cpu_us),
+                    figure_or_dash(r.sim_cpu_per_board_us)
                 )?;
             }
             for fit in &self.sim_cost {
                 writeln!(f, "{fit}")?;
             }
         }
-        self.fmt_fw(f)?;
-        eth::fmt_comparisons(&self.eth_comparison, f)?;
+        Ok(())
+    }
+
+    /// The UDP points' floors and CPU figures (none: nothing).
+    fn fmt_udp(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let udp: Vec<(&BenchPoint, &UdpFigures)> = self
             .results
             .iter()
@@ -1294,16 +1315,16 @@ impl fmt::Display for BenchReport {
             writeln!(
                 f,
                 "{:<9} {:<32} {:>6} {:>9} {:>9} {:>6.2} {:>9} {:>9} {:>8} {:>9} {:>7} {:>7.1}",
-                transport(r),
+                transport_label(r),
                 r.protocol,
                 r.boards,
-                num(Some(r.io_time_us.median)),
-                num(Some(u.floor_us.median)),
+                figure_or_dash(Some(r.io_time_us.median)),
+                figure_or_dash(Some(u.floor_us.median)),
                 u.floor_ratio,
-                num(Some(u.host_cpu_us)),
-                num(Some(u.floor_host_cpu_us)),
-                num(u.emulator_cpu_us),
-                num(u.floor_server_cpu_us),
+                figure_or_dash(Some(u.host_cpu_us)),
+                figure_or_dash(Some(u.floor_host_cpu_us)),
+                figure_or_dash(u.emulator_cpu_us),
+                figure_or_dash(u.floor_server_cpu_us),
                 u.emulator_cpu_ratio
                     .map_or("-".to_string(), |x| format!("{x:.2}")),
                 u.socket_calls_per_cycle
