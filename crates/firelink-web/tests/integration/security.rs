@@ -960,19 +960,17 @@ async fn a_board_loss_on_the_snake_shows_as_a_fault_and_an_unknown_node() {
             .contains("board 4"),
         "{st}"
     );
-    // The frame of the fault's own cycle may carry the status read before
-    // the fault path's disable went out: wait for a frame read after it
-    // (a disable that never lands times out here).
-    let st = state_until(&c, "node 4 silent and the other amplifiers off", |s| {
-        s["nodes"][4]["valid"] == false
-            && s["nodes"].as_array().is_some_and(|nodes| {
-                nodes
-                    .iter()
-                    .filter(|n| n["id"] != 4)
-                    .all(|n| n["amps"] == 0)
-            })
+    // The frame of the fault's own cycle carries the status latched before
+    // the fault path's disable went out; every frame latched after that
+    // cycle must show it (a disable that had not landed by the next cycle
+    // fails below).
+    let st = state_until(&c, "a frame after the fault's cycle", |s| {
+        s["fault"]["cycle"]
+            .as_u64()
+            .is_some_and(|fault| s["cycle"].as_u64() > Some(fault))
     })
     .await;
+    assert_eq!(st["nodes"][4]["valid"], false, "{st}");
     // The other nodes answer, every amplifier off (the fault path).
     for n in st["nodes"]
         .as_array()
