@@ -317,6 +317,33 @@ fn the_emulate_flags_are_a_script() {
     assert!(crate::rig::served::BusFaults::default().script().is_empty());
 }
 
+/// A timed packet rule on a port whose clock is the host's
+/// ([`HostClockedPort`](crate::rig::HostClockedPort)) fires at the host's
+/// time: the wrapped port's own clock (here always 0, as a wall clock
+/// that lags a host running faster than real time) is not the one it
+/// counts on.
+#[test]
+fn a_timed_packet_rule_on_a_host_clocked_port_counts_the_hosts_time() {
+    use crate::rig::{HostClock, HostClockedPort};
+    use firelink_host::Port as _;
+    let script: FaultScript = "drop@t=500us:rate=1".parse().unwrap();
+    let mut port = HostClockedPort::new(FilterPort::new(true), HostClock::new());
+    FaultTarget::link()
+        .apply_all(&script, &mut port, &[])
+        .unwrap();
+    assert!(
+        port.inner_mut().send(request(0, 0)),
+        "dropped before 500 us"
+    );
+    port.wait(Duration::from_micros(499));
+    assert!(port.inner_mut().send(request(0, 0)), "dropped at 499 us");
+    port.wait(Duration::from_micros(1));
+    assert!(
+        !port.inner_mut().send(request(0, 0)),
+        "not dropped at 500 us"
+    );
+}
+
 /// A port that does no I/O: it keeps the link filters a fault target adds
 /// (or refuses them, as the Ethernet-only network's port does), so that a
 /// test can put made-up packets through them.

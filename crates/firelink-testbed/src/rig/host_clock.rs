@@ -6,7 +6,8 @@
 //! [`HostClockedPort`] wraps the host's port: its clock ([`Port::now`])
 //! moves only when the host waits ([`Port::wait`], at once, without
 //! sleeping), so a virtually paced robot sees every cycle exactly one
-//! period long. Each wait is recorded with the wall-clock instant it
+//! period long; the link filters a fault script adds through it see each
+//! packet at the host's time too, so its `t=` moments are the host's. Each wait is recorded with the wall-clock instant it
 //! happened at; the emulator handles each datagram at the host time in
 //! effect when the datagram arrived (the kernel's receive stamp), so the
 //! boards see the host's requests at the host's times, however late on
@@ -28,6 +29,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 use firelink_host::link_stats::LinkStats;
+use firelink_host::port::{Direction, Verdict};
 use firelink_host::{Dest, LinkFilter, Port, Result};
 
 /// Waits remembered for the emulator's look-ups: far more than one servo
@@ -115,6 +117,12 @@ impl<P: Port> HostClockedPort<P> {
     pub fn inner(&self) -> &P {
         &self.inner
     }
+
+    /// The wrapped port, to change (what goes through it bypasses the
+    /// clock).
+    pub fn inner_mut(&mut self) -> &mut P {
+        &mut self.inner
+    }
 }
 
 impl<P: Port> Port for HostClockedPort<P> {
@@ -176,10 +184,36 @@ impl<P: Port> Port for HostClockedPort<P> {
         self.inner.candidate_nodes()
     }
     fn add_link_filter(&mut self, filter: Box<dyn LinkFilter>) -> Result<()> {
-        self.inner.add_link_filter(filter)
+        // The filter was started on this port's clock (a fault script's
+        // `t=` counts from the host's time): it is given the host's time,
+        // not the wrapped port's wall clock.
+        self.inner.add_link_filter(Box::new(OnHostClock {
+            filter,
+            clock: self.clock.clone(),
+        }))
     }
     fn takes_link_filters(&self) -> bool {
         self.inner.takes_link_filters()
+    }
+}
+
+/// A link filter that sees each packet at the host's time (the wrapped
+/// port calls it with its own clock's time, which is thrown away).
+struct OnHostClock {
+    filter: Box<dyn LinkFilter>,
+    clock: HostClock,
+}
+
+impl LinkFilter for OnHostClock {
+    fn packet(&mut self, _port_ps: u64, direction: Direction, packet: &mut [u8]) -> Verdict {
+        let at_ps = u64::try_from(self.clock.now().as_nanos())
+            .unwrap_or(u64::MAX)
+            .saturating_mul(1000);
+        self.filter.packet(at_ps, direction, packet)
+    }
+
+    fn is_spent(&self) -> bool {
+        self.filter.is_spent()
     }
 }
 
@@ -208,5 +242,33 @@ mod tests {
         }
         assert_eq!(clock.at(at(15)), Duration::from_millis(3));
         assert_eq!(clock.at(at(30)), Duration::from_micros(3001));
+    }
+
+    /// Records the times it is given.
+    struct Times(Arc<Mutex<Vec<u64>>>);
+
+    impl LinkFilter for Times {
+        fn packet(&mut self, at_ps: u64, _: Direction, _: &mut [u8]) -> Verdict {
+            self.0.lock().unwrap().push(at_ps);
+            Verdict::Pass
+        }
+    }
+
+    #[test]
+    fn a_link_filter_sees_the_hosts_time_not_the_wrapped_ports() {
+        let clock = HostClock::new();
+        let seen = Arc::new(Mutex::new(Vec::new()));
+        let mut on_host = OnHostClock {
+            filter: Box::new(Times(Arc::clone(&seen))),
+            clock: clock.clone(),
+        };
+        let mut packet = [0u8; 16];
+        assert_eq!(
+            on_host.packet(123_456_789, Direction::Sent, &mut packet),
+            Verdict::Pass
+        );
+        clock.advance_at(Duration::from_micros(250), Instant::now());
+        on_host.packet(5, Direction::Received, &mut packet);
+        assert_eq!(*seen.lock().unwrap(), [0, 250_000_000]);
     }
 }
