@@ -1146,7 +1146,13 @@ impl StreamState {
             return;
         }
         let period = Duration::from_secs_f64(1.0 / ServoStream::RATE_HZ);
-        self.next_send = (self.next_send + period).max(now);
+        // Late by more than a period (the first point, or a stall): the
+        // next one a period from now, not at once (no point twice).
+        self.next_send = if now >= self.next_send + period {
+            now + period
+        } else {
+            self.next_send + period
+        };
         let t = self.newest_t + ServoStream::LEAD_S;
         let mut positions = origin;
         positions[0] = origin[0]
@@ -1345,7 +1351,15 @@ mod tests {
         assert_eq!(state.until_due(), Duration::MAX);
         frame.state = State::Active;
         state.see(&frame);
+        // A point three periods late (a stall): the next is a period after
+        // it, not at once (no point twice).
+        let period = Duration::from_secs_f64(1.0 / ServoStream::RATE_HZ);
+        let before = Instant::now();
+        if let Some(late) = before.checked_sub(3 * period) {
+            state.next_send = late;
+        }
         state.send_if_due(&shared);
+        assert!(state.next_send >= before + period);
         let Some(Command::ServoJoints {
             first: f,
             count,
