@@ -176,6 +176,15 @@ pub fn mahru_servo_period(s: &str) -> Result<ServoPeriod, String> {
     Ok(period)
 }
 
+/// A soak's servo period as [`ServoPeriod`] reads it, shorter than the
+/// boards' watchdog ([`crate::dvrk::soak::watchdog_allows`]): `soak
+/// --period`, refused as a usage error.
+pub fn soak_servo_period(s: &str) -> Result<ServoPeriod, String> {
+    let period = s.parse::<ServoPeriod>().map_err(|e| e.to_string())?;
+    crate::dvrk::soak::watchdog_allows(period).map_err(|e| e.to_string())?;
+    Ok(period)
+}
+
 /// A probability: [`PROBABILITY`], 0 to 1.
 pub fn probability(s: &str) -> Result<f64, String> {
     bounded(s, PROBABILITY)

@@ -82,6 +82,11 @@ fn a_servo_period_without_its_unit_or_twice_is_a_usage_error() {
             &["budget", "--period", "2ms", "--period-us", "2000"],
             "cannot be used with",
         ),
+        (
+            &["soak", "--period", "25ms"],
+            "the boards' watchdog is 20 ms; the servo period must be shorter",
+        ),
+        (&["soak", "--period", "5us"], "out of range, 10 us to 1 s"),
     ] {
         let (code, err) = firelink(args);
         assert_eq!(code, 2, "{args:?} exited {code}: {err}");

@@ -78,7 +78,7 @@ use judgement::*;
 use ledger::*;
 use plan::*;
 pub use report::*;
-pub use request::{SoakOutcome, SoakRequest};
+pub use request::{SoakOutcome, SoakRequest, watchdog_allows};
 
 /// Run the soak.
 ///

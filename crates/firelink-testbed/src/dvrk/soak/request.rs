@@ -12,6 +12,23 @@ use crate::TestbedError;
 use crate::dvrk::watchdog::{self, WatchdogReport};
 
 /// The soak and the watchdog proof, as asked for.
+/// A soak's servo period must be shorter than the boards' watchdog (the
+/// default 20 ms the soak and the proof keep): a longer one would trip it
+/// between two cycles of a healthy loop.
+///
+/// # Errors
+/// [`TestbedError::Config`], naming both.
+pub fn watchdog_allows(period: ServoPeriod) -> Result<(), TestbedError> {
+    let watchdog = firelink_host::WatchdogSetting::default().period_or_zero();
+    if period.as_duration() >= watchdog {
+        return Err(TestbedError::Config(format!(
+            "soak --period {period}: the boards' watchdog is {} ms; the servo period must be shorter",
+            watchdog.as_secs_f64() * 1e3
+        )));
+    }
+    Ok(())
+}
+
 #[derive(Debug, Clone)]
 #[cfg_attr(feature = "clap", derive(clap::Args))]
 pub struct SoakRequest {
@@ -22,8 +39,11 @@ pub struct SoakRequest {
     )]
     pub cycles: u64,
     /// The servo period, as a period or a rate: `1ms`, `250us`, `6kHz`
-    /// (10 us to 1 s).
-    #[cfg_attr(feature = "clap", arg(long, default_value = "6kHz"))]
+    /// (10 us to under the boards' 20 ms watchdog).
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, default_value = "6kHz", value_parser = crate::limits::soak_servo_period)
+    )]
     pub period: ServoPeriod,
     /// Seed of every random choice: the same seed gives the same report.
     #[cfg_attr(feature = "clap", arg(long, default_value_t = 1))]
@@ -85,22 +105,13 @@ impl SoakRequest {
         }
     }
 
-    /// The servo period must be shorter than the boards' watchdog (the
-    /// default 20 ms the soak and the proof keep): a longer one would
-    /// trip it between two cycles of a healthy loop.
+    /// The servo period must be shorter than the boards' watchdog
+    /// ([`watchdog_allows`]).
     ///
     /// # Errors
     /// [`TestbedError::Config`], naming both.
     pub fn check_period(&self) -> Result<(), TestbedError> {
-        let watchdog = firelink_host::WatchdogSetting::default().period_or_zero();
-        if self.period.as_duration() >= watchdog {
-            return Err(TestbedError::Config(format!(
-                "soak --period {}: the boards' watchdog is {} ms; the servo period must be shorter",
-                self.period,
-                watchdog.as_secs_f64() * 1e3
-            )));
-        }
-        Ok(())
+        watchdog_allows(self.period)
     }
 
     /// Run the soak, then the watchdog proof (unless `watchdog_trials` is
@@ -192,6 +203,10 @@ mod tests {
         assert!(request("20ms").check_period().is_err());
         assert!(request("19ms").check_period().is_ok());
         assert!(SoakRequest::default().check_period().is_ok());
+        // The option's parser refuses the same (a usage error).
+        let e = crate::limits::soak_servo_period("20ms").unwrap_err();
+        assert!(e.contains("watchdog is 20 ms"), "{e}");
+        assert!(crate::limits::soak_servo_period("19ms").is_ok());
     }
 
     #[test]
