@@ -363,6 +363,9 @@ impl EmulateRequest {
     /// An option the chosen network cannot honour ([`Refused`]), the
     /// configuration, the boards, a socket or the signal handlers.
     pub fn open(&self, say: &mut dyn FnMut(&str)) -> Result<Emulation, ServeError> {
+        // (The command line's parser bounds it; a request made in code
+        // is checked here, before anything is bound.)
+        self.run_length()?;
         if self.network == Network::Eth {
             return self.open_eth(say);
         }
@@ -404,11 +407,27 @@ impl EmulateRequest {
         })
     }
 
+    /// How long to serve: `None` until stopped (`duration_s` 0).
+    ///
+    /// # Errors
+    /// [`Refused`] a negative, not finite or too large `duration_s`.
+    fn run_length(&self) -> Result<Option<Duration>, Refused> {
+        if self.duration_s == 0.0 {
+            return Ok(None);
+        }
+        match Duration::try_from_secs_f64(self.duration_s) {
+            Ok(d) => Ok(Some(d)),
+            Err(_) => Err(Refused {
+                option: "--duration-s",
+                reason: "must be 0 (serve until stopped) or a finite number of seconds above 0",
+            }),
+        }
+    }
+
     /// The stop flag (SIGINT, SIGTERM, `duration_s`), then the CPU latency
     /// request, as every server takes them once bound.
     fn stop_and_latency(&self) -> Result<(Arc<AtomicBool>, CpuLatencyNote), ServeError> {
-        let deadline = (self.duration_s > 0.0).then(|| Duration::from_secs_f64(self.duration_s));
-        let stop = server_stop_flag(deadline)?;
+        let stop = server_stop_flag(self.run_length()?)?;
         Ok((stop, CpuLatencyNote::take(self.cpu_latency.microseconds())))
     }
 
@@ -567,6 +586,18 @@ mod tests {
             Ok(_) => panic!("opened"),
             Err(e) => e.to_string(),
         };
+        // A run length the command line's parser would refuse, made in
+        // code: refused before anything is bound.
+        for duration_s in [f64::INFINITY, f64::NAN, -1.0, 1e300] {
+            let e = error(EmulateRequest {
+                duration_s,
+                ..EmulateRequest::default()
+            });
+            assert!(
+                e.starts_with("--duration-s: must be 0"),
+                "{duration_s}: {e}"
+            );
+        }
         let e = error(EmulateRequest {
             chain: vec![1, 0],
             ..EmulateRequest::default()
