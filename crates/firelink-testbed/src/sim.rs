@@ -868,7 +868,7 @@ mod tests {
             profile: Profile::Rev8,
             protocol: Protocol::Sequential,
             gap_count: Some(10),
-            arbitration: ArbitrationClass::Isochronous,
+            arbitration: ArbitrationClass::Priority,
             speed: Speed::S200,
             seed: 3,
             host_overhead: true,
@@ -883,8 +883,14 @@ mod tests {
             host_overhead: true,
             host_jitter: true,
             cycle_master: true,
+            arbitration: ArbitrationClass::Priority,
             ..SimOptions::new(4, Profile::Rev8, Protocol::Sequential)
         };
+        // (Every value above is not the default, so a dropped one shows.)
+        assert_ne!(
+            SimOptions::new(4, Profile::Rev8, Protocol::Sequential).arbitration,
+            ArbitrationClass::Priority
+        );
         assert_eq!(options, expected);
     }
 }

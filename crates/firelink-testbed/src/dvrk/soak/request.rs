@@ -218,13 +218,24 @@ mod tests {
         assert_eq!(settings.packet_fault_rate, defaults.packet_fault_rate);
         assert_eq!(settings.bus_fault_every, defaults.bus_fault_every);
         assert_eq!(settings.period, defaults.period);
+        // Every field not its default, so a dropped one shows.
+        let period: ServoPeriod = "1ms".parse().unwrap();
+        assert_ne!(period, defaults.period);
+        assert_ne!(defaults.packet_fault_rate, 0.25);
+        assert_ne!(defaults.bus_fault_every, 777);
         let settings = SoakRequest {
             cycles: 5,
             seed: 9,
+            packet_fault_rate: 0.25,
+            bus_fault_every: 777,
+            period,
             ..SoakRequest::default()
         }
         .settings();
         assert_eq!((settings.cycles, settings.seed), (5, 9));
+        assert_eq!(settings.packet_fault_rate, 0.25);
+        assert_eq!(settings.bus_fault_every, 777);
+        assert_eq!(settings.period, period);
     }
 
     #[cfg(feature = "clap")]
