@@ -99,7 +99,7 @@ enum Command {
     /// `firelink ros2 --help`).
     #[command(disable_help_flag = true)]
     Ros2 {
-        /// Options for firelink-ros2 (--port, --config, --period, --publish-hz, --domain, --rt/--no-rt, --no-dds, --seconds, --help).
+        /// Options for firelink-ros2 (--port, --config, --period, --publish-hz, --domain, --rt/--no-rt, --no-dds, --servo-stream, --seconds, --help).
         #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
         args: Vec<String>,
     },

@@ -39,8 +39,25 @@ fn replay_digest(recorded: &mut RecordedCycle, cycles: u64) -> Option<u64> {
 
 fn main() -> ExitCode {
     let mut args = std::env::args().skip(1);
-    let cycles = args.next().and_then(|a| a.parse().ok()).unwrap_or(10_000);
-    let digest = args.next().is_some_and(|a| a == "--digest");
+    let usage = "usage: host_cycle [CYCLES [--digest]]";
+    let cycles = match args.next() {
+        None => 10_000,
+        Some(a) => match a.parse() {
+            Ok(n) => n,
+            Err(_) => {
+                eprintln!("host_cycle: {a:?} is not a cycle count; {usage}");
+                return ExitCode::from(2);
+            }
+        },
+    };
+    let digest = match args.next().as_deref() {
+        None => false,
+        Some("--digest") => true,
+        Some(other) => {
+            eprintln!("host_cycle: unknown argument {other:?}; {usage}");
+            return ExitCode::from(2);
+        }
+    };
     let mut recorded = match RecordedCycle::record() {
         Ok(r) => r,
         Err(e) => {

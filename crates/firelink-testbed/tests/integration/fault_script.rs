@@ -282,7 +282,9 @@ fn demo_over_udp(
 /// refuses it by its CRC (counted once), and the run recovers.
 #[test]
 fn a_corrupt_query_over_udp_is_counted_by_the_bridge_and_the_run_recovers() {
-    // The preset itself: half way through the motion.
+    // The preset itself, at the fault moment (t=0us: half way through the
+    // motion); the 300 ms is the boards' watchdog, which only the
+    // stop-host preset uses.
     let script = firelink_testbed::demo::DemoFault::CorruptQuery.script(Duration::from_millis(300));
     assert_eq!(
         script.to_string(),
