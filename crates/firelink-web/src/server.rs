@@ -85,8 +85,10 @@ pub const TOKEN_HEADER: &str = "x-firelink-token";
 #[derive(Debug, Clone)]
 struct Sample {
     t: f64,
-    /// setpoint, position, commanded current per joint, flattened.
-    values: Vec<f32>,
+    /// setpoint, position, commanded current per joint, flattened (shared:
+    /// a CSV request's copy under the ring's lock is a count, not a copy
+    /// of the values).
+    values: Arc<[f32]>,
 }
 
 /// The samples kept for the CSV: the last [`CSV_SECONDS`] of the loop's
@@ -128,11 +130,12 @@ impl SampleRing {
         }
         self.samples.push_back(Sample {
             t,
-            values: values(),
+            values: values().into(),
         });
     }
 
-    /// Copies of the samples of the last `seconds` (by the newest's time).
+    /// The samples of the last `seconds` (by the newest's time), sharing
+    /// their values with the ring.
     fn last(&self, seconds: f64) -> Vec<Sample> {
         let newest = self.samples.back().map_or(0.0, |s| s.t);
         self.samples
@@ -870,7 +873,7 @@ async fn csv(State(c): State<Arc<Console>>, headers: HeaderMap, uri: Uri) -> Res
     out.push('\n');
     for s in &samples {
         let _ = write!(out, "{:.6}", s.t);
-        for v in &s.values {
+        for v in s.values.iter() {
             let _ = write!(out, ",{v}");
         }
         out.push('\n');

@@ -11,7 +11,6 @@ use super::{SoakReport, SoakSettings};
 use crate::TestbedError;
 use crate::dvrk::watchdog::{self, WatchdogReport};
 
-/// The soak and the watchdog proof, as asked for.
 /// A soak's servo period must be shorter than the boards' watchdog (the
 /// default 20 ms the soak and the proof keep): a longer one would trip it
 /// between two cycles of a healthy loop.
@@ -29,6 +28,7 @@ pub fn watchdog_allows(period: ServoPeriod) -> Result<(), TestbedError> {
     Ok(())
 }
 
+/// The soak and the watchdog proof, as asked for.
 #[derive(Debug, Clone)]
 #[cfg_attr(feature = "clap", derive(clap::Args))]
 pub struct SoakRequest {
