@@ -115,6 +115,9 @@ impl Bus {
         let rx_crc = self.rx_crc;
         // The node, its PHY registers, its timers and the command list are
         // disjoint parts of the bus: borrowed side by side, nothing moves.
+        // The registers change only through `write_phy_register`, which
+        // also lists the write: a callback that asked for nothing left
+        // them as they were.
         let (result, regs, asked) = {
             let Bus { slots, scratch, .. } = self;
             let slot = slots.get_mut(idx)?;
@@ -134,7 +137,7 @@ impl Bus {
                 cmds: scratch,
             };
             let result = f(node.as_mut(), &mut ctx);
-            (result, regs, !scratch.is_empty() || regs != slot.regs)
+            (result, regs, !scratch.is_empty())
         };
         if asked {
             let mut cmds = std::mem::take(&mut self.scratch);
@@ -215,9 +218,9 @@ impl Bus {
     /// A node's report about the packet it is receiving (evidence for
     /// the faults that packet carries).
     fn apply_report(&mut self, idx: usize, report: String) {
-        let packet = self.current_rx.as_ref().map(|(p, _)| *p);
-        if let Some((_, faults)) = &self.current_rx {
-            for &f in faults {
+        let packet = self.current_rx;
+        if let Some(sub) = packet.and_then(|p| self.subs.get(&p)) {
+            for &f in &sub.faults {
                 self.log.add_evidence(
                     f,
                     Evidence {
