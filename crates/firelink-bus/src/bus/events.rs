@@ -389,6 +389,32 @@ mod tests {
     }
 
     #[test]
+    fn timer_pair_sees_what_two_timer_calls_see() {
+        let (mut bus, nodes) = chain(1, BusConfig::default());
+        let t0 = bus.now();
+        let (a, b) = (
+            t0 + SimDuration::from_micros(5),
+            t0 + SimDuration::from_micros(9),
+        );
+        bus.with_node::<Probe, _>(nodes[0], |_, ctx| {
+            ctx.set_timer(b, 2);
+            ctx.set_timer(a, 1);
+        })
+        .unwrap();
+        let seen = bus
+            .with_node::<Probe, _>(nodes[0], |_, ctx| {
+                [(1, 2), (2, 1), (1, 1), (1, 7), (7, 2)]
+                    .map(|(x, y)| (ctx.timer_pair(x, y), (ctx.timer(x), ctx.timer(y))))
+            })
+            .unwrap();
+        for (pair, two) in seen {
+            assert_eq!(pair, two);
+        }
+        assert_eq!(seen[0].0, (Some(a), Some(b)));
+        assert_eq!(seen[3].0, (Some(a), None));
+    }
+
+    #[test]
     fn a_timer_set_again_fires_once_at_its_new_time() {
         let (mut bus, nodes) = chain(1, BusConfig::default());
         let t0 = bus.now();
