@@ -330,6 +330,21 @@ impl NodeCtx<'_> {
         self.timers.iter().find(|t| t.0 == token).map(|t| t.2)
     }
 
+    /// [`timer`](Self::timer) for two tokens at once (one look at the
+    /// armed timers).
+    pub fn timer_pair(&self, first: u64, second: u64) -> (Option<SimTime>, Option<SimTime>) {
+        let (mut a, mut b) = (None, None);
+        for t in self.timers {
+            if t.0 == first && a.is_none() {
+                a = Some(t.2);
+            }
+            if t.0 == second && b.is_none() {
+                b = Some(t.2);
+            }
+        }
+        (a, b)
+    }
+
     /// Cancel the timer with `token`, if any.
     pub fn cancel_timer(&mut self, token: u64) {
         self.cmds.timers.push(TimerCommand::Cancel { token });

@@ -1026,14 +1026,16 @@ impl Firmware {
     /// arriving at `now` (at `offset`) is later than its TDMA slot allows:
     /// the end of the slot plus 2 us.
     fn late_for_its_slot(&self, now: SimTime, sender: u8, offset: u64) -> bool {
+        if self.cfg.profile != Profile::Seed {
+            return false;
+        }
         let in_hub = (STATUS_BROADCAST_OFFSET
             ..STATUS_BROADCAST_OFFSET + u64::from(HUB_MEMORY_QUADLETS as u32) * 4)
             .contains(&offset);
         let Some(query_at) = self.hub.query_at else {
             return false;
         };
-        self.cfg.profile == Profile::Seed
-            && in_hub
+        in_hub
             && now > query_at + seed_slot(self.cfg.firmware, sender.saturating_add(1)) + SLOT_GRACE
     }
 

@@ -158,7 +158,10 @@ impl BoardNode {
         // The slot timer at the waiting broadcast's slot; asked of the bus
         // only when that moves.
         let slot = self.firmware.next_wakeup().map(|at| at.max(now));
-        match (slot, ctx.timer(SLOT_TIMER)) {
+        // Both timers as armed when the callback began (what is asked here
+        // is applied after it).
+        let (slot_armed, watchdog_armed) = ctx.timer_pair(SLOT_TIMER, WATCHDOG_TIMER);
+        match (slot, slot_armed) {
             (Some(at), Some(armed)) if armed == at => {}
             (Some(at), _) => ctx.set_timer(at, SLOT_TIMER),
             (None, Some(_)) => ctx.cancel_timer(SLOT_TIMER),
@@ -167,7 +170,7 @@ impl BoardNode {
         // One watchdog timer at a time, never later than the expiry (a
         // refreshed watchdog moves its expiry later; the timer, when it
         // fires early, just sets itself again).
-        let armed = ctx.timer(WATCHDOG_TIMER).filter(|t| *t > now);
+        let armed = watchdog_armed.filter(|t| *t > now);
         // Its period and whether it runs decide when it fires; a write
         // only moves the expiry later. Armed and neither changed: as is.
         let settings = (

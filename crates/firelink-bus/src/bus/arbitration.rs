@@ -36,6 +36,11 @@ impl Bus {
     }
 
     pub(super) fn refill_babblers(&mut self) {
+        // No babbling node (every arbitration but under a babble fault):
+        // nothing to look at.
+        if !self.babbling {
+            return;
+        }
         let now = self.now;
         for i in 0..self.slots.len() {
             let Some(b) = self.slots[i].babble else {
@@ -67,6 +72,7 @@ impl Bus {
                 faults: vec![b.fault],
             });
         }
+        self.babbling = self.slots.iter().any(|s| s.babble.is_some());
     }
 
     /// The bus is idle: the node whose request reaches the root first

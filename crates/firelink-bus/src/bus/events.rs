@@ -115,6 +115,9 @@ impl Bus {
         let rx_crc = self.rx_crc;
         // The node, its PHY registers, its timers and the command list are
         // disjoint parts of the bus: borrowed side by side, nothing moves.
+        // The registers change only through `write_phy_register`, which
+        // also lists the write: a callback that asked for nothing left
+        // them as they were.
         let (result, regs, asked) = {
             let Bus { slots, scratch, .. } = self;
             let slot = slots.get_mut(idx)?;
@@ -134,7 +137,7 @@ impl Bus {
                 cmds: scratch,
             };
             let result = f(node.as_mut(), &mut ctx);
-            (result, regs, !scratch.is_empty() || regs != slot.regs)
+            (result, regs, !scratch.is_empty())
         };
         if asked {
             let mut cmds = std::mem::take(&mut self.scratch);
@@ -215,9 +218,9 @@ impl Bus {
     /// A node's report about the packet it is receiving (evidence for
     /// the faults that packet carries).
     fn apply_report(&mut self, idx: usize, report: String) {
-        let packet = self.current_rx.as_ref().map(|(p, _)| *p);
-        if let Some((_, faults)) = &self.current_rx {
-            for &f in faults {
+        let packet = self.current_rx;
+        if let Some(sub) = packet.and_then(|p| self.subs.get(&p)) {
+            for &f in &sub.faults {
                 self.log.add_evidence(
                     f,
                     Evidence {
@@ -383,6 +386,32 @@ mod tests {
             fired,
             vec![(at, 2), (at, 1), (at + SimDuration::from_micros(1), 3)]
         );
+    }
+
+    #[test]
+    fn timer_pair_sees_what_two_timer_calls_see() {
+        let (mut bus, nodes) = chain(1, BusConfig::default());
+        let t0 = bus.now();
+        let (a, b) = (
+            t0 + SimDuration::from_micros(5),
+            t0 + SimDuration::from_micros(9),
+        );
+        bus.with_node::<Probe, _>(nodes[0], |_, ctx| {
+            ctx.set_timer(b, 2);
+            ctx.set_timer(a, 1);
+        })
+        .unwrap();
+        let seen = bus
+            .with_node::<Probe, _>(nodes[0], |_, ctx| {
+                [(1, 2), (2, 1), (1, 1), (1, 7), (7, 2)]
+                    .map(|(x, y)| (ctx.timer_pair(x, y), (ctx.timer(x), ctx.timer(y))))
+            })
+            .unwrap();
+        for (pair, two) in seen {
+            assert_eq!(pair, two);
+        }
+        assert_eq!(seen[0].0, (Some(a), Some(b)));
+        assert_eq!(seen[3].0, (Some(a), None));
     }
 
     #[test]

@@ -345,7 +345,11 @@ pub struct Bus {
     reset_faults: Vec<FaultId>,
     gap_set_since_reset: bool,
     cycle_tick_scheduled: bool,
-    current_rx: Option<(PacketId, Vec<FaultId>)>,
+    /// Some node may be babbling (set with its babble; cleared when
+    /// arbitration finds none left).
+    babbling: bool,
+    /// The packet being delivered (its faults are its subaction's).
+    current_rx: Option<PacketId>,
     /// The CRC status of the packet being delivered.
     rx_crc: Option<CrcStatus>,
     /// Scratch list of a packet's arrivals (time, node).
@@ -392,6 +396,7 @@ impl Bus {
             reset_faults: Vec::new(),
             gap_set_since_reset: false,
             cycle_tick_scheduled: false,
+            babbling: false,
             current_rx: None,
             rx_crc: None,
             arrivals: Vec::new(),

@@ -176,6 +176,7 @@ impl Bus {
             len,
             fault: id,
         });
+        self.babbling = true;
         self.push(now + duration, None, Ev::Arbitrate);
         if self.is_idle() {
             self.schedule_arbitration(now);

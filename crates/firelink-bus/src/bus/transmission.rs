@@ -237,12 +237,13 @@ impl Bus {
             sub.reply = Some(RxReply::Ack(Ack::BusyX));
             return;
         }
-        let faults = sub.faults.clone();
         if self.cfg.trace >= TraceLevel::Verbose {
             self.log_event(TraceEvent::Deliver { packet: id, node });
         }
         let now = self.now;
-        self.current_rx = Some((id, faults));
+        // The packet's faults stay in its subaction, which outlives the
+        // call (a report looks them up there).
+        self.current_rx = Some(id);
         self.rx_crc = Some(crc);
         let reply = self.dispatch(node, |n, ctx| n.on_receive(now, &bytes, speed, ctx));
         self.rx_crc = None;

@@ -17,6 +17,16 @@ pub struct CrcStatus {
     pub data_ok: Option<bool>,
 }
 
+/// Bytes after the header CRC of a packet with `tcode` and `data_length`:
+/// the padded data block and its CRC, or none.
+fn data_block_len(tcode: Tcode, data_length: u16) -> usize {
+    if tcode.has_data_block() && data_length > 0 {
+        pad4(usize::from(data_length)) + 4
+    } else {
+        0
+    }
+}
+
 impl CrcStatus {
     /// Whether every CRC present matches.
     pub fn all_ok(&self) -> bool {
@@ -63,6 +73,8 @@ impl<T: AsRef<[u8]>> Packet<T> {
                 available: buf.len(),
             });
         }
+        // The tcode decoded once for every check (each accessor would
+        // decode it again).
         let tcode = self.tcode();
         let header_len = tcode
             .header_len()
@@ -75,11 +87,12 @@ impl<T: AsRef<[u8]>> Packet<T> {
                 available: buf.len(),
             });
         }
-        let total = self.total_len_unchecked();
+        let data_length = self.data_length_of(tcode);
+        let total = with_crc + data_block_len(tcode, data_length);
         if buf.len() < total {
             return Err(Error::LengthExceedsBuffer {
                 what: tcode.name(),
-                declared: self.data_length() as usize,
+                declared: data_length as usize,
                 available: buf.len() - with_crc,
             });
         }
@@ -102,13 +115,7 @@ impl<T: AsRef<[u8]>> Packet<T> {
             return 0;
         };
         let crc = if tcode.has_header_crc() { 4 } else { 0 };
-        let data_length = self.data_length() as usize;
-        let data = if tcode.has_data_block() && data_length > 0 {
-            pad4(data_length) + 4
-        } else {
-            0
-        };
-        header_len + crc + data
+        header_len + crc + data_block_len(tcode, self.data_length_of(tcode))
     }
 
     /// Bytes of the whole packet (header, CRCs, padded data).
@@ -165,7 +172,11 @@ impl<T: AsRef<[u8]>> Packet<T> {
 
     /// Data length in bytes of block packets (0 for others).
     pub fn data_length(&self) -> u16 {
-        let tcode = self.tcode();
+        self.data_length_of(self.tcode())
+    }
+
+    /// [`data_length`](Self::data_length) with the tcode decoded.
+    fn data_length_of(&self, tcode: Tcode) -> u16 {
         let buf = self.buffer.as_ref();
         if tcode == Tcode::Stream {
             field::STREAM_DATA_LENGTH.get(buf) as u16
@@ -221,11 +232,14 @@ impl<T: AsRef<[u8]>> Packet<T> {
 
     /// The payload: exactly `data_length` bytes (empty if none).
     pub fn data(&self) -> &[u8] {
-        if !self.has_data() {
+        // As `has_data` and `data_start` say, the tcode decoded once.
+        let tcode = self.tcode();
+        let data_length = self.data_length_of(tcode);
+        if !(tcode.has_data_block() && data_length > 0) {
             return &[];
         }
-        let start = self.data_start();
-        let end = start + self.data_length() as usize;
+        let start = tcode.header_len().unwrap_or(0) + 4;
+        let end = start + data_length as usize;
         self.buffer.as_ref().get(start..end).unwrap_or(&[])
     }
 
