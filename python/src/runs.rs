@@ -83,6 +83,7 @@ pub(crate) fn run_demo_json(
         pacing,
         watchdog,
         udp_wait: WaitMode::Blocking,
+        timeout: firelink_testbed::rig::UDP_TIMEOUT,
     };
     if let Some(w) = watchdog.warning() {
         warn(py, w)?;

@@ -90,7 +90,7 @@ enum Command {
     /// firelink-web`; its options: `firelink web --help`).
     #[command(disable_help_flag = true)]
     Web {
-        /// Options for firelink-web (--robot dvrk|snake|mahru, --port, --config, --listen, --period, --watchdog-ms, --help).
+        /// Options for firelink-web (--robot dvrk|snake|mahru, --port, --config, --listen, --period, --watchdog-ms, --timeout-ms, --help).
         #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
         args: Vec<String>,
     },

@@ -111,6 +111,15 @@ pub struct DemoRequest {
         arg(long = "udp-wait", value_enum, default_value_t = WaitMode::Blocking)
     )]
     pub udp_wait: WaitMode,
+    /// Over UDP or FireWire (`emulate`, `udp:...`, `fw`): the read
+    /// time-out in milliseconds (1..=60000). A servo cycle whose answer
+    /// takes longer counts the board as missed (a fault); the scan waits
+    /// that long for each absent node.
+    #[cfg_attr(
+        feature = "clap",
+        arg(long = "timeout-ms", default_value_t = 20, value_parser = crate::limits::timeout_ms)
+    )]
+    pub timeout_ms: u64,
     /// Board firmware of the emulated boards.
     #[cfg_attr(
         feature = "clap",
@@ -176,6 +185,11 @@ const TELEOP_IGNORES: &[(&str, &str, &str)] = &[
         "--udp-wait",
         "the session runs on the simulated bus",
     ),
+    (
+        "timeout_ms",
+        "--timeout-ms",
+        "the session runs on the simulated bus",
+    ),
     ("pacing", "--pacing", "the session runs in virtual time"),
     ("no_rt", "--no-rt", "the session runs in virtual time"),
     (
@@ -207,6 +221,7 @@ impl Default for DemoRequest {
             pacing: dvrk.pacing,
             watchdog: dvrk.watchdog,
             udp_wait: dvrk.udp_wait,
+            timeout_ms: u64::try_from(dvrk.timeout.as_millis()).unwrap_or(u64::MAX),
             search_fastest: true,
             given: Vec::new(),
         }
@@ -270,6 +285,7 @@ impl DemoRequest {
             pacing: self.pacing,
             watchdog: self.watchdog,
             udp_wait: self.udp_wait,
+            timeout: std::time::Duration::from_millis(self.timeout_ms),
         })
     }
 
@@ -290,6 +306,7 @@ impl DemoRequest {
             watchdog: self.watchdog,
             find_max_rate: self.search_fastest,
             udp_wait: self.udp_wait,
+            timeout: std::time::Duration::from_millis(self.timeout_ms),
             ..default
         })
     }
@@ -349,7 +366,7 @@ impl DemoRequest {
     /// # Errors
     /// `--fault`, `--faults`, or another option the session ignores given
     /// (`--robot`, `--config`, `--duration`, `--port`, `--protocol`,
-    /// `--udp-wait`, `--pacing`, `--no-rt`, `--watchdog-ms`,
+    /// `--udp-wait`, `--timeout-ms`, `--pacing`, `--no-rt`, `--watchdog-ms`,
     /// `--no-rate-search`).
     pub fn teleop_options(&self) -> Result<TeleopOptions, TestbedError> {
         const COMMAND: &str = "firelink demo --teleop";
@@ -367,6 +384,7 @@ impl DemoRequest {
             "port" => self.port != default.port,
             "protocol" => self.protocol != default.protocol,
             "udp_wait" => self.udp_wait != default.udp_wait,
+            "timeout_ms" => self.timeout_ms != default.timeout_ms,
             "pacing" => self.pacing.is_some(),
             "watchdog" => self.watchdog != default.watchdog,
             "search_fastest" => self.search_fastest != default.search_fastest,

@@ -72,6 +72,11 @@ pub struct WebOptions {
     pub period: ServoPeriod,
     /// Board watchdog.
     pub watchdog: firelink_host::WatchdogSetting,
+    /// The dVRK's port's read time-out (`udp:`, `emulate`, `fw`): the scan
+    /// waits that long for each absent node, a servo cycle that long for
+    /// an answer before the board counts as missed (a fault).
+    /// [`firelink_testbed::rig::UDP_TIMEOUT`] by default.
+    pub timeout: std::time::Duration,
     /// Address to listen on.
     pub listen: SocketAddr,
     /// Origins accepted besides the console's own (from
@@ -157,11 +162,12 @@ fn load_config(options: &WebOptions) -> Result<Option<IoConfig>, WebError> {
 
 fn start_dvrk(options: &WebOptions) -> Result<Service, WebError> {
     let config = load_config(options)?.unwrap_or_else(presets::dvrk_seed000);
-    Ok(Service::start(
+    Ok(Service::start_with_timeout(
         &options.port,
         config,
         options.period,
         options.watchdog,
+        options.timeout,
     )?)
 }
 

@@ -55,6 +55,12 @@ struct Args {
     /// `off` (with a warning).
     #[arg(long = "watchdog-ms", default_value = "20", value_parser = watchdog)]
     watchdog_ms: WatchdogSetting,
+    /// The dVRK's read time-out in milliseconds (1..=60000) on `udp:`,
+    /// `emulate` and `fw`: a servo cycle whose answer takes longer counts
+    /// the board as missed (a fault); the scan waits that long for each
+    /// absent node.
+    #[arg(long = "timeout-ms", default_value_t = 20, value_parser = firelink_testbed::limits::timeout_ms)]
+    timeout_ms: u64,
 }
 
 /// MAHRU's period by default: its configuration's.
@@ -82,6 +88,7 @@ fn web_options(args: Args) -> Result<WebOptions, Box<dyn std::error::Error>> {
         config: args.config,
         period,
         watchdog: args.watchdog_ms,
+        timeout: std::time::Duration::from_millis(args.timeout_ms),
         listen: args.listen,
         allow_origins: args.allow_origin,
     })

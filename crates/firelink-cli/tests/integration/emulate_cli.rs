@@ -68,16 +68,46 @@ impl Emulate {
             .status()
             .expect("kill");
         assert!(status.success());
-        let rest: Vec<String> = self.lines.map_while(Result::ok).collect();
+        let rest: Vec<String> = self.lines.by_ref().map_while(Result::ok).collect();
         let exit = self.server.wait().expect("exit status");
         assert!(exit.success(), "{exit:?}");
         rest
     }
 }
 
-/// `firelink scan --json` of the boards at `port`.
-fn scan(port: &str) -> Value {
-    json(&["scan", "--port", port, "--json", "--timeout-ms", "100"])
+/// A test that fails on the way does not leave its emulator running.
+impl Drop for Emulate {
+    fn drop(&mut self) {
+        let _ = self.server.kill();
+        let _ = self.server.wait();
+    }
+}
+
+/// `firelink scan --json` of the boards at `port` (`more` options too)
+/// once it finds `boards` boards. Each absent node costs a scan its
+/// time-out, so that is short; a board whose answer came later (the
+/// emulator's process kept waiting for a CPU: 1 board of 3 found once in
+/// a few runs under load) is only found by a later scan: scan again
+/// (bounded by attempts, not by time); the last scan when none found them.
+fn scan_finding(port: &str, more: &[&str], boards: usize) -> Value {
+    let mut v = Value::Null;
+    for _ in 0..20 {
+        let args = [
+            &["scan", "--port", port, "--json", "--timeout-ms", "100"][..],
+            more,
+        ]
+        .concat();
+        v = json(&args);
+        if v["boards"].as_array().map(Vec::len) == Some(boards) {
+            break;
+        }
+    }
+    v
+}
+
+/// [`scan_finding`] with no more options.
+fn scan(port: &str, boards: usize) -> Value {
+    scan_finding(port, &[], boards)
 }
 
 #[test]
@@ -94,7 +124,7 @@ fn emulate_serves_each_stock_arm_configuration() {
     ] {
         let path = configs.join(file);
         let mut emu = Emulate::start(&["--config", path.to_str().unwrap()]);
-        let v = scan(&emu.port);
+        let v = scan(&emu.port, boards);
         assert_eq!(v["boards"].as_array().unwrap().len(), boards, "{file}");
         if let Some((board, bits)) = digin {
             let text = ok(&[
@@ -147,19 +177,13 @@ fn emulate_serves_stock_shaped_files() {
 fn scan_and_bench_against_a_running_emulator() {
     let emu = Emulate::start(&["--boards", "3"]);
     for wait in ["block", "spin"] {
-        let v = json(&[
-            "scan",
-            "--port",
-            &emu.port,
-            "--json",
-            "--timeout-ms",
-            "100",
-            "--udp-wait",
-            wait,
-        ]);
+        let v = scan_finding(&emu.port, &["--udp-wait", wait], 3);
         assert_eq!(v["boards"].as_array().unwrap().len(), 3, "{wait}");
     }
-    let r = json(&[
+    // The bench scans too, at its 20 ms: a run whose scan found no board
+    // (the emulator's answers came later: once in a few runs under load)
+    // is run again (bounded by attempts); any other failure fails.
+    let bench = [
         "bench",
         "--port",
         &emu.port,
@@ -168,7 +192,20 @@ fn scan_and_bench_against_a_running_emulator() {
         "--udp-wait",
         "block,spin",
         "--json",
-    ]);
+    ];
+    let mut runs = 0;
+    let r: Value = loop {
+        runs += 1;
+        let out = common::firelink(&bench);
+        let err = String::from_utf8_lossy(&out.stderr);
+        if out.status.success() || runs == 20 || !err.contains("no boards found") {
+            assert!(
+                out.status.success(),
+                "{bench:?} failed ({runs} runs): {err}"
+            );
+            break serde_json::from_slice(&out.stdout).expect("one JSON object");
+        }
+    };
     let results = r["results"].as_array().unwrap();
     // Sequential and broadcast, each wait mode; no simulated points.
     assert_eq!(results.len(), 4, "{r}");
@@ -191,7 +228,7 @@ fn scan_and_bench_against_a_running_emulator() {
 fn emulate_scan_read_and_clean_shutdown() {
     let emu = Emulate::start(&["--boards", "3"]);
 
-    let v = scan(&emu.port);
+    let v = scan(&emu.port, 3);
     let boards = v["boards"].as_array().unwrap();
     assert_eq!(boards.len(), 3);
     for (i, b) in boards.iter().enumerate() {
@@ -305,7 +342,7 @@ fn emulate_takes_a_fault_script() {
         "--fault-at-ms",
         "0",
     ]);
-    let v = scan(&emu.port);
+    let v = scan(&emu.port, 2);
     let ids: Vec<u64> = v["boards"]
         .as_array()
         .unwrap()
@@ -345,7 +382,7 @@ fn emulate_v3_rev9_boards() {
         // The bridge emulator's V3 boards at Rev 9 are reached through the
         // bridge: `udpfw` (`udp` would choose the Ethernet-only network, as
         // the Rev 9 host does for such a hub).
-        let v = scan(&emu.port.replacen("udp:", "udpfw:", 1));
+        let v = scan(&emu.port.replacen("udp:", "udpfw:", 1), 2);
         for b in 0..2 {
             assert_eq!(v["boards"][b]["hardware"], hardware, "{v}");
             assert_eq!(v["boards"][b]["firmware"], 9, "{v}");
@@ -431,7 +468,7 @@ fn emulate_board_settings() {
     assert!(board1.contains("36 V"), "{board1}");
     let board0 = line("board 0:");
     assert!(board0.contains("QLA1"), "{board0}");
-    let v = scan(&emu.port);
+    let v = scan(&emu.port, 2);
     assert_eq!(v["boards"][1]["hardware"], "DQLA");
     emu.terminate();
 
@@ -507,7 +544,7 @@ fn a_host_name_reaches_the_emulator() {
     let emu = Emulate::start(&["--boards", "2"]);
     let by_name = emu.port.replace("127.0.0.1", "localhost");
     assert!(by_name.starts_with("udp:localhost:"), "{by_name}");
-    let r = scan(&by_name);
+    let r = scan(&by_name, 2);
     assert_eq!(r["boards"].as_array().map(Vec::len), Some(2), "{r}");
     assert!(r["port"].as_str().unwrap().contains("127.0.0.1"), "{r}");
     emu.terminate();

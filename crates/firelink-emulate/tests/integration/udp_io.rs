@@ -24,8 +24,21 @@ fn scan_over_udp_finds_1_8_and_16_boards() {
     for n in [1u8, 8, 16] {
         let server = Server::start(qla1s(n, Profile::Rev7));
         let mut p = server.port(TIMEOUT);
-        let report = scan(&mut p).unwrap();
-        assert_eq!(report.boards.len(), usize::from(n));
+        // Each absent node costs a scan its time-out, so that is short; an
+        // answer that came later (the server thread kept waiting for a CPU:
+        // 6 boards of 8 found once in 9 runs under load) leaves its board
+        // silent in that scan: scan again until every board is found
+        // (bounded by attempts, not by time).
+        let mut attempts = 0;
+        let report = loop {
+            let report = scan(&mut p).unwrap();
+            attempts += 1;
+            let found = report.boards.len() == usize::from(n) && report.bridge_board.is_some();
+            if found || attempts == 20 {
+                break report;
+            }
+        };
+        assert_eq!(report.boards.len(), usize::from(n), "{attempts} scans");
         assert_eq!(report.bridge_board, Some(0));
         assert_eq!(report.protocol, Protocol::Broadcast);
         assert_eq!(report.silent_nodes.len(), 16 - usize::from(n));

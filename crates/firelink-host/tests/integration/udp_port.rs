@@ -265,36 +265,43 @@ fn no_boards_found_says_what_came_instead() {
     }
 }
 
+/// `reads` reads of a port in `mode` from a bridge played by this thread
+/// between them: each read times out (nothing answers while it waits),
+/// then this thread takes its request and answers it (all but the last),
+/// so the answer is queued at the port before its next read, which counts
+/// it as late. Nothing depends on when another thread runs. The port's
+/// counters after the reads.
+fn reads_answered_late(mode: WaitMode, reads: u32) -> LinkStats {
+    let bridge = UdpSocket::bind("127.0.0.1:0").unwrap();
+    // Only a guard against a hang: each request is sent before its read
+    // times out, so it is queued here already.
+    bridge
+        .set_read_timeout(Some(Duration::from_secs(60)))
+        .unwrap();
+    let mut p = UdpPort::open(bridge.local_addr().unwrap()).unwrap();
+    p.set_wait_mode(mode);
+    p.set_timeout(Duration::from_millis(100));
+    let mut buf = [0u8; 4096];
+    for k in 1..=reads {
+        let err = p.read_quadlet(Dest::BROADCAST, 4).unwrap_err();
+        assert!(matches!(err, HostError::Timeout { .. }), "{mode}: {err}");
+        let (len, from) = bridge.recv_from(&mut buf).expect("the request");
+        if k < reads {
+            let reply = response(&buf[..len], Answer::Good { generation: 0 }).expect("a read");
+            bridge.send_to(&reply, from).unwrap();
+        }
+    }
+    p.stats()
+}
+
 /// A bridge one answer behind (each answer comes after its request timed
 /// out) and one that answers twice: every read fails or succeeds cleanly,
 /// and the late and the duplicated answers are counted as such.
 #[test]
 fn late_and_duplicated_answers_are_told_apart() {
-    // Late: the answer to request k is sent when request k+1 arrives.
-    let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
-    let addr = socket.local_addr().unwrap();
-    thread::spawn(move || {
-        let mut buf = [0u8; 4096];
-        let mut previous: Option<Vec<u8>> = None;
-        for _ in 0..4 {
-            let Ok((len, from)) = socket.recv_from(&mut buf) else {
-                return;
-            };
-            if let Some(reply) = previous.take() {
-                let _ = socket.send_to(&reply, from);
-            }
-            previous = response(&buf[..len], Answer::Good { generation: 0 });
-        }
-    });
-    let mut p = UdpPort::open(addr).unwrap();
-    // Each late answer is counted whether it comes during the next wait or
-    // is drained before the next request.
-    p.set_timeout(Duration::from_millis(300));
-    for _ in 0..3 {
-        let err = p.read_quadlet(Dest::BROADCAST, 4).unwrap_err();
-        assert!(matches!(err, HostError::Timeout { .. }), "{err}");
-    }
-    let s = p.stats();
+    // Late: the answers to the first two requests come after they timed
+    // out, the third's never.
+    let s = reads_answered_late(WaitMode::Blocking, 3);
     assert_eq!(s.timeouts, 3, "{s}");
     assert_eq!(s.late, 2, "{s}");
     assert_eq!(s.matched, 0, "{s}");
@@ -449,33 +456,8 @@ fn both_wait_modes_keep_the_ports_rules() {
             "{mode}: {s}"
         );
 
-        // The answer to request k comes when request k+1 arrives.
-        let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
-        let addr = socket.local_addr().unwrap();
-        socket
-            .set_read_timeout(Some(Duration::from_secs(5)))
-            .unwrap();
-        thread::spawn(move || {
-            let mut buf = [0u8; 4096];
-            let mut previous: Option<Vec<u8>> = None;
-            for _ in 0..3 {
-                let Ok((len, from)) = socket.recv_from(&mut buf) else {
-                    return;
-                };
-                if let Some(reply) = previous.take() {
-                    let _ = socket.send_to(&reply, from);
-                }
-                previous = response(&buf[..len], Answer::Good { generation: 0 });
-            }
-        });
-        let mut p = UdpPort::open(addr).unwrap();
-        p.set_wait_mode(mode);
-        p.set_timeout(Duration::from_millis(100));
-        for _ in 0..2 {
-            let err = p.read_quadlet(Dest::BROADCAST, 4).unwrap_err();
-            assert!(matches!(err, HostError::Timeout { .. }), "{mode}: {err}");
-        }
-        let s = p.stats();
+        // The first request's answer comes after it timed out.
+        let s = reads_answered_late(mode, 2);
         assert_eq!((s.timeouts, s.late, s.matched), (2, 1, 0), "{mode}: {s}");
     }
 }

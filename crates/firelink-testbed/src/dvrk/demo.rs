@@ -52,6 +52,10 @@ pub struct DemoOptions {
     pub watchdog: WatchdogSetting,
     /// How the UDP port's reads wait for their answer (emulate, udp).
     pub udp_wait: WaitMode,
+    /// The read time-out of a UDP or FireWire port (emulate, udp, fw): a
+    /// servo cycle whose answer takes longer counts the board as missed (a
+    /// fault); the scan waits that long for each absent node.
+    pub timeout: std::time::Duration,
 }
 
 impl Default for DemoOptions {
@@ -68,6 +72,7 @@ impl Default for DemoOptions {
             pacing: None,
             watchdog: WatchdogSetting::default(),
             udp_wait: WaitMode::Blocking,
+            timeout: rig::UDP_TIMEOUT,
         }
     }
 }
@@ -126,7 +131,8 @@ pub fn run_demo_until(
         PortSpec::Emulate => {
             let emu = rig::Emulator::start(rig::board_configs(config, options.firmware, boards))?;
             let name = format!("udp:{} (in-process firelink emulate)", emu.addr);
-            let port = emu.port_with(options.udp_wait)?;
+            let mut port = emu.port_with(options.udp_wait)?;
+            port.set_timeout(options.timeout);
             let report = run_robot(
                 port,
                 &emu.fault_target(),
@@ -141,12 +147,23 @@ pub fn run_demo_until(
         }
         PortSpec::Udp(addr) | PortSpec::UdpFw(addr) => {
             let force_bridge = matches!(options.port, PortSpec::UdpFw(_));
-            let port = rig::net_port_with(*addr, force_bridge, options.udp_wait)?;
+            let port = firelink_host::eth::UdpNetPort::open(
+                *addr,
+                force_bridge,
+                options.timeout,
+                options.udp_wait,
+            )?;
             let name = port.name().to_string();
             run_robot(port, &link, options, name, stop, realtime, &mut progress)
         }
         PortSpec::Fw(card) => {
-            let port = ports::fw_port(*card, &PortOptions::default())?;
+            let port = ports::fw_port(
+                *card,
+                &PortOptions {
+                    timeout: options.timeout,
+                    ..PortOptions::default()
+                },
+            )?;
             let name = options.port.to_string();
             run_robot(port, &link, options, name, stop, realtime, &mut progress)
         }

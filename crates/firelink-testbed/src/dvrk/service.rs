@@ -1217,6 +1217,23 @@ impl Service {
         period: ServoPeriod,
         watchdog: WatchdogSetting,
     ) -> Result<Service, crate::TestbedError> {
+        Service::start_with_timeout(port, config, period, watchdog, rig::UDP_TIMEOUT)
+    }
+
+    /// [`start`](Self::start) with `timeout` as the read time-out of a
+    /// UDP or FireWire port (the scan waits that long for each absent
+    /// node, a servo cycle that long for an answer before the board
+    /// counts as missed) instead of [`rig::UDP_TIMEOUT`]; `sim` has none.
+    ///
+    /// # Errors
+    /// As [`start`](Self::start).
+    pub fn start_with_timeout(
+        port: &PortSpec,
+        config: IoConfig,
+        period: ServoPeriod,
+        watchdog: WatchdogSetting,
+        timeout: Duration,
+    ) -> Result<Service, crate::TestbedError> {
         let boards = config.board_slots();
         let options = |pacing, faults| LoopOptions {
             config: config.clone(),
@@ -1256,7 +1273,8 @@ impl Service {
             PortSpec::Emulate => {
                 let emu = rig::Emulator::start(configs())?;
                 let name = format!("udp:{} (in-process emulator)", emu.addr);
-                let port = emu.port()?;
+                let mut port = emu.port()?;
+                port.set_timeout(timeout);
                 let target = emu.fault_target();
                 let faults = offered(&target, &port, watchdog);
                 let (s, h) = spawn(port, name, options(Pacing::WallClock, target))?;
@@ -1264,14 +1282,25 @@ impl Service {
             }
             PortSpec::Udp(addr) | PortSpec::UdpFw(addr) => {
                 let force_bridge = matches!(port, PortSpec::UdpFw(_));
-                let net = rig::net_port_with(*addr, force_bridge, Default::default())?;
+                let net = firelink_host::eth::UdpNetPort::open(
+                    *addr,
+                    force_bridge,
+                    timeout,
+                    Default::default(),
+                )?;
                 let name = firelink_host::port::Port::name(&net).to_string();
                 let faults = offered(&FaultTarget::link(), &net, watchdog);
                 let (s, h) = spawn(net, name, options(Pacing::WallClock, FaultTarget::link()))?;
                 (s, h, None, faults)
             }
             PortSpec::Fw(card) => {
-                let fw = crate::ports::fw_port(*card, &crate::ports::PortOptions::default())?;
+                let fw = crate::ports::fw_port(
+                    *card,
+                    &crate::ports::PortOptions {
+                        timeout,
+                        ..crate::ports::PortOptions::default()
+                    },
+                )?;
                 let faults = offered(&FaultTarget::link(), &fw, watchdog);
                 let options = options(Pacing::WallClock, FaultTarget::link());
                 let (s, h) = spawn(fw, port.to_string(), options)?;

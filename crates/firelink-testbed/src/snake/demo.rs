@@ -57,6 +57,10 @@ pub struct SnakeDemoOptions {
     pub seed: u64,
     /// How the UDP port's reads wait for their answer (emulate, udp).
     pub udp_wait: WaitMode,
+    /// The read time-out of a UDP or FireWire port (emulate, udp, fw): a
+    /// servo cycle whose answer takes longer counts the board as missed (a
+    /// fault); the scan waits that long for each absent node.
+    pub timeout: std::time::Duration,
 }
 
 impl Default for SnakeDemoOptions {
@@ -73,6 +77,7 @@ impl Default for SnakeDemoOptions {
             find_max_rate: true,
             seed: 1,
             udp_wait: WaitMode::Blocking,
+            timeout: rig::UDP_TIMEOUT,
         }
     }
 }
@@ -226,7 +231,8 @@ pub fn run_snake_demo(
         PortSpec::Emulate => {
             let emu = emulator(nodes)?;
             let name = format!("udp:{} (in-process firelink emulate)", emu.addr);
-            let port = emu.port_with(options.udp_wait)?;
+            let mut port = emu.port_with(options.udp_wait)?;
+            port.set_timeout(options.timeout);
             let target = emu.fault_target().with_seed(options.seed);
             let r = run_on(port, &target, options, name, realtime, &mut progress);
             emu.stop()?;
@@ -234,12 +240,23 @@ pub fn run_snake_demo(
         }
         PortSpec::Udp(addr) | PortSpec::UdpFw(addr) => {
             let force_bridge = matches!(options.port, PortSpec::UdpFw(_));
-            let port = rig::net_port_with(*addr, force_bridge, options.udp_wait)?;
+            let port = firelink_host::eth::UdpNetPort::open(
+                *addr,
+                force_bridge,
+                options.timeout,
+                options.udp_wait,
+            )?;
             let name = port.name().to_string();
             run_on(port, &link, options, name, realtime, &mut progress)?
         }
         PortSpec::Fw(card) => {
-            let port = crate::ports::fw_port(*card, &crate::ports::PortOptions::default())?;
+            let port = crate::ports::fw_port(
+                *card,
+                &crate::ports::PortOptions {
+                    timeout: options.timeout,
+                    ..crate::ports::PortOptions::default()
+                },
+            )?;
             let name = options.port.to_string();
             run_on(port, &link, options, name, realtime, &mut progress)?
         }

@@ -104,6 +104,7 @@ impl Console {
             config: None,
             period: period.parse().unwrap(),
             watchdog: firelink_host::WatchdogSetting::default(),
+            timeout: firelink_testbed::rig::UDP_TIMEOUT,
             listen: "127.0.0.1:0".parse().unwrap(),
             allow_origins,
         };
@@ -997,6 +998,7 @@ async fn a_mahru_period_outside_its_configuration_bounds_is_refused_with_the_ran
         config: None,
         period: "50us".parse().unwrap(),
         watchdog: firelink_host::WatchdogSetting::default(),
+        timeout: firelink_testbed::rig::UDP_TIMEOUT,
         listen: "127.0.0.1:0".parse().unwrap(),
         allow_origins: Vec::new(),
     };
