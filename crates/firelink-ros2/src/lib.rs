@@ -1004,7 +1004,7 @@ fn take_motion(arm: &mut Arm, servo: bool, taking: &mut Taking<'_>) {
             }
         };
         let (first, count) = (arm.first as u16, arm.count as u8);
-        let command = if servo {
+        let mut command = if servo {
             let t = msg.header.stamp.as_secs_f64();
             let velocities = servo_velocities(arm, &msg, t, &positions);
             arm.last_servo = Some((t, positions));
@@ -1016,7 +1016,8 @@ fn take_motion(arm: &mut Arm, servo: bool, taking: &mut Taking<'_>) {
             let trace = ServoTrace {
                 source_ns: ns(info.source_timestamp()),
                 queued_ns: wall_ns(),
-                queued_after_cycle: shared.cycles_done.load(Ordering::SeqCst),
+                // Read just before the push, below.
+                queued_after_cycle: 0,
             };
             taking.servo.queued(
                 trace.source_ns,
@@ -1037,6 +1038,13 @@ fn take_motion(arm: &mut Arm, servo: bool, taking: &mut Taking<'_>) {
                 positions,
             }
         };
+        if let Command::ServoJoints { trace, .. } = &mut command {
+            // The last cycle done as the point is queued: read with
+            // nothing between it and the push (the stamps and the
+            // statistics above came first), so that a thread pre-empted
+            // on the way does not make the point look later than it was.
+            trace.queued_after_cycle = shared.cycles_done.load(Ordering::SeqCst);
+        }
         if shared.commands.push(command).is_err() {
             report.refused += 1;
             arm.report("refused: command queue full".into());
