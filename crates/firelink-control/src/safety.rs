@@ -123,8 +123,9 @@ pub struct SafetyMonitor {
     any_stalling: bool,
     /// Whether a timer may be running: false only when every joint's
     /// timers are idle (set when a joint-by-joint check may start one,
-    /// cleared with the timers), so that the quiet pass of the common
-    /// cycle need not look at them.
+    /// found again after every joint-by-joint pass that ends without a
+    /// fault, cleared with the timers), so that the quiet pass of the
+    /// common cycle need not look at them.
     timing: bool,
     latched: Option<FaultReport>,
 }
@@ -330,6 +331,10 @@ impl SafetyMonitor {
         if quiet == samples.len() && quiet == self.limits.len() {
             return None;
         }
+        // Whether a timer runs after this cycle's checks: the quiet joints'
+        // do not, a joint's checked below may (a fault latches the monitor
+        // with `timing` left set).
+        let mut running = false;
         let joints = self.limits.iter().zip(&self.bounds);
         let joints = joints.zip(self.timers.iter_mut()).enumerate().skip(quiet);
         for (i, ((lim, b), timers)) in joints {
@@ -437,7 +442,9 @@ impl SafetyMonitor {
                     });
                 }
             }
+            running |= !timers.idle();
         }
+        self.timing = running;
         if samples.len() > self.limits.len() {
             // More samples than joints: a wiring mistake in the runner.
             let joint = Label::new("(extra joint)");

@@ -365,10 +365,13 @@ impl BoardIo {
             .then(|| self.control.to_word().raw())
     }
 
+    /// (Only the layout's DAC quadlets can carry a request: `set_dac` and
+    /// `set_amp_enable` refuse the others.)
     #[inline]
     pub(crate) fn outputs_applied(&mut self) {
         self.control = StatusCommand::NONE;
-        for d in self.output.dac.iter_mut() {
+        let axes = self.axes();
+        for d in self.output.dac.iter_mut().take(axes) {
             *d = d.with_amp_request(None);
         }
     }
@@ -378,11 +381,7 @@ impl BoardIo {
     pub(crate) fn asks_for_energy(&self) -> bool {
         self.control.power == Some(true)
             || self.control.amps.enable() & self.control.amps.mask() != 0
-            || self
-                .output
-                .dac
-                .iter()
-                .any(|d| d.amp_request() == Some(true))
+            || self.output.dacs().iter().any(|d| d.amp_request() == Some(true))
     }
 
     /// Command zero current on every axis and request amplifiers off.
