@@ -381,7 +381,11 @@ impl BoardIo {
     pub(crate) fn asks_for_energy(&self) -> bool {
         self.control.power == Some(true)
             || self.control.amps.enable() & self.control.amps.mask() != 0
-            || self.output.dacs().iter().any(|d| d.amp_request() == Some(true))
+            || self
+                .output
+                .dacs()
+                .iter()
+                .any(|d| d.amp_request() == Some(true))
     }
 
     /// Command zero current on every axis and request amplifiers off.

@@ -418,7 +418,10 @@ impl<P: Port> IoSystem<P> {
     #[inline]
     pub fn axis_inputs(&self, counts: &mut [i32], pots: &mut [Option<u16>]) {
         let n = counts.len().min(pots.len());
-        let (mut counts, mut pots) = (counts.get_mut(..n).unwrap_or_default(), pots.get_mut(..n).unwrap_or_default());
+        let (mut counts, mut pots) = (
+            counts.get_mut(..n).unwrap_or_default(),
+            pots.get_mut(..n).unwrap_or_default(),
+        );
         for &(b, axes) in &self.lookup.runs {
             let here = axes.min(counts.len());
             let (board_counts, rest_counts) = core::mem::take(&mut counts).split_at_mut(here);
