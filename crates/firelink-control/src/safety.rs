@@ -121,6 +121,12 @@ pub struct SafetyMonitor {
     stalling: Vec<bool>,
     /// Whether any joint may stall (the common case, none, costs nothing).
     any_stalling: bool,
+    /// Whether a timer may be running: false only when every joint's
+    /// timers are idle (set when a joint-by-joint check may start one,
+    /// found again after every joint-by-joint pass that ends without a
+    /// fault, cleared with the timers), so that the quiet pass of the
+    /// common cycle need not look at them.
+    timing: bool,
     latched: Option<FaultReport>,
 }
 
@@ -195,6 +201,7 @@ impl SafetyMonitor {
             timers,
             stalling,
             any_stalling: false,
+            timing: false,
             latched: None,
         }
     }
@@ -244,12 +251,14 @@ impl SafetyMonitor {
     pub fn reset(&mut self) {
         self.latched = None;
         self.timers.fill(Timers::default());
+        self.timing = false;
     }
 
     /// Restarts the grace timers without clearing a latched fault (call when
     /// a new motion starts or the robot is activated).
     pub fn restart_timers(&mut self) {
         self.timers.fill(Timers::default());
+        self.timing = false;
     }
 
     /// Lets joint `joint` stall on purpose, or stops letting it: while
@@ -284,7 +293,8 @@ impl SafetyMonitor {
 
     /// How many joints from the first are quiet: their samples finite,
     /// inside every bound ([`Bounds::all_clear`], tested without a branch
-    /// per check) with no timer running; 0 if a joint may stall or the
+    /// per check) with no timer running (not tested while no timer can
+    /// be: `timing` false); 0 if a joint may stall or the
     /// samples are not one per joint. The joint-by-joint checks of a quiet
     /// joint find nothing and change nothing, so they start after these
     /// (in the common cycle, every joint: no check at all).
@@ -295,6 +305,13 @@ impl SafetyMonitor {
             || samples.len() != self.timers.len()
         {
             return 0;
+        }
+        if !self.timing {
+            // No timer runs: the samples alone decide.
+            let joints = self.bounds.iter().zip(samples);
+            return joints
+                .take_while(|(b, s)| s.all_finite() & b.all_clear(s))
+                .count();
         }
         let joints = self.bounds.iter().zip(&self.timers).zip(samples);
         joints
@@ -314,6 +331,10 @@ impl SafetyMonitor {
         if quiet == samples.len() && quiet == self.limits.len() {
             return None;
         }
+        // Whether a timer runs after this cycle's checks: the quiet joints'
+        // do not, a joint's checked below may (a fault latches the monitor
+        // with `timing` left set).
+        let mut running = false;
         let joints = self.limits.iter().zip(&self.bounds);
         let joints = joints.zip(self.timers.iter_mut()).enumerate().skip(quiet);
         for (i, ((lim, b), timers)) in joints {
@@ -355,6 +376,8 @@ impl SafetyMonitor {
             if !stalling && timers.idle() && b.all_clear(s) {
                 continue;
             }
+            // The checks below may start a timer.
+            self.timing = true;
             // (Off: infinite bounds, never out of them.)
             let within = b.lowest <= s.position && s.position <= b.highest;
             if !stalling && !within {
@@ -419,7 +442,9 @@ impl SafetyMonitor {
                     });
                 }
             }
+            running |= !timers.idle();
         }
+        self.timing = running;
         if samples.len() > self.limits.len() {
             // More samples than joints: a wiring mistake in the runner.
             let joint = Label::new("(extra joint)");

@@ -101,15 +101,16 @@ pub trait RobotIo {
     /// See the trait docs.
     fn encoder_position(&self, axis: usize) -> Result<i32>;
     /// Every axis's latched inputs at once, for a cycle that reads them
-    /// all: `counts[i]` and `pots[i]` become
-    /// [`encoder_position`](Self::encoder_position)`(i).ok()` and
-    /// [`analog_position`](Self::analog_position)`(i).ok()` for every `i`
-    /// below the shorter slice's length (`None` past the last axis). The
-    /// default asks axis by axis; a system that can walk its latched
-    /// blocks once does that instead.
-    fn axis_inputs(&self, counts: &mut [Option<i32>], pots: &mut [Option<u16>]) {
+    /// all: `counts[i]` becomes
+    /// [`encoder_position`](Self::encoder_position)`(i)`, 0 where there is
+    /// no reading, and `pots[i]`
+    /// [`analog_position`](Self::analog_position)`(i).ok()`, for every `i`
+    /// below the shorter slice's length (0 and `None` past the last axis).
+    /// The default asks axis by axis; a system that can walk its latched
+    /// blocks once, board by board, does that instead.
+    fn axis_inputs(&self, counts: &mut [i32], pots: &mut [Option<u16>]) {
         for (i, (c, p)) in counts.iter_mut().zip(pots.iter_mut()).enumerate() {
-            *c = self.encoder_position(i).ok();
+            *c = self.encoder_position(i).unwrap_or(0);
             *p = self.analog_position(i).ok();
         }
     }
@@ -159,12 +160,16 @@ pub trait RobotIo {
     /// # Errors
     /// See the trait docs.
     fn set_motor_command(&mut self, axis: usize, code: u16) -> Result<()>;
-    /// [`set_motor_command`](Self::set_motor_command) for each `(axis,
-    /// code)` of `commands`, in order, for a cycle that sets them all; an
-    /// axis the system lacks is skipped. The default sets axis by axis.
-    fn set_motor_commands(&mut self, commands: &[(usize, u16)]) {
-        for &(axis, code) in commands {
-            let _ = self.set_motor_command(axis, code);
+    /// [`set_motor_command`](Self::set_motor_command)`(i, code)` for each
+    /// axis `i` whose `codes[i]` is `Some(code)`, for a cycle that sets
+    /// them all (axes with `None`, and codes past the last axis, are left
+    /// alone). The default sets axis by axis; a system that can walk its
+    /// boards' command blocks once does that instead.
+    fn set_motor_commands(&mut self, codes: &[Option<u16>]) {
+        for (axis, code) in codes.iter().enumerate() {
+            if let Some(code) = *code {
+                let _ = self.set_motor_command(axis, code);
+            }
         }
     }
     /// Ask for the axis's amplifier on or off with the next apply.

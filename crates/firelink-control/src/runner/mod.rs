@@ -183,15 +183,16 @@ pub struct Robot<R: RobotIo> {
     stop_searches: Vec<Option<StopSearchConfig>>,
     pot: Vec<f64>,
     enc: Vec<f64>,
-    /// Per I/O axis: the latch's encoder counts and pot codes, read for
-    /// every axis in one call ([`RobotIo::axis_inputs`]); `None` where the
-    /// I/O system has no reading.
-    axis_counts: Vec<Option<i32>>,
+    /// Per I/O axis: the latch's encoder counts (0 where the I/O system
+    /// has no reading) and pot codes (`None`: no reading), read for every
+    /// axis in one call ([`RobotIo::axis_inputs`]).
+    axis_counts: Vec<i32>,
     axis_pots: Vec<Option<u16>>,
-    /// The cycle's motor commands, `(axis, DAC code)`: the joints' in
-    /// joint order, then the brakes', written in one call
-    /// ([`RobotIo::set_motor_commands`]).
-    commands: Vec<(usize, u16)>,
+    /// Per I/O axis: the cycle's DAC code, `None` for an axis no joint or
+    /// brake drives; the joints' codes are put in in joint order, then the
+    /// brakes' (a later one on the same axis wins), and written in one
+    /// call ([`RobotIo::set_motor_commands`]).
+    axis_codes: Vec<Option<u16>>,
     times: CycleTimes,
     cycle: u64,
     last_start: Option<Duration>,
@@ -354,6 +355,41 @@ impl BrakeChannel {
     }
 }
 
+/// Of the `expected` boards, those that answered the cycle of `report`,
+/// and the fault of the first (by ID) that did not: its miss reason turned
+/// into a fault kind (a corrupt query is a sequence fault; anything else a
+/// missed board, named with the robot `life` says owns it).
+fn answered_boards(
+    expected: BoardSet,
+    life: &Lifecycle,
+    report: &CycleReport,
+) -> (BoardSet, Option<FaultKind>) {
+    let mut answered = expected;
+    for (id, _) in report.missed_boards() {
+        answered = answered.minus(BoardSet::EMPTY.with(id));
+    }
+    let missing = expected.minus(answered).first().map(|id| {
+        let reason = report.reasons.get(usize::from(id)).copied().flatten();
+        match reason {
+            Some(MissReason::CorruptQuery) => FaultKind::Sequence {
+                board_id: id,
+                expected: report
+                    .query_seq
+                    .get(usize::from(id))
+                    .copied()
+                    .filter(|&s| s != 0)
+                    .unwrap_or(report.seq),
+                received: 0xFFFF,
+            },
+            _ => FaultKind::MissedBoard {
+                board_id: id,
+                robot: life.board_owner(id),
+            },
+        }
+    });
+    (answered, missing)
+}
+
 impl<R: RobotIo> Robot<R> {
     /// A robot for `config` over the axes of `io`.
     ///
@@ -420,12 +456,6 @@ impl<R: RobotIo> Robot<R> {
         let n = joints.len();
         // (Every joint's and brake's axis is below the axis count.)
         let axes = io.axis_count();
-        let commands = joints
-            .iter()
-            .map(|j| j.axis)
-            .chain(brakes.iter().map(|b| b.axis))
-            .map(|axis| (axis, 0))
-            .collect();
         let arm_names: Vec<String> = config.robots.iter().map(|r| r.name.clone()).collect();
         Ok(Robot {
             io,
@@ -456,9 +486,9 @@ impl<R: RobotIo> Robot<R> {
                 .collect(),
             pot: vec![0.0; n],
             enc: vec![0.0; n],
-            axis_counts: vec![None; axes],
+            axis_counts: vec![0; axes],
             axis_pots: vec![None; axes],
-            commands,
+            axis_codes: vec![None; axes],
             times: CycleTimes::with_capacity(settings.max_samples),
             cycle: 0,
             last_start: None,
@@ -1000,15 +1030,19 @@ impl<R: RobotIo> Robot<R> {
     /// The fault detected (or latched earlier): outputs are then safe.
     pub fn cycle(&mut self) -> Result<(), FaultReport> {
         self.cycle += 1;
-        let report = *self.io.latch_all_inputs();
+        // What the checks need of the latch's report, read where it is
+        // (no copy of the report).
+        let latched = self.io.latch_all_inputs();
         let compute_start = Instant::now();
-        let now = report.started.as_secs_f64();
+        let started = latched.started;
+        let (answered, missing) = answered_boards(self.expected, &self.life, latched);
+        let now = started.as_secs_f64();
         let dt = match self.last_start {
-            Some(t) => report.started.saturating_sub(t).as_secs_f64(),
+            Some(t) => started.saturating_sub(t).as_secs_f64(),
             None => self.period(),
         }
         .clamp(0.1 * self.period(), 10.0 * self.period());
-        self.last_start = Some(report.started);
+        self.last_start = Some(started);
         // (Only the boards the joints are on: no other clock is read.)
         for id in self.expected.iter() {
             let status = self.io.board_status(id);
@@ -1025,7 +1059,7 @@ impl<R: RobotIo> Robot<R> {
                 };
             }
         }
-        self.check(&report, now);
+        self.check(answered, missing, now);
         self.compute(now, dt);
         if self.life.state() == State::Fault {
             self.io.set_all_safe();
@@ -1062,33 +1096,13 @@ impl<R: RobotIo> Robot<R> {
         }
     }
 
-    fn check(&mut self, report: &CycleReport, now: f64) {
+    /// The cycle's checks of the boards: `answered` and `missing` are
+    /// what [`answered_boards`] found in the latch's report.
+    fn check(&mut self, answered: BoardSet, missing: Option<FaultKind>, now: f64) {
         if !self.life.reads_inputs() {
             return;
         }
-        // Missed boards, with the reason turned into a fault kind.
-        let mut answered = self.expected;
-        for (id, _) in report.missed_boards() {
-            answered = answered.minus(BoardSet::EMPTY.with(id));
-        }
-        if let Some(id) = self.expected.minus(answered).first() {
-            let reason = report.reasons.get(usize::from(id)).copied().flatten();
-            let kind = match reason {
-                Some(MissReason::CorruptQuery) => FaultKind::Sequence {
-                    board_id: id,
-                    expected: report
-                        .query_seq
-                        .get(usize::from(id))
-                        .copied()
-                        .filter(|&s| s != 0)
-                        .unwrap_or(report.seq),
-                    received: 0xFFFF,
-                },
-                _ => FaultKind::MissedBoard {
-                    board_id: id,
-                    robot: self.life.board_owner(id),
-                },
-            };
+        if let Some(kind) = missing {
             self.raise(kind, now);
             return;
         }
@@ -1183,9 +1197,9 @@ impl<R: RobotIo> Robot<R> {
             .zip(&mut self.pot)
             .zip(&mut self.raw_pot);
         for (((j, s), ((e, p), raw)), pid) in joints.zip(pots).zip(self.pids.iter_mut()) {
-            let counts = self.axis_counts.get(j.axis).copied().flatten();
+            let counts = self.axis_counts.get(j.axis).copied().unwrap_or(0);
             let sampled = self.sample_clock.get(j.board).copied().unwrap_or(now);
-            *e = j.measure(counts.unwrap_or(0), sampled, s);
+            *e = j.measure(counts, sampled, s);
             let pot = j.pot_position(self.axis_pots.get(j.axis).copied().flatten());
             // Pots on joints are read where they are, then mixed.
             if coupled {
@@ -1216,20 +1230,23 @@ impl<R: RobotIo> Robot<R> {
             }
         }
         let active = self.life.state() == State::Active;
-        // (Joints first: the zip takes no slot past the last joint.)
-        let mut slots = self.commands.iter_mut();
-        for (j, (_, code)) in self.joints.iter().zip(slots.by_ref()) {
-            *code = j.command(active);
+        // (Joints first, then the brakes: a later code on an axis wins.)
+        for j in &self.joints {
+            if let Some(code) = self.axis_codes.get_mut(j.axis) {
+                *code = Some(j.command(active));
+            }
         }
         let running = matches!(self.life.state(), State::Active | State::Configured);
         let since = self.brakes_released_at.filter(|_| running).map(|t| now - t);
-        for (b, (_, code)) in self.brakes.iter().zip(slots) {
-            *code = match since {
-                Some(t) if t < b.release_time => b.release,
-                Some(_) => b.hold,
-                None => b.engaged,
-            };
+        for b in &self.brakes {
+            if let Some(code) = self.axis_codes.get_mut(b.axis) {
+                *code = Some(match since {
+                    Some(t) if t < b.release_time => b.release,
+                    Some(_) => b.hold,
+                    None => b.engaged,
+                });
+            }
         }
-        self.io.set_motor_commands(&self.commands);
+        self.io.set_motor_commands(&self.axis_codes);
     }
 }

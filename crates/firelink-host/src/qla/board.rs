@@ -220,6 +220,19 @@ impl BoardIo {
         self.input.motors().get(axis).map(|m| m.adc.pot())
     }
 
+    /// The encoder counts and pot codes of axes `0..` into `counts` and
+    /// `pots`, as far as the shorter goes: [`encoder_counts`](Self::encoder_counts)
+    /// (0 for none) and [`pot_bits`](Self::pot_bits) of each axis, read in
+    /// one run (the cycle reads every axis).
+    #[inline]
+    pub fn axis_inputs(&self, counts: &mut [i32], pots: &mut [Option<u16>]) {
+        let (encoders, motors) = (self.input.encoders(), self.input.motors());
+        for (a, (c, p)) in counts.iter_mut().zip(pots.iter_mut()).enumerate() {
+            *c = encoders.get(a).map_or(0, |e| e.position.counts());
+            *p = motors.get(a).map(|m| m.adc.pot());
+        }
+    }
+
     /// Motor current ADC bits of `axis`.
     #[inline]
     pub fn current_bits(&self, axis: usize) -> Option<u16> {
@@ -249,6 +262,20 @@ impl BoardIo {
             })?;
         *word = DacWord::valid_command(bits).with_amp_request(word.amp_request());
         Ok(())
+    }
+
+    /// [`set_dac`](Self::set_dac)`(a, code)` for each axis `a` whose
+    /// `codes[a]` is `Some(code)`, in one run over the board's DAC
+    /// quadlets (codes past the board's axes are ignored, as `set_dac`
+    /// refuses them).
+    #[inline]
+    pub fn set_dacs(&mut self, codes: &[Option<u16>]) {
+        let axes = self.axes();
+        for (word, code) in self.output.dac.iter_mut().take(axes).zip(codes) {
+            if let Some(bits) = *code {
+                *word = DacWord::valid_command(bits).with_amp_request(word.amp_request());
+            }
+        }
     }
 
     /// The DAC command that will be applied to `axis`.
@@ -338,10 +365,13 @@ impl BoardIo {
             .then(|| self.control.to_word().raw())
     }
 
+    /// (Only the layout's DAC quadlets can carry a request: `set_dac` and
+    /// `set_amp_enable` refuse the others.)
     #[inline]
     pub(crate) fn outputs_applied(&mut self) {
         self.control = StatusCommand::NONE;
-        for d in self.output.dac.iter_mut() {
+        let axes = self.axes();
+        for d in self.output.dac.iter_mut().take(axes) {
             *d = d.with_amp_request(None);
         }
     }
@@ -353,7 +383,7 @@ impl BoardIo {
             || self.control.amps.enable() & self.control.amps.mask() != 0
             || self
                 .output
-                .dac
+                .dacs()
                 .iter()
                 .any(|d| d.amp_request() == Some(true))
     }

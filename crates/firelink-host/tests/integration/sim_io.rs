@@ -384,9 +384,9 @@ fn board_status_is_the_per_call_methods() {
 }
 
 /// The whole-cycle calls say and do what the per-axis methods do:
-/// `axis_inputs` reads every axis's encoder count and pot code (none past
-/// the last axis), `set_motor_commands` sets each listed axis's DAC code
-/// in order and skips an axis the system lacks.
+/// `axis_inputs` reads every axis's encoder count and pot code (0 and none
+/// past the last axis), `set_motor_commands` sets the DAC code of each axis
+/// given one and ignores codes past the last axis.
 #[test]
 fn whole_cycle_axis_calls_are_the_per_axis_methods() {
     let mut io = sequential_io_with_a_silent_board(3, 2, 200_000);
@@ -397,14 +397,15 @@ fn whole_cycle_axis_calls_are_the_per_axis_methods() {
     }
     let axes = RobotIo::axis_count(&io);
     assert_eq!(axes, 12);
-    let mut counts = vec![Some(-1); axes + 2];
+    let mut counts = vec![-1; axes + 2];
     let mut pots = vec![Some(1); axes + 2];
     RobotIo::axis_inputs(&io, &mut counts, &mut pots);
     for axis in 0..axes + 2 {
-        assert_eq!(counts[axis], io.encoder_position(axis).ok(), "axis {axis}");
+        let count = io.encoder_position(axis).unwrap_or(0);
+        assert_eq!(counts[axis], count, "axis {axis}");
         assert_eq!(pots[axis], io.analog_position(axis).ok(), "axis {axis}");
     }
-    assert_eq!((counts[axes], pots[axes]), (None, None));
+    assert_eq!((counts[axes], pots[axes]), (0, None));
     assert!(pots.iter().take(axes).any(|p| p.is_some_and(|p| p != 0)));
     let before: Vec<Option<u16>> = (0..3u8)
         .flat_map(|id| {
@@ -412,8 +413,13 @@ fn whole_cycle_axis_calls_are_the_per_axis_methods() {
             (0..4).map(|a| b.dac(a)).collect::<Vec<_>>()
         })
         .collect();
-    // Axis 5 twice: the later code wins, as with two single calls.
-    RobotIo::set_motor_commands(&mut io, &[(1, 0x9000), (5, 0x7000), (99, 1), (5, 0x7100)]);
+    // Axes 1 and 5 set, the others left alone; a code past the last
+    // axis is ignored.
+    let mut codes = vec![None; axes + 2];
+    codes[1] = Some(0x9000);
+    codes[5] = Some(0x7100);
+    codes[axes + 1] = Some(1);
+    RobotIo::set_motor_commands(&mut io, &codes);
     assert_eq!(before.len(), axes);
     for (axis, &was) in before.iter().enumerate() {
         let (id, a) = io.axis_location(axis).unwrap();

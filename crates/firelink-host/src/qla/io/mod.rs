@@ -134,22 +134,27 @@ struct AxisLookup {
     by_id: [u8; MAX_BOARDS],
     /// Per axis over all boards: (board index, axis on that board).
     axes: Vec<(u8, u8)>,
+    /// The same table board by board, in axis order: (board index, its
+    /// axes), so that a walk over every axis finds each board once.
+    runs: Vec<(usize, usize)>,
 }
 
 impl AxisLookup {
     fn of(boards: &[BoardIo]) -> AxisLookup {
         let mut by_id = [u8::MAX; MAX_BOARDS];
         let mut axes = Vec::new();
-        for (i, b) in boards.iter().enumerate() {
-            let i = u8::try_from(i).unwrap_or(u8::MAX);
+        let mut runs = Vec::new();
+        for (index, b) in boards.iter().enumerate() {
+            let i = u8::try_from(index).unwrap_or(u8::MAX);
             if let Some(slot) = by_id.get_mut(usize::from(b.board_id())) {
                 if *slot == u8::MAX {
                     *slot = i;
                 }
             }
             axes.extend((0..b.axes()).map(|a| (i, u8::try_from(a).unwrap_or(u8::MAX))));
+            runs.push((usize::from(i), b.axes()));
         }
-        AxisLookup { by_id, axes }
+        AxisLookup { by_id, axes, runs }
     }
 
     fn board(&self, id: u8) -> Option<usize> {
@@ -404,38 +409,49 @@ impl<P: Port> IoSystem<P> {
         self.lookup.axis(axis)
     }
 
-    /// Every axis's latched encoder count and pot code, in axis order:
-    /// `counts[i]` and `pots[i]` for every axis `i` below the shorter
-    /// slice's length, `None` past the last axis (what
-    /// [`RobotIo::axis_inputs`](crate::RobotIo::axis_inputs) says). One
-    /// walk over the axis table, no look-up per axis.
+    /// Every axis's latched encoder count (0 where there is none) and pot
+    /// code, in axis order: `counts[i]` and `pots[i]` for every axis `i`
+    /// below the shorter slice's length, 0 and `None` past the last axis
+    /// (what [`RobotIo::axis_inputs`](crate::RobotIo::axis_inputs) says).
+    /// One walk over the boards, each board's axes read from its latched
+    /// block in one run ([`BoardIo::axis_inputs`]), no look-up per axis.
     #[inline]
-    pub fn axis_inputs(&self, counts: &mut [Option<i32>], pots: &mut [Option<u16>]) {
-        let mut axes = self.lookup.axes.iter();
-        for (c, p) in counts.iter_mut().zip(pots.iter_mut()) {
-            let input = axes.next().and_then(|&(b, a)| {
-                let board = self.boards.get(usize::from(b))?;
-                Some((board, usize::from(a)))
-            });
-            (*c, *p) = match input {
-                Some((board, a)) => (board.encoder_counts(a), board.pot_bits(a)),
-                None => (None, None),
-            };
+    pub fn axis_inputs(&self, counts: &mut [i32], pots: &mut [Option<u16>]) {
+        let n = counts.len().min(pots.len());
+        let (mut counts, mut pots) = (
+            counts.get_mut(..n).unwrap_or_default(),
+            pots.get_mut(..n).unwrap_or_default(),
+        );
+        for &(b, axes) in &self.lookup.runs {
+            let here = axes.min(counts.len());
+            let (board_counts, rest_counts) = core::mem::take(&mut counts).split_at_mut(here);
+            let (board_pots, rest_pots) = core::mem::take(&mut pots).split_at_mut(here);
+            match self.boards.get(b) {
+                Some(board) => board.axis_inputs(board_counts, board_pots),
+                None => {
+                    board_counts.fill(0);
+                    board_pots.fill(None);
+                }
+            }
+            (counts, pots) = (rest_counts, rest_pots);
         }
+        counts.fill(0);
+        pots.fill(None);
     }
 
-    /// Each `(axis, code)` of `commands` into its board's next command
-    /// block, in order (what
+    /// Axis `i`'s DAC code into its board's next command block for each
+    /// `codes[i]` that is `Some` (what
     /// [`RobotIo::set_motor_commands`](crate::RobotIo::set_motor_commands)
-    /// says); an axis the system lacks is skipped.
+    /// says); codes past the last axis are ignored. One walk over the
+    /// boards, each board's codes set in one run ([`BoardIo::set_dacs`]).
     #[inline]
-    pub fn set_motor_commands(&mut self, commands: &[(usize, u16)]) {
-        for &(axis, code) in commands {
-            let Some(&(b, a)) = self.lookup.axes.get(axis) else {
-                continue;
-            };
-            if let Some(board) = self.boards.get_mut(usize::from(b)) {
-                let _ = board.set_dac(usize::from(a), code);
+    pub fn set_motor_commands(&mut self, codes: &[Option<u16>]) {
+        let mut codes = codes;
+        for &(b, axes) in &self.lookup.runs {
+            let (board_codes, rest) = codes.split_at(axes.min(codes.len()));
+            codes = rest;
+            if let Some(board) = self.boards.get_mut(b) {
+                board.set_dacs(board_codes);
             }
         }
     }

@@ -134,7 +134,7 @@ impl<P: Port> RobotIo for IoSystem<P> {
         b.encoder_counts(a).ok_or_else(|| bad_axis(axis))
     }
 
-    fn axis_inputs(&self, counts: &mut [Option<i32>], pots: &mut [Option<u16>]) {
+    fn axis_inputs(&self, counts: &mut [i32], pots: &mut [Option<u16>]) {
         IoSystem::axis_inputs(self, counts, pots);
     }
 
@@ -180,8 +180,8 @@ impl<P: Port> RobotIo for IoSystem<P> {
         board.set_dac(a, code)
     }
 
-    fn set_motor_commands(&mut self, commands: &[(usize, u16)]) {
-        IoSystem::set_motor_commands(self, commands);
+    fn set_motor_commands(&mut self, codes: &[Option<u16>]) {
+        IoSystem::set_motor_commands(self, codes);
     }
 
     fn set_amplifier_enable(&mut self, axis: usize, on: bool) -> Result<()> {
