@@ -185,6 +185,7 @@ def run_demo(
     pacing: Optional[str] = None,
     watchdog_ms: Union[float, str] = 20.0,
     config: Optional[Union[Config, str, PathLike[str]]] = None,
+    timeout: Optional[float] = None,
 ) -> Report:
     """Run the demo (``firelink demo``) and return its report.
 
@@ -198,8 +199,11 @@ def run_demo(
     (``rate=1000`` is ``period="1ms"``; giving both is refused); ``fault``: ``none``, ``stop-host``, ``corrupt-query``,
     ``board-loss`` or ``following-error``; ``watchdog_ms``: 0.00521 to
     341.32 ms, or ``"off"`` (with a ``UserWarning``); ``config``: a
-    ``Config`` or a configuration file (default: seed 000's dVRK).
-    ``report.verdict`` is ``"ok"`` or says what went wrong. Ctrl-C stops
+    ``Config`` or a configuration file (default: seed 000's dVRK);
+    ``timeout``: over UDP (``emulate``, ``udp:``), seconds a read waits
+    for its answer, above 0 and at most 60 (default 0.02, the command
+    line's ``--timeout-ms 20``: in a servo cycle a later answer is a
+    missed board, a fault). ``report.verdict`` is ``"ok"`` or says what went wrong. Ctrl-C stops
     the robot at its next cycle, powers down the boards it powered and
     raises ``KeyboardInterrupt``.
     """
@@ -207,7 +211,7 @@ def run_demo(
         period = period.total_seconds()
     rate_given = rate is not _RATE_NOT_GIVEN
     text = _firelink.run_demo_json(
-        port, duration, period, rate, rate_given, protocol, firmware, fault, pacing, watchdog_ms, config,
+        port, duration, period, rate, rate_given, protocol, firmware, fault, pacing, watchdog_ms, config, timeout,
     )
     return Report(json.loads(text))
 

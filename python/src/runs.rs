@@ -33,7 +33,7 @@ const MAX_BENCH_CYCLES: i64 = 1_000_000;
 /// Ctrl-C stops the robot at its next cycle (the boards it powered are
 /// powered down) and raises `KeyboardInterrupt`.
 #[pyfunction]
-#[pyo3(signature = (port, duration, period, rate, rate_given, protocol, firmware, fault, pacing, watchdog_ms, config))]
+#[pyo3(signature = (port, duration, period, rate, rate_given, protocol, firmware, fault, pacing, watchdog_ms, config, timeout = None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn run_demo_json(
     py: Python<'_>,
@@ -48,8 +48,17 @@ pub(crate) fn run_demo_json(
     pacing: Option<&Bound<'_, PyAny>>,
     watchdog_ms: &Bound<'_, PyAny>,
     config: Option<&Bound<'_, PyAny>>,
+    timeout: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<String> {
     let port = args::text(port, "port", port_spec::EXPECTED)?;
+    let timeout = match timeout.filter(|t| !t.is_none()) {
+        None => firelink_testbed::rig::UDP_TIMEOUT,
+        Some(t) => std::time::Duration::from_secs_f64(args::real(
+            t,
+            "timeout",
+            args::Span::above(0.0, 60.0, " s"),
+        )?),
+    };
     let duration_s = args::real(duration, "duration", limits::RUN_SECONDS)?;
     let period = servo_period(period, rate, rate_given)?;
     let protocol = self::protocol(py, &args::text(protocol, "protocol", PROTOCOLS)?)?;
@@ -83,7 +92,7 @@ pub(crate) fn run_demo_json(
         pacing,
         watchdog,
         udp_wait: WaitMode::Blocking,
-        timeout: firelink_testbed::rig::UDP_TIMEOUT,
+        timeout,
     };
     if let Some(w) = watchdog.warning() {
         warn(py, w)?;

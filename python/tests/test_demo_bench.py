@@ -47,6 +47,8 @@ def test_the_demo_takes_a_configuration(configs_dir):
         {"watchdog_ms": -5},
         {"pacing": "sometimes"},
         {"firmware": "10"},
+        {"timeout": 0},
+        {"timeout": 61},
     ],
 )
 def test_bad_demo_options_raise(kwargs):

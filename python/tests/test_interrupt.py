@@ -142,7 +142,7 @@ def test_ctrl_c_powers_down_the_boards_the_demo_powered(udp_timeout, tmp_path):
         import sys, warnings
         import firelink
         warnings.simplefilter("ignore")  # the watchdog is off on purpose
-        firelink.run_demo(port=sys.argv[1], duration=600, rate=500, watchdog_ms="off", config=sys.argv[2])  # the long call
+        firelink.run_demo(port=sys.argv[1], duration=600, rate=500, watchdog_ms="off", config=sys.argv[2], timeout=0.25)  # the long call
         """
     with firelink.Emulator(boards=1) as emu:
         port = emu.port(timeout=udp_timeout)
