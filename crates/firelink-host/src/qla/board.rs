@@ -354,8 +354,6 @@ impl BoardIo {
         (&self.output, self.control.to_word())
     }
 
-    /// After a write: one-shot requests (power, relay, amplifier changes)
-    /// are cleared; DAC commands stay.
     /// The power, relay and amplifier changes asked for since the last
     /// write, when the board's write block cannot carry them (Rev 4 has
     /// no control quadlet): the STATUS word to write by register, once.
@@ -365,8 +363,9 @@ impl BoardIo {
             .then(|| self.control.to_word().raw())
     }
 
-    /// (Only the layout's DAC quadlets can carry a request: `set_dac` and
-    /// `set_amp_enable` refuse the others.)
+    /// After a write: one-shot requests (power, relay, amplifier changes)
+    /// are cleared; DAC commands stay. (Only the layout's DAC quadlets can
+    /// carry a request: `set_dac` and `set_amp_enable` refuse the others.)
     #[inline]
     pub(crate) fn outputs_applied(&mut self) {
         self.control = StatusCommand::NONE;
