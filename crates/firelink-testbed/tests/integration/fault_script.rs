@@ -120,21 +120,7 @@ fn a_board_lost_by_id_on_sim_ends_with_every_amplifier_off_and_the_board_named()
 fn emulator(config: &IoConfig) -> (Emulator, firelink_host::qla::scan::ScanReport) {
     let boards = used_boards(config).len();
     let emu = Emulator::start(used_boards(config)).expect("emulator");
-    let mut p = port(&emu);
-    // Absent node IDs cost a time-out each: short here. A board whose
-    // answer came later (the server thread kept waiting for a CPU) is only
-    // found by a later scan: scan until every board is (bounded by
-    // attempts, not by time).
-    p.set_timeout(Duration::from_millis(50));
-    let mut scans = 0;
-    let scan = loop {
-        let scan = firelink_host::qla::scan::scan(&mut p).expect("scan");
-        scans += 1;
-        if scan.boards.len() == boards || scans == 20 {
-            break scan;
-        }
-    };
-    assert_eq!(scan.boards.len(), boards, "{scans} scans");
+    let scan = crate::rescan::until_all_found(&mut port(&emu), boards);
     (emu, scan)
 }
 

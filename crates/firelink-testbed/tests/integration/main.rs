@@ -10,6 +10,7 @@ mod demo;
 mod fault_script;
 mod mahru;
 mod mahru_config;
+mod rescan;
 mod safe_exits;
 mod service;
 mod sim_faults;

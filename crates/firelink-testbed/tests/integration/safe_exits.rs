@@ -108,23 +108,9 @@ fn scan_of(emu: &Emulator) -> ScanReport {
         .find(|(a, _)| *a == emu.addr)
         .map(|(_, s)| s.clone());
     known.unwrap_or_else(|| {
-        // Absent node IDs cost a time-out each: short here. A board whose
-        // answer came later (the server thread kept waiting for a CPU) is
-        // only found by a later scan: scan until every board is (bounded
-        // by attempts, not by time).
         let config = config();
         let boards = rig::board_configs(&config, Profile::Rev8, config.board_slots()).len();
-        let mut p = port(emu);
-        p.set_timeout(Duration::from_millis(50));
-        let mut scans = 0;
-        let scan = loop {
-            let scan = firelink_host::qla::scan::scan(&mut p).expect("scan");
-            scans += 1;
-            if scan.boards.len() == boards || scans == 20 {
-                break scan;
-            }
-        };
-        assert_eq!(scan.boards.len(), boards, "{scans} scans");
+        let scan = crate::rescan::until_all_found(&mut port(emu), boards);
         SCANS.lock().expect("scans").push((emu.addr, scan.clone()));
         scan
     })
