@@ -105,6 +105,10 @@ pub(crate) struct Hub {
     /// Power-up (or reboot): where the timer counts from until the first
     /// query.
     power_up: SimTime,
+    /// The system clock's count at the timer's origin (`query_at`, or
+    /// `power_up` before any query), kept with them so that the timer of
+    /// every store converts only `now` to clocks.
+    origin_clocks: u64,
     /// `bcReadStart`: the timer when a read last addressed hub quadlet 0
     /// (HubReg.v), 0 from power-up.
     read_start: u16,
@@ -134,6 +138,7 @@ impl Hub {
             format,
             clock: HubClock::System,
             power_up: now,
+            origin_clocks: now.clocks(),
             read_start: 0,
             query: None,
             query_at: None,
@@ -168,6 +173,7 @@ impl Hub {
     /// Start a new cycle at `now`.
     pub fn start_cycle(&mut self, now: SimTime) {
         self.query_at = Some(now);
+        self.origin_clocks = now.clocks();
         self.count = 0;
         self.seen = 0;
         self.complete_at = None;
@@ -220,10 +226,13 @@ impl Hub {
     /// The hub timer (`bcTimer`) at `now`: clocks since the last query, or
     /// since power-up before any, 14 bits wrapping.
     fn timer(&self, now: SimTime) -> u16 {
-        let since = self.query_at.unwrap_or(self.power_up);
         match self.clock {
-            HubClock::System => (now.clocks_since(since) & TIMER_MASK) as u16,
+            // `now.clocks_since(since)`, the origin's count kept.
+            HubClock::System => {
+                (now.clocks().saturating_sub(self.origin_clocks) & TIMER_MASK) as u16
+            }
             HubClock::Ethernet => {
+                let since = self.query_at.unwrap_or(self.power_up);
                 ((now.saturating_since(since).as_nanos() / 8) & ETH_TIMER_MASK) as u16
             }
         }

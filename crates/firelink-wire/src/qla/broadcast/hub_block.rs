@@ -232,6 +232,7 @@ impl<'a> HubPacker<'a> {
         self.quadlets = 0;
     }
 
+    #[inline]
     fn reserve(&mut self, what: &'static str, quadlets: usize) -> Result<&mut [u8]> {
         let end = self.quadlets + quadlets;
         check_max("hub block quadlets", end as u64, HUB_MEMORY_QUADLETS as u64)?;
@@ -254,6 +255,7 @@ impl<'a> HubPacker<'a> {
     /// [`Error::BlockSize`] when a Rev 8 header's size is not block + 1;
     /// [`Error::FieldRange`] beyond 512 quadlets or for a bad header field;
     /// [`Error::BufferTooSmall`].
+    #[inline]
     pub fn push(&mut self, header: HubHeader, block: &[u8]) -> Result<()> {
         if block.len() % 4 != 0 {
             return Err(Error::NotQuadletAligned {
@@ -289,6 +291,10 @@ impl<'a> HubPacker<'a> {
     /// [`Error::BlockSize`] when the header's size is not the payload's
     /// (the packet is then not stored); the errors of
     /// [`push`](Self::push).
+    ///
+    /// Inlined: a board's hub stores every broadcast it hears and asks
+    /// only whether it was stored, so the error is never built there.
+    #[inline]
     pub fn store_broadcast(
         &mut self,
         payload: &[u8],
