@@ -187,6 +187,7 @@ impl Hub {
     /// its length, or that does not fit, is not stored; nor is a second
     /// block answering this board's query from a board already heard (a
     /// packet the bus delivered twice): that returns `false`.
+    #[inline]
     pub fn store(&mut self, now: SimTime, payload: &[u8], format: BlockFormat) -> bool {
         // The block's STATUS quadlet (after header and timestamp) names the
         // board.

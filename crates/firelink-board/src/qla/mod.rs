@@ -926,6 +926,10 @@ impl Firmware {
     /// write to broadcast, priority 0xA, carrying this board's header and
     /// real-time block (section 6.2). Hand it to the bus, then call
     /// [`transmitted`](Self::transmitted) when it has gone out.
+    ///
+    /// Inlined: the node asks after every packet it handles, and the
+    /// answer is almost always "not yet"; the packet is built out of line.
+    #[inline]
     pub fn poll_transmit(&mut self, now: SimTime) -> Option<Vec<u8>> {
         self.catch_up(now);
         let ready = self
@@ -936,6 +940,14 @@ impl Firmware {
         if !ready {
             return None;
         }
+        self.take_status_broadcast()
+    }
+
+    /// [`poll_transmit`](Self::poll_transmit)'s status broadcast once it
+    /// is ready: the waiting broadcast taken (and dropped if this board
+    /// has no node ID), its packet built.
+    #[inline(never)]
+    fn take_status_broadcast(&mut self) -> Option<Vec<u8>> {
         let pending = self.hub.pending.take()?;
         let phy = self.phy_id?;
         let offset = status_broadcast_offset(self.cfg.firmware, self.cfg.board_id)
