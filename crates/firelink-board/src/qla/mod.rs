@@ -745,6 +745,10 @@ impl Firmware {
     /// known (`crc`: what [`Packet::crc_status`] says of these bytes; the
     /// simulated bus works it out once for every node a packet reaches).
     /// `None` checks them here.
+    ///
+    /// Inlined into the bus node's `on_receive`, its caller for every
+    /// packet delivered.
+    #[inline]
     pub fn receive_checked(
         &mut self,
         now: SimTime,

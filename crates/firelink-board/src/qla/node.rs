@@ -145,7 +145,7 @@ impl BoardNode {
 
     /// Hand ready broadcasts to the bus and re-arm the slot timer (inlined
     /// into each callback: it runs after every one).
-    #[inline]
+    #[inline(always)]
     fn pump(&mut self, now: SimTime, ctx: &mut NodeCtx<'_>) {
         while let Some(packet) = self.firmware.poll_transmit(now) {
             self.next_token += 1;
