@@ -784,6 +784,7 @@ impl Firmware {
     }
 
     #[allow(clippy::too_many_arguments)]
+    #[inline]
     fn receive_inner(
         &mut self,
         now: SimTime,

@@ -427,6 +427,7 @@ impl Firmware {
     }
 
     /// Block write; `unicast` when addressed to this node alone.
+    #[inline]
     pub(crate) fn write_block_from(
         &mut self,
         now: SimTime,
