@@ -51,6 +51,7 @@ impl<T: AsRef<[u8]>> Packet<T> {
     ///
     /// # Errors
     /// See [`check_len`](Self::check_len).
+    #[inline]
     pub fn new_checked(buffer: T) -> Result<Packet<T>> {
         let packet = Self::new_unchecked(buffer);
         packet.check_len()?;
@@ -64,6 +65,7 @@ impl<T: AsRef<[u8]>> Packet<T> {
     /// [`Error::Truncated`] if the header is incomplete,
     /// [`Error::UnknownTcode`] if the tcode has no defined format,
     /// [`Error::LengthExceedsBuffer`] if `data_length` runs past the end.
+    #[inline]
     pub fn check_len(&self) -> Result<()> {
         let buf = self.buffer.as_ref();
         if buf.len() < 4 {
@@ -231,6 +233,7 @@ impl<T: AsRef<[u8]>> Packet<T> {
     }
 
     /// The payload: exactly `data_length` bytes (empty if none).
+    #[inline]
     pub fn data(&self) -> &[u8] {
         // As `has_data` and `data_start` say, the tcode decoded once.
         let tcode = self.tcode();
