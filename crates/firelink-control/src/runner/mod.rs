@@ -364,10 +364,13 @@ fn answered_boards(
     life: &Lifecycle,
     report: &CycleReport,
 ) -> (BoardSet, Option<FaultKind>) {
-    let mut answered = expected;
-    for (id, _) in report.missed_boards() {
-        answered = answered.minus(BoardSet::EMPTY.with(id));
+    // (The boards with a miss reason, as `missed_boards` lists them, in
+    // one pass over the reasons: bit i = board ID i.)
+    let mut missed = 0u16;
+    for (bit, reason) in report.reasons.iter().enumerate().take(16) {
+        missed |= u16::from(reason.is_some()) << bit;
     }
+    let answered = expected.minus(BoardSet(missed));
     let missing = expected.minus(answered).first().map(|id| {
         let reason = report.reasons.get(usize::from(id)).copied().flatten();
         match reason {
