@@ -400,8 +400,10 @@ impl Sinusoid {
     }
 
     /// The setpoint at time `t` since the start. Before the start (or for a
-    /// NaN time) it holds the starting position at rest.
-    #[inline]
+    /// NaN time) it holds the starting position at rest. (Inlined into
+    /// [`Motion::sample`] and so into the servo cycle's loop over the
+    /// joints: LLVM kept it a call per sinusoid joint and cycle.)
+    #[inline(always)]
     pub fn sample(&self, t: f64) -> Sample {
         let t = if t.is_nan() || t < 0.0 {
             return Sample::at_rest(self.position_at(0.0));

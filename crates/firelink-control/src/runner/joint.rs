@@ -90,7 +90,9 @@ impl Joint {
     }
 
     /// Then the setpoint: Active, the trajectory's at the port's time
-    /// `now`; otherwise the joint's position, at rest.
+    /// `now`; otherwise the joint's position, at rest. (Active, it reads
+    /// nothing [`measure`](Self::measure) writes: the runner plans every
+    /// joint's setpoint before measuring them.)
     #[inline(always)]
     pub fn plan(&mut self, now: f64, active: bool) {
         if active {

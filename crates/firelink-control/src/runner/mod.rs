@@ -364,10 +364,13 @@ fn answered_boards(
     life: &Lifecycle,
     report: &CycleReport,
 ) -> (BoardSet, Option<FaultKind>) {
-    let mut answered = expected;
-    for (id, _) in report.missed_boards() {
-        answered = answered.minus(BoardSet::EMPTY.with(id));
+    // (The boards with a miss reason, as `missed_boards` lists them, in
+    // one pass over the reasons: bit i = board ID i.)
+    let mut missed = 0u16;
+    for (bit, reason) in report.reasons.iter().enumerate().take(16) {
+        missed |= u16::from(reason.is_some()) << bit;
     }
+    let answered = expected.minus(BoardSet(missed));
     let missing = expected.minus(answered).first().map(|id| {
         let reason = report.reasons.get(usize::from(id)).copied().flatten();
         match reason {
@@ -1185,32 +1188,39 @@ impl<R: RobotIo> Robot<R> {
         let coupled = !self.pot_mix.is_empty();
         // Each joint's cycle (measure, setpoint, control) depends on no
         // other joint's, except through the pot coupling: without one,
-        // each joint's whole cycle in one pass over the joints (one loop's
-        // overhead instead of three); with one, every joint is measured
-        // before the pots are mixed and the joints controlled.
+        // each joint's measure and control in one pass over the joints
+        // (one loop's overhead instead of three), its setpoint planned in
+        // that pass too unless Active (then in a pass before); with one,
+        // every joint is measured before the pots are mixed and the joints
+        // controlled.
         self.io
             .axis_inputs(&mut self.axis_counts, &mut self.axis_pots);
+        if active && !coupled {
+            // Active, a joint's setpoint depends on its motion and the
+            // time alone, not on its measurement: every setpoint first, in
+            // a loop of its own (the trajectories' calls, `sincos`, then
+            // interrupt a short loop rather than the long one below, which
+            // needs every value it keeps live around them). Otherwise the
+            // setpoint is the position just measured.
+            for j in self.joints.iter_mut() {
+                j.plan(now, true);
+            }
+        }
         let joints = self.joints.iter_mut().zip(&mut self.samples);
         let pots = self
             .enc
             .iter_mut()
             .zip(&mut self.pot)
             .zip(&mut self.raw_pot);
-        for (((j, s), ((e, p), raw)), pid) in joints.zip(pots).zip(self.pids.iter_mut()) {
-            let counts = self.axis_counts.get(j.axis).copied().unwrap_or(0);
-            let sampled = self.sample_clock.get(j.board).copied().unwrap_or(now);
-            *e = j.measure(counts, sampled, s);
-            let pot = j.pot_position(self.axis_pots.get(j.axis).copied().flatten());
-            // Pots on joints are read where they are, then mixed.
-            if coupled {
-                *raw = pot;
-            } else {
-                *p = pot;
-                j.plan(now, active);
-                j.control(dt, active, pot, Some(pid), self.arm_acc.get_mut(j.arm), s);
-            }
-        }
+        let joints = joints.zip(pots).zip(self.pids.iter_mut());
         if coupled {
+            for (((j, s), ((e, _), raw)), _) in joints {
+                let counts = self.axis_counts.get(j.axis).copied().unwrap_or(0);
+                let sampled = self.sample_clock.get(j.board).copied().unwrap_or(now);
+                *e = j.measure(counts, sampled, s);
+                // Pots on joints are read where they are, then mixed.
+                *raw = j.pot_position(self.axis_pots.get(j.axis).copied().flatten());
+            }
             // The pot reads the joint; the safety monitor compares the
             // encoder with it in actuator space.
             self.mix_pots();
@@ -1221,6 +1231,19 @@ impl<R: RobotIo> Robot<R> {
             for (i, ((j, s), p)) in joints.zip(&self.pot).enumerate() {
                 let (pid, acc) = (self.pids.get_mut(i), self.arm_acc.get_mut(j.arm));
                 j.control(dt, active, *p, pid, acc, s);
+            }
+        } else {
+            // (Active, the setpoints were planned above.)
+            for (((j, s), ((e, p), _)), pid) in joints {
+                let counts = self.axis_counts.get(j.axis).copied().unwrap_or(0);
+                let sampled = self.sample_clock.get(j.board).copied().unwrap_or(now);
+                *e = j.measure(counts, sampled, s);
+                let pot = j.pot_position(self.axis_pots.get(j.axis).copied().flatten());
+                *p = pot;
+                if !active {
+                    j.plan(now, false);
+                }
+                j.control(dt, active, pot, Some(pid), self.arm_acc.get_mut(j.arm), s);
             }
         }
         if active {

@@ -92,6 +92,25 @@ pub(super) struct QueryGroup {
     /// Where the hub block's timing quadlet is
     /// ([`HubBlock::timing_quadlet`] of `slots`, worked out here once).
     pub(super) timing_quadlet: Option<usize>,
+    /// Whether every slot has the same layout (then each hub block is
+    /// taken for the board its STATUS names), worked out here once.
+    pub(super) uniform: bool,
+    /// Per board ID: the first slot with that ID, `u8::MAX` for none.
+    pub(super) slot_by_id: [u8; MAX_BOARDS],
+}
+
+impl QueryGroup {
+    /// The first slot of board `id` (what `slots.iter().position` finds,
+    /// from the table made with the group).
+    #[inline]
+    fn slot_of(&self, id: u8) -> Option<usize> {
+        match self.slot_by_id.get(usize::from(id)) {
+            Some(&k) if k != u8::MAX => Some(usize::from(k)),
+            Some(_) => None,
+            // (No board ID is above 15; searched all the same.)
+            None => self.slots.iter().position(|s| s.id == id),
+        }
+    }
 }
 
 /// Per board (index in the system): its block from the hub was latched,
@@ -158,6 +177,15 @@ impl<P: Port> IoSystem<P> {
                     .broadcast_wait(qla1_read_blocks(slots.iter().map(|s| s.layout)))
             });
             let timing_quadlet = HubBlock::<&[u8]>::timing_quadlet(&slots);
+            let uniform = slots.windows(2).all(|w| w[0].layout == w[1].layout);
+            let mut slot_by_id = [u8::MAX; MAX_BOARDS];
+            for (k, slot) in slots.iter().enumerate().rev() {
+                if let (Some(at), Ok(k)) =
+                    (slot_by_id.get_mut(usize::from(slot.id)), u8::try_from(k))
+                {
+                    *at = k;
+                }
+            }
             groups.push(QueryGroup {
                 mask,
                 members,
@@ -166,6 +194,8 @@ impl<P: Port> IoSystem<P> {
                 hub_read_quadlets,
                 wait,
                 timing_quadlet,
+                uniform,
+                slot_by_id,
             });
         }
         Ok(groups)
@@ -327,11 +357,11 @@ impl<P: Port> IoSystem<P> {
         // arbitration, a late answer to an earlier group's query): when
         // every block has the same size, each one is taken for the board
         // its STATUS names.
-        let uniform = group.slots.windows(2).all(|w| w[0].layout == w[1].layout);
+        // (`uniform` and the slots by ID worked out with the group.)
         for (i, entry) in hub.entries().enumerate() {
             let named = entry.block.status().board_id();
-            let k = if uniform {
-                match group.slots.iter().position(|s| s.id == named) {
+            let k = if group.uniform {
+                match group.slot_of(named) {
                     Some(k) => k,
                     // A block of a board not in this query: no one's data.
                     None => continue,
