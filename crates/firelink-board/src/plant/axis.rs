@@ -167,8 +167,10 @@ struct Model {
 #[derive(Debug, Clone)]
 pub struct Axis {
     model: Model,
-    /// The last span's constants (spans of the same length recur).
-    memo: Span,
+    /// The constants of the last two partial spans, the latest first:
+    /// spans of the same lengths recur (a cycle's sample and its command
+    /// split it at the same places), and each is computed once.
+    memo: [Span; 2],
     /// The inputs since `time`.
     inputs: Inputs,
     /// The state at `time`.
@@ -230,7 +232,7 @@ impl Axis {
                 counts_per_rad,
                 motor_stops,
             },
-            memo: grid,
+            memo: [grid; 2],
             inputs: Inputs {
                 dac: DAC_ZERO,
                 enabled: false,
@@ -459,16 +461,23 @@ impl Axis {
     }
 }
 
-/// The constants of a span of `ps` picoseconds: the grid step's, the
-/// remembered partial span's, or new ones (which are then remembered).
-fn span_of(model: &Model, memo: &mut Span, ps: u64) -> Span {
+/// The constants of a span of `ps` picoseconds: the grid step's, a
+/// remembered partial span's, or new ones (which are then remembered in
+/// place of the older of the two).
+fn span_of(model: &Model, memo: &mut [Span; 2], ps: u64) -> Span {
     if ps == model.grid.ps {
         return model.grid;
     }
-    if ps != memo.ps {
-        *memo = Span::new(ps, model.tau, model.inv_tau_thermal, model.damping);
+    let [latest, older] = memo;
+    if ps == latest.ps {
+        return *latest;
     }
-    *memo
+    if ps == older.ps {
+        return *older;
+    }
+    let span = Span::new(ps, model.tau, model.inv_tau_thermal, model.damping);
+    *memo = [span, *latest];
+    span
 }
 
 impl Model {
@@ -538,7 +547,7 @@ impl Model {
         inputs: Inputs,
         span: &Span,
         start: SimTime,
-        memo: &mut Span,
+        memo: &mut [Span; 2],
     ) {
         let i0 = s.current;
         let w0 = s.motor_velocity;
@@ -627,7 +636,7 @@ impl Model {
         i1: f64,
         load: f64,
         span: &Span,
-        memo: &mut Span,
+        memo: &mut [Span; 2],
     ) -> (f64, f64) {
         let kt = self.params.motor.torque_constant;
         let coulomb = self.params.motor.coulomb_friction;

@@ -179,15 +179,17 @@ fn temperature_byte(celsius: f64) -> u8 {
 }
 
 /// `x` rounded to the nearest whole code in `0..=max` (halves away from
-/// zero; NaN reads 0): `round().clamp()` without a call into libm (the
-/// x86-64 baseline has no rounding instruction).
+/// zero; NaN reads 0; `max` a code, at most 65535): `round().clamp()`
+/// without a call into libm (the x86-64 baseline has no rounding
+/// instruction).
 fn round_to_code(x: f64, max: f64) -> f64 {
     if x.is_nan() {
         return 0.0;
     }
     // Clamped first, the value is non-negative: truncating x + 1/2 rounds
-    // it, halves up.
-    ((x.clamp(0.0, max) + 0.5) as u64) as f64
+    // it, halves up. Through i64, which holds every code exactly: one
+    // instruction each way, where u64 takes a branchy sequence.
+    ((x.clamp(0.0, max) + 0.5) as i64) as f64
 }
 
 impl Firmware {
