@@ -57,7 +57,7 @@ impl EdgeKind {
     /// (`up`) or `from - 1`. Forward order: A rises, B rises, A falls,
     /// B falls (A leads B).
     fn of_transition(from: i64, up: bool) -> EdgeKind {
-        let state = from.rem_euclid(4);
+        let state = quadrature_state(from);
         match (state, up) {
             (0, true) | (3, false) => EdgeKind::ARise,
             (1, true) | (0, false) => EdgeKind::BRise,
@@ -206,12 +206,12 @@ impl Encoder {
 
     /// Channel A level.
     pub fn a(&self) -> bool {
-        matches!(self.count.rem_euclid(4), 1 | 2)
+        matches!(quadrature_state(self.count), 1 | 2)
     }
 
     /// Channel B level.
     pub fn b(&self) -> bool {
-        matches!(self.count.rem_euclid(4), 2 | 3)
+        matches!(quadrature_state(self.count), 2 | 3)
     }
 
     /// The index pulse: high for one count per revolution.
@@ -268,7 +268,12 @@ impl Encoder {
 
     /// The velocity fields the FPGA would latch at `now`.
     pub fn fields(&self, now: SimTime) -> VelocityFields {
-        let now_clk = now.clocks();
+        self.fields_at_clock(now.clocks())
+    }
+
+    /// [`fields`](Self::fields) with the system clock counter at that
+    /// instant, `now_clk` (a sample of several encoders counts it once).
+    pub(crate) fn fields_at_clock(&self, now_clk: u64) -> VelocityFields {
         let edges = self.edges();
         let edge = |i: usize| edges.get(i).copied();
         let Some(e0) = edge(0) else {
@@ -368,6 +373,12 @@ impl Encoder {
             },
         }
     }
+}
+
+/// Where `count` is in the quadrature cycle, 0..=3: `count.rem_euclid(4)`
+/// by a mask (two's complement).
+fn quadrature_state(count: i64) -> i64 {
+    count & 3
 }
 
 fn floor_count(position: f64) -> i64 {
