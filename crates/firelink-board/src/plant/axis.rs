@@ -167,8 +167,10 @@ struct Model {
 #[derive(Debug, Clone)]
 pub struct Axis {
     model: Model,
-    /// The last span's constants (spans of the same length recur).
-    memo: Span,
+    /// The constants of the last partial spans: spans of the same lengths
+    /// recur (a cycle's sample and its command split it at the same
+    /// places), and each is computed once.
+    memo: SpanMemo,
     /// The inputs since `time`.
     inputs: Inputs,
     /// The state at `time`.
@@ -230,7 +232,10 @@ impl Axis {
                 counts_per_rad,
                 motor_stops,
             },
-            memo: grid,
+            memo: SpanMemo {
+                spans: [grid; SpanMemo::LEN],
+                next: 0,
+            },
             inputs: Inputs {
                 dac: DAC_ZERO,
                 enabled: false,
@@ -417,9 +422,19 @@ impl Axis {
             if self.model.quiescent(&self.state, self.inputs) {
                 // Nothing moves until the inputs change: only the
                 // temperature settles, all the way to the clock at once.
-                let keep = (-(left as f64) * 1e-12 * self.model.inv_tau_thermal).exp();
                 let steady = steady_temperature(&self.model.params, 0.0, self.inputs.enabled);
-                self.state.temperature += (steady - self.state.temperature) * (1.0 - keep);
+                let settled = self.state.temperature;
+                // Already settled (a finite, non-zero temperature, and a
+                // decay that cannot overflow): the step below adds +0,
+                // which leaves it as it is; no exp() to find that out.
+                let unchanged = steady == settled
+                    && settled.is_finite()
+                    && settled != 0.0
+                    && self.model.inv_tau_thermal >= 0.0;
+                if !unchanged {
+                    let keep = (-(left as f64) * 1e-12 * self.model.inv_tau_thermal).exp();
+                    self.state.temperature += (steady - self.state.temperature) * (1.0 - keep);
+                }
                 self.time = self.clock;
                 return;
             }
@@ -459,16 +474,36 @@ impl Axis {
     }
 }
 
-/// The constants of a span of `ps` picoseconds: the grid step's, the
-/// remembered partial span's, or new ones (which are then remembered).
-fn span_of(model: &Model, memo: &mut Span, ps: u64) -> Span {
+/// The constants of the last few partial spans an axis integrated.
+#[derive(Debug, Clone)]
+struct SpanMemo {
+    spans: [Span; SpanMemo::LEN],
+    /// The slot the next new span takes (the oldest).
+    next: usize,
+}
+
+impl SpanMemo {
+    /// Spans remembered: the partial spans of a cycle (sample to command,
+    /// command to sample, sample to sample) with room for a breakaway.
+    const LEN: usize = 4;
+}
+
+/// The constants of a span of `ps` picoseconds: the grid step's, a
+/// remembered partial span's, or new ones (which are then remembered in
+/// place of the oldest).
+fn span_of(model: &Model, memo: &mut SpanMemo, ps: u64) -> Span {
     if ps == model.grid.ps {
         return model.grid;
     }
-    if ps != memo.ps {
-        *memo = Span::new(ps, model.tau, model.inv_tau_thermal, model.damping);
+    if let Some(span) = memo.spans.iter().find(|s| s.ps == ps) {
+        return *span;
     }
-    *memo
+    let span = Span::new(ps, model.tau, model.inv_tau_thermal, model.damping);
+    if let Some(slot) = memo.spans.get_mut(memo.next) {
+        *slot = span;
+    }
+    memo.next = (memo.next + 1) % SpanMemo::LEN;
+    span
 }
 
 impl Model {
@@ -538,7 +573,7 @@ impl Model {
         inputs: Inputs,
         span: &Span,
         start: SimTime,
-        memo: &mut Span,
+        memo: &mut SpanMemo,
     ) {
         let i0 = s.current;
         let w0 = s.motor_velocity;
@@ -627,7 +662,7 @@ impl Model {
         i1: f64,
         load: f64,
         span: &Span,
-        memo: &mut Span,
+        memo: &mut SpanMemo,
     ) -> (f64, f64) {
         let kt = self.params.motor.torque_constant;
         let coulomb = self.params.motor.coulomb_friction;

@@ -57,7 +57,7 @@ impl EdgeKind {
     /// (`up`) or `from - 1`. Forward order: A rises, B rises, A falls,
     /// B falls (A leads B).
     fn of_transition(from: i64, up: bool) -> EdgeKind {
-        let state = from.rem_euclid(4);
+        let state = quadrature_state(from);
         match (state, up) {
             (0, true) | (3, false) => EdgeKind::ARise,
             (1, true) | (0, false) => EdgeKind::BRise,
@@ -155,10 +155,9 @@ fn saturate(clocks: u64) -> (u32, bool) {
 pub struct Encoder {
     counts_per_rev: u32,
     count: i64,
-    /// The last edges, a ring: `ring[newest]` is the most recent, the one
-    /// before it at `newest - 1` (mod [`HISTORY`]); `stored` of them valid.
-    ring: [Edge; HISTORY],
-    newest: usize,
+    /// The last edges, newest first: `recent[0]` is the most recent; the
+    /// first `stored` of them are valid.
+    recent: [Edge; HISTORY],
     stored: usize,
     edge_count: u64,
 }
@@ -169,7 +168,7 @@ impl PartialEq for Encoder {
             && self.count == other.count
             && self.edge_count == other.edge_count
             && self.stored == other.stored
-            && (0..self.stored).all(|i| self.edge(i) == other.edge(i))
+            && self.edges() == other.edges()
     }
 }
 
@@ -184,21 +183,15 @@ impl Encoder {
         Encoder {
             counts_per_rev: counts_per_rev.max(1),
             count: floor_count(position),
-            ring: [unused; HISTORY],
-            newest: 0,
+            recent: [unused; HISTORY],
             stored: 0,
             edge_count: 0,
         }
     }
 
-    /// Edge `i` back from the newest (0 = the newest), if remembered.
-    fn edge(&self, i: usize) -> Option<Edge> {
-        if i >= self.stored {
-            return None;
-        }
-        self.ring
-            .get((self.newest + HISTORY - i) % HISTORY)
-            .copied()
+    /// The remembered edges, newest first.
+    fn edges(&self) -> &[Edge] {
+        self.recent.get(..self.stored).unwrap_or(&self.recent)
     }
 
     /// The raw count since power-up (no wrap, no preload).
@@ -213,12 +206,12 @@ impl Encoder {
 
     /// Channel A level.
     pub fn a(&self) -> bool {
-        matches!(self.count.rem_euclid(4), 1 | 2)
+        matches!(quadrature_state(self.count), 1 | 2)
     }
 
     /// Channel B level.
     pub fn b(&self) -> bool {
-        matches!(self.count.rem_euclid(4), 2 | 3)
+        matches!(quadrature_state(self.count), 2 | 3)
     }
 
     /// The index pulse: high for one count per revolution.
@@ -266,18 +259,24 @@ impl Encoder {
     }
 
     fn push(&mut self, edge: Edge) {
-        self.newest = (self.newest + 1) % HISTORY;
-        if let Some(slot) = self.ring.get_mut(self.newest) {
-            *slot = edge;
-        }
+        // The oldest falls off the end.
+        self.recent.copy_within(..HISTORY - 1, 1);
+        self.recent[0] = edge;
         self.stored = (self.stored + 1).min(HISTORY);
         self.edge_count = self.edge_count.saturating_add(1);
     }
 
     /// The velocity fields the FPGA would latch at `now`.
     pub fn fields(&self, now: SimTime) -> VelocityFields {
-        let now_clk = now.clocks();
-        let Some(e0) = self.edge(0) else {
+        self.fields_at_clock(now.clocks())
+    }
+
+    /// [`fields`](Self::fields) with the system clock counter at that
+    /// instant, `now_clk` (a sample of several encoders counts it once).
+    pub(crate) fn fields_at_clock(&self, now_clk: u64) -> VelocityFields {
+        let edges = self.edges();
+        let edge = |i: usize| edges.get(i).copied();
+        let Some(e0) = edge(0) else {
             let (run, run_over) = saturate(now_clk);
             return VelocityFields {
                 period: PeriodField {
@@ -303,11 +302,9 @@ impl Encoder {
             };
         };
         // Consecutive edges, newest first, in the direction of the newest.
-        let same = (0..self.stored)
-            .take_while(|&i| self.edge(i).is_some_and(|e| e.up == e0.up))
-            .count();
-        let reversed = same < self.stored;
-        let clock = |i: usize| self.edge(i).map(|e| e.clock);
+        let same = edges.iter().take_while(|e| e.up == e0.up).count();
+        let reversed = same < edges.len();
+        let clock = |i: usize| edges.get(i).map(|e| e.clock);
 
         // Latched full-cycle period (or its extrapolation).
         let intervals = (same.min(5) - 1) as u64;
@@ -335,7 +332,7 @@ impl Encoder {
         let error = clock(1).is_some_and(|c1| c1 == e0.clock);
 
         let quarter = |newer: usize| -> QuarterField {
-            match (self.edge(newer), clock(newer + 1)) {
+            match (edge(newer), clock(newer + 1)) {
                 (Some(e), Some(older)) => {
                     let (clocks, overflow) = saturate(e.clock - older);
                     QuarterField {
@@ -376,6 +373,12 @@ impl Encoder {
             },
         }
     }
+}
+
+/// Where `count` is in the quadrature cycle, 0..=3: `count.rem_euclid(4)`
+/// by a mask (two's complement).
+fn quadrature_state(count: i64) -> i64 {
+    count & 3
 }
 
 fn floor_count(position: f64) -> i64 {

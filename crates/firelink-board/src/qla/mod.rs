@@ -546,7 +546,8 @@ impl Firmware {
     #[inline(never)]
     fn process_events_until(&mut self, now: SimTime) {
         loop {
-            if self.events_stale {
+            let exact = self.events_stale;
+            if exact {
                 self.next_event = self.next_internal_event();
                 self.events_stale = false;
             }
@@ -554,8 +555,11 @@ impl Firmware {
                 break;
             }
             // Due by the bound: work it out exactly (the watchdog may have
-            // been refreshed since), and act if it really is.
-            self.next_event = self.next_internal_event();
+            // been refreshed since), unless it just was, and act if it
+            // really is.
+            if !exact {
+                self.next_event = self.next_internal_event();
+            }
             let Some(t) = self.next_event.filter(|t| *t <= now) else {
                 continue;
             };

@@ -179,15 +179,17 @@ fn temperature_byte(celsius: f64) -> u8 {
 }
 
 /// `x` rounded to the nearest whole code in `0..=max` (halves away from
-/// zero; NaN reads 0): `round().clamp()` without a call into libm (the
-/// x86-64 baseline has no rounding instruction).
+/// zero; NaN reads 0; `max` a code, at most 65535): `round().clamp()`
+/// without a call into libm (the x86-64 baseline has no rounding
+/// instruction).
 fn round_to_code(x: f64, max: f64) -> f64 {
     if x.is_nan() {
         return 0.0;
     }
     // Clamped first, the value is non-negative: truncating x + 1/2 rounds
-    // it, halves up.
-    ((x.clamp(0.0, max) + 0.5) as u64) as f64
+    // it, halves up. Through i64, which holds every code exactly: one
+    // instruction each way, where u64 takes a branchy sequence.
+    ((x.clamp(0.0, max) + 0.5) as i64) as f64
 }
 
 impl Firmware {
@@ -901,10 +903,12 @@ impl Firmware {
         self.plant.axis(i).map_or(0, |a| a.encoder().count())
     }
 
-    fn velocity(&self, i: usize) -> VelocityFields {
+    /// The velocity fields of axis `i` with the system clock counter at
+    /// `now_clk`.
+    fn velocity(&self, i: usize, now_clk: u64) -> VelocityFields {
         self.plant
             .axis(i)
-            .map(|a| a.encoder().fields(self.now))
+            .map(|a| a.encoder().fields_at_clock(now_clk))
             .unwrap_or_default()
     }
 
@@ -912,6 +916,16 @@ impl Firmware {
     /// an encoder without an edge since power-up (or reboot) reads the
     /// firmware's power-up words.
     fn velocity_words(&self, i: usize) -> (EncPeriod, EncQuarter, EncQuarter, EncRun) {
+        self.velocity_words_at(i, self.now.clocks())
+    }
+
+    /// [`velocity_words`](Self::velocity_words) with the system clock
+    /// counter now, `now_clk`.
+    fn velocity_words_at(
+        &self,
+        i: usize,
+        now_clk: u64,
+    ) -> (EncPeriod, EncQuarter, EncQuarter, EncRun) {
         let still = self.cfg.profile.is_rev8()
             && self
                 .plant
@@ -926,7 +940,7 @@ impl Firmware {
                 EncRun(RUN_BEFORE_ANY_EDGE),
             );
         }
-        let f = self.velocity(i);
+        let f = self.velocity(i, now_clk);
         (
             EncPeriod(period_word(f.period)),
             EncQuarter(quarter_word(f.qtr1)),
@@ -1114,6 +1128,8 @@ impl Firmware {
             0
         };
         let temperature = Temperature(self.temperature_word() | upper);
+        // The encoders' velocity fields are latched at this board's now.
+        let now_clk = self.now.clocks();
         let Some(buf) = buf.get_mut(..layout.read_block_len()) else {
             return;
         };
@@ -1125,7 +1141,7 @@ impl Firmware {
         block.set_temperature(temperature);
         for i in 0..n {
             let position = self.position_word(i);
-            let (period, qtr1, qtr5, run) = self.velocity_words(i);
+            let (period, qtr1, qtr5, run) = self.velocity_words_at(i, now_clk);
             let motor = MotorReading {
                 adc: self.adc_word(i),
                 status: if rev8 {
