@@ -13,6 +13,13 @@ impl Bus {
 
     /// Process the next event. Returns false if there was none.
     pub fn step(&mut self) -> bool {
+        if let Some(d) = self.events.pop_delivery() {
+            self.now = self.now.max(d.time);
+            if d.epoch == self.epoch {
+                self.deliver(d.sub, d.node);
+            }
+            return true;
+        }
         let Some(q) = self.events.pop() else {
             return false;
         };
@@ -108,38 +115,29 @@ impl Bus {
         idx: usize,
         f: impl FnOnce(&mut dyn Node, &mut NodeCtx<'_>) -> R,
     ) -> Option<R> {
-        let now = self.now;
-        let generation = self.generation;
-        let node_count = self.tree.node_count().min(63) as u8;
-        let bus_idle = matches!(self.medium, Medium::Idle { .. });
-        let rx_crc = self.rx_crc;
-        // The node, its PHY registers, its timers and the command list are
-        // disjoint parts of the bus: borrowed side by side, nothing moves.
-        // The registers change only through `write_phy_register`, which
-        // also lists the write: a callback that asked for nothing left
-        // them as they were.
-        let (result, regs, asked) = {
-            let Bus { slots, scratch, .. } = self;
-            let slot = slots.get_mut(idx)?;
-            let node = slot.node.as_mut()?;
-            slot.dispatches += 1;
-            let mut regs = slot.regs;
-            let phy_id = slot.phy.unwrap_or(NodeId::BROADCAST_PHY);
-            let mut ctx = NodeCtx {
-                now,
-                rx_crc,
-                phy_id,
-                generation,
-                node_count,
-                bus_idle,
-                timers: &slot.timers,
-                regs: &mut regs,
-                cmds: scratch,
-            };
-            let result = f(node.as_mut(), &mut ctx);
-            (result, regs, !scratch.is_empty())
-        };
-        if asked {
+        let view = self.ctx_view();
+        let Bus { slots, scratch, .. } = self;
+        let (result, regs) = call_node(slots, scratch, view, idx, f)?;
+        self.after_call(idx, regs);
+        Some(result)
+    }
+
+    /// What every node sees of the bus in a callback now.
+    fn ctx_view(&self) -> CtxView {
+        CtxView {
+            now: self.now,
+            generation: self.generation,
+            node_count: self.tree.node_count().min(63) as u8,
+            bus_idle: matches!(self.medium, Medium::Idle { .. }),
+            rx_crc: self.rx_crc,
+        }
+    }
+
+    /// Carry out what node `idx` asked for in the call that just returned
+    /// (its PHY registers `regs` as it left them), if it asked for
+    /// anything.
+    fn after_call(&mut self, idx: usize, regs: PhyRegisters) {
+        if !self.scratch.is_empty() {
             let mut cmds = std::mem::take(&mut self.scratch);
             self.apply(idx, regs, &mut cmds);
             cmds.transmits.clear();
@@ -148,7 +146,35 @@ impl Bus {
             cmds.reports.clear();
             self.scratch = cmds;
         }
-        Some(result)
+    }
+
+    /// Hand node `idx` (unless it stopped answering) the packet of the
+    /// subaction at `pos` in the table, as it arrives now at `speed`: the
+    /// bytes are lent from the subaction, not copied. What the node asked
+    /// for is carried out after the call.
+    pub(super) fn dispatch_receive(
+        &mut self,
+        idx: usize,
+        pos: usize,
+        speed: Speed,
+    ) -> Option<RxReply> {
+        if self.slots.get(idx).is_none_or(|s| s.muted) {
+            return None;
+        }
+        let view = self.ctx_view();
+        let now = view.now;
+        let Bus {
+            slots,
+            scratch,
+            subs,
+            ..
+        } = self;
+        let bytes = &subs.0.get(pos)?.bytes[..];
+        let (reply, regs) = call_node(slots, scratch, view, idx, |n, ctx| {
+            n.on_receive(now, bytes, speed, ctx)
+        })?;
+        self.after_call(idx, regs);
+        Some(reply)
     }
 
     /// Dispatch to a node unless it stopped answering.
@@ -307,7 +333,7 @@ impl Bus {
             return false;
         }
         self.slots[idx].queue.push_back(Pending {
-            bytes: Arc::from(packet),
+            bytes: packet,
             speed,
             class,
             token: Some(token),
@@ -353,6 +379,52 @@ impl Bus {
             _ => {}
         }
     }
+}
+
+/// The bus's state a [`NodeCtx`] shows, taken before the call.
+#[derive(Clone, Copy)]
+struct CtxView {
+    now: SimTime,
+    generation: u32,
+    node_count: u8,
+    bus_idle: bool,
+    rx_crc: Option<CrcStatus>,
+}
+
+/// Call `f` on node `idx` of `slots` with a [`NodeCtx`] over `view`; what
+/// it asks for goes into `scratch`. Returns its result and its PHY
+/// registers as it left them (`None`: no such node, or it is in a call
+/// already).
+fn call_node<R>(
+    slots: &mut [Slot],
+    scratch: &mut Commands,
+    view: CtxView,
+    idx: usize,
+    f: impl FnOnce(&mut dyn Node, &mut NodeCtx<'_>) -> R,
+) -> Option<(R, PhyRegisters)> {
+    // The node, its PHY registers, its timers and the command list are
+    // disjoint parts of the bus: borrowed side by side, nothing moves.
+    // The registers change only through `write_phy_register`, which
+    // also lists the write: a callback that asked for nothing left
+    // them as they were.
+    let slot = slots.get_mut(idx)?;
+    let node = slot.node.as_mut()?;
+    slot.dispatches += 1;
+    let mut regs = slot.regs;
+    let phy_id = slot.phy.unwrap_or(NodeId::BROADCAST_PHY);
+    let mut ctx = NodeCtx {
+        now: view.now,
+        rx_crc: view.rx_crc,
+        phy_id,
+        generation: view.generation,
+        node_count: view.node_count,
+        bus_idle: view.bus_idle,
+        timers: &slot.timers,
+        regs: &mut regs,
+        cmds: scratch,
+    };
+    let result = f(node.as_mut(), &mut ctx);
+    Some((result, regs))
 }
 
 #[cfg(test)]

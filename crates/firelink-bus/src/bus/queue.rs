@@ -2,52 +2,36 @@
 //! insertion order), kept in three places by how it behaves.
 //!
 //! - General events (arbitration, packet starts, acks, notifications...)
-//!   sit in a binary heap.
-//! - Node timers sit in an ordered map, so a timer that is cancelled or
-//!   set again leaves at once instead of lingering in the heap until its
+//!   sit in a sorted ring buffer (a few at a time, nearly always queued
+//!   later than those already there: an insertion at or near the back
+//!   and a pop from the front cost less than a heap's sifting).
+//! - Node timers sit in a sorted list, so a timer that is cancelled or
+//!   set again leaves at once instead of lingering in the queue until its
 //!   time (a PC's 100 ms split time-outs, cancelled after every read,
 //!   would otherwise pile up by the hundred).
 //! - A packet's deliveries, one per node it reaches, form a *wave*: their
 //!   arrival times are known together and they come out one by one in
-//!   order, without a heap operation each.
+//!   order, without a queue operation each.
 //!
 //! Each event takes its insertion number when it is queued (a wave takes
 //! one per delivery, in the order the nodes are listed), and `pop` always
 //! returns the smallest (time, number) of the three: the order is exactly
-//! the one a single heap would give.
+//! the one a single priority queue would give.
 
 use std::cell::Cell;
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
+use std::collections::VecDeque;
 
 use super::Ev;
 use crate::time::SimTime;
 use crate::trace::PacketId;
 
-/// An event in the heap.
+/// A general event.
 #[derive(Debug)]
 struct Queued {
     time: SimTime,
     seq: u64,
     epoch: Option<u64>,
     ev: Ev,
-}
-
-impl PartialEq for Queued {
-    fn eq(&self, other: &Self) -> bool {
-        (self.time, self.seq) == (other.time, other.seq)
-    }
-}
-impl Eq for Queued {}
-impl PartialOrd for Queued {
-    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl Ord for Queued {
-    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-        (self.time, self.seq).cmp(&(other.time, other.seq))
-    }
 }
 
 /// One delivery of a wave.
@@ -82,10 +66,20 @@ pub(super) struct Popped {
     pub ev: Ev,
 }
 
+/// A packet's delivery taken off the queue.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Delivery {
+    pub time: SimTime,
+    /// The bus epoch of the packet.
+    pub epoch: u64,
+    pub sub: PacketId,
+    pub node: usize,
+}
+
 /// Where the next event comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Source {
-    Heap,
+    General,
     Timer,
     Wave(usize),
 }
@@ -93,7 +87,8 @@ enum Source {
 /// The queue. See the module docs.
 #[derive(Debug, Default)]
 pub(super) struct EventQueue {
-    heap: BinaryHeap<Reverse<Queued>>,
+    /// General events in (time, number) order, the next first.
+    general: VecDeque<Queued>,
     /// ((time, number), (node, token)), latest first: the next timer is
     /// the last (a handful are armed at a time; a sorted vector beats a
     /// tree there).
@@ -122,12 +117,20 @@ impl EventQueue {
     /// Queue `ev` at `time`.
     pub fn push(&mut self, time: SimTime, epoch: Option<u64>, ev: Ev) {
         let seq = self.next_seq();
-        self.heap.push(Reverse(Queued {
+        let q = Queued {
             time,
             seq,
             epoch,
             ev,
-        }));
+        };
+        // Its number is the highest yet: it goes after every event at
+        // its time or earlier.
+        if self.general.back().is_none_or(|last| last.time <= time) {
+            self.general.push_back(q);
+        } else {
+            let at = self.general.partition_point(|e| e.time <= time);
+            self.general.insert(at, q);
+        }
     }
 
     /// Queue node `node`'s timer `token` at `time`; returns its number
@@ -203,8 +206,8 @@ impl EventQueue {
                 best = Some((source, key.0, key.1));
             }
         };
-        if let Some(Reverse(q)) = self.heap.peek() {
-            consider(Source::Heap, (q.time, q.seq));
+        if let Some(q) = self.general.front() {
+            consider(Source::General, (q.time, q.seq));
         }
         if let Some(&(key, _)) = self.timers.last() {
             consider(Source::Timer, key);
@@ -239,7 +242,7 @@ impl EventQueue {
         let (source, _, _) = self.first()?;
         self.next.set(None);
         match source {
-            Source::Heap => self.heap.pop().map(|Reverse(q)| Popped {
+            Source::General => self.general.pop_front().map(|q| Popped {
                 time: q.time,
                 epoch: q.epoch,
                 ev: q.ev,
@@ -257,39 +260,61 @@ impl EventQueue {
                     },
                 }),
             Source::Wave(i) => {
-                let wave = self.waves.get_mut(i)?;
-                let a = *wave.arrivals.get(wave.next)?;
-                wave.next += 1;
-                let (sub, epoch) = (wave.sub, wave.epoch);
-                if wave.next >= wave.arrivals.len() {
-                    let done = self.waves.swap_remove(i);
-                    self.spare.push(done.arrivals);
-                } else {
-                    self.wave_goes_on(i);
-                }
+                let d = self.take_delivery(i)?;
                 Some(Popped {
-                    time: a.time,
-                    epoch: Some(epoch),
-                    ev: Ev::Deliver { sub, node: a.node },
+                    time: d.time,
+                    epoch: Some(d.epoch),
+                    ev: Ev::Deliver {
+                        sub: d.sub,
+                        node: d.node,
+                    },
                 })
             }
         }
+    }
+
+    /// Take the next event if it is a packet's delivery (the commonest
+    /// event, handed over without making an [`Ev`] of it); otherwise take
+    /// nothing (`None`).
+    pub fn pop_delivery(&mut self) -> Option<Delivery> {
+        let (Source::Wave(i), _, _) = self.first()? else {
+            return None;
+        };
+        self.next.set(None);
+        self.take_delivery(i)
+    }
+
+    /// Take the next delivery of wave `i`.
+    fn take_delivery(&mut self, i: usize) -> Option<Delivery> {
+        let wave = self.waves.get_mut(i)?;
+        let a = *wave.arrivals.get(wave.next)?;
+        wave.next += 1;
+        let (sub, epoch) = (wave.sub, wave.epoch);
+        if wave.next >= wave.arrivals.len() {
+            let done = self.waves.swap_remove(i);
+            self.spare.push(done.arrivals);
+        } else {
+            self.wave_goes_on(i);
+        }
+        Some(Delivery {
+            time: a.time,
+            epoch,
+            sub,
+            node: a.node,
+        })
     }
 
     /// Whether nothing is queued but cycle-start ticks.
     pub fn only_cycle_ticks(&self) -> bool {
         self.timers.is_empty()
             && self.waves.is_empty()
-            && self
-                .heap
-                .iter()
-                .all(|Reverse(q)| matches!(q.ev, Ev::CycleTick))
+            && self.general.iter().all(|q| matches!(q.ev, Ev::CycleTick))
     }
 
     /// Events queued.
     #[cfg(test)]
     pub fn len(&self) -> usize {
-        self.heap.len()
+        self.general.len()
             + self.timers.len()
             + self
                 .waves
@@ -345,6 +370,28 @@ mod tests {
         }
         assert_eq!(q.len(), 0);
         assert!(q.only_cycle_ticks());
+    }
+
+    #[test]
+    fn general_events_queued_out_of_time_order_come_out_in_time_then_insertion_order() {
+        let mut q = EventQueue::default();
+        let tokens = [(30, 1), (10, 2), (20, 3), (10, 4), (5, 5), (20, 6), (40, 7)];
+        for (ns, node) in tokens {
+            q.push(t(ns), None, Ev::Unmute { node });
+        }
+        let mut got = Vec::new();
+        while let Some(p) = q.pop() {
+            let Ev::Unmute { node } = p.ev else {
+                panic!("not an unmute: {:?}", p.ev);
+            };
+            got.push((p.time, node));
+        }
+        let want: Vec<(SimTime, usize)> =
+            [(5, 5), (10, 2), (10, 4), (20, 3), (20, 6), (30, 1), (40, 7)]
+                .iter()
+                .map(|&(ns, node)| (t(ns), node))
+                .collect();
+        assert_eq!(got, want);
     }
 
     #[test]
