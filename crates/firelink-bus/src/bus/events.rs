@@ -136,16 +136,24 @@ impl Bus {
     /// Carry out what node `idx` asked for in the call that just returned
     /// (its PHY registers `regs` as it left them), if it asked for
     /// anything.
+    #[inline(always)]
     fn after_call(&mut self, idx: usize, regs: PhyRegisters) {
         if !self.scratch.is_empty() {
-            let mut cmds = std::mem::take(&mut self.scratch);
-            self.apply(idx, regs, &mut cmds);
-            cmds.transmits.clear();
-            cmds.timers.clear();
-            cmds.phy_writes.clear();
-            cmds.reports.clear();
-            self.scratch = cmds;
+            self.apply_scratch(idx, regs);
         }
+    }
+
+    /// [`apply`](Self::apply) the command list of the call that just
+    /// returned, leaving it empty.
+    #[inline(never)]
+    fn apply_scratch(&mut self, idx: usize, regs: PhyRegisters) {
+        let mut cmds = std::mem::take(&mut self.scratch);
+        self.apply(idx, regs, &mut cmds);
+        cmds.transmits.clear();
+        cmds.timers.clear();
+        cmds.phy_writes.clear();
+        cmds.reports.clear();
+        self.scratch = cmds;
     }
 
     /// Hand node `idx` (unless it stopped answering) the packet of the
