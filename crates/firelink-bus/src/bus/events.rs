@@ -117,8 +117,8 @@ impl Bus {
     ) -> Option<R> {
         let view = self.ctx_view();
         let Bus { slots, scratch, .. } = self;
-        let (result, regs) = call_node(slots, scratch, view, idx, f)?;
-        self.after_call(idx, regs);
+        let (result, old_gap) = call_node(slots, scratch, view, idx, f)?;
+        self.after_call(idx, old_gap);
         Some(result)
     }
 
@@ -134,21 +134,20 @@ impl Bus {
     }
 
     /// Carry out what node `idx` asked for in the call that just returned
-    /// (its PHY registers `regs` as it left them), if it asked for
-    /// anything.
+    /// (its gap count `old_gap` before it), if it asked for anything.
     #[inline(always)]
-    fn after_call(&mut self, idx: usize, regs: PhyRegisters) {
+    fn after_call(&mut self, idx: usize, old_gap: u8) {
         if !self.scratch.is_empty() {
-            self.apply_scratch(idx, regs);
+            self.apply_scratch(idx, old_gap);
         }
     }
 
     /// [`apply`](Self::apply) the command list of the call that just
     /// returned, leaving it empty.
     #[inline(never)]
-    fn apply_scratch(&mut self, idx: usize, regs: PhyRegisters) {
+    fn apply_scratch(&mut self, idx: usize, old_gap: u8) {
         let mut cmds = std::mem::take(&mut self.scratch);
-        self.apply(idx, regs, &mut cmds);
+        self.apply(idx, old_gap, &mut cmds);
         cmds.transmits.clear();
         cmds.timers.clear();
         cmds.phy_writes.clear();
@@ -178,10 +177,10 @@ impl Bus {
             ..
         } = self;
         let bytes = &subs.0.get(pos)?.bytes[..];
-        let (reply, regs) = call_node(slots, scratch, view, idx, |n, ctx| {
+        let (reply, old_gap) = call_node(slots, scratch, view, idx, |n, ctx| {
             n.on_receive(now, bytes, speed, ctx)
         })?;
-        self.after_call(idx, regs);
+        self.after_call(idx, old_gap);
         Some(reply)
     }
 
@@ -197,11 +196,12 @@ impl Bus {
         self.dispatch_any(idx, f)
     }
 
-    /// Carry out what node `idx` did in a callback: its PHY registers
-    /// (`regs`, as it left them), its reports, timers and transmit
-    /// requests; a bus reset it asked for through IBR/ISBR starts last.
-    pub(super) fn apply(&mut self, idx: usize, regs: PhyRegisters, cmds: &mut Commands) {
-        let reset = self.apply_phy_registers(idx, regs);
+    /// Carry out what node `idx` did in a callback: its PHY register
+    /// writes (its gap count was `old_gap` before), its reports, timers
+    /// and transmit requests; a bus reset it asked for through IBR/ISBR
+    /// starts last.
+    pub(super) fn apply(&mut self, idx: usize, old_gap: u8, cmds: &mut Commands) {
+        let reset = self.apply_phy_registers(idx, old_gap);
         for report in cmds.reports.drain(..) {
             self.apply_report(idx, report);
         }
@@ -223,13 +223,12 @@ impl Bus {
         }
     }
 
-    /// Node `idx`'s PHY registers as it left them; a gap-count change is
-    /// noted. Returns the bus reset it asked for: `Some(false)` a long one
-    /// (IBR), `Some(true)` a short one (ISBR only).
-    fn apply_phy_registers(&mut self, idx: usize, regs: PhyRegisters) -> Option<bool> {
+    /// Node `idx`'s PHY registers as a callback left them (its gap count
+    /// was `old_gap` before): a gap-count change is noted, IBR and ISBR
+    /// are taken. Returns the bus reset it asked for: `Some(false)` a long
+    /// one (IBR), `Some(true)` a short one (ISBR only).
+    fn apply_phy_registers(&mut self, idx: usize, old_gap: u8) -> Option<bool> {
         let slot = &mut self.slots[idx];
-        let old_gap = slot.regs.gap_count();
-        slot.regs = regs;
         let mut reset = None;
         if slot.regs.take_ibr() {
             reset = Some(false);
@@ -400,25 +399,26 @@ struct CtxView {
 }
 
 /// Call `f` on node `idx` of `slots` with a [`NodeCtx`] over `view`; what
-/// it asks for goes into `scratch`. Returns its result and its PHY
-/// registers as it left them (`None`: no such node, or it is in a call
-/// already).
+/// it asks for goes into `scratch`, and its PHY register writes into its
+/// registers at once. Returns its result and its gap count before the
+/// call (`None`: no such node, or it is in a call already).
 fn call_node<R>(
     slots: &mut [Slot],
     scratch: &mut Commands,
     view: CtxView,
     idx: usize,
     f: impl FnOnce(&mut dyn Node, &mut NodeCtx<'_>) -> R,
-) -> Option<(R, PhyRegisters)> {
+) -> Option<(R, u8)> {
     // The node, its PHY registers, its timers and the command list are
     // disjoint parts of the bus: borrowed side by side, nothing moves.
     // The registers change only through `write_phy_register`, which
     // also lists the write: a callback that asked for nothing left
-    // them as they were.
+    // them as they were, and one that wrote them is applied at once
+    // after the call (`apply`).
     let slot = slots.get_mut(idx)?;
     let node = slot.node.as_mut()?;
     slot.dispatches += 1;
-    let mut regs = slot.regs;
+    let old_gap = slot.regs.gap_count();
     let phy_id = slot.phy.unwrap_or(NodeId::BROADCAST_PHY);
     let mut ctx = NodeCtx {
         now: view.now,
@@ -428,11 +428,11 @@ fn call_node<R>(
         node_count: view.node_count,
         bus_idle: view.bus_idle,
         timers: &slot.timers,
-        regs: &mut regs,
+        regs: &mut slot.regs,
         cmds: scratch,
     };
     let result = f(node.as_mut(), &mut ctx);
-    Some((result, regs))
+    Some((result, old_gap))
 }
 
 #[cfg(test)]
