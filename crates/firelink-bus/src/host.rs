@@ -16,7 +16,7 @@
 //!   [`HostModel::seed001`] is seed 001's PC instead: quadlet and block
 //!   transactions priced apart, blocks by their size (Fig. 20 and 21).
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::VecDeque;
 
 use firelink_wire::packet::{Ack, NodeId, Packet, Speed, Tcode};
 use rand_chacha::ChaCha8Rng;
@@ -112,13 +112,69 @@ struct Pending {
     response: Option<(Vec<u8>, bool)>,
 }
 
+/// The open transactions by token, in token order (a few at a time, and
+/// tokens only grow: a sorted vector, where a new one goes at the end).
+#[derive(Debug, Default)]
+struct OpenTransactions(Vec<(u64, Pending)>);
+
+impl OpenTransactions {
+    fn position(&self, token: u64) -> Result<usize, usize> {
+        self.0.binary_search_by_key(&token, |e| e.0)
+    }
+
+    /// Open `token` (replacing an open one with the same token).
+    fn insert(&mut self, token: u64, p: Pending) {
+        match self.position(token) {
+            Ok(i) => {
+                if let Some(e) = self.0.get_mut(i) {
+                    e.1 = p;
+                }
+            }
+            Err(i) => self.0.insert(i, (token, p)),
+        }
+    }
+
+    fn contains_key(&self, token: &u64) -> bool {
+        self.position(*token).is_ok()
+    }
+
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    fn get(&self, token: &u64) -> Option<&Pending> {
+        let i = self.position(*token).ok()?;
+        self.0.get(i).map(|e| &e.1)
+    }
+
+    fn get_mut(&mut self, token: &u64) -> Option<&mut Pending> {
+        let i = self.position(*token).ok()?;
+        self.0.get_mut(i).map(|e| &mut e.1)
+    }
+
+    fn remove(&mut self, token: &u64) -> Option<Pending> {
+        let i = self.position(*token).ok()?;
+        Some(self.0.remove(i).1)
+    }
+
+    /// Every open transaction, in token order.
+    fn iter(&self) -> std::slice::Iter<'_, (u64, Pending)> {
+        self.0.iter()
+    }
+
+    /// Every open token, in order.
+    fn tokens(&self) -> impl Iterator<Item = u64> + '_ {
+        self.0.iter().map(|e| e.0)
+    }
+}
+
 /// The PC's link layer. See the module docs.
 #[derive(Debug)]
 pub struct HostLink {
     name: String,
     class: ArbitrationClass,
     next_token: u64,
-    pending: BTreeMap<u64, Pending>,
+    pending: OpenTransactions,
     completions: VecDeque<Completion>,
     received: VecDeque<Received>,
     received_limit: usize,
@@ -144,7 +200,7 @@ impl HostLink {
             name: name.into(),
             class: ArbitrationClass::Fair,
             next_token: 1,
-            pending: BTreeMap::new(),
+            pending: OpenTransactions::default(),
             completions: VecDeque::new(),
             received: VecDeque::new(),
             received_limit: 4096,
@@ -398,7 +454,7 @@ impl Node for HostLink {
         self.phy_id = info.phy_id;
         self.generation = info.generation;
         self.resets += 1;
-        let open: Vec<u64> = self.pending.keys().copied().collect();
+        let open: Vec<u64> = self.pending.tokens().collect();
         for token in open {
             self.finish(token, now, Outcome::BusReset, ctx);
         }
@@ -427,7 +483,7 @@ impl Node for HostLink {
         if to_us && tcode.is_response() {
             let source = view.source_id();
             let tl = view.tl();
-            let found = self.pending.iter().find_map(|(&token, p)| {
+            let found = self.pending.iter().find_map(|&(token, ref p)| {
                 (p.destination.phy() == source.phy()
                     && p.tl == tl
                     && response_tcode(p.tcode) == Some(tcode)

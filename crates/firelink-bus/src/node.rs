@@ -331,14 +331,15 @@ impl NodeCtx<'_> {
     }
 
     /// [`timer`](Self::timer) for two tokens at once (one look at the
-    /// armed timers).
+    /// armed timers; a token is armed at most once, as setting it again
+    /// replaces it).
     pub fn timer_pair(&self, first: u64, second: u64) -> (Option<SimTime>, Option<SimTime>) {
         let (mut a, mut b) = (None, None);
         for t in self.timers {
-            if t.0 == first && a.is_none() {
+            if t.0 == first {
                 a = Some(t.2);
             }
-            if t.0 == second && b.is_none() {
+            if t.0 == second {
                 b = Some(t.2);
             }
         }

@@ -62,7 +62,7 @@ impl Bus {
             self.injector.rng.fill_bytes(&mut bytes);
             let speed = self.slots[i].cfg.max_speed;
             self.slots[i].queue.push_front(Pending {
-                bytes: Arc::from(bytes),
+                bytes,
                 speed,
                 class: ArbitrationClass::Isochronous,
                 token: None,
@@ -179,7 +179,7 @@ impl Bus {
         let start =
             now + self.cfg.timing.hop_delay * u64::from(w.depth) + self.cfg.timing.arbitration_base;
         if pending.kind == PacketKind::CycleStart {
-            pending.bytes = Arc::from(cycle_start_packet(w.phy, start));
+            pending.bytes = cycle_start_packet(w.phy, start);
         }
         if pending.class == ArbitrationClass::Fair && pending.kind != PacketKind::CycleStart {
             self.slots[idx].arb_enable = false;
@@ -197,13 +197,13 @@ impl Bus {
             kind: pending.kind,
             sender: idx,
             sender_phy: w.phy,
-            bytes: pending.bytes.clone(),
+            bytes: std::mem::take(&mut pending.bytes),
             speed: pending.speed,
             token: pending.token,
             dest: None,
             reply: None,
             end: start,
-            faults: pending.faults.clone(),
+            faults: std::mem::take(&mut pending.faults),
             drop_ack: false,
             corrupt_ack: false,
             busy: false,
@@ -212,10 +212,12 @@ impl Bus {
             crc: None,
             answers: None,
         };
-        let duplicate = self.decide_faults(&mut sub, now);
+        let (duplicate, original) = self.decide_faults(&mut sub, now);
         if duplicate {
+            // The duplicate carries the packet as the node sent it.
+            let bytes = original.unwrap_or_else(|| sub.bytes.clone());
             self.slots[idx].queue.push_front(Pending {
-                bytes: pending.bytes.clone(),
+                bytes,
                 speed: pending.speed,
                 class: pending.class,
                 token: None,

@@ -26,7 +26,7 @@ impl Bus {
             .is_some_and(|p| p.kind == PacketKind::CycleStart)
         {
             slot.queue.push_front(Pending {
-                bytes: Arc::from(Vec::new()),
+                bytes: Vec::new(),
                 speed: Speed::S100,
                 class: ArbitrationClass::Priority,
                 token: None,

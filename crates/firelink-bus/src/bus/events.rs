@@ -13,6 +13,13 @@ impl Bus {
 
     /// Process the next event. Returns false if there was none.
     pub fn step(&mut self) -> bool {
+        if let Some(d) = self.events.pop_delivery() {
+            self.now = self.now.max(d.time);
+            if d.epoch == self.epoch {
+                self.deliver(d.sub, d.node);
+            }
+            return true;
+        }
         let Some(q) = self.events.pop() else {
             return false;
         };
@@ -108,47 +115,73 @@ impl Bus {
         idx: usize,
         f: impl FnOnce(&mut dyn Node, &mut NodeCtx<'_>) -> R,
     ) -> Option<R> {
-        let now = self.now;
-        let generation = self.generation;
-        let node_count = self.tree.node_count().min(63) as u8;
-        let bus_idle = matches!(self.medium, Medium::Idle { .. });
-        let rx_crc = self.rx_crc;
-        // The node, its PHY registers, its timers and the command list are
-        // disjoint parts of the bus: borrowed side by side, nothing moves.
-        // The registers change only through `write_phy_register`, which
-        // also lists the write: a callback that asked for nothing left
-        // them as they were.
-        let (result, regs, asked) = {
-            let Bus { slots, scratch, .. } = self;
-            let slot = slots.get_mut(idx)?;
-            let node = slot.node.as_mut()?;
-            slot.dispatches += 1;
-            let mut regs = slot.regs;
-            let phy_id = slot.phy.unwrap_or(NodeId::BROADCAST_PHY);
-            let mut ctx = NodeCtx {
-                now,
-                rx_crc,
-                phy_id,
-                generation,
-                node_count,
-                bus_idle,
-                timers: &slot.timers,
-                regs: &mut regs,
-                cmds: scratch,
-            };
-            let result = f(node.as_mut(), &mut ctx);
-            (result, regs, !scratch.is_empty())
-        };
-        if asked {
-            let mut cmds = std::mem::take(&mut self.scratch);
-            self.apply(idx, regs, &mut cmds);
-            cmds.transmits.clear();
-            cmds.timers.clear();
-            cmds.phy_writes.clear();
-            cmds.reports.clear();
-            self.scratch = cmds;
-        }
+        let view = self.ctx_view();
+        let Bus { slots, scratch, .. } = self;
+        let (result, old_gap) = call_node(slots, scratch, view, idx, f)?;
+        self.after_call(idx, old_gap);
         Some(result)
+    }
+
+    /// What every node sees of the bus in a callback now.
+    fn ctx_view(&self) -> CtxView {
+        CtxView {
+            now: self.now,
+            generation: self.generation,
+            node_count: self.tree.node_count().min(63) as u8,
+            bus_idle: matches!(self.medium, Medium::Idle { .. }),
+            rx_crc: self.rx_crc,
+        }
+    }
+
+    /// Carry out what node `idx` asked for in the call that just returned
+    /// (its gap count `old_gap` before it), if it asked for anything.
+    #[inline(always)]
+    fn after_call(&mut self, idx: usize, old_gap: u8) {
+        if !self.scratch.is_empty() {
+            self.apply_scratch(idx, old_gap);
+        }
+    }
+
+    /// [`apply`](Self::apply) the command list of the call that just
+    /// returned, leaving it empty.
+    #[inline(never)]
+    fn apply_scratch(&mut self, idx: usize, old_gap: u8) {
+        let mut cmds = std::mem::take(&mut self.scratch);
+        self.apply(idx, old_gap, &mut cmds);
+        cmds.transmits.clear();
+        cmds.timers.clear();
+        cmds.phy_writes.clear();
+        cmds.reports.clear();
+        self.scratch = cmds;
+    }
+
+    /// Hand node `idx` (unless it stopped answering) the packet of the
+    /// subaction at `pos` in the table, as it arrives now at `speed`: the
+    /// bytes are lent from the subaction, not copied. What the node asked
+    /// for is carried out after the call.
+    pub(super) fn dispatch_receive(
+        &mut self,
+        idx: usize,
+        pos: usize,
+        speed: Speed,
+    ) -> Option<RxReply> {
+        if self.slots.get(idx).is_none_or(|s| s.muted) {
+            return None;
+        }
+        let view = self.ctx_view();
+        let now = view.now;
+        let Bus {
+            slots,
+            scratch,
+            subs,
+            ..
+        } = self;
+        let bytes = &subs.0.get(pos)?.bytes[..];
+        let (reply, old_gap) = call_node(slots, scratch, view, idx, |n, ctx| {
+            n.on_receive(now, bytes, speed, ctx)
+        })?;
+        self.after_call(idx, old_gap);
+        Some(reply)
     }
 
     /// Dispatch to a node unless it stopped answering.
@@ -163,11 +196,12 @@ impl Bus {
         self.dispatch_any(idx, f)
     }
 
-    /// Carry out what node `idx` did in a callback: its PHY registers
-    /// (`regs`, as it left them), its reports, timers and transmit
-    /// requests; a bus reset it asked for through IBR/ISBR starts last.
-    pub(super) fn apply(&mut self, idx: usize, regs: PhyRegisters, cmds: &mut Commands) {
-        let reset = self.apply_phy_registers(idx, regs);
+    /// Carry out what node `idx` did in a callback: its PHY register
+    /// writes (its gap count was `old_gap` before), its reports, timers
+    /// and transmit requests; a bus reset it asked for through IBR/ISBR
+    /// starts last.
+    pub(super) fn apply(&mut self, idx: usize, old_gap: u8, cmds: &mut Commands) {
+        let reset = self.apply_phy_registers(idx, old_gap);
         for report in cmds.reports.drain(..) {
             self.apply_report(idx, report);
         }
@@ -189,13 +223,12 @@ impl Bus {
         }
     }
 
-    /// Node `idx`'s PHY registers as it left them; a gap-count change is
-    /// noted. Returns the bus reset it asked for: `Some(false)` a long one
-    /// (IBR), `Some(true)` a short one (ISBR only).
-    fn apply_phy_registers(&mut self, idx: usize, regs: PhyRegisters) -> Option<bool> {
+    /// Node `idx`'s PHY registers as a callback left them (its gap count
+    /// was `old_gap` before): a gap-count change is noted, IBR and ISBR
+    /// are taken. Returns the bus reset it asked for: `Some(false)` a long
+    /// one (IBR), `Some(true)` a short one (ISBR only).
+    fn apply_phy_registers(&mut self, idx: usize, old_gap: u8) -> Option<bool> {
         let slot = &mut self.slots[idx];
-        let old_gap = slot.regs.gap_count();
-        slot.regs = regs;
         let mut reset = None;
         if slot.regs.take_ibr() {
             reset = Some(false);
@@ -307,7 +340,7 @@ impl Bus {
             return false;
         }
         self.slots[idx].queue.push_back(Pending {
-            bytes: Arc::from(packet),
+            bytes: packet,
             speed,
             class,
             token: Some(token),
@@ -353,6 +386,53 @@ impl Bus {
             _ => {}
         }
     }
+}
+
+/// The bus's state a [`NodeCtx`] shows, taken before the call.
+#[derive(Clone, Copy)]
+struct CtxView {
+    now: SimTime,
+    generation: u32,
+    node_count: u8,
+    bus_idle: bool,
+    rx_crc: Option<CrcStatus>,
+}
+
+/// Call `f` on node `idx` of `slots` with a [`NodeCtx`] over `view`; what
+/// it asks for goes into `scratch`, and its PHY register writes into its
+/// registers at once. Returns its result and its gap count before the
+/// call (`None`: no such node, or it is in a call already).
+fn call_node<R>(
+    slots: &mut [Slot],
+    scratch: &mut Commands,
+    view: CtxView,
+    idx: usize,
+    f: impl FnOnce(&mut dyn Node, &mut NodeCtx<'_>) -> R,
+) -> Option<(R, u8)> {
+    // The node, its PHY registers, its timers and the command list are
+    // disjoint parts of the bus: borrowed side by side, nothing moves.
+    // The registers change only through `write_phy_register`, which
+    // also lists the write: a callback that asked for nothing left
+    // them as they were, and one that wrote them is applied at once
+    // after the call (`apply`).
+    let slot = slots.get_mut(idx)?;
+    let node = slot.node.as_mut()?;
+    slot.dispatches += 1;
+    let old_gap = slot.regs.gap_count();
+    let phy_id = slot.phy.unwrap_or(NodeId::BROADCAST_PHY);
+    let mut ctx = NodeCtx {
+        now: view.now,
+        rx_crc: view.rx_crc,
+        phy_id,
+        generation: view.generation,
+        node_count: view.node_count,
+        bus_idle: view.bus_idle,
+        timers: &slot.timers,
+        regs: &mut slot.regs,
+        cmds: scratch,
+    };
+    let result = f(node.as_mut(), &mut ctx);
+    Some((result, old_gap))
 }
 
 #[cfg(test)]

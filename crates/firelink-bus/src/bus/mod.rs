@@ -167,7 +167,9 @@ enum Medium {
 
 #[derive(Debug)]
 struct Pending {
-    bytes: Arc<[u8]>,
+    /// The packet as the node handed it over (moved, not copied, into
+    /// its subaction; a trace record copies it).
+    bytes: Vec<u8>,
     speed: Speed,
     class: ArbitrationClass,
     token: Option<u64>,
@@ -210,7 +212,7 @@ struct Sub {
     kind: PacketKind,
     sender: usize,
     sender_phy: u8,
-    bytes: Arc<[u8]>,
+    bytes: Vec<u8>,
     speed: Speed,
     token: Option<u64>,
     dest: Option<usize>,

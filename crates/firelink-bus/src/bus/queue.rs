@@ -2,52 +2,36 @@
 //! insertion order), kept in three places by how it behaves.
 //!
 //! - General events (arbitration, packet starts, acks, notifications...)
-//!   sit in a binary heap.
-//! - Node timers sit in an ordered map, so a timer that is cancelled or
-//!   set again leaves at once instead of lingering in the heap until its
+//!   sit in a sorted ring buffer (a few at a time, nearly always queued
+//!   later than those already there: an insertion at or near the back
+//!   and a pop from the front cost less than a heap's sifting).
+//! - Node timers sit in a sorted list, so a timer that is cancelled or
+//!   set again leaves at once instead of lingering in the queue until its
 //!   time (a PC's 100 ms split time-outs, cancelled after every read,
 //!   would otherwise pile up by the hundred).
 //! - A packet's deliveries, one per node it reaches, form a *wave*: their
 //!   arrival times are known together and they come out one by one in
-//!   order, without a heap operation each.
+//!   order, without a queue operation each.
 //!
 //! Each event takes its insertion number when it is queued (a wave takes
 //! one per delivery, in the order the nodes are listed), and `pop` always
 //! returns the smallest (time, number) of the three: the order is exactly
-//! the one a single heap would give.
+//! the one a single priority queue would give.
 
 use std::cell::Cell;
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
+use std::collections::VecDeque;
 
 use super::Ev;
 use crate::time::SimTime;
 use crate::trace::PacketId;
 
-/// An event in the heap.
+/// A general event.
 #[derive(Debug)]
 struct Queued {
     time: SimTime,
     seq: u64,
     epoch: Option<u64>,
     ev: Ev,
-}
-
-impl PartialEq for Queued {
-    fn eq(&self, other: &Self) -> bool {
-        (self.time, self.seq) == (other.time, other.seq)
-    }
-}
-impl Eq for Queued {}
-impl PartialOrd for Queued {
-    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl Ord for Queued {
-    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-        (self.time, self.seq).cmp(&(other.time, other.seq))
-    }
 }
 
 /// One delivery of a wave.
@@ -82,10 +66,20 @@ pub(super) struct Popped {
     pub ev: Ev,
 }
 
+/// A packet's delivery taken off the queue.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Delivery {
+    pub time: SimTime,
+    /// The bus epoch of the packet.
+    pub epoch: u64,
+    pub sub: PacketId,
+    pub node: usize,
+}
+
 /// Where the next event comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Source {
-    Heap,
+    General,
     Timer,
     Wave(usize),
 }
@@ -93,7 +87,8 @@ enum Source {
 /// The queue. See the module docs.
 #[derive(Debug, Default)]
 pub(super) struct EventQueue {
-    heap: BinaryHeap<Reverse<Queued>>,
+    /// General events in (time, number) order, the next first.
+    general: VecDeque<Queued>,
     /// ((time, number), (node, token)), latest first: the next timer is
     /// the last (a handful are armed at a time; a sorted vector beats a
     /// tree there).
@@ -102,9 +97,11 @@ pub(super) struct EventQueue {
     /// Arrival buffers of finished waves, kept for the next ones.
     spare: Vec<Vec<Arrival>>,
     seq: u64,
-    /// The next event as last looked up, until the queue changes (a run
-    /// loop peeks at the time, then pops), and the first of the other
-    /// sources then (so a wave that goes on can often stay first without
+    /// The next event as last looked up (`None`: to be looked up again),
+    /// kept while events are queued and taken (a run loop peeks at the
+    /// time, then pops), and while it is known, a (time, number) no later
+    /// than the first event of every other source (so that a source that
+    /// goes on, or a new event, can often settle the next event without
     /// looking at the others again).
     next: Cell<Option<(Source, SimTime, u64)>>,
     runner_up: Cell<Option<(SimTime, u64)>>,
@@ -112,22 +109,58 @@ pub(super) struct EventQueue {
 
 impl EventQueue {
     fn next_seq(&mut self) -> u64 {
-        // Every change to the queue takes a number first: the next event
-        // must be looked up again.
-        self.next.set(None);
         self.seq += 1;
         self.seq
+    }
+
+    /// An event `key` = (time, number) was queued in `source`, where it is
+    /// now the first if it comes before the next event known: the next
+    /// event stays known. (The number is the highest yet, so `key` is
+    /// never equal to another.)
+    fn queued(&self, source: Source, key: (SimTime, u64)) {
+        let Some((_, time, seq)) = self.next.get() else {
+            return;
+        };
+        if key < (time, seq) {
+            // The old next event is now no later than the first of every
+            // source but the new one's.
+            self.next.set(Some((source, key.0, key.1)));
+            self.runner_up.set(Some((time, seq)));
+        } else if self.runner_up.get().is_none_or(|r| key < r) {
+            self.runner_up.set(Some(key));
+        }
+    }
+
+    /// After the next event was taken from `source`: its new first event
+    /// is the next one if it comes before every other source's first
+    /// (the others did not change). Otherwise the next event is looked
+    /// up again when asked for.
+    fn goes_on(&self, source: Source, head: Option<(SimTime, u64)>) {
+        if let Some(head) = head
+            && self.runner_up.get().is_none_or(|r| head < r)
+        {
+            self.next.set(Some((source, head.0, head.1)));
+        }
     }
 
     /// Queue `ev` at `time`.
     pub fn push(&mut self, time: SimTime, epoch: Option<u64>, ev: Ev) {
         let seq = self.next_seq();
-        self.heap.push(Reverse(Queued {
+        let q = Queued {
             time,
             seq,
             epoch,
             ev,
-        }));
+        };
+        // Its number is the highest yet: it goes after every event at
+        // its time or earlier.
+        if self.general.back().is_none_or(|last| last.time <= time) {
+            self.general.push_back(q);
+        } else {
+            let at = self.general.partition_point(|e| e.time <= time);
+            self.general.insert(at, q);
+        }
+        self.queued(Source::General, (time, seq));
     }
 
     /// Queue node `node`'s timer `token` at `time`; returns its number
@@ -138,6 +171,7 @@ impl EventQueue {
         let key = (time, seq);
         let at = self.timers.partition_point(|t| t.0 > key);
         self.timers.insert(at, (key, (node, token)));
+        self.queued(Source::Timer, key);
         seq
     }
 
@@ -146,7 +180,15 @@ impl EventQueue {
         let key = (time, seq);
         if let Ok(i) = self.timers.binary_search_by(|t| key.cmp(&t.0)) {
             self.timers.remove(i);
-            self.next.set(None);
+            // Only the next event leaving changes which is next (a
+            // runner-up that left stays a bound no later than the rest).
+            if self
+                .next
+                .get()
+                .is_some_and(|n| n.0 == Source::Timer && (n.1, n.2) == key)
+            {
+                self.next.set(None);
+            }
         }
     }
 
@@ -169,12 +211,17 @@ impl EventQueue {
             return;
         }
         list.sort_unstable_by_key(|a| (a.time, a.seq));
-        self.waves.push(Wave {
+        let wave = Wave {
             sub,
             epoch,
             arrivals: list,
             next: 0,
-        });
+        };
+        let head = wave.head();
+        self.waves.push(wave);
+        if let Some(head) = head {
+            self.queued(Source::Wave(self.waves.len() - 1), head);
+        }
     }
 
     /// The source of the next event and its (time, number).
@@ -203,8 +250,8 @@ impl EventQueue {
                 best = Some((source, key.0, key.1));
             }
         };
-        if let Some(Reverse(q)) = self.heap.peek() {
-            consider(Source::Heap, (q.time, q.seq));
+        if let Some(q) = self.general.front() {
+            consider(Source::General, (q.time, q.seq));
         }
         if let Some(&(key, _)) = self.timers.last() {
             consider(Source::Timer, key);
@@ -218,17 +265,6 @@ impl EventQueue {
         best
     }
 
-    /// After an event of wave `i` was taken (and the wave goes on): it
-    /// stays first if its next delivery comes before every other source.
-    fn wave_goes_on(&self, i: usize) {
-        let Some(head) = self.waves.get(i).and_then(Wave::head) else {
-            return;
-        };
-        if self.runner_up.get().is_none_or(|r| head < r) {
-            self.next.set(Some((Source::Wave(i), head.0, head.1)));
-        }
-    }
-
     /// Time of the next event.
     pub fn peek_time(&self) -> Option<SimTime> {
         self.first().map(|f| f.1)
@@ -239,15 +275,19 @@ impl EventQueue {
         let (source, _, _) = self.first()?;
         self.next.set(None);
         match source {
-            Source::Heap => self.heap.pop().map(|Reverse(q)| Popped {
-                time: q.time,
-                epoch: q.epoch,
-                ev: q.ev,
-            }),
-            Source::Timer => self
-                .timers
-                .pop()
-                .map(|((time, seq), (node, token))| Popped {
+            Source::General => {
+                let q = self.general.pop_front()?;
+                self.goes_on(source, self.general.front().map(|f| (f.time, f.seq)));
+                Some(Popped {
+                    time: q.time,
+                    epoch: q.epoch,
+                    ev: q.ev,
+                })
+            }
+            Source::Timer => {
+                let ((time, seq), (node, token)) = self.timers.pop()?;
+                self.goes_on(source, self.timers.last().map(|t| t.0));
+                Some(Popped {
                     time,
                     epoch: None,
                     ev: Ev::Timer {
@@ -255,41 +295,65 @@ impl EventQueue {
                         token,
                         stamp: seq,
                     },
-                }),
+                })
+            }
             Source::Wave(i) => {
-                let wave = self.waves.get_mut(i)?;
-                let a = *wave.arrivals.get(wave.next)?;
-                wave.next += 1;
-                let (sub, epoch) = (wave.sub, wave.epoch);
-                if wave.next >= wave.arrivals.len() {
-                    let done = self.waves.swap_remove(i);
-                    self.spare.push(done.arrivals);
-                } else {
-                    self.wave_goes_on(i);
-                }
+                let d = self.take_delivery(i)?;
                 Some(Popped {
-                    time: a.time,
-                    epoch: Some(epoch),
-                    ev: Ev::Deliver { sub, node: a.node },
+                    time: d.time,
+                    epoch: Some(d.epoch),
+                    ev: Ev::Deliver {
+                        sub: d.sub,
+                        node: d.node,
+                    },
                 })
             }
         }
+    }
+
+    /// Take the next event if it is a packet's delivery (the commonest
+    /// event, handed over without making an [`Ev`] of it); otherwise take
+    /// nothing (`None`).
+    pub fn pop_delivery(&mut self) -> Option<Delivery> {
+        let (Source::Wave(i), _, _) = self.first()? else {
+            return None;
+        };
+        self.next.set(None);
+        self.take_delivery(i)
+    }
+
+    /// Take the next delivery of wave `i`.
+    fn take_delivery(&mut self, i: usize) -> Option<Delivery> {
+        let wave = self.waves.get_mut(i)?;
+        let a = *wave.arrivals.get(wave.next)?;
+        wave.next += 1;
+        let (sub, epoch) = (wave.sub, wave.epoch);
+        if wave.next >= wave.arrivals.len() {
+            let done = self.waves.swap_remove(i);
+            self.spare.push(done.arrivals);
+        } else {
+            let head = wave.head();
+            self.goes_on(Source::Wave(i), head);
+        }
+        Some(Delivery {
+            time: a.time,
+            epoch,
+            sub,
+            node: a.node,
+        })
     }
 
     /// Whether nothing is queued but cycle-start ticks.
     pub fn only_cycle_ticks(&self) -> bool {
         self.timers.is_empty()
             && self.waves.is_empty()
-            && self
-                .heap
-                .iter()
-                .all(|Reverse(q)| matches!(q.ev, Ev::CycleTick))
+            && self.general.iter().all(|q| matches!(q.ev, Ev::CycleTick))
     }
 
     /// Events queued.
     #[cfg(test)]
     pub fn len(&self) -> usize {
-        self.heap.len()
+        self.general.len()
             + self.timers.len()
             + self
                 .waves
@@ -345,6 +409,114 @@ mod tests {
         }
         assert_eq!(q.len(), 0);
         assert!(q.only_cycle_ticks());
+    }
+
+    #[test]
+    fn general_events_queued_out_of_time_order_come_out_in_time_then_insertion_order() {
+        let mut q = EventQueue::default();
+        let tokens = [(30, 1), (10, 2), (20, 3), (10, 4), (5, 5), (20, 6), (40, 7)];
+        for (ns, node) in tokens {
+            q.push(t(ns), None, Ev::Unmute { node });
+        }
+        let mut got = Vec::new();
+        while let Some(p) = q.pop() {
+            let Ev::Unmute { node } = p.ev else {
+                panic!("not an unmute: {:?}", p.ev);
+            };
+            got.push((p.time, node));
+        }
+        let want: Vec<(SimTime, usize)> =
+            [(5, 5), (10, 2), (10, 4), (20, 3), (20, 6), (30, 1), (40, 7)]
+                .iter()
+                .map(|&(ns, node)| (t(ns), node))
+                .collect();
+        assert_eq!(got, want);
+    }
+
+    /// Every event pushed, timer cancelled and event taken, in a long
+    /// pseudo-random mix, against a plain sorted list of (time, number):
+    /// the queue's kept next event never lets one out of order.
+    #[test]
+    fn a_random_mix_comes_out_as_one_sorted_list_would() {
+        let mut q = EventQueue::default();
+        // (time, number) -> what the event is: 0 general, 1 timer, 2 delivery.
+        let mut model: std::collections::BTreeMap<(SimTime, u64), u8> =
+            std::collections::BTreeMap::new();
+        let mut seq = 0u64;
+        let mut timers: Vec<(SimTime, u64)> = Vec::new();
+        let mut rng = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = move |n: u64| {
+            rng = rng
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (rng >> 33) % n
+        };
+        let mut now = 0u64;
+        let mut taken = 0;
+        for _ in 0..20_000 {
+            // Times from now on, often equal (ties are by number).
+            match next(9) {
+                0..=1 => {
+                    let at = SimTime(now + next(6) * 10);
+                    seq += 1;
+                    // The number goes in as the node, to be checked.
+                    q.push(at, None, Ev::Unmute { node: seq as usize });
+                    model.insert((at, seq), 0);
+                }
+                2 => {
+                    let at = SimTime(now + next(6) * 10);
+                    seq += 1;
+                    let stamp = q.push_timer(at, seq as usize, 0);
+                    assert_eq!(stamp, seq);
+                    model.insert((at, seq), 1);
+                    timers.push((at, seq));
+                }
+                3 if !timers.is_empty() => {
+                    let (at, s) = timers.swap_remove(next(timers.len() as u64) as usize);
+                    q.cancel_timer(at, s);
+                    model.remove(&(at, s));
+                }
+                4 => {
+                    let arrivals: Vec<(SimTime, usize)> = (0..next(4))
+                        .map(|_| {
+                            seq += 1;
+                            let at = SimTime(now + next(4) * 10);
+                            model.insert((at, seq), 2);
+                            (at, seq as usize)
+                        })
+                        .collect();
+                    q.push_wave(7, 0, arrivals);
+                }
+                _ => {
+                    let want = model.keys().next().copied();
+                    assert_eq!(q.peek_time(), want.map(|k| k.0));
+                    let Some(p) = q.pop() else {
+                        assert!(want.is_none());
+                        continue;
+                    };
+                    let (key, kind) = model.pop_first().unwrap();
+                    let number = match p.ev {
+                        Ev::Unmute { node } => (0, node),
+                        Ev::Timer { node, stamp, .. } => {
+                            assert_eq!(stamp, node as u64);
+                            timers.retain(|t| *t != key);
+                            (1, node)
+                        }
+                        Ev::Deliver { node, .. } => (2, node),
+                        other => panic!("not queued here: {other:?}"),
+                    };
+                    assert_eq!((p.time, number), (key.0, (kind, key.1 as usize)));
+                    now = key.0.0;
+                    taken += 1;
+                }
+            }
+        }
+        assert!(taken > 5_000, "{taken} taken");
+        while let Some(p) = q.pop() {
+            let (key, _) = model.pop_first().unwrap();
+            assert_eq!(p.time, key.0);
+        }
+        assert!(model.is_empty());
     }
 
     #[test]

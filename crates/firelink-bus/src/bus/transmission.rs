@@ -7,28 +7,31 @@ use super::*;
 
 impl Bus {
     /// Decide and apply packet faults (other than delay) to a packet about
-    /// to start. Returns whether a duplicate must follow.
-    pub(super) fn decide_faults(&mut self, sub: &mut Sub, now: SimTime) -> bool {
+    /// to start. Returns whether a duplicate must follow, and the bytes as
+    /// they were before a corruption or truncation changed them (`None`:
+    /// unchanged).
+    pub(super) fn decide_faults(&mut self, sub: &mut Sub, now: SimTime) -> (bool, Option<Vec<u8>>) {
         if self.injector.is_empty()
             || matches!(sub.kind, PacketKind::Duplicate | PacketKind::Babble)
         {
-            return false;
+            return (false, None);
         }
         let d = self
             .injector
             .decide(NodeHandle(sub.sender), sub.kind, &sub.bytes, now);
         if d.fired.is_empty() {
-            return false;
+            return (false, None);
         }
+        let mut original = None;
         if !d.mutations.is_empty() || d.truncate.is_some() {
-            let mut bytes = sub.bytes.to_vec();
+            let mut bytes = sub.bytes.clone();
             for m in &d.mutations {
                 m.apply(&mut bytes);
             }
             if let Some(keep) = d.truncate {
                 bytes.truncate(keep.max(4));
             }
-            sub.bytes = Arc::from(bytes);
+            original = Some(std::mem::replace(&mut sub.bytes, bytes));
         }
         for (what, _, rule) in d.fired {
             let id = self.log.add(
@@ -45,7 +48,7 @@ impl Bus {
         sub.corrupt_ack |= d.corrupt_ack;
         sub.busy |= d.busy;
         sub.dropped |= d.drop;
-        d.duplicate
+        (d.duplicate, original)
     }
 
     /// A packet starts on the wire now (after arbitration begun at
@@ -137,7 +140,7 @@ impl Bus {
             bits_end: shape.bits_end,
             end: shape.end,
             speed: sub.speed,
-            bytes: sub.bytes.clone(),
+            bytes: Arc::from(&sub.bytes[..]),
             answers: sub.answers,
             generation: self.generation,
             faults: sub.faults.clone(),
@@ -217,7 +220,10 @@ impl Bus {
     }
 
     pub(super) fn deliver(&mut self, id: PacketId, node: usize) {
-        let Some(sub) = self.subs.get_mut(&id) else {
+        let Ok(pos) = self.subs.position(id) else {
+            return;
+        };
+        let Some(sub) = self.subs.0.get_mut(pos) else {
             return;
         };
         let crc = *sub.crc.get_or_insert_with(|| {
@@ -229,7 +235,6 @@ impl Bus {
                 |p| p.crc_status(),
             )
         });
-        let bytes = sub.bytes.clone();
         let speed = sub.speed;
         let is_dest = sub.dest == Some(node);
         if is_dest && sub.busy {
@@ -240,18 +245,19 @@ impl Bus {
         if self.cfg.trace >= TraceLevel::Verbose {
             self.log_event(TraceEvent::Deliver { packet: id, node });
         }
-        let now = self.now;
-        // The packet's faults stay in its subaction, which outlives the
-        // call (a report looks them up there).
+        // The packet's bytes and faults stay in its subaction, which
+        // outlives the call (a report looks the faults up there).
         self.current_rx = Some(id);
         self.rx_crc = Some(crc);
-        let reply = self.dispatch(node, |n, ctx| n.on_receive(now, &bytes, speed, ctx));
+        let reply = self.dispatch_receive(node, pos, speed);
         self.rx_crc = None;
         self.current_rx = None;
         let Some(reply) = reply else {
             return;
         };
         if is_dest {
+            // Looked up again: what the node asked for (a reset) may have
+            // changed the table.
             if let Some(sub) = self.subs.get_mut(&id) {
                 sub.reply = Some(reply);
             }
@@ -493,7 +499,7 @@ impl Bus {
             kind: PacketKind::ConcatResponse,
             sender: dest,
             sender_phy: dest_phy,
-            bytes: Arc::from(bytes),
+            bytes,
             speed,
             token: None,
             dest: None,
@@ -525,7 +531,7 @@ impl Bus {
                 start += delay;
             }
         }
-        if self.decide_faults(&mut rsub, now) {
+        if self.decide_faults(&mut rsub, now).0 {
             self.slots[dest].queue.push_back(Pending {
                 bytes: rsub.bytes.clone(),
                 speed,
