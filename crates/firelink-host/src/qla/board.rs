@@ -97,7 +97,7 @@ impl BoardIo {
 
     /// Parse a read block straight into the inputs and latch it (no block
     /// built and moved per board and cycle); on an error nothing changes.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn latch_block(&mut self, block: &ReadBlock<&[u8]>) -> firelink_wire::Result<()> {
         self.input.parse_into(block)?;
         self.input_valid = true;
@@ -223,14 +223,23 @@ impl BoardIo {
     /// The encoder counts and pot codes of axes `0..` into `counts` and
     /// `pots`, as far as the shorter goes: [`encoder_counts`](Self::encoder_counts)
     /// (0 for none) and [`pot_bits`](Self::pot_bits) of each axis, read in
-    /// one run (the cycle reads every axis).
-    #[inline]
+    /// one run (the cycle reads every axis; always inlined: the cycle calls
+    /// it for every board from another crate, where `#[inline]` alone left
+    /// it a call).
+    #[inline(always)]
     pub fn axis_inputs(&self, counts: &mut [i32], pots: &mut [Option<u16>]) {
+        let n = counts.len().min(pots.len());
         let (encoders, motors) = (self.input.encoders(), self.input.motors());
-        for (a, (c, p)) in counts.iter_mut().zip(pots.iter_mut()).enumerate() {
-            *c = encoders.get(a).map_or(0, |e| e.position.counts());
-            *p = motors.get(a).map(|m| m.adc.pot());
+        let counts = counts.get_mut(..n).unwrap_or_default();
+        for (c, e) in counts.iter_mut().zip(encoders) {
+            *c = e.position.counts();
         }
+        counts.iter_mut().skip(encoders.len()).for_each(|c| *c = 0);
+        let pots = pots.get_mut(..n).unwrap_or_default();
+        for (p, m) in pots.iter_mut().zip(motors) {
+            *p = Some(m.adc.pot());
+        }
+        pots.iter_mut().skip(motors.len()).for_each(|p| *p = None);
     }
 
     /// Motor current ADC bits of `axis`.
@@ -267,8 +276,8 @@ impl BoardIo {
     /// [`set_dac`](Self::set_dac)`(a, code)` for each axis `a` whose
     /// `codes[a]` is `Some(code)`, in one run over the board's DAC
     /// quadlets (codes past the board's axes are ignored, as `set_dac`
-    /// refuses them).
-    #[inline]
+    /// refuses them; always inlined, as [`axis_inputs`](Self::axis_inputs)).
+    #[inline(always)]
     pub fn set_dacs(&mut self, codes: &[Option<u16>]) {
         let axes = self.axes();
         for (word, code) in self.output.dac.iter_mut().take(axes).zip(codes) {

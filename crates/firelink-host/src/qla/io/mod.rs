@@ -435,8 +435,11 @@ impl<P: Port> IoSystem<P> {
             }
             (counts, pots) = (rest_counts, rest_pots);
         }
-        counts.fill(0);
-        pots.fill(None);
+        // (Most often nothing is left: no call to fill nothing.)
+        if !counts.is_empty() {
+            counts.fill(0);
+            pots.fill(None);
+        }
     }
 
     /// Axis `i`'s DAC code into its board's next command block for each

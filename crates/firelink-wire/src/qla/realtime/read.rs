@@ -294,11 +294,12 @@ impl ReadBlockRepr {
     /// Parse a read block into `self`, which then equals what
     /// [`parse`](Self::parse) returns (layout included), without a new
     /// block built and moved: the host's cycle parses every board's block
-    /// in place. On an error `self` is left as it was.
+    /// in place (always inlined there: `#[inline]` alone left it a call
+    /// across the crate boundary). On an error `self` is left as it was.
     ///
     /// # Errors
     /// Length errors of [`ReadBlock::check_len`].
-    #[inline]
+    #[inline(always)]
     pub fn parse_into<T: AsRef<[u8]>>(&mut self, block: &ReadBlock<T>) -> Result<()> {
         block.check_len()?;
         let layout = block.layout;

@@ -235,11 +235,13 @@ impl WriteBlockRepr {
     /// [`emit`](Self::emit) with `control` as the control quadlet instead
     /// of the block's own: the host keeps its board's commands in a block
     /// and the control apart, and writes both into the command block
-    /// without a copy of the block put together first.
+    /// without a copy of the block put together first (always inlined:
+    /// the command block writer calls it for every board and cycle, and
+    /// `#[inline]` alone left it a call).
     ///
     /// # Errors
     /// As [`emit`](Self::emit).
-    #[inline]
+    #[inline(always)]
     pub fn emit_with_control(&self, control: StatusWrite, buf: &mut [u8]) -> Result<usize> {
         check_board_id(self.board_id)?;
         let len = self.buffer_len();
