@@ -565,6 +565,8 @@ impl Bus {
                     self.apply_phy_config(force_root, gap_count);
                 }
             }
+            // The packet's memory serves a node's next packet.
+            self.scratch.spare_packets.give(sub.bytes);
         }
         self.medium = Medium::Idle { since: self.now };
         if self.cfg.trace >= TraceLevel::Verbose {
