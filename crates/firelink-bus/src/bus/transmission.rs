@@ -357,7 +357,10 @@ impl Bus {
         }
         match response {
             Some((bytes, speed)) => {
-                self.start_concat_response(&sub, dest, dest_phy, bytes, speed, bits_end)
+                self.start_concat_response(&sub, dest, dest_phy, bytes, speed, bits_end);
+                // The request's subaction ends here (its response's goes
+                // on): its memory serves a node's next packet.
+                self.scratch.spare_packets.give(sub.bytes);
             }
             None => {
                 let idle_at = end + t.hop_delay * u64::from(self.tree.eccentricity(dest_phy));
