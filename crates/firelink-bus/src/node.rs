@@ -233,10 +233,6 @@ pub(crate) struct Commands {
     pub timers: Vec<TimerCommand>,
     pub phy_writes: Vec<(u8, u8)>,
     pub reports: Vec<String>,
-    /// Spare packet buffers the bus lends out with
-    /// [`NodeCtx::take_buffer`] (not a command: kept here because every
-    /// callback already borrows this list).
-    pub spare_packets: PacketPool,
 }
 
 impl Commands {
@@ -296,6 +292,8 @@ pub struct NodeCtx<'a> {
     pub(crate) timers: &'a [(u64, u64, SimTime)],
     pub(crate) regs: &'a mut PhyRegisters,
     pub(crate) cmds: &'a mut Commands,
+    /// The bus's spare packet buffers ([`take_buffer`](Self::take_buffer)).
+    pub(crate) spare_packets: &'a mut PacketPool,
 }
 
 impl fmt::Debug for NodeCtx<'_> {
@@ -357,7 +355,7 @@ impl NodeCtx<'_> {
     /// not allocate once the bus is running. A node may keep it for
     /// later; a buffer never handed back to the bus is simply freed.
     pub fn take_buffer(&mut self) -> Vec<u8> {
-        self.cmds.spare_packets.take()
+        self.spare_packets.take()
     }
 
     /// Fire [`Node::on_timer`] with `token` at `at` (at once if `at` is in

@@ -360,7 +360,7 @@ impl Bus {
                 self.start_concat_response(&sub, dest, dest_phy, bytes, speed, bits_end);
                 // The request's subaction ends here (its response's goes
                 // on): its memory serves a node's next packet.
-                self.scratch.spare_packets.give(sub.bytes);
+                self.spare_packets.give(sub.bytes);
             }
             None => {
                 let idle_at = end + t.hop_delay * u64::from(self.tree.eccentricity(dest_phy));
@@ -569,7 +569,7 @@ impl Bus {
                 }
             }
             // The packet's memory serves a node's next packet.
-            self.scratch.spare_packets.give(sub.bytes);
+            self.spare_packets.give(sub.bytes);
         }
         self.medium = Medium::Idle { since: self.now };
         if self.cfg.trace >= TraceLevel::Verbose {
