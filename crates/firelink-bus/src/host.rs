@@ -181,6 +181,10 @@ pub struct HostLink {
     /// Buffers of packets forgotten, kept for the next ones (a link that
     /// hears every broadcast allocates nothing per packet).
     spare: Vec<Vec<u8>>,
+    /// Buffers of responses given back ([`recycle`](Self::recycle)), kept
+    /// for the next responses (apart from `spare`, so that the buffers of
+    /// received packets keep the sizes of the packets they go round with).
+    spare_responses: Vec<Vec<u8>>,
     received_total: u64,
     split_timeout: SimDuration,
     phy_id: u8,
@@ -205,6 +209,7 @@ impl HostLink {
             received: VecDeque::new(),
             received_limit: 4096,
             spare: Vec::new(),
+            spare_responses: Vec::new(),
             received_total: 0,
             split_timeout: SimDuration::from_millis(100),
             phy_id: NodeId::BROADCAST_PHY,
@@ -330,6 +335,16 @@ impl HostLink {
         }
     }
 
+    /// Give back the memory of a [`Completion`]'s response once the
+    /// caller is done with it: the link copies its next response into it
+    /// instead of allocating. At most a few are kept; the rest are freed.
+    pub fn recycle(&mut self, mut response: Vec<u8>) {
+        if self.spare_responses.len() < SPARE_BUFFERS {
+            response.clear();
+            self.spare_responses.push(response);
+        }
+    }
+
     /// Take every finished transaction.
     pub fn take_completions(&mut self) -> Vec<Completion> {
         self.completions.drain(..).collect()
@@ -353,7 +368,8 @@ impl HostLink {
 
     /// Submit `packet` through the link node `link` of `bus` (how a host
     /// port or a bridge drives its link from outside the simulation). The
-    /// link copies the packet into its transmit FIFO: the caller keeps its
+    /// link copies the packet into its transmit FIFO (a spare packet
+    /// buffer of the bus, [`NodeCtx::take_buffer`]): the caller keeps its
     /// buffer.
     ///
     /// # Errors
@@ -364,7 +380,11 @@ impl HostLink {
         packet: &[u8],
         speed: Speed,
     ) -> Result<u64, crate::BusError> {
-        bus.with_node::<HostLink, _>(link, |l, ctx| l.submit(ctx, packet.to_vec(), speed))
+        bus.with_node::<HostLink, _>(link, |l, ctx| {
+            let mut fifo = ctx.take_buffer();
+            fifo.extend_from_slice(packet);
+            l.submit(ctx, fifo, speed)
+        })
     }
 
     /// Run `bus` until the transaction `token` of the link `link` finishes
@@ -415,10 +435,7 @@ impl HostLink {
 
     /// A buffer holding `packet` (a spare one when there is one).
     fn copy_of(&mut self, packet: &[u8]) -> Vec<u8> {
-        let mut bytes = self.spare.pop().unwrap_or_default();
-        bytes.clear();
-        bytes.extend_from_slice(packet);
-        bytes
+        copy_from_spare(&mut self.spare, packet)
     }
 
     fn keep(&mut self, received: Received) {
@@ -432,6 +449,14 @@ impl HostLink {
         self.received.push_back(received);
         self.received_total += 1;
     }
+}
+
+/// A buffer holding `packet`: one of `spare` when there is one.
+fn copy_from_spare(spare: &mut Vec<Vec<u8>>, packet: &[u8]) -> Vec<u8> {
+    let mut bytes = spare.pop().unwrap_or_default();
+    bytes.clear();
+    bytes.extend_from_slice(packet);
+    bytes
 }
 
 /// The response tcode that answers a request tcode.
@@ -503,7 +528,7 @@ impl Node for HostLink {
                 });
             };
             if let Some(p) = self.pending.get_mut(&token) {
-                p.response = Some((packet.to_vec(), data_ok));
+                p.response = Some((copy_from_spare(&mut self.spare_responses, packet), data_ok));
                 if p.awaiting_response {
                     self.finish(token, now, Outcome::of_response(data_ok), ctx);
                 }

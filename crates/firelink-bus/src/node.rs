@@ -244,6 +244,35 @@ impl Commands {
     }
 }
 
+/// Packet buffers of finished subactions, kept for nodes to build their
+/// next packets in, so that a steady bus allocates no packet memory: a
+/// finished subaction's bytes come back here
+/// ([`give`](Self::give)), and a node borrows one with
+/// [`NodeCtx::take_buffer`]. At most [`LIMIT`](Self::LIMIT) are kept (a
+/// burst of packets cannot grow it without bound); the rest are freed.
+#[derive(Debug, Default)]
+pub(crate) struct PacketPool(Vec<Vec<u8>>);
+
+impl PacketPool {
+    /// The most spare buffers kept.
+    pub const LIMIT: usize = 64;
+
+    /// A spare buffer, empty; a new one (not yet allocated) if none is
+    /// left.
+    pub fn take(&mut self) -> Vec<u8> {
+        self.0.pop().unwrap_or_default()
+    }
+
+    /// Keep `buffer` (emptied) for a later [`take`](Self::take), unless it
+    /// holds no memory or the pool is full.
+    pub fn give(&mut self, mut buffer: Vec<u8>) {
+        if buffer.capacity() > 0 && self.0.len() < Self::LIMIT {
+            buffer.clear();
+            self.0.push(buffer);
+        }
+    }
+}
+
 /// A timer change asked by a node.
 #[derive(Debug, Clone, Copy)]
 pub(crate) enum TimerCommand {
@@ -263,6 +292,8 @@ pub struct NodeCtx<'a> {
     pub(crate) timers: &'a [(u64, u64, SimTime)],
     pub(crate) regs: &'a mut PhyRegisters,
     pub(crate) cmds: &'a mut Commands,
+    /// The bus's spare packet buffers ([`take_buffer`](Self::take_buffer)).
+    pub(crate) spare_packets: &'a mut PacketPool,
 }
 
 impl fmt::Debug for NodeCtx<'_> {
@@ -316,6 +347,15 @@ impl NodeCtx<'_> {
     /// Requests of one node go out in the order they were made.
     pub fn transmit(&mut self, request: TransmitRequest) {
         self.cmds.transmits.push(request);
+    }
+
+    /// An empty buffer to build a packet in (for a [`TransmitRequest`] or
+    /// an [`RxReply::AckThenResponse`]): the memory of a packet whose
+    /// subaction finished, so a node that builds its packets here does
+    /// not allocate once the bus is running. A node may keep it for
+    /// later; a buffer never handed back to the bus is simply freed.
+    pub fn take_buffer(&mut self) -> Vec<u8> {
+        self.spare_packets.take()
     }
 
     /// Fire [`Node::on_timer`] with `token` at `at` (at once if `at` is in

@@ -254,6 +254,14 @@ impl SimPort {
         self.judge(&expect, done, submitted)
     }
 
+    /// Hand a response the port is done with back to the PC's link, whose
+    /// next received packet reuses its memory (no allocation per read).
+    fn recycle(&mut self, response: Vec<u8>) {
+        if let Some(link) = self.bus.node_mut::<HostLink>(self.host) {
+            link.recycle(response);
+        }
+    }
+
     /// The request `repr` into the port's packet buffer; returns its
     /// length.
     fn emit(&mut self, repr: &PacketRepr<'_>) -> Result<usize> {
@@ -448,7 +456,9 @@ impl Port for SimPort {
             HostCall::Read,
         )?;
         let response = response.ok_or(no_response(header.tl))?;
-        Ok(Packet::new_unchecked(&response[..]).quadlet_data())
+        let value = Packet::new_unchecked(&response[..]).quadlet_data();
+        self.recycle(response);
+        Ok(value)
     }
 
     fn write_quadlet(&mut self, dest: Dest, offset: u64, value: u32) -> Result<()> {
@@ -483,6 +493,7 @@ impl Port for SimPort {
             }));
         }
         out.copy_from_slice(payload);
+        self.recycle(response);
         Ok(())
     }
 

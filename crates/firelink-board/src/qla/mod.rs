@@ -317,6 +317,11 @@ pub struct Firmware {
     rx_memory: PacketMemory,
     /// A buffer kept for block reads (no allocation per read).
     scratch: Vec<u8>,
+    /// Memory for the next packet this board builds (a response or a
+    /// status broadcast), lent by the bus with
+    /// [`lend_packet_buffer`](Self::lend_packet_buffer); empty (the
+    /// packet then gets new memory) when none was lent.
+    packet_buffer: Vec<u8>,
     /// The next internal event, or earlier: every write moves the
     /// watchdog's expiry later without touching this, so when it comes it
     /// is worked out again before anything is done.
@@ -371,6 +376,7 @@ impl Firmware {
             rx_error: None,
             rx_memory: PacketMemory::new(),
             scratch: Vec::new(),
+            packet_buffer: Vec::new(),
             next_event: None,
             events_stale: true,
             drive_stale: true,
@@ -880,11 +886,14 @@ impl Firmware {
                 };
                 let response = if tcode == Tcode::ReadQuadletRequest {
                     let data = self.read_quadlet(now, offset);
-                    emit(&PacketRepr::ReadQuadletResponse {
-                        header,
-                        rcode: Rcode::Complete,
-                        data,
-                    })
+                    emit_into(
+                        &PacketRepr::ReadQuadletResponse {
+                            header,
+                            rcode: Rcode::Complete,
+                            data,
+                        },
+                        core::mem::take(&mut self.packet_buffer),
+                    )
                 } else {
                     self.block_read_response(now, header, offset, packet.data_length())
                 };
@@ -916,8 +925,9 @@ impl Firmware {
         // Every length up to the largest is answered complete with exactly
         // that many bytes, 0 and lengths that are not whole quadlets
         // included (FireWire.v l.1162); a length of 0 reads nothing.
+        let packet = core::mem::take(&mut self.packet_buffer);
         if length > MAX_BLOCK_READ {
-            return block_response_packet(header, Rcode::AddressError, &[]);
+            return block_response_into(header, Rcode::AddressError, &[], packet);
         }
         let mut data = core::mem::take(&mut self.scratch);
         data.clear();
@@ -926,9 +936,23 @@ impl Firmware {
             self.read_block_into(now, offset, &mut data);
         }
         data.truncate(length);
-        let response = block_response_packet(header, Rcode::Complete, &data);
+        let response = block_response_into(header, Rcode::Complete, &data, packet);
         self.scratch = data;
         response
+    }
+
+    /// Whether this board holds memory for its next packet (see
+    /// [`lend_packet_buffer`](Self::lend_packet_buffer)).
+    pub fn has_packet_buffer(&self) -> bool {
+        self.packet_buffer.capacity() > 0
+    }
+
+    /// Memory for the next packet this board builds (a response from
+    /// [`receive`](Self::receive) or a broadcast from
+    /// [`poll_transmit`](Self::poll_transmit)), so that building it does
+    /// not allocate; what it held is dropped. A board lent none allocates.
+    pub fn lend_packet_buffer(&mut self, buffer: Vec<u8>) {
+        self.packet_buffer = buffer;
     }
 
     /// The status broadcast, when its slot has come at `now`: a block
@@ -961,13 +985,16 @@ impl Firmware {
         let phy = self.phy_id?;
         let offset = status_broadcast_offset(self.cfg.firmware, self.cfg.board_id)
             .unwrap_or(STATUS_BROADCAST_OFFSET);
-        let packet = emit(&PacketRepr::WriteBlockRequest {
-            header: AsyncHeader::new(NodeId::BROADCAST, NodeId::local(phy), 0)
-                .with_pri(STATUS_BROADCAST_PRIORITY),
-            offset,
-            extended_tcode: 0,
-            data: &pending.payload,
-        });
+        let packet = emit_into(
+            &PacketRepr::WriteBlockRequest {
+                header: AsyncHeader::new(NodeId::BROADCAST, NodeId::local(phy), 0)
+                    .with_pri(STATUS_BROADCAST_PRIORITY),
+                offset,
+                extended_tcode: 0,
+                data: &pending.payload,
+            },
+            core::mem::take(&mut self.packet_buffer),
+        );
         self.hub.in_flight = Some(pending.payload);
         Some(packet)
     }
@@ -1141,20 +1168,35 @@ pub(crate) fn block_read_refusal(length: usize, max_bytes: usize) -> Option<Rcod
 /// A block read response carrying `rcode` and `data` (empty when the read
 /// is refused).
 pub(crate) fn block_response_packet(header: AsyncHeader, rcode: Rcode, data: &[u8]) -> Vec<u8> {
-    emit(&PacketRepr::ReadBlockResponse {
-        header,
-        rcode,
-        extended_tcode: 0,
-        data,
-    })
+    block_response_into(header, rcode, data, Vec::new())
+}
+
+/// [`block_response_packet`] built in `buffer`'s memory.
+fn block_response_into(header: AsyncHeader, rcode: Rcode, data: &[u8], buffer: Vec<u8>) -> Vec<u8> {
+    emit_into(
+        &PacketRepr::ReadBlockResponse {
+            header,
+            rcode,
+            extended_tcode: 0,
+            data,
+        },
+        buffer,
+    )
 }
 
 /// Emit a packet this module built (always valid: fields in range).
 pub(crate) fn emit(repr: &PacketRepr<'_>) -> Vec<u8> {
-    let mut buf = vec![0u8; repr.buffer_len()];
-    match repr.emit(&mut buf) {
-        Ok(len) => buf.truncate(len),
-        Err(_) => buf.clear(),
+    emit_into(repr, Vec::new())
+}
+
+/// [`emit`] into `buffer`'s memory (whatever it held is dropped; it grows
+/// only when the packet does not fit).
+pub(crate) fn emit_into(repr: &PacketRepr<'_>, mut buffer: Vec<u8>) -> Vec<u8> {
+    buffer.clear();
+    buffer.resize(repr.buffer_len(), 0);
+    match repr.emit(&mut buffer) {
+        Ok(len) => buffer.truncate(len),
+        Err(_) => buffer.clear(),
     }
-    buf
+    buffer
 }

@@ -75,6 +75,15 @@ pub(crate) fn on_bus(reply: Reply, speed: Speed) -> RxReply {
     }
 }
 
+/// Lend `firmware` a spare packet buffer of the bus unless it holds one:
+/// the packets it builds then reuse the memory of finished ones.
+#[inline(always)]
+fn stock_packet_buffer(firmware: &mut Firmware, ctx: &mut NodeCtx<'_>) {
+    if !firmware.has_packet_buffer() {
+        firmware.lend_packet_buffer(ctx.take_buffer());
+    }
+}
+
 /// Tell the bus about a damaged packet the firmware of node `name`
 /// noticed, if any.
 pub(crate) fn report_rx_error(
@@ -147,6 +156,7 @@ impl BoardNode {
     /// into each callback: it runs after every one).
     #[inline(always)]
     fn pump(&mut self, now: SimTime, ctx: &mut NodeCtx<'_>) {
+        stock_packet_buffer(&mut self.firmware, ctx);
         while let Some(packet) = self.firmware.poll_transmit(now) {
             self.next_token += 1;
             self.in_flight = Some(self.next_token);
@@ -218,6 +228,7 @@ impl Node for BoardNode {
         ctx: &mut NodeCtx<'_>,
     ) -> RxReply {
         let crc = ctx.received_crc_status();
+        stock_packet_buffer(&mut self.firmware, ctx);
         let reply = self
             .firmware
             .receive_checked(now, packet, crc, &mut CtxPhy(ctx));

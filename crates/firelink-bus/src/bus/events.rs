@@ -116,8 +116,13 @@ impl Bus {
         f: impl FnOnce(&mut dyn Node, &mut NodeCtx<'_>) -> R,
     ) -> Option<R> {
         let view = self.ctx_view();
-        let Bus { slots, scratch, .. } = self;
-        let (result, old_gap) = call_node(slots, scratch, view, idx, f)?;
+        let Bus {
+            slots,
+            scratch,
+            spare_packets,
+            ..
+        } = self;
+        let (result, old_gap) = call_node(slots, (scratch, spare_packets), view, idx, f)?;
         self.after_call(idx, old_gap);
         Some(result)
     }
@@ -173,11 +178,12 @@ impl Bus {
         let Bus {
             slots,
             scratch,
+            spare_packets,
             subs,
             ..
         } = self;
         let bytes = &subs.0.get(pos)?.bytes[..];
-        let (reply, old_gap) = call_node(slots, scratch, view, idx, |n, ctx| {
+        let (reply, old_gap) = call_node(slots, (scratch, spare_packets), view, idx, |n, ctx| {
             n.on_receive(now, bytes, speed, ctx)
         })?;
         self.after_call(idx, old_gap);
@@ -398,13 +404,13 @@ struct CtxView {
     rx_crc: Option<CrcStatus>,
 }
 
-/// Call `f` on node `idx` of `slots` with a [`NodeCtx`] over `view`; what
-/// it asks for goes into `scratch`, and its PHY register writes into its
+/// Call `f` on node `idx` of `slots` with a [`NodeCtx`] over `view` (and
+/// the bus's spare packet buffers); what it asks for goes into `scratch`, and its PHY register writes into its
 /// registers at once. Returns its result and its gap count before the
 /// call (`None`: no such node, or it is in a call already).
 fn call_node<R>(
     slots: &mut [Slot],
-    scratch: &mut Commands,
+    (scratch, spare_packets): (&mut Commands, &mut PacketPool),
     view: CtxView,
     idx: usize,
     f: impl FnOnce(&mut dyn Node, &mut NodeCtx<'_>) -> R,
@@ -430,6 +436,7 @@ fn call_node<R>(
         timers: &slot.timers,
         regs: &mut slot.regs,
         cmds: scratch,
+        spare_packets,
     };
     let result = f(node.as_mut(), &mut ctx);
     Some((result, old_gap))

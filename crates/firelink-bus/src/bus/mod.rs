@@ -56,7 +56,8 @@ use crate::fault::{
 };
 pub use crate::node::NodeHandle;
 use crate::node::{
-    ArbitrationClass, Commands, Node, NodeCtx, ResetInfo, RxReply, TimerCommand, TransmitRequest,
+    ArbitrationClass, Commands, Node, NodeCtx, PacketPool, ResetInfo, RxReply, TimerCommand,
+    TransmitRequest,
 };
 use crate::phy::{PhyRegisters, parse_phy_packet, phy_packet_bytes};
 use crate::time::{SimDuration, SimTime};
@@ -357,6 +358,9 @@ pub struct Bus {
     /// Scratch list of a packet's arrivals (time, node).
     arrivals: Vec<(SimTime, usize)>,
     scratch: Commands,
+    /// Memory of finished packets, lent to nodes for their next ones
+    /// ([`NodeCtx::take_buffer`]).
+    spare_packets: PacketPool,
     reset_began: SimTime,
 }
 
@@ -403,6 +407,7 @@ impl Bus {
             rx_crc: None,
             arrivals: Vec::new(),
             scratch: Commands::default(),
+            spare_packets: PacketPool::default(),
             reset_began: SimTime::ZERO,
         }
     }

@@ -357,7 +357,10 @@ impl Bus {
         }
         match response {
             Some((bytes, speed)) => {
-                self.start_concat_response(&sub, dest, dest_phy, bytes, speed, bits_end)
+                self.start_concat_response(&sub, dest, dest_phy, bytes, speed, bits_end);
+                // The request's subaction ends here (its response's goes
+                // on): its memory serves a node's next packet.
+                self.spare_packets.give(sub.bytes);
             }
             None => {
                 let idle_at = end + t.hop_delay * u64::from(self.tree.eccentricity(dest_phy));
@@ -565,6 +568,8 @@ impl Bus {
                     self.apply_phy_config(force_root, gap_count);
                 }
             }
+            // The packet's memory serves a node's next packet.
+            self.spare_packets.give(sub.bytes);
         }
         self.medium = Medium::Idle { since: self.now };
         if self.cfg.trace >= TraceLevel::Verbose {
