@@ -126,6 +126,7 @@ impl<T: AsRef<[u8]>> Packet<T> {
     }
 
     /// The transaction code.
+    #[inline]
     pub fn tcode(&self) -> Tcode {
         Tcode::from(field::TCODE.get(self.buffer.as_ref()) as u8)
     }
