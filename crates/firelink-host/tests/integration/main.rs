@@ -13,6 +13,8 @@ mod sim_groups;
 mod sim_io;
 #[cfg(feature = "sim")]
 mod snake;
+#[cfg(feature = "sim")]
+mod steady_cycle_allocations;
 mod udp_port;
 #[cfg(feature = "sim")]
 mod wrappers;

@@ -4,10 +4,11 @@
 //! command write, and the boards' status broadcasts on the bus) makes no
 //! heap allocation, host side or board side.
 //!
-//! Its own test binary: the counting allocator below is this binary's
-//! global allocator and no other test sees it. It counts only on the
-//! thread that asked for counting, so the test harness's own threads do
-//! not disturb the figure.
+//! The counting allocator below is the global allocator of this crate's
+//! integration-test binary. Every call goes on unchanged to the system
+//! allocator, so the other tests of the binary are not affected; it counts
+//! only on the thread that asked for counting, so the other tests and the
+//! test harness's own threads, running beside, do not disturb the figure.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -43,7 +44,7 @@ fn note_allocation() {
 
 // SAFETY: every call is passed on unchanged to the system allocator; the
 // counter touches no heap memory. (A global allocator cannot be written
-// without `unsafe`: test-only, in this binary alone.)
+// without `unsafe`: test-only.)
 #[allow(unsafe_code)]
 unsafe impl GlobalAlloc for CountingAllocator {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
