@@ -14,7 +14,7 @@ use crate::error::CliError;
 /// `firelink emulate`: the notes on stderr, the banner, then each server
 /// event as its line, at once.
 pub fn run(args: &EmulateRequest, out: &mut impl Write) -> Result<(), CliError> {
-    let emulation = args.open(&mut |line| eprintln!("{line}"))?;
+    let emulation = args.open(&mut |line| say!("{line}"))?;
     for line in emulation.banner() {
         writeln!(out, "{line}")?;
     }

@@ -38,15 +38,15 @@ pub struct FwRunArgs {
 /// The twin could not be built or bound, or PROGRAM not started.
 pub fn run(args: &FwRunArgs) -> Result<u8, CliError> {
     let library = library_path()?;
-    let (twin, _ids) = args.emulate.twin(&mut |line| eprintln!("{line}"))?;
+    let (twin, _ids) = args.emulate.twin(&mut |line| say!("{line}"))?;
     let verbose = args.verbose;
     let exit = run_with_twin(twin, &library, &args.program, move |e| {
         if verbose {
-            eprintln!("fw-run: {e:?}");
+            say!("fw-run: {e:?}");
         }
     })?;
     if let Some(problem) = exit.server_problem {
-        eprintln!("fw-run: {problem}");
+        say!("fw-run: {problem}");
     }
     Ok(exit.status)
 }

@@ -3,7 +3,12 @@
 //! Each subcommand is a thin layer over the library crates; this file only
 //! parses arguments, prints results and maps errors to one line on stderr
 //! with a non-zero exit status: 1 for an error, 2 for a usage error (clap),
-//! 3 for a run that finished but failed its check ([`EXIT_STATUS`]).
+//! 3 for a run that finished but failed its check ([`EXIT_STATUS`]). When
+//! the reader of stdout goes away (`| head`), the program stops quietly
+//! with status 0; lines for stderr never panic (`stderr`: `say!`).
+
+#[macro_use]
+mod stderr;
 
 mod args;
 mod bench;
@@ -163,15 +168,19 @@ fn main() -> ExitCode {
         return match fw_run::run(args) {
             Ok(code) => ExitCode::from(code),
             Err(err) => {
-                eprintln!("firelink fw-run: {err}");
+                say!("firelink fw-run: {err}");
                 ExitCode::from(err.exit_code())
             }
         };
     }
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
+        // The reader of the output went away (`firelink sim --timeline |
+        // head`): what it wanted was written; stop quietly, as a tool in a
+        // pipeline does.
+        Err(CliError::Io(e)) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("firelink: {err}");
+            say!("firelink: {err}");
             ExitCode::from(err.exit_code())
         }
     }

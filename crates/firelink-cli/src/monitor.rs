@@ -49,7 +49,7 @@ pub fn run(args: &MonitorArgs, out: &mut impl Write) -> Result<(), CliError> {
     let (mut io, _scan) = IoSystem::open(port, config)?;
     if let Some(w) = args.watchdog {
         if let Some(warning) = w.warning() {
-            eprintln!("monitor: {warning}");
+            say!("monitor: {warning}");
         }
         io.set_watchdog(w)?;
     }
@@ -73,7 +73,7 @@ pub fn run(args: &MonitorArgs, out: &mut impl Write) -> Result<(), CliError> {
     // one rule, RobotIo::power_down; dropping `io` would do it silently).
     if io.energised() != 0 {
         let done = firelink_host::RobotIo::power_down(&mut io);
-        eprintln!("monitor: powered down: {done}");
+        say!("monitor: powered down: {done}");
     }
     result
 }

@@ -27,7 +27,7 @@ pub fn run(args: &SoakArgs, out: &mut impl Write) -> Result<(), CliError> {
     let quiet = crate::args::quiet();
     let outcome = args.request.run(&mut |line| {
         if !quiet {
-            eprintln!("soak: {line}");
+            say!("soak: {line}");
         }
     })?;
     if args.json {

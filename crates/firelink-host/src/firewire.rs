@@ -63,6 +63,7 @@
 #![allow(unsafe_code)]
 
 use std::fs::OpenOptions;
+use std::io::Write as _;
 use std::os::fd::{AsFd, AsRawFd, OwnedFd};
 use std::os::unix::fs::OpenOptionsExt;
 use std::time::{Duration, Instant};
@@ -890,7 +891,8 @@ impl FirewirePort {
     fn write_each_node(&mut self, offset: u64, tcode: u32, data: &[u8]) -> Result<()> {
         if !self.said_node63 {
             self.said_node63 = true;
-            eprintln!(
+            let _ = writeln!(
+                std::io::stderr(),
                 "firelink: {}: the kernel refuses broadcast writes below 0xffff_f000_0800; \
                  register writes to node 63 go to each node in turn",
                 self.name

@@ -79,9 +79,9 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
         }
         match (t, options.udp_target) {
             (BenchTransport::Udp | BenchTransport::Eth, Some(addr)) => {
-                eprintln!("bench: {} {} at udp:{addr}", t.name(), proto.name());
+                say!("bench: {} {} at udp:{addr}", t.name(), proto.name());
             }
-            _ => eprintln!("bench: {} {} {n} boards", t.name(), proto.name()),
+            _ => say!("bench: {} {} {n} boards", t.name(), proto.name()),
         }
     })?;
     if let Some(path) = &args.plot {

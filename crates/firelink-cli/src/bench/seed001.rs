@@ -34,7 +34,7 @@ pub fn run(
         ..Seed001Options::default()
     };
     if !crate::args::quiet() {
-        eprintln!(
+        say!(
             "bench: seed 001 on the simulated bus: {} quadlet reads and writes, block sizes 1..512",
             options.iterations
         );

@@ -31,7 +31,7 @@ pub fn run_budget_cmd(args: &BudgetArgs, out: &mut impl Write) -> Result<(), Cli
     let quiet = crate::args::quiet();
     let tables = run_tables(&args.request.options()?, |line| {
         if !quiet {
-            eprintln!("budget: {line}");
+            say!("budget: {line}");
         }
     })?;
     if let (Some(path), Some(table3)) = (&args.plot, &tables.table_iii) {

@@ -85,15 +85,15 @@ impl Default for DemoArgs {
 /// Show one progress event on stderr (ticks overwrite one line).
 pub(crate) fn show(event: &DemoProgress, ticking: &mut bool) {
     if let Some(tick) = tick_line(event) {
-        eprint!("\rdemo: {tick}   ");
+        say_no_newline!("\rdemo: {tick}   ");
         *ticking = true;
         return;
     }
     if std::mem::take(ticking) {
-        eprintln!();
+        say!();
     }
     if let Some(line) = progress_line(event) {
-        eprintln!("demo: {line}");
+        say!("demo: {line}");
     }
 }
 
@@ -105,7 +105,7 @@ pub(crate) fn show(event: &DemoProgress, ticking: &mut bool) {
 pub(crate) fn load_config(path: &std::path::Path) -> Result<IoConfig, CliError> {
     let loaded = IoConfig::load_with_warnings(path)?;
     for w in &loaded.warnings {
-        eprintln!("warning: {w}");
+        say!("warning: {w}");
     }
     Ok(loaded.config)
 }

@@ -46,7 +46,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
     let request = request(args)?;
     let quiet = args.quiet || crate::args::quiet();
     if let Some(w) = request.watchdog.warning() {
-        eprintln!("demo: {w}");
+        say!("demo: {w}");
     }
     // The port's reads spin over UDP with `--udp-wait spin`.
     let spinning = request.udp_wait == WaitMode::Spinning && !request.port.is_sim();
@@ -62,15 +62,15 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<(), CliError> {
         },
         &mut |line| {
             if !quiet {
-                eprintln!("demo: {line}");
+                say!("demo: {line}");
             }
         },
     )?;
     if ticking {
-        eprintln!();
+        say!();
     }
     if let Some(line) = outcome.realtime_line().filter(|_| !quiet) {
-        eprintln!("demo: {line}");
+        say!("demo: {line}");
     }
     if args.json {
         writeln!(out, "{}", outcome.json()?)?;

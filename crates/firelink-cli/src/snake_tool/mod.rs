@@ -145,7 +145,7 @@ pub fn run(args: &SnakeToolArgs, out: &mut impl Write) -> Result<(), CliError> {
     let finished = session.finish();
     if let Ok(boards) = &finished {
         if !boards.is_empty() {
-            eprintln!("snake-tool: amplifiers turned off on exit (boards {boards:?})");
+            say!("snake-tool: amplifiers turned off on exit (boards {boards:?})");
         }
     }
     result.and(finished.map(|_| ()).map_err(CliError::from))

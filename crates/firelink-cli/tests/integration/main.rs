@@ -5,6 +5,7 @@
 //! with one `mod` line. See ARCHITECTURE.md, "Tests".
 
 mod cli_args;
+mod closed_pipes;
 mod common;
 mod demo_bench;
 mod emulate_cli;

@@ -36,6 +36,7 @@
 //! in the [`LoopExit`] that [`Service::stop`] returns.
 
 use std::fmt;
+use std::io::Write as _;
 use std::panic::AssertUnwindSafe;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
@@ -1377,7 +1378,9 @@ impl Drop for Service {
         if self.thread.is_some() {
             let exit = self.shutdown();
             if exit.panic.is_some() {
-                eprintln!("firelink: robot service: {exit}");
+                // Never a panic here (a closed stderr): this may run while
+                // unwinding, where a second panic aborts.
+                let _ = writeln!(std::io::stderr(), "firelink: robot service: {exit}");
             }
         }
     }
