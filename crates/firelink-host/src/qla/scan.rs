@@ -396,6 +396,12 @@ impl ScanReport {
 
 /// Find every board behind `port`.
 ///
+/// Each candidate node's identity registers are read in turn. When an
+/// answer arrived after its time-out (counted `late` in the port's
+/// [`link_stats`](Port::link_stats)), the nodes that seemed silent are
+/// asked again, up to three rounds in all, so that a board that was only
+/// slow is found, not dropped.
+///
 /// # Errors
 /// [`HostError::NoBoards`] when nothing answered (with what the port saw
 /// instead: silence, garbage, bad CRCs, late or foreign answers);
@@ -435,41 +441,55 @@ fn scan_once<P: Port + ?Sized>(port: &mut P) -> Result<ScanReport> {
     let mut silent_nodes = Vec::new();
     let mut unsupported = Vec::new();
     let mut duplicate_ids = Vec::new();
-    for node in port.candidate_nodes() {
-        let dest = Dest::node(node);
-        let (hardware, firmware, eth, status, git) = match identify(port, dest) {
-            Ok(id) => id,
-            Err(e @ HostError::BusReset { .. }) => return Err(e),
-            Err(HostError::Io(kind)) => return Err(HostError::Io(kind)),
-            Err(_) => {
-                silent_nodes.push(node);
+    let mut to_ask: Vec<u8> = port.candidate_nodes().collect();
+    // A late answer means a node took longer than the port's time-out:
+    // the nodes that seemed silent are asked again, so that a board that
+    // was only slow is found rather than dropped. A round in which no new
+    // late answer came ends it; at most this many rounds in all.
+    const ROUNDS: usize = 3;
+    for round in 0..ROUNDS {
+        let late_before = port.link_stats().late;
+        for node in std::mem::take(&mut to_ask) {
+            let dest = Dest::node(node);
+            let (hardware, firmware, eth, status, git) = match identify(port, dest) {
+                Ok(id) => id,
+                Err(e @ HostError::BusReset { .. }) => return Err(e),
+                Err(HostError::Io(kind)) => return Err(HostError::Io(kind)),
+                Err(_) => {
+                    silent_nodes.push(node);
+                    continue;
+                }
+            };
+            let layout = BoardLayout::for_hardware(hardware, FirmwareRev::from(firmware));
+            let fpga = FpgaVersion::from_eth_status(eth);
+            let (Some(layout), Ok(fpga)) = (layout, fpga) else {
+                unsupported.push(UnsupportedNode {
+                    node,
+                    hardware,
+                    firmware,
+                });
+                continue;
+            };
+            let board_id = StatusRead(status).board_id();
+            if boards.iter().any(|b| b.board_id == board_id) {
+                duplicate_ids.push((board_id, node));
                 continue;
             }
-        };
-        let layout = BoardLayout::for_hardware(hardware, FirmwareRev::from(firmware));
-        let fpga = FpgaVersion::from_eth_status(eth);
-        let (Some(layout), Ok(fpga)) = (layout, fpga) else {
-            unsupported.push(UnsupportedNode {
+            boards.push(BoardInfo {
+                board_id,
                 node,
                 hardware,
                 firmware,
+                fpga,
+                git: GitDesc(git),
+                layout,
             });
-            continue;
-        };
-        let board_id = StatusRead(status).board_id();
-        if boards.iter().any(|b| b.board_id == board_id) {
-            duplicate_ids.push((board_id, node));
-            continue;
         }
-        boards.push(BoardInfo {
-            board_id,
-            node,
-            hardware,
-            firmware,
-            fpga,
-            git: GitDesc(git),
-            layout,
-        });
+        let late_seen = port.link_stats().late > late_before;
+        if silent_nodes.is_empty() || !late_seen || round + 1 == ROUNDS {
+            break;
+        }
+        to_ask = std::mem::take(&mut silent_nodes);
     }
     if boards.is_empty() {
         return Err(HostError::NoBoards {

@@ -435,3 +435,117 @@ fn whole_cycle_axis_calls_are_the_per_axis_methods() {
         );
     }
 }
+
+/// A port on the simulated bus whose first read of node `slow` times out,
+/// its answer then counted late during the next transaction, as
+/// `UdpPort` counts the answer of a board whose server thread waited for
+/// a CPU. (`SimPort` itself drops a late answer uncounted.)
+struct FirstAnswerLate {
+    inner: SimPort,
+    slow: u8,
+    timed_out: bool,
+    late: u64,
+}
+
+impl Port for FirstAnswerLate {
+    fn name(&self) -> &str {
+        "first-answer-late"
+    }
+    fn read_quadlet(
+        &mut self,
+        dest: firelink_host::Dest,
+        offset: u64,
+    ) -> firelink_host::Result<u32> {
+        if self.timed_out && self.late == 0 {
+            self.late = 1;
+        }
+        if dest == firelink_host::Dest::node(self.slow) && !self.timed_out {
+            self.timed_out = true;
+            return Err(HostError::Timeout {
+                node: self.slow,
+                tl: 0,
+                waited_us: 1000,
+            });
+        }
+        self.inner.read_quadlet(dest, offset)
+    }
+    fn write_quadlet(
+        &mut self,
+        dest: firelink_host::Dest,
+        offset: u64,
+        value: u32,
+    ) -> firelink_host::Result<()> {
+        self.inner.write_quadlet(dest, offset, value)
+    }
+    fn read_block(
+        &mut self,
+        dest: firelink_host::Dest,
+        offset: u64,
+        out: &mut [u8],
+    ) -> firelink_host::Result<()> {
+        self.inner.read_block(dest, offset, out)
+    }
+    fn write_block(
+        &mut self,
+        dest: firelink_host::Dest,
+        offset: u64,
+        data: &[u8],
+    ) -> firelink_host::Result<()> {
+        self.inner.write_block(dest, offset, data)
+    }
+    fn wait(&mut self, duration: Duration) {
+        self.inner.wait(duration);
+    }
+    fn now(&self) -> Duration {
+        self.inner.now()
+    }
+    fn generation(&self) -> u32 {
+        self.inner.generation()
+    }
+    fn link_stats(&self) -> firelink_host::link_stats::LinkStats {
+        let mut stats = self.inner.link_stats();
+        stats.late += self.late;
+        stats
+    }
+    fn candidate_nodes(&self) -> core::ops::Range<u8> {
+        self.inner.candidate_nodes()
+    }
+}
+
+#[test]
+fn a_board_whose_answer_came_late_is_asked_again_and_found() {
+    let inner = port(3, Profile::Rev8);
+    let mut p = FirstAnswerLate {
+        inner,
+        slow: 1,
+        timed_out: false,
+        late: 0,
+    };
+    let report = scan(&mut p).unwrap();
+    assert_eq!(p.link_stats().late, 1);
+    let ids: Vec<u8> = report.boards.iter().map(|b| b.board_id).collect();
+    assert_eq!(ids, [0, 1, 2], "silent: {:?}", report.silent_nodes);
+    assert!(report.silent_nodes.is_empty());
+}
+
+#[test]
+fn a_silent_board_with_no_late_answer_is_not_asked_again() {
+    // The same time-out with no late answer afterwards (node 1 stays
+    // silent): one round, node 1 silent and asked once.
+    let mut r = rig(3, Hardware::Qla1, Profile::Rev8);
+    let when = r.bus.now();
+    r.bus.schedule_fault(
+        when,
+        TimedFault::StopAnswering {
+            node: r.boards[1],
+            duration: None,
+        },
+    );
+    let mut p = SimPort::new(r.bus, r.host).with_timeout(Duration::from_millis(1));
+    let report = scan(&mut p).unwrap();
+    assert_eq!(report.silent_nodes, [1]);
+    // Five identity reads each of boards 0 and 2, one of node 1 (its
+    // first read timed out and ended its identification).
+    let stats = p.link_stats();
+    assert_eq!((stats.sent, stats.timeouts), (11, 1), "{stats:?}");
+}
