@@ -126,6 +126,7 @@ pub use power::{
     SUPPLY_HOLD, WATCHDOG_POWER_UP_TICKS,
 };
 
+use firelink_wire::field::read_quadlet;
 use firelink_wire::packet::{
     Ack, AsyncHeader, CrcStatus, NodeId, Packet, PacketRepr, Rcode, Tcode,
 };
@@ -707,11 +708,18 @@ impl Firmware {
     }
 
     /// Hand the amplifier inputs to the plant, from `self.now` on, where
-    /// they changed.
+    /// they changed (inlined: mostly nothing changed, and that is one
+    /// test).
+    #[inline]
     fn sync_plant(&mut self) {
-        if !self.drive_stale {
-            return;
+        if self.drive_stale {
+            self.sync_plant_now();
         }
+    }
+
+    /// [`sync_plant`](Self::sync_plant) when the inputs may have changed.
+    #[inline(never)]
+    fn sync_plant_now(&mut self) {
         self.drive_stale = false;
         let now = self.now;
         let mut clock_set = false;
@@ -767,6 +775,9 @@ impl Firmware {
         phy: &mut dyn PhyAccess,
     ) -> Reply {
         self.rx_error = None;
+        if self.receive_hub_broadcast(now, bytes, crc) {
+            return Reply::Silent;
+        }
         let Ok(packet) = Packet::new_checked(bytes) else {
             return Reply::Silent;
         };
@@ -791,6 +802,79 @@ impl Firmware {
         let reply = self.receive_inner(now, &packet, crc, to_me, broadcast, to_node0, phy);
         self.sync_plant();
         reply
+    }
+
+    /// [`receive_checked`](Self::receive_checked)'s path for the packet
+    /// most deliveries carry: another board's status broadcast, a block
+    /// write to broadcast landing in hub memory, both CRCs known good. Its
+    /// header is read once from the raw quadlets and the data goes straight
+    /// to the hub, doing exactly what the general path does for it (packet
+    /// memory, time, watchdog refresh, late and duplicate broadcasts, the
+    /// plant's inputs); the reply is silence. `false`, with nothing done,
+    /// for any other packet (or CRCs not yet checked).
+    #[inline]
+    fn receive_hub_broadcast(
+        &mut self,
+        now: SimTime,
+        bytes: &[u8],
+        crc: Option<CrcStatus>,
+    ) -> bool {
+        /// Header and header CRC of a block write.
+        const BLOCK_HEADER_BYTES: usize = 20;
+        let Some(crc) = crc else {
+            return false;
+        };
+        if bytes.len() < BLOCK_HEADER_BYTES
+            || crc.header_ok != Some(true)
+            || crc.data_ok == Some(false)
+        {
+            return false;
+        }
+        let first = read_quadlet(bytes, 0);
+        let tcode = ((first >> 4) & 0xF) as u8;
+        let destination_phy = ((first >> 16) & 0x3F) as u8;
+        // To broadcast, and not (as it could only be for a node 63) to
+        // this node as well.
+        if tcode != u8::from(Tcode::WriteBlockRequest)
+            || destination_phy != NodeId::BROADCAST_PHY
+            || self.phy_id == Some(NodeId::BROADCAST_PHY)
+        {
+            return false;
+        }
+        let offset_low = read_quadlet(bytes, 2);
+        let address = u64::from(offset_low & 0xFFFF);
+        if !(HUB_MEMORY_OFFSET..HUB_MEMORY_OFFSET + HUB_MEMORY_QUADLETS as u64).contains(&address) {
+            return false;
+        }
+        let data_length = (read_quadlet(bytes, 3) >> 16) as usize;
+        // A longer write is refused, a shorter buffer not taken: both left
+        // to the general path.
+        let total = if data_length > 0 {
+            BLOCK_HEADER_BYTES + data_length.div_ceil(4) * 4 + 4
+        } else {
+            BLOCK_HEADER_BYTES
+        };
+        if data_length > MAX_BLOCK_WRITE || bytes.len() < total {
+            return false;
+        }
+        self.rx_memory.store(bytes);
+        self.catch_up(now);
+        let second = read_quadlet(bytes, 1);
+        let offset = (u64::from(second & 0xFFFF) << 32) | u64::from(offset_low);
+        let source_phy = ((second >> 16) & 0x3F) as u8;
+        if self.late_for_its_slot(now, source_phy, offset) {
+            self.rx_error = Some(RxError::LateBroadcast);
+        }
+        let data = bytes
+            .get(BLOCK_HEADER_BYTES..BLOCK_HEADER_BYTES + data_length)
+            .unwrap_or(&[]);
+        // A write: it refreshes the watchdog (as `write_block_from`).
+        self.watchdog.last_write = now;
+        if !self.hub.store(now, data, self.cfg.layout().format()) {
+            self.rx_error = Some(RxError::DuplicateBroadcast);
+        }
+        self.sync_plant();
+        true
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -985,14 +1069,10 @@ impl Firmware {
         let phy = self.phy_id?;
         let offset = status_broadcast_offset(self.cfg.firmware, self.cfg.board_id)
             .unwrap_or(STATUS_BROADCAST_OFFSET);
-        let packet = emit_into(
-            &PacketRepr::WriteBlockRequest {
-                header: AsyncHeader::new(NodeId::BROADCAST, NodeId::local(phy), 0)
-                    .with_pri(STATUS_BROADCAST_PRIORITY),
-                offset,
-                extended_tcode: 0,
-                data: &pending.payload,
-            },
+        let packet = status_broadcast_into(
+            phy,
+            offset,
+            &pending.payload,
             core::mem::take(&mut self.packet_buffer),
         );
         self.hub.in_flight = Some(pending.payload);
@@ -1073,6 +1153,7 @@ impl Firmware {
     /// Seed profile: whether a status broadcast from node `sender`
     /// arriving at `now` (at `offset`) is later than its TDMA slot allows:
     /// the end of the slot plus 2 us.
+    #[inline]
     fn late_for_its_slot(&self, now: SimTime, sender: u8, offset: u64) -> bool {
         if self.cfg.profile != Profile::Seed {
             return false;
@@ -1184,6 +1265,48 @@ fn block_response_into(header: AsyncHeader, rcode: Rcode, data: &[u8], buffer: V
     )
 }
 
+/// The status broadcast of the board at physical ID `phy`: a block write
+/// of `payload` to broadcast at `offset`, label 0, retry code 0, priority
+/// [`STATUS_BROADCAST_PRIORITY`], built in `buffer`'s memory. The same
+/// bytes as [`emit_into`] makes of that [`PacketRepr::WriteBlockRequest`]
+/// (CRCs included), with the header's quadlets written directly.
+fn status_broadcast_into(phy: u8, offset: u64, payload: &[u8], mut buffer: Vec<u8>) -> Vec<u8> {
+    let Ok(data_length) = u16::try_from(payload.len()) else {
+        return emit_into(
+            &PacketRepr::WriteBlockRequest {
+                header: AsyncHeader::new(NodeId::BROADCAST, NodeId::local(phy), 0)
+                    .with_pri(STATUS_BROADCAST_PRIORITY),
+                offset,
+                extended_tcode: 0,
+                data: payload,
+            },
+            buffer,
+        );
+    };
+    let header = [
+        (u32::from(NodeId::BROADCAST.0) << 16)
+            | (u32::from(u8::from(Tcode::WriteBlockRequest)) << 4)
+            | u32::from(STATUS_BROADCAST_PRIORITY & 0xF),
+        (u32::from(NodeId::local(phy).0) << 16) | ((offset >> 32) & 0xFFFF) as u32,
+        offset as u32,
+        u32::from(data_length) << 16,
+    ];
+    buffer.clear();
+    for quadlet in header {
+        buffer.extend_from_slice(&quadlet.to_be_bytes());
+    }
+    let header_crc = firelink_wire::crc::crc1394(&buffer);
+    buffer.extend_from_slice(&header_crc.to_be_bytes());
+    if !payload.is_empty() {
+        let start = buffer.len();
+        buffer.extend_from_slice(payload);
+        buffer.resize(start + payload.len().div_ceil(4) * 4, 0);
+        let data_crc = buffer.get(start..).map_or(0, firelink_wire::crc::crc1394);
+        buffer.extend_from_slice(&data_crc.to_be_bytes());
+    }
+    buffer
+}
+
 /// Emit a packet this module built (always valid: fields in range).
 pub(crate) fn emit(repr: &PacketRepr<'_>) -> Vec<u8> {
     emit_into(repr, Vec::new())
@@ -1199,4 +1322,107 @@ pub(crate) fn emit_into(repr: &PacketRepr<'_>, mut buffer: Vec<u8>) -> Vec<u8> {
         Err(_) => buffer.clear(),
     }
     buffer
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use config::Hardware;
+
+    /// The status broadcast built directly is byte for byte what the
+    /// packet representation emits, whatever the payload's length.
+    #[test]
+    fn status_broadcast_matches_the_emitted_packet() {
+        for len in [0usize, 1, 3, 4, 7, 64, 100, 300, 2000] {
+            let payload: Vec<u8> = (0..len).map(|i| (i * 37 + 11) as u8).collect();
+            for phy in [0u8, 5, 62] {
+                let offset = 0xFFFF_FF00_1000 + u64::from(phy) * 0x20;
+                let expected = emit_into(
+                    &PacketRepr::WriteBlockRequest {
+                        header: AsyncHeader::new(NodeId::BROADCAST, NodeId::local(phy), 0)
+                            .with_pri(STATUS_BROADCAST_PRIORITY),
+                        offset,
+                        extended_tcode: 0,
+                        data: &payload,
+                    },
+                    Vec::new(),
+                );
+                let built = status_broadcast_into(phy, offset, &payload, vec![0xAA; 9]);
+                assert_eq!(built, expected, "payload of {len} bytes from node {phy}");
+            }
+        }
+    }
+
+    fn query_packet(seq: u16, mask: u16) -> Vec<u8> {
+        let word = Query {
+            seq,
+            board_mask: mask,
+        }
+        .to_word()
+        .unwrap();
+        emit(&PacketRepr::WriteQuadletRequest {
+            header: AsyncHeader::new(NodeId::BROADCAST, NodeId::local(9), 0),
+            offset: HUB_QUERY_OFFSET,
+            data: word,
+        })
+    }
+
+    /// A board's status broadcast after `query`, sent at `at`.
+    fn broadcast_of(profile: Profile, board: u8, query: &[u8], at: SimTime) -> Vec<u8> {
+        let mut fw = Firmware::new(BoardConfig::new(board, Hardware::Qla1, profile));
+        let mut phy = PhyRegisters::new(board);
+        fw.bus_reset(SimTime::ZERO, board, 1);
+        fw.receive(SimTime::from_micros(100), query, &mut phy);
+        fw.poll_transmit(at).expect("the broadcast is due")
+    }
+
+    /// A status broadcast of another board (good, repeated, late, with a
+    /// damaged data CRC) leaves the receiving board exactly as the general
+    /// path does, whether its CRCs come checked (the hub fast path) or
+    /// not.
+    #[test]
+    fn hub_broadcast_fast_path_matches_the_general_path() {
+        for profile in [Profile::Seed, Profile::Rev7, Profile::Rev8] {
+            let query = query_packet(7, 0b1111);
+            let mut fast = Firmware::new(BoardConfig::new(2, Hardware::Qla1, profile));
+            let mut phy = PhyRegisters::new(2);
+            fast.bus_reset(SimTime::ZERO, 2, 1);
+            fast.receive(SimTime::from_micros(100), &query, &mut phy);
+            let mut general = fast.clone();
+            let on_time = broadcast_of(profile, 1, &query, SimTime::from_micros(200));
+            let mut damaged = broadcast_of(profile, 3, &query, SimTime::from_micros(260));
+            let last = damaged.len() - 1;
+            damaged[last] ^= 1;
+            let packets = [
+                (210, &on_time),
+                (230, &on_time),
+                (270, &damaged),
+                (
+                    5_000,
+                    &broadcast_of(profile, 0, &query, SimTime::from_micros(4_000)),
+                ),
+            ];
+            let mut errors = Vec::new();
+            for (micros, packet) in packets {
+                let now = SimTime::from_micros(micros);
+                let crc = Packet::new_checked(&packet[..]).unwrap().crc_status();
+                let a = fast.receive_checked(now, packet, Some(crc), &mut phy);
+                let b = general.receive(now, packet, &mut phy);
+                assert_eq!(a, b);
+                let error = fast.take_rx_error();
+                assert_eq!(error, general.take_rx_error());
+                errors.push(error);
+                assert_eq!(format!("{fast:?}"), format!("{general:?}"));
+            }
+            assert!(
+                fast.hub.count > 0,
+                "{profile:?}: the broadcasts were stored"
+            );
+            assert!(errors.contains(&Some(RxError::DuplicateBroadcast)));
+            assert!(errors.contains(&Some(RxError::DataCrc)));
+            if profile == Profile::Seed {
+                assert!(errors.contains(&Some(RxError::LateBroadcast)), "{errors:?}");
+            }
+        }
+    }
 }

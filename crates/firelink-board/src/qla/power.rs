@@ -31,6 +31,20 @@ pub const SAFETY_TICK: SimDuration = SimDuration::from_micros(100);
 /// clocks, 20.83 us).
 pub const ENABLE_DELAY_UNIT_CLOCKS: u64 = 1024;
 
+/// The enable delay of each MOTOR_CONFIG delay code (`from_clocks` of the
+/// code's clocks, worked out once at compile time: the amplifiers' enable
+/// times are asked for several times per packet).
+#[allow(clippy::indexing_slicing)] // `units` stays below the length.
+const ENABLE_DELAYS: [SimDuration; 256] = {
+    let mut delays = [SimDuration::ZERO; 256];
+    let mut units = 0;
+    while units < delays.len() {
+        delays[units] = SimDuration::from_clocks(units as u64 * ENABLE_DELAY_UNIT_CLOCKS);
+        units += 1;
+    }
+    delays
+};
+
 /// Default enable delay: 120 units, 2.5 ms (section 7).
 pub const DEFAULT_ENABLE_DELAY: u8 = 120;
 
@@ -201,8 +215,16 @@ impl AxisState {
             return None;
         }
         let allowed = power.drive_allowed_from()?;
-        let units = if delayed { self.enable_delay } else { 0 };
-        let delay = SimDuration::from_clocks(u64::from(units) * ENABLE_DELAY_UNIT_CLOCKS);
+        // `from_clocks(0)` is zero: no delay without an expander.
+        let delay = if delayed {
+            // Every u8 code has its entry.
+            ENABLE_DELAYS
+                .get(usize::from(self.enable_delay))
+                .copied()
+                .unwrap_or(SimDuration::ZERO)
+        } else {
+            SimDuration::ZERO
+        };
         Some(self.requested_since.max(allowed) + delay)
     }
 
@@ -228,6 +250,25 @@ impl AxisState {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The table holds each delay code's duration as worked out from its
+    /// clocks, and an axis with an expander waits exactly that long.
+    #[test]
+    fn enable_delays_are_the_codes_clocks() {
+        let mut power = Power::new(true, SimDuration::from_millis(5));
+        power.enabled = true;
+        power.update_supply(SimTime::ZERO);
+        let mut axis = AxisState::new(0);
+        axis.requested = true;
+        axis.requested_since = SimTime::from_millis(1000);
+        let undelayed = axis.on_at(&power, false).unwrap();
+        for units in 0..=u8::MAX {
+            let delay = SimDuration::from_clocks(u64::from(units) * ENABLE_DELAY_UNIT_CLOCKS);
+            assert_eq!(ENABLE_DELAYS[usize::from(units)], delay);
+            axis.enable_delay = units;
+            assert_eq!(axis.on_at(&power, true), Some(undelayed + delay));
+        }
+    }
 
     #[test]
     fn watchdog_power_up_is_30_ms() {
