@@ -159,6 +159,9 @@ pub struct Encoder {
     /// first `stored` of them are valid.
     recent: [Edge; HISTORY],
     stored: usize,
+    /// How many of the stored edges, newest first, went the newest's
+    /// way (the run `fields_at_clock` measures; 0 with none stored).
+    same: usize,
     edge_count: u64,
 }
 
@@ -167,6 +170,7 @@ impl PartialEq for Encoder {
         self.counts_per_rev == other.counts_per_rev
             && self.count == other.count
             && self.edge_count == other.edge_count
+            && self.same == other.same
             && self.stored == other.stored
             && self.edges() == other.edges()
     }
@@ -185,6 +189,7 @@ impl Encoder {
             count: floor_count(position),
             recent: [unused; HISTORY],
             stored: 0,
+            same: 0,
             edge_count: 0,
         }
     }
@@ -222,24 +227,45 @@ impl Encoder {
     /// Move the shaft linearly from `from` to `to` counts during the span
     /// that starts at `start` and lasts `span_ps` picoseconds, recording
     /// every edge crossed with its interpolated time.
+    #[inline]
     pub fn track(&mut self, from: f64, to: f64, start: SimTime, span_ps: u64) {
         let target = floor_count(to);
-        if target == self.count {
-            return;
+        // Most spans cross no boundary: that check stays in the caller.
+        if target != self.count {
+            self.record_edges(from, to, target, start, span_ps);
         }
+    }
+
+    /// [`track`](Self::track) once the count is known to move to `target`.
+    #[inline(never)]
+    fn record_edges(&mut self, from: f64, to: f64, target: i64, start: SimTime, span_ps: u64) {
         let up = target > self.count;
         let crossings = self.count.abs_diff(target);
         // Only the last HISTORY edges can be observed; skip the others.
-        let skip = crossings.saturating_sub(HISTORY as u64);
+        let kept = crossings.min(HISTORY as u64) as usize;
+        let skip = crossings - kept as u64;
         self.edge_count = self.edge_count.saturating_add(skip);
         if up {
             self.count += skip as i64;
         } else {
             self.count -= skip as i64;
         }
+        // The run of same-direction edges, newest first, after these.
+        let continues = self.stored > 0 && self.recent[0].up == up;
+        self.same = if continues {
+            (self.same + kept).min(HISTORY)
+        } else {
+            kept
+        };
+        // The older edges move down once, by all the new ones; the oldest
+        // fall off the end. The new edges fill the front, the first
+        // crossed deepest, as one push each would have left them.
+        self.recent.copy_within(..HISTORY - kept, kept);
+        self.stored = (self.stored + kept).min(HISTORY);
+        self.edge_count = self.edge_count.saturating_add(kept as u64);
         let dx = to - from;
         let per_count = if dx != 0.0 { 1.0 / dx } else { 0.0 };
-        while self.count != target {
+        for slot in (0..kept).rev() {
             // The boundary crossed: count+1 going up, count going down.
             let boundary = if up { self.count + 1 } else { self.count };
             let frac = if dx != 0.0 {
@@ -250,20 +276,14 @@ impl Encoder {
             let at = SimTime(start.0.saturating_add((span_ps as f64 * frac) as u64));
             let kind = EdgeKind::of_transition(self.count, up);
             self.count += if up { 1 } else { -1 };
-            self.push(Edge {
-                clock: at.clocks(),
-                up,
-                kind,
-            });
+            if let Some(edge) = self.recent.get_mut(slot) {
+                *edge = Edge {
+                    clock: at.clocks(),
+                    up,
+                    kind,
+                };
+            }
         }
-    }
-
-    fn push(&mut self, edge: Edge) {
-        // The oldest falls off the end.
-        self.recent.copy_within(..HISTORY - 1, 1);
-        self.recent[0] = edge;
-        self.stored = (self.stored + 1).min(HISTORY);
-        self.edge_count = self.edge_count.saturating_add(1);
     }
 
     /// The velocity fields the FPGA would latch at `now`.
@@ -301,8 +321,9 @@ impl Encoder {
                 },
             };
         };
-        // Consecutive edges, newest first, in the direction of the newest.
-        let same = edges.iter().take_while(|e| e.up == e0.up).count();
+        // Consecutive edges, newest first, in the direction of the newest
+        // (counted as they are recorded).
+        let same = self.same;
         let reversed = same < edges.len();
         let clock = |i: usize| edges.get(i).map(|e| e.clock);
 

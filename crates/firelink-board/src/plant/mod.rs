@@ -31,6 +31,7 @@ pub mod noise;
 mod params;
 pub mod presets;
 
+use axis::DecayMemo;
 pub use axis::{Axis, Integrator};
 pub use params::{
     AmplifierParams, AxisParams, CurrentSenseParams, DAC_ZERO, EncoderParams, GravityParams,
@@ -59,8 +60,13 @@ pub struct Plant {
     step_ps: u64,
     /// The plant's clock: the latest time it was advanced (or moved) to.
     clock: SimTime,
+    /// The measurement-noise sample index at the clock (`clock / step_ps`,
+    /// worked out when the clock moves).
+    sample: u64,
     /// Per axis: the current-sense and the pot noise streams.
     noise: Vec<(NoiseStream, NoiseStream)>,
+    /// The current loop's decays the current check last needed.
+    decay: DecayMemo,
 }
 
 impl Plant {
@@ -87,6 +93,7 @@ impl Plant {
                 .collect(),
             step_ps,
             clock: SimTime::ZERO,
+            sample: 0,
             noise: {
                 let noise = Noise::new(seed);
                 (0..axes.len())
@@ -98,6 +105,7 @@ impl Plant {
                     })
                     .collect()
             },
+            decay: DecayMemo::new(),
         }
     }
 
@@ -115,7 +123,7 @@ impl Plant {
     /// The measurement-noise sample index at the clock: a new sample every
     /// step.
     fn sample(&self) -> u64 {
-        self.clock.0 / self.step_ps
+        self.sample
     }
 
     /// Number of axes.
@@ -163,6 +171,7 @@ impl Plant {
             return;
         }
         self.clock = now;
+        self.sample = now.0 / self.step_ps;
         for axis in &mut self.axes {
             axis.set_clock(now);
         }
@@ -188,12 +197,14 @@ impl Plant {
     /// The measured motor current of an axis without its noise, A, and how
     /// far the noise can take it (the noise's [`noise::MAX_DEVIATE`]
     /// standard deviations): [`measured_current`](Self::measured_current)
-    /// is within that of it.
-    pub fn measured_current_range(&self, index: usize) -> (f64, f64) {
+    /// is within that of it. (Mutable only to remember the current loop's
+    /// decays: the axes commanded together need the same.)
+    pub fn measured_current_range(&mut self, index: usize) -> (f64, f64) {
+        let decay = &mut self.decay;
         self.axes.get(index).map_or((0.0, 0.0), |a| {
             let cs = &a.params().current_sense;
             (
-                a.current_at_clock() + cs.offset_amps,
+                a.current_at_clock_memo(decay) + cs.offset_amps,
                 cs.noise_amps * noise::MAX_DEVIATE,
             )
         })
