@@ -257,15 +257,11 @@ impl Encoder {
         } else {
             kept
         };
-        // The older edges move down once, by all the new ones; the oldest
-        // fall off the end. The new edges fill the front, the first
-        // crossed deepest, as one push each would have left them.
-        self.recent.copy_within(..HISTORY - kept, kept);
         self.stored = (self.stored + kept).min(HISTORY);
         self.edge_count = self.edge_count.saturating_add(kept as u64);
         let dx = to - from;
         let per_count = if dx != 0.0 { 1.0 / dx } else { 0.0 };
-        for slot in (0..kept).rev() {
+        for _ in 0..kept {
             // The boundary crossed: count+1 going up, count going down.
             let boundary = if up { self.count + 1 } else { self.count };
             let frac = if dx != 0.0 {
@@ -276,13 +272,13 @@ impl Encoder {
             let at = SimTime(start.0.saturating_add((span_ps as f64 * frac) as u64));
             let kind = EdgeKind::of_transition(self.count, up);
             self.count += if up { 1 } else { -1 };
-            if let Some(edge) = self.recent.get_mut(slot) {
-                *edge = Edge {
-                    clock: at.clocks(),
-                    up,
-                    kind,
-                };
-            }
+            // The oldest falls off the end (a move of fixed size, no call).
+            self.recent.copy_within(..HISTORY - 1, 1);
+            self.recent[0] = Edge {
+                clock: at.clocks(),
+                up,
+                kind,
+            };
         }
     }
 
@@ -322,32 +318,29 @@ impl Encoder {
             };
         };
         // Consecutive edges, newest first, in the direction of the newest
-        // (counted as they are recorded).
-        let same = self.same;
-        let reversed = same < edges.len();
+        // (counted as they are recorded: 1 ..= stored, so every edge the
+        // run reaches is stored and its clock is read straight from the
+        // array).
+        let stored = edges.len();
+        let same = self.same.max(1);
+        let reversed = same < stored;
         let clock = |i: usize| edges.get(i).map(|e| e.clock);
+        let run_clock = |i: usize| self.recent[i].clock;
 
         // Latched full-cycle period (or its extrapolation).
-        let intervals = (same.min(5) - 1) as u64;
-        let (latched, partial) = if intervals >= 4 {
-            (clock(0).zip(clock(4)).map(|(a, b)| a - b), false)
-        } else if intervals > 0 {
-            let oldest = clock(intervals as usize).unwrap_or(e0.clock);
-            (
-                Some(quarters_to_cycle(e0.clock - oldest, intervals as usize)),
-                true,
-            )
-        } else {
-            (None, true)
+        let intervals = same.min(5) - 1;
+        let (latched, partial) = match intervals {
+            0 => (None, true),
+            4 => (Some(e0.clock - run_clock(4)), false),
+            k => (Some(quarters_to_cycle(e0.clock - run_clock(k), k)), true),
         };
         // Free-running counter of the next expected edge: it completes a
         // cycle with edge 3 (or an extrapolated one with fewer edges).
         let j = same.min(4) - 1;
-        let running = clock(j).map(|c| quarters_to_cycle(now_clk.saturating_sub(c), j + 1));
-        let period_clocks = match (latched, running) {
-            (Some(l), Some(r)) => l.max(r),
-            (None, Some(r)) => r.max(u64::from(PERIOD_MAX) + 1),
-            (l, None) => l.unwrap_or(u64::from(PERIOD_MAX) + 1),
+        let running = quarters_to_cycle(now_clk.saturating_sub(run_clock(j)), j + 1);
+        let period_clocks = match latched {
+            Some(l) => l.max(running),
+            None => running.max(u64::from(PERIOD_MAX) + 1),
         };
         let (period, period_over) = saturate(period_clocks);
         let error = clock(1).is_some_and(|c1| c1 == e0.clock);
