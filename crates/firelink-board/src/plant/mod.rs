@@ -60,9 +60,6 @@ pub struct Plant {
     step_ps: u64,
     /// The plant's clock: the latest time it was advanced (or moved) to.
     clock: SimTime,
-    /// The measurement-noise sample index at the clock (`clock / step_ps`,
-    /// worked out when the clock moves).
-    sample: u64,
     /// Per axis: the current-sense and the pot noise streams.
     noise: Vec<(NoiseStream, NoiseStream)>,
     /// The current loop's decays the current check last needed.
@@ -93,7 +90,6 @@ impl Plant {
                 .collect(),
             step_ps,
             clock: SimTime::ZERO,
-            sample: 0,
             noise: {
                 let noise = Noise::new(seed);
                 (0..axes.len())
@@ -123,7 +119,7 @@ impl Plant {
     /// The measurement-noise sample index at the clock: a new sample every
     /// step.
     fn sample(&self) -> u64 {
-        self.sample
+        self.clock.0 / self.step_ps
     }
 
     /// Number of axes.
@@ -171,7 +167,6 @@ impl Plant {
             return;
         }
         self.clock = now;
-        self.sample = now.0 / self.step_ps;
         for axis in &mut self.axes {
             axis.set_clock(now);
         }

@@ -78,9 +78,7 @@ impl NoiseStream {
         // Uniform in (0, 1) on the grid (k + 1/2) / 2^52: never 0 or 1 (so
         // the tails stay finite), and exact (52 bits and a half fit the
         // mantissa; so does 1 - p).
-        // (The 52-bit integer converted as an `i64`: the same value, by
-        // one instruction instead of the unsigned conversion's several.)
-        let p = (((bits >> 12) as i64) as f64 + 0.5) / (1u64 << 52) as f64;
+        let p = ((bits >> 12) as f64 + 0.5) / (1u64 << 52) as f64;
         inverse_normal(p)
     }
 }
