@@ -325,7 +325,8 @@ impl Encoder {
         let same = self.same.max(1);
         let reversed = same < stored;
         let clock = |i: usize| edges.get(i).map(|e| e.clock);
-        let run_clock = |i: usize| self.recent[i].clock;
+        // (Indices below 5 here: always stored edges.)
+        let run_clock = |i: usize| self.recent.get(i).map_or(e0.clock, |e| e.clock);
 
         // Latched full-cycle period (or its extrapolation).
         let intervals = same.min(5) - 1;
