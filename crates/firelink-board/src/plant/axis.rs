@@ -454,6 +454,18 @@ impl Axis {
     /// the current loop's response from the state's instant (the supply's
     /// headroom taken at the state's velocity).
     pub(crate) fn current_at_clock(&self) -> f64 {
+        self.current_at_clock_by(f64::exp)
+    }
+
+    /// [`current_at_clock`](Self::current_at_clock) with the loop's decay
+    /// looked up in `decay` (the same value: `exp` of the same exponent).
+    pub(crate) fn current_at_clock_memo(&self, decay: &mut DecayMemo) -> f64 {
+        self.current_at_clock_by(|x| decay.exp(x))
+    }
+
+    /// The current at the clock with `exp` for the decay.
+    #[inline]
+    fn current_at_clock_by(&self, exp: impl FnOnce(f64) -> f64) -> f64 {
         let i0 = self.state.current;
         if self.time >= self.clock {
             return i0;
@@ -465,12 +477,67 @@ impl Axis {
             return i0;
         }
         let dt = (self.clock.0 - self.time.0) as f64 * 1e-12;
-        target + (i0 - target) * (-dt / self.model.tau).exp()
+        target + (i0 - target) * exp(-dt / self.model.tau)
     }
 
     /// Encoder counts per motor radian (signed by the encoder direction).
     pub fn counts_per_rad(&self) -> f64 {
         self.model.counts_per_rad
+    }
+}
+
+/// `exp(x)` for the last few exponents `x` asked for: a board's current
+/// check asks for the current of each of its axes at one instant, and the
+/// axes commanded together (the same time since their state, the same
+/// time constant) need the same decay. A value is `exp` of the very same
+/// exponent, bit for bit, so it is the value `exp` would give again.
+#[derive(Clone)]
+pub(crate) struct DecayMemo {
+    /// The exponents' bit patterns.
+    exponents: [u64; DecayMemo::LEN],
+    values: [f64; DecayMemo::LEN],
+    /// The slot the next new exponent takes (the oldest).
+    next: usize,
+}
+
+impl DecayMemo {
+    const LEN: usize = 4;
+
+    /// Every slot holds `exp(0)`, computed.
+    pub(crate) fn new() -> DecayMemo {
+        let zero = 0.0_f64;
+        DecayMemo {
+            exponents: [zero.to_bits(); DecayMemo::LEN],
+            values: [zero.exp(); DecayMemo::LEN],
+            next: 0,
+        }
+    }
+
+    /// `x.exp()`, remembered.
+    fn exp(&mut self, x: f64) -> f64 {
+        let key = x.to_bits();
+        for (k, v) in self.exponents.iter().zip(&self.values) {
+            if *k == key {
+                return *v;
+            }
+        }
+        let value = x.exp();
+        let slot = self.next % DecayMemo::LEN;
+        if let (Some(k), Some(v)) = (self.exponents.get_mut(slot), self.values.get_mut(slot)) {
+            *k = key;
+            *v = value;
+        }
+        self.next = (slot + 1) % DecayMemo::LEN;
+        value
+    }
+}
+
+/// What is remembered only makes the lookups faster: two plants in the
+/// same state may hold different values here (a board's state digest
+/// leaves it out).
+impl core::fmt::Debug for DecayMemo {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("DecayMemo")
     }
 }
 

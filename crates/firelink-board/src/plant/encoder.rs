@@ -159,6 +159,9 @@ pub struct Encoder {
     /// first `stored` of them are valid.
     recent: [Edge; HISTORY],
     stored: usize,
+    /// How many of the stored edges, newest first, went the newest's
+    /// way (the run `fields_at_clock` measures; 0 with none stored).
+    same: usize,
     edge_count: u64,
 }
 
@@ -167,6 +170,7 @@ impl PartialEq for Encoder {
         self.counts_per_rev == other.counts_per_rev
             && self.count == other.count
             && self.edge_count == other.edge_count
+            && self.same == other.same
             && self.stored == other.stored
             && self.edges() == other.edges()
     }
@@ -185,6 +189,7 @@ impl Encoder {
             count: floor_count(position),
             recent: [unused; HISTORY],
             stored: 0,
+            same: 0,
             edge_count: 0,
         }
     }
@@ -222,24 +227,41 @@ impl Encoder {
     /// Move the shaft linearly from `from` to `to` counts during the span
     /// that starts at `start` and lasts `span_ps` picoseconds, recording
     /// every edge crossed with its interpolated time.
+    #[inline]
     pub fn track(&mut self, from: f64, to: f64, start: SimTime, span_ps: u64) {
         let target = floor_count(to);
-        if target == self.count {
-            return;
+        // Most spans cross no boundary: that check stays in the caller.
+        if target != self.count {
+            self.record_edges(from, to, target, start, span_ps);
         }
+    }
+
+    /// [`track`](Self::track) once the count is known to move to `target`.
+    #[inline(never)]
+    fn record_edges(&mut self, from: f64, to: f64, target: i64, start: SimTime, span_ps: u64) {
         let up = target > self.count;
         let crossings = self.count.abs_diff(target);
         // Only the last HISTORY edges can be observed; skip the others.
-        let skip = crossings.saturating_sub(HISTORY as u64);
+        let kept = crossings.min(HISTORY as u64) as usize;
+        let skip = crossings - kept as u64;
         self.edge_count = self.edge_count.saturating_add(skip);
         if up {
             self.count += skip as i64;
         } else {
             self.count -= skip as i64;
         }
+        // The run of same-direction edges, newest first, after these.
+        let continues = self.stored > 0 && self.recent[0].up == up;
+        self.same = if continues {
+            (self.same + kept).min(HISTORY)
+        } else {
+            kept
+        };
+        self.stored = (self.stored + kept).min(HISTORY);
+        self.edge_count = self.edge_count.saturating_add(kept as u64);
         let dx = to - from;
         let per_count = if dx != 0.0 { 1.0 / dx } else { 0.0 };
-        while self.count != target {
+        for _ in 0..kept {
             // The boundary crossed: count+1 going up, count going down.
             let boundary = if up { self.count + 1 } else { self.count };
             let frac = if dx != 0.0 {
@@ -250,20 +272,14 @@ impl Encoder {
             let at = SimTime(start.0.saturating_add((span_ps as f64 * frac) as u64));
             let kind = EdgeKind::of_transition(self.count, up);
             self.count += if up { 1 } else { -1 };
-            self.push(Edge {
+            // The oldest falls off the end (a move of fixed size, no call).
+            self.recent.copy_within(..HISTORY - 1, 1);
+            self.recent[0] = Edge {
                 clock: at.clocks(),
                 up,
                 kind,
-            });
+            };
         }
-    }
-
-    fn push(&mut self, edge: Edge) {
-        // The oldest falls off the end.
-        self.recent.copy_within(..HISTORY - 1, 1);
-        self.recent[0] = edge;
-        self.stored = (self.stored + 1).min(HISTORY);
-        self.edge_count = self.edge_count.saturating_add(1);
     }
 
     /// The velocity fields the FPGA would latch at `now`.
@@ -301,32 +317,31 @@ impl Encoder {
                 },
             };
         };
-        // Consecutive edges, newest first, in the direction of the newest.
-        let same = edges.iter().take_while(|e| e.up == e0.up).count();
-        let reversed = same < edges.len();
+        // Consecutive edges, newest first, in the direction of the newest
+        // (counted as they are recorded: 1 ..= stored, so every edge the
+        // run reaches is stored and its clock is read straight from the
+        // array).
+        let stored = edges.len();
+        let same = self.same.max(1);
+        let reversed = same < stored;
         let clock = |i: usize| edges.get(i).map(|e| e.clock);
+        // (Indices below 5 here: always stored edges.)
+        let run_clock = |i: usize| self.recent.get(i).map_or(e0.clock, |e| e.clock);
 
         // Latched full-cycle period (or its extrapolation).
-        let intervals = (same.min(5) - 1) as u64;
-        let (latched, partial) = if intervals >= 4 {
-            (clock(0).zip(clock(4)).map(|(a, b)| a - b), false)
-        } else if intervals > 0 {
-            let oldest = clock(intervals as usize).unwrap_or(e0.clock);
-            (
-                Some(quarters_to_cycle(e0.clock - oldest, intervals as usize)),
-                true,
-            )
-        } else {
-            (None, true)
+        let intervals = same.min(5) - 1;
+        let (latched, partial) = match intervals {
+            0 => (None, true),
+            4 => (Some(e0.clock - run_clock(4)), false),
+            k => (Some(quarters_to_cycle(e0.clock - run_clock(k), k)), true),
         };
         // Free-running counter of the next expected edge: it completes a
         // cycle with edge 3 (or an extrapolated one with fewer edges).
         let j = same.min(4) - 1;
-        let running = clock(j).map(|c| quarters_to_cycle(now_clk.saturating_sub(c), j + 1));
-        let period_clocks = match (latched, running) {
-            (Some(l), Some(r)) => l.max(r),
-            (None, Some(r)) => r.max(u64::from(PERIOD_MAX) + 1),
-            (l, None) => l.unwrap_or(u64::from(PERIOD_MAX) + 1),
+        let running = quarters_to_cycle(now_clk.saturating_sub(run_clock(j)), j + 1);
+        let period_clocks = match latched {
+            Some(l) => l.max(running),
+            None => running.max(u64::from(PERIOD_MAX) + 1),
         };
         let (period, period_over) = saturate(period_clocks);
         let error = clock(1).is_some_and(|c1| c1 == e0.clock);

@@ -31,6 +31,7 @@ pub mod noise;
 mod params;
 pub mod presets;
 
+use axis::DecayMemo;
 pub use axis::{Axis, Integrator};
 pub use params::{
     AmplifierParams, AxisParams, CurrentSenseParams, DAC_ZERO, EncoderParams, GravityParams,
@@ -61,6 +62,8 @@ pub struct Plant {
     clock: SimTime,
     /// Per axis: the current-sense and the pot noise streams.
     noise: Vec<(NoiseStream, NoiseStream)>,
+    /// The current loop's decays the current check last needed.
+    decay: DecayMemo,
 }
 
 impl Plant {
@@ -98,6 +101,7 @@ impl Plant {
                     })
                     .collect()
             },
+            decay: DecayMemo::new(),
         }
     }
 
@@ -188,12 +192,14 @@ impl Plant {
     /// The measured motor current of an axis without its noise, A, and how
     /// far the noise can take it (the noise's [`noise::MAX_DEVIATE`]
     /// standard deviations): [`measured_current`](Self::measured_current)
-    /// is within that of it.
-    pub fn measured_current_range(&self, index: usize) -> (f64, f64) {
+    /// is within that of it. (Mutable only to remember the current loop's
+    /// decays: the axes commanded together need the same.)
+    pub fn measured_current_range(&mut self, index: usize) -> (f64, f64) {
+        let decay = &mut self.decay;
         self.axes.get(index).map_or((0.0, 0.0), |a| {
             let cs = &a.params().current_sense;
             (
-                a.current_at_clock() + cs.offset_amps,
+                a.current_at_clock_memo(decay) + cs.offset_amps,
                 cs.noise_amps * noise::MAX_DEVIATE,
             )
         })
