@@ -146,6 +146,14 @@ struct Bounds {
     saturated_from: f64,
     /// Largest |pot - position| that starts no pot timer.
     pot: f64,
+    /// Every bound but `saturated_from` finite: then a sample inside
+    /// every bound ([`all_clear`](Self::all_clear)) is finite too (a
+    /// position between finite limits, a velocity, a following error and
+    /// a pot offset below finite bounds are finite, and so the setpoint
+    /// and the pot; the strict `<` of the current is false for an infinite
+    /// or NaN current whatever its bound), so the quiet pass need not test
+    /// the sample's finiteness apart.
+    clear_means_finite: bool,
 }
 
 impl Bounds {
@@ -154,7 +162,7 @@ impl Bounds {
             (f64::NEG_INFINITY, f64::INFINITY),
             |(lower, upper, margin)| (lower - margin, upper + margin),
         );
-        Bounds {
+        let mut b = Bounds {
             lowest,
             highest,
             velocity: l.velocity.unwrap_or(f64::INFINITY),
@@ -166,7 +174,20 @@ impl Bounds {
             pot: l
                 .potentiometer
                 .map_or(f64::INFINITY, |(tolerance, _)| tolerance),
-        }
+            clear_means_finite: false,
+        };
+        b.clear_means_finite = [b.lowest, b.highest, b.velocity, b.following, b.pot]
+            .iter()
+            .all(|x| x.is_finite());
+        b
+    }
+
+    /// Whether sample `s` is finite and inside every bound: `s.all_finite()
+    /// & self.all_clear(s)`, without the finiteness test when the bounds
+    /// imply it ([`clear_means_finite`](Self::clear_means_finite)).
+    #[inline]
+    fn quiet(&self, s: &JointSample) -> bool {
+        (self.clear_means_finite || s.all_finite()) && self.all_clear(s)
     }
 
     /// Whether sample `s` (every value finite) is inside every bound: no
@@ -309,13 +330,11 @@ impl SafetyMonitor {
         if !self.timing {
             // No timer runs: the samples alone decide.
             let joints = self.bounds.iter().zip(samples);
-            return joints
-                .take_while(|(b, s)| s.all_finite() & b.all_clear(s))
-                .count();
+            return joints.take_while(|(b, s)| b.quiet(s)).count();
         }
         let joints = self.bounds.iter().zip(&self.timers).zip(samples);
         joints
-            .take_while(|((b, t), s)| s.all_finite() & t.idle() & b.all_clear(s))
+            .take_while(|((b, t), s)| t.idle() && b.quiet(s))
             .count()
     }
 
@@ -516,6 +535,62 @@ mod tests {
     fn quiet_joint_never_trips() {
         let mut m = SafetyMonitor::new(vec![limits()]);
         assert_eq!(run(&mut m, 0, 1000, ok()), None);
+    }
+
+    /// A sample with an infinite value is invalid, with every bound
+    /// finite (the bounds alone rule it out) or with every bound off
+    /// (infinite: the quiet pass must test the sample's finiteness).
+    #[test]
+    fn an_infinite_value_is_invalid_with_or_without_bounds() {
+        let off = JointLimits {
+            velocity: None,
+            following_error: None,
+            saturation_time: None,
+            position: None,
+            potentiometer: None,
+            ..limits()
+        };
+        let samples = [
+            (
+                "velocity",
+                JointSample {
+                    velocity: f64::INFINITY,
+                    ..ok()
+                },
+            ),
+            (
+                "position",
+                JointSample {
+                    position: f64::NEG_INFINITY,
+                    ..ok()
+                },
+            ),
+            (
+                "setpoint",
+                JointSample {
+                    setpoint: f64::INFINITY,
+                    ..ok()
+                },
+            ),
+            (
+                "potentiometer",
+                JointSample {
+                    potentiometer: Some(f64::INFINITY),
+                    ..ok()
+                },
+            ),
+        ];
+        for l in [limits(), off] {
+            for (what, s) in samples {
+                let mut m = SafetyMonitor::new(vec![l]);
+                let r = m.check(0.0, 0, &[s]).map(|r| r.kind);
+                let fault = match r {
+                    Some(FaultKind::InvalidValue { what, .. }) => Some(what),
+                    _ => None,
+                };
+                assert_eq!(fault, Some(what), "{l:?} {s:?}: {r:?}");
+            }
+        }
     }
 
     #[test]

@@ -36,6 +36,9 @@ pub(crate) struct Joint {
     /// from then does the safety monitor compare the two: before, the
     /// encoder counts from wherever the board started.
     pub homed: bool,
+    /// `pot.is_some() && homed`, kept with `homed`: whether the safety
+    /// monitor is given this joint's pot (while Active, a finite one).
+    pub pot_watched: bool,
     pub position: f64,
     pub velocity: VelocityEstimator,
     pub setpoint: f64,
@@ -63,6 +66,7 @@ impl Joint {
             motion_start: 0.0,
             offset: 0.0,
             homed: false,
+            pot_watched: false,
             position: 0.0,
             velocity: VelocityEstimator::default(),
             setpoint: 0.0,
@@ -145,8 +149,7 @@ impl Joint {
         self.current = amps;
         sample.setpoint = self.setpoint;
         sample.current = amps;
-        sample.potentiometer =
-            (self.pot.is_some() && self.homed && active && pot.is_finite()).then_some(pot);
+        sample.potentiometer = (self.pot_watched && active && pot.is_finite()).then_some(pot);
     }
 
     /// The pot position from the pot's ADC bits (NaN without a pot or a
@@ -192,6 +195,7 @@ pub(crate) fn apply_offsets(joints: &mut [Joint], offsets: &[f64], raw: &[f64]) 
     for ((j, off), raw) in joints.iter_mut().zip(offsets).zip(raw) {
         j.offset = *off;
         j.homed = true;
+        j.pot_watched = j.pot.is_some();
         j.position = raw + off;
         // Not active: the setpoint follows the (now homed) position.
         j.setpoint = j.position;

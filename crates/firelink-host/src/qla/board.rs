@@ -231,11 +231,21 @@ impl BoardIo {
         let n = counts.len().min(pots.len());
         let (encoders, motors) = (self.input.encoders(), self.input.motors());
         let counts = counts.get_mut(..n).unwrap_or_default();
+        let pots = pots.get_mut(..n).unwrap_or_default();
+        if encoders.len() == n && motors.len() == n {
+            // (The common case, an encoder and a motor for each axis
+            // asked for: both in one run.)
+            let inputs = encoders.iter().zip(motors);
+            for ((c, p), (e, m)) in counts.iter_mut().zip(pots.iter_mut()).zip(inputs) {
+                *c = e.position.counts();
+                *p = Some(m.adc.pot());
+            }
+            return;
+        }
         for (c, e) in counts.iter_mut().zip(encoders) {
             *c = e.position.counts();
         }
         counts.iter_mut().skip(encoders.len()).for_each(|c| *c = 0);
-        let pots = pots.get_mut(..n).unwrap_or_default();
         for (p, m) in pots.iter_mut().zip(motors) {
             *p = Some(m.adc.pot());
         }
