@@ -13,22 +13,30 @@ impl Bus {
 
     /// Process the next event. Returns false if there was none.
     pub fn step(&mut self) -> bool {
-        if let Some(d) = self.events.pop_delivery() {
-            self.now = self.now.max(d.time);
-            if d.epoch == self.epoch {
-                self.deliver(d.sub, d.node);
+        self.step_until(SimTime::MAX)
+    }
+
+    /// Process the next event if it comes at `deadline` or before.
+    /// Returns whether there was one.
+    #[inline]
+    pub(super) fn step_until(&mut self, deadline: SimTime) -> bool {
+        match self.events.pop_until(deadline) {
+            Some(Taken::Delivery(d)) => {
+                self.now = self.now.max(d.time);
+                if d.epoch == self.epoch {
+                    self.deliver(d.sub, d.node);
+                }
+                true
             }
-            return true;
+            Some(Taken::Event(q)) => {
+                self.now = self.now.max(q.time);
+                if q.epoch.is_none_or(|e| e == self.epoch) {
+                    self.handle(q.ev);
+                }
+                true
+            }
+            None => false,
         }
-        let Some(q) = self.events.pop() else {
-            return false;
-        };
-        self.now = self.now.max(q.time);
-        if q.epoch.is_some_and(|e| e != self.epoch) {
-            return true;
-        }
-        self.handle(q.ev);
-        true
     }
 
     pub(super) fn push(&mut self, time: SimTime, epoch: Option<u64>, ev: Ev) {
@@ -66,6 +74,7 @@ impl Bus {
                 arb_start,
                 class,
             } => self.tx_start(sub, arb_start, class),
+            #[cfg(test)]
             Ev::Deliver { sub, node } => self.deliver(sub, node),
             Ev::AckStart { sub } => self.ack_start(sub),
             Ev::Notify {
