@@ -188,6 +188,7 @@ impl Topology {
             hops: Vec::new(),
             path_speed: Vec::new(),
             by_distance: Vec::new(),
+            eccentricity: Vec::new(),
         };
         if root >= n {
             return tree;
@@ -261,6 +262,15 @@ impl Topology {
                 order
             })
             .collect();
+        tree.eccentricity = (0..m)
+            .map(|a| {
+                tree.hops[a * m..(a + 1) * m]
+                    .iter()
+                    .copied()
+                    .max()
+                    .unwrap_or(0)
+            })
+            .collect();
         tree
     }
 }
@@ -284,6 +294,8 @@ pub struct Tree {
     path_speed: Vec<Speed>,
     /// Row `a`: every physical ID by (hops from `a`, ID).
     by_distance: Vec<u8>,
+    /// The farthest any node is from each physical ID, in hops.
+    eccentricity: Vec<u8>,
 }
 
 impl Tree {
@@ -331,15 +343,9 @@ impl Tree {
 
     /// The farthest any node is from physical ID `a`, in hops.
     pub fn eccentricity(&self, a: u8) -> u32 {
-        let m = self.by_phy.len();
-        let a = usize::from(a);
-        if a >= m {
-            return 0;
-        }
-        self.hops[a * m..(a + 1) * m]
-            .iter()
+        self.eccentricity
+            .get(usize::from(a))
             .copied()
-            .max()
             .map_or(0, u32::from)
     }
 

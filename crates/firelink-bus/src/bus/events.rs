@@ -156,17 +156,44 @@ impl Bus {
         }
     }
 
-    /// [`apply`](Self::apply) the command list of the call that just
-    /// returned, leaving it empty.
+    /// Carry out what node `idx` did in the callback that just returned,
+    /// as its command list says (leaving the list empty): its PHY
+    /// register writes (its gap count was `old_gap` before), its reports,
+    /// timers and transmit requests; a bus reset it asked for through
+    /// IBR/ISBR starts last. Each of the list's vectors is taken out only
+    /// when it holds something (its memory goes back, emptied).
     #[inline(never)]
     fn apply_scratch(&mut self, idx: usize, old_gap: u8) {
-        let mut cmds = std::mem::take(&mut self.scratch);
-        self.apply(idx, old_gap, &mut cmds);
-        cmds.transmits.clear();
-        cmds.timers.clear();
-        cmds.phy_writes.clear();
-        cmds.reports.clear();
-        self.scratch = cmds;
+        let reset = self.apply_phy_registers(idx, old_gap);
+        if !self.scratch.reports.is_empty() {
+            let mut reports = std::mem::take(&mut self.scratch.reports);
+            for report in reports.drain(..) {
+                self.apply_report(idx, report);
+            }
+            self.scratch.reports = reports;
+        }
+        if !self.scratch.timers.is_empty() {
+            let mut timers = std::mem::take(&mut self.scratch.timers);
+            for cmd in timers.drain(..) {
+                self.apply_timer(idx, cmd);
+            }
+            self.scratch.timers = timers;
+        }
+        let mut want_arb = false;
+        if !self.scratch.transmits.is_empty() {
+            let mut transmits = std::mem::take(&mut self.scratch.transmits);
+            for req in transmits.drain(..) {
+                want_arb |= self.queue_transmit(idx, req);
+            }
+            self.scratch.transmits = transmits;
+        }
+        self.scratch.phy_writes.clear();
+        if want_arb && self.is_idle() {
+            self.schedule_arbitration(self.now);
+        }
+        if let Some(short) = reset {
+            self.start_reset(short, format!("{} set IBR/ISBR", self.slots[idx].name));
+        }
     }
 
     /// Hand node `idx` (unless it stopped answering) the packet of the
@@ -209,33 +236,6 @@ impl Bus {
             return None;
         }
         self.dispatch_any(idx, f)
-    }
-
-    /// Carry out what node `idx` did in a callback: its PHY register
-    /// writes (its gap count was `old_gap` before), its reports, timers
-    /// and transmit requests; a bus reset it asked for through IBR/ISBR
-    /// starts last.
-    pub(super) fn apply(&mut self, idx: usize, old_gap: u8, cmds: &mut Commands) {
-        let reset = self.apply_phy_registers(idx, old_gap);
-        for report in cmds.reports.drain(..) {
-            self.apply_report(idx, report);
-        }
-        for cmd in cmds.timers.drain(..) {
-            self.apply_timer(idx, cmd);
-        }
-        let mut want_arb = false;
-        for req in cmds.transmits.drain(..) {
-            want_arb |= self.queue_transmit(idx, req);
-        }
-        if !cmds.phy_writes.is_empty() {
-            cmds.phy_writes.clear();
-        }
-        if want_arb && self.is_idle() {
-            self.schedule_arbitration(self.now);
-        }
-        if let Some(short) = reset {
-            self.start_reset(short, format!("{} set IBR/ISBR", self.slots[idx].name));
-        }
     }
 
     /// Node `idx`'s PHY registers as a callback left them (its gap count
@@ -429,7 +429,7 @@ fn call_node<R>(
     // The registers change only through `write_phy_register`, which
     // also lists the write: a callback that asked for nothing left
     // them as they were, and one that wrote them is applied at once
-    // after the call (`apply`).
+    // after the call (`apply_scratch`).
     let slot = slots.get_mut(idx)?;
     let node = slot.node.as_mut()?;
     slot.dispatches += 1;
