@@ -319,16 +319,23 @@ impl Tree {
     /// `a`.
     pub fn listeners(&self, a: u8, nearest_first: bool) -> impl Iterator<Item = u8> + '_ {
         let m = self.by_phy.len();
-        let a = usize::from(a);
-        let row = self
-            .by_distance
-            .get(a * m..(a + 1) * m)
-            .filter(|_| nearest_first && a < m);
+        let row = self.nearest_first(a).filter(|_| nearest_first);
         let by_id = row.is_none();
         row.into_iter()
             .flatten()
             .copied()
             .chain((0..m).map(|d| d as u8).filter(move |_| by_id))
+    }
+
+    /// Every physical ID by (hops from `a`, ID): the order a packet from
+    /// `a` reaches them (`None` for an unknown `a`).
+    pub fn nearest_first(&self, a: u8) -> Option<&[u8]> {
+        let m = self.by_phy.len();
+        let a = usize::from(a);
+        if a >= m {
+            return None;
+        }
+        self.by_distance.get(a * m..(a + 1) * m)
     }
 
     /// Fastest speed every PHY on the path between two physical IDs supports.

@@ -333,7 +333,10 @@ impl EventQueue {
         }
     }
 
-    /// Take the next delivery of wave `i`.
+    /// Take the next delivery of wave `i` (inlined into
+    /// [`pop_until`](Self::pop_until): the delivery is handed over in
+    /// registers, not through memory).
+    #[inline(always)]
     fn take_delivery(&mut self, i: usize) -> Option<Delivery> {
         let wave = self.waves.get_mut(i)?;
         let a = *wave.arrivals.get(wave.next)?;
