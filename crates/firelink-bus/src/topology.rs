@@ -188,6 +188,7 @@ impl Topology {
             hops: Vec::new(),
             path_speed: Vec::new(),
             by_distance: Vec::new(),
+            eccentricity: Vec::new(),
         };
         if root >= n {
             return tree;
@@ -261,6 +262,15 @@ impl Topology {
                 order
             })
             .collect();
+        tree.eccentricity = (0..m)
+            .map(|a| {
+                tree.hops[a * m..(a + 1) * m]
+                    .iter()
+                    .copied()
+                    .max()
+                    .unwrap_or(0)
+            })
+            .collect();
         tree
     }
 }
@@ -284,6 +294,8 @@ pub struct Tree {
     path_speed: Vec<Speed>,
     /// Row `a`: every physical ID by (hops from `a`, ID).
     by_distance: Vec<u8>,
+    /// The farthest any node is from each physical ID, in hops.
+    eccentricity: Vec<u8>,
 }
 
 impl Tree {
@@ -307,16 +319,23 @@ impl Tree {
     /// `a`.
     pub fn listeners(&self, a: u8, nearest_first: bool) -> impl Iterator<Item = u8> + '_ {
         let m = self.by_phy.len();
-        let a = usize::from(a);
-        let row = self
-            .by_distance
-            .get(a * m..(a + 1) * m)
-            .filter(|_| nearest_first && a < m);
+        let row = self.nearest_first(a).filter(|_| nearest_first);
         let by_id = row.is_none();
         row.into_iter()
             .flatten()
             .copied()
             .chain((0..m).map(|d| d as u8).filter(move |_| by_id))
+    }
+
+    /// Every physical ID by (hops from `a`, ID): the order a packet from
+    /// `a` reaches them (`None` for an unknown `a`).
+    pub fn nearest_first(&self, a: u8) -> Option<&[u8]> {
+        let m = self.by_phy.len();
+        let a = usize::from(a);
+        if a >= m {
+            return None;
+        }
+        self.by_distance.get(a * m..(a + 1) * m)
     }
 
     /// Fastest speed every PHY on the path between two physical IDs supports.
@@ -331,15 +350,9 @@ impl Tree {
 
     /// The farthest any node is from physical ID `a`, in hops.
     pub fn eccentricity(&self, a: u8) -> u32 {
-        let m = self.by_phy.len();
-        let a = usize::from(a);
-        if a >= m {
-            return 0;
-        }
-        self.hops[a * m..(a + 1) * m]
-            .iter()
+        self.eccentricity
+            .get(usize::from(a))
             .copied()
-            .max()
             .map_or(0, u32::from)
     }
 

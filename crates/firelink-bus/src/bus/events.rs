@@ -13,22 +13,30 @@ impl Bus {
 
     /// Process the next event. Returns false if there was none.
     pub fn step(&mut self) -> bool {
-        if let Some(d) = self.events.pop_delivery() {
-            self.now = self.now.max(d.time);
-            if d.epoch == self.epoch {
-                self.deliver(d.sub, d.node);
+        self.step_until(SimTime::MAX)
+    }
+
+    /// Process the next event if it comes at `deadline` or before.
+    /// Returns whether there was one.
+    #[inline]
+    pub(super) fn step_until(&mut self, deadline: SimTime) -> bool {
+        match self.events.pop_until(deadline) {
+            Some(Taken::Delivery(d)) => {
+                self.now = self.now.max(d.time);
+                if d.epoch == self.epoch {
+                    self.deliver(d.sub, d.node);
+                }
+                true
             }
-            return true;
+            Some(Taken::Event(q)) => {
+                self.now = self.now.max(q.time);
+                if q.epoch.is_none_or(|e| e == self.epoch) {
+                    self.handle(q.ev);
+                }
+                true
+            }
+            None => false,
         }
-        let Some(q) = self.events.pop() else {
-            return false;
-        };
-        self.now = self.now.max(q.time);
-        if q.epoch.is_some_and(|e| e != self.epoch) {
-            return true;
-        }
-        self.handle(q.ev);
-        true
     }
 
     pub(super) fn push(&mut self, time: SimTime, epoch: Option<u64>, ev: Ev) {
@@ -66,6 +74,7 @@ impl Bus {
                 arb_start,
                 class,
             } => self.tx_start(sub, arb_start, class),
+            #[cfg(test)]
             Ev::Deliver { sub, node } => self.deliver(sub, node),
             Ev::AckStart { sub } => self.ack_start(sub),
             Ev::Notify {
@@ -147,17 +156,44 @@ impl Bus {
         }
     }
 
-    /// [`apply`](Self::apply) the command list of the call that just
-    /// returned, leaving it empty.
+    /// Carry out what node `idx` did in the callback that just returned,
+    /// as its command list says (leaving the list empty): its PHY
+    /// register writes (its gap count was `old_gap` before), its reports,
+    /// timers and transmit requests; a bus reset it asked for through
+    /// IBR/ISBR starts last. Each of the list's vectors is taken out only
+    /// when it holds something (its memory goes back, emptied).
     #[inline(never)]
     fn apply_scratch(&mut self, idx: usize, old_gap: u8) {
-        let mut cmds = std::mem::take(&mut self.scratch);
-        self.apply(idx, old_gap, &mut cmds);
-        cmds.transmits.clear();
-        cmds.timers.clear();
-        cmds.phy_writes.clear();
-        cmds.reports.clear();
-        self.scratch = cmds;
+        let reset = self.apply_phy_registers(idx, old_gap);
+        if !self.scratch.reports.is_empty() {
+            let mut reports = std::mem::take(&mut self.scratch.reports);
+            for report in reports.drain(..) {
+                self.apply_report(idx, report);
+            }
+            self.scratch.reports = reports;
+        }
+        if !self.scratch.timers.is_empty() {
+            let mut timers = std::mem::take(&mut self.scratch.timers);
+            for cmd in timers.drain(..) {
+                self.apply_timer(idx, cmd);
+            }
+            self.scratch.timers = timers;
+        }
+        let mut want_arb = false;
+        if !self.scratch.transmits.is_empty() {
+            let mut transmits = std::mem::take(&mut self.scratch.transmits);
+            for req in transmits.drain(..) {
+                want_arb |= self.queue_transmit(idx, req);
+            }
+            self.scratch.transmits = transmits;
+        }
+        self.scratch.phy_writes.clear();
+        if want_arb && self.is_idle() {
+            self.schedule_arbitration(self.now);
+        }
+        if let Some(short) = reset {
+            self.start_reset(short, format!("{} set IBR/ISBR", self.slots[idx].name));
+        }
     }
 
     /// Hand node `idx` (unless it stopped answering) the packet of the
@@ -200,33 +236,6 @@ impl Bus {
             return None;
         }
         self.dispatch_any(idx, f)
-    }
-
-    /// Carry out what node `idx` did in a callback: its PHY register
-    /// writes (its gap count was `old_gap` before), its reports, timers
-    /// and transmit requests; a bus reset it asked for through IBR/ISBR
-    /// starts last.
-    pub(super) fn apply(&mut self, idx: usize, old_gap: u8, cmds: &mut Commands) {
-        let reset = self.apply_phy_registers(idx, old_gap);
-        for report in cmds.reports.drain(..) {
-            self.apply_report(idx, report);
-        }
-        for cmd in cmds.timers.drain(..) {
-            self.apply_timer(idx, cmd);
-        }
-        let mut want_arb = false;
-        for req in cmds.transmits.drain(..) {
-            want_arb |= self.queue_transmit(idx, req);
-        }
-        if !cmds.phy_writes.is_empty() {
-            cmds.phy_writes.clear();
-        }
-        if want_arb && self.is_idle() {
-            self.schedule_arbitration(self.now);
-        }
-        if let Some(short) = reset {
-            self.start_reset(short, format!("{} set IBR/ISBR", self.slots[idx].name));
-        }
     }
 
     /// Node `idx`'s PHY registers as a callback left them (its gap count
@@ -420,7 +429,7 @@ fn call_node<R>(
     // The registers change only through `write_phy_register`, which
     // also lists the write: a callback that asked for nothing left
     // them as they were, and one that wrote them is applied at once
-    // after the call (`apply`).
+    // after the call (`apply_scratch`).
     let slot = slots.get_mut(idx)?;
     let node = slot.node.as_mut()?;
     slot.dispatches += 1;

@@ -64,7 +64,7 @@ use crate::time::{SimDuration, SimTime};
 use crate::timing::{BusTiming, DEFAULT_GAP_COUNT, PHY_PACKET_BITS};
 use crate::topology::{Topology, Tree};
 use crate::trace::{PacketId, PacketKind, PacketRecord, Trace, TraceEntry, TraceEvent};
-use queue::EventQueue;
+use queue::{EventQueue, Taken};
 
 /// The PHY of a node.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -286,6 +286,9 @@ enum Ev {
         arb_start: Option<SimTime>,
         class: Option<ArbitrationClass>,
     },
+    /// A packet's delivery as the queue's tests see it (the bus takes
+    /// deliveries off the queue as [`queue::Delivery`], not as events).
+    #[cfg(test)]
     Deliver {
         sub: PacketId,
         node: usize,
@@ -743,9 +746,7 @@ impl Bus {
 
     /// Process every event up to and including `t`; the clock then reads `t`.
     pub fn run_until(&mut self, t: SimTime) {
-        while self.next_event_time().is_some_and(|n| n <= t) {
-            self.step();
-        }
+        while self.step_until(t) {}
         self.now = self.now.max(t);
     }
 
@@ -766,11 +767,8 @@ impl Bus {
             if done(self) {
                 return true;
             }
-            match self.next_event_time() {
-                Some(t) if t <= deadline => {
-                    self.step();
-                }
-                _ => return done(self),
+            if !self.step_until(deadline) {
+                return done(self);
             }
         }
     }
@@ -786,11 +784,8 @@ impl Bus {
             if only_ticks && self.is_idle() && !self.has_pending_traffic() {
                 return true;
             }
-            match self.next_event_time() {
-                Some(t) if t <= limit => {
-                    self.step();
-                }
-                _ => return false,
+            if !self.step_until(limit) {
+                return false;
             }
         }
     }

@@ -76,6 +76,13 @@ pub(super) struct Delivery {
     pub node: usize,
 }
 
+/// An event taken off the queue by [`EventQueue::pop_until`].
+#[derive(Debug)]
+pub(super) enum Taken {
+    Delivery(Delivery),
+    Event(Popped),
+}
+
 /// Where the next event comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Source {
@@ -225,6 +232,7 @@ impl EventQueue {
     }
 
     /// The source of the next event and its (time, number).
+    #[inline]
     fn first(&self) -> Option<(Source, SimTime, u64)> {
         if let Some(next) = self.next.get() {
             return Some(next);
@@ -234,6 +242,7 @@ impl EventQueue {
         found
     }
 
+    #[inline(never)]
     fn find_first(&self) -> Option<(Source, SimTime, u64)> {
         let mut best: Option<(Source, SimTime, u64)> = None;
         let mut second: Option<(SimTime, u64)> = None;
@@ -271,23 +280,47 @@ impl EventQueue {
     }
 
     /// Take the next event.
+    #[cfg(test)]
     pub fn pop(&mut self) -> Option<Popped> {
-        let (source, _, _) = self.first()?;
+        match self.pop_until(SimTime::MAX)? {
+            Taken::Event(p) => Some(p),
+            Taken::Delivery(d) => Some(Popped {
+                time: d.time,
+                epoch: Some(d.epoch),
+                ev: Ev::Deliver {
+                    sub: d.sub,
+                    node: d.node,
+                },
+            }),
+        }
+    }
+
+    /// Take the next event if it comes at `deadline` or before (one look
+    /// at the next event, where a peek at its time and a pop took two or
+    /// three); a packet's delivery, the commonest event, is handed over
+    /// without making an [`Ev`] of it.
+    #[inline]
+    pub fn pop_until(&mut self, deadline: SimTime) -> Option<Taken> {
+        let (source, time, _) = self.first()?;
+        if time > deadline {
+            return None;
+        }
         self.next.set(None);
         match source {
+            Source::Wave(i) => self.take_delivery(i).map(Taken::Delivery),
             Source::General => {
                 let q = self.general.pop_front()?;
                 self.goes_on(source, self.general.front().map(|f| (f.time, f.seq)));
-                Some(Popped {
+                Some(Taken::Event(Popped {
                     time: q.time,
                     epoch: q.epoch,
                     ev: q.ev,
-                })
+                }))
             }
             Source::Timer => {
                 let ((time, seq), (node, token)) = self.timers.pop()?;
                 self.goes_on(source, self.timers.last().map(|t| t.0));
-                Some(Popped {
+                Some(Taken::Event(Popped {
                     time,
                     epoch: None,
                     ev: Ev::Timer {
@@ -295,34 +328,15 @@ impl EventQueue {
                         token,
                         stamp: seq,
                     },
-                })
-            }
-            Source::Wave(i) => {
-                let d = self.take_delivery(i)?;
-                Some(Popped {
-                    time: d.time,
-                    epoch: Some(d.epoch),
-                    ev: Ev::Deliver {
-                        sub: d.sub,
-                        node: d.node,
-                    },
-                })
+                }))
             }
         }
     }
 
-    /// Take the next event if it is a packet's delivery (the commonest
-    /// event, handed over without making an [`Ev`] of it); otherwise take
-    /// nothing (`None`).
-    pub fn pop_delivery(&mut self) -> Option<Delivery> {
-        let (Source::Wave(i), _, _) = self.first()? else {
-            return None;
-        };
-        self.next.set(None);
-        self.take_delivery(i)
-    }
-
-    /// Take the next delivery of wave `i`.
+    /// Take the next delivery of wave `i` (inlined into
+    /// [`pop_until`](Self::pop_until): the delivery is handed over in
+    /// registers, not through memory).
+    #[inline(always)]
     fn take_delivery(&mut self, i: usize) -> Option<Delivery> {
         let wave = self.waves.get_mut(i)?;
         let a = *wave.arrivals.get(wave.next)?;

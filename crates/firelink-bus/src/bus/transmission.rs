@@ -166,32 +166,45 @@ impl Bus {
         // order, and the queue numbers them in this order; equal times keep
         // ID order, as when listed by ID.
         let nearest_first = t.hop_delay > SimDuration::ZERO;
-        for phy in self.tree.listeners(shape.sender_phy, nearest_first) {
+        let mut consider = |phy: u8| {
             let Some(&node) = self.tree.by_phy.get(usize::from(phy)) else {
-                continue;
+                return;
             };
             if node == shape.sender {
-                continue;
+                return;
             }
             let slot = &self.slots[node];
             if slot.muted {
                 if Some(node) == dest_node {
                     mute_fault = slot.mute_fault;
                 }
-                continue;
+                return;
             }
             if shape.dropped || shape.speed > self.tree.path_speed(shape.sender_phy, phy) {
-                continue;
+                return;
             }
             if Some(node) == dest_node {
                 dest_receives = true;
             } else if shape.unicast && !slot.hears_others && shape.dest_phy != Some(0) {
                 // Addressed to another node, and this one ignores those.
-                continue;
+                return;
             }
             let at =
                 shape.bits_end + t.hop_delay * u64::from(self.tree.hops(shape.sender_phy, phy));
             arrivals.push((at, node));
+        };
+        // The listeners' row walked as a slice where there is one (what
+        // `Tree::listeners` gives, without its iterator chain per node).
+        match self
+            .tree
+            .nearest_first(shape.sender_phy)
+            .filter(|_| nearest_first)
+        {
+            Some(row) => row.iter().for_each(|&phy| consider(phy)),
+            None => self
+                .tree
+                .listeners(shape.sender_phy, false)
+                .for_each(&mut consider),
         }
         self.events
             .push_wave(id, self.epoch, arrivals.iter().copied());
