@@ -4,8 +4,9 @@
 //! parses arguments, prints results and maps errors to one line on stderr
 //! with a non-zero exit status: 1 for an error, 2 for a usage error (clap),
 //! 3 for a run that finished but failed its check ([`EXIT_STATUS`]). When
-//! the reader of stdout goes away (`| head`), the program stops quietly
-//! with status 0; lines for stderr never panic (`stderr`: `say!`).
+//! the reader of stdout goes away (`| head`), the program stops without a
+//! message, with status 141 as a program SIGPIPE ended; lines for stderr
+//! never panic (`stderr`: `say!`).
 
 #[macro_use]
 mod stderr;
@@ -153,6 +154,10 @@ fn run(cli: Cli) -> Result<(), CliError> {
     Ok(())
 }
 
+/// The exit status when stdout's reader went away: a shell's status for a
+/// program that SIGPIPE ended (128 + 13).
+const CLOSED_PIPE_STATUS: u8 = 141;
+
 fn main() -> ExitCode {
     let matches = Cli::command().get_matches();
     let mut cli =
@@ -176,9 +181,12 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         // The reader of the output went away (`firelink sim --timeline |
-        // head`): what it wanted was written; stop quietly, as a tool in a
-        // pipeline does.
-        Err(CliError::Io(e)) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
+        // head`): stop without a message, with the status of a tool that
+        // SIGPIPE ended (128 + 13), not success: the run's own verdict (a
+        // demo's check) may not have been reached.
+        Err(CliError::Io(e)) if e.kind() == std::io::ErrorKind::BrokenPipe => {
+            ExitCode::from(CLOSED_PIPE_STATUS)
+        }
         Err(err) => {
             say!("firelink: {err}");
             ExitCode::from(err.exit_code())

@@ -105,11 +105,11 @@ pub(super) struct EventQueue {
     spare: Vec<Vec<Arrival>>,
     seq: u64,
     /// The next event as last looked up (`None`: to be looked up again),
-    /// kept while events are queued and taken (a run loop peeks at the
-    /// time, then pops), and while it is known, a (time, number) no later
-    /// than the first event of every other source (so that a source that
-    /// goes on, or a new event, can often settle the next event without
-    /// looking at the others again).
+    /// kept while events are queued and taken (`pop_until` looks once and
+    /// takes the event; `peek_time` only looks), and while it is known, a
+    /// (time, number) no later than the first event of every other source
+    /// (so that a source that goes on, or a new event, can often settle the
+    /// next event without looking at the others again).
     next: Cell<Option<(Source, SimTime, u64)>>,
     runner_up: Cell<Option<(SimTime, u64)>>,
 }

@@ -400,7 +400,12 @@ impl ScanReport {
 /// answer arrived after its time-out (counted `late` in the port's
 /// [`link_stats`](Port::link_stats)), the nodes that seemed silent are
 /// asked again, up to three rounds in all, so that a board that was only
-/// slow is found, not dropped.
+/// slow is found, not dropped. A port counts a late answer while it waits
+/// for a later request, so the last node asked is not found this way (no
+/// request follows it: a scan with no late answer sends exactly the
+/// requests it always sent); and a late answer to anything else in the
+/// scan (the bridge's own identity) also makes the silent nodes asked
+/// again.
 ///
 /// # Errors
 /// [`HostError::NoBoards`] when nothing answered (with what the port saw
