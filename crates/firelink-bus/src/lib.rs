@@ -56,7 +56,7 @@ pub mod timing;
 pub mod topology;
 pub mod trace;
 
-pub use bus::{Bus, BusConfig, NodeConfig, TraceLevel};
+pub use bus::{Bus, BusConfig, Detail, DetailReport, NodeConfig, PacketLevelWhy, TraceLevel};
 pub use error::BusError;
 pub use fault::{FaultPlan, FaultRule, PacketFault, PacketMatch, TimedFault};
 pub use host::{HostLink, HostModel, Transfer};

@@ -447,6 +447,12 @@ impl Port for SimPort {
         "sim"
     }
 
+    /// The bus counts what ran at which level of detail cycle by cycle
+    /// ([`Bus::begin_cycle`]).
+    fn begin_cycle(&mut self) {
+        self.bus.begin_cycle();
+    }
+
     fn read_quadlet(&mut self, dest: Dest, offset: u64) -> Result<u32> {
         crate::port::refuse_broadcast_read(dest)?;
         let header = self.header(dest);

@@ -28,7 +28,7 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
-use firelink_bus::SimDuration;
+use firelink_bus::{DetailReport, SimDuration};
 use firelink_control::config::IoConfig;
 use firelink_control::runner::{
     CycleTimes, Pacing, Percentiles, Robot, RobotSettings, RunnerError,
@@ -479,6 +479,10 @@ pub struct DemoReport {
     pub power_down: PowerDownReport,
     /// Final state (after power-off).
     pub state: String,
+    /// On the simulated bus: what ran at which level of detail (cycles
+    /// and packets fast or at the packet level, and why).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub detail: Option<DetailReport>,
 }
 
 impl DemoReport {
@@ -534,6 +538,9 @@ impl fmt::Display for DemoReport {
             "  late cycles (started over half a period late, wall-clock pacing): {}",
             self.overruns
         )?;
+        if let Some(detail) = &self.detail {
+            writeln!(f, "  {detail}")?;
+        }
         for (name, p) in [
             ("cycle time", &self.cycle_time_us),
             ("I/O time", &self.io_time_us),
@@ -708,6 +715,9 @@ pub trait DemoIo: RobotIo {
     fn firmware(&self) -> Option<u32>;
     /// The I/O protocol's name.
     fn protocol(&self) -> String;
+    /// What ran at which level of detail on the simulated bus (`None`:
+    /// not a simulated port).
+    fn detail_report(&self) -> Option<DetailReport>;
 }
 
 /// The periodic progress event: the median I/O time of the last 2000 cycles.
@@ -1156,5 +1166,6 @@ fn demo_report<R: DemoIo>(
         boards_not_answering: run.after.silent,
         power_down: PowerDownReport::from(&run.power_down),
         state: robot.state().to_string(),
+        detail: robot.io().detail_report(),
     }
 }

@@ -10,6 +10,7 @@
 //! configuration's period).
 
 use firelink_board::qla::config::Profile;
+use firelink_bus::Detail;
 use firelink_control::ServoPeriod;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::Pacing;
@@ -126,6 +127,12 @@ pub struct DemoRequest {
         arg(long, default_value = "rev8", value_parser = crate::cli_args::firmware())
     )]
     pub firmware: Profile,
+    /// On the simulated bus (`sim`): its level of detail, `fast` (a
+    /// packet's deliveries in one batch where that is exact) or `packet`
+    /// (every delivery an event of its own); the same answer either way,
+    /// and the report counts the cycles each way ran.
+    #[cfg_attr(feature = "clap", arg(long, default_value = "fast"))]
+    pub detail: Detail,
     /// Inject a fault half-way (a named preset: its fault script).
     #[cfg_attr(feature = "clap", arg(long, value_enum, default_value_t = DemoFault::None))]
     pub fault: DemoFault,
@@ -222,6 +229,7 @@ impl Default for DemoRequest {
             watchdog: dvrk.watchdog,
             udp_wait: dvrk.udp_wait,
             timeout_ms: u64::try_from(dvrk.timeout.as_millis()).unwrap_or(u64::MAX),
+            detail: dvrk.detail,
             search_fastest: true,
             given: Vec::new(),
         }
@@ -286,6 +294,7 @@ impl DemoRequest {
             watchdog: self.watchdog,
             udp_wait: self.udp_wait,
             timeout: std::time::Duration::from_millis(self.timeout_ms),
+            detail: self.detail,
         })
     }
 
@@ -307,6 +316,7 @@ impl DemoRequest {
             find_max_rate: self.search_fastest,
             udp_wait: self.udp_wait,
             timeout: std::time::Duration::from_millis(self.timeout_ms),
+            detail: self.detail,
             ..default
         })
     }

@@ -154,6 +154,9 @@ pub fn render(report: &DemoReport, config: &IoConfig) -> String {
         report.wall_time_s,
         report.speed_vs_real_time
     );
+    if let Some(detail) = &report.detail {
+        let _ = writeln!(s, "  {detail}");
+    }
     for (name, p) in [
         ("cycle time", &report.cycle_time_us),
         ("I/O time", &report.io_time_us),

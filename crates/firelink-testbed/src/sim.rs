@@ -52,7 +52,9 @@ use firelink_board::qla::config::{BoardConfig, Hardware, Profile};
 use firelink_board::qla::rig::{BoardRig, GapCount, RigOptions};
 use firelink_bus::fault::{FaultPlan, FaultRecord};
 use firelink_bus::trace::{PacketId, PacketKind, PacketRecord, Trace};
-use firelink_bus::{ArbitrationClass, HostModel, NodeHandle, SimDuration, SimTime, TraceLevel};
+use firelink_bus::{
+    ArbitrationClass, Detail, DetailReport, HostModel, NodeHandle, SimDuration, SimTime, TraceLevel,
+};
 use firelink_host::qla::io::{BroadcastRoute, IoOptions, IoSystem};
 use firelink_host::qla::scan::Protocol;
 use firelink_host::sim::SimPort;
@@ -90,6 +92,8 @@ pub struct SimOptions {
     pub cycle_master: bool,
     /// Faults, with times relative to the start of the cycle.
     pub faults: FaultPlan,
+    /// The bus's level of detail (both give the same answer).
+    pub detail: Detail,
 }
 
 /// What `firelink sim` asks for (clap's `Args` behind the `clap`
@@ -145,6 +149,11 @@ pub struct SimRequest {
     /// Run the cycle master (cycle start every 125 us; off in seed 000).
     #[cfg_attr(feature = "clap", arg(long = "cycle-master"))]
     pub cycle_master: bool,
+    /// The bus's level of detail: `fast` (a packet's deliveries in one
+    /// batch where that is exact) or `packet` (every delivery an event);
+    /// the same answer either way.
+    #[cfg_attr(feature = "clap", arg(long, default_value = "fast"))]
+    pub detail: Detail,
 }
 
 impl SimRequest {
@@ -158,6 +167,7 @@ impl SimRequest {
             host_overhead: self.host_overhead,
             host_jitter: self.jitter,
             cycle_master: self.cycle_master,
+            detail: self.detail,
             ..SimOptions::new(usize::from(self.boards), self.profile, self.protocol)
         }
     }
@@ -179,6 +189,7 @@ impl SimOptions {
             host_jitter: false,
             cycle_master: false,
             faults: FaultPlan::new(),
+            detail: Detail::Fast,
         }
     }
 
@@ -288,6 +299,8 @@ pub struct SimReport {
     /// Faults injected (empty without a fault plan).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub faults: Vec<FaultRecord>,
+    /// What ran at which level of detail (the set-up's packets too).
+    pub detail: DetailReport,
 }
 
 fn profile_name<S: serde::Serializer>(p: &Profile, s: S) -> Result<S::Ok, S::Error> {
@@ -471,7 +484,7 @@ pub fn prepare(options: &SimOptions) -> Result<PreparedSim, TestbedError> {
         })
         .collect::<Vec<_>>();
     let layout = configs.first().map(BoardConfig::layout);
-    let rig = BoardRig::daisy_chain(
+    let mut rig = BoardRig::daisy_chain(
         configs,
         &RigOptions {
             seed: options.seed,
@@ -482,6 +495,7 @@ pub fn prepare(options: &SimOptions) -> Result<PreparedSim, TestbedError> {
             broadcast_class: options.arbitration,
         },
     );
+    rig.bus.set_detail(options.detail);
     let gap_count = rig.bus.gap_count(rig.host).unwrap_or(63);
     let (pc, boards) = (rig.host, rig.boards.clone());
     let model = options.host_overhead.then(|| {
@@ -627,6 +641,7 @@ impl PreparedSim {
             boards_ok: n.saturating_sub(missed),
             errors,
             faults: bus.fault_log().records().to_vec(),
+            detail: bus.detail_report(),
         };
         SimRun {
             report,
@@ -874,6 +889,7 @@ mod tests {
             host_overhead: true,
             jitter: true,
             cycle_master: true,
+            detail: Detail::Packet,
         };
         let options = request.options();
         let expected = SimOptions {
@@ -884,6 +900,7 @@ mod tests {
             host_jitter: true,
             cycle_master: true,
             arbitration: ArbitrationClass::Priority,
+            detail: Detail::Packet,
             ..SimOptions::new(4, Profile::Rev8, Protocol::Sequential)
         };
         // (Every value above is not the default, so a dropped one shows.)

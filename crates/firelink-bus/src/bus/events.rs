@@ -11,20 +11,30 @@ impl Bus {
         self.events.peek_time()
     }
 
-    /// Process the next event. Returns false if there was none.
+    /// Process the next event (one delivery of a packet, at either level
+    /// of detail). Returns false if there was none.
     pub fn step(&mut self) -> bool {
-        self.step_until(SimTime::MAX)
+        self.step_until_or(SimTime::MAX, Batch::One)
     }
 
-    /// Process the next event if it comes at `deadline` or before.
+    /// Process the next event if it comes at `deadline` or before (at the
+    /// fast level, a delivery goes on with the packet's next ones while
+    /// each is the next event: see [`detail`](super::detail)).
     /// Returns whether there was one.
     #[inline]
     pub(super) fn step_until(&mut self, deadline: SimTime) -> bool {
+        self.step_until_or(deadline, Batch::All)
+    }
+
+    /// [`step_until`](Self::step_until), a batch of deliveries going as
+    /// far as `batch` says.
+    #[inline]
+    pub(super) fn step_until_or(&mut self, deadline: SimTime, batch: Batch<'_>) -> bool {
         match self.events.pop_until(deadline) {
             Some(Taken::Delivery(d)) => {
                 self.now = self.now.max(d.time);
                 if d.epoch == self.epoch {
-                    self.deliver(d.sub, d.node);
+                    self.deliver_from(d, deadline, batch);
                 }
                 true
             }
@@ -200,6 +210,7 @@ impl Bus {
     /// subaction at `pos` in the table, as it arrives now at `speed`: the
     /// bytes are lent from the subaction, not copied. What the node asked
     /// for is carried out after the call.
+    #[inline(always)]
     pub(super) fn dispatch_receive(
         &mut self,
         idx: usize,
@@ -403,6 +414,18 @@ impl Bus {
     }
 }
 
+/// How far a batch of a packet's deliveries may go at the fast level (see
+/// [`detail`](super::detail)), besides the queue's order and the deadline.
+pub(super) enum Batch<'a> {
+    /// One delivery (a single step).
+    One,
+    /// As far as the queue's order allows.
+    All,
+    /// Until the condition holds after a delivery (a caller that checks
+    /// it before every event).
+    Until(&'a mut dyn FnMut(&Bus) -> bool),
+}
+
 /// The bus's state a [`NodeCtx`] shows, taken before the call.
 #[derive(Clone, Copy)]
 struct CtxView {
@@ -417,6 +440,7 @@ struct CtxView {
 /// the bus's spare packet buffers); what it asks for goes into `scratch`, and its PHY register writes into its
 /// registers at once. Returns its result and its gap count before the
 /// call (`None`: no such node, or it is in a call already).
+#[inline(always)]
 fn call_node<R>(
     slots: &mut [Slot],
     (scratch, spare_packets): (&mut Commands, &mut PacketPool),

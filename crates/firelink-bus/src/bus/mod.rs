@@ -33,6 +33,7 @@
 
 mod arbitration;
 mod cycle;
+mod detail;
 mod events;
 #[cfg(test)]
 mod probe;
@@ -64,7 +65,11 @@ use crate::time::{SimDuration, SimTime};
 use crate::timing::{BusTiming, DEFAULT_GAP_COUNT, PHY_PACKET_BITS};
 use crate::topology::{Topology, Tree};
 use crate::trace::{PacketId, PacketKind, PacketRecord, Trace, TraceEntry, TraceEvent};
-use queue::{EventQueue, Taken};
+use events::Batch;
+use queue::{Delivery, EventQueue, Taken};
+
+use detail::DetailTally;
+pub use detail::{Detail, DetailReport, PacketLevelWhy, UnknownDetail, WhyCounts};
 
 /// The PHY of a node.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -143,6 +148,9 @@ pub struct BusConfig {
     pub fairness: bool,
     /// Longest packet the bus accepts from a node, in bytes.
     pub max_packet_len: usize,
+    /// How much of each packet is worked out event by event (both levels
+    /// give the same answer; see [`Detail`]).
+    pub detail: Detail,
 }
 
 impl Default for BusConfig {
@@ -155,6 +163,7 @@ impl Default for BusConfig {
             auto_reset: true,
             fairness: true,
             max_packet_len: 8192,
+            detail: Detail::Fast,
         }
     }
 }
@@ -365,6 +374,8 @@ pub struct Bus {
     /// ([`NodeCtx::take_buffer`]).
     spare_packets: PacketPool,
     reset_began: SimTime,
+    /// What ran at which level of detail.
+    detail: DetailTally,
 }
 
 impl std::fmt::Debug for Bus {
@@ -381,6 +392,7 @@ impl Bus {
     /// An empty bus.
     pub fn new(cfg: BusConfig) -> Bus {
         let injector = FaultInjector::new(cfg.seed);
+        let detail = DetailTally::new(cfg.detail);
         Bus {
             cfg,
             now: SimTime::ZERO,
@@ -412,6 +424,7 @@ impl Bus {
             scratch: Commands::default(),
             spare_packets: PacketPool::default(),
             reset_began: SimTime::ZERO,
+            detail,
         }
     }
 
@@ -553,6 +566,31 @@ impl Bus {
     /// the bus records never changes what it does.
     pub fn set_trace_level(&mut self, level: TraceLevel) {
         self.cfg.trace = level;
+    }
+
+    /// Choose the level of detail from now on (see [`Detail`]; a packet
+    /// whose deliveries began goes on as it began).
+    pub fn set_detail(&mut self, detail: Detail) {
+        self.cfg.detail = detail;
+        self.detail.report.detail = detail;
+    }
+
+    /// The level of detail chosen.
+    pub fn detail(&self) -> Detail {
+        self.cfg.detail
+    }
+
+    /// A servo cycle begins: what ran since the last mark is counted as
+    /// one cycle in [`detail_report`](Self::detail_report) (the host's
+    /// simulated port marks each cycle of its I/O).
+    pub fn begin_cycle(&mut self) {
+        self.detail.begin_cycle();
+    }
+
+    /// What ran at which level of detail so far (the cycle under way
+    /// counted as if it ended now).
+    pub fn detail_report(&self) -> DetailReport {
+        self.detail.snapshot()
     }
 
     /// The timing figures.
@@ -763,11 +801,25 @@ impl Bus {
         deadline: SimTime,
         mut done: impl FnMut(&Bus) -> bool,
     ) -> bool {
+        // `done` is called exactly as often as before every event: a batch
+        // of deliveries checks it after each one, and what it said after
+        // the last one (nothing happened since) stands for the next look.
+        let mut said: Option<bool> = None;
         loop {
-            if done(self) {
+            let holds = match said.take() {
+                Some(held) => held,
+                None => done(self),
+            };
+            if holds {
                 return true;
             }
-            if !self.step_until(deadline) {
+            let mut check = |bus: &Bus| {
+                let held = done(bus);
+                said = Some(held);
+                held
+            };
+            let stepped = self.step_until_or(deadline, Batch::Until(&mut check));
+            if !stepped {
                 return done(self);
             }
         }

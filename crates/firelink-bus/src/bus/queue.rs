@@ -74,6 +74,8 @@ pub(super) struct Delivery {
     pub epoch: u64,
     pub sub: PacketId,
     pub node: usize,
+    /// The packet's first delivery.
+    pub first: bool,
 }
 
 /// An event taken off the queue by [`EventQueue::pop_until`].
@@ -340,6 +342,7 @@ impl EventQueue {
     fn take_delivery(&mut self, i: usize) -> Option<Delivery> {
         let wave = self.waves.get_mut(i)?;
         let a = *wave.arrivals.get(wave.next)?;
+        let first = wave.next == 0;
         wave.next += 1;
         let (sub, epoch) = (wave.sub, wave.epoch);
         if wave.next >= wave.arrivals.len() {
@@ -354,7 +357,32 @@ impl EventQueue {
             epoch,
             sub,
             node: a.node,
+            first,
         })
+    }
+
+    /// Take the next delivery of packet `sub` of bus epoch `epoch` if it
+    /// is the next event and comes at `deadline` or before (what a batch
+    /// of deliveries goes on with; `None`, nothing taken: another event
+    /// comes first, the packet has no delivery left, or a bus reset
+    /// since made its deliveries stale).
+    #[inline]
+    pub fn pop_wave_next(
+        &mut self,
+        sub: PacketId,
+        epoch: u64,
+        deadline: SimTime,
+    ) -> Option<Delivery> {
+        let (source, time, _) = self.first()?;
+        let Source::Wave(i) = source else {
+            return None;
+        };
+        let wave = self.waves.get(i)?;
+        if time > deadline || wave.sub != sub || wave.epoch != epoch {
+            return None;
+        }
+        self.next.set(None);
+        self.take_delivery(i)
     }
 
     /// Whether nothing is queued but cycle-start ticks.

@@ -29,6 +29,7 @@ impl Bus {
 
     pub(super) fn start_reset(&mut self, short: bool, cause: String) {
         let now = self.now;
+        self.detail.reset();
         self.epoch += 1;
         self.arb_at = None;
         self.started = true;

@@ -232,6 +232,96 @@ impl Bus {
         self.push(at, None, ev);
     }
 
+    /// Why packet `id`'s deliveries go event by event (`None`: they go in
+    /// batches; see [`detail`](super::detail)).
+    fn packet_level_why(&self, sub: &Sub) -> Option<PacketLevelWhy> {
+        if self.cfg.detail == Detail::Packet {
+            Some(PacketLevelWhy::Chosen)
+        } else if self.cfg.trace >= TraceLevel::Verbose {
+            Some(PacketLevelWhy::Tracing)
+        } else if !sub.faults.is_empty() || sub.busy || sub.dropped {
+            Some(PacketLevelWhy::Fault)
+        } else {
+            None
+        }
+    }
+
+    /// Delivery `d`, just taken off the queue, and at the fast level the
+    /// packet's next deliveries after it, each while it is the queue's next
+    /// event, due by `deadline`, and `stop` does not hold after the one
+    /// before (a callback that started a bus reset ends the batch too: the
+    /// rest of the packet is left to the queue, which drops it).
+    pub(super) fn deliver_from(&mut self, d: Delivery, deadline: SimTime, mut batch: Batch<'_>) {
+        let id = d.sub;
+        let Ok(pos) = self.subs.position(id) else {
+            return;
+        };
+        let Some(why) = self.subs.0.get(pos).map(|sub| self.packet_level_why(sub)) else {
+            return;
+        };
+        if d.first {
+            self.detail.packet(why);
+        }
+        if why.is_some() {
+            self.deliver(id, d.node);
+            return;
+        }
+        let Some(sub) = self.subs.0.get_mut(pos) else {
+            return;
+        };
+        let crc = *sub.crc.get_or_insert_with(|| crc_status_of(&sub.bytes));
+        let (speed, dest) = (sub.speed, sub.dest);
+        self.current_rx = Some(id);
+        self.rx_crc = Some(crc);
+        self.detail.batch();
+        let mut node = d.node;
+        loop {
+            self.detail.batched_delivery();
+            let reply = self.dispatch_receive(node, pos, speed);
+            if let Some(reply) = reply
+                && (reply != RxReply::Silent || dest == Some(node))
+            {
+                self.take_reply(id, node, dest == Some(node), reply);
+            }
+            let stop = match &mut batch {
+                Batch::One => true,
+                Batch::All => false,
+                Batch::Until(done) => done(self),
+            };
+            if stop {
+                break;
+            }
+            let Some(next) = self.events.pop_wave_next(id, self.epoch, deadline) else {
+                break;
+            };
+            self.now = self.now.max(next.time);
+            node = next.node;
+        }
+        self.rx_crc = None;
+        self.current_rx = None;
+    }
+
+    /// What node `node` answered to packet `id`: kept for the ack when it
+    /// is the addressee (`is_dest`), noted otherwise unless it kept
+    /// silent.
+    #[inline(never)]
+    fn take_reply(&mut self, id: PacketId, node: usize, is_dest: bool, reply: RxReply) {
+        if is_dest {
+            // Looked up again: what the node asked for (a reset) may have
+            // changed the table.
+            if let Some(sub) = self.subs.get_mut(&id) {
+                sub.reply = Some(reply);
+            }
+        } else if reply != RxReply::Silent {
+            let text = format!(
+                "{} answered #{id}, which is not addressed to it (ignored)",
+                self.slots[node].name
+            );
+            self.note(text);
+        }
+    }
+
+    /// One delivery at the packet level: packet `id` reaches `node` now.
     pub(super) fn deliver(&mut self, id: PacketId, node: usize) {
         let Ok(pos) = self.subs.position(id) else {
             return;
@@ -239,15 +329,7 @@ impl Bus {
         let Some(sub) = self.subs.0.get_mut(pos) else {
             return;
         };
-        let crc = *sub.crc.get_or_insert_with(|| {
-            Packet::new_checked(&sub.bytes[..]).map_or(
-                CrcStatus {
-                    header_ok: None,
-                    data_ok: None,
-                },
-                |p| p.crc_status(),
-            )
-        });
+        let crc = *sub.crc.get_or_insert_with(|| crc_status_of(&sub.bytes));
         let speed = sub.speed;
         let is_dest = sub.dest == Some(node);
         if is_dest && sub.busy {
@@ -265,21 +347,10 @@ impl Bus {
         let reply = self.dispatch_receive(node, pos, speed);
         self.rx_crc = None;
         self.current_rx = None;
-        let Some(reply) = reply else {
-            return;
-        };
-        if is_dest {
-            // Looked up again: what the node asked for (a reset) may have
-            // changed the table.
-            if let Some(sub) = self.subs.get_mut(&id) {
-                sub.reply = Some(reply);
-            }
-        } else if reply != RxReply::Silent {
-            let text = format!(
-                "{} answered #{id}, which is not addressed to it (ignored)",
-                self.slots[node].name
-            );
-            self.note(text);
+        if let Some(reply) = reply
+            && (reply != RxReply::Silent || is_dest)
+        {
+            self.take_reply(id, node, is_dest, reply);
         }
     }
 
@@ -590,6 +661,18 @@ impl Bus {
         }
         self.arbitrate();
     }
+}
+
+/// The CRC status of a packet's bytes (both unknown when they are not a
+/// packet).
+fn crc_status_of(bytes: &[u8]) -> CrcStatus {
+    Packet::new_checked(bytes).map_or(
+        CrcStatus {
+            header_ok: None,
+            data_ok: None,
+        },
+        |p| p.crc_status(),
+    )
 }
 
 /// What a packet that starts now looks like on the wire.

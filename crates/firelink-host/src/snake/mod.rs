@@ -224,6 +224,7 @@ impl<P: Port> SnakeSystem<P> {
         self.report = CycleReport::EMPTY;
         self.report.cycle = cycle;
         self.stats.cycles += 1;
+        self.port.begin_cycle();
         let started = self.port.now();
         self.report.started = started;
         for i in 0..self.nodes.len() {
@@ -307,6 +308,7 @@ impl<P: Port> SnakeSystem<P> {
             n.outputs_applied();
         }
         self.report.write_time = self.port.now().saturating_sub(started);
+        self.port.end_cycle();
         &self.report
     }
 

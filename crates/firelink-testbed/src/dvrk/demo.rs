@@ -7,11 +7,13 @@
 use std::time::Instant;
 
 use firelink_board::qla::config::Profile;
+use firelink_bus::{Detail, DetailReport};
 use firelink_control::ServoPeriod;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, Robot};
 use firelink_host::qla::io::{IoOptions, IoSystem};
 use firelink_host::qla::scan::{Protocol, ScanReport};
+use firelink_host::sim::SimPort;
 use firelink_host::stop::StopRequest;
 use firelink_host::udp::WaitMode;
 use firelink_host::{Port, WatchdogSetting};
@@ -56,6 +58,9 @@ pub struct DemoOptions {
     /// servo cycle whose answer takes longer counts the board as missed (a
     /// fault); the scan waits that long for each absent node.
     pub timeout: std::time::Duration,
+    /// The simulated bus's level of detail (sim; the same answer either
+    /// way).
+    pub detail: Detail,
 }
 
 impl Default for DemoOptions {
@@ -73,6 +78,7 @@ impl Default for DemoOptions {
             watchdog: WatchdogSetting::default(),
             udp_wait: WaitMode::Blocking,
             timeout: rig::UDP_TIMEOUT,
+            detail: Detail::Fast,
         }
     }
 }
@@ -118,8 +124,10 @@ pub fn run_demo_until(
             let boards = ports::sim_boards(&options.port, config, options.firmware);
             let rig = rig::RigBuilder::qla(boards).build()?;
             let target = rig.fault_target();
+            let mut port = rig.sim_port();
+            port.bus_mut().set_detail(options.detail);
             run_robot(
-                rig.sim_port(),
+                port,
                 &target,
                 options,
                 "sim".into(),
@@ -187,6 +195,16 @@ impl<P: Port + 'static> DemoIo for IoSystem<P> {
     fn protocol(&self) -> String {
         IoSystem::protocol(self).name().to_string()
     }
+    fn detail_report(&self) -> Option<DetailReport> {
+        sim_detail_report(IoSystem::port(self))
+    }
+}
+
+/// What ran at which level of detail, when `port` is the simulated bus.
+pub(crate) fn sim_detail_report<P: Port + 'static>(port: &P) -> Option<DetailReport> {
+    (port as &dyn std::any::Any)
+        .downcast_ref::<SimPort>()
+        .map(|p| p.bus().detail_report())
 }
 
 /// Run the demo on any port (paced as `options` say, else as the port's

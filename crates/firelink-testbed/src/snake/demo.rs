@@ -12,6 +12,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use firelink_bus::{Detail, DetailReport};
 use firelink_control::ServoPeriod;
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, Robot};
@@ -61,6 +62,9 @@ pub struct SnakeDemoOptions {
     /// servo cycle whose answer takes longer counts the board as missed (a
     /// fault); the scan waits that long for each absent node.
     pub timeout: std::time::Duration,
+    /// The simulated bus's level of detail (sim; the same answer either
+    /// way).
+    pub detail: Detail,
 }
 
 impl Default for SnakeDemoOptions {
@@ -78,6 +82,7 @@ impl Default for SnakeDemoOptions {
             seed: 1,
             udp_wait: WaitMode::Blocking,
             timeout: rig::UDP_TIMEOUT,
+            detail: Detail::Fast,
         }
     }
 }
@@ -218,7 +223,8 @@ pub fn run_snake_demo(
     let link = FaultTarget::link().with_seed(options.seed);
     let out = match &options.port {
         PortSpec::Sim(_) => {
-            let (port, target) = sim_port_with_faults(nodes, true, None)?;
+            let (mut port, target) = sim_port_with_faults(nodes, true, None)?;
+            port.bus_mut().set_detail(options.detail);
             run_on(
                 port,
                 &target.with_seed(options.seed),
@@ -289,6 +295,9 @@ impl<P: Port + 'static> DemoIo for SnakeSystem<P> {
     }
     fn protocol(&self) -> String {
         "snake per-node block read/write".into()
+    }
+    fn detail_report(&self) -> Option<DetailReport> {
+        crate::dvrk::demo::sim_detail_report(SnakeSystem::port(self))
     }
 }
 
@@ -380,7 +389,9 @@ fn trial(options: &SnakeDemoOptions, rate_hz: f64) -> Result<RateTrial, TestbedE
         find_max_rate: false,
         ..options.clone()
     };
-    let (port, target) = sim_port_with_faults(node_configs(&run.config, run.seed)?, true, None)?;
+    let (mut port, target) =
+        sim_port_with_faults(node_configs(&run.config, run.seed)?, true, None)?;
+    port.bus_mut().set_detail(run.detail);
     let out = match run_on(port, &target, &run, SIM_NAME.into(), None, &mut |_| {}) {
         Ok(out) => out,
         // A rate at which the robot cannot even home (the gains leave a
