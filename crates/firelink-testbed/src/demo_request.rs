@@ -347,6 +347,7 @@ impl DemoRequest {
             duration_s: self.duration_s,
             period: self.period,
             find_fastest: self.search_fastest,
+            detail: self.detail,
         })
     }
 

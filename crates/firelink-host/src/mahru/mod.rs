@@ -526,6 +526,8 @@ impl<P: Port> MotionController<P> {
     /// bring-up after a reset (stopped too).
     pub fn read_all(&mut self) -> Result<&Feedback, MotionError> {
         self.running()?;
+        // A period's I/O begins (the port counts or bounds it).
+        self.port.begin_cycle();
         let mut recovered = false;
         loop {
             match self.read_once() {
@@ -586,9 +588,13 @@ impl<P: Port> MotionController<P> {
         {
             Ok(()) => {
                 self.stats.setpoint_writes += 1;
+                self.port.end_cycle();
                 Ok(())
             }
-            Err(e) => Err(self.fail(MotionError::Host(e))),
+            Err(e) => {
+                self.port.end_cycle();
+                Err(self.fail(MotionError::Host(e)))
+            }
         }
     }
 }

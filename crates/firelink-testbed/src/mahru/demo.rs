@@ -10,6 +10,7 @@ use std::time::Duration;
 use serde::Serialize;
 
 use firelink_board::mahru::ModuleNode;
+use firelink_bus::{Detail, DetailReport};
 use firelink_control::ServoPeriod;
 use firelink_control::runner::Percentiles;
 use firelink_host::Port;
@@ -65,6 +66,9 @@ pub struct MahruDemoOptions {
     pub period: Option<ServoPeriod>,
     /// Also search for the fastest period that holds.
     pub find_fastest: bool,
+    /// The simulated bus's level of detail for the walk (the same answer
+    /// either way; the search for the fastest period runs fast).
+    pub detail: Detail,
 }
 
 impl Default for MahruDemoOptions {
@@ -74,6 +78,7 @@ impl Default for MahruDemoOptions {
             duration_s: 3.0,
             period: None,
             find_fastest: true,
+            detail: Detail::Fast,
         }
     }
 }
@@ -252,6 +257,9 @@ pub struct MahruDemoReport {
     pub errors: MahruErrors,
     /// The fastest period that held (when searched).
     pub fastest: Option<FastestPeriod>,
+    /// What ran at which level of detail in the walk (from its first
+    /// period on).
+    pub detail: DetailReport,
 }
 
 impl MahruDemoReport {
@@ -323,7 +331,13 @@ pub(crate) struct Running {
 /// Build the robot of `config` and bring it up (the first SETBIAS while
 /// it hangs, START lowers it to the ground).
 pub(crate) fn bring_up(config: &MahruConfig) -> Result<Running, TestbedError> {
-    let (port, modules, diameter) = robot_port(config)?;
+    bring_up_at(config, Detail::Fast)
+}
+
+/// [`bring_up`] on a bus at level of detail `detail`.
+pub(crate) fn bring_up_at(config: &MahruConfig, detail: Detail) -> Result<Running, TestbedError> {
+    let (mut port, modules, diameter) = robot_port(config)?;
+    port.bus_mut().set_detail(detail);
     let mut controller = MotionController::new(port, config.layout()?).map_err(motion)?;
     controller.bring_up().map_err(motion)?;
     Ok(Running {
@@ -393,7 +407,7 @@ pub fn run_mahru_demo(
             Number(MAX_DURATION_S)
         )));
     }
-    let mut r = bring_up(config)?;
+    let mut r = bring_up_at(config, options.detail)?;
     progress(&format!(
         "brought up {} modules on 3 chains ({} hops across); walking at {:.0} us for {} s",
         r.modules.len(),
@@ -455,6 +469,7 @@ pub fn run_mahru_demo(
         }
     }
     let _ = r.controller.stop();
+    let detail = r.controller.port().bus().detail_report();
     let stopped_cleanly = all_stopped(&mut r.controller, &r.modules);
     let stats = r.controller.stats();
     let layout = r.controller.layout().clone();
@@ -501,6 +516,7 @@ pub fn run_mahru_demo(
         stopped_cleanly,
         errors,
         fastest,
+        detail,
     })
 }
 
@@ -611,6 +627,7 @@ impl fmt::Display for MahruDemoReport {
         writeln!(f, "  compute, t(Tf)       {}", t.compute)?;
         writeln!(f, "  QWRITE, t(Tg)        {}", t.write)?;
         writeln!(f, "  whole period's work  {}", t.busy)?;
+        writeln!(f, "{}", self.detail)?;
         writeln!(
             f,
             "modules: ModID name              chain hops node  read p50/max (us)  tracking rms/max (mrad)"

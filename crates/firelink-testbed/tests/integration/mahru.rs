@@ -551,6 +551,7 @@ fn the_demo_walks_at_2_ms_without_an_error_and_is_deterministic() {
         duration_s: 1.5,
         period: Some(ServoPeriod::from_duration(Duration::from_millis(2)).unwrap()),
         find_fastest: true,
+        detail: firelink_bus::Detail::Fast,
     };
     let report = run_mahru_demo(&options, |_| {}).unwrap();
     report.verdict().unwrap();

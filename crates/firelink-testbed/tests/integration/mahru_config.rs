@@ -201,6 +201,7 @@ proptest! {
                 duration_s: 0.01,
                 period: None,
                 find_fastest: false,
+                detail: firelink_bus::Detail::Fast,
             };
             let _ = firelink_testbed::mahru::run_mahru_demo(&options, |_| {});
         }

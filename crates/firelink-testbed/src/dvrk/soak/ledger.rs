@@ -93,6 +93,7 @@ impl Soak {
             report: SoakReport {
                 cycles: 0,
                 seed: settings.seed,
+                detail: DetailReport::default(),
                 period_us: settings.period.as_micros_f64(),
                 virtual_s: 0.0,
                 packets: 0,

@@ -47,7 +47,8 @@ use firelink_board::qla::rig::{BoardRig, RigOptions};
 use firelink_bus::fault::{EvidenceKind, FaultId, FaultLog, FaultSource, PacketFault};
 use firelink_bus::trace::PacketKind;
 use firelink_bus::{
-    FaultPlan, FaultRule, NodeHandle, PacketMatch, SimDuration, SimTime, TimedFault,
+    Detail, DetailReport, FaultPlan, FaultRule, NodeHandle, PacketMatch, SimDuration, SimTime,
+    TimedFault,
 };
 use firelink_control::config::{IoConfig, presets};
 use firelink_control::runner::{Pacing, Robot, RobotSettings};
@@ -189,6 +190,7 @@ pub fn run(
         .filter(|r| matches!(r.source, Some(FaultSource::Rule(_))))
         .count();
     soak.report.packet_fault_share = packet_faults as f64 / (soak.report.packets.max(1)) as f64;
+    soak.report.detail = bus.detail_report();
     Ok(soak.report)
 }
 
@@ -218,13 +220,14 @@ pub fn bring_up_robot(
             b.with_seed(seed ^ settings.seed.rotate_left(17))
         })
         .collect();
-    let rig = BoardRig::daisy_chain(
+    let mut rig = BoardRig::daisy_chain(
         boards,
         &RigOptions {
             seed: settings.seed,
             ..RigOptions::default()
         },
     );
+    rig.bus.set_detail(settings.detail);
     let (handles, host) = (rig.boards.clone(), rig.host);
     let port = SimPort::new(rig.bus, rig.host);
     let (io, _) = IoSystem::open(

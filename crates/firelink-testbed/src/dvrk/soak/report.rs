@@ -22,6 +22,8 @@ pub struct SoakSettings {
     pub bus_fault_every: u64,
     /// The servo period (virtual time).
     pub period: ServoPeriod,
+    /// The simulated bus's level of detail (the same answer either way).
+    pub detail: Detail,
 }
 
 impl Default for SoakSettings {
@@ -32,6 +34,7 @@ impl Default for SoakSettings {
             packet_fault_rate: 0.01,
             bus_fault_every: 2_000,
             period: ServoPeriod::from_rate_hz(6_000.0).expect("6 kHz is a servo period"),
+            detail: Detail::Fast,
         }
     }
 }
@@ -190,6 +193,9 @@ pub struct SoakReport {
     pub by_fault: BTreeMap<String, Outcomes>,
     /// The first few undetected faults, described.
     pub undetected_examples: Vec<String>,
+    /// What ran at which level of detail: the cycles a fault touched ran
+    /// at the packet level, the fault-free stretches fast.
+    pub detail: DetailReport,
 }
 
 impl SoakReport {

@@ -5,6 +5,7 @@
 
 use std::fmt;
 
+use firelink_bus::Detail;
 use firelink_control::ServoPeriod;
 
 use super::{SoakReport, SoakSettings};
@@ -67,6 +68,12 @@ pub struct SoakRequest {
         arg(long = "watchdog-trials", default_value_t = 1_000)
     )]
     pub watchdog_trials: u64,
+    /// The simulated bus's level of detail: `fast` (a packet's deliveries
+    /// in one batch where that is exact) or `packet` (every delivery an
+    /// event of its own); the same report either way but for its count of
+    /// which ran.
+    #[cfg_attr(feature = "clap", arg(long, default_value = "fast"))]
+    pub detail: Detail,
 }
 
 impl Default for SoakRequest {
@@ -80,6 +87,7 @@ impl Default for SoakRequest {
             packet_fault_rate: settings.packet_fault_rate,
             bus_fault_every: settings.bus_fault_every,
             watchdog_trials: 1_000,
+            detail: settings.detail,
         }
     }
 }
@@ -102,6 +110,7 @@ impl SoakRequest {
             packet_fault_rate: self.packet_fault_rate,
             bus_fault_every: self.bus_fault_every,
             period: self.period,
+            detail: self.detail,
         }
     }
 

@@ -20,6 +20,7 @@ impl fmt::Display for SoakReport {
             r.injected,
             100.0 * r.packet_fault_share
         )?;
+        writeln!(out, "  {}", r.detail)?;
         writeln!(
             out,
             "  detected {}  harmless {}  undetected {}",
