@@ -638,18 +638,32 @@ impl Firmware {
     /// The earliest internal event strictly after `self.now`, and whether
     /// it is the watchdog's expiry, earlier than every other event.
     fn next_internal_event(&self) -> (Option<SimTime>, bool) {
+        let expander = self.cfg.io_expander;
+        self.next_event_after(
+            self.watchdog.expiry(),
+            self.axes.iter().map(|a| a.on_at(&self.power, expander)),
+        )
+    }
+
+    /// [`next_internal_event`](Self::next_internal_event) from the
+    /// watchdog's `expiry` and the amplifiers' enables `on_at`
+    /// ([`AxisState::on_at`], by axis) as they stand.
+    #[inline(always)]
+    fn next_event_after(
+        &self,
+        expiry: Option<SimTime>,
+        on_at: impl Iterator<Item = Option<SimTime>>,
+    ) -> (Option<SimTime>, bool) {
         let now = self.now;
-        let watchdog = self.watchdog.expiry().filter(|t| *t > now);
+        let watchdog = expiry.filter(|t| *t > now);
         // The amplifiers' enables and the safety tick.
         let mut next: Option<SimTime> = None;
         let mut any_on = false;
-        for a in &self.axes {
-            if let Some(on) = a.on_at(&self.power, self.cfg.io_expander) {
-                if on > now {
-                    next = Some(next.map_or(on, |n| n.min(on)));
-                } else {
-                    any_on = true;
-                }
+        for on in on_at.flatten() {
+            if on > now {
+                next = Some(next.map_or(on, |n| n.min(on)));
+            } else {
+                any_on = true;
             }
         }
         if any_on {
@@ -667,10 +681,11 @@ impl Firmware {
     /// Apply what is due at `self.now` (an internal event's time).
     fn process_events(&mut self) {
         let now = self.now;
-        // The next event is worked out again after any event; the plant's
-        // inputs only when an amplifier turned on or off.
-        self.events_stale = true;
-        if self.watchdog.expiry().is_some_and(|t| now >= t) {
+        // The next event is worked out after any event; the plant's inputs
+        // again only when an amplifier turned on or off.
+        let expiry = self.watchdog.expiry();
+        let timed_out = expiry.is_some_and(|t| now >= t);
+        if timed_out {
             self.watchdog.timed_out = true;
             for a in &mut self.axes {
                 a.requested = false;
@@ -682,6 +697,8 @@ impl Firmware {
         for (slot, a) in on_at.iter_mut().zip(&self.axes) {
             *slot = a.on_at(&self.power, self.cfg.io_expander);
         }
+        // Whether the current check took an amplifier's request away.
+        let mut disabled = false;
         // (A board has at most MAX_AXES axes: QLA1 4, DQLA 8.)
         let on = |i: usize| on_at.get(i).copied().flatten().is_some_and(|t| now >= t);
         // An amplifier's enable delay ending now.
@@ -726,10 +743,21 @@ impl Firmware {
                     a.safety_disabled = true;
                     a.mismatch_since = None;
                     self.drive_stale = true;
+                    disabled = true;
                 }
             }
         }
         self.sync_plant();
+        // The next event: from the watchdog's expiry and the enables
+        // worked out above while neither changed (the plant's inputs do
+        // not move them), else afresh.
+        if timed_out || disabled {
+            self.events_stale = true;
+        } else {
+            let enables = on_at.iter().take(self.axes.len()).copied();
+            (self.next_event, self.next_event_is_watchdog) = self.next_event_after(expiry, enables);
+            self.events_stale = false;
+        }
     }
 
     /// Hand the amplifier inputs to the plant, from `self.now` on, where
@@ -1185,12 +1213,16 @@ impl Firmware {
 
     /// Seed profile: whether a status broadcast from node `sender`
     /// arriving at `now` (at `offset`) is later than its TDMA slot allows:
-    /// the end of the slot plus 2 us.
-    #[inline]
+    /// the end of the slot plus 2 us. (Only the seed profile has slots to
+    /// be late for: that test inlined, the rest out of line.)
+    #[inline(always)]
     fn late_for_its_slot(&self, now: SimTime, sender: u8, offset: u64) -> bool {
-        if self.cfg.profile != Profile::Seed {
-            return false;
-        }
+        self.cfg.profile == Profile::Seed && self.late_for_seed_slot(now, sender, offset)
+    }
+
+    /// [`late_for_its_slot`](Self::late_for_its_slot) on the seed profile.
+    #[inline(never)]
+    fn late_for_seed_slot(&self, now: SimTime, sender: u8, offset: u64) -> bool {
         let in_hub = (STATUS_BROADCAST_OFFSET
             ..STATUS_BROADCAST_OFFSET + u64::from(HUB_MEMORY_QUADLETS as u32) * 4)
             .contains(&offset);

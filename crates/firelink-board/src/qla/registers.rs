@@ -1207,9 +1207,10 @@ mod tests {
 
     /// A real-time block that changes only the commands leaves the next
     /// internal event as it was worked out; one that changes the power,
-    /// an amplifier request or the watchdog flag marks it stale. Either
-    /// way the board goes through exactly the states of a board that
-    /// works the event out again after every block: power on, amplifiers
+    /// an amplifier request or the watchdog flag marks it stale; an event
+    /// works out the next. Either way the board goes through exactly the
+    /// states of a board that works the next event out afresh every 10 us
+    /// of virtual time (so that none can be missed): power on, amplifiers
     /// requested (per STATUS, and at Rev 8 per DAC word too), their enable
     /// delays, the current check, and three watchdog timeouts, the second
     /// and third after a block that cleared the flag with nothing else
@@ -1220,7 +1221,7 @@ mod tests {
             let cfg = BoardConfig::new(3, Hardware::Qla1, profile);
             let layout = cfg.layout();
             let mut fw = Firmware::new(cfg);
-            let mut always_stale = fw.clone();
+            let mut reference = fw.clone();
             let mut phy = PhyRegisters::new(3);
             let (mut kept, mut seen_on, mut timeouts) = (0, false, 0);
             for k in 1u16..=920 {
@@ -1256,20 +1257,20 @@ mod tests {
                     let mut bytes = vec![0; block.buffer_len()];
                     block.emit(&mut bytes).unwrap();
                     fw.write_block(now, 0, &bytes, &mut phy);
-                    always_stale.write_block(now, 0, &bytes, &mut phy);
-                    always_stale.events_stale = true;
+                    reference.write_block(now, 0, &bytes, &mut phy);
                     kept += usize::from(!fw.events_stale);
                 }
                 let was_timed_out = fw.watchdog_timed_out();
                 fw.pass_time(now + SimDuration::from_micros(50));
-                always_stale.pass_time(now + SimDuration::from_micros(50));
-                if k % 7 == 0 {
-                    fw.advance(now + SimDuration::from_micros(90));
-                    always_stale.advance(now + SimDuration::from_micros(90));
+                fw.advance(now + SimDuration::from_micros(90));
+                for micros in (0..=90).step_by(10) {
+                    reference.events_stale = true;
+                    reference.pass_time(now + SimDuration::from_micros(micros));
                 }
+                reference.advance(now + SimDuration::from_micros(90));
                 assert_eq!(
                     fw.state_digest(),
-                    always_stale.state_digest(),
+                    reference.state_digest(),
                     "{profile:?}, step {k}"
                 );
                 seen_on |= fw.amplifier_on(0);
