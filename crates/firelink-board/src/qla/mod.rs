@@ -149,6 +149,7 @@ use ethernet::Ethernet;
 use ethernet_v3::EthernetV3;
 use expander::Expander;
 use firelink_wire::qla::MAX_AXES;
+use firelink_wire::qla::realtime::BoardLayout;
 use hub::{Hub, HubClock, Pending};
 use power::{AxisState, Power, Watchdog};
 use prom::{FpgaProm, QlaProm};
@@ -283,6 +284,9 @@ impl core::fmt::Display for RxError {
 #[derive(Debug, Clone)]
 pub struct Firmware {
     cfg: BoardConfig,
+    /// `cfg.layout()`, worked out once (the configuration never changes):
+    /// every packet that lands in the hub and every sample asks for it.
+    layout: BoardLayout,
     plant: Plant,
     /// Time the state corresponds to.
     now: SimTime,
@@ -325,12 +329,22 @@ pub struct Firmware {
     packet_buffer: Vec<u8>,
     /// The next internal event, or earlier: every write moves the
     /// watchdog's expiry later without touching this, so when it comes it
-    /// is worked out again before anything is done.
+    /// is worked out again before anything is done, if it was the
+    /// watchdog's (`next_event_is_watchdog`).
     next_event: Option<SimTime>,
-    /// The control state (power, amplifier requests, commands, watchdog
-    /// settings) changed since `next_event` was worked out.
+    /// `next_event` is the watchdog's expiry, earlier than every other
+    /// event. Otherwise it is an amplifier's enable or a safety tick,
+    /// which only a change marked by `events_stale` can move (the
+    /// watchdog's expiry only moves later): when it comes it is exact.
+    next_event_is_watchdog: bool,
+    /// What the next internal event depends on (power, amplifier requests
+    /// and enable delays, watchdog settings) may have changed since
+    /// `next_event` was worked out. A real-time block that changes only
+    /// the commands leaves it: `next_event` is still that event or
+    /// earlier (see `next_event_is_watchdog`).
     events_stale: bool,
-    /// ... since the plant's inputs were.
+    /// The control state (power, amplifier requests, commands) may have
+    /// changed since the plant's inputs were worked out.
     drive_stale: bool,
 }
 
@@ -350,10 +364,12 @@ impl Firmware {
         let dallas = Dallas::new(cfg.instrument.as_ref());
         let ethernet = Ethernet::new(cfg.board_id);
         let cfg_hardware = cfg.hardware;
-        let hub = Hub::new(SimTime::ZERO, cfg.layout().format());
+        let layout = cfg.layout();
+        let hub = Hub::new(SimTime::ZERO, layout.format());
         let mut fw = Firmware {
             power: Power::new(cfg.motor_supply_present, cfg.supply_rise),
             cfg,
+            layout,
             plant,
             now: SimTime::ZERO,
             phy_id: None,
@@ -379,6 +395,7 @@ impl Firmware {
             scratch: Vec::new(),
             packet_buffer: Vec::new(),
             next_event: None,
+            next_event_is_watchdog: false,
             events_stale: true,
             drive_stale: true,
         };
@@ -553,19 +570,19 @@ impl Firmware {
     #[inline(never)]
     fn process_events_until(&mut self, now: SimTime) {
         loop {
-            let exact = self.events_stale;
-            if exact {
-                self.next_event = self.next_internal_event();
+            let exact = self.events_stale || !self.next_event_is_watchdog;
+            if self.events_stale {
+                (self.next_event, self.next_event_is_watchdog) = self.next_internal_event();
                 self.events_stale = false;
             }
             if self.next_event.is_none_or(|t| t > now) {
                 break;
             }
             // Due by the bound: work it out exactly (the watchdog may have
-            // been refreshed since), unless it just was, and act if it
-            // really is.
+            // been refreshed since), unless it just was or is not the
+            // watchdog's, and act if it really is.
             if !exact {
-                self.next_event = self.next_internal_event();
+                (self.next_event, self.next_event_is_watchdog) = self.next_internal_event();
             }
             let Some(t) = self.next_event.filter(|t| *t <= now) else {
                 continue;
@@ -577,7 +594,8 @@ impl Firmware {
     }
 
     /// The power, amplifier, command or watchdog state changed: the next
-    /// internal event and the plant's inputs are worked out again.
+    /// internal event and the plant's inputs are worked out again. (A
+    /// real-time block marks only what it changed, see `realtime_write`.)
     pub(crate) fn control_changed(&mut self) {
         self.events_stale = true;
         self.drive_stale = true;
@@ -617,18 +635,35 @@ impl Firmware {
         }
     }
 
-    /// The earliest internal event strictly after `self.now`.
-    fn next_internal_event(&self) -> Option<SimTime> {
+    /// The earliest internal event strictly after `self.now`, and whether
+    /// it is the watchdog's expiry, earlier than every other event.
+    fn next_internal_event(&self) -> (Option<SimTime>, bool) {
+        let expander = self.cfg.io_expander;
+        self.next_event_after(
+            self.watchdog.expiry(),
+            self.axes.iter().map(|a| a.on_at(&self.power, expander)),
+        )
+    }
+
+    /// [`next_internal_event`](Self::next_internal_event) from the
+    /// watchdog's `expiry` and the amplifiers' enables `on_at`
+    /// ([`AxisState::on_at`], by axis) as they stand.
+    #[inline(always)]
+    fn next_event_after(
+        &self,
+        expiry: Option<SimTime>,
+        on_at: impl Iterator<Item = Option<SimTime>>,
+    ) -> (Option<SimTime>, bool) {
         let now = self.now;
-        let mut next = self.watchdog.expiry().filter(|t| *t > now);
+        let watchdog = expiry.filter(|t| *t > now);
+        // The amplifiers' enables and the safety tick.
+        let mut next: Option<SimTime> = None;
         let mut any_on = false;
-        for a in &self.axes {
-            if let Some(on) = a.on_at(&self.power, self.cfg.io_expander) {
-                if on > now {
-                    next = Some(next.map_or(on, |n| n.min(on)));
-                } else {
-                    any_on = true;
-                }
+        for on in on_at.flatten() {
+            if on > now {
+                next = Some(next.map_or(on, |n| n.min(on)));
+            } else {
+                any_on = true;
             }
         }
         if any_on {
@@ -636,16 +671,21 @@ impl Firmware {
             let tick = SimTime((now.0 / step + 1).saturating_mul(step));
             next = Some(next.map_or(tick, |n| n.min(tick)));
         }
-        next
+        match (watchdog, next) {
+            (Some(w), None) => (Some(w), true),
+            (Some(w), Some(n)) if w < n => (Some(w), true),
+            (_, next) => (next, false),
+        }
     }
 
     /// Apply what is due at `self.now` (an internal event's time).
     fn process_events(&mut self) {
         let now = self.now;
-        // The next event is worked out again after any event; the plant's
-        // inputs only when an amplifier turned on or off.
-        self.events_stale = true;
-        if self.watchdog.expiry().is_some_and(|t| now >= t) {
+        // The next event is worked out after any event; the plant's inputs
+        // again only when an amplifier turned on or off.
+        let expiry = self.watchdog.expiry();
+        let timed_out = expiry.is_some_and(|t| now >= t);
+        if timed_out {
             self.watchdog.timed_out = true;
             for a in &mut self.axes {
                 a.requested = false;
@@ -657,6 +697,8 @@ impl Firmware {
         for (slot, a) in on_at.iter_mut().zip(&self.axes) {
             *slot = a.on_at(&self.power, self.cfg.io_expander);
         }
+        // Whether the current check took an amplifier's request away.
+        let mut disabled = false;
         // (A board has at most MAX_AXES axes: QLA1 4, DQLA 8.)
         let on = |i: usize| on_at.get(i).copied().flatten().is_some_and(|t| now >= t);
         // An amplifier's enable delay ending now.
@@ -701,10 +743,21 @@ impl Firmware {
                     a.safety_disabled = true;
                     a.mismatch_since = None;
                     self.drive_stale = true;
+                    disabled = true;
                 }
             }
         }
         self.sync_plant();
+        // The next event: from the watchdog's expiry and the enables
+        // worked out above while neither changed (the plant's inputs do
+        // not move them), else afresh.
+        if timed_out || disabled {
+            self.events_stale = true;
+        } else {
+            let enables = on_at.iter().take(self.axes.len()).copied();
+            (self.next_event, self.next_event_is_watchdog) = self.next_event_after(expiry, enables);
+            self.events_stale = false;
+        }
     }
 
     /// Hand the amplifier inputs to the plant, from `self.now` on, where
@@ -878,7 +931,7 @@ impl Firmware {
             .unwrap_or(&[]);
         // A write: it refreshes the watchdog (as `write_block_from`).
         self.watchdog.last_write = now;
-        if !self.hub.store(now, data, self.cfg.layout().format()) {
+        if !self.hub.store(now, data, self.layout.format()) {
             self.rx_error = Some(RxError::DuplicateBroadcast);
         }
         self.sync_plant();
@@ -1093,7 +1146,7 @@ impl Firmware {
     pub fn transmitted(&mut self, now: SimTime) {
         self.catch_up(now);
         if let Some(payload) = self.hub.in_flight.take() {
-            let _ = self.hub.store(now, &payload, self.cfg.layout().format());
+            let _ = self.hub.store(now, &payload, self.layout.format());
             self.hub.keep_payload(payload);
         }
     }
@@ -1130,7 +1183,7 @@ impl Firmware {
     /// fit).
     pub fn store_status_block(&mut self, now: SimTime, payload: &[u8]) -> bool {
         self.catch_up(now);
-        self.hub.store(now, payload, self.cfg.layout().format())
+        self.hub.store(now, payload, self.layout.format())
     }
 
     /// Whether the hub holds every block the last query selected (false
@@ -1160,12 +1213,16 @@ impl Firmware {
 
     /// Seed profile: whether a status broadcast from node `sender`
     /// arriving at `now` (at `offset`) is later than its TDMA slot allows:
-    /// the end of the slot plus 2 us.
-    #[inline]
+    /// the end of the slot plus 2 us. (Only the seed profile has slots to
+    /// be late for: that test inlined, the rest out of line.)
+    #[inline(always)]
     fn late_for_its_slot(&self, now: SimTime, sender: u8, offset: u64) -> bool {
-        if self.cfg.profile != Profile::Seed {
-            return false;
-        }
+        self.cfg.profile == Profile::Seed && self.late_for_seed_slot(now, sender, offset)
+    }
+
+    /// [`late_for_its_slot`](Self::late_for_its_slot) on the seed profile.
+    #[inline(never)]
+    fn late_for_seed_slot(&self, now: SimTime, sender: u8, offset: u64) -> bool {
         let in_hub = (STATUS_BROADCAST_OFFSET
             ..STATUS_BROADCAST_OFFSET + u64::from(HUB_MEMORY_QUADLETS as u32) * 4)
             .contains(&offset);
@@ -1220,7 +1277,7 @@ impl Firmware {
             self.last_sample = now;
             return;
         };
-        let len = self.cfg.layout().read_block_len();
+        let len = self.layout.read_block_len();
         let header = BroadcastHeader {
             seq,
             quadlets: u16::try_from(len / 4 + 1).unwrap_or(u16::MAX),

@@ -352,7 +352,7 @@ impl Firmware {
             // Any block read of the main space samples the real-time block
             // and answers from it, starting at the quadlet the offset names
             // (FireWire.v l.1306, l.1407); quadlets past the block read 0.
-            let len = self.cfg.layout().read_block_len();
+            let len = self.layout.read_block_len();
             let start = usize::from(addr) * 4;
             if start == 0
                 && let Some((block, rest)) = out.split_at_mut_checked(len)
@@ -446,7 +446,7 @@ impl Firmware {
         }
         match decode(u64::from(addr)) {
             Target::Hub(HubAddress::Memory(_)) => {
-                if !self.hub.store(now, data, self.cfg.layout().format()) {
+                if !self.hub.store(now, data, self.layout.format()) {
                     self.rx_error = Some(RxError::DuplicateBroadcast);
                 }
             }
@@ -480,7 +480,7 @@ impl Firmware {
     /// slice naming it (sections 5 and 6.5). A unicast Rev 4 or Rev 7 block of
     /// exactly one board's size is taken whatever board ID it carries.
     fn realtime_write(&mut self, now: SimTime, data: &[u8], unicast: bool) {
-        let layout = self.cfg.layout();
+        let layout = self.layout;
         let own = unicast
             && layout.format() != BlockFormat::Rev8
             && data.len() == layout.write_block_len();
@@ -494,7 +494,11 @@ impl Firmware {
         let Some(block) = block else {
             return;
         };
-        self.control_changed();
+        // The commands reach the plant. The next internal event moves only
+        // when an amplifier request, the power or the watchdog flag
+        // changes, which `request_amplifier` and `status_command` note
+        // (most blocks change only the commands).
+        self.drive_stale = true;
         for i in 0..self.n_axes() {
             if let Some(dac) = block.dac(i) {
                 self.dac_write(now, i, dac);
@@ -678,10 +682,12 @@ impl Firmware {
 
     /// The host asks for amplifier `i` on or off. Asking for on clears the
     /// watchdog flag and the axis's safety disable; it takes effect only
-    /// with motor power enabled.
+    /// with motor power enabled. A change of the request or the flag marks
+    /// the next internal event stale.
     fn request_amplifier(&mut self, now: SimTime, i: usize, enable: bool) {
-        if enable {
+        if enable && self.watchdog.timed_out {
             self.watchdog.timed_out = false;
+            self.events_stale = true;
         }
         let power_on = self.power.enabled;
         let Some(a) = self.axes.get_mut(i) else {
@@ -693,20 +699,29 @@ impl Firmware {
             if power_on && !a.requested {
                 a.requested = true;
                 a.requested_since = now;
+                self.events_stale = true;
             }
-        } else {
+        } else if a.requested {
             a.requested = false;
+            self.events_stale = true;
         }
     }
 
     /// A STATUS write (section 2): power, relay, amplifiers, reboot.
     /// Power is applied first, so one word may enable power and
-    /// amplifiers.
+    /// amplifiers. A change of what the next internal event depends on
+    /// (the watchdog flag, the supply, an amplifier request) marks it
+    /// stale.
     fn status_command(&mut self, now: SimTime, cmd: StatusCommand) {
         if cmd.reboot {
             self.reboot(now);
             return;
         }
+        let before = (
+            self.watchdog.timed_out,
+            self.power.enabled,
+            self.power.supply_on_since,
+        );
         match cmd.power {
             Some(true) => {
                 self.watchdog.timed_out = false;
@@ -719,12 +734,23 @@ impl Firmware {
             Some(false) => {
                 self.power.enabled = false;
                 for a in &mut self.axes {
-                    a.requested = false;
+                    if a.requested {
+                        a.requested = false;
+                        self.events_stale = true;
+                    }
                 }
             }
             None => {}
         }
         self.power.update_supply(now);
+        let after = (
+            self.watchdog.timed_out,
+            self.power.enabled,
+            self.power.supply_on_since,
+        );
+        if after != before {
+            self.events_stale = true;
+        }
         if let Some(relay) = cmd.relay {
             self.power.relay = relay;
         }
@@ -770,7 +796,7 @@ impl Firmware {
         // part of the reboot (FPGA1394V3.v: REBOOT reloads the PL only
         // through the PS, which the model does not restart).
         self.last_sample = now;
-        self.hub = super::Hub::new(now, self.cfg.layout().format());
+        self.hub = super::Hub::new(now, self.layout.format());
     }
 
     /// Register 14 as read: a QLA1's expander; on a DQLA the expander the
@@ -1017,18 +1043,18 @@ impl Firmware {
         if self.cfg.hardware == Hardware::Dqla {
             return DigitalIn(self.dqla_digital_in().raw());
         }
-        let mut lines = [0u8; 6];
+        let (mut a, mut b, mut index) = (0u8, 0u8, 0u8);
+        let (mut neg, mut pos, mut home) = (0u8, 0u8, 0u8);
         for (i, axis) in self.plant.axes().iter().take(4).enumerate() {
             let enc = axis.encoder();
-            let (neg, pos, home) = axis.switches();
-            for (bits, on) in lines
-                .iter_mut()
-                .zip([enc.a(), enc.b(), enc.index(), neg, pos, home])
-            {
-                *bits |= u8::from(on) << i;
-            }
+            let (n, p, h) = axis.switches();
+            a |= u8::from(enc.a()) << i;
+            b |= u8::from(enc.b()) << i;
+            index |= u8::from(enc.index()) << i;
+            neg |= u8::from(n) << i;
+            pos |= u8::from(p) << i;
+            home |= u8::from(h) << i;
         }
-        let [a, b, index, neg, pos, home] = lines;
         // What is plugged in holds some switch inputs high.
         let plugged = self.cfg.input_lines;
         let neg = neg | ((plugged >> 8) & 0xF) as u8;
@@ -1054,10 +1080,17 @@ impl Firmware {
     }
 
     fn position_word(&mut self, i: usize) -> EncPosition {
-        let raw = self.raw_count(i);
-        let enc = self.plant.axis(i).map(|a| a.encoder());
-        let lines = enc.map_or((false, false, false), |e| (e.index(), e.b(), e.a()));
         let rev8 = self.cfg.profile.is_rev8();
+        // The raw count, and at Rev 8 the index, B and A lines.
+        let (raw, lines) = self.plant.axis(i).map_or((0, (false, false, false)), |a| {
+            let e = a.encoder();
+            let lines = if rev8 {
+                (e.index(), e.b(), e.a())
+            } else {
+                (false, false, false)
+            };
+            (e.count(), lines)
+        });
         let Some(a) = self.axes.get_mut(i) else {
             return EncPosition::default();
         };
@@ -1113,7 +1146,7 @@ impl Firmware {
         self.observe();
         let timestamp = now.clocks().wrapping_sub(self.last_sample.clocks()) as u32;
         self.last_sample = now;
-        let layout = self.cfg.layout();
+        let layout = self.layout;
         let n = self.n_axes().min(layout.motors()).min(layout.encoders());
         let status = self.status_word();
         let digital_in = self.digital_in();
@@ -1166,6 +1199,90 @@ impl Firmware {
 #[cfg(test)]
 mod tests {
     use super::{round_to_code, temperature_byte};
+    use crate::qla::config::{BoardConfig, Hardware, Profile};
+    use crate::qla::{Firmware, PhyRegisters};
+    use crate::time::{SimDuration, SimTime};
+    use firelink_wire::qla::realtime::WriteBlockRepr;
+    use firelink_wire::qla::registers::{DAC_ZERO, DacWord, StatusCommand};
+
+    /// A real-time block that changes only the commands leaves the next
+    /// internal event as it was worked out; one that changes the power,
+    /// an amplifier request or the watchdog flag marks it stale; an event
+    /// works out the next. Either way the board goes through exactly the
+    /// states of a board that works the next event out afresh every 10 us
+    /// of virtual time (so that none can be missed): power on, amplifiers
+    /// requested (per STATUS, and at Rev 8 per DAC word too), their enable
+    /// delays, the current check, and three watchdog timeouts, the second
+    /// and third after a block that cleared the flag with nothing else
+    /// scheduled (power on again; an amplifier request).
+    #[test]
+    fn command_only_blocks_keep_the_next_event_and_change_nothing() {
+        for profile in [Profile::Rev7, Profile::Rev8] {
+            let cfg = BoardConfig::new(3, Hardware::Qla1, profile);
+            let layout = cfg.layout();
+            let mut fw = Firmware::new(cfg);
+            let mut reference = fw.clone();
+            let mut phy = PhyRegisters::new(3);
+            let (mut kept, mut seen_on, mut timeouts) = (0, false, 0);
+            for k in 1u16..=920 {
+                let now = SimTime::from_micros(200 * u64::from(k));
+                // Quiet for 34 to 36 ms at a time: the 30 ms watchdog fires.
+                let quiet = [300..470, 521..700, 721..900]
+                    .iter()
+                    .any(|r| r.contains(&k));
+                if !quiet {
+                    let mut block = WriteBlockRepr::new(layout, 3);
+                    for (i, dac) in block.dac.iter_mut().enumerate() {
+                        let code = DAC_ZERO + (k * 37 + i as u16 * 11) % 300;
+                        let mut word = DacWord::valid_command(code);
+                        if profile == Profile::Rev8 && k == 701 && i == 1 {
+                            word = word.with_amp_request(Some(true));
+                        }
+                        *dac = word;
+                    }
+                    let command = match k {
+                        1 => StatusCommand {
+                            power: Some(true),
+                            relay: Some(true),
+                            ..StatusCommand::NONE
+                        },
+                        5 => StatusCommand::amplifiers(0b1101, 0b1101),
+                        200 => StatusCommand::amplifiers(0b0100, 0),
+                        480 => StatusCommand::power(true),
+                        701 => StatusCommand::amplifiers(0b0001, 0b0001),
+                        910 => StatusCommand::power(false),
+                        _ => StatusCommand::NONE,
+                    };
+                    block.control = command.to_word();
+                    let mut bytes = vec![0; block.buffer_len()];
+                    block.emit(&mut bytes).unwrap();
+                    fw.write_block(now, 0, &bytes, &mut phy);
+                    reference.write_block(now, 0, &bytes, &mut phy);
+                    kept += usize::from(!fw.events_stale);
+                }
+                let was_timed_out = fw.watchdog_timed_out();
+                fw.pass_time(now + SimDuration::from_micros(50));
+                fw.advance(now + SimDuration::from_micros(90));
+                for micros in (0..=90).step_by(10) {
+                    reference.events_stale = true;
+                    reference.pass_time(now + SimDuration::from_micros(micros));
+                }
+                reference.advance(now + SimDuration::from_micros(90));
+                assert_eq!(
+                    fw.state_digest(),
+                    reference.state_digest(),
+                    "{profile:?}, step {k}"
+                );
+                seen_on |= fw.amplifier_on(0);
+                timeouts += usize::from(!was_timed_out && fw.watchdog_timed_out());
+            }
+            assert!(seen_on, "{profile:?}: an amplifier came on");
+            assert_eq!(timeouts, 3, "{profile:?}: every quiet stretch timed out");
+            // 392 blocks, of which six change more than the commands.
+            assert!(kept >= 380, "{profile:?}: {kept} blocks kept the event");
+            assert!(!fw.amplifier_on(0), "{profile:?}: power went off");
+        }
+    }
 
     /// The MAX6576 byte as the dVRK reads it (sawRobotIO1394: the byte
     /// divided by 2 is degrees C).
