@@ -290,3 +290,193 @@ impl DetailTally {
         copy.report
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use firelink_wire::packet::Ack;
+
+    use super::super::probe::{Probe, chain, probe, qread, qwrite, send};
+    use super::*;
+    use crate::bus::{Bus, BusConfig, TraceLevel};
+    use crate::fault::{FaultRule, PacketFault, PacketMatch};
+    use crate::node::{ArbitrationClass, NodeHandle};
+    use crate::time::{SimDuration, SimTime};
+
+    /// What one probe saw: packets received (when, bytes), its transmit
+    /// outcomes and its timers.
+    type Seen = (
+        Vec<(SimTime, Vec<u8>)>,
+        Vec<(SimTime, u64, Option<Ack>)>,
+        Vec<(SimTime, u64)>,
+    );
+
+    fn seen(bus: &Bus, nodes: &[NodeHandle]) -> Vec<Seen> {
+        nodes
+            .iter()
+            .map(|&n| {
+                let p = probe(bus, n);
+                (p.received.clone(), p.transmitted.clone(), p.timers.clone())
+            })
+            .collect()
+    }
+
+    /// Six probes in a chain: broadcasts from both ends and a read across,
+    /// while the middle probe's timers fire every 53 ns (so that they
+    /// fall between the arrivals of one packet and split its batch).
+    fn traffic(detail: Detail) -> (Bus, Vec<NodeHandle>) {
+        let (mut bus, nodes) = chain(
+            6,
+            BusConfig {
+                detail,
+                ..BusConfig::default()
+            },
+        );
+        bus.begin_cycle();
+        let phy = |bus: &Bus, i: usize| bus.phy_id(nodes[i]).expect("numbered");
+        let start = bus.now();
+        bus.with_node::<Probe, _>(nodes[3], |_, ctx| {
+            for k in 0..600u64 {
+                ctx.set_timer(start + SimDuration(k * 53_000), 100 + k);
+            }
+        })
+        .expect("a probe");
+        let (p0, p2, p4, p5) = (phy(&bus, 0), phy(&bus, 2), phy(&bus, 4), phy(&bus, 5));
+        send(&mut bus, nodes[0], qwrite(p0, 63), ArbitrationClass::Fair);
+        send(&mut bus, nodes[5], qwrite(p5, 63), ArbitrationClass::Fair);
+        send(&mut bus, nodes[2], qread(p2, p4), ArbitrationClass::Fair);
+        bus.run_for(SimDuration::from_micros(100));
+        (bus, nodes)
+    }
+
+    #[test]
+    fn both_levels_give_every_node_the_same_packets_at_the_same_times() {
+        let (fast, nodes) = traffic(Detail::Fast);
+        let (packet, _) = traffic(Detail::Packet);
+        assert_eq!(fast.now(), packet.now());
+        assert_eq!(fast.packets_sent(), packet.packets_sent());
+        assert_eq!(
+            format!("{:?}", fast.trace().packets()),
+            format!("{:?}", packet.trace().packets())
+        );
+        assert_eq!(seen(&fast, &nodes), seen(&packet, &nodes));
+        // Everything was heard, and the timers did split batches.
+        let heard: usize = nodes.iter().map(|&n| probe(&fast, n).received.len()).sum();
+        assert!(heard >= 12, "{heard} packets heard");
+        let r = fast.detail_report();
+        assert_eq!(r.packet_level_packets(), 0, "{r:?}");
+        assert!(r.fast_packets >= 3, "{r:?}");
+        assert_eq!(r.batched_deliveries, heard as u64, "{r:?}");
+        assert!(r.batches > r.fast_packets, "no batch was split: {r:?}");
+        assert_eq!(packet.detail_report().batched_deliveries, 0);
+    }
+
+    #[test]
+    fn a_run_until_a_condition_stops_inside_a_packets_deliveries_at_both_levels() {
+        let run = |detail: Detail| {
+            let (mut bus, nodes) = chain(
+                5,
+                BusConfig {
+                    detail,
+                    ..BusConfig::default()
+                },
+            );
+            let p0 = bus.phy_id(nodes[0]).expect("numbered");
+            send(&mut bus, nodes[0], qwrite(p0, 63), ArbitrationClass::Fair);
+            let watched = nodes[2];
+            let deadline = bus.now() + SimDuration::from_micros(100);
+            // Looked at again only when the bus called into the node, as
+            // the host's link waits (a condition with a memory).
+            let mut looked_at = None;
+            let held = bus.run_until_with(deadline, |b| {
+                b.called_since(watched, &mut looked_at)
+                    && b.node::<Probe>(watched)
+                        .is_some_and(|p| !p.received.is_empty())
+            });
+            let counts: Vec<usize> = nodes
+                .iter()
+                .map(|&n| probe(&bus, n).received.len())
+                .collect();
+            (held, bus.now(), counts)
+        };
+        let fast = run(Detail::Fast);
+        assert_eq!(fast, run(Detail::Packet));
+        let (held, _, counts) = fast;
+        assert!(held);
+        // Nearest first from the root: 1 and 2 have it, 3 and 4 not yet.
+        assert_eq!(counts, vec![0, 1, 1, 0, 0]);
+    }
+
+    #[test]
+    fn cycles_and_packets_are_counted_by_level_and_why() {
+        let (mut bus, nodes) = chain(3, BusConfig::default());
+        let p0 = bus.phy_id(nodes[0]).expect("numbered");
+        let mut broadcast = |bus: &mut Bus| {
+            send(bus, nodes[0], qwrite(p0, 63), ArbitrationClass::Fair);
+            bus.run_for(SimDuration::from_micros(50));
+        };
+        // Before the first cycle mark: not counted.
+        broadcast(&mut bus);
+        assert_eq!(bus.detail_report(), DetailReport::default());
+        // A fast cycle.
+        bus.begin_cycle();
+        broadcast(&mut bus);
+        // The packet level chosen.
+        bus.begin_cycle();
+        bus.set_detail(Detail::Packet);
+        broadcast(&mut bus);
+        // Every event traced.
+        bus.begin_cycle();
+        bus.set_detail(Detail::Fast);
+        bus.set_trace_level(TraceLevel::Verbose);
+        broadcast(&mut bus);
+        // A corrupted packet.
+        bus.begin_cycle();
+        bus.set_trace_level(TraceLevel::Normal);
+        bus.add_fault_rule(FaultRule::once(
+            PacketMatch::any(),
+            PacketFault::CorruptQuadlet { index: 3, xor: 1 },
+        ));
+        broadcast(&mut bus);
+        // A bus reset (the cycle under way is counted as it stands).
+        bus.begin_cycle();
+        bus.initiate_reset(false);
+        bus.run_for(SimDuration::from_millis(1));
+        let r = bus.detail_report();
+        assert_eq!(r.detail, Detail::Fast);
+        assert_eq!((r.fast_cycles, r.packet_level_cycles), (1, 4), "{r:?}");
+        let one_each = WhyCounts {
+            chosen: 1,
+            tracing: 1,
+            fault: 1,
+            bus_reset: 1,
+        };
+        assert_eq!(r.packet_level_cycles_why, one_each);
+        assert_eq!(
+            r.packet_level_packets_why,
+            WhyCounts {
+                bus_reset: 0,
+                ..one_each
+            }
+        );
+        assert_eq!(r.fast_packets, 1);
+        assert_eq!(r.batched_deliveries, 2);
+        let text = r.to_string();
+        assert!(
+            text.starts_with("detail fast: 1 cycles fast, 4 at the packet level (chosen 1, tracing 1, fault 1, bus reset 1)"),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn a_level_is_named_packet_or_fast() {
+        assert_eq!("packet".parse::<Detail>(), Ok(Detail::Packet));
+        assert_eq!("fast".parse::<Detail>(), Ok(Detail::Fast));
+        let e = "exact".parse::<Detail>().unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "unknown level of detail 'exact' (packet or fast)"
+        );
+        assert_eq!(Detail::default(), Detail::Fast);
+        assert_eq!(Detail::Packet.to_string(), "packet");
+    }
+}

@@ -12,6 +12,9 @@
 //! the figures are virtual wire times, so they may not move by more than
 //! rounding (a picosecond).
 //!
+//! Each case also runs at `--detail packet` and must print exactly what
+//! the default fast level printed, but for the count of what ran.
+//!
 //! To record the file again (only when a change is meant to move the
 //! figures, and say so in BENCHMARKS.md), run each case's arguments through
 //! `firelink sim --json` and keep the keys compared below.
@@ -69,6 +72,15 @@ fn compare(path: &str, expected: &Value, found: &Value, out: &mut Vec<String>) {
     }
 }
 
+/// `report` without its count of what ran at which level of detail.
+fn without_detail(report: &Value) -> Value {
+    let mut v = report.clone();
+    if let Some(map) = v.as_object_mut() {
+        map.remove("detail");
+    }
+    v
+}
+
 #[test]
 fn phase_tables_do_not_move() {
     let text = include_str!("../data/sim_phases.json");
@@ -89,6 +101,22 @@ fn phase_tables_do_not_move() {
             diffs.push(format!("errors: {}", found["errors"]));
         }
         compare("", &case["expected"], &found, &mut diffs);
+        // The packet level (every delivery an event) gives the fast
+        // level's answer exactly; only the count of what ran differs.
+        let mut packet_args = args.clone();
+        packet_args.extend(["--detail".to_string(), "packet".to_string()]);
+        let packet = sim(&packet_args);
+        if without_detail(&packet) != without_detail(&found) {
+            diffs.push(format!(
+                "--detail packet differs:\n    fast   {found}\n    packet {packet}"
+            ));
+        }
+        if found["detail"]["fast_cycles"] != 1 || packet["detail"]["packet_level_cycles"] != 1 {
+            diffs.push(format!(
+                "levels run: fast {} / packet {}",
+                found["detail"], packet["detail"]
+            ));
+        }
         if !diffs.is_empty() {
             failures.push(format!(
                 "firelink sim {}:\n  {}",

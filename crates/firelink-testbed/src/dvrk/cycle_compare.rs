@@ -228,8 +228,8 @@ pub fn compare_in_lockstep(
 mod tests {
     use super::*;
     use crate::port_spec::PortSpec;
-    use firelink_bus::TraceLevel;
     use firelink_bus::time::SimTime;
+    use firelink_bus::{Detail, TraceLevel};
     use firelink_control::config::presets;
 
     /// The demo robot: seed 000's dVRK on 8 boards (28 axes), 6 kHz.
@@ -293,6 +293,39 @@ mod tests {
         assert_eq!(found, None);
         assert!(!b.bus().trace().packets().is_empty(), "side b recorded");
         assert!(a.bus().trace().packets().is_empty(), "side a did not");
+    }
+
+    #[test]
+    fn the_fast_level_gives_the_packet_levels_answer_every_cycle() {
+        let (mut a, mut b) = two_runs();
+        b.bus_mut().set_detail(Detail::Packet);
+        let found = compare_in_lockstep(&mut a, &mut b, 120, |_, _| {}, |_, _| {});
+        assert_eq!(found, None);
+        let fast = a.bus().detail_report();
+        let packet = b.bus().detail_report();
+        // Each side ran its own level every cycle of the comparison (side
+        // b's bring-up ran fast, before the packet level was chosen).
+        assert!(fast.fast_cycles >= 120, "{fast}");
+        assert_eq!(fast.packet_level_cycles, 0, "{fast}");
+        assert_eq!(packet.packet_level_cycles, 120, "{packet}");
+        assert_eq!(packet.packet_level_cycles_why.chosen, 120, "{packet}");
+    }
+
+    #[test]
+    fn switching_the_level_every_other_cycle_changes_nothing() {
+        let (mut a, mut b) = two_runs();
+        let switch = |run: &mut ComparedRun, cycle: u64| {
+            let level = if cycle % 2 == 1 {
+                Detail::Packet
+            } else {
+                Detail::Fast
+            };
+            run.bus_mut().set_detail(level);
+        };
+        let found = compare_in_lockstep(&mut a, &mut b, 120, |_, _| {}, switch);
+        assert_eq!(found, None);
+        let r = b.bus().detail_report();
+        assert!(r.fast_cycles >= 60 && r.packet_level_cycles >= 60, "{r}");
     }
 
     #[test]

@@ -7,6 +7,7 @@
 mod bench_udp;
 mod console_homing;
 mod demo;
+mod detail_levels;
 mod fault_script;
 mod mahru;
 mod mahru_config;
