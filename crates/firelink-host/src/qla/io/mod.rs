@@ -616,8 +616,7 @@ impl<P: Port> IoSystem<P> {
     /// report (and the stats).
     pub fn read_all(&mut self) -> &CycleReport {
         let cycle = self.report.cycle + 1;
-        self.report = CycleReport::EMPTY;
-        self.report.cycle = cycle;
+        self.report.restart(cycle);
         self.stats.cycles += 1;
         self.port.begin_cycle();
         let started = self.port.now();
@@ -659,10 +658,10 @@ impl<P: Port> IoSystem<P> {
             self.write_status_registers();
         }
         for b in self.boards.iter_mut() {
-            if b.asks_for_energy() {
-                self.energised |= 1 << (b.board_id() & 0xF);
+            let id = b.board_id();
+            if b.outputs_applied() {
+                self.energised |= 1 << (id & 0xF);
             }
-            b.outputs_applied();
         }
         self.report.write_time = self.port.now().saturating_sub(started);
         self.port.end_cycle();
