@@ -36,6 +36,7 @@ impl HubReadTimes {
     };
 
     /// The timing quadlet `word` of timers counting at `clock_hz`.
+    #[inline]
     pub fn from_word(word: u32, clock_hz: u32) -> HubReadTimes {
         let timing = firelink_wire::qla::broadcast::HubTiming::from_word(word);
         HubReadTimes {
@@ -46,7 +47,9 @@ impl HubReadTimes {
 }
 
 /// `ticks` of a hub timer counting at `clock_hz`, in us (0 Hz reads as
-/// 1 Hz rather than dividing by zero).
+/// 1 Hz rather than dividing by zero). (Inlined into the hub read's loop
+/// over its boards.)
+#[inline]
 pub fn hub_ticks_us(ticks: u32, clock_hz: u32) -> f32 {
     (f64::from(ticks) * 1e6 / f64::from(clock_hz.max(1))) as f32
 }
@@ -68,7 +71,9 @@ pub struct CycleReport {
     pub read_time: Duration,
     /// Duration of the write phase.
     pub write_time: Duration,
-    /// Bit i set: board ID i missed this cycle.
+    /// Bit i set: board ID i missed this cycle: exactly the IDs with a
+    /// reason in `reasons` ([`note_miss`](Self::note_miss) sets both; the
+    /// runner reads the mask alone).
     pub missed: u16,
     /// Why each missed board missed, by board ID.
     pub reasons: [Option<MissReason>; MAX_BOARDS],
@@ -102,6 +107,39 @@ impl CycleReport {
         error: None,
         bus_reset: false,
     };
+
+    /// This report made [`EMPTY`](Self::EMPTY) but for its cycle number,
+    /// `cycle`: each field stored in place (the start of every cycle; a
+    /// copy of the whole constant cost more).
+    #[inline]
+    pub fn restart(&mut self, cycle: u64) {
+        let CycleReport {
+            cycle: number,
+            seq,
+            query_seq,
+            started,
+            read_time,
+            write_time,
+            missed,
+            reasons,
+            update_time_us,
+            hub_read,
+            error,
+            bus_reset,
+        } = self;
+        *number = cycle;
+        *seq = 0;
+        *query_seq = [0; MAX_BOARDS];
+        *started = Duration::ZERO;
+        *read_time = Duration::ZERO;
+        *write_time = Duration::ZERO;
+        *missed = 0;
+        *reasons = [None; MAX_BOARDS];
+        *update_time_us = [0.0; MAX_BOARDS];
+        *hub_read = HubReadTimes::ZERO;
+        *error = None;
+        *bus_reset = false;
+    }
 
     /// Whether every board took part and no error happened.
     pub fn all_ok(&self) -> bool {

@@ -364,13 +364,10 @@ fn answered_boards(
     life: &Lifecycle,
     report: &CycleReport,
 ) -> (BoardSet, Option<FaultKind>) {
-    // (The boards with a miss reason, as `missed_boards` lists them, in
-    // one pass over the reasons: bit i = board ID i.)
-    let mut missed = 0u16;
-    for (bit, reason) in report.reasons.iter().enumerate().take(16) {
-        missed |= u16::from(reason.is_some()) << bit;
-    }
-    let answered = expected.minus(BoardSet(missed));
+    // (The boards with a miss reason, as `missed_boards` lists them: the
+    // report's `missed` mask, which `CycleReport::note_miss` sets with
+    // each reason, bit i = board ID i.)
+    let answered = expected.minus(BoardSet(report.missed));
     let missing = expected.minus(answered).first().map(|id| {
         let reason = report.reasons.get(usize::from(id)).copied().flatten();
         match reason {

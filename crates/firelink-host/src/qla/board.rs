@@ -383,27 +383,21 @@ impl BoardIo {
     }
 
     /// After a write: one-shot requests (power, relay, amplifier changes)
-    /// are cleared; DAC commands stay. (Only the layout's DAC quadlets can
-    /// carry a request: `set_dac` and `set_amp_enable` refuse the others.)
+    /// are cleared; DAC commands stay. Returns whether the write asked for
+    /// motor power or an amplifier on, found in the same pass over the
+    /// DAC quadlets. (Only the layout's DAC quadlets can carry a request:
+    /// `set_dac` and `set_amp_enable` refuse the others.)
     #[inline]
-    pub(crate) fn outputs_applied(&mut self) {
+    pub(crate) fn outputs_applied(&mut self) -> bool {
+        let mut asked = self.control.power == Some(true)
+            || self.control.amps.enable() & self.control.amps.mask() != 0;
         self.control = StatusCommand::NONE;
         let axes = self.axes();
         for d in self.output.dac.iter_mut().take(axes) {
+            asked |= d.amp_request() == Some(true);
             *d = d.with_amp_request(None);
         }
-    }
-
-    /// Whether the next write asks for motor power or an amplifier on.
-    #[inline]
-    pub(crate) fn asks_for_energy(&self) -> bool {
-        self.control.power == Some(true)
-            || self.control.amps.enable() & self.control.amps.mask() != 0
-            || self
-                .output
-                .dacs()
-                .iter()
-                .any(|d| d.amp_request() == Some(true))
+        asked
     }
 
     /// Command zero current on every axis and request amplifiers off.
@@ -445,12 +439,31 @@ mod tests {
         assert_eq!(out.dac[2].amp_request(), Some(true));
         assert_eq!(out.dac[0].command(), DAC_ZERO);
         assert_eq!(out.control.raw() & 0x000C_0000, 0x000C_0000);
-        b.outputs_applied();
+        assert!(b.outputs_applied(), "power and an amplifier were asked for");
+        assert!(!b.outputs_applied(), "the requests were cleared");
         let out = b.output();
         assert_eq!(out.dac[2].amp_request(), None);
         assert_eq!(out.dac[2].command(), 0x9000);
         assert_eq!(out.control.raw(), 0);
         assert!(b.set_dac(4, 0).is_err());
+    }
+
+    /// Only a request for power or an amplifier on counts as energy, at
+    /// Rev 8 (DAC quadlets) and Rev 7 (the status command).
+    #[test]
+    fn outputs_applied_says_whether_energy_was_asked() {
+        for fw in [FirmwareRev::Rev7, FirmwareRev::Rev8] {
+            let mut b = BoardIo::new(info(fw));
+            assert!(!b.outputs_applied(), "{fw:?}: nothing asked");
+            b.set_amp_enable(1, false).unwrap();
+            b.set_power(false);
+            assert!(!b.outputs_applied(), "{fw:?}: only off asked");
+            b.set_amp_enable(3, true).unwrap();
+            assert!(b.outputs_applied(), "{fw:?}: an amplifier on");
+            b.set_power(true);
+            assert!(b.outputs_applied(), "{fw:?}: power on");
+            assert!(!b.outputs_applied(), "{fw:?}: cleared");
+        }
     }
 
     #[test]

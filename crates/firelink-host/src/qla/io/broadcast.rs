@@ -260,15 +260,14 @@ impl<P: Port> IoSystem<P> {
             self.miss_group(g, MissReason::Transaction);
             return;
         }
-        let outcomes = match self.hub_outcomes(g, hub_len, seq) {
-            Ok(o) => o,
-            Err(e) => {
-                let reason = miss_from_wire(e);
-                self.stats.count_error(&HostError::Wire(e));
-                self.miss_group(g, reason);
-                return;
-            }
-        };
+        // (Filled in place: no copy of the table returned.)
+        let mut outcomes: HubOutcomes = [None; MAX_BOARDS];
+        if let Err(e) = self.hub_outcomes(g, hub_len, seq, &mut outcomes) {
+            let reason = miss_from_wire(e);
+            self.stats.count_error(&HostError::Wire(e));
+            self.miss_group(g, reason);
+            return;
+        }
         let members = self.groups.get(g).map_or(0, |q| q.members.len());
         for k in 0..members {
             let Some(i) = self.groups.get(g).and_then(|q| q.members.get(k)).copied() else {
@@ -332,10 +331,11 @@ impl<P: Port> IoSystem<P> {
     }
 
     /// Each board's outcome from group `g`'s hub memory read into the
-    /// buffer (`hub_len` bytes) after query `seq`, by index in the system:
-    /// its block parsed straight into the board's inputs and latched, or
-    /// why it has none (`None`: no block came, or the board is not in the
-    /// group); the update times go into the report.
+    /// buffer (`hub_len` bytes) after query `seq`, by index in the system,
+    /// into `outcomes` (all `None` when called): its block parsed straight
+    /// into the board's inputs and latched, or why it has none (`None`: no
+    /// block came, or the board is not in the group); the update times go
+    /// into the report.
     ///
     /// # Errors
     /// The hub memory does not decode.
@@ -344,10 +344,10 @@ impl<P: Port> IoSystem<P> {
         g: usize,
         hub_len: usize,
         seq: u16,
-    ) -> core::result::Result<HubOutcomes, firelink_wire::Error> {
-        let mut outcomes: HubOutcomes = [None; MAX_BOARDS];
+        outcomes: &mut HubOutcomes,
+    ) -> core::result::Result<(), firelink_wire::Error> {
         let Some(group) = self.groups.get(g) else {
-            return Ok(outcomes);
+            return Ok(());
         };
         let bytes = self.buf.get(..hub_len).unwrap_or(&[]);
         let hub = HubBlock::new_checked(bytes, &group.slots)?;
@@ -404,7 +404,7 @@ impl<P: Port> IoSystem<P> {
         }
         let timing = hub.timing_at(group.timing_quadlet).to_word();
         self.report.hub_read = HubReadTimes::from_word(timing, clock_hz);
-        Ok(outcomes)
+        Ok(())
     }
 
     /// Every board's commands in one command block, written once on the

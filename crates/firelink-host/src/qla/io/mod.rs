@@ -34,6 +34,7 @@ use std::time::Duration;
 use firelink_wire::qla::MAX_BOARDS;
 use firelink_wire::qla::address::{BoardRegister, Register};
 use firelink_wire::qla::broadcast::{BoardSlot, SeqRule};
+use firelink_wire::qla::realtime::BlockFormat;
 use firelink_wire::qla::registers::{AmpCommand, StatusCommand, WatchdogSetting};
 
 use crate::cycle_report::{CycleReport, IoStats};
@@ -125,6 +126,10 @@ pub struct IoSystem<P: Port> {
     energised: u16,
     /// The watchdog this system last programmed.
     watchdog: Option<WatchdogSetting>,
+    /// Whether a board's write block has no control quadlet (Rev 4): only
+    /// such a board takes its power, relay and amplifier changes as STATUS
+    /// writes ([`BoardIo::pending_status_write`]); worked out at each scan.
+    status_writes: bool,
 }
 
 /// Where boards and axes are in an [`IoSystem`]'s board list.
@@ -157,6 +162,7 @@ impl AxisLookup {
         AxisLookup { by_id, axes, runs }
     }
 
+    #[inline]
     fn board(&self, id: u8) -> Option<usize> {
         self.by_id
             .get(usize::from(id))
@@ -225,6 +231,7 @@ impl<P: Port> IoSystem<P> {
             left: Vec::new(),
             energised: 0,
             watchdog: None,
+            status_writes: false,
         };
         system.adopt(scan)?;
         Ok(system)
@@ -233,6 +240,10 @@ impl<P: Port> IoSystem<P> {
     fn adopt(&mut self, scan: &ScanReport) -> Result<()> {
         self.boards = scan.boards.iter().map(|b| BoardIo::new(*b)).collect();
         self.lookup = AxisLookup::of(&self.boards);
+        self.status_writes = self
+            .boards
+            .iter()
+            .any(|b| b.info().layout.format() == BlockFormat::Rev4);
         self.slots = scan
             .boards
             .iter()
@@ -616,8 +627,7 @@ impl<P: Port> IoSystem<P> {
     /// report (and the stats).
     pub fn read_all(&mut self) -> &CycleReport {
         let cycle = self.report.cycle + 1;
-        self.report = CycleReport::EMPTY;
-        self.report.cycle = cycle;
+        self.report.restart(cycle);
         self.stats.cycles += 1;
         self.port.begin_cycle();
         let started = self.port.now();
@@ -655,14 +665,15 @@ impl<P: Port> IoSystem<P> {
             Protocol::Sequential => self.write_sequential(),
             Protocol::SequentialReadBroadcastWrite | Protocol::Broadcast => self.write_broadcast(),
         }
-        if !self.needs_rescan {
+        // (Only a Rev 4 board can have a STATUS write pending.)
+        if !self.needs_rescan && self.status_writes {
             self.write_status_registers();
         }
         for b in self.boards.iter_mut() {
-            if b.asks_for_energy() {
-                self.energised |= 1 << (b.board_id() & 0xF);
+            let id = b.board_id();
+            if b.outputs_applied() {
+                self.energised |= 1 << (id & 0xF);
             }
-            b.outputs_applied();
         }
         self.report.write_time = self.port.now().saturating_sub(started);
         self.port.end_cycle();
