@@ -186,6 +186,7 @@ def run_demo(
     watchdog_ms: Union[float, str] = 20.0,
     config: Optional[Union[Config, str, PathLike[str]]] = None,
     timeout: Optional[float] = None,
+    detail: str = "fast",
 ) -> Report:
     """Run the demo (``firelink demo``) and return its report.
 
@@ -203,7 +204,11 @@ def run_demo(
     ``timeout``: over UDP (``emulate``, ``udp:``), seconds a read waits
     for its answer, above 0 and at most 60 (default 0.02, the command
     line's ``--timeout-ms 20``: in a servo cycle a later answer is a
-    missed board, a fault). ``report.verdict`` is ``"ok"`` or says what went wrong. Ctrl-C stops
+    missed board, a fault); ``detail``: on ``sim``, the simulated bus's
+    level of detail, ``"fast"`` (a packet's deliveries in one batch where
+    that is exact) or ``"packet"`` (every delivery an event of its own),
+    the same answer either way (``report["detail"]`` counts which ran).
+    ``report.verdict`` is ``"ok"`` or says what went wrong. Ctrl-C stops
     the robot at its next cycle, powers down the boards it powered and
     raises ``KeyboardInterrupt``.
     """
@@ -212,6 +217,7 @@ def run_demo(
     rate_given = rate is not _RATE_NOT_GIVEN
     text = _firelink.run_demo_json(
         port, duration, period, rate, rate_given, protocol, firmware, fault, pacing, watchdog_ms, config, timeout,
+        detail,
     )
     return Report(json.loads(text))
 

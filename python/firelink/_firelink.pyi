@@ -178,7 +178,7 @@ def run_demo_json(
     port: str, duration: float, period: Optional[Union[str, float]], rate: float, rate_given: bool,
     protocol: str, firmware: _Firmware, fault: str,
     pacing: Optional[str], watchdog_ms: Union[float, str], config: Optional[Union[Config, _Path]],
-    timeout: Optional[float] = None,
+    timeout: Optional[float] = None, detail: Optional[str] = None,
 ) -> str: ...
 def run_bench_json(
     transports: Union[str, Iterable[str]], boards: Iterable[int], protocols: Union[str, Iterable[str]],

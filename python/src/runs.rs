@@ -4,6 +4,7 @@
 use pyo3::prelude::*;
 use pyo3::types::PyString;
 
+use firelink_bus::Detail;
 use firelink_control::config::presets;
 use firelink_control::runner::Pacing;
 use firelink_control::{ServoPeriod, ServoPeriodError};
@@ -33,7 +34,7 @@ const MAX_BENCH_CYCLES: i64 = 1_000_000;
 /// Ctrl-C stops the robot at its next cycle (the boards it powered are
 /// powered down) and raises `KeyboardInterrupt`.
 #[pyfunction]
-#[pyo3(signature = (port, duration, period, rate, rate_given, protocol, firmware, fault, pacing, watchdog_ms, config, timeout = None))]
+#[pyo3(signature = (port, duration, period, rate, rate_given, protocol, firmware, fault, pacing, watchdog_ms, config, timeout = None, detail = None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn run_demo_json(
     py: Python<'_>,
@@ -49,8 +50,13 @@ pub(crate) fn run_demo_json(
     watchdog_ms: &Bound<'_, PyAny>,
     config: Option<&Bound<'_, PyAny>>,
     timeout: Option<&Bound<'_, PyAny>>,
+    detail: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<String> {
     let port = args::text(port, "port", port_spec::EXPECTED)?;
+    let detail = match args::opt_text(detail, "detail", "fast or packet")? {
+        None => Detail::Fast,
+        Some(d) => d.parse::<Detail>().map_err(|e| bad(py, e.to_string()))?,
+    };
     let timeout = match timeout.filter(|t| !t.is_none()) {
         None => firelink_testbed::rig::UDP_TIMEOUT,
         Some(t) => std::time::Duration::from_secs_f64(args::real(
@@ -93,6 +99,7 @@ pub(crate) fn run_demo_json(
         watchdog,
         udp_wait: WaitMode::Blocking,
         timeout,
+        detail,
     };
     if let Some(w) = watchdog.warning() {
         warn(py, w)?;

@@ -25,6 +25,17 @@ def test_the_demo_runs_and_reports():
         r.axes = 3
 
 
+def test_both_levels_of_detail_give_the_same_demo():
+    wall = {"wall_time_s", "speed_vs_real_time", "cycle_time_us", "compute_time_us", "detail"}
+    runs = {d: firelink.run_demo(duration=0.1, detail=d).to_dict() for d in ("fast", "packet")}
+    fast, packet = ({k: v for k, v in r.items() if k not in wall} for r in runs.values())
+    assert fast == packet
+    assert runs["fast"]["detail"]["detail"] == "fast"
+    assert runs["fast"]["detail"]["packet_level_cycles"] == 0
+    assert runs["packet"]["detail"]["fast_cycles"] == 0
+    assert runs["packet"]["detail"]["packet_level_cycles_why"]["chosen"] > 0
+
+
 def test_an_injected_fault_is_detected_and_amplifiers_end_off():
     r = firelink.run_demo(duration=0.1, fault="board-loss")
     assert r.verdict == "ok"
@@ -47,6 +58,7 @@ def test_the_demo_takes_a_configuration(configs_dir):
         {"watchdog_ms": -5},
         {"pacing": "sometimes"},
         {"firmware": "10"},
+        {"detail": "exact"},
         {"timeout": 0},
         {"timeout": 61},
     ],
