@@ -410,7 +410,7 @@ mod tests {
     fn cycles_and_packets_are_counted_by_level_and_why() {
         let (mut bus, nodes) = chain(3, BusConfig::default());
         let p0 = bus.phy_id(nodes[0]).expect("numbered");
-        let mut broadcast = |bus: &mut Bus| {
+        let broadcast = |bus: &mut Bus| {
             send(bus, nodes[0], qwrite(p0, 63), ArbitrationClass::Fair);
             bus.run_for(SimDuration::from_micros(50));
         };

@@ -24,6 +24,13 @@
 //!    [`Node::on_transmitted`] gets the ack when it arrives.
 //! 6. The bus is idle when the last data end has reached every node.
 //!
+//! # Levels of detail
+//! At the default fast level a packet's deliveries (step 4) go to their
+//! nodes in one batch while each is the queue's next event; at the packet
+//! level each is an event of its own. Both give the same answer; see
+//! [`detail`] for when the packet level runs and what is
+//! counted ([`Bus::detail_report`]).
+//!
 //! # Bus reset
 //! [`Bus::reset`], a cable change (when `auto_reset`), a disconnect fault or
 //! a node setting IBR/ISBR starts a reset. In-flight and queued requests are
@@ -33,7 +40,7 @@
 
 mod arbitration;
 mod cycle;
-mod detail;
+pub mod detail;
 mod events;
 #[cfg(test)]
 mod probe;
