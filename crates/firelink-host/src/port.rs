@@ -111,10 +111,12 @@ pub trait Port {
     }
     /// Let `duration` pass (virtual time on the simulated bus).
     fn wait(&mut self, duration: Duration);
-    /// A servo cycle's I/O begins ([`IoSystem::read_all`](crate::qla::io::IoSystem::read_all)):
-    /// a port that bounds the time one cycle may spend waiting for its
-    /// answers (the `fw` port's cycle budget) starts that budget anew.
-    /// Other ports ignore it.
+    /// A servo cycle's I/O begins ([`IoSystem::read_all`](crate::qla::io::IoSystem::read_all),
+    /// the Snake system's inputs, MAHRU's read of every module): a port
+    /// that bounds the time one cycle may spend waiting for its answers
+    /// (the `fw` port's cycle budget) starts that budget anew; the
+    /// simulated bus counts the cycle by level of detail. Other ports
+    /// ignore it.
     fn begin_cycle(&mut self) {}
     /// The cycle's I/O is over ([`IoSystem::write_all`](crate::qla::io::IoSystem::write_all)
     /// returned): calls until the next [`begin_cycle`](Self::begin_cycle)

@@ -299,7 +299,8 @@ pub struct SimReport {
     /// Faults injected (empty without a fault plan).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub faults: Vec<FaultRecord>,
-    /// What ran at which level of detail (the set-up's packets too).
+    /// What ran at which level of detail in the cycle (from its start;
+    /// the scan and set-up before it are not counted).
     pub detail: DetailReport,
 }
 

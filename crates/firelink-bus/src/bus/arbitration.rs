@@ -210,6 +210,7 @@ impl Bus {
             dropped: false,
             notified: false,
             crc: None,
+            level: None,
             answers: None,
         };
         let (duplicate, original) = self.decide_faults(&mut sub, now);

@@ -15,7 +15,8 @@
 //! before the next delivery, at the caller's deadline, when the caller's
 //! condition holds, and when a callback started a bus reset), and each
 //! node's callback is the same call with the same arguments. The packet
-//! level runs instead, for a whole packet, when
+//! level runs instead, for a whole packet (decided when it starts on the
+//! wire, kept to its last delivery), when
 //! - it was chosen ([`Detail::Packet`], `--detail packet`);
 //! - the trace records every event ([`TraceLevel::Verbose`](super::TraceLevel::Verbose));
 //! - a fault touched the packet (dropped, corrupted, delayed, a muted
@@ -25,7 +26,10 @@
 //! level, and, between the marks a program sets at the start of each
 //! servo cycle ([`Bus::begin_cycle`](super::Bus::begin_cycle)), the cycles
 //! all of whose packets went the fast way and those that did not, with
-//! why (the reasons above, and a bus reset within the cycle).
+//! why (the reasons above, and a bus reset within the cycle; a cycle begun
+//! with the packet level chosen or every event traced is a packet-level
+//! cycle even when no packet went). Nothing before the first mark is
+//! counted.
 
 use std::fmt;
 use std::str::FromStr;
@@ -143,8 +147,12 @@ impl WhyCounts {
 
     /// The count for `why`.
     pub fn get(&self, why: PacketLevelWhy) -> u64 {
-        let mut copy = *self;
-        *copy.count_mut(why)
+        match why {
+            PacketLevelWhy::Chosen => self.chosen,
+            PacketLevelWhy::Tracing => self.tracing,
+            PacketLevelWhy::Fault => self.fault,
+            PacketLevelWhy::Reset => self.bus_reset,
+        }
     }
 }
 
@@ -185,7 +193,7 @@ impl fmt::Display for DetailReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "detail {}: {} cycles fast, {} at the packet level",
+            "detail {}: cycles {} fast, {} at the packet level",
             self.detail, self.fast_cycles, self.packet_level_cycles
         )?;
         let why: Vec<String> = PacketLevelWhy::ALL
@@ -230,8 +238,8 @@ impl DetailTally {
         }
     }
 
-    /// A packet's path, decided at its first delivery (`None`: fast).
-    /// Counted from the first cycle mark on.
+    /// A packet's level, decided when it starts (`None`: fast). Counted
+    /// from the first cycle mark on.
     pub fn packet(&mut self, why: Option<PacketLevelWhy>) {
         if !self.in_cycle {
             return;
@@ -256,6 +264,21 @@ impl DetailTally {
     pub fn batched_delivery(&mut self) {
         if self.in_cycle {
             self.report.batched_deliveries += 1;
+        }
+    }
+
+    /// The level chosen and the trace level in force as a cycle begins: a
+    /// cycle begun with the packet level chosen, or every event traced, is
+    /// a packet-level cycle even if no packet went.
+    pub fn level_in_force(&mut self, detail: Detail, trace: super::TraceLevel) {
+        if !self.in_cycle {
+            return;
+        }
+        if detail == Detail::Packet {
+            self.cycle_why |= PacketLevelWhy::Chosen.bit();
+        }
+        if trace >= super::TraceLevel::Verbose {
+            self.cycle_why |= PacketLevelWhy::Tracing.bit();
         }
     }
 
@@ -420,18 +443,22 @@ mod tests {
         // A fast cycle.
         bus.begin_cycle();
         broadcast(&mut bus);
-        // The packet level chosen.
-        bus.begin_cycle();
+        // The packet level chosen (as a cycle begins).
         bus.set_detail(Detail::Packet);
+        bus.begin_cycle();
         broadcast(&mut bus);
         // Every event traced.
-        bus.begin_cycle();
         bus.set_detail(Detail::Fast);
         bus.set_trace_level(TraceLevel::Verbose);
+        bus.begin_cycle();
+        broadcast(&mut bus);
+        // A dropped packet (it reaches no one, and counts).
+        bus.set_trace_level(TraceLevel::Normal);
+        bus.begin_cycle();
+        bus.add_fault_rule(FaultRule::once(PacketMatch::any(), PacketFault::Drop));
         broadcast(&mut bus);
         // A corrupted packet.
         bus.begin_cycle();
-        bus.set_trace_level(TraceLevel::Normal);
         bus.add_fault_rule(FaultRule::once(
             PacketMatch::any(),
             PacketFault::CorruptQuadlet { index: 3, xor: 1 },
@@ -443,11 +470,11 @@ mod tests {
         bus.run_for(SimDuration::from_millis(1));
         let r = bus.detail_report();
         assert_eq!(r.detail, Detail::Fast);
-        assert_eq!((r.fast_cycles, r.packet_level_cycles), (1, 4), "{r:?}");
+        assert_eq!((r.fast_cycles, r.packet_level_cycles), (1, 5), "{r:?}");
         let one_each = WhyCounts {
             chosen: 1,
             tracing: 1,
-            fault: 1,
+            fault: 2,
             bus_reset: 1,
         };
         assert_eq!(r.packet_level_cycles_why, one_each);
@@ -462,9 +489,168 @@ mod tests {
         assert_eq!(r.batched_deliveries, 2);
         let text = r.to_string();
         assert!(
-            text.starts_with("detail fast: 1 cycles fast, 4 at the packet level (chosen 1, tracing 1, fault 1, bus reset 1)"),
+            text.starts_with("detail fast: cycles 1 fast, 5 at the packet level (chosen 1, tracing 1, fault 2, bus reset 1)"),
             "{text}"
         );
+    }
+
+    /// A node that does in its callbacks what can end a batch, and logs
+    /// what it is called with: on every packet it sets a timer for the
+    /// same instant (a tie with the next arrival) and one for a picosecond
+    /// later (between arrivals); on its `transmit_on`-th packet it sends a
+    /// broadcast, on its `reset_on`-th it sets IBR (a bus reset inside a
+    /// batch).
+    #[derive(Default)]
+    struct Echo {
+        log: Vec<String>,
+        received: u64,
+        transmit_on: Option<u64>,
+        reset_on: Option<u64>,
+    }
+
+    impl crate::node::Node for Echo {
+        fn name(&self) -> &str {
+            "echo"
+        }
+
+        fn on_bus_reset(
+            &mut self,
+            now: SimTime,
+            info: &crate::node::ResetInfo,
+            _ctx: &mut crate::node::NodeCtx<'_>,
+        ) {
+            self.log.push(format!("{now:?} reset {}", info.phy_id));
+        }
+
+        fn on_receive(
+            &mut self,
+            now: SimTime,
+            packet: &[u8],
+            speed: firelink_wire::packet::Speed,
+            ctx: &mut crate::node::NodeCtx<'_>,
+        ) -> crate::node::RxReply {
+            self.received += 1;
+            let n = self.received;
+            self.log.push(format!(
+                "{now:?} rx {:02x?} {speed:?} gen {} crc {:?} idle {}",
+                &packet[..packet.len().min(8)],
+                ctx.generation(),
+                ctx.received_crc_status(),
+                ctx.bus_is_idle()
+            ));
+            ctx.set_timer(now, 2 * n);
+            ctx.set_timer(now + SimDuration(1), 2 * n + 1);
+            if self.transmit_on == Some(n) {
+                ctx.transmit(crate::node::TransmitRequest {
+                    packet: qwrite(ctx.phy_id(), 63),
+                    speed: firelink_wire::packet::Speed::S400,
+                    class: ArbitrationClass::Fair,
+                    token: n,
+                });
+            }
+            if self.reset_on == Some(n) {
+                ctx.write_phy_register(1, 0x40 | ctx.read_phy_register(1));
+            }
+            crate::node::RxReply::Silent
+        }
+
+        fn on_transmitted(
+            &mut self,
+            now: SimTime,
+            token: u64,
+            ack: Option<Ack>,
+            _ctx: &mut crate::node::NodeCtx<'_>,
+        ) {
+            self.log.push(format!("{now:?} sent {token} {ack:?}"));
+        }
+
+        fn on_timer(&mut self, now: SimTime, token: u64, _ctx: &mut crate::node::NodeCtx<'_>) {
+            self.log.push(format!("{now:?} timer {token}"));
+        }
+    }
+
+    /// Seven echoes, the root in the middle of the chain, node `first`
+    /// sending a broadcast; run as `how` says at `detail`. Each node's log
+    /// and the bus's clock and packet count.
+    fn echoes(detail: Detail, how: u8, reset_on: Option<u64>) -> (Vec<Vec<String>>, SimTime, u64) {
+        let mut bus = Bus::new(BusConfig {
+            detail,
+            ..BusConfig::default()
+        });
+        let nodes: Vec<NodeHandle> = (0..7u64)
+            .map(|i| {
+                let echo = Echo {
+                    transmit_on: (i % 3 == 0).then_some(1 + i % 2),
+                    reset_on: reset_on.filter(|_| i == 5),
+                    ..Echo::default()
+                };
+                bus.add(echo, crate::bus::NodeConfig::board())
+            })
+            .collect();
+        bus.daisy_chain(&nodes).expect("a chain");
+        bus.set_root(nodes[3]).expect("a root");
+        bus.reset();
+        bus.run_until_idle();
+        let p0 = bus.phy_id(nodes[0]).expect("numbered");
+        bus.with_node::<Echo, _>(nodes[0], |_, ctx| {
+            ctx.transmit(crate::node::TransmitRequest {
+                packet: qwrite(p0, 63),
+                speed: firelink_wire::packet::Speed::S400,
+                class: ArbitrationClass::Fair,
+                token: 99,
+            });
+        })
+        .expect("an echo");
+        let deadline = bus.now() + SimDuration::from_micros(400);
+        match how {
+            // Until the deadline.
+            0 => bus.run_until(deadline),
+            // One event at a time.
+            1 => while bus.next_event_time().is_some_and(|t| t <= deadline) && bus.step() {},
+            // Until a condition with a memory holds, again and again.
+            _ => {
+                let mut calls = 0u64;
+                let watched = nodes[6];
+                let mut seen = None;
+                while bus.now() < deadline {
+                    let held = bus.run_until_with(deadline, |b| {
+                        calls += 1;
+                        b.called_since(watched, &mut seen) && calls % 5 == 0
+                    });
+                    if !held {
+                        break;
+                    }
+                    bus.with_node::<Echo, _>(watched, |e, _| {
+                        e.log.push(format!("condition held, call {calls}"));
+                    })
+                    .expect("an echo");
+                }
+            }
+        }
+        let logs = nodes
+            .iter()
+            .map(|&n| bus.node::<Echo>(n).expect("an echo").log.clone())
+            .collect();
+        (logs, bus.now(), bus.packets_sent())
+    }
+
+    #[test]
+    fn callbacks_that_set_timers_send_and_reset_in_a_batch_change_nothing() {
+        for how in 0..3 {
+            for reset_on in [None, Some(1), Some(2)] {
+                let fast = echoes(Detail::Fast, how, reset_on);
+                let packet = echoes(Detail::Packet, how, reset_on);
+                assert_eq!(fast, packet, "run {how}, reset on {reset_on:?}");
+                let lines: usize = fast.0.iter().map(Vec::len).sum();
+                assert!(lines > 20, "run {how}: only {lines} lines");
+                if reset_on.is_some() {
+                    assert!(
+                        fast.0.iter().flatten().any(|l| l.contains(" reset ")),
+                        "a reset happened"
+                    );
+                }
+            }
+        }
     }
 
     #[test]

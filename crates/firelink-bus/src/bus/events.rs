@@ -14,7 +14,7 @@ impl Bus {
     /// Process the next event (one delivery of a packet, at either level
     /// of detail). Returns false if there was none.
     pub fn step(&mut self) -> bool {
-        self.step_until_or(SimTime::MAX, Batch::One)
+        self.step_batch(SimTime::MAX, Batch::One)
     }
 
     /// Process the next event if it comes at `deadline` or before (at the
@@ -23,13 +23,13 @@ impl Bus {
     /// Returns whether there was one.
     #[inline]
     pub(super) fn step_until(&mut self, deadline: SimTime) -> bool {
-        self.step_until_or(deadline, Batch::All)
+        self.step_batch(deadline, Batch::All)
     }
 
     /// [`step_until`](Self::step_until), a batch of deliveries going as
     /// far as `batch` says.
     #[inline]
-    pub(super) fn step_until_or(&mut self, deadline: SimTime, batch: Batch<'_>) -> bool {
+    pub(super) fn step_batch(&mut self, deadline: SimTime, batch: Batch<'_>) -> bool {
         match self.events.pop_until(deadline) {
             Some(Taken::Delivery(d)) => {
                 self.now = self.now.max(d.time);

@@ -246,6 +246,9 @@ struct Sub {
     /// The CRC status of `bytes`, worked out once for every node that
     /// receives them.
     crc: Option<CrcStatus>,
+    /// Why its deliveries go event by event (`None`: in batches), decided
+    /// when it starts ([`detail`]).
+    level: Option<PacketLevelWhy>,
 }
 
 /// The subactions in progress by packet ID (a few at a time: a sorted
@@ -576,7 +579,7 @@ impl Bus {
     }
 
     /// Choose the level of detail from now on (see [`Detail`]; a packet
-    /// whose deliveries began goes on as it began).
+    /// already on the wire goes on at the level it started at).
     pub fn set_detail(&mut self, detail: Detail) {
         self.cfg.detail = detail;
         self.detail.report.detail = detail;
@@ -592,6 +595,7 @@ impl Bus {
     /// simulated port marks each cycle of its I/O).
     pub fn begin_cycle(&mut self) {
         self.detail.begin_cycle();
+        self.detail.level_in_force(self.cfg.detail, self.cfg.trace);
     }
 
     /// What ran at which level of detail so far (the cycle under way
@@ -825,7 +829,7 @@ impl Bus {
                 said = Some(held);
                 held
             };
-            let stepped = self.step_until_or(deadline, Batch::Until(&mut check));
+            let stepped = self.step_batch(deadline, Batch::Until(&mut check));
             if !stepped {
                 return done(self);
             }

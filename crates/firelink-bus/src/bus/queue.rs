@@ -74,8 +74,6 @@ pub(super) struct Delivery {
     pub epoch: u64,
     pub sub: PacketId,
     pub node: usize,
-    /// The packet's first delivery.
-    pub first: bool,
 }
 
 /// An event taken off the queue by [`EventQueue::pop_until`].
@@ -342,7 +340,6 @@ impl EventQueue {
     fn take_delivery(&mut self, i: usize) -> Option<Delivery> {
         let wave = self.waves.get_mut(i)?;
         let a = *wave.arrivals.get(wave.next)?;
-        let first = wave.next == 0;
         wave.next += 1;
         let (sub, epoch) = (wave.sub, wave.epoch);
         if wave.next >= wave.arrivals.len() {
@@ -357,7 +354,6 @@ impl EventQueue {
             epoch,
             sub,
             node: a.node,
-            first,
         })
     }
 

@@ -84,6 +84,14 @@ impl Bus {
         if let Some(f) = mute_fault {
             sub.faults.push(f);
         }
+        // Its level of detail, decided and counted once its faults are
+        // known (a dropped packet, which reaches no one, counts too).
+        let level = packet_level_why(&self.cfg, sub);
+        sub.level = level;
+        self.detail.packet(level);
+        let Some(sub) = self.subs.get_mut(&id) else {
+            return;
+        };
         let idle_at = shape.end + t.hop_delay * u64::from(self.tree.eccentricity(sender_phy));
         if shape.unicast && dest_receives {
             let dest = dest_node.unwrap_or(0);
@@ -232,37 +240,20 @@ impl Bus {
         self.push(at, None, ev);
     }
 
-    /// Why packet `id`'s deliveries go event by event (`None`: they go in
-    /// batches; see [`detail`](super::detail)).
-    fn packet_level_why(&self, sub: &Sub) -> Option<PacketLevelWhy> {
-        if self.cfg.detail == Detail::Packet {
-            Some(PacketLevelWhy::Chosen)
-        } else if self.cfg.trace >= TraceLevel::Verbose {
-            Some(PacketLevelWhy::Tracing)
-        } else if !sub.faults.is_empty() || sub.busy || sub.dropped {
-            Some(PacketLevelWhy::Fault)
-        } else {
-            None
-        }
-    }
-
-    /// Delivery `d`, just taken off the queue, and at the fast level the
-    /// packet's next deliveries after it, each while it is the queue's next
-    /// event, due by `deadline`, and `stop` does not hold after the one
-    /// before (a callback that started a bus reset ends the batch too: the
+    /// Delivery `d`, just taken off the queue, and, when its packet goes at
+    /// the fast level, the packet's next deliveries after it, each while it
+    /// is the queue's next event, due by `deadline`, and as far as `batch`
+    /// allows (a callback that started a bus reset ends the batch too: the
     /// rest of the packet is left to the queue, which drops it).
     pub(super) fn deliver_from(&mut self, d: Delivery, deadline: SimTime, mut batch: Batch<'_>) {
         let id = d.sub;
         let Ok(pos) = self.subs.position(id) else {
             return;
         };
-        let Some(why) = self.subs.0.get(pos).map(|sub| self.packet_level_why(sub)) else {
+        let Some(level) = self.subs.0.get(pos).map(|sub| sub.level) else {
             return;
         };
-        if d.first {
-            self.detail.packet(why);
-        }
-        if why.is_some() {
+        if level.is_some() {
             self.deliver(id, d.node);
             return;
         }
@@ -599,6 +590,7 @@ impl Bus {
             dropped: false,
             notified: false,
             crc: None,
+            level: None,
             answers: Some(sub.id),
         };
         let mut start = bits_end;
@@ -660,6 +652,20 @@ impl Bus {
             self.log_event(TraceEvent::Idle);
         }
         self.arbitrate();
+    }
+}
+
+/// Why a packet's deliveries go event by event under `cfg` (`None`: they
+/// go in batches; see [`detail`](super::detail)).
+fn packet_level_why(cfg: &BusConfig, sub: &Sub) -> Option<PacketLevelWhy> {
+    if cfg.detail == Detail::Packet {
+        Some(PacketLevelWhy::Chosen)
+    } else if cfg.trace >= TraceLevel::Verbose {
+        Some(PacketLevelWhy::Tracing)
+    } else if !sub.faults.is_empty() || sub.busy || sub.dropped {
+        Some(PacketLevelWhy::Fault)
+    } else {
+        None
     }
 }
 

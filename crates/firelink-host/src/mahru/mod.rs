@@ -526,7 +526,9 @@ impl<P: Port> MotionController<P> {
     /// bring-up after a reset (stopped too).
     pub fn read_all(&mut self) -> Result<&Feedback, MotionError> {
         self.running()?;
-        // A period's I/O begins (the port counts or bounds it).
+        // A period's I/O begins (the port counts or bounds it); it ends with
+        // the QWRITE, or here when the read fails (the stop that follows
+        // is bounded by its own time-outs only).
         self.port.begin_cycle();
         let mut recovered = false;
         loop {
@@ -535,12 +537,14 @@ impl<P: Port> MotionController<P> {
                 Err((_, MissReason::Transaction(HostError::BusReset { .. }))) if !recovered => {
                     recovered = true;
                     if let Err(e) = self.bring_up() {
+                        self.port.end_cycle();
                         return Err(self.fail(e));
                     }
                     self.stats.resets_recovered += 1;
                 }
                 Err((i, reason)) => {
                     let mod_id = self.layout.modules[i].mod_id;
+                    self.port.end_cycle();
                     return Err(self.fail(MotionError::Missed { mod_id, reason }));
                 }
             }
@@ -554,6 +558,7 @@ impl<P: Port> MotionController<P> {
                         state: j.state,
                         flags: j.flags,
                     };
+                    self.port.end_cycle();
                     return Err(self.fail(fault));
                 }
             }

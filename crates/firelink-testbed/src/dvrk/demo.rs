@@ -200,7 +200,9 @@ impl<P: Port + 'static> DemoIo for IoSystem<P> {
     }
 }
 
-/// What ran at which level of detail, when `port` is the simulated bus.
+/// What ran at which level of detail, when `port` is the simulated bus
+/// itself (`None` for any other port, a wrapper around a simulated port
+/// included: the demo's simulated port is never wrapped).
 pub(crate) fn sim_detail_report<P: Port + 'static>(port: &P) -> Option<DetailReport> {
     (port as &dyn std::any::Any)
         .downcast_ref::<SimPort>()
