@@ -193,15 +193,14 @@ impl Plant {
     /// far the noise can take it (the noise's [`noise::MAX_DEVIATE`]
     /// standard deviations): [`measured_current`](Self::measured_current)
     /// is within that of it. (Mutable only to remember the current loop's
-    /// decays: the axes commanded together need the same.)
+    /// decays, which the axes commanded together share, and the axis's
+    /// target current, which the span it integrates next needs.)
     pub fn measured_current_range(&mut self, index: usize) -> (f64, f64) {
         let decay = &mut self.decay;
-        self.axes.get(index).map_or((0.0, 0.0), |a| {
+        self.axes.get_mut(index).map_or((0.0, 0.0), |a| {
+            let current = a.current_at_clock_memo(decay);
             let cs = &a.params().current_sense;
-            (
-                a.current_at_clock_memo(decay) + cs.offset_amps,
-                cs.noise_amps * noise::MAX_DEVIATE,
-            )
+            (current + cs.offset_amps, cs.noise_amps * noise::MAX_DEVIATE)
         })
     }
 
