@@ -184,8 +184,10 @@ pub struct Axis {
     target: TargetMemo,
     /// The instant the state is at.
     time: SimTime,
-    /// The plant's clock: inputs set now take effect then, and the state
-    /// is integrated up to it before they do (or when it is looked at).
+    /// The plant's clock, as the plant last handed it over (before it
+    /// lends the axis out to be changed and before it integrates it):
+    /// inputs set now take effect then, and the state is integrated up to
+    /// it before they do (or when it is looked at).
     clock: SimTime,
 }
 
@@ -490,37 +492,43 @@ impl Axis {
         target
     }
 
-    /// The true current at the clock, A, without integrating the motion:
-    /// the current loop's response from the state's instant (the supply's
-    /// headroom taken at the state's velocity).
-    pub(crate) fn current_at_clock(&self) -> f64 {
-        if self.time >= self.clock {
+    /// The true current at the plant's clock `clock` (not before the
+    /// axis's), A, without integrating the motion: the current loop's
+    /// response from the state's instant (the supply's headroom taken at
+    /// the state's velocity).
+    pub(crate) fn current_at_clock(&self, clock: SimTime) -> f64 {
+        if self.time >= clock {
             return self.state.current;
         }
-        self.current_at_clock_by(self.target(), f64::exp)
+        self.current_at_clock_by(clock, self.target(), f64::exp)
     }
 
     /// [`current_at_clock`](Self::current_at_clock) with the loop's decay
     /// looked up in `decay` (the same value: `exp` of the same exponent),
     /// the target remembered for the next span integrated (the same
     /// value: the state and the inputs are the same until then).
-    pub(crate) fn current_at_clock_memo(&mut self, decay: &mut DecayMemo) -> f64 {
-        if self.time >= self.clock {
+    pub(crate) fn current_at_clock_memo(&mut self, clock: SimTime, decay: &mut DecayMemo) -> f64 {
+        if self.time >= clock {
             return self.state.current;
         }
         let target = self.target_now();
-        self.current_at_clock_by(target, |x| decay.exp(x))
+        self.current_at_clock_by(clock, target, |x| decay.exp(x))
     }
 
-    /// The current at the clock (after the state's instant), going to
+    /// The current at `clock` (after the state's instant), going to
     /// `target`, with `exp` for the decay.
     #[inline]
-    fn current_at_clock_by(&self, target: f64, exp: impl FnOnce(f64) -> f64) -> f64 {
+    fn current_at_clock_by(
+        &self,
+        clock: SimTime,
+        target: f64,
+        exp: impl FnOnce(f64) -> f64,
+    ) -> f64 {
         let i0 = self.state.current;
         if target == i0 {
             return i0;
         }
-        let dt = (self.clock.0 - self.time.0) as f64 * 1e-12;
+        let dt = (clock.0 - self.time.0) as f64 * 1e-12;
         target + (i0 - target) * exp(-dt / self.model.tau)
     }
 
