@@ -660,7 +660,8 @@ impl Model {
     }
 
     /// Joint load torque at motor angle `angle` (gravity, spring, bias,
-    /// external), joint units.
+    /// external), joint units. Inlined into the span's integration.
+    #[inline]
     fn load_torque(&self, angle: f64, external: f64) -> f64 {
         let load = &self.params.load;
         let q = angle * self.inv_gear;
