@@ -141,10 +141,9 @@ impl Plant {
     /// clock, which the axis is handed first).
     pub fn axis_mut(&mut self, index: usize) -> Option<&mut Axis> {
         let clock = self.clock;
-        self.axes.get_mut(index).map(|a| {
-            a.set_clock(clock);
-            a
-        })
+        let axis = self.axes.get_mut(index)?;
+        axis.set_clock(clock);
+        Some(axis)
     }
 
     /// All axes.
