@@ -171,14 +171,23 @@ pub struct Axis {
     /// recur (a cycle's sample and its command split it at the same
     /// places), and each is computed once.
     memo: SpanMemo,
+    /// The same for the rest of a span after a breakaway from rest (kept
+    /// apart, so that the span being integrated can be read in place
+    /// while one is looked up).
+    breakaways: SpanMemo,
     /// The inputs since `time`.
     inputs: Inputs,
     /// The state at `time`.
     state: State,
+    /// The current the amplifier drives towards from `time` on, once
+    /// worked out (see [`TargetMemo`]).
+    target: TargetMemo,
     /// The instant the state is at.
     time: SimTime,
-    /// The plant's clock: inputs set now take effect then, and the state
-    /// is integrated up to it before they do (or when it is looked at).
+    /// The plant's clock, as the plant last handed it over (before it
+    /// lends the axis out to be changed and before it integrates it):
+    /// inputs set now take effect then, and the state is integrated up to
+    /// it before they do (or when it is looked at).
     clock: SimTime,
 }
 
@@ -236,6 +245,10 @@ impl Axis {
                 spans: [grid; SpanMemo::LEN],
                 next: 0,
             },
+            breakaways: SpanMemo {
+                spans: [grid; SpanMemo::LEN],
+                next: 0,
+            },
             inputs: Inputs {
                 dac: DAC_ZERO,
                 enabled: false,
@@ -243,6 +256,7 @@ impl Axis {
                 braked: false,
             },
             state,
+            target: TargetMemo(None),
             time: SimTime::ZERO,
             clock: SimTime::ZERO,
         }
@@ -271,6 +285,7 @@ impl Axis {
         }
         self.catch_up();
         self.inputs = new;
+        self.target = TargetMemo(None);
     }
 
     /// Set the amplifier inputs, from the plant's clock on: DAC code and
@@ -438,45 +453,82 @@ impl Axis {
                 self.time = self.clock;
                 return;
             }
+            let target = self.target_now();
             let span = span_of(&self.model, &mut self.memo, len);
             self.model.integrate(
                 &mut self.state,
                 self.inputs,
-                &span,
+                target,
+                span,
                 self.time,
-                &mut self.memo,
+                &mut self.breakaways,
             );
+            // The velocity moved: the next span's target is worked out
+            // again.
+            self.target = TargetMemo(None);
             self.time = SimTime(self.time.0 + len);
         }
     }
 
-    /// The true current at the clock, A, without integrating the motion:
-    /// the current loop's response from the state's instant (the supply's
-    /// headroom taken at the state's velocity).
-    pub(crate) fn current_at_clock(&self) -> f64 {
-        self.current_at_clock_by(f64::exp)
+    /// The current the amplifier drives towards from the state's instant
+    /// with the inputs since: remembered, or worked out (and not
+    /// remembered).
+    #[inline]
+    fn target(&self) -> f64 {
+        match self.target.0 {
+            Some(target) => target,
+            None => self
+                .model
+                .target_current(self.inputs, self.state.motor_velocity),
+        }
+    }
+
+    /// [`target`](Self::target), remembered until the state or the inputs
+    /// change.
+    #[inline]
+    fn target_now(&mut self) -> f64 {
+        let target = self.target();
+        self.target = TargetMemo(Some(target));
+        target
+    }
+
+    /// The true current at the plant's clock `clock` (not before the
+    /// axis's), A, without integrating the motion: the current loop's
+    /// response from the state's instant (the supply's headroom taken at
+    /// the state's velocity).
+    pub(crate) fn current_at_clock(&self, clock: SimTime) -> f64 {
+        if self.time >= clock {
+            return self.state.current;
+        }
+        self.current_at_clock_by(clock, self.target(), f64::exp)
     }
 
     /// [`current_at_clock`](Self::current_at_clock) with the loop's decay
-    /// looked up in `decay` (the same value: `exp` of the same exponent).
-    pub(crate) fn current_at_clock_memo(&self, decay: &mut DecayMemo) -> f64 {
-        self.current_at_clock_by(|x| decay.exp(x))
+    /// looked up in `decay` (the same value: `exp` of the same exponent),
+    /// the target remembered for the next span integrated (the same
+    /// value: the state and the inputs are the same until then).
+    pub(crate) fn current_at_clock_memo(&mut self, clock: SimTime, decay: &mut DecayMemo) -> f64 {
+        if self.time >= clock {
+            return self.state.current;
+        }
+        let target = self.target_now();
+        self.current_at_clock_by(clock, target, |x| decay.exp(x))
     }
 
-    /// The current at the clock with `exp` for the decay.
+    /// The current at `clock` (after the state's instant), going to
+    /// `target`, with `exp` for the decay.
     #[inline]
-    fn current_at_clock_by(&self, exp: impl FnOnce(f64) -> f64) -> f64 {
+    fn current_at_clock_by(
+        &self,
+        clock: SimTime,
+        target: f64,
+        exp: impl FnOnce(f64) -> f64,
+    ) -> f64 {
         let i0 = self.state.current;
-        if self.time >= self.clock {
-            return i0;
-        }
-        let target = self
-            .model
-            .target_current(self.inputs, self.state.motor_velocity);
         if target == i0 {
             return i0;
         }
-        let dt = (self.clock.0 - self.time.0) as f64 * 1e-12;
+        let dt = (clock.0 - self.time.0) as f64 * 1e-12;
         target + (i0 - target) * exp(-dt / self.model.tau)
     }
 
@@ -541,6 +593,23 @@ impl core::fmt::Debug for DecayMemo {
     }
 }
 
+/// The target current of an axis's next span, once worked out: a pure
+/// function of the inputs and the state's velocity, so a remembered value
+/// is the value worked out again (`None` once either changed). The
+/// current check at a safety tick and the span integrated next need the
+/// same one.
+#[derive(Clone, Copy)]
+struct TargetMemo(Option<f64>);
+
+/// What is remembered only makes the lookups faster: two axes in the
+/// same state may hold different values here (a board's state digest
+/// leaves it out).
+impl core::fmt::Debug for TargetMemo {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("TargetMemo")
+    }
+}
+
 /// The constants of the last few partial spans an axis integrated.
 #[derive(Debug, Clone)]
 struct SpanMemo {
@@ -551,26 +620,37 @@ struct SpanMemo {
 
 impl SpanMemo {
     /// Spans remembered: the partial spans of a cycle (sample to command,
-    /// command to sample, sample to sample) with room for a breakaway.
+    /// command to sample, sample to sample) with room for one more.
     const LEN: usize = 4;
 }
 
 /// The constants of a span of `ps` picoseconds: the grid step's, a
 /// remembered partial span's, or new ones (which are then remembered in
-/// place of the oldest).
-fn span_of(model: &Model, memo: &mut SpanMemo, ps: u64) -> Span {
+/// place of the oldest). Inlined: every span integrated looks, and
+/// almost every look finds; the span is read where it is kept.
+#[inline]
+fn span_of<'a>(model: &'a Model, memo: &'a mut SpanMemo, ps: u64) -> &'a Span {
     if ps == model.grid.ps {
-        return model.grid;
+        return &model.grid;
     }
-    if let Some(span) = memo.spans.iter().find(|s| s.ps == ps) {
-        return *span;
+    let slot = match memo.spans.iter().position(|s| s.ps == ps) {
+        Some(slot) => slot,
+        None => new_span(model, memo, ps),
+    };
+    // (`slot` is one of the memo's.)
+    memo.spans.get(slot).unwrap_or(&model.grid)
+}
+
+/// [`span_of`] for a length not remembered: its constants, in place of
+/// the oldest; returns their slot.
+#[inline(never)]
+fn new_span(model: &Model, memo: &mut SpanMemo, ps: u64) -> usize {
+    let slot = memo.next % SpanMemo::LEN;
+    if let Some(kept) = memo.spans.get_mut(slot) {
+        *kept = Span::new(ps, model.tau, model.inv_tau_thermal, model.damping);
     }
-    let span = Span::new(ps, model.tau, model.inv_tau_thermal, model.damping);
-    if let Some(slot) = memo.spans.get_mut(memo.next) {
-        *slot = span;
-    }
-    memo.next = (memo.next + 1) % SpanMemo::LEN;
-    span
+    memo.next = (slot + 1) % SpanMemo::LEN;
+    slot
 }
 
 impl Model {
@@ -580,7 +660,8 @@ impl Model {
     }
 
     /// Joint load torque at motor angle `angle` (gravity, spring, bias,
-    /// external), joint units.
+    /// external), joint units. Inlined into the span's integration.
+    #[inline]
     fn load_torque(&self, angle: f64, external: f64) -> f64 {
         let load = &self.params.load;
         let q = angle * self.inv_gear;
@@ -633,19 +714,23 @@ impl Model {
             || (push > 0.0 && s.motor_angle >= self.motor_stops.1)
     }
 
-    /// Integrate one span of constant `inputs` starting at `start`.
+    /// Integrate one span of constant `inputs` starting at `start`;
+    /// `target` is [`target_current`](Self::target_current) of the inputs
+    /// at the state's velocity; `breakaways` remembers the rest of a span
+    /// after a breakaway.
+    #[allow(clippy::too_many_arguments)]
     fn integrate(
         &self,
         s: &mut State,
         inputs: Inputs,
+        target: f64,
         span: &Span,
         start: SimTime,
-        memo: &mut SpanMemo,
+        breakaways: &mut SpanMemo,
     ) {
         let i0 = s.current;
         let w0 = s.motor_velocity;
         let angle0 = s.motor_angle;
-        let target = self.target_current(inputs, w0);
         let mut i1 = i0 + (target - i0) * span.alpha;
         if i1.abs() < CURRENT_EPSILON && target == 0.0 {
             i1 = 0.0;
@@ -661,7 +746,7 @@ impl Model {
         }
         let (w1, angle1) = match self.integrator {
             Integrator::SemiImplicitEuler => self.euler(w0, angle0, i1, load, span.h),
-            Integrator::Exact => self.exact(w0, angle0, i0, target, i1, load, span, memo),
+            Integrator::Exact => self.exact(w0, angle0, i0, target, i1, load, span, breakaways),
         };
         s.current = i1;
         s.motor_velocity = if w1.is_finite() { w1 } else { 0.0 };
@@ -729,7 +814,7 @@ impl Model {
         i1: f64,
         load: f64,
         span: &Span,
-        memo: &mut SpanMemo,
+        breakaways: &mut SpanMemo,
     ) -> (f64, f64) {
         let kt = self.params.motor.torque_constant;
         let coulomb = self.params.motor.coulomb_friction;
@@ -769,8 +854,8 @@ impl Model {
             return (0.0, angle0);
         }
         let i_b = target + (i0 - target) * (-breakaway / self.tau).exp();
-        let rest = span_of(self, memo, span.ps - breakaway_ps);
-        self.free_motion(0.0, angle0, i_b, target, load + friction, &rest)
+        let rest = span_of(self, breakaways, span.ps - breakaway_ps);
+        self.free_motion(0.0, angle0, i_b, target, load + friction, rest)
     }
 
     /// Velocity and angle after `span` from velocity `w0` and angle

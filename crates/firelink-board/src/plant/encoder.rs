@@ -55,15 +55,15 @@ impl EdgeKind {
 
     /// The edge crossed when the count moves from `from` to `from + 1`
     /// (`up`) or `from - 1`. Forward order: A rises, B rises, A falls,
-    /// B falls (A leads B).
+    /// B falls (A leads B); backwards each edge is the reverse of the
+    /// forward one.
+    #[inline]
     fn of_transition(from: i64, up: bool) -> EdgeKind {
-        let state = quadrature_state(from);
-        match (state, up) {
-            (0, true) | (3, false) => EdgeKind::ARise,
-            (1, true) | (0, false) => EdgeKind::BRise,
-            (2, true) | (1, false) => EdgeKind::AFall,
-            _ => EdgeKind::BFall,
-        }
+        use EdgeKind::{AFall, ARise, BFall, BRise};
+        // By quadrature state, down then up (a look-up, no branch).
+        const KINDS: [EdgeKind; 8] = [BRise, AFall, BFall, ARise, ARise, BRise, AFall, BFall];
+        let index = quadrature_state(from) as usize | (usize::from(up) << 2);
+        KINDS.get(index).copied().unwrap_or(ARise)
     }
 }
 
@@ -243,13 +243,7 @@ impl Encoder {
         let crossings = self.count.abs_diff(target);
         // Only the last HISTORY edges can be observed; skip the others.
         let kept = crossings.min(HISTORY as u64) as usize;
-        let skip = crossings - kept as u64;
-        self.edge_count = self.edge_count.saturating_add(skip);
-        if up {
-            self.count += skip as i64;
-        } else {
-            self.count -= skip as i64;
-        }
+        self.edge_count = self.edge_count.saturating_add(crossings);
         // The run of same-direction edges, newest first, after these.
         let continues = self.stored > 0 && self.recent[0].up == up;
         self.same = if continues {
@@ -258,20 +252,26 @@ impl Encoder {
             kept
         };
         self.stored = (self.stored + kept).min(HISTORY);
-        self.edge_count = self.edge_count.saturating_add(kept as u64);
+        // The count before the first edge kept, and the way it moves.
+        let (mut count, step) = if up {
+            (target - kept as i64, 1)
+        } else {
+            (target + kept as i64, -1)
+        };
+        self.count = target;
         let dx = to - from;
         let per_count = if dx != 0.0 { 1.0 / dx } else { 0.0 };
         for _ in 0..kept {
             // The boundary crossed: count+1 going up, count going down.
-            let boundary = if up { self.count + 1 } else { self.count };
+            let boundary = if up { count + 1 } else { count };
             let frac = if dx != 0.0 {
                 ((boundary as f64 - from) * per_count).clamp(0.0, 1.0)
             } else {
                 1.0
             };
             let at = SimTime(start.0.saturating_add((span_ps as f64 * frac) as u64));
-            let kind = EdgeKind::of_transition(self.count, up);
-            self.count += if up { 1 } else { -1 };
+            let kind = EdgeKind::of_transition(count, up);
+            count += step;
             // The oldest falls off the end (a move of fixed size, no call).
             self.recent.copy_within(..HISTORY - 1, 1);
             self.recent[0] = Edge {
@@ -515,6 +515,67 @@ mod tests {
         assert_eq!(floor_count(f64::INFINITY), 0);
         assert_eq!(floor_count(1e300), (i64::MAX as f64 / 2.0) as i64);
         assert_eq!(floor_count(-1e300), -((i64::MAX as f64 / 2.0) as i64));
+    }
+
+    #[test]
+    fn each_transition_is_the_edge_its_levels_make() {
+        let levels = |c: i64| {
+            let enc = Encoder::new(4000, c as f64 + 0.5);
+            (enc.a(), enc.b())
+        };
+        for from in -9..9 {
+            for up in [false, true] {
+                let to = if up { from + 1 } else { from - 1 };
+                let ((a0, b0), (a1, b1)) = (levels(from), levels(to));
+                assert!((a0 != a1) != (b0 != b1), "one channel moves");
+                let expected = match (a0 != a1, a1, b1) {
+                    (true, true, _) => EdgeKind::ARise,
+                    (true, false, _) => EdgeKind::AFall,
+                    (false, _, true) => EdgeKind::BRise,
+                    (false, _, false) => EdgeKind::BFall,
+                };
+                assert_eq!(EdgeKind::of_transition(from, up), expected, "{from} {up}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_span_over_several_edges_keeps_the_last_six_newest_first() {
+        // From 2.5 to 11.5 counts (9 edges) and back to 7.25 (4 edges),
+        // each over 1 us: every edge at its interpolated time.
+        let span = 1_000_000u64;
+        let mut enc = Encoder::new(4000, 2.5);
+        enc.track(2.5, 11.5, SimTime::ZERO, span);
+        assert_eq!((enc.count(), enc.edge_count()), (11, 9));
+        let at = |start: u64, from: f64, to: f64, boundary: i64| {
+            let frac = ((boundary as f64 - from) * (1.0 / (to - from))).clamp(0.0, 1.0);
+            SimTime(start + (span as f64 * frac) as u64).clocks()
+        };
+        // Newest first: the boundaries 11, 10, ..., 6 crossed going up.
+        let up: std::vec::Vec<Edge> = (6..=11)
+            .rev()
+            .map(|b| Edge {
+                clock: at(0, 2.5, 11.5, b),
+                up: true,
+                kind: EdgeKind::of_transition(b - 1, true),
+            })
+            .collect();
+        assert_eq!(enc.edges(), &up[..]);
+        assert_eq!(enc.same, 6);
+        enc.track(11.5, 7.25, SimTime(span), span);
+        assert_eq!((enc.count(), enc.edge_count()), (7, 13));
+        // Down through boundaries 11, 10, 9, 8 (count 11 -> 7), then the
+        // two newest of the way up.
+        let mut expected: std::vec::Vec<Edge> = (8..=11)
+            .map(|b| Edge {
+                clock: at(span, 11.5, 7.25, b),
+                up: false,
+                kind: EdgeKind::of_transition(b, false),
+            })
+            .collect();
+        expected.extend_from_slice(&up[..2]);
+        assert_eq!(enc.edges(), &expected[..]);
+        assert_eq!((enc.same, enc.stored), (4, 6));
     }
 
     #[test]

@@ -138,9 +138,12 @@ impl Plant {
     }
 
     /// One axis, to set its inputs (they take effect at the plant's
-    /// clock).
+    /// clock, which the axis is handed first).
     pub fn axis_mut(&mut self, index: usize) -> Option<&mut Axis> {
-        self.axes.get_mut(index)
+        let clock = self.clock;
+        let axis = self.axes.get_mut(index)?;
+        axis.set_clock(clock);
+        Some(axis)
     }
 
     /// All axes.
@@ -152,7 +155,9 @@ impl Plant {
     /// `now`. Going back in time is a no-op.
     pub fn advance_to(&mut self, now: SimTime) {
         self.pass_to(now);
+        let clock = self.clock;
         for axis in &mut self.axes {
+            axis.set_clock(clock);
             axis.catch_up();
         }
     }
@@ -161,14 +166,12 @@ impl Plant {
     /// effect at `now` (each axis integrates up to then first), but the axes
     /// show the state they were last integrated to until the next
     /// [`advance_to`](Self::advance_to); [`measured_current`](Self::measured_current)
-    /// is exact at `now` regardless. Going back in time is a no-op.
+    /// is exact at `now` regardless. Going back in time is a no-op. (The
+    /// axes are handed the clock only when they are lent out to be
+    /// changed or integrated: passing time touches none of them.)
     pub fn pass_to(&mut self, now: SimTime) {
-        if now <= self.clock {
-            return;
-        }
-        self.clock = now;
-        for axis in &mut self.axes {
-            axis.set_clock(now);
+        if now > self.clock {
+            self.clock = now;
         }
     }
 
@@ -183,7 +186,7 @@ impl Plant {
                 } else {
                     current.gaussian(self.sample())
                 };
-                a.current_at_clock() + cs.offset_amps + cs.noise_amps * n
+                a.current_at_clock(self.clock) + cs.offset_amps + cs.noise_amps * n
             }
             _ => 0.0,
         }
@@ -193,15 +196,14 @@ impl Plant {
     /// far the noise can take it (the noise's [`noise::MAX_DEVIATE`]
     /// standard deviations): [`measured_current`](Self::measured_current)
     /// is within that of it. (Mutable only to remember the current loop's
-    /// decays: the axes commanded together need the same.)
+    /// decays, which the axes commanded together share, and the axis's
+    /// target current, which the span it integrates next needs.)
     pub fn measured_current_range(&mut self, index: usize) -> (f64, f64) {
-        let decay = &mut self.decay;
-        self.axes.get(index).map_or((0.0, 0.0), |a| {
+        let (decay, clock) = (&mut self.decay, self.clock);
+        self.axes.get_mut(index).map_or((0.0, 0.0), |a| {
+            let current = a.current_at_clock_memo(clock, decay);
             let cs = &a.params().current_sense;
-            (
-                a.current_at_clock_memo(decay) + cs.offset_amps,
-                cs.noise_amps * noise::MAX_DEVIATE,
-            )
+            (current + cs.offset_amps, cs.noise_amps * noise::MAX_DEVIATE)
         })
     }
 
