@@ -380,6 +380,7 @@ impl std::fmt::Display for SimReport {
             "  {} packets, {}/{} boards ok",
             self.packets, self.boards_ok, self.boards
         )?;
+        writeln!(f, "  {}", self.detail)?;
         for e in &self.errors {
             writeln!(f, "  error: {e}")?;
         }

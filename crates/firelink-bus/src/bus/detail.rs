@@ -170,7 +170,8 @@ pub struct DetailReport {
     pub packet_level_cycles: u64,
     /// Of those, how many had each reason (a cycle may have several).
     pub packet_level_cycles_why: WhyCounts,
-    /// Packets whose deliveries went in one batch.
+    /// Packets whose deliveries went in one batch (an ack belongs to the
+    /// packet it answers and is not counted on its own).
     pub fast_packets: u64,
     /// Packets delivered event by event, by why.
     pub packet_level_packets_why: WhyCounts,
