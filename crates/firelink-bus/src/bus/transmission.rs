@@ -250,16 +250,13 @@ impl Bus {
         let Ok(pos) = self.subs.position(id) else {
             return;
         };
-        let Some(level) = self.subs.0.get(pos).map(|sub| sub.level) else {
-            return;
-        };
-        if level.is_some() {
-            self.deliver(id, d.node);
-            return;
-        }
         let Some(sub) = self.subs.0.get_mut(pos) else {
             return;
         };
+        if sub.level.is_some() {
+            self.deliver(id, d.node);
+            return;
+        }
         let crc = *sub.crc.get_or_insert_with(|| crc_status_of(&sub.bytes));
         let (speed, dest) = (sub.speed, sub.dest);
         self.current_rx = Some(id);
@@ -269,10 +266,11 @@ impl Bus {
         loop {
             self.detail.batched_delivery();
             let reply = self.dispatch_receive(node, pos, speed);
+            let is_dest = dest == Some(node);
             if let Some(reply) = reply
-                && (reply != RxReply::Silent || dest == Some(node))
+                && (reply != RxReply::Silent || is_dest)
             {
-                self.take_reply(id, node, dest == Some(node), reply);
+                self.take_reply(id, node, is_dest, reply);
             }
             let stop = match &mut batch {
                 Batch::One => true,
