@@ -46,7 +46,7 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use firelink_bus::host::{Completion, Outcome};
-use firelink_bus::{Bus, HostLink, NodeHandle, SimDuration, SimTime, TimedFault};
+use firelink_bus::{Bus, DetailReport, HostLink, NodeHandle, SimDuration, SimTime, TimedFault};
 use firelink_wire::fw_cdev::{
     self, BusResetRecord, KERNEL_ABI_VERSION, SendRequestArgs, errno, rcode,
 };
@@ -126,14 +126,22 @@ pub struct TwinStats {
     pub bus_resets: u64,
     /// Ioctls refused with an errno.
     pub refused: u64,
+    /// What the bus ran at which level of detail, each accepted request
+    /// counted as one span (the same answer either way).
+    pub detail: DetailReport,
 }
 
 impl core::fmt::Display for TwinStats {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         write!(
             f,
-            "{} requests, {} completions ({} not complete), {} bus resets, {} ioctls refused",
-            self.requests, self.completions, self.failed, self.bus_resets, self.refused
+            "{} requests, {} completions ({} not complete), {} bus resets, {} ioctls refused; {}",
+            self.requests,
+            self.completions,
+            self.failed,
+            self.bus_resets,
+            self.refused,
+            self.detail.counted_in("requests")
         )
     }
 }
@@ -256,7 +264,10 @@ impl Twin {
 
     /// Counters so far.
     pub fn stats(&self) -> TwinStats {
-        self.stats
+        TwinStats {
+            detail: self.bus.detail_report(),
+            ..self.stats
+        }
     }
 
     /// The card's STATE bits (bit 8: cycle master).
@@ -406,6 +417,8 @@ impl Twin {
             return Err(self.refuse(errno::EFAULT).errno);
         }
         self.stats.requests += 1;
+        // What the bus runs from here to the next request is this one's.
+        self.bus.begin_cycle();
         let at = self.bus.now();
         if self
             .deferred

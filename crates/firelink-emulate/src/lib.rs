@@ -49,7 +49,7 @@ pub mod qla;
 use arrival::{Received, Receiver};
 use firelink_board::qla::node::BoardNode;
 use firelink_bus::host::{Completion, Outcome};
-use firelink_bus::{Bus, HostLink, NodeHandle, SimDuration, SimTime};
+use firelink_bus::{Bus, DetailReport, HostLink, NodeHandle, SimDuration, SimTime};
 use firelink_host::link_stats::LinkStats;
 use firelink_host::transaction::{CrcCheck, Expect, Transactions};
 use firelink_host::{Dest, HostError};
@@ -112,6 +112,10 @@ pub struct BridgeStats {
     /// How late the replies left, from each datagram's arrival to its
     /// reply sent (recorded by the server, [`Bridge::record_answer`]).
     pub answers: LatencySummary,
+    /// What the bus behind the bridge ran at which level of detail, each
+    /// host datagram counted as one span (`--detail packet|fast`; the same
+    /// answer either way).
+    pub detail: DetailReport,
 }
 
 impl BridgeStats {
@@ -153,7 +157,7 @@ impl core::fmt::Display for BridgeStats {
             f,
             "{} datagrams, {} replies, {} forwarded, {} local ({} broadcast reads), \
              {} dropped: {} malformed, {} bad CRC, {} unsupported tcode, \
-             {} stale generation, {} bus failures; {}",
+             {} stale generation, {} bus failures; {}; {}",
             self.datagrams,
             self.replies,
             self.forwarded,
@@ -165,7 +169,8 @@ impl core::fmt::Display for BridgeStats {
             self.unsupported,
             self.stale_generation,
             self.bus_failures,
-            self.answers
+            self.answers,
+            self.detail.counted_in("datagrams")
         )
     }
 }
@@ -271,6 +276,7 @@ impl Bridge {
     pub fn stats(&self) -> BridgeStats {
         BridgeStats {
             answers: self.answers.summary(),
+            detail: self.bus.detail_report(),
             ..self.stats
         }
     }
@@ -371,6 +377,8 @@ impl Bridge {
     /// Handle one host datagram; a reply, if any, is written to `reply`.
     pub fn handle(&mut self, datagram: &[u8], reply: &mut Vec<u8>) -> Handled {
         self.settle();
+        // What the bus runs from here to the next datagram is this one's.
+        self.bus.begin_cycle();
         self.stats.datagrams += 1;
         let req = match self.take(datagram) {
             Ok(r) => r,
@@ -603,7 +611,7 @@ pub enum Event {
     /// machine is too busy to run the emulation in real time).
     Lagging(Duration),
     /// The server stopped: its counters, the answer latency included.
-    Stopped(BridgeStats),
+    Stopped(Box<BridgeStats>),
 }
 
 /// Bind the sockets of `config`: the unicast socket, and when asked and
@@ -820,6 +828,6 @@ fn serve_inner(
             on_event(Event::BusReset(generation));
         }
     }
-    on_event(Event::Stopped(bridge.stats()));
+    on_event(Event::Stopped(Box::new(bridge.stats())));
     Ok(())
 }

@@ -190,17 +190,34 @@ impl DetailReport {
     }
 }
 
-impl fmt::Display for DetailReport {
+impl DetailReport {
+    /// The one-line summary with the spans between two cycle marks called
+    /// `unit` (the Ethernet bridge marks each host datagram:
+    /// `detail fast: datagrams 12 fast, ...`); [`Display`](fmt::Display)
+    /// calls them `cycles`.
+    pub fn counted_in(&self, unit: &'static str) -> CountedIn<'_> {
+        CountedIn { report: self, unit }
+    }
+}
+
+/// [`DetailReport::counted_in`]'s line.
+pub struct CountedIn<'a> {
+    report: &'a DetailReport,
+    unit: &'static str,
+}
+
+impl fmt::Display for CountedIn<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let r = self.report;
         write!(
             f,
-            "detail {}: cycles {} fast, {} at the packet level",
-            self.detail, self.fast_cycles, self.packet_level_cycles
+            "detail {}: {} {} fast, {} at the packet level",
+            r.detail, self.unit, r.fast_cycles, r.packet_level_cycles
         )?;
         let why: Vec<String> = PacketLevelWhy::ALL
             .iter()
             .filter_map(|&w| {
-                let n = self.packet_level_cycles_why.get(w);
+                let n = r.packet_level_cycles_why.get(w);
                 (n > 0).then(|| format!("{} {n}", w.name()))
             })
             .collect();
@@ -210,9 +227,15 @@ impl fmt::Display for DetailReport {
         write!(
             f,
             "; packets {} fast, {} at the packet level",
-            self.fast_packets,
-            self.packet_level_packets()
+            r.fast_packets,
+            r.packet_level_packets()
         )
+    }
+}
+
+impl fmt::Display for DetailReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.counted_in("cycles").fmt(f)
     }
 }
 
@@ -492,6 +515,12 @@ mod tests {
         assert!(
             text.starts_with("detail fast: cycles 1 fast, 5 at the packet level (chosen 1, tracing 1, fault 2, bus reset 1)"),
             "{text}"
+        );
+        // The same line with the spans named otherwise (the bridge's
+        // datagrams), nothing else changed.
+        assert_eq!(
+            r.counted_in("datagrams").to_string(),
+            text.replacen("cycles", "datagrams", 1)
         );
     }
 

@@ -76,7 +76,7 @@ use events::Batch;
 use queue::{Delivery, EventQueue, Taken};
 
 use detail::DetailTally;
-pub use detail::{Detail, DetailReport, PacketLevelWhy, UnknownDetail, WhyCounts};
+pub use detail::{CountedIn, Detail, DetailReport, PacketLevelWhy, UnknownDetail, WhyCounts};
 
 /// The PHY of a node.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

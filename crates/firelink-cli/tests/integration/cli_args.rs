@@ -190,7 +190,7 @@ fn teleop_refuses_every_option_it_would_ignore() {
 
 #[test]
 fn a_level_of_detail_other_than_packet_or_fast_is_a_usage_error_naming_both() {
-    for command in ["demo", "sim", "soak"] {
+    for command in ["demo", "sim", "soak", "bench", "emulate"] {
         for bad in ["exact", "0", "1e300", "", "FAST"] {
             let (code, err) = firelink(&[command, "--detail", bad]);
             assert_eq!(code, 2, "{command} --detail {bad:?}: {err}");

@@ -107,6 +107,17 @@ fn a_lost_response_completes_once_cancelled_at_the_split_timeout() {
     assert_eq!((r.closure, r.rcode), (8, rcode::COMPLETE));
     let s = twin.stats();
     assert_eq!(s.requests, s.completions, "{s}");
+    // Each request is one span of the bus's level-of-detail count: the
+    // one whose response the fault dropped ran at the packet level, the
+    // next one fast.
+    let d = s.detail;
+    assert_eq!((d.fast_cycles, d.packet_level_cycles), (1, 1), "{s}");
+    assert_eq!(d.packet_level_cycles_why.fault, 1, "{s}");
+    assert!(
+        s.to_string()
+            .contains("detail fast: requests 1 fast, 1 at the packet level (fault 1)"),
+        "{s}"
+    );
 }
 
 #[test]

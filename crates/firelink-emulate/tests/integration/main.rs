@@ -7,6 +7,7 @@
 mod bridge_multicast;
 mod broadcast_cycles;
 mod common;
+mod detail_levels;
 mod eth_common;
 mod eth_host;
 mod eth_mixed;

@@ -255,7 +255,7 @@ pub struct EthRequest {
 pub fn refuse_on_eth(boards: &ServedBoards, asked: EthRequest) -> Result<(), Refused> {
     let bus_fault = "a fault of the simulated 1394 bus; the Ethernet-only network has no 1394 bus";
     let f = &boards.faults;
-    let refusals: [(bool, &'static str, &'static str); 11] = [
+    let refusals: [(bool, &'static str, &'static str); 12] = [
         (
             asked.twin,
             "--fw-cdev",
@@ -283,6 +283,11 @@ pub fn refuse_on_eth(boards: &ServedBoards, asked: EthRequest) -> Result<(), Ref
         (f.unplug_board.is_some(), "--unplug-board", bus_fault),
         (f.mute_board.is_some(), "--mute-board", bus_fault),
         (asked.fault_script, "--faults", bus_fault),
+        (
+            boards.detail == firelink_bus::Detail::Packet,
+            "--detail packet",
+            "a level of detail of the simulated 1394 bus; the Ethernet-only network has no 1394 bus (its chain's timing is worked out per datagram)",
+        ),
     ];
     if let Some((_, option, reason)) = refusals.into_iter().find(|r| r.0) {
         return Err(Refused { option, reason });

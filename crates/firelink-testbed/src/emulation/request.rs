@@ -18,6 +18,7 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
+use firelink_bus::Detail;
 use firelink_control::config::IoConfig;
 use firelink_emulate::fw_cdev::{self, Twin};
 use firelink_host::stop::server_stop_flag;
@@ -242,6 +243,14 @@ pub struct EmulateRequest {
         arg(long, value_delimiter = ',', value_parser = crate::limits::board_id)
     )]
     pub chain: Vec<u8>,
+    /// The simulated bus's level of detail behind the bridge and the
+    /// /dev/fw* twin: `fast` (a packet's deliveries in one batch where
+    /// that is exact) or `packet` (every delivery an event of its own); the
+    /// same answer either way, and the stop line counts the datagrams (the
+    /// twin: requests) each way ran. The Ethernet-only network has no 1394
+    /// bus and refuses `packet`.
+    #[cfg_attr(feature = "clap", arg(long, default_value = "fast"))]
+    pub detail: Detail,
 }
 
 impl Default for EmulateRequest {
@@ -281,6 +290,7 @@ impl Default for EmulateRequest {
             eth_base: Ipv4Addr::new(127, 0, 0, 100),
             multicast: false,
             chain: Vec::new(),
+            detail: served.detail,
         }
     }
 }
@@ -339,6 +349,7 @@ impl EmulateRequest {
             fault_after_requests: self.fault_after_requests,
             bridge_board: self.bridge_board,
             split_timeout: SimDuration::from_millis(self.split_timeout_ms),
+            detail: self.detail,
         }
     }
 
@@ -617,6 +628,16 @@ mod tests {
             ..EmulateRequest::default()
         });
         assert!(e.starts_with("--network eth: "), "{e}");
+        // The packet level is the 1394 bus's; the network has none.
+        let e = error(EmulateRequest {
+            network: Network::Eth,
+            fpga: Some(FpgaVersion::V3),
+            firmware: Profile::Rev9,
+            detail: Detail::Packet,
+            ..EmulateRequest::default()
+        });
+        assert!(e.starts_with("--detail packet: "), "{e}");
+        assert!(e.contains("no 1394 bus"), "{e}");
     }
 
     #[test]

@@ -29,7 +29,7 @@ use firelink_board::qla::rig::{BoardRig, RigOptions};
 use firelink_board::snake::SnakeNodeConfig;
 use firelink_bus::trace::PacketKind;
 use firelink_bus::{
-    Bus, FaultRule, Node, NodeHandle, PacketFault, PacketMatch, SimDuration, TimedFault,
+    Bus, Detail, FaultRule, Node, NodeHandle, PacketFault, PacketMatch, SimDuration, TimedFault,
 };
 use firelink_control::config::IoConfig;
 use firelink_emulate::Bridge;
@@ -122,6 +122,7 @@ pub struct RigBuilder {
     busy_rate: f64,
     reset_storm: u32,
     script: FaultScript,
+    detail: Detail,
 }
 
 /// A built rig: the bus, the PC's link at its root, and every board by ID.
@@ -181,7 +182,15 @@ impl RigBuilder {
             busy_rate: 0.0,
             reset_storm: 0,
             script: FaultScript::new(),
+            detail: Detail::Fast,
         }
+    }
+
+    /// The bus's level of detail ([`Detail::Fast`] by default; the same
+    /// answer either way).
+    pub fn detail(mut self, detail: Detail) -> RigBuilder {
+        self.detail = detail;
+        self
     }
 
     /// The bus's seed (its fault injector's random draws); 0 by default.
@@ -262,6 +271,7 @@ impl RigBuilder {
                 ..RigOptions::default()
             },
         );
+        built.bus.set_detail(self.detail);
         let script = self.script;
         // Each board's node by ID, as the fault target knows them.
         let by_id: Vec<(u8, NodeHandle)> = ids.iter().copied().zip(built.boards.clone()).collect();

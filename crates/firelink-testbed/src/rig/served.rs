@@ -16,6 +16,7 @@
 //! - nothing here prints or reads a clock: the timed faults wait for the
 //!   moment the options give, in emulated time.
 
+use firelink_bus::Detail;
 use firelink_control::config::IoConfig;
 use firelink_emulate::Bridge;
 use firelink_emulate::fw_cdev::Twin;
@@ -174,6 +175,8 @@ pub struct ServedBoards {
     pub bridge_board: Option<u8>,
     /// The twin only: the split time-out.
     pub split_timeout: SimDuration,
+    /// The bus's level of detail (the same answer either way).
+    pub detail: Detail,
 }
 
 impl Default for ServedBoards {
@@ -194,6 +197,7 @@ impl Default for ServedBoards {
             fault_after_requests: None,
             bridge_board: None,
             split_timeout: SimDuration::from_millis(2000),
+            detail: Detail::Fast,
         }
     }
 }
@@ -232,7 +236,10 @@ impl ServedBoards {
             _ => RigBuilder::qla(self.qla_boards()?),
         };
         let f = &self.faults;
-        let mut builder = builder.seed(self.seed).fault_script(&f.script());
+        let mut builder = builder
+            .seed(self.seed)
+            .detail(self.detail)
+            .fault_script(&f.script());
         if f.drop_response_rate > 0.0 {
             builder = builder.drop_responses(f.drop_response_rate);
         }

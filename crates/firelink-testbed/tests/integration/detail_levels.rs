@@ -120,3 +120,58 @@ fn mahru_walks_the_same_at_both_levels() {
     assert_eq!(packet.detail.packet_level_cycles, packet.periods);
     assert!(fast.detail.batched_deliveries > 0);
 }
+
+#[test]
+fn the_bench_measures_the_same_sim_points_at_both_levels_and_counts_them() {
+    use firelink_host::qla::scan::Protocol;
+    use firelink_testbed::dvrk::bench::{BenchOptions, BenchReport, BenchTransport, run_bench};
+    let at = |detail: Detail| {
+        let options = BenchOptions {
+            transports: vec![BenchTransport::Sim],
+            boards: vec![2, 8],
+            protocols: vec![Protocol::Sequential, Protocol::Broadcast],
+            cycles: 30,
+            detail,
+            ..BenchOptions::default()
+        };
+        run_bench(&options, |_, _, _| {}).expect("the bench runs")
+    };
+    let (fast, packet) = (at(Detail::Fast), at(Detail::Packet));
+    // The I/O figures are the simulated bus's times: the same to the bit.
+    let io = |r: &BenchReport| {
+        r.results
+            .iter()
+            .map(|p| {
+                (
+                    p.boards,
+                    p.protocol,
+                    p.io_time_us,
+                    p.read_us,
+                    p.write_us,
+                    p.errors,
+                )
+            })
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(io(&fast), io(&packet));
+    assert_eq!((fast.detail, packet.detail), (Detail::Fast, Detail::Packet));
+    for (f, p) in fast.results.iter().zip(&packet.results) {
+        let (f, p) = (
+            f.detail.expect("a sim point"),
+            p.detail.expect("a sim point"),
+        );
+        // 20 warm-up cycles and the measured ones, every one counted.
+        assert_eq!(f.fast_cycles, 50, "{f}");
+        assert_eq!(p.packet_level_cycles_why.chosen, 50, "{p}");
+        assert_eq!(f.fast_packets, p.packet_level_packets(), "{f} / {p}");
+    }
+    let text = packet.to_string();
+    assert!(
+        text.contains("Level of detail of the simulated buses (--detail packet"),
+        "{text}"
+    );
+    assert!(
+        text.contains("cycles 0 fast, 50 at the packet level (chosen 50)"),
+        "{text}"
+    );
+}

@@ -33,7 +33,7 @@ use nix::sys::socket::{
 
 use firelink_board::qla::config::BoardConfig;
 use firelink_control::runner::Percentiles;
-use firelink_emulate::fw_cdev::{self, Twin};
+use firelink_emulate::fw_cdev::{self, Twin, TwinStats};
 use firelink_host::Port;
 use firelink_host::firewire::{FirewirePort, FwOptions};
 use firelink_host::qla::io::IoSystem;
@@ -94,23 +94,37 @@ fn twin_socket() -> Result<PathBuf, TestbedError> {
 /// The twin's server on a thread of this process, and the socket path it
 /// binds (removed when it stops).
 struct TwinServer {
-    server: ServerThread<std::io::Result<()>>,
+    /// (Taken when stopped.)
+    server: Option<ServerThread<std::io::Result<TwinStats>>>,
     path: PathBuf,
 }
 
 impl TwinServer {
-    fn start(boards: Vec<BoardConfig>, path: PathBuf) -> Result<TwinServer, TestbedError> {
-        let (bus, host, _) = rig::build_bus(boards)?;
+    fn start(
+        boards: Vec<BoardConfig>,
+        path: PathBuf,
+        detail: firelink_bus::Detail,
+    ) -> Result<TwinServer, TestbedError> {
+        let (mut bus, host, _) = rig::build_bus(boards)?;
+        bus.set_detail(detail);
         let mut twin = Twin::new(bus, host);
         let listener = fw_cdev::bind(&path)?;
         let server = ServerThread::spawn(move |stop: &std::sync::Arc<AtomicBool>| {
-            fw_cdev::serve(&mut twin, &listener, stop, |_| {})
+            fw_cdev::serve(&mut twin, &listener, stop, |_| {}).map(|()| twin.stats())
         });
-        Ok(TwinServer { server, path })
+        Ok(TwinServer {
+            server: Some(server),
+            path,
+        })
+    }
+
+    /// Stop serving; the twin's counters (`None`: the server failed).
+    fn stop(mut self) -> Option<TwinStats> {
+        self.server.take()?.stop()?.ok()
     }
 
     fn cpu_time(&self) -> Option<Duration> {
-        self.server.cpu_time()
+        self.server.as_ref()?.cpu_time()
     }
 }
 
@@ -325,7 +339,7 @@ pub(super) fn measure_point(
     options: &super::BenchOptions,
 ) -> Result<Raw, TestbedError> {
     let path = twin_socket()?;
-    let server = TwinServer::start(boards, path)?;
+    let server = TwinServer::start(boards, path, options.detail)?;
     let idle = Duration::from_secs_f64(options.idle_us.max(0.0) / 1e6);
     let mut port = Recorder::new(FirewirePort::open(FwOptions::default())?);
     let scan = firelink_host::qla::scan::scan(&mut port)?;
@@ -388,7 +402,7 @@ pub(super) fn measure_point(
     let errors = io.stats().total_errors();
     drop(io);
     drop(floor);
-    drop(server);
+    let twin_stats = server.stop();
     let per = |d: Duration| us(d) / cycles as f64;
     Ok(Raw {
         transport: BenchTransport::Fw,
@@ -415,6 +429,7 @@ pub(super) fn measure_point(
             floor_server_cpu: floor_clock.then(|| per(floor_cpu)),
         }),
         sim_cpu: None,
+        detail: twin_stats.map(|s| s.detail),
     })
 }
 

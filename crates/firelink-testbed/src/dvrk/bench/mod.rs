@@ -52,6 +52,7 @@ use std::time::Duration;
 use serde::Serialize;
 
 use firelink_board::qla::config::Profile;
+use firelink_bus::{Detail, DetailReport};
 use firelink_control::budget::CycleBudget;
 use firelink_control::config::presets;
 use firelink_control::runner::{Pacing, Percentiles, Robot, RobotSettings};
@@ -161,6 +162,9 @@ pub struct BenchOptions {
     /// one point per protocol with the boards the scan finds there (the
     /// board counts apply to the simulated bus only), and no emulator CPU.
     pub udp_target: Option<SocketAddr>,
+    /// The simulated bus's level of detail (`sim` points and the
+    /// in-process emulator's bus; the same answer either way).
+    pub detail: Detail,
 }
 
 impl Default for BenchOptions {
@@ -177,6 +181,7 @@ impl Default for BenchOptions {
             udp_waits: vec![WaitMode::Blocking],
             udp_timeout: crate::rig::UDP_TIMEOUT,
             udp_target: None,
+            detail: Detail::Fast,
         }
     }
 }
@@ -366,6 +371,11 @@ pub struct BenchPoint {
     pub sim_cpu_us: Option<f64>,
     /// `sim_cpu_us` over the boards.
     pub sim_cpu_per_board_us: Option<f64>,
+    /// A measured point on a simulated bus (`sim`, or the in-process
+    /// emulator's bus behind a `udp` point): what ran at which level of
+    /// detail, warm-up and scan included (the emulator counts each
+    /// datagram as one span, the `sim` port each cycle).
+    pub detail: Option<DetailReport>,
 }
 
 /// The paper's figures the benchmark is compared with.
@@ -396,6 +406,8 @@ pub struct BenchReport {
     pub firmware: &'static str,
     /// Measured cycles per point.
     pub cycles: u64,
+    /// The simulated bus's level of detail asked for (`--detail`).
+    pub detail: Detail,
     /// UDP points: cycles per block (the point's and its floor's blocks
     /// alternate).
     pub udp_block_cycles: u64,
@@ -487,6 +499,8 @@ struct Raw {
     note: Option<String>,
     /// Simulated bus: CPU per cycle of simulating it, us.
     sim_cpu: Option<f64>,
+    /// A simulated bus's count of what ran at which level of detail.
+    detail: Option<DetailReport>,
 }
 
 /// How a point runs the protocol asked on the boards a scan found.
@@ -592,7 +606,7 @@ impl Plan {
 /// Run `cycles` I/O cycles on an open system: I/O-time percentiles, mean
 /// read and write phases, errors.
 fn measure<P: Port>(
-    mut io: IoSystem<P>,
+    io: &mut IoSystem<P>,
     cycles: u64,
     idle: Duration,
 ) -> (Percentiles, f64, f64, u64, Option<f64>) {
@@ -628,7 +642,7 @@ fn measure<P: Port>(
     )
 }
 
-fn point<P: Port>(
+fn point<P: Port + 'static>(
     mut port: P,
     transport: BenchTransport,
     protocol: Protocol,
@@ -638,10 +652,11 @@ fn point<P: Port>(
     let scan = firelink_host::qla::scan::scan(&mut port)?;
     let plan = Plan::of(&scan, protocol, options);
     let (used, groups, note) = (plan.protocol, plan.groups, plan.note.clone());
-    let io = IoSystem::with_scan(port, &scan, plan.options())?;
+    let mut system = IoSystem::with_scan(port, &scan, plan.options())?;
     let idle = Duration::from_secs_f64(options.idle_us.max(0.0) / 1e6);
-    let (io, read, write, errors, cpu) = measure(io, options.cycles.max(1), idle);
+    let (io, read, write, errors, cpu) = measure(&mut system, options.cycles.max(1), idle);
     Ok(Raw {
+        detail: crate::dvrk::demo::sim_detail_report(system.port()),
         transport,
         board_set: None,
         wait: None,
@@ -737,6 +752,7 @@ fn model(base: &Raw, boards: usize) -> Raw {
         udp: None,
         fw: None,
         sim_cpu: None,
+        detail: None,
         ..base.clone()
     }
 }
@@ -801,6 +817,7 @@ fn finish(raw: &Raw, compute: f64, period_us: f64) -> BenchPoint {
         note: raw.note.clone(),
         sim_cpu_us: raw.sim_cpu.map(round2),
         sim_cpu_per_board_us: raw.sim_cpu.map(|c| round2(c / raw.boards.max(1) as f64)),
+        detail: raw.detail,
         udp: raw.udp.as_ref().map(|(target, m)| UdpFigures {
             target: target.clone(),
             floor_us: io_time(&m.floor),
@@ -865,6 +882,7 @@ fn raw_of_run(transport: BenchTransport, target: &str, asked: Protocol, m: udp::
         udp: Some((target.to_string(), m)),
         fw: None,
         sim_cpu: None,
+        detail: None,
     }
 }
 
@@ -940,21 +958,28 @@ pub fn run_bench(
                     // Measured above, once for every protocol.
                     BenchTransport::Eth => Vec::new(),
                     BenchTransport::Sim => {
-                        let (port, _) = rig::sim_port(cfgs, true)?;
+                        let (mut port, _) = rig::sim_port(cfgs, true)?;
+                        port.bus_mut().set_detail(options.detail);
                         vec![point(port, t, proto, n, options)?]
                     }
                     BenchTransport::Fw => {
                         vec![fw::measure_point(cfgs, proto, options)?]
                     }
                     BenchTransport::Udp => {
-                        let emu = rig::Emulator::start(cfgs)?;
+                        let emu = rig::Emulator::start_rig(
+                            rig::RigBuilder::qla(cfgs).detail(options.detail),
+                        )?;
                         let bridge = udp::Bridge {
                             addr: emu.addr,
                             emulator: Some(&emu),
                         };
                         let p = udp_raws(&bridge, "in-process emulator", proto, options);
-                        emu.stop()?;
-                        p?
+                        let stats = emu.stop()?;
+                        let mut p = p?;
+                        for raw in &mut p {
+                            raw.detail = Some(stats.detail);
+                        }
+                        p
                     }
                 };
                 last.clone_from(&points);
@@ -979,6 +1004,7 @@ pub fn run_bench(
         },
         firmware: profile_name(options.firmware),
         cycles: options.cycles,
+        detail: options.detail,
         udp_block_cycles: udp::BLOCK,
         eth_comparison: Vec::new(),
     };
@@ -1215,7 +1241,8 @@ impl fmt::Display for BenchReport {
         self.fmt_sim(f)?;
         self.fmt_fw(f)?;
         eth::fmt_comparisons(&self.eth_comparison, f)?;
-        self.fmt_udp(f)
+        self.fmt_udp(f)?;
+        self.fmt_detail(f)
     }
 }
 
@@ -1233,6 +1260,49 @@ fn transport_label(r: &BenchPoint) -> String {
 }
 
 impl BenchReport {
+    /// What each simulated bus ran at which level of detail: one line per
+    /// measured point that has one (a `udp` point's wait modes share
+    /// their emulator, said once).
+    fn fmt_detail(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let mut said: Vec<(&str, &str, usize)> = Vec::new();
+        let mut lines = Vec::new();
+        for r in &self.results {
+            let Some(d) = &r.detail else { continue };
+            let key = (r.transport, r.protocol, r.boards);
+            if said.contains(&key) {
+                continue;
+            }
+            said.push(key);
+            // What one span between two marks is on each transport.
+            let unit = match r.transport {
+                "udp" => "datagrams",
+                "fw" => "requests",
+                _ => "cycles",
+            };
+            lines.push(format!(
+                "{:<4} {:<32} {:>2} boards: {}",
+                r.transport,
+                r.protocol,
+                r.boards,
+                d.counted_in(unit)
+            ));
+        }
+        if lines.is_empty() {
+            return Ok(());
+        }
+        writeln!(
+            f,
+            "\nLevel of detail of the simulated buses (--detail {}; the same answer either way; \
+             warm-up and scan included; udp: the emulator's bus, each datagram one span; fw: the \
+             twin's, each request one span)",
+            self.detail
+        )?;
+        for line in lines {
+            writeln!(f, "{line}")?;
+        }
+        Ok(())
+    }
+
     /// The simulation-cost table of the `sim` points (none: nothing).
     fn fmt_sim(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let sims: Vec<&BenchPoint> = self

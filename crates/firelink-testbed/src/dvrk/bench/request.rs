@@ -5,6 +5,7 @@
 
 use std::time::Duration;
 
+use firelink_bus::Detail;
 use firelink_host::qla::scan::Protocol;
 use firelink_host::udp::WaitMode;
 
@@ -104,6 +105,13 @@ pub struct BenchRequest {
         arg(long = "idle-us", default_value_t = 50.0, value_parser = crate::limits::wait_us)
     )]
     pub idle_us: f64,
+    /// The simulated bus's level of detail (`sim` points, and the bus
+    /// behind the in-process emulator and the /dev/fw* twin): `fast` (a
+    /// packet's deliveries in one batch where that is exact) or `packet`
+    /// (every delivery an event of its own); the same answer either way,
+    /// and the report counts what ran each way.
+    #[cfg_attr(feature = "clap", arg(long, default_value = "fast"))]
+    pub detail: Detail,
 }
 
 impl BenchRequest {
@@ -141,6 +149,7 @@ impl BenchRequest {
                 Some(PortSpec::Udp(addr) | PortSpec::UdpFw(addr)) => Some(addr),
                 _ => None,
             },
+            detail: self.detail,
         })
     }
 }
@@ -162,6 +171,7 @@ mod tests {
             period_us: 166.67,
             wait_us: 5.0,
             idle_us: 50.0,
+            detail: Detail::Fast,
         }
     }
 

@@ -1,6 +1,7 @@
 //! A benchmark's server on a thread of its own (the UDP floor's
 //! responder, the fw points' twin server): started with a stop flag, its
-//! CPU time readable while it runs, stopped and joined when dropped.
+//! CPU time readable while it runs, stopped and joined when dropped (or
+//! stopped for what it returned).
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -37,6 +38,12 @@ impl<T: Send + 'static> ServerThread<T> {
     pub(super) fn cpu_time(&self) -> Option<Duration> {
         self.cpu
             .and_then(|c| c.now_while_running(self.thread.as_ref()))
+    }
+
+    /// Stop it and take what it returned (`None`: it panicked).
+    pub(super) fn stop(mut self) -> Option<T> {
+        self.stop.store(true, Ordering::Relaxed);
+        self.thread.take().and_then(|t| t.join().ok())
     }
 }
 
