@@ -1076,6 +1076,7 @@ impl Firmware {
     /// The ADC quadlet of axis `i`, the noise drawn at sample `sample`
     /// (the plant's [`noise_sample`](crate::plant::Plant::noise_sample)
     /// now).
+    #[inline(always)]
     fn adc_word(&self, i: usize, sample: u64) -> AdcWord {
         AdcWord::default()
             .with_pot(pot_to_counts(self.plant.measured_pot_at_sample(i, sample)))
