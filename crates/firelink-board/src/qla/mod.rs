@@ -1288,10 +1288,14 @@ impl Firmware {
             seq,
             quadlets: u16::try_from(len / 4 + 1).unwrap_or(u16::MAX),
         };
+        // The header and the sample overwrite every byte (the sample writes
+        // every quadlet of its block): the last broadcast's memory needs no
+        // clearing, only its length.
         let mut payload = self.hub.spare_payload();
-        payload.clear();
-        payload.extend_from_slice(&header.to_word().to_be_bytes());
         payload.resize(len + 4, 0);
+        if let Some(head) = payload.get_mut(..4) {
+            head.copy_from_slice(&header.to_word().to_be_bytes());
+        }
         if let Some(block) = payload.get_mut(4..) {
             self.sample_block_into(now, block);
         }

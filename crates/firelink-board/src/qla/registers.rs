@@ -1147,7 +1147,8 @@ impl Firmware {
 
     /// Sample the real-time read block at `now` (section 4), wire order,
     /// into `buf` (at least the layout's read block long; the rest is left
-    /// alone), and restart the timestamp.
+    /// alone), and restart the timestamp. Every byte of the block is
+    /// written, whatever `buf` held (`a_sample_writes_every_quadlet`).
     pub(crate) fn sample_block_into(&mut self, now: SimTime, buf: &mut [u8]) {
         self.observe();
         let timestamp = now.clocks().wrapping_sub(self.last_sample.clocks()) as u32;
