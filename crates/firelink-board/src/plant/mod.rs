@@ -122,6 +122,14 @@ impl Plant {
         self.clock.0 / self.step_ps
     }
 
+    /// The measurement-noise sample index at the clock (what
+    /// [`measured_pot`](Self::measured_pot) and
+    /// [`measured_current`](Self::measured_current) draw), for their
+    /// `_at_sample` forms while the clock stays.
+    pub(crate) fn noise_sample(&self) -> u64 {
+        self.sample()
+    }
+
     /// Number of axes.
     pub fn len(&self) -> usize {
         self.axes.len()
@@ -178,13 +186,21 @@ impl Plant {
     /// The measured motor current of an axis: true current plus offset
     /// and seeded noise, A (0 for a missing axis).
     pub fn measured_current(&self, index: usize) -> f64 {
+        self.measured_current_at_sample(index, self.sample())
+    }
+
+    /// [`measured_current`](Self::measured_current) with the noise sample
+    /// at the clock, `sample` ([`noise_sample`](Self::noise_sample)),
+    /// worked out once for a sample of several axes.
+    #[inline]
+    pub(crate) fn measured_current_at_sample(&self, index: usize, sample: u64) -> f64 {
         match (self.axes.get(index), self.noise.get(index)) {
             (Some(a), Some((current, _))) => {
                 let cs = &a.params().current_sense;
                 let n = if cs.noise_amps == 0.0 {
                     0.0
                 } else {
-                    current.gaussian(self.sample())
+                    current.gaussian(sample)
                 };
                 a.current_at_clock(self.clock) + cs.offset_amps + cs.noise_amps * n
             }
@@ -236,14 +252,17 @@ impl Plant {
     /// The measured potentiometer voltage of an axis, with seeded noise,
     /// clamped to the ADC range, V.
     pub fn measured_pot(&self, index: usize) -> f64 {
+        self.measured_pot_at_sample(index, self.sample())
+    }
+
+    /// [`measured_pot`](Self::measured_pot) with the noise sample at the
+    /// clock, `sample` ([`noise_sample`](Self::noise_sample)), worked out
+    /// once for a sample of several axes.
+    pub(crate) fn measured_pot_at_sample(&self, index: usize, sample: u64) -> f64 {
         match (self.axes.get(index), self.noise.get(index)) {
             (Some(a), Some((_, pot))) => {
                 let sd = a.params().pot.noise_volts;
-                let n = if sd == 0.0 {
-                    0.0
-                } else {
-                    pot.gaussian(self.sample())
-                };
+                let n = if sd == 0.0 { 0.0 } else { pot.gaussian(sample) };
                 (self.pot_voltage(index) + sd * n).clamp(0.0, POT_FULL_SCALE_VOLTS)
             }
             _ => 0.0,

@@ -8,8 +8,9 @@
 //! heard, the waiting and in-flight broadcast), the received-packet memory,
 //! the last sample's time and the whole plant (clock, every axis's state,
 //! noise streams, encoders). It leaves out what only makes the simulation
-//! faster: buffers kept for reuse and the cached time of the next internal
-//! event, which two equivalent runs may hold differently. It is computed by
+//! faster: buffers kept for reuse, the status broadcast's remembered
+//! header CRC and the cached time of the next internal event, which two
+//! equivalent runs may hold differently. It is computed by
 //! hashing the state's `Debug` text: for tests and tools, not the real-time
 //! path.
 

@@ -327,6 +327,10 @@ pub struct Firmware {
     /// [`lend_packet_buffer`](Self::lend_packet_buffer); empty (the
     /// packet then gets new memory) when none was lent.
     packet_buffer: Vec<u8>,
+    /// The header quadlets of the last status broadcast built and their
+    /// CRC: the next one's header is the same (it changes only with the
+    /// node ID or the block's length), so its CRC is not worked out again.
+    broadcast_header_crc: Option<([u32; 4], u32)>,
     /// The next internal event, or earlier: every write moves the
     /// watchdog's expiry later without touching this, so when it comes it
     /// is worked out again before anything is done, if it was the
@@ -394,6 +398,7 @@ impl Firmware {
             rx_memory: PacketMemory::new(),
             scratch: Vec::new(),
             packet_buffer: Vec::new(),
+            broadcast_header_crc: None,
             next_event: None,
             next_event_is_watchdog: false,
             events_stale: true,
@@ -1135,6 +1140,7 @@ impl Firmware {
             offset,
             &pending.payload,
             core::mem::take(&mut self.packet_buffer),
+            &mut self.broadcast_header_crc,
         );
         self.hub.in_flight = Some(pending.payload);
         Some(packet)
@@ -1282,10 +1288,14 @@ impl Firmware {
             seq,
             quadlets: u16::try_from(len / 4 + 1).unwrap_or(u16::MAX),
         };
+        // The header and the sample overwrite every byte (the sample writes
+        // every quadlet of its block): the last broadcast's memory needs no
+        // clearing, only its length.
         let mut payload = self.hub.spare_payload();
-        payload.clear();
-        payload.extend_from_slice(&header.to_word().to_be_bytes());
         payload.resize(len + 4, 0);
+        if let Some(head) = payload.get_mut(..4) {
+            head.copy_from_slice(&header.to_word().to_be_bytes());
+        }
         if let Some(block) = payload.get_mut(4..) {
             self.sample_block_into(now, block);
         }
@@ -1335,7 +1345,16 @@ fn block_response_into(header: AsyncHeader, rcode: Rcode, data: &[u8], buffer: V
 /// [`STATUS_BROADCAST_PRIORITY`], built in `buffer`'s memory. The same
 /// bytes as [`emit_into`] makes of that [`PacketRepr::WriteBlockRequest`]
 /// (CRCs included), with the header's quadlets written directly.
-fn status_broadcast_into(phy: u8, offset: u64, payload: &[u8], mut buffer: Vec<u8>) -> Vec<u8> {
+/// `header_crc` remembers the last header's quadlets and CRC: a header
+/// equal to it takes that CRC (the CRC of the same 16 bytes), another is
+/// worked out and remembered.
+fn status_broadcast_into(
+    phy: u8,
+    offset: u64,
+    payload: &[u8],
+    mut buffer: Vec<u8>,
+    header_crc: &mut Option<([u32; 4], u32)>,
+) -> Vec<u8> {
     let Ok(data_length) = u16::try_from(payload.len()) else {
         return emit_into(
             &PacketRepr::WriteBlockRequest {
@@ -1360,8 +1379,15 @@ fn status_broadcast_into(phy: u8, offset: u64, payload: &[u8], mut buffer: Vec<u
     for quadlet in header {
         buffer.extend_from_slice(&quadlet.to_be_bytes());
     }
-    let header_crc = firelink_wire::crc::crc1394(&buffer);
-    buffer.extend_from_slice(&header_crc.to_be_bytes());
+    let crc = match *header_crc {
+        Some((quadlets, crc)) if quadlets == header => crc,
+        _ => {
+            let crc = firelink_wire::crc::crc1394(&buffer);
+            *header_crc = Some((header, crc));
+            crc
+        }
+    };
+    buffer.extend_from_slice(&crc.to_be_bytes());
     if !payload.is_empty() {
         let start = buffer.len();
         buffer.extend_from_slice(payload);
@@ -1395,25 +1421,46 @@ mod tests {
     use config::Hardware;
 
     /// The status broadcast built directly is byte for byte what the
-    /// packet representation emits, whatever the payload's length.
+    /// packet representation emits, whatever the payload's length, with
+    /// no header CRC remembered, with this header's remembered and after
+    /// another header's (the remembered CRC follows the header).
     #[test]
     fn status_broadcast_matches_the_emitted_packet() {
+        let emitted = |phy: u8, offset: u64, payload: &[u8]| {
+            emit_into(
+                &PacketRepr::WriteBlockRequest {
+                    header: AsyncHeader::new(NodeId::BROADCAST, NodeId::local(phy), 0)
+                        .with_pri(STATUS_BROADCAST_PRIORITY),
+                    offset,
+                    extended_tcode: 0,
+                    data: payload,
+                },
+                Vec::new(),
+            )
+        };
         for len in [0usize, 1, 3, 4, 7, 64, 100, 300, 2000] {
             let payload: Vec<u8> = (0..len).map(|i| (i * 37 + 11) as u8).collect();
             for phy in [0u8, 5, 62] {
                 let offset = 0xFFFF_FF00_1000 + u64::from(phy) * 0x20;
-                let expected = emit_into(
-                    &PacketRepr::WriteBlockRequest {
-                        header: AsyncHeader::new(NodeId::BROADCAST, NodeId::local(phy), 0)
-                            .with_pri(STATUS_BROADCAST_PRIORITY),
-                        offset,
-                        extended_tcode: 0,
-                        data: &payload,
-                    },
-                    Vec::new(),
-                );
-                let built = status_broadcast_into(phy, offset, &payload, vec![0xAA; 9]);
+                let expected = emitted(phy, offset, &payload);
+                let built = status_broadcast_into(phy, offset, &payload, vec![0xAA; 9], &mut None);
                 assert_eq!(built, expected, "payload of {len} bytes from node {phy}");
+                let mut memo = None;
+                for round in 0..2 {
+                    let again = status_broadcast_into(phy, offset, &payload, vec![1], &mut memo);
+                    assert_eq!(
+                        again, expected,
+                        "{len} bytes from node {phy}, round {round}"
+                    );
+                }
+                let other = status_broadcast_into(phy ^ 1, offset, &payload, Vec::new(), &mut memo);
+                assert_eq!(
+                    other,
+                    emitted(phy ^ 1, offset, &payload),
+                    "{len} bytes, other"
+                );
+                let back = status_broadcast_into(phy, offset, &payload, Vec::new(), &mut memo);
+                assert_eq!(back, expected, "{len} bytes from node {phy}, after another");
             }
         }
     }

@@ -12,7 +12,7 @@ use firelink_wire::qla::extras::{
 };
 use firelink_wire::qla::fpga_v3::{EthControlV3, mdio_port_of};
 use firelink_wire::qla::realtime::{
-    BlockFormat, EncoderReading, MotorReading, ReadBlock, WriteBlock,
+    BlockFormat, BoardLayout, EncoderReading, MotorReading, ReadBlock, WriteBlock,
 };
 use firelink_wire::qla::registers::{
     AdcWord, DacWord, DigitalIn, DigitalOutWrite, DoutCtrl, ENC_NEUTRAL, EncPeriod, EncPosition,
@@ -601,7 +601,7 @@ impl Firmware {
         let rev8 = self.cfg.profile.is_rev8();
         let words = || self.velocity_words(i);
         match r {
-            AxisRegister::Adc => self.adc_word(i).raw(),
+            AxisRegister::Adc => self.adc_word(i, self.plant.noise_sample()).raw(),
             AxisRegister::Dac => self.axes.get(i).map_or(0, |a| u32::from(a.command)),
             AxisRegister::EncPreload => self.axes.get(i).map_or(0, |a| a.preload),
             AxisRegister::EncPosition => self.position_word(i).raw(),
@@ -1073,10 +1073,16 @@ impl Firmware {
             .with_home(home)
     }
 
-    fn adc_word(&self, i: usize) -> AdcWord {
+    /// The ADC quadlet of axis `i`, the noise drawn at sample `sample`
+    /// (the plant's [`noise_sample`](crate::plant::Plant::noise_sample)
+    /// now).
+    #[inline(always)]
+    fn adc_word(&self, i: usize, sample: u64) -> AdcWord {
         AdcWord::default()
-            .with_pot(pot_to_counts(self.plant.measured_pot(i)))
-            .with_current(current_to_counts(self.plant.measured_current(i)))
+            .with_pot(pot_to_counts(self.plant.measured_pot_at_sample(i, sample)))
+            .with_current(current_to_counts(
+                self.plant.measured_current_at_sample(i, sample),
+            ))
     }
 
     fn position_word(&mut self, i: usize) -> EncPosition {
@@ -1141,7 +1147,8 @@ impl Firmware {
 
     /// Sample the real-time read block at `now` (section 4), wire order,
     /// into `buf` (at least the layout's read block long; the rest is left
-    /// alone), and restart the timestamp.
+    /// alone), and restart the timestamp. Every byte of the block is
+    /// written, whatever `buf` held (`a_sample_writes_every_quadlet`).
     pub(crate) fn sample_block_into(&mut self, now: SimTime, buf: &mut [u8]) {
         self.observe();
         let timestamp = now.clocks().wrapping_sub(self.last_sample.clocks()) as u32;
@@ -1163,10 +1170,19 @@ impl Firmware {
         let temperature = Temperature(self.temperature_word() | upper);
         // The encoders' velocity fields are latched at this board's now.
         let now_clk = self.now.clocks();
+        // The plant's clock stays while the sample is taken: one noise
+        // sample index for every axis's pot and current.
+        let noise_sample = self.plant.noise_sample();
         let Some(buf) = buf.get_mut(..layout.read_block_len()) else {
             return;
         };
-        buf.fill(0);
+        // Every quadlet is written below when the board has an axis for
+        // every motor and encoder of the layout (fixed quadlets, ADC,
+        // encoder sections, Rev 8 MOTOR_STATUS); otherwise the missing
+        // axes' quadlets read 0.
+        if n < layout.motors() || n < layout.encoders() {
+            buf.fill(0);
+        }
         let mut block = ReadBlock::new_unchecked(&mut buf[..], layout);
         block.set_timestamp(timestamp);
         block.set_status(status);
@@ -1176,7 +1192,7 @@ impl Firmware {
             let position = self.position_word(i);
             let (period, qtr1, qtr5, run) = self.velocity_words_at(i, now_clk);
             let motor = MotorReading {
-                adc: self.adc_word(i),
+                adc: self.adc_word(i, noise_sample),
                 status: if rev8 {
                     self.motor_status_word(i)
                 } else {
@@ -1190,9 +1206,51 @@ impl Firmware {
                 qtr5,
                 run,
             };
-            // The axis is within the layout: this cannot fail.
-            let _ = block.set_axis(i, motor, encoder);
+            write_axis(buf, layout, i, motor, encoder);
         }
+    }
+}
+
+/// Axis `axis`'s quadlets of a real-time read block of `layout` in `buf`,
+/// written as [`ReadBlock::set_axis`] writes them (the test
+/// `write_axis_matches_set_axis` holds the two together), without its
+/// bounds error and call: the ADC quadlet after the four fixed ones, the
+/// encoder sections (position only at Rev 4; position, period, QTR1,
+/// QTR5, run later) after the ADC quadlets, at Rev 8 MOTOR_STATUS after
+/// them. An axis beyond the layout's motors or encoders writes nothing;
+/// quadlets beyond `buf` are not written.
+#[inline(always)]
+fn write_axis(
+    buf: &mut [u8],
+    layout: BoardLayout,
+    axis: usize,
+    motor: MotorReading,
+    encoder: EncoderReading,
+) {
+    /// Timestamp, STATUS, DIGITAL_IN and TEMPERATURE.
+    const FIXED_QUADLETS: usize = 4;
+    let (m, e) = (layout.motors(), layout.encoders());
+    if axis >= m || axis >= e {
+        return;
+    }
+    let sections = match layout.format() {
+        BlockFormat::Rev4 => 1,
+        BlockFormat::Rev7 | BlockFormat::Rev8 => 5,
+    };
+    let encoder_start = FIXED_QUADLETS + m;
+    field::write_quadlet(buf, FIXED_QUADLETS + axis, motor.adc.0);
+    let words = [
+        encoder.position.0,
+        encoder.period.0,
+        encoder.qtr1.0,
+        encoder.qtr5.0,
+        encoder.run.0,
+    ];
+    for (k, word) in words.into_iter().enumerate().take(sections) {
+        field::write_quadlet(buf, encoder_start + k * e + axis, word);
+    }
+    if layout.format() == BlockFormat::Rev8 {
+        field::write_quadlet(buf, encoder_start + sections * e + axis, motor.status.0);
     }
 }
 
@@ -1204,6 +1262,103 @@ mod tests {
     use crate::time::{SimDuration, SimTime};
     use firelink_wire::qla::realtime::WriteBlockRepr;
     use firelink_wire::qla::registers::{DAC_ZERO, DacWord, StatusCommand};
+
+    /// A sample writes every quadlet of the read block (its memory is not
+    /// cleared first when every axis is sampled): into memory that held
+    /// garbage it is the same as into cleared memory, on every profile and
+    /// both boards, at power-up and with motor power, amplifiers and
+    /// moving axes.
+    #[test]
+    fn a_sample_writes_every_quadlet() {
+        for profile in [Profile::Seed, Profile::Rev7, Profile::Rev8, Profile::Rev9] {
+            for hardware in [Hardware::Qla1, Hardware::Dqla] {
+                let cfg = BoardConfig::new(2, hardware, profile);
+                let len = cfg.layout().read_block_len();
+                let mut fw = Firmware::new(cfg);
+                let mut phy = PhyRegisters::new(2);
+                for k in 1u64..=6 {
+                    let now = SimTime::from_micros(500 * k);
+                    if k == 2 {
+                        let on = StatusCommand {
+                            power: Some(true),
+                            relay: Some(true),
+                            ..StatusCommand::NONE
+                        };
+                        fw.write_quadlet(now, 0, on.to_word().raw(), &mut phy);
+                    }
+                    if k == 3 {
+                        let amps = StatusCommand::amplifiers(0xFF, 0xFF).to_word().raw();
+                        fw.write_quadlet(now, 0, amps, &mut phy);
+                        for axis in 0..hardware.axes() {
+                            if let Some(a) = fw.plant_mut().axis_mut(axis) {
+                                a.set_external_torque(0.2 * (axis as f64 + 1.0));
+                            }
+                        }
+                    }
+                    let mut cleared = fw.clone();
+                    let mut garbage = vec![0xA5; len];
+                    let mut zeros = vec![0; len];
+                    fw.sample_block_into(now, &mut garbage);
+                    cleared.sample_block_into(now, &mut zeros);
+                    assert_eq!(garbage, zeros, "{profile:?} {hardware:?} at {k}");
+                }
+            }
+        }
+    }
+
+    /// The axis quadlets written directly are `ReadBlock::set_axis`'s, for
+    /// every layout (QLA1 and DQLA; Rev 4, 7, 8, 9), every axis and one
+    /// beyond, into buffers longer and shorter than the block.
+    #[test]
+    fn write_axis_matches_set_axis() {
+        use firelink_wire::qla::realtime::{
+            BoardLayout, EncoderReading, FirmwareRev, MotorReading, ReadBlock,
+        };
+        use firelink_wire::qla::registers::{
+            AdcWord, EncPeriod, EncPosition, EncQuarter, EncRun, MotorStatus,
+        };
+        let revs = [
+            FirmwareRev::Rev4,
+            FirmwareRev::Rev7,
+            FirmwareRev::Rev8,
+            FirmwareRev::Rev9,
+        ];
+        let mut compared = 0;
+        for rev in revs {
+            for layout in [BoardLayout::qla1(rev), BoardLayout::dqla(rev)] {
+                let len = layout.read_block_len();
+                // Longer than the block (nothing written past it), exact,
+                // short (nothing written past the buffer).
+                for size in [len + 12, len, len - 4, len - 9] {
+                    for axis in 0..=layout.motors().max(layout.encoders()) {
+                        let k = axis as u32 * 0x0101_0101;
+                        let motor = MotorReading {
+                            adc: AdcWord(0x1111_1111 ^ k),
+                            status: MotorStatus(0x2222_2222 ^ k),
+                        };
+                        let encoder = EncoderReading {
+                            position: EncPosition(0x3333_3333 ^ k),
+                            period: EncPeriod(0x4444_4444 ^ k),
+                            qtr1: EncQuarter(0x5555_5555 ^ k),
+                            qtr5: EncQuarter(0x6666_6666 ^ k),
+                            run: EncRun(0x7777_7777 ^ k),
+                        };
+                        let mut expected = vec![0xA5; size];
+                        let mut block = ReadBlock::new_unchecked(&mut expected[..], layout);
+                        let _ = block.set_axis(axis, motor, encoder);
+                        let mut written = vec![0xA5; size];
+                        super::write_axis(&mut written, layout, axis, motor, encoder);
+                        assert_eq!(
+                            written, expected,
+                            "{rev:?} {layout:?} axis {axis}, {size} bytes"
+                        );
+                        compared += usize::from(written.iter().any(|b| *b != 0xA5));
+                    }
+                }
+            }
+        }
+        assert!(compared > 50, "{compared}");
+    }
 
     /// A real-time block that changes only the commands leaves the next
     /// internal event as it was worked out; one that changes the power,
