@@ -269,9 +269,15 @@ impl SubTable {
         self.position(*id).ok().and_then(|i| self.0.get_mut(i))
     }
 
-    /// Insert (or replace) the subaction `sub` of packet `id`.
+    /// Insert (or replace) the subaction `sub` of packet `id` (a new
+    /// packet's ID is the highest yet: it goes at the end).
+    #[inline]
     fn insert(&mut self, id: PacketId, mut sub: Sub) {
         sub.id = id;
+        if self.0.last().is_none_or(|last| last.id < id) {
+            self.0.push(sub);
+            return;
+        }
         match self.position(id) {
             Ok(i) => {
                 if let Some(slot) = self.0.get_mut(i) {
