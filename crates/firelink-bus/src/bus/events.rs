@@ -192,8 +192,8 @@ impl Bus {
         let mut want_arb = false;
         if !self.scratch.transmits.is_empty() {
             let mut transmits = std::mem::take(&mut self.scratch.transmits);
-            for req in transmits.drain(..) {
-                want_arb |= self.queue_transmit(idx, req);
+            for (req, crc) in transmits.drain(..) {
+                want_arb |= self.queue_transmit(idx, req, crc);
             }
             self.scratch.transmits = transmits;
         }
@@ -326,10 +326,10 @@ impl Bus {
         }
     }
 
-    /// Queue node `idx`'s packet for arbitration, or refuse it (too long,
-    /// node muted or off the bus: the node is told at once). Returns
-    /// whether it was queued.
-    fn queue_transmit(&mut self, idx: usize, req: TransmitRequest) -> bool {
+    /// Queue node `idx`'s packet for arbitration (its CRC status `crc`
+    /// when known), or refuse it (too long, node muted or off the bus: the
+    /// node is told at once). Returns whether it was queued.
+    fn queue_transmit(&mut self, idx: usize, req: TransmitRequest, crc: Option<CrcStatus>) -> bool {
         let now = self.now;
         let TransmitRequest {
             packet,
@@ -374,6 +374,7 @@ impl Bus {
             ready_at: now,
             delayed: false,
             faults: Vec::new(),
+            crc,
         });
         true
     }

@@ -194,6 +194,9 @@ struct Pending {
     ready_at: SimTime,
     delayed: bool,
     faults: Vec<FaultId>,
+    /// The CRC status of `bytes` when the bus already knows it (a sealed
+    /// packet, a cycle start); `None`: worked out at the first delivery.
+    crc: Option<CrcStatus>,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -244,7 +247,8 @@ struct Sub {
     notified: bool,
     answers: Option<PacketId>,
     /// The CRC status of `bytes`, worked out once for every node that
-    /// receives them.
+    /// receives them (known from the start for a sealed packet or a cycle
+    /// start, until a fault changes the bytes).
     crc: Option<CrcStatus>,
     /// Why its deliveries go event by event (`None`: in batches), decided
     /// when it starts ([`detail`]).
