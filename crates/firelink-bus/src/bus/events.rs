@@ -147,7 +147,7 @@ impl Bus {
     }
 
     /// What every node sees of the bus in a callback now.
-    fn ctx_view(&self) -> CtxView {
+    pub(super) fn ctx_view(&self) -> CtxView {
         CtxView {
             now: self.now,
             generation: self.generation,
@@ -217,10 +217,25 @@ impl Bus {
         pos: usize,
         speed: Speed,
     ) -> Option<RxReply> {
+        self.dispatch_receive_in(self.ctx_view(), idx, pos, speed)
+    }
+
+    /// [`dispatch_receive`](Self::dispatch_receive) with what the node sees
+    /// of the bus, `view`, already taken (a batch takes it once: its
+    /// deliveries differ only in time, as nothing else a node sees
+    /// changes but through a bus reset, which ends the batch).
+    #[inline(always)]
+    pub(super) fn dispatch_receive_in(
+        &mut self,
+        view: CtxView,
+        idx: usize,
+        pos: usize,
+        speed: Speed,
+    ) -> Option<RxReply> {
         if self.slots.get(idx).is_none_or(|s| s.muted) {
             return None;
         }
-        let view = self.ctx_view();
+        debug_assert_eq!(view, self.ctx_view(), "a batch's view of the bus");
         let now = view.now;
         let Bus {
             slots,
@@ -428,9 +443,9 @@ pub(super) enum Batch<'a> {
 }
 
 /// The bus's state a [`NodeCtx`] shows, taken before the call.
-#[derive(Clone, Copy)]
-struct CtxView {
-    now: SimTime,
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct CtxView {
+    pub(super) now: SimTime,
     generation: u32,
     node_count: u8,
     bus_idle: bool,

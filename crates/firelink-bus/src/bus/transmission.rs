@@ -265,9 +265,13 @@ impl Bus {
         self.rx_crc = Some(crc);
         self.detail.batch();
         let mut node = d.node;
+        // Taken once: within the batch only the time moves (a bus reset,
+        // which would change the rest, ends it).
+        let mut view = self.ctx_view();
         loop {
             self.detail.batched_delivery();
-            let reply = self.dispatch_receive(node, pos, speed);
+            view.now = self.now;
+            let reply = self.dispatch_receive_in(view, node, pos, speed);
             let is_dest = dest == Some(node);
             if let Some(reply) = reply
                 && (reply != RxReply::Silent || is_dest)
