@@ -55,7 +55,7 @@
 use std::any::Any;
 use std::fmt;
 
-use firelink_wire::packet::{Ack, CrcStatus, Speed};
+use firelink_wire::packet::{Ack, CrcStatus, Packet, Speed};
 
 use crate::phy::PhyRegisters;
 use crate::time::SimTime;
@@ -229,7 +229,9 @@ pub trait Node: Any + AsAny + Send {
 /// the callback returns.
 #[derive(Debug, Default)]
 pub(crate) struct Commands {
-    pub transmits: Vec<TransmitRequest>,
+    /// Each request with its packet's CRC status when the bus already
+    /// knows it ([`NodeCtx::transmit_sealed`]).
+    pub transmits: Vec<(TransmitRequest, Option<CrcStatus>)>,
     pub timers: Vec<TimerCommand>,
     pub phy_writes: Vec<(u8, u8)>,
     pub reports: Vec<String>,
@@ -271,6 +273,21 @@ impl PacketPool {
             self.0.push(buffer);
         }
     }
+}
+
+/// Write the header CRC and the data CRC of the packet in `bytes`; its CRC
+/// status, both matching (`None`: not a whole packet, nothing written).
+pub(crate) fn seal(bytes: &mut [u8]) -> Option<CrcStatus> {
+    let mut packet = Packet::new_checked(bytes).ok()?;
+    let tcode = packet.tcode();
+    packet.fill_header_crc();
+    packet.fill_data_crc();
+    let status = CrcStatus {
+        header_ok: tcode.has_header_crc().then_some(true),
+        data_ok: packet.has_data().then_some(true),
+    };
+    debug_assert_eq!(status, packet.crc_status(), "a sealed packet's CRCs");
+    Some(status)
 }
 
 /// A timer change asked by a node.
@@ -346,7 +363,22 @@ impl NodeCtx<'_> {
     /// for arbitration; [`Node::on_transmitted`] reports the outcome.
     /// Requests of one node go out in the order they were made.
     pub fn transmit(&mut self, request: TransmitRequest) {
-        self.cmds.transmits.push(request);
+        self.cmds.transmits.push((request, None));
+    }
+
+    /// [`transmit`](Self::transmit) a packet whose header CRC and data CRC
+    /// the bus writes now (whatever those fields held is overwritten; the
+    /// data block's padding is zeroed first): the bytes are what a node
+    /// that filled them itself with
+    /// [`fill_header_crc`](firelink_wire::packet::Packet::fill_header_crc)
+    /// and [`fill_data_crc`](firelink_wire::packet::Packet::fill_data_crc)
+    /// sends, and the bus, knowing both match, does not check them again
+    /// at delivery (unless a fault changes the bytes on the way). A packet
+    /// whose bytes do not form a whole packet goes as it is, checked as
+    /// any other.
+    pub fn transmit_sealed(&mut self, mut request: TransmitRequest) {
+        let status = seal(&mut request.packet);
+        self.cmds.transmits.push((request, status));
     }
 
     /// An empty buffer to build a packet in (for a [`TransmitRequest`] or

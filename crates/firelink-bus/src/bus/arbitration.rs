@@ -4,7 +4,7 @@
 //! request travels to the root; the first to arrive wins (ties: the node
 //! nearer the root, then the lower physical ID) and the grant comes back.
 
-use super::cycle::cycle_start_packet;
+use super::cycle::{CYCLE_START_CRC, cycle_start_packet};
 use super::*;
 
 impl Bus {
@@ -70,6 +70,7 @@ impl Bus {
                 ready_at: now,
                 delayed: true,
                 faults: vec![b.fault],
+                crc: None,
             });
         }
         self.babbling = self.slots.iter().any(|s| s.babble.is_some());
@@ -180,6 +181,7 @@ impl Bus {
             now + self.cfg.timing.hop_delay * u64::from(w.depth) + self.cfg.timing.arbitration_base;
         if pending.kind == PacketKind::CycleStart {
             pending.bytes = cycle_start_packet(w.phy, start);
+            pending.crc = Some(CYCLE_START_CRC);
         }
         if pending.class == ArbitrationClass::Fair && pending.kind != PacketKind::CycleStart {
             self.slots[idx].arb_enable = false;
@@ -209,7 +211,7 @@ impl Bus {
             busy: false,
             dropped: false,
             notified: false,
-            crc: None,
+            crc: pending.crc,
             level: None,
             answers: None,
         };
@@ -226,6 +228,7 @@ impl Bus {
                 ready_at: now,
                 delayed: true,
                 faults: sub.faults.clone(),
+                crc: None,
             });
         }
         self.subs.insert(id, sub);

@@ -34,6 +34,8 @@ impl Bus {
                 ready_at: now,
                 delayed: true,
                 faults: Vec::new(),
+                // Known when the packet is built, at its grant.
+                crc: None,
             });
         }
         if self.is_idle() {
@@ -41,6 +43,13 @@ impl Bus {
         }
     }
 }
+
+/// The CRC status of every [`cycle_start_packet`]: a header CRC, which
+/// matches (it was just computed), and no data block.
+pub(super) const CYCLE_START_CRC: CrcStatus = CrcStatus {
+    header_ok: Some(true),
+    data_ok: None,
+};
 
 /// A cycle start packet from `source_phy` carrying the cycle time at `at`.
 pub(super) fn cycle_start_packet(source_phy: u8, at: SimTime) -> Vec<u8> {

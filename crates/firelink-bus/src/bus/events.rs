@@ -147,7 +147,7 @@ impl Bus {
     }
 
     /// What every node sees of the bus in a callback now.
-    fn ctx_view(&self) -> CtxView {
+    pub(super) fn ctx_view(&self) -> CtxView {
         CtxView {
             now: self.now,
             generation: self.generation,
@@ -192,8 +192,8 @@ impl Bus {
         let mut want_arb = false;
         if !self.scratch.transmits.is_empty() {
             let mut transmits = std::mem::take(&mut self.scratch.transmits);
-            for req in transmits.drain(..) {
-                want_arb |= self.queue_transmit(idx, req);
+            for (req, crc) in transmits.drain(..) {
+                want_arb |= self.queue_transmit(idx, req, crc);
             }
             self.scratch.transmits = transmits;
         }
@@ -217,10 +217,25 @@ impl Bus {
         pos: usize,
         speed: Speed,
     ) -> Option<RxReply> {
+        self.dispatch_receive_in(self.ctx_view(), idx, pos, speed)
+    }
+
+    /// [`dispatch_receive`](Self::dispatch_receive) with what the node sees
+    /// of the bus, `view`, already taken (a batch takes it once: its
+    /// deliveries differ only in time, as nothing else a node sees
+    /// changes but through a bus reset, which ends the batch).
+    #[inline(always)]
+    pub(super) fn dispatch_receive_in(
+        &mut self,
+        view: CtxView,
+        idx: usize,
+        pos: usize,
+        speed: Speed,
+    ) -> Option<RxReply> {
         if self.slots.get(idx).is_none_or(|s| s.muted) {
             return None;
         }
-        let view = self.ctx_view();
+        debug_assert_eq!(view, self.ctx_view(), "a batch's view of the bus");
         let now = view.now;
         let Bus {
             slots,
@@ -326,10 +341,10 @@ impl Bus {
         }
     }
 
-    /// Queue node `idx`'s packet for arbitration, or refuse it (too long,
-    /// node muted or off the bus: the node is told at once). Returns
-    /// whether it was queued.
-    fn queue_transmit(&mut self, idx: usize, req: TransmitRequest) -> bool {
+    /// Queue node `idx`'s packet for arbitration (its CRC status `crc`
+    /// when known), or refuse it (too long, node muted or off the bus: the
+    /// node is told at once). Returns whether it was queued.
+    fn queue_transmit(&mut self, idx: usize, req: TransmitRequest, crc: Option<CrcStatus>) -> bool {
         let now = self.now;
         let TransmitRequest {
             packet,
@@ -374,6 +389,7 @@ impl Bus {
             ready_at: now,
             delayed: false,
             faults: Vec::new(),
+            crc,
         });
         true
     }
@@ -427,9 +443,9 @@ pub(super) enum Batch<'a> {
 }
 
 /// The bus's state a [`NodeCtx`] shows, taken before the call.
-#[derive(Clone, Copy)]
-struct CtxView {
-    now: SimTime,
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct CtxView {
+    pub(super) now: SimTime,
     generation: u32,
     node_count: u8,
     bus_idle: bool,

@@ -194,6 +194,9 @@ struct Pending {
     ready_at: SimTime,
     delayed: bool,
     faults: Vec<FaultId>,
+    /// The CRC status of `bytes` when the bus already knows it (a sealed
+    /// packet, a cycle start); `None`: worked out at the first delivery.
+    crc: Option<CrcStatus>,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -244,7 +247,8 @@ struct Sub {
     notified: bool,
     answers: Option<PacketId>,
     /// The CRC status of `bytes`, worked out once for every node that
-    /// receives them.
+    /// receives them (known from the start for a sealed packet or a cycle
+    /// start, until a fault changes the bytes).
     crc: Option<CrcStatus>,
     /// Why its deliveries go event by event (`None`: in batches), decided
     /// when it starts ([`detail`]).
@@ -269,9 +273,15 @@ impl SubTable {
         self.position(*id).ok().and_then(|i| self.0.get_mut(i))
     }
 
-    /// Insert (or replace) the subaction `sub` of packet `id`.
+    /// Insert (or replace) the subaction `sub` of packet `id` (a new
+    /// packet's ID is the highest yet: it goes at the end).
+    #[inline]
     fn insert(&mut self, id: PacketId, mut sub: Sub) {
         sub.id = id;
+        if self.0.last().is_none_or(|last| last.id < id) {
+            self.0.push(sub);
+            return;
+        }
         match self.position(id) {
             Ok(i) => {
                 if let Some(slot) = self.0.get_mut(i) {

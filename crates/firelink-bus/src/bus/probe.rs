@@ -2,7 +2,9 @@
 //! answers like a board's link (unicast writes `ack_complete`, quadlet reads
 //! `ack_pending` and the response at once).
 
-use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Rcode, Speed, Tcode};
+use firelink_wire::packet::{
+    Ack, AsyncHeader, CrcStatus, NodeId, Packet, PacketRepr, Rcode, Speed, Tcode,
+};
 
 use super::{Bus, BusConfig, NodeConfig, NodeHandle};
 use crate::node::{ArbitrationClass, Node, NodeCtx, ResetInfo, RxReply, TransmitRequest};
@@ -13,6 +15,8 @@ use crate::time::SimTime;
 pub(super) struct Probe {
     pub phy: u8,
     pub received: Vec<(SimTime, Vec<u8>)>,
+    /// What the bus said of each received packet's CRCs.
+    pub received_crc: Vec<Option<CrcStatus>>,
     pub transmitted: Vec<(SimTime, u64, Option<Ack>)>,
     pub resets: Vec<ResetInfo>,
     pub timers: Vec<(SimTime, u64)>,
@@ -35,9 +39,10 @@ impl Node for Probe {
         now: SimTime,
         packet: &[u8],
         speed: Speed,
-        _ctx: &mut NodeCtx<'_>,
+        ctx: &mut NodeCtx<'_>,
     ) -> RxReply {
         self.received.push((now, packet.to_vec()));
+        self.received_crc.push(ctx.received_crc_status());
         let Ok(view) = Packet::new_checked(packet) else {
             return RxReply::Silent;
         };

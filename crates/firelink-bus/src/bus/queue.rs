@@ -217,7 +217,12 @@ impl EventQueue {
             self.spare.push(list);
             return;
         }
-        list.sort_unstable_by_key(|a| (a.time, a.seq));
+        // Numbered in listing order: already in (time, number) order when
+        // listed in time order, as the nearest-first listing is (the sort
+        // only for a listing by ID with hop delays).
+        if !list.is_sorted_by_key(|a| a.time) {
+            list.sort_unstable_by_key(|a| (a.time, a.seq));
+        }
         let wave = Wave {
             sub,
             epoch,

@@ -32,6 +32,8 @@ impl Bus {
                 bytes.truncate(keep.max(4));
             }
             original = Some(std::mem::replace(&mut sub.bytes, bytes));
+            // Changed on the way: checked again at delivery.
+            sub.crc = None;
         }
         for (what, _, rule) in d.fired {
             let id = self.log.add(
@@ -263,9 +265,13 @@ impl Bus {
         self.rx_crc = Some(crc);
         self.detail.batch();
         let mut node = d.node;
+        // Taken once: within the batch only the time moves (a bus reset,
+        // which would change the rest, ends it).
+        let mut view = self.ctx_view();
         loop {
             self.detail.batched_delivery();
-            let reply = self.dispatch_receive(node, pos, speed);
+            view.now = self.now;
+            let reply = self.dispatch_receive_in(view, node, pos, speed);
             let is_dest = dest == Some(node);
             if let Some(reply) = reply
                 && (reply != RxReply::Silent || is_dest)
@@ -618,6 +624,7 @@ impl Bus {
                 ready_at: now,
                 delayed: true,
                 faults: rsub.faults.clone(),
+                crc: None,
             });
         }
         self.subs.insert(rid, rsub);
@@ -736,6 +743,7 @@ impl WireShape {
 mod tests {
     use super::super::probe::{chain, probe, qread, qwrite, send};
     use super::*;
+    use crate::fault::{PacketFault, PacketMatch};
 
     /// A 3-node chain, quiet, trace cleared.
     fn quiet(n: usize) -> (Bus, Vec<NodeHandle>) {
@@ -823,5 +831,98 @@ mod tests {
         // The requester received the response and acked it.
         assert_eq!(probe(&bus, nodes[0]).received.len(), 1);
         assert_eq!(p[3].answers, Some(response.id));
+    }
+
+    /// A block write broadcast from `src` (data of 10 bytes, padded), its
+    /// CRCs as a node that fills them sends it.
+    fn block_broadcast(src: u8) -> Vec<u8> {
+        super::super::probe::emit(&firelink_wire::packet::PacketRepr::WriteBlockRequest {
+            header: firelink_wire::packet::AsyncHeader::new(
+                NodeId::local(63),
+                NodeId::local(src),
+                3,
+            ),
+            offset: 0x2000,
+            extended_tcode: 0,
+            data: b"ten bytes!",
+        })
+    }
+
+    /// Make `node` send `packet` sealed by the bus.
+    fn send_sealed(bus: &mut Bus, node: NodeHandle, packet: Vec<u8>) {
+        bus.with_node::<super::super::probe::Probe, _>(node, |_, ctx| {
+            ctx.transmit_sealed(TransmitRequest {
+                packet,
+                speed: Speed::S400,
+                class: ArbitrationClass::Fair,
+                token: 1,
+            })
+        })
+        .expect("a probe");
+    }
+
+    #[test]
+    fn a_sealed_packet_carries_the_crcs_a_node_fills_and_a_change_on_the_way_is_still_seen() {
+        let (mut bus, nodes) = quiet(3);
+        let p0 = bus.phy_id(nodes[0]).unwrap();
+        let filled = block_broadcast(p0);
+        // The same packet with both CRCs and the padding wrong: the bus
+        // writes them.
+        let mut blank = filled.clone();
+        for b in &mut blank[16..20] {
+            *b = 0xA5;
+        }
+        let n = blank.len();
+        for b in &mut blank[n - 6..] {
+            *b = 0x5A;
+        }
+        assert_ne!(blank, filled);
+        send_sealed(&mut bus, nodes[0], blank.clone());
+        bus.run_for(SimDuration::from_micros(50));
+        // Corrupted on the wire (a header quadlet, then a data quadlet):
+        // the receivers are told, as for any packet.
+        for index in [2, 5] {
+            bus.add_fault_rule(FaultRule::once(
+                PacketMatch::any(),
+                PacketFault::CorruptQuadlet { index, xor: 1 },
+            ));
+            send_sealed(&mut bus, nodes[0], blank.clone());
+            bus.run_for(SimDuration::from_micros(50));
+        }
+        // Not a whole packet: goes as it is.
+        send_sealed(&mut bus, nodes[0], filled[..10].to_vec());
+        bus.run_for(SimDuration::from_micros(50));
+        let all_ok = CrcStatus {
+            header_ok: Some(true),
+            data_ok: Some(true),
+        };
+        for &node in &nodes[1..] {
+            let p = probe(&bus, node);
+            assert_eq!(p.received.len(), 4);
+            assert_eq!(p.received[0].1, filled, "the bytes a node fills");
+            let told: Vec<Option<CrcStatus>> = p.received_crc.clone();
+            // Each time what the received bytes themselves say.
+            for ((_, bytes), crc) in p.received.iter().zip(&told) {
+                let own = Packet::new_checked(&bytes[..]).map_or(
+                    CrcStatus {
+                        header_ok: None,
+                        data_ok: None,
+                    },
+                    |v| v.crc_status(),
+                );
+                assert_eq!(*crc, Some(own));
+            }
+            assert_eq!(told[0], Some(all_ok));
+            assert_eq!(told[1].and_then(|c| c.header_ok), Some(false), "header hit");
+            assert_eq!(told[2].and_then(|c| c.data_ok), Some(false), "data hit");
+            assert_eq!(p.received[3].1, filled[..10].to_vec());
+        }
+    }
+
+    #[test]
+    fn a_cycle_start_is_known_good_as_built() {
+        let bytes = super::super::cycle::cycle_start_packet(2, SimTime(987_654_321));
+        let status = Packet::new_checked(&bytes[..]).unwrap().crc_status();
+        assert_eq!(status, super::super::cycle::CYCLE_START_CRC);
     }
 }

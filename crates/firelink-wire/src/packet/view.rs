@@ -8,6 +8,10 @@ use super::*;
 /// Largest 48-bit destination offset.
 pub const MAX_OFFSET: u64 = (1 << 48) - 1;
 
+/// A packet's carried header CRC and data CRC, each with the bytes it
+/// covers (`None`: the packet has no such CRC).
+type CrcSpans<'a> = (Option<(u32, &'a [u8])>, Option<(u32, &'a [u8])>);
+
 /// Result of checking a packet's CRCs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct CrcStatus {
@@ -277,11 +281,41 @@ impl<T: AsRef<[u8]>> Packet<T> {
         field::PHY_BODY.get(self.buffer.as_ref())
     }
 
+    /// The CRCs the packet carries, each with the bytes it covers, the
+    /// tcode decoded once: the header CRC and [`header_bytes`](Self::header_bytes)
+    /// when the tcode has one, the data CRC and
+    /// [`padded_data`](Self::padded_data) when there is a data block (what
+    /// [`header_crc`](Self::header_crc) and [`data_crc`](Self::data_crc)
+    /// read).
+    #[inline]
+    fn crc_spans(&self) -> CrcSpans<'_> {
+        let buf = self.buffer.as_ref();
+        let tcode = self.tcode();
+        let header_len = tcode.header_len().unwrap_or(0);
+        let header = tcode.has_header_crc().then(|| {
+            (
+                read_quadlet(buf, header_len / 4),
+                buf.get(..header_len).unwrap_or(buf),
+            )
+        });
+        let data_length = self.data_length_of(tcode);
+        let data = (tcode.has_data_block() && data_length > 0).then(|| {
+            let start = header_len + 4;
+            let end = start + pad4(data_length as usize);
+            (
+                read_quadlet(buf, end / 4),
+                buf.get(start..end).unwrap_or(&[]),
+            )
+        });
+        (header, data)
+    }
+
     /// Both CRC checks at once.
     pub fn crc_status(&self) -> CrcStatus {
+        let (header, data) = self.crc_spans();
         CrcStatus {
-            header_ok: self.header_crc_ok(),
-            data_ok: self.data_crc_ok(),
+            header_ok: header.map(|(carried, bytes)| carried == crc1394(bytes)),
+            data_ok: data.map(|(carried, bytes)| carried == crc1394(bytes)),
         }
     }
 
@@ -305,14 +339,15 @@ impl<T: AsRef<[u8]>> Packet<T> {
                 });
             }
         }
-        if let Some(carried) = self.header_crc() {
-            let computed = crc1394(self.header_bytes());
+        let (header, data) = self.crc_spans();
+        if let Some((carried, bytes)) = header {
+            let computed = crc1394(bytes);
             if carried != computed {
                 return Err(Error::HeaderCrc { carried, computed });
             }
         }
-        if let Some(carried) = self.data_crc() {
-            let computed = crc1394(self.padded_data());
+        if let Some((carried, bytes)) = data {
+            let computed = crc1394(bytes);
             if carried != computed {
                 return Err(Error::DataCrc { carried, computed });
             }
@@ -523,5 +558,63 @@ mod tests {
             Packet::new_checked(&unknown[..]),
             Err(Error::UnknownTcode(3))
         );
+    }
+
+    #[test]
+    fn crc_status_and_verify_read_what_the_single_accessors_read() {
+        // Every tcode, data lengths around the padding, whole and cut
+        // buffers, CRCs filled then one byte flipped in turn: the one-pass
+        // status is the two accessors' answers, and verify fails exactly
+        // where one says false (its first failure, header before data).
+        let mut x = 0x9E37_79B9u32;
+        for tcode in 0..16u8 {
+            for data_length in [0u16, 1, 3, 4, 5, 68] {
+                let mut whole = [0u8; 100];
+                for b in whole.iter_mut() {
+                    x ^= x << 13;
+                    x ^= x >> 17;
+                    x ^= x << 5;
+                    *b = x as u8;
+                }
+                let mut p = Packet::new_unchecked(&mut whole[..]);
+                p.set_tcode(Tcode::from(tcode));
+                p.set_data_length(data_length);
+                p.fill_header_crc();
+                p.fill_data_crc();
+                for flip in [None, Some(2usize), Some(13), Some(21), Some(40)] {
+                    let mut buf = whole;
+                    if let Some(i) = flip {
+                        buf[i] ^= 0x10;
+                    }
+                    for cut in [100usize, 90, 40, 24, 17, 12, 4] {
+                        let view = Packet::new_unchecked(&buf[..cut]);
+                        let status = view.crc_status();
+                        let what = (tcode, data_length, flip, cut);
+                        assert_eq!(status.header_ok, view.header_crc_ok(), "{what:?}");
+                        assert_eq!(status.data_ok, view.data_crc_ok(), "{what:?}");
+                        let verdict = view.verify();
+                        if view.tcode() != Tcode::LinkInternal {
+                            assert_eq!(verdict.is_ok(), status.all_ok(), "{what:?}");
+                        }
+                        match verdict {
+                            Err(Error::HeaderCrc { carried, computed }) => {
+                                assert_eq!(Some(carried), view.header_crc(), "{what:?}");
+                                assert_eq!(computed, crc1394(view.header_bytes()), "{what:?}");
+                            }
+                            Err(Error::DataCrc { carried, computed }) => {
+                                assert_eq!(
+                                    status.header_ok,
+                                    view.header_crc().map(|_| true),
+                                    "{what:?}"
+                                );
+                                assert_eq!(Some(carried), view.data_crc(), "{what:?}");
+                                assert_eq!(computed, crc1394(view.padded_data()), "{what:?}");
+                            }
+                            _ => {}
+                        }
+                    }
+                }
+            }
+        }
     }
 }
