@@ -1114,6 +1114,20 @@ impl Firmware {
     /// answer is almost always "not yet"; the packet is built out of line.
     #[inline]
     pub fn poll_transmit(&mut self, now: SimTime) -> Option<Vec<u8>> {
+        self.poll_transmit_as(now, Crcs::Filled)
+    }
+
+    /// [`poll_transmit`](Self::poll_transmit) for a sender whose bus writes
+    /// the packet's CRCs itself
+    /// ([`NodeCtx::transmit_sealed`](firelink_bus::NodeCtx::transmit_sealed)):
+    /// the same packet with its header and data CRC fields left zero.
+    #[inline]
+    pub fn poll_transmit_unsealed(&mut self, now: SimTime) -> Option<Vec<u8>> {
+        self.poll_transmit_as(now, Crcs::LeftToTheBus)
+    }
+
+    #[inline(always)]
+    fn poll_transmit_as(&mut self, now: SimTime, crcs: Crcs) -> Option<Vec<u8>> {
         self.catch_up(now);
         let ready = self
             .hub
@@ -1123,24 +1137,28 @@ impl Firmware {
         if !ready {
             return None;
         }
-        self.take_status_broadcast()
+        self.take_status_broadcast(crcs)
     }
 
     /// [`poll_transmit`](Self::poll_transmit)'s status broadcast once it
     /// is ready: the waiting broadcast taken (and dropped if this board
     /// has no node ID), its packet built.
     #[inline(never)]
-    fn take_status_broadcast(&mut self) -> Option<Vec<u8>> {
+    fn take_status_broadcast(&mut self, crcs: Crcs) -> Option<Vec<u8>> {
         let pending = self.hub.pending.take()?;
         let phy = self.phy_id?;
         let offset = status_broadcast_offset(self.cfg.firmware, self.cfg.board_id)
             .unwrap_or(STATUS_BROADCAST_OFFSET);
+        let header_crc = match crcs {
+            Crcs::Filled => Some(&mut self.broadcast_header_crc),
+            Crcs::LeftToTheBus => None,
+        };
         let packet = status_broadcast_into(
             phy,
             offset,
             &pending.payload,
             core::mem::take(&mut self.packet_buffer),
-            &mut self.broadcast_header_crc,
+            header_crc,
         );
         self.hub.in_flight = Some(pending.payload);
         Some(packet)
@@ -1347,13 +1365,14 @@ fn block_response_into(header: AsyncHeader, rcode: Rcode, data: &[u8], buffer: V
 /// (CRCs included), with the header's quadlets written directly.
 /// `header_crc` remembers the last header's quadlets and CRC: a header
 /// equal to it takes that CRC (the CRC of the same 16 bytes), another is
-/// worked out and remembered.
+/// worked out and remembered. With no `header_crc` both CRC fields are
+/// left zero, for the bus to write ([`Crcs::LeftToTheBus`]).
 fn status_broadcast_into(
     phy: u8,
     offset: u64,
     payload: &[u8],
     mut buffer: Vec<u8>,
-    header_crc: &mut Option<([u32; 4], u32)>,
+    header_crc: Option<&mut Option<([u32; 4], u32)>>,
 ) -> Vec<u8> {
     let Ok(data_length) = u16::try_from(payload.len()) else {
         return emit_into(
@@ -1379,11 +1398,13 @@ fn status_broadcast_into(
     for quadlet in header {
         buffer.extend_from_slice(&quadlet.to_be_bytes());
     }
-    let crc = match *header_crc {
-        Some((quadlets, crc)) if quadlets == header => crc,
-        _ => {
+    let fill = header_crc.is_some();
+    let crc = match header_crc {
+        None => 0,
+        Some(&mut Some((quadlets, crc))) if quadlets == header => crc,
+        Some(memo) => {
             let crc = firelink_wire::crc::crc1394(&buffer);
-            *header_crc = Some((header, crc));
+            *memo = Some((header, crc));
             crc
         }
     };
@@ -1392,10 +1413,23 @@ fn status_broadcast_into(
         let start = buffer.len();
         buffer.extend_from_slice(payload);
         buffer.resize(start + payload.len().div_ceil(4) * 4, 0);
-        let data_crc = buffer.get(start..).map_or(0, firelink_wire::crc::crc1394);
+        let data_crc = match fill {
+            true => buffer.get(start..).map_or(0, firelink_wire::crc::crc1394),
+            false => 0,
+        };
         buffer.extend_from_slice(&data_crc.to_be_bytes());
     }
     buffer
+}
+
+/// Who writes a built packet's CRCs.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Crcs {
+    /// The firmware, as the packet is built.
+    Filled,
+    /// The bus, as the packet goes out
+    /// ([`NodeCtx::transmit_sealed`](firelink_bus::NodeCtx::transmit_sealed)).
+    LeftToTheBus,
 }
 
 /// Emit a packet this module built (always valid: fields in range).
@@ -1443,24 +1477,39 @@ mod tests {
             for phy in [0u8, 5, 62] {
                 let offset = 0xFFFF_FF00_1000 + u64::from(phy) * 0x20;
                 let expected = emitted(phy, offset, &payload);
-                let built = status_broadcast_into(phy, offset, &payload, vec![0xAA; 9], &mut None);
+                let built =
+                    status_broadcast_into(phy, offset, &payload, vec![0xAA; 9], Some(&mut None));
                 assert_eq!(built, expected, "payload of {len} bytes from node {phy}");
                 let mut memo = None;
                 for round in 0..2 {
-                    let again = status_broadcast_into(phy, offset, &payload, vec![1], &mut memo);
+                    let again =
+                        status_broadcast_into(phy, offset, &payload, vec![1], Some(&mut memo));
                     assert_eq!(
                         again, expected,
                         "{len} bytes from node {phy}, round {round}"
                     );
                 }
-                let other = status_broadcast_into(phy ^ 1, offset, &payload, Vec::new(), &mut memo);
+                let other =
+                    status_broadcast_into(phy ^ 1, offset, &payload, Vec::new(), Some(&mut memo));
                 assert_eq!(
                     other,
                     emitted(phy ^ 1, offset, &payload),
                     "{len} bytes, other"
                 );
-                let back = status_broadcast_into(phy, offset, &payload, Vec::new(), &mut memo);
+                let back =
+                    status_broadcast_into(phy, offset, &payload, Vec::new(), Some(&mut memo));
                 assert_eq!(back, expected, "{len} bytes from node {phy}, after another");
+                // Left for the bus to seal: the same bytes once both CRCs
+                // are filled in, and none filled before.
+                let mut unsealed =
+                    status_broadcast_into(phy, offset, &payload, vec![0xAA; 9], None);
+                assert_eq!(unsealed.len(), expected.len(), "{len} bytes, unsealed");
+                let mut packet = firelink_wire::packet::Packet::new_checked(&mut unsealed[..])
+                    .expect("a whole packet");
+                assert_eq!(packet.header_crc(), Some(0), "{len} bytes: left to the bus");
+                packet.fill_header_crc();
+                packet.fill_data_crc();
+                assert_eq!(unsealed, expected, "{len} bytes from node {phy}, sealed");
             }
         }
     }

@@ -157,10 +157,11 @@ impl BoardNode {
     #[inline(always)]
     fn pump(&mut self, now: SimTime, ctx: &mut NodeCtx<'_>) {
         stock_packet_buffer(&mut self.firmware, ctx);
-        while let Some(packet) = self.firmware.poll_transmit(now) {
+        // The bus writes the broadcast's CRCs, and so knows them good.
+        while let Some(packet) = self.firmware.poll_transmit_unsealed(now) {
             self.next_token += 1;
             self.in_flight = Some(self.next_token);
-            ctx.transmit(TransmitRequest {
+            ctx.transmit_sealed(TransmitRequest {
                 packet,
                 speed: self.speed,
                 class: self.class,
