@@ -405,6 +405,20 @@ impl Sinusoid {
     /// joints: LLVM kept it a call per sinusoid joint and cycle.)
     #[inline(always)]
     pub fn sample(&self, t: f64) -> Sample {
+        self.sample_by(t, libm::sincos)
+    }
+
+    /// [`sample`](Self::sample), the sine and cosine of its angle taken
+    /// from `memo` (the same bits: see [`SinCosMemo`]).
+    #[inline(always)]
+    pub fn sample_memo(&self, t: f64, memo: &mut SinCosMemo) -> Sample {
+        self.sample_by(t, |angle| memo.sincos(angle))
+    }
+
+    /// [`sample`](Self::sample) with `sincos` giving `libm::sincos` of the
+    /// angle.
+    #[inline(always)]
+    fn sample_by(&self, t: f64, sincos: impl FnOnce(f64) -> (f64, f64)) -> Sample {
         let t = if t.is_nan() || t < 0.0 {
             return Sample::at_rest(self.position_at(0.0));
         } else if t == f64::INFINITY {
@@ -425,7 +439,7 @@ impl Sinusoid {
             (1.0, 0.0, 0.0)
         };
         let angle = self.omega * t + self.phase;
-        let (sin, cos) = libm::sincos(angle);
+        let (sin, cos) = sincos(angle);
         let a = self.amplitude;
         let w = self.omega;
         let s = Sample {
@@ -509,6 +523,51 @@ impl ServoPoint {
     }
 }
 
+/// How many angles a [`SinCosMemo`] keeps.
+const SINCOS_KEPT: usize = 4;
+
+/// The last few angles whose sine and cosine a pass over the joints'
+/// setpoints computed, with both values. `libm::sincos` is a function of
+/// its argument's bits alone, so an angle met again (the same bits: `0.0`
+/// and `-0.0` are two angles) is given the very values computed for it
+/// before, without computing them again: the dVRK demo's 14 sinusoids
+/// share two frequencies, no phase and one start, two angles per cycle.
+/// Allocation-free; the oldest angle kept gives way to a new one.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SinCosMemo {
+    /// The kept angles' bits; the first `kept` are in use.
+    angles: [u64; SINCOS_KEPT],
+    /// `libm::sincos` of each kept angle.
+    values: [(f64, f64); SINCOS_KEPT],
+    kept: usize,
+    /// The slot the next new angle takes.
+    next: usize,
+}
+
+impl SinCosMemo {
+    /// `libm::sincos(angle)`, bit for bit: the kept values when `angle`'s
+    /// bits are kept, else computed and kept.
+    #[inline(always)]
+    pub fn sincos(&mut self, angle: f64) -> (f64, f64) {
+        let bits = angle.to_bits();
+        let kept = self.angles.iter().zip(&self.values).take(self.kept);
+        for (&a, &v) in kept {
+            if a == bits {
+                return v;
+            }
+        }
+        let v = libm::sincos(angle);
+        let slot = self.next % SINCOS_KEPT;
+        if let (Some(a), Some(kept)) = (self.angles.get_mut(slot), self.values.get_mut(slot)) {
+            *a = bits;
+            *kept = v;
+        }
+        self.next = (slot + 1) % SINCOS_KEPT;
+        self.kept = (self.kept + 1).min(SINCOS_KEPT);
+        v
+    }
+}
+
 impl Motion {
     /// The setpoint at time `t` since the motion started. (Inlined into
     /// the servo cycle's loop over the joints: a call per joint and cycle
@@ -521,6 +580,17 @@ impl Motion {
             Motion::Quintic(m) => m.sample(t),
             Motion::Sinusoid(m) => m.sample(t),
             Motion::Servo(m) => m.sample(t),
+        }
+    }
+
+    /// [`sample`](Self::sample), the same bits, a sinusoid's sine and
+    /// cosine taken from `memo` (the servo cycle passes one memo over all
+    /// its joints: sinusoids at the same angle compute it once).
+    #[inline(always)]
+    pub fn sample_memo(&self, t: f64, memo: &mut SinCosMemo) -> Sample {
+        match self {
+            Motion::Sinusoid(m) => m.sample_memo(t, memo),
+            other => other.sample(t),
         }
     }
 
@@ -691,6 +761,80 @@ mod tests {
         assert_eq!(s.sample(f64::INFINITY), Sample::at_rest(0.0));
         assert!(!s.is_done(1e9));
         assert!(Motion::Hold(2.0).is_done(0.0));
+    }
+
+    /// The bits of `libm::sincos`'s two values.
+    fn sincos_bits(angle: f64) -> (u64, u64) {
+        let (s, c) = libm::sincos(angle);
+        (s.to_bits(), c.to_bits())
+    }
+
+    /// A memo gives `libm::sincos`'s bits for every angle: new, met again
+    /// while kept, met again after it gave way to newer ones, 0 and -0,
+    /// NaN and the infinities.
+    #[test]
+    fn a_sincos_memo_gives_libm_bits() {
+        let angles = [
+            0.0,
+            -0.0,
+            1.0,
+            1.0,
+            0.0,
+            2.5e6,
+            -3.0,
+            f64::NAN,
+            1.0,
+            f64::INFINITY,
+            -0.0,
+            7.0,
+            8.0,
+            9.0,
+            10.0,
+            2.5e6,
+            f64::NEG_INFINITY,
+            -3.0,
+            7.0,
+            7.0,
+        ];
+        let mut memo = SinCosMemo::default();
+        for a in angles {
+            let (s, c) = memo.sincos(a);
+            assert_eq!((s.to_bits(), c.to_bits()), sincos_bits(a), "angle {a:?}");
+        }
+    }
+
+    /// Sinusoids sampled through one memo, some at the same angle, give
+    /// the bits of sampling each alone; the other motions pass through.
+    #[test]
+    fn sampling_through_a_memo_gives_the_same_bits() {
+        let motions = [
+            Motion::Sinusoid(Sinusoid::new(0.1, 0.4, 0.0, 1.0, 0.5).unwrap()),
+            Motion::PointToPoint(PointToPoint::new(0.0, 1.0, 1.0, 3.0).unwrap()),
+            Motion::Sinusoid(Sinusoid::new(0.2, 0.4, 0.0, -1.0, 0.5).unwrap()),
+            Motion::Sinusoid(Sinusoid::new(0.3, 0.6, 0.0, 0.0, 0.0).unwrap()),
+            Motion::Quintic(Quintic::with_limits(1.0, 0.0, 1.0, 3.0).unwrap()),
+            Motion::Sinusoid(Sinusoid::new(0.4, 0.4, 0.2, 0.0, 0.5).unwrap()),
+            Motion::Sinusoid(Sinusoid::new(0.5, 0.6, 0.0, 2.0, 0.0).unwrap()),
+            Motion::Hold(3.0),
+            Motion::Sinusoid(Sinusoid::new(0.6, 0.8, 0.0, 0.0, 0.5).unwrap()),
+            Motion::Sinusoid(Sinusoid::new(0.7, 1.0, 0.0, 0.0, 0.5).unwrap()),
+            Motion::Sinusoid(Sinusoid::new(0.8, 1.2, 0.0, 0.0, 0.5).unwrap()),
+            Motion::Sinusoid(Sinusoid::new(0.9, 0.4, 0.0, 0.0, 0.5).unwrap()),
+        ];
+        let bits = |s: Sample| {
+            (
+                s.position.to_bits(),
+                s.velocity.to_bits(),
+                s.acceleration.to_bits(),
+            )
+        };
+        for t in [-1.0, 0.0, 0.1, 0.25, 0.7, 3.3, 1e7, f64::NAN, f64::INFINITY] {
+            let mut memo = SinCosMemo::default();
+            for m in &motions {
+                let through = m.sample_memo(t, &mut memo);
+                assert_eq!(bits(through), bits(m.sample(t)), "{m:?} at {t}");
+            }
+        }
     }
 
     proptest! {

@@ -11,7 +11,7 @@ use crate::config::{DriveConfig, EncoderConfig, JointRef, JointType, Potentiomet
 use crate::label::Label;
 use crate::pid::{Measurement, Pid, Setpoint};
 use crate::safety::JointSample;
-use crate::trajectory::Motion;
+use crate::trajectory::{Motion, SinCosMemo};
 
 /// One joint: where its owner finds its axis, its conversions and its
 /// control state.
@@ -94,13 +94,15 @@ impl Joint {
     }
 
     /// Then the setpoint: Active, the trajectory's at the port's time
-    /// `now`; otherwise the joint's position, at rest. (Active, it reads
-    /// nothing [`measure`](Self::measure) writes: the runner plans every
-    /// joint's setpoint before measuring them.)
+    /// `now` (a sinusoid's sine and cosine through `memo`, which the
+    /// runner passes to every joint of the cycle: the same bits as
+    /// [`Motion::sample`]); otherwise the joint's position, at rest.
+    /// (Active, it reads nothing [`measure`](Self::measure) writes: the
+    /// runner plans every joint's setpoint before measuring them.)
     #[inline(always)]
-    pub fn plan(&mut self, now: f64, active: bool) {
+    pub fn plan(&mut self, now: f64, active: bool, memo: &mut SinCosMemo) {
         if active {
-            let sp = self.motion.sample(now - self.motion_start);
+            let sp = self.motion.sample_memo(now - self.motion_start, memo);
             self.setpoint = sp.position;
             self.setpoint_velocity = sp.velocity;
         } else {

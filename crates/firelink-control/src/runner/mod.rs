@@ -60,7 +60,7 @@ use crate::lifecycle::{Lifecycle, LifecycleError, PowerStatus, State};
 use crate::period::ServoPeriod;
 use crate::pid::{Pid, PidError, PidGains};
 use crate::safety::{JointSample, SafetyMonitor};
-use crate::trajectory::Motion;
+use crate::trajectory::{Motion, SinCosMemo};
 
 /// How cycles are paced.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -1192,6 +1192,9 @@ impl<R: RobotIo> Robot<R> {
         // controlled.
         self.io
             .axis_inputs(&mut self.axis_counts, &mut self.axis_pots);
+        // The sinusoids' sines and cosines of this cycle, each angle
+        // computed once (the same bits for every joint at that angle).
+        let mut memo = SinCosMemo::default();
         if active && !coupled {
             // Active, a joint's setpoint depends on its motion and the
             // time alone, not on its measurement: every setpoint first, in
@@ -1200,7 +1203,7 @@ impl<R: RobotIo> Robot<R> {
             // needs every value it keeps live around them). Otherwise the
             // setpoint is the position just measured.
             for j in self.joints.iter_mut() {
-                j.plan(now, true);
+                j.plan(now, true, &mut memo);
             }
         }
         let joints = self.joints.iter_mut().zip(&mut self.samples);
@@ -1222,7 +1225,7 @@ impl<R: RobotIo> Robot<R> {
             // encoder with it in actuator space.
             self.mix_pots();
             for j in self.joints.iter_mut() {
-                j.plan(now, active);
+                j.plan(now, active, &mut memo);
             }
             let joints = self.joints.iter_mut().zip(&mut self.samples);
             for (i, ((j, s), p)) in joints.zip(&self.pot).enumerate() {
@@ -1238,7 +1241,7 @@ impl<R: RobotIo> Robot<R> {
                 let pot = j.pot_position(self.axis_pots.get(j.axis).copied().flatten());
                 *p = pot;
                 if !active {
-                    j.plan(now, false);
+                    j.plan(now, false, &mut memo);
                 }
                 j.control(dt, active, pot, Some(pid), self.arm_acc.get_mut(j.arm), s);
             }

@@ -350,7 +350,7 @@ impl<P: Port> IoSystem<P> {
             return Ok(());
         };
         let bytes = self.buf.get(..hub_len).unwrap_or(&[]);
-        let hub = HubBlock::new_checked(bytes, &group.slots)?;
+        let hub = HubBlock::new_checked_quadlets(bytes, &group.slots, group.hub_quadlets)?;
         let clock_hz = self.port.hub_clock_hz();
         // The hub packs blocks in arrival order, which is board order for
         // the Rev 7+ chain but not always for TDMA slots (a late slot, fair

@@ -57,10 +57,12 @@ impl<'a> CommandBlockWriter<'a> {
     /// [`push`](Self::push) with `control` as the block's control quadlet
     /// ([`WriteBlockRepr::emit_with_control`]): the block goes straight
     /// into the buffer, without a copy of it with the control put in.
+    /// (Always inlined: the host's cycle calls it for every board, and
+    /// `#[inline]` alone left it a call.)
     ///
     /// # Errors
     /// As [`push`](Self::push).
-    #[inline]
+    #[inline(always)]
     pub fn push_with_control(
         &mut self,
         block: &WriteBlockRepr,

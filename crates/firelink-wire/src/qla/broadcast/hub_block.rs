@@ -61,6 +61,29 @@ impl<'b, T: AsRef<[u8]>> HubBlock<'b, T> {
         Ok(b)
     }
 
+    /// [`new_checked`](Self::new_checked) for boards whose
+    /// [`hub_block_quadlets`] the caller worked out once: `quadlets` must
+    /// be that of `boards`' layouts. The same checks in the same order,
+    /// without the walk over the layouts (the host's cycle checks a block
+    /// of the same boards every cycle).
+    ///
+    /// # Errors
+    /// See [`check_len`](Self::check_len).
+    #[inline]
+    pub fn new_checked_quadlets(
+        buffer: T,
+        boards: &'b [BoardSlot],
+        quadlets: usize,
+    ) -> Result<HubBlock<'b, T>> {
+        debug_assert_eq!(
+            quadlets,
+            hub_block_quadlets(boards.iter().map(|b| b.layout))
+        );
+        let b = Self::new_unchecked(buffer, boards);
+        b.check_len_of(quadlets)?;
+        Ok(b)
+    }
+
     /// Check the buffer is exactly the hub block of the expected boards.
     ///
     /// # Errors
@@ -68,8 +91,14 @@ impl<'b, T: AsRef<[u8]>> HubBlock<'b, T> {
     /// than the 512-quadlet hub memory; [`Error::NotQuadletAligned`] or
     /// [`Error::BlockSize`] for a buffer of the wrong size.
     pub fn check_len(&self) -> Result<()> {
+        self.check_len_of(hub_block_quadlets(self.boards.iter().map(|b| b.layout)))
+    }
+
+    /// [`check_len`](Self::check_len) with the boards' hub block size
+    /// `quadlets` given.
+    #[inline]
+    fn check_len_of(&self, quadlets: usize) -> Result<()> {
         check_max("hub boards", self.boards.len() as u64, MAX_BOARDS as u64)?;
-        let quadlets = hub_block_quadlets(self.boards.iter().map(|b| b.layout));
         check_max(
             "hub block quadlets",
             quadlets as u64,
@@ -477,6 +506,24 @@ mod tests {
         );
         assert!(hub.entry(2).is_none());
         assert!(HubBlock::new_checked(&mem[..len - 4], &boards).is_err());
+        // With the size worked out once: the same answer for every length
+        // and board list, errors included.
+        let of = |b: &[BoardSlot]| hub_block_quadlets(b.iter().map(|s| s.layout));
+        let seventeen = [BoardSlot {
+            id: 0,
+            layout: REV8,
+        }; 17];
+        let lists: [&[BoardSlot]; 4] = [&boards, &boards[..1], &[], &seventeen];
+        for list in lists {
+            for n in 0..mem.len().min(len + 9) {
+                assert_eq!(
+                    HubBlock::new_checked_quadlets(&mem[..n], list, of(list)),
+                    HubBlock::new_checked(&mem[..n], list),
+                    "{} boards, {n} bytes",
+                    list.len()
+                );
+            }
+        }
         let too_many = [BoardSlot {
             id: 0,
             layout: REV8,
