@@ -321,8 +321,9 @@ impl<'a> HubPacker<'a> {
     /// (the packet is then not stored); the errors of
     /// [`push`](Self::push).
     ///
-    /// Inlined: a board's hub stores every broadcast it hears and asks
-    /// only whether it was stored, so the error is never built there.
+    /// The emulated board's hub keeps its own copy of this store, always
+    /// inlined into its delivery path, and is tested against this one
+    /// (`firelink_board::qla::hub`).
     #[inline]
     pub fn store_broadcast(
         &mut self,
