@@ -182,6 +182,9 @@ pub struct Axis {
     /// The current the amplifier drives towards from `time` on, once
     /// worked out (see [`TargetMemo`]).
     target: TargetMemo,
+    /// Whether the state was found at rest with its temperature settled
+    /// (see [`RestMemo`]).
+    rest: RestMemo,
     /// The instant the state is at.
     time: SimTime,
     /// The plant's clock, as the plant last handed it over (before it
@@ -257,6 +260,7 @@ impl Axis {
             },
             state,
             target: TargetMemo(None),
+            rest: RestMemo(false),
             time: SimTime::ZERO,
             clock: SimTime::ZERO,
         }
@@ -286,6 +290,7 @@ impl Axis {
         self.catch_up();
         self.inputs = new;
         self.target = TargetMemo(None);
+        self.rest = RestMemo(false);
     }
 
     /// Set the amplifier inputs, from the plant's clock on: DAC code and
@@ -428,8 +433,24 @@ impl Axis {
     }
 
     /// Integrate the state from its instant up to the clock, in spans of
-    /// at most one step of constant inputs.
+    /// at most one step of constant inputs. Inlined: a state already at
+    /// the clock, or found at rest and settled before (nothing to
+    /// integrate until the inputs change), takes a test or two.
+    #[inline]
     pub(crate) fn catch_up(&mut self) {
+        if self.time >= self.clock {
+            return;
+        }
+        if self.rest.0 {
+            self.time = self.clock;
+            return;
+        }
+        self.integrate_to_clock();
+    }
+
+    /// [`catch_up`](Self::catch_up) with time to integrate.
+    #[inline(never)]
+    fn integrate_to_clock(&mut self) {
         let step = self.model.grid.ps;
         while self.time < self.clock {
             let left = self.clock.0 - self.time.0;
@@ -446,7 +467,10 @@ impl Axis {
                     && settled.is_finite()
                     && settled != 0.0
                     && self.model.inv_tau_thermal >= 0.0;
-                if !unchanged {
+                if unchanged {
+                    // And so it stays until the inputs change.
+                    self.rest = RestMemo(true);
+                } else {
                     let keep = (-(left as f64) * 1e-12 * self.model.inv_tau_thermal).exp();
                     self.state.temperature += (steady - self.state.temperature) * (1.0 - keep);
                 }
@@ -607,6 +631,22 @@ struct TargetMemo(Option<f64>);
 impl core::fmt::Debug for TargetMemo {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str("TargetMemo")
+    }
+}
+
+/// Whether an axis's state was found at rest, with nothing to move it
+/// ([`Model::quiescent`]), and its temperature settled (a span would add
+/// +0 to it): then integrating up to any later clock only moves the
+/// state's instant, until the inputs change (the state does not change
+/// without integrating, and the inputs only through `set_inputs`, which
+/// forgets this). `false` is always right: the state is then looked at.
+#[derive(Clone, Copy)]
+struct RestMemo(bool);
+
+/// Like [`TargetMemo`]'s, a lookup aid only (left out of the digest).
+impl core::fmt::Debug for RestMemo {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("RestMemo")
     }
 }
 
@@ -933,6 +973,33 @@ fn steady_temperature(params: &AxisParams, current: f64, enabled: bool) -> f64 {
 
 #[cfg(test)]
 mod tests {
+    use super::{Axis, Integrator, SimTime};
+    use crate::plant::presets;
+
+    /// An axis found at rest and settled skips its spans until its inputs
+    /// change; then it moves exactly as one that never skipped them.
+    #[test]
+    fn an_axis_left_at_rest_moves_like_a_fresh_one_once_driven() {
+        let params = presets::generic_motor();
+        let step = 100_000_000;
+        let mut rested = Axis::new(&params, step, Integrator::Exact);
+        for k in 1..=20 {
+            rested.set_clock(SimTime(k * 37_000_000));
+            rested.catch_up();
+        }
+        assert!(rested.rest.0, "found at rest and settled");
+        let mut fresh = Axis::new(&params, step, Integrator::Exact);
+        fresh.set_clock(SimTime(20 * 37_000_000));
+        for a in [&mut rested, &mut fresh] {
+            a.set_drive(a.dac().wrapping_add(3000), true);
+            a.set_clock(SimTime(50 * 37_000_000));
+            a.catch_up();
+        }
+        assert!(rested.current() != 0.0 && rested.motor_velocity() != 0.0);
+        assert_eq!(rested.state, fresh.state);
+        assert_eq!(rested.time, fresh.time);
+    }
+
     #[test]
     fn sin_matches_libm() {
         let mut worst: f64 = 0.0;
