@@ -267,6 +267,25 @@ impl HostLink {
     /// packets (link-internal form) complete when they have gone out;
     /// unicast ones when acked (and answered, after an ack_pending).
     pub fn submit(&mut self, ctx: &mut NodeCtx<'_>, packet: Vec<u8>, speed: Speed) -> u64 {
+        self.submit_as(ctx, packet, speed, false)
+    }
+
+    /// [`submit`](Self::submit) a request whose header CRC and data CRC
+    /// the bus writes ([`NodeCtx::transmit_sealed`]: whatever those fields
+    /// hold is overwritten): the bytes that go out are those of the same
+    /// request with its CRCs filled, and the bus does not check them again
+    /// at delivery unless a fault changes them.
+    pub fn submit_sealed(&mut self, ctx: &mut NodeCtx<'_>, packet: Vec<u8>, speed: Speed) -> u64 {
+        self.submit_as(ctx, packet, speed, true)
+    }
+
+    fn submit_as(
+        &mut self,
+        ctx: &mut NodeCtx<'_>,
+        packet: Vec<u8>,
+        speed: Speed,
+        sealed: bool,
+    ) -> u64 {
         let token = self.next_token;
         self.next_token += 1;
         let view = Packet::new_unchecked(&packet[..]);
@@ -283,12 +302,17 @@ impl HostLink {
                 response: None,
             },
         );
-        ctx.transmit(TransmitRequest {
+        let request = TransmitRequest {
             packet,
             speed,
             class: self.class,
             token,
-        });
+        };
+        if sealed {
+            ctx.transmit_sealed(request);
+        } else {
+            ctx.transmit(request);
+        }
         token
     }
 
@@ -380,10 +404,35 @@ impl HostLink {
         packet: &[u8],
         speed: Speed,
     ) -> Result<u64, crate::BusError> {
+        Self::submit_on_as(bus, link, packet, speed, false)
+    }
+
+    /// [`submit_on`](Self::submit_on) a request for the bus to seal
+    /// ([`submit_sealed`](Self::submit_sealed)): its CRC fields may hold
+    /// anything.
+    ///
+    /// # Errors
+    /// [`BusError`](crate::BusError) if `link` is not a [`HostLink`].
+    pub fn submit_sealed_on(
+        bus: &mut crate::Bus,
+        link: crate::NodeHandle,
+        packet: &[u8],
+        speed: Speed,
+    ) -> Result<u64, crate::BusError> {
+        Self::submit_on_as(bus, link, packet, speed, true)
+    }
+
+    fn submit_on_as(
+        bus: &mut crate::Bus,
+        link: crate::NodeHandle,
+        packet: &[u8],
+        speed: Speed,
+        sealed: bool,
+    ) -> Result<u64, crate::BusError> {
         bus.with_node::<HostLink, _>(link, |l, ctx| {
             let mut fifo = ctx.take_buffer();
             fifo.extend_from_slice(packet);
-            l.submit(ctx, fifo, speed)
+            l.submit_as(ctx, fifo, speed, sealed)
         })
     }
 

@@ -136,6 +136,23 @@ pub enum RxReply {
         /// Speed of the response.
         speed: Speed,
     },
+    /// [`AckThenResponse`](Self::AckThenResponse) with a response whose
+    /// header CRC and data CRC the bus writes (as for
+    /// [`NodeCtx::transmit_sealed`]: whatever those fields held is
+    /// overwritten, the data block's padding zeroed first). The bytes that
+    /// go out are those of the same response with both CRCs filled by the
+    /// node, and the bus, knowing them good, does not check them again at
+    /// delivery unless a fault changes them on the way. A response whose
+    /// bytes do not form a whole packet goes as it is, checked as any
+    /// other.
+    AckThenSealedResponse {
+        /// The ack sent first.
+        ack: Ack,
+        /// The response packet, its CRC fields for the bus to write.
+        response: Vec<u8>,
+        /// Speed of the response.
+        speed: Speed,
+    },
 }
 
 /// What a node learns after a bus reset and self-ID.
@@ -195,7 +212,8 @@ pub trait Node: Any + AsAny + Send {
     /// node). The raw bytes as they arrived: faults may have corrupted them,
     /// so the node must check CRCs itself. Every packet on the bus reaches
     /// every node (1394 repeats everything); for unicast packets addressed to
-    /// this node return [`RxReply::Ack`] or [`RxReply::AckThenResponse`].
+    /// this node return [`RxReply::Ack`], [`RxReply::AckThenResponse`] or
+    /// [`RxReply::AckThenSealedResponse`].
     /// Replies from nodes the packet is not addressed to are ignored.
     fn on_receive(
         &mut self,
@@ -217,8 +235,8 @@ pub trait Node: Any + AsAny + Send {
     ) {
     }
 
-    /// A concatenated response we sent (via [`RxReply::AckThenResponse`])
-    /// was acknowledged (`None`: no valid ack came back).
+    /// A concatenated response we sent (via [`RxReply::AckThenResponse`]
+    /// or [`RxReply::AckThenSealedResponse`]) was acknowledged (`None`: no valid ack came back).
     fn on_response_acked(&mut self, _now: SimTime, _ack: Option<Ack>, _ctx: &mut NodeCtx<'_>) {}
 
     /// A timer set with [`NodeCtx::set_timer`] fired.
@@ -382,7 +400,8 @@ impl NodeCtx<'_> {
     }
 
     /// An empty buffer to build a packet in (for a [`TransmitRequest`] or
-    /// an [`RxReply::AckThenResponse`]): the memory of a packet whose
+    /// an [`RxReply::AckThenResponse`] or
+    /// [`RxReply::AckThenSealedResponse`]): the memory of a packet whose
     /// subaction finished, so a node that builds its packets here does
     /// not allocate once the bus is running. A node may keep it for
     /// later; a buffer never handed back to the bus is simply freed.

@@ -227,7 +227,8 @@ pub enum Reply {
     AckThenResponse {
         /// The acknowledge.
         ack: Ack,
-        /// The response packet, CRCs filled in.
+        /// The response packet, CRCs filled in (left zero by
+        /// [`Firmware::receive_unsealed`], for the bus to write).
         response: Vec<u8>,
     },
 }
@@ -832,6 +833,36 @@ impl Firmware {
         crc: Option<CrcStatus>,
         phy: &mut dyn PhyAccess,
     ) -> Reply {
+        self.receive_as(now, bytes, crc, Crcs::Filled, phy)
+    }
+
+    /// [`receive_checked`](Self::receive_checked) for a link whose bus
+    /// writes a read response's CRCs itself
+    /// ([`RxReply::AckThenSealedResponse`](firelink_bus::RxReply::AckThenSealedResponse)):
+    /// the same reply, its response's header CRC and data CRC fields left
+    /// zero.
+    #[inline]
+    pub fn receive_unsealed(
+        &mut self,
+        now: SimTime,
+        bytes: &[u8],
+        crc: Option<CrcStatus>,
+        phy: &mut dyn PhyAccess,
+    ) -> Reply {
+        self.receive_as(now, bytes, crc, Crcs::LeftToTheBus, phy)
+    }
+
+    /// [`receive_checked`](Self::receive_checked), a read response's CRCs
+    /// written as `crcs` says.
+    #[inline(always)]
+    fn receive_as(
+        &mut self,
+        now: SimTime,
+        bytes: &[u8],
+        crc: Option<CrcStatus>,
+        crcs: Crcs,
+        phy: &mut dyn PhyAccess,
+    ) -> Reply {
         self.rx_error = None;
         if self.receive_hub_broadcast(now, bytes, crc) {
             return Reply::Silent;
@@ -857,7 +888,7 @@ impl Firmware {
         }
         let crc = crc.unwrap_or_else(|| packet.crc_status());
         self.catch_up(now);
-        let reply = self.receive_inner(now, &packet, crc, to_me, broadcast, to_node0, phy);
+        let reply = self.receive_inner(now, &packet, crc, crcs, to_me, broadcast, to_node0, phy);
         self.sync_plant();
         reply
     }
@@ -950,6 +981,7 @@ impl Firmware {
         now: SimTime,
         packet: &Packet<&[u8]>,
         crc: CrcStatus,
+        crcs: Crcs,
         to_me: bool,
         broadcast: bool,
         to_node0: bool,
@@ -1036,16 +1068,17 @@ impl Firmware {
                 };
                 let response = if tcode == Tcode::ReadQuadletRequest {
                     let data = self.read_quadlet(now, offset);
-                    emit_into(
+                    emit_as(
                         &PacketRepr::ReadQuadletResponse {
                             header,
                             rcode: Rcode::Complete,
                             data,
                         },
                         core::mem::take(&mut self.packet_buffer),
+                        crcs,
                     )
                 } else {
-                    self.block_read_response(now, header, offset, packet.data_length())
+                    self.block_read_response(now, header, offset, packet.data_length(), crcs)
                 };
                 Reply::AckThenResponse {
                     ack: Ack::Pending,
@@ -1070,6 +1103,7 @@ impl Firmware {
         header: AsyncHeader,
         offset: u64,
         length: u16,
+        crcs: Crcs,
     ) -> Vec<u8> {
         let length = usize::from(length);
         // Every length up to the largest is answered complete with exactly
@@ -1077,7 +1111,7 @@ impl Firmware {
         // included (FireWire.v l.1162); a length of 0 reads nothing.
         let packet = core::mem::take(&mut self.packet_buffer);
         if length > MAX_BLOCK_READ {
-            return block_response_into(header, Rcode::AddressError, &[], packet);
+            return block_response_into(header, Rcode::AddressError, &[], packet, crcs);
         }
         let mut data = core::mem::take(&mut self.scratch);
         data.clear();
@@ -1086,7 +1120,7 @@ impl Firmware {
             self.read_block_into(now, offset, &mut data);
         }
         data.truncate(length);
-        let response = block_response_into(header, Rcode::Complete, &data, packet);
+        let response = block_response_into(header, Rcode::Complete, &data, packet, crcs);
         self.scratch = data;
         response
     }
@@ -1232,7 +1266,7 @@ impl Firmware {
         self.catch_up(now);
         let bytes = (self.hub.count + 1) * 4;
         let length = u16::try_from(bytes).ok()?;
-        Some(self.block_read_response(now, header, HUB_MEMORY_OFFSET, length))
+        Some(self.block_read_response(now, header, HUB_MEMORY_OFFSET, length, Crcs::Filled))
     }
 
     /// Seed profile: whether a status broadcast from node `sender`
@@ -1342,12 +1376,19 @@ pub(crate) fn block_read_refusal(length: usize, max_bytes: usize) -> Option<Rcod
 /// A block read response carrying `rcode` and `data` (empty when the read
 /// is refused).
 pub(crate) fn block_response_packet(header: AsyncHeader, rcode: Rcode, data: &[u8]) -> Vec<u8> {
-    block_response_into(header, rcode, data, Vec::new())
+    block_response_into(header, rcode, data, Vec::new(), Crcs::Filled)
 }
 
-/// [`block_response_packet`] built in `buffer`'s memory.
-fn block_response_into(header: AsyncHeader, rcode: Rcode, data: &[u8], buffer: Vec<u8>) -> Vec<u8> {
-    emit_into(
+/// [`block_response_packet`] built in `buffer`'s memory, its CRCs written
+/// as `crcs` says.
+fn block_response_into(
+    header: AsyncHeader,
+    rcode: Rcode,
+    data: &[u8],
+    buffer: Vec<u8>,
+    crcs: Crcs,
+) -> Vec<u8> {
+    emit_as(
         &PacketRepr::ReadBlockResponse {
             header,
             rcode,
@@ -1355,6 +1396,7 @@ fn block_response_into(header: AsyncHeader, rcode: Rcode, data: &[u8], buffer: V
             data,
         },
         buffer,
+        crcs,
     )
 }
 
@@ -1428,7 +1470,8 @@ enum Crcs {
     /// The firmware, as the packet is built.
     Filled,
     /// The bus, as the packet goes out
-    /// ([`NodeCtx::transmit_sealed`](firelink_bus::NodeCtx::transmit_sealed)).
+    /// ([`NodeCtx::transmit_sealed`](firelink_bus::NodeCtx::transmit_sealed),
+    /// [`RxReply::AckThenSealedResponse`](firelink_bus::RxReply::AckThenSealedResponse)).
     LeftToTheBus,
 }
 
@@ -1445,6 +1488,51 @@ pub(crate) fn emit_into(repr: &PacketRepr<'_>, mut buffer: Vec<u8>) -> Vec<u8> {
     match repr.emit(&mut buffer) {
         Ok(len) => buffer.truncate(len),
         Err(_) => buffer.clear(),
+    }
+    buffer
+}
+
+/// [`emit_into`] with the CRCs written as `crcs` says: for
+/// [`Crcs::LeftToTheBus`], a read response (quadlet or block) is the same
+/// bytes with its header CRC and data CRC fields left zero (the bus's
+/// sealing, which also zeroes the padding, makes them `emit_into`'s).
+/// Any other packet, or a header field out of range, is emitted with its
+/// CRCs (sealing those bytes changes nothing).
+fn emit_as(repr: &PacketRepr<'_>, mut buffer: Vec<u8>, crcs: Crcs) -> Vec<u8> {
+    let (header, rcode) = match (crcs, *repr) {
+        (
+            Crcs::LeftToTheBus,
+            PacketRepr::ReadQuadletResponse { header, rcode, .. }
+            | PacketRepr::ReadBlockResponse { header, rcode, .. },
+        ) => (header, rcode),
+        _ => return emit_into(repr, buffer),
+    };
+    // `emit`'s range checks; a field out of range is left to it.
+    if header.tl > 0x3F || header.rt > 0x3 || header.pri > 0xF || repr.data().len() > 0xFFFF {
+        return emit_into(repr, buffer);
+    }
+    buffer.clear();
+    buffer.resize(repr.buffer_len(), 0);
+    let mut packet = Packet::new_unchecked(&mut buffer[..]);
+    packet.set_tcode(repr.tcode());
+    packet.set_destination_id(header.destination);
+    packet.set_source_id(header.source);
+    packet.set_tl(header.tl);
+    packet.set_rt(header.rt);
+    packet.set_pri(header.pri);
+    packet.set_rcode(rcode);
+    match *repr {
+        PacketRepr::ReadQuadletResponse { data, .. } => packet.set_quadlet_data(data),
+        PacketRepr::ReadBlockResponse {
+            extended_tcode,
+            data,
+            ..
+        } => {
+            packet.set_data_length(data.len() as u16);
+            packet.set_extended_tcode(extended_tcode);
+            packet.data_mut().copy_from_slice(data);
+        }
+        _ => {}
     }
     buffer
 }
@@ -1512,6 +1600,75 @@ mod tests {
                 assert_eq!(unsealed, expected, "{len} bytes from node {phy}, sealed");
             }
         }
+    }
+
+    /// A read response built for the bus to seal is, once sealed, byte
+    /// for byte the response built with its CRCs, and the board is left
+    /// the same: quadlet reads, block reads of every kind of length (none,
+    /// not whole quadlets, the hub's, too long) and a request that gets
+    /// no response.
+    #[test]
+    fn an_unsealed_read_response_sealed_is_the_filled_one() {
+        let query = query_packet(7, 0b0011);
+        let mut filled = Firmware::new(BoardConfig::new(0, Hardware::Qla1, Profile::Rev8));
+        let mut phy = PhyRegisters::new(0);
+        filled.bus_reset(SimTime::ZERO, 0, 1);
+        filled.receive(SimTime::from_micros(100), &query, &mut phy);
+        let other = broadcast_of(Profile::Rev8, 1, &query, SimTime::from_micros(200));
+        filled.receive(SimTime::from_micros(210), &other, &mut phy);
+        let mut unsealed = filled.clone();
+        let header = AsyncHeader::new(NodeId::local(0), NodeId::local(9), 5);
+        let mut requests = vec![
+            emit(&PacketRepr::ReadQuadletRequest { header, offset: 0 }),
+            emit(&PacketRepr::ReadQuadletRequest { header, offset: 4 }),
+            emit(&PacketRepr::WriteQuadletRequest {
+                header,
+                offset: 0,
+                data: 1,
+            }),
+        ];
+        for (offset, data_length) in [
+            (0, 0),
+            (0, 3),
+            (0, 16),
+            (HUB_MEMORY_OFFSET, 64),
+            (HUB_MEMORY_OFFSET, MAX_BLOCK_READ as u16),
+            (HUB_MEMORY_OFFSET, MAX_BLOCK_READ as u16 + 4),
+        ] {
+            requests.push(emit(&PacketRepr::ReadBlockRequest {
+                header,
+                offset,
+                data_length,
+                extended_tcode: 0,
+            }));
+        }
+        let mut responses = 0;
+        for (i, request) in requests.iter().enumerate() {
+            let now = SimTime::from_micros(300 + i as u64);
+            let a = filled.receive(now, request, &mut phy);
+            let crc = Packet::new_checked(&request[..]).unwrap().crc_status();
+            let b = unsealed.receive_unsealed(now, request, Some(crc), &mut phy);
+            match (a, b) {
+                (
+                    Reply::AckThenResponse { ack, response },
+                    Reply::AckThenResponse {
+                        ack: ack_b,
+                        response: mut bytes,
+                    },
+                ) => {
+                    assert_eq!(ack, ack_b);
+                    let mut packet = Packet::new_checked(&mut bytes[..]).expect("a whole packet");
+                    assert_eq!(packet.header_crc(), Some(0), "request {i}: left to the bus");
+                    packet.fill_header_crc();
+                    packet.fill_data_crc();
+                    assert_eq!(bytes, response, "request {i}, sealed");
+                    responses += 1;
+                }
+                (a, b) => assert_eq!(a, b, "request {i}"),
+            }
+            assert_eq!(format!("{filled:?}"), format!("{unsealed:?}"));
+        }
+        assert_eq!(responses, requests.len() - 1);
     }
 
     fn query_packet(seq: u16, mask: u16) -> Vec<u8> {

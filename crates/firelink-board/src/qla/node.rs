@@ -1,8 +1,9 @@
 //! The board as a node on the simulated bus: a thin adapter from
 //! [`firelink_bus::Node`] to [`Firmware`].
 //!
-//! Received packets go to [`Firmware::receive`] (its reply becomes the
-//! node's ack, or ack and concatenated response at the request's speed);
+//! Received packets go to [`Firmware::receive_unsealed`] (its reply
+//! becomes the node's ack, or ack and concatenated response at the
+//! request's speed, the response's CRCs written by the bus);
 //! status broadcasts are requested as soon as the firmware has one ready,
 //! with a timer at [`Firmware::next_wakeup`] for the ones waiting for
 //! their slot; PHY_CTRL reaches the node's PHY registers through the
@@ -62,7 +63,8 @@ impl PhyAccess for CtxPhy<'_, '_> {
 }
 
 /// What a board's link puts on the bus for the firmware's `reply` to a
-/// packet that arrived at `speed` (a response goes back at that speed).
+/// packet that arrived at `speed` (a response goes back at that speed,
+/// its CRCs as the firmware filled them).
 pub(crate) fn on_bus(reply: Reply, speed: Speed) -> RxReply {
     match reply {
         Reply::Silent => RxReply::Silent,
@@ -230,12 +232,20 @@ impl Node for BoardNode {
     ) -> RxReply {
         let crc = ctx.received_crc_status();
         stock_packet_buffer(&mut self.firmware, ctx);
+        // A read response is built unsealed: the bus writes its CRCs.
         let reply = self
             .firmware
-            .receive_checked(now, packet, crc, &mut CtxPhy(ctx));
+            .receive_unsealed(now, packet, crc, &mut CtxPhy(ctx));
         report_rx_error(&self.name, self.firmware.take_rx_error(), ctx);
         self.pump(now, ctx);
-        on_bus(reply, speed)
+        match reply {
+            Reply::AckThenResponse { ack, response } => RxReply::AckThenSealedResponse {
+                ack,
+                response,
+                speed,
+            },
+            other => on_bus(other, speed),
+        }
     }
 
     fn on_transmitted(

@@ -65,7 +65,7 @@ use crate::fault::{
 pub use crate::node::NodeHandle;
 use crate::node::{
     ArbitrationClass, Commands, Node, NodeCtx, PacketPool, ResetInfo, RxReply, TimerCommand,
-    TransmitRequest,
+    TransmitRequest, seal,
 };
 use crate::phy::{PhyRegisters, parse_phy_packet, phy_packet_bytes};
 use crate::time::{SimDuration, SimTime};

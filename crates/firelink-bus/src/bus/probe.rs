@@ -22,6 +22,9 @@ pub(super) struct Probe {
     pub timers: Vec<(SimTime, u64)>,
     /// Packets to send when a timer fires, by token.
     pub on_timer_send: Vec<(u64, Vec<u8>)>,
+    /// Read responses go for the bus to seal
+    /// ([`RxReply::AckThenSealedResponse`]), their CRC fields garbled.
+    pub seal_responses: bool,
 }
 
 impl Node for Probe {
@@ -58,10 +61,23 @@ impl Node for Probe {
                     rcode: Rcode::Complete,
                     data: 0x1394,
                 });
-                RxReply::AckThenResponse {
-                    ack: Ack::Pending,
-                    response,
-                    speed,
+                if self.seal_responses {
+                    let mut response = response;
+                    // Header CRC (quadlet 4) garbled: the bus writes it.
+                    if let Some(crc) = response.get_mut(16..20) {
+                        crc.fill(0xA5);
+                    }
+                    RxReply::AckThenSealedResponse {
+                        ack: Ack::Pending,
+                        response,
+                        speed,
+                    }
+                } else {
+                    RxReply::AckThenResponse {
+                        ack: Ack::Pending,
+                        response,
+                        speed,
+                    }
                 }
             }
             _ => RxReply::Ack(Ack::Complete),

@@ -369,11 +369,27 @@ impl Bus {
                 ack,
                 response,
                 speed,
-            } => self.send_ack(sub, ack, Some((response, speed))),
+            } => self.send_ack(sub, ack, Some((response, speed, None))),
+            RxReply::AckThenSealedResponse {
+                ack,
+                mut response,
+                speed,
+            } => {
+                let crc = seal(&mut response);
+                self.send_ack(sub, ack, Some((response, speed, crc)));
+            }
         }
     }
 
-    pub(super) fn send_ack(&mut self, mut sub: Sub, ack: Ack, response: Option<(Vec<u8>, Speed)>) {
+    /// The addressee's `ack` to `sub`, and the concatenated `response` it
+    /// asked for, if any (with its CRC status when the bus knows it: a
+    /// sealed response).
+    pub(super) fn send_ack(
+        &mut self,
+        mut sub: Sub,
+        ack: Ack,
+        response: Option<(Vec<u8>, Speed, Option<CrcStatus>)>,
+    ) {
         let t = self.cfg.timing;
         let now = self.now;
         let Some(dest) = sub.dest else {
@@ -410,7 +426,7 @@ impl Bus {
                 arrival
             } else {
                 let last_end = match &response {
-                    Some((bytes, speed)) => {
+                    Some((bytes, speed, _)) => {
                         bits_end
                             + t.concat_prefix
                             + t.payload_time(bytes.len(), *speed)
@@ -435,8 +451,8 @@ impl Bus {
             );
         }
         match response {
-            Some((bytes, speed)) => {
-                self.start_concat_response(&sub, dest, dest_phy, bytes, speed, bits_end);
+            Some((bytes, speed, crc)) => {
+                self.start_concat_response(&sub, dest, dest_phy, (bytes, speed, crc), bits_end);
                 // The request's subaction ends here (its response's goes
                 // on): its memory serves a node's next packet.
                 self.spare_packets.give(sub.bytes);
@@ -456,8 +472,8 @@ impl Bus {
         &mut self,
         sub: &Sub,
         dest: usize,
-        response: Option<(Vec<u8>, Speed)>,
-    ) -> Option<(Vec<u8>, Speed)> {
+        response: Option<(Vec<u8>, Speed, Option<CrcStatus>)>,
+    ) -> Option<(Vec<u8>, Speed, Option<CrcStatus>)> {
         match response {
             Some(_) if sub.kind == PacketKind::ConcatResponse => {
                 self.note(format!(
@@ -466,7 +482,7 @@ impl Bus {
                 ));
                 None
             }
-            Some((bytes, _)) if bytes.len() > self.cfg.max_packet_len => {
+            Some((bytes, _, _)) if bytes.len() > self.cfg.max_packet_len => {
                 self.note(format!(
                     "{} response of {} bytes is longer than the bus accepts (dropped)",
                     self.slots[dest].name,
@@ -562,15 +578,15 @@ impl Bus {
         }
     }
 
-    /// The response `dest` concatenates to its ack: on the wire right
-    /// after the ack's bits (`bits_end`), no gap, no arbitration.
+    /// The response `dest` concatenates to its ack (its bytes, speed and,
+    /// when the bus sealed it, CRC status): on the wire right after the
+    /// ack's bits (`bits_end`), no gap, no arbitration.
     fn start_concat_response(
         &mut self,
         sub: &Sub,
         dest: usize,
         dest_phy: u8,
-        bytes: Vec<u8>,
-        speed: Speed,
+        (bytes, speed, crc): (Vec<u8>, Speed, Option<CrcStatus>),
         bits_end: SimTime,
     ) {
         let now = self.now;
@@ -593,7 +609,8 @@ impl Bus {
             busy: false,
             dropped: false,
             notified: false,
-            crc: None,
+            // Known when sealed; a fault that changes the bytes forgets it.
+            crc,
             level: None,
             answers: Some(sub.id),
         };
@@ -916,6 +933,74 @@ mod tests {
             assert_eq!(told[1].and_then(|c| c.header_ok), Some(false), "header hit");
             assert_eq!(told[2].and_then(|c| c.data_ok), Some(false), "data hit");
             assert_eq!(p.received[3].1, filled[..10].to_vec());
+        }
+    }
+
+    #[test]
+    fn a_sealed_response_carries_the_crcs_a_node_fills_and_a_change_on_the_way_is_still_seen() {
+        let (mut bus, nodes) = quiet(3);
+        let (p0, p1) = (bus.phy_id(nodes[0]).unwrap(), bus.phy_id(nodes[1]).unwrap());
+        bus.node_mut::<super::super::probe::Probe>(nodes[1])
+            .unwrap()
+            .seal_responses = true;
+        // What the responder would send with its CRCs filled.
+        let filled =
+            super::super::probe::emit(&firelink_wire::packet::PacketRepr::ReadQuadletResponse {
+                header: firelink_wire::packet::AsyncHeader::new(
+                    NodeId::local(p1),
+                    NodeId::local(p0),
+                    2,
+                )
+                .response(),
+                rcode: firelink_wire::packet::Rcode::Complete,
+                data: 0x1394,
+            });
+        send(&mut bus, nodes[0], qread(p0, p1), ArbitrationClass::Fair);
+        bus.run_for(SimDuration::from_micros(50));
+        // The response corrupted on the wire (its header, then its data
+        // quadlet): the receivers are told, as for any packet.
+        for index in [1, 3] {
+            bus.add_fault_rule(FaultRule::once(
+                PacketMatch::any().kind(PacketKind::ConcatResponse),
+                PacketFault::CorruptQuadlet { index, xor: 1 },
+            ));
+            send(&mut bus, nodes[0], qread(p0, p1), ArbitrationClass::Fair);
+            bus.run_for(SimDuration::from_micros(50));
+        }
+        let all_ok = CrcStatus {
+            header_ok: Some(true),
+            data_ok: None,
+        };
+        for node in [nodes[0], nodes[2]] {
+            let p = probe(&bus, node);
+            let responses: Vec<(&Vec<u8>, Option<CrcStatus>)> = p
+                .received
+                .iter()
+                .zip(&p.received_crc)
+                .filter(|((_, bytes), _)| {
+                    Packet::new_checked(&bytes[..])
+                        .is_ok_and(|v| v.tcode() == Tcode::ReadQuadletResponse)
+                })
+                .map(|((_, bytes), crc)| (bytes, *crc))
+                .collect();
+            assert_eq!(responses.len(), 3);
+            assert_eq!(*responses[0].0, filled, "the bytes a node fills");
+            // Each time what the received bytes themselves say.
+            for (bytes, crc) in &responses {
+                let own = Packet::new_checked(&bytes[..]).unwrap().crc_status();
+                assert_eq!(*crc, Some(own));
+            }
+            assert_eq!(responses[0].1, Some(all_ok));
+            assert_eq!(
+                responses[1].1.and_then(|c| c.header_ok),
+                Some(false),
+                "source hit"
+            );
+            assert_eq!(
+                responses[2].1.and_then(|c| c.header_ok),
+                Some(false),
+                "data hit"
+            );
         }
     }
 

@@ -549,3 +549,44 @@ fn a_silent_board_with_no_late_answer_is_not_asked_again() {
     let stats = p.link_stats();
     assert_eq!((stats.sent, stats.timeouts), (11, 1), "{stats:?}");
 }
+
+/// A board's read responses go for the bus to seal and the host takes a
+/// clean one without checking its CRCs again: one damaged on the wire is
+/// still seen and counted, a data CRC failure as the CRC error it is, a
+/// header CRC failure as a response that never came.
+#[test]
+fn a_damaged_sealed_read_response_is_still_seen() {
+    let mut p = port(1, Profile::Rev8);
+    let node = scan(&mut p).unwrap().boards[0].node;
+    let dest = firelink_host::Dest::node(node);
+    let mut block = [0u8; 64];
+    p.read_block(dest, 0, &mut block).unwrap();
+    p.read_quadlet(dest, 0).unwrap();
+    let before = p.link_stats();
+    assert_eq!(before.bad_crc, 0);
+    // A data quadlet of the next block response (quadlet 6: past the
+    // header and its CRC).
+    p.bus_mut().add_fault_rule(FaultRule::once(
+        PacketMatch::any().tcode(Tcode::ReadBlockResponse),
+        PacketFault::CorruptQuadlet { index: 6, xor: 1 },
+    ));
+    let err = p.read_block(dest, 0, &mut block).unwrap_err();
+    assert!(
+        matches!(err, HostError::Wire(firelink_wire::Error::DataCrc { .. })),
+        "{err:?}"
+    );
+    assert_eq!(p.link_stats().since(&before).bad_crc, 1);
+    // The header of the next quadlet response: the host drops it.
+    p.bus_mut().add_fault_rule(FaultRule::once(
+        PacketMatch::any().tcode(Tcode::ReadQuadletResponse),
+        PacketFault::CorruptQuadlet { index: 1, xor: 1 },
+    ));
+    let err = p.read_quadlet(dest, 0).unwrap_err();
+    assert!(matches!(err, HostError::Timeout { .. }), "{err:?}");
+    // Clean again: answered, no more CRC errors.
+    p.read_block(dest, 0, &mut block).unwrap();
+    p.read_quadlet(dest, 0).unwrap();
+    let after = p.link_stats().since(&before);
+    assert_eq!((after.bad_crc, after.timeouts), (1, 1), "{after:?}");
+    assert_eq!(p.bus().fault_log().records().len(), 2);
+}
