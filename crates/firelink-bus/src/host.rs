@@ -548,6 +548,10 @@ impl Node for HostLink {
         let status = ctx
             .received_crc_status()
             .unwrap_or_else(|| view.crc_status());
+        // A response whose header CRC fails is dropped here and one whose
+        // data CRC fails completes `ResponseCorrupt`, never `Complete`:
+        // the host's transaction engine takes a `Complete` response as
+        // checked (`CrcCheck::KnownGood` in firelink-host) and relies on it.
         if status.header_ok == Some(false) {
             ctx.report_error("host: header CRC error");
             return RxReply::Silent;

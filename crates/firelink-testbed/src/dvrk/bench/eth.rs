@@ -311,7 +311,9 @@ pub(super) fn eth_raws(
                 .into_iter()
                 .map(|b| b.with_fpga(FpgaVersion::V2))
                 .collect();
-            let emu = crate::rig::Emulator::start(boards)?;
+            let emu = crate::rig::Emulator::start_rig(
+                crate::rig::RigBuilder::qla(boards).detail(options.detail),
+            )?;
             let bridge = super::udp::Bridge {
                 addr: emu.addr,
                 emulator: Some(&emu),
@@ -323,7 +325,7 @@ pub(super) fn eth_raws(
                 options,
                 super::HostWait::Rev9Bridge,
             );
-            emu.stop()?;
+            let stats = emu.stop()?;
             raws.extend(runs?.into_iter().map(|m| {
                 let mut r = super::raw_of_run(
                     super::BenchTransport::Udp,
@@ -332,6 +334,7 @@ pub(super) fn eth_raws(
                     m,
                 );
                 r.board_set = Some(set);
+                r.detail = Some(stats.detail);
                 r
             }));
         }

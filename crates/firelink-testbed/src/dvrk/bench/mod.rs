@@ -1264,11 +1264,11 @@ impl BenchReport {
     /// measured point that has one (a `udp` point's wait modes share
     /// their emulator, said once).
     fn fmt_detail(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let mut said: Vec<(&str, &str, usize)> = Vec::new();
+        let mut said: Vec<(&str, Option<&str>, &str, usize)> = Vec::new();
         let mut lines = Vec::new();
         for r in &self.results {
             let Some(d) = &r.detail else { continue };
-            let key = (r.transport, r.protocol, r.boards);
+            let key = (r.transport, r.board_set, r.protocol, r.boards);
             if said.contains(&key) {
                 continue;
             }
@@ -1279,8 +1279,9 @@ impl BenchReport {
                 "fw" => "requests",
                 _ => "cycles",
             };
+            let set = r.board_set.map_or(String::new(), |s| format!(" ({s})"));
             lines.push(format!(
-                "{:<4} {:<32} {:>2} boards: {}",
+                "{:<4} {:<32} {:>2} boards{set}: {}",
                 r.transport,
                 r.protocol,
                 r.boards,

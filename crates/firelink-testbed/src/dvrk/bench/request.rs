@@ -121,13 +121,27 @@ impl BenchRequest {
     ///
     /// # Errors
     /// A board count outside 1..=62, or counts above 16 with no measured
-    /// count before them (one line).
+    /// count before them; `--detail packet` with no point on a simulated
+    /// bus (one line).
     pub fn options(&self) -> Result<BenchOptions, String> {
         let transports = match (self.transport.is_empty(), self.port) {
             (false, _) => self.transport.clone(),
             (true, Some(_)) => vec![BenchTransport::Udp],
             (true, None) => vec![BenchTransport::Sim, BenchTransport::Udp],
         };
+        // Only `sim`, `fw` and the in-process emulators (`udp`, and `eth`'s
+        // bridge companions, without `--port`) run a simulated 1394 bus.
+        let simulated = transports.iter().any(|t| match t {
+            BenchTransport::Sim | BenchTransport::Fw => true,
+            BenchTransport::Udp | BenchTransport::Eth => self.port.is_none(),
+        });
+        if self.detail == Detail::Packet && !simulated {
+            return Err(
+                "--detail packet: no point of this run is on a simulated 1394 bus \
+                 (a bridge named by --port is measured as it is)"
+                    .into(),
+            );
+        }
         let mut udp_waits = Vec::new();
         for w in self.udp_wait.iter().copied() {
             if !udp_waits.contains(&w) {
@@ -217,5 +231,18 @@ mod tests {
             ..request()
         };
         assert!(bad.options().is_err());
+        // The packet level needs a simulated bus in some point.
+        let outside = BenchRequest {
+            port: Some(bridge_address("udp:127.0.0.1:1400").unwrap()),
+            detail: Detail::Packet,
+            ..request()
+        };
+        let e = outside.options().unwrap_err();
+        assert!(e.starts_with("--detail packet: no point"), "{e}");
+        let with_sim = BenchRequest {
+            transport: vec![BenchTransport::Sim, BenchTransport::Udp],
+            ..outside
+        };
+        assert_eq!(with_sim.options().unwrap().detail, Detail::Packet);
     }
 }
