@@ -10,7 +10,8 @@
 use firelink_wire::phy::SYSTEM_CLOCK_HZ;
 use firelink_wire::qla::MAX_AXES;
 use firelink_wire::qla::realtime::{
-    BlockFormat, BoardLayout, ReadBlock, ReadBlockRepr, WriteBlockRepr,
+    BlockFormat, BoardLayout, EncoderReading, MotorReading, ReadBlock, ReadBlockRepr,
+    WriteBlockRepr,
 };
 use firelink_wire::qla::registers::{
     AmpCommand, DAC_ZERO, DacWord, DigitalIn, FpgaVersion, GitDesc, HardwareVersion, StatusCommand,
@@ -232,6 +233,21 @@ impl BoardIo {
         let (encoders, motors) = (self.input.encoders(), self.input.motors());
         let counts = counts.get_mut(..n).unwrap_or_default();
         let pots = pots.get_mut(..n).unwrap_or_default();
+        // (The QLA's four axes, all asked for: a copy of known length,
+        // unrolled, no loop.)
+        if let (Ok(counts), Ok(pots), Ok(encoders), Ok(motors)) = (
+            <&mut [i32; 4]>::try_from(&mut *counts),
+            <&mut [Option<u16>; 4]>::try_from(&mut *pots),
+            <&[EncoderReading; 4]>::try_from(encoders),
+            <&[MotorReading; 4]>::try_from(motors),
+        ) {
+            let inputs = encoders.iter().zip(motors);
+            for ((c, p), (e, m)) in counts.iter_mut().zip(pots.iter_mut()).zip(inputs) {
+                *c = e.position.counts();
+                *p = Some(m.adc.pot());
+            }
+            return;
+        }
         if encoders.len() == n && motors.len() == n {
             // (The common case, an encoder and a motor for each axis
             // asked for: both in one run.)
@@ -491,6 +507,43 @@ mod tests {
                     .filter(|&a| b.amp_enabled(a))
                     .fold(0u64, |m, a| m | 1 << a);
                 assert_eq!(b.amp_mask(), want, "{fw:?} {bits:#b}");
+            }
+        }
+    }
+
+    /// `axis_inputs` gives each axis's `encoder_counts` (0 for none) and
+    /// `pot_bits`, whatever the lengths asked for (the QLA's four axes
+    /// exactly, fewer, more) and the board's axes (a DQLA's eight).
+    #[test]
+    fn axis_inputs_are_the_per_axis_reads() {
+        use firelink_wire::qla::registers::{AdcWord, EncPosition};
+        for layout in [
+            BoardLayout::qla1(FirmwareRev::Rev8),
+            BoardLayout::qla1(FirmwareRev::Rev7),
+            BoardLayout::dqla(FirmwareRev::Rev8),
+        ] {
+            let mut b = BoardIo::new(BoardInfo {
+                layout,
+                ..info(FirmwareRev::Rev8)
+            });
+            let mut input = ReadBlockRepr::new(layout);
+            for (i, (m, e)) in input.motor.iter_mut().zip(&mut input.encoder).enumerate() {
+                let i = i as u32;
+                m.adc = AdcWord::default().with_pot(0x1000 + 0x111 * i as u16);
+                e.position = EncPosition(0x80_0000 + 7 * i + 3);
+            }
+            b.latch(input);
+            for n in [0, 3, 4, 5, 8, 9] {
+                let mut counts = vec![-1; n];
+                let mut pots = vec![Some(1); n];
+                b.axis_inputs(&mut counts, &mut pots);
+                for a in 0..n {
+                    let want = (b.encoder_counts(a).unwrap_or(0), b.pot_bits(a));
+                    assert_eq!((counts[a], pots[a]), want, "{layout:?} {n} axis {a}");
+                }
+                if n >= 4 {
+                    assert_eq!((counts[3], pots[3]), (24, Some(0x1333)), "{layout:?} {n}");
+                }
             }
         }
     }
