@@ -305,11 +305,24 @@ impl BoardIo {
     /// refuses them; always inlined, as [`axis_inputs`](Self::axis_inputs)).
     #[inline(always)]
     pub fn set_dacs(&mut self, codes: &[Option<u16>]) {
-        let axes = self.axes();
-        for (word, code) in self.output.dac.iter_mut().take(axes).zip(codes) {
+        let set = |word: &mut DacWord, code: &Option<u16>| {
             if let Some(bits) = *code {
                 *word = DacWord::valid_command(bits).with_amp_request(word.amp_request());
             }
+        };
+        let axes = self.axes();
+        // (The QLA's four axes, a code for each: a run of known length,
+        // unrolled, no loop.)
+        if let (4, Ok(codes), Some(words)) = (
+            axes,
+            <&[Option<u16>; 4]>::try_from(codes),
+            self.output.dac.first_chunk_mut::<4>(),
+        ) {
+            words.iter_mut().zip(codes).for_each(|(w, c)| set(w, c));
+            return;
+        }
+        for (word, code) in self.output.dac.iter_mut().take(axes).zip(codes) {
+            set(word, code);
         }
     }
 
@@ -543,6 +556,47 @@ mod tests {
                 }
                 if n >= 4 {
                     assert_eq!((counts[3], pots[3]), (24, Some(0x1333)), "{layout:?} {n}");
+                }
+            }
+        }
+    }
+
+    /// `set_dacs` is `set_dac` for each axis given a code, the amplifier
+    /// request of each word kept, whatever the number of codes (the QLA's
+    /// four exactly, fewer, more) and the board's axes (a DQLA's eight).
+    #[test]
+    fn set_dacs_is_set_dac_per_axis() {
+        for layout in [
+            BoardLayout::qla1(FirmwareRev::Rev8),
+            BoardLayout::dqla(FirmwareRev::Rev8),
+        ] {
+            for n in [0, 3, 4, 5, 8, 9] {
+                let info = BoardInfo {
+                    layout,
+                    ..info(FirmwareRev::Rev8)
+                };
+                let (mut all, mut each) = (BoardIo::new(info), BoardIo::new(info));
+                for b in [&mut all, &mut each] {
+                    b.set_amp_enable(1, true).unwrap();
+                    b.set_amp_enable(2, false).unwrap();
+                }
+                // Every other axis given a code.
+                let codes: Vec<Option<u16>> = (0..n)
+                    .map(|a| (a % 2 == 0 || a == 1).then_some(0x8100 + a as u16))
+                    .collect();
+                all.set_dacs(&codes);
+                for (a, code) in codes.iter().enumerate() {
+                    if let Some(code) = *code {
+                        let _ = each.set_dac(a, code);
+                    }
+                }
+                assert_eq!(all.output().dac, each.output().dac, "{layout:?} {n}");
+                if n >= 4 {
+                    let dac = all.output().dac;
+                    assert_eq!(dac[1].command(), 0x8101, "{layout:?} {n}");
+                    assert_eq!(dac[1].amp_request(), Some(true), "{layout:?} {n}");
+                    assert_eq!(dac[2].amp_request(), Some(false), "{layout:?} {n}");
+                    assert_eq!(dac[3].command(), DAC_ZERO, "{layout:?} {n}");
                 }
             }
         }
