@@ -10,8 +10,7 @@
 use firelink_wire::phy::SYSTEM_CLOCK_HZ;
 use firelink_wire::qla::MAX_AXES;
 use firelink_wire::qla::realtime::{
-    BlockFormat, BoardLayout, EncoderReading, MotorReading, ReadBlock, ReadBlockRepr,
-    WriteBlockRepr,
+    BlockFormat, BoardLayout, ReadBlock, ReadBlockRepr, WriteBlockRepr,
 };
 use firelink_wire::qla::registers::{
     AmpCommand, DAC_ZERO, DacWord, DigitalIn, FpgaVersion, GitDesc, HardwareVersion, StatusCommand,
@@ -230,17 +229,18 @@ impl BoardIo {
     #[inline(always)]
     pub fn axis_inputs(&self, counts: &mut [i32], pots: &mut [Option<u16>]) {
         let n = counts.len().min(pots.len());
-        let (encoders, motors) = (self.input.encoders(), self.input.motors());
-        let counts = counts.get_mut(..n).unwrap_or_default();
-        let pots = pots.get_mut(..n).unwrap_or_default();
         // (The QLA's four axes, all asked for: a copy of known length,
-        // unrolled, no loop.)
-        if let (Ok(counts), Ok(pots), Ok(encoders), Ok(motors)) = (
-            <&mut [i32; 4]>::try_from(&mut *counts),
-            <&mut [Option<u16>; 4]>::try_from(&mut *pots),
-            <&[EncoderReading; 4]>::try_from(encoders),
-            <&[MotorReading; 4]>::try_from(motors),
-        ) {
+        // unrolled, no loop; the layout's counts compared, no slice of
+        // them made.)
+        let layout = self.input.layout;
+        if (n, layout.encoders(), layout.motors()) == (4, 4, 4)
+            && let (Some(counts), Some(pots), Some(encoders), Some(motors)) = (
+                counts.first_chunk_mut::<4>(),
+                pots.first_chunk_mut::<4>(),
+                self.input.encoder.first_chunk::<4>(),
+                self.input.motor.first_chunk::<4>(),
+            )
+        {
             let inputs = encoders.iter().zip(motors);
             for ((c, p), (e, m)) in counts.iter_mut().zip(pots.iter_mut()).zip(inputs) {
                 *c = e.position.counts();
@@ -248,6 +248,9 @@ impl BoardIo {
             }
             return;
         }
+        let (encoders, motors) = (self.input.encoders(), self.input.motors());
+        let counts = counts.get_mut(..n).unwrap_or_default();
+        let pots = pots.get_mut(..n).unwrap_or_default();
         if encoders.len() == n && motors.len() == n {
             // (The common case, an encoder and a motor for each axis
             // asked for: both in one run.)
