@@ -115,6 +115,10 @@ pub struct SafetyMonitor {
     limits: Vec<JointLimits>,
     /// The limits as the cycle compares with them, per joint.
     bounds: Vec<Bounds>,
+    /// `bounds` with every infinite bound made the largest finite one
+    /// ([`Bounds::finite_only`]), per joint: the quiet pass's, a sample
+    /// inside them is finite.
+    quiet_bounds: Vec<Bounds>,
     timers: Vec<Timers>,
     /// Per joint: following-error and saturation checks suspended (a
     /// stop search pushes a joint into its stop on purpose).
@@ -146,14 +150,6 @@ struct Bounds {
     saturated_from: f64,
     /// Largest |pot - position| that starts no pot timer.
     pot: f64,
-    /// Every bound but `saturated_from` finite: then a sample inside
-    /// every bound ([`all_clear`](Self::all_clear)) is finite too (a
-    /// position between finite limits, a velocity, a following error and
-    /// a pot offset below finite bounds are finite, and so the setpoint
-    /// and the pot; the strict `<` of the current is false for an infinite
-    /// or NaN current whatever its bound), so the quiet pass need not test
-    /// the sample's finiteness apart.
-    clear_means_finite: bool,
 }
 
 impl Bounds {
@@ -162,7 +158,7 @@ impl Bounds {
             (f64::NEG_INFINITY, f64::INFINITY),
             |(lower, upper, margin)| (lower - margin, upper + margin),
         );
-        let mut b = Bounds {
+        Bounds {
             lowest,
             highest,
             velocity: l.velocity.unwrap_or(f64::INFINITY),
@@ -174,23 +170,38 @@ impl Bounds {
             pot: l
                 .potentiometer
                 .map_or(f64::INFINITY, |(tolerance, _)| tolerance),
-            clear_means_finite: false,
-        };
-        b.clear_means_finite = [b.lowest, b.highest, b.velocity, b.following, b.pot]
-            .iter()
-            .all(|x| x.is_finite());
-        b
+        }
     }
 
-    /// Whether sample `s` is finite and inside every bound: `s.all_finite()
-    /// & self.all_clear(s)`, without the finiteness test when the bounds
-    /// imply it ([`clear_means_finite`](Self::clear_means_finite)).
-    #[inline]
-    fn quiet(&self, s: &JointSample) -> bool {
-        (self.clear_means_finite || s.all_finite()) && self.all_clear(s)
+    /// The bounds of the quiet pass: these with an infinite bound (a check
+    /// that is off) made the largest finite value, the others as they are
+    /// (`saturated_from` too). A sample inside them
+    /// ([`all_clear`](Self::all_clear)) is finite: a position between
+    /// bounds no wider than the finite range, a velocity, a following
+    /// error and a pot offset at most a finite bound are finite, and so
+    /// the setpoint and the pot; the strict `<` of the current is false
+    /// for an infinite or NaN current whatever its bound. A finite sample
+    /// inside them is inside `self` (they are no wider), so the quiet pass
+    /// needs no finiteness test of its own: a sample they leave out (not
+    /// finite, or a following error or pot offset too large for an `f64`)
+    /// goes to the joint-by-joint checks, which decide as before.
+    fn finite_only(&self) -> Bounds {
+        let at_most = |x: f64| if x == f64::INFINITY { f64::MAX } else { x };
+        Bounds {
+            lowest: if self.lowest == f64::NEG_INFINITY {
+                f64::MIN
+            } else {
+                self.lowest
+            },
+            highest: at_most(self.highest),
+            velocity: at_most(self.velocity),
+            following: at_most(self.following),
+            saturated_from: self.saturated_from,
+            pot: at_most(self.pot),
+        }
     }
 
-    /// Whether sample `s` (every value finite) is inside every bound: no
+    /// Whether sample `s` is inside every bound: for a finite sample, no
     /// check of a joint that is not stalling can fire and none of its
     /// timers starts. (The common case, tested without branches on each
     /// check; anything else takes the checks one by one.)
@@ -215,10 +226,12 @@ impl SafetyMonitor {
     pub fn new(limits: Vec<JointLimits>) -> SafetyMonitor {
         let timers = vec![Timers::default(); limits.len()];
         let stalling = vec![false; limits.len()];
-        let bounds = limits.iter().map(Bounds::of).collect();
+        let bounds: Vec<Bounds> = limits.iter().map(Bounds::of).collect();
+        let quiet_bounds = bounds.iter().map(Bounds::finite_only).collect();
         SafetyMonitor {
             limits,
             bounds,
+            quiet_bounds,
             timers,
             stalling,
             any_stalling: false,
@@ -312,9 +325,10 @@ impl SafetyMonitor {
         self.latched
     }
 
-    /// How many joints from the first are quiet: their samples finite,
-    /// inside every bound ([`Bounds::all_clear`], tested without a branch
-    /// per check) with no timer running (not tested while no timer can
+    /// How many joints from the first are quiet: their samples inside
+    /// every bound of `quiet_bounds` ([`Bounds::all_clear`], tested
+    /// without a branch per check; finite, then, with no test of its own:
+    /// [`Bounds::finite_only`]) with no timer running (not tested while no timer can
     /// be: `timing` false); 0 if a joint may stall or the
     /// samples are not one per joint. The joint-by-joint checks of a quiet
     /// joint find nothing and change nothing, so they start after these
@@ -322,19 +336,19 @@ impl SafetyMonitor {
     #[inline]
     fn quiet_joints(&self, samples: &[JointSample]) -> usize {
         if self.any_stalling
-            || samples.len() != self.bounds.len()
+            || samples.len() != self.quiet_bounds.len()
             || samples.len() != self.timers.len()
         {
             return 0;
         }
         if !self.timing {
             // No timer runs: the samples alone decide.
-            let joints = self.bounds.iter().zip(samples);
-            return joints.take_while(|(b, s)| b.quiet(s)).count();
+            let joints = self.quiet_bounds.iter().zip(samples);
+            return joints.take_while(|(b, s)| b.all_clear(s)).count();
         }
-        let joints = self.bounds.iter().zip(&self.timers).zip(samples);
+        let joints = self.quiet_bounds.iter().zip(&self.timers).zip(samples);
         joints
-            .take_while(|((b, t), s)| t.idle() && b.quiet(s))
+            .take_while(|((b, t), s)| t.idle() && b.all_clear(s))
             .count()
     }
 
@@ -579,6 +593,41 @@ mod tests {
                     ..ok()
                 },
             ),
+            (
+                "position",
+                JointSample {
+                    position: f64::INFINITY,
+                    ..ok()
+                },
+            ),
+            (
+                "setpoint",
+                JointSample {
+                    setpoint: f64::NEG_INFINITY,
+                    ..ok()
+                },
+            ),
+            (
+                "velocity",
+                JointSample {
+                    velocity: f64::NAN,
+                    ..ok()
+                },
+            ),
+            (
+                "current command",
+                JointSample {
+                    current: f64::NEG_INFINITY,
+                    ..ok()
+                },
+            ),
+            (
+                "potentiometer",
+                JointSample {
+                    potentiometer: Some(f64::NAN),
+                    ..ok()
+                },
+            ),
         ];
         for l in [limits(), off] {
             for (what, s) in samples {
@@ -590,6 +639,34 @@ mod tests {
                 };
                 assert_eq!(fault, Some(what), "{l:?} {s:?}: {r:?}");
             }
+        }
+    }
+
+    /// Finite values at the ends of the `f64` range, every check off: no
+    /// fault, though the following error and the pot offset are too large
+    /// for an `f64` (infinite; the quiet pass leaves such a sample to the
+    /// checks one by one, which find nothing).
+    #[test]
+    fn extreme_finite_values_are_valid_with_every_check_off() {
+        let off = JointLimits {
+            velocity: None,
+            following_error: None,
+            saturation_time: None,
+            position: None,
+            potentiometer: None,
+            ..limits()
+        };
+        let extreme = JointSample {
+            setpoint: f64::MAX,
+            position: f64::MIN,
+            velocity: f64::MAX,
+            current: f64::MIN,
+            potentiometer: Some(f64::MAX),
+        };
+        let mut m = SafetyMonitor::new(vec![off, off]);
+        for k in 0..3 {
+            assert_eq!(m.check(k as f64, k, &[extreme, ok()]), None);
+            assert_eq!(m.check(k as f64, k, &[ok(), extreme]), None);
         }
     }
 

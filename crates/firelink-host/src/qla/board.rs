@@ -229,6 +229,25 @@ impl BoardIo {
     #[inline(always)]
     pub fn axis_inputs(&self, counts: &mut [i32], pots: &mut [Option<u16>]) {
         let n = counts.len().min(pots.len());
+        // (The QLA's four axes, all asked for: a copy of known length,
+        // unrolled, no loop; the layout's counts compared, no slice of
+        // them made.)
+        let layout = self.input.layout;
+        if (n, layout.encoders(), layout.motors()) == (4, 4, 4)
+            && let (Some(counts), Some(pots), Some(encoders), Some(motors)) = (
+                counts.first_chunk_mut::<4>(),
+                pots.first_chunk_mut::<4>(),
+                self.input.encoder.first_chunk::<4>(),
+                self.input.motor.first_chunk::<4>(),
+            )
+        {
+            let inputs = encoders.iter().zip(motors);
+            for ((c, p), (e, m)) in counts.iter_mut().zip(pots.iter_mut()).zip(inputs) {
+                *c = e.position.counts();
+                *p = Some(m.adc.pot());
+            }
+            return;
+        }
         let (encoders, motors) = (self.input.encoders(), self.input.motors());
         let counts = counts.get_mut(..n).unwrap_or_default();
         let pots = pots.get_mut(..n).unwrap_or_default();
@@ -289,11 +308,24 @@ impl BoardIo {
     /// refuses them; always inlined, as [`axis_inputs`](Self::axis_inputs)).
     #[inline(always)]
     pub fn set_dacs(&mut self, codes: &[Option<u16>]) {
-        let axes = self.axes();
-        for (word, code) in self.output.dac.iter_mut().take(axes).zip(codes) {
+        let set = |word: &mut DacWord, code: &Option<u16>| {
             if let Some(bits) = *code {
                 *word = DacWord::valid_command(bits).with_amp_request(word.amp_request());
             }
+        };
+        let axes = self.axes();
+        // (The QLA's four axes, a code for each: a run of known length,
+        // unrolled, no loop.)
+        if let (4, Ok(codes), Some(words)) = (
+            axes,
+            <&[Option<u16>; 4]>::try_from(codes),
+            self.output.dac.first_chunk_mut::<4>(),
+        ) {
+            words.iter_mut().zip(codes).for_each(|(w, c)| set(w, c));
+            return;
+        }
+        for (word, code) in self.output.dac.iter_mut().take(axes).zip(codes) {
+            set(word, code);
         }
     }
 
@@ -491,6 +523,84 @@ mod tests {
                     .filter(|&a| b.amp_enabled(a))
                     .fold(0u64, |m, a| m | 1 << a);
                 assert_eq!(b.amp_mask(), want, "{fw:?} {bits:#b}");
+            }
+        }
+    }
+
+    /// `axis_inputs` gives each axis's `encoder_counts` (0 for none) and
+    /// `pot_bits`, whatever the lengths asked for (the QLA's four axes
+    /// exactly, fewer, more) and the board's axes (a DQLA's eight).
+    #[test]
+    fn axis_inputs_are_the_per_axis_reads() {
+        use firelink_wire::qla::registers::{AdcWord, EncPosition};
+        for layout in [
+            BoardLayout::qla1(FirmwareRev::Rev8),
+            BoardLayout::qla1(FirmwareRev::Rev7),
+            BoardLayout::dqla(FirmwareRev::Rev8),
+        ] {
+            let mut b = BoardIo::new(BoardInfo {
+                layout,
+                ..info(FirmwareRev::Rev8)
+            });
+            let mut input = ReadBlockRepr::new(layout);
+            for (i, (m, e)) in input.motor.iter_mut().zip(&mut input.encoder).enumerate() {
+                let i = i as u32;
+                m.adc = AdcWord::default().with_pot(0x1000 + 0x111 * i as u16);
+                e.position = EncPosition(0x80_0000 + 7 * i + 3);
+            }
+            b.latch(input);
+            for n in [0, 3, 4, 5, 8, 9] {
+                let mut counts = vec![-1; n];
+                let mut pots = vec![Some(1); n];
+                b.axis_inputs(&mut counts, &mut pots);
+                for a in 0..n {
+                    let want = (b.encoder_counts(a).unwrap_or(0), b.pot_bits(a));
+                    assert_eq!((counts[a], pots[a]), want, "{layout:?} {n} axis {a}");
+                }
+                if n >= 4 {
+                    assert_eq!((counts[3], pots[3]), (24, Some(0x1333)), "{layout:?} {n}");
+                }
+            }
+        }
+    }
+
+    /// `set_dacs` is `set_dac` for each axis given a code, the amplifier
+    /// request of each word kept, whatever the number of codes (the QLA's
+    /// four exactly, fewer, more) and the board's axes (a DQLA's eight).
+    #[test]
+    fn set_dacs_is_set_dac_per_axis() {
+        for layout in [
+            BoardLayout::qla1(FirmwareRev::Rev8),
+            BoardLayout::dqla(FirmwareRev::Rev8),
+        ] {
+            for n in [0, 3, 4, 5, 8, 9] {
+                let info = BoardInfo {
+                    layout,
+                    ..info(FirmwareRev::Rev8)
+                };
+                let (mut all, mut each) = (BoardIo::new(info), BoardIo::new(info));
+                for b in [&mut all, &mut each] {
+                    b.set_amp_enable(1, true).unwrap();
+                    b.set_amp_enable(2, false).unwrap();
+                }
+                // Every other axis given a code.
+                let codes: Vec<Option<u16>> = (0..n)
+                    .map(|a| (a % 2 == 0 || a == 1).then_some(0x8100 + a as u16))
+                    .collect();
+                all.set_dacs(&codes);
+                for (a, code) in codes.iter().enumerate() {
+                    if let Some(code) = *code {
+                        let _ = each.set_dac(a, code);
+                    }
+                }
+                assert_eq!(all.output().dac, each.output().dac, "{layout:?} {n}");
+                if n >= 4 {
+                    let dac = all.output().dac;
+                    assert_eq!(dac[1].command(), 0x8101, "{layout:?} {n}");
+                    assert_eq!(dac[1].amp_request(), Some(true), "{layout:?} {n}");
+                    assert_eq!(dac[2].amp_request(), Some(false), "{layout:?} {n}");
+                    assert_eq!(dac[3].command(), DAC_ZERO, "{layout:?} {n}");
+                }
             }
         }
     }
