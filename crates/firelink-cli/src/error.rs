@@ -58,9 +58,11 @@ pub enum CliError {
     /// itself and what was wrong).
     #[error(transparent)]
     Tool(#[from] firelink_testbed::snake::tool::ToolError),
-    /// The benchmark's board counts cannot be measured or modelled.
-    #[error("--boards: {0}")]
-    BoardCounts(String),
+    /// The benchmark's options cannot be run as given (the option is
+    /// named first: its board counts cannot be measured or modelled, or
+    /// the level of detail has no simulated bus to apply to).
+    #[error("{0}")]
+    BenchOptions(String),
     /// The preloaded /dev/fw* twin library (`fw-run`) is not built.
     #[error(transparent)]
     TwinLibraryMissing(#[from] firelink_testbed::fw_run::TwinLibraryMissing),

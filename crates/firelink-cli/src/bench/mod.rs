@@ -58,7 +58,7 @@ pub fn run(args: &BenchArgs, out: &mut impl Write) -> Result<(), CliError> {
     if args.seed.is_some() {
         return seed001::run(args.iterations, args.plot.as_deref(), args.json, out);
     }
-    let options = args.request.options().map_err(CliError::BoardCounts)?;
+    let options = args.request.options().map_err(CliError::BenchOptions)?;
     if options.transports.contains(&BenchTransport::Fw) && !under_twin() {
         // The `fw` points need the twin library in this process: the same
         // command again with it preloaded, its table passed on.

@@ -200,4 +200,12 @@ fn a_level_of_detail_other_than_packet_or_fast_is_a_usage_error_naming_both() {
             );
         }
     }
+    // A bench whose every point is outside the simulated bus has no level
+    // of detail to set: refused before anything is measured.
+    let (code, err) = firelink(&["bench", "--port", "udp:127.0.0.1:9", "--detail", "packet"]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("--detail packet: no point of this run is on a simulated 1394 bus"),
+        "{err}"
+    );
 }

@@ -150,7 +150,7 @@ impl BenchRequest {
         }
         Ok(BenchOptions {
             transports,
-            boards: parse_board_counts(&self.boards)?,
+            boards: parse_board_counts(&self.boards).map_err(|e| format!("--boards: {e}"))?,
             protocols: self.protocol.clone(),
             cycles: self.cycles,
             firmware: self.firmware,
