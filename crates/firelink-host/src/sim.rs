@@ -25,7 +25,7 @@ use std::time::Duration;
 
 use firelink_bus::host::{CallCost, Completion, HostCall, Outcome, Transfer};
 use firelink_bus::{Bus, HostLink, HostModel, NodeHandle, SimDuration, SimTime};
-use firelink_wire::packet::{Ack, AsyncHeader, MAX_OFFSET, NodeId, Packet, PacketRepr, Speed};
+use firelink_wire::packet::{Ack, AsyncHeader, NodeId, Packet, PacketRepr, Speed};
 
 use crate::error::{HostError, Result};
 use crate::link_stats::LinkStats;
@@ -265,7 +265,7 @@ impl SimPort {
     /// The request `repr` into the port's packet buffer; returns its
     /// length and whether its CRCs are left for the bus to write (a read
     /// or write request while no outgoing filter is there to see the
-    /// bytes; see [`emit_unsealed`]).
+    /// bytes: [`PacketRepr::emit_unsealed`]).
     fn emit(&mut self, repr: &PacketRepr<'_>) -> Result<(usize, bool)> {
         let len = repr.buffer_len();
         if self.out.len() < len {
@@ -275,7 +275,8 @@ impl SimPort {
             what: "packet size",
             value: len as u32,
         })?;
-        if self.filters.is_empty() && emit_unsealed(repr, buf) {
+        if self.filters.is_empty() && is_request(repr) {
+            repr.emit_unsealed(buf)?;
             return Ok((len, true));
         }
         repr.emit(buf)?;
@@ -600,80 +601,39 @@ impl Port for SimPort {
     }
 }
 
-/// Write the read or write request `repr` into `buf` (its
-/// [`buffer_len`](PacketRepr::buffer_len) bytes) as
-/// [`PacketRepr::emit`] does, but with its header CRC and data CRC fields
-/// left zero, for the bus to write ([`HostLink::submit_sealed`]): `true`.
-/// `false`, with nothing written, for any other packet or a field out of
-/// range (left to `emit`, which fills the CRCs or names the field).
-fn emit_unsealed(repr: &PacketRepr<'_>, buf: &mut [u8]) -> bool {
-    let (header, offset) = match *repr {
-        PacketRepr::WriteQuadletRequest { header, offset, .. }
-        | PacketRepr::WriteBlockRequest { header, offset, .. }
-        | PacketRepr::ReadQuadletRequest { header, offset }
-        | PacketRepr::ReadBlockRequest { header, offset, .. } => (header, offset),
-        _ => return false,
-    };
-    // `emit`'s range checks.
-    if header.tl > 0x3F
-        || header.rt > 0x3
-        || header.pri > 0xF
-        || offset > MAX_OFFSET
-        || repr.data().len() > 0xFFFF
-        || buf.len() != repr.buffer_len()
-    {
-        return false;
-    }
-    buf.fill(0);
-    let mut packet = Packet::new_unchecked(buf);
-    packet.set_tcode(repr.tcode());
-    packet.set_destination_id(header.destination);
-    packet.set_source_id(header.source);
-    packet.set_tl(header.tl);
-    packet.set_rt(header.rt);
-    packet.set_pri(header.pri);
-    packet.set_offset(offset);
-    match *repr {
-        PacketRepr::WriteQuadletRequest { data, .. } => packet.set_quadlet_data(data),
-        PacketRepr::WriteBlockRequest {
-            extended_tcode,
-            data,
-            ..
-        } => {
-            packet.set_data_length(data.len() as u16);
-            packet.set_extended_tcode(extended_tcode);
-            packet.data_mut().copy_from_slice(data);
-        }
-        PacketRepr::ReadBlockRequest {
-            data_length,
-            extended_tcode,
-            ..
-        } => {
-            packet.set_data_length(data_length);
-            packet.set_extended_tcode(extended_tcode);
-        }
-        _ => {}
-    }
-    true
+/// Whether `repr` is a read or write request: what the port leaves for
+/// the bus to seal ([`HostLink::submit_sealed`]).
+fn is_request(repr: &PacketRepr<'_>) -> bool {
+    matches!(
+        repr,
+        PacketRepr::WriteQuadletRequest { .. }
+            | PacketRepr::WriteBlockRequest { .. }
+            | PacketRepr::ReadQuadletRequest { .. }
+            | PacketRepr::ReadBlockRequest { .. }
+    )
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// A request written for the bus to seal is, once sealed, byte for
-    /// byte what `emit` writes, for every kind of request and data length
-    /// (not whole quadlets included, over stale bytes); anything else, or
-    /// a field out of range, is left to `emit`.
+    /// The port leaves exactly the read and write requests for the bus to
+    /// seal (the bytes: `PacketRepr::emit_unsealed`'s own test).
     #[test]
-    fn an_unsealed_request_sealed_is_the_emitted_one() {
-        let header = AsyncHeader::new(NodeId::local(3), NodeId::local(0), 17).with_pri(2);
-        let data: Vec<u8> = (0..41u8).map(|i| i.wrapping_mul(37)).collect();
-        let mut requests = vec![
+    fn only_requests_are_left_for_the_bus_to_seal() {
+        let header = AsyncHeader::new(NodeId::local(3), NodeId::local(0), 17);
+        let rcode = firelink_wire::packet::Rcode::Complete;
+        let sealed_by_the_bus = [
             PacketRepr::WriteQuadletRequest {
                 header,
-                offset: 0xFFFF_F000_0100,
-                data: 0xDEAD_BEEF,
+                offset: 0,
+                data: 1,
+            },
+            PacketRepr::WriteBlockRequest {
+                header,
+                offset: 0,
+                extended_tcode: 0,
+                data: &[1, 2, 3, 4],
             },
             PacketRepr::ReadQuadletRequest { header, offset: 4 },
             PacketRepr::ReadBlockRequest {
@@ -683,37 +643,21 @@ mod tests {
                 extended_tcode: 0,
             },
         ];
-        for len in [0, 1, 4, 7, 41] {
-            requests.push(PacketRepr::WriteBlockRequest {
+        assert!(sealed_by_the_bus.iter().all(is_request));
+        let others = [
+            PacketRepr::WriteResponse { header, rcode },
+            PacketRepr::ReadQuadletResponse {
                 header,
-                offset: 0x2000,
+                rcode,
+                data: 0,
+            },
+            PacketRepr::ReadBlockResponse {
+                header,
+                rcode,
                 extended_tcode: 0,
-                data: &data[..len],
-            });
-        }
-        for repr in &requests {
-            let mut emitted = vec![0; repr.buffer_len()];
-            repr.emit(&mut emitted).unwrap();
-            let mut unsealed = vec![0xA5; repr.buffer_len()];
-            assert!(emit_unsealed(repr, &mut unsealed), "{repr:?}");
-            let mut packet = Packet::new_checked(&mut unsealed[..]).unwrap();
-            assert_eq!(packet.header_crc(), Some(0), "{repr:?}: left to the bus");
-            packet.fill_header_crc();
-            packet.fill_data_crc();
-            assert_eq!(unsealed, emitted, "{repr:?}");
-        }
-        let response = PacketRepr::WriteResponse {
-            header,
-            rcode: firelink_wire::packet::Rcode::Complete,
-        };
-        let out_of_range = PacketRepr::ReadQuadletRequest {
-            header,
-            offset: MAX_OFFSET + 1,
-        };
-        for repr in [response, out_of_range] {
-            let mut buf = vec![0xA5; repr.buffer_len()];
-            assert!(!emit_unsealed(&repr, &mut buf), "{repr:?}");
-            assert!(buf.iter().all(|&b| b == 0xA5), "nothing written");
-        }
+                data: &[],
+            },
+        ];
+        assert!(!others.iter().any(is_request));
     }
 }

@@ -1493,46 +1493,18 @@ pub(crate) fn emit_into(repr: &PacketRepr<'_>, mut buffer: Vec<u8>) -> Vec<u8> {
 }
 
 /// [`emit_into`] with the CRCs written as `crcs` says: for
-/// [`Crcs::LeftToTheBus`], a read response (quadlet or block) is the same
-/// bytes with its header CRC and data CRC fields left zero (the bus's
-/// sealing, which also zeroes the padding, makes them `emit_into`'s).
-/// Any other packet, or a header field out of range, is emitted with its
-/// CRCs (sealing those bytes changes nothing).
+/// [`Crcs::LeftToTheBus`], the same bytes with the header CRC and data
+/// CRC fields left zero ([`PacketRepr::emit_unsealed`]; the bus's sealing
+/// makes them `emit_into`'s).
 fn emit_as(repr: &PacketRepr<'_>, mut buffer: Vec<u8>, crcs: Crcs) -> Vec<u8> {
-    let (header, rcode) = match (crcs, *repr) {
-        (
-            Crcs::LeftToTheBus,
-            PacketRepr::ReadQuadletResponse { header, rcode, .. }
-            | PacketRepr::ReadBlockResponse { header, rcode, .. },
-        ) => (header, rcode),
-        _ => return emit_into(repr, buffer),
-    };
-    // `emit`'s range checks; a field out of range is left to it.
-    if header.tl > 0x3F || header.rt > 0x3 || header.pri > 0xF || repr.data().len() > 0xFFFF {
+    if crcs == Crcs::Filled {
         return emit_into(repr, buffer);
     }
     buffer.clear();
     buffer.resize(repr.buffer_len(), 0);
-    let mut packet = Packet::new_unchecked(&mut buffer[..]);
-    packet.set_tcode(repr.tcode());
-    packet.set_destination_id(header.destination);
-    packet.set_source_id(header.source);
-    packet.set_tl(header.tl);
-    packet.set_rt(header.rt);
-    packet.set_pri(header.pri);
-    packet.set_rcode(rcode);
-    match *repr {
-        PacketRepr::ReadQuadletResponse { data, .. } => packet.set_quadlet_data(data),
-        PacketRepr::ReadBlockResponse {
-            extended_tcode,
-            data,
-            ..
-        } => {
-            packet.set_data_length(data.len() as u16);
-            packet.set_extended_tcode(extended_tcode);
-            packet.data_mut().copy_from_slice(data);
-        }
-        _ => {}
+    match repr.emit_unsealed(&mut buffer) {
+        Ok(len) => buffer.truncate(len),
+        Err(_) => buffer.clear(),
     }
     buffer
 }

@@ -286,6 +286,25 @@ impl<'a> PacketRepr<'a> {
     /// [`Error::BufferTooSmall`], or [`Error::FieldRange`] when a field does
     /// not fit (tl > 63, offset beyond 48 bits, payload over 65535 bytes).
     pub fn emit(&self, buf: &mut [u8]) -> Result<usize> {
+        let len = self.emit_unsealed(buf)?;
+        let opaque = matches!(self, PacketRepr::Opaque { .. });
+        if let (false, Some(out)) = (opaque, buf.get_mut(..len)) {
+            let mut packet = Packet::new_unchecked(out);
+            packet.fill_header_crc();
+            packet.fill_data_crc();
+        }
+        Ok(len)
+    }
+
+    /// [`emit`](Self::emit) with the header CRC and data CRC fields left
+    /// zero, for a sender whose link writes them as the packet goes out
+    /// (the simulated bus's sealing): the same bytes once both are filled.
+    /// An [`Opaque`](PacketRepr::Opaque) packet's bytes are copied as they
+    /// are, CRCs included.
+    ///
+    /// # Errors
+    /// As [`emit`](Self::emit).
+    pub fn emit_unsealed(&self, buf: &mut [u8]) -> Result<usize> {
         let len = self.buffer_len();
         let Some(out) = buf.get_mut(..len) else {
             return Err(Error::BufferTooSmall {
@@ -364,8 +383,6 @@ impl<'a> PacketRepr<'a> {
             }
             PacketRepr::Opaque { .. } => {}
         }
-        packet.fill_header_crc();
-        packet.fill_data_crc();
         Ok(len)
     }
 }
@@ -373,6 +390,8 @@ impl<'a> PacketRepr<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::vec;
+    use std::vec::Vec;
 
     #[test]
     fn emit_rejects_out_of_range_fields() {
@@ -399,6 +418,77 @@ mod tests {
         assert!(matches!(
             repr.emit(&mut buf[..8]),
             Err(Error::BufferTooSmall { needed: 16, .. })
+        ));
+    }
+
+    /// Every kind of packet emitted unsealed is, once its CRCs are
+    /// filled, byte for byte what `emit` writes (over stale bytes, data
+    /// lengths not whole quadlets included), with both CRC fields zero
+    /// before; a field out of range is refused alike.
+    #[test]
+    fn an_unsealed_packet_sealed_is_the_emitted_one() {
+        let header = AsyncHeader::new(NodeId::local(3), NodeId::local(0), 17).with_pri(2);
+        let data: Vec<u8> = (0..41u8).map(|i| i.wrapping_mul(37)).collect();
+        let mut packets = vec![
+            PacketRepr::WriteQuadletRequest {
+                header,
+                offset: 0xFFFF_F000_0100,
+                data: 0xDEAD_BEEF,
+            },
+            PacketRepr::ReadQuadletRequest { header, offset: 4 },
+            PacketRepr::ReadBlockRequest {
+                header,
+                offset: 0x1000,
+                data_length: 24,
+                extended_tcode: 0,
+            },
+            PacketRepr::WriteResponse {
+                header,
+                rcode: Rcode::Complete,
+            },
+            PacketRepr::ReadQuadletResponse {
+                header,
+                rcode: Rcode::Complete,
+                data: 0x1234_5678,
+            },
+        ];
+        for len in [0, 1, 4, 7, 41] {
+            packets.push(PacketRepr::WriteBlockRequest {
+                header,
+                offset: 0x2000,
+                extended_tcode: 0,
+                data: &data[..len],
+            });
+            packets.push(PacketRepr::ReadBlockResponse {
+                header,
+                rcode: Rcode::Complete,
+                extended_tcode: 0,
+                data: &data[..len],
+            });
+        }
+        for repr in &packets {
+            let mut emitted = vec![0; repr.buffer_len()];
+            repr.emit(&mut emitted).unwrap();
+            let mut unsealed = vec![0xA5; repr.buffer_len()];
+            assert_eq!(repr.emit_unsealed(&mut unsealed).unwrap(), emitted.len());
+            let mut packet = Packet::new_checked(&mut unsealed[..]).unwrap();
+            assert_eq!(packet.header_crc(), Some(0), "{repr:?}: left to the sender");
+            assert!(matches!(packet.data_crc(), None | Some(0)), "{repr:?}");
+            packet.fill_header_crc();
+            packet.fill_data_crc();
+            assert_eq!(unsealed, emitted, "{repr:?}");
+        }
+        let out_of_range = PacketRepr::ReadQuadletRequest {
+            header,
+            offset: MAX_OFFSET + 1,
+        };
+        let mut buf = [0u8; 16];
+        assert!(matches!(
+            out_of_range.emit_unsealed(&mut buf),
+            Err(Error::FieldRange {
+                field: "offset",
+                ..
+            })
         ));
     }
 
