@@ -526,6 +526,18 @@ mod tests {
         }
     }
 
+    /// [`limits`] with every check switched off.
+    fn every_check_off() -> JointLimits {
+        JointLimits {
+            velocity: None,
+            following_error: None,
+            saturation_time: None,
+            position: None,
+            potentiometer: None,
+            ..limits()
+        }
+    }
+
     fn ok() -> JointSample {
         JointSample {
             setpoint: 0.1,
@@ -556,14 +568,7 @@ mod tests {
     /// (infinite: the quiet pass must test the sample's finiteness).
     #[test]
     fn an_infinite_value_is_invalid_with_or_without_bounds() {
-        let off = JointLimits {
-            velocity: None,
-            following_error: None,
-            saturation_time: None,
-            position: None,
-            potentiometer: None,
-            ..limits()
-        };
+        let off = every_check_off();
         let samples = [
             (
                 "velocity",
@@ -648,14 +653,7 @@ mod tests {
     /// checks one by one, which find nothing).
     #[test]
     fn extreme_finite_values_are_valid_with_every_check_off() {
-        let off = JointLimits {
-            velocity: None,
-            following_error: None,
-            saturation_time: None,
-            position: None,
-            potentiometer: None,
-            ..limits()
-        };
+        let off = every_check_off();
         let extreme = JointSample {
             setpoint: f64::MAX,
             position: f64::MIN,

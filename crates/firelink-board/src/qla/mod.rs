@@ -1482,14 +1482,8 @@ pub(crate) fn emit(repr: &PacketRepr<'_>) -> Vec<u8> {
 
 /// [`emit`] into `buffer`'s memory (whatever it held is dropped; it grows
 /// only when the packet does not fit).
-pub(crate) fn emit_into(repr: &PacketRepr<'_>, mut buffer: Vec<u8>) -> Vec<u8> {
-    buffer.clear();
-    buffer.resize(repr.buffer_len(), 0);
-    match repr.emit(&mut buffer) {
-        Ok(len) => buffer.truncate(len),
-        Err(_) => buffer.clear(),
-    }
-    buffer
+pub(crate) fn emit_into(repr: &PacketRepr<'_>, buffer: Vec<u8>) -> Vec<u8> {
+    emit_as(repr, buffer, Crcs::Filled)
 }
 
 /// [`emit_into`] with the CRCs written as `crcs` says: for
@@ -1497,12 +1491,13 @@ pub(crate) fn emit_into(repr: &PacketRepr<'_>, mut buffer: Vec<u8>) -> Vec<u8> {
 /// CRC fields left zero ([`PacketRepr::emit_unsealed`]; the bus's sealing
 /// makes them `emit_into`'s).
 fn emit_as(repr: &PacketRepr<'_>, mut buffer: Vec<u8>, crcs: Crcs) -> Vec<u8> {
-    if crcs == Crcs::Filled {
-        return emit_into(repr, buffer);
-    }
     buffer.clear();
     buffer.resize(repr.buffer_len(), 0);
-    match repr.emit_unsealed(&mut buffer) {
+    let written = match crcs {
+        Crcs::Filled => repr.emit(&mut buffer),
+        Crcs::LeftToTheBus => repr.emit_unsealed(&mut buffer),
+    };
+    match written {
         Ok(len) => buffer.truncate(len),
         Err(_) => buffer.clear(),
     }
